@@ -1,0 +1,336 @@
+//! The per-sample compensation step, shared by `trainer compensate` and the firmware.
+//!
+//! Per gyro sample: detect gaps, validate the loop temperature (holding the
+//! last good value through a sensor fault for a bounded time), update the
+//! features, evaluate the model and subtract. Every sample yields exactly one
+//! [`CompensatedSample`]; what went wrong is said in its [`Flags`].
+
+use crate::features::{FeatureExtractor, FeatureVector};
+use crate::flags::Flags;
+use crate::model::Model;
+
+/// Loop settings that belong to the deployment, not to the model.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CompensatorConfig {
+    /// Nominal gyro sample period, s. A time step over twice this is a gap:
+    /// the feature state restarts (recorded-run format).
+    pub nominal_period_s: f32,
+    /// How long the last good temperature may stand in for a failed sensor, s.
+    /// Past this the output is uncompensated (flag 4) until the sensor recovers.
+    pub max_temp_hold_s: f32,
+    /// Lowest plausible loop temperature, °C (TMP117 range starts at −55 °C).
+    pub min_plausible_temp_c: f32,
+    /// Highest plausible loop temperature, °C (TMP117 range ends at 150 °C).
+    pub max_plausible_temp_c: f32,
+    /// Largest plausible |rate|, °/h; beyond it the sample is flagged invalid.
+    pub max_abs_rate_dph: f32,
+}
+
+impl CompensatorConfig {
+    /// Defaults for a gyro sampled at `sample_rate_hz`: 10 s temperature hold,
+    /// −60 … 160 °C plausible, ±1000 °/s (3.6e6 °/h) plausible rate.
+    pub fn for_sample_rate(sample_rate_hz: f32) -> Self {
+        CompensatorConfig {
+            nominal_period_s: 1.0 / sample_rate_hz,
+            max_temp_hold_s: 10.0,
+            min_plausible_temp_c: -60.0,
+            max_plausible_temp_c: 160.0,
+            max_abs_rate_dph: 3.6e6,
+        }
+    }
+
+    /// True when a time step of `dt_s` seconds breaks the run into a new segment.
+    pub fn is_gap(&self, dt_s: f32) -> bool {
+        !(dt_s > 0.0 && dt_s <= 2.0 * self.nominal_period_s)
+    }
+
+    fn is_plausible_temp(&self, temp_c: f32) -> bool {
+        temp_c >= self.min_plausible_temp_c && temp_c <= self.max_plausible_temp_c
+    }
+}
+
+/// One gyro sample as it arrives.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GyroSample {
+    /// Time since the previous sample, s (ignored on the very first sample).
+    pub dt_s: f32,
+    /// Gyro output, °/h.
+    pub rate_dph: f32,
+    /// Loop temperature, °C; `None` when the sensor failed to answer.
+    pub temp_c: Option<f32>,
+}
+
+/// One output sample: always produced, whatever the inputs were.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CompensatedSample {
+    /// Bias estimate subtracted, °/h (0 when uncompensated).
+    pub bias_dph: f32,
+    /// `rate_dph − bias_dph`, °/h.
+    pub rate_comp_dph: f32,
+    /// Loop temperature the features used (held value during a fault), °C; NaN if none yet.
+    pub temp_c: f32,
+    /// What went wrong, if anything.
+    pub flags: Flags,
+}
+
+/// Features of one sample plus the flags raised while computing them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FeatureFrame {
+    /// The model inputs; `None` when no usable temperature is available.
+    pub features: Option<FeatureVector>,
+    /// Flags raised so far (sensor fault, warm-up, no valid model).
+    pub flags: Flags,
+}
+
+/// Running state of the compensation loop (the model is passed by reference).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Compensator {
+    extractor: FeatureExtractor,
+    last_good_temp_c: Option<f32>,
+    fault_hold_s: f32,
+    restart_pending: bool,
+    started: bool,
+}
+
+impl Compensator {
+    /// A fresh loop: the first sample starts a segment.
+    pub const fn new() -> Self {
+        Compensator {
+            extractor: FeatureExtractor::new(),
+            last_good_temp_c: None,
+            fault_hold_s: 0.0,
+            restart_pending: false,
+            started: false,
+        }
+    }
+
+    /// Computes the features of one sample (the training path uses this directly).
+    pub fn features(
+        &mut self,
+        model_features: &crate::FeatureConfig,
+        config: &CompensatorConfig,
+        sample: &GyroSample,
+    ) -> FeatureFrame {
+        let mut flags = Flags::NONE;
+        let gap = !self.started || config.is_gap(sample.dt_s);
+        self.started = true;
+        if gap {
+            self.extractor.restart();
+        }
+        let elapsed_s = if sample.dt_s.is_finite() && sample.dt_s > 0.0 {
+            sample.dt_s
+        } else {
+            0.0
+        };
+
+        let temp_c = match sample.temp_c.filter(|&t| config.is_plausible_temp(t)) {
+            Some(t) => {
+                self.last_good_temp_c = Some(t);
+                self.fault_hold_s = 0.0;
+                if self.restart_pending {
+                    self.restart_pending = false;
+                    self.extractor.restart();
+                }
+                t
+            }
+            None => {
+                flags |= Flags::TEMP_SENSOR_FAULT;
+                self.fault_hold_s += elapsed_s;
+                match self.last_good_temp_c {
+                    Some(held) if self.fault_hold_s <= config.max_temp_hold_s => held,
+                    _ => {
+                        // Held too long (or never had a value): stop compensating and
+                        // start the features afresh once the sensor answers again.
+                        self.restart_pending = true;
+                        return FeatureFrame {
+                            features: None,
+                            flags: flags | Flags::NO_VALID_MODEL,
+                        };
+                    }
+                }
+            }
+        };
+        let dt_s = if gap { 0.0 } else { sample.dt_s };
+        let features = self.extractor.update(model_features, dt_s, temp_c);
+        if features.warming_up {
+            flags |= Flags::WARMING_UP;
+        }
+        FeatureFrame {
+            features: Some(features),
+            flags,
+        }
+    }
+
+    /// Compensates one sample. `model = None` (absent or invalid blob) passes the
+    /// rate through with flag 4 while still tracking temperature faults.
+    pub fn process(
+        &mut self,
+        model: Option<&Model>,
+        config: &CompensatorConfig,
+        sample: &GyroSample,
+    ) -> CompensatedSample {
+        const NO_FEATURES: crate::FeatureConfig = crate::FeatureConfig {
+            set: crate::FeatureSet::Temp,
+            rate_window_s: 0.0,
+        };
+        let feature_config = model.map_or(&NO_FEATURES, |m| m.features());
+        let frame = self.features(feature_config, config, sample);
+        let mut flags = frame.flags;
+        if !(sample.rate_dph.is_finite() && sample.rate_dph.abs() <= config.max_abs_rate_dph) {
+            flags |= Flags::RATE_INVALID;
+        }
+        let temp_c = frame.features.map_or(f32::NAN, |f| f.temp_c());
+        let bias_dph = match (model, frame.features) {
+            (Some(model), Some(features)) => {
+                let evaluation = model.eval(&features);
+                if evaluation.clamped {
+                    flags |= Flags::INPUT_CLAMPED;
+                }
+                evaluation.bias_dph
+            }
+            _ => {
+                flags |= Flags::NO_VALID_MODEL;
+                0.0
+            }
+        };
+        CompensatedSample {
+            bias_dph,
+            rate_comp_dph: sample.rate_dph - bias_dph,
+            temp_c,
+            flags,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{ModelBody, ModelInfo};
+    use crate::poly::Poly3;
+    use crate::{FeatureConfig, FeatureSet};
+
+    fn linear_in_t() -> Model {
+        let cfg = FeatureConfig {
+            set: FeatureSet::Temp,
+            rate_window_s: 0.0,
+        };
+        let body = ModelBody::Poly3(Poly3::new(0.0, [0.0, 1.0, 0.0, 0.0]).unwrap());
+        Model::new(cfg, &[(-50.0, 100.0)], body, ModelInfo::default()).unwrap()
+    }
+
+    fn sample(temp_c: Option<f32>) -> GyroSample {
+        GyroSample {
+            dt_s: 1.0,
+            rate_dph: 100.0,
+            temp_c,
+        }
+    }
+
+    #[test]
+    fn subtracts_the_model_bias() {
+        let model = linear_in_t();
+        let cfg = CompensatorConfig::for_sample_rate(1.0);
+        let mut comp = Compensator::new();
+        let out = comp.process(Some(&model), &cfg, &sample(Some(25.0)));
+        assert_eq!(out.bias_dph, 25.0);
+        assert_eq!(out.rate_comp_dph, 75.0);
+    }
+
+    #[test]
+    fn sensor_fault_holds_the_last_good_value_then_gives_up_until_recovery() {
+        let model = linear_in_t();
+        let mut cfg = CompensatorConfig::for_sample_rate(1.0);
+        cfg.max_temp_hold_s = 3.0;
+        let mut comp = Compensator::new();
+        comp.process(Some(&model), &cfg, &sample(Some(30.0)));
+        for _ in 0..3 {
+            let held = comp.process(Some(&model), &cfg, &sample(None));
+            assert_eq!(held.bias_dph, 30.0);
+            assert!(held.flags.contains(Flags::TEMP_SENSOR_FAULT));
+            assert!(!held.flags.contains(Flags::NO_VALID_MODEL));
+        }
+        let expired = comp.process(Some(&model), &cfg, &sample(Some(f32::NAN)));
+        assert_eq!(
+            expired.flags,
+            Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL
+        );
+        assert_eq!(
+            expired.rate_comp_dph, 100.0,
+            "uncompensated once the hold has expired"
+        );
+        let recovered = comp.process(Some(&model), &cfg, &sample(Some(31.0)));
+        assert_eq!(recovered.bias_dph, 31.0);
+        assert!(
+            recovered.flags.contains(Flags::WARMING_UP),
+            "features restart after recovery"
+        );
+    }
+
+    #[test]
+    fn implausible_temperatures_count_as_faults() {
+        let model = linear_in_t();
+        let cfg = CompensatorConfig::for_sample_rate(1.0);
+        let mut comp = Compensator::new();
+        comp.process(Some(&model), &cfg, &sample(Some(20.0)));
+        let out = comp.process(Some(&model), &cfg, &sample(Some(-273.0)));
+        assert!(out.flags.contains(Flags::TEMP_SENSOR_FAULT));
+        assert_eq!(out.bias_dph, 20.0);
+    }
+
+    #[test]
+    fn no_model_or_no_temperature_passes_the_rate_through_with_flag_4() {
+        let cfg = CompensatorConfig::for_sample_rate(1.0);
+        let mut comp = Compensator::new();
+        let out = comp.process(None, &cfg, &sample(Some(20.0)));
+        assert_eq!((out.bias_dph, out.rate_comp_dph), (0.0, 100.0));
+        assert!(out.flags.contains(Flags::NO_VALID_MODEL));
+        let model = linear_in_t();
+        let mut comp = Compensator::new();
+        let out = comp.process(Some(&model), &cfg, &sample(None));
+        assert_eq!(out.flags, Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL);
+    }
+
+    #[test]
+    fn invalid_rates_are_passed_through_and_flagged() {
+        let model = linear_in_t();
+        let cfg = CompensatorConfig::for_sample_rate(1.0);
+        let mut comp = Compensator::new();
+        for rate in [f32::NAN, f32::INFINITY, 1e9] {
+            let out = comp.process(
+                Some(&model),
+                &cfg,
+                &GyroSample {
+                    dt_s: 1.0,
+                    rate_dph: rate,
+                    temp_c: Some(20.0),
+                },
+            );
+            assert!(out.flags.contains(Flags::RATE_INVALID), "rate {rate}");
+            assert!(out.bias_dph.is_finite());
+        }
+    }
+
+    #[test]
+    fn a_gap_restarts_the_features() {
+        let cfg_model = FeatureConfig {
+            set: FeatureSet::TempRate,
+            rate_window_s: 0.0,
+        };
+        let cfg = CompensatorConfig::for_sample_rate(1.0);
+        let mut comp = Compensator::new();
+        comp.features(&cfg_model, &cfg, &sample(Some(20.0)));
+        let step = comp
+            .features(&cfg_model, &cfg, &sample(Some(21.0)))
+            .features
+            .unwrap();
+        assert_eq!(step.as_slice()[1], 60.0, "1 °C in 1 s is 60 °C/min");
+        let after_gap = GyroSample {
+            dt_s: 2.5,
+            rate_dph: 0.0,
+            temp_c: Some(30.0),
+        };
+        let frame = comp.features(&cfg_model, &cfg, &after_gap);
+        assert_eq!(frame.features.unwrap().as_slice()[1], 0.0);
+        assert!(frame.flags.contains(Flags::WARMING_UP));
+    }
+}

@@ -1,0 +1,293 @@
+//! Streaming fiber-loop temperature features.
+//!
+//! Per gyro sample the extractor turns (time step, loop temperature) into the
+//! model inputs: T in °C, ΔT in °C/min and their product T×ΔT in °C²/min.
+//!
+//! ## What ΔT means
+//! A per-sample difference is quantisation noise at kilohertz rates (a TMP117
+//! LSB is 0.0078 °C), so ΔT is the rate of change in °C/min through a
+//! first-order derivative filter with time constant τ = `rate_window_s`:
+//!
+//! ```text
+//! ΔT_i = (T_i − S_{i−1}) / (τ + dt_i)          [°C/s, reported ×60 as °C/min]
+//! S_i  = S_{i−1} + dt_i · ΔT_i                 (S: the smoothed temperature)
+//! ```
+//!
+//! On a steady ramp of r °C/min this reads exactly r at any sample rate and
+//! with jitter; noise is averaged over about τ. With τ = 0, S_i = T_i and
+//! ΔT_i = (T_i − T_{i−1}) / dt_i: the IFOG paper's Eq. 22 (ΔT_i = T_i − T_{i−1},
+//! 0 for i = 1) expressed per minute. τ is stored in the model blob, so the
+//! firmware computes exactly what the trainer fitted on.
+//!
+//! After a start or a gap the filter restarts with S = T (ΔT = 0) and the
+//! samples of the next 3τ are flagged as warming up (the filter's step
+//! response has then settled to 95 %).
+
+use serde::{Deserialize, Serialize};
+
+use crate::MAX_INPUTS;
+
+/// Seconds per minute: ΔT is reported in °C/min.
+const SECONDS_PER_MINUTE: f32 = 60.0;
+/// Warm-up lasts this many filter time constants (95 % settled).
+const WARMUP_TIME_CONSTANTS: f32 = 3.0;
+/// Longest derivative time constant accepted, s (one day).
+const MAX_RATE_WINDOW_S: f32 = 86_400.0;
+
+/// Which inputs a model takes, in this order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum FeatureSet {
+    /// (T): the loop temperature alone, for the cubic-in-T baseline.
+    Temp,
+    /// (T, ΔT): the IFOG paper's model before its modification (`--method rbf2`).
+    TempRate,
+    /// (T, ΔT, T×ΔT): the IFOG paper's modified model (`--method rbf`).
+    TempRateProduct,
+}
+
+impl FeatureSet {
+    /// Number of model inputs this set produces.
+    pub const fn dims(self) -> usize {
+        match self {
+            FeatureSet::Temp => 1,
+            FeatureSet::TempRate => 2,
+            FeatureSet::TempRateProduct => 3,
+        }
+    }
+
+    /// Names of the inputs with units, for reports.
+    pub const fn names(self) -> &'static [&'static str] {
+        match self {
+            FeatureSet::Temp => &["T [°C]"],
+            FeatureSet::TempRate => &["T [°C]", "ΔT [°C/min]"],
+            FeatureSet::TempRateProduct => &["T [°C]", "ΔT [°C/min]", "T×ΔT [°C²/min]"],
+        }
+    }
+}
+
+/// How features are computed; stored in the model blob.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FeatureConfig {
+    /// The inputs the model takes.
+    pub set: FeatureSet,
+    /// Time constant τ of the ΔT derivative filter, s. 0 = one-sample difference (Eq. 22).
+    pub rate_window_s: f32,
+}
+
+impl FeatureConfig {
+    /// Number of model inputs.
+    pub const fn dims(&self) -> usize {
+        self.set.dims()
+    }
+
+    /// How long after a (re)start samples are flagged as warming up, s.
+    pub fn warmup_s(&self) -> f32 {
+        WARMUP_TIME_CONSTANTS * self.rate_window_s
+    }
+
+    /// True when the configuration is usable (finite window within 0 ..= 1 day).
+    pub fn is_valid(&self) -> bool {
+        self.rate_window_s.is_finite()
+            && self.rate_window_s >= 0.0
+            && self.rate_window_s <= MAX_RATE_WINDOW_S
+    }
+}
+
+/// The model inputs of one sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FeatureVector {
+    values: [f32; MAX_INPUTS],
+    len: u8,
+    /// The derivative filter has not settled yet (see module docs).
+    pub warming_up: bool,
+}
+
+impl FeatureVector {
+    /// The inputs in [`FeatureSet`] order.
+    pub fn as_slice(&self) -> &[f32] {
+        self.values.get(..self.len as usize).unwrap_or(&[])
+    }
+
+    /// The fiber-loop temperature the features were computed from, °C.
+    pub fn temp_c(&self) -> f32 {
+        self.values[0]
+    }
+}
+
+/// Running state of the feature computation (one `f32` of filter state).
+///
+/// The configuration is passed on every call rather than stored so that the
+/// model stays the single owner of it (principle: model is data, state is separate).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FeatureExtractor {
+    smoothed_c: f32,
+    since_restart_s: f32,
+    started: bool,
+}
+
+impl FeatureExtractor {
+    /// A fresh extractor; the first sample starts a segment.
+    pub const fn new() -> Self {
+        FeatureExtractor {
+            smoothed_c: 0.0,
+            since_restart_s: 0.0,
+            started: false,
+        }
+    }
+
+    /// Forgets the history: the next sample starts a new segment (after a gap).
+    pub fn restart(&mut self) {
+        self.started = false;
+    }
+
+    /// Consumes one sample and returns its features.
+    ///
+    /// `dt_s` is the time since the previous sample in seconds; it is ignored on
+    /// the first sample of a segment. A non-finite or non-positive `dt_s`
+    /// restarts the segment. `temp_c` must be finite (the compensator
+    /// guarantees it by holding the last good value).
+    pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temp_c: f32) -> FeatureVector {
+        let rate_c_per_s = if !self.started || !(dt_s.is_finite() && dt_s > 0.0) {
+            self.started = true;
+            self.since_restart_s = 0.0;
+            self.smoothed_c = temp_c;
+            0.0
+        } else {
+            let tau_s = config.rate_window_s;
+            let rate = (temp_c - self.smoothed_c) / (tau_s + dt_s);
+            // τ = 0 is exactly the one-sample difference: keep S = T bit for bit.
+            self.smoothed_c = if tau_s == 0.0 {
+                temp_c
+            } else {
+                self.smoothed_c + dt_s * rate
+            };
+            self.since_restart_s += dt_s;
+            rate
+        };
+        let warming_up = self.since_restart_s == 0.0 || self.since_restart_s < config.warmup_s();
+        let rate_c_per_min = rate_c_per_s * SECONDS_PER_MINUTE;
+
+        let mut values = [0.0; MAX_INPUTS];
+        values[0] = temp_c;
+        match config.set {
+            FeatureSet::Temp => {}
+            FeatureSet::TempRate => values[1] = rate_c_per_min,
+            FeatureSet::TempRateProduct => {
+                values[1] = rate_c_per_min;
+                values[2] = temp_c * rate_c_per_min;
+            }
+        }
+        FeatureVector {
+            values,
+            len: config.dims() as u8,
+            warming_up,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn paper(rate_window_s: f32) -> FeatureConfig {
+        FeatureConfig {
+            set: FeatureSet::TempRateProduct,
+            rate_window_s,
+        }
+    }
+
+    #[test]
+    fn eq22_one_sample_difference_is_the_zero_window_case() {
+        // IFOG Eq. 22: ΔT_i = T_i − T_{i−1}, 0 for i = 1; here per minute at dt = 1 s.
+        let temps = [20.0f32, 20.5, 20.25, 21.0, 21.0];
+        let mut fx = FeatureExtractor::new();
+        let cfg = paper(0.0);
+        let mut prev: Option<f32> = None;
+        for &t in &temps {
+            let f = fx.update(&cfg, 1.0, t);
+            let expected_per_sample = prev.map_or(0.0, |p| t - p);
+            // Exact: differences of these binary fractions are exact in f32.
+            assert_eq!(f.as_slice()[1], expected_per_sample * 60.0);
+            assert_eq!(f.as_slice()[2], t * expected_per_sample * 60.0);
+            prev = Some(t);
+        }
+    }
+
+    #[test]
+    fn steady_ramp_reads_its_rate_in_degrees_per_minute_at_any_sample_rate() {
+        for &rate_hz in &[1.0f32, 10.0, 1000.0] {
+            let dt = 1.0 / rate_hz;
+            let cfg = paper(30.0);
+            let mut fx = FeatureExtractor::new();
+            let ramp_c_per_min = 2.0f32;
+            let n = (600.0 * rate_hz) as usize; // 10 min = 20 τ: settled
+            let mut last = None;
+            for i in 0..n {
+                let t_s = i as f64 * dt as f64;
+                let temp = 10.0 + (ramp_c_per_min as f64 / 60.0 * t_s) as f32;
+                last = Some(fx.update(&cfg, dt, temp));
+            }
+            let f = last.unwrap();
+            let dtemp = f.as_slice()[1];
+            assert!(
+                (dtemp - ramp_c_per_min).abs() < 0.01,
+                "{rate_hz} Hz: ΔT = {dtemp} °C/min"
+            );
+            assert!(!f.warming_up);
+        }
+    }
+
+    #[test]
+    fn warm_up_lasts_three_time_constants_and_restart_begins_again() {
+        let cfg = paper(10.0);
+        let mut fx = FeatureExtractor::new();
+        let first = fx.update(&cfg, 1.0, 25.0);
+        assert!(first.warming_up);
+        assert_eq!(first.as_slice()[1], 0.0);
+        let mut settled_at = None;
+        for i in 1..100 {
+            if !fx.update(&cfg, 1.0, 25.0).warming_up {
+                settled_at = Some(i);
+                break;
+            }
+        }
+        assert_eq!(settled_at, Some(30));
+        fx.restart();
+        let after_gap = fx.update(&cfg, 1.0, 40.0);
+        assert!(after_gap.warming_up);
+        assert_eq!(
+            after_gap.as_slice()[1],
+            0.0,
+            "a gap must not read as a temperature step"
+        );
+    }
+
+    #[test]
+    fn bad_time_steps_restart_instead_of_producing_nonsense() {
+        let cfg = paper(0.0);
+        let mut fx = FeatureExtractor::new();
+        fx.update(&cfg, 1.0, 20.0);
+        for dt in [0.0f32, -1.0, f32::NAN, f32::INFINITY] {
+            let f = fx.update(&cfg, dt, 30.0);
+            assert_eq!(f.as_slice()[1], 0.0, "dt = {dt}");
+            assert!(f.as_slice().iter().all(|v| v.is_finite()));
+        }
+    }
+
+    #[test]
+    fn feature_sets_have_their_documented_dimensions() {
+        let mut fx = FeatureExtractor::new();
+        for set in [
+            FeatureSet::Temp,
+            FeatureSet::TempRate,
+            FeatureSet::TempRateProduct,
+        ] {
+            let cfg = FeatureConfig {
+                set,
+                rate_window_s: 5.0,
+            };
+            assert_eq!(fx.update(&cfg, 1.0, 20.0).as_slice().len(), set.dims());
+            assert_eq!(set.names().len(), set.dims());
+        }
+    }
+}

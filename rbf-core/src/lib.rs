@@ -1,0 +1,34 @@
+//! # rbf-core: the computation every gyro sample goes through
+//!
+//! `no_std`, no allocation, no panics on any input. The host `trainer` and the
+//! `firmware` both call these functions, so a model evaluates to the same bits
+//! on the calibration PC and on the gyro's Cortex-M4F.
+//!
+//! - [`features`]: streaming fiber-loop temperature features (T, ΔT, T×ΔT), ΔT in °C/min.
+//! - [`rbf`]: a fixed-capacity Gaussian RBF network with input normalisation and clamping.
+//! - [`poly`]: the cubic-in-T baseline (the PX4 / ArduPilot form).
+//! - [`model`]: a deployable model (either kind + feature configuration + ranges).
+//! - [`compensator`]: the per-sample loop state (sensor-fault hold, gaps, flags).
+//! - [`blob`]: the model blob format (header, postcard payload, CRC-32) and its decoder.
+//!
+//! Sizes live in types ([`MAX_CENTERS`], [`MAX_INPUTS`]); values are runtime data.
+#![cfg_attr(not(any(test, feature = "std")), no_std)]
+
+pub mod blob;
+pub mod compensator;
+pub mod features;
+pub mod flags;
+pub mod model;
+pub mod poly;
+pub mod rbf;
+pub mod record;
+
+/// Most Gaussian centres a deployable model may hold (firmware RAM is sized for it).
+pub const MAX_CENTERS: usize = 64;
+/// Most model inputs (features) a deployable model may use.
+pub const MAX_INPUTS: usize = 8;
+
+pub use compensator::{CompensatedSample, Compensator, CompensatorConfig, GyroSample};
+pub use features::{FeatureConfig, FeatureExtractor, FeatureSet, FeatureVector};
+pub use flags::Flags;
+pub use model::{Model, ModelError, ModelInfo};

@@ -1,0 +1,272 @@
+//! A deployable model: feature configuration, training input ranges and the
+//! regression body (Gaussian RBF network or cubic baseline).
+
+use crate::features::{FeatureConfig, FeatureSet, FeatureVector};
+use crate::poly::Poly3;
+use crate::rbf::RbfNetwork;
+use crate::{MAX_CENTERS, MAX_INPUTS};
+
+/// Longest unit serial number a blob may carry, bytes of UTF-8.
+pub const SERIAL_CAPACITY: usize = 32;
+
+/// Why a set of model parameters is not a usable model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ModelError {
+    /// More centres or inputs than the firmware capacity ([`MAX_CENTERS`], [`MAX_INPUTS`]).
+    ShapeOverCapacity,
+    /// Parameter arrays disagree in length with the model's shape.
+    ShapeMismatch,
+    /// A parameter is NaN or infinite.
+    NonFiniteParameter,
+    /// A parameter is finite but meaningless (width ≤ 0, range min > max, ...).
+    InvalidParameter,
+}
+
+impl core::fmt::Display for ModelError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            ModelError::ShapeOverCapacity => "model shape exceeds the firmware capacity",
+            ModelError::ShapeMismatch => "parameter arrays disagree with the model shape",
+            ModelError::NonFiniteParameter => "a model parameter is NaN or infinite",
+            ModelError::InvalidParameter => "a model parameter is out of its valid range",
+        })
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for ModelError {}
+
+/// Which regression a model holds; the code is stored in the blob header.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum ModelKind {
+    /// Gaussian RBF network ([`RbfNetwork`]).
+    Rbf = 1,
+    /// Cubic polynomial in T ([`Poly3`]).
+    Poly3 = 2,
+}
+
+impl ModelKind {
+    /// The kind for a header code, if known.
+    pub const fn from_code(code: u8) -> Option<Self> {
+        match code {
+            1 => Some(ModelKind::Rbf),
+            2 => Some(ModelKind::Poly3),
+            _ => None,
+        }
+    }
+
+    /// Short name for reports.
+    pub const fn name(self) -> &'static str {
+        match self {
+            ModelKind::Rbf => "gaussian-rbf",
+            ModelKind::Poly3 => "poly3",
+        }
+    }
+}
+
+/// Descriptive data carried in the blob beside the parameters.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ModelInfo {
+    /// Serial number of the gyro the model was calibrated for, if given.
+    pub serial: Option<heapless::String<SERIAL_CAPACITY>>,
+}
+
+/// The RBF network at the firmware's capacity.
+pub type DeployedRbf = RbfNetwork<MAX_CENTERS, MAX_INPUTS>;
+
+/// The regression part of a model.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ModelBody {
+    /// Gaussian RBF network.
+    Rbf(DeployedRbf),
+    /// Cubic baseline in T.
+    Poly3(Poly3),
+}
+
+/// Result of evaluating a model on one feature vector.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Evaluation {
+    /// Estimated gyro bias, °/h.
+    pub bias_dph: f32,
+    /// At least one input was outside the training range and was clamped.
+    pub clamped: bool,
+}
+
+/// A complete, validated model: what a blob decodes to and the firmware runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Model {
+    features: FeatureConfig,
+    input_min: [f32; MAX_INPUTS],
+    input_max: [f32; MAX_INPUTS],
+    body: ModelBody,
+    info: ModelInfo,
+}
+
+impl Model {
+    /// Assembles a model, checking that features, ranges and body agree.
+    ///
+    /// `input_range` holds (min, max) per input in input units: the training range
+    /// that inputs are clamped to.
+    pub fn new(
+        features: FeatureConfig,
+        input_range: &[(f32, f32)],
+        body: ModelBody,
+        info: ModelInfo,
+    ) -> Result<Self, ModelError> {
+        let dims = features.dims();
+        if dims > MAX_INPUTS {
+            return Err(ModelError::ShapeOverCapacity);
+        }
+        let body_dims = match &body {
+            ModelBody::Rbf(net) => net.inputs_used(),
+            ModelBody::Poly3(_) => {
+                if features.set != FeatureSet::Temp {
+                    return Err(ModelError::ShapeMismatch);
+                }
+                1
+            }
+        };
+        if body_dims != dims || input_range.len() != dims {
+            return Err(ModelError::ShapeMismatch);
+        }
+        if !features.is_valid() {
+            return Err(ModelError::InvalidParameter);
+        }
+        let mut input_min = [0.0; MAX_INPUTS];
+        let mut input_max = [0.0; MAX_INPUTS];
+        for (i, &(lo, hi)) in input_range.iter().enumerate() {
+            if !(lo.is_finite() && hi.is_finite()) {
+                return Err(ModelError::NonFiniteParameter);
+            }
+            if lo > hi {
+                return Err(ModelError::InvalidParameter);
+            }
+            input_min[i] = lo;
+            input_max[i] = hi;
+        }
+        Ok(Model {
+            features,
+            input_min,
+            input_max,
+            body,
+            info,
+        })
+    }
+
+    /// How the firmware must compute this model's inputs.
+    pub fn features(&self) -> &FeatureConfig {
+        &self.features
+    }
+
+    /// The regression body.
+    pub fn body(&self) -> &ModelBody {
+        &self.body
+    }
+
+    /// Descriptive data (serial number).
+    pub fn info(&self) -> &ModelInfo {
+        &self.info
+    }
+
+    /// The model kind stored in the blob header.
+    pub fn kind(&self) -> ModelKind {
+        match self.body {
+            ModelBody::Rbf(_) => ModelKind::Rbf,
+            ModelBody::Poly3(_) => ModelKind::Poly3,
+        }
+    }
+
+    /// Training range (min, max) of input `i`, input units.
+    pub fn input_range(&self, i: usize) -> Option<(f32, f32)> {
+        (i < self.features.dims()).then(|| (self.input_min[i], self.input_max[i]))
+    }
+
+    /// Clamps the inputs to the training range and evaluates the bias, °/h.
+    pub fn eval(&self, features: &FeatureVector) -> Evaluation {
+        let raw = features.as_slice();
+        let mut x = [0.0f32; MAX_INPUTS];
+        let mut clamped = false;
+        for (i, xi) in x.iter_mut().enumerate().take(self.features.dims()) {
+            let v = raw.get(i).copied().unwrap_or(f32::NAN);
+            // max/min rather than clamp(): never panics, and maps NaN into range.
+            let c = v.max(self.input_min[i]).min(self.input_max[i]);
+            clamped |= c.to_bits() != v.to_bits();
+            *xi = c;
+        }
+        let bias_dph = match &self.body {
+            ModelBody::Rbf(net) => net.eval(&x),
+            ModelBody::Poly3(p) => p.eval(x[0]),
+        };
+        Evaluation { bias_dph, clamped }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::features::FeatureExtractor;
+
+    fn poly_model() -> Model {
+        let cfg = FeatureConfig {
+            set: FeatureSet::Temp,
+            rate_window_s: 0.0,
+        };
+        let body = ModelBody::Poly3(Poly3::new(20.0, [0.0, 1.0, 0.0, 0.0]).unwrap());
+        Model::new(cfg, &[(10.0, 30.0)], body, ModelInfo::default()).unwrap()
+    }
+
+    #[test]
+    fn inputs_outside_the_training_range_are_clamped_and_flagged() {
+        let model = poly_model();
+        let mut fx = FeatureExtractor::new();
+        let inside = model.eval(&fx.update(model.features(), 1.0, 25.0));
+        assert_eq!(
+            inside,
+            Evaluation {
+                bias_dph: 5.0,
+                clamped: false
+            }
+        );
+        let hot = model.eval(&fx.update(model.features(), 1.0, 45.0));
+        assert_eq!(
+            hot,
+            Evaluation {
+                bias_dph: 10.0,
+                clamped: true
+            }
+        );
+        let cold = model.eval(&fx.update(model.features(), 1.0, -40.0));
+        assert_eq!(
+            cold,
+            Evaluation {
+                bias_dph: -10.0,
+                clamped: true
+            }
+        );
+    }
+
+    #[test]
+    fn refuses_inconsistent_assemblies() {
+        let cfg = FeatureConfig {
+            set: FeatureSet::TempRate,
+            rate_window_s: 0.0,
+        };
+        let body = ModelBody::Poly3(Poly3::new(20.0, [0.0; 4]).unwrap());
+        let err = Model::new(cfg, &[(0.0, 1.0)], body.clone(), ModelInfo::default());
+        assert_eq!(err, Err(ModelError::ShapeMismatch));
+        let cfg = FeatureConfig {
+            set: FeatureSet::Temp,
+            rate_window_s: 0.0,
+        };
+        let err = Model::new(cfg, &[(2.0, 1.0)], body.clone(), ModelInfo::default());
+        assert_eq!(err, Err(ModelError::InvalidParameter));
+        let bad_window = FeatureConfig {
+            set: FeatureSet::Temp,
+            rate_window_s: -1.0,
+        };
+        let err = Model::new(bad_window, &[(0.0, 1.0)], body, ModelInfo::default());
+        assert_eq!(err, Err(ModelError::InvalidParameter));
+    }
+}

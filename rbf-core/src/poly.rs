@@ -1,0 +1,50 @@
+//! The cubic-in-temperature baseline: the form PX4 and ArduPilot use for
+//! gyro temperature calibration, here for comparison in the same tool.
+//!
+//! `bias = c0 + c1·u + c2·u² + c3·u³`, with `u = T − T_ref` in °C and T
+//! clamped to the training range by the caller ([`crate::Model`]).
+
+use crate::model::ModelError;
+
+/// Cubic polynomial in loop temperature about a reference temperature.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Poly3 {
+    /// Reference temperature T_ref, °C (mid training range).
+    pub ref_temp_c: f32,
+    /// Coefficients c0 [°/h], c1 [°/h/°C], c2 [°/h/°C²], c3 [°/h/°C³].
+    pub coeffs: [f32; 4],
+}
+
+impl Poly3 {
+    /// Builds the polynomial, refusing non-finite values.
+    pub fn new(ref_temp_c: f32, coeffs: [f32; 4]) -> Result<Self, ModelError> {
+        if !ref_temp_c.is_finite() || coeffs.iter().any(|c| !c.is_finite()) {
+            return Err(ModelError::NonFiniteParameter);
+        }
+        Ok(Poly3 { ref_temp_c, coeffs })
+    }
+
+    /// Bias at loop temperature `temp_c` (already clamped), °/h. Horner form.
+    pub fn eval(&self, temp_c: f32) -> f32 {
+        let u = temp_c - self.ref_temp_c;
+        let [c0, c1, c2, c3] = self.coeffs;
+        c0 + u * (c1 + u * (c2 + u * c3))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn evaluates_about_the_reference_temperature() {
+        let p = Poly3::new(25.0, [1.0, 2.0, 0.5, 0.25]).unwrap();
+        assert_eq!(p.eval(25.0), 1.0);
+        // u = 2: 1 + 4 + 2 + 2 = 9 (exact in f32).
+        assert_eq!(p.eval(27.0), 9.0);
+        assert_eq!(
+            Poly3::new(f32::INFINITY, [0.0; 4]),
+            Err(ModelError::NonFiniteParameter)
+        );
+    }
+}

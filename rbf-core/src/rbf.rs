@@ -1,0 +1,272 @@
+//! Fixed-capacity Gaussian RBF network.
+//!
+//! ```text
+//! z_i  = (x_i − offset_i) / scale_i                         (normalised inputs)
+//! y    = c + Σ_i a_i z_i + Σ_j W_j exp(−‖z − c_j‖² / 2σ_j²)
+//! ```
+//! The centres c_j and widths σ_j live in normalised units. Capacity is in the
+//! type (`K` centres, `D` inputs); the cost of [`RbfNetwork::eval`] depends only
+//! on the model's shape, never on the input values (no data-dependent loops).
+
+use crate::model::ModelError;
+
+/// Parameters of a network, as slices (host construction and blob decoding).
+#[derive(Clone, Copy, Debug)]
+pub struct RbfParams<'a> {
+    /// Per-input offset subtracted before scaling (training mean), input units.
+    pub offset: &'a [f32],
+    /// Per-input scale divided by (training standard deviation), input units.
+    pub scale: &'a [f32],
+    /// Centres in normalised units, row-major: `centers[j * d + i]`.
+    pub centers: &'a [f32],
+    /// Gaussian width σ_j of each centre, normalised units.
+    pub widths: &'a [f32],
+    /// Output weight W_j of each centre, °/h.
+    pub weights: &'a [f32],
+    /// Linear coefficient a_i per normalised input, °/h; empty for none.
+    pub linear: &'a [f32],
+    /// Constant term c, °/h.
+    pub constant: f32,
+}
+
+/// A Gaussian RBF network holding at most `K` centres over at most `D` inputs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RbfNetwork<const K: usize, const D: usize> {
+    centers_used: usize,
+    inputs_used: usize,
+    offset: [f32; D],
+    scale: [f32; D],
+    inv_scale: [f32; D],
+    centers: [[f32; D]; K],
+    widths: [f32; K],
+    neg_half_inv_var: [f32; K],
+    weights: [f32; K],
+    linear: [f32; D],
+    has_linear: bool,
+    constant: f32,
+}
+
+fn all_finite(values: &[f32]) -> bool {
+    values.iter().all(|v| v.is_finite())
+}
+
+impl<const K: usize, const D: usize> RbfNetwork<K, D> {
+    /// Builds a network, checking shapes against capacity and every parameter.
+    pub fn new(p: &RbfParams<'_>) -> Result<Self, ModelError> {
+        let d = p.offset.len();
+        let k = p.widths.len();
+        if d == 0 || d > D || k > K {
+            return Err(ModelError::ShapeOverCapacity);
+        }
+        let linear_ok = p.linear.is_empty() || p.linear.len() == d;
+        if p.scale.len() != d || p.centers.len() != k * d || p.weights.len() != k || !linear_ok {
+            return Err(ModelError::ShapeMismatch);
+        }
+        let finite = all_finite(p.offset)
+            && all_finite(p.scale)
+            && all_finite(p.centers)
+            && all_finite(p.widths)
+            && all_finite(p.weights)
+            && all_finite(p.linear)
+            && p.constant.is_finite();
+        if !finite {
+            return Err(ModelError::NonFiniteParameter);
+        }
+        if p.scale.iter().chain(p.widths).any(|&v| v <= 0.0) {
+            return Err(ModelError::InvalidParameter);
+        }
+        let mut net = RbfNetwork {
+            centers_used: k,
+            inputs_used: d,
+            offset: [0.0; D],
+            scale: [1.0; D],
+            inv_scale: [1.0; D],
+            centers: [[0.0; D]; K],
+            widths: [1.0; K],
+            neg_half_inv_var: [0.0; K],
+            weights: [0.0; K],
+            linear: [0.0; D],
+            has_linear: !p.linear.is_empty(),
+            constant: p.constant,
+        };
+        for i in 0..d {
+            net.offset[i] = p.offset[i];
+            net.scale[i] = p.scale[i];
+            net.inv_scale[i] = 1.0 / p.scale[i];
+            if net.has_linear {
+                net.linear[i] = p.linear[i];
+            }
+        }
+        for j in 0..k {
+            net.centers[j][..d].copy_from_slice(&p.centers[j * d..(j + 1) * d]);
+            net.widths[j] = p.widths[j];
+            net.weights[j] = p.weights[j];
+            net.neg_half_inv_var[j] = -0.5 / (p.widths[j] * p.widths[j]);
+            if !net.neg_half_inv_var[j].is_finite() {
+                return Err(ModelError::InvalidParameter);
+            }
+        }
+        if !(all_finite(&net.inv_scale)) {
+            return Err(ModelError::InvalidParameter);
+        }
+        Ok(net)
+    }
+
+    /// Number of centres in use.
+    pub fn centers_used(&self) -> usize {
+        self.centers_used
+    }
+
+    /// Number of inputs in use.
+    pub fn inputs_used(&self) -> usize {
+        self.inputs_used
+    }
+
+    /// Input offsets (training means), input units.
+    pub fn offset(&self) -> &[f32] {
+        &self.offset[..self.inputs_used]
+    }
+
+    /// Input scales (training standard deviations), input units.
+    pub fn scale(&self) -> &[f32] {
+        &self.scale[..self.inputs_used]
+    }
+
+    /// Centre `j` in normalised units (empty past the last centre).
+    pub fn center(&self, j: usize) -> &[f32] {
+        self.centers.get(j).map_or(&[], |c| &c[..self.inputs_used])
+    }
+
+    /// Gaussian widths σ_j, normalised units.
+    pub fn widths(&self) -> &[f32] {
+        &self.widths[..self.centers_used]
+    }
+
+    /// Output weights W_j, °/h.
+    pub fn weights(&self) -> &[f32] {
+        &self.weights[..self.centers_used]
+    }
+
+    /// Linear coefficients per normalised input, °/h (empty when the model has none).
+    pub fn linear(&self) -> &[f32] {
+        if self.has_linear {
+            &self.linear[..self.inputs_used]
+        } else {
+            &[]
+        }
+    }
+
+    /// Constant term, °/h.
+    pub fn constant(&self) -> f32 {
+        self.constant
+    }
+
+    /// Evaluates the network at `x` (input units, already clamped), °/h.
+    ///
+    /// `x` must hold at least [`Self::inputs_used`] values; missing ones read as
+    /// the training mean. Cost: `K_used × D_used` multiply-adds and `K_used`
+    /// exponentials (`libm::expf`), independent of the values.
+    pub fn eval(&self, x: &[f32]) -> f32 {
+        let d = self.inputs_used;
+        let mut z = [0.0f32; D];
+        for (i, zi) in z.iter_mut().enumerate().take(d) {
+            let xi = x.get(i).copied().unwrap_or(self.offset[i]);
+            *zi = (xi - self.offset[i]) * self.inv_scale[i];
+        }
+        let mut y = self.constant;
+        for i in 0..d {
+            y += self.linear[i] * z[i];
+        }
+        for j in 0..self.centers_used {
+            let c = &self.centers[j];
+            let mut dist_sq = 0.0f32;
+            for i in 0..d {
+                let diff = z[i] - c[i];
+                dist_sq += diff * diff;
+            }
+            y += self.weights[j] * libm::expf(dist_sq * self.neg_half_inv_var[j]);
+        }
+        y
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn one_centre() -> RbfNetwork<4, 3> {
+        RbfNetwork::new(&RbfParams {
+            offset: &[20.0, 0.0],
+            scale: &[10.0, 1.0],
+            centers: &[0.0, 0.0],
+            widths: &[1.0],
+            weights: &[2.0],
+            linear: &[0.5, 0.0],
+            constant: 1.0,
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn evaluates_the_documented_formula() {
+        let net = one_centre();
+        // At the centre: c + 0 + W·exp(0) = 1 + 2 = 3.
+        assert_eq!(net.eval(&[20.0, 0.0]), 3.0);
+        // One σ away along T (z = 1): 1 + 0.5 + 2·e^{−1/2}.
+        let expected = 1.0 + 0.5 + 2.0 * (-0.5f64).exp();
+        assert!((net.eval(&[30.0, 0.0]) as f64 - expected).abs() < 1e-6);
+    }
+
+    #[test]
+    fn refuses_shapes_over_capacity_or_inconsistent() {
+        let ok = one_centre();
+        assert_eq!(ok.centers_used(), 1);
+        let too_many_inputs = RbfParams {
+            offset: &[0.0; 4],
+            scale: &[1.0; 4],
+            centers: &[],
+            widths: &[],
+            weights: &[],
+            linear: &[],
+            constant: 0.0,
+        };
+        assert_eq!(
+            RbfNetwork::<4, 3>::new(&too_many_inputs),
+            Err(ModelError::ShapeOverCapacity)
+        );
+        let bad_centres = RbfParams {
+            offset: &[0.0],
+            scale: &[1.0],
+            centers: &[0.0, 1.0],
+            widths: &[1.0],
+            weights: &[1.0],
+            linear: &[],
+            constant: 0.0,
+        };
+        assert_eq!(
+            RbfNetwork::<4, 3>::new(&bad_centres),
+            Err(ModelError::ShapeMismatch)
+        );
+    }
+
+    #[test]
+    fn refuses_non_finite_and_non_positive_parameters() {
+        let mut widths = [1.0f32];
+        let base = |w: &'_ [f32], c: f32| {
+            RbfNetwork::<4, 3>::new(&RbfParams {
+                offset: &[0.0],
+                scale: &[1.0],
+                centers: &[0.0],
+                widths: w,
+                weights: &[1.0],
+                linear: &[],
+                constant: c,
+            })
+        };
+        assert_eq!(base(&widths, f32::NAN), Err(ModelError::NonFiniteParameter));
+        widths[0] = 0.0;
+        assert_eq!(base(&widths, 0.0), Err(ModelError::InvalidParameter));
+        widths[0] = 1e-30; // 1/(2σ²) overflows f32
+        assert_eq!(base(&widths, 0.0), Err(ModelError::InvalidParameter));
+    }
+}

@@ -1,0 +1,292 @@
+//! Row-level parsing of the recorded-run CSV (`shared/recorded-run-format.md`).
+//!
+//! `no_std` so that the trainer and the firmware's replay board parse runs with
+//! the same code. File handling, line numbering and error messages with file
+//! names live with the callers; this module maps header names to columns and
+//! turns one data line into numbers, never panicking.
+
+/// Column names the format defines.
+pub mod column {
+    /// Sample time, s.
+    pub const TIME_S: &str = "time_s";
+    /// Gyro output, °/h.
+    pub const RATE_DPH: &str = "rate_dph";
+    /// Fiber-loop temperature, °C.
+    pub const TEMP_C: &str = "temp_c";
+    /// Known true rate, °/h.
+    pub const REF_DPH: &str = "ref_dph";
+    /// Replay-only: 1 = the temperature sensor fails on this sample.
+    pub const TEMP_FAULT: &str = "temp_fault";
+}
+
+/// Where the known columns sit in a header.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Columns {
+    /// Index of `time_s`.
+    pub time_s: usize,
+    /// Index of `rate_dph`.
+    pub rate_dph: usize,
+    /// Index of `temp_c`, if present.
+    pub temp_c: Option<usize>,
+    /// Index of `ref_dph`, if present.
+    pub ref_dph: Option<usize>,
+    /// Index of `temp_fault`, if present.
+    pub temp_fault: Option<usize>,
+    /// Number of columns every data row must have.
+    pub count: usize,
+}
+
+/// What is wrong with a header line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum HeaderError {
+    /// A required column is absent.
+    MissingColumn(&'static str),
+    /// A known column appears twice (at this index the second time).
+    DuplicateColumn(usize),
+}
+
+/// What is wrong with a data row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum RowErrorKind {
+    /// The row has a different number of fields than the header.
+    FieldCount {
+        /// Fields in the header.
+        expected: usize,
+        /// Fields in this row.
+        found: usize,
+    },
+    /// The field is not a number.
+    NotANumber,
+    /// The field is NaN or infinite.
+    NonFinite,
+    /// `temp_fault` is neither 0 nor 1.
+    NotAFlag,
+}
+
+/// A row error and the 0-based column index it concerns (None: the whole row).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RowError {
+    /// Column index the error concerns, if one.
+    pub column: Option<usize>,
+    /// What is wrong.
+    pub kind: RowErrorKind,
+}
+
+/// The known values of one data row.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Row {
+    /// Sample time, s.
+    pub time_s: f64,
+    /// Gyro output, °/h.
+    pub rate_dph: f64,
+    /// Loop temperature, °C, if the column exists.
+    pub temp_c: Option<f64>,
+    /// Known true rate, °/h, if the column exists.
+    pub ref_dph: Option<f64>,
+    /// The sensor is to fail on this sample (replay).
+    pub temp_fault: bool,
+}
+
+/// Trims spaces, tabs and a trailing carriage return.
+pub fn trim_field(s: &str) -> &str {
+    s.trim_matches(|c| c == ' ' || c == '\t' || c == '\r')
+}
+
+/// A metadata line (`# ...`), blank line, or data/header line.
+pub fn is_comment_or_blank(line: &str) -> bool {
+    let t = trim_field(line);
+    t.is_empty() || t.starts_with('#')
+}
+
+/// Parses a `# key: value` metadata line into (key, value).
+pub fn metadata(line: &str) -> Option<(&str, &str)> {
+    let rest = trim_field(line).strip_prefix('#')?;
+    let (key, value) = rest.split_once(':')?;
+    Some((trim_field(key), trim_field(value)))
+}
+
+impl Columns {
+    /// Maps a header line (a leading UTF-8 BOM is allowed) to column indices.
+    pub fn from_header(line: &str) -> Result<Columns, HeaderError> {
+        let line = line.strip_prefix('\u{feff}').unwrap_or(line);
+        let (mut time_s, mut rate_dph, mut temp_c, mut ref_dph, mut temp_fault) =
+            (None, None, None, None, None);
+        let mut count = 0;
+        for (i, name) in line.split(',').enumerate() {
+            count = i + 1;
+            let slot = match trim_field(name) {
+                column::TIME_S => &mut time_s,
+                column::RATE_DPH => &mut rate_dph,
+                column::TEMP_C => &mut temp_c,
+                column::REF_DPH => &mut ref_dph,
+                column::TEMP_FAULT => &mut temp_fault,
+                _ => continue,
+            };
+            if slot.replace(i).is_some() {
+                return Err(HeaderError::DuplicateColumn(i));
+            }
+        }
+        Ok(Columns {
+            time_s: time_s.ok_or(HeaderError::MissingColumn(column::TIME_S))?,
+            rate_dph: rate_dph.ok_or(HeaderError::MissingColumn(column::RATE_DPH))?,
+            temp_c,
+            ref_dph,
+            temp_fault,
+            count,
+        })
+    }
+
+    /// Parses one data line (trailing `\r` allowed).
+    pub fn parse_row(&self, line: &str) -> Result<Row, RowError> {
+        let mut fields: [&str; 5] = [""; 5];
+        let wanted = [
+            Some(self.time_s),
+            Some(self.rate_dph),
+            self.temp_c,
+            self.ref_dph,
+            self.temp_fault,
+        ];
+        let mut found = 0;
+        for (i, field) in line.split(',').enumerate() {
+            found = i + 1;
+            for (slot, want) in fields.iter_mut().zip(wanted) {
+                if want == Some(i) {
+                    *slot = field;
+                }
+            }
+        }
+        if found != self.count {
+            return Err(RowError {
+                column: None,
+                kind: RowErrorKind::FieldCount {
+                    expected: self.count,
+                    found,
+                },
+            });
+        }
+        let number = |index: usize, text: &str| -> Result<f64, RowError> {
+            let v: f64 = trim_field(text).parse().map_err(|_| RowError {
+                column: Some(index),
+                kind: RowErrorKind::NotANumber,
+            })?;
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(RowError {
+                    column: Some(index),
+                    kind: RowErrorKind::NonFinite,
+                })
+            }
+        };
+        let optional =
+            |index: Option<usize>, text: &str| index.map(|i| number(i, text)).transpose();
+        let temp_fault = match optional(self.temp_fault, fields[4])? {
+            None => false,
+            Some(v) if v == 0.0 => false,
+            Some(v) if v == 1.0 => true,
+            Some(_) => {
+                return Err(RowError {
+                    column: self.temp_fault,
+                    kind: RowErrorKind::NotAFlag,
+                });
+            }
+        };
+        Ok(Row {
+            time_s: number(self.time_s, fields[0])?,
+            rate_dph: number(self.rate_dph, fields[1])?,
+            temp_c: optional(self.temp_c, fields[2])?,
+            ref_dph: optional(self.ref_dph, fields[3])?,
+            temp_fault,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn header_maps_known_columns_in_any_order_and_ignores_others() {
+        let c = Columns::from_header("\u{feff}temp_c, extra ,time_s,rate_dph\r").unwrap();
+        assert_eq!(
+            (c.time_s, c.rate_dph, c.temp_c, c.ref_dph, c.count),
+            (2, 3, Some(0), None, 4)
+        );
+        assert_eq!(
+            Columns::from_header("time_s,temp_c"),
+            Err(HeaderError::MissingColumn("rate_dph"))
+        );
+        assert_eq!(
+            Columns::from_header("time_s,rate_dph,time_s"),
+            Err(HeaderError::DuplicateColumn(2))
+        );
+    }
+
+    #[test]
+    fn rows_parse_or_name_the_offending_column() {
+        let c = Columns::from_header("time_s,rate_dph,temp_c,temp_fault,note").unwrap();
+        let row = c.parse_row(" 1.5 ,-2e-3,20,1,x\r").unwrap();
+        assert_eq!(
+            (row.time_s, row.rate_dph, row.temp_c, row.temp_fault),
+            (1.5, -2e-3, Some(20.0), true)
+        );
+        let err = |line: &str| c.parse_row(line).unwrap_err();
+        assert_eq!(
+            err("1,1.2.3,20,0,x"),
+            RowError {
+                column: Some(1),
+                kind: RowErrorKind::NotANumber
+            }
+        );
+        assert_eq!(
+            err("1,NaN,20,0,x"),
+            RowError {
+                column: Some(1),
+                kind: RowErrorKind::NonFinite
+            }
+        );
+        assert_eq!(
+            err("1,2,inf,0,x"),
+            RowError {
+                column: Some(2),
+                kind: RowErrorKind::NonFinite
+            }
+        );
+        assert_eq!(
+            err("1,2,20,0.5,x"),
+            RowError {
+                column: Some(3),
+                kind: RowErrorKind::NotAFlag
+            }
+        );
+        assert_eq!(
+            err("1,2,20"),
+            RowError {
+                column: None,
+                kind: RowErrorKind::FieldCount {
+                    expected: 5,
+                    found: 3
+                }
+            }
+        );
+        assert_eq!(
+            err("1,,20,0,x"),
+            RowError {
+                column: Some(1),
+                kind: RowErrorKind::NotANumber
+            }
+        );
+    }
+
+    #[test]
+    fn metadata_lines_split_into_key_and_value() {
+        assert_eq!(
+            metadata("# sample_rate_hz: 10\r"),
+            Some(("sample_rate_hz", "10"))
+        );
+        assert_eq!(metadata("#no colon"), None);
+        assert!(is_comment_or_blank("  \r"));
+    }
+}
