@@ -1,1 +1,389 @@
-fn main() {}
+//! `trainer`: fit, apply and evaluate IFOG temperature-drift models.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::{Args, Parser, Subcommand};
+use rbf_core::Model;
+use rbf_core::blob::{self, Header};
+use rbf_core::model::ModelBody;
+use trainer::blobfile::{read_model, write_model};
+use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_run, print_table};
+use trainer::fit::{self, FitOptions, Method};
+use trainer::output::write_bytes;
+use trainer::run::Run;
+
+/// Removes temperature drift from fiber-optic gyros.
+///
+/// Typical session: record chamber runs (recorded-run CSV: time_s, rate_dph,
+/// temp_c, optionally ref_dph), `trainer fit` them into MODEL.bin, check the
+/// result on other runs with `trainer eval`, flash MODEL.bin into the
+/// firmware's model region. `trainer compensate` applies a model to a run
+/// exactly as the firmware would.
+#[derive(Parser, Debug)]
+#[command(version, about, long_about, max_term_width = 100)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    Fit(FitArgs),
+    Compensate(CompensateArgs),
+    Eval(EvalArgs),
+    Inspect(InspectArgs),
+}
+
+/// Fit a bias model to recorded chamber runs and write the model blob.
+///
+/// Features (T [°C], ΔT [°C/min], T×ΔT) are computed per sample by rbf-core, as
+/// the firmware does, then averaged over blocks together with the bias target
+/// `rate_dph − ref_dph` (or minus the run mean without ref_dph). The RBF
+/// methods choose centres by orthogonal least squares and ridge output weights;
+/// the ΔT window, Gaussian width, ridge strength and number of centres are
+/// chosen on the --validate runs, or by contiguous 5-fold validation over the
+/// training runs. Prints a before/after accuracy table, then writes the blob.
+#[derive(Args, Debug)]
+struct FitArgs {
+    /// Training runs (recorded-run CSV with temp_c).
+    #[arg(required = true, value_name = "RUN.csv")]
+    runs: Vec<PathBuf>,
+    /// Model blob to write (postcard + CRC-32; flash it into the firmware's model region).
+    #[arg(short, long, value_name = "MODEL.bin")]
+    output: PathBuf,
+    /// Runs used only to choose hyper-parameters and report generalisation (repeatable).
+    #[arg(long, value_name = "RUN.csv")]
+    validate: Vec<PathBuf>,
+    /// Model form: rbf = Gaussian RBF on (T, ΔT, T×ΔT) (IFOG paper, modified);
+    /// rbf2 = on (T, ΔT) (before modification); poly3 = cubic in T (PX4/ArduPilot form).
+    #[arg(long, value_enum, default_value_t = Method::Rbf)]
+    method: Method,
+    /// Use exactly K Gaussian centres (1–64) instead of choosing K ≤ --max-centers on validation.
+    #[arg(long, value_name = "K")]
+    centers: Option<usize>,
+    /// Most centres considered when K is chosen on validation (firmware cost grows with K).
+    #[arg(long, value_name = "K", default_value_t = 32)]
+    max_centers: usize,
+    /// ΔT derivative-filter time constant(s) to choose from, in seconds; 0 = one-sample
+    /// difference (IFOG Eq. 22). Default: choose among 15, 60 and 240 s.
+    #[arg(long, value_name = "SECONDS", num_args = 1.., value_delimiter = ',')]
+    rate_window_s: Vec<f32>,
+    /// Averaging block for training, seconds.
+    #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
+    block_s: f64,
+    /// Contiguous folds per run for validation when no --validate runs are given.
+    #[arg(long, default_value_t = 5)]
+    folds: usize,
+    /// Serial number of the gyro, stored in the blob (at most 32 bytes).
+    #[arg(long)]
+    serial: Option<String>,
+    /// Also write the fit report (choice and per-run accuracy) as JSON.
+    #[arg(long, value_name = "REPORT.json")]
+    json: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// Compensate a run with a model, exactly as the firmware does.
+///
+/// Writes the input lines unchanged followed by bias_dph [°/h], rate_comp_dph
+/// [°/h] and flags (1 clamped · 2 temperature-sensor fault · 4 no valid model ·
+/// 8 warming up · 16 rate invalid); one output row per input row. Rows with
+/// temp_fault = 1 are treated as a sensor that does not answer.
+#[derive(Args, Debug)]
+struct CompensateArgs {
+    /// Model blob written by `trainer fit`.
+    #[arg(long, value_name = "MODEL.bin")]
+    model: PathBuf,
+    /// Run to compensate.
+    #[arg(value_name = "RUN.csv")]
+    run: PathBuf,
+    /// Compensated run to write.
+    #[arg(short, long, value_name = "OUT.csv")]
+    output: PathBuf,
+}
+
+/// Before/after accuracy of a model on runs.
+///
+/// Per run: MSD (IFOG paper Eq. 24) of 1-s means against ref_dph (or about the
+/// mean), and the bias STD of 100-s cluster means (RLG paper), before and after
+/// compensation, with the improvement in %.
+#[derive(Args, Debug)]
+struct EvalArgs {
+    /// Model blob.
+    #[arg(long, value_name = "MODEL.bin")]
+    model: PathBuf,
+    /// Runs to evaluate.
+    #[arg(required = true, value_name = "RUN.csv")]
+    runs: Vec<PathBuf>,
+    /// Also write the figures as JSON.
+    #[arg(long, value_name = "REPORT.json")]
+    json: Option<PathBuf>,
+}
+
+/// Show what a model blob holds and whether it is intact.
+#[derive(Args, Debug)]
+struct InspectArgs {
+    /// Model blob.
+    #[arg(value_name = "MODEL.bin")]
+    model: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Fit(a) => cmd_fit(a),
+        Command::Compensate(a) => {
+            let (model, _) = read_model(&a.model)?;
+            let (rows, flagged) = compensate_file(Some(&model), &a.run, &a.output)?;
+            println!(
+                "wrote {} ({rows} rows; flagged: {})",
+                a.output.display(),
+                serde_json::to_string(&flagged)?
+            );
+            Ok(())
+        }
+        Command::Eval(a) => cmd_eval(a),
+        Command::Inspect(a) => cmd_inspect(a),
+    }
+}
+
+fn load_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<Run>> {
+    paths
+        .iter()
+        .map(|p| Run::load(p).map_err(anyhow::Error::from))
+        .collect()
+}
+
+fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
+    let train = load_runs(&a.runs)?;
+    let validate = load_runs(&a.validate)?;
+    let mut opts = FitOptions {
+        method: a.method,
+        block_s: a.block_s,
+        centers: a.centers,
+        max_centers: a.max_centers.clamp(1, rbf_core::MAX_CENTERS),
+        folds: a.folds,
+        serial: a.serial,
+        progress: !a.quiet,
+        ..FitOptions::default()
+    };
+    anyhow::ensure!(
+        a.block_s.is_finite() && a.block_s > 0.0,
+        "--block-s must be a positive number of seconds"
+    );
+    if !a.rate_window_s.is_empty() {
+        anyhow::ensure!(
+            a.rate_window_s
+                .iter()
+                .all(|w| w.is_finite() && (0.0..=86_400.0).contains(w)),
+            "--rate-window-s values must be 0 … 86400 s"
+        );
+        opts.rate_windows_s = a.rate_window_s;
+    }
+    let started = std::time::Instant::now();
+    let outcome = fit::fit(&train, &validate, &opts)?;
+    let fit_s = started.elapsed().as_secs_f64();
+    let blob = write_model(&a.output, &outcome.model)?;
+
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "method {:?}: {}", a.method, describe(&outcome.model))?;
+    if let Some(c) = &outcome.choice {
+        writeln!(
+            out,
+            "chosen on {}: ΔT window {} s, width σ {} (normalised), ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
+            if validate.is_empty() {
+                format!("{}-fold contiguous validation", opts.folds.max(2))
+            } else {
+                "--validate runs".into()
+            },
+            c.rate_window_s,
+            c.width,
+            c.ridge,
+            c.centers,
+            c.validation_rms_dph
+        )?;
+    }
+    writeln!(out, "fit took {fit_s:.1} s\n")?;
+    let evals: Vec<(&str, RunEvaluation)> = train
+        .iter()
+        .map(|r| ("train", evaluate_run(&outcome.model, r)))
+        .chain(
+            validate
+                .iter()
+                .map(|r| ("validate", evaluate_run(&outcome.model, r))),
+        )
+        .collect();
+    let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
+    print_table(&mut out, &rows)?;
+    writeln!(out, "\nwrote {} ({} bytes)", a.output.display(), blob.len())?;
+    if let Some(path) = &a.json {
+        let report = serde_json::json!({
+            "method": a.method,
+            "choice": outcome.choice,
+            "fit_seconds": fit_s,
+            "blob_bytes": blob.len(),
+            "runs": evals.iter().map(|(role, e)| serde_json::json!({"role": role, "evaluation": e})).collect::<Vec<_>>(),
+        });
+        write_bytes(path, serde_json::to_string_pretty(&report)?.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn cmd_eval(a: EvalArgs) -> anyhow::Result<()> {
+    let (model, _) = read_model(&a.model)?;
+    let runs = load_runs(&a.runs)?;
+    let evals: Vec<RunEvaluation> = runs.iter().map(|r| evaluate_run(&model, r)).collect();
+    let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|e| ("eval", e)).collect();
+    print_table(&mut std::io::stdout().lock(), &rows)?;
+    if let Some(path) = &a.json {
+        write_bytes(path, serde_json::to_string_pretty(&evals)?.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn describe(model: &Model) -> String {
+    let f = model.features();
+    let names = f.set.names().join(", ");
+    match model.body() {
+        ModelBody::Rbf(net) => format!(
+            "Gaussian RBF, {} centres over ({names}), ΔT window {} s",
+            net.centers_used(),
+            f.rate_window_s
+        ),
+        ModelBody::Poly3(p) => format!("cubic in T about {} °C", p.ref_temp_c),
+    }
+}
+
+fn cmd_inspect(a: InspectArgs) -> anyhow::Result<()> {
+    let bytes = std::fs::read(&a.model)
+        .with_context(|| format!("{}: cannot read model", a.model.display()))?;
+    let header = Header::parse(&bytes)
+        .map_err(|e| anyhow::anyhow!("{}: model refused: {e}", a.model.display()))?;
+    let crc = blob::crc_status(&bytes, &header);
+    let decoded = crc.and_then(|_| blob::decode(&bytes));
+    let info = inspect_json(&a.model, &bytes, &header, &crc, &decoded);
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&info)?);
+    } else {
+        print_inspect(&info);
+    }
+    match decoded {
+        Ok(_) => Ok(()),
+        Err(e) => Err(anyhow::anyhow!("{}: model refused: {e}", a.model.display())),
+    }
+}
+
+fn inspect_json(
+    path: &Path,
+    bytes: &[u8],
+    header: &Header,
+    crc: &Result<(), blob::DecodeError>,
+    decoded: &Result<blob::Decoded, blob::DecodeError>,
+) -> serde_json::Value {
+    let mut v = serde_json::json!({
+        "file": path.display().to_string(),
+        "file_bytes": bytes.len(),
+        "blob_bytes": header.blob_len(),
+        "format_version": header.version,
+        "kind": rbf_core::model::ModelKind::from_code(header.kind_code).map(|k| k.name()),
+        "inputs": header.inputs,
+        "centers": header.centers,
+        "crc": match crc { Ok(()) => "ok".to_owned(), Err(e) => e.to_string() },
+        "valid": decoded.is_ok(),
+    });
+    if let Ok(d) = decoded {
+        let m = &d.model;
+        let f = m.features();
+        let ranges: Vec<_> = (0..f.dims())
+            .map(|i| {
+                let (lo, hi) = m.input_range(i).unwrap_or((f32::NAN, f32::NAN));
+                serde_json::json!({"input": f.set.names()[i], "min": lo, "max": hi})
+            })
+            .collect();
+        v["features"] = serde_json::json!({
+            "set": format!("{:?}", f.set),
+            "inputs": f.set.names(),
+            "rate_window_s": f.rate_window_s,
+            "warmup_s": f.warmup_s(),
+        });
+        v["training_ranges"] = serde_json::Value::Array(ranges);
+        v["units"] = serde_json::json!({"bias": "deg/h", "temperature": "degC", "rate_of_change": "degC/min"});
+        v["serial"] = serde_json::json!(m.info().serial.as_ref().map(|s| s.as_str()));
+        match m.body() {
+            ModelBody::Rbf(net) => {
+                v["rbf"] = serde_json::json!({
+                    "offset": net.offset(), "scale": net.scale(),
+                    "widths": net.widths(), "weights_dph": net.weights(),
+                    "linear_dph": net.linear(), "constant_dph": net.constant(),
+                });
+            }
+            ModelBody::Poly3(p) => {
+                v["poly3"] = serde_json::json!({"ref_temp_c": p.ref_temp_c, "coeffs": p.coeffs});
+            }
+        }
+    } else if let Err(e) = decoded {
+        v["error"] = serde_json::json!(e.to_string());
+    }
+    v
+}
+
+fn print_inspect(v: &serde_json::Value) {
+    let s = |k: &str| {
+        v.get(k).map_or("-".to_owned(), |x| {
+            x.as_str().map_or(x.to_string(), str::to_owned)
+        })
+    };
+    println!(
+        "file            {} ({} bytes, blob {} bytes)",
+        s("file"),
+        s("file_bytes"),
+        s("blob_bytes")
+    );
+    println!("format version  {}", s("format_version"));
+    println!("kind            {}", s("kind"));
+    println!(
+        "shape           {} inputs, {} centres",
+        s("inputs"),
+        s("centers")
+    );
+    println!("CRC-32          {}", s("crc"));
+    if let Some(f) = v.get("features") {
+        println!(
+            "features        {} (ΔT window {} s, warm-up {} s)",
+            f["inputs"], f["rate_window_s"], f["warmup_s"]
+        );
+    }
+    if let Some(ranges) = v.get("training_ranges").and_then(|r| r.as_array()) {
+        for r in ranges {
+            println!(
+                "  range         {:<16} {} … {}",
+                r["input"].as_str().unwrap_or("?"),
+                r["min"],
+                r["max"]
+            );
+        }
+    }
+    println!("serial          {}", s("serial"));
+    println!(
+        "valid           {}{}",
+        s("valid"),
+        v.get("error").map_or(String::new(), |e| format!(" ({e})"))
+    );
+}

@@ -1,0 +1,175 @@
+//! Small linear-algebra pieces shared by the fitters: input normalisation,
+//! Gaussian design matrices, Gram statistics and ridge solves.
+
+use nalgebra::{DMatrix, DVector};
+use rbf_core::MAX_INPUTS;
+
+use crate::dataset::Blocks;
+
+/// A feature row, first `dims` entries used.
+pub type FeatureRow = [f64; MAX_INPUTS];
+
+/// Per-input affine normalisation z = (x − offset) / scale, values rounded to
+/// f32 so that the fit sees exactly what the deployed model computes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Normaliser {
+    /// Offsets (training means), input units.
+    pub offset: Vec<f64>,
+    /// Scales (training standard deviations), input units.
+    pub scale: Vec<f64>,
+}
+
+impl Normaliser {
+    /// Mean and standard deviation of each feature over `blocks`.
+    pub fn fit(blocks: &Blocks) -> Normaliser {
+        let n = blocks.len().max(1) as f64;
+        let (mut offset, mut scale) = (Vec::new(), Vec::new());
+        for i in 0..blocks.dims {
+            let mean = blocks.x.iter().map(|r| r[i]).sum::<f64>() / n;
+            let var = blocks.x.iter().map(|r| (r[i] - mean).powi(2)).sum::<f64>() / n;
+            let std = var.sqrt();
+            let std = if std > 1e-9 * (mean.abs() + 1.0) {
+                std
+            } else {
+                1.0
+            };
+            offset.push(mean as f32 as f64);
+            scale.push(std as f32 as f64);
+        }
+        Normaliser { offset, scale }
+    }
+
+    /// Normalised copy of a feature row.
+    pub fn apply(&self, x: &FeatureRow) -> FeatureRow {
+        let mut z = [0.0; MAX_INPUTS];
+        for i in 0..self.offset.len() {
+            z[i] = (x[i] - self.offset[i]) / self.scale[i];
+        }
+        z
+    }
+}
+
+/// Gaussian basis value exp(−‖z − c‖² / 2σ²) over the first `dims` inputs.
+pub fn gaussian(z: &FeatureRow, c: &FeatureRow, dims: usize, width: f64) -> f64 {
+    let d2: f64 = (0..dims).map(|i| (z[i] - c[i]).powi(2)).sum();
+    (-d2 / (2.0 * width * width)).exp()
+}
+
+/// Design matrix with columns [1, z_1 … z_d, φ_1 … φ_K] for the given rows.
+pub fn design(
+    z: &[FeatureRow],
+    rows: &[usize],
+    dims: usize,
+    centers: &[FeatureRow],
+    width: f64,
+) -> DMatrix<f64> {
+    let fixed = 1 + dims;
+    DMatrix::from_fn(rows.len(), fixed + centers.len(), |r, c| {
+        let zr = &z[rows[r]];
+        match c {
+            0 => 1.0,
+            c if c < fixed => zr[c - 1],
+            c => gaussian(zr, &centers[c - fixed], dims, width),
+        }
+    })
+}
+
+/// Sufficient statistics of a design matrix A and target y for any leading
+/// subset of columns: AᵀA, Aᵀy, Aᵀ1, Σy, Σy², n.
+#[derive(Clone, Debug)]
+pub struct GramStats {
+    /// AᵀA.
+    pub gram: DMatrix<f64>,
+    /// Aᵀy.
+    pub aty: DVector<f64>,
+    /// Aᵀ1 (column sums).
+    pub col_sums: DVector<f64>,
+    /// Σy.
+    pub sum_y: f64,
+    /// Σy².
+    pub sum_yy: f64,
+    /// Number of rows.
+    pub n: usize,
+}
+
+impl GramStats {
+    /// Statistics of design `a` and target `y`.
+    pub fn new(a: &DMatrix<f64>, y: &DVector<f64>) -> GramStats {
+        GramStats {
+            gram: a.tr_mul(a),
+            aty: a.tr_mul(y),
+            col_sums: DVector::from_iterator(a.ncols(), a.column_iter().map(|c| c.sum())),
+            sum_y: y.sum(),
+            sum_yy: y.norm_squared(),
+            n: y.len(),
+        }
+    }
+
+    /// Variance of the residual y − A[:, :p] w (offset-invariant, as the
+    /// cluster STD the users judge by), °/h².
+    pub fn residual_variance(&self, w: &DVector<f64>) -> f64 {
+        let p = w.len();
+        let n = self.n.max(1) as f64;
+        let g = self.gram.view((0, 0), (p, p));
+        let sse = self.sum_yy - 2.0 * w.dot(&self.aty.rows(0, p)) + (g * w).dot(w);
+        let mean = (self.sum_y - w.dot(&self.col_sums.rows(0, p))) / n;
+        (sse / n - mean * mean).max(0.0)
+    }
+}
+
+/// Ridge solution on the first `p` columns: (AᵀA + λ n I′) w = Aᵀy, with I′
+/// leaving the constant (column 0) unpenalised. `None` if the system is singular.
+pub fn ridge_solve(stats: &GramStats, p: usize, lambda: f64) -> Option<DVector<f64>> {
+    let mut m = stats.gram.view((0, 0), (p, p)).clone_owned();
+    let penalty = lambda * stats.n as f64;
+    for i in 1..p {
+        m[(i, i)] += penalty;
+    }
+    let w = m.cholesky()?.solve(&stats.aty.rows(0, p).clone_owned());
+    w.iter().all(|v| v.is_finite()).then_some(w)
+}
+
+/// Up to `count` rows spread over the data by farthest-point sampling,
+/// starting from the row nearest the mean. Deterministic.
+pub fn farthest_points(z: &[FeatureRow], rows: &[usize], dims: usize, count: usize) -> Vec<usize> {
+    if rows.is_empty() || count == 0 {
+        return Vec::new();
+    }
+    let dist =
+        |a: &FeatureRow, b: &FeatureRow| (0..dims).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
+    let mut mean = [0.0; MAX_INPUTS];
+    for &r in rows {
+        for i in 0..dims {
+            mean[i] += z[r][i] / rows.len() as f64;
+        }
+    }
+    let first = rows
+        .iter()
+        .copied()
+        .min_by(|&a, &b| dist(&z[a], &mean).total_cmp(&dist(&z[b], &mean)))
+        .unwrap_or(rows[0]);
+    let mut chosen = vec![first];
+    let mut nearest: Vec<f64> = rows.iter().map(|&r| dist(&z[r], &z[first])).collect();
+    while chosen.len() < count.min(rows.len()) {
+        let (k, &d) = nearest
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .unwrap_or((0, &0.0));
+        if d <= 0.0 {
+            break; // all remaining rows coincide with chosen ones
+        }
+        let next = rows[k];
+        chosen.push(next);
+        for (slot, &r) in nearest.iter_mut().zip(rows) {
+            *slot = slot.min(dist(&z[r], &z[next]));
+        }
+    }
+    chosen
+}
+
+/// Every `step`-th row so that at most `max` remain.
+pub fn thin(rows: &[usize], max: usize) -> Vec<usize> {
+    let step = rows.len().div_ceil(max.max(1)).max(1);
+    rows.iter().step_by(step).copied().collect()
+}

@@ -1,0 +1,223 @@
+//! Model fitting: the methods `trainer fit` offers and the checks that a
+//! recording can identify them at all.
+
+pub mod linalg;
+pub mod ols;
+pub mod poly;
+pub mod rbf;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use rbf_core::model::SERIAL_CAPACITY;
+use rbf_core::{FeatureSet, Model};
+
+use crate::dataset::Blocks;
+use crate::run::Run;
+
+/// Least usable recording, s: a thermal model needs at least ten minutes.
+pub const MIN_USABLE_S: f64 = 600.0;
+/// Least loop-temperature span, °C, to identify a temperature dependence.
+pub const MIN_TEMP_SPAN_C: f64 = 5.0;
+/// Least ΔT span, °C/min, for models that use ΔT (the run must contain ramps).
+pub const MIN_RATE_SPAN_C_PER_MIN: f64 = 0.2;
+
+/// The model forms `trainer fit` can produce.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+pub enum Method {
+    /// Gaussian RBF on (T, ΔT, T×ΔT): the IFOG paper's modified model (default).
+    Rbf,
+    /// Gaussian RBF on (T, ΔT): the IFOG paper's model before its modification.
+    Rbf2,
+    /// Cubic in T about the mid-range temperature, clamped: the PX4/ArduPilot form.
+    Poly3,
+}
+
+impl Method {
+    /// The feature set the method uses.
+    pub fn feature_set(self) -> FeatureSet {
+        match self {
+            Method::Rbf => FeatureSet::TempRateProduct,
+            Method::Rbf2 => FeatureSet::TempRate,
+            Method::Poly3 => FeatureSet::Temp,
+        }
+    }
+}
+
+/// Everything `fit` needs besides the data.
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    /// Model form.
+    pub method: Method,
+    /// Block length for averaging, s.
+    pub block_s: f64,
+    /// Fixed number of centres, or `None` to choose on validation.
+    pub centers: Option<usize>,
+    /// Most centres considered when choosing.
+    pub max_centers: usize,
+    /// ΔT filter time constants to choose from, s.
+    pub rate_windows_s: Vec<f32>,
+    /// Contiguous folds per training run for validation when no `--validate`
+    /// runs are given (never random rows: neighbouring samples correlate).
+    pub folds: usize,
+    /// Gyro serial number stored in the blob.
+    pub serial: Option<String>,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            method: Method::Rbf,
+            block_s: 1.0,
+            centers: None,
+            max_centers: 32,
+            rate_windows_s: vec![15.0, 60.0, 240.0],
+            folds: 5,
+            serial: None,
+            progress: false,
+        }
+    }
+}
+
+/// What was fitted and how it was chosen.
+#[derive(Clone, Debug)]
+pub struct FitOutcome {
+    /// The deployable model.
+    pub model: Model,
+    /// The RBF hyper-parameters chosen (`None` for the cubic).
+    pub choice: Option<rbf::RbfChoice>,
+}
+
+/// Fits `opts.method` on `train`, validating on `validate` (or k-fold when empty).
+pub fn fit(train: &[Run], validate: &[Run], opts: &FitOptions) -> anyhow::Result<FitOutcome> {
+    if let Some(k) = opts.centers
+        && !(1..=rbf_core::MAX_CENTERS).contains(&k)
+    {
+        anyhow::bail!(
+            "--centers {k}: must be 1 ..= {} (firmware capacity)",
+            rbf_core::MAX_CENTERS
+        );
+    }
+    let progress = Progress::new(opts.progress);
+    match opts.method {
+        Method::Poly3 => Ok(FitOutcome {
+            model: poly::fit(train, opts)?,
+            choice: None,
+        }),
+        method => {
+            let (model, choice) = rbf::fit(train, validate, method.feature_set(), opts, &progress)?;
+            Ok(FitOutcome {
+                model,
+                choice: Some(choice),
+            })
+        }
+    }
+}
+
+/// Refuses training data that cannot identify a model of `set`, saying what is missing.
+pub fn check_excitation(blocks: &Blocks, set: FeatureSet, opts: &FitOptions) -> anyhow::Result<()> {
+    let mut missing = Vec::new();
+    if blocks.usable_s < MIN_USABLE_S {
+        missing.push(format!(
+            "the training runs hold {:.0} s of usable samples; at least {MIN_USABLE_S:.0} s are needed",
+            blocks.usable_s
+        ));
+    }
+    if blocks.is_empty() {
+        anyhow::bail!("no usable samples in the training runs (all warming up or sensor faults)");
+    }
+    let (lo, hi) = blocks.block_range(0);
+    if hi - lo < MIN_TEMP_SPAN_C {
+        missing.push(format!(
+            "loop temperature spans only {:.2} °C ({lo:.2} … {hi:.2} °C); at least {MIN_TEMP_SPAN_C} °C is needed",
+            hi - lo
+        ));
+    }
+    if set != FeatureSet::Temp {
+        let (lo, hi) = blocks.block_range(1);
+        if hi - lo < MIN_RATE_SPAN_C_PER_MIN {
+            missing.push(format!(
+                "ΔT spans only {:.3} °C/min; at least {MIN_RATE_SPAN_C_PER_MIN} °C/min is needed (the run needs temperature ramps)",
+                hi - lo
+            ));
+        }
+    }
+    let parameters = 1 + set.dims() + opts.centers.unwrap_or(1);
+    if blocks.len() < 10 * parameters {
+        missing.push(format!(
+            "{} blocks of {} s is too few for {parameters} parameters",
+            blocks.len(),
+            opts.block_s
+        ));
+    }
+    if missing.is_empty() {
+        Ok(())
+    } else {
+        anyhow::bail!(
+            "the training data cannot identify a thermal model: {}. Record a chamber run with temperature holds and ramps.",
+            missing.join("; ")
+        )
+    }
+}
+
+/// Clamp ranges for deployment: the per-sample feature range seen in training.
+pub(crate) fn deploy_ranges(blocks: &Blocks) -> Vec<(f32, f32)> {
+    blocks
+        .sample_range
+        .iter()
+        .map(|&(lo, hi)| (lo as f32, hi as f32))
+        .collect()
+}
+
+/// The serial number as stored in the blob, refusing one that does not fit.
+pub(crate) fn serial(
+    opts: &FitOptions,
+) -> anyhow::Result<Option<heapless::String<SERIAL_CAPACITY>>> {
+    opts.serial
+        .as_deref()
+        .map(|s| {
+            heapless::String::try_from(s)
+                .map_err(|_| anyhow::anyhow!("--serial {s:?}: at most {SERIAL_CAPACITY} bytes"))
+        })
+        .transpose()
+}
+
+/// A progress bar that is silent when disabled or not on a terminal.
+pub struct Progress {
+    bar: ProgressBar,
+}
+
+impl Progress {
+    /// A bar, hidden unless `visible`.
+    pub fn new(visible: bool) -> Self {
+        Progress {
+            bar: if visible {
+                ProgressBar::new(0)
+            } else {
+                ProgressBar::hidden()
+            },
+        }
+    }
+
+    /// Starts a stage of `total` steps.
+    pub fn start(&self, stage: &str, total: u64) {
+        self.bar.set_length(total);
+        self.bar.set_position(0);
+        self.bar.set_style(
+            ProgressStyle::with_template("{msg:>20} [{bar:30}] {pos}/{len} ({eta})")
+                .unwrap_or_else(|_| ProgressStyle::default_bar())
+                .progress_chars("=> "),
+        );
+        self.bar.set_message(stage.to_owned());
+    }
+
+    /// One step done.
+    pub fn inc(&self) {
+        self.bar.inc(1);
+    }
+
+    /// The stage is over.
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}

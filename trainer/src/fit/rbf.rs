@@ -1,0 +1,297 @@
+//! Gaussian RBF fit: OLS centre selection, ridge output weights, and the
+//! choice of ΔT window, width, ridge strength and number of centres on
+//! validation data.
+
+use nalgebra::{DMatrix, DVector};
+use rbf_core::model::{ModelBody, ModelInfo};
+use rbf_core::rbf::{RbfNetwork, RbfParams};
+use rbf_core::{FeatureConfig, FeatureSet, Model};
+
+use super::linalg::{
+    FeatureRow, GramStats, Normaliser, design, farthest_points, ridge_solve, thin,
+};
+use super::ols::forward_select;
+use super::{FitOptions, Progress};
+use crate::dataset::{Blocks, block_means};
+use crate::run::Run;
+
+/// Candidate centres offered to OLS (farthest-point spread over the blocks).
+const MAX_CANDIDATES: usize = 200;
+/// Rows used for OLS selection (strided); weights are refitted on all rows.
+const MAX_SELECTION_ROWS: usize = 3000;
+/// Gaussian widths σ tried, in normalised (standard-deviation) units.
+const WIDTHS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
+/// Ridge strengths λ tried (per row, relative to normalised inputs).
+const RIDGES: [f64; 3] = [1e-7, 1e-5, 1e-3];
+/// A smaller network is preferred when its score is within this factor of the best.
+const PARSIMONY: f64 = 1.005;
+
+/// The hyper-parameters chosen and what they scored.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct RbfChoice {
+    /// ΔT derivative-filter time constant, s.
+    pub rate_window_s: f32,
+    /// Gaussian width σ, normalised units.
+    pub width: f64,
+    /// Ridge strength λ.
+    pub ridge: f64,
+    /// Number of centres K.
+    pub centers: usize,
+    /// Validation residual RMS, °/h (1-s block means, offset removed per group).
+    pub validation_rms_dph: f64,
+}
+
+/// One train/validate split of block indices.
+struct Split {
+    train: Vec<usize>,
+    groups: Vec<Vec<usize>>,
+}
+
+/// Scores for one (window, width) pair: `scores[ridge][k - 1]`, summed over splits.
+type ScoreTable = Vec<Vec<f64>>;
+
+/// Fits the RBF network of `set` on `train`, choosing hyper-parameters by `opts.validation`.
+pub fn fit(
+    train: &[Run],
+    validate: &[Run],
+    set: FeatureSet,
+    opts: &FitOptions,
+    progress: &Progress,
+) -> anyhow::Result<(Model, RbfChoice)> {
+    let windows = if set == FeatureSet::Temp {
+        vec![0.0]
+    } else {
+        opts.rate_windows_s.clone()
+    };
+    let k_max = opts.centers.unwrap_or(opts.max_centers);
+    let k_min = opts.centers.unwrap_or(1);
+    let folds = if validate.is_empty() {
+        opts.folds.max(2)
+    } else {
+        1
+    };
+    progress.start(
+        "selecting centres",
+        (windows.len() * WIDTHS.len() * folds) as u64,
+    );
+
+    let mut best: Option<(f64, RbfChoice)> = None;
+    let mut candidates_all: Vec<(f64, RbfChoice)> = Vec::new();
+    for &window in &windows {
+        let features = FeatureConfig {
+            set,
+            rate_window_s: window,
+        };
+        let train_blocks = block_means(train, &features, opts.block_s);
+        super::check_excitation(&train_blocks, set, opts)?;
+        let (all, splits) = splits(&train_blocks, validate, &features, opts, folds);
+        let norm = Normaliser::fit(&train_blocks);
+        let z: Vec<FeatureRow> = all.x.iter().map(|r| norm.apply(r)).collect();
+        for &width in &WIDTHS {
+            let mut table: ScoreTable = vec![vec![0.0; k_max]; RIDGES.len()];
+            for split in &splits {
+                accumulate_scores(&mut table, &z, &all, split, width, k_max);
+                progress.inc();
+            }
+            for (ri, row) in table.iter().enumerate() {
+                for k in k_min..=k_max {
+                    let score = row[k - 1] / splits.len() as f64;
+                    if !score.is_finite() {
+                        continue;
+                    }
+                    let choice = RbfChoice {
+                        rate_window_s: window,
+                        width,
+                        ridge: RIDGES[ri],
+                        centers: k,
+                        validation_rms_dph: score.sqrt(),
+                    };
+                    candidates_all.push((score, choice.clone()));
+                    if best.as_ref().is_none_or(|(s, _)| score < *s) {
+                        best = Some((score, choice));
+                    }
+                }
+            }
+        }
+    }
+    progress.finish();
+    let (best_score, _) = best
+        .ok_or_else(|| anyhow::anyhow!("no RBF configuration could be fitted (singular data)"))?;
+    // Parsimony: the fewest centres whose score is within PARSIMONY of the best.
+    let choice = candidates_all
+        .into_iter()
+        .filter(|(s, _)| *s <= best_score * PARSIMONY)
+        .min_by(|a, b| a.1.centers.cmp(&b.1.centers).then(a.0.total_cmp(&b.0)))
+        .map(|(_, c)| c)
+        .expect("the best candidate passes its own filter");
+
+    let features = FeatureConfig {
+        set,
+        rate_window_s: choice.rate_window_s,
+    };
+    let blocks = block_means(train, &features, opts.block_s);
+    let model = final_model(&blocks, features, &choice, opts)?;
+    Ok((model, choice))
+}
+
+/// The block set that scores are computed on, and the splits into it.
+fn splits(
+    train: &Blocks,
+    validate: &[Run],
+    features: &FeatureConfig,
+    opts: &FitOptions,
+    folds: usize,
+) -> (Blocks, Vec<Split>) {
+    if !validate.is_empty() {
+        let val = block_means(validate, features, opts.block_s);
+        let mut all = train.clone();
+        let offset = all.len();
+        let runs_before = train.run.iter().max().map_or(0, |m| m + 1);
+        all.x.extend(val.x.iter().copied());
+        all.y.extend(val.y.iter().copied());
+        all.run.extend(val.run.iter().map(|r| r + runs_before));
+        let groups = (0..validate.len())
+            .map(|r| {
+                (0..val.len())
+                    .filter(|&i| val.run[i] == r)
+                    .map(|i| i + offset)
+                    .collect::<Vec<_>>()
+            })
+            .filter(|g: &Vec<usize>| g.len() > 2)
+            .collect();
+        return (
+            all,
+            vec![Split {
+                train: (0..offset).collect(),
+                groups,
+            }],
+        );
+    }
+    let runs = train.run.iter().max().map_or(0, |m| m + 1);
+    let per_run: Vec<Vec<usize>> = (0..runs)
+        .map(|r| (0..train.len()).filter(|&i| train.run[i] == r).collect())
+        .collect();
+    let splits = (0..folds)
+        .map(|f| {
+            let mut groups = Vec::new();
+            let mut held = vec![false; train.len()];
+            for rows in &per_run {
+                let (lo, hi) = (f * rows.len() / folds, (f + 1) * rows.len() / folds);
+                let chunk: Vec<usize> = rows[lo..hi].to_vec();
+                chunk.iter().for_each(|&i| held[i] = true);
+                if chunk.len() > 2 {
+                    groups.push(chunk);
+                }
+            }
+            Split {
+                train: (0..train.len()).filter(|&i| !held[i]).collect(),
+                groups,
+            }
+        })
+        .collect();
+    (train.clone(), splits)
+}
+
+/// Centres chosen by OLS on (a thinned set of) `rows`, in selection order.
+fn select_centers(
+    z: &[FeatureRow],
+    y: &[f64],
+    rows: &[usize],
+    dims: usize,
+    width: f64,
+    k_max: usize,
+) -> Vec<FeatureRow> {
+    let pool = farthest_points(z, rows, dims, MAX_CANDIDATES);
+    let centers: Vec<FeatureRow> = pool
+        .iter()
+        .map(|&i| z[i].map(|v| v as f32 as f64))
+        .collect();
+    let sel_rows = thin(rows, MAX_SELECTION_ROWS);
+    let a = design(z, &sel_rows, dims, &centers, width);
+    let fixed = a.columns(0, 1 + dims).clone_owned();
+    let candidates = a.columns(1 + dims, centers.len()).clone_owned();
+    let target = DVector::from_iterator(sel_rows.len(), sel_rows.iter().map(|&i| y[i]));
+    forward_select(&candidates, &fixed, &target, k_max)
+        .order
+        .into_iter()
+        .map(|m| centers[m])
+        .collect()
+}
+
+fn accumulate_scores(
+    table: &mut ScoreTable,
+    z: &[FeatureRow],
+    all: &Blocks,
+    split: &Split,
+    width: f64,
+    k_max: usize,
+) {
+    let dims = all.dims;
+    let centers = select_centers(z, &all.y, &split.train, dims, width, k_max);
+    let stats = |rows: &[usize]| {
+        let a: DMatrix<f64> = design(z, rows, dims, &centers, width);
+        GramStats::new(
+            &a,
+            &DVector::from_iterator(rows.len(), rows.iter().map(|&i| all.y[i])),
+        )
+    };
+    let train = stats(&split.train);
+    let groups: Vec<GramStats> = split.groups.iter().map(|g| stats(g)).collect();
+    for (ri, &ridge) in RIDGES.iter().enumerate() {
+        for k in 1..=k_max {
+            let score = if k > centers.len() {
+                f64::INFINITY
+            } else {
+                match ridge_solve(&train, 1 + dims + k, ridge) {
+                    Some(w) => {
+                        groups.iter().map(|g| g.residual_variance(&w)).sum::<f64>()
+                            / groups.len().max(1) as f64
+                    }
+                    None => f64::INFINITY,
+                }
+            };
+            table[ri][k - 1] += score;
+        }
+    }
+}
+
+/// Fits the chosen configuration on all training blocks and assembles the model.
+pub(super) fn final_model(
+    blocks: &Blocks,
+    features: FeatureConfig,
+    choice: &RbfChoice,
+    opts: &FitOptions,
+) -> anyhow::Result<Model> {
+    let dims = blocks.dims;
+    let norm = Normaliser::fit(blocks);
+    let z: Vec<FeatureRow> = blocks.x.iter().map(|r| norm.apply(r)).collect();
+    let rows: Vec<usize> = (0..blocks.len()).collect();
+    let centers = select_centers(&z, &blocks.y, &rows, dims, choice.width, choice.centers);
+    let width = choice.width as f32 as f64;
+    let a = design(&z, &rows, dims, &centers, width);
+    let stats = GramStats::new(&a, &DVector::from_column_slice(&blocks.y));
+    let w = ridge_solve(&stats, 1 + dims + centers.len(), choice.ridge)
+        .ok_or_else(|| anyhow::anyhow!("the output-weight system is singular"))?;
+    let to_f32 = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+    let flat_centers: Vec<f32> = centers
+        .iter()
+        .flat_map(|c| c[..dims].iter().map(|&v| v as f32))
+        .collect();
+    let params = RbfParams {
+        offset: &to_f32(&norm.offset),
+        scale: &to_f32(&norm.scale),
+        centers: &flat_centers,
+        widths: &vec![width as f32; centers.len()],
+        weights: &to_f32(&w.as_slice()[1 + dims..]),
+        linear: &to_f32(&w.as_slice()[1..1 + dims]),
+        constant: w[0] as f32,
+    };
+    let net = RbfNetwork::new(&params)
+        .map_err(|e| anyhow::anyhow!("fitted network is not deployable: {e}"))?;
+    let ranges = super::deploy_ranges(blocks);
+    let info = ModelInfo {
+        serial: super::serial(opts)?,
+    };
+    Model::new(features, &ranges, ModelBody::Rbf(net), info)
+        .map_err(|e| anyhow::anyhow!("fitted model is not deployable: {e}"))
+}

@@ -1,0 +1,18 @@
+//! # trainer: the host side of IFOG temperature-drift compensation
+//!
+//! Reads recorded chamber runs, fits a bias model, writes the model blob, and
+//! compensates/evaluates runs with exactly the `rbf-core` code the firmware
+//! runs. The `trainer` binary is a thin clap front end over these modules.
+//!
+//! Data flow of a fit: [`run`] (CSV) → [`dataset`] (rbf-core features,
+//! 1-s block means, targets) → [`fit`] (OLS centre selection, ridge weights,
+//! validation) → [`blobfile`] (postcard + CRC) → [`evaluate`] (streaming
+//! compensation + [`metrics`]).
+
+pub mod blobfile;
+pub mod dataset;
+pub mod evaluate;
+pub mod fit;
+pub mod metrics;
+pub mod output;
+pub mod run;

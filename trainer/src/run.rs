@@ -1,0 +1,456 @@
+//! Reading recorded runs (`shared/recorded-run-format.md`) from files.
+//!
+//! Row parsing is [`rbf_core::record`] (shared with the firmware replay); this
+//! module adds files, line numbers, metadata, the strictly-increasing time
+//! check and error messages of the form
+//! `run.csv:1042: column rate_dph: "1.2.3" is not a number`.
+
+use std::fs::File;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+
+use rbf_core::record::{self, Columns, HeaderError, Row, RowErrorKind};
+use rbf_core::{CompensatorConfig, GyroSample};
+
+/// Steps used to estimate the nominal sample period when metadata lacks it.
+const PERIOD_ESTIMATE_STEPS: usize = 1000;
+
+/// A defect in a run file, with its position.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The file could not be opened or read.
+    #[error("{path}: {source}")]
+    Io {
+        /// File concerned.
+        path: PathBuf,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// The content breaks the format.
+    #[error("{path}:{line}: {message}")]
+    Format {
+        /// File concerned.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong, naming the column where there is one.
+        message: String,
+    },
+}
+
+/// Streams the rows of one run file, checking them as it goes.
+pub struct RunReader {
+    path: PathBuf,
+    lines: std::io::Lines<BufReader<File>>,
+    line_no: usize,
+    header_line: String,
+    column_names: Vec<String>,
+    columns: Columns,
+    metadata: Vec<(String, String)>,
+    preamble: Vec<String>,
+    last_time_s: Option<f64>,
+}
+
+impl std::fmt::Debug for RunReader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RunReader")
+            .field("path", &self.path)
+            .field("line", &self.line_no)
+            .finish()
+    }
+}
+
+/// One data row with its raw text (passed through by `compensate`).
+#[derive(Clone, Debug)]
+pub struct RawRow {
+    /// 1-based line number in the file.
+    pub line: usize,
+    /// The parsed known columns.
+    pub row: Row,
+    /// The line as read, without its line end.
+    pub text: String,
+}
+
+impl RunReader {
+    /// Opens a run and reads its metadata and header.
+    pub fn open(path: &Path) -> Result<RunReader, RunError> {
+        let file = File::open(path).map_err(|source| RunError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let mut lines = BufReader::new(file).lines();
+        let mut line_no = 0;
+        let mut metadata = Vec::new();
+        let mut preamble = Vec::new();
+        let format_error = |line: usize, message: String| RunError::Format {
+            path: path.to_owned(),
+            line,
+            message,
+        };
+        let header_line = loop {
+            line_no += 1;
+            let Some(line) = lines.next() else {
+                return Err(format_error(
+                    line_no,
+                    "no header line: the file has no columns".into(),
+                ));
+            };
+            let line = line.map_err(|e| io_or_utf8(path, line_no, e))?;
+            let line = if line_no == 1 {
+                line.trim_start_matches('\u{feff}').to_owned()
+            } else {
+                line
+            };
+            if let Some((k, v)) = record::metadata(&line) {
+                metadata.push((k.to_owned(), v.to_owned()));
+            }
+            if !record::is_comment_or_blank(&line) {
+                break line.trim_end_matches('\r').to_owned();
+            }
+            preamble.push(line.trim_end_matches('\r').to_owned());
+        };
+        let column_names: Vec<String> = header_line
+            .split(',')
+            .map(|s| record::trim_field(s).to_owned())
+            .collect();
+        let columns = Columns::from_header(&header_line).map_err(|e| match e {
+            HeaderError::MissingColumn(name) => format_error(
+                line_no,
+                format!(
+                    "header has no required column {name} (header: {})",
+                    short(&header_line)
+                ),
+            ),
+            HeaderError::DuplicateColumn(i) => format_error(
+                line_no,
+                format!("column {} appears twice in the header", column_names[i]),
+            ),
+            _ => format_error(line_no, "unusable header".into()),
+        })?;
+        Ok(RunReader {
+            path: path.to_owned(),
+            lines,
+            line_no,
+            header_line,
+            column_names,
+            columns,
+            metadata,
+            preamble,
+            last_time_s: None,
+        })
+    }
+
+    /// The file being read.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The header line as read (without line end).
+    pub fn header_line(&self) -> &str {
+        &self.header_line
+    }
+
+    /// Where the known columns are.
+    pub fn columns(&self) -> &Columns {
+        &self.columns
+    }
+
+    /// `# key: value` metadata lines seen before the header.
+    pub fn metadata(&self) -> &[(String, String)] {
+        &self.metadata
+    }
+
+    /// The lines before the header (metadata, blank lines) as read, without line ends.
+    pub fn preamble(&self) -> &[String] {
+        &self.preamble
+    }
+
+    /// Value of a metadata key, if present.
+    pub fn metadata_value(&self, key: &str) -> Option<&str> {
+        self.metadata
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// Fails unless the run has a `temp_c` column (single-point models need it).
+    pub fn require_temp(&self) -> Result<(), RunError> {
+        if self.columns.temp_c.is_none() {
+            return Err(self.error_at(
+                self.header_line_no(),
+                format!(
+                    "header has no column temp_c, which single-point models need (header: {})",
+                    short(&self.header_line)
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn header_line_no(&self) -> usize {
+        // The header is the last line read before data; metadata lines precede it.
+        self.line_no
+    }
+
+    fn error_at(&self, line: usize, message: String) -> RunError {
+        RunError::Format {
+            path: self.path.clone(),
+            line,
+            message,
+        }
+    }
+
+    /// Reads the next data row; `Ok(None)` at the end of the file.
+    pub fn next_row(&mut self) -> Result<Option<RawRow>, RunError> {
+        loop {
+            let Some(line) = self.lines.next() else {
+                return Ok(None);
+            };
+            self.line_no += 1;
+            let line = line.map_err(|e| io_or_utf8(&self.path, self.line_no, e))?;
+            if record::is_comment_or_blank(&line) {
+                continue;
+            }
+            let text = line.trim_end_matches('\r').to_owned();
+            let row = self.columns.parse_row(&text).map_err(|e| {
+                let column = e
+                    .column
+                    .and_then(|i| self.column_names.get(i).map(|n| (i, n)));
+                let field = e
+                    .column
+                    .and_then(|i| text.split(',').nth(i))
+                    .map(record::trim_field)
+                    .unwrap_or("");
+                let message = match e.kind {
+                    RowErrorKind::FieldCount { expected, found } => {
+                        format!("row has {found} fields, the header has {expected}")
+                    }
+                    RowErrorKind::NotANumber if field.is_empty() => {
+                        "field is empty, a number is required".to_owned()
+                    }
+                    RowErrorKind::NotANumber => format!("\"{}\" is not a number", short(field)),
+                    RowErrorKind::NonFinite => format!("\"{field}\" is not a finite number"),
+                    RowErrorKind::NotAFlag => format!("\"{field}\" is not 0 or 1"),
+                    _ => "unreadable row".to_owned(),
+                };
+                let message = match column {
+                    Some((i, name)) => format!("column {name} (field {}): {message}", i + 1),
+                    None => message,
+                };
+                self.error_at(self.line_no, message)
+            })?;
+            if let Some(last) = self.last_time_s
+                && row.time_s <= last
+            {
+                return Err(self.error_at(
+                    self.line_no,
+                    format!(
+                        "column time_s (field {}): {} does not increase (previous row {last})",
+                        self.columns.time_s + 1,
+                        row.time_s
+                    ),
+                ));
+            }
+            self.last_time_s = Some(row.time_s);
+            return Ok(Some(RawRow {
+                line: self.line_no,
+                row,
+                text,
+            }));
+        }
+    }
+}
+
+fn io_or_utf8(path: &Path, line: usize, e: std::io::Error) -> RunError {
+    if e.kind() == std::io::ErrorKind::InvalidData {
+        RunError::Format {
+            path: path.to_owned(),
+            line,
+            message: "line is not valid UTF-8 text".into(),
+        }
+    } else {
+        RunError::Io {
+            path: path.to_owned(),
+            source: e,
+        }
+    }
+}
+
+fn short(s: &str) -> String {
+    const MAX: usize = 60;
+    if s.chars().count() <= MAX {
+        s.to_owned()
+    } else {
+        format!("{}…", s.chars().take(MAX).collect::<String>())
+    }
+}
+
+/// A whole run in memory, column-wise.
+#[derive(Clone, Debug)]
+pub struct Run {
+    /// File it came from.
+    pub path: PathBuf,
+    /// Sample times, s.
+    pub time_s: Vec<f64>,
+    /// Gyro output, °/h.
+    pub rate_dph: Vec<f64>,
+    /// Loop temperature, °C (`None` where `temp_fault` = 1).
+    pub temp_c: Vec<Option<f64>>,
+    /// Known true rate, °/h, if the run has the column.
+    pub ref_dph: Option<Vec<f64>>,
+    /// Nominal sample period, s (see [`nominal_period_s`]).
+    pub nominal_period_s: f64,
+}
+
+impl Run {
+    /// Reads a whole run that has a `temp_c` column.
+    pub fn load(path: &Path) -> Result<Run, RunError> {
+        let mut reader = RunReader::open(path)?;
+        reader.require_temp()?;
+        let has_ref = reader.columns().ref_dph.is_some();
+        let metadata_rate = metadata_sample_rate(&reader);
+        let (mut time_s, mut rate_dph, mut temp_c, mut ref_dph) = (vec![], vec![], vec![], vec![]);
+        while let Some(raw) = reader.next_row()? {
+            time_s.push(raw.row.time_s);
+            rate_dph.push(raw.row.rate_dph);
+            temp_c.push(raw.temp_c());
+            if has_ref {
+                ref_dph.push(raw.row.ref_dph.unwrap_or(0.0));
+            }
+        }
+        if time_s.len() < 2 {
+            return Err(RunError::Format {
+                path: path.to_owned(),
+                line: reader.line_no,
+                message: format!("run has {} data rows; at least 2 are needed", time_s.len()),
+            });
+        }
+        let nominal_period_s =
+            nominal_period_s(metadata_rate, time_s.windows(2).map(|w| w[1] - w[0]));
+        Ok(Run {
+            path: path.to_owned(),
+            time_s,
+            rate_dph,
+            temp_c,
+            ref_dph: has_ref.then_some(ref_dph),
+            nominal_period_s,
+        })
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.time_s.len()
+    }
+
+    /// True when the run has no samples.
+    pub fn is_empty(&self) -> bool {
+        self.time_s.is_empty()
+    }
+
+    /// The reference rate of sample `i`: `ref_dph`, or else the run's mean rate, °/h.
+    pub fn reference_dph(&self) -> Reference<'_> {
+        match &self.ref_dph {
+            Some(r) => Reference::Known(r),
+            None => Reference::Mean(self.rate_dph.iter().sum::<f64>() / self.len() as f64),
+        }
+    }
+
+    /// The compensator settings for this run's sample rate.
+    pub fn compensator_config(&self) -> CompensatorConfig {
+        CompensatorConfig::for_sample_rate((1.0 / self.nominal_period_s) as f32)
+    }
+
+    /// Samples in rbf-core form, as the firmware receives them.
+    pub fn samples(&self) -> impl Iterator<Item = GyroSample> + '_ {
+        (0..self.len()).map(|i| {
+            let prev = i.checked_sub(1).map(|p| self.time_s[p]);
+            gyro_sample(prev, self.time_s[i], self.rate_dph[i], self.temp_c[i])
+        })
+    }
+}
+
+/// What a run's rate is compared against.
+#[derive(Clone, Copy, Debug)]
+pub enum Reference<'a> {
+    /// Per-sample known true rate (`ref_dph`).
+    Known(&'a [f64]),
+    /// No reference column: the run's mean rate (IFOG paper, step 2).
+    Mean(f64),
+}
+
+impl Reference<'_> {
+    /// Reference rate of sample `i`, °/h.
+    pub fn at(&self, i: usize) -> f64 {
+        match self {
+            Reference::Known(r) => r[i],
+            Reference::Mean(m) => *m,
+        }
+    }
+}
+
+/// The sample the compensator sees for a row: the time step since the
+/// previous row (computed in f64, rounded once to f32, on host and target
+/// alike; 0 for the first row) and the values rounded to f32.
+/// `temp_c` is `None` when the sensor failed (`temp_fault` = 1).
+pub fn gyro_sample(
+    prev_time_s: Option<f64>,
+    time_s: f64,
+    rate_dph: f64,
+    temp_c: Option<f64>,
+) -> GyroSample {
+    GyroSample {
+        dt_s: prev_time_s.map_or(0.0, |p| (time_s - p) as f32),
+        rate_dph: rate_dph as f32,
+        temp_c: temp_c.map(|t| t as f32),
+    }
+}
+
+impl RawRow {
+    /// The loop temperature of this row: `None` when the column is absent or
+    /// `temp_fault` = 1.
+    pub fn temp_c(&self) -> Option<f64> {
+        if self.row.temp_fault {
+            None
+        } else {
+            self.row.temp_c
+        }
+    }
+}
+
+/// `# sample_rate_hz` from the metadata, when present and positive.
+pub fn metadata_sample_rate(reader: &RunReader) -> Option<f64> {
+    reader
+        .metadata_value("sample_rate_hz")
+        .and_then(|v| v.parse::<f64>().ok())
+        .filter(|r| r.is_finite() && *r > 0.0)
+}
+
+/// The nominal sample period: from `# sample_rate_hz` when given, else the
+/// median of the first 1000 time steps.
+pub fn nominal_period_s(metadata_rate_hz: Option<f64>, steps: impl Iterator<Item = f64>) -> f64 {
+    if let Some(rate) = metadata_rate_hz {
+        return 1.0 / rate;
+    }
+    let mut steps: Vec<f64> = steps.take(PERIOD_ESTIMATE_STEPS).collect();
+    if steps.is_empty() {
+        return 1.0;
+    }
+    steps.sort_by(f64::total_cmp);
+    steps[steps.len() / 2]
+}
+
+/// Nominal period of a run file read in a first pass (for streaming commands).
+pub fn probe_nominal_period_s(path: &Path) -> Result<f64, RunError> {
+    let mut reader = RunReader::open(path)?;
+    let metadata_rate = metadata_sample_rate(&reader);
+    let mut steps = Vec::new();
+    let mut prev = None;
+    while metadata_rate.is_none() && steps.len() < PERIOD_ESTIMATE_STEPS {
+        let Some(raw) = reader.next_row()? else { break };
+        if let Some(p) = prev {
+            steps.push(raw.row.time_s - p);
+        }
+        prev = Some(raw.row.time_s);
+    }
+    Ok(nominal_period_s(metadata_rate, steps.into_iter()))
+}
