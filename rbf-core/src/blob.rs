@@ -184,10 +184,7 @@ impl core::fmt::Display for DecodeError {
             }
             DecodeError::BadMagic => f.write_str("bad magic: not an IFOG model blob"),
             DecodeError::UnsupportedVersion(v) => {
-                write!(
-                    f,
-                    "unsupported format version {v} (this build reads {FORMAT_VERSION})"
-                )
+                write!(f, "unsupported format version {v} (this build reads {FORMAT_VERSION})")
             }
             DecodeError::UnknownKind(k) => write!(f, "unknown model kind code {k}"),
             DecodeError::CrcMismatch { stored, computed } => {
@@ -270,12 +267,8 @@ pub fn encode(model: &Model, out: &mut [u8]) -> Result<usize, EncodeError> {
     let mut input_max = Vec::<f32, MAX_INPUTS>::new();
     for i in 0..dims {
         let (lo, hi) = model.input_range(i).unwrap_or((0.0, 0.0));
-        input_min
-            .push(lo)
-            .map_err(|_| EncodeError::BufferTooSmall)?;
-        input_max
-            .push(hi)
-            .map_err(|_| EncodeError::BufferTooSmall)?;
+        input_min.push(lo).map_err(|_| EncodeError::BufferTooSmall)?;
+        input_max.push(hi).map_err(|_| EncodeError::BufferTooSmall)?;
     }
     let common = CommonWire {
         features: *model.features(),
@@ -285,9 +278,7 @@ pub fn encode(model: &Model, out: &mut [u8]) -> Result<usize, EncodeError> {
         input_max,
         serial: model.info().serial.clone(),
     };
-    let payload_area = out
-        .get_mut(HEADER_LEN..)
-        .ok_or(EncodeError::BufferTooSmall)?;
+    let payload_area = out.get_mut(HEADER_LEN..).ok_or(EncodeError::BufferTooSmall)?;
     let common_len = postcard::to_slice(&common, payload_area)
         .map_err(|_| EncodeError::BufferTooSmall)?
         .len();
@@ -349,13 +340,9 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
     let header = Header::parse(bytes)?;
     crc_status(bytes, &header)?;
     let payload = &bytes[HEADER_LEN..HEADER_LEN + header.payload_len as usize];
-    let (common, rest): (CommonWire, _) =
-        postcard::take_from_bytes(payload).map_err(|_| DecodeError::Malformed)?;
+    let (common, rest): (CommonWire, _) = postcard::take_from_bytes(payload).map_err(|_| DecodeError::Malformed)?;
     let dims = common.features.dims();
-    if dims != header.inputs as usize
-        || common.input_min.len() != dims
-        || common.input_max.len() != dims
-    {
+    if dims != header.inputs as usize || common.input_min.len() != dims || common.input_max.len() != dims {
         return Err(DecodeError::Malformed);
     }
     let mut ranges = [(0.0f32, 0.0f32); MAX_INPUTS];
@@ -364,8 +351,7 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
     }
     let (body, rest) = match ModelKind::from_code(header.kind_code) {
         Some(ModelKind::Rbf) => {
-            let (w, rest): (RbfWire, _) =
-                postcard::take_from_bytes(rest).map_err(|_| DecodeError::Malformed)?;
+            let (w, rest): (RbfWire, _) = postcard::take_from_bytes(rest).map_err(|_| DecodeError::Malformed)?;
             if w.widths.len() != header.centers as usize {
                 return Err(DecodeError::Malformed);
             }
@@ -381,8 +367,7 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
             (ModelBody::Rbf(net), rest)
         }
         Some(ModelKind::Poly3) => {
-            let (w, rest): (Poly3Wire, _) =
-                postcard::take_from_bytes(rest).map_err(|_| DecodeError::Malformed)?;
+            let (w, rest): (Poly3Wire, _) = postcard::take_from_bytes(rest).map_err(|_| DecodeError::Malformed)?;
             if header.centers != 0 {
                 return Err(DecodeError::Malformed);
             }
@@ -393,9 +378,7 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
     if !rest.is_empty() {
         return Err(DecodeError::Malformed);
     }
-    let info = ModelInfo {
-        serial: common.serial,
-    };
+    let info = ModelInfo { serial: common.serial };
     let model = Model::new(common.features, &ranges[..dims], body, info)?;
     Ok(Decoded {
         model,
@@ -404,6 +387,10 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "expected values are exact in binary floating point; exactness is what these tests guard"
+)]
 mod tests {
     use super::*;
     use crate::features::FeatureSet;
@@ -429,9 +416,7 @@ mod tests {
             features,
             &ranges,
             ModelBody::Rbf(net),
-            ModelInfo {
-                serial: Some(serial),
-            },
+            ModelInfo { serial: Some(serial) },
         )
         .unwrap()
     }
@@ -476,10 +461,7 @@ mod tests {
     #[test]
     fn every_defect_has_its_own_error() {
         let good = encoded(&rbf_model());
-        assert!(matches!(
-            decode(&good[..10]),
-            Err(DecodeError::Truncated { .. })
-        ));
+        assert!(matches!(decode(&good[..10]), Err(DecodeError::Truncated { .. })));
         assert!(matches!(
             decode(&good[..good.len() - 1]),
             Err(DecodeError::Truncated { .. })
@@ -517,17 +499,11 @@ mod tests {
             unreachable!()
         };
         let constant_at = good.len() - CRC_LEN - 4;
-        assert_eq!(
-            &good[constant_at..constant_at + 4],
-            &net.constant().to_le_bytes()
-        );
+        assert_eq!(&good[constant_at..constant_at + 4], &net.constant().to_le_bytes());
         let mut v = good.clone();
         v[constant_at..constant_at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
         reseal(&mut v);
-        assert_eq!(
-            decode(&v),
-            Err(DecodeError::Model(ModelError::NonFiniteParameter))
-        );
+        assert_eq!(decode(&v), Err(DecodeError::Model(ModelError::NonFiniteParameter)));
     }
 
     #[test]
@@ -537,10 +513,7 @@ mod tests {
             for bit in 0..8 {
                 let mut v = good.clone();
                 v[byte] ^= 1 << bit;
-                assert!(
-                    decode(&v).is_err(),
-                    "flip of bit {bit} in byte {byte} accepted"
-                );
+                assert!(decode(&v).is_err(), "flip of bit {bit} in byte {byte} accepted");
             }
         }
     }

@@ -203,6 +203,10 @@ impl Compensator {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "expected values are exact in binary floating point; exactness is what these tests guard"
+)]
 mod tests {
     use super::*;
     use crate::model::{ModelBody, ModelInfo};
@@ -250,14 +254,8 @@ mod tests {
             assert!(!held.flags.contains(Flags::NO_VALID_MODEL));
         }
         let expired = comp.process(Some(&model), &cfg, &sample(Some(f32::NAN)));
-        assert_eq!(
-            expired.flags,
-            Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL
-        );
-        assert_eq!(
-            expired.rate_comp_dph, 100.0,
-            "uncompensated once the hold has expired"
-        );
+        assert_eq!(expired.flags, Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL);
+        assert_eq!(expired.rate_comp_dph, 100.0, "uncompensated once the hold has expired");
         let recovered = comp.process(Some(&model), &cfg, &sample(Some(31.0)));
         assert_eq!(recovered.bias_dph, 31.0);
         assert!(
@@ -319,10 +317,7 @@ mod tests {
         let cfg = CompensatorConfig::for_sample_rate(1.0);
         let mut comp = Compensator::new();
         comp.features(&cfg_model, &cfg, &sample(Some(20.0)));
-        let step = comp
-            .features(&cfg_model, &cfg, &sample(Some(21.0)))
-            .features
-            .unwrap();
+        let step = comp.features(&cfg_model, &cfg, &sample(Some(21.0))).features.unwrap();
         assert_eq!(step.as_slice()[1], 60.0, "1 °C in 1 s is 60 °C/min");
         let after_gap = GyroSample {
             dt_s: 2.5,

@@ -87,9 +87,7 @@ impl FeatureConfig {
 
     /// True when the configuration is usable (finite window within 0 ..= 1 day).
     pub fn is_valid(&self) -> bool {
-        self.rate_window_s.is_finite()
-            && self.rate_window_s >= 0.0
-            && self.rate_window_s <= MAX_RATE_WINDOW_S
+        self.rate_window_s.is_finite() && self.rate_window_s >= 0.0 && self.rate_window_s <= MAX_RATE_WINDOW_S
     }
 }
 
@@ -147,7 +145,7 @@ impl FeatureExtractor {
     /// restarts the segment. `temp_c` must be finite (the compensator
     /// guarantees it by holding the last good value).
     pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temp_c: f32) -> FeatureVector {
-        let rate_c_per_s = if !self.started || !(dt_s.is_finite() && dt_s > 0.0) {
+        let rate_c_per_s = if !(self.started && dt_s.is_finite() && dt_s > 0.0) {
             self.started = true;
             self.since_restart_s = 0.0;
             self.smoothed_c = temp_c;
@@ -186,6 +184,10 @@ impl FeatureExtractor {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "expected values are exact in binary floating point; exactness is what these tests guard"
+)]
 mod tests {
     use super::*;
 
@@ -277,11 +279,7 @@ mod tests {
     #[test]
     fn feature_sets_have_their_documented_dimensions() {
         let mut fx = FeatureExtractor::new();
-        for set in [
-            FeatureSet::Temp,
-            FeatureSet::TempRate,
-            FeatureSet::TempRateProduct,
-        ] {
+        for set in [FeatureSet::Temp, FeatureSet::TempRate, FeatureSet::TempRateProduct] {
             let cfg = FeatureConfig {
                 set,
                 rate_window_s: 5.0,

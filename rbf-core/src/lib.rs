@@ -13,6 +13,7 @@
 //!
 //! Sizes live in types ([`MAX_CENTERS`], [`MAX_INPUTS`]); values are runtime data.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
+#![forbid(unsafe_code)]
 
 pub mod blob;
 pub mod compensator;

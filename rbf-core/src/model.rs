@@ -78,6 +78,10 @@ pub type DeployedRbf = RbfNetwork<MAX_CENTERS, MAX_INPUTS>;
 
 /// The regression part of a model.
 #[derive(Clone, Debug, PartialEq)]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "no_std without alloc: nothing to box into; one model lives in RAM"
+)]
 pub enum ModelBody {
     /// Gaussian RBF network.
     Rbf(DeployedRbf),
@@ -204,6 +208,10 @@ impl Model {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "expected values are exact in binary floating point; exactness is what these tests guard"
+)]
 mod tests {
     use super::*;
     use crate::features::FeatureExtractor;

@@ -33,6 +33,10 @@ impl Poly3 {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "expected values are exact in binary floating point; exactness is what these tests guard"
+)]
 mod tests {
     use super::*;
 
@@ -42,9 +46,6 @@ mod tests {
         assert_eq!(p.eval(25.0), 1.0);
         // u = 2: 1 + 4 + 2 + 2 = 9 (exact in f32).
         assert_eq!(p.eval(27.0), 9.0);
-        assert_eq!(
-            Poly3::new(f32::INFINITY, [0.0; 4]),
-            Err(ModelError::NonFiniteParameter)
-        );
+        assert_eq!(Poly3::new(f32::INFINITY, [0.0; 4]), Err(ModelError::NonFiniteParameter));
     }
 }

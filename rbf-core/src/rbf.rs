@@ -174,8 +174,8 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             *zi = (xi - self.offset[i]) * self.inv_scale[i];
         }
         let mut y = self.constant;
-        for i in 0..d {
-            y += self.linear[i] * z[i];
+        for (a, zi) in self.linear.iter().zip(&z).take(d) {
+            y += a * zi;
         }
         for j in 0..self.centers_used {
             let c = &self.centers[j];
@@ -191,6 +191,10 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "expected values are exact in binary floating point; exactness is what these tests guard"
+)]
 mod tests {
     use super::*;
 
@@ -243,10 +247,7 @@ mod tests {
             linear: &[],
             constant: 0.0,
         };
-        assert_eq!(
-            RbfNetwork::<4, 3>::new(&bad_centres),
-            Err(ModelError::ShapeMismatch)
-        );
+        assert_eq!(RbfNetwork::<4, 3>::new(&bad_centres), Err(ModelError::ShapeMismatch));
     }
 
     #[test]

@@ -111,8 +111,7 @@ impl Columns {
     /// Maps a header line (a leading UTF-8 BOM is allowed) to column indices.
     pub fn from_header(line: &str) -> Result<Columns, HeaderError> {
         let line = line.strip_prefix('\u{feff}').unwrap_or(line);
-        let (mut time_s, mut rate_dph, mut temp_c, mut ref_dph, mut temp_fault) =
-            (None, None, None, None, None);
+        let (mut time_s, mut rate_dph, mut temp_c, mut ref_dph, mut temp_fault) = (None, None, None, None, None);
         let mut count = 0;
         for (i, name) in line.split(',').enumerate() {
             count = i + 1;
@@ -180,12 +179,11 @@ impl Columns {
                 })
             }
         };
-        let optional =
-            |index: Option<usize>, text: &str| index.map(|i| number(i, text)).transpose();
+        let optional = |index: Option<usize>, text: &str| index.map(|i| number(i, text)).transpose();
         let temp_fault = match optional(self.temp_fault, fields[4])? {
             None => false,
-            Some(v) if v == 0.0 => false,
-            Some(v) if v == 1.0 => true,
+            Some(0.0) => false,
+            Some(1.0) => true,
             Some(_) => {
                 return Err(RowError {
                     column: self.temp_fault,
@@ -204,6 +202,10 @@ impl Columns {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "expected values are exact in binary floating point; exactness is what these tests guard"
+)]
 mod tests {
     use super::*;
 
@@ -265,10 +267,7 @@ mod tests {
             err("1,2,20"),
             RowError {
                 column: None,
-                kind: RowErrorKind::FieldCount {
-                    expected: 5,
-                    found: 3
-                }
+                kind: RowErrorKind::FieldCount { expected: 5, found: 3 }
             }
         );
         assert_eq!(
@@ -282,10 +281,7 @@ mod tests {
 
     #[test]
     fn metadata_lines_split_into_key_and_value() {
-        assert_eq!(
-            metadata("# sample_rate_hz: 10\r"),
-            Some(("sample_rate_hz", "10"))
-        );
+        assert_eq!(metadata("# sample_rate_hz: 10\r"), Some(("sample_rate_hz", "10")));
         assert_eq!(metadata("#no colon"), None);
         assert!(is_comment_or_blank("  \r"));
     }

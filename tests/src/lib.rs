@@ -1,5 +1,13 @@
-//! Shared helpers of the end-to-end tests: a synthetic thermal-chamber run
-//! generator (until `trainer simulate` lands it is also what writes the bundled
-//! example data) and small utilities for driving the `trainer` binary.
+//! Shared helpers of the cross-crate end-to-end tests.
 
-pub mod chamber;
+use std::path::{Path, PathBuf};
+
+/// The workspace root (the tests crate sits directly below it).
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("tests/ sits in the workspace").to_owned()
+}
+
+/// A bundled example run under `examples/data/`.
+pub fn example(name: &str) -> PathBuf {
+    workspace_root().join("examples/data").join(name)
+}

@@ -17,19 +17,14 @@ pub fn write_model(path: &Path, model: &Model) -> anyhow::Result<Vec<u8>> {
     let len = blob::encode(model, &mut buf).context("encoding the model blob")?;
     buf.truncate(len);
     let back = blob::decode(&buf).context("the encoded blob does not decode")?;
-    anyhow::ensure!(
-        back.model == *model,
-        "the encoded blob does not reproduce the model"
-    );
+    anyhow::ensure!(back.model == *model, "the encoded blob does not reproduce the model");
     write_bytes(path, &buf)?;
     Ok(buf)
 }
 
 /// Reads and validates a model blob, refusing a corrupt one with the reason.
 pub fn read_model(path: &Path) -> anyhow::Result<(Model, Vec<u8>)> {
-    let bytes =
-        std::fs::read(path).with_context(|| format!("{}: cannot read model", path.display()))?;
-    let decoded = blob::decode(&bytes)
-        .map_err(|e| anyhow::anyhow!("{}: model refused: {e}", path.display()))?;
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read model", path.display()))?;
+    let decoded = blob::decode(&bytes).map_err(|e| anyhow::anyhow!("{}: model refused: {e}", path.display()))?;
     Ok((decoded.model, bytes))
 }

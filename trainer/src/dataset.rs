@@ -45,11 +45,9 @@ impl Blocks {
 
     /// Range (min, max) of block-mean feature `i`.
     pub fn block_range(&self, i: usize) -> (f64, f64) {
-        self.x
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
-                (lo.min(r[i]), hi.max(r[i]))
-            })
+        self.x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+            (lo.min(r[i]), hi.max(r[i]))
+        })
     }
 
     /// The blocks whose indices `keep` lists, as a new set.

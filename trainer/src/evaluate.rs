@@ -66,9 +66,7 @@ pub struct RunEvaluation {
 pub fn compensate_run(model: Option<&Model>, run: &Run) -> Vec<CompensatedSample> {
     let config = run.compensator_config();
     let mut compensator = Compensator::new();
-    run.samples()
-        .map(|s| compensator.process(model, &config, &s))
-        .collect()
+    run.samples().map(|s| compensator.process(model, &config, &s)).collect()
 }
 
 /// Before/after accuracy of `model` on `run`.
@@ -76,9 +74,7 @@ pub fn evaluate_run(model: &Model, run: &Run) -> RunEvaluation {
     let out = compensate_run(Some(model), run);
     let reference = run.reference_dph();
     let about_mean = run.ref_dph.is_none();
-    let before: Vec<f64> = (0..run.len())
-        .map(|i| run.rate_dph[i] - reference.at(i))
-        .collect();
+    let before: Vec<f64> = (0..run.len()).map(|i| run.rate_dph[i] - reference.at(i)).collect();
     let after: Vec<f64> = (0..run.len())
         .map(|i| out[i].rate_comp_dph as f64 - reference.at(i))
         .collect();
@@ -160,11 +156,7 @@ fn truncate(s: &str, max: usize) -> String {
 /// with `bias_dph`, `rate_comp_dph`, `flags` appended); returns the flag counts.
 ///
 /// Input lines are passed through as read; one output row per input row.
-pub fn compensate_file(
-    model: Option<&Model>,
-    input: &Path,
-    output: &Path,
-) -> anyhow::Result<(usize, FlagCounts)> {
+pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> anyhow::Result<(usize, FlagCounts)> {
     let period_s = probe_nominal_period_s(input)?;
     let mut reader = RunReader::open(input)?;
     reader.require_temp()?;
@@ -172,9 +164,7 @@ pub fn compensate_file(
     let mut compensator = Compensator::new();
     let (mut rows, mut flagged) = (0usize, FlagCounts::default());
     write_atomically(output, |out| {
-        let io = |e: std::io::Error| {
-            anyhow::Error::new(e).context(format!("{}: write failed", output.display()))
-        };
+        let io = |e: std::io::Error| anyhow::Error::new(e).context(format!("{}: write failed", output.display()));
         for line in reader.preamble() {
             writeln!(out, "{line}").map_err(io)?;
         }

@@ -9,6 +9,8 @@
 //! validation) → [`blobfile`] (postcard + CRC) → [`evaluate`] (streaming
 //! compensation + [`metrics`]).
 
+#![forbid(unsafe_code)]
+
 pub mod blobfile;
 pub mod dataset;
 pub mod evaluate;
@@ -16,3 +18,4 @@ pub mod fit;
 pub mod metrics;
 pub mod output;
 pub mod run;
+pub mod simulate;

@@ -14,6 +14,7 @@ use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_run, print_tabl
 use trainer::fit::{self, FitOptions, Method};
 use trainer::output::write_bytes;
 use trainer::run::Run;
+use trainer::simulate::ChamberRun;
 
 /// Removes temperature drift from fiber-optic gyros.
 ///
@@ -35,6 +36,42 @@ enum Command {
     Compensate(CompensateArgs),
     Eval(EvalArgs),
     Inspect(InspectArgs),
+    Simulate(SimulateArgs),
+}
+
+/// Chamber profiles `trainer simulate` knows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Profile {
+    /// IFOG paper: settle at 25 °C, ramp to 10 °C, hold, ramp to 40 °C, hold, back to 25 °C.
+    Ifog,
+}
+
+/// Write a synthetic IFOG thermal-chamber run (recorded-run CSV with ref_dph).
+///
+/// Chamber air → housing → coil first-order lags, a loop sensor with lag, noise
+/// and TMP117 quantisation; bias = static cubic in T + Shupe term in dT/dt with a
+/// T-dependent gain + housing–coil gradient term + bias instability + angle
+/// random walk. Same seed, same file.
+#[derive(Args, Debug)]
+struct SimulateArgs {
+    /// Temperature profile.
+    #[arg(long, value_enum, default_value_t = Profile::Ifog)]
+    profile: Profile,
+    /// Random seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Chamber ramp rate between set points, °C/min.
+    #[arg(long, value_name = "C_PER_MIN", default_value_t = 1.0)]
+    ramp: f64,
+    /// Gyro sample rate, Hz.
+    #[arg(long, value_name = "F", default_value_t = 1.0)]
+    rate_hz: f64,
+    /// Hold at each set point, minutes.
+    #[arg(long, value_name = "MINUTES", default_value_t = 60.0)]
+    hold_min: f64,
+    /// Run to write.
+    #[arg(short, long, value_name = "RUN.csv")]
+    output: PathBuf,
 }
 
 /// Fit a bias model to recorded chamber runs and write the model blob.
@@ -57,6 +94,10 @@ struct FitArgs {
     /// Runs used only to choose hyper-parameters and report generalisation (repeatable).
     #[arg(long, value_name = "RUN.csv")]
     validate: Vec<PathBuf>,
+    /// Runs only reported in the accuracy table, never used to choose anything
+    /// (an honest test of generalisation; repeatable).
+    #[arg(long, value_name = "RUN.csv")]
+    holdout: Vec<PathBuf>,
     /// Model form: rbf = Gaussian RBF on (T, ΔT, T×ΔT) (IFOG paper, modified);
     /// rbf2 = on (T, ΔT) (before modification); poly3 = cubic in T (PX4/ArduPilot form).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
@@ -161,6 +202,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Eval(a) => cmd_eval(a),
         Command::Inspect(a) => cmd_inspect(a),
+        Command::Simulate(a) => cmd_simulate(a),
     }
 }
 
@@ -174,6 +216,7 @@ fn load_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<Run>> {
 fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
     let train = load_runs(&a.runs)?;
     let validate = load_runs(&a.validate)?;
+    let holdout = load_runs(&a.holdout)?;
     let mut opts = FitOptions {
         method: a.method,
         block_s: a.block_s,
@@ -224,11 +267,8 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
     let evals: Vec<(&str, RunEvaluation)> = train
         .iter()
         .map(|r| ("train", evaluate_run(&outcome.model, r)))
-        .chain(
-            validate
-                .iter()
-                .map(|r| ("validate", evaluate_run(&outcome.model, r))),
-        )
+        .chain(validate.iter().map(|r| ("validate", evaluate_run(&outcome.model, r))))
+        .chain(holdout.iter().map(|r| ("holdout", evaluate_run(&outcome.model, r))))
         .collect();
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
@@ -243,6 +283,20 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         });
         write_bytes(path, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }
+    Ok(())
+}
+
+fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(a.ramp.is_finite() && a.ramp > 0.0 && a.ramp <= 20.0, "--ramp must be 0 … 20 °C/min");
+    anyhow::ensure!(a.rate_hz.is_finite() && a.rate_hz > 0.0 && a.rate_hz <= 10_000.0, "--rate-hz must be 0 … 10000 Hz");
+    anyhow::ensure!(a.hold_min.is_finite() && (1.0..=1440.0).contains(&a.hold_min), "--hold-min must be 1 … 1440 min");
+    let mut run = match a.profile {
+        Profile::Ifog => ChamberRun::ifog(a.ramp, a.seed),
+    };
+    run.sample_rate_hz = a.rate_hz;
+    run.hold_s = a.hold_min * 60.0;
+    write_bytes(&a.output, run.to_csv().as_bytes())?;
+    println!("wrote {}", a.output.display());
     Ok(())
 }
 
@@ -272,10 +326,8 @@ fn describe(model: &Model) -> String {
 }
 
 fn cmd_inspect(a: InspectArgs) -> anyhow::Result<()> {
-    let bytes = std::fs::read(&a.model)
-        .with_context(|| format!("{}: cannot read model", a.model.display()))?;
-    let header = Header::parse(&bytes)
-        .map_err(|e| anyhow::anyhow!("{}: model refused: {e}", a.model.display()))?;
+    let bytes = std::fs::read(&a.model).with_context(|| format!("{}: cannot read model", a.model.display()))?;
+    let header = Header::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: model refused: {e}", a.model.display()))?;
     let crc = blob::crc_status(&bytes, &header);
     let decoded = crc.and_then(|_| blob::decode(&bytes));
     let info = inspect_json(&a.model, &bytes, &header, &crc, &decoded);
@@ -346,9 +398,8 @@ fn inspect_json(
 
 fn print_inspect(v: &serde_json::Value) {
     let s = |k: &str| {
-        v.get(k).map_or("-".to_owned(), |x| {
-            x.as_str().map_or(x.to_string(), str::to_owned)
-        })
+        v.get(k)
+            .map_or("-".to_owned(), |x| x.as_str().map_or(x.to_string(), str::to_owned))
     };
     println!(
         "file            {} ({} bytes, blob {} bytes)",
@@ -358,11 +409,7 @@ fn print_inspect(v: &serde_json::Value) {
     );
     println!("format version  {}", s("format_version"));
     println!("kind            {}", s("kind"));
-    println!(
-        "shape           {} inputs, {} centres",
-        s("inputs"),
-        s("centers")
-    );
+    println!("shape           {} inputs, {} centres", s("inputs"), s("centers"));
     println!("CRC-32          {}", s("crc"));
     if let Some(f) = v.get("features") {
         println!(

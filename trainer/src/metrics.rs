@@ -60,22 +60,12 @@ pub fn sample_std(v: &[f64]) -> f64 {
 pub fn msd(time_s: &[f64], deviation_dph: &[f64], nominal_period_s: f64, about_mean: bool) -> f64 {
     let means = bin_means(time_s, deviation_dph, MSD_WINDOW_S, nominal_period_s);
     let centre = if about_mean { mean(&means) } else { 0.0 };
-    mean(
-        &means
-            .iter()
-            .map(|m| (m - centre).powi(2))
-            .collect::<Vec<_>>(),
-    )
+    mean(&means.iter().map(|m| (m - centre).powi(2)).collect::<Vec<_>>())
 }
 
 /// Bias STD of 100-s cluster means of a deviation series, °/h.
 pub fn cluster_std(time_s: &[f64], deviation_dph: &[f64], nominal_period_s: f64) -> f64 {
-    sample_std(&bin_means(
-        time_s,
-        deviation_dph,
-        CLUSTER_S,
-        nominal_period_s,
-    ))
+    sample_std(&bin_means(time_s, deviation_dph, CLUSTER_S, nominal_period_s))
 }
 
 /// Improvement from `before` to `after` in percent: (1 − after/before) × 100.
@@ -84,6 +74,10 @@ pub fn improvement_pct(before: f64, after: f64) -> f64 {
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "expected values are exact in binary floating point; exactness is what these tests guard"
+)]
 mod tests {
     use super::*;
 
@@ -93,13 +87,7 @@ mod tests {
         let t: Vec<f64> = (0..4000).map(|i| i as f64 * 0.1).collect();
         let v: Vec<f64> = t
             .iter()
-            .map(|&t| {
-                if ((t / 100.0) as usize) % 2 == 1 {
-                    2.0
-                } else {
-                    0.0
-                }
-            })
+            .map(|&t| if ((t / 100.0) as usize) % 2 == 1 { 2.0 } else { 0.0 })
             .collect();
         let means = bin_means(&t, &v, CLUSTER_S, 0.1);
         assert_eq!(means, vec![0.0, 2.0, 0.0, 2.0]);

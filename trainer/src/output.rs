@@ -20,14 +20,9 @@ pub fn write_atomically(
     let name = path
         .file_name()
         .with_context(|| format!("{}: not a file path", path.display()))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
+    let tmp = dir.join(format!(".{}.tmp-{}", name.to_string_lossy(), std::process::id()));
     let result = (|| {
-        let file =
-            File::create(&tmp).with_context(|| format!("{}: cannot create", tmp.display()))?;
+        let file = File::create(&tmp).with_context(|| format!("{}: cannot create", tmp.display()))?;
         let mut out = BufWriter::new(file);
         write(&mut out)?;
         let file = out

@@ -90,10 +90,7 @@ impl RunReader {
         let header_line = loop {
             line_no += 1;
             let Some(line) = lines.next() else {
-                return Err(format_error(
-                    line_no,
-                    "no header line: the file has no columns".into(),
-                ));
+                return Err(format_error(line_no, "no header line: the file has no columns".into()));
             };
             let line = line.map_err(|e| io_or_utf8(path, line_no, e))?;
             let line = if line_no == 1 {
@@ -116,10 +113,7 @@ impl RunReader {
         let columns = Columns::from_header(&header_line).map_err(|e| match e {
             HeaderError::MissingColumn(name) => format_error(
                 line_no,
-                format!(
-                    "header has no required column {name} (header: {})",
-                    short(&header_line)
-                ),
+                format!("header has no required column {name} (header: {})", short(&header_line)),
             ),
             HeaderError::DuplicateColumn(i) => format_error(
                 line_no,
@@ -167,10 +161,7 @@ impl RunReader {
 
     /// Value of a metadata key, if present.
     pub fn metadata_value(&self, key: &str) -> Option<&str> {
-        self.metadata
-            .iter()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| v.as_str())
+        self.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
     }
 
     /// Fails unless the run has a `temp_c` column (single-point models need it).
@@ -213,9 +204,7 @@ impl RunReader {
             }
             let text = line.trim_end_matches('\r').to_owned();
             let row = self.columns.parse_row(&text).map_err(|e| {
-                let column = e
-                    .column
-                    .and_then(|i| self.column_names.get(i).map(|n| (i, n)));
+                let column = e.column.and_then(|i| self.column_names.get(i).map(|n| (i, n)));
                 let field = e
                     .column
                     .and_then(|i| text.split(',').nth(i))
@@ -225,9 +214,7 @@ impl RunReader {
                     RowErrorKind::FieldCount { expected, found } => {
                         format!("row has {found} fields, the header has {expected}")
                     }
-                    RowErrorKind::NotANumber if field.is_empty() => {
-                        "field is empty, a number is required".to_owned()
-                    }
+                    RowErrorKind::NotANumber if field.is_empty() => "field is empty, a number is required".to_owned(),
                     RowErrorKind::NotANumber => format!("\"{}\" is not a number", short(field)),
                     RowErrorKind::NonFinite => format!("\"{field}\" is not a finite number"),
                     RowErrorKind::NotAFlag => format!("\"{field}\" is not 0 or 1"),
@@ -325,8 +312,7 @@ impl Run {
                 message: format!("run has {} data rows; at least 2 are needed", time_s.len()),
             });
         }
-        let nominal_period_s =
-            nominal_period_s(metadata_rate, time_s.windows(2).map(|w| w[1] - w[0]));
+        let nominal_period_s = nominal_period_s(metadata_rate, time_s.windows(2).map(|w| w[1] - w[0]));
         Ok(Run {
             path: path.to_owned(),
             time_s,
@@ -392,12 +378,7 @@ impl Reference<'_> {
 /// previous row (computed in f64, rounded once to f32, on host and target
 /// alike; 0 for the first row) and the values rounded to f32.
 /// `temp_c` is `None` when the sensor failed (`temp_fault` = 1).
-pub fn gyro_sample(
-    prev_time_s: Option<f64>,
-    time_s: f64,
-    rate_dph: f64,
-    temp_c: Option<f64>,
-) -> GyroSample {
+pub fn gyro_sample(prev_time_s: Option<f64>, time_s: f64, rate_dph: f64, temp_c: Option<f64>) -> GyroSample {
     GyroSample {
         dt_s: prev_time_s.map_or(0.0, |p| (time_s - p) as f32),
         rate_dph: rate_dph as f32,
@@ -409,11 +390,7 @@ impl RawRow {
     /// The loop temperature of this row: `None` when the column is absent or
     /// `temp_fault` = 1.
     pub fn temp_c(&self) -> Option<f64> {
-        if self.row.temp_fault {
-            None
-        } else {
-            self.row.temp_c
-        }
+        if self.row.temp_fault { None } else { self.row.temp_c }
     }
 }
 

@@ -28,11 +28,7 @@ impl Normaliser {
             let mean = blocks.x.iter().map(|r| r[i]).sum::<f64>() / n;
             let var = blocks.x.iter().map(|r| (r[i] - mean).powi(2)).sum::<f64>() / n;
             let std = var.sqrt();
-            let std = if std > 1e-9 * (mean.abs() + 1.0) {
-                std
-            } else {
-                1.0
-            };
+            let std = if std > 1e-9 * (mean.abs() + 1.0) { std } else { 1.0 };
             offset.push(mean as f32 as f64);
             scale.push(std as f32 as f64);
         }
@@ -56,13 +52,7 @@ pub fn gaussian(z: &FeatureRow, c: &FeatureRow, dims: usize, width: f64) -> f64 
 }
 
 /// Design matrix with columns [1, z_1 … z_d, φ_1 … φ_K] for the given rows.
-pub fn design(
-    z: &[FeatureRow],
-    rows: &[usize],
-    dims: usize,
-    centers: &[FeatureRow],
-    width: f64,
-) -> DMatrix<f64> {
+pub fn design(z: &[FeatureRow], rows: &[usize], dims: usize, centers: &[FeatureRow], width: f64) -> DMatrix<f64> {
     let fixed = 1 + dims;
     DMatrix::from_fn(rows.len(), fixed + centers.len(), |r, c| {
         let zr = &z[rows[r]];
@@ -135,8 +125,7 @@ pub fn farthest_points(z: &[FeatureRow], rows: &[usize], dims: usize, count: usi
     if rows.is_empty() || count == 0 {
         return Vec::new();
     }
-    let dist =
-        |a: &FeatureRow, b: &FeatureRow| (0..dims).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
+    let dist = |a: &FeatureRow, b: &FeatureRow| (0..dims).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
     let mut mean = [0.0; MAX_INPUTS];
     for &r in rows {
         for i in 0..dims {

@@ -170,9 +170,7 @@ pub(crate) fn deploy_ranges(blocks: &Blocks) -> Vec<(f32, f32)> {
 }
 
 /// The serial number as stored in the blob, refusing one that does not fit.
-pub(crate) fn serial(
-    opts: &FitOptions,
-) -> anyhow::Result<Option<heapless::String<SERIAL_CAPACITY>>> {
+pub(crate) fn serial(opts: &FitOptions) -> anyhow::Result<Option<heapless::String<SERIAL_CAPACITY>>> {
     opts.serial
         .as_deref()
         .map(|s| {

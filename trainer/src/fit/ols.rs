@@ -57,10 +57,7 @@ pub fn forward_select(
             basis.push(v);
         }
     }
-    let mut columns: Vec<Vec<f64>> = candidates
-        .column_iter()
-        .map(|c| c.iter().copied().collect())
-        .collect();
+    let mut columns: Vec<Vec<f64>> = candidates.column_iter().map(|c| c.iter().copied().collect()).collect();
     let original: Vec<f64> = columns.iter().map(|c| norm_sq(c)).collect();
     for q in &basis {
         project_out(q, &mut residual);
@@ -101,6 +98,10 @@ pub fn forward_select(
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "expected values are exact in binary floating point; exactness is what these tests guard"
+)]
 mod tests {
     use super::*;
 
@@ -125,8 +126,7 @@ mod tests {
                     .sum::<f64>()
             }),
         );
-        let candidates =
-            DMatrix::from_fn(xs.len(), grid.len(), |r, c| gaussian(xs[r], grid[c], width));
+        let candidates = DMatrix::from_fn(xs.len(), grid.len(), |r, c| gaussian(xs[r], grid[c], width));
         let fixed = DMatrix::from_element(xs.len(), 0, 0.0);
         let sel = forward_select(&candidates, &fixed, &y, 3);
         let mut chosen: Vec<f64> = sel.order.iter().map(|&m| grid[m]).collect();
@@ -161,11 +161,7 @@ mod tests {
         // Candidate 0 duplicates the fixed linear column; candidate 1 is x².
         let candidates = DMatrix::from_fn(n, 2, |r, c| if c == 0 { x[r] } else { x[r] * x[r] });
         let sel = forward_select(&candidates, &fixed, &y, 2);
-        assert_eq!(
-            sel.order,
-            vec![1],
-            "the duplicate of a fixed column is never chosen"
-        );
+        assert_eq!(sel.order, vec![1], "the duplicate of a fixed column is never chosen");
         assert!(sel.err[0] < 1e-20);
     }
 }

@@ -28,22 +28,12 @@ pub fn fit(train: &[Run], opts: &FitOptions) -> anyhow::Result<Model> {
         .map_err(|e| anyhow::anyhow!("cubic least squares failed: {e}"))?;
     let poly = Poly3::new(
         ref_temp_c,
-        [
-            coeffs[0] as f32,
-            coeffs[1] as f32,
-            coeffs[2] as f32,
-            coeffs[3] as f32,
-        ],
+        [coeffs[0] as f32, coeffs[1] as f32, coeffs[2] as f32, coeffs[3] as f32],
     )
     .map_err(|e| anyhow::anyhow!("fitted cubic is not deployable: {e}"))?;
     let info = ModelInfo {
         serial: super::serial(opts)?,
     };
-    Model::new(
-        features,
-        &super::deploy_ranges(&blocks),
-        ModelBody::Poly3(poly),
-        info,
-    )
-    .map_err(|e| anyhow::anyhow!("fitted cubic is not deployable: {e}"))
+    Model::new(features, &super::deploy_ranges(&blocks), ModelBody::Poly3(poly), info)
+        .map_err(|e| anyhow::anyhow!("fitted cubic is not deployable: {e}"))
 }

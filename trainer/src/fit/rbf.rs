@@ -7,9 +7,7 @@ use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 
-use super::linalg::{
-    FeatureRow, GramStats, Normaliser, design, farthest_points, ridge_solve, thin,
-};
+use super::linalg::{FeatureRow, GramStats, Normaliser, design, farthest_points, ridge_solve, thin};
 use super::ols::forward_select;
 use super::{FitOptions, Progress};
 use crate::dataset::{Blocks, block_means};
@@ -65,15 +63,8 @@ pub fn fit(
     };
     let k_max = opts.centers.unwrap_or(opts.max_centers);
     let k_min = opts.centers.unwrap_or(1);
-    let folds = if validate.is_empty() {
-        opts.folds.max(2)
-    } else {
-        1
-    };
-    progress.start(
-        "selecting centres",
-        (windows.len() * WIDTHS.len() * folds) as u64,
-    );
+    let folds = if validate.is_empty() { opts.folds.max(2) } else { 1 };
+    progress.start("selecting centres", (windows.len() * WIDTHS.len() * folds) as u64);
 
     let mut best: Option<(f64, RbfChoice)> = None;
     let mut candidates_all: Vec<(f64, RbfChoice)> = Vec::new();
@@ -115,8 +106,8 @@ pub fn fit(
         }
     }
     progress.finish();
-    let (best_score, _) = best
-        .ok_or_else(|| anyhow::anyhow!("no RBF configuration could be fitted (singular data)"))?;
+    let (best_score, _) =
+        best.ok_or_else(|| anyhow::anyhow!("no RBF configuration could be fitted (singular data)"))?;
     // Parsimony: the fewest centres whose score is within PARSIMONY of the best.
     let choice = candidates_all
         .into_iter()
@@ -202,10 +193,7 @@ fn select_centers(
     k_max: usize,
 ) -> Vec<FeatureRow> {
     let pool = farthest_points(z, rows, dims, MAX_CANDIDATES);
-    let centers: Vec<FeatureRow> = pool
-        .iter()
-        .map(|&i| z[i].map(|v| v as f32 as f64))
-        .collect();
+    let centers: Vec<FeatureRow> = pool.iter().map(|&i| z[i].map(|v| v as f32 as f64)).collect();
     let sel_rows = thin(rows, MAX_SELECTION_ROWS);
     let a = design(z, &sel_rows, dims, &centers, width);
     let fixed = a.columns(0, 1 + dims).clone_owned();
@@ -218,22 +206,12 @@ fn select_centers(
         .collect()
 }
 
-fn accumulate_scores(
-    table: &mut ScoreTable,
-    z: &[FeatureRow],
-    all: &Blocks,
-    split: &Split,
-    width: f64,
-    k_max: usize,
-) {
+fn accumulate_scores(table: &mut ScoreTable, z: &[FeatureRow], all: &Blocks, split: &Split, width: f64, k_max: usize) {
     let dims = all.dims;
     let centers = select_centers(z, &all.y, &split.train, dims, width, k_max);
     let stats = |rows: &[usize]| {
         let a: DMatrix<f64> = design(z, rows, dims, &centers, width);
-        GramStats::new(
-            &a,
-            &DVector::from_iterator(rows.len(), rows.iter().map(|&i| all.y[i])),
-        )
+        GramStats::new(&a, &DVector::from_iterator(rows.len(), rows.iter().map(|&i| all.y[i])))
     };
     let train = stats(&split.train);
     let groups: Vec<GramStats> = split.groups.iter().map(|g| stats(g)).collect();
@@ -243,10 +221,7 @@ fn accumulate_scores(
                 f64::INFINITY
             } else {
                 match ridge_solve(&train, 1 + dims + k, ridge) {
-                    Some(w) => {
-                        groups.iter().map(|g| g.residual_variance(&w)).sum::<f64>()
-                            / groups.len().max(1) as f64
-                    }
+                    Some(w) => groups.iter().map(|g| g.residual_variance(&w)).sum::<f64>() / groups.len().max(1) as f64,
                     None => f64::INFINITY,
                 }
             };
@@ -286,8 +261,7 @@ pub(super) fn final_model(
         linear: &to_f32(&w.as_slice()[1..1 + dims]),
         constant: w[0] as f32,
     };
-    let net = RbfNetwork::new(&params)
-        .map_err(|e| anyhow::anyhow!("fitted network is not deployable: {e}"))?;
+    let net = RbfNetwork::new(&params).map_err(|e| anyhow::anyhow!("fitted network is not deployable: {e}"))?;
     let ranges = super::deploy_ranges(blocks);
     let info = ModelInfo {
         serial: super::serial(opts)?,

@@ -1,6 +1,8 @@
-//! A small synthetic IFOG thermal-chamber run.
+//! A synthetic IFOG thermal-chamber run (`trainer simulate`).
 //!
-//! Deliberately simple and independent of the trainer's assumptions:
+//! A compact plant, independent of the fitting code's assumptions (the full
+//! physics simulator with radial coil distribution and multi-point
+//! thermometers is a planned extension):
 //! - chamber air follows set points joined by ramps of `ramp_c_per_min`;
 //! - housing and fiber coil follow as first-order lags (τ 900 s and 400 s);
 //! - the loop-temperature sensor reads the coil through a 20-s lag with
@@ -50,7 +52,7 @@ impl ChamberRun {
         }
     }
 
-    /// Chamber air temperature at time `t`, °C, and the run's total duration, s.
+    /// Knots (time s, chamber air °C) of the piecewise-linear chamber profile.
     fn schedule(&self) -> Vec<(f64, f64)> {
         // (time, temperature) knots of a piecewise-linear profile.
         let mut knots = vec![(0.0, self.set_points_c[0])];
@@ -79,7 +81,7 @@ impl ChamberRun {
         let start = knots[0].1;
         let (mut housing, mut coil, mut sensor, mut gm) = (start, start, start, 0.0);
         let mut out = String::with_capacity((duration * self.sample_rate_hz) as usize * 48);
-        out.push_str("# source: synthetic chamber run (tests/src/chamber.rs)\n");
+        out.push_str("# source: trainer simulate (synthetic IFOG chamber run)\n");
         out.push_str(&format!("# sample_rate_hz: {}\n", self.sample_rate_hz));
         out.push_str(&format!(
             "# ramp_c_per_min: {}\n# seed: {}\n",
@@ -100,12 +102,7 @@ impl ChamberRun {
             let static_dph = 0.05 + 0.02 * u + 4e-4 * u * u - 1e-5 * u * u * u;
             let shupe_dph = 0.35 * (1.0 + 0.012 * u) * coil_rate_c_per_s * 60.0;
             let gradient_dph = 0.01 * (housing - coil);
-            let rate = earth
-                + static_dph
-                + shupe_dph
-                + gradient_dph
-                + gm
-                + white_dph * unit.sample(&mut rng);
+            let rate = earth + static_dph + shupe_dph + gradient_dph + gm + white_dph * unit.sample(&mut rng);
             let reading = sensor + 0.003 * unit.sample(&mut rng);
             let quantised = (reading / TMP117_LSB_C).round() * TMP117_LSB_C;
             out.push_str(&format!("{t:.3},{rate:.5},{quantised:.7},{earth:.5}\n"));

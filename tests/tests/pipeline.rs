@@ -1,0 +1,132 @@
+//! Recorded run → fit → blob → compensate → eval, across crates.
+
+use std::path::PathBuf;
+
+use rbf_core::Flags;
+use tempfile::TempDir;
+use trainer::blobfile::{read_model, write_model};
+use trainer::evaluate::{compensate_file, compensate_run, evaluate_run};
+use trainer::fit::{self, FitOptions, Method};
+use trainer::run::Run;
+use trainer::simulate::ChamberRun;
+
+fn simulated(dir: &TempDir, name: &str, run: &ChamberRun) -> PathBuf {
+    let path = dir.path().join(name);
+    std::fs::write(&path, run.to_csv()).unwrap();
+    path
+}
+
+fn load(path: &PathBuf) -> Run {
+    Run::load(path).unwrap()
+}
+
+/// One training run at 1 °C/min; verification at other ramp rates and seeds.
+fn chamber_set(dir: &TempDir) -> (Run, Vec<Run>) {
+    let train = load(&simulated(dir, "train.csv", &ChamberRun::ifog(1.0, 11)));
+    let verify = [(0.5, 12), (2.0, 13), (3.0, 14)]
+        .iter()
+        .map(|&(ramp, seed)| load(&simulated(dir, &format!("verify_{ramp}.csv"), &ChamberRun::ifog(ramp, seed))))
+        .collect();
+    (train, verify)
+}
+
+#[test]
+fn default_fit_cuts_cluster_std_by_85_percent_on_unseen_ramp_rates() {
+    let dir = TempDir::new().unwrap();
+    let (train, verify) = chamber_set(&dir);
+    let outcome = fit::fit(std::slice::from_ref(&train), &[], &FitOptions::default()).unwrap();
+    let model_path = dir.path().join("model.bin");
+    write_model(&model_path, &outcome.model).unwrap();
+    let (model, _) = read_model(&model_path).unwrap();
+    for run in &verify {
+        let e = evaluate_run(&model, run);
+        println!("{}: cluster STD {:.4} → {:.4} °/h ({:.1} %)", e.run, e.cluster_std_before_dph, e.cluster_std_after_dph, e.cluster_std_improvement_pct);
+        assert!(e.cluster_std_improvement_pct >= 85.0, "{}: {:.1} %", e.run, e.cluster_std_improvement_pct);
+        assert!(e.msd_improvement_pct > 0.0);
+        assert_eq!(e.reference, "ref_dph");
+    }
+}
+
+#[test]
+fn the_temperature_rate_model_beats_the_cubic_in_t_on_ramps() {
+    // The Shupe bias follows dT/dt: a model of T alone cannot remove it.
+    let dir = TempDir::new().unwrap();
+    let (train, verify) = chamber_set(&dir);
+    let fit_with = |method| {
+        let opts = FitOptions { method, ..FitOptions::default() };
+        fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model
+    };
+    let (rbf, poly3) = (fit_with(Method::Rbf), fit_with(Method::Poly3));
+    for run in &verify {
+        let (a, b) = (evaluate_run(&rbf, run), evaluate_run(&poly3, run));
+        assert!(
+            a.cluster_std_after_dph < 0.5 * b.cluster_std_after_dph,
+            "{}: rbf {:.4} °/h vs poly3 {:.4} °/h",
+            a.run,
+            a.cluster_std_after_dph,
+            b.cluster_std_after_dph
+        );
+    }
+}
+
+#[test]
+fn compensate_file_writes_exactly_the_in_memory_compensation() {
+    let dir = TempDir::new().unwrap();
+    let (train, _) = chamber_set(&dir);
+    let opts = FitOptions { centers: Some(8), rate_windows_s: vec![60.0], ..FitOptions::default() };
+    let model = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model;
+    let out_path = dir.path().join("out.csv");
+    let (rows, _) = compensate_file(Some(&model), &train.path, &out_path).unwrap();
+    assert_eq!(rows, train.len());
+    let expected = compensate_run(Some(&model), &train);
+    let text = std::fs::read_to_string(&out_path).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    assert_eq!(lines.next(), Some("time_s,rate_dph,temp_c,ref_dph,bias_dph,rate_comp_dph,flags"));
+    let input_text = std::fs::read_to_string(&train.path).unwrap();
+    let input_rows = input_text.lines().filter(|l| !l.starts_with('#')).skip(1);
+    for ((line, want), input) in lines.zip(&expected).zip(input_rows) {
+        let f: Vec<&str> = line.rsplitn(4, ',').collect();
+        // f = [flags, rate_comp, bias, passed-through input line]
+        assert_eq!(f[3], input, "input columns pass through unchanged");
+        let bias: f32 = f[2].parse().unwrap();
+        let comp: f32 = f[1].parse().unwrap();
+        assert_eq!(bias.to_bits(), want.bias_dph.to_bits(), "bias of {line}");
+        assert_eq!(comp.to_bits(), want.rate_comp_dph.to_bits(), "rate_comp of {line}");
+        assert_eq!(f[0].parse::<u8>().unwrap(), want.flags.bits());
+    }
+}
+
+#[test]
+fn temperature_fault_rows_hold_the_last_good_value_and_carry_flag_2() {
+    let dir = TempDir::new().unwrap();
+    let (train, _) = chamber_set(&dir);
+    let opts = FitOptions { centers: Some(8), rate_windows_s: vec![60.0], ..FitOptions::default() };
+    let model = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model;
+    // A slice with fault bursts of 3 and 30 samples (the second outlasts the 10-s hold).
+    let src = std::fs::read_to_string(&train.path).unwrap();
+    let mut text = String::from("# sample_rate_hz: 1\ntime_s,rate_dph,temp_c,ref_dph,temp_fault\n");
+    let faulty = |i: usize| (1000..1003).contains(&i) || (2000..2030).contains(&i);
+    for (i, line) in src.lines().filter(|l| !l.starts_with('#')).skip(1).take(3000).enumerate() {
+        text.push_str(&format!("{line},{}\n", u8::from(faulty(i))));
+    }
+    let input = dir.path().join("faults.csv");
+    std::fs::write(&input, text).unwrap();
+    let out = dir.path().join("faults_out.csv");
+    let (rows, counts) = compensate_file(Some(&model), &input, &out).unwrap();
+    assert_eq!(rows, 3000);
+    assert_eq!(counts.temp_sensor_fault, 33);
+    let flags: Vec<u8> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .skip(2)
+        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
+        .collect();
+    for (i, &f) in flags.iter().enumerate() {
+        let f = Flags(f);
+        assert_eq!(f.contains(Flags::TEMP_SENSOR_FAULT), faulty(i), "row {i}: flags {f:?}");
+        // The held value (last good at row 1999, 1 Hz) may be up to 10 s old: rows
+        // 2000–2009 are compensated with it; from row 2010 (11 s old) flag 4 says uncompensated.
+        let expired = (2010..2030).contains(&i);
+        assert_eq!(f.contains(Flags::NO_VALID_MODEL), expired, "row {i}: flags {f:?}");
+    }
+}
