@@ -25,7 +25,13 @@ fn chamber_set(dir: &TempDir) -> (Run, Vec<Run>) {
     let train = load(&simulated(dir, "train.csv", &ChamberRun::ifog(1.0, 11)));
     let verify = [(0.5, 12), (2.0, 13), (3.0, 14)]
         .iter()
-        .map(|&(ramp, seed)| load(&simulated(dir, &format!("verify_{ramp}.csv"), &ChamberRun::ifog(ramp, seed))))
+        .map(|&(ramp, seed)| {
+            load(&simulated(
+                dir,
+                &format!("verify_{ramp}.csv"),
+                &ChamberRun::ifog(ramp, seed),
+            ))
+        })
         .collect();
     (train, verify)
 }
@@ -40,8 +46,16 @@ fn default_fit_cuts_cluster_std_by_85_percent_on_unseen_ramp_rates() {
     let (model, _) = read_model(&model_path).unwrap();
     for run in &verify {
         let e = evaluate_run(&model, run);
-        println!("{}: cluster STD {:.4} → {:.4} °/h ({:.1} %)", e.run, e.cluster_std_before_dph, e.cluster_std_after_dph, e.cluster_std_improvement_pct);
-        assert!(e.cluster_std_improvement_pct >= 85.0, "{}: {:.1} %", e.run, e.cluster_std_improvement_pct);
+        println!(
+            "{}: cluster STD {:.4} → {:.4} °/h ({:.1} %)",
+            e.run, e.cluster_std_before_dph, e.cluster_std_after_dph, e.cluster_std_improvement_pct
+        );
+        assert!(
+            e.cluster_std_improvement_pct >= 85.0,
+            "{}: {:.1} %",
+            e.run,
+            e.cluster_std_improvement_pct
+        );
         assert!(e.msd_improvement_pct > 0.0);
         assert_eq!(e.reference, "ref_dph");
     }
@@ -53,7 +67,10 @@ fn the_temperature_rate_model_beats_the_cubic_in_t_on_ramps() {
     let dir = TempDir::new().unwrap();
     let (train, verify) = chamber_set(&dir);
     let fit_with = |method| {
-        let opts = FitOptions { method, ..FitOptions::default() };
+        let opts = FitOptions {
+            method,
+            ..FitOptions::default()
+        };
         fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model
     };
     let (rbf, poly3) = (fit_with(Method::Rbf), fit_with(Method::Poly3));
@@ -73,7 +90,11 @@ fn the_temperature_rate_model_beats_the_cubic_in_t_on_ramps() {
 fn compensate_file_writes_exactly_the_in_memory_compensation() {
     let dir = TempDir::new().unwrap();
     let (train, _) = chamber_set(&dir);
-    let opts = FitOptions { centers: Some(8), rate_windows_s: vec![60.0], ..FitOptions::default() };
+    let opts = FitOptions {
+        centers: Some(8),
+        rate_windows_s: vec![60.0],
+        ..FitOptions::default()
+    };
     let model = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model;
     let out_path = dir.path().join("out.csv");
     let (rows, _) = compensate_file(Some(&model), &train.path, &out_path).unwrap();
@@ -81,7 +102,10 @@ fn compensate_file_writes_exactly_the_in_memory_compensation() {
     let expected = compensate_run(Some(&model), &train);
     let text = std::fs::read_to_string(&out_path).unwrap();
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
-    assert_eq!(lines.next(), Some("time_s,rate_dph,temp_c,ref_dph,bias_dph,rate_comp_dph,flags"));
+    assert_eq!(
+        lines.next(),
+        Some("time_s,rate_dph,temp_c,ref_dph,bias_dph,rate_comp_dph,flags")
+    );
     let input_text = std::fs::read_to_string(&train.path).unwrap();
     let input_rows = input_text.lines().filter(|l| !l.starts_with('#')).skip(1);
     for ((line, want), input) in lines.zip(&expected).zip(input_rows) {
@@ -100,13 +124,23 @@ fn compensate_file_writes_exactly_the_in_memory_compensation() {
 fn temperature_fault_rows_hold_the_last_good_value_and_carry_flag_2() {
     let dir = TempDir::new().unwrap();
     let (train, _) = chamber_set(&dir);
-    let opts = FitOptions { centers: Some(8), rate_windows_s: vec![60.0], ..FitOptions::default() };
+    let opts = FitOptions {
+        centers: Some(8),
+        rate_windows_s: vec![60.0],
+        ..FitOptions::default()
+    };
     let model = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model;
     // A slice with fault bursts of 3 and 30 samples (the second outlasts the 10-s hold).
     let src = std::fs::read_to_string(&train.path).unwrap();
     let mut text = String::from("# sample_rate_hz: 1\ntime_s,rate_dph,temp_c,ref_dph,temp_fault\n");
     let faulty = |i: usize| (1000..1003).contains(&i) || (2000..2030).contains(&i);
-    for (i, line) in src.lines().filter(|l| !l.starts_with('#')).skip(1).take(3000).enumerate() {
+    for (i, line) in src
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .take(3000)
+        .enumerate()
+    {
         text.push_str(&format!("{line},{}\n", u8::from(faulty(i))));
     }
     let input = dir.path().join("faults.csv");

@@ -287,9 +287,18 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
 }
 
 fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(a.ramp.is_finite() && a.ramp > 0.0 && a.ramp <= 20.0, "--ramp must be 0 … 20 °C/min");
-    anyhow::ensure!(a.rate_hz.is_finite() && a.rate_hz > 0.0 && a.rate_hz <= 10_000.0, "--rate-hz must be 0 … 10000 Hz");
-    anyhow::ensure!(a.hold_min.is_finite() && (1.0..=1440.0).contains(&a.hold_min), "--hold-min must be 1 … 1440 min");
+    anyhow::ensure!(
+        a.ramp.is_finite() && a.ramp > 0.0 && a.ramp <= 20.0,
+        "--ramp must be 0 … 20 °C/min"
+    );
+    anyhow::ensure!(
+        a.rate_hz.is_finite() && a.rate_hz > 0.0 && a.rate_hz <= 10_000.0,
+        "--rate-hz must be 0 … 10000 Hz"
+    );
+    anyhow::ensure!(
+        a.hold_min.is_finite() && (1.0..=1440.0).contains(&a.hold_min),
+        "--hold-min must be 1 … 1440 min"
+    );
     let mut run = match a.profile {
         Profile::Ifog => ChamberRun::ifog(a.ramp, a.seed),
     };

@@ -7,7 +7,10 @@ use std::process::{Command, Output};
 use tempfile::TempDir;
 
 fn trainer(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_trainer")).args(args).output().expect("trainer runs")
+    Command::new(env!("CARGO_BIN_EXE_trainer"))
+        .args(args)
+        .output()
+        .expect("trainer runs")
 }
 
 fn stderr(o: &Output) -> String {
@@ -19,7 +22,9 @@ fn stdout(o: &Output) -> String {
 }
 
 fn shared_data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../examples/data")
+        .join(name)
 }
 
 fn write(dir: &TempDir, name: &str, content: &[u8]) -> PathBuf {
@@ -32,10 +37,28 @@ fn write(dir: &TempDir, name: &str, content: &[u8]) -> PathBuf {
 /// that need any valid model.
 fn fitted_model(dir: &TempDir) -> PathBuf {
     let run = dir.path().join("train.csv");
-    let o = trainer(&["simulate", "--ramp", "1", "--hold-min", "30", "--seed", "7", "-o", run.to_str().unwrap()]);
+    let o = trainer(&[
+        "simulate",
+        "--ramp",
+        "1",
+        "--hold-min",
+        "30",
+        "--seed",
+        "7",
+        "-o",
+        run.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let model = dir.path().join("model.bin");
-    let o = trainer(&["fit", "-q", run.to_str().unwrap(), "-o", model.to_str().unwrap(), "--rate-window-s", "60"]);
+    let o = trainer(&[
+        "fit",
+        "-q",
+        run.to_str().unwrap(),
+        "-o",
+        model.to_str().unwrap(),
+        "--rate-window-s",
+        "60",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     model
 }
@@ -47,24 +70,61 @@ fn malformed_runs_are_refused_naming_file_line_and_column() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
     let cases: &[(&str, &str, &str)] = &[
-        ("not_a_number", "0,1,20\n1,1.2.3,20\n", ":4: column rate_dph (field 2): \"1.2.3\" is not a number"),
-        ("nan", "0,1,20\n1,2,20\n2,NaN,20\n", ":5: column rate_dph (field 2): \"NaN\" is not a finite number"),
-        ("infinite_temp", "0,1,20\n1,2,inf\n", ":4: column temp_c (field 3): \"inf\" is not a finite number"),
-        ("time_back", "0,1,20\n1,2,20\n1,2,20\n", ":5: column time_s (field 1): 1 does not increase"),
+        (
+            "not_a_number",
+            "0,1,20\n1,1.2.3,20\n",
+            ":4: column rate_dph (field 2): \"1.2.3\" is not a number",
+        ),
+        (
+            "nan",
+            "0,1,20\n1,2,20\n2,NaN,20\n",
+            ":5: column rate_dph (field 2): \"NaN\" is not a finite number",
+        ),
+        (
+            "infinite_temp",
+            "0,1,20\n1,2,inf\n",
+            ":4: column temp_c (field 3): \"inf\" is not a finite number",
+        ),
+        (
+            "time_back",
+            "0,1,20\n1,2,20\n1,2,20\n",
+            ":5: column time_s (field 1): 1 does not increase",
+        ),
         ("short_row", "0,1,20\n1,2\n", ":4: row has 2 fields, the header has 3"),
-        ("empty_field", "0,1,20\n1,,20\n", ":4: column rate_dph (field 2): field is empty"),
+        (
+            "empty_field",
+            "0,1,20\n1,,20\n",
+            ":4: column rate_dph (field 2): field is empty",
+        ),
     ];
     for (name, rows, expected) in cases {
         let run = write(&dir, &format!("{name}.csv"), format!("{GOOD_HEADER}{rows}").as_bytes());
         for args in [
-            vec!["compensate", "--model", model.to_str().unwrap(), run.to_str().unwrap(), "-o", "/dev/null"],
+            vec![
+                "compensate",
+                "--model",
+                model.to_str().unwrap(),
+                run.to_str().unwrap(),
+                "-o",
+                "/dev/null",
+            ],
             vec!["eval", "--model", model.to_str().unwrap(), run.to_str().unwrap()],
-            vec!["fit", "-q", run.to_str().unwrap(), "-o", dir.path().join("x.bin").to_str().unwrap()],
+            vec![
+                "fit",
+                "-q",
+                run.to_str().unwrap(),
+                "-o",
+                dir.path().join("x.bin").to_str().unwrap(),
+            ],
         ] {
             let o = trainer(&args);
             assert_eq!(o.status.code(), Some(1), "{name} {}: {}", args[0], stderr(&o));
             let message = stderr(&o);
-            assert!(message.contains(&format!("{name}.csv{expected}")), "{name} {}: got {message}", args[0]);
+            assert!(
+                message.contains(&format!("{name}.csv{expected}")),
+                "{name} {}: got {message}",
+                args[0]
+            );
             assert!(!message.contains("panicked"), "{message}");
         }
     }
@@ -75,16 +135,43 @@ fn header_problems_are_refused_at_the_header_line() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
     let cases: &[(&str, &[u8], &str)] = &[
-        ("no_time", b"# a: b\nrate_dph,temp_c\n1,2\n", "no_time.csv:2: header has no required column time_s"),
-        ("no_temp", b"time_s,rate_dph\n0,1\n", "no_temp.csv:1: header has no column temp_c"),
-        ("dup", b"time_s,rate_dph,temp_c,rate_dph\n", "dup.csv:1: column rate_dph appears twice"),
+        (
+            "no_time",
+            b"# a: b\nrate_dph,temp_c\n1,2\n",
+            "no_time.csv:2: header has no required column time_s",
+        ),
+        (
+            "no_temp",
+            b"time_s,rate_dph\n0,1\n",
+            "no_temp.csv:1: header has no column temp_c",
+        ),
+        (
+            "dup",
+            b"time_s,rate_dph,temp_c,rate_dph\n",
+            "dup.csv:1: column rate_dph appears twice",
+        ),
         ("empty", b"", "empty.csv:1: no header line"),
-        ("latin1", b"time_s,rate_dph,temp_c\n0,1,2\n1,2,\xb0\n", "latin1.csv:3: line is not valid UTF-8"),
-        ("bad_flag", b"time_s,rate_dph,temp_c,temp_fault\n0,1,20,2\n", "bad_flag.csv:2: column temp_fault (field 4): \"2\" is not 0 or 1"),
+        (
+            "latin1",
+            b"time_s,rate_dph,temp_c\n0,1,2\n1,2,\xb0\n",
+            "latin1.csv:3: line is not valid UTF-8",
+        ),
+        (
+            "bad_flag",
+            b"time_s,rate_dph,temp_c,temp_fault\n0,1,20,2\n",
+            "bad_flag.csv:2: column temp_fault (field 4): \"2\" is not 0 or 1",
+        ),
     ];
     for (name, content, expected) in cases {
         let run = write(&dir, &format!("{name}.csv"), content);
-        let o = trainer(&["compensate", "--model", model.to_str().unwrap(), run.to_str().unwrap(), "-o", "/dev/null"]);
+        let o = trainer(&[
+            "compensate",
+            "--model",
+            model.to_str().unwrap(),
+            run.to_str().unwrap(),
+            "-o",
+            "/dev/null",
+        ]);
         assert_eq!(o.status.code(), Some(1), "{name}");
         assert!(stderr(&o).contains(expected), "{name}: {}", stderr(&o));
     }
@@ -101,7 +188,11 @@ fn original_bmi270_terminal_logs_get_a_clear_error() {
     }
     let o = trainer(&["fit", "-q", original.to_str().unwrap(), "-o", "/dev/null"]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("BMI_270_hot_test.csv:1: header has no required column time_s"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("BMI_270_hot_test.csv:1: header has no required column time_s"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]
@@ -109,7 +200,13 @@ fn converted_bmi270_logs_are_read_but_cannot_identify_a_model() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
     let hot = shared_data("bmi270/bmi270_hot_z.csv");
-    let o = trainer(&["fit", "-q", hot.to_str().unwrap(), "-o", dir.path().join("m.bin").to_str().unwrap()]);
+    let o = trainer(&[
+        "fit",
+        "-q",
+        hot.to_str().unwrap(),
+        "-o",
+        dir.path().join("m.bin").to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1));
     let message = stderr(&o);
     assert!(message.contains("at least 600 s are needed"), "{message}");
@@ -118,10 +215,25 @@ fn converted_bmi270_logs_are_read_but_cannot_identify_a_model() {
 
     // compensate accepts them: one output row per input row.
     let out = dir.path().join("hot_comp.csv");
-    let o = trainer(&["compensate", "--model", model.to_str().unwrap(), hot.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = trainer(&[
+        "compensate",
+        "--model",
+        model.to_str().unwrap(),
+        hot.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let input_rows = std::fs::read_to_string(&hot).unwrap().lines().filter(|l| !l.starts_with('#')).count();
-    let output_rows = std::fs::read_to_string(&out).unwrap().lines().filter(|l| !l.starts_with('#')).count();
+    let input_rows = std::fs::read_to_string(&hot)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .count();
+    let output_rows = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .count();
     assert_eq!(input_rows, output_rows);
 }
 
@@ -132,19 +244,46 @@ fn tolerable_variants_are_accepted_row_for_row() {
     let rows = "0,1.5,20\n1,1.6,20.1\n2,1.7,20.2\n";
     let variants: &[(&str, String)] = &[
         ("bom", format!("\u{feff}time_s,rate_dph,temp_c\n{rows}")),
-        ("crlf", format!("# sample_rate_hz: 1\r\ntime_s,rate_dph,temp_c\r\n{}", rows.replace('\n', "\r\n"))),
-        ("extra_columns", "note,temp_c,time_s,rate_dph,x\na,20,0,1.5,\nb,20.1,1,1.6,q\nc,20.2,2,1.7,\n".to_owned()),
+        (
+            "crlf",
+            format!(
+                "# sample_rate_hz: 1\r\ntime_s,rate_dph,temp_c\r\n{}",
+                rows.replace('\n', "\r\n")
+            ),
+        ),
+        (
+            "extra_columns",
+            "note,temp_c,time_s,rate_dph,x\na,20,0,1.5,\nb,20.1,1,1.6,q\nc,20.2,2,1.7,\n".to_owned(),
+        ),
         ("no_metadata", format!("time_s,rate_dph,temp_c\n{rows}")),
-        ("comments_between", format!("time_s,rate_dph,temp_c\n0,1.5,20\n# operator opened the door\n\n1,1.6,20.1\n")),
+        (
+            "comments_between",
+            format!("time_s,rate_dph,temp_c\n0,1.5,20\n# operator opened the door\n\n1,1.6,20.1\n"),
+        ),
     ];
     for (name, content) in variants {
         let run = write(&dir, &format!("{name}.csv"), content.as_bytes());
         let out = dir.path().join(format!("{name}_out.csv"));
-        let o = trainer(&["compensate", "--model", model.to_str().unwrap(), run.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        let o = trainer(&[
+            "compensate",
+            "--model",
+            model.to_str().unwrap(),
+            run.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
         assert!(o.status.success(), "{name}: {}", stderr(&o));
         let text = std::fs::read_to_string(&out).unwrap();
-        let data: Vec<&str> = text.lines().filter(|l| !l.starts_with('#') && !l.is_empty()).skip(1).collect();
-        let expected = content.lines().filter(|l| !l.trim().is_empty() && !l.starts_with('#')).count() - 1;
+        let data: Vec<&str> = text
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.is_empty())
+            .skip(1)
+            .collect();
+        let expected = content
+            .lines()
+            .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
+            .count()
+            - 1;
         assert_eq!(data.len(), expected, "{name}: one output row per input row");
         for line in data {
             let fields: Vec<&str> = line.split(',').collect();
@@ -177,13 +316,23 @@ fn corrupt_blobs_are_refused_with_the_reason() {
     for (name, bytes, reason) in cases {
         let blob = write(&dir, &format!("{name}.bin"), &bytes);
         for args in [
-            vec!["compensate", "--model", blob.to_str().unwrap(), run.to_str().unwrap(), "-o", "/dev/null"],
+            vec![
+                "compensate",
+                "--model",
+                blob.to_str().unwrap(),
+                run.to_str().unwrap(),
+                "-o",
+                "/dev/null",
+            ],
             vec!["inspect", blob.to_str().unwrap()],
         ] {
             let o = trainer(&args);
             assert_eq!(o.status.code(), Some(1), "{name}");
             let message = stderr(&o);
-            assert!(message.contains("model refused") && message.contains(reason), "{name}: {message}");
+            assert!(
+                message.contains("model refused") && message.contains(reason),
+                "{name}: {message}"
+            );
         }
     }
 }
@@ -199,9 +348,15 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     assert_eq!(v["kind"], "gaussian-rbf");
     assert_eq!(v["inputs"], 3);
     assert_eq!(v["features"]["rate_window_s"], 60.0);
-    assert_eq!(v["blob_bytes"].as_u64().unwrap(), std::fs::metadata(&model).unwrap().len());
+    assert_eq!(
+        v["blob_bytes"].as_u64().unwrap(),
+        std::fs::metadata(&model).unwrap().len()
+    );
     let t_range = &v["training_ranges"][0];
-    assert!(t_range["min"].as_f64().unwrap() < 15.0 && t_range["max"].as_f64().unwrap() > 35.0, "{t_range}");
+    assert!(
+        t_range["min"].as_f64().unwrap() < 15.0 && t_range["max"].as_f64().unwrap() > 35.0,
+        "{t_range}"
+    );
     let text = stdout(&trainer(&["inspect", model.to_str().unwrap()]));
     assert!(text.contains("CRC-32          ok"), "{text}");
 }
@@ -209,7 +364,14 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
 #[test]
 fn help_teaches_units_and_methods() {
     let fit_help = stdout(&trainer(&["fit", "--help"]));
-    for needle in ["°C/min", "orthogonal least squares", "rbf2", "poly3", "--validate", "contiguous"] {
+    for needle in [
+        "°C/min",
+        "orthogonal least squares",
+        "rbf2",
+        "poly3",
+        "--validate",
+        "contiguous",
+    ] {
         assert!(fit_help.contains(needle), "fit --help lacks {needle:?}");
     }
     let compensate_help = stdout(&trainer(&["compensate", "--help"]));
@@ -225,7 +387,10 @@ fn fit_rejects_bad_options_and_writes_nothing() {
         (vec!["--centers", "65"], "--centers 65"),
         (vec!["--block-s", "0"], "--block-s"),
         (vec!["--rate-window-s=-3"], "--rate-window-s"),
-        (vec!["--serial", "a-serial-number-far-longer-than-thirty-two-bytes"], "--serial"),
+        (
+            vec!["--serial", "a-serial-number-far-longer-than-thirty-two-bytes"],
+            "--serial",
+        ),
     ] {
         let mut all = vec!["fit", "-q", run.to_str().unwrap(), "-o", out.to_str().unwrap()];
         all.extend(args);
