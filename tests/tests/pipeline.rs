@@ -16,7 +16,7 @@ fn simulated(dir: &TempDir, name: &str, run: &ChamberRun) -> PathBuf {
     path
 }
 
-fn load(path: &PathBuf) -> Run {
+fn load(path: &std::path::Path) -> Run {
     Run::load(path).unwrap()
 }
 

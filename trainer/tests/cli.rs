@@ -258,7 +258,7 @@ fn tolerable_variants_are_accepted_row_for_row() {
         ("no_metadata", format!("time_s,rate_dph,temp_c\n{rows}")),
         (
             "comments_between",
-            format!("time_s,rate_dph,temp_c\n0,1.5,20\n# operator opened the door\n\n1,1.6,20.1\n"),
+            "time_s,rate_dph,temp_c\n0,1.5,20\n# operator opened the door\n\n1,1.6,20.1\n".to_owned(),
         ),
     ];
     for (name, content) in variants {
