@@ -120,7 +120,41 @@ fn ci() -> anyhow::Result<()> {
         "cargo",
         &["build", "--package", "firmware", "--target", TARGET, "--release"],
     )?;
-    run("cargo", &["test", "--workspace"])?;
+    let (passed, failed) = run_tests(&["test", "--workspace"])?;
     eprintln!("\nci: all steps passed in {:.0} s", started.elapsed().as_secs_f64());
+    println!("{passed} passed, {failed} failed");
     Ok(())
+}
+
+/// Runs `cargo test`, echoing its output, and sums its `test result:` lines.
+fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
+    eprintln!("\n==> cargo {}", args.join(" "));
+    let output = Command::new("cargo")
+        .args(args)
+        .current_dir(workspace_root())
+        .stderr(std::process::Stdio::inherit())
+        .output()
+        .context("cannot start cargo test")?;
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    print!("{stdout}");
+    let (mut passed, mut failed) = (0, 0);
+    for line in stdout.lines().filter_map(|l| l.trim().strip_prefix("test result: ")) {
+        let count = |word: &str| {
+            line.split(';')
+                .find_map(|part| {
+                    part.trim()
+                        .trim_start_matches("ok. ")
+                        .trim_start_matches("FAILED. ")
+                        .strip_suffix(word)
+                })
+                .and_then(|n| n.trim().parse::<u64>().ok())
+                .unwrap_or(0)
+        };
+        passed += count("passed");
+        failed += count("failed");
+    }
+    if !output.status.success() {
+        bail!("`cargo {}` failed: {passed} passed, {failed} failed", args.join(" "));
+    }
+    Ok((passed, failed))
 }

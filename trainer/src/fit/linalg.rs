@@ -107,6 +107,27 @@ impl GramStats {
     }
 }
 
+/// Averages consecutive groups of `rows_per_mean` rows of `a` and `y` (a
+/// trailing group with under half the rows is dropped): the design and target
+/// of cluster means, whose residual is the mean residual of each cluster.
+pub fn cluster_means(a: &DMatrix<f64>, y: &DVector<f64>, rows_per_mean: usize) -> (DMatrix<f64>, DVector<f64>) {
+    let size = rows_per_mean.max(1);
+    let starts: Vec<usize> = (0..a.nrows())
+        .step_by(size)
+        .filter(|&s| (a.nrows() - s) * 2 >= size)
+        .collect();
+    let mut am = DMatrix::zeros(starts.len(), a.ncols());
+    let mut ym = DVector::zeros(starts.len());
+    for (k, &s) in starts.iter().enumerate() {
+        let n = size.min(a.nrows() - s);
+        for c in 0..a.ncols() {
+            am[(k, c)] = a.view((s, c), (n, 1)).sum() / n as f64;
+        }
+        ym[k] = y.rows(s, n).sum() / n as f64;
+    }
+    (am, ym)
+}
+
 /// Ridge solution on the first `p` columns: (AᵀA + λ n I′) w = Aᵀy, with I′
 /// leaving the constant (column 0) unpenalised. `None` if the system is singular.
 pub fn ridge_solve(stats: &GramStats, p: usize, lambda: f64) -> Option<DVector<f64>> {

@@ -7,7 +7,7 @@ use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 
-use super::linalg::{FeatureRow, GramStats, Normaliser, design, farthest_points, ridge_solve, thin};
+use super::linalg::{FeatureRow, GramStats, Normaliser, cluster_means, design, farthest_points, ridge_solve, thin};
 use super::ols::forward_select;
 use super::{FitOptions, Progress};
 use crate::dataset::{Blocks, block_means};
@@ -18,9 +18,11 @@ const MAX_CANDIDATES: usize = 200;
 /// Rows used for OLS selection (strided); weights are refitted on all rows.
 const MAX_SELECTION_ROWS: usize = 3000;
 /// Gaussian widths σ tried, in normalised (standard-deviation) units.
-const WIDTHS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
+const WIDTHS: [f64; 6] = [0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 /// Ridge strengths λ tried (per row, relative to normalised inputs).
 const RIDGES: [f64; 3] = [1e-7, 1e-5, 1e-3];
+/// Validation groups with fewer cluster means than this are not scored.
+const MIN_SCORE_CLUSTERS: usize = 3;
 /// A smaller network is preferred when its score is within this factor of the best.
 const PARSIMONY: f64 = 1.005;
 
@@ -35,7 +37,7 @@ pub struct RbfChoice {
     pub ridge: f64,
     /// Number of centres K.
     pub centers: usize,
-    /// Validation residual RMS, °/h (1-s block means, offset removed per group).
+    /// Validation residual RMS of 100-s cluster means, °/h (offset removed per group).
     pub validation_rms_dph: f64,
 }
 
@@ -77,11 +79,12 @@ pub fn fit(
         super::check_excitation(&train_blocks, set, opts)?;
         let (all, splits) = splits(&train_blocks, validate, &features, opts, folds);
         let norm = Normaliser::fit(&train_blocks);
+        let score_rows = score_cluster_rows(&splits, opts.block_s);
         let z: Vec<FeatureRow> = all.x.iter().map(|r| norm.apply(r)).collect();
         for &width in &WIDTHS {
             let mut table: ScoreTable = vec![vec![0.0; k_max]; RIDGES.len()];
             for split in &splits {
-                accumulate_scores(&mut table, &z, &all, split, width, k_max);
+                accumulate_scores(&mut table, &z, &all, split, width, k_max, score_rows);
                 progress.inc();
             }
             for (ri, row) in table.iter().enumerate() {
@@ -183,6 +186,18 @@ fn splits(
     (train.clone(), splits)
 }
 
+/// Blocks per validation cluster mean: 100 s (the cluster-STD window), shortened
+/// on short validation groups so that each still yields 10 cluster means.
+fn score_cluster_rows(splits: &[Split], block_s: f64) -> usize {
+    let cluster = (crate::metrics::CLUSTER_S / block_s).round().max(1.0) as usize;
+    let shortest = splits
+        .iter()
+        .flat_map(|s| s.groups.iter().map(Vec::len))
+        .min()
+        .unwrap_or(0);
+    cluster.min(shortest / (3 * MIN_SCORE_CLUSTERS + 1)).max(1)
+}
+
 /// Centres chosen by OLS on (a thinned set of) `rows`, in selection order.
 fn select_centers(
     z: &[FeatureRow],
@@ -206,22 +221,45 @@ fn select_centers(
         .collect()
 }
 
-fn accumulate_scores(table: &mut ScoreTable, z: &[FeatureRow], all: &Blocks, split: &Split, width: f64, k_max: usize) {
+fn accumulate_scores(
+    table: &mut ScoreTable,
+    z: &[FeatureRow],
+    all: &Blocks,
+    split: &Split,
+    width: f64,
+    k_max: usize,
+    score_rows: usize,
+) {
     let dims = all.dims;
     let centers = select_centers(z, &all.y, &split.train, dims, width, k_max);
-    let stats = |rows: &[usize]| {
+    let design_and_target = |rows: &[usize]| {
         let a: DMatrix<f64> = design(z, rows, dims, &centers, width);
-        GramStats::new(&a, &DVector::from_iterator(rows.len(), rows.iter().map(|&i| all.y[i])))
+        (a, DVector::from_iterator(rows.len(), rows.iter().map(|&i| all.y[i])))
     };
-    let train = stats(&split.train);
-    let groups: Vec<GramStats> = split.groups.iter().map(|g| stats(g)).collect();
+    let (a, y) = design_and_target(&split.train);
+    let train = GramStats::new(&a, &y);
+    // Scored on cluster means of the residual, the figure users judge by: at 1 s
+    // white noise would hide model errors an order of magnitude below it.
+    let groups: Vec<GramStats> = split
+        .groups
+        .iter()
+        .map(|g| {
+            let (a, y) = design_and_target(g);
+            let (am, ym) = cluster_means(&a, &y, score_rows);
+            GramStats::new(&am, &ym)
+        })
+        .filter(|g| g.n >= MIN_SCORE_CLUSTERS)
+        .collect();
     for (ri, &ridge) in RIDGES.iter().enumerate() {
         for k in 1..=k_max {
             let score = if k > centers.len() {
                 f64::INFINITY
             } else {
                 match ridge_solve(&train, 1 + dims + k, ridge) {
-                    Some(w) => groups.iter().map(|g| g.residual_variance(&w)).sum::<f64>() / groups.len().max(1) as f64,
+                    Some(w) if !groups.is_empty() => {
+                        groups.iter().map(|g| g.residual_variance(&w)).sum::<f64>() / groups.len() as f64
+                    }
+                    Some(_) => f64::INFINITY,
                     None => f64::INFINITY,
                 }
             };
