@@ -86,16 +86,21 @@ fn the_temperature_rate_model_beats_the_cubic_in_t_on_ramps() {
     }
 }
 
-#[test]
-fn compensate_file_writes_exactly_the_in_memory_compensation() {
-    let dir = TempDir::new().unwrap();
-    let (train, _) = chamber_set(&dir);
+/// A quick 8-centre model (fixed ΔT window) for tests about the plumbing.
+fn small_model(train: &Run) -> rbf_core::Model {
     let opts = FitOptions {
         centers: Some(8),
         rate_windows_s: vec![60.0],
         ..FitOptions::default()
     };
-    let model = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model;
+    fit::fit(std::slice::from_ref(train), &[], &opts).unwrap().model
+}
+
+#[test]
+fn compensate_file_writes_exactly_the_in_memory_compensation() {
+    let dir = TempDir::new().unwrap();
+    let (train, _) = chamber_set(&dir);
+    let model = small_model(&train);
     let out_path = dir.path().join("out.csv");
     let (rows, _) = compensate_file(Some(&model), &train.path, &out_path).unwrap();
     assert_eq!(rows, train.len());
@@ -124,12 +129,7 @@ fn compensate_file_writes_exactly_the_in_memory_compensation() {
 fn temperature_fault_rows_hold_the_last_good_value_and_carry_flag_2() {
     let dir = TempDir::new().unwrap();
     let (train, _) = chamber_set(&dir);
-    let opts = FitOptions {
-        centers: Some(8),
-        rate_windows_s: vec![60.0],
-        ..FitOptions::default()
-    };
-    let model = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model;
+    let model = small_model(&train);
     // A slice with fault bursts of 3 and 30 samples (the second outlasts the 10-s hold).
     let src = std::fs::read_to_string(&train.path).unwrap();
     let mut text = String::from("# sample_rate_hz: 1\ntime_s,rate_dph,temp_c,ref_dph,temp_fault\n");

@@ -63,6 +63,26 @@ fn fitted_model(dir: &TempDir) -> PathBuf {
     model
 }
 
+/// `trainer compensate --model MODEL RUN -o OUT`.
+fn compensate(model: &Path, run: &Path, out: &Path) -> Output {
+    trainer(&[
+        "compensate",
+        "--model",
+        model.to_str().unwrap(),
+        run.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ])
+}
+
+/// Data rows of a recorded-run file (no metadata, blank lines or header).
+fn data_rows(text: &str) -> Vec<&str> {
+    text.lines()
+        .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .skip(1)
+        .collect()
+}
+
 const GOOD_HEADER: &str = "# sample_rate_hz: 1\ntime_s,rate_dph,temp_c\n";
 
 #[test]
@@ -215,26 +235,13 @@ fn converted_bmi270_logs_are_read_but_cannot_identify_a_model() {
 
     // compensate accepts them: one output row per input row.
     let out = dir.path().join("hot_comp.csv");
-    let o = trainer(&[
-        "compensate",
-        "--model",
-        model.to_str().unwrap(),
-        hot.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = compensate(&model, &hot, &out);
     assert!(o.status.success(), "{}", stderr(&o));
-    let input_rows = std::fs::read_to_string(&hot)
-        .unwrap()
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .count();
-    let output_rows = std::fs::read_to_string(&out)
-        .unwrap()
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .count();
-    assert_eq!(input_rows, output_rows);
+    let (input, output) = (
+        std::fs::read_to_string(&hot).unwrap(),
+        std::fs::read_to_string(&out).unwrap(),
+    );
+    assert_eq!(data_rows(&input).len(), data_rows(&output).len());
 }
 
 #[test]
@@ -264,27 +271,15 @@ fn tolerable_variants_are_accepted_row_for_row() {
     for (name, content) in variants {
         let run = write(&dir, &format!("{name}.csv"), content.as_bytes());
         let out = dir.path().join(format!("{name}_out.csv"));
-        let o = trainer(&[
-            "compensate",
-            "--model",
-            model.to_str().unwrap(),
-            run.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-        ]);
+        let o = compensate(&model, &run, &out);
         assert!(o.status.success(), "{name}: {}", stderr(&o));
         let text = std::fs::read_to_string(&out).unwrap();
-        let data: Vec<&str> = text
-            .lines()
-            .filter(|l| !l.starts_with('#') && !l.is_empty())
-            .skip(1)
-            .collect();
-        let expected = content
-            .lines()
-            .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
-            .count()
-            - 1;
-        assert_eq!(data.len(), expected, "{name}: one output row per input row");
+        let data = data_rows(&text);
+        assert_eq!(
+            data.len(),
+            data_rows(content).len(),
+            "{name}: one output row per input row"
+        );
         for line in data {
             let fields: Vec<&str> = line.split(',').collect();
             let n = fields.len();
