@@ -1,14 +1,25 @@
 //! # firmware: IFOG temperature-drift compensation on the gyro's MCU
 //!
-//! `no_std`, no allocation. This library holds everything but the board
-//! wiring, so it builds and is tested on the host; the board binaries only
-//! connect peripherals to it.
+//! `no_std`, no allocation. Everything but the board wiring lives here, so it
+//! builds and is tested on the host:
+//! - [`tmp117`]: loop-thermometer driver (I2C); [`frontend`]: rate front end (SPI, docs/frontend.md);
+//! - [`sensors`]: the traits the loop needs from them;
+//! - [`compensation`]: the per-sample loop (rbf-core compensation, one output frame per sample);
+//! - [`replay`]: emulated devices and the recorded-run replayer of the QEMU board;
+//! - [`load_model`]: boot-time validation of the model flash slot.
 //!
-//! Status: skeleton. The model region is validated at boot with the same
-//! `rbf-core` decoder the trainer uses; the embedded-hal compensation loop,
-//! drivers and output framing arrive with the firmware issue.
+//! The board binaries in `src/bin/` only wire peripherals to these.
 #![cfg_attr(not(test), no_std)]
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
+
+pub mod compensation;
+pub mod frontend;
+pub mod replay;
+pub mod sensors;
+pub mod tmp117;
+
+#[cfg(target_os = "none")]
+pub mod board;
 
 use rbf_core::Model;
 use rbf_core::blob::{self, DecodeError};

@@ -39,6 +39,12 @@ impl CompensatorConfig {
         }
     }
 
+    /// Defaults for a recorded run whose nominal period is `period_s` (see
+    /// [`crate::record::nominal_period_s`]); the same arithmetic on host and target.
+    pub fn for_nominal_period_s(period_s: f64) -> Self {
+        Self::for_sample_rate((1.0 / period_s) as f32)
+    }
+
     /// True when a time step of `dt_s` seconds breaks the run into a new segment.
     pub fn is_gap(&self, dt_s: f32) -> bool {
         !(dt_s > 0.0 && dt_s <= 2.0 * self.nominal_period_s)

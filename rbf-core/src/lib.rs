@@ -10,6 +10,8 @@
 //! - [`model`]: a deployable model (either kind + feature configuration + ranges).
 //! - [`compensator`]: the per-sample loop state (sensor-fault hold, gaps, flags).
 //! - [`blob`]: the model blob format (header, postcard payload, CRC-32) and its decoder.
+//! - [`frame`]: the firmware's per-sample output frames (postcard + COBS).
+//! - [`record`]: row parsing of recorded runs; [`sensor`]: TMP117 conversions.
 //!
 //! Sizes live in types ([`MAX_CENTERS`], [`MAX_INPUTS`]); values are runtime data.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
@@ -19,10 +21,12 @@ pub mod blob;
 pub mod compensator;
 pub mod features;
 pub mod flags;
+pub mod frame;
 pub mod model;
 pub mod poly;
 pub mod rbf;
 pub mod record;
+pub mod sensor;
 
 /// Most Gaussian centres a deployable model may hold (firmware RAM is sized for it).
 pub const MAX_CENTERS: usize = 64;

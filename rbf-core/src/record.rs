@@ -107,6 +107,60 @@ pub fn metadata(line: &str) -> Option<(&str, &str)> {
     Some((trim_field(key), trim_field(value)))
 }
 
+/// Time steps used to estimate the nominal sample period without metadata.
+pub const PERIOD_ESTIMATE_STEPS: usize = 1000;
+
+/// The nominal sample period of a run, s: `1 / sample_rate_hz` when the
+/// metadata gives a positive rate, else the median (upper median for an even
+/// count) of the first [`PERIOD_ESTIMATE_STEPS`] time steps, else 1 s.
+///
+/// `steps` is sorted in place. Trainer and firmware replay both call this, so
+/// they draw segment gaps at the same places.
+pub fn nominal_period_s(metadata_rate_hz: Option<f64>, steps: &mut [f64]) -> f64 {
+    if let Some(rate) = metadata_rate_hz.filter(|r| r.is_finite() && *r > 0.0) {
+        return 1.0 / rate;
+    }
+    if steps.is_empty() {
+        return 1.0;
+    }
+    steps.sort_unstable_by(f64::total_cmp);
+    steps[steps.len() / 2]
+}
+
+/// The `sample_rate_hz` metadata value of a `# key: value` line, if it is one.
+pub fn metadata_sample_rate_hz(line: &str) -> Option<f64> {
+    metadata(line)
+        .filter(|(k, _)| *k == "sample_rate_hz")
+        .and_then(|(_, v)| v.parse().ok())
+}
+
+/// The time step the compensator sees between two recorded sample times, s:
+/// the f64 difference rounded once to f32 (0 for the first row).
+pub fn time_step_s(prev_time_s: Option<f64>, time_s: f64) -> f32 {
+    prev_time_s.map_or(0.0, |p| (time_s - p) as f32)
+}
+
+/// Names of the columns `compensate` appends, with their leading comma.
+pub const COMPENSATED_COLUMNS: &str = ",bias_dph,rate_comp_dph,flags";
+
+/// Writes one compensated output row: the input line as read, then
+/// `bias_dph`, `rate_comp_dph` and `flags` (f32 shortest round-trip decimal),
+/// and a `\n`. The trainer and the firmware replay both write rows with this.
+pub fn write_compensated_row<W: core::fmt::Write>(
+    out: &mut W,
+    input_line: &str,
+    sample: &crate::CompensatedSample,
+) -> core::fmt::Result {
+    writeln!(
+        out,
+        "{},{},{},{}",
+        input_line,
+        sample.bias_dph,
+        sample.rate_comp_dph,
+        sample.flags.bits()
+    )
+}
+
 impl Columns {
     /// Maps a header line (a leading UTF-8 BOM is allowed) to column indices.
     pub fn from_header(line: &str) -> Result<Columns, HeaderError> {

@@ -4,6 +4,7 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
+use rbf_core::record;
 use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, Model};
 use serde::Serialize;
 
@@ -160,7 +161,7 @@ pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> an
     let period_s = probe_nominal_period_s(input)?;
     let mut reader = RunReader::open(input)?;
     reader.require_temp()?;
-    let config = CompensatorConfig::for_sample_rate((1.0 / period_s) as f32);
+    let config = CompensatorConfig::for_nominal_period_s(period_s);
     let mut compensator = Compensator::new();
     let (mut rows, mut flagged) = (0usize, FlagCounts::default());
     write_atomically(output, |out| {
@@ -168,7 +169,7 @@ pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> an
         for line in reader.preamble() {
             writeln!(out, "{line}").map_err(io)?;
         }
-        writeln!(out, "{},bias_dph,rate_comp_dph,flags", reader.header_line()).map_err(io)?;
+        writeln!(out, "{}{}", reader.header_line(), record::COMPENSATED_COLUMNS).map_err(io)?;
         let mut prev_time_s = None;
         while let Some(raw) = reader.next_row()? {
             let sample = gyro_sample(prev_time_s, raw.row.time_s, raw.row.rate_dph, raw.temp_c());

@@ -37,6 +37,23 @@ enum Command {
     Eval(EvalArgs),
     Inspect(InspectArgs),
     Simulate(SimulateArgs),
+    Decode(DecodeArgs),
+}
+
+/// Decode firmware output frames (a UART capture) into CSV.
+///
+/// Frames are postcard + COBS, each ended by 0x00. Writes
+/// seq, rate_dph [°/h], bias_dph [°/h], rate_comp_dph [°/h], temp_c [°C], flags.
+/// A damaged frame is skipped and reported (the seq gap shows where); a capture
+/// that starts mid-frame loses only that first partial frame.
+#[derive(Args, Debug)]
+struct DecodeArgs {
+    /// Captured frame bytes.
+    #[arg(value_name = "FRAMES.bin")]
+    frames: PathBuf,
+    /// CSV to write.
+    #[arg(short, long, value_name = "OUT.csv")]
+    output: PathBuf,
 }
 
 /// Chamber profiles `trainer simulate` knows.
@@ -203,6 +220,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(a) => cmd_eval(a),
         Command::Inspect(a) => cmd_inspect(a),
         Command::Simulate(a) => cmd_simulate(a),
+        Command::Decode(a) => cmd_decode(a),
     }
 }
 
@@ -282,6 +300,41 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             "runs": evals.iter().map(|(role, e)| serde_json::json!({"role": role, "evaluation": e})).collect::<Vec<_>>(),
         });
         write_bytes(path, serde_json::to_string_pretty(&report)?.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn cmd_decode(a: DecodeArgs) -> anyhow::Result<()> {
+    let mut bytes = std::fs::read(&a.frames).with_context(|| format!("{}: cannot read", a.frames.display()))?;
+    let (mut good, mut damaged) = (0usize, Vec::new());
+    let mut csv = String::from("seq,rate_dph,bias_dph,rate_comp_dph,temp_c,flags\n");
+    let mut start = 0;
+    let len = bytes.len();
+    while start < len {
+        let end = bytes[start..].iter().position(|&b| b == 0).map_or(len, |p| start + p);
+        if end > start {
+            match rbf_core::frame::decode(&mut bytes[start..end]) {
+                Ok(f) => {
+                    csv.push_str(&format!(
+                        "{},{},{},{},{},{}\n",
+                        f.seq, f.rate_dph, f.bias_dph, f.rate_comp_dph, f.temp_c, f.flags
+                    ));
+                    good += 1;
+                }
+                Err(_) => damaged.push(start),
+            }
+        }
+        start = end + 1;
+    }
+    write_bytes(&a.output, csv.as_bytes())?;
+    println!("wrote {} ({good} frames)", a.output.display());
+    if !damaged.is_empty() {
+        eprintln!(
+            "warning: {}: {} damaged frame(s) skipped, at byte offsets {:?}",
+            a.frames.display(),
+            damaged.len(),
+            &damaged[..damaged.len().min(10)]
+        );
     }
     Ok(())
 }

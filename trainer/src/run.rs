@@ -9,11 +9,8 @@ use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
-use rbf_core::record::{self, Columns, HeaderError, Row, RowErrorKind};
+use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, Row, RowErrorKind};
 use rbf_core::{CompensatorConfig, GyroSample};
-
-/// Steps used to estimate the nominal sample period when metadata lacks it.
-const PERIOD_ESTIMATE_STEPS: usize = 1000;
 
 /// A defect in a run file, with its position.
 #[derive(Debug, thiserror::Error)]
@@ -312,7 +309,12 @@ impl Run {
                 message: format!("run has {} data rows; at least 2 are needed", time_s.len()),
             });
         }
-        let nominal_period_s = nominal_period_s(metadata_rate, time_s.windows(2).map(|w| w[1] - w[0]));
+        let mut steps: Vec<f64> = time_s
+            .windows(2)
+            .take(PERIOD_ESTIMATE_STEPS)
+            .map(|w| w[1] - w[0])
+            .collect();
+        let nominal_period_s = record::nominal_period_s(metadata_rate, &mut steps);
         Ok(Run {
             path: path.to_owned(),
             time_s,
@@ -343,7 +345,7 @@ impl Run {
 
     /// The compensator settings for this run's sample rate.
     pub fn compensator_config(&self) -> CompensatorConfig {
-        CompensatorConfig::for_sample_rate((1.0 / self.nominal_period_s) as f32)
+        CompensatorConfig::for_nominal_period_s(self.nominal_period_s)
     }
 
     /// Samples in rbf-core form, as the firmware receives them.
@@ -374,15 +376,17 @@ impl Reference<'_> {
     }
 }
 
-/// The sample the compensator sees for a row: the time step since the
-/// previous row (computed in f64, rounded once to f32, on host and target
-/// alike; 0 for the first row) and the values rounded to f32.
+/// The sample the compensator sees for a row, as the firmware receives it:
+/// the time step since the previous row (computed in f64, rounded once to
+/// f32, on host and target alike; 0 for the first row), the rate rounded to
+/// f32 (the front end's binary32 word), and the loop temperature at TMP117
+/// resolution (1/128 °C, the finest the firmware can see).
 /// `temp_c` is `None` when the sensor failed (`temp_fault` = 1).
 pub fn gyro_sample(prev_time_s: Option<f64>, time_s: f64, rate_dph: f64, temp_c: Option<f64>) -> GyroSample {
     GyroSample {
-        dt_s: prev_time_s.map_or(0.0, |p| (time_s - p) as f32),
+        dt_s: record::time_step_s(prev_time_s, time_s),
         rate_dph: rate_dph as f32,
-        temp_c: temp_c.map(|t| t as f32),
+        temp_c: temp_c.map(rbf_core::sensor::tmp117_quantise),
     }
 }
 
@@ -422,12 +426,12 @@ pub fn probe_nominal_period_s(path: &Path) -> Result<f64, RunError> {
     let metadata_rate = metadata_sample_rate(&reader);
     let mut steps = Vec::new();
     let mut prev = None;
-    while metadata_rate.is_none() && steps.len() < PERIOD_ESTIMATE_STEPS {
+    while steps.len() < PERIOD_ESTIMATE_STEPS {
         let Some(raw) = reader.next_row()? else { break };
         if let Some(p) = prev {
             steps.push(raw.row.time_s - p);
         }
         prev = Some(raw.row.time_s);
     }
-    Ok(nominal_period_s(metadata_rate, steps.into_iter()))
+    Ok(record::nominal_period_s(metadata_rate, &mut steps))
 }

@@ -1,0 +1,264 @@
+//! QEMU replay board (netduinoplus2 = STM32F405): wiring only.
+//!
+//! Reads `input.csv` over semihosting from the directory QEMU runs in, takes
+//! the model from flash slot MODEL_A (placed with `-device loader`), replays
+//! the run through the real drivers on emulated buses ([`firmware::replay`])
+//! and writes `output.csv` (byte-identical to `trainer compensate`) and
+//! `frames.bin` (the UART frames). Run it with `cargo xtask qemu-replay`.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod board {
+    #![allow(unsafe_code)]
+
+    use core::cell::Cell;
+
+    use cortex_m_rt::entry;
+    use cortex_m_semihosting::{debug, hprintln, nr, syscall};
+    use firmware::replay::{PeriodProbe, ReplaySample, Replayer};
+
+    /// Longest input line, bytes.
+    const LINE_CAPACITY: usize = 1024;
+    /// Input read chunk, bytes.
+    const CHUNK: usize = 4096;
+
+    /// Reads a host file line by line over semihosting.
+    struct HostLines {
+        fd: usize,
+        chunk: [u8; CHUNK],
+        start: usize,
+        end: usize,
+        eof: bool,
+        line: heapless::Vec<u8, LINE_CAPACITY>,
+    }
+
+    /// Opens a host file; `path_nul` ends with a NUL byte.
+    fn host_open(path_nul: &str, mode: usize) -> Option<usize> {
+        // SAFETY: SYS_OPEN reads the NUL-terminated name and returns a handle or -1.
+        let fd = unsafe { syscall!(OPEN, path_nul.as_ptr(), mode, path_nul.len() - 1) };
+        (fd as isize != -1).then_some(fd)
+    }
+
+    fn host_close(fd: usize) {
+        // SAFETY: closes a handle we opened.
+        unsafe { syscall!(CLOSE, fd) };
+    }
+
+    /// A host file written over semihosting.
+    struct HostFile(usize);
+
+    impl HostFile {
+        fn create(path_nul: &str) -> Option<Self> {
+            host_open(path_nul, nr::open::W_TRUNC_BINARY).map(HostFile)
+        }
+
+        fn write_all(&mut self, mut buf: &[u8]) -> Result<(), ()> {
+            while !buf.is_empty() {
+                // SAFETY: SYS_WRITE reads buf.len() bytes from buf; returns the count NOT written.
+                let not_written = unsafe { syscall!(WRITE, self.0, buf.as_ptr(), buf.len()) };
+                if not_written >= buf.len() {
+                    return Err(());
+                }
+                buf = &buf[buf.len() - not_written..];
+            }
+            Ok(())
+        }
+    }
+
+    impl Drop for HostFile {
+        fn drop(&mut self) {
+            host_close(self.0);
+        }
+    }
+
+    impl HostLines {
+        fn open(path_nul: &str) -> Option<Self> {
+            host_open(path_nul, nr::open::R_BINARY).map(|fd| HostLines {
+                fd,
+                chunk: [0; CHUNK],
+                start: 0,
+                end: 0,
+                eof: false,
+                line: heapless::Vec::new(),
+            })
+        }
+
+        fn fill(&mut self) {
+            // SAFETY: SYS_READ writes at most CHUNK bytes into our buffer and returns the count NOT read.
+            let not_read = unsafe { syscall!(READ, self.fd, self.chunk.as_mut_ptr(), CHUNK) };
+            self.start = 0;
+            self.end = CHUNK.saturating_sub(not_read);
+            self.eof = self.end == 0;
+        }
+
+        /// The next line without its `\n`; `Err(())` for a line over capacity or non-UTF-8.
+        fn next_line(&mut self) -> Option<Result<&str, ()>> {
+            self.line.clear();
+            let mut overflow = false;
+            loop {
+                if self.start == self.end {
+                    if self.eof {
+                        break;
+                    }
+                    self.fill();
+                    if self.eof {
+                        break;
+                    }
+                }
+                let b = self.chunk[self.start];
+                self.start += 1;
+                if b == b'\n' {
+                    return Some(if overflow {
+                        Err(())
+                    } else {
+                        core::str::from_utf8(&self.line).map_err(|_| ())
+                    });
+                }
+                overflow |= self.line.push(b).is_err();
+            }
+            if self.line.is_empty() {
+                None
+            } else {
+                Some(if overflow {
+                    Err(())
+                } else {
+                    core::str::from_utf8(&self.line).map_err(|_| ())
+                })
+            }
+        }
+    }
+
+    impl Drop for HostLines {
+        fn drop(&mut self) {
+            host_close(self.fd);
+        }
+    }
+
+    /// Semihosting file as an embedded-io writer (the UART of the real board).
+    struct HostWriter(HostFile);
+
+    impl embedded_io::ErrorType for HostWriter {
+        type Error = embedded_io::ErrorKind;
+    }
+
+    impl embedded_io::Write for HostWriter {
+        fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+            self.0
+                .write_all(buf)
+                .map(|()| buf.len())
+                .map_err(|()| embedded_io::ErrorKind::Other)
+        }
+        fn flush(&mut self) -> Result<(), Self::Error> {
+            Ok(())
+        }
+    }
+
+    /// A line buffer flushed to a semihosting file.
+    struct CsvOut {
+        stream: HostFile,
+        buf: heapless::String<2048>,
+    }
+
+    impl core::fmt::Write for CsvOut {
+        fn write_str(&mut self, s: &str) -> core::fmt::Result {
+            if self.buf.len() + s.len() > self.buf.capacity() {
+                self.flush()?;
+            }
+            if s.len() > self.buf.capacity() {
+                return self.stream.write_all(s.as_bytes()).map_err(|()| core::fmt::Error);
+            }
+            self.buf.push_str(s).map_err(|_| core::fmt::Error)
+        }
+    }
+
+    impl CsvOut {
+        fn flush(&mut self) -> core::fmt::Result {
+            let r = self
+                .stream
+                .write_all(self.buf.as_bytes())
+                .map_err(|()| core::fmt::Error);
+            self.buf.clear();
+            r
+        }
+    }
+
+    fn fail(message: &str) -> ! {
+        hprintln!("replay: {}", message);
+        debug::exit(debug::EXIT_FAILURE);
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
+    #[entry]
+    fn main() -> ! {
+        let model = firmware::load_model(firmware::board::model_slot_a());
+        if let Err(e) = &model {
+            hprintln!("replay: model slot refused ({}); output uncompensated with flag 4", e);
+        }
+        let model = model.ok();
+
+        // Pass 1: nominal period by the shared rule.
+        let period_s = {
+            let Some(mut lines) = HostLines::open("input.csv\0") else {
+                fail("cannot open input.csv")
+            };
+            let mut probe = PeriodProbe::default();
+            while let Some(line) = lines.next_line() {
+                match line.map(|l| probe.feed_line(l)) {
+                    Ok(Ok(false)) => {}
+                    Ok(Ok(true)) => break,
+                    _ => fail("input.csv: unreadable header or row"),
+                }
+            }
+            probe.period_s()
+        };
+
+        // Pass 2: replay through the drivers and the loop.
+        let Some(mut lines) = HostLines::open("input.csv\0") else {
+            fail("cannot reopen input.csv")
+        };
+        let Some(output) = HostFile::create("output.csv\0") else {
+            fail("cannot create output.csv")
+        };
+        let Some(frames) = HostFile::create("frames.bin\0") else {
+            fail("cannot create frames.bin")
+        };
+        let mut out = CsvOut {
+            stream: output,
+            buf: heapless::String::new(),
+        };
+        let current = Cell::new(ReplaySample::default());
+        let Ok(mut replayer) = Replayer::new(model.as_ref(), period_s, &current, HostWriter(frames)) else {
+            fail("emulated devices did not initialise")
+        };
+        while let Some(line) = lines.next_line() {
+            let Ok(line) = line else {
+                fail("input.csv: a line is too long or not UTF-8")
+            };
+            if replayer.feed_line(line, &mut out).is_err() {
+                fail("input.csv: malformed line or output refused");
+            }
+        }
+        if out.flush().is_err() {
+            fail("cannot write output.csv");
+        }
+        let stats = replayer.stats();
+        hprintln!(
+            "replay: samples {} temp_read_faults {} rate_read_faults {} output_errors {}",
+            stats.samples,
+            stats.temp_read_faults,
+            stats.rate_read_faults,
+            stats.output_errors
+        );
+        debug::exit(debug::EXIT_SUCCESS);
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!("qemu-replay runs under qemu-system-arm: use `cargo xtask qemu-replay`");
+}

@@ -1,0 +1,196 @@
+//! Driver for the IFOG rate front end on SPI (protocol: docs/frontend.md).
+//!
+//! Each access is one SPI transaction: a command byte `0x80 | register`, then
+//! the register's bytes clocked out big-endian. The SAMPLE register carries a
+//! status word, the rate as IEEE-754 binary32 and a CRC-8 over both.
+
+use embedded_hal::spi::{Operation, SpiDevice};
+
+use crate::sensors::{RateFrontEnd, RateSample, SensorFault};
+
+/// Identity register (u16).
+pub const REG_WHO_AM_I: u8 = 0x00;
+/// Scale factor register (binary32, °/h per front-end unit).
+pub const REG_SCALE_FACTOR: u8 = 0x01;
+/// Sample register: STATUS (u16) · RATE (binary32) · CRC-8.
+pub const REG_SAMPLE: u8 = 0x10;
+/// Read command bit.
+pub const READ: u8 = 0x80;
+/// What WHO_AM_I reads.
+pub const WHO_AM_I: u16 = 0xF06A;
+/// Bytes of the SAMPLE register.
+pub const SAMPLE_LEN: usize = 7;
+/// STATUS: the rate word is a measurement.
+pub const STATUS_VALID: u16 = 1 << 0;
+/// STATUS: the rate exceeded the measurement range.
+pub const STATUS_OVER_RANGE: u16 = 1 << 1;
+/// STATUS: the closed loop lost lock.
+pub const STATUS_LOOP_UNLOCKED: u16 = 1 << 2;
+
+const CRC8: crc::Crc<u8> = crc::Crc::<u8>::new(&crc::CRC_8_SMBUS);
+
+/// The SAMPLE register bytes for a status word and rate word (the front end's side).
+pub fn encode_sample(status: u16, rate_word: f32) -> [u8; SAMPLE_LEN] {
+    let mut b = [0u8; SAMPLE_LEN];
+    b[0..2].copy_from_slice(&status.to_be_bytes());
+    b[2..6].copy_from_slice(&rate_word.to_bits().to_be_bytes());
+    b[6] = CRC8.checksum(&b[0..6]);
+    b
+}
+
+/// Driver errors.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Error<E> {
+    /// SPI transaction failed.
+    Spi(E),
+    /// WHO_AM_I read this instead of 0xF06A.
+    WrongDevice(u16),
+    /// The scale factor is not a positive finite number.
+    BadScaleFactor,
+    /// A sample failed its CRC.
+    Crc,
+}
+
+/// The front end on an SPI device it owns.
+#[derive(Debug)]
+pub struct FrontEnd<SPI> {
+    spi: SPI,
+    scale_dph: f32,
+}
+
+impl<SPI: SpiDevice> FrontEnd<SPI> {
+    /// A driver with scale factor 1 until [`FrontEnd::init`] reads it.
+    pub fn new(spi: SPI) -> Self {
+        FrontEnd { spi, scale_dph: 1.0 }
+    }
+
+    fn read<const N: usize>(&mut self, register: u8) -> Result<[u8; N], Error<SPI::Error>> {
+        let mut buf = [0u8; N];
+        self.spi
+            .transaction(&mut [Operation::Write(&[READ | register]), Operation::Read(&mut buf)])
+            .map_err(Error::Spi)?;
+        Ok(buf)
+    }
+
+    /// Checks identity and reads the scale factor.
+    pub fn init(&mut self) -> Result<(), Error<SPI::Error>> {
+        let id = u16::from_be_bytes(self.read::<2>(REG_WHO_AM_I)?);
+        if id != WHO_AM_I {
+            return Err(Error::WrongDevice(id));
+        }
+        let scale = f32::from_bits(u32::from_be_bytes(self.read::<4>(REG_SCALE_FACTOR)?));
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(Error::BadScaleFactor);
+        }
+        self.scale_dph = scale;
+        Ok(())
+    }
+
+    /// Reads the current sample: rate in °/h and whether the front end vouches for it.
+    pub fn read_sample(&mut self) -> Result<RateSample, Error<SPI::Error>> {
+        let b = self.read::<SAMPLE_LEN>(REG_SAMPLE)?;
+        if CRC8.checksum(&b[0..6]) != b[6] {
+            return Err(Error::Crc);
+        }
+        let status = u16::from_be_bytes([b[0], b[1]]);
+        let word = f32::from_bits(u32::from_be_bytes([b[2], b[3], b[4], b[5]]));
+        let valid = status & STATUS_VALID != 0 && status & (STATUS_OVER_RANGE | STATUS_LOOP_UNLOCKED) == 0;
+        Ok(RateSample {
+            rate_dph: word * self.scale_dph,
+            valid,
+        })
+    }
+
+    /// Gives the SPI device back.
+    pub fn destroy(self) -> SPI {
+        self.spi
+    }
+}
+
+impl<SPI: SpiDevice> RateFrontEnd for FrontEnd<SPI> {
+    fn read_rate(&mut self) -> Result<RateSample, SensorFault> {
+        self.read_sample().map_err(|e| match e {
+            Error::Crc => SensorFault::Integrity,
+            Error::WrongDevice(_) | Error::BadScaleFactor => SensorFault::WrongDevice,
+            Error::Spi(_) => SensorFault::Bus,
+        })
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::float_cmp, reason = "binary32 words pass through exactly")]
+mod tests {
+    use super::*;
+    use embedded_hal::spi::ErrorKind;
+    use embedded_hal_mock::eh1::spi::{Mock, Transaction};
+
+    fn read(register: u8, reply: &[u8]) -> Vec<Transaction<u8>> {
+        vec![
+            Transaction::transaction_start(),
+            Transaction::write(READ | register),
+            Transaction::read_vec(reply.to_vec()),
+            Transaction::transaction_end(),
+        ]
+    }
+
+    #[test]
+    fn init_reads_identity_and_scale_then_samples_scale_the_rate_word() {
+        let mut script = read(REG_WHO_AM_I, &[0xF0, 0x6A]);
+        script.extend(read(REG_SCALE_FACTOR, &2.0f32.to_bits().to_be_bytes()));
+        script.extend(read(REG_SAMPLE, &encode_sample(STATUS_VALID, 10.25)));
+        script.extend(read(REG_SAMPLE, &encode_sample(STATUS_VALID | STATUS_OVER_RANGE, 1e7)));
+        let mut fe = FrontEnd::new(Mock::new(&script));
+        fe.init().unwrap();
+        assert_eq!(
+            fe.read_rate(),
+            Ok(RateSample {
+                rate_dph: 20.5,
+                valid: true
+            })
+        );
+        assert_eq!(
+            fe.read_rate(),
+            Ok(RateSample {
+                rate_dph: 2e7,
+                valid: false
+            })
+        );
+        fe.destroy().done();
+    }
+
+    #[test]
+    fn wrong_identity_and_bad_scale_are_refused() {
+        let mut fe = FrontEnd::new(Mock::new(&read(REG_WHO_AM_I, &[0x12, 0x34])));
+        assert_eq!(fe.init(), Err(Error::WrongDevice(0x1234)));
+        fe.destroy().done();
+        let mut script = read(REG_WHO_AM_I, &[0xF0, 0x6A]);
+        script.extend(read(REG_SCALE_FACTOR, &f32::NAN.to_bits().to_be_bytes()));
+        let mut fe = FrontEnd::new(Mock::new(&script));
+        assert_eq!(fe.init(), Err(Error::BadScaleFactor));
+        fe.destroy().done();
+    }
+
+    /// An SPI device whose every transaction fails (embedded-hal-mock's SPI
+    /// mock cannot inject errors).
+    struct FailingSpi;
+
+    impl embedded_hal::spi::ErrorType for FailingSpi {
+        type Error = ErrorKind;
+    }
+
+    impl SpiDevice for FailingSpi {
+        fn transaction(&mut self, _: &mut [Operation<'_, u8>]) -> Result<(), ErrorKind> {
+            Err(ErrorKind::Overrun)
+        }
+    }
+
+    #[test]
+    fn corrupted_samples_and_bus_errors_are_faults() {
+        let mut corrupted = encode_sample(STATUS_VALID, 1.0);
+        corrupted[3] ^= 0x01;
+        let mut fe = FrontEnd::new(Mock::new(&read(REG_SAMPLE, &corrupted)));
+        assert_eq!(fe.read_rate(), Err(SensorFault::Integrity));
+        fe.destroy().done();
+        assert_eq!(FrontEnd::new(FailingSpi).read_rate(), Err(SensorFault::Bus));
+    }
+}

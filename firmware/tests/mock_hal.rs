@@ -1,0 +1,206 @@
+//! The compensation loop against embedded-hal-mock transaction scripts: a
+//! recorded run becomes the exact I2C and SPI traffic the drivers must
+//! produce, and the loop's numbers equal `trainer compensate`'s bit for bit.
+
+mod common;
+
+use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
+use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as I2cTransaction};
+use embedded_hal_mock::eh1::spi::{Mock as SpiMock, Transaction as SpiTransaction};
+use firmware::compensation::{CompensationLoop, LoopConfig};
+use firmware::frontend::{self, FrontEnd};
+use firmware::tmp117::{self, Tmp117};
+use rbf_core::sensor::tmp117_raw;
+use rbf_core::{CompensatorConfig, Flags, frame};
+use trainer::evaluate::compensate_run;
+use trainer::run::Run;
+
+const ADDRESS: u8 = tmp117::DEFAULT_ADDRESS;
+
+fn spi_read(register: u8, reply: Vec<u8>) -> [SpiTransaction<u8>; 4] {
+    [
+        SpiTransaction::transaction_start(),
+        SpiTransaction::write(frontend::READ | register),
+        SpiTransaction::read_vec(reply),
+        SpiTransaction::transaction_end(),
+    ]
+}
+
+#[test]
+fn recorded_run_through_the_mock_hal_gives_the_trainers_numbers() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let (model, slice) = common::model_and_faulty_slice(dir.path());
+    let run = Run::load(&slice).unwrap();
+    let expected = compensate_run(Some(&model), &run);
+
+    let mut i2c_script = Vec::new();
+    let mut spi_script = Vec::new();
+    for i in 0..run.len() {
+        let temp = I2cTransaction::write_read(ADDRESS, vec![tmp117::REG_TEMP_RESULT], vec![0, 0]);
+        i2c_script.push(match run.temp_c[i] {
+            Some(t) => I2cTransaction::write_read(
+                ADDRESS,
+                vec![tmp117::REG_TEMP_RESULT],
+                tmp117_raw(t).to_be_bytes().to_vec(),
+            ),
+            None => temp.with_error(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address)),
+        });
+        let word = frontend::encode_sample(frontend::STATUS_VALID, run.rate_dph[i] as f32);
+        spi_script.extend(spi_read(frontend::REG_SAMPLE, word.to_vec()));
+    }
+    let config = LoopConfig {
+        compensator: CompensatorConfig::for_nominal_period_s(run.nominal_period_s),
+        temp_read_every: 1,
+    };
+    let mut frames = Vec::new();
+    let mut lp = CompensationLoop::new(
+        Some(&model),
+        config,
+        Tmp117::new(I2cMock::new(&i2c_script), ADDRESS),
+        FrontEnd::new(SpiMock::new(&spi_script)),
+        &mut frames,
+    );
+    for (i, sample) in run.samples().enumerate() {
+        let out = lp.step(sample.dt_s);
+        assert_eq!(out.bias_dph.to_bits(), expected[i].bias_dph.to_bits(), "row {i}");
+        assert_eq!(
+            out.rate_comp_dph.to_bits(),
+            expected[i].rate_comp_dph.to_bits(),
+            "row {i}"
+        );
+        assert_eq!(out.flags, expected[i].flags, "row {i}");
+        assert_eq!(
+            out.flags.contains(Flags::TEMP_SENSOR_FAULT),
+            common::faulty(i),
+            "row {i}"
+        );
+    }
+    assert_eq!(lp.stats().temp_read_faults, 46);
+    let (t, f, _) = lp.destroy();
+    t.destroy().done();
+    f.destroy().done();
+    let count = frames.split(|&b| b == 0).filter(|c| !c.is_empty()).count();
+    assert_eq!(count, run.len(), "one frame per sample");
+}
+
+#[test]
+fn decimated_temperature_reads_and_front_end_faults_still_emit_every_frame() {
+    // Thermometer read every 4th sample; the front end sends a corrupt sample
+    // (CRC), an over-range one and a NaN word: all flagged 16, none dropped.
+    let mut i2c_script = Vec::new();
+    let mut spi_script = Vec::new();
+    let words: [(u16, f32, bool); 8] = [
+        (frontend::STATUS_VALID, 10.0, true),
+        (frontend::STATUS_VALID, 11.0, true),
+        (frontend::STATUS_VALID, 12.0, false), // corrupted on the wire
+        (frontend::STATUS_VALID | frontend::STATUS_OVER_RANGE, 4e6, true),
+        (frontend::STATUS_VALID, f32::NAN, true),
+        (frontend::STATUS_VALID | frontend::STATUS_LOOP_UNLOCKED, 13.0, true),
+        (frontend::STATUS_VALID, 14.0, true),
+        (0, 15.0, true), // not VALID
+    ];
+    for (i, &(status, word, crc_ok)) in words.iter().enumerate() {
+        if i % 4 == 0 {
+            i2c_script.push(I2cTransaction::write_read(
+                ADDRESS,
+                vec![tmp117::REG_TEMP_RESULT],
+                vec![0x0C, 0x80],
+            ));
+        }
+        let mut bytes = frontend::encode_sample(status, word).to_vec();
+        if !crc_ok {
+            bytes[6] ^= 0xFF;
+        }
+        spi_script.extend(spi_read(frontend::REG_SAMPLE, bytes));
+    }
+    let config = LoopConfig {
+        compensator: CompensatorConfig::for_sample_rate(1.0),
+        temp_read_every: 4,
+    };
+    let mut frames = Vec::new();
+    let mut lp = CompensationLoop::new(
+        None,
+        config,
+        Tmp117::new(I2cMock::new(&i2c_script), ADDRESS),
+        FrontEnd::new(SpiMock::new(&spi_script)),
+        &mut frames,
+    );
+    let flags: Vec<Flags> = (0..words.len()).map(|_| lp.step(1.0).flags).collect();
+    let invalid: Vec<bool> = flags.iter().map(|f| f.contains(Flags::RATE_INVALID)).collect();
+    assert_eq!(invalid, [false, false, true, true, true, true, false, true]);
+    assert!(
+        flags.iter().all(|f| f.contains(Flags::NO_VALID_MODEL)),
+        "no model: flag 4 on every frame"
+    );
+    assert!(
+        flags.iter().all(|f| !f.contains(Flags::TEMP_SENSOR_FAULT)),
+        "held reading between reads is not a fault"
+    );
+    assert_eq!(lp.stats().rate_read_faults, 1);
+    let (t, f, _) = lp.destroy();
+    t.destroy().done();
+    f.destroy().done();
+    let mut decoded: Vec<_> = frames
+        .split_mut(|&b| b == 0)
+        .filter(|c| !c.is_empty())
+        .map(|c| frame::decode(c).unwrap())
+        .collect();
+    assert_eq!(decoded.len(), words.len());
+    assert!(
+        decoded[2].rate_dph.is_nan(),
+        "a failed SPI read is reported as NaN rate"
+    );
+    assert_eq!(decoded.pop().unwrap().seq, 7);
+}
+
+/// An output that refuses every write: the loop counts it and goes on.
+struct BrokenUart;
+
+impl embedded_io::ErrorType for BrokenUart {
+    type Error = embedded_io::ErrorKind;
+}
+
+impl embedded_io::Write for BrokenUart {
+    fn write(&mut self, _: &[u8]) -> Result<usize, Self::Error> {
+        Err(embedded_io::ErrorKind::Other)
+    }
+    fn flush(&mut self) -> Result<(), Self::Error> {
+        Ok(())
+    }
+}
+
+#[test]
+fn a_failing_output_is_counted_and_never_stops_the_loop() {
+    let i2c = [I2cTransaction::write_read(
+        ADDRESS,
+        vec![tmp117::REG_TEMP_RESULT],
+        vec![0x0C, 0x80],
+    )];
+    let spi: Vec<_> = (0..3)
+        .flat_map(|_| {
+            spi_read(
+                frontend::REG_SAMPLE,
+                frontend::encode_sample(frontend::STATUS_VALID, 1.0).to_vec(),
+            )
+        })
+        .collect();
+    let config = LoopConfig {
+        compensator: CompensatorConfig::for_sample_rate(1.0),
+        temp_read_every: 100,
+    };
+    let mut lp = CompensationLoop::new(
+        None,
+        config,
+        Tmp117::new(I2cMock::new(&i2c), ADDRESS),
+        FrontEnd::new(SpiMock::new(&spi)),
+        BrokenUart,
+    );
+    for _ in 0..3 {
+        lp.step(1.0);
+    }
+    assert_eq!(lp.stats().output_errors, 3);
+    assert_eq!(lp.stats().samples, 3);
+    let (t, f, _) = lp.destroy();
+    t.destroy().done();
+    f.destroy().done();
+}
