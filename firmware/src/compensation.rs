@@ -67,7 +67,7 @@ impl<'m, T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<'m, T, R, W
     pub fn step(&mut self, dt_s: f32) -> CompensatedSample {
         let seq = self.stats.samples;
         self.stats.samples = self.stats.samples.wrapping_add(1);
-        if seq % self.config.temp_read_every.max(1) == 0 {
+        if seq.is_multiple_of(self.config.temp_read_every.max(1)) {
             self.latest_temp_c = self.thermometer.read_temp_c().ok();
             if self.latest_temp_c.is_none() {
                 self.stats.temp_read_faults += 1;
