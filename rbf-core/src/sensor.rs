@@ -42,8 +42,8 @@ mod tests {
         assert_eq!(tmp117_celsius(0x0C80), 25.0); // datasheet example: 0x0C80 = 25 °C
         assert_eq!(tmp117_celsius(-1), -0.007_812_5);
         assert_eq!(tmp117_raw(25.0), 0x0C80);
-        assert_eq!(tmp117_quantise(25.004), 25.007_812_5);
-        assert_eq!(tmp117_quantise(24.996), 24.992_187_5);
+        assert_eq!(tmp117_quantise(25.004), 25.0 + TMP117_LSB_C);
+        assert_eq!(tmp117_quantise(24.996), 25.0 - TMP117_LSB_C);
         assert_eq!(tmp117_raw(1e9), i16::MAX);
         assert_eq!(tmp117_raw(f64::NAN), 0);
     }
