@@ -21,3 +21,39 @@ pub fn model_slot_a() -> &'static [u8] {
 fn panic(_: &PanicInfo) -> ! {
     cortex_m::asm::udf()
 }
+
+unsafe extern "C" {
+    static _stack_end: u32;
+    static _stack_start: u32;
+}
+
+/// Pattern painted into the unused stack to find its high-water mark.
+const PAINT: u32 = 0xDEAD_BEEF;
+/// Bytes below the current stack pointer left unpainted (this function's frame).
+const PAINT_MARGIN: usize = 256;
+
+/// Paints the unused stack (below the current frame) with a known pattern.
+/// Call first thing in `main`; [`stack_peak_bytes`] then reports the deepest use.
+pub fn paint_stack() {
+    let bottom = &raw const _stack_end as usize;
+    let sp = cortex_m::register::msp::read() as usize;
+    let mut addr = bottom;
+    while addr + PAINT_MARGIN < sp {
+        // SAFETY: [_stack_end, sp − margin) is the unused part of the stack
+        // region cortex-m-rt reserves; nothing lives there yet.
+        unsafe { core::ptr::write_volatile(addr as *mut u32, PAINT) };
+        addr += 4;
+    }
+}
+
+/// Deepest stack use since [`paint_stack`], bytes.
+pub fn stack_peak_bytes() -> usize {
+    let bottom = &raw const _stack_end as usize;
+    let top = &raw const _stack_start as usize;
+    let mut addr = bottom;
+    // SAFETY: reads words of the stack region, which is always mapped RAM.
+    while addr < top && unsafe { core::ptr::read_volatile(addr as *const u32) } == PAINT {
+        addr += 4;
+    }
+    top - addr
+}

@@ -19,6 +19,7 @@
 
 pub mod blob;
 pub mod compensator;
+pub mod fastmath;
 pub mod features;
 pub mod flags;
 pub mod frame;

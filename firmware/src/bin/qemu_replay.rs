@@ -192,6 +192,7 @@ mod board {
 
     #[entry]
     fn main() -> ! {
+        firmware::board::paint_stack();
         let model = firmware::load_model(firmware::board::model_slot_a());
         if let Err(e) = &model {
             hprintln!("replay: model slot refused ({}); output uncompensated with flag 4", e);
@@ -245,11 +246,12 @@ mod board {
         }
         let stats = replayer.stats();
         hprintln!(
-            "replay: samples {} temp_read_faults {} rate_read_faults {} output_errors {}",
+            "replay: samples {} temp_read_faults {} rate_read_faults {} output_errors {} stack_peak_bytes {}",
             stats.samples,
             stats.temp_read_faults,
             stats.rate_read_faults,
-            stats.output_errors
+            stats.output_errors,
+            firmware::board::stack_peak_bytes()
         );
         debug::exit(debug::EXIT_SUCCESS);
         loop {

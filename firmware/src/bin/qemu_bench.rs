@@ -1,0 +1,100 @@
+//! Firmware benchmark board for QEMU (netduinoplus2): instructions per
+//! compensated sample for K = 8, 16, 32, 64 Gaussian centres at D = 3.
+//!
+//! QEMU runs with `-icount shift=0` (one instruction = 1 ns of virtual time),
+//! so SysTick on the 168 MHz core clock counts 0.168 ticks per instruction:
+//! instructions = ticks / 0.168. DWT CYCCNT is not emulated. Counts are
+//! instructions, not cycles. Run it with `cargo xtask bench-fw`.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod board {
+    use cortex_m::peripheral::SYST;
+    use cortex_m::peripheral::syst::SystClkSource;
+    use cortex_m_rt::entry;
+    use cortex_m_semihosting::{debug, hprintln};
+    use rbf_core::model::{ModelBody, ModelInfo};
+    use rbf_core::rbf::{RbfNetwork, RbfParams};
+    use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, FeatureSet, GyroSample, MAX_CENTERS, Model};
+
+    /// Samples timed per model size.
+    const SAMPLES: u32 = 2000;
+    /// SysTick ticks per 1000 instructions under `-icount shift=0` at 168 MHz.
+    const TICKS_PER_KILO_INSTRUCTION: u64 = 168;
+    const D: usize = 3;
+
+    /// A deterministic K-centre paper-feature model (values like a real fit's).
+    fn model(k: usize) -> Model {
+        let mut state = 0x2545_f491u32;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state >> 8) as f32 / (1 << 24) as f32 * 4.0 - 2.0
+        };
+        let mut centers = [0.0f32; MAX_CENTERS * D];
+        centers[..k * D].iter_mut().for_each(|c| *c = next());
+        let mut weights = [0.0f32; MAX_CENTERS];
+        weights[..k].iter_mut().for_each(|w| *w = 0.05 * next());
+        let net = RbfNetwork::new(&RbfParams {
+            offset: &[25.0, 0.0, 0.0],
+            scale: &[10.0, 0.5, 12.0],
+            centers: &centers[..k * D],
+            widths: &[1.5; MAX_CENTERS][..k],
+            weights: &weights[..k],
+            linear: &[0.01, 0.2, 0.003],
+            constant: 0.05,
+        })
+        .expect("valid synthetic network");
+        let features = FeatureConfig {
+            set: FeatureSet::TempRateProduct,
+            rate_window_s: 60.0,
+        };
+        let ranges = [(0.0, 50.0), (-3.0, 3.0), (-150.0, 150.0)];
+        Model::new(features, &ranges, ModelBody::Rbf(net), ModelInfo::default()).expect("valid synthetic model")
+    }
+
+    fn ticks_between(start: u32, end: u32) -> u32 {
+        // SysTick counts down and wraps at 24 bits.
+        start.wrapping_sub(end) & 0x00FF_FFFF
+    }
+
+    #[entry]
+    fn main() -> ! {
+        firmware::board::paint_stack();
+        let mut core = cortex_m::Peripherals::take().expect("first and only take");
+        core.SYST.set_clock_source(SystClkSource::Core);
+        core.SYST.set_reload(0x00FF_FFFF);
+        core.SYST.clear_current();
+        core.SYST.enable_counter();
+        let config = CompensatorConfig::for_sample_rate(1000.0);
+        for k in [8usize, 16, 32, 64] {
+            let model = model(k);
+            let mut compensator = Compensator::new();
+            let mut temp_c = 20.0f32;
+            let start = SYST::get_current();
+            for _ in 0..SAMPLES {
+                temp_c += 0.0001; // a slow ramp: every sample is a real evaluation
+                let sample = GyroSample {
+                    dt_s: 0.001,
+                    rate_dph: 12.5,
+                    temp_c: Some(temp_c),
+                };
+                core::hint::black_box(compensator.process(Some(core::hint::black_box(&model)), &config, &sample));
+            }
+            let ticks = ticks_between(start, SYST::get_current()) as u64;
+            let per_sample = ticks * 1000 / TICKS_PER_KILO_INSTRUCTION / SAMPLES as u64;
+            hprintln!("instructions_per_sample K={} D=3: {}", k, per_sample);
+        }
+        hprintln!("stack_peak_bytes {}", firmware::board::stack_peak_bytes());
+        debug::exit(debug::EXIT_SUCCESS);
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!("qemu-bench runs under qemu-system-arm: use `cargo xtask bench-fw`");
+}
