@@ -28,7 +28,7 @@ const MAX_ARG: f32 = 88.0;
 /// e^x in f32 (see the module documentation for accuracy and limits).
 #[inline]
 pub fn exp(x: f32) -> f32 {
-    if !(x > MIN_ARG) {
+    if x.is_nan() || x <= MIN_ARG {
         return 0.0;
     }
     let x = if x > MAX_ARG { MAX_ARG } else { x };
@@ -47,7 +47,7 @@ pub fn exp(x: f32) -> f32 {
 /// positive x is treated as 0 (result 1). NaN gives 0.
 #[inline]
 pub fn exp_neg(x: f32) -> f32 {
-    if !(x > MIN_ARG) {
+    if x.is_nan() || x <= MIN_ARG {
         return 0.0;
     }
     let x = if x > 0.0 { 0.0 } else { x };

@@ -200,8 +200,8 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             .zip(&self.neg_half_inv_var[..k])
         {
             let mut dist_sq = 0.0f32;
-            for i in 0..N {
-                let diff = zn[i] - c.get(i).copied().unwrap_or(0.0);
+            for (zi, ci) in zn.iter().zip(c) {
+                let diff = zi - ci;
                 dist_sq += diff * diff;
             }
             sum += w * crate::fastmath::exp_neg(dist_sq * g);
