@@ -27,8 +27,12 @@ const MAX_ARG: f32 = 88.0;
 
 /// e^x in f32 (see the module documentation for accuracy and limits).
 #[inline]
+#[allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    reason = "one comparison also catches NaN: 4 instructions less per centre than is_nan() ||"
+)]
 pub fn exp(x: f32) -> f32 {
-    if x.is_nan() || x <= MIN_ARG {
+    if !(x > MIN_ARG) {
         return 0.0;
     }
     let x = if x > MAX_ARG { MAX_ARG } else { x };
@@ -46,8 +50,12 @@ pub fn exp(x: f32) -> f32 {
 /// clamp and with the rounding of x/ln2 specialised to x ≤ 0. Same accuracy;
 /// positive x is treated as 0 (result 1). NaN gives 0.
 #[inline]
+#[allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    reason = "one comparison also catches NaN: 4 instructions less per centre than is_nan() ||"
+)]
 pub fn exp_neg(x: f32) -> f32 {
-    if x.is_nan() || x <= MIN_ARG {
+    if !(x > MIN_ARG) {
         return 0.0;
     }
     let x = if x > 0.0 { 0.0 } else { x };
