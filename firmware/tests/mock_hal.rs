@@ -2,7 +2,7 @@
 //! recorded run becomes the exact I2C and SPI traffic the drivers must
 //! produce, and the loop's numbers equal `trainer compensate`'s bit for bit.
 
-mod common;
+use e2e_tests::fixtures as common;
 
 use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
 use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as I2cTransaction};
@@ -75,7 +75,7 @@ fn recorded_run_through_the_mock_hal_gives_the_trainers_numbers() {
             "row {i}"
         );
     }
-    assert_eq!(lp.stats().temp_read_faults, 46);
+    assert_eq!(lp.stats().temp_read_faults, common::FAULTY_ROWS);
     let (t, f, _) = lp.destroy();
     t.destroy().done();
     f.destroy().done();

@@ -2,7 +2,7 @@
 //! temperature-sensor faults, replayed through the real drivers on emulated
 //! buses, gives output byte-identical to `trainer compensate`.
 
-mod common;
+use e2e_tests::fixtures as common;
 
 use std::cell::Cell;
 
@@ -30,7 +30,7 @@ fn replay_is_byte_identical_to_trainer_compensate() {
     }
     let stats = replayer.stats();
     assert_eq!(stats.samples as usize, common::ROWS);
-    assert_eq!(stats.temp_read_faults, 46);
+    assert_eq!(stats.temp_read_faults, common::FAULTY_ROWS);
     assert_eq!(stats.output_errors, 0);
     assert_eq!(out, expected, "replay output differs from trainer compensate");
 

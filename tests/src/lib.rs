@@ -1,5 +1,7 @@
 //! Shared helpers of the cross-crate end-to-end tests.
 
+pub mod fixtures;
+
 use std::path::{Path, PathBuf};
 
 /// The workspace root (the tests crate sits directly below it).

@@ -1,4 +1,6 @@
-//! Shared fixtures: a short chamber run with sensor faults and a model fitted on it.
+//! Fixtures shared by the firmware host tests and the QEMU tests: a short
+//! chamber run, a model fitted on it, and a slice of another run with
+//! injected temperature-sensor faults.
 
 use std::path::{Path, PathBuf};
 
@@ -15,25 +17,34 @@ pub fn faulty(row: usize) -> bool {
     row == 500 || (1500..1505).contains(&row) || (2500..2540).contains(&row)
 }
 
-/// Writes the training run and a fault-injected slice of a second run into `dir`;
-/// returns (model, slice path).
+/// Rows [`faulty`] marks.
+pub const FAULTY_ROWS: u32 = 46;
+
+/// Fits a 16-centre model on a 1 °C/min run and writes a fault-injected
+/// slice of a 2 °C/min run into `dir`; returns (model, slice path).
 pub fn model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
     let mut chamber = ChamberRun::ifog(1.0, 31);
     chamber.hold_s = 1800.0;
     let train_path = dir.join("train.csv");
-    std::fs::write(&train_path, chamber.to_csv()).unwrap();
-    let train = Run::load(&train_path).unwrap();
+    std::fs::write(&train_path, chamber.to_csv()).expect("write training run");
+    let train = Run::load(&train_path).expect("simulated run reads");
     let opts = FitOptions {
         centers: Some(16),
         rate_windows_s: vec![60.0],
         ..FitOptions::default()
     };
-    let model = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model;
+    let model = fit::fit(std::slice::from_ref(&train), &[], &opts).expect("fit").model;
+    (
+        model,
+        faulty_slice(dir, &ChamberRun::ifog(2.0, 32).to_csv(), "slice.csv"),
+    )
+}
 
-    let verify = ChamberRun::ifog(2.0, 32).to_csv();
+/// The first [`ROWS`] data rows of `run_csv` with a `temp_fault` column marking [`faulty`] rows.
+pub fn faulty_slice(dir: &Path, run_csv: &str, name: &str) -> PathBuf {
     let mut text = String::new();
     let mut data = 0;
-    for line in verify.lines() {
+    for line in run_csv.lines() {
         if line.starts_with('#') {
             text.push_str(line);
             text.push('\n');
@@ -44,7 +55,7 @@ pub fn model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
             data += 1;
         }
     }
-    let slice = dir.join("slice.csv");
-    std::fs::write(&slice, text).unwrap();
-    (model, slice)
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("write slice");
+    path
 }

@@ -1,0 +1,76 @@
+//! The real thumbv7em firmware image under QEMU (netduinoplus2 = STM32F405).
+//!
+//! Ignored in a plain `cargo test` (they need qemu-system-arm and a cross
+//! build); `cargo xtask ci` installs QEMU and runs them with `--ignored`.
+
+use e2e_tests::fixtures;
+use rbf_core::{Flags, frame};
+use tempfile::TempDir;
+use trainer::blobfile::write_model;
+use trainer::evaluate::compensate_file;
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn qemu_replay_with_sensor_faults_is_byte_identical_to_trainer_compensate() {
+    let dir = TempDir::new().unwrap();
+    let (model, slice) = fixtures::model_and_faulty_slice(dir.path());
+    let model_path = dir.path().join("model.bin");
+    write_model(&model_path, &model).unwrap();
+    let expected_path = dir.path().join("expected.csv");
+    compensate_file(Some(&model), &slice, &expected_path).unwrap();
+
+    let out = dir.path().join("qemu.csv");
+    let frames_path = dir.path().join("frames.bin");
+    let summary = xtask::replay::qemu_replay(&model_path, &slice, &out, Some(&frames_path)).unwrap();
+    assert_eq!(summary.samples, fixtures::ROWS);
+    let (got, want) = (std::fs::read(&out).unwrap(), std::fs::read(&expected_path).unwrap());
+    assert!(got == want, "QEMU replay output differs from trainer compensate");
+
+    // The UART frames say the same: one per row, flag 2 exactly on faulted rows.
+    let mut frames = std::fs::read(&frames_path).unwrap();
+    let decoded: Vec<_> = frames
+        .split_mut(|&b| b == 0)
+        .filter(|c| !c.is_empty())
+        .map(|c| frame::decode(c).unwrap())
+        .collect();
+    assert_eq!(decoded.len(), fixtures::ROWS);
+    for (i, f) in decoded.iter().enumerate() {
+        assert_eq!(f.seq as usize, i);
+        assert_eq!(
+            f.flags().contains(Flags::TEMP_SENSOR_FAULT),
+            fixtures::faulty(i),
+            "row {i}"
+        );
+    }
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn corrupt_model_slot_runs_uncompensated_with_flag_4_never_halts() {
+    // The replay command refuses a corrupt blob up front (as trainer compensate
+    // does), so place the corrupt bytes in flash directly and run the image.
+    let dir = TempDir::new().unwrap();
+    let (model, slice) = fixtures::model_and_faulty_slice(dir.path());
+    let mut blob = trainer::blobfile::write_model(&dir.path().join("m.bin"), &model).unwrap();
+    blob[20] ^= 0x40;
+    std::fs::write(dir.path().join("model.bin"), &blob).unwrap();
+    std::fs::copy(&slice, dir.path().join("input.csv")).unwrap();
+    let elf = xtask::firmware::build("qemu-replay", &[]).unwrap();
+    let loader = format!("loader,file=model.bin,addr={:#x}", xtask::replay::MODEL_SLOT_A);
+    let run = xtask::qemu::run(
+        &elf,
+        dir.path(),
+        &["-device".into(), loader],
+        std::time::Duration::from_secs(120),
+    )
+    .unwrap();
+    assert!(run.success, "{}", run.log);
+    assert!(run.log.contains("model slot refused (CRC mismatch"), "{}", run.log);
+    let out = std::fs::read_to_string(dir.path().join("output.csv")).unwrap();
+    let rows: Vec<&str> = out.lines().filter(|l| !l.starts_with('#')).skip(1).collect();
+    assert_eq!(rows.len(), fixtures::ROWS);
+    for row in rows {
+        let flags: u8 = row.rsplit(',').next().unwrap().parse().unwrap();
+        assert!(Flags(flags).contains(Flags::NO_VALID_MODEL), "{row}");
+    }
+}

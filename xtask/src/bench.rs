@@ -1,0 +1,52 @@
+//! `cargo xtask bench-fw`: instructions per compensated sample counted in
+//! QEMU, and the flash/RAM use of the firmware images.
+
+use std::time::Duration;
+
+use anyhow::bail;
+
+use crate::{firmware, qemu};
+
+/// Runs the benchmark image and prints its figures; the last line printed is
+/// `instructions_per_sample K=32 D=3: N`.
+pub fn bench_fw() -> anyhow::Result<()> {
+    qemu::ensure_installed()?;
+    let bench = firmware::build("qemu-bench", &[])?;
+    let replay = firmware::build("qemu-replay", &[])?;
+    let dir = tempfile::TempDir::new()?;
+    let icount = ["-icount".to_owned(), "shift=0".to_owned()];
+    let result = qemu::run(&bench, dir.path(), &icount, Duration::from_secs(300))?;
+    if !result.success {
+        bail!("the benchmark image failed:\n{}", result.log);
+    }
+    let lines: Vec<&str> = result
+        .log
+        .lines()
+        .filter(|l| l.starts_with("instructions_per_sample"))
+        .collect();
+    let k32 = lines.iter().find(|l| l.contains("K=32 D=3")).copied();
+    let Some(k32) = k32 else {
+        bail!("no K=32 figure in the benchmark output:\n{}", result.log)
+    };
+    println!(
+        "firmware benchmark (QEMU {}, -icount shift=0, SysTick at 168 MHz; counts are instructions)",
+        qemu::MACHINE
+    );
+    println!(
+        "per compensated sample: features + clamping + RBF evaluation + fault logic (rbf_core::Compensator::process)"
+    );
+    for line in &lines {
+        println!("  {line}");
+    }
+    if let Some(stack) = result.log.lines().find(|l| l.starts_with("stack_peak_bytes")) {
+        println!("  benchmark image {stack}");
+    }
+    println!("images (release, {}):", firmware::TARGET);
+    println!("  {:<14} {:>10} {:>12}", "image", "flash [B]", "static RAM [B]");
+    for (name, elf) in [("qemu-bench", &bench), ("qemu-replay", &replay)] {
+        let size = firmware::image_size(elf)?;
+        println!("  {name:<14} {:>10} {:>12}", size.flash, size.static_ram);
+    }
+    println!("{k32}");
+    Ok(())
+}

@@ -1,0 +1,115 @@
+//! `cargo xtask ci`: the whole test suite, as CI runs it.
+
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+
+use crate::firmware::TARGET;
+use crate::{output, qemu, run, workspace_root};
+
+/// Installs the cross target and the rustup components CI needs, if missing.
+fn ensure_toolchain() -> anyhow::Result<()> {
+    if !output("rustup", &["target", "list", "--installed"])
+        .lines()
+        .any(|l| l.trim() == TARGET)
+    {
+        run("rustup", &["target", "add", TARGET])?;
+    }
+    let components = output("rustup", &["component", "list", "--installed"]);
+    for component in ["rustfmt", "clippy"] {
+        if !components.lines().any(|l| l.starts_with(component)) {
+            run("rustup", &["component", "add", component])?;
+        }
+    }
+    Ok(())
+}
+
+/// Runs `cargo test` with `args`, echoing its output; returns (passed, failed).
+fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
+    eprintln!("\n==> cargo {}", args.join(" "));
+    let output = Command::new("cargo")
+        .args(args)
+        .current_dir(workspace_root())
+        .stderr(Stdio::inherit())
+        .output()
+        .context("cannot start cargo test")?;
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    print!("{stdout}");
+    let (mut passed, mut failed) = (0, 0);
+    for line in stdout.lines().filter_map(|l| l.trim().strip_prefix("test result: ")) {
+        let count = |word: &str| {
+            line.split(';')
+                .find_map(|part| {
+                    part.trim()
+                        .trim_start_matches("ok. ")
+                        .trim_start_matches("FAILED. ")
+                        .strip_suffix(word)
+                })
+                .and_then(|n| n.trim().parse::<u64>().ok())
+                .unwrap_or(0)
+        };
+        passed += count("passed");
+        failed += count("failed");
+    }
+    if !output.status.success() {
+        bail!("`cargo {}` failed: {passed} passed, {failed} failed", args.join(" "));
+    }
+    Ok((passed, failed))
+}
+
+/// fmt, clippy (host and firmware), the no_std check, firmware builds, host
+/// tests, then the QEMU tests; ends with `N passed, N failed`.
+pub fn ci() -> anyhow::Result<()> {
+    let started = Instant::now();
+    ensure_toolchain()?;
+    qemu::ensure_installed()?;
+    run("cargo", &["fmt", "--all", "--check"])?;
+    run(
+        "cargo",
+        &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
+    )?;
+    run(
+        "cargo",
+        &[
+            "clippy",
+            "--package",
+            "firmware",
+            "--target",
+            TARGET,
+            "--bins",
+            "--",
+            "-D",
+            "warnings",
+        ],
+    )?;
+    run(
+        "cargo",
+        &[
+            "check",
+            "--package",
+            "rbf-core",
+            "--target",
+            TARGET,
+            "--no-default-features",
+        ],
+    )?;
+    run(
+        "cargo",
+        &[
+            "build",
+            "--package",
+            "firmware",
+            "--target",
+            TARGET,
+            "--release",
+            "--bins",
+        ],
+    )?;
+    let (mut passed, mut failed) = run_tests(&["test", "--workspace"])?;
+    let (p, f) = run_tests(&["test", "--package", "e2e-tests", "--test", "qemu", "--", "--ignored"])?;
+    (passed, failed) = (passed + p, failed + f);
+    eprintln!("\nci: all steps passed in {:.0} s", started.elapsed().as_secs_f64());
+    println!("{passed} passed, {failed} failed");
+    Ok(())
+}

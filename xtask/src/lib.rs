@@ -1,0 +1,54 @@
+//! Project automation behind `cargo xtask`, as a library so that end-to-end
+//! tests run QEMU through exactly the code the commands use.
+//!
+//! - [`firmware`]: cross builds of the board binaries;
+//! - [`qemu`]: running an image under `qemu-system-arm` with a hard deadline;
+//! - [`replay`]: `cargo xtask qemu-replay`;
+//! - [`bench`]: `cargo xtask bench-fw`;
+//! - [`ci`]: `cargo xtask ci`, the whole test suite.
+#![forbid(unsafe_code)]
+
+pub mod bench;
+pub mod ci;
+pub mod firmware;
+pub mod qemu;
+pub mod replay;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+
+/// The workspace root.
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("xtask sits in the workspace")
+        .to_owned()
+}
+
+/// Runs a command in the workspace root, echoing it, failing if it fails.
+pub fn run(program: &str, args: &[&str]) -> anyhow::Result<()> {
+    eprintln!("\n==> {program} {}", args.join(" "));
+    let started = Instant::now();
+    let status = Command::new(program)
+        .args(args)
+        .current_dir(workspace_root())
+        .status()
+        .with_context(|| format!("cannot start {program}"))?;
+    if !status.success() {
+        bail!("`{program} {}` failed ({status})", args.join(" "));
+    }
+    eprintln!("    ok in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// Standard output of a command, empty if it cannot run.
+pub fn output(program: &str, args: &[&str]) -> String {
+    Command::new(program)
+        .args(args)
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
+        .unwrap_or_default()
+}

@@ -1,0 +1,99 @@
+//! Running firmware images under `qemu-system-arm` (netduinoplus2 = STM32F405).
+//!
+//! QEMU runs in a working directory that semihosting file calls reach, with
+//! its output in a file there (never a pipe that could close), and is killed
+//! at a deadline: without `enable=on` the first semihosting call would hang it.
+
+use std::fs::File;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+
+/// The emulated machine: an STM32F405 like the real board.
+pub const MACHINE: &str = "netduinoplus2";
+/// QEMU binary.
+pub const QEMU: &str = "qemu-system-arm";
+
+/// True when `qemu-system-arm` can be started.
+pub fn available() -> bool {
+    Command::new(QEMU)
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// Installs Debian's `qemu-system-arm` when it is missing.
+pub fn ensure_installed() -> anyhow::Result<()> {
+    if available() {
+        return Ok(());
+    }
+    eprintln!("\n==> installing qemu-system-arm (apt-get, --no-install-recommends)");
+    for args in [
+        &["update", "-qq"][..],
+        &["install", "-y", "-qq", "--no-install-recommends", QEMU],
+    ] {
+        let status = Command::new("apt-get")
+            .args(args)
+            .env("DEBIAN_FRONTEND", "noninteractive")
+            .status()
+            .context("cannot run apt-get")?;
+        if !status.success() {
+            bail!("apt-get {} failed", args.join(" "));
+        }
+    }
+    if !available() {
+        bail!("{QEMU} still not available after installing it");
+    }
+    Ok(())
+}
+
+/// What a QEMU run printed and how it ended.
+#[derive(Debug)]
+pub struct QemuRun {
+    /// Semihosting console output (and QEMU's own messages).
+    pub log: String,
+    /// The guest exited with success through semihosting.
+    pub success: bool,
+}
+
+/// Runs `elf` in `dir` with `extra` arguments; kills it after `deadline`.
+pub fn run(elf: &Path, dir: &Path, extra: &[String], deadline: Duration) -> anyhow::Result<QemuRun> {
+    let log_path = dir.join("qemu.log");
+    let log = File::create(&log_path).context("cannot create qemu.log")?;
+    let mut child = Command::new(QEMU)
+        .args(["-machine", MACHINE, "-nographic", "-monitor", "none", "-serial", "none"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(extra)
+        .arg("-kernel")
+        .arg(elf)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(log.try_clone()?)
+        .stderr(log)
+        .spawn()
+        .with_context(|| format!("cannot start {QEMU}"))?;
+    let started = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait()? {
+            break status;
+        }
+        if started.elapsed() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            let log = std::fs::read_to_string(&log_path).unwrap_or_default();
+            bail!(
+                "QEMU did not finish within {} s; its output:\n{log}",
+                deadline.as_secs()
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    Ok(QemuRun {
+        log: std::fs::read_to_string(&log_path).unwrap_or_default(),
+        success: status.success(),
+    })
+}
