@@ -13,6 +13,7 @@ pub fn bench_fw() -> anyhow::Result<()> {
     qemu::ensure_installed()?;
     let bench = firmware::build("qemu-bench", &[])?;
     let replay = firmware::build("qemu-replay", &[])?;
+    let board = firmware::build("stm32f405", &["board-stm32f405"])?;
     let dir = tempfile::TempDir::new()?;
     let icount = ["-icount".to_owned(), "shift=0".to_owned()];
     let result = qemu::run(&bench, dir.path(), &icount, Duration::from_secs(300))?;
@@ -42,10 +43,23 @@ pub fn bench_fw() -> anyhow::Result<()> {
         println!("  benchmark image {stack}");
     }
     println!("images (release, {}):", firmware::TARGET);
-    println!("  {:<14} {:>10} {:>12}", "image", "flash [B]", "static RAM [B]");
-    for (name, elf) in [("qemu-bench", &bench), ("qemu-replay", &replay)] {
+    println!("  {:<12} {:>10} {:>15}  what", "image", "flash [B]", "static RAM [B]");
+    let images = [
+        (
+            "stm32f405",
+            &board,
+            "the gyro board (what is flashed); model blob in its own 128 KiB slot",
+        ),
+        (
+            "qemu-replay",
+            &replay,
+            "QEMU replay fixture: adds CSV parsing and float formatting",
+        ),
+        ("qemu-bench", &bench, "this benchmark"),
+    ];
+    for (name, elf, what) in images {
         let size = firmware::image_size(elf)?;
-        println!("  {name:<14} {:>10} {:>12}", size.flash, size.static_ram);
+        println!("  {name:<12} {:>10} {:>15}  {what}", size.flash, size.static_ram);
     }
     println!("{k32}");
     Ok(())
