@@ -395,3 +395,46 @@ fn fit_rejects_bad_options_and_writes_nothing() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn decode_turns_a_uart_capture_into_csv_and_reports_damage() {
+    use rbf_core::frame::{self, MAX_FRAME_LEN, OutputFrame};
+    let dir = TempDir::new().unwrap();
+    let mut capture = vec![0x42, 0x17]; // the capture started mid-frame: a partial frame first
+    for seq in 0..5u32 {
+        let f = OutputFrame {
+            seq,
+            rate_dph: 10.0 + seq as f32,
+            bias_dph: 0.5,
+            rate_comp_dph: 9.5 + seq as f32,
+            temp_c: 25.0,
+            flags: if seq == 3 { 2 } else { 0 },
+        };
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let n = frame::encode(&f, &mut buf).unwrap();
+        let mut bytes = buf[..n].to_vec();
+        if seq == 1 {
+            bytes.truncate(3); // damaged on the link
+            bytes.push(0);
+        }
+        capture.extend(bytes);
+    }
+    capture.insert(2, 0); // end of the partial frame
+    let frames = write(&dir, "frames.bin", &capture);
+    let out = dir.path().join("frames.csv");
+    let o = trainer(&["decode", frames.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("2 damaged frame(s) skipped"), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], "seq,rate_dph,bias_dph,rate_comp_dph,temp_c,flags");
+    assert_eq!(
+        &lines[1..],
+        [
+            "0,10,0.5,9.5,25,0",
+            "2,12,0.5,11.5,25,0",
+            "3,13,0.5,12.5,25,2",
+            "4,14,0.5,13.5,25,0"
+        ]
+    );
+}
