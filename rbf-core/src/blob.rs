@@ -3,7 +3,7 @@
 //! ```text
 //! offset  size  field
 //!      0     4  magic  b"IFOG"
-//!      4     2  format version, u16 LE (currently 1)
+//!      4     2  format version, u16 LE (currently 2)
 //!      6     1  model kind (1 = Gaussian RBF, 2 = cubic in T)
 //!      7     1  inputs D
 //!      8     2  centres K, u16 LE (0 for the cubic)
@@ -32,7 +32,7 @@ use crate::{MAX_CENTERS, MAX_INPUTS};
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"IFOG";
 /// Format version this crate writes and reads.
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
 /// Header length, bytes.
 pub const HEADER_LEN: usize = 16;
 /// CRC trailer length, bytes.
@@ -68,6 +68,7 @@ struct CommonWire {
 
 #[derive(Serialize, Deserialize)]
 struct RbfWire {
+    kernel_inputs: u8,
     offset: Vec<f32, MAX_INPUTS>,
     scale: Vec<f32, MAX_INPUTS>,
     centers: Vec<f32, { MAX_CENTERS * MAX_INPUTS }>,
@@ -292,6 +293,7 @@ pub fn encode(model: &Model, out: &mut [u8]) -> Result<usize, EncodeError> {
                     .map_err(|_| EncodeError::BufferTooSmall)?;
             }
             let wire = RbfWire {
+                kernel_inputs: net.kernel_inputs() as u8,
                 offset: copy_vec(net.offset())?,
                 scale: copy_vec(net.scale())?,
                 centers,
@@ -358,6 +360,7 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
             let net = RbfNetwork::new(&RbfParams {
                 offset: &w.offset,
                 scale: &w.scale,
+                kernel_inputs: w.kernel_inputs as usize,
                 centers: &w.centers,
                 widths: &w.widths,
                 weights: &w.weights,
@@ -396,13 +399,11 @@ mod tests {
     use crate::features::FeatureSet;
 
     fn rbf_model() -> Model {
-        let features = FeatureConfig {
-            set: FeatureSet::TempRateProduct,
-            rate_window_s: 60.0,
-        };
+        let features = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
         let net = RbfNetwork::new(&RbfParams {
             offset: &[25.0, 0.0, 0.0],
             scale: &[10.0, 0.5, 12.0],
+            kernel_inputs: 3,
             centers: &[0.0, 0.0, 0.0, 1.0, -1.0, 0.5],
             widths: &[0.8, 1.3],
             weights: &[0.02, -0.01],
@@ -436,10 +437,7 @@ mod tests {
     #[test]
     fn round_trip_preserves_every_parameter_bit() {
         for model in [rbf_model(), {
-            let f = FeatureConfig {
-                set: FeatureSet::Temp,
-                rate_window_s: 0.0,
-            };
+            let f = FeatureConfig::single(FeatureSet::Temp, 0.0);
             let body = ModelBody::Poly3(Poly3::new(25.0, [0.1, 0.2, -0.3, 0.004]).unwrap());
             Model::new(f, &[(10.0, 40.0)], body, ModelInfo::default()).unwrap()
         }] {

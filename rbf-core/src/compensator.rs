@@ -175,10 +175,7 @@ impl Compensator {
         config: &CompensatorConfig,
         sample: &GyroSample,
     ) -> CompensatedSample {
-        const NO_FEATURES: crate::FeatureConfig = crate::FeatureConfig {
-            set: crate::FeatureSet::Temp,
-            rate_window_s: 0.0,
-        };
+        const NO_FEATURES: crate::FeatureConfig = crate::FeatureConfig::single(crate::FeatureSet::Temp, 0.0);
         let feature_config = model.map_or(&NO_FEATURES, |m| m.features());
         let frame = self.features(feature_config, config, sample);
         let mut flags = frame.flags;
@@ -220,10 +217,7 @@ mod tests {
     use crate::{FeatureConfig, FeatureSet};
 
     fn linear_in_t() -> Model {
-        let cfg = FeatureConfig {
-            set: FeatureSet::Temp,
-            rate_window_s: 0.0,
-        };
+        let cfg = FeatureConfig::single(FeatureSet::Temp, 0.0);
         let body = ModelBody::Poly3(Poly3::new(0.0, [0.0, 1.0, 0.0, 0.0]).unwrap());
         Model::new(cfg, &[(-50.0, 100.0)], body, ModelInfo::default()).unwrap()
     }
@@ -316,10 +310,7 @@ mod tests {
 
     #[test]
     fn a_gap_restarts_the_features() {
-        let cfg_model = FeatureConfig {
-            set: FeatureSet::TempRate,
-            rate_window_s: 0.0,
-        };
+        let cfg_model = FeatureConfig::single(FeatureSet::TempRate, 0.0);
         let cfg = CompensatorConfig::for_sample_rate(1.0);
         let mut comp = Compensator::new();
         comp.features(&cfg_model, &cfg, &sample(Some(20.0)));

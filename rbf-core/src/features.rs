@@ -22,6 +22,14 @@
 //! After a start or a gap the filter restarts with S = T (ΔT = 0) and the
 //! samples of the next 3τ are flagged as warming up (the filter's step
 //! response has then settled to 95 %).
+//!
+//! ## Several time scales
+//! The Shupe bias follows the time derivative of the coil's whole temperature
+//! distribution, whose inner layers lag the outer ones: the loop sensor's rate
+//! seen through derivative filters of three time constants (fast, slow,
+//! slower) spans that history. [`FeatureSet::MultiScale`] gives T, the three
+//! ΔT and their products with T. Warm-up there counts 3 × the fastest τ; the
+//! slower filters start from the steady state (ΔT = 0) like the fast one.
 
 use serde::{Deserialize, Serialize};
 
@@ -41,8 +49,10 @@ pub enum FeatureSet {
     Temp,
     /// (T, ΔT): the IFOG paper's model before its modification (`--method rbf2`).
     TempRate,
-    /// (T, ΔT, T×ΔT): the IFOG paper's modified model (`--method rbf`).
+    /// (T, ΔT, T×ΔT): the IFOG paper's modified model (`--method rbf --features paper`).
     TempRateProduct,
+    /// (T, ΔT₁, ΔT₂, ΔT₃, T×ΔT₁, T×ΔT₂, T×ΔT₃) over three filter windows (the default).
+    MultiScale,
 }
 
 impl FeatureSet {
@@ -52,6 +62,16 @@ impl FeatureSet {
             FeatureSet::Temp => 1,
             FeatureSet::TempRate => 2,
             FeatureSet::TempRateProduct => 3,
+            FeatureSet::MultiScale => 7,
+        }
+    }
+
+    /// Number of ΔT filter windows the set uses.
+    pub const fn windows(self) -> usize {
+        match self {
+            FeatureSet::Temp => 0,
+            FeatureSet::TempRate | FeatureSet::TempRateProduct => 1,
+            FeatureSet::MultiScale => WINDOWS,
         }
     }
 
@@ -61,20 +81,57 @@ impl FeatureSet {
             FeatureSet::Temp => &["T [°C]"],
             FeatureSet::TempRate => &["T [°C]", "ΔT [°C/min]"],
             FeatureSet::TempRateProduct => &["T [°C]", "ΔT [°C/min]", "T×ΔT [°C²/min]"],
+            FeatureSet::MultiScale => &[
+                "T [°C]",
+                "ΔT₁ [°C/min]",
+                "ΔT₂ [°C/min]",
+                "ΔT₃ [°C/min]",
+                "T×ΔT₁ [°C²/min]",
+                "T×ΔT₂ [°C²/min]",
+                "T×ΔT₃ [°C²/min]",
+            ],
         }
     }
 }
+
+/// Most ΔT filter windows a feature set uses.
+pub const WINDOWS: usize = 3;
 
 /// How features are computed; stored in the model blob.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FeatureConfig {
     /// The inputs the model takes.
     pub set: FeatureSet,
-    /// Time constant τ of the ΔT derivative filter, s. 0 = one-sample difference (Eq. 22).
+    /// Time constant τ of the (fastest) ΔT derivative filter, s. 0 = one-sample difference (Eq. 22).
     pub rate_window_s: f32,
+    /// Time constants of the slower filters, s ([`FeatureSet::MultiScale`] only; else 0).
+    pub slow_windows_s: [f32; WINDOWS - 1],
 }
 
 impl FeatureConfig {
+    /// A set with one ΔT window (or none, for [`FeatureSet::Temp`]).
+    pub const fn single(set: FeatureSet, rate_window_s: f32) -> Self {
+        FeatureConfig {
+            set,
+            rate_window_s,
+            slow_windows_s: [0.0; WINDOWS - 1],
+        }
+    }
+
+    /// The multi-scale set over windows `[τ₁, τ₂, τ₃]`, s.
+    pub const fn multiscale(windows_s: [f32; WINDOWS]) -> Self {
+        FeatureConfig {
+            set: FeatureSet::MultiScale,
+            rate_window_s: windows_s[0],
+            slow_windows_s: [windows_s[1], windows_s[2]],
+        }
+    }
+
+    /// The window time constants in use, s (fastest first).
+    pub fn windows_s(&self) -> [f32; WINDOWS] {
+        [self.rate_window_s, self.slow_windows_s[0], self.slow_windows_s[1]]
+    }
+
     /// Number of model inputs.
     pub const fn dims(&self) -> usize {
         self.set.dims()
@@ -85,9 +142,11 @@ impl FeatureConfig {
         WARMUP_TIME_CONSTANTS * self.rate_window_s
     }
 
-    /// True when the configuration is usable (finite window within 0 ..= 1 day).
+    /// True when the configuration is usable (finite windows within 0 ..= 1 day).
     pub fn is_valid(&self) -> bool {
-        self.rate_window_s.is_finite() && self.rate_window_s >= 0.0 && self.rate_window_s <= MAX_RATE_WINDOW_S
+        self.windows_s()
+            .iter()
+            .all(|w| w.is_finite() && *w >= 0.0 && *w <= MAX_RATE_WINDOW_S)
     }
 }
 
@@ -118,7 +177,7 @@ impl FeatureVector {
 /// model stays the single owner of it (principle: model is data, state is separate).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct FeatureExtractor {
-    smoothed_c: f32,
+    smoothed_c: [f32; WINDOWS],
     since_restart_s: f32,
     started: bool,
 }
@@ -127,7 +186,7 @@ impl FeatureExtractor {
     /// A fresh extractor; the first sample starts a segment.
     pub const fn new() -> Self {
         FeatureExtractor {
-            smoothed_c: 0.0,
+            smoothed_c: [0.0; WINDOWS],
             since_restart_s: 0.0,
             started: false,
         }
@@ -145,34 +204,43 @@ impl FeatureExtractor {
     /// restarts the segment. `temp_c` must be finite (the compensator
     /// guarantees it by holding the last good value).
     pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temp_c: f32) -> FeatureVector {
-        let rate_c_per_s = if !(self.started && dt_s.is_finite() && dt_s > 0.0) {
+        let windows = config.set.windows();
+        let taus = config.windows_s();
+        let mut rate_c_per_min = [0.0f32; WINDOWS];
+        if !(self.started && dt_s.is_finite() && dt_s > 0.0) {
             self.started = true;
             self.since_restart_s = 0.0;
-            self.smoothed_c = temp_c;
-            0.0
+            self.smoothed_c = [temp_c; WINDOWS];
         } else {
-            let tau_s = config.rate_window_s;
-            let rate = (temp_c - self.smoothed_c) / (tau_s + dt_s);
-            // τ = 0 is exactly the one-sample difference: keep S = T bit for bit.
-            self.smoothed_c = if tau_s == 0.0 {
-                temp_c
-            } else {
-                self.smoothed_c + dt_s * rate
-            };
+            for w in 0..windows.min(WINDOWS) {
+                let tau_s = taus[w];
+                let rate = (temp_c - self.smoothed_c[w]) / (tau_s + dt_s);
+                // τ = 0 is exactly the one-sample difference: keep S = T bit for bit.
+                self.smoothed_c[w] = if tau_s == 0.0 {
+                    temp_c
+                } else {
+                    self.smoothed_c[w] + dt_s * rate
+                };
+                rate_c_per_min[w] = rate * SECONDS_PER_MINUTE;
+            }
             self.since_restart_s += dt_s;
-            rate
-        };
+        }
         let warming_up = self.since_restart_s == 0.0 || self.since_restart_s < config.warmup_s();
-        let rate_c_per_min = rate_c_per_s * SECONDS_PER_MINUTE;
 
         let mut values = [0.0; MAX_INPUTS];
         values[0] = temp_c;
         match config.set {
             FeatureSet::Temp => {}
-            FeatureSet::TempRate => values[1] = rate_c_per_min,
+            FeatureSet::TempRate => values[1] = rate_c_per_min[0],
             FeatureSet::TempRateProduct => {
-                values[1] = rate_c_per_min;
-                values[2] = temp_c * rate_c_per_min;
+                values[1] = rate_c_per_min[0];
+                values[2] = temp_c * rate_c_per_min[0];
+            }
+            FeatureSet::MultiScale => {
+                for w in 0..WINDOWS {
+                    values[1 + w] = rate_c_per_min[w];
+                    values[1 + WINDOWS + w] = temp_c * rate_c_per_min[w];
+                }
             }
         }
         FeatureVector {
@@ -192,10 +260,7 @@ mod tests {
     use super::*;
 
     fn paper(rate_window_s: f32) -> FeatureConfig {
-        FeatureConfig {
-            set: FeatureSet::TempRateProduct,
-            rate_window_s,
-        }
+        FeatureConfig::single(FeatureSet::TempRateProduct, rate_window_s)
     }
 
     #[test]
@@ -265,6 +330,24 @@ mod tests {
     }
 
     #[test]
+    fn every_multiscale_window_reads_a_steady_ramp_and_its_product_with_t() {
+        let cfg = FeatureConfig::multiscale([10.0, 80.0, 640.0]);
+        let mut fx = FeatureExtractor::new();
+        let mut f = fx.update(&cfg, 1.0, 0.0);
+        for i in 1..=20_000 {
+            f = fx.update(&cfg, 1.0, 1.5 * i as f32 / 60.0); // 1.5 °C/min
+        }
+        let v = f.as_slice();
+        for w in 0..WINDOWS {
+            assert!((v[1 + w] - 1.5).abs() < 2e-3, "window {w}: {}", v[1 + w]);
+            assert_eq!(v[4 + w], v[0] * v[1 + w]);
+        }
+        assert!(!f.warming_up);
+        let cfg_bad = FeatureConfig::multiscale([10.0, f32::NAN, 640.0]);
+        assert!(!cfg_bad.is_valid());
+    }
+
+    #[test]
     fn bad_time_steps_restart_instead_of_producing_nonsense() {
         let cfg = paper(0.0);
         let mut fx = FeatureExtractor::new();
@@ -279,10 +362,16 @@ mod tests {
     #[test]
     fn feature_sets_have_their_documented_dimensions() {
         let mut fx = FeatureExtractor::new();
-        for set in [FeatureSet::Temp, FeatureSet::TempRate, FeatureSet::TempRateProduct] {
-            let cfg = FeatureConfig {
-                set,
-                rate_window_s: 5.0,
+        for set in [
+            FeatureSet::Temp,
+            FeatureSet::TempRate,
+            FeatureSet::TempRateProduct,
+            FeatureSet::MultiScale,
+        ] {
+            let cfg = if set == FeatureSet::MultiScale {
+                FeatureConfig::multiscale([5.0, 40.0, 320.0])
+            } else {
+                FeatureConfig::single(set, 5.0)
             };
             assert_eq!(fx.update(&cfg, 1.0, 20.0).as_slice().len(), set.dims());
             assert_eq!(set.names().len(), set.dims());

@@ -6,6 +6,10 @@ use crate::poly::Poly3;
 use crate::rbf::RbfNetwork;
 use crate::{MAX_CENTERS, MAX_INPUTS};
 
+/// Linear terms may follow an input up to this many training spans beyond
+/// either end of its training range (the Gaussians stop at the range).
+pub const LINEAR_EXTRAPOLATION_SPANS: f32 = 2.0;
+
 /// Longest unit serial number a blob may carry, bytes of UTF-8.
 pub const SERIAL_CAPACITY: usize = 32;
 
@@ -104,6 +108,8 @@ pub struct Model {
     features: FeatureConfig,
     input_min: [f32; MAX_INPUTS],
     input_max: [f32; MAX_INPUTS],
+    linear_min: [f32; MAX_INPUTS],
+    linear_max: [f32; MAX_INPUTS],
     body: ModelBody,
     info: ModelInfo,
 }
@@ -140,6 +146,8 @@ impl Model {
         }
         let mut input_min = [0.0; MAX_INPUTS];
         let mut input_max = [0.0; MAX_INPUTS];
+        let mut linear_min = [0.0; MAX_INPUTS];
+        let mut linear_max = [0.0; MAX_INPUTS];
         for (i, &(lo, hi)) in input_range.iter().enumerate() {
             if !(lo.is_finite() && hi.is_finite()) {
                 return Err(ModelError::NonFiniteParameter);
@@ -149,11 +157,19 @@ impl Model {
             }
             input_min[i] = lo;
             input_max[i] = hi;
+            let reach = LINEAR_EXTRAPOLATION_SPANS * (hi - lo);
+            linear_min[i] = lo - reach;
+            linear_max[i] = hi + reach;
+            if !(linear_min[i].is_finite() && linear_max[i].is_finite()) {
+                return Err(ModelError::InvalidParameter);
+            }
         }
         Ok(Model {
             features,
             input_min,
             input_max,
+            linear_min,
+            linear_max,
             body,
             info,
         })
@@ -187,20 +203,25 @@ impl Model {
         (i < self.features.dims()).then(|| (self.input_min[i], self.input_max[i]))
     }
 
-    /// Clamps the inputs to the training range and evaluates the bias, °/h.
+    /// Evaluates the bias, °/h: nonlinear parts (Gaussians, the cubic) at the
+    /// inputs clamped to the training range, linear terms at the inputs clamped
+    /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it. `clamped` says that an
+    /// input left its training range.
     pub fn eval(&self, features: &FeatureVector) -> Evaluation {
         let raw = features.as_slice();
         let mut x = [0.0f32; MAX_INPUTS];
+        let mut x_linear = [0.0f32; MAX_INPUTS];
         let mut clamped = false;
-        for (i, xi) in x.iter_mut().enumerate().take(self.features.dims()) {
+        for i in 0..self.features.dims().min(MAX_INPUTS) {
             let v = raw.get(i).copied().unwrap_or(f32::NAN);
             // max/min rather than clamp(): never panics, and maps NaN into range.
             let c = v.max(self.input_min[i]).min(self.input_max[i]);
             clamped |= c.to_bits() != v.to_bits();
-            *xi = c;
+            x[i] = c;
+            x_linear[i] = v.max(self.linear_min[i]).min(self.linear_max[i]);
         }
         let bias_dph = match &self.body {
-            ModelBody::Rbf(net) => net.eval(&x),
+            ModelBody::Rbf(net) => net.eval(&x, &x_linear),
             ModelBody::Poly3(p) => p.eval(x[0]),
         };
         Evaluation { bias_dph, clamped }
@@ -217,10 +238,7 @@ mod tests {
     use crate::features::FeatureExtractor;
 
     fn poly_model() -> Model {
-        let cfg = FeatureConfig {
-            set: FeatureSet::Temp,
-            rate_window_s: 0.0,
-        };
+        let cfg = FeatureConfig::single(FeatureSet::Temp, 0.0);
         let body = ModelBody::Poly3(Poly3::new(20.0, [0.0, 1.0, 0.0, 0.0]).unwrap());
         Model::new(cfg, &[(10.0, 30.0)], body, ModelInfo::default()).unwrap()
     }
@@ -256,24 +274,46 @@ mod tests {
     }
 
     #[test]
+    fn linear_terms_extrapolate_two_spans_beyond_the_training_range_gaussians_stop_at_it() {
+        use crate::rbf::{RbfNetwork, RbfParams};
+        // bias = 1·z_T (linear, scale 1) + 0 Gaussians; training range of T: 10 … 20.
+        let net = RbfNetwork::new(&RbfParams {
+            offset: &[0.0],
+            scale: &[1.0],
+            kernel_inputs: 1,
+            centers: &[15.0],
+            widths: &[1.0],
+            weights: &[0.0],
+            linear: &[1.0],
+            constant: 0.0,
+        })
+        .unwrap();
+        let cfg = FeatureConfig::single(FeatureSet::Temp, 0.0);
+        let model = Model::new(cfg, &[(10.0, 20.0)], ModelBody::Rbf(net), ModelInfo::default()).unwrap();
+        let mut fx = FeatureExtractor::new();
+        let e = model.eval(&fx.update(&cfg, 1.0, 35.0));
+        assert_eq!(
+            e,
+            Evaluation {
+                bias_dph: 35.0,
+                clamped: true
+            },
+            "linear part follows T past the range"
+        );
+        let e = model.eval(&fx.update(&cfg, 1.0, 100.0));
+        assert_eq!(e.bias_dph, 40.0, "…but no further than two spans (20 + 2·10)");
+    }
+
+    #[test]
     fn refuses_inconsistent_assemblies() {
-        let cfg = FeatureConfig {
-            set: FeatureSet::TempRate,
-            rate_window_s: 0.0,
-        };
+        let cfg = FeatureConfig::single(FeatureSet::TempRate, 0.0);
         let body = ModelBody::Poly3(Poly3::new(20.0, [0.0; 4]).unwrap());
         let err = Model::new(cfg, &[(0.0, 1.0)], body.clone(), ModelInfo::default());
         assert_eq!(err, Err(ModelError::ShapeMismatch));
-        let cfg = FeatureConfig {
-            set: FeatureSet::Temp,
-            rate_window_s: 0.0,
-        };
+        let cfg = FeatureConfig::single(FeatureSet::Temp, 0.0);
         let err = Model::new(cfg, &[(2.0, 1.0)], body.clone(), ModelInfo::default());
         assert_eq!(err, Err(ModelError::InvalidParameter));
-        let bad_window = FeatureConfig {
-            set: FeatureSet::Temp,
-            rate_window_s: -1.0,
-        };
+        let bad_window = FeatureConfig::single(FeatureSet::Temp, -1.0);
         let err = Model::new(bad_window, &[(0.0, 1.0)], body, ModelInfo::default());
         assert_eq!(err, Err(ModelError::InvalidParameter));
     }

@@ -2,9 +2,12 @@
 //!
 //! ```text
 //! z_i  = (x_i − offset_i) / scale_i                         (normalised inputs)
-//! y    = c + Σ_i a_i z_i + Σ_j W_j exp(−‖z − c_j‖² / 2σ_j²)
+//! y    = c + Σ_i a_i z_i + Σ_j W_j exp(−‖z_[..m] − c_j‖² / 2σ_j²)
 //! ```
-//! The centres c_j and widths σ_j live in normalised units. Capacity is in the
+//! The centres c_j and widths σ_j live in normalised units. The Gaussians see
+//! the first m = `kernel_inputs` inputs (all of them in the IFOG paper's
+//! network; only T in the partially linear default, whose ΔT terms enter
+//! linearly as the Shupe effect does); the linear terms see all of them. Capacity is in the
 //! type (`K` centres, `D` inputs); the cost of [`RbfNetwork::eval`] depends only
 //! on the model's shape, never on the input values (no data-dependent loops).
 
@@ -17,7 +20,9 @@ pub struct RbfParams<'a> {
     pub offset: &'a [f32],
     /// Per-input scale divided by (training standard deviation), input units.
     pub scale: &'a [f32],
-    /// Centres in normalised units, row-major: `centers[j * d + i]`.
+    /// How many leading inputs the Gaussians see (1 ..= inputs).
+    pub kernel_inputs: usize,
+    /// Centres in normalised units, row-major: `centers[j * kernel_inputs + i]`.
     pub centers: &'a [f32],
     /// Gaussian width σ_j of each centre, normalised units.
     pub widths: &'a [f32],
@@ -34,6 +39,7 @@ pub struct RbfParams<'a> {
 pub struct RbfNetwork<const K: usize, const D: usize> {
     centers_used: usize,
     inputs_used: usize,
+    kernel_inputs: usize,
     offset: [f32; D],
     scale: [f32; D],
     inv_scale: [f32; D],
@@ -58,8 +64,10 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         if d == 0 || d > D || k > K {
             return Err(ModelError::ShapeOverCapacity);
         }
+        let m = p.kernel_inputs;
         let linear_ok = p.linear.is_empty() || p.linear.len() == d;
-        if p.scale.len() != d || p.centers.len() != k * d || p.weights.len() != k || !linear_ok {
+        if !(1..=d).contains(&m) || p.scale.len() != d || p.centers.len() != k * m || p.weights.len() != k || !linear_ok
+        {
             return Err(ModelError::ShapeMismatch);
         }
         let finite = all_finite(p.offset)
@@ -78,6 +86,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         let mut net = RbfNetwork {
             centers_used: k,
             inputs_used: d,
+            kernel_inputs: m,
             offset: [0.0; D],
             scale: [1.0; D],
             inv_scale: [1.0; D],
@@ -98,7 +107,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             }
         }
         for j in 0..k {
-            net.centers[j][..d].copy_from_slice(&p.centers[j * d..(j + 1) * d]);
+            net.centers[j][..m].copy_from_slice(&p.centers[j * m..(j + 1) * m]);
             net.widths[j] = p.widths[j];
             net.weights[j] = p.weights[j];
             net.neg_half_inv_var[j] = -0.5 / (p.widths[j] * p.widths[j]);
@@ -122,6 +131,11 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         self.inputs_used
     }
 
+    /// Number of leading inputs the Gaussians see.
+    pub fn kernel_inputs(&self) -> usize {
+        self.kernel_inputs
+    }
+
     /// Input offsets (training means), input units.
     pub fn offset(&self) -> &[f32] {
         &self.offset[..self.inputs_used]
@@ -132,9 +146,9 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         &self.scale[..self.inputs_used]
     }
 
-    /// Centre `j` in normalised units (empty past the last centre).
+    /// Centre `j` in normalised units, over the kernel inputs (empty past the last centre).
     pub fn center(&self, j: usize) -> &[f32] {
-        self.centers.get(j).map_or(&[], |c| &c[..self.inputs_used])
+        self.centers.get(j).map_or(&[], |c| &c[..self.kernel_inputs])
     }
 
     /// Gaussian widths σ_j, normalised units.
@@ -161,31 +175,34 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         self.constant
     }
 
-    /// Evaluates the network at `x` (input units, already clamped), °/h.
+    /// Evaluates the network, °/h: the Gaussians at `x_kernel`, the linear terms
+    /// at `x_linear` (input units; the model clamps them to different ranges).
     ///
-    /// `x` must hold at least [`Self::inputs_used`] values; missing ones read as
-    /// the training mean. Cost: `K_used × D_used` multiply-adds and `K_used`
-    /// f32 exponentials ([`crate::fastmath::exp_neg`]), independent of the values;
-    /// about 45 instructions per centre at D = 3 on a Cortex-M4F.
-    pub fn eval(&self, x: &[f32]) -> f32 {
+    /// Missing inputs read as the training mean. Cost: `K_used × kernel_inputs`
+    /// multiply-adds, `K_used` f32 exponentials ([`crate::fastmath::exp_neg`]) and
+    /// `inputs_used` linear terms, independent of the values; about 45
+    /// instructions per centre at 3 kernel inputs on a Cortex-M4F.
+    pub fn eval(&self, x_kernel: &[f32], x_linear: &[f32]) -> f32 {
         let d = self.inputs_used.min(D);
+        let m = self.kernel_inputs.min(d);
         let k = self.centers_used.min(K);
-        let mut z = [0.0f32; D];
-        for (i, zi) in z.iter_mut().enumerate().take(d) {
-            let xi = x.get(i).copied().unwrap_or(self.offset[i]);
-            *zi = (xi - self.offset[i]) * self.inv_scale[i];
-        }
+        let normalise =
+            |x: &[f32], i: usize| (x.get(i).copied().unwrap_or(self.offset[i]) - self.offset[i]) * self.inv_scale[i];
         let mut y = self.constant;
-        for (a, zi) in self.linear.iter().zip(&z).take(d) {
-            y += a * zi;
+        for i in 0..d {
+            y += self.linear[i] * normalise(x_linear, i);
         }
-        // Monomorphised per input count so the distance loop has no branches;
-        // every variant sums in the same order, so results are identical.
-        y + match d {
+        let mut z = [0.0f32; D];
+        for (i, zi) in z.iter_mut().enumerate().take(m) {
+            *zi = normalise(x_kernel, i);
+        }
+        // Monomorphised per kernel-input count so the distance loop has no
+        // branches; every variant sums in the same order, so results are identical.
+        y + match m {
             1 => self.gaussian_sum::<1>(&z, k),
             2 => self.gaussian_sum::<2>(&z, k),
             3 => self.gaussian_sum::<3>(&z, k),
-            _ => self.gaussian_sum_any(&z, d, k),
+            _ => self.gaussian_sum_any(&z, m, k),
         }
     }
 
@@ -240,6 +257,7 @@ mod tests {
         RbfNetwork::new(&RbfParams {
             offset: &[20.0, 0.0],
             scale: &[10.0, 1.0],
+            kernel_inputs: 2,
             centers: &[0.0, 0.0],
             widths: &[1.0],
             weights: &[2.0],
@@ -253,10 +271,13 @@ mod tests {
     fn evaluates_the_documented_formula() {
         let net = one_centre();
         // At the centre: c + 0 + W·exp(0) = 1 + 2 = 3.
-        assert_eq!(net.eval(&[20.0, 0.0]), 3.0);
+        assert_eq!(net.eval(&[20.0, 0.0], &[20.0, 0.0]), 3.0);
         // One σ away along T (z = 1): 1 + 0.5 + 2·e^{−1/2}.
         let expected = 1.0 + 0.5 + 2.0 * (-0.5f64).exp();
-        assert!((net.eval(&[30.0, 0.0]) as f64 - expected).abs() < 1e-6);
+        assert!((net.eval(&[30.0, 0.0], &[30.0, 0.0]) as f64 - expected).abs() < 1e-6);
+        // The Gaussians and the linear terms take their own inputs.
+        let split = 1.0 + 0.5 * 2.0 + 2.0 * (-0.5f64).exp();
+        assert!((net.eval(&[30.0, 0.0], &[40.0, 0.0]) as f64 - split).abs() < 1e-6);
     }
 
     #[test]
@@ -266,6 +287,7 @@ mod tests {
         let too_many_inputs = RbfParams {
             offset: &[0.0; 4],
             scale: &[1.0; 4],
+            kernel_inputs: 4,
             centers: &[],
             widths: &[],
             weights: &[],
@@ -279,6 +301,7 @@ mod tests {
         let bad_centres = RbfParams {
             offset: &[0.0],
             scale: &[1.0],
+            kernel_inputs: 1,
             centers: &[0.0, 1.0],
             widths: &[1.0],
             weights: &[1.0],
@@ -295,6 +318,7 @@ mod tests {
             RbfNetwork::<4, 3>::new(&RbfParams {
                 offset: &[0.0],
                 scale: &[1.0],
+                kernel_inputs: 1,
                 centers: &[0.0],
                 widths: w,
                 weights: &[1.0],

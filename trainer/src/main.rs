@@ -11,10 +11,10 @@ use rbf_core::blob::{self, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{read_model, write_model};
 use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_run, print_table};
-use trainer::fit::{self, FitOptions, Method};
-use trainer::output::write_bytes;
+use trainer::fit::{self, FitOptions, Method, RbfFeatures};
+use trainer::output::{write_atomically, write_bytes};
 use trainer::run::Run;
-use trainer::simulate::ChamberRun;
+use trainer::simulate::{ChamberRun, Profile};
 
 /// Removes temperature drift from fiber-optic gyros.
 ///
@@ -56,36 +56,44 @@ struct DecodeArgs {
     output: PathBuf,
 }
 
-/// Chamber profiles `trainer simulate` knows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum Profile {
-    /// IFOG paper: settle at 25 °C, ramp to 10 °C, hold, ramp to 40 °C, hold, back to 25 °C.
-    Ifog,
-}
-
-/// Write a synthetic IFOG thermal-chamber run (recorded-run CSV with ref_dph).
+/// Write a simulated IFOG thermal-chamber run (recorded-run CSV with ref_dph).
 ///
-/// Chamber air → housing → coil first-order lags, a loop sensor with lag, noise
-/// and TMP117 quantisation; bias = static cubic in T + Shupe term in dT/dt with a
-/// T-dependent gain + housing–coil gradient term + bias instability + angle
-/// random walk. Same seed, same file.
+/// A physics-based plant (docs/simulator.md): chamber air → housing base and top
+/// → self-heated electronics → fiber coil in 4 radial layers → thermometers with
+/// their own lags, noise and TMP117 quantisation. Bias = static cubic in the
+/// coil temperature + Shupe term in the layers' temperature rates with a
+/// T-dependent gain + radial gradient term (+ axial gradient with --multi) +
+/// bias instability + angle random walk. ref_dph is the Earth-rate projection at
+/// 39.9° N, axis heading 30°. Every profile starts with a 1-h hold. Same seed,
+/// same file.
 #[derive(Args, Debug)]
 struct SimulateArgs {
-    /// Temperature profile.
+    /// Temperature profile: ifog (25 → 10 → 40 → 25 °C with holds, IFOG paper), cycle
+    /// (20 → −40 → 60 → −40 → 60 → 20 °C, RLG paper) or random set points and ramps.
     #[arg(long, value_enum, default_value_t = Profile::Ifog)]
     profile: Profile,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Chamber ramp rate between set points, °C/min.
+    /// Chamber ramp rate between set points, °C/min (ifog and cycle; the RLG paper used 1, 2, 3, 5).
     #[arg(long, value_name = "C_PER_MIN", default_value_t = 1.0)]
     ramp: f64,
     /// Gyro sample rate, Hz.
     #[arg(long, value_name = "F", default_value_t = 1.0)]
     rate_hz: f64,
-    /// Hold at each set point, minutes.
-    #[arg(long, value_name = "MINUTES", default_value_t = 60.0)]
+    /// Hold at each set point, minutes (ifog and cycle).
+    #[arg(long, value_name = "MINUTES", default_value_t = 120.0)]
     hold_min: f64,
+    /// Total length, hours: cuts the profile or extends its last hold (random: default 8 h).
+    #[arg(long, value_name = "H")]
+    hours: Option<f64>,
+    /// Set-point range of the random profile, °C, as MIN,MAX.
+    #[arg(long, value_name = "MIN,MAX", value_delimiter = ',', allow_hyphen_values = true, default_values_t = [-40.0, 60.0])]
+    random_range: Vec<f64>,
+    /// Write 8 thermometers temp_a … temp_h at different places (temp_c is the loop
+    /// sensor) and add the axial-gradient bias they reveal (RLG paper).
+    #[arg(long)]
+    multi: bool,
     /// Run to write.
     #[arg(short, long, value_name = "RUN.csv")]
     output: PathBuf,
@@ -115,18 +123,25 @@ struct FitArgs {
     /// (an honest test of generalisation; repeatable).
     #[arg(long, value_name = "RUN.csv")]
     holdout: Vec<PathBuf>,
-    /// Model form: rbf = Gaussian RBF on (T, ΔT, T×ΔT) (IFOG paper, modified);
-    /// rbf2 = on (T, ΔT) (before modification); poly3 = cubic in T (PX4/ArduPilot form).
+    /// Model form: rbf = Gaussian RBF network (inputs: --features); rbf2 = RBF on (T, ΔT),
+    /// the IFOG paper's model before its modification; poly3 = cubic in T (PX4/ArduPilot form).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
-    /// Use exactly K Gaussian centres (1–64) instead of choosing K ≤ --max-centers on validation.
+    /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 8τ, 64τ) and
+    /// their products with T, Gaussians over T and the ΔT terms linear (default; generalises
+    /// to other ramp rates); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network.
+    #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
+    features: RbfFeatures,
+    /// Use K Gaussian centres (1–64; fewer if OLS finds fewer independent ones) instead of
+    /// choosing K ≤ --max-centers on validation.
     #[arg(long, value_name = "K")]
     centers: Option<usize>,
     /// Most centres considered when K is chosen on validation (firmware cost grows with K).
     #[arg(long, value_name = "K", default_value_t = 32)]
     max_centers: usize,
-    /// ΔT derivative-filter time constant(s) to choose from, in seconds; 0 = one-sample
-    /// difference (IFOG Eq. 22). Default: choose among 15, 60 and 240 s.
+    /// ΔT derivative-filter time constant(s) to choose from, in seconds (for multiscale the
+    /// fastest of three, the others 8 and 64 times it); 0 = one-sample difference (IFOG
+    /// Eq. 22). Default: choose among 15, 60 and 240 s.
     #[arg(long, value_name = "SECONDS", num_args = 1.., value_delimiter = ',')]
     rate_window_s: Vec<f32>,
     /// Averaging block for training, seconds.
@@ -237,6 +252,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
     let holdout = load_runs(&a.holdout)?;
     let mut opts = FitOptions {
         method: a.method,
+        features: a.features,
         block_s: a.block_s,
         centers: a.centers,
         max_centers: a.max_centers.clamp(1, rbf_core::MAX_CENTERS),
@@ -352,12 +368,31 @@ fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
         a.hold_min.is_finite() && (1.0..=1440.0).contains(&a.hold_min),
         "--hold-min must be 1 … 1440 min"
     );
-    let mut run = match a.profile {
-        Profile::Ifog => ChamberRun::ifog(a.ramp, a.seed),
+    let [lo, hi] = a.random_range[..] else {
+        anyhow::bail!("--random-range takes MIN,MAX in °C")
     };
-    run.sample_rate_hz = a.rate_hz;
-    run.hold_s = a.hold_min * 60.0;
-    write_bytes(&a.output, run.to_csv().as_bytes())?;
+    anyhow::ensure!(
+        lo.is_finite() && hi.is_finite() && lo >= -55.0 && hi <= 150.0 && hi - lo >= 5.0,
+        "--random-range must lie within −55 … 150 °C (the TMP117's range) and span at least 5 °C"
+    );
+    if let Some(h) = a.hours {
+        anyhow::ensure!(h.is_finite() && h > 0.0 && h <= 1000.0, "--hours must be 0 … 1000");
+    }
+    let run = ChamberRun {
+        profile: a.profile,
+        ramp_c_per_min: a.ramp,
+        hold_s: a.hold_min * 60.0,
+        duration_s: a.hours.map(|h| h * 3600.0),
+        sample_rate_hz: a.rate_hz,
+        multi: a.multi,
+        random_range_c: (lo, hi),
+        seed: a.seed,
+        ..ChamberRun::ifog(a.ramp, a.seed)
+    };
+    write_atomically(&a.output, |w| {
+        run.write_csv(w)
+            .with_context(|| format!("{}: write failed", a.output.display()))
+    })?;
     println!("wrote {}", a.output.display());
     Ok(())
 }
@@ -435,6 +470,7 @@ fn inspect_json(
             "set": format!("{:?}", f.set),
             "inputs": f.set.names(),
             "rate_window_s": f.rate_window_s,
+            "windows_s": &f.windows_s()[..f.set.windows()],
             "warmup_s": f.warmup_s(),
         });
         v["training_ranges"] = serde_json::Value::Array(ranges);

@@ -16,12 +16,12 @@ use rbf_core::{CompensatorConfig, GyroSample};
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
     /// The file could not be opened or read.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         /// File concerned.
         path: PathBuf,
-        /// Underlying error.
-        source: std::io::Error,
+        /// Underlying error (in the message, so not chained again).
+        error: std::io::Error,
     },
     /// The content breaks the format.
     #[error("{path}:{line}: {message}")]
@@ -73,7 +73,7 @@ impl RunReader {
     pub fn open(path: &Path) -> Result<RunReader, RunError> {
         let file = File::open(path).map_err(|source| RunError::Io {
             path: path.to_owned(),
-            source,
+            error: source,
         })?;
         let mut lines = BufReader::new(file).lines();
         let mut line_no = 0;
@@ -255,7 +255,7 @@ fn io_or_utf8(path: &Path, line: usize, e: std::io::Error) -> RunError {
     } else {
         RunError::Io {
             path: path.to_owned(),
-            source: e,
+            error: e,
         }
     }
 }

@@ -341,16 +341,31 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["crc"], "ok");
     assert_eq!(v["kind"], "gaussian-rbf");
-    assert_eq!(v["inputs"], 3);
-    assert_eq!(v["features"]["rate_window_s"], 60.0);
+    // The default: T, ΔT over τ, 8τ, 64τ and their products with T.
+    assert_eq!(v["inputs"], 7);
+    assert_eq!(v["features"]["set"], "MultiScale");
+    assert_eq!(v["features"]["windows_s"], serde_json::json!([60.0, 480.0, 3840.0]));
     assert_eq!(
         v["blob_bytes"].as_u64().unwrap(),
         std::fs::metadata(&model).unwrap().len()
     );
+    // The T range is the loop-temperature range of the training run's used samples.
+    let train = std::fs::read_to_string(dir.path().join("train.csv")).unwrap();
+    let temps: Vec<f64> = data_rows(&train)
+        .iter()
+        .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
+        .collect();
+    let (lo, hi) = temps
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| (a.min(t), b.max(t)));
     let t_range = &v["training_ranges"][0];
     assert!(
-        t_range["min"].as_f64().unwrap() < 15.0 && t_range["max"].as_f64().unwrap() > 35.0,
-        "{t_range}"
+        (t_range["min"].as_f64().unwrap() - lo).abs() < 0.01,
+        "{t_range} vs {lo}"
+    );
+    assert!(
+        (t_range["max"].as_f64().unwrap() - hi).abs() < 0.01,
+        "{t_range} vs {hi}"
     );
     let text = stdout(&trainer(&["inspect", model.to_str().unwrap()]));
     assert!(text.contains("CRC-32          ok"), "{text}");
@@ -376,7 +391,7 @@ fn help_teaches_units_and_methods() {
 #[test]
 fn fit_rejects_bad_options_and_writes_nothing() {
     let dir = TempDir::new().unwrap();
-    let run = shared_data("chamber_train_1cpm.csv");
+    let run = shared_data("ifog_train_1cpm.csv");
     let out = dir.path().join("m.bin");
     for (args, reason) in [
         (vec!["--centers", "65"], "--centers 65"),

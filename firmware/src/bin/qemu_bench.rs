@@ -46,10 +46,7 @@ mod board {
             constant: 0.05,
         })
         .expect("valid synthetic network");
-        let features = FeatureConfig {
-            set: FeatureSet::TempRateProduct,
-            rate_window_s: 60.0,
-        };
+        let features = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
         let ranges = [(0.0, 50.0), (-3.0, 3.0), (-150.0, 150.0)];
         Model::new(features, &ranges, ModelBody::Rbf(net), ModelInfo::default()).expect("valid synthetic model")
     }

@@ -51,15 +51,25 @@ pub fn gaussian(z: &FeatureRow, c: &FeatureRow, dims: usize, width: f64) -> f64 
     (-d2 / (2.0 * width * width)).exp()
 }
 
+/// The shape of a network's inputs: `dims` inputs, of which the first
+/// `kernel` enter the Gaussians (all enter linearly).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct InputShape {
+    /// Number of inputs.
+    pub dims: usize,
+    /// Leading inputs the Gaussians see.
+    pub kernel: usize,
+}
+
 /// Design matrix with columns [1, z_1 … z_d, φ_1 … φ_K] for the given rows.
-pub fn design(z: &[FeatureRow], rows: &[usize], dims: usize, centers: &[FeatureRow], width: f64) -> DMatrix<f64> {
-    let fixed = 1 + dims;
+pub fn design(z: &[FeatureRow], rows: &[usize], shape: InputShape, centers: &[FeatureRow], width: f64) -> DMatrix<f64> {
+    let fixed = 1 + shape.dims;
     DMatrix::from_fn(rows.len(), fixed + centers.len(), |r, c| {
         let zr = &z[rows[r]];
         match c {
             0 => 1.0,
             c if c < fixed => zr[c - 1],
-            c => gaussian(zr, &centers[c - fixed], dims, width),
+            c => gaussian(zr, &centers[c - fixed], shape.kernel, width),
         }
     })
 }

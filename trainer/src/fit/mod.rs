@@ -20,10 +20,21 @@ pub const MIN_TEMP_SPAN_C: f64 = 5.0;
 /// Least ΔT span, °C/min, for models that use ΔT (the run must contain ramps).
 pub const MIN_RATE_SPAN_C_PER_MIN: f64 = 0.2;
 
+/// Inputs of the `rbf` method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+pub enum RbfFeatures {
+    /// T, ΔT over three time scales and their products with T; Gaussians over T,
+    /// ΔT terms linear (the Shupe effect's form). The default: it generalises to
+    /// ramp rates and profiles it was not trained on.
+    Multiscale,
+    /// (T, ΔT, T×ΔT) with Gaussians over all three: the IFOG paper's network.
+    Paper,
+}
+
 /// The model forms `trainer fit` can produce.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 pub enum Method {
-    /// Gaussian RBF on (T, ΔT, T×ΔT): the IFOG paper's modified model (default).
+    /// Gaussian RBF network (default); inputs chosen by `--features`.
     Rbf,
     /// Gaussian RBF on (T, ΔT): the IFOG paper's model before its modification.
     Rbf2,
@@ -32,10 +43,11 @@ pub enum Method {
 }
 
 impl Method {
-    /// The feature set the method uses.
-    pub fn feature_set(self) -> FeatureSet {
+    /// The feature set the method uses (`features` applies to `rbf`).
+    pub fn feature_set(self, features: RbfFeatures) -> FeatureSet {
         match self {
-            Method::Rbf => FeatureSet::TempRateProduct,
+            Method::Rbf if features == RbfFeatures::Paper => FeatureSet::TempRateProduct,
+            Method::Rbf => FeatureSet::MultiScale,
             Method::Rbf2 => FeatureSet::TempRate,
             Method::Poly3 => FeatureSet::Temp,
         }
@@ -47,13 +59,16 @@ impl Method {
 pub struct FitOptions {
     /// Model form.
     pub method: Method,
+    /// Inputs of the `rbf` method.
+    pub features: RbfFeatures,
     /// Block length for averaging, s.
     pub block_s: f64,
     /// Fixed number of centres, or `None` to choose on validation.
     pub centers: Option<usize>,
     /// Most centres considered when choosing.
     pub max_centers: usize,
-    /// ΔT filter time constants to choose from, s.
+    /// ΔT filter time constants to choose from, s (the fastest of the three
+    /// multi-scale windows, which are 1, 8 and 64 times it).
     pub rate_windows_s: Vec<f32>,
     /// Contiguous folds per training run for validation when no `--validate`
     /// runs are given (never random rows: neighbouring samples correlate).
@@ -68,6 +83,7 @@ impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
             method: Method::Rbf,
+            features: RbfFeatures::Multiscale,
             block_s: 1.0,
             centers: None,
             max_centers: 32,
@@ -105,7 +121,7 @@ pub fn fit(train: &[Run], validate: &[Run], opts: &FitOptions) -> anyhow::Result
             choice: None,
         }),
         method => {
-            let (model, choice) = rbf::fit(train, validate, method.feature_set(), opts, &progress)?;
+            let (model, choice) = rbf::fit(train, validate, method.feature_set(opts.features), opts, &progress)?;
             Ok(FitOutcome {
                 model,
                 choice: Some(choice),

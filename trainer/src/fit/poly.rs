@@ -11,10 +11,7 @@ use crate::run::Run;
 
 /// Fits bias = c0 + c1 u + c2 u² + c3 u³, u = T − T_ref, T_ref mid training range.
 pub fn fit(train: &[Run], opts: &FitOptions) -> anyhow::Result<Model> {
-    let features = FeatureConfig {
-        set: FeatureSet::Temp,
-        rate_window_s: 0.0,
-    };
+    let features = FeatureConfig::single(FeatureSet::Temp, 0.0);
     let blocks = block_means(train, &features, opts.block_s);
     super::check_excitation(&blocks, FeatureSet::Temp, opts)?;
     let (lo, hi) = blocks.sample_range[0];

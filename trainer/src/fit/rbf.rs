@@ -7,7 +7,9 @@ use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 
-use super::linalg::{FeatureRow, GramStats, Normaliser, cluster_means, design, farthest_points, ridge_solve, thin};
+use super::linalg::{
+    FeatureRow, GramStats, InputShape, Normaliser, cluster_means, design, farthest_points, ridge_solve, thin,
+};
 use super::ols::forward_select;
 use super::{FitOptions, Progress};
 use crate::dataset::{Blocks, block_means};
@@ -26,10 +28,32 @@ const MIN_SCORE_CLUSTERS: usize = 3;
 /// A smaller network is preferred when its score is within this factor of the best.
 const PARSIMONY: f64 = 1.005;
 
+/// Ratios of the slower ΔT windows to the fastest in the multi-scale set.
+pub const MULTISCALE_RATIOS: [f32; 3] = [1.0, 8.0, 64.0];
+
+/// The feature configuration of `set` with fastest window `window_s`.
+pub fn feature_config(set: FeatureSet, window_s: f32) -> FeatureConfig {
+    match set {
+        FeatureSet::MultiScale => FeatureConfig::multiscale(MULTISCALE_RATIOS.map(|r| r * window_s)),
+        FeatureSet::Temp => FeatureConfig::single(set, 0.0),
+        _ => FeatureConfig::single(set, window_s),
+    }
+}
+
+/// Inputs the Gaussians see: T alone in the partially linear multi-scale
+/// network (the ΔT terms enter linearly, as the Shupe effect does), all
+/// inputs in the IFOG paper's networks.
+pub fn kernel_inputs(set: FeatureSet) -> usize {
+    match set {
+        FeatureSet::MultiScale => 1,
+        _ => set.dims(),
+    }
+}
+
 /// The hyper-parameters chosen and what they scored.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct RbfChoice {
-    /// ΔT derivative-filter time constant, s.
+    /// Fastest ΔT derivative-filter time constant, s.
     pub rate_window_s: f32,
     /// Gaussian width σ, normalised units.
     pub width: f64,
@@ -68,13 +92,14 @@ pub fn fit(
     let folds = if validate.is_empty() { opts.folds.max(2) } else { 1 };
     progress.start("selecting centres", (windows.len() * WIDTHS.len() * folds) as u64);
 
+    let shape = InputShape {
+        dims: set.dims(),
+        kernel: kernel_inputs(set),
+    };
     let mut best: Option<(f64, RbfChoice)> = None;
     let mut candidates_all: Vec<(f64, RbfChoice)> = Vec::new();
     for &window in &windows {
-        let features = FeatureConfig {
-            set,
-            rate_window_s: window,
-        };
+        let features = feature_config(set, window);
         let train_blocks = block_means(train, &features, opts.block_s);
         super::check_excitation(&train_blocks, set, opts)?;
         let (all, splits) = splits(&train_blocks, validate, &features, opts, folds);
@@ -84,7 +109,7 @@ pub fn fit(
         for &width in &WIDTHS {
             let mut table: ScoreTable = vec![vec![0.0; k_max]; RIDGES.len()];
             for split in &splits {
-                accumulate_scores(&mut table, &z, &all, split, width, k_max, score_rows);
+                accumulate_scores(&mut table, &z, &all, split, shape, width, k_max, score_rows);
                 progress.inc();
             }
             for (ri, row) in table.iter().enumerate() {
@@ -119,13 +144,20 @@ pub fn fit(
         .map(|(_, c)| c)
         .expect("the best candidate passes its own filter");
 
-    let features = FeatureConfig {
-        set,
-        rate_window_s: choice.rate_window_s,
-    };
+    let features = feature_config(set, choice.rate_window_s);
     let blocks = block_means(train, &features, opts.block_s);
     let model = final_model(&blocks, features, &choice, opts)?;
-    Ok((model, choice))
+    let used = match model.body() {
+        rbf_core::model::ModelBody::Rbf(net) => net.centers_used(),
+        rbf_core::model::ModelBody::Poly3(_) => 0,
+    };
+    Ok((
+        model,
+        RbfChoice {
+            centers: used,
+            ..choice
+        },
+    ))
 }
 
 /// The block set that scores are computed on, and the splits into it.
@@ -203,14 +235,15 @@ fn select_centers(
     z: &[FeatureRow],
     y: &[f64],
     rows: &[usize],
-    dims: usize,
+    shape: InputShape,
     width: f64,
     k_max: usize,
 ) -> Vec<FeatureRow> {
-    let pool = farthest_points(z, rows, dims, MAX_CANDIDATES);
+    let pool = farthest_points(z, rows, shape.kernel, MAX_CANDIDATES);
     let centers: Vec<FeatureRow> = pool.iter().map(|&i| z[i].map(|v| v as f32 as f64)).collect();
     let sel_rows = thin(rows, MAX_SELECTION_ROWS);
-    let a = design(z, &sel_rows, dims, &centers, width);
+    let a = design(z, &sel_rows, shape, &centers, width);
+    let dims = shape.dims;
     let fixed = a.columns(0, 1 + dims).clone_owned();
     let candidates = a.columns(1 + dims, centers.len()).clone_owned();
     let target = DVector::from_iterator(sel_rows.len(), sel_rows.iter().map(|&i| y[i]));
@@ -221,19 +254,24 @@ fn select_centers(
         .collect()
 }
 
+#[allow(
+    clippy::too_many_arguments,
+    reason = "one split's inputs; a struct would only rename them"
+)]
 fn accumulate_scores(
     table: &mut ScoreTable,
     z: &[FeatureRow],
     all: &Blocks,
     split: &Split,
+    shape: InputShape,
     width: f64,
     k_max: usize,
     score_rows: usize,
 ) {
-    let dims = all.dims;
-    let centers = select_centers(z, &all.y, &split.train, dims, width, k_max);
+    let dims = shape.dims;
+    let centers = select_centers(z, &all.y, &split.train, shape, width, k_max);
     let design_and_target = |rows: &[usize]| {
-        let a: DMatrix<f64> = design(z, rows, dims, &centers, width);
+        let a: DMatrix<f64> = design(z, rows, shape, &centers, width);
         (a, DVector::from_iterator(rows.len(), rows.iter().map(|&i| all.y[i])))
     };
     let (a, y) = design_and_target(&split.train);
@@ -252,10 +290,13 @@ fn accumulate_scores(
         .collect();
     for (ri, &ridge) in RIDGES.iter().enumerate() {
         for k in 1..=k_max {
-            let score = if k > centers.len() {
+            // OLS skips dependent candidates (wide Gaussians over one input are
+            // nearly collinear): past the centres it found, the path stays put.
+            let k_used = k.min(centers.len());
+            let score = if k_used == 0 {
                 f64::INFINITY
             } else {
-                match ridge_solve(&train, 1 + dims + k, ridge) {
+                match ridge_solve(&train, 1 + dims + k_used, ridge) {
                     Some(w) if !groups.is_empty() => {
                         groups.iter().map(|g| g.residual_variance(&w)).sum::<f64>() / groups.len() as f64
                     }
@@ -276,23 +317,28 @@ pub(super) fn final_model(
     opts: &FitOptions,
 ) -> anyhow::Result<Model> {
     let dims = blocks.dims;
+    let shape = InputShape {
+        dims,
+        kernel: kernel_inputs(features.set),
+    };
     let norm = Normaliser::fit(blocks);
     let z: Vec<FeatureRow> = blocks.x.iter().map(|r| norm.apply(r)).collect();
     let rows: Vec<usize> = (0..blocks.len()).collect();
-    let centers = select_centers(&z, &blocks.y, &rows, dims, choice.width, choice.centers);
+    let centers = select_centers(&z, &blocks.y, &rows, shape, choice.width, choice.centers);
     let width = choice.width as f32 as f64;
-    let a = design(&z, &rows, dims, &centers, width);
+    let a = design(&z, &rows, shape, &centers, width);
     let stats = GramStats::new(&a, &DVector::from_column_slice(&blocks.y));
     let w = ridge_solve(&stats, 1 + dims + centers.len(), choice.ridge)
         .ok_or_else(|| anyhow::anyhow!("the output-weight system is singular"))?;
     let to_f32 = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
     let flat_centers: Vec<f32> = centers
         .iter()
-        .flat_map(|c| c[..dims].iter().map(|&v| v as f32))
+        .flat_map(|c| c[..shape.kernel].iter().map(|&v| v as f32))
         .collect();
     let params = RbfParams {
         offset: &to_f32(&norm.offset),
         scale: &to_f32(&norm.scale),
+        kernel_inputs: shape.kernel,
         centers: &flat_centers,
         widths: &vec![width as f32; centers.len()],
         weights: &to_f32(&w.as_slice()[1 + dims..]),

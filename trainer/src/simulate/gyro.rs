@@ -1,0 +1,122 @@
+//! Gyro output model (docs/simulator.md, "Bias").
+
+use rand::Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+use super::plant::{COIL_LAYERS, NodeRates, Plant};
+
+/// Earth rotation rate, °/h.
+pub const EARTH_RATE_DPH: f64 = 15.041_067;
+/// Latitude of the test site, degrees.
+pub const LATITUDE_DEG: f64 = 39.9;
+/// Heading of the horizontal sensitive axis from north, degrees.
+pub const HEADING_DEG: f64 = 30.0;
+/// Reference temperature of the static bias polynomial, °C.
+pub const STATIC_REF_C: f64 = 25.0;
+/// Allan-deviation floor of a first-order Gauss–Markov process relative to its σ.
+const GM_ALLAN_PEAK: f64 = 0.62;
+/// Allan floor = 0.664 × bias instability (IEEE Std 952 flicker convention).
+const FLICKER_FLOOR: f64 = 0.664;
+
+/// The Earth-rate projection on a horizontal axis at [`LATITUDE_DEG`], [`HEADING_DEG`], °/h.
+pub fn earth_rate_projection_dph() -> f64 {
+    EARTH_RATE_DPH * LATITUDE_DEG.to_radians().cos() * HEADING_DEG.to_radians().cos()
+}
+
+/// Bias and noise parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GyroParams {
+    /// Angle random walk, °/√h.
+    pub arw_deg_per_sqrt_h: f64,
+    /// Bias instability, °/h (Allan floor / 0.664).
+    pub bias_instability_dph: f64,
+    /// Correlation time of the bias-instability process, s.
+    pub bias_correlation_s: f64,
+    /// Static bias c0 … c3 about 25 °C of the mean coil temperature, °/h/°Cⁿ.
+    pub static_coeffs: [f64; 4],
+    /// Shupe gain, °/h per °C/min of the weighted coil temperature rate.
+    pub shupe_dph_per_c_per_min: f64,
+    /// Relative change of the Shupe gain per °C (IFOG paper Eq. 13: the T×ΔT term).
+    pub shupe_temp_coeff_per_c: f64,
+    /// Weights of the layers' temperature rates in the Shupe term, outer to inner.
+    pub shupe_layer_weights: [f64; COIL_LAYERS],
+    /// Bias per °C of housing − coil (radial gradient), °/h/°C.
+    pub radial_gradient_dph_per_c: f64,
+    /// Bias per °C of base − top (axial gradient across the housing; multi-point runs), °/h/°C.
+    pub axial_gradient_dph_per_c: f64,
+}
+
+impl Default for GyroParams {
+    fn default() -> Self {
+        GyroParams {
+            arw_deg_per_sqrt_h: 0.001,
+            bias_instability_dph: 0.001,
+            bias_correlation_s: 600.0,
+            static_coeffs: [0.08, 0.02, 2e-4, -2e-6],
+            shupe_dph_per_c_per_min: 0.3,
+            shupe_temp_coeff_per_c: 0.01,
+            shupe_layer_weights: [0.55, 0.30, 0.10, 0.05],
+            radial_gradient_dph_per_c: 0.004,
+            axial_gradient_dph_per_c: 0.03,
+        }
+    }
+}
+
+/// Running state of the output model.
+#[derive(Clone, Debug)]
+pub struct Gyro {
+    params: GyroParams,
+    multi: bool,
+    white_dph: f64,
+    gm_dph: f64,
+    gm_phi: f64,
+    gm_drive_dph: f64,
+}
+
+impl Gyro {
+    /// A gyro sampled at `sample_rate_hz`; `multi` adds the axial-gradient term.
+    pub fn new(params: &GyroParams, sample_rate_hz: f64, multi: bool) -> Self {
+        let dt = 1.0 / sample_rate_hz;
+        let gm_sigma = FLICKER_FLOOR * params.bias_instability_dph / GM_ALLAN_PEAK;
+        let gm_phi = (-dt / params.bias_correlation_s).exp();
+        Gyro {
+            params: params.clone(),
+            multi,
+            // ARW N [°/√h] is white rate noise of PSD N² [(°/h)²/Hz]·3600²/3600: σ = 60 N √fs °/h.
+            white_dph: 60.0 * params.arw_deg_per_sqrt_h * sample_rate_hz.sqrt(),
+            gm_dph: 0.0,
+            gm_phi,
+            gm_drive_dph: gm_sigma * (1.0 - gm_phi * gm_phi).sqrt(),
+        }
+    }
+
+    /// Thermal bias plus the bias-instability process, °/h.
+    pub fn bias_dph(&mut self, plant: &Plant, rates: &NodeRates, rng: &mut impl Rng) -> f64 {
+        let p = &self.params;
+        let u = plant.coil_mean_c() - STATIC_REF_C;
+        let [c0, c1, c2, c3] = p.static_coeffs;
+        let static_dph = c0 + u * (c1 + u * (c2 + u * c3));
+        let weighted_rate_c_per_min: f64 = p
+            .shupe_layer_weights
+            .iter()
+            .zip(&rates.coil_c_per_s)
+            .map(|(w, r)| w * r * 60.0)
+            .sum();
+        let shupe_dph = p.shupe_dph_per_c_per_min * (1.0 + p.shupe_temp_coeff_per_c * u) * weighted_rate_c_per_min;
+        let radial_dph = p.radial_gradient_dph_per_c * (plant.housing_c() - plant.coil_mean_c());
+        let axial_dph = if self.multi {
+            p.axial_gradient_dph_per_c * (plant.base_c - plant.top_c)
+        } else {
+            0.0
+        };
+        let drive: f64 = StandardNormal.sample(rng);
+        self.gm_dph = self.gm_phi * self.gm_dph + self.gm_drive_dph * drive;
+        static_dph + shupe_dph + radial_dph + axial_dph + self.gm_dph
+    }
+
+    /// White rate noise of one sample (angle random walk), °/h.
+    pub fn noise_dph(&mut self, rng: &mut impl Rng) -> f64 {
+        let n: f64 = StandardNormal.sample(rng);
+        self.white_dph * n
+    }
+}

@@ -1,0 +1,160 @@
+//! `trainer simulate`: a physics-based IFOG in a thermal chamber
+//! (equations, parameter values and their sources: docs/simulator.md).
+//!
+//! [`profile`] gives the chamber set-point schedule, [`plant`] integrates the
+//! thermal network (chamber air → housing base/top → electronics → fiber coil
+//! in radial layers → thermometers), [`gyro`] turns the coil's temperature
+//! distribution into bias and adds noise. [`ChamberRun::write_csv`] streams
+//! the recorded run, so hundreds of MB never sit in memory.
+
+pub mod gyro;
+pub mod plant;
+pub mod profile;
+
+use std::io::Write;
+
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+
+pub use profile::Profile;
+
+/// Thermometer columns of multi-point runs; `temp_c` is the fiber-loop sensor,
+/// so single-point models read the same files.
+pub const MULTI_COLUMNS: [&str; 8] = [
+    "temp_a", "temp_b", "temp_c", "temp_d", "temp_e", "temp_f", "temp_g", "temp_h",
+];
+
+/// What to simulate.
+#[derive(Clone, Debug)]
+pub struct ChamberRun {
+    /// Temperature profile.
+    pub profile: Profile,
+    /// Chamber ramp rate between set points, °C/min (ifog and cycle profiles).
+    pub ramp_c_per_min: f64,
+    /// Hold at each set point, s (ifog and cycle profiles).
+    pub hold_s: f64,
+    /// Total duration, s; `None`: as long as the profile (random: 8 h).
+    pub duration_s: Option<f64>,
+    /// Gyro sample rate, Hz.
+    pub sample_rate_hz: f64,
+    /// Write 8 thermometers `temp_a`…`temp_h` (and the gradient bias they reveal).
+    pub multi: bool,
+    /// Set-point range of random profiles, °C (min, max).
+    pub random_range_c: (f64, f64),
+    /// Noise and bias parameters.
+    pub gyro: gyro::GyroParams,
+    /// Random seed: the same seed gives the same file.
+    pub seed: u64,
+}
+
+impl ChamberRun {
+    /// The IFOG paper's protocol: 25 °C, down to 10 °C, hold, up to 40 °C, hold, back to 25 °C; 1 Hz.
+    pub fn ifog(ramp_c_per_min: f64, seed: u64) -> Self {
+        ChamberRun {
+            profile: Profile::Ifog,
+            ramp_c_per_min,
+            hold_s: 7200.0,
+            duration_s: None,
+            sample_rate_hz: 1.0,
+            multi: false,
+            random_range_c: (-40.0, 60.0),
+            gyro: gyro::GyroParams::default(),
+            seed,
+        }
+    }
+
+    /// The RLG paper's cycle: 20 → −40 → 60 → −40 → 60 → 20 °C with 2-h holds.
+    pub fn cycle(ramp_c_per_min: f64, seed: u64) -> Self {
+        ChamberRun {
+            profile: Profile::Cycle,
+            ..ChamberRun::ifog(ramp_c_per_min, seed)
+        }
+    }
+
+    /// Random set points within `range_c`, ramp rates and holds over 8 h.
+    pub fn random(seed: u64, range_c: (f64, f64)) -> Self {
+        ChamberRun {
+            profile: Profile::Random,
+            random_range_c: range_c,
+            ..ChamberRun::ifog(1.0, seed)
+        }
+    }
+
+    /// Streams the run as recorded-run CSV.
+    pub fn write_csv(&self, out: &mut impl Write) -> std::io::Result<()> {
+        let mut rng = Pcg64::seed_from_u64(self.seed);
+        let schedule = profile::schedule(self, &mut rng);
+        let duration_s = self.duration_s.unwrap_or(schedule.duration_s());
+        let dt = 1.0 / self.sample_rate_hz;
+        let start_c = schedule.air_c(0.0);
+        let mut plant = plant::Plant::soaked(start_c);
+        let mut gyro = gyro::Gyro::new(&self.gyro, self.sample_rate_hz, self.multi);
+        let mut thermometers = plant::Thermometers::new(start_c);
+
+        writeln!(
+            out,
+            "# source: trainer simulate (physics-based IFOG chamber run, docs/simulator.md)"
+        )?;
+        writeln!(out, "# profile: {}", self.profile.name())?;
+        writeln!(out, "# seed: {}", self.seed)?;
+        writeln!(out, "# sample_rate_hz: {}", self.sample_rate_hz)?;
+        if self.profile == Profile::Random {
+            writeln!(
+                out,
+                "# set_point_range_c: {} .. {}",
+                self.random_range_c.0, self.random_range_c.1
+            )?;
+        } else {
+            writeln!(out, "# ramp_c_per_min: {}", self.ramp_c_per_min)?;
+        }
+        writeln!(out, "# latitude_deg: {}", gyro::LATITUDE_DEG)?;
+        writeln!(out, "# heading_deg: {}", gyro::HEADING_DEG)?;
+        writeln!(out, "# arw_deg_per_sqrt_h: {}", self.gyro.arw_deg_per_sqrt_h)?;
+        writeln!(out, "# bias_instability_dph: {}", self.gyro.bias_instability_dph)?;
+        if self.multi {
+            writeln!(out, "time_s,rate_dph,ref_dph,{}", MULTI_COLUMNS.join(","))?;
+        } else {
+            writeln!(out, "time_s,rate_dph,temp_c,ref_dph")?;
+        }
+        let reference = gyro::earth_rate_projection_dph();
+        let steps = (duration_s * self.sample_rate_hz).floor() as u64;
+        // Internal thermal step: at most 1 s (explicit Euler, smallest τ 5 s).
+        let substeps = dt.ceil().max(1.0) as u32;
+        let h = dt / substeps as f64;
+        let mut line = String::with_capacity(160);
+        for i in 0..steps {
+            let t = i as f64 * dt;
+            let mut rates = plant::NodeRates::default();
+            for s in 0..substeps {
+                rates = plant.step(schedule.air_c(t + s as f64 * h), h);
+                thermometers.step(&plant, h);
+            }
+            let rate = reference + gyro.bias_dph(&plant, &rates, &mut rng) + gyro.noise_dph(&mut rng);
+            let readings = thermometers.read(&mut rng);
+            line.clear();
+            use std::fmt::Write as _;
+            if self.multi {
+                let _ = write!(line, "{t:.4},{rate:.5},{reference:.5}");
+                for r in readings {
+                    let _ = write!(line, ",{r:.7}");
+                }
+            } else {
+                let _ = write!(
+                    line,
+                    "{t:.4},{rate:.5},{:.7},{reference:.5}",
+                    readings[plant::LOOP_SENSOR]
+                );
+            }
+            line.push('\n');
+            out.write_all(line.as_bytes())?;
+        }
+        Ok(())
+    }
+
+    /// The whole run as a string (small runs, tests).
+    pub fn to_csv(&self) -> String {
+        let mut buf = Vec::new();
+        self.write_csv(&mut buf).expect("writing to memory cannot fail");
+        String::from_utf8(buf).expect("the simulator writes ASCII")
+    }
+}

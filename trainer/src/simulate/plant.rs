@@ -1,0 +1,162 @@
+//! Thermal network of the gyro in the chamber (docs/simulator.md, "Thermal plant").
+//!
+//! Nodes: housing base (bolted to the chamber's mounting plate) and top cover,
+//! each a first-order lag of the chamber air; the electronics board, heated by
+//! its own dissipation; the fiber coil in radial layers, the outer one coupled
+//! to the housing (warmed by the electronics), the others by conduction to
+//! their neighbours. Explicit Euler with steps ≤ 1 s (smallest τ is 5 s).
+
+use rand::Rng;
+use rand_distr::{Distribution, StandardNormal};
+use rbf_core::sensor::tmp117_quantise;
+
+/// Radial layers of the fiber coil, outer (0) to inner.
+pub const COIL_LAYERS: usize = 4;
+/// Housing base ↔ chamber air, s.
+pub const TAU_BASE_S: f64 = 900.0;
+/// Housing top cover ↔ chamber air, s.
+pub const TAU_TOP_S: f64 = 1500.0;
+/// Electronics board ↔ housing, s.
+pub const TAU_ELECTRONICS_S: f64 = 600.0;
+/// Steady-state rise of the electronics above the housing from its dissipation, °C.
+pub const SELF_HEATING_C: f64 = 4.0;
+/// Share of the electronics' rise seen by the space around the coil.
+pub const ELECTRONICS_TO_COIL: f64 = 0.2;
+/// Outer coil layer ↔ its surroundings, s.
+pub const TAU_COIL_OUTER_S: f64 = 500.0;
+/// Conduction between neighbouring coil layers, s.
+pub const TAU_COIL_LAYER_S: f64 = 700.0;
+
+/// Temperatures of the plant's nodes, °C.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plant {
+    /// Housing base plate.
+    pub base_c: f64,
+    /// Housing top cover.
+    pub top_c: f64,
+    /// Electronics board.
+    pub electronics_c: f64,
+    /// Coil layers, outer to inner.
+    pub coil_c: [f64; COIL_LAYERS],
+    /// Chamber air at the last step.
+    pub air_c: f64,
+}
+
+/// Time derivatives of the coil layers at the last step, °C/s.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct NodeRates {
+    /// d/dt of each coil layer, °C/s.
+    pub coil_c_per_s: [f64; COIL_LAYERS],
+}
+
+impl Plant {
+    /// Everything soaked at `temp_c`, electronics just switched on.
+    pub fn soaked(temp_c: f64) -> Self {
+        Plant {
+            base_c: temp_c,
+            top_c: temp_c,
+            electronics_c: temp_c,
+            coil_c: [temp_c; COIL_LAYERS],
+            air_c: temp_c,
+        }
+    }
+
+    /// Mean housing temperature, °C.
+    pub fn housing_c(&self) -> f64 {
+        0.5 * (self.base_c + self.top_c)
+    }
+
+    /// Mean coil temperature, °C.
+    pub fn coil_mean_c(&self) -> f64 {
+        self.coil_c.iter().sum::<f64>() / COIL_LAYERS as f64
+    }
+
+    /// Advances by `h` seconds with the chamber air at `air_c`; returns the coil rates.
+    pub fn step(&mut self, air_c: f64, h: f64) -> NodeRates {
+        self.air_c = air_c;
+        let housing = self.housing_c();
+        let d_base = (air_c - self.base_c) / TAU_BASE_S;
+        let d_top = (air_c - self.top_c) / TAU_TOP_S;
+        let d_elec = (housing + SELF_HEATING_C - self.electronics_c) / TAU_ELECTRONICS_S;
+        let surround = housing + ELECTRONICS_TO_COIL * (self.electronics_c - housing);
+        let c = self.coil_c;
+        let mut d_coil = [0.0; COIL_LAYERS];
+        for (i, d) in d_coil.iter_mut().enumerate() {
+            let outer = if i == 0 {
+                (surround - c[0]) / TAU_COIL_OUTER_S
+            } else {
+                (c[i - 1] - c[i]) / TAU_COIL_LAYER_S
+            };
+            let inner = if i + 1 < COIL_LAYERS {
+                (c[i + 1] - c[i]) / TAU_COIL_LAYER_S
+            } else {
+                0.0
+            };
+            *d = outer + inner;
+        }
+        self.base_c += h * d_base;
+        self.top_c += h * d_top;
+        self.electronics_c += h * d_elec;
+        for (t, d) in self.coil_c.iter_mut().zip(&d_coil) {
+            *t += h * d;
+        }
+        NodeRates { coil_c_per_s: d_coil }
+    }
+}
+
+/// Index of the fiber-loop sensor (written as `temp_c`).
+pub const LOOP_SENSOR: usize = 2;
+/// Thermometer noise, °C (1σ, before TMP117 quantisation).
+pub const THERMOMETER_NOISE_C: f64 = 0.002;
+/// Where each of the eight thermometers sits and its own lag, s.
+pub const THERMOMETERS: [(&str, f64); 8] = [
+    ("housing base", 5.0),
+    ("housing top cover", 5.0),
+    ("fiber coil, outer surface (the loop sensor)", 8.0),
+    ("fiber coil, inner layer (embedded)", 20.0),
+    ("electronics board", 5.0),
+    ("coil flange", 15.0),
+    ("mounting plate", 300.0),
+    ("chamber air", 30.0),
+];
+
+/// The eight thermometers: lagged views of the plant, read with noise and TMP117 resolution.
+#[derive(Clone, Debug)]
+pub struct Thermometers {
+    lagged_c: [f64; 8],
+}
+
+impl Thermometers {
+    /// All thermometers settled at `temp_c`.
+    pub fn new(temp_c: f64) -> Self {
+        Thermometers { lagged_c: [temp_c; 8] }
+    }
+
+    fn sensed_node_c(plant: &Plant, i: usize) -> f64 {
+        match i {
+            0 => plant.base_c,
+            1 => plant.top_c,
+            2 => plant.coil_c[0],
+            3 => plant.coil_c[COIL_LAYERS - 1],
+            4 => plant.electronics_c,
+            5 => 0.5 * (plant.coil_c[1] + plant.housing_c()),
+            6 | 7 => plant.air_c,
+            _ => plant.coil_mean_c(),
+        }
+    }
+
+    /// Advances each sensor's lag by `h` seconds.
+    pub fn step(&mut self, plant: &Plant, h: f64) {
+        for (i, t) in self.lagged_c.iter_mut().enumerate() {
+            *t += h / THERMOMETERS[i].1 * (Self::sensed_node_c(plant, i) - *t);
+        }
+    }
+
+    /// One reading of each thermometer, °C.
+    pub fn read(&self, rng: &mut impl Rng) -> [f64; 8] {
+        self.lagged_c.map(|t| {
+            let noise: f64 = StandardNormal.sample(rng);
+            tmp117_quantise(t + THERMOMETER_NOISE_C * noise) as f64
+        })
+    }
+}
