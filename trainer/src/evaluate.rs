@@ -8,6 +8,7 @@ use rbf_core::record;
 use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, Model};
 use serde::Serialize;
 
+use crate::allan::{self, AllanDeviation};
 use crate::metrics::{cluster_std, improvement_pct, msd};
 use crate::output::write_atomically;
 use crate::run::{Run, RunReader, gyro_sample, probe_nominal_period_s};
@@ -61,6 +62,10 @@ pub struct RunEvaluation {
     pub cluster_std_improvement_pct: f64,
     /// Samples per flag.
     pub flagged: FlagCounts,
+    /// Overlapping Allan deviation of rate − reference, raw.
+    pub allan_before: AllanDeviation,
+    /// Overlapping Allan deviation of rate − reference, compensated.
+    pub allan_after: AllanDeviation,
 }
 
 /// Compensates every sample of `run` (one output per input, always).
@@ -101,6 +106,8 @@ pub fn evaluate_run(model: &Model, run: &Run) -> RunEvaluation {
         cluster_std_after_dph: std_after,
         cluster_std_improvement_pct: improvement_pct(std_before, std_after),
         flagged,
+        allan_before: allan::analyse(&before, period),
+        allan_after: allan::analyse(&after, period),
     }
 }
 
@@ -131,6 +138,37 @@ pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std
             e.cluster_std_before_dph,
             e.cluster_std_after_dph,
             e.cluster_std_improvement_pct
+        )?;
+    }
+    Ok(())
+}
+
+/// Writes the Allan read-offs (ARW, bias instability), one line per (role, evaluation).
+pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "{:<10} {:<28} {:>11} {:>11}  {:>11} {:>11} {:>9}",
+        "role", "run", "ARW before", "ARW after", "BI before", "BI after", "BI at τ"
+    )?;
+    writeln!(
+        out,
+        "{:<10} {:<28} {:>11} {:>11}  {:>11} {:>11} {:>9}",
+        "", "", "[°/√h]", "[°/√h]", "[°/h]", "[°/h]", "[s]"
+    )?;
+    for (role, e) in rows {
+        let name = Path::new(&e.run)
+            .file_name()
+            .map_or(e.run.clone(), |n| n.to_string_lossy().into_owned());
+        writeln!(
+            out,
+            "{:<10} {:<28} {:>11.3e} {:>11.3e}  {:>11.3e} {:>11.3e} {:>9.0}",
+            role,
+            truncate(&name, 28),
+            e.allan_before.arw_deg_per_sqrt_h,
+            e.allan_after.arw_deg_per_sqrt_h,
+            e.allan_before.bias_instability_dph,
+            e.allan_after.bias_instability_dph,
+            e.allan_after.floor_tau_s
         )?;
     }
     Ok(())

@@ -11,6 +11,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod allan;
 pub mod blobfile;
 pub mod dataset;
 pub mod evaluate;

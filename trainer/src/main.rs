@@ -10,7 +10,7 @@ use rbf_core::Model;
 use rbf_core::blob::{self, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{read_model, write_model};
-use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_run, print_table};
+use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_run, print_allan_table, print_table};
 use trainer::fit::{self, FitOptions, Method, RbfFeatures};
 use trainer::output::{write_atomically, write_bytes};
 use trainer::run::Run;
@@ -184,7 +184,9 @@ struct CompensateArgs {
 ///
 /// Per run: MSD (IFOG paper Eq. 24) of 1-s means against ref_dph (or about the
 /// mean), and the bias STD of 100-s cluster means (RLG paper), before and after
-/// compensation, with the improvement in %.
+/// compensation, with the improvement in %; then the overlapping Allan
+/// deviation (IEEE Std 952) before and after, with angle random walk [°/√h] and
+/// bias instability [°/h] read off it (--json has the whole curves).
 #[derive(Args, Debug)]
 struct EvalArgs {
     /// Model blob.
@@ -402,7 +404,10 @@ fn cmd_eval(a: EvalArgs) -> anyhow::Result<()> {
     let runs = load_runs(&a.runs)?;
     let evals: Vec<RunEvaluation> = runs.iter().map(|r| evaluate_run(&model, r)).collect();
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|e| ("eval", e)).collect();
-    print_table(&mut std::io::stdout().lock(), &rows)?;
+    let mut out = std::io::stdout().lock();
+    print_table(&mut out, &rows)?;
+    writeln!(out, "\nOverlapping Allan deviation (IEEE Std 952) of rate − reference:")?;
+    print_allan_table(&mut out, &rows)?;
     if let Some(path) = &a.json {
         write_bytes(path, serde_json::to_string_pretty(&evals)?.as_bytes())?;
     }
