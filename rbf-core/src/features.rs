@@ -160,9 +160,28 @@ pub struct FeatureVector {
 }
 
 impl FeatureVector {
+    /// A feature vector from given values (analysis and plots on the host; the
+    /// loop always builds them with [`FeatureExtractor::update`]). Values past
+    /// [`MAX_INPUTS`] are ignored.
+    pub fn from_values(values: &[f32]) -> Self {
+        let mut v = [0.0; MAX_INPUTS];
+        let n = values.len().min(MAX_INPUTS);
+        v[..n].copy_from_slice(&values[..n]);
+        FeatureVector {
+            values: v,
+            len: n as u8,
+            warming_up: false,
+        }
+    }
+
     /// The inputs in [`FeatureSet`] order.
     pub fn as_slice(&self) -> &[f32] {
         self.values.get(..self.len as usize).unwrap_or(&[])
+    }
+
+    /// All value slots (those past the feature count are 0).
+    pub(crate) fn values(&self) -> &[f32; MAX_INPUTS] {
+        &self.values
     }
 
     /// The fiber-loop temperature the features were computed from, °C.

@@ -208,12 +208,12 @@ impl Model {
     /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it. `clamped` says that an
     /// input left its training range.
     pub fn eval(&self, features: &FeatureVector) -> Evaluation {
-        let raw = features.as_slice();
+        let raw = features.values();
         let mut x = [0.0f32; MAX_INPUTS];
         let mut x_linear = [0.0f32; MAX_INPUTS];
         let mut clamped = false;
         for i in 0..self.features.dims().min(MAX_INPUTS) {
-            let v = raw.get(i).copied().unwrap_or(f32::NAN);
+            let v = raw[i];
             // max/min rather than clamp(): never panics, and maps NaN into range.
             let c = v.max(self.input_min[i]).min(self.input_max[i]);
             clamped |= c.to_bits() != v.to_bits();

@@ -178,7 +178,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
     /// Evaluates the network, °/h: the Gaussians at `x_kernel`, the linear terms
     /// at `x_linear` (input units; the model clamps them to different ranges).
     ///
-    /// Missing inputs read as the training mean. Cost: `K_used × kernel_inputs`
+    /// Cost: `K_used × kernel_inputs`
     /// multiply-adds, `K_used` f32 exponentials ([`crate::fastmath::exp_neg`]) and
     /// `inputs_used` linear terms, independent of the values; about 45
     /// instructions per centre at 3 kernel inputs on a Cortex-M4F.
@@ -271,13 +271,13 @@ mod tests {
     fn evaluates_the_documented_formula() {
         let net = one_centre();
         // At the centre: c + 0 + W·exp(0) = 1 + 2 = 3.
-        assert_eq!(net.eval(&[20.0, 0.0], &[20.0, 0.0]), 3.0);
+        assert_eq!(net.eval(&[20.0, 0.0, 0.0], &[20.0, 0.0, 0.0]), 3.0);
         // One σ away along T (z = 1): 1 + 0.5 + 2·e^{−1/2}.
         let expected = 1.0 + 0.5 + 2.0 * (-0.5f64).exp();
-        assert!((net.eval(&[30.0, 0.0], &[30.0, 0.0]) as f64 - expected).abs() < 1e-6);
+        assert!((net.eval(&[30.0, 0.0, 0.0], &[30.0, 0.0, 0.0]) as f64 - expected).abs() < 1e-6);
         // The Gaussians and the linear terms take their own inputs.
         let split = 1.0 + 0.5 * 2.0 + 2.0 * (-0.5f64).exp();
-        assert!((net.eval(&[30.0, 0.0], &[40.0, 0.0]) as f64 - split).abs() < 1e-6);
+        assert!((net.eval(&[30.0, 0.0, 0.0], &[40.0, 0.0, 0.0]) as f64 - split).abs() < 1e-6);
     }
 
     #[test]

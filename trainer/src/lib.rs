@@ -18,5 +18,6 @@ pub mod evaluate;
 pub mod fit;
 pub mod metrics;
 pub mod output;
+pub mod report;
 pub mod run;
 pub mod simulate;

@@ -38,6 +38,26 @@ enum Command {
     Inspect(InspectArgs),
     Simulate(SimulateArgs),
     Decode(DecodeArgs),
+    Report(ReportArgs),
+}
+
+/// Plots and a written summary of a model on runs, for people who would rather look.
+///
+/// Writes into DIR, as SVG and PNG: per run the raw and compensated rate − reference
+/// (10-s means) with the loop temperature, and the overlapping Allan deviation before
+/// and after on log-log axes; the model's bias over T and a steady ramp ΔT. Plus
+/// report.json (every figure of `trainer eval --json`) and report.md.
+#[derive(Args, Debug)]
+struct ReportArgs {
+    /// Model blob.
+    #[arg(long, value_name = "MODEL.bin")]
+    model: PathBuf,
+    /// Runs to report on.
+    #[arg(required = true, value_name = "RUN.csv")]
+    runs: Vec<PathBuf>,
+    /// Directory to write into (created if missing).
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
 }
 
 /// Decode firmware output frames (a UART capture) into CSV.
@@ -238,6 +258,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Inspect(a) => cmd_inspect(a),
         Command::Simulate(a) => cmd_simulate(a),
         Command::Decode(a) => cmd_decode(a),
+        Command::Report(a) => {
+            let (model, _) = read_model(&a.model)?;
+            let runs = load_runs(&a.runs)?;
+            let files = trainer::report::write_report(&model, &a.model, &runs, &a.output)?;
+            println!("wrote {} files into {}", files.len(), a.output.display());
+            Ok(())
+        }
     }
 }
 

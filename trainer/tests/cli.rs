@@ -453,3 +453,40 @@ fn decode_turns_a_uart_capture_into_csv_and_reports_damage() {
         ]
     );
 }
+
+#[test]
+fn report_writes_svg_and_png_plots_json_and_markdown() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let run = dir.path().join("train.csv");
+    let out = dir.path().join("report");
+    let o = trainer(&[
+        "report",
+        "--model",
+        model.to_str().unwrap(),
+        run.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for stem in ["train_rate", "train_allan", "bias_surface"] {
+        let png = std::fs::read(out.join(format!("{stem}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{stem}.png is a PNG");
+        assert!(png.len() > 10_000, "{stem}.png has content");
+        let svg = std::fs::read_to_string(out.join(format!("{stem}.svg"))).unwrap();
+        assert!(
+            svg.contains("<svg") && svg.contains("<polyline") || svg.contains("<circle"),
+            "{stem}.svg draws"
+        );
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let e = &json["runs"][0];
+    assert!(e["cluster_std_improvement_pct"].as_f64().unwrap() > 50.0, "{e}");
+    assert!(e["allan_after"]["adev_dph"].as_array().unwrap().len() >= 8);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        md.contains("| train |") && md.contains("![rate](train_rate.svg)"),
+        "{md}"
+    );
+}

@@ -23,8 +23,11 @@ mod board {
     const TICKS_PER_KILO_INSTRUCTION: u64 = 168;
     const D: usize = 3;
 
-    /// A deterministic K-centre paper-feature model (values like a real fit's).
-    fn model(k: usize) -> Model {
+    /// A deterministic K-centre model (values like a real fit's): the IFOG
+    /// paper's (T, ΔT, T×ΔT) with Gaussians over all three inputs, or with
+    /// `multiscale` the default's 7 inputs with Gaussians over T.
+    fn model(k: usize, multiscale: bool) -> Model {
+        let (dims, kernel) = if multiscale { (7, 1) } else { (D, D) };
         let mut state = 0x2545_f491u32;
         let mut next = || {
             state ^= state << 13;
@@ -33,22 +36,38 @@ mod board {
             (state >> 8) as f32 / (1 << 24) as f32 * 4.0 - 2.0
         };
         let mut centers = [0.0f32; MAX_CENTERS * D];
-        centers[..k * D].iter_mut().for_each(|c| *c = next());
+        centers[..k * kernel].iter_mut().for_each(|c| *c = next());
         let mut weights = [0.0f32; MAX_CENTERS];
         weights[..k].iter_mut().for_each(|w| *w = 0.05 * next());
+        let offset = [25.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let scale = [10.0, 0.5, 0.4, 0.3, 12.0, 10.0, 8.0];
+        let linear = [0.01, 0.2, 0.1, 0.05, 0.003, 0.002, 0.001];
         let net = RbfNetwork::new(&RbfParams {
-            offset: &[25.0, 0.0, 0.0],
-            scale: &[10.0, 0.5, 12.0],
-            centers: &centers[..k * D],
+            offset: &offset[..dims],
+            scale: &scale[..dims],
+            kernel_inputs: kernel,
+            centers: &centers[..k * kernel],
             widths: &[1.5; MAX_CENTERS][..k],
             weights: &weights[..k],
-            linear: &[0.01, 0.2, 0.003],
+            linear: &linear[..dims],
             constant: 0.05,
         })
         .expect("valid synthetic network");
-        let features = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
-        let ranges = [(0.0, 50.0), (-3.0, 3.0), (-150.0, 150.0)];
-        Model::new(features, &ranges, ModelBody::Rbf(net), ModelInfo::default()).expect("valid synthetic model")
+        let features = if multiscale {
+            FeatureConfig::multiscale([60.0, 480.0, 3840.0])
+        } else {
+            FeatureConfig::single(FeatureSet::TempRateProduct, 60.0)
+        };
+        let ranges = [
+            (0.0, 50.0),
+            (-3.0, 3.0),
+            (-3.0, 3.0),
+            (-3.0, 3.0),
+            (-150.0, 150.0),
+            (-150.0, 150.0),
+            (-150.0, 150.0),
+        ];
+        Model::new(features, &ranges[..dims], ModelBody::Rbf(net), ModelInfo::default()).expect("valid synthetic model")
     }
 
     fn ticks_between(start: u32, end: u32) -> u32 {
@@ -65,8 +84,10 @@ mod board {
         core.SYST.clear_current();
         core.SYST.enable_counter();
         let config = CompensatorConfig::for_sample_rate(1000.0);
-        for k in [8usize, 16, 32, 64] {
-            let model = model(k);
+        // The default's shape first; the last line is the K = 32, D = 3 figure.
+        let runs = [(32, true), (8, false), (16, false), (64, false), (32, false)];
+        for (k, multiscale) in runs {
+            let model = model(k, multiscale);
             let mut compensator = Compensator::new();
             let mut temp_c = 20.0f32;
             let start = SYST::get_current();
@@ -81,7 +102,15 @@ mod board {
             }
             let ticks = ticks_between(start, SYST::get_current()) as u64;
             let per_sample = ticks * 1000 / TICKS_PER_KILO_INSTRUCTION / SAMPLES as u64;
-            hprintln!("instructions_per_sample K={} D=3: {}", k, per_sample);
+            if multiscale {
+                hprintln!(
+                    "instructions_per_sample K={} D=7 (default multiscale, Gaussians over T): {}",
+                    k,
+                    per_sample
+                );
+            } else {
+                hprintln!("instructions_per_sample K={} D=3: {}", k, per_sample);
+            }
         }
         hprintln!("stack_peak_bytes {}", firmware::board::stack_peak_bytes());
         debug::exit(debug::EXIT_SUCCESS);
