@@ -39,6 +39,32 @@ enum Command {
     Simulate(SimulateArgs),
     Decode(DecodeArgs),
     Report(ReportArgs),
+    Blocks(BlocksArgs),
+}
+
+/// Write the training data a fit sees: block means of the features and the bias target.
+///
+/// The features are rbf-core's (the firmware's own computation), averaged with
+/// the target rate_dph − ref_dph (or minus the run mean) over blocks; warm-up
+/// and sensor-fault samples are left out. For comparing other learners on
+/// exactly the same data (bench/accuracy).
+#[derive(Args, Debug)]
+struct BlocksArgs {
+    /// Runs to read (blocks are written in order, with a run column).
+    #[arg(required = true, value_name = "RUN.csv")]
+    runs: Vec<PathBuf>,
+    /// Inputs: multiscale (default) or paper (T, ΔT, T×ΔT).
+    #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
+    features: RbfFeatures,
+    /// Fastest ΔT window, s.
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0)]
+    rate_window_s: f32,
+    /// Block length, s.
+    #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
+    block_s: f64,
+    /// CSV to write.
+    #[arg(short, long, value_name = "BLOCKS.csv")]
+    output: PathBuf,
 }
 
 /// Plots and a written summary of a model on runs, for people who would rather look.
@@ -258,6 +284,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Inspect(a) => cmd_inspect(a),
         Command::Simulate(a) => cmd_simulate(a),
         Command::Decode(a) => cmd_decode(a),
+        Command::Blocks(a) => cmd_blocks(a),
         Command::Report(a) => {
             let (model, _) = read_model(&a.model)?;
             let runs = load_runs(&a.runs)?;
@@ -346,6 +373,34 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         });
         write_bytes(path, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }
+    Ok(())
+}
+
+fn cmd_blocks(a: BlocksArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        a.block_s.is_finite() && a.block_s > 0.0,
+        "--block-s must be a positive number of seconds"
+    );
+    anyhow::ensure!(
+        a.rate_window_s.is_finite() && (0.0..=86_400.0).contains(&a.rate_window_s),
+        "--rate-window-s must be 0 … 86400 s"
+    );
+    let runs = load_runs(&a.runs)?;
+    let set = Method::Rbf.feature_set(a.features);
+    let features = trainer::fit::rbf::feature_config(set, a.rate_window_s);
+    let blocks = trainer::dataset::block_means(&runs, &features, a.block_s);
+    let names: Vec<String> = (0..set.dims()).map(|i| format!("x{i}")).collect();
+    let mut csv = format!(
+        "# features: {}\nrun,{},target_dph\n",
+        set.names().join(", "),
+        names.join(",")
+    );
+    for i in 0..blocks.len() {
+        let x: Vec<String> = (0..set.dims()).map(|k| blocks.feature(i, k).to_string()).collect();
+        csv.push_str(&format!("{},{},{}\n", blocks.run[i], x.join(","), blocks.y[i]));
+    }
+    write_bytes(&a.output, csv.as_bytes())?;
+    println!("wrote {} ({} blocks)", a.output.display(), blocks.len());
     Ok(())
 }
 

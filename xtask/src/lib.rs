@@ -5,9 +5,11 @@
 //! - [`qemu`]: running an image under `qemu-system-arm` with a hard deadline;
 //! - [`replay`]: `cargo xtask qemu-replay`;
 //! - [`bench`]: `cargo xtask bench-fw`;
+//! - [`accuracy`]: `cargo xtask bench-accuracy`;
 //! - [`ci`]: `cargo xtask ci`, the whole test suite.
 #![forbid(unsafe_code)]
 
+pub mod accuracy;
 pub mod bench;
 pub mod ci;
 pub mod firmware;

@@ -42,6 +42,12 @@ enum Cmd {
     /// SysTick) for K = 8, 16, 32, 64 centres at D = 3, and report flash/RAM
     /// of the images. The last line is `instructions_per_sample K=32 D=3: N`.
     BenchFw,
+    /// Accuracy against the peers: on simulated chamber runs of both protocols
+    /// (trained on one 1 °C/min run, verified at other ramp rates and on a random
+    /// profile) compare no compensation, poly3, rbf2, the IFOG paper's rbf, the
+    /// default, and scikit-learn SVR and KernelRidge on the same features (in a
+    /// venv it makes under target/). Prints improvement %, residual 100-s STD, fit time.
+    BenchAccuracy,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -64,5 +70,6 @@ fn main() -> anyhow::Result<()> {
             Ok(())
         }
         Cmd::BenchFw => xtask::bench::bench_fw(),
+        Cmd::BenchAccuracy => xtask::accuracy::bench_accuracy(),
     }
 }

@@ -1,0 +1,241 @@
+//! `cargo xtask bench-accuracy`: every method against the peers on simulated
+//! chamber runs of both protocols, trained on one run and verified on runs at
+//! other ramp rates and on a random profile.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+
+use crate::workspace_root;
+
+/// One protocol: a training run and verification runs (simulate arguments).
+struct Protocol {
+    name: &'static str,
+    rate_hz: f64,
+    train: &'static [&'static str],
+    verify: &'static [(&'static str, &'static [&'static str])],
+}
+
+const PROTOCOLS: [Protocol; 2] = [
+    Protocol {
+        name: "ifog",
+        rate_hz: 1.0,
+        train: &["--profile", "ifog", "--ramp", "1", "--seed", "101"],
+        verify: &[
+            (
+                "ifog 0.5 °C/min",
+                &["--profile", "ifog", "--ramp", "0.5", "--seed", "102"],
+            ),
+            ("ifog 3 °C/min", &["--profile", "ifog", "--ramp", "3", "--seed", "103"]),
+            (
+                "random 10…40 °C",
+                &["--profile", "random", "--random-range", "10,40", "--seed", "104"],
+            ),
+        ],
+    },
+    Protocol {
+        name: "cycle",
+        rate_hz: 0.2,
+        train: &["--profile", "cycle", "--ramp", "1", "--seed", "201"],
+        verify: &[
+            (
+                "cycle 2 °C/min",
+                &["--profile", "cycle", "--ramp", "2", "--seed", "202"],
+            ),
+            (
+                "cycle 5 °C/min",
+                &["--profile", "cycle", "--ramp", "5", "--seed", "203"],
+            ),
+            ("random −40…60 °C", &["--profile", "random", "--seed", "204"]),
+        ],
+    },
+];
+
+/// Our methods: (label, `trainer fit` options).
+const METHODS: [(&str, &[&str]); 4] = [
+    ("poly3 (PX4/ArduPilot form)", &["--method", "poly3"]),
+    ("rbf2 (IFOG paper, before)", &["--method", "rbf2"]),
+    ("rbf --features paper (IFOG)", &["--features", "paper"]),
+    ("default (multiscale rbf)", &[]),
+];
+
+fn trainer(args: &[&str]) -> anyhow::Result<String> {
+    let exe = workspace_root().join("target/release/trainer");
+    let out = Command::new(&exe)
+        .args(args)
+        .output()
+        .with_context(|| format!("cannot run {}", exe.display()))?;
+    if !out.status.success() {
+        bail!(
+            "trainer {} failed: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().expect("UTF-8 paths under target/")
+}
+
+fn venv_python(dir: &Path) -> anyhow::Result<PathBuf> {
+    let python = dir.join("venv/bin/python");
+    if !python.exists() {
+        eprintln!("==> making a venv with scikit-learn (once)");
+        let ok = Command::new("python3")
+            .args(["-m", "venv"])
+            .arg(dir.join("venv"))
+            .status()?
+            .success()
+            && Command::new(&python)
+                .args(["-m", "pip", "install", "--quiet", "scikit-learn", "numpy"])
+                .status()?
+                .success();
+        if !ok {
+            bail!("could not make the scikit-learn venv");
+        }
+    }
+    Ok(python)
+}
+
+/// A result line: improvement % and residual 100-s STD per verification run.
+struct Row {
+    method: String,
+    fit_s: f64,
+    runs: Vec<(f64, f64)>,
+}
+
+/// Runs the benchmark and prints one table per protocol.
+pub fn bench_accuracy() -> anyhow::Result<()> {
+    crate::run("cargo", &["build", "--release", "--quiet", "--package", "trainer"])?;
+    let dir = workspace_root().join("target/bench-accuracy");
+    std::fs::create_dir_all(&dir)?;
+    let python = venv_python(&dir)?;
+    let script = workspace_root().join("bench/accuracy/peers.py");
+    let mut means = Vec::new();
+    for p in &PROTOCOLS {
+        let rate = p.rate_hz.to_string();
+        let sim = |name: &str, args: &[&str]| -> anyhow::Result<PathBuf> {
+            let file = dir.join(format!("{}_{name}.csv", p.name));
+            let mut all = vec!["simulate", "--rate-hz", &rate, "-o", path(&file)];
+            all.extend(args);
+            trainer(&all)?;
+            Ok(file)
+        };
+        let train = sim("train", p.train)?;
+        let verify: Vec<PathBuf> = p
+            .verify
+            .iter()
+            .enumerate()
+            .map(|(i, (_, a))| sim(&format!("verify{i}"), a))
+            .collect::<anyhow::Result<_>>()?;
+        let mut rows: Vec<Row> = Vec::new();
+        let mut before: Vec<f64> = Vec::new();
+        for (label, opts) in METHODS {
+            let model = dir.join(format!("{}_model.bin", p.name));
+            let mut args = vec!["fit", "-q", path(&train), "-o", path(&model)];
+            args.extend(opts);
+            let started = Instant::now();
+            trainer(&args)?;
+            let fit_s = started.elapsed().as_secs_f64();
+            let json = dir.join(format!("{}_eval.json", p.name));
+            let mut eval = vec!["eval", "--model", path(&model), "--json", path(&json)];
+            eval.extend(verify.iter().map(|v| path(v)));
+            trainer(&eval)?;
+            let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
+            let runs: Vec<(f64, f64)> = v
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(|e| {
+                    (
+                        e["cluster_std_improvement_pct"].as_f64().unwrap_or(f64::NAN),
+                        e["cluster_std_after_dph"].as_f64().unwrap_or(f64::NAN),
+                    )
+                })
+                .collect();
+            before = v
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(|e| e["cluster_std_before_dph"].as_f64().unwrap_or(f64::NAN))
+                .collect();
+            rows.push(Row {
+                method: label.into(),
+                fit_s,
+                runs,
+            });
+        }
+        // Peers, on the default's features (60-s fastest window) as `trainer blocks` writes them.
+        let blocks = |file: &Path| -> anyhow::Result<PathBuf> {
+            let out = file.with_extension("blocks.csv");
+            trainer(&["blocks", path(file), "-o", path(&out)])?;
+            Ok(out)
+        };
+        let mut cmd = Command::new(&python);
+        cmd.arg(&script).args(["--train", path(&blocks(&train)?)]);
+        cmd.args([
+            "--cluster-blocks",
+            &((100.0 * p.rate_hz).round().max(1.0) as u32).to_string(),
+        ]);
+        for (i, v) in verify.iter().enumerate() {
+            cmd.args(["--verify", &format!("v{i}={}", path(&blocks(v)?))]);
+        }
+        let out = cmd.output().context("cannot run peers.py")?;
+        if !out.status.success() {
+            bail!("peers.py failed: {}", String::from_utf8_lossy(&out.stderr));
+        }
+        let peers: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+        for (name, r) in peers.as_object().into_iter().flatten() {
+            let runs = (0..verify.len())
+                .map(|i| {
+                    let run = &r["runs"][format!("v{i}")];
+                    (
+                        run["improvement_pct"].as_f64().unwrap_or(f64::NAN),
+                        run["after_dph"].as_f64().unwrap_or(f64::NAN),
+                    )
+                })
+                .collect();
+            rows.push(Row {
+                method: format!("{name} (same features)"),
+                fit_s: r["fit_s"].as_f64().unwrap_or(f64::NAN),
+                runs,
+            });
+        }
+        println!(
+            "\nprotocol {}: trained on one 1 °C/min run, verified on runs it never saw",
+            p.name
+        );
+        print!("{:<38}", "100-s cluster STD improvement [%]");
+        for (label, _) in p.verify {
+            print!(" {label:>18}");
+        }
+        println!(" {:>8} {:>9}", "mean", "fit [s]");
+        print!("{:<38}", "no compensation (STD [°/h])");
+        for b in &before {
+            print!(" {:>18}", format!("{b:.4}"));
+        }
+        println!();
+        for r in &rows {
+            print!("{:<38}", r.method);
+            for (imp, after) in &r.runs {
+                print!(" {:>18}", format!("{imp:.1} ({after:.4})"));
+            }
+            let mean = r.runs.iter().map(|x| x.0).sum::<f64>() / r.runs.len() as f64;
+            println!(" {mean:>8.1} {:>9.2}", r.fit_s);
+            if r.method.starts_with("default") {
+                means.push(mean);
+            }
+        }
+    }
+    let overall = means.iter().sum::<f64>() / means.len().max(1) as f64;
+    println!(
+        "\n(improvement % and, in brackets, residual 100-s STD in °/h; ours compensate every sample as the firmware does,"
+    );
+    println!(" the peers are scored on the 1-s block residuals of the same data)");
+    println!("default: mean improvement over both protocols' verification runs {overall:.1} %");
+    Ok(())
+}
