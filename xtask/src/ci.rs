@@ -99,65 +99,6 @@ pub fn ci() -> anyhow::Result<()> {
     for board in [&qemu_boards[..], &stm32_board[..]] {
         run("cargo", &[&["build", "--release"][..], board].concat())?;
     }
-    let (mut passed, mut failed) = (0, 0);
-    for line in stdout.lines().filter_map(|l| l.trim().strip_prefix("test result: ")) {
-        let count = |word: &str| {
-            line.split(';')
-                .find_map(|part| {
-                    part.trim()
-                        .trim_start_matches("ok. ")
-                        .trim_start_matches("FAILED. ")
-                        .strip_suffix(word)
-                })
-                .and_then(|n| n.trim().parse::<u64>().ok())
-                .unwrap_or(0)
-        };
-        passed += count("passed");
-        failed += count("failed");
-    }
-    if !output.status.success() {
-        bail!("`cargo {}` failed: {passed} passed, {failed} failed", args.join(" "));
-    }
-    Ok((passed, failed))
-}
-
-/// fmt, clippy (host and firmware), the no_std check, firmware builds, host
-/// tests, then the tests needing QEMU or PyPI; ends with `N passed, N failed`.
-pub fn ci() -> anyhow::Result<()> {
-    let started = Instant::now();
-    ensure_toolchain()?;
-    qemu::ensure_installed()?;
-    run("cargo", &["fmt", "--all", "--check"])?;
-    run(
-        "cargo",
-        &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
-    )?;
-    // Every board binary, the STM32F405 one included (its HAL is behind a feature).
-    let firmware = [
-        "--package",
-        "firmware",
-        "--target",
-        TARGET,
-        "--features",
-        "board-stm32f405",
-        "--bins",
-    ];
-    run(
-        "cargo",
-        &[&["clippy"][..], &firmware, &["--", "-D", "warnings"]].concat(),
-    )?;
-    run(
-        "cargo",
-        &[
-            "check",
-            "--package",
-            "rbf-core",
-            "--target",
-            TARGET,
-            "--no-default-features",
-        ],
-    )?;
-    run("cargo", &[&["build", "--release"][..], &firmware].concat())?;
     let (mut passed, mut failed) = run_tests(&["test", "--workspace"])?;
     // The tests that need QEMU, the cross build or PyPI (ignored in a plain `cargo test`).
     let (p, f) = run_tests(&["test", "--package", "e2e-tests", "--", "--ignored"])?;
