@@ -28,8 +28,12 @@
 //! distribution, whose inner layers lag the outer ones: the loop sensor's rate
 //! seen through derivative filters of three time constants (fast, slow,
 //! slower) spans that history. [`FeatureSet::MultiScale`] gives T, the three
-//! ΔT and their products with T. Warm-up there counts 3 × the fastest τ; the
-//! slower filters start from the steady state (ΔT = 0) like the fast one.
+//! ΔT, their products with T and T²×ΔT₂: the bias follows a nonlinear static
+//! term of the *mean* coil temperature, which lags the sensor by an amount
+//! proportional to the rate, so its first-order correction is the static
+//! term's derivative (quadratic in T for a cubic) times the rate. Warm-up there
+//! counts 3 × the fastest τ; the slower filters start from the steady state
+//! (ΔT = 0) like the fast one.
 
 use serde::{Deserialize, Serialize};
 
@@ -51,7 +55,7 @@ pub enum FeatureSet {
     TempRate,
     /// (T, ΔT, T×ΔT): the IFOG paper's modified model (`--method rbf --features paper`).
     TempRateProduct,
-    /// (T, ΔT₁, ΔT₂, ΔT₃, T×ΔT₁, T×ΔT₂, T×ΔT₃) over three filter windows (the default).
+    /// (T, ΔT₁, ΔT₂, ΔT₃, T×ΔT₁, T×ΔT₂, T×ΔT₃, T²×ΔT₂) over three filter windows (the default).
     MultiScale,
 }
 
@@ -62,7 +66,7 @@ impl FeatureSet {
             FeatureSet::Temp => 1,
             FeatureSet::TempRate => 2,
             FeatureSet::TempRateProduct => 3,
-            FeatureSet::MultiScale => 7,
+            FeatureSet::MultiScale => 8,
         }
     }
 
@@ -89,6 +93,7 @@ impl FeatureSet {
                 "T×ΔT₁ [°C²/min]",
                 "T×ΔT₂ [°C²/min]",
                 "T×ΔT₃ [°C²/min]",
+                "T²×ΔT₂ [°C³/min]",
             ],
         }
     }
@@ -260,6 +265,7 @@ impl FeatureExtractor {
                     values[1 + w] = rate_c_per_min[w];
                     values[1 + WINDOWS + w] = temp_c * rate_c_per_min[w];
                 }
+                values[1 + 2 * WINDOWS] = temp_c * temp_c * rate_c_per_min[1];
             }
         }
         FeatureVector {
@@ -361,6 +367,7 @@ mod tests {
             assert!((v[1 + w] - 1.5).abs() < 2e-3, "window {w}: {}", v[1 + w]);
             assert_eq!(v[4 + w], v[0] * v[1 + w]);
         }
+        assert_eq!(v[7], v[0] * v[0] * v[2]);
         assert!(!f.warming_up);
         let cfg_bad = FeatureConfig::multiscale([10.0, f32::NAN, 640.0]);
         assert!(!cfg_bad.is_valid());

@@ -74,3 +74,30 @@ fn corrupt_model_slot_runs_uncompensated_with_flag_4_never_halts() {
         assert!(Flags(flags).contains(Flags::NO_VALID_MODEL), "{row}");
     }
 }
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn benchmark_image_runs_and_reports_every_model_size() {
+    // A smoke test: the figures themselves are `cargo xtask bench-fw`'s job.
+    let elf = xtask::firmware::build("qemu-bench", &[]).unwrap();
+    let dir = TempDir::new().unwrap();
+    let icount = ["-icount".to_owned(), "shift=0".to_owned()];
+    let run = xtask::qemu::run(&elf, dir.path(), &icount, std::time::Duration::from_secs(120)).unwrap();
+    assert!(run.success, "{}", run.log);
+    for shape in ["K=32 D=8", "K=8 D=3:", "K=16 D=3:", "K=64 D=3:", "K=32 D=3:"] {
+        let line = run
+            .log
+            .lines()
+            .find(|l| l.starts_with("instructions_per_sample") && l.contains(shape));
+        let count: u64 = line
+            .and_then(|l| l.rsplit(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or(0);
+        assert!(count > 100, "no figure for {shape}:\n{}", run.log);
+    }
+    assert!(
+        run.log.lines().last().unwrap_or("").starts_with("stack_peak_bytes"),
+        "{}",
+        run.log
+    );
+}

@@ -173,8 +173,8 @@ struct FitArgs {
     /// the IFOG paper's model before its modification; poly3 = cubic in T (PX4/ArduPilot form).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
-    /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 8τ, 64τ) and
-    /// their products with T, Gaussians over T and the ΔT terms linear (default; generalises
+    /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 8τ, 64τ), their
+    /// products with T and T²×ΔT₂, Gaussians over T and the ΔT terms linear (default; generalises
     /// to other ramp rates); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network.
     #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
     features: RbfFeatures,
@@ -499,11 +499,12 @@ fn cmd_eval(a: EvalArgs) -> anyhow::Result<()> {
 fn describe(model: &Model) -> String {
     let f = model.features();
     let names = f.set.names().join(", ");
+    let windows = &f.windows_s()[..f.set.windows()];
     match model.body() {
         ModelBody::Rbf(net) => format!(
-            "Gaussian RBF, {} centres over ({names}), ΔT window {} s",
+            "Gaussian RBF, {} centres over ({}), linear in ({names}), ΔT windows {windows:?} s",
             net.centers_used(),
-            f.rate_window_s
+            f.set.names()[..net.kernel_inputs()].join(", ")
         ),
         ModelBody::Poly3(p) => format!("cubic in T about {} °C", p.ref_temp_c),
     }

@@ -266,7 +266,18 @@ fn steady_bias(model: &Model, t_c: f32, rate: f32) -> f32 {
         FeatureSet::Temp => vec![t_c],
         FeatureSet::TempRate => vec![t_c, rate],
         FeatureSet::TempRateProduct => vec![t_c, rate, t_c * rate],
-        FeatureSet::MultiScale => vec![t_c, rate, rate, rate, t_c * rate, t_c * rate, t_c * rate],
+        FeatureSet::MultiScale => {
+            vec![
+                t_c,
+                rate,
+                rate,
+                rate,
+                t_c * rate,
+                t_c * rate,
+                t_c * rate,
+                t_c * t_c * rate,
+            ]
+        }
     };
     model.eval(&FeatureVector::from_values(&values)).bias_dph
 }

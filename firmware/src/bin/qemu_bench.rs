@@ -25,9 +25,9 @@ mod board {
 
     /// A deterministic K-centre model (values like a real fit's): the IFOG
     /// paper's (T, ΔT, T×ΔT) with Gaussians over all three inputs, or with
-    /// `multiscale` the default's 7 inputs with Gaussians over T.
+    /// `multiscale` the default's 8 inputs with Gaussians over T.
     fn model(k: usize, multiscale: bool) -> Model {
-        let (dims, kernel) = if multiscale { (7, 1) } else { (D, D) };
+        let (dims, kernel) = if multiscale { (8, 1) } else { (D, D) };
         let mut state = 0x2545_f491u32;
         let mut next = || {
             state ^= state << 13;
@@ -39,9 +39,9 @@ mod board {
         centers[..k * kernel].iter_mut().for_each(|c| *c = next());
         let mut weights = [0.0f32; MAX_CENTERS];
         weights[..k].iter_mut().for_each(|w| *w = 0.05 * next());
-        let offset = [25.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-        let scale = [10.0, 0.5, 0.4, 0.3, 12.0, 10.0, 8.0];
-        let linear = [0.01, 0.2, 0.1, 0.05, 0.003, 0.002, 0.001];
+        let offset = [25.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let scale = [10.0, 0.5, 0.4, 0.3, 12.0, 10.0, 8.0, 200.0];
+        let linear = [0.01, 0.2, 0.1, 0.05, 0.003, 0.002, 0.001, 0.0001];
         let net = RbfNetwork::new(&RbfParams {
             offset: &offset[..dims],
             scale: &scale[..dims],
@@ -66,6 +66,7 @@ mod board {
             (-150.0, 150.0),
             (-150.0, 150.0),
             (-150.0, 150.0),
+            (-7500.0, 7500.0),
         ];
         Model::new(features, &ranges[..dims], ModelBody::Rbf(net), ModelInfo::default()).expect("valid synthetic model")
     }
@@ -104,7 +105,7 @@ mod board {
             let per_sample = ticks * 1000 / TICKS_PER_KILO_INSTRUCTION / SAMPLES as u64;
             if multiscale {
                 hprintln!(
-                    "instructions_per_sample K={} D=7 (default multiscale, Gaussians over T): {}",
+                    "instructions_per_sample K={} D=8 (default multiscale, Gaussians over T): {}",
                     k,
                     per_sample
                 );

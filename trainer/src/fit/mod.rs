@@ -23,8 +23,8 @@ pub const MIN_RATE_SPAN_C_PER_MIN: f64 = 0.2;
 /// Inputs of the `rbf` method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 pub enum RbfFeatures {
-    /// T, ΔT over three time scales and their products with T; Gaussians over T,
-    /// ΔT terms linear (the Shupe effect's form). The default: it generalises to
+    /// T, ΔT over three time scales, their products with T and T²×ΔT₂; Gaussians
+    /// over T, ΔT terms linear (the Shupe effect's form). The default: it generalises to
     /// ramp rates and profiles it was not trained on.
     Multiscale,
     /// (T, ΔT, T×ΔT) with Gaussians over all three: the IFOG paper's network.
