@@ -124,14 +124,11 @@ pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std
         "", "", "[°²/h²]", "[°²/h²]", "[%]", "[°/h]", "[°/h]", "[%]"
     )?;
     for (role, e) in rows {
-        let name = Path::new(&e.run)
-            .file_name()
-            .map_or(e.run.clone(), |n| n.to_string_lossy().into_owned());
         writeln!(
             out,
             "{:<10} {:<28} {:>11.4e} {:>11.4e} {:>7.1}  {:>11.4e} {:>11.4e} {:>7.1}",
             role,
-            truncate(&name, 28),
+            table_name(&e.run),
             e.msd_before_dph2,
             e.msd_after_dph2,
             e.msd_improvement_pct,
@@ -156,14 +153,11 @@ pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) 
         "", "", "[°/√h]", "[°/√h]", "[°/h]", "[°/h]", "[s]"
     )?;
     for (role, e) in rows {
-        let name = Path::new(&e.run)
-            .file_name()
-            .map_or(e.run.clone(), |n| n.to_string_lossy().into_owned());
         writeln!(
             out,
             "{:<10} {:<28} {:>11.3e} {:>11.3e}  {:>11.3e} {:>11.3e} {:>9.0}",
             role,
-            truncate(&name, 28),
+            table_name(&e.run),
             e.allan_before.arw_deg_per_sqrt_h,
             e.allan_after.arw_deg_per_sqrt_h,
             e.allan_before.bias_instability_dph,
@@ -172,6 +166,14 @@ pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) 
         )?;
     }
     Ok(())
+}
+
+/// A run's file name, shortened from the left to fit the table's column.
+fn table_name(run: &str) -> String {
+    let name = Path::new(run)
+        .file_name()
+        .map_or(run.to_owned(), |n| n.to_string_lossy().into_owned());
+    truncate(&name, 28)
 }
 
 fn truncate(s: &str, max: usize) -> String {
