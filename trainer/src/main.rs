@@ -188,7 +188,7 @@ struct FitArgs {
     /// ΔT derivative-filter time constant(s) to choose from, in seconds (for multiscale the
     /// fastest of three, the others 8 and 64 times it); 0 = one-sample difference (IFOG
     /// Eq. 22). Default: choose among 15, 60 and 240 s.
-    #[arg(long, value_name = "SECONDS", num_args = 1.., value_delimiter = ',')]
+    #[arg(long, value_name = "SECONDS", value_delimiter = ',')]
     rate_window_s: Vec<f32>,
     /// Averaging block for training, seconds.
     #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]

@@ -50,14 +50,15 @@ fn fitted_model(dir: &TempDir) -> PathBuf {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let model = dir.path().join("model.bin");
+    // The option before the run file: it must not swallow it.
     let o = trainer(&[
         "fit",
         "-q",
+        "--rate-window-s",
+        "60",
         run.to_str().unwrap(),
         "-o",
         model.to_str().unwrap(),
-        "--rate-window-s",
-        "60",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     model
