@@ -143,13 +143,11 @@ impl From<core::fmt::Error> for ReplayError {
 }
 
 /// First pass over a run: the nominal period by the shared rule
-/// ([`record::nominal_period_s`]), fed line by line.
+/// ([`record::PeriodEstimator`]), fed line by line.
 #[derive(Debug, Default)]
 pub struct PeriodProbe {
-    metadata_rate_hz: Option<f64>,
+    estimator: record::PeriodEstimator,
     columns: Option<Columns>,
-    prev_time_s: Option<f64>,
-    steps: heapless::Vec<f64, { record::PERIOD_ESTIMATE_STEPS }>,
     line: u32,
 }
 
@@ -159,27 +157,26 @@ impl PeriodProbe {
         self.line += 1;
         let text = clean(line, self.line);
         let Some(columns) = &self.columns else {
-            if !record::is_comment_or_blank(text) {
+            if record::is_comment_or_blank(text) {
+                self.estimator.note_preamble_line(text);
+            } else {
                 self.columns = Some(Columns::from_header(text).map_err(ReplayError::Header)?);
-            } else if self.metadata_rate_hz.is_none() {
-                self.metadata_rate_hz = record::metadata_sample_rate_hz(text);
             }
             return Ok(false);
         };
+        if self.estimator.is_complete() {
+            return Ok(true);
+        }
         if record::is_comment_or_blank(text) {
             return Ok(false);
         }
         let row = columns.parse_row(text).map_err(|e| ReplayError::Row(self.line, e))?;
-        if let Some(prev) = self.prev_time_s {
-            let _ = self.steps.push(row.time_s - prev);
-        }
-        self.prev_time_s = Some(row.time_s);
-        Ok(self.steps.is_full())
+        Ok(self.estimator.push_time(row.time_s))
     }
 
     /// The nominal period, s.
     pub fn period_s(&mut self) -> f64 {
-        record::nominal_period_s(self.metadata_rate_hz, &mut self.steps)
+        self.estimator.period_s()
     }
 }
 

@@ -77,3 +77,26 @@ fn replay_without_a_model_passes_every_sample_through_with_flag_4() {
     }
     assert_eq!(rows, common::ROWS);
 }
+
+#[test]
+fn replay_and_trainer_agree_on_the_period_when_metadata_repeats_or_is_bad() {
+    // The first `sample_rate_hz` does not parse, the second is a wrong 2 Hz: both
+    // sides must take the same one (the first positive), or gaps would differ.
+    let dir = tempfile::TempDir::new().unwrap();
+    let (model, slice) = common::model_and_faulty_slice(dir.path());
+    let text = std::fs::read_to_string(&slice).unwrap();
+    let odd = dir.path().join("odd_metadata.csv");
+    std::fs::write(&odd, format!("# sample_rate_hz: fast\n# sample_rate_hz: 2\n{text}")).unwrap();
+    let expected_path = dir.path().join("expected.csv");
+    compensate_file(Some(&model), &odd, &expected_path).unwrap();
+    let input = std::fs::read_to_string(&odd).unwrap();
+    let period_s = replay::probe_period(input.lines()).unwrap();
+    assert_eq!(period_s.to_bits(), 0.5f64.to_bits());
+    let current = Cell::new(ReplaySample::default());
+    let mut out = String::new();
+    let mut replayer = Replayer::new(Some(&model), period_s, &current, Vec::new()).unwrap();
+    for line in input.lines() {
+        replayer.feed_line(line, &mut out).unwrap();
+    }
+    assert_eq!(out, std::fs::read_to_string(&expected_path).unwrap());
+}

@@ -127,6 +127,50 @@ pub fn nominal_period_s(metadata_rate_hz: Option<f64>, steps: &mut [f64]) -> f64
     steps[steps.len() / 2]
 }
 
+/// Collects what the nominal-period rule needs while a run is read: the first
+/// positive `# sample_rate_hz` before the header and the first
+/// [`PERIOD_ESTIMATE_STEPS`] time steps. The trainer and the firmware replay
+/// both use it, so they agree on segment gaps for any file.
+#[derive(Clone, Debug, Default)]
+pub struct PeriodEstimator {
+    metadata_rate_hz: Option<f64>,
+    prev_time_s: Option<f64>,
+    steps: heapless::Vec<f64, PERIOD_ESTIMATE_STEPS>,
+}
+
+impl PeriodEstimator {
+    /// Nothing seen yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A line before the header; the first positive `sample_rate_hz` counts.
+    pub fn note_preamble_line(&mut self, line: &str) {
+        if self.metadata_rate_hz.is_none() {
+            self.metadata_rate_hz = metadata_sample_rate_hz(line).filter(|r| r.is_finite() && *r > 0.0);
+        }
+    }
+
+    /// A data row's time; `true` once no further rows are needed.
+    pub fn push_time(&mut self, time_s: f64) -> bool {
+        if let Some(prev) = self.prev_time_s {
+            let _ = self.steps.push(time_s - prev);
+        }
+        self.prev_time_s = Some(time_s);
+        self.is_complete()
+    }
+
+    /// True when the rows read so far settle the period.
+    pub fn is_complete(&self) -> bool {
+        self.metadata_rate_hz.is_some() || self.steps.is_full()
+    }
+
+    /// The nominal period by [`nominal_period_s`], s.
+    pub fn period_s(&mut self) -> f64 {
+        nominal_period_s(self.metadata_rate_hz, &mut self.steps)
+    }
+}
+
 /// The `sample_rate_hz` metadata value of a `# key: value` line, if it is one.
 pub fn metadata_sample_rate_hz(line: &str) -> Option<f64> {
     metadata(line)
@@ -331,6 +375,23 @@ mod tests {
                 kind: RowErrorKind::NotANumber
             }
         );
+    }
+
+    #[test]
+    fn period_estimator_takes_the_first_positive_rate_or_the_median_step() {
+        let mut e = PeriodEstimator::new();
+        e.note_preamble_line("# sample_rate_hz: abc");
+        e.note_preamble_line("# sample_rate_hz: -5");
+        e.note_preamble_line("# sample_rate_hz: 4");
+        e.note_preamble_line("# sample_rate_hz: 8");
+        assert!(e.is_complete());
+        assert_eq!(e.period_s(), 0.25);
+        let mut e = PeriodEstimator::new();
+        for t in [0.0, 1.0, 2.0, 5.0, 6.0] {
+            assert!(!e.push_time(t));
+        }
+        assert_eq!(e.period_s(), 1.0, "median of steps 1, 1, 3, 1");
+        assert_eq!(PeriodEstimator::new().period_s(), 1.0, "nothing known: 1 s");
     }
 
     #[test]

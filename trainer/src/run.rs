@@ -9,7 +9,7 @@ use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
-use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, Row, RowErrorKind};
+use rbf_core::record::{self, Columns, HeaderError, PeriodEstimator, Row, RowErrorKind};
 use rbf_core::{CompensatorConfig, GyroSample};
 
 /// A defect in a run file, with its position.
@@ -156,9 +156,11 @@ impl RunReader {
         &self.preamble
     }
 
-    /// Value of a metadata key, if present.
-    pub fn metadata_value(&self, key: &str) -> Option<&str> {
-        self.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    /// A period estimator primed with this run's metadata (see [`PeriodEstimator`]).
+    pub fn period_estimator(&self) -> PeriodEstimator {
+        let mut estimator = PeriodEstimator::new();
+        self.preamble.iter().for_each(|line| estimator.note_preamble_line(line));
+        estimator
     }
 
     /// Fails unless the run has a `temp_c` column (single-point models need it).
@@ -282,7 +284,7 @@ pub struct Run {
     pub temp_c: Vec<Option<f64>>,
     /// Known true rate, °/h, if the run has the column.
     pub ref_dph: Option<Vec<f64>>,
-    /// Nominal sample period, s (see [`nominal_period_s`]).
+    /// Nominal sample period, s (see [`record::nominal_period_s`]).
     pub nominal_period_s: f64,
 }
 
@@ -292,9 +294,12 @@ impl Run {
         let mut reader = RunReader::open(path)?;
         reader.require_temp()?;
         let has_ref = reader.columns().ref_dph.is_some();
-        let metadata_rate = metadata_sample_rate(&reader);
+        let mut period = reader.period_estimator();
         let (mut time_s, mut rate_dph, mut temp_c, mut ref_dph) = (vec![], vec![], vec![], vec![]);
         while let Some(raw) = reader.next_row()? {
+            if !period.is_complete() {
+                period.push_time(raw.row.time_s);
+            }
             time_s.push(raw.row.time_s);
             rate_dph.push(raw.row.rate_dph);
             temp_c.push(raw.temp_c());
@@ -309,12 +314,7 @@ impl Run {
                 message: format!("run has {} data rows; at least 2 are needed", time_s.len()),
             });
         }
-        let mut steps: Vec<f64> = time_s
-            .windows(2)
-            .take(PERIOD_ESTIMATE_STEPS)
-            .map(|w| w[1] - w[0])
-            .collect();
-        let nominal_period_s = record::nominal_period_s(metadata_rate, &mut steps);
+        let nominal_period_s = period.period_s();
         Ok(Run {
             path: path.to_owned(),
             time_s,
@@ -398,40 +398,13 @@ impl RawRow {
     }
 }
 
-/// `# sample_rate_hz` from the metadata, when present and positive.
-pub fn metadata_sample_rate(reader: &RunReader) -> Option<f64> {
-    reader
-        .metadata_value("sample_rate_hz")
-        .and_then(|v| v.parse::<f64>().ok())
-        .filter(|r| r.is_finite() && *r > 0.0)
-}
-
-/// The nominal sample period: from `# sample_rate_hz` when given, else the
-/// median of the first 1000 time steps.
-pub fn nominal_period_s(metadata_rate_hz: Option<f64>, steps: impl Iterator<Item = f64>) -> f64 {
-    if let Some(rate) = metadata_rate_hz {
-        return 1.0 / rate;
-    }
-    let mut steps: Vec<f64> = steps.take(PERIOD_ESTIMATE_STEPS).collect();
-    if steps.is_empty() {
-        return 1.0;
-    }
-    steps.sort_by(f64::total_cmp);
-    steps[steps.len() / 2]
-}
-
 /// Nominal period of a run file read in a first pass (for streaming commands).
 pub fn probe_nominal_period_s(path: &Path) -> Result<f64, RunError> {
     let mut reader = RunReader::open(path)?;
-    let metadata_rate = metadata_sample_rate(&reader);
-    let mut steps = Vec::new();
-    let mut prev = None;
-    while steps.len() < PERIOD_ESTIMATE_STEPS {
+    let mut period = reader.period_estimator();
+    while !period.is_complete() {
         let Some(raw) = reader.next_row()? else { break };
-        if let Some(p) = prev {
-            steps.push(raw.row.time_s - p);
-        }
-        prev = Some(raw.row.time_s);
+        period.push_time(raw.row.time_s);
     }
-    Ok(record::nominal_period_s(metadata_rate, &mut steps))
+    Ok(period.period_s())
 }
