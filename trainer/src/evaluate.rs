@@ -77,7 +77,11 @@ pub fn compensate_run(model: Option<&Model>, run: &Run) -> Vec<CompensatedSample
 
 /// Before/after accuracy of `model` on `run`.
 pub fn evaluate_run(model: &Model, run: &Run) -> RunEvaluation {
-    let out = compensate_run(Some(model), run);
+    evaluate_output(run, &compensate_run(Some(model), run))
+}
+
+/// Before/after accuracy of `run` given its compensated output `out` (one per sample).
+pub fn evaluate_output(run: &Run, out: &[CompensatedSample]) -> RunEvaluation {
     let reference = run.reference_dph();
     let about_mean = run.ref_dph.is_none();
     let before: Vec<f64> = (0..run.len()).map(|i| run.rate_dph[i] - reference.at(i)).collect();

@@ -13,7 +13,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use rbf_core::{FeatureSet, FeatureVector, Model};
 
-use crate::evaluate::{RunEvaluation, compensate_run, evaluate_run};
+use crate::evaluate::{RunEvaluation, compensate_run, evaluate_output};
 use crate::output::write_bytes;
 use crate::run::Run;
 
@@ -342,8 +342,8 @@ pub fn write_report(model: &Model, model_path: &Path, runs: &[Run], dir: &Path) 
             .path
             .file_stem()
             .map_or("run".into(), |s| s.to_string_lossy().into_owned());
-        let e = evaluate_run(model, run);
         let out = compensate_run(Some(model), run);
+        let e = evaluate_output(run, &out);
         let config = run.compensator_config();
         let mut compensator = rbf_core::Compensator::new();
         let stride = (run.len() / 3000).max(1);
