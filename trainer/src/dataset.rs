@@ -50,18 +50,6 @@ impl Blocks {
         })
     }
 
-    /// The blocks whose indices `keep` lists, as a new set.
-    pub fn subset(&self, keep: &[usize]) -> Blocks {
-        Blocks {
-            dims: self.dims,
-            x: keep.iter().map(|&i| self.x[i]).collect(),
-            y: keep.iter().map(|&i| self.y[i]).collect(),
-            run: keep.iter().map(|&i| self.run[i]).collect(),
-            sample_range: self.sample_range.clone(),
-            usable_s: self.usable_s,
-        }
-    }
-
     fn append(&mut self, other: Blocks) {
         if self.x.is_empty() && self.sample_range.is_empty() {
             self.sample_range = other.sample_range.clone();

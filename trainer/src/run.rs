@@ -43,7 +43,6 @@ pub struct RunReader {
     header_line: String,
     column_names: Vec<String>,
     columns: Columns,
-    metadata: Vec<(String, String)>,
     preamble: Vec<String>,
     last_time_s: Option<f64>,
 }
@@ -77,7 +76,6 @@ impl RunReader {
         })?;
         let mut lines = BufReader::new(file).lines();
         let mut line_no = 0;
-        let mut metadata = Vec::new();
         let mut preamble = Vec::new();
         let format_error = |line: usize, message: String| RunError::Format {
             path: path.to_owned(),
@@ -95,9 +93,6 @@ impl RunReader {
             } else {
                 line
             };
-            if let Some((k, v)) = record::metadata(&line) {
-                metadata.push((k.to_owned(), v.to_owned()));
-            }
             if !record::is_comment_or_blank(&line) {
                 break line.trim_end_matches('\r').to_owned();
             }
@@ -125,7 +120,6 @@ impl RunReader {
             header_line,
             column_names,
             columns,
-            metadata,
             preamble,
             last_time_s: None,
         })
@@ -146,11 +140,6 @@ impl RunReader {
         &self.columns
     }
 
-    /// `# key: value` metadata lines seen before the header.
-    pub fn metadata(&self) -> &[(String, String)] {
-        &self.metadata
-    }
-
     /// The lines before the header (metadata, blank lines) as read, without line ends.
     pub fn preamble(&self) -> &[String] {
         &self.preamble
@@ -167,7 +156,7 @@ impl RunReader {
     pub fn require_temp(&self) -> Result<(), RunError> {
         if self.columns.temp_c.is_none() {
             return Err(self.error_at(
-                self.header_line_no(),
+                self.line_no, // still the header line: called before any row is read
                 format!(
                     "header has no column temp_c, which single-point models need (header: {})",
                     short(&self.header_line)
@@ -175,11 +164,6 @@ impl RunReader {
             ));
         }
         Ok(())
-    }
-
-    fn header_line_no(&self) -> usize {
-        // The header is the last line read before data; metadata lines precede it.
-        self.line_no
     }
 
     fn error_at(&self, line: usize, message: String) -> RunError {
