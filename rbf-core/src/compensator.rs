@@ -189,7 +189,14 @@ impl Compensator {
                 if evaluation.clamped {
                     flags |= Flags::INPUT_CLAMPED;
                 }
-                evaluation.bias_dph
+                if evaluation.bias_dph.is_finite() {
+                    evaluation.bias_dph
+                } else {
+                    // Unreachable for a validated model (its output bound is
+                    // checked); kept so the output stays finite regardless.
+                    flags |= Flags::NO_VALID_MODEL;
+                    0.0
+                }
             }
             _ => {
                 flags |= Flags::NO_VALID_MODEL;

@@ -10,6 +10,12 @@ use crate::{MAX_CENTERS, MAX_INPUTS};
 /// either end of its training range (the Gaussians stop at the range).
 pub const LINEAR_EXTRAPOLATION_SPANS: f32 = 2.0;
 
+/// Largest |bias| a model may be able to produce anywhere in its input box,
+/// °/h (about 280 °/s: no gyro's thermal bias comes near). A model whose
+/// worst case exceeds it is refused, which also proves that evaluation can
+/// never overflow to ±∞ or NaN.
+pub const MAX_ABS_BIAS_DPH: f64 = 1.0e6;
+
 /// Longest unit serial number a blob may carry, bytes of UTF-8.
 pub const SERIAL_CAPACITY: usize = 32;
 
@@ -25,6 +31,9 @@ pub enum ModelError {
     NonFiniteParameter,
     /// A parameter is finite but meaningless (width ≤ 0, range min > max, ...).
     InvalidParameter,
+    /// Somewhere in its input box the model's output could exceed
+    /// ±[`MAX_ABS_BIAS_DPH`] (or overflow).
+    OutputUnbounded,
 }
 
 impl core::fmt::Display for ModelError {
@@ -34,6 +43,7 @@ impl core::fmt::Display for ModelError {
             ModelError::ShapeMismatch => "parameter arrays disagree with the model shape",
             ModelError::NonFiniteParameter => "a model parameter is NaN or infinite",
             ModelError::InvalidParameter => "a model parameter is out of its valid range",
+            ModelError::OutputUnbounded => "the model's output can exceed ±1e6 °/h within its input ranges",
         })
     }
 }
@@ -163,6 +173,18 @@ impl Model {
             if !(linear_min[i].is_finite() && linear_max[i].is_finite()) {
                 return Err(ModelError::InvalidParameter);
             }
+        }
+        let bound_dph = match &body {
+            ModelBody::Rbf(net) => net.output_bound(
+                &linear_min[..dims],
+                &linear_max[..dims],
+                &input_min[..dims],
+                &input_max[..dims],
+            ),
+            ModelBody::Poly3(p) => p.output_bound(input_min[0], input_max[0]),
+        };
+        if bound_dph.is_nan() || bound_dph > MAX_ABS_BIAS_DPH {
+            return Err(ModelError::OutputUnbounded);
         }
         Ok(Model {
             features,

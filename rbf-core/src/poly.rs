@@ -24,6 +24,16 @@ impl Poly3 {
         Ok(Poly3 { ref_temp_c, coeffs })
     }
 
+    /// Upper bound of |bias| for temperatures in [`lo_c`, `hi_c`], °/h
+    /// (interval arithmetic in f64; +∞ if the terms overflow).
+    pub fn output_bound(&self, lo_c: f32, hi_c: f32) -> f64 {
+        let u = (f64::from(lo_c) - f64::from(self.ref_temp_c))
+            .abs()
+            .max((f64::from(hi_c) - f64::from(self.ref_temp_c)).abs());
+        let [c0, c1, c2, c3] = self.coeffs.map(|c| f64::from(c).abs());
+        c0 + u * (c1 + u * (c2 + u * c3))
+    }
+
     /// Bias at loop temperature `temp_c` (already clamped), °/h. Horner form.
     pub fn eval(&self, temp_c: f32) -> f32 {
         let u = temp_c - self.ref_temp_c;

@@ -121,6 +121,42 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         Ok(net)
     }
 
+    /// Upper bound of |output| when the linear terms see inputs in
+    /// [`linear_lo`, `linear_hi`] and the Gaussians inputs in [`kernel_lo`,
+    /// `kernel_hi`] (per input, input units), °/h; +∞ when a normalised input
+    /// could leave the finite f32 range (where 0 × ∞ would give NaN).
+    ///
+    /// Interval arithmetic in f64: |c| + Σ|a_i|·max|z_i| + Σ|W_j| (each Gaussian ≤ 1).
+    pub fn output_bound(&self, linear_lo: &[f32], linear_hi: &[f32], kernel_lo: &[f32], kernel_hi: &[f32]) -> f64 {
+        let d = self.inputs_used.min(D);
+        let max_abs_z = |lo: &[f32], hi: &[f32], i: usize| {
+            let z = |x: Option<&f32>| {
+                ((f64::from(x.copied().unwrap_or(f32::NAN)) - f64::from(self.offset[i])) * f64::from(self.inv_scale[i]))
+                    .abs()
+            };
+            let m = z(lo.get(i)).max(z(hi.get(i)));
+            // Far inside f32: a normalised value, its square and its product stay finite.
+            if m <= 1e15 { m } else { f64::INFINITY }
+        };
+        let mut bound = f64::from(self.constant).abs();
+        for i in 0..d {
+            let z_linear = max_abs_z(linear_lo, linear_hi, i);
+            let z_kernel = max_abs_z(kernel_lo, kernel_hi, i);
+            if z_kernel.is_infinite() {
+                return f64::INFINITY;
+            }
+            bound += f64::from(self.linear[i]).abs() * z_linear;
+            if z_linear.is_infinite() {
+                return f64::INFINITY;
+            }
+        }
+        bound
+            + self.weights[..self.centers_used.min(K)]
+                .iter()
+                .map(|w| f64::from(*w).abs())
+                .sum::<f64>()
+    }
+
     /// Number of centres in use.
     pub fn centers_used(&self) -> usize {
         self.centers_used

@@ -1,6 +1,7 @@
 //! Shared helpers of the cross-crate end-to-end tests.
 
 pub mod fixtures;
+pub mod robustness;
 
 use std::path::{Path, PathBuf};
 

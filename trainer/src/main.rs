@@ -12,7 +12,7 @@ use rbf_core::model::ModelBody;
 use trainer::blobfile::{read_model, write_model};
 use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_run, print_allan_table, print_table};
 use trainer::fit::{self, FitOptions, Method, RbfFeatures};
-use trainer::output::{write_atomically, write_bytes};
+use trainer::output::{Existing, check_target, write_atomically, write_bytes};
 use trainer::run::Run;
 use trainer::simulate::{ChamberRun, Profile};
 
@@ -202,6 +202,9 @@ struct FitArgs {
     /// Also write the fit report (choice and per-run accuracy) as JSON.
     #[arg(long, value_name = "REPORT.json")]
     json: Option<PathBuf>,
+    /// Overwrite MODEL.bin if it exists (by default an existing model is never replaced).
+    #[arg(long)]
+    force: bool,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -330,10 +333,12 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         );
         opts.rate_windows_s = a.rate_window_s;
     }
+    let existing = if a.force { Existing::Replace } else { Existing::Refuse };
+    check_target(&a.output, existing)?;
     let started = std::time::Instant::now();
     let outcome = fit::fit(&train, &validate, &opts)?;
     let fit_s = started.elapsed().as_secs_f64();
-    let blob = write_model(&a.output, &outcome.model)?;
+    let blob = write_model(&a.output, &outcome.model, existing)?;
 
     let mut out = std::io::stdout().lock();
     writeln!(out, "method {:?}: {}", a.method, describe(&outcome.model))?;

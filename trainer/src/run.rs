@@ -38,7 +38,7 @@ pub enum RunError {
 /// Streams the rows of one run file, checking them as it goes.
 pub struct RunReader {
     path: PathBuf,
-    lines: std::io::Lines<BufReader<File>>,
+    lines: std::io::Lines<Box<dyn BufRead>>,
     line_no: usize,
     header_line: String,
     column_names: Vec<String>,
@@ -74,7 +74,13 @@ impl RunReader {
             path: path.to_owned(),
             error: source,
         })?;
-        let mut lines = BufReader::new(file).lines();
+        Self::from_reader(path, BufReader::new(file))
+    }
+
+    /// Reads a run from any buffered source; `path` names it in messages.
+    pub fn from_reader(path: &Path, source: impl BufRead + 'static) -> Result<RunReader, RunError> {
+        let source: Box<dyn BufRead> = Box::new(source);
+        let mut lines = source.lines();
         let mut line_no = 0;
         let mut preamble = Vec::new();
         let format_error = |line: usize, message: String| RunError::Format {
@@ -275,7 +281,12 @@ pub struct Run {
 impl Run {
     /// Reads a whole run that has a `temp_c` column.
     pub fn load(path: &Path) -> Result<Run, RunError> {
-        let mut reader = RunReader::open(path)?;
+        Self::read(RunReader::open(path)?)
+    }
+
+    /// Reads the rest of a run from an open reader (the run needs a `temp_c` column).
+    pub fn read(mut reader: RunReader) -> Result<Run, RunError> {
+        let path = reader.path().to_owned();
         reader.require_temp()?;
         let has_ref = reader.columns().ref_dph.is_some();
         let mut period = reader.period_estimator();
@@ -300,7 +311,7 @@ impl Run {
         }
         let nominal_period_s = period.period_s();
         Ok(Run {
-            path: path.to_owned(),
+            path,
             time_s,
             rate_dph,
             temp_c,

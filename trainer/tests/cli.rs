@@ -491,3 +491,39 @@ fn report_writes_svg_and_png_plots_json_and_markdown() {
         "{md}"
     );
 }
+
+#[test]
+fn fit_never_overwrites_a_model_without_force() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let original = std::fs::read(&model).unwrap();
+    let run = shared_data("ifog_verify_3cpm.csv");
+    let fit = |extra: &[&str]| {
+        let mut args = vec!["fit", "-q", "--centers", "4", "--rate-window-s", "60"];
+        args.extend(extra);
+        args.extend([run.to_str().unwrap(), "-o", model.to_str().unwrap()]);
+        trainer(&args)
+    };
+    let o = fit(&[]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("exists; pass --force to overwrite it"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(
+        std::fs::read(&model).unwrap(),
+        original,
+        "the refused fit left the model alone"
+    );
+
+    let o = fit(&["--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(std::fs::read(&model).unwrap(), original, "--force replaced the model");
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(leftovers.is_empty(), "no temporary files left behind: {leftovers:?}");
+}

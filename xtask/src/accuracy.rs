@@ -136,7 +136,7 @@ pub fn bench_accuracy() -> anyhow::Result<()> {
         let mut before: Vec<f64> = Vec::new();
         for (label, opts) in METHODS {
             let model = dir.join(format!("{}_model.bin", p.name));
-            let mut args = vec!["fit", "-q", path(&train), "-o", path(&model)];
+            let mut args = vec!["fit", "-q", "--force", path(&train), "-o", path(&model)];
             args.extend(opts);
             let started = Instant::now();
             trainer(&args)?;

@@ -8,6 +8,9 @@ use anyhow::{Context, bail};
 use crate::firmware::TARGET;
 use crate::{output, qemu, run, workspace_root};
 
+/// Seconds CI fuzzes each target.
+const CI_FUZZ_SECONDS: u32 = 60;
+
 /// Installs the cross target and the rustup components CI needs, if missing.
 fn ensure_toolchain() -> anyhow::Result<()> {
     if !output("rustup", &["target", "list", "--installed"])
@@ -59,12 +62,14 @@ fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
 }
 
 /// fmt, clippy (host and firmware), the no_std check, firmware builds, host
-/// tests, then the tests needing QEMU or PyPI; ends with `N passed, N failed`.
+/// tests, the tests needing QEMU or PyPI, then a minute of fuzzing per
+/// target; ends with `N passed, N failed`.
 pub fn ci() -> anyhow::Result<()> {
     let started = Instant::now();
     ensure_toolchain()?;
     qemu::ensure_installed()?;
     run("cargo", &["fmt", "--all", "--check"])?;
+    run("cargo", &["fmt", "--manifest-path", "fuzz/Cargo.toml", "--check"])?;
     run(
         "cargo",
         &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
@@ -103,6 +108,8 @@ pub fn ci() -> anyhow::Result<()> {
     // The tests that need QEMU, the cross build or PyPI (ignored in a plain `cargo test`).
     let (p, f) = run_tests(&["test", "--package", "e2e-tests", "--", "--ignored"])?;
     (passed, failed) = (passed + p, failed + f);
+    // Each fuzz target for a minute; a finding fails CI (and becomes a regression file).
+    crate::fuzz::fuzz(CI_FUZZ_SECONDS)?;
     eprintln!("\nci: all steps passed in {:.0} s", started.elapsed().as_secs_f64());
     println!("{passed} passed, {failed} failed");
     Ok(())

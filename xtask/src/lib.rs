@@ -6,6 +6,7 @@
 //! - [`replay`]: `cargo xtask qemu-replay`;
 //! - [`bench`]: `cargo xtask bench-fw`;
 //! - [`accuracy`]: `cargo xtask bench-accuracy`;
+//! - [`fuzz`]: `cargo xtask fuzz`;
 //! - [`ci`]: `cargo xtask ci`, the whole test suite.
 #![forbid(unsafe_code)]
 
@@ -13,6 +14,7 @@ pub mod accuracy;
 pub mod bench;
 pub mod ci;
 pub mod firmware;
+pub mod fuzz;
 pub mod qemu;
 pub mod replay;
 

@@ -48,6 +48,16 @@ enum Cmd {
     /// default, and scikit-learn SVR and KernelRidge on the same features (in a
     /// venv it makes under target/). Prints improvement %, residual 100-s STD, fit time.
     BenchAccuracy,
+    /// Fuzz everything that reads outside input (model blobs, recorded runs,
+    /// output frames) with libFuzzer via cargo fuzz (installed when missing),
+    /// each target for --seconds, from a seed corpus written by the current
+    /// encoders. Prints executions, corpus size and findings per target; fails
+    /// if any input breaks a target (reproducers in target/fuzz/artifacts/).
+    Fuzz {
+        /// Seconds per target.
+        #[arg(long, default_value_t = 60)]
+        seconds: u32,
+    },
 }
 
 fn main() -> anyhow::Result<()> {
@@ -71,5 +81,6 @@ fn main() -> anyhow::Result<()> {
         }
         Cmd::BenchFw => xtask::bench::bench_fw(),
         Cmd::BenchAccuracy => xtask::accuracy::bench_accuracy(),
+        Cmd::Fuzz { seconds } => xtask::fuzz::fuzz(seconds).map(|_| ()),
     }
 }
