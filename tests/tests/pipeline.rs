@@ -7,6 +7,7 @@ use tempfile::TempDir;
 use trainer::blobfile::{read_model, write_model};
 use trainer::evaluate::{compensate_file, compensate_run, evaluate_run};
 use trainer::fit::{self, FitOptions, Method};
+use trainer::output::Existing;
 use trainer::run::Run;
 use trainer::simulate::ChamberRun;
 
@@ -42,7 +43,7 @@ fn default_fit_cuts_cluster_std_by_85_percent_on_unseen_ramp_rates() {
     let (train, verify) = chamber_set(&dir);
     let outcome = fit::fit(std::slice::from_ref(&train), &[], &FitOptions::default()).unwrap();
     let model_path = dir.path().join("model.bin");
-    write_model(&model_path, &outcome.model).unwrap();
+    write_model(&model_path, &outcome.model, Existing::Replace).unwrap();
     let (model, _) = read_model(&model_path).unwrap();
     for run in &verify {
         let e = evaluate_run(&model, run);

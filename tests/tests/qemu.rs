@@ -8,6 +8,7 @@ use rbf_core::{Flags, frame};
 use tempfile::TempDir;
 use trainer::blobfile::write_model;
 use trainer::evaluate::compensate_file;
+use trainer::output::Existing;
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
@@ -15,7 +16,7 @@ fn qemu_replay_with_sensor_faults_is_byte_identical_to_trainer_compensate() {
     let dir = TempDir::new().unwrap();
     let (model, slice) = fixtures::model_and_faulty_slice(dir.path());
     let model_path = dir.path().join("model.bin");
-    write_model(&model_path, &model).unwrap();
+    write_model(&model_path, &model, Existing::Replace).unwrap();
     let expected_path = dir.path().join("expected.csv");
     compensate_file(Some(&model), &slice, &expected_path).unwrap();
 
@@ -51,7 +52,7 @@ fn corrupt_model_slot_runs_uncompensated_with_flag_4_never_halts() {
     // does), so place the corrupt bytes in flash directly and run the image.
     let dir = TempDir::new().unwrap();
     let (model, slice) = fixtures::model_and_faulty_slice(dir.path());
-    let mut blob = trainer::blobfile::write_model(&dir.path().join("m.bin"), &model).unwrap();
+    let mut blob = trainer::blobfile::write_model(&dir.path().join("m.bin"), &model, Existing::Replace).unwrap();
     blob[20] ^= 0x40;
     std::fs::write(dir.path().join("model.bin"), &blob).unwrap();
     std::fs::copy(&slice, dir.path().join("input.csv")).unwrap();
