@@ -17,9 +17,23 @@ pub fn model_slot_a() -> &'static [u8] {
 
 /// A panic is a bug: stop at a permanent undefined instruction so a debugger
 /// (or QEMU) shows where; the watchdog of a real board resets it.
+#[cfg(not(feature = "panic-free-check"))]
 #[panic_handler]
 fn panic(_: &PanicInfo) -> ! {
     cortex_m::asm::udf()
+}
+
+/// With `panic-free-check`, any panic path that survives optimisation makes
+/// the link fail on this undefined symbol (src/bin/panic_free_check.rs).
+#[cfg(feature = "panic-free-check")]
+#[panic_handler]
+fn panic(_: &PanicInfo) -> ! {
+    unsafe extern "C" {
+        fn hot_path_can_panic() -> !;
+    }
+    // SAFETY: never executed: the symbol is undefined, so an image in which
+    // this call is reachable does not link.
+    unsafe { hot_path_can_panic() }
 }
 
 unsafe extern "C" {

@@ -105,7 +105,8 @@ impl<'m, T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<'m, T, R, W
         let mut buf = [0u8; MAX_FRAME_LEN];
         let written = frame::encode(&frame, &mut buf)
             .ok()
-            .and_then(|n| self.output.write_all(&buf[..n]).ok());
+            .and_then(|n| buf.get(..n))
+            .and_then(|bytes| self.output.write_all(bytes).ok());
         if written.is_none() {
             self.stats.output_errors += 1;
         }

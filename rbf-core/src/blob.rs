@@ -249,7 +249,13 @@ pub fn crc_status(bytes: &[u8], header: &Header) -> Result<(), DecodeError> {
             available: bytes.len(),
         });
     };
-    let stored = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
+    let Ok(crc) = <[u8; CRC_LEN]>::try_from(crc) else {
+        return Err(DecodeError::Truncated {
+            needed: need,
+            available: bytes.len(),
+        });
+    };
+    let stored = u32::from_le_bytes(crc);
     let computed = CRC32.checksum(body);
     if stored != computed {
         return Err(DecodeError::CrcMismatch { stored, computed });
@@ -341,7 +347,9 @@ pub fn encode(model: &Model, out: &mut [u8]) -> Result<usize, EncodeError> {
 pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
     let header = Header::parse(bytes)?;
     crc_status(bytes, &header)?;
-    let payload = &bytes[HEADER_LEN..HEADER_LEN + header.payload_len as usize];
+    let payload = bytes
+        .get(HEADER_LEN..HEADER_LEN + header.payload_len as usize)
+        .ok_or(DecodeError::Malformed)?;
     let (common, rest): (CommonWire, _) = postcard::take_from_bytes(payload).map_err(|_| DecodeError::Malformed)?;
     let dims = common.features.dims();
     if dims != header.inputs as usize || common.input_min.len() != dims || common.input_max.len() != dims {
@@ -382,7 +390,8 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
         return Err(DecodeError::Malformed);
     }
     let info = ModelInfo { serial: common.serial };
-    let model = Model::new(common.features, &ranges[..dims], body, info)?;
+    let ranges = ranges.get(..dims).ok_or(DecodeError::Malformed)?;
+    let model = Model::new(common.features, ranges, body, info)?;
     Ok(Decoded {
         model,
         len: header.blob_len(),

@@ -56,10 +56,43 @@ impl core::fmt::Display for FrameError {
 impl std::error::Error for FrameError {}
 
 /// Encodes `frame` COBS-framed, 0x00-terminated, into `out`; returns the bytes used.
+///
+/// This runs once per gyro sample in the firmware, so it must not be able to
+/// panic (checked at link time, firmware/src/bin/panic_free_check.rs):
+/// postcard serialises into a plain slice (returns errors, never panics) and
+/// [`cobs_encode`] frames it; postcard's own COBS flavour indexes with
+/// assertions the optimiser cannot remove. The bytes are the same
+/// (`frames_match_postcards_cobs_encoding`); decoding uses postcard.
 pub fn encode(frame: &OutputFrame, out: &mut [u8]) -> Result<usize, FrameError> {
-    postcard::to_slice_cobs(frame, out)
-        .map(|b| b.len())
-        .map_err(|_| FrameError::BufferTooSmall)
+    let mut raw = [0u8; MAX_FRAME_LEN];
+    let raw = postcard::to_slice(frame, &mut raw).map_err(|_| FrameError::BufferTooSmall)?;
+    cobs_encode(raw, out).ok_or(FrameError::BufferTooSmall)
+}
+
+/// COBS-encodes `src` into `out` followed by the 0x00 delimiter; returns the
+/// bytes used, or `None` if `out` is too small. Never panics: every access is
+/// checked and fails as `None`.
+pub fn cobs_encode(src: &[u8], out: &mut [u8]) -> Option<usize> {
+    // `code_at` holds the code byte of the current block: 1 + its non-zero bytes.
+    let mut code_at = 0;
+    let mut code = 1u8;
+    let mut next = 1;
+    for &byte in src {
+        if byte != 0 {
+            *out.get_mut(next)? = byte;
+            next += 1;
+            code += 1;
+        }
+        if byte == 0 || code == 0xFF {
+            *out.get_mut(code_at)? = code;
+            code_at = next;
+            next += 1;
+            code = 1;
+        }
+    }
+    *out.get_mut(code_at)? = code;
+    *out.get_mut(next)? = 0;
+    Some(next + 1)
 }
 
 /// Decodes one frame from its COBS bytes (with or without the 0x00), in place.
@@ -92,5 +125,49 @@ mod tests {
         assert_eq!(back.flags(), Flags::TEMP_SENSOR_FAULT | Flags::WARMING_UP);
         let mut garbage = [1u8, 2, 3, 0];
         assert_eq!(decode(&mut garbage), Err(FrameError::Malformed));
+    }
+
+    #[test]
+    fn frames_match_postcards_cobs_encoding() {
+        let mut state = 0x9E37_79B9u32;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        for i in 0..10_000u32 {
+            // Many zero bytes (small values, zero floats) and arbitrary patterns.
+            let word = |r: u32| if i % 3 == 0 { r & 0x0000_FF00 } else { r };
+            let frame = OutputFrame {
+                seq: word(next()) >> (i % 32),
+                rate_dph: f32::from_bits(word(next())),
+                bias_dph: f32::from_bits(word(next())),
+                rate_comp_dph: if i % 5 == 0 { 0.0 } else { f32::from_bits(next()) },
+                temp_c: f32::from_bits(word(next())),
+                flags: (next() & 0x1F) as u8,
+            };
+            let mut ours = [0u8; MAX_FRAME_LEN];
+            let n = encode(&frame, &mut ours).unwrap();
+            let mut theirs = [0u8; MAX_FRAME_LEN];
+            let reference = postcard::to_slice_cobs(&frame, &mut theirs).unwrap();
+            assert_eq!(&ours[..n], reference, "frame {frame:?}");
+        }
+    }
+
+    #[test]
+    fn cobs_encoding_refuses_small_buffers_and_handles_long_runs() {
+        assert_eq!(cobs_encode(&[1, 2, 3], &mut [0u8; 4]), None);
+        let mut out = [0u8; 5];
+        assert_eq!(cobs_encode(&[1, 2, 3], &mut out), Some(5));
+        assert_eq!(out, [4, 1, 2, 3, 0]);
+        assert_eq!(cobs_encode(&[0, 0], &mut out), Some(4));
+        assert_eq!(&out[..4], [1, 1, 1, 0]);
+        // 254 non-zero bytes fill a block: a new code byte follows.
+        let src = [7u8; 300];
+        let mut out = [0u8; 310];
+        let n = cobs_encode(&src, &mut out).unwrap();
+        assert_eq!((out[0], out[255], n), (0xFF, 47, 303));
+        assert!(!out[..n - 1].contains(&0));
     }
 }

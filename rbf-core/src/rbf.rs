@@ -98,20 +98,23 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             has_linear: !p.linear.is_empty(),
             constant: p.constant,
         };
-        for i in 0..d {
-            net.offset[i] = p.offset[i];
-            net.scale[i] = p.scale[i];
-            net.inv_scale[i] = 1.0 / p.scale[i];
-            if net.has_linear {
-                net.linear[i] = p.linear[i];
-            }
+        // Zipped iterators rather than indexing: the firmware validates blobs
+        // on a path proven panic-free at link time (panic_free_check.rs).
+        let copy = |dst: &mut [f32], src: &[f32]| dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+        copy(&mut net.offset, p.offset);
+        copy(&mut net.scale, p.scale);
+        copy(&mut net.linear, p.linear);
+        copy(&mut net.widths, p.widths);
+        copy(&mut net.weights, p.weights);
+        for (inv, s) in net.inv_scale.iter_mut().zip(p.scale) {
+            *inv = 1.0 / s;
         }
-        for j in 0..k {
-            net.centers[j][..m].copy_from_slice(&p.centers[j * m..(j + 1) * m]);
-            net.widths[j] = p.widths[j];
-            net.weights[j] = p.weights[j];
-            net.neg_half_inv_var[j] = -0.5 / (p.widths[j] * p.widths[j]);
-            if !net.neg_half_inv_var[j].is_finite() {
+        for (row, src) in net.centers.iter_mut().zip(p.centers.chunks_exact(m.max(1))) {
+            copy(row, src);
+        }
+        for (g, w) in net.neg_half_inv_var.iter_mut().zip(p.widths) {
+            *g = -0.5 / (w * w);
+            if !g.is_finite() {
                 return Err(ModelError::InvalidParameter);
             }
         }

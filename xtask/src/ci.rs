@@ -87,7 +87,17 @@ pub fn ci() -> anyhow::Result<()> {
         "--bin",
         "stm32f405",
     ];
-    for board in [&qemu_boards[..], &stm32_board[..]] {
+    let panic_check = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "panic-free-check-canary",
+        "--bin",
+        "panic-free-check",
+    ];
+    for board in [&qemu_boards[..], &stm32_board[..], &panic_check[..]] {
         run("cargo", &[&["clippy"][..], board, &["--", "-D", "warnings"]].concat())?;
     }
     run(
@@ -104,6 +114,7 @@ pub fn ci() -> anyhow::Result<()> {
     for board in [&qemu_boards[..], &stm32_board[..]] {
         run("cargo", &[&["build", "--release"][..], board].concat())?;
     }
+    crate::firmware::check_panic_free()?;
     let (mut passed, mut failed) = run_tests(&["test", "--workspace"])?;
     // The tests that need QEMU, the cross build or PyPI (ignored in a plain `cargo test`).
     let (p, f) = run_tests(&["test", "--package", "e2e-tests", "--", "--ignored"])?;

@@ -19,6 +19,50 @@ pub fn target_dir() -> PathBuf {
 
 /// Builds board binary `bin` (release) and returns the ELF path.
 pub fn build(bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
+    let status = build_command(bin, features).status().context("cannot start cargo")?;
+    if !status.success() {
+        bail!("building firmware binary {bin} for {TARGET} failed");
+    }
+    Ok(target_dir().join(TARGET).join("release").join(bin))
+}
+
+/// The symbol the panic handler of the `panic-free-check` build calls and
+/// nothing defines (firmware/src/board.rs).
+pub const PANIC_SYMBOL: &str = "hot_path_can_panic";
+
+/// Proves at link time that model validation and the per-sample path cannot
+/// panic: `panic-free-check` must link, and its canary (the same image with
+/// one deliberate out-of-bounds index) must fail to link on [`PANIC_SYMBOL`],
+/// which shows the check can fail.
+pub fn check_panic_free() -> anyhow::Result<()> {
+    let bin = "panic-free-check";
+    eprintln!("\n==> panic-free check: {bin} must link");
+    let out = build_command(bin, &["panic-free-check"])
+        .output()
+        .context("cannot start cargo")?;
+    if !out.status.success() {
+        let log = String::from_utf8_lossy(&out.stderr);
+        if log.contains(PANIC_SYMBOL) {
+            bail!(
+                "a panic path survives in the firmware's per-sample path or model validation \
+                 (undefined {PANIC_SYMBOL}); see docs/panic-free.md to find it:\n{log}"
+            );
+        }
+        bail!("building {bin} failed:\n{log}");
+    }
+    eprintln!("==> panic-free check: its canary must not link");
+    let out = build_command(bin, &["panic-free-check-canary"])
+        .output()
+        .context("cannot start cargo")?;
+    let log = String::from_utf8_lossy(&out.stderr);
+    if out.status.success() || !log.contains(PANIC_SYMBOL) {
+        bail!("the panic-free canary linked (or failed otherwise): the check proves nothing\n{log}");
+    }
+    eprintln!("    ok: no panic path; the canary's panic path fails the link as it must");
+    Ok(())
+}
+
+fn build_command(bin: &str, features: &[&str]) -> Command {
     let mut cmd = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
     cmd.args([
         "build",
@@ -36,11 +80,7 @@ pub fn build(bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
     if !features.is_empty() {
         cmd.args(["--features", &features.join(",")]);
     }
-    let status = cmd.status().context("cannot start cargo")?;
-    if !status.success() {
-        bail!("building firmware binary {bin} for {TARGET} failed");
-    }
-    Ok(target_dir().join(TARGET).join("release").join(bin))
+    cmd
 }
 
 /// Flash and RAM a firmware image uses, from its ELF sections, bytes.
