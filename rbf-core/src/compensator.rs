@@ -24,11 +24,20 @@ pub struct CompensatorConfig {
     pub max_plausible_temp_c: f32,
     /// Largest plausible |rate|, °/h; beyond it the sample is flagged invalid.
     pub max_abs_rate_dph: f32,
+    /// Fastest plausible change of the loop temperature, °C/s. A reading that
+    /// departs from the last good one by more than this times the elapsed
+    /// time plus [`Self::temp_step_tolerance_c`] is a spike: treated as a
+    /// sensor fault (flag 2, last good value held).
+    pub max_temp_slew_c_per_s: f32,
+    /// Allowance for sensor noise and quantisation in the spike test, °C.
+    pub temp_step_tolerance_c: f32,
 }
 
 impl CompensatorConfig {
     /// Defaults for a gyro sampled at `sample_rate_hz`: 10 s temperature hold,
-    /// −60 … 160 °C plausible, ±1000 °/s (3.6e6 °/h) plausible rate.
+    /// −60 … 160 °C plausible, ±1000 °/s (3.6e6 °/h) plausible rate, spikes
+    /// beyond 0.5 °C + 1 °C/s (twelve times the fastest chamber ramp of the
+    /// papers, 5 °C/min) rejected.
     pub fn for_sample_rate(sample_rate_hz: f32) -> Self {
         CompensatorConfig {
             nominal_period_s: 1.0 / sample_rate_hz,
@@ -36,6 +45,8 @@ impl CompensatorConfig {
             min_plausible_temp_c: -60.0,
             max_plausible_temp_c: 160.0,
             max_abs_rate_dph: 3.6e6,
+            max_temp_slew_c_per_s: 1.0,
+            temp_step_tolerance_c: 0.5,
         }
     }
 
@@ -129,7 +140,20 @@ impl Compensator {
             0.0
         };
 
-        let temp_c = match sample.temp_c.filter(|&t| config.is_plausible_temp(t)) {
+        // A reading is good when plausible and, unless the features restart
+        // anyway, within reach of the last good one (no spike).
+        let since_good_s = self.fault_hold_s + elapsed_s;
+        let reachable = |t: f32| match self.last_good_temp_c {
+            Some(last) if !(gap || self.restart_pending) => {
+                (t - last).abs() <= config.temp_step_tolerance_c + config.max_temp_slew_c_per_s * since_good_s
+            }
+            _ => true,
+        };
+        let good = sample
+            .temp_c
+            .filter(|&t| config.is_plausible_temp(t))
+            .filter(|&t| reachable(t));
+        let temp_c = match good {
             Some(t) => {
                 self.last_good_temp_c = Some(t);
                 self.fault_hold_s = 0.0;
@@ -269,6 +293,29 @@ mod tests {
             recovered.flags.contains(Flags::WARMING_UP),
             "features restart after recovery"
         );
+    }
+
+    #[test]
+    fn temperature_spikes_are_faults_but_a_lasting_step_is_accepted_after_the_hold() {
+        let model = linear_in_t();
+        let mut cfg = CompensatorConfig::for_sample_rate(1.0);
+        cfg.max_temp_hold_s = 3.0;
+        let mut comp = Compensator::new();
+        comp.process(Some(&model), &cfg, &sample(Some(20.0)));
+        let spike = comp.process(Some(&model), &cfg, &sample(Some(45.0)));
+        assert_eq!(spike.flags, Flags::TEMP_SENSOR_FAULT);
+        assert_eq!(spike.bias_dph, 20.0, "the last good value stands in");
+        // 2 s after the last good reading, 2.4 °C away: within 0.5 + 1 °C/s × 2 s.
+        let ok = comp.process(Some(&model), &cfg, &sample(Some(22.4)));
+        assert_eq!((ok.flags, ok.bias_dph), (Flags::NONE, 22.4));
+        // A real step the sensor keeps reporting: faults through the hold, then accepted afresh.
+        let mut flags = [Flags::NONE; 6];
+        for f in &mut flags {
+            *f = comp.process(Some(&model), &cfg, &sample(Some(40.0))).flags;
+        }
+        assert_eq!(flags[..3], [Flags::TEMP_SENSOR_FAULT; 3]);
+        assert_eq!(flags[3], Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL);
+        assert!(flags[4].contains(Flags::WARMING_UP) && !flags[4].contains(Flags::TEMP_SENSOR_FAULT));
     }
 
     #[test]
