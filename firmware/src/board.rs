@@ -6,6 +6,7 @@ use core::panic::PanicInfo;
 
 unsafe extern "C" {
     static _model_a_start: u8;
+    static _model_b_start: u8;
 }
 
 /// The MODEL_A flash slot (memory.x) as bytes.
@@ -13,6 +14,12 @@ pub fn model_slot_a() -> &'static [u8] {
     // SAFETY: memory.x reserves MODEL_SLOT_LEN bytes of flash at
     // `_model_a_start`; the program image never writes there.
     unsafe { core::slice::from_raw_parts(&raw const _model_a_start, crate::MODEL_SLOT_LEN) }
+}
+
+/// The MODEL_B flash slot (memory.x) as bytes.
+pub fn model_slot_b() -> &'static [u8] {
+    // SAFETY: as for MODEL_A, at `_model_b_start`.
+    unsafe { core::slice::from_raw_parts(&raw const _model_b_start, crate::MODEL_SLOT_LEN) }
 }
 
 /// A panic is a bug: stop at a permanent undefined instruction so a debugger

@@ -32,9 +32,9 @@ pub struct LoopStats {
     pub output_errors: u32,
 }
 
-/// The loop: owns the sensors and the output, borrows the model.
-pub struct CompensationLoop<'m, T, R, W> {
-    model: Option<&'m Model>,
+/// The loop: owns the model, the sensors and the output.
+pub struct CompensationLoop<T, R, W> {
+    model: Option<Model>,
     config: LoopConfig,
     thermometer: T,
     front_end: R,
@@ -44,9 +44,9 @@ pub struct CompensationLoop<'m, T, R, W> {
     stats: LoopStats,
 }
 
-impl<'m, T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<'m, T, R, W> {
+impl<T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
     /// A loop over `model` (`None`: absent or invalid blob, output flagged 4).
-    pub fn new(model: Option<&'m Model>, config: LoopConfig, thermometer: T, front_end: R, output: W) -> Self {
+    pub fn new(model: Option<Model>, config: LoopConfig, thermometer: T, front_end: R, output: W) -> Self {
         CompensationLoop {
             model,
             config,
@@ -85,7 +85,9 @@ impl<'m, T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<'m, T, R, W
             rate_dph,
             temp_c: self.latest_temp_c,
         };
-        let mut out = self.compensator.process(self.model, &self.config.compensator, &sample);
+        let mut out = self
+            .compensator
+            .process(self.model.as_ref(), &self.config.compensator, &sample);
         if !rate_ok {
             out.flags |= Flags::RATE_INVALID;
         }
@@ -110,6 +112,23 @@ impl<'m, T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<'m, T, R, W
         if written.is_none() {
             self.stats.output_errors += 1;
         }
+    }
+
+    /// Switches to `model` (after a model update) between two samples; the
+    /// feature filters start afresh, as the new model may compute others.
+    pub fn replace_model(&mut self, model: Option<Model>) {
+        self.model = model;
+        self.compensator = Compensator::new();
+    }
+
+    /// The output (to interleave command replies between frames).
+    pub fn output_mut(&mut self) -> &mut W {
+        &mut self.output
+    }
+
+    /// The model in use.
+    pub fn model(&self) -> Option<&Model> {
+        self.model.as_ref()
     }
 
     /// Health counters.

@@ -6,6 +6,9 @@
 //! - [`sensors`]: the traits the loop needs from them;
 //! - [`compensation`]: the per-sample loop (rbf-core compensation, one output frame per sample);
 //! - [`replay`]: emulated devices and the recorded-run replayer of the QEMU board;
+//! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
+//! - [`emulated_flash`]: NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
+//! - [`fault_injection`]: buses that fail on a schedule and the fault campaign of the QEMU fault board;
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
 //! The board binaries in `src/bin/` only wire peripherals to these.
@@ -13,10 +16,14 @@
 #![deny(unsafe_code)]
 
 pub mod compensation;
+pub mod emulated_flash;
+pub mod fault_injection;
 pub mod frontend;
+pub mod model_store;
 pub mod replay;
 pub mod sensors;
 pub mod tmp117;
+pub mod update;
 
 #[cfg(target_os = "none")]
 pub mod board;

@@ -201,21 +201,21 @@ fn clean(line: &str, line_no: u32) -> &str {
 }
 
 /// The replay loop type: real drivers over emulated buses.
-pub type ReplayLoop<'m, 'c, W> = CompensationLoop<'m, Tmp117<EmulatedTmp117<'c>>, FrontEnd<EmulatedFrontEnd<'c>>, W>;
+pub type ReplayLoop<'c, W> = CompensationLoop<Tmp117<EmulatedTmp117<'c>>, FrontEnd<EmulatedFrontEnd<'c>>, W>;
 
 /// Second pass: feeds rows through the loop and writes the compensated run.
-pub struct Replayer<'m, 'c, W> {
+pub struct Replayer<'c, W> {
     current: &'c Cell<ReplaySample>,
-    compensation: ReplayLoop<'m, 'c, W>,
+    compensation: ReplayLoop<'c, W>,
     columns: Option<Columns>,
     prev_time_s: Option<f64>,
     line: u32,
 }
 
-impl<'m, 'c, W: embedded_io::Write> Replayer<'m, 'c, W> {
+impl<'c, W: embedded_io::Write> Replayer<'c, W> {
     /// A replayer over `model` for a run of nominal period `period_s`; frames go to `frames`.
     pub fn new(
-        model: Option<&'m Model>,
+        model: Option<&Model>,
         period_s: f64,
         current: &'c Cell<ReplaySample>,
         frames: W,
@@ -233,7 +233,7 @@ impl<'m, 'c, W: embedded_io::Write> Replayer<'m, 'c, W> {
         };
         Ok(Replayer {
             current,
-            compensation: CompensationLoop::new(model, config, thermometer, front_end, frames),
+            compensation: CompensationLoop::new(model.cloned(), config, thermometer, front_end, frames),
             columns: None,
             prev_time_s: None,
             line: 0,

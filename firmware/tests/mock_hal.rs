@@ -54,7 +54,7 @@ fn recorded_run_through_the_mock_hal_gives_the_trainers_numbers() {
     };
     let mut frames = Vec::new();
     let mut lp = CompensationLoop::new(
-        Some(&model),
+        Some(model.clone()),
         config,
         Tmp117::new(I2cMock::new(&i2c_script), ADDRESS),
         FrontEnd::new(SpiMock::new(&spi_script)),

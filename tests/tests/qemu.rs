@@ -102,3 +102,45 @@ fn benchmark_image_runs_and_reports_every_model_size() {
         run.log
     );
 }
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn fault_campaign_on_the_target_loses_no_sample_and_never_panics() {
+    use rbf_core::model::{ModelBody, ModelInfo};
+    use rbf_core::poly::Poly3;
+    use rbf_core::{FeatureConfig, FeatureSet, Model};
+
+    let dir = TempDir::new().unwrap();
+    let (model, _) = fixtures::model_and_faulty_slice(dir.path());
+    let running = dir.path().join("running.bin");
+    write_model(&running, &model, Existing::Replace).unwrap();
+    let cubic = Model::new(
+        FeatureConfig::single(FeatureSet::Temp, 0.0),
+        &[(10.0, 40.0)],
+        ModelBody::Poly3(Poly3::new(25.0, [0.3, 0.01, 0.0, 0.0]).unwrap()),
+        ModelInfo::default(),
+    )
+    .unwrap();
+    let update = dir.path().join("update.bin");
+    write_model(&update, &cubic, Existing::Replace).unwrap();
+
+    let lines = xtask::faults::qemu_faults(&running, &update).unwrap();
+    let report = lines.join("\n");
+    let summary = lines.last().unwrap();
+    assert!(summary.contains("samples lost 0, panics 0"), "{report}");
+    let injected: u32 = summary
+        .strip_prefix("faults injected ")
+        .and_then(|s| s.split(',').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap();
+    assert!(injected > 2000, "{report}");
+    for must in [
+        "frames 20000",
+        "missing-flags 0 non-finite 0",
+        "accepted 0",
+        "booted invalid 0 retry failures 0",
+        "expected replies 5 switched true",
+    ] {
+        assert!(report.contains(must), "`{must}` missing from:\n{report}");
+    }
+}

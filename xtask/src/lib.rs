@@ -7,12 +7,14 @@
 //! - [`bench`]: `cargo xtask bench-fw`;
 //! - [`accuracy`]: `cargo xtask bench-accuracy`;
 //! - [`fuzz`]: `cargo xtask fuzz`;
+//! - [`faults`]: `cargo xtask qemu-faults`;
 //! - [`ci`]: `cargo xtask ci`, the whole test suite.
 #![forbid(unsafe_code)]
 
 pub mod accuracy;
 pub mod bench;
 pub mod ci;
+pub mod faults;
 pub mod firmware;
 pub mod fuzz;
 pub mod qemu;

@@ -122,7 +122,7 @@ mod board {
             compensator: CompensatorConfig::for_sample_rate(f32::from_bits(opaque_word())),
             temp_read_every: opaque_word(),
         };
-        let mut compensation = CompensationLoop::new(model.as_ref(), config, thermometer, front_end, OpaqueUart);
+        let mut compensation = CompensationLoop::new(model, config, thermometer, front_end, OpaqueUart);
         loop {
             let out = compensation.step(f32::from_bits(opaque_word()));
             WORD.store(out.bias_dph.to_bits() ^ u32::from(out.flags.bits()), Ordering::Relaxed);

@@ -1,0 +1,113 @@
+//! QEMU fault board (netduinoplus2 = STM32F405): the fault-injection
+//! campaigns of [`firmware::fault_injection`] on the target.
+//!
+//! The model to run comes from flash slot MODEL_A, the update to install from
+//! MODEL_B (both placed with `-device loader`). QEMU's flash is read-only and
+//! its flash controller is not modelled, so the power-safe update runs on
+//! [`firmware::emulated_flash`] in RAM with the same store code the real
+//! board uses. Prints one line per campaign and ends with
+//! `faults injected N, samples lost 0, panics 0`; exits with failure if any
+//! criterion fails. Run it with `cargo xtask qemu-faults`.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod board {
+    use cortex_m_rt::entry;
+    use cortex_m_semihosting::{debug, hprintln};
+    use firmware::fault_injection::{bit_flip_campaign, command_campaign, power_cut_campaign, sensor_campaign};
+    use rbf_core::blob::{self, Header};
+
+    /// Gyro samples of the sensor-fault campaign.
+    const SAMPLES: u32 = 20_000;
+    /// Seed of its fault schedule.
+    const SEED: u32 = 0x1234_5678;
+
+    /// The blob at the start of a slot, if the header describes one that fits.
+    fn blob_in(slot: &'static [u8]) -> Option<&'static [u8]> {
+        let len = Header::parse(slot).ok()?.blob_len();
+        slot.get(..len)
+    }
+
+    fn finish(ok: bool) -> ! {
+        debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
+    #[entry]
+    fn main() -> ! {
+        firmware::board::paint_stack();
+        let (Some(old), Some(new)) = (
+            blob_in(firmware::board::model_slot_a()),
+            blob_in(firmware::board::model_slot_b()),
+        ) else {
+            hprintln!("faults: MODEL_A and MODEL_B must each hold a blob");
+            finish(false)
+        };
+        let model = blob::decode(old).ok().map(|d| d.model);
+
+        let sensors = sensor_campaign(model, SAMPLES, SEED);
+        hprintln!(
+            "faults: sensors: samples {} frames {} episodes nack {} stuck {} rail {} spike {} out-of-range {} spi {} nan {} crc {} faulty-samples {} missing-flags {} non-finite {}",
+            sensors.samples,
+            sensors.frames,
+            sensors.episodes[0],
+            sensors.episodes[1],
+            sensors.episodes[2],
+            sensors.episodes[3],
+            sensors.episodes[4],
+            sensors.episodes[5],
+            sensors.episodes[6],
+            sensors.episodes[7],
+            sensors.faulty_samples,
+            sensors.missing_flags,
+            sensors.non_finite
+        );
+        let (flips_old, accepted_old) = bit_flip_campaign(old);
+        let (flips_new, accepted_new) = bit_flip_campaign(new);
+        hprintln!(
+            "faults: model region: bit flips {} accepted {}",
+            flips_old + flips_new,
+            accepted_old + accepted_new
+        );
+        let update = power_cut_campaign(old, new);
+        hprintln!(
+            "faults: update: flash operations per install {} resets {} booted old {} booted new {} booted invalid {} retry failures {}",
+            update.operations_per_install,
+            update.resets,
+            update.booted_old,
+            update.booted_new,
+            update.booted_invalid,
+            update.retry_failures
+        );
+        let commands = command_campaign(old, new);
+        hprintln!(
+            "faults: uart commands {} expected replies {} switched {}",
+            commands.commands,
+            commands.expected_replies,
+            commands.switched
+        );
+        let injected = sensors.faults() + flips_old + flips_new + update.resets + (commands.commands - 1);
+        hprintln!(
+            "faults injected {}, samples lost {}, panics 0, stack_peak_bytes {}",
+            injected,
+            sensors.samples_lost,
+            firmware::board::stack_peak_bytes()
+        );
+        let ok = sensors.samples_lost == 0
+            && sensors.missing_flags == 0
+            && sensors.non_finite == 0
+            && accepted_old + accepted_new == 0
+            && update.booted_invalid == 0
+            && update.retry_failures == 0
+            && commands.expected_replies == commands.commands
+            && commands.switched;
+        finish(ok)
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!("qemu-faults runs under qemu-system-arm: use `cargo xtask qemu-faults`");
+}

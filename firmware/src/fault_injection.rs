@@ -1,0 +1,551 @@
+//! Fault injection: the real drivers and loop on emulated buses that fail on a
+//! seeded schedule, a checker that decodes every output frame, and the
+//! model-store campaigns (bit flips, power cuts, UART commands).
+//!
+//! The QEMU fault board (`src/bin/qemu_faults.rs`) runs these on the target
+//! and prints `faults injected N, samples lost 0, panics 0`; host tests run
+//! the same code.
+
+use core::cell::Cell;
+
+use embedded_hal::spi::{self, SpiDevice};
+use rbf_core::blob;
+use rbf_core::frame::{self, MAX_FRAME_LEN};
+use rbf_core::{CompensatorConfig, Flags, Model};
+
+use crate::compensation::{CompensationLoop, LoopConfig};
+use crate::emulated_flash::{EmulatedFlash, PAGE};
+use crate::frontend::FrontEnd;
+use crate::model_store::{COMMIT_LEN, ModelStore, SlotLayout};
+use crate::replay::{EmulatedFrontEnd, EmulatedTmp117, ReplaySample};
+use crate::tmp117::{self, Tmp117};
+use crate::update::{self, CommandReceiver, Received, UpdateStatus};
+
+/// The kinds of sensor and bus fault the campaign injects.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FaultKind {
+    /// The TMP117 does not acknowledge (1–40 samples).
+    I2cNackBurst,
+    /// The TMP117 keeps returning one reading (50–200 samples): undetectable
+    /// from the value alone, so no flag is expected; the loop must carry on.
+    StuckReading,
+    /// The TMP117 reads its reset value −256 °C (a bus stuck at 0x8000).
+    StuckAtRail,
+    /// One reading 30 °C off.
+    TempSpike,
+    /// Readings of 180 °C (beyond the TMP117's range, 1–20 samples).
+    OutOfRangeTemp,
+    /// The front-end SPI transaction fails (1–10 samples).
+    SpiError,
+    /// The front end sends NaN as a valid rate (1–5 samples).
+    NanRate,
+    /// A bit of the front-end sample flips on the wire (CRC-8 fails).
+    CorruptSample,
+}
+
+impl FaultKind {
+    /// Every kind, in schedule order.
+    pub const ALL: [FaultKind; 8] = [
+        FaultKind::I2cNackBurst,
+        FaultKind::StuckReading,
+        FaultKind::StuckAtRail,
+        FaultKind::TempSpike,
+        FaultKind::OutOfRangeTemp,
+        FaultKind::SpiError,
+        FaultKind::NanRate,
+        FaultKind::CorruptSample,
+    ];
+
+    fn duration_range(self) -> (u32, u32) {
+        match self {
+            FaultKind::I2cNackBurst => (1, 40),
+            FaultKind::StuckReading => (50, 200),
+            FaultKind::StuckAtRail => (5, 30),
+            FaultKind::TempSpike | FaultKind::CorruptSample => (1, 1),
+            FaultKind::OutOfRangeTemp => (1, 20),
+            FaultKind::SpiError => (1, 10),
+            FaultKind::NanRate => (1, 5),
+        }
+    }
+
+    /// The flag the output must carry while this fault is active, if any.
+    pub fn expected_flag(self) -> Option<Flags> {
+        match self {
+            FaultKind::StuckReading => None,
+            FaultKind::I2cNackBurst | FaultKind::StuckAtRail | FaultKind::TempSpike | FaultKind::OutOfRangeTemp => {
+                Some(Flags::TEMP_SENSOR_FAULT)
+            }
+            FaultKind::SpiError | FaultKind::NanRate | FaultKind::CorruptSample => Some(Flags::RATE_INVALID),
+        }
+    }
+}
+
+/// Deterministic xorshift32.
+#[derive(Clone, Copy, Debug)]
+struct Rng(u32);
+
+impl Rng {
+    fn next(&mut self) -> u32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 17;
+        self.0 ^= self.0 << 5;
+        self.0
+    }
+
+    fn between(&mut self, lo: u32, hi: u32) -> u32 {
+        lo + self.next() % (hi - lo + 1)
+    }
+}
+
+/// What the front end does for the current sample.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SpiFault {
+    /// Answers normally.
+    #[default]
+    None,
+    /// The transaction fails.
+    Error,
+    /// One bit of the reply flips.
+    FlipBit,
+}
+
+/// The emulated front end with an SPI fault switch.
+#[derive(Debug)]
+pub struct FaultySpi<'c> {
+    inner: EmulatedFrontEnd<'c>,
+    fault: &'c Cell<SpiFault>,
+}
+
+impl spi::ErrorType for FaultySpi<'_> {
+    type Error = spi::ErrorKind;
+}
+
+impl SpiDevice for FaultySpi<'_> {
+    fn transaction(&mut self, operations: &mut [spi::Operation<'_, u8>]) -> Result<(), Self::Error> {
+        match self.fault.get() {
+            SpiFault::None => self.inner.transaction(operations),
+            SpiFault::Error => Err(spi::ErrorKind::Other),
+            SpiFault::FlipBit => {
+                self.inner.transaction(operations)?;
+                if let Some(spi::Operation::Read(buf)) = operations.last_mut()
+                    && let Some(b) = buf.get_mut(3)
+                {
+                    *b ^= 0x10;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// Decodes every output frame as it is written and checks it.
+#[derive(Debug)]
+pub struct FrameChecker<'c> {
+    buf: [u8; MAX_FRAME_LEN],
+    len: usize,
+    expected_flag: &'c Cell<Option<Flags>>,
+    next_seq: u32,
+    /// Frames decoded with the right sequence number.
+    pub frames: u32,
+    /// Frames that did not decode or broke the sequence.
+    pub bad_frames: u32,
+    /// Frames missing the flag their sample's fault calls for.
+    pub missing_flags: u32,
+    /// Frames with a non-finite bias or an unflagged non-finite output.
+    pub non_finite: u32,
+}
+
+impl<'c> FrameChecker<'c> {
+    /// A checker expecting sequence 0 first.
+    pub fn new(expected_flag: &'c Cell<Option<Flags>>) -> Self {
+        FrameChecker {
+            buf: [0; MAX_FRAME_LEN],
+            len: 0,
+            expected_flag,
+            next_seq: 0,
+            frames: 0,
+            bad_frames: 0,
+            missing_flags: 0,
+            non_finite: 0,
+        }
+    }
+
+    fn frame_done(&mut self) {
+        let bytes = self.buf.get_mut(..self.len).unwrap_or(&mut []);
+        self.len = 0;
+        let Ok(f) = frame::decode(bytes) else {
+            self.bad_frames += 1;
+            return;
+        };
+        if f.seq != self.next_seq {
+            self.bad_frames += 1;
+        }
+        self.next_seq = f.seq.wrapping_add(1);
+        self.frames += 1;
+        if let Some(flag) = self.expected_flag.get()
+            && !f.flags().contains(flag)
+        {
+            self.missing_flags += 1;
+        }
+        let rate_ok = f.rate_comp_dph.is_finite() || f.flags().contains(Flags::RATE_INVALID);
+        if !f.bias_dph.is_finite() || !rate_ok {
+            self.non_finite += 1;
+        }
+    }
+}
+
+impl embedded_io::ErrorType for FrameChecker<'_> {
+    type Error = embedded_io::ErrorKind;
+}
+
+impl embedded_io::Write for FrameChecker<'_> {
+    fn write(&mut self, data: &[u8]) -> Result<usize, Self::Error> {
+        for &b in data {
+            if let Some(slot) = self.buf.get_mut(self.len) {
+                *slot = b;
+                self.len += 1;
+            } else {
+                self.bad_frames += 1;
+                self.len = 0;
+            }
+            if b == 0 {
+                self.frame_done();
+            }
+        }
+        Ok(data.len())
+    }
+
+    fn flush(&mut self) -> Result<(), Self::Error> {
+        Ok(())
+    }
+}
+
+/// What the sensor-fault campaign found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SensorCampaign {
+    /// Gyro samples stepped.
+    pub samples: u32,
+    /// Fault episodes injected, per [`FaultKind::ALL`] entry.
+    pub episodes: [u32; 8],
+    /// Samples during which a fault was active.
+    pub faulty_samples: u32,
+    /// Frames decoded in sequence.
+    pub frames: u32,
+    /// Samples without a good frame (undecodable, out of sequence or missing).
+    pub samples_lost: u32,
+    /// Frames without the flag their fault calls for.
+    pub missing_flags: u32,
+    /// Frames with an unflagged non-finite value.
+    pub non_finite: u32,
+}
+
+impl SensorCampaign {
+    /// Fault episodes of all kinds.
+    pub fn faults(&self) -> u32 {
+        self.episodes.iter().sum()
+    }
+}
+
+/// Runs `samples` gyro samples of a 20 → 45 → 20 °C chamber cycle at 10 Hz
+/// through the real TMP117 and front-end drivers and the compensation loop,
+/// with faults from a schedule seeded by `seed`; checks every frame.
+pub fn sensor_campaign(model: Option<Model>, samples: u32, seed: u32) -> SensorCampaign {
+    let current = Cell::new(ReplaySample::default());
+    let spi_fault = Cell::new(SpiFault::None);
+    let expected = Cell::new(None);
+    let mut report = SensorCampaign {
+        samples,
+        ..SensorCampaign::default()
+    };
+    let mut thermometer = Tmp117::new(
+        EmulatedTmp117::new(&current, tmp117::DEFAULT_ADDRESS),
+        tmp117::DEFAULT_ADDRESS,
+    );
+    let mut front_end = FrontEnd::new(FaultySpi {
+        inner: EmulatedFrontEnd::new(&current),
+        fault: &spi_fault,
+    });
+    if thermometer.init().is_err() || front_end.init().is_err() {
+        report.samples_lost = samples;
+        return report;
+    }
+    let period_s = 0.1f32;
+    let config = LoopConfig {
+        compensator: CompensatorConfig::for_sample_rate(1.0 / period_s),
+        temp_read_every: 1,
+    };
+    let mut compensation = CompensationLoop::new(model, config, thermometer, front_end, FrameChecker::new(&expected));
+    let mut rng = Rng(seed | 1);
+    let (mut kind, mut left, mut stuck_c) = (None::<FaultKind>, 0u32, 0.0f64);
+    for i in 0..samples {
+        // The truth: a 25 °C triangle over the run, a bias following it, noise.
+        let phase = f64::from(i) / f64::from(samples.max(1));
+        let temp_c = 20.0 + 25.0 * (1.0 - (2.0 * phase - 1.0).abs());
+        let noise = (f64::from(rng.next() % 1000) - 500.0) * 1e-5;
+        let rate_dph = 15.04 + 0.02 * (temp_c - 20.0) + noise;
+        if left == 0 {
+            kind = None;
+            // About one fault episode every 40 samples, kinds in turn at random.
+            if rng.next().is_multiple_of(40) {
+                let k = FaultKind::ALL[(rng.next() % 8) as usize];
+                let (lo, hi) = k.duration_range();
+                left = rng.between(lo, hi);
+                stuck_c = temp_c;
+                if let Some(n) = FaultKind::ALL
+                    .iter()
+                    .position(|&x| x == k)
+                    .and_then(|n| report.episodes.get_mut(n))
+                {
+                    *n += 1;
+                }
+                kind = Some(k);
+            }
+        }
+        if left > 0 {
+            left -= 1;
+            report.faulty_samples += 1;
+        }
+        let mut sample = ReplaySample {
+            temp_c: Some(temp_c),
+            rate_dph: rate_dph as f32,
+        };
+        let mut spi = SpiFault::None;
+        match kind {
+            Some(FaultKind::I2cNackBurst) => sample.temp_c = None,
+            Some(FaultKind::StuckReading) => sample.temp_c = Some(stuck_c),
+            Some(FaultKind::StuckAtRail) => sample.temp_c = Some(-256.0),
+            Some(FaultKind::TempSpike) => sample.temp_c = Some(temp_c + 30.0),
+            Some(FaultKind::OutOfRangeTemp) => sample.temp_c = Some(180.0),
+            Some(FaultKind::SpiError) => spi = SpiFault::Error,
+            Some(FaultKind::NanRate) => sample.rate_dph = f32::NAN,
+            Some(FaultKind::CorruptSample) => spi = SpiFault::FlipBit,
+            None => {}
+        }
+        current.set(sample);
+        spi_fault.set(spi);
+        expected.set(kind.and_then(FaultKind::expected_flag));
+        compensation.step(if i == 0 { 0.0 } else { period_s });
+    }
+    let (_, _, checker) = compensation.destroy();
+    report.frames = checker.frames;
+    report.samples_lost = samples.saturating_sub(checker.frames) + checker.bad_frames;
+    report.missing_flags = checker.missing_flags;
+    report.non_finite = checker.non_finite;
+    report
+}
+
+/// Flips every bit of `blob` in turn; returns (flips, flips accepted by the decoder).
+pub fn bit_flip_campaign(blob_bytes: &[u8]) -> (u32, u32) {
+    let mut copy = [0u8; blob::MAX_BLOB_LEN];
+    let Some(work) = copy.get_mut(..blob_bytes.len()) else {
+        return (0, 0);
+    };
+    work.copy_from_slice(blob_bytes);
+    let (mut flips, mut accepted) = (0, 0);
+    for bit in 0..work.len() * 8 {
+        if let Some(byte) = work.get_mut(bit / 8) {
+            *byte ^= 1 << (bit % 8);
+            flips += 1;
+            if blob::decode(work).is_ok() {
+                accepted += 1;
+            }
+            if let Some(byte) = work.get_mut(bit / 8) {
+                *byte ^= 1 << (bit % 8);
+            }
+        }
+    }
+    (flips, accepted)
+}
+
+/// Slot length of the emulated model flash: five 1-KiB pages (a blob of at
+/// most 4096 bytes and the commit record).
+pub const EMULATED_SLOT_LEN: usize = 5 * PAGE;
+/// The emulated model flash: slot A then slot B.
+pub type ModelFlash = EmulatedFlash<{ 2 * EMULATED_SLOT_LEN }>;
+/// Where the slots lie in [`ModelFlash`].
+pub const EMULATED_LAYOUT: SlotLayout = SlotLayout {
+    offsets: [0, EMULATED_SLOT_LEN as u32],
+    len: EMULATED_SLOT_LEN as u32,
+};
+const _: () = assert!(EMULATED_SLOT_LEN >= blob::MAX_BLOB_LEN + COMMIT_LEN);
+
+/// What the power-cut campaign found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct UpdateCampaign {
+    /// Flash operations of one complete install.
+    pub operations_per_install: u32,
+    /// Resets injected (during every flash operation of an install and once
+    /// after its last, starting from either slot).
+    pub resets: u32,
+    /// Boots after a reset that ran the old model.
+    pub booted_old: u32,
+    /// Boots after a reset that ran the new model.
+    pub booted_new: u32,
+    /// Boots that ran no model or a model that is neither (must be 0).
+    pub booted_invalid: u32,
+    /// Installs retried after the reset that failed (must be 0).
+    pub retry_failures: u32,
+}
+
+/// Installs `new` over `old` with power cut after every flash operation in
+/// turn, starting once with `old` running from slot A (flashed by a
+/// programmer, uncommitted) and once from slot B (committed by an earlier
+/// update); after each cut boots the store and checks it runs `old` or
+/// `new`, then retries the install.
+pub fn power_cut_campaign(old: &[u8], new: &[u8]) -> UpdateCampaign {
+    let mut report = UpdateCampaign::default();
+    let (Ok(old_model), Ok(new_model)) = (blob::decode(old), blob::decode(new)) else {
+        report.booted_invalid = 1;
+        return report;
+    };
+    let (old_model, new_model) = (old_model.model, new_model.model);
+    for start_in_b in [false, true] {
+        // The starting flash: `old` in A as a programmer leaves it, or moved to B by an update.
+        let mut base = ModelFlash::new();
+        if let Some(a) = base.contents_mut().get_mut(..old.len()) {
+            a.copy_from_slice(old);
+        }
+        if start_in_b {
+            let mut store = ModelStore::open(base, EMULATED_LAYOUT);
+            if store.install(old).is_err() {
+                report.booted_invalid += 1;
+                return report;
+            }
+            base = store.into_flash();
+        }
+        // A full install, to count its operations.
+        let before = base.operations();
+        let mut store = ModelStore::open(base.clone(), EMULATED_LAYOUT);
+        if store.install(new).is_err() {
+            report.retry_failures += 1;
+            return report;
+        }
+        let ops = store.into_flash().operations() - before;
+        report.operations_per_install = ops;
+        // Cut after each operation, and once more after the last (during the read-back).
+        for cut in 0..=ops {
+            let mut flash = base.clone();
+            flash.cut_power_after(cut);
+            let mut store = ModelStore::open(flash, EMULATED_LAYOUT);
+            let interrupted = store.install(new).is_err();
+            let mut flash = store.into_flash();
+            flash.power_cycle();
+            report.resets += 1;
+            // Boot.
+            let mut store = ModelStore::open(flash, EMULATED_LAYOUT);
+            match store.load() {
+                Ok(m) if m == old_model && interrupted => report.booted_old += 1,
+                Ok(m) if m == new_model => report.booted_new += 1,
+                _ => report.booted_invalid += 1,
+            }
+            // The update is simply sent again.
+            match store.install(new) {
+                Ok(m) if m == new_model && store.load().is_ok_and(|m| m == new_model) => {}
+                _ => report.retry_failures += 1,
+            }
+        }
+    }
+    report
+}
+
+/// What the UART command campaign found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CommandCampaign {
+    /// Commands sent.
+    pub commands: u32,
+    /// Replies that matched the expected status.
+    pub expected_replies: u32,
+    /// The loop ran the new model afterwards and compensated (flag 4 gone).
+    pub switched: bool,
+}
+
+/// Sends, through [`CommandReceiver`] into a store running `old`: a garbage
+/// frame, an unknown command, an install of `new` with one bit flipped, an
+/// oversized frame, then the intact install; checks the replies and that a
+/// loop that started without a model compensates with `new` afterwards.
+pub fn command_campaign(old: &[u8], new: &[u8]) -> CommandCampaign {
+    let mut report = CommandCampaign::default();
+    let mut flash = ModelFlash::new();
+    if let Some(a) = flash.contents_mut().get_mut(..old.len()) {
+        a.copy_from_slice(old);
+    }
+    let mut store = ModelStore::open(flash, EMULATED_LAYOUT);
+    let mut receiver = CommandReceiver::new();
+    let mut frame = [0u8; update::MAX_COMMAND_FRAME_LEN];
+    let Some(n) = update::encode_install_command(new, &mut frame) else {
+        return report;
+    };
+    let intact = frame.get(..n).unwrap_or(&[]);
+    // The same blob with one bit flipped, framed correctly: the CRC must refuse it.
+    let mut damaged = [0u8; blob::MAX_BLOB_LEN];
+    let Some(damaged) = damaged.get_mut(..new.len()) else {
+        return report;
+    };
+    damaged.copy_from_slice(new);
+    if let Some(b) = damaged.get_mut(new.len() / 2) {
+        *b ^= 0x04;
+    }
+    let mut corrupt = [0u8; update::MAX_COMMAND_FRAME_LEN];
+    let Some(m) = update::encode_install_command(damaged, &mut corrupt) else {
+        return report;
+    };
+    let corrupt = corrupt.get(..m).unwrap_or(&[]);
+    let oversized = [0x11u8; update::MAX_COMMAND_FRAME_LEN + 8];
+    let sends: [(&[u8], UpdateStatus); 5] = [
+        (&[0x05, 0x00], UpdateStatus::Malformed),
+        (&[0x02, 0x7E, 0x00], UpdateStatus::UnknownCommand),
+        (corrupt, UpdateStatus::Refused),
+        (&oversized, UpdateStatus::TooLong),
+        (intact, UpdateStatus::Installed),
+    ];
+    let mut installed = None;
+    for (bytes, want) in sends {
+        report.commands += 1;
+        let mut got = None;
+        for &b in bytes
+            .iter()
+            .chain(if bytes.last() == Some(&0) { &[][..] } else { &[0][..] })
+        {
+            match receiver.push(b) {
+                Some(Received::Command(payload)) => {
+                    let (status, model) = update::execute(&mut store, payload);
+                    installed = model.or(installed.take());
+                    got = Some(status);
+                }
+                Some(Received::Rejected(status)) => got = Some(status),
+                None => {}
+            }
+        }
+        let mut reply = [0u8; 8];
+        if got == Some(want) && update::encode_reply(0, want, &mut reply).is_some() {
+            report.expected_replies += 1;
+        }
+    }
+    // A loop that booted without a model switches to the installed one.
+    let new_model = blob::decode(new).ok().map(|d| d.model);
+    if installed.is_some() && installed == new_model {
+        let expected = Cell::new(None);
+        let current = Cell::new(ReplaySample {
+            temp_c: Some(25.0),
+            rate_dph: 15.0,
+        });
+        let mut lp = CompensationLoop::new(
+            None,
+            LoopConfig {
+                compensator: CompensatorConfig::for_sample_rate(10.0),
+                temp_read_every: 1,
+            },
+            Tmp117::new(
+                EmulatedTmp117::new(&current, tmp117::DEFAULT_ADDRESS),
+                tmp117::DEFAULT_ADDRESS,
+            ),
+            FrontEnd::new(EmulatedFrontEnd::new(&current)),
+            FrameChecker::new(&expected),
+        );
+        let before = lp.step(0.0).flags.contains(Flags::NO_VALID_MODEL);
+        lp.replace_model(store.load().ok());
+        let after = lp.step(0.1).flags.contains(Flags::NO_VALID_MODEL);
+        report.switched = before && !after;
+    }
+    report
+}

@@ -1,0 +1,131 @@
+//! Model update over the UART: a COBS-framed command in, a COBS-framed reply out.
+//!
+//! Host → gyro: `COBS([CMD_INSTALL_MODEL] ++ blob) 0x00`. The firmware
+//! collects bytes between output frames ([`CommandReceiver`]), checks the
+//! blob's CRC and shape, installs it with [`ModelStore::install`] (inactive
+//! slot, then an atomic switch) and switches the running loop to it.
+//!
+//! Gyro → host: `COBS([command, status]) 0x00` ([`UpdateStatus`]) on the same
+//! UART as the output frames; a reply is told from an output frame by its
+//! length (2 payload bytes, an output frame has at least 18).
+
+use embedded_storage::nor_flash::NorFlash;
+use rbf_core::Model;
+use rbf_core::blob::MAX_BLOB_LEN;
+use rbf_core::frame::cobs_encode;
+
+use crate::model_store::{InstallError, ModelStore};
+
+/// Command: install the model blob that follows.
+pub const CMD_INSTALL_MODEL: u8 = 0x01;
+/// Longest command payload (command byte + largest blob), bytes.
+pub const MAX_COMMAND_LEN: usize = 1 + MAX_BLOB_LEN;
+/// Longest COBS-framed command on the wire, bytes.
+pub const MAX_COMMAND_FRAME_LEN: usize = MAX_COMMAND_LEN + MAX_COMMAND_LEN / 254 + 2;
+/// Payload bytes of a reply frame.
+pub const REPLY_LEN: usize = 2;
+
+/// Outcome of a command, sent back as the reply's second byte.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum UpdateStatus {
+    /// The model is installed and running.
+    Installed = 0,
+    /// The command byte is not known.
+    UnknownCommand = 1,
+    /// The frame is not valid COBS or is empty.
+    Malformed = 2,
+    /// The frame is longer than [`MAX_COMMAND_FRAME_LEN`].
+    TooLong = 3,
+    /// The blob was refused (CRC, shape or parameters); the old model runs on.
+    Refused = 4,
+    /// Writing or verifying the flash failed; the old model runs on.
+    FlashFailed = 5,
+}
+
+/// Collects UART bytes into command frames.
+#[derive(Debug)]
+pub struct CommandReceiver {
+    buf: [u8; MAX_COMMAND_FRAME_LEN],
+    len: usize,
+    overflow: bool,
+}
+
+impl Default for CommandReceiver {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// A complete frame from [`CommandReceiver::push`].
+#[derive(Debug, PartialEq, Eq)]
+pub enum Received<'a> {
+    /// A decoded command payload (command byte first).
+    Command(&'a [u8]),
+    /// A frame that cannot be a command; the reply to send.
+    Rejected(UpdateStatus),
+}
+
+impl CommandReceiver {
+    /// An empty receiver.
+    pub const fn new() -> Self {
+        CommandReceiver {
+            buf: [0; MAX_COMMAND_FRAME_LEN],
+            len: 0,
+            overflow: false,
+        }
+    }
+
+    /// Takes one received byte; at a frame's 0x00 returns what it was.
+    pub fn push(&mut self, byte: u8) -> Option<Received<'_>> {
+        if byte != 0 {
+            match self.buf.get_mut(self.len) {
+                Some(slot) => {
+                    *slot = byte;
+                    self.len += 1;
+                }
+                None => self.overflow = true,
+            }
+            return None;
+        }
+        let (len, overflow) = (self.len, self.overflow);
+        self.len = 0;
+        self.overflow = false;
+        if overflow {
+            return Some(Received::Rejected(UpdateStatus::TooLong));
+        }
+        let frame = self.buf.get_mut(..len)?;
+        match cobs::decode_in_place(frame) {
+            Ok(n) if n > 0 => frame.get(..n).map(Received::Command),
+            _ => Some(Received::Rejected(UpdateStatus::Malformed)),
+        }
+    }
+}
+
+/// Carries out one command payload on `store`; the status and, when a model
+/// was installed, the model to switch the loop to.
+pub fn execute<F: NorFlash>(store: &mut ModelStore<F>, payload: &[u8]) -> (UpdateStatus, Option<Model>) {
+    match payload.split_first() {
+        Some((&CMD_INSTALL_MODEL, blob)) => match store.install(blob) {
+            Ok(model) => (UpdateStatus::Installed, Some(model)),
+            Err(InstallError::Refused(_)) => (UpdateStatus::Refused, None),
+            Err(InstallError::Flash(_) | InstallError::Verify) => (UpdateStatus::FlashFailed, None),
+        },
+        _ => (UpdateStatus::UnknownCommand, None),
+    }
+}
+
+/// Encodes the reply to `command` into `out`; the bytes used.
+pub fn encode_reply(command: u8, status: UpdateStatus, out: &mut [u8]) -> Option<usize> {
+    cobs_encode(&[command, status as u8], out)
+}
+
+/// Encodes an install command for `blob` into `out` (host side and tests); the bytes used.
+pub fn encode_install_command(blob: &[u8], out: &mut [u8]) -> Option<usize> {
+    let mut payload = [0u8; MAX_COMMAND_LEN];
+    let (command, rest) = payload.split_first_mut()?;
+    *command = CMD_INSTALL_MODEL;
+    let body = rest.get_mut(..blob.len())?;
+    body.copy_from_slice(blob);
+    cobs_encode(payload.get(..1 + blob.len())?, out)
+}
