@@ -66,9 +66,93 @@ pub fn exp_neg(x: f32) -> f32 {
     p * f32::from_bits(((n + 127) as u32) << 23)
 }
 
+/// Fraction bits of the fixed-point exponent [`exp2_neg_fixed`] takes.
+pub const EXP2_FRAC_BITS: u32 = 10;
+/// Exponents u ≥ this give 0 (the true 2^−u is below 2.4e-10).
+pub const EXP2_RANGE: u32 = 32;
+/// Entries of [`EXP2_NEG_TABLE`]: one per 2^−F step of u over [0, EXP2_RANGE).
+const EXP2_TABLE_LEN: usize = (EXP2_RANGE as usize) << EXP2_FRAC_BITS;
+/// Largest index [`exp2_neg_fixed`] reads (its entry is 0).
+pub const EXP2_FIXED_MAX: i32 = EXP2_TABLE_LEN as i32 - 1;
+/// Bound of the relative error of [`exp2_neg_fixed`] against 2^−u for the u
+/// whose truncation gave the index, u < EXP2_RANGE − 2^−F: 2^(2^−(F+1)) − 1
+/// from the cell's width, plus the entry's rounding to f32 (2^−24). Beyond,
+/// the result is 0 where the truth is below 2^−32 + 2^−42.
+pub const EXP2_FIXED_REL_ERROR: f64 = 3.3858e-4 + 6.0e-8;
+
+/// e^−x for 0 ≤ x ≤ ln 2 in f64 by its Taylor series (26 terms: truncation
+/// below 1e-19), evaluated at compile time.
+const fn exp_neg_f64(x: f64) -> f64 {
+    let mut term = 1.0;
+    let mut sum = 1.0;
+    let mut n = 1;
+    while n < 26 {
+        term = -term * x / n as f64;
+        sum += term;
+        n += 1;
+    }
+    sum
+}
+
+/// Bits of 2^−((i + ½)/2^F) for i = 0 … 2^F·32 − 2 (the middle of each cell,
+/// so that truncating the fixed-point exponent errs symmetrically), and 0 in
+/// the last entry, which saturated exponents read. 128 KiB of flash buys a
+/// Gaussian in one load (see [`exp2_neg_fixed`]). Computed at compile time
+/// with IEEE f64 arithmetic (the fraction by a Taylor series, the integer
+/// part as an exact power of two), hence the same bits on every machine.
+pub static EXP2_NEG_TABLE: [u32; EXP2_TABLE_LEN] = {
+    let cells = 1usize << EXP2_FRAC_BITS;
+    let mut fraction = [0.0f64; 1 << EXP2_FRAC_BITS];
+    let mut i = 0;
+    while i < cells {
+        fraction[i] = exp_neg_f64((i as f64 + 0.5) / cells as f64 * core::f64::consts::LN_2);
+        i += 1;
+    }
+    let mut t = [0u32; EXP2_TABLE_LEN];
+    let mut i = 0;
+    let mut power = 1.0f64;
+    while i < EXP2_TABLE_LEN - 1 {
+        if i > 0 && i % cells == 0 {
+            power *= 0.5;
+        }
+        t[i] = ((fraction[i % cells] * power) as f32).to_bits();
+        i += 1;
+    }
+    t
+};
+
+/// 2^−u for a fixed-point exponent `u_fixed` = trunc(u · 2^F): one saturation
+/// (USAT on a Cortex-M4) and one table load, no polynomial, no branch.
+/// Negative inputs (the rounding of a u that is 0) read as u = 0; u ≥ 32 as 0.
+/// Relative error ≤ [`EXP2_FIXED_REL_ERROR`].
+#[inline(always)]
+pub fn exp2_neg_fixed(u_fixed: i32) -> f32 {
+    let cell = u_fixed.clamp(0, EXP2_FIXED_MAX) as usize;
+    f32::from_bits(EXP2_NEG_TABLE.get(cell).copied().unwrap_or(0))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn table_exponential_stays_within_its_bound() {
+        let mut worst = 0.0f64;
+        let mut u = 0.0f64;
+        while u < 31.99 {
+            let fixed = (u * f64::from(1u32 << EXP2_FRAC_BITS)) as i32;
+            let got = f64::from(exp2_neg_fixed(fixed));
+            let want = (-u).exp2();
+            worst = worst.max((got / want - 1.0).abs());
+            u += 0.000_37;
+        }
+        assert!(worst <= EXP2_FIXED_REL_ERROR, "worst relative error {worst:e}");
+        assert!(worst > 0.9 * 3.3858e-4, "the bound is tight: {worst:e}");
+        let bits = |u: i32| exp2_neg_fixed(u).to_bits();
+        assert_eq!(bits(-5), bits(0), "negative rounds to u = 0");
+        assert_eq!(bits(32 << EXP2_FRAC_BITS), 0, "beyond the range: 0");
+        assert_eq!(bits(i32::MAX), 0);
+    }
 
     fn ulp_error(x: f32) -> f64 {
         let got = exp(x) as f64;

@@ -174,6 +174,11 @@ impl Model {
                 return Err(ModelError::InvalidParameter);
             }
         }
+        let mut body = body;
+        if let ModelBody::Rbf(net) = &mut body {
+            let m = net.kernel_inputs().min(MAX_INPUTS);
+            net.prepare_table(&input_min[..m], &input_max[..m]);
+        }
         let bound_dph = match &body {
             ModelBody::Rbf(net) => net.output_bound(
                 &linear_min[..dims],
@@ -230,17 +235,32 @@ impl Model {
     /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it. `clamped` says that an
     /// input left its training range.
     pub fn eval(&self, features: &FeatureVector) -> Evaluation {
+        // Monomorphised per input count (the feature sets have 1, 2, 3 or 8):
+        // straight-line clamping and evaluation.
+        match self.features.dims() {
+            1 => self.eval_inputs::<1>(features),
+            2 => self.eval_inputs::<2>(features),
+            3 => self.eval_inputs::<3>(features),
+            _ => self.eval_inputs::<MAX_INPUTS>(features),
+        }
+    }
+
+    #[inline(always)]
+    fn eval_inputs<const N: usize>(&self, features: &FeatureVector) -> Evaluation {
         let raw = features.values();
-        let mut x = [0.0f32; MAX_INPUTS];
-        let mut x_linear = [0.0f32; MAX_INPUTS];
+        let mut x = [0.0f32; N];
+        let mut x_linear = [0.0f32; N];
         let mut clamped = false;
-        for i in 0..self.features.dims().min(MAX_INPUTS) {
-            let v = raw[i];
-            // max/min rather than clamp(): never panics, and maps NaN into range.
-            let c = v.max(self.input_min[i]).min(self.input_max[i]);
+        let limits = self
+            .input_min
+            .iter()
+            .zip(&self.input_max)
+            .zip(self.linear_min.iter().zip(&self.linear_max));
+        for (((xi, li), v), ((lo, hi), (llo, lhi))) in x.iter_mut().zip(&mut x_linear).zip(raw).zip(limits) {
+            let c = clamp(*v, *lo, *hi);
             clamped |= c.to_bits() != v.to_bits();
-            x[i] = c;
-            x_linear[i] = v.max(self.linear_min[i]).min(self.linear_max[i]);
+            *xi = c;
+            *li = clamp(*v, *llo, *lhi);
         }
         let bias_dph = match &self.body {
             ModelBody::Rbf(net) => net.eval(&x, &x_linear),
@@ -248,6 +268,15 @@ impl Model {
         };
         Evaluation { bias_dph, clamped }
     }
+}
+
+/// `v` limited to [lo, hi], NaN mapped to `lo`; never panics. Two compare
+/// and selects (f32::max/min are library calls on a Cortex-M4F, whose FPU has
+/// no VMAXNM).
+#[inline(always)]
+fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
+    let above = if v > lo { v } else { lo };
+    if above < hi { above } else { hi }
 }
 
 #[cfg(test)]

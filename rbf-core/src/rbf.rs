@@ -50,6 +50,43 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
     linear: [f32; D],
     has_linear: bool,
     constant: f32,
+    /// Linear terms with the normalisation folded in: y_lin = c′ + Σ a′_i x_i,
+    /// a′_i = a_i / scale_i, c′ = c − Σ a′_i offset_i.
+    linear_raw: [f32; D],
+    constant_raw: f32,
+    /// S·2^16 with S = log₂e / (2σ²) once [`Self::prepare_table`] has proven
+    /// the integer path safe for the model's input box; 0 otherwise (then the
+    /// polynomial exponential path runs).
+    gauss_scale: f32,
+    /// Per centre [A₁, A₂, A₃, B] in fixed point, centres with positive weights
+    /// first, then negative ones (zero weights dropped): W_j·exp(−‖z − c_j‖²/2σ²)
+    /// = ±2^E · 2^−u_j with u_j = B_j + S‖z‖² + Σ_i A_ji z_i, A_ji = −2S c_ji
+    /// (Q[`A_FRAC`]) and B_j = S‖c_j‖² + E − log₂|W_j| (Q[`U_FRAC`]): the
+    /// square expanded and the weight folded in, so per centre there is no
+    /// subtraction and no multiplication by a weight.
+    exponent: [[i32; 4]; K],
+    /// Centres with positive weights at the front of `exponent`, and negative after them.
+    positive: usize,
+    negative: usize,
+    /// 2^E, E = ⌈max log₂|W_j|⌉ (so every folded exponent is ≥ 0).
+    weight_scale: f32,
+}
+
+/// Most kernel inputs the table path ([`crate::fastmath::exp2_neg_fixed`]) handles.
+pub const TABLE_MAX_INPUTS: usize = 3;
+/// Fraction bits of the fixed-point Gaussian exponent u (Q16).
+const U_FRAC: u32 = 16;
+/// Fraction bits of the fixed-point normalised inputs z (Q26: |z| < 32).
+const Z_FRAC: u32 = 26;
+/// Fraction bits of the coefficients A: (A·2^22)(z·2^26)/2^32 = A·z·2^16.
+const A_FRAC: u32 = 32 + U_FRAC - Z_FRAC;
+/// Bound every fixed-point partial sum must stay under (no i32 overflow).
+const FIXED_LIMIT: f64 = (1u32 << 30) as f64;
+
+/// High word of the 64-bit product: one SMMUL/SMMLA on a Cortex-M4.
+#[inline(always)]
+fn mul_hi(a: i32, b: i32) -> i32 {
+    ((i64::from(a) * i64::from(b)) >> 32) as i32
 }
 
 fn all_finite(values: &[f32]) -> bool {
@@ -97,6 +134,13 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             linear: [0.0; D],
             has_linear: !p.linear.is_empty(),
             constant: p.constant,
+            linear_raw: [0.0; D],
+            constant_raw: p.constant,
+            gauss_scale: 0.0,
+            exponent: [[0; 4]; K],
+            positive: 0,
+            negative: 0,
+            weight_scale: 1.0,
         };
         // Zipped iterators rather than indexing: the firmware validates blobs
         // on a path proven panic-free at link time (panic_free_check.rs).
@@ -121,6 +165,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         if !(all_finite(&net.inv_scale)) {
             return Err(ModelError::InvalidParameter);
         }
+        net.fold_linear(d);
         Ok(net)
     }
 
@@ -158,6 +203,96 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
                 .iter()
                 .map(|w| f64::from(*w).abs())
                 .sum::<f64>()
+    }
+
+    /// Folds the input normalisation into the linear terms (f64, rounded once).
+    fn fold_linear(&mut self, d: usize) {
+        let mut constant = f64::from(self.constant);
+        for i in 0..d.min(D) {
+            let a = f64::from(self.linear[i]) * f64::from(self.inv_scale[i]);
+            self.linear_raw[i] = a as f32;
+            constant -= a * f64::from(self.offset[i]);
+        }
+        self.constant_raw = constant as f32;
+    }
+
+    /// Enables the integer table path for Gaussian inputs within
+    /// [`kernel_lo`, `kernel_hi`] (input units; the model clamps to them) when
+    /// its conditions hold: one shared width, at most [`TABLE_MAX_INPUTS`]
+    /// kernel inputs, a nonzero weight, and every fixed-point quantity of the
+    /// evaluation provably inside i32 for every input in the box. Otherwise
+    /// the polynomial path stays. f64 arithmetic rounded once: deterministic,
+    /// so host and target prepare the same bits.
+    pub fn prepare_table(&mut self, kernel_lo: &[f32], kernel_hi: &[f32]) {
+        self.gauss_scale = 0.0;
+        let (m, k) = (self.kernel_inputs, self.centers_used.min(K));
+        let widths = self.widths.get(..k).unwrap_or(&[]);
+        let weights = self.weights.get(..k).unwrap_or(&[]);
+        let shared = widths
+            .first()
+            .is_some_and(|w0| widths.iter().all(|w| w.to_bits() == w0.to_bits()));
+        let max_log2_w = weights
+            .iter()
+            .filter(|w| **w != 0.0)
+            .map(|w| libm::log2(f64::from(*w).abs()))
+            .fold(f64::NEG_INFINITY, f64::max);
+        if !shared || m > TABLE_MAX_INPUTS || !max_log2_w.is_finite() {
+            return;
+        }
+        // The normalised input box.
+        let mut z_box = [(0.0f64, 0.0f64); TABLE_MAX_INPUTS];
+        for (i, zb) in z_box.iter_mut().enumerate().take(m) {
+            let (Some(lo), Some(hi)) = (kernel_lo.get(i), kernel_hi.get(i)) else {
+                return;
+            };
+            let z = |x: f32| (f64::from(x) - f64::from(self.offset[i])) * f64::from(self.inv_scale[i]);
+            *zb = (z(*lo), z(*hi));
+        }
+        let z_max = z_box.iter().map(|(a, b)| a.abs().max(b.abs())).fold(0.0, f64::max);
+        let e = libm::ceil(max_log2_w);
+        let sigma = f64::from(widths.first().copied().unwrap_or(1.0));
+        let s = core::f64::consts::LOG2_E / (2.0 * sigma * sigma);
+        let (u_one, a_one) = (f64::from(1u32 << U_FRAC), f64::from(1u32 << A_FRAC));
+        let shared_max = s * z_max * z_max * m as f64 * u_one;
+        if z_max >= f64::from(1u32 << (31 - Z_FRAC)) - 1.0 || shared_max >= FIXED_LIMIT {
+            return;
+        }
+        let mut slot = 0;
+        for positive in [true, false] {
+            for (c, &w) in self.centers.iter().zip(weights) {
+                if w == 0.0 || (w > 0.0) != positive {
+                    continue;
+                }
+                let Some(coeffs) = self.exponent.get_mut(slot) else {
+                    return;
+                };
+                let (mut norm_sq, mut products_max) = (0.0f64, 0.0f64);
+                for (a, ci) in coeffs.iter_mut().zip(c).take(m) {
+                    let a_real = -2.0 * s * f64::from(*ci);
+                    if (a_real * a_one).abs() >= FIXED_LIMIT {
+                        return;
+                    }
+                    *a = (a_real * a_one) as i32;
+                    norm_sq += f64::from(*ci) * f64::from(*ci);
+                    products_max += a_real.abs() * z_max * u_one;
+                }
+                let b = (s * norm_sq + e - libm::log2(f64::from(w).abs())) * u_one;
+                if b + shared_max + products_max >= FIXED_LIMIT {
+                    return;
+                }
+                coeffs[3] = b as i32;
+                slot += 1;
+            }
+            if positive {
+                self.positive = slot;
+            }
+        }
+        self.negative = slot - self.positive;
+        let weight_scale = libm::exp2(e) as f32;
+        if weight_scale.is_finite() && weight_scale > 0.0 {
+            self.gauss_scale = (s * u_one) as f32;
+            self.weight_scale = weight_scale;
+        }
     }
 
     /// Number of centres in use.
@@ -221,28 +356,71 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
     /// multiply-adds, `K_used` f32 exponentials ([`crate::fastmath::exp_neg`]) and
     /// `inputs_used` linear terms, independent of the values; about 45
     /// instructions per centre at 3 kernel inputs on a Cortex-M4F.
-    pub fn eval(&self, x_kernel: &[f32], x_linear: &[f32]) -> f32 {
-        let d = self.inputs_used.min(D);
-        let m = self.kernel_inputs.min(d);
-        let k = self.centers_used.min(K);
-        let normalise =
-            |x: &[f32], i: usize| (x.get(i).copied().unwrap_or(self.offset[i]) - self.offset[i]) * self.inv_scale[i];
-        let mut y = self.constant;
-        for i in 0..d {
-            y += self.linear[i] * normalise(x_linear, i);
+    ///
+    /// `N` is the model's input count (the caller's arrays); monomorphised per
+    /// N and per kernel-input count so that the code is straight-line.
+    #[inline]
+    pub fn eval<const N: usize>(&self, x_kernel: &[f32; N], x_linear: &[f32; N]) -> f32 {
+        let mut y = self.constant_raw;
+        for (a, x) in self.linear_raw.iter().zip(x_linear) {
+            y += a * x;
         }
-        let mut z = [0.0f32; D];
-        for (i, zi) in z.iter_mut().enumerate().take(m) {
-            *zi = normalise(x_kernel, i);
+        y + match (self.kernel_inputs, self.gauss_scale > 0.0) {
+            (1, true) => self.gaussian_sum_table(self.normalised::<1, N>(x_kernel)),
+            (2, true) => self.gaussian_sum_table(self.normalised::<2, N>(x_kernel)),
+            (3, true) => self.gaussian_sum_table(self.normalised::<3, N>(x_kernel)),
+            (m, _) => {
+                // Per-centre widths or more kernel inputs: the polynomial exponential.
+                let z = self.normalised::<D, N>(x_kernel);
+                let k = self.centers_used.min(K);
+                match m {
+                    1 => self.gaussian_sum::<1>(&z, k),
+                    2 => self.gaussian_sum::<2>(&z, k),
+                    3 => self.gaussian_sum::<3>(&z, k),
+                    _ => self.gaussian_sum_any(&z, m.min(D), k),
+                }
+            }
         }
-        // Monomorphised per kernel-input count so the distance loop has no
-        // branches; every variant sums in the same order, so results are identical.
-        y + match m {
-            1 => self.gaussian_sum::<1>(&z, k),
-            2 => self.gaussian_sum::<2>(&z, k),
-            3 => self.gaussian_sum::<3>(&z, k),
-            _ => self.gaussian_sum_any(&z, m, k),
+    }
+
+    /// The first `M` inputs normalised, z_i = (x_i − offset_i) / scale_i (0 past N).
+    #[inline(always)]
+    fn normalised<const M: usize, const N: usize>(&self, x: &[f32; N]) -> [f32; M] {
+        core::array::from_fn(|i| match (x.get(i), self.offset.get(i), self.inv_scale.get(i)) {
+            (Some(x), Some(o), Some(s)) => (x - o) * s,
+            _ => 0.0,
+        })
+    }
+
+    /// Σ_j W_j exp(−‖z − c_j‖²/2σ²) = 2^E (Σ_pos 2^−u_j − Σ_neg 2^−u_j) with the
+    /// fixed-point exponents of [`Self::prepare_table`] and the table
+    /// exponential. Per centre: N + 1 integer multiply-accumulates of high
+    /// words (SMMLA), one saturation, one table load, one float add; no
+    /// branch, no conversion, no weight multiplication. Integer arithmetic,
+    /// so host and target agree bit for bit.
+    #[inline(always)]
+    fn gaussian_sum_table<const N: usize>(&self, zn: [f32; N]) -> f32 {
+        let mut norm_sq = 0.0f32;
+        for zi in &zn {
+            norm_sq += zi * zi;
         }
+        // `as` saturates; prepare_table proved the box keeps these in range.
+        let shared = (self.gauss_scale * norm_sq) as i32;
+        let z_fixed: [i32; N] = zn.map(|zi| (zi * (1u32 << Z_FRAC) as f32) as i32);
+        let sum = |centres: &[[i32; 4]]| {
+            let mut sum = 0.0f32;
+            for &[a1, a2, a3, b] in centres {
+                let mut u = b.wrapping_add(shared);
+                for (a, zi) in [a1, a2, a3].iter().zip(&z_fixed) {
+                    u = u.wrapping_add(mul_hi(*a, *zi));
+                }
+                sum += crate::fastmath::exp2_neg_fixed(u >> (U_FRAC - crate::fastmath::EXP2_FRAC_BITS));
+            }
+            sum
+        };
+        let (positive, rest) = self.exponent.split_at(self.positive.min(K));
+        let negative = rest.get(..self.negative).unwrap_or(&[]);
+        (sum(positive) - sum(negative)) * self.weight_scale
     }
 
     /// Σ_j W_j exp(−‖z − c_j‖²/2σ_j²) over the first `k` centres, `N` inputs.
@@ -309,14 +487,48 @@ mod tests {
     #[test]
     fn evaluates_the_documented_formula() {
         let net = one_centre();
+        // Each Gaussian is within the table exponential's bound (W = 2).
+        let tol = 2.0 * crate::fastmath::EXP2_FIXED_REL_ERROR + 1e-6;
         // At the centre: c + 0 + W·exp(0) = 1 + 2 = 3.
-        assert_eq!(net.eval(&[20.0, 0.0, 0.0], &[20.0, 0.0, 0.0]), 3.0);
+        assert!((net.eval(&[20.0, 0.0, 0.0], &[20.0, 0.0, 0.0]) as f64 - 3.0).abs() < tol);
         // One σ away along T (z = 1): 1 + 0.5 + 2·e^{−1/2}.
         let expected = 1.0 + 0.5 + 2.0 * (-0.5f64).exp();
-        assert!((net.eval(&[30.0, 0.0, 0.0], &[30.0, 0.0, 0.0]) as f64 - expected).abs() < 1e-6);
+        assert!((net.eval(&[30.0, 0.0, 0.0], &[30.0, 0.0, 0.0]) as f64 - expected).abs() < tol);
         // The Gaussians and the linear terms take their own inputs.
         let split = 1.0 + 0.5 * 2.0 + 2.0 * (-0.5f64).exp();
-        assert!((net.eval(&[30.0, 0.0, 0.0], &[40.0, 0.0, 0.0]) as f64 - split).abs() < 1e-6);
+        assert!((net.eval(&[30.0, 0.0, 0.0], &[40.0, 0.0, 0.0]) as f64 - split).abs() < tol);
+    }
+
+    #[test]
+    fn table_path_matches_the_polynomial_path_within_its_bound() {
+        // The same network with per-centre widths (polynomial exponential) and
+        // with a shared width (table exponential), over a grid of inputs.
+        let centers = [0.3, -0.2, 0.1, -1.0, 0.5, 0.8, 1.2, 0.0, -0.7];
+        let build = |widths: &[f32]| {
+            RbfNetwork::<4, 3>::new(&RbfParams {
+                offset: &[25.0, 0.0, 0.0],
+                scale: &[10.0, 1.0, 20.0],
+                kernel_inputs: 3,
+                centers: &centers,
+                widths,
+                weights: &[1.5, -2.0, 0.7],
+                linear: &[],
+                constant: 0.0,
+            })
+            .unwrap()
+        };
+        let (lo, hi) = ([5.0, -2.0, -40.0], [45.0, 2.0, 40.0]);
+        let mut table = build(&[0.8, 0.8, 0.8]);
+        table.prepare_table(&lo, &hi);
+        let mut exact = build(&[0.8, 0.8, 0.800_000_1]);
+        exact.prepare_table(&lo, &hi);
+        assert!(table.gauss_scale > 0.0 && exact.gauss_scale == 0.0);
+        let bound = (1.5 + 2.0 + 0.7) * crate::fastmath::EXP2_FIXED_REL_ERROR;
+        for i in 0..40 {
+            let x = [5.0 + i as f32, -2.0 + 0.1 * i as f32, 40.0 - 2.0 * i as f32];
+            let (a, b) = (table.eval(&x, &x), exact.eval(&x, &x));
+            assert!((a - b).abs() as f64 <= bound + 1e-5, "{x:?}: {a} vs {b}");
+        }
     }
 
     #[test]
