@@ -268,6 +268,28 @@ impl Model {
         };
         Evaluation { bias_dph, clamped }
     }
+
+    /// The model's mathematical value at `features` in f64 with exact
+    /// exponentials (same clamping as [`Self::eval`]): the reference the
+    /// deployed evaluation is measured against (host tools and tests; the
+    /// firmware never calls it).
+    pub fn eval_reference(&self, features: &FeatureVector) -> f64 {
+        let raw = features.values();
+        let mut x = [0.0f64; MAX_INPUTS];
+        let mut x_linear = [0.0f64; MAX_INPUTS];
+        for (i, v) in raw.iter().enumerate().take(MAX_INPUTS) {
+            x[i] = f64::from(clamp(*v, self.input_min[i], self.input_max[i]));
+            x_linear[i] = f64::from(clamp(*v, self.linear_min[i], self.linear_max[i]));
+        }
+        match &self.body {
+            ModelBody::Rbf(net) => net.eval_reference(&x, &x_linear),
+            ModelBody::Poly3(p) => {
+                let u = x[0] - f64::from(p.ref_temp_c);
+                let [c0, c1, c2, c3] = p.coeffs.map(f64::from);
+                c0 + u * (c1 + u * (c2 + u * c3))
+            }
+        }
+    }
 }
 
 /// `v` limited to [lo, hi], NaN mapped to `lo`; never panics. Two compare
