@@ -8,7 +8,7 @@ use anyhow::bail;
 use crate::{firmware, qemu};
 
 /// Runs the benchmark image and prints its figures; the last line printed is
-/// `instructions_per_sample K=32 D=3: N`.
+/// `instructions_per_sample K=32 D=3: N`, N the model evaluation's count.
 pub fn bench_fw() -> anyhow::Result<()> {
     qemu::ensure_installed()?;
     let bench = firmware::build("qemu-bench", &[])?;
@@ -34,7 +34,9 @@ pub fn bench_fw() -> anyhow::Result<()> {
         qemu::MACHINE
     );
     println!(
-        "per compensated sample: features + clamping + RBF evaluation + fault logic (rbf_core::Compensator::process)"
+        "per compensated sample: evaluation = rbf_core::Model::eval (clamping, normalisation, Gaussians, linear \
+         terms; harness loop subtracted); whole step = rbf_core::Compensator::process (gap and fault logic, \
+         feature filters, evaluation, flags)"
     );
     for line in lines
         .iter()
