@@ -91,7 +91,62 @@ pub struct Row {
 
 /// Trims spaces, tabs and a trailing carriage return.
 pub fn trim_field(s: &str) -> &str {
-    s.trim_matches(|c| c == ' ' || c == '\t' || c == '\r')
+    let blank = |b: u8| b == b' ' || b == b'\t' || b == b'\r';
+    let bytes = s.as_bytes();
+    match (bytes.first(), bytes.last()) {
+        // The usual field: nothing to trim (no per-char search).
+        (Some(&a), Some(&z)) if !blank(a) && !blank(z) => s,
+        _ => s.trim_matches(|c| c == ' ' || c == '\t' || c == '\r'),
+    }
+}
+
+/// Powers of ten exactly representable in f64.
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20,
+    1e21, 1e22,
+];
+
+/// Parses a number exactly as `str::parse::<f64>` does (the same value for
+/// every input, errors included), faster for the form recorded runs use:
+/// `[+-]digits[.digits]` whose digits make an integer m ≤ 2^53 with at most
+/// 22 after the point is m / 10^k, both exact in f64, so the one IEEE
+/// division is the correctly rounded value (Clinger's fast path). Anything
+/// else goes to core's parser.
+pub fn parse_f64(text: &str) -> Result<f64, core::num::ParseFloatError> {
+    let bytes = text.as_bytes();
+    let (negative, digits) = match bytes.first() {
+        Some(b'-') => (true, &bytes[1..]),
+        Some(b'+') => (false, &bytes[1..]),
+        _ => (false, bytes),
+    };
+    // At most 15 digits: 10^15 < 2^53, so the mantissa needs no overflow check.
+    const MAX_DIGITS: usize = 15;
+    let mut mantissa: u64 = 0;
+    let mut digit_count = 0usize;
+    let mut point_at = None;
+    for (i, &b) in digits.iter().enumerate() {
+        let d = b.wrapping_sub(b'0');
+        if d < 10 {
+            mantissa = mantissa * 10 + u64::from(d);
+            digit_count += 1;
+            if digit_count > MAX_DIGITS {
+                return text.parse();
+            }
+        } else if b == b'.' && point_at.is_none() {
+            point_at = Some(i);
+        } else {
+            return text.parse();
+        }
+    }
+    if digit_count == 0 {
+        return text.parse();
+    }
+    let fraction_digits = point_at.map_or(0, |p| digits.len() - p - 1);
+    let Some(&scale) = POW10.get(fraction_digits) else {
+        return text.parse();
+    };
+    let value = mantissa as f64 / scale;
+    Ok(if negative { -value } else { value })
 }
 
 /// A metadata line (`# ...`), blank line, or data/header line.
@@ -245,15 +300,27 @@ impl Columns {
             self.ref_dph,
             self.temp_fault,
         ];
+        // Fields between commas, found by a plain byte scan (commas are
+        // ASCII, so every cut is a char boundary).
         let mut found = 0;
-        for (i, field) in line.split(',').enumerate() {
-            found = i + 1;
+        let mut start = 0;
+        let bytes = line.as_bytes();
+        let mut keep = |index: usize, start: usize, end: usize| {
             for (slot, want) in fields.iter_mut().zip(wanted) {
-                if want == Some(i) {
-                    *slot = field;
+                if want == Some(index) {
+                    *slot = line.get(start..end).unwrap_or("");
                 }
             }
+        };
+        for (i, &b) in bytes.iter().enumerate() {
+            if b == b',' {
+                keep(found, start, i);
+                found += 1;
+                start = i + 1;
+            }
         }
+        keep(found, start, bytes.len());
+        found += 1;
         if found != self.count {
             return Err(RowError {
                 column: None,
@@ -264,7 +331,7 @@ impl Columns {
             });
         }
         let number = |index: usize, text: &str| -> Result<f64, RowError> {
-            let v: f64 = trim_field(text).parse().map_err(|_| RowError {
+            let v: f64 = parse_f64(trim_field(text)).map_err(|_| RowError {
                 column: Some(index),
                 kind: RowErrorKind::NotANumber,
             })?;

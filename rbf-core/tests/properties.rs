@@ -170,3 +170,25 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 20_000, ..ProptestConfig::default() })]
+
+    #[test]
+    fn the_fast_number_parser_agrees_with_core_on_every_input(
+        text in prop_oneof![
+            4 => "[+-]?[0-9]{0,20}(\\.[0-9]{0,25})?",
+            1 => "[+-]?[0-9]{1,3}(\\.[0-9]{1,8})?[eE][+-]?[0-9]{1,3}",
+            1 => "[0-9a-zA-Z.+\\- ]{0,12}",
+            1 => prop::sample::select(vec![
+                "9007199254740992".to_owned(), "9007199254740993".to_owned(), "0.1".to_owned(), "-0".to_owned(),
+                "-0.0".to_owned(), ".5".to_owned(), "5.".to_owned(), ".".to_owned(), "".to_owned(), "+".to_owned(),
+                "inf".to_owned(), "NaN".to_owned(), "1e400".to_owned(), "0.30000000000000004".to_owned(),
+            ]),
+        ],
+    ) {
+        let ours = rbf_core::record::parse_f64(&text).map(f64::to_bits).ok();
+        let core = text.parse::<f64>().map(f64::to_bits).ok();
+        prop_assert_eq!(ours, core, "{:?}", text);
+    }
+}

@@ -51,6 +51,52 @@ pub fn oadev(rate_dph: &[f64], tau0_s: f64, m: &[usize]) -> Vec<f64> {
         .collect()
 }
 
+/// Most values an Allan series keeps before [`Decimated`] halves it (2^20:
+/// 8 MiB; runs up to this many samples are analysed at full rate).
+pub const MAX_ALLAN_POINTS: usize = 1 << 20;
+
+/// A rate series kept for the Allan deviation, sample by sample, in bounded
+/// memory: past [`MAX_ALLAN_POINTS`] values, adjacent pairs are averaged and
+/// the base interval doubles (the Allan deviation is then known from τ of
+/// twice the previous base on, which long runs do not miss).
+#[derive(Clone, Debug, Default)]
+pub struct Decimated {
+    values: Vec<f64>,
+    factor: usize,
+    pending_sum: f64,
+    pending: usize,
+}
+
+impl Decimated {
+    /// An empty series.
+    pub fn new() -> Self {
+        Decimated {
+            factor: 1,
+            ..Decimated::default()
+        }
+    }
+
+    /// Takes the next sample.
+    pub fn push(&mut self, v: f64) {
+        self.pending_sum += v;
+        self.pending += 1;
+        if self.pending < self.factor {
+            return;
+        }
+        self.values.push(self.pending_sum / self.factor as f64);
+        (self.pending_sum, self.pending) = (0.0, 0);
+        if self.values.len() >= MAX_ALLAN_POINTS {
+            self.values = self.values.chunks_exact(2).map(|p| 0.5 * (p[0] + p[1])).collect();
+            self.factor *= 2;
+        }
+    }
+
+    /// The series and how many samples each value averages.
+    pub fn finish(self) -> (Vec<f64>, usize) {
+        (self.values, self.factor)
+    }
+}
+
 /// Octave cluster sizes 1, 2, 4, … leaving at least 8 terms in the sum.
 pub fn octave_sizes(samples: usize) -> Vec<usize> {
     std::iter::successors(Some(1usize), |m| m.checked_mul(2))

@@ -6,9 +6,13 @@
 //! still warming up or whose temperature is a held value are left out of the
 //! averages; blocks with under half their nominal samples are dropped.
 
-use rbf_core::{Compensator, FeatureConfig, Flags, MAX_INPUTS};
+use std::path::PathBuf;
+use std::sync::Mutex;
 
-use crate::run::Run;
+use rbf_core::record::Row;
+use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, Flags, GyroSample, MAX_INPUTS};
+
+use crate::run::{Run, RunError, RunReader, gyro_sample};
 
 /// Block-averaged features and targets of one or more runs.
 #[derive(Clone, Debug, Default)]
@@ -73,6 +77,136 @@ struct Accumulator {
     count: usize,
 }
 
+/// Builds the block means of one run sample by sample, for one feature
+/// configuration: the streaming core of [`block_means`] and [`RunFiles`].
+pub struct BlockBuilder {
+    features: FeatureConfig,
+    config: CompensatorConfig,
+    block_s: f64,
+    nominal_period_s: f64,
+    min_count: usize,
+    compensator: Compensator,
+    acc: Accumulator,
+    segment_start_s: f64,
+    current_block: Option<(u64, u64)>,
+    started: bool,
+    out: Blocks,
+    run_index: usize,
+}
+
+impl BlockBuilder {
+    /// A builder for run number `run_index` of nominal period `nominal_period_s`.
+    pub fn new(run_index: usize, features: FeatureConfig, nominal_period_s: f64, block_s: f64) -> Self {
+        let dims = features.dims();
+        BlockBuilder {
+            features,
+            config: CompensatorConfig::for_nominal_period_s(nominal_period_s),
+            block_s,
+            nominal_period_s,
+            min_count: ((0.5 * block_s / nominal_period_s).floor() as usize).max(1),
+            compensator: Compensator::new(),
+            acc: Accumulator::default(),
+            segment_start_s: 0.0,
+            current_block: None,
+            started: false,
+            out: Blocks {
+                dims,
+                sample_range: vec![(f64::INFINITY, f64::NEG_INFINITY); dims],
+                ..Blocks::default()
+            },
+            run_index,
+        }
+    }
+
+    fn flush(&mut self) {
+        let acc = std::mem::take(&mut self.acc);
+        if acc.count >= self.min_count {
+            let n = acc.count as f64;
+            let mut mean = [0.0; MAX_INPUTS];
+            for (m, s) in mean.iter_mut().zip(&acc.sum_x) {
+                *m = s / n;
+            }
+            self.out.x.push(mean);
+            self.out.y.push(acc.sum_y / n);
+            self.out.run.push(self.run_index);
+        }
+    }
+
+    /// Takes the next sample at `time_s` with bias target `target_dph` (rate − reference).
+    pub fn push(&mut self, time_s: f64, sample: &GyroSample, target_dph: f64) {
+        if !self.started || self.config.is_gap(sample.dt_s) {
+            self.segment_start_s = time_s;
+        }
+        self.started = true;
+        let block = (
+            self.segment_start_s.to_bits(),
+            ((time_s - self.segment_start_s) / self.block_s).floor() as u64,
+        );
+        if self.current_block != Some(block) {
+            self.flush();
+            self.current_block = Some(block);
+        }
+        let frame = self.compensator.features(&self.features, &self.config, sample);
+        let unusable = Flags::WARMING_UP | Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL;
+        let Some(fv) = frame.features.filter(|_| frame.flags.0 & unusable.0 == 0) else {
+            return;
+        };
+        for (k, &v) in fv.as_slice().iter().enumerate() {
+            self.acc.sum_x[k] += v as f64;
+            let r = &mut self.out.sample_range[k];
+            *r = (r.0.min(v as f64), r.1.max(v as f64));
+        }
+        self.acc.sum_y += target_dph;
+        self.acc.count += 1;
+        self.out.usable_s += self.nominal_period_s;
+    }
+
+    /// The blocks; `target_offset_dph` is subtracted from every block's target
+    /// (the run mean, for runs without `ref_dph`, known only at the end).
+    pub fn finish(mut self, target_offset_dph: f64) -> Blocks {
+        self.flush();
+        for y in &mut self.out.y {
+            *y -= target_offset_dph;
+        }
+        self.out
+    }
+}
+
+/// Runs the trainer learns from: in memory ([`Run`]) or streamed from files
+/// ([`RunFiles`]), seen through their block means.
+pub trait RunSet {
+    /// Number of runs.
+    fn count(&self) -> usize;
+    /// Block means of every run's features for `features`, concatenated.
+    fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks>;
+    /// Computes the blocks of several configurations where one pass over the
+    /// data serves them all; later [`RunSet::block_means`] calls use them.
+    fn prepare(&self, _configs: &[FeatureConfig], _block_s: f64) -> anyhow::Result<()> {
+        Ok(())
+    }
+}
+
+impl RunSet for [Run] {
+    fn count(&self) -> usize {
+        self.len()
+    }
+
+    fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
+        Ok(block_means(self, features, block_s))
+    }
+}
+
+/// Arrays of runs (so that `&[]` reads as "no validation runs").
+impl<const N: usize> RunSet for [Run; N] {
+    fn count(&self) -> usize {
+        N
+    }
+
+    fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
+        Ok(block_means(self, features, block_s))
+    }
+}
+
 /// Block means of the features and bias target of each run, concatenated.
 pub fn block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) -> Blocks {
     let mut all = Blocks {
@@ -80,65 +214,164 @@ pub fn block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) -> Bloc
         ..Blocks::default()
     };
     for (index, run) in runs.iter().enumerate() {
-        all.append(run_blocks(index, run, features, block_s));
+        let reference = run.reference_dph();
+        let mut builder = BlockBuilder::new(index, *features, run.nominal_period_s, block_s);
+        for (i, sample) in run.samples().enumerate() {
+            builder.push(run.time_s[i], &sample, run.rate_dph[i] - reference.at(i));
+        }
+        all.append(builder.finish(0.0));
     }
     all
 }
 
-fn run_blocks(run_index: usize, run: &Run, features: &FeatureConfig, block_s: f64) -> Blocks {
-    let dims = features.dims();
-    let config = run.compensator_config();
-    let reference = run.reference_dph();
-    let min_count = ((0.5 * block_s / run.nominal_period_s).floor() as usize).max(1);
-    let mut out = Blocks {
-        dims,
-        sample_range: vec![(f64::INFINITY, f64::NEG_INFINITY); dims],
-        ..Blocks::default()
-    };
-    let mut compensator = Compensator::new();
-    let mut acc = Accumulator::default();
-    let mut segment_start_s = 0.0;
-    let mut current_block = None;
-    let flush = |acc: &mut Accumulator, out: &mut Blocks| {
-        if acc.count >= min_count {
-            let n = acc.count as f64;
-            let mut mean = [0.0; MAX_INPUTS];
-            for (m, s) in mean.iter_mut().zip(&acc.sum_x) {
-                *m = s / n;
-            }
-            out.x.push(mean);
-            out.y.push(acc.sum_y / n);
-            out.run.push(run_index);
-        }
-        *acc = Accumulator::default();
-    };
-    for (i, sample) in run.samples().enumerate() {
-        let t = run.time_s[i];
-        if i == 0 || config.is_gap(sample.dt_s) {
-            segment_start_s = t;
-        }
-        let block = (
-            segment_start_s.to_bits(),
-            ((t - segment_start_s) / block_s).floor() as u64,
-        );
-        if current_block != Some(block) {
-            flush(&mut acc, &mut out);
-            current_block = Some(block);
-        }
-        let frame = compensator.features(features, &config, &sample);
-        let unusable = Flags::WARMING_UP | Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL;
-        let Some(fv) = frame.features.filter(|_| frame.flags.0 & unusable.0 == 0) else {
-            continue;
-        };
-        for (k, &v) in fv.as_slice().iter().enumerate() {
-            acc.sum_x[k] += v as f64;
-            let r = &mut out.sample_range[k];
-            *r = (r.0.min(v as f64), r.1.max(v as f64));
-        }
-        acc.sum_y += run.rate_dph[i] - reference.at(i);
-        acc.count += 1;
-        out.usable_s += run.nominal_period_s;
+/// Run files read in streaming passes: only block means and running sums are
+/// ever held, whatever the file's length. One pass computes the blocks of
+/// every configuration [`RunSet::prepare`] asks for; the parsing runs on its
+/// own thread, ahead of the feature computation.
+pub struct RunFiles {
+    paths: Vec<PathBuf>,
+    cache: Mutex<Vec<(CacheKey, Blocks)>>,
+}
+
+type CacheKey = (FeatureConfigKey, u64);
+type FeatureConfigKey = (u8, [u32; 3]);
+
+fn cache_key(features: &FeatureConfig, block_s: f64) -> CacheKey {
+    let w = features.windows_s();
+    let mut bits = [0u32; 3];
+    for (b, v) in bits.iter_mut().zip(w.iter()) {
+        *b = v.to_bits();
     }
-    flush(&mut acc, &mut out);
-    out
+    ((features.set as u8, bits), block_s.to_bits())
+}
+
+impl RunFiles {
+    /// Runs read from `paths` (nothing is read yet).
+    pub fn new(paths: &[PathBuf]) -> Self {
+        RunFiles {
+            paths: paths.to_vec(),
+            cache: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The files.
+    pub fn paths(&self) -> &[PathBuf] {
+        &self.paths
+    }
+
+    fn cached(&self, key: &CacheKey) -> Option<Blocks> {
+        let cache = self.cache.lock().ok()?;
+        cache.iter().find(|(k, _)| k == key).map(|(_, b)| b.clone())
+    }
+
+    /// One pass over run `index`: blocks for each of `configs`.
+    fn pass(&self, index: usize, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<Vec<Blocks>> {
+        let path = &self.paths[index];
+        let reader = RunReader::open(path)?;
+        reader.require_temp()?;
+        let period_s = crate::run::probe_nominal_period_s(path)?;
+        let mut builders: Vec<BlockBuilder> = configs
+            .iter()
+            .map(|c| BlockBuilder::new(index, *c, period_s, block_s))
+            .collect();
+        let has_ref = reader.columns().ref_dph.is_some();
+        let (mut rate_sum, mut rows) = (0.0f64, 0usize);
+        let mut prev_time_s = None;
+        for_each_row_batch(reader, |batch| {
+            for row in batch {
+                let temp_c = if row.temp_fault { None } else { row.temp_c };
+                let sample = gyro_sample(prev_time_s, row.time_s, row.rate_dph, temp_c);
+                prev_time_s = Some(row.time_s);
+                let target = row.rate_dph - row.ref_dph.unwrap_or(0.0);
+                rate_sum += row.rate_dph;
+                rows += 1;
+                for b in &mut builders {
+                    b.push(row.time_s, &sample, target);
+                }
+            }
+        })?;
+        if rows < 2 {
+            anyhow::bail!("{}: run has {rows} data rows; at least 2 are needed", path.display());
+        }
+        let offset = if has_ref { 0.0 } else { rate_sum / rows as f64 };
+        Ok(builders.into_iter().map(|b| b.finish(offset)).collect())
+    }
+}
+
+/// Parses `reader`'s rows on a second thread in batches and hands each batch
+/// to `consume` on this one, so parsing and feature computation overlap.
+pub fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[Row])) -> anyhow::Result<()> {
+    const BATCH: usize = 4096;
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Row>>(4);
+    std::thread::scope(|scope| {
+        let parser = scope.spawn(move || -> Result<(), RunError> {
+            loop {
+                let mut batch = Vec::with_capacity(BATCH);
+                while batch.len() < BATCH {
+                    match reader.next_parsed()? {
+                        Some((_, row)) => batch.push(row),
+                        None => break,
+                    }
+                }
+                let last = batch.len() < BATCH;
+                if !batch.is_empty() && tx.send(batch).is_err() {
+                    return Ok(());
+                }
+                if last {
+                    return Ok(());
+                }
+            }
+        });
+        for batch in rx {
+            consume(&batch);
+        }
+        parser
+            .join()
+            .map_err(|_| anyhow::anyhow!("the run parser thread panicked"))?
+            .map_err(anyhow::Error::from)
+    })
+}
+
+impl RunSet for RunFiles {
+    fn count(&self) -> usize {
+        self.paths.len()
+    }
+
+    fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
+        let key = cache_key(features, block_s);
+        if let Some(b) = self.cached(&key) {
+            return Ok(b);
+        }
+        self.prepare(std::slice::from_ref(features), block_s)?;
+        self.cached(&key)
+            .ok_or_else(|| anyhow::anyhow!("block means were not cached"))
+    }
+
+    fn prepare(&self, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<()> {
+        let wanted: Vec<FeatureConfig> = configs
+            .iter()
+            .filter(|c| self.cached(&cache_key(c, block_s)).is_none())
+            .copied()
+            .collect();
+        if wanted.is_empty() {
+            return Ok(());
+        }
+        let mut merged: Vec<Blocks> = wanted
+            .iter()
+            .map(|c| Blocks {
+                dims: c.dims(),
+                ..Blocks::default()
+            })
+            .collect();
+        for index in 0..self.paths.len() {
+            for (all, blocks) in merged.iter_mut().zip(self.pass(index, &wanted, block_s)?) {
+                all.append(blocks);
+            }
+        }
+        let mut cache = self.cache.lock().map_err(|_| anyhow::anyhow!("block cache poisoned"))?;
+        for (c, b) in wanted.iter().zip(merged) {
+            cache.push((cache_key(c, block_s), b));
+        }
+        Ok(())
+    }
 }

@@ -9,7 +9,8 @@ use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, Model};
 use serde::Serialize;
 
 use crate::allan::{self, AllanDeviation};
-use crate::metrics::{cluster_std, improvement_pct, msd};
+use crate::dataset::for_each_row_batch;
+use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
 use crate::output::write_atomically;
 use crate::run::{Run, RunReader, gyro_sample, probe_nominal_period_s};
 
@@ -83,35 +84,110 @@ pub fn evaluate_run(model: &Model, run: &Run) -> RunEvaluation {
 /// Before/after accuracy of `run` given its compensated output `out` (one per sample).
 pub fn evaluate_output(run: &Run, out: &[CompensatedSample]) -> RunEvaluation {
     let reference = run.reference_dph();
-    let about_mean = run.ref_dph.is_none();
-    let before: Vec<f64> = (0..run.len()).map(|i| run.rate_dph[i] - reference.at(i)).collect();
-    let after: Vec<f64> = (0..run.len())
-        .map(|i| out[i].rate_comp_dph as f64 - reference.at(i))
-        .collect();
-    let mut flagged = FlagCounts::default();
-    out.iter().for_each(|o| flagged.add(o.flags));
-    let period = run.nominal_period_s;
-    let (msd_before, msd_after) = (
-        msd(&run.time_s, &before, period, about_mean),
-        msd(&run.time_s, &after, period, about_mean),
-    );
-    let (std_before, std_after) = (
-        cluster_std(&run.time_s, &before, period),
-        cluster_std(&run.time_s, &after, period),
-    );
-    RunEvaluation {
-        run: run.path.display().to_string(),
-        samples: run.len(),
-        reference: if about_mean { "run mean" } else { "ref_dph" },
-        msd_before_dph2: msd_before,
-        msd_after_dph2: msd_after,
-        msd_improvement_pct: improvement_pct(msd_before, msd_after),
-        cluster_std_before_dph: std_before,
-        cluster_std_after_dph: std_after,
-        cluster_std_improvement_pct: improvement_pct(std_before, std_after),
-        flagged,
-        allan_before: allan::analyse(&before, period),
-        allan_after: allan::analyse(&after, period),
+    let mut evaluator = Evaluator::new(&run.path, run.nominal_period_s, run.ref_dph.is_some());
+    for (i, o) in out.iter().enumerate().take(run.len()) {
+        let r = reference.at(i);
+        evaluator.push(run.time_s[i], run.rate_dph[i] - r, o.rate_comp_dph as f64 - r, o.flags);
+    }
+    evaluator.finish()
+}
+
+/// Before/after accuracy of `model` on the run in `path`, read in one
+/// streaming pass (memory: bin means and a bounded Allan series, whatever
+/// the run's length). Without `ref_dph` deviations are taken about their
+/// mean, which the MSD, cluster STD and Allan deviation are blind to.
+pub fn evaluate_file(model: &Model, path: &Path) -> anyhow::Result<RunEvaluation> {
+    let period_s = probe_nominal_period_s(path)?;
+    let reader = RunReader::open(path)?;
+    reader.require_temp()?;
+    let has_ref = reader.columns().ref_dph.is_some();
+    let config = CompensatorConfig::for_nominal_period_s(period_s);
+    let mut compensator = Compensator::new();
+    let mut evaluator = Evaluator::new(path, period_s, has_ref);
+    let mut prev_time_s = None;
+    for_each_row_batch(reader, |batch| {
+        for row in batch {
+            let temp_c = if row.temp_fault { None } else { row.temp_c };
+            let sample = gyro_sample(prev_time_s, row.time_s, row.rate_dph, temp_c);
+            prev_time_s = Some(row.time_s);
+            let out = compensator.process(Some(model), &config, &sample);
+            let r = row.ref_dph.unwrap_or(0.0);
+            evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
+        }
+    })?;
+    Ok(evaluator.finish())
+}
+
+/// Accumulates a run's before/after accuracy sample by sample: 1-s and 100-s
+/// bin means, flag counts and bounded Allan series ([`allan::Decimated`]).
+pub struct Evaluator {
+    run: String,
+    nominal_period_s: f64,
+    has_ref: bool,
+    samples: usize,
+    flagged: FlagCounts,
+    msd: [BinMeans; 2],
+    clusters: [BinMeans; 2],
+    allan: [allan::Decimated; 2],
+}
+
+impl Evaluator {
+    /// An evaluator for the run at `path`, sampled every `nominal_period_s`;
+    /// `has_ref`: deviations are from `ref_dph` (else about their mean).
+    pub fn new(path: &Path, nominal_period_s: f64, has_ref: bool) -> Self {
+        let bins = |bin_s| {
+            [
+                BinMeans::new(bin_s, nominal_period_s),
+                BinMeans::new(bin_s, nominal_period_s),
+            ]
+        };
+        Evaluator {
+            run: path.display().to_string(),
+            nominal_period_s,
+            has_ref,
+            samples: 0,
+            flagged: FlagCounts::default(),
+            msd: bins(MSD_WINDOW_S),
+            clusters: bins(CLUSTER_S),
+            allan: [allan::Decimated::new(), allan::Decimated::new()],
+        }
+    }
+
+    /// Takes one sample at `time_s`: raw and compensated deviation from the reference, °/h.
+    pub fn push(&mut self, time_s: f64, before_dph: f64, after_dph: f64, flags: Flags) {
+        self.samples += 1;
+        self.flagged.add(flags);
+        for (k, v) in [before_dph, after_dph].into_iter().enumerate() {
+            self.msd[k].push(time_s, v);
+            self.clusters[k].push(time_s, v);
+            self.allan[k].push(v);
+        }
+    }
+
+    /// The evaluation.
+    pub fn finish(self) -> RunEvaluation {
+        let about_mean = !self.has_ref;
+        let [msd_before, msd_after] = self.msd.map(|b| msd_of_means(&b.finish(), about_mean));
+        let [std_before, std_after] = self.clusters.map(|b| sample_std(&b.finish()));
+        let period = self.nominal_period_s;
+        let [allan_before, allan_after] = self.allan.map(|a| {
+            let (series, factor) = a.finish();
+            allan::analyse(&series, period * factor as f64)
+        });
+        RunEvaluation {
+            run: self.run,
+            samples: self.samples,
+            reference: if about_mean { "run mean" } else { "ref_dph" },
+            msd_before_dph2: msd_before,
+            msd_after_dph2: msd_after,
+            msd_improvement_pct: improvement_pct(msd_before, msd_after),
+            cluster_std_before_dph: std_before,
+            cluster_std_after_dph: std_after,
+            cluster_std_improvement_pct: improvement_pct(std_before, std_after),
+            flagged: self.flagged,
+            allan_before,
+            allan_after,
+        }
     }
 }
 

@@ -10,10 +10,12 @@ use rbf_core::Model;
 use rbf_core::blob::{self, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{read_model, write_model};
-use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_run, print_allan_table, print_table};
+use trainer::dataset::RunFiles;
+use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_file, evaluate_run, print_allan_table, print_table};
 use trainer::fit::{self, FitOptions, Method, RbfFeatures};
 use trainer::output::{Existing, check_target, write_atomically, write_bytes};
 use trainer::run::Run;
+use trainer::run::RunReader;
 use trainer::simulate::{ChamberRun, Profile};
 
 /// Removes temperature drift from fiber-optic gyros.
@@ -306,9 +308,13 @@ fn load_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<Run>> {
 }
 
 fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
-    let train = load_runs(&a.runs)?;
-    let validate = load_runs(&a.validate)?;
-    let holdout = load_runs(&a.holdout)?;
+    // Runs are streamed (memory stays flat whatever their length); their
+    // headers are checked now, so a bad file is reported before any work.
+    for path in a.runs.iter().chain(&a.validate).chain(&a.holdout) {
+        RunReader::open(path)?.require_temp()?;
+    }
+    let train = RunFiles::new(&a.runs);
+    let validate = RunFiles::new(&a.validate);
     let mut opts = FitOptions {
         method: a.method,
         features: a.features,
@@ -346,7 +352,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         writeln!(
             out,
             "chosen on {}: ΔT window {} s, width σ {} (normalised), ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
-            if validate.is_empty() {
+            if a.validate.is_empty() {
                 format!("{}-fold contiguous validation", opts.folds.max(2))
             } else {
                 "--validate runs".into()
@@ -359,12 +365,12 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         )?;
     }
     writeln!(out, "fit took {fit_s:.1} s\n")?;
-    let evals: Vec<(&str, RunEvaluation)> = train
+    let roles = [("train", &a.runs), ("validate", &a.validate), ("holdout", &a.holdout)];
+    let evals: Vec<(&str, RunEvaluation)> = roles
         .iter()
-        .map(|r| ("train", evaluate_run(&outcome.model, r)))
-        .chain(validate.iter().map(|r| ("validate", evaluate_run(&outcome.model, r))))
-        .chain(holdout.iter().map(|r| ("holdout", evaluate_run(&outcome.model, r))))
-        .collect();
+        .flat_map(|(role, paths)| paths.iter().map(move |p| (*role, p)))
+        .map(|(role, p)| evaluate_file(&outcome.model, p).map(|e| (role, e)))
+        .collect::<anyhow::Result<_>>()?;
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
     writeln!(out, "\nwrote {} ({} bytes)", a.output.display(), blob.len())?;

@@ -11,30 +11,67 @@ pub const MSD_WINDOW_S: f64 = 1.0;
 /// Cluster length for the bias STD, s.
 pub const CLUSTER_S: f64 = 100.0;
 
-/// Means of `values` over consecutive time bins of `bin_s` seconds from the
-/// first sample; bins with under half their nominal samples are dropped.
-pub fn bin_means(time_s: &[f64], values: &[f64], bin_s: f64, nominal_period_s: f64) -> Vec<f64> {
-    let Some(&t0) = time_s.first() else {
-        return Vec::new();
-    };
-    let min_count = ((0.5 * bin_s / nominal_period_s).floor() as usize).max(1);
-    let mut means = Vec::new();
-    let (mut bin, mut sum, mut count) = (0u64, 0.0, 0usize);
-    for (&t, &v) in time_s.iter().zip(values) {
-        let b = ((t - t0) / bin_s).floor() as u64;
-        if b != bin {
-            if count >= min_count {
-                means.push(sum / count as f64);
-            }
-            (bin, sum, count) = (b, 0.0, 0);
+/// Means over consecutive time bins of `bin_s` seconds from the first
+/// sample, built sample by sample; bins with under half their nominal samples
+/// are dropped.
+#[derive(Clone, Debug)]
+pub struct BinMeans {
+    bin_s: f64,
+    min_count: usize,
+    t0: Option<f64>,
+    bin: u64,
+    sum: f64,
+    count: usize,
+    means: Vec<f64>,
+}
+
+impl BinMeans {
+    /// Empty bins of `bin_s` seconds for samples every `nominal_period_s`.
+    pub fn new(bin_s: f64, nominal_period_s: f64) -> Self {
+        BinMeans {
+            bin_s,
+            min_count: ((0.5 * bin_s / nominal_period_s).floor() as usize).max(1),
+            t0: None,
+            bin: 0,
+            sum: 0.0,
+            count: 0,
+            means: Vec::new(),
         }
-        sum += v;
-        count += 1;
     }
-    if count >= min_count {
-        means.push(sum / count as f64);
+
+    /// Takes value `v` at time `t`.
+    pub fn push(&mut self, t: f64, v: f64) {
+        let t0 = *self.t0.get_or_insert(t);
+        let b = ((t - t0) / self.bin_s).floor() as u64;
+        if b != self.bin {
+            self.close();
+            self.bin = b;
+        }
+        self.sum += v;
+        self.count += 1;
     }
-    means
+
+    fn close(&mut self) {
+        if self.count >= self.min_count {
+            self.means.push(self.sum / self.count as f64);
+        }
+        (self.sum, self.count) = (0.0, 0);
+    }
+
+    /// The bin means.
+    pub fn finish(mut self) -> Vec<f64> {
+        self.close();
+        self.means
+    }
+}
+
+/// Means of `values` over consecutive time bins of `bin_s` seconds (see [`BinMeans`]).
+pub fn bin_means(time_s: &[f64], values: &[f64], bin_s: f64, nominal_period_s: f64) -> Vec<f64> {
+    let mut bins = BinMeans::new(bin_s, nominal_period_s);
+    for (&t, &v) in time_s.iter().zip(values) {
+        bins.push(t, v);
+    }
+    bins.finish()
 }
 
 /// Mean of `v` (0 for none).
@@ -58,8 +95,15 @@ pub fn sample_std(v: &[f64]) -> f64 {
 /// MSD of a deviation series (output − reference), on 1-s means, °²/h².
 /// `about_mean`: no known reference, so deviations are taken from their mean.
 pub fn msd(time_s: &[f64], deviation_dph: &[f64], nominal_period_s: f64, about_mean: bool) -> f64 {
-    let means = bin_means(time_s, deviation_dph, MSD_WINDOW_S, nominal_period_s);
-    let centre = if about_mean { mean(&means) } else { 0.0 };
+    msd_of_means(
+        &bin_means(time_s, deviation_dph, MSD_WINDOW_S, nominal_period_s),
+        about_mean,
+    )
+}
+
+/// MSD from the 1-s means of a deviation series (see [`msd`]).
+pub fn msd_of_means(means: &[f64], about_mean: bool) -> f64 {
+    let centre = if about_mean { mean(means) } else { 0.0 };
     mean(&means.iter().map(|m| (m - centre).powi(2)).collect::<Vec<_>>())
 }
 

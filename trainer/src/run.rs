@@ -38,7 +38,9 @@ pub enum RunError {
 /// Streams the rows of one run file, checking them as it goes.
 pub struct RunReader {
     path: PathBuf,
-    lines: std::io::Lines<Box<dyn BufRead>>,
+    source: Box<dyn BufRead + Send>,
+    /// The current line (reused: no allocation per row).
+    line: String,
     line_no: usize,
     header_line: String,
     column_names: Vec<String>,
@@ -78,9 +80,9 @@ impl RunReader {
     }
 
     /// Reads a run from any buffered source; `path` names it in messages.
-    pub fn from_reader(path: &Path, source: impl BufRead + 'static) -> Result<RunReader, RunError> {
-        let source: Box<dyn BufRead> = Box::new(source);
-        let mut lines = source.lines();
+    pub fn from_reader(path: &Path, source: impl BufRead + Send + 'static) -> Result<RunReader, RunError> {
+        let mut source: Box<dyn BufRead + Send> = Box::new(source);
+        let mut buf = String::new();
         let mut line_no = 0;
         let mut preamble = Vec::new();
         let format_error = |line: usize, message: String| RunError::Format {
@@ -90,10 +92,12 @@ impl RunReader {
         };
         let header_line = loop {
             line_no += 1;
-            let Some(line) = lines.next() else {
+            buf.clear();
+            let read = source.read_line(&mut buf).map_err(|e| io_or_utf8(path, line_no, e))?;
+            if read == 0 {
                 return Err(format_error(line_no, "no header line: the file has no columns".into()));
-            };
-            let line = line.map_err(|e| io_or_utf8(path, line_no, e))?;
+            }
+            let line = buf.strip_suffix('\n').unwrap_or(&buf).to_owned();
             let line = if line_no == 1 {
                 line.trim_start_matches('\u{feff}').to_owned()
             } else {
@@ -121,7 +125,8 @@ impl RunReader {
         })?;
         Ok(RunReader {
             path: path.to_owned(),
-            lines,
+            source,
+            line: String::new(),
             line_no,
             header_line,
             column_names,
@@ -182,17 +187,32 @@ impl RunReader {
 
     /// Reads the next data row; `Ok(None)` at the end of the file.
     pub fn next_row(&mut self) -> Result<Option<RawRow>, RunError> {
+        Ok(self.next_parsed()?.map(|(line, row)| RawRow {
+            line,
+            row,
+            text: self.line.trim_end_matches(['\n', '\r']).to_owned(),
+        }))
+    }
+
+    /// Reads the next data row without keeping its text (the fast path of
+    /// streaming passes: no allocation per row); (line number, row).
+    pub fn next_parsed(&mut self) -> Result<Option<(usize, Row)>, RunError> {
         loop {
-            let Some(line) = self.lines.next() else {
-                return Ok(None);
-            };
+            self.line.clear();
             self.line_no += 1;
-            let line = line.map_err(|e| io_or_utf8(&self.path, self.line_no, e))?;
-            if record::is_comment_or_blank(&line) {
+            let read = self
+                .source
+                .read_line(&mut self.line)
+                .map_err(|e| io_or_utf8(&self.path, self.line_no, e))?;
+            if read == 0 {
+                self.line_no -= 1;
+                return Ok(None);
+            }
+            let text = self.line.trim_end_matches(['\n', '\r']);
+            if record::is_comment_or_blank(text) {
                 continue;
             }
-            let text = line.trim_end_matches('\r').to_owned();
-            let row = self.columns.parse_row(&text).map_err(|e| {
+            let row = self.columns.parse_row(text).map_err(|e| {
                 let column = e.column.and_then(|i| self.column_names.get(i).map(|n| (i, n)));
                 let field = e
                     .column
@@ -213,7 +233,11 @@ impl RunReader {
                     Some((i, name)) => format!("column {name} (field {}): {message}", i + 1),
                     None => message,
                 };
-                self.error_at(self.line_no, message)
+                RunError::Format {
+                    path: self.path.clone(),
+                    line: self.line_no,
+                    message,
+                }
             })?;
             if let Some(last) = self.last_time_s
                 && row.time_s <= last
@@ -228,11 +252,7 @@ impl RunReader {
                 ));
             }
             self.last_time_s = Some(row.time_s);
-            return Ok(Some(RawRow {
-                line: self.line_no,
-                row,
-                text,
-            }));
+            return Ok(Some((self.line_no, row)));
         }
     }
 }

@@ -10,8 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rbf_core::model::SERIAL_CAPACITY;
 use rbf_core::{FeatureSet, Model};
 
-use crate::dataset::Blocks;
-use crate::run::Run;
+use crate::dataset::{Blocks, RunSet};
 
 /// Least usable recording, s: a thermal model needs at least ten minutes.
 pub const MIN_USABLE_S: f64 = 600.0;
@@ -105,7 +104,11 @@ pub struct FitOutcome {
 }
 
 /// Fits `opts.method` on `train`, validating on `validate` (or k-fold when empty).
-pub fn fit(train: &[Run], validate: &[Run], opts: &FitOptions) -> anyhow::Result<FitOutcome> {
+pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
+    train: &T,
+    validate: &V,
+    opts: &FitOptions,
+) -> anyhow::Result<FitOutcome> {
     if let Some(k) = opts.centers
         && !(1..=rbf_core::MAX_CENTERS).contains(&k)
     {

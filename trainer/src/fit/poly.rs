@@ -6,13 +6,12 @@ use rbf_core::poly::Poly3;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 
 use super::FitOptions;
-use crate::dataset::block_means;
-use crate::run::Run;
+use crate::dataset::RunSet;
 
 /// Fits bias = c0 + c1 u + c2 u² + c3 u³, u = T − T_ref, T_ref mid training range.
-pub fn fit(train: &[Run], opts: &FitOptions) -> anyhow::Result<Model> {
+pub fn fit<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) -> anyhow::Result<Model> {
     let features = FeatureConfig::single(FeatureSet::Temp, 0.0);
-    let blocks = block_means(train, &features, opts.block_s);
+    let blocks = train.block_means(&features, opts.block_s)?;
     super::check_excitation(&blocks, FeatureSet::Temp, opts)?;
     let (lo, hi) = blocks.sample_range[0];
     let ref_temp_c = (0.5 * (lo + hi)) as f32;

@@ -12,13 +12,18 @@ use super::linalg::{
 };
 use super::ols::forward_select;
 use super::{FitOptions, Progress};
-use crate::dataset::{Blocks, block_means};
-use crate::run::Run;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use crate::dataset::{Blocks, RunSet};
 
 /// Candidate centres offered to OLS (farthest-point spread over the blocks).
 const MAX_CANDIDATES: usize = 200;
 /// Rows used for OLS selection (strided); weights are refitted on all rows.
 const MAX_SELECTION_ROWS: usize = 3000;
+/// Training rows (strided) the hyper-parameter search fits each candidate on;
+/// the final model is fitted on all rows. Above the bundled runs' size, so
+/// it only thins long recordings (a 20-h run's 72,000 1-s blocks by 3).
+const MAX_SEARCH_TRAIN_ROWS: usize = 32_768;
 /// Gaussian widths σ tried, in normalised (standard-deviation) units.
 const WIDTHS: [f64; 6] = [0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 /// Ridge strengths λ tried (per row, relative to normalised inputs).
@@ -75,9 +80,9 @@ struct Split {
 type ScoreTable = Vec<Vec<f64>>;
 
 /// Fits the RBF network of `set` on `train`, choosing hyper-parameters by `opts.validation`.
-pub fn fit(
-    train: &[Run],
-    validate: &[Run],
+pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
+    train: &T,
+    validate: &V,
     set: FeatureSet,
     opts: &FitOptions,
     progress: &Progress,
@@ -89,7 +94,11 @@ pub fn fit(
     };
     let k_max = opts.centers.unwrap_or(opts.max_centers);
     let k_min = opts.centers.unwrap_or(1);
-    let folds = if validate.is_empty() { opts.folds.max(2) } else { 1 };
+    let folds = if validate.count() == 0 { opts.folds.max(2) } else { 1 };
+    // Every window's blocks in one pass over the data (streamed runs).
+    let configs: Vec<FeatureConfig> = windows.iter().map(|&w| feature_config(set, w)).collect();
+    train.prepare(&configs, opts.block_s)?;
+    validate.prepare(&configs, opts.block_s)?;
     progress.start("selecting centres", (windows.len() * WIDTHS.len() * folds) as u64);
 
     let shape = InputShape {
@@ -100,17 +109,32 @@ pub fn fit(
     let mut candidates_all: Vec<(f64, RbfChoice)> = Vec::new();
     for &window in &windows {
         let features = feature_config(set, window);
-        let train_blocks = block_means(train, &features, opts.block_s);
+        let train_blocks = train.block_means(&features, opts.block_s)?;
         super::check_excitation(&train_blocks, set, opts)?;
-        let (all, splits) = splits(&train_blocks, validate, &features, opts, folds);
+        let (all, splits) = splits(&train_blocks, validate, &features, opts, folds)?;
         let norm = Normaliser::fit(&train_blocks);
         let score_rows = score_cluster_rows(&splits, opts.block_s);
         let z: Vec<FeatureRow> = all.x.iter().map(|r| norm.apply(r)).collect();
-        for &width in &WIDTHS {
+        // Every (width, split) pair on its own core; summed in a fixed order,
+        // so the result does not depend on the number of cores.
+        let tasks: Vec<(f64, &Split)> = WIDTHS
+            .iter()
+            .flat_map(|&w| splits.iter().map(move |s| (w, s)))
+            .collect();
+        let split_tables = parallel_map(&tasks, |&(width, split)| {
             let mut table: ScoreTable = vec![vec![0.0; k_max]; RIDGES.len()];
-            for split in &splits {
-                accumulate_scores(&mut table, &z, &all, split, shape, width, k_max, score_rows);
-                progress.inc();
+            accumulate_scores(&mut table, &z, &all, split, shape, width, k_max, score_rows);
+            progress.inc();
+            table
+        });
+        for (wi, &width) in WIDTHS.iter().enumerate() {
+            let mut table: ScoreTable = vec![vec![0.0; k_max]; RIDGES.len()];
+            for part in split_tables.iter().skip(wi * splits.len()).take(splits.len()) {
+                for (row, part_row) in table.iter_mut().zip(part) {
+                    for (t, p) in row.iter_mut().zip(part_row) {
+                        *t += p;
+                    }
+                }
             }
             for (ri, row) in table.iter().enumerate() {
                 for k in k_min..=k_max {
@@ -145,7 +169,7 @@ pub fn fit(
         .expect("the best candidate passes its own filter");
 
     let features = feature_config(set, choice.rate_window_s);
-    let blocks = block_means(train, &features, opts.block_s);
+    let blocks = train.block_means(&features, opts.block_s)?;
     let model = final_model(&blocks, features, &choice, opts)?;
     let used = match model.body() {
         rbf_core::model::ModelBody::Rbf(net) => net.centers_used(),
@@ -160,23 +184,54 @@ pub fn fit(
     ))
 }
 
+/// `f` of every item, on all available cores; results in the items' order.
+fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .clamp(1, items.len().max(1));
+    let next = AtomicUsize::new(0);
+    let mut results: Vec<Option<R>> = items.iter().map(|_| None).collect();
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut done = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some(item) = items.get(i) else { break };
+                        done.push((i, f(item)));
+                    }
+                    done
+                })
+            })
+            .collect();
+        for handle in handles {
+            match handle.join() {
+                Ok(done) => done.into_iter().for_each(|(i, r)| results[i] = Some(r)),
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        }
+    });
+    results.into_iter().flatten().collect()
+}
+
 /// The block set that scores are computed on, and the splits into it.
-fn splits(
+fn splits<V: RunSet + ?Sized>(
     train: &Blocks,
-    validate: &[Run],
+    validate: &V,
     features: &FeatureConfig,
     opts: &FitOptions,
     folds: usize,
-) -> (Blocks, Vec<Split>) {
-    if !validate.is_empty() {
-        let val = block_means(validate, features, opts.block_s);
+) -> anyhow::Result<(Blocks, Vec<Split>)> {
+    if validate.count() > 0 {
+        let val = validate.block_means(features, opts.block_s)?;
         let mut all = train.clone();
         let offset = all.len();
         let runs_before = train.run.iter().max().map_or(0, |m| m + 1);
         all.x.extend(val.x.iter().copied());
         all.y.extend(val.y.iter().copied());
         all.run.extend(val.run.iter().map(|r| r + runs_before));
-        let groups = (0..validate.len())
+        let groups = (0..validate.count())
             .map(|r| {
                 (0..val.len())
                     .filter(|&i| val.run[i] == r)
@@ -185,13 +240,13 @@ fn splits(
             })
             .filter(|g: &Vec<usize>| g.len() > 2)
             .collect();
-        return (
+        return Ok((
             all,
             vec![Split {
                 train: (0..offset).collect(),
                 groups,
             }],
-        );
+        ));
     }
     let runs = train.run.iter().max().map_or(0, |m| m + 1);
     let per_run: Vec<Vec<usize>> = (0..runs)
@@ -215,7 +270,7 @@ fn splits(
             }
         })
         .collect();
-    (train.clone(), splits)
+    Ok((train.clone(), splits))
 }
 
 /// Blocks per validation cluster mean: 100 s (the cluster-STD window), shortened
@@ -274,7 +329,7 @@ fn accumulate_scores(
         let a: DMatrix<f64> = design(z, rows, shape, &centers, width);
         (a, DVector::from_iterator(rows.len(), rows.iter().map(|&i| all.y[i])))
     };
-    let (a, y) = design_and_target(&split.train);
+    let (a, y) = design_and_target(&thin(&split.train, MAX_SEARCH_TRAIN_ROWS));
     let train = GramStats::new(&a, &y);
     // Scored on cluster means of the residual, the figure users judge by: at 1 s
     // white noise would hide model errors an order of magnitude below it.
