@@ -100,6 +100,14 @@ pub fn trim_field(s: &str) -> &str {
     }
 }
 
+/// [`trim_field`] on bytes.
+pub fn trim_field_bytes(s: &[u8]) -> &[u8] {
+    let blank = |b: &u8| *b == b' ' || *b == b'\t' || *b == b'\r';
+    let start = s.iter().position(|b| !blank(b)).unwrap_or(s.len());
+    let end = s.iter().rposition(|b| !blank(b)).map_or(start, |e| e + 1);
+    s.get(start..end).unwrap_or(&[])
+}
+
 /// Powers of ten exactly representable in f64.
 const POW10: [f64; 23] = [
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20,
@@ -113,7 +121,20 @@ const POW10: [f64; 23] = [
 /// division is the correctly rounded value (Clinger's fast path). Anything
 /// else goes to core's parser.
 pub fn parse_f64(text: &str) -> Result<f64, core::num::ParseFloatError> {
-    let bytes = text.as_bytes();
+    match fast_decimal(text.as_bytes()) {
+        Some(v) => Ok(v),
+        None => text.parse(),
+    }
+}
+
+/// [`parse_f64`] of a field's bytes; `None` for anything that is not a
+/// number (including bytes that are not UTF-8).
+pub fn parse_f64_bytes(bytes: &[u8]) -> Option<f64> {
+    fast_decimal(bytes).or_else(|| core::str::from_utf8(bytes).ok()?.parse().ok())
+}
+
+/// The fast path of [`parse_f64`]: `Some` only where it is exact.
+fn fast_decimal(bytes: &[u8]) -> Option<f64> {
     let (negative, digits) = match bytes.first() {
         Some(b'-') => (true, &bytes[1..]),
         Some(b'+') => (false, &bytes[1..]),
@@ -130,23 +151,21 @@ pub fn parse_f64(text: &str) -> Result<f64, core::num::ParseFloatError> {
             mantissa = mantissa * 10 + u64::from(d);
             digit_count += 1;
             if digit_count > MAX_DIGITS {
-                return text.parse();
+                return None;
             }
         } else if b == b'.' && point_at.is_none() {
             point_at = Some(i);
         } else {
-            return text.parse();
+            return None;
         }
     }
     if digit_count == 0 {
-        return text.parse();
+        return None;
     }
     let fraction_digits = point_at.map_or(0, |p| digits.len() - p - 1);
-    let Some(&scale) = POW10.get(fraction_digits) else {
-        return text.parse();
-    };
+    let &scale = POW10.get(fraction_digits)?;
     let value = mantissa as f64 / scale;
-    Ok(if negative { -value } else { value })
+    Some(if negative { -value } else { value })
 }
 
 /// A metadata line (`# ...`), blank line, or data/header line.
@@ -292,7 +311,7 @@ impl Columns {
 
     /// Parses one data line (trailing `\r` allowed).
     pub fn parse_row(&self, line: &str) -> Result<Row, RowError> {
-        let mut fields: [&str; 5] = [""; 5];
+        let mut fields: [&[u8]; 5] = [b""; 5];
         let wanted = [
             Some(self.time_s),
             Some(self.rate_dph),
@@ -300,27 +319,17 @@ impl Columns {
             self.ref_dph,
             self.temp_fault,
         ];
-        // Fields between commas, found by a plain byte scan (commas are
-        // ASCII, so every cut is a char boundary).
+        // Fields between commas, as bytes (a plain scan; numbers are parsed
+        // from bytes, text is only made for the rare slow path).
         let mut found = 0;
-        let mut start = 0;
-        let bytes = line.as_bytes();
-        let mut keep = |index: usize, start: usize, end: usize| {
+        for field in line.as_bytes().split(|&b| b == b',') {
             for (slot, want) in fields.iter_mut().zip(wanted) {
-                if want == Some(index) {
-                    *slot = line.get(start..end).unwrap_or("");
+                if want == Some(found) {
+                    *slot = field;
                 }
             }
-        };
-        for (i, &b) in bytes.iter().enumerate() {
-            if b == b',' {
-                keep(found, start, i);
-                found += 1;
-                start = i + 1;
-            }
+            found += 1;
         }
-        keep(found, start, bytes.len());
-        found += 1;
         if found != self.count {
             return Err(RowError {
                 column: None,
@@ -330,8 +339,8 @@ impl Columns {
                 },
             });
         }
-        let number = |index: usize, text: &str| -> Result<f64, RowError> {
-            let v: f64 = parse_f64(trim_field(text)).map_err(|_| RowError {
+        let number = |index: usize, text: &[u8]| -> Result<f64, RowError> {
+            let v: f64 = parse_f64_bytes(trim_field_bytes(text)).ok_or(RowError {
                 column: Some(index),
                 kind: RowErrorKind::NotANumber,
             })?;
@@ -344,7 +353,7 @@ impl Columns {
                 })
             }
         };
-        let optional = |index: Option<usize>, text: &str| index.map(|i| number(i, text)).transpose();
+        let optional = |index: Option<usize>, text: &[u8]| index.map(|i| number(i, text)).transpose();
         let temp_fault = match optional(self.temp_fault, fields[4])? {
             None => false,
             Some(0.0) => false,

@@ -12,6 +12,7 @@ use std::sync::Mutex;
 use rbf_core::record::Row;
 use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, Flags, GyroSample, MAX_INPUTS};
 
+use crate::metrics::BinIndex;
 use crate::run::{Run, RunError, RunReader, gyro_sample};
 
 /// Block-averaged features and targets of one or more runs.
@@ -82,7 +83,7 @@ struct Accumulator {
 pub struct BlockBuilder {
     features: FeatureConfig,
     config: CompensatorConfig,
-    block_s: f64,
+    block_index: BinIndex,
     nominal_period_s: f64,
     min_count: usize,
     compensator: Compensator,
@@ -101,7 +102,7 @@ impl BlockBuilder {
         BlockBuilder {
             features,
             config: CompensatorConfig::for_nominal_period_s(nominal_period_s),
-            block_s,
+            block_index: BinIndex::new(block_s),
             nominal_period_s,
             min_count: ((0.5 * block_s / nominal_period_s).floor() as usize).max(1),
             compensator: Compensator::new(),
@@ -140,7 +141,7 @@ impl BlockBuilder {
         self.started = true;
         let block = (
             self.segment_start_s.to_bits(),
-            ((time_s - self.segment_start_s) / self.block_s).floor() as u64,
+            self.block_index.of(time_s - self.segment_start_s),
         );
         if self.current_block != Some(block) {
             self.flush();

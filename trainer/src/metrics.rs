@@ -11,12 +11,45 @@ pub const MSD_WINDOW_S: f64 = 1.0;
 /// Cluster length for the bias STD, s.
 pub const CLUSTER_S: f64 = 100.0;
 
+/// ⌊d / bin_s⌋ for a slowly increasing d, without a division per call: the
+/// last bin's interval, shrunk by a guard band far wider than rounding, is
+/// checked first, so the result always equals the division's.
+#[derive(Clone, Copy, Debug)]
+pub struct BinIndex {
+    bin_s: f64,
+    bin: u64,
+    inside: (f64, f64),
+}
+
+impl BinIndex {
+    /// For bins of `bin_s` seconds.
+    pub fn new(bin_s: f64) -> Self {
+        BinIndex {
+            bin_s,
+            bin: 0,
+            inside: (f64::INFINITY, f64::NEG_INFINITY),
+        }
+    }
+
+    /// The bin of offset `d` ≥ 0 (or ⌊d / bin_s⌋ saturated to u64 for any d).
+    pub fn of(&mut self, d: f64) -> u64 {
+        if d >= self.inside.0 && d < self.inside.1 {
+            return self.bin;
+        }
+        self.bin = (d / self.bin_s).floor() as u64;
+        let (lo, hi) = (self.bin as f64 * self.bin_s, (self.bin + 1) as f64 * self.bin_s);
+        let guard = 1e-9 * hi.abs().max(self.bin_s);
+        self.inside = (lo + guard, hi - guard);
+        self.bin
+    }
+}
+
 /// Means over consecutive time bins of `bin_s` seconds from the first
 /// sample, built sample by sample; bins with under half their nominal samples
 /// are dropped.
 #[derive(Clone, Debug)]
 pub struct BinMeans {
-    bin_s: f64,
+    index: BinIndex,
     min_count: usize,
     t0: Option<f64>,
     bin: u64,
@@ -29,7 +62,7 @@ impl BinMeans {
     /// Empty bins of `bin_s` seconds for samples every `nominal_period_s`.
     pub fn new(bin_s: f64, nominal_period_s: f64) -> Self {
         BinMeans {
-            bin_s,
+            index: BinIndex::new(bin_s),
             min_count: ((0.5 * bin_s / nominal_period_s).floor() as usize).max(1),
             t0: None,
             bin: 0,
@@ -42,7 +75,7 @@ impl BinMeans {
     /// Takes value `v` at time `t`.
     pub fn push(&mut self, t: f64, v: f64) {
         let t0 = *self.t0.get_or_insert(t);
-        let b = ((t - t0) / self.bin_s).floor() as u64;
+        let b = self.index.of(t - t0);
         if b != self.bin {
             self.close();
             self.bin = b;
@@ -151,6 +184,22 @@ mod tests {
             msd(&t, &v, 0.5, true).abs() < 1e-12,
             "no reference: a constant offset is no deviation"
         );
+    }
+
+    #[test]
+    fn bin_index_equals_the_division_everywhere() {
+        for bin_s in [1.0, 100.0, 0.3, 1.0 / 3.0] {
+            let mut index = BinIndex::new(bin_s);
+            for i in 0..200_000u32 {
+                // Steps that land on and next to bin edges, and a jump back.
+                let d = if i == 150_000 {
+                    0.5
+                } else {
+                    f64::from(i) * 0.01 + f64::from(i % 7) * 1e-13
+                };
+                assert_eq!(index.of(d), (d / bin_s).floor() as u64, "d = {d}, bin {bin_s}");
+            }
+        }
     }
 
     #[test]

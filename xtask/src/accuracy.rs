@@ -81,26 +81,6 @@ fn path(p: &Path) -> &str {
     p.to_str().expect("UTF-8 paths under target/")
 }
 
-fn venv_python(dir: &Path) -> anyhow::Result<PathBuf> {
-    let python = dir.join("venv/bin/python");
-    if !python.exists() {
-        eprintln!("==> making a venv with scikit-learn (once)");
-        let ok = Command::new("python3")
-            .args(["-m", "venv"])
-            .arg(dir.join("venv"))
-            .status()?
-            .success()
-            && Command::new(&python)
-                .args(["-m", "pip", "install", "--quiet", "scikit-learn", "numpy"])
-                .status()?
-                .success();
-        if !ok {
-            bail!("could not make the scikit-learn venv");
-        }
-    }
-    Ok(python)
-}
-
 /// A result line: improvement % and residual 100-s STD per verification run.
 struct Row {
     method: String,
@@ -113,7 +93,7 @@ pub fn bench_accuracy() -> anyhow::Result<()> {
     crate::run("cargo", &["build", "--release", "--quiet", "--package", "trainer"])?;
     let dir = workspace_root().join("target/bench-accuracy");
     std::fs::create_dir_all(&dir)?;
-    let python = venv_python(&dir)?;
+    let python = crate::python_venv(&dir, &["scikit-learn", "numpy"], "sklearn, numpy")?;
     let script = workspace_root().join("bench/accuracy/peers.py");
     let mut means = Vec::new();
     for p in &PROTOCOLS {

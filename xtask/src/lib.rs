@@ -8,6 +8,7 @@
 //! - [`accuracy`]: `cargo xtask bench-accuracy`;
 //! - [`fuzz`]: `cargo xtask fuzz`;
 //! - [`faults`]: `cargo xtask qemu-faults`;
+//! - [`large_run`]: `cargo xtask bench-large-run`;
 //! - [`ci`]: `cargo xtask ci`, the whole test suite.
 #![forbid(unsafe_code)]
 
@@ -17,6 +18,7 @@ pub mod ci;
 pub mod faults;
 pub mod firmware;
 pub mod fuzz;
+pub mod large_run;
 pub mod qemu;
 pub mod replay;
 
@@ -57,4 +59,36 @@ pub fn output(program: &str, args: &[&str]) -> String {
         .output()
         .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
         .unwrap_or_default()
+}
+
+/// The python of a venv under `dir` holding `packages` (made once; remade
+/// when `modules`, a comma list, does not import).
+pub fn python_venv(dir: &Path, packages: &[&str], modules: &str) -> anyhow::Result<PathBuf> {
+    let python = dir.join("venv/bin/python");
+    let ready = || {
+        Command::new(&python)
+            .args(["-c", &format!("import {modules}")])
+            .status()
+            .is_ok_and(|s| s.success())
+    };
+    if python.exists() && ready() {
+        return Ok(python);
+    }
+    eprintln!("==> making a venv with {} (once)", packages.join(", "));
+    let made = Command::new("python3")
+        .args(["-m", "venv"])
+        .arg(dir.join("venv"))
+        .status()
+        .with_context(|| "cannot start python3")?
+        .success();
+    let installed = made
+        && Command::new(&python)
+            .args(["-m", "pip", "install", "--quiet"])
+            .args(packages)
+            .status()?
+            .success();
+    if !installed || !ready() {
+        bail!("could not make the venv with {}", packages.join(", "));
+    }
+    Ok(python)
 }

@@ -62,6 +62,12 @@ enum Cmd {
         #[arg(long, value_name = "UPDATE.bin")]
         update: PathBuf,
     },
+    /// Large-run throughput: generates a 20-h, 100-Hz chamber run (7.2 million
+    /// rows) with `trainer simulate`, then times `trainer fit` and a pandas +
+    /// scikit-learn pipeline doing the same job (read, 1-s means, features,
+    /// kernel ridge with a small grid search; bench/large-run/) one after the
+    /// other, with each one's peak memory. The venv is made under target/.
+    BenchLargeRun,
     /// Fuzz everything that reads outside input (model blobs, recorded runs,
     /// output frames) with libFuzzer via cargo fuzz (installed when missing),
     /// each target for --seconds, from a seed corpus written by the current
@@ -102,6 +108,7 @@ fn main() -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Cmd::BenchLargeRun => xtask::large_run::bench_large_run(),
         Cmd::Fuzz { seconds } => xtask::fuzz::fuzz(seconds).map(|_| ()),
     }
 }

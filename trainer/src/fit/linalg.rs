@@ -170,22 +170,57 @@ pub fn farthest_points(z: &[FeatureRow], rows: &[usize], dims: usize, count: usi
         .unwrap_or(rows[0]);
     let mut chosen = vec![first];
     let mut nearest: Vec<f64> = rows.iter().map(|&r| dist(&z[r], &z[first])).collect();
-    while chosen.len() < count.min(rows.len()) {
-        let (k, &d) = nearest
+    // The farthest row, found while the distances are updated (one pass per
+    // centre); ties go to the last row, as `max_by` would.
+    let farthest = |nearest: &[f64]| {
+        nearest
             .iter()
             .enumerate()
             .max_by(|a, b| a.1.total_cmp(b.1))
-            .unwrap_or((0, &0.0));
+            .map_or((0, 0.0), |(k, &d)| (k, d))
+    };
+    let (mut k, mut d) = farthest(&nearest);
+    while chosen.len() < count.min(rows.len()) {
         if d <= 0.0 {
             break; // all remaining rows coincide with chosen ones
         }
         let next = rows[k];
         chosen.push(next);
-        for (slot, &r) in nearest.iter_mut().zip(rows) {
-            *slot = slot.min(dist(&z[r], &z[next]));
-        }
+        (k, d) = match dims {
+            1 => update_nearest::<1>(&mut nearest, z, rows, &z[next]),
+            2 => update_nearest::<2>(&mut nearest, z, rows, &z[next]),
+            3 => update_nearest::<3>(&mut nearest, z, rows, &z[next]),
+            _ => update_nearest::<MAX_INPUTS>(&mut nearest, z, rows, &z[next]),
+        };
     }
     chosen
+}
+
+/// Lowers each row's nearest-centre distance² (first `N` inputs) by the new
+/// centre `c`; returns the farthest row and its distance (ties: the last).
+/// Distances are finite and ≥ 0, where plain comparisons equal
+/// `f64::min`/`total_cmp`; monomorphised per N, as this is the search's
+/// hottest loop.
+fn update_nearest<const N: usize>(
+    nearest: &mut [f64],
+    z: &[FeatureRow],
+    rows: &[usize],
+    c: &FeatureRow,
+) -> (usize, f64) {
+    let (mut k, mut d) = (0, f64::NEG_INFINITY);
+    for (i, (slot, &r)) in nearest.iter_mut().zip(rows).enumerate() {
+        let mut dist = 0.0;
+        for (a, b) in z[r].iter().zip(c).take(N) {
+            dist += (a - b) * (a - b);
+        }
+        if dist < *slot {
+            *slot = dist;
+        }
+        if *slot >= d {
+            (k, d) = (i, *slot);
+        }
+    }
+    (k, d)
 }
 
 /// Every `step`-th row so that at most `max` remain.

@@ -68,28 +68,39 @@ pub fn forward_select(
         order: Vec::new(),
         err: Vec::new(),
     };
+    let dot = |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).map(|(x, y)| x * y).sum() };
+    // (‖col‖², colᵀr) of every column, kept current: each projection pass
+    // below also sums them (in the same order as separate passes would, so
+    // the results are bit for bit those of the textbook loop, in half the passes).
+    let mut stats: Vec<(f64, f64)> = columns.iter().map(|c| (norm_sq(c), dot(c, &residual))).collect();
     while selection.order.len() < max_terms {
         let mut best: Option<(usize, f64)> = None;
-        for (m, col) in columns.iter().enumerate() {
-            let n = norm_sq(col);
+        for (m, &(n, d)) in stats.iter().enumerate() {
             if !active[m] || n <= DEPENDENCE_TOLERANCE * original[m] || n == 0.0 {
                 continue;
             }
-            let dot: f64 = col.iter().zip(&residual).map(|(a, b)| a * b).sum();
-            let score = dot * dot / n;
+            let score = d * d / n;
             if best.is_none_or(|(_, s)| score > s) {
                 best = Some((m, score));
             }
         }
         let Some((chosen, score)) = best else { break };
         active[chosen] = false;
-        let n = norm_sq(&columns[chosen]);
+        let n = stats[chosen].0;
         let q: Vec<f64> = columns[chosen].iter().map(|x| x / n.sqrt()).collect();
         project_out(&q, &mut residual);
         for (m, col) in columns.iter_mut().enumerate() {
-            if active[m] {
-                project_out(&q, col);
+            if !active[m] {
+                continue;
             }
+            let along = dot(&q, col);
+            let (mut n, mut d) = (0.0, 0.0);
+            for ((c, qi), r) in col.iter_mut().zip(&q).zip(&residual) {
+                *c -= along * qi;
+                n += *c * *c;
+                d += *c * r;
+            }
+            stats[m] = (n, d);
         }
         selection.order.push(chosen);
         selection.err.push(score / y_energy);

@@ -24,6 +24,9 @@ const MAX_SELECTION_ROWS: usize = 3000;
 /// the final model is fitted on all rows. Above the bundled runs' size, so
 /// it only thins long recordings (a 20-h run's 72,000 1-s blocks by 3).
 const MAX_SEARCH_TRAIN_ROWS: usize = 32_768;
+/// Rows (strided) the candidate pool is drawn from by farthest-point sampling:
+/// the pool only needs to cover the input space.
+const MAX_POOL_ROWS: usize = 8192;
 /// Gaussian widths σ tried, in normalised (standard-deviation) units.
 const WIDTHS: [f64; 6] = [0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 /// Ridge strengths λ tried (per row, relative to normalised inputs).
@@ -294,7 +297,7 @@ fn select_centers(
     width: f64,
     k_max: usize,
 ) -> Vec<FeatureRow> {
-    let pool = farthest_points(z, rows, shape.kernel, MAX_CANDIDATES);
+    let pool = farthest_points(z, &thin(rows, MAX_POOL_ROWS), shape.kernel, MAX_CANDIDATES);
     let centers: Vec<FeatureRow> = pool.iter().map(|&i| z[i].map(|v| v as f32 as f64)).collect();
     let sel_rows = thin(rows, MAX_SELECTION_ROWS);
     let a = design(z, &sel_rows, shape, &centers, width);
