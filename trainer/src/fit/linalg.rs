@@ -198,9 +198,8 @@ pub fn farthest_points(z: &[FeatureRow], rows: &[usize], dims: usize, count: usi
 
 /// Lowers each row's nearest-centre distance² (first `N` inputs) by the new
 /// centre `c`; returns the farthest row and its distance (ties: the last).
-/// Distances are finite and ≥ 0, where plain comparisons equal
-/// `f64::min`/`total_cmp`; monomorphised per N, as this is the search's
-/// hottest loop.
+/// Distances are finite and ≥ 0, where a plain comparison equals
+/// `total_cmp`; monomorphised per N, as this is the search's hottest loop.
 fn update_nearest<const N: usize>(
     nearest: &mut [f64],
     z: &[FeatureRow],
@@ -213,9 +212,7 @@ fn update_nearest<const N: usize>(
         for (a, b) in z[r].iter().zip(c).take(N) {
             dist += (a - b) * (a - b);
         }
-        if dist < *slot {
-            *slot = dist;
-        }
+        *slot = slot.min(dist);
         if *slot >= d {
             (k, d) = (i, *slot);
         }
