@@ -7,10 +7,8 @@ use firmware::fault_injection::{
     EMULATED_LAYOUT, FaultKind, ModelFlash, bit_flip_campaign, command_campaign, power_cut_campaign, sensor_campaign,
 };
 use firmware::model_store::{ModelStore, SlotState};
+use rbf_core::Model;
 use rbf_core::blob::{self, MAX_BLOB_LEN};
-use rbf_core::model::{ModelBody, ModelInfo};
-use rbf_core::poly::Poly3;
-use rbf_core::{FeatureConfig, FeatureSet, Model};
 
 fn encode(model: &Model) -> Vec<u8> {
     let mut buf = vec![0u8; MAX_BLOB_LEN];
@@ -23,13 +21,7 @@ fn encode(model: &Model) -> Vec<u8> {
 fn models() -> (Model, Vec<u8>, Vec<u8>) {
     let dir = tempfile::tempdir().unwrap();
     let (model, _) = model_and_faulty_slice(dir.path());
-    let cubic = Model::new(
-        FeatureConfig::single(FeatureSet::Temp, 0.0),
-        &[(10.0, 40.0)],
-        ModelBody::Poly3(Poly3::new(25.0, [0.3, 0.01, 0.0, 0.0]).unwrap()),
-        ModelInfo::default(),
-    )
-    .unwrap();
+    let cubic = e2e_tests::fixtures::cubic_model();
     let blob = encode(&model);
     (model, blob, encode(&cubic))
 }

@@ -106,21 +106,11 @@ fn benchmark_image_runs_and_reports_every_model_size() {
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn fault_campaign_on_the_target_loses_no_sample_and_never_panics() {
-    use rbf_core::model::{ModelBody, ModelInfo};
-    use rbf_core::poly::Poly3;
-    use rbf_core::{FeatureConfig, FeatureSet, Model};
-
     let dir = TempDir::new().unwrap();
     let (model, _) = fixtures::model_and_faulty_slice(dir.path());
     let running = dir.path().join("running.bin");
     write_model(&running, &model, Existing::Replace).unwrap();
-    let cubic = Model::new(
-        FeatureConfig::single(FeatureSet::Temp, 0.0),
-        &[(10.0, 40.0)],
-        ModelBody::Poly3(Poly3::new(25.0, [0.3, 0.01, 0.0, 0.0]).unwrap()),
-        ModelInfo::default(),
-    )
-    .unwrap();
+    let cubic = fixtures::cubic_model();
     let update = dir.path().join("update.bin");
     write_model(&update, &cubic, Existing::Replace).unwrap();
 

@@ -9,11 +9,10 @@
 use std::path::PathBuf;
 use std::sync::Mutex;
 
-use rbf_core::record::Row;
 use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, Flags, GyroSample, MAX_INPUTS};
 
 use crate::metrics::BinIndex;
-use crate::run::{Run, RunError, RunReader, gyro_sample};
+use crate::run::{Run, StreamedRun};
 
 /// Block-averaged features and targets of one or more runs.
 #[derive(Clone, Debug, Default)]
@@ -268,27 +267,18 @@ impl RunFiles {
     /// One pass over run `index`: blocks for each of `configs`.
     fn pass(&self, index: usize, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<Vec<Blocks>> {
         let path = &self.paths[index];
-        let reader = RunReader::open(path)?;
-        reader.require_temp()?;
-        let period_s = crate::run::probe_nominal_period_s(path)?;
+        let run = StreamedRun::open(path)?;
+        let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
         let mut builders: Vec<BlockBuilder> = configs
             .iter()
             .map(|c| BlockBuilder::new(index, *c, period_s, block_s))
             .collect();
-        let has_ref = reader.columns().ref_dph.is_some();
-        let (mut rate_sum, mut rows) = (0.0f64, 0usize);
-        let mut prev_time_s = None;
-        for_each_row_batch(reader, |batch| {
-            for row in batch {
-                let temp_c = if row.temp_fault { None } else { row.temp_c };
-                let sample = gyro_sample(prev_time_s, row.time_s, row.rate_dph, temp_c);
-                prev_time_s = Some(row.time_s);
-                let target = row.rate_dph - row.ref_dph.unwrap_or(0.0);
-                rate_sum += row.rate_dph;
-                rows += 1;
-                for b in &mut builders {
-                    b.push(row.time_s, &sample, target);
-                }
+        let mut rate_sum = 0.0f64;
+        let rows = run.for_each(|row, sample| {
+            let target = row.rate_dph - row.ref_dph.unwrap_or(0.0);
+            rate_sum += row.rate_dph;
+            for b in &mut builders {
+                b.push(row.time_s, sample, target);
             }
         })?;
         if rows < 2 {
@@ -297,40 +287,6 @@ impl RunFiles {
         let offset = if has_ref { 0.0 } else { rate_sum / rows as f64 };
         Ok(builders.into_iter().map(|b| b.finish(offset)).collect())
     }
-}
-
-/// Parses `reader`'s rows on a second thread in batches and hands each batch
-/// to `consume` on this one, so parsing and feature computation overlap.
-pub fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[Row])) -> anyhow::Result<()> {
-    const BATCH: usize = 4096;
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Row>>(4);
-    std::thread::scope(|scope| {
-        let parser = scope.spawn(move || -> Result<(), RunError> {
-            loop {
-                let mut batch = Vec::with_capacity(BATCH);
-                while batch.len() < BATCH {
-                    match reader.next_parsed()? {
-                        Some((_, row)) => batch.push(row),
-                        None => break,
-                    }
-                }
-                let last = batch.len() < BATCH;
-                if !batch.is_empty() && tx.send(batch).is_err() {
-                    return Ok(());
-                }
-                if last {
-                    return Ok(());
-                }
-            }
-        });
-        for batch in rx {
-            consume(&batch);
-        }
-        parser
-            .join()
-            .map_err(|_| anyhow::anyhow!("the run parser thread panicked"))?
-            .map_err(anyhow::Error::from)
-    })
 }
 
 impl RunSet for RunFiles {

@@ -9,10 +9,9 @@ use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, Model};
 use serde::Serialize;
 
 use crate::allan::{self, AllanDeviation};
-use crate::dataset::for_each_row_batch;
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
 use crate::output::write_atomically;
-use crate::run::{Run, RunReader, gyro_sample, probe_nominal_period_s};
+use crate::run::{Run, RunReader, StreamedRun, gyro_sample, probe_nominal_period_s};
 
 /// How many samples carried each flag.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -97,23 +96,14 @@ pub fn evaluate_output(run: &Run, out: &[CompensatedSample]) -> RunEvaluation {
 /// the run's length). Without `ref_dph` deviations are taken about their
 /// mean, which the MSD, cluster STD and Allan deviation are blind to.
 pub fn evaluate_file(model: &Model, path: &Path) -> anyhow::Result<RunEvaluation> {
-    let period_s = probe_nominal_period_s(path)?;
-    let reader = RunReader::open(path)?;
-    reader.require_temp()?;
-    let has_ref = reader.columns().ref_dph.is_some();
-    let config = CompensatorConfig::for_nominal_period_s(period_s);
+    let run = StreamedRun::open(path)?;
+    let config = CompensatorConfig::for_nominal_period_s(run.nominal_period_s);
     let mut compensator = Compensator::new();
-    let mut evaluator = Evaluator::new(path, period_s, has_ref);
-    let mut prev_time_s = None;
-    for_each_row_batch(reader, |batch| {
-        for row in batch {
-            let temp_c = if row.temp_fault { None } else { row.temp_c };
-            let sample = gyro_sample(prev_time_s, row.time_s, row.rate_dph, temp_c);
-            prev_time_s = Some(row.time_s);
-            let out = compensator.process(Some(model), &config, &sample);
-            let r = row.ref_dph.unwrap_or(0.0);
-            evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
-        }
+    let mut evaluator = Evaluator::new(path, run.nominal_period_s, run.has_ref);
+    run.for_each(|row, sample| {
+        let out = compensator.process(Some(model), &config, sample);
+        let r = row.ref_dph.unwrap_or(0.0);
+        evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
     })?;
     Ok(evaluator.finish())
 }

@@ -423,3 +423,79 @@ pub fn probe_nominal_period_s(path: &Path) -> Result<f64, RunError> {
     }
     Ok(period.period_s())
 }
+
+/// A run read in one streaming pass: its nominal period and reference are
+/// known up front, its samples are handed out one by one, parsed on a second
+/// thread (so parsing and computation overlap); nothing holds the whole run.
+pub struct StreamedRun {
+    /// Nominal sample period, s (see [`record::PeriodEstimator`]).
+    pub nominal_period_s: f64,
+    /// The run has a `ref_dph` column.
+    pub has_ref: bool,
+    reader: RunReader,
+}
+
+impl StreamedRun {
+    /// Opens a run that has a `temp_c` column.
+    pub fn open(path: &Path) -> Result<Self, RunError> {
+        let nominal_period_s = probe_nominal_period_s(path)?;
+        let reader = RunReader::open(path)?;
+        reader.require_temp()?;
+        Ok(StreamedRun {
+            nominal_period_s,
+            has_ref: reader.columns().ref_dph.is_some(),
+            reader,
+        })
+    }
+
+    /// Feeds every data row and its gyro sample (as the firmware sees it) to
+    /// `each`, in order; returns the number of rows.
+    pub fn for_each(self, mut each: impl FnMut(&Row, &GyroSample)) -> anyhow::Result<usize> {
+        let mut prev_time_s = None;
+        let mut rows = 0;
+        for_each_row_batch(self.reader, |batch| {
+            for row in batch {
+                let temp_c = if row.temp_fault { None } else { row.temp_c };
+                let sample = gyro_sample(prev_time_s, row.time_s, row.rate_dph, temp_c);
+                prev_time_s = Some(row.time_s);
+                rows += 1;
+                each(row, &sample);
+            }
+        })?;
+        Ok(rows)
+    }
+}
+
+/// Parses `reader`'s rows on a second thread in batches and hands each batch
+/// to `consume` on this one, so parsing and feature computation overlap.
+fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[Row])) -> anyhow::Result<()> {
+    const BATCH: usize = 4096;
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Row>>(4);
+    std::thread::scope(|scope| {
+        let parser = scope.spawn(move || -> Result<(), RunError> {
+            loop {
+                let mut batch = Vec::with_capacity(BATCH);
+                while batch.len() < BATCH {
+                    match reader.next_parsed()? {
+                        Some((_, row)) => batch.push(row),
+                        None => break,
+                    }
+                }
+                let last = batch.len() < BATCH;
+                if !batch.is_empty() && tx.send(batch).is_err() {
+                    return Ok(());
+                }
+                if last {
+                    return Ok(());
+                }
+            }
+        });
+        for batch in rx {
+            consume(&batch);
+        }
+        parser
+            .join()
+            .map_err(|_| anyhow::anyhow!("the run parser thread panicked"))?
+            .map_err(anyhow::Error::from)
+    })
+}
