@@ -76,7 +76,8 @@ impl RunReader {
             path: path.to_owned(),
             error: source,
         })?;
-        Self::from_reader(path, BufReader::new(file))
+        // 1 MiB reads: a tenth of the system calls of the default on long runs.
+        Self::from_reader(path, BufReader::with_capacity(1 << 20, file))
     }
 
     /// Reads a run from any buffered source; `path` names it in messages.
