@@ -91,21 +91,23 @@ pub struct Row {
 
 /// Trims spaces, tabs and a trailing carriage return.
 pub fn trim_field(s: &str) -> &str {
-    let blank = |b: u8| b == b' ' || b == b'\t' || b == b'\r';
-    let bytes = s.as_bytes();
-    match (bytes.first(), bytes.last()) {
-        // The usual field: nothing to trim (no per-char search).
-        (Some(&a), Some(&z)) if !blank(a) && !blank(z) => s,
-        _ => s.trim_matches(|c| c == ' ' || c == '\t' || c == '\r'),
-    }
+    let (start, end) = trimmed_bounds(s.as_bytes());
+    // The bounds sit next to ASCII bytes, so they are char boundaries.
+    s.get(start..end).unwrap_or("")
 }
 
 /// [`trim_field`] on bytes.
 pub fn trim_field_bytes(s: &[u8]) -> &[u8] {
+    let (start, end) = trimmed_bounds(s);
+    s.get(start..end).unwrap_or(&[])
+}
+
+/// Start and end of `s` without leading and trailing spaces, tabs and CRs.
+fn trimmed_bounds(s: &[u8]) -> (usize, usize) {
     let blank = |b: &u8| *b == b' ' || *b == b'\t' || *b == b'\r';
     let start = s.iter().position(|b| !blank(b)).unwrap_or(s.len());
     let end = s.iter().rposition(|b| !blank(b)).map_or(start, |e| e + 1);
-    s.get(start..end).unwrap_or(&[])
+    (start, end)
 }
 
 /// Powers of ten exactly representable in f64.
@@ -382,6 +384,14 @@ impl Columns {
 )]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fields_are_trimmed_of_blanks_only_text_and_bytes_alike() {
+        for (raw, want) in [(" \t1.5 \r", "1.5"), ("  é x ", "é x"), (" \t\r", ""), ("", ""), ("a", "a")] {
+            assert_eq!(trim_field(raw), want, "{raw:?}");
+            assert_eq!(trim_field_bytes(raw.as_bytes()), want.as_bytes(), "{raw:?}");
+        }
+    }
 
     #[test]
     fn header_maps_known_columns_in_any_order_and_ignores_others() {

@@ -264,6 +264,10 @@ impl RunFiles {
         cache.iter().find(|(k, _)| k == key).map(|(_, b)| b.clone())
     }
 
+    fn is_cached(&self, key: &CacheKey) -> bool {
+        self.cache.lock().is_ok_and(|cache| cache.iter().any(|(k, _)| k == key))
+    }
+
     /// One pass over run `index`: blocks for each of `configs`.
     fn pass(&self, index: usize, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<Vec<Blocks>> {
         let path = &self.paths[index];
@@ -307,7 +311,7 @@ impl RunSet for RunFiles {
     fn prepare(&self, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<()> {
         let wanted: Vec<FeatureConfig> = configs
             .iter()
-            .filter(|c| self.cached(&cache_key(c, block_s)).is_none())
+            .filter(|c| !self.is_cached(&cache_key(c, block_s)))
             .copied()
             .collect();
         if wanted.is_empty() {
