@@ -387,7 +387,13 @@ mod tests {
 
     #[test]
     fn fields_are_trimmed_of_blanks_only_text_and_bytes_alike() {
-        for (raw, want) in [(" \t1.5 \r", "1.5"), ("  é x ", "é x"), (" \t\r", ""), ("", ""), ("a", "a")] {
+        for (raw, want) in [
+            (" \t1.5 \r", "1.5"),
+            ("  é x ", "é x"),
+            (" \t\r", ""),
+            ("", ""),
+            ("a", "a"),
+        ] {
             assert_eq!(trim_field(raw), want, "{raw:?}");
             assert_eq!(trim_field_bytes(raw.as_bytes()), want.as_bytes(), "{raw:?}");
         }
