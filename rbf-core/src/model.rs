@@ -113,14 +113,18 @@ pub struct Evaluation {
 }
 
 /// A complete, validated model: what a blob decodes to and the firmware runs.
+///
+/// `repr(C)` with the clamping limits and the body first: what
+/// [`Self::eval`] reads sits within the immediate offsets of Cortex-M loads.
 #[derive(Clone, Debug, PartialEq)]
+#[repr(C)]
 pub struct Model {
-    features: FeatureConfig,
     input_min: [f32; MAX_INPUTS],
     input_max: [f32; MAX_INPUTS],
     linear_min: [f32; MAX_INPUTS],
     linear_max: [f32; MAX_INPUTS],
     body: ModelBody,
+    features: FeatureConfig,
     info: ModelInfo,
 }
 

@@ -35,14 +35,42 @@ pub struct RbfParams<'a> {
 }
 
 /// A Gaussian RBF network holding at most `K` centres over at most `D` inputs.
+///
+/// `repr(C)` with what [`Self::eval`] reads first: the hot fields sit within
+/// the immediate offsets of Cortex-M loads from the struct's address.
 #[derive(Clone, Debug, PartialEq)]
+#[repr(C)]
 pub struct RbfNetwork<const K: usize, const D: usize> {
+    kernel_inputs: usize,
     centers_used: usize,
     inputs_used: usize,
-    kernel_inputs: usize,
+    /// Centres with positive weights at the front of `exponent`, and negative after them.
+    positive: usize,
+    negative: usize,
+    /// S·2^16 with S = log₂e / (2σ²) once [`Self::prepare_table`] has proven
+    /// the integer path safe for the model's input box; 0 otherwise (then the
+    /// polynomial exponential path runs).
+    gauss_scale: f32,
+    /// 2^(E+T), E = ⌈max log₂|W_j|⌉ (so every folded exponent is ≥ 0) and T
+    /// the integer offset of the exponents (see `exponent`).
+    weight_scale: f32,
+    constant_raw: f32,
+    /// Linear terms with the normalisation folded in: y_lin = c′ + Σ a′_i x_i,
+    /// a′_i = a_i / scale_i, c′ = c − Σ a′_i offset_i.
+    linear_raw: [f32; D],
     offset: [f32; D],
-    scale: [f32; D],
     inv_scale: [f32; D],
+    /// Per centre [A₁, A₂, A₃, B] in fixed point, centres with positive weights
+    /// first, then negative ones (zero weights dropped): W_j·exp(−‖z − c_j‖²/2σ²)
+    /// = ±2^(E+T) · 2^−S‖z‖² · 2^−v_j with v_j = B_j + Σ_i A_ji z_i,
+    /// A_ji = −2S c_ji (Q[`A_FRAC`]) and B_j = S‖c_j‖² + E + T − log₂|W_j|
+    /// (Q[`U_FRAC`]): the square expanded, the weight folded in and the
+    /// input's shared term S‖z‖² taken out of the sum (T ≥ S‖z‖² over the
+    /// input box keeps v_j ≥ 0), so per centre there is no subtraction, no
+    /// multiplication by a weight and nothing that depends on the centre
+    /// beyond its four coefficients.
+    exponent: [[i32; 4]; K],
+    scale: [f32; D],
     centers: [[f32; D]; K],
     widths: [f32; K],
     neg_half_inv_var: [f32; K],
@@ -50,26 +78,6 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
     linear: [f32; D],
     has_linear: bool,
     constant: f32,
-    /// Linear terms with the normalisation folded in: y_lin = c′ + Σ a′_i x_i,
-    /// a′_i = a_i / scale_i, c′ = c − Σ a′_i offset_i.
-    linear_raw: [f32; D],
-    constant_raw: f32,
-    /// S·2^16 with S = log₂e / (2σ²) once [`Self::prepare_table`] has proven
-    /// the integer path safe for the model's input box; 0 otherwise (then the
-    /// polynomial exponential path runs).
-    gauss_scale: f32,
-    /// Per centre [A₁, A₂, A₃, B] in fixed point, centres with positive weights
-    /// first, then negative ones (zero weights dropped): W_j·exp(−‖z − c_j‖²/2σ²)
-    /// = ±2^E · 2^−u_j with u_j = B_j + S‖z‖² + Σ_i A_ji z_i, A_ji = −2S c_ji
-    /// (Q[`A_FRAC`]) and B_j = S‖c_j‖² + E − log₂|W_j| (Q[`U_FRAC`]): the
-    /// square expanded and the weight folded in, so per centre there is no
-    /// subtraction and no multiplication by a weight.
-    exponent: [[i32; 4]; K],
-    /// Centres with positive weights at the front of `exponent`, and negative after them.
-    positive: usize,
-    negative: usize,
-    /// 2^E, E = ⌈max log₂|W_j|⌉ (so every folded exponent is ≥ 0).
-    weight_scale: f32,
 }
 
 /// Most kernel inputs the table path ([`crate::fastmath::exp2_neg_fixed`]) handles.
@@ -82,6 +90,11 @@ const Z_FRAC: u32 = 26;
 const A_FRAC: u32 = 32 + U_FRAC - Z_FRAC;
 /// Bound every fixed-point partial sum must stay under (no i32 overflow).
 const FIXED_LIMIT: f64 = (1u32 << 30) as f64;
+/// Exponent range a Gaussian term needs: terms below 2^−32 of the largest
+/// weight may be dropped. The offset T may use the rest of the table's range.
+const GAUSS_EXP2_RANGE: u32 = 32;
+/// Right shift from a Q[`U_FRAC`] exponent to the table's index.
+const TABLE_SHIFT: u32 = U_FRAC - crate::fastmath::EXP2_FRAC_BITS;
 
 /// High word of the 64-bit product: one SMMUL/SMMLA on a Cortex-M4.
 #[inline(always)]
@@ -219,10 +232,12 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
     /// Enables the integer table path for Gaussian inputs within
     /// [`kernel_lo`, `kernel_hi`] (input units; the model clamps to them) when
     /// its conditions hold: one shared width, at most [`TABLE_MAX_INPUTS`]
-    /// kernel inputs, a nonzero weight, and every fixed-point quantity of the
-    /// evaluation provably inside i32 for every input in the box. Otherwise
-    /// the polynomial path stays. f64 arithmetic rounded once: deterministic,
-    /// so host and target prepare the same bits.
+    /// kernel inputs, a nonzero weight, S·max‖z‖² over the box at most
+    /// 32 (the exponent offset T must fit the table beside the 32 a term
+    /// needs) and every fixed-point quantity of the evaluation provably
+    /// inside i32 for every input in the box. Otherwise the polynomial path
+    /// stays. f64 arithmetic rounded once: deterministic, so host and target
+    /// prepare the same bits.
     pub fn prepare_table(&mut self, kernel_lo: &[f32], kernel_hi: &[f32]) {
         self.gauss_scale = 0.0;
         let (m, k) = (self.kernel_inputs, self.centers_used.min(K));
@@ -249,12 +264,17 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             *zb = (z(*lo), z(*hi));
         }
         let z_max = z_box.iter().map(|(a, b)| a.abs().max(b.abs())).fold(0.0, f64::max);
+        let norm_sq_max: f64 = z_box.iter().map(|(a, b)| (a * a).max(b * b)).sum();
         let e = libm::ceil(max_log2_w);
         let sigma = f64::from(widths.first().copied().unwrap_or(1.0));
         let s = core::f64::consts::LOG2_E / (2.0 * sigma * sigma);
         let (u_one, a_one) = (f64::from(1u32 << U_FRAC), f64::from(1u32 << A_FRAC));
-        let shared_max = s * z_max * z_max * m as f64 * u_one;
-        if z_max >= f64::from(1u32 << (31 - Z_FRAC)) - 1.0 || shared_max >= FIXED_LIMIT {
+        // The offset: an integer, so 2^T is exact; 2^−20 relative headroom
+        // for the f32 rounding of S‖z‖² (a v_j rounded below 0 reads as 0,
+        // an error far below the table's).
+        let t = libm::ceil(s * norm_sq_max * (1.0 + 1.0 / f64::from(1u32 << 20)));
+        let t_limit = f64::from(crate::fastmath::EXP2_RANGE - GAUSS_EXP2_RANGE);
+        if z_max >= f64::from(1u32 << (31 - Z_FRAC)) - 1.0 || !(t <= t_limit) {
             return;
         }
         let mut slot = 0;
@@ -276,8 +296,8 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
                     norm_sq += f64::from(*ci) * f64::from(*ci);
                     products_max += a_real.abs() * z_max * u_one;
                 }
-                let b = (s * norm_sq + e - libm::log2(f64::from(w).abs())) * u_one;
-                if b + shared_max + products_max >= FIXED_LIMIT {
+                let b = (s * norm_sq + e + t - libm::log2(f64::from(w).abs())) * u_one;
+                if b + products_max >= FIXED_LIMIT {
                     return;
                 }
                 coeffs[3] = b as i32;
@@ -288,7 +308,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             }
         }
         self.negative = slot - self.positive;
-        let weight_scale = libm::exp2(e) as f32;
+        let weight_scale = libm::exp2(e + t) as f32;
         if weight_scale.is_finite() && weight_scale > 0.0 {
             self.gauss_scale = (s * u_one) as f32;
             self.weight_scale = weight_scale;
@@ -415,12 +435,12 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         })
     }
 
-    /// Σ_j W_j exp(−‖z − c_j‖²/2σ²) = 2^E (Σ_pos 2^−u_j − Σ_neg 2^−u_j) with the
-    /// fixed-point exponents of [`Self::prepare_table`] and the table
-    /// exponential. Per centre: N + 1 integer multiply-accumulates of high
-    /// words (SMMLA), one saturation, one table load, one float add; no
-    /// branch, no conversion, no weight multiplication. Integer arithmetic,
-    /// so host and target agree bit for bit.
+    /// Σ_j W_j exp(−‖z − c_j‖²/2σ²) = 2^(E+T) · 2^−S‖z‖² · (Σ_pos 2^−v_j −
+    /// Σ_neg 2^−v_j) with the fixed-point exponents of [`Self::prepare_table`]
+    /// and the table exponential. Per centre: N integer multiply-accumulates
+    /// of high words (SMMLA) onto B_j, one saturation, one table load, one
+    /// float add; no branch, no conversion, no weight multiplication. Integer
+    /// arithmetic, so host and target agree bit for bit.
     #[inline(always)]
     fn gaussian_sum_table<const N: usize>(&self, zn: [f32; N]) -> f32 {
         let mut norm_sq = 0.0f32;
@@ -433,17 +453,18 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         let sum = |centres: &[[i32; 4]]| {
             let mut sum = 0.0f32;
             for &[a1, a2, a3, b] in centres {
-                let mut u = b.wrapping_add(shared);
+                let mut v = b;
                 for (a, zi) in [a1, a2, a3].iter().zip(&z_fixed) {
-                    u = u.wrapping_add(mul_hi(*a, *zi));
+                    v = v.wrapping_add(mul_hi(*a, *zi));
                 }
-                sum += crate::fastmath::exp2_neg_fixed(u >> (U_FRAC - crate::fastmath::EXP2_FRAC_BITS));
+                sum += crate::fastmath::exp2_neg_fixed(v >> TABLE_SHIFT);
             }
             sum
         };
         let (positive, rest) = self.exponent.split_at(self.positive.min(K));
         let negative = rest.get(..self.negative).unwrap_or(&[]);
-        (sum(positive) - sum(negative)) * self.weight_scale
+        let shared_factor = crate::fastmath::exp2_neg_fixed(shared >> TABLE_SHIFT) * self.weight_scale;
+        (sum(positive) - sum(negative)) * shared_factor
     }
 
     /// Σ_j W_j exp(−‖z − c_j‖²/2σ_j²) over the first `k` centres, `N` inputs.
@@ -510,8 +531,9 @@ mod tests {
     #[test]
     fn evaluates_the_documented_formula() {
         let net = one_centre();
-        // Each Gaussian is within the table exponential's bound (W = 2).
-        let tol = 2.0 * crate::fastmath::EXP2_FIXED_REL_ERROR + 1e-6;
+        // Each Gaussian is within the table exponential's bound, twice: its
+        // own term and the shared factor (W = 2).
+        let tol = 2.0 * 2.0 * crate::fastmath::EXP2_FIXED_REL_ERROR + 1e-6;
         // At the centre: c + 0 + W·exp(0) = 1 + 2 = 3.
         assert!((net.eval(&[20.0, 0.0, 0.0], &[20.0, 0.0, 0.0]) as f64 - 3.0).abs() < tol);
         // One σ away along T (z = 1): 1 + 0.5 + 2·e^{−1/2}.
@@ -546,7 +568,9 @@ mod tests {
         let mut exact = build(&[0.8, 0.8, 0.800_000_1]);
         exact.prepare_table(&lo, &hi);
         assert!(table.gauss_scale > 0.0 && exact.gauss_scale == 0.0);
-        let bound = (1.5 + 2.0 + 0.7) * crate::fastmath::EXP2_FIXED_REL_ERROR;
+        // Each term's table error, and the shared factor's on the sum.
+        let rel = (1.0 + crate::fastmath::EXP2_FIXED_REL_ERROR).powi(2) - 1.0;
+        let bound = (1.5 + 2.0 + 0.7) * rel;
         for i in 0..40 {
             let x = [5.0 + i as f32, -2.0 + 0.1 * i as f32, 40.0 - 2.0 * i as f32];
             let (a, b) = (table.eval(&x, &x), exact.eval(&x, &x));
