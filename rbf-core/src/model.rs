@@ -124,8 +124,55 @@ pub struct Model {
     linear_min: [f32; MAX_INPUTS],
     linear_max: [f32; MAX_INPUTS],
     body: ModelBody,
+    path: EvalPath,
     features: FeatureConfig,
     info: ModelInfo,
+}
+
+/// How [`Model::eval`] runs a model, chosen once at construction so that an
+/// evaluation dispatches once: `Clamped<N>` clamps the N inputs in f32 and
+/// runs the cubic or the network's polynomial path; `Table<M>Of<N>` runs the
+/// network's table path over M kernel inputs of N ([`RbfNetwork::eval_table`],
+/// which clamps kernel inputs itself). N = 8 stands for any count above 3.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum EvalPath {
+    Clamped1,
+    Clamped2,
+    Clamped3,
+    Clamped8,
+    Table1Of1,
+    Table1Of2,
+    Table2Of2,
+    Table1Of3,
+    Table2Of3,
+    Table3Of3,
+    Table1Of8,
+    Table2Of8,
+    Table3Of8,
+}
+
+impl EvalPath {
+    fn choose(dims: usize, body: &ModelBody) -> Self {
+        let table_kernel = match body {
+            ModelBody::Rbf(net) if net.table_ready() => net.kernel_inputs(),
+            _ => 0,
+        };
+        match (dims, table_kernel) {
+            (1, 1) => EvalPath::Table1Of1,
+            (2, 1) => EvalPath::Table1Of2,
+            (2, 2) => EvalPath::Table2Of2,
+            (3, 1) => EvalPath::Table1Of3,
+            (3, 2) => EvalPath::Table2Of3,
+            (3, 3) => EvalPath::Table3Of3,
+            (4.., 1) => EvalPath::Table1Of8,
+            (4.., 2) => EvalPath::Table2Of8,
+            (4.., 3) => EvalPath::Table3Of8,
+            (1, _) => EvalPath::Clamped1,
+            (2, _) => EvalPath::Clamped2,
+            (3, _) => EvalPath::Clamped3,
+            _ => EvalPath::Clamped8,
+        }
+    }
 }
 
 impl Model {
@@ -201,6 +248,7 @@ impl Model {
             input_max,
             linear_min,
             linear_max,
+            path: EvalPath::choose(dims, &body),
             body,
             info,
         })
@@ -239,18 +287,55 @@ impl Model {
     /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it. `clamped` says that an
     /// input left its training range.
     pub fn eval(&self, features: &FeatureVector) -> Evaluation {
-        // Monomorphised per input count (the feature sets have 1, 2, 3 or 8):
-        // straight-line clamping and evaluation.
-        match self.features.dims() {
-            1 => self.eval_inputs::<1>(features),
-            2 => self.eval_inputs::<2>(features),
-            3 => self.eval_inputs::<3>(features),
-            _ => self.eval_inputs::<MAX_INPUTS>(features),
+        // Monomorphised per input count (the feature sets have 1, 2, 3 or 8)
+        // and kernel-input count: straight-line clamping and evaluation.
+        match self.path {
+            EvalPath::Clamped1 => self.eval_clamped::<1>(features),
+            EvalPath::Clamped2 => self.eval_clamped::<2>(features),
+            EvalPath::Clamped3 => self.eval_clamped::<3>(features),
+            EvalPath::Clamped8 => self.eval_clamped::<MAX_INPUTS>(features),
+            EvalPath::Table1Of1 => self.eval_table::<1, 1>(features),
+            EvalPath::Table1Of2 => self.eval_table::<1, 2>(features),
+            EvalPath::Table2Of2 => self.eval_table::<2, 2>(features),
+            EvalPath::Table1Of3 => self.eval_table::<1, 3>(features),
+            EvalPath::Table2Of3 => self.eval_table::<2, 3>(features),
+            EvalPath::Table3Of3 => self.eval_table::<3, 3>(features),
+            EvalPath::Table1Of8 => self.eval_table::<1, MAX_INPUTS>(features),
+            EvalPath::Table2Of8 => self.eval_table::<2, MAX_INPUTS>(features),
+            EvalPath::Table3Of8 => self.eval_table::<3, MAX_INPUTS>(features),
+        }
+    }
+
+    /// The table path: the flag from range comparisons, the linear inputs
+    /// clamped in f32, the kernel inputs passed as they come (the network's
+    /// saturating conversion clamps them to the same training box).
+    #[inline(always)]
+    fn eval_table<const M: usize, const N: usize>(&self, features: &FeatureVector) -> Evaluation {
+        let ModelBody::Rbf(net) = &self.body else {
+            // Not reached: `EvalPath::choose` picks table paths for networks only.
+            return self.eval_clamped::<N>(features);
+        };
+        let raw = features.values();
+        let mut x_linear = [0.0f32; N];
+        let mut clamped = false;
+        let limits = self
+            .input_min
+            .iter()
+            .zip(&self.input_max)
+            .zip(self.linear_min.iter().zip(&self.linear_max));
+        for ((li, v), ((lo, hi), (llo, lhi))) in x_linear.iter_mut().zip(raw).zip(limits) {
+            clamped |= outside(*v, *lo, *hi);
+            *li = clamp(*v, *llo, *lhi);
+        }
+        let x_kernel: [f32; M] = core::array::from_fn(|i| raw.get(i).copied().unwrap_or(0.0));
+        Evaluation {
+            bias_dph: net.eval_table(&x_kernel, &x_linear),
+            clamped,
         }
     }
 
     #[inline(always)]
-    fn eval_inputs<const N: usize>(&self, features: &FeatureVector) -> Evaluation {
+    fn eval_clamped<const N: usize>(&self, features: &FeatureVector) -> Evaluation {
         let raw = features.values();
         let mut x = [0.0f32; N];
         let mut x_linear = [0.0f32; N];
@@ -294,6 +379,16 @@ impl Model {
             }
         }
     }
+}
+
+/// `v` is outside [lo, hi] or NaN: two comparisons, no select.
+#[inline(always)]
+#[allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    reason = "the negated comparisons are what make NaN count as outside"
+)]
+fn outside(v: f32, lo: f32, hi: f32) -> bool {
+    !(v >= lo) | !(v <= hi)
 }
 
 /// `v` limited to [lo, hi], NaN mapped to `lo`; never panics. Two compare

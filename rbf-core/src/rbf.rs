@@ -47,10 +47,16 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
     /// Centres with positive weights at the front of `exponent`, and negative after them.
     positive: usize,
     negative: usize,
-    /// S·2^16 with S = log₂e / (2σ²) once [`Self::prepare_table`] has proven
-    /// the integer path safe for the model's input box; 0 otherwise (then the
-    /// polynomial exponential path runs).
-    gauss_scale: f32,
+    /// [`Self::prepare_table`] proved the integer table path safe for the
+    /// model's input box ([`Self::eval_table`]); otherwise [`Self::eval`].
+    table: bool,
+    /// Per kernel input, the box centre (input units) and the gain that maps
+    /// the box's half-width onto 2^31: q_i = i32((x_i − mid_i)·gain_i).
+    kernel_mid: [f32; TABLE_MAX_INPUTS],
+    kernel_gain: [f32; TABLE_MAX_INPUTS],
+    /// Per kernel input, H_i = S h_i² 2^18 (h_i the box's normalised
+    /// half-width): Q·2^16 = Σ_i hi(hi(q_i, q_i), H_i).
+    shared_coeff: [i32; TABLE_MAX_INPUTS],
     /// 2^(E+T), E = ⌈max log₂|W_j|⌉ (so every folded exponent is ≥ 0) and T
     /// the integer offset of the exponents (see `exponent`).
     weight_scale: f32,
@@ -60,16 +66,16 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
     linear_raw: [f32; D],
     offset: [f32; D],
     inv_scale: [f32; D],
-    /// Per centre [A₁, A₂, A₃, B] in fixed point, centres with positive weights
-    /// first, then negative ones (zero weights dropped): W_j·exp(−‖z − c_j‖²/2σ²)
-    /// = ±2^(E+T) · 2^−S‖z‖² · 2^−v_j with v_j = B_j + Σ_i A_ji z_i,
-    /// A_ji = −2S c_ji (Q[`A_FRAC`]) and B_j = S‖c_j‖² + E + T − log₂|W_j|
-    /// (Q[`U_FRAC`]): the square expanded, the weight folded in and the
-    /// input's shared term S‖z‖² taken out of the sum (T ≥ S‖z‖² over the
-    /// input box keeps v_j ≥ 0), so per centre there is no subtraction, no
-    /// multiplication by a weight and nothing that depends on the centre
-    /// beyond its four coefficients.
-    exponent: [[i32; 4]; K],
+    /// Per centre [A₁, A₂, A₃, B] in fixed point, packed two to a word
+    /// (two LDRDs), centres with positive weights first, then negative ones
+    /// (zero weights dropped): W_j·exp(−‖z − c_j‖²/2σ²) = ±2^(E+T) · 2^−Q ·
+    /// 2^−v_j with v_j = B_j + Σ_i hi(A_ji, q_i), A_ji = 2S(m_i − c_ji)h_i·2^17
+    /// and B_j = S‖m − c_j‖² + E + T − log₂|W_j| (Q[`U_FRAC`]); see
+    /// [`Self::prepare_table`]. The square expanded, the weight folded in and
+    /// the shared term Q taken out of the sum (T ≥ Q keeps v_j ≥ 0): per
+    /// centre there is no subtraction, no multiplication by a weight and
+    /// nothing but its four coefficients.
+    exponent: [[u64; 2]; K],
     scale: [f32; D],
     centers: [[f32; D]; K],
     widths: [f32; K],
@@ -84,10 +90,6 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
 pub const TABLE_MAX_INPUTS: usize = 3;
 /// Fraction bits of the fixed-point Gaussian exponent u (Q16).
 const U_FRAC: u32 = 16;
-/// Fraction bits of the fixed-point normalised inputs z (Q26: |z| < 32).
-const Z_FRAC: u32 = 26;
-/// Fraction bits of the coefficients A: (A·2^22)(z·2^26)/2^32 = A·z·2^16.
-const A_FRAC: u32 = 32 + U_FRAC - Z_FRAC;
 /// Bound every fixed-point partial sum must stay under (no i32 overflow).
 const FIXED_LIMIT: f64 = (1u32 << 30) as f64;
 /// Exponent range a Gaussian term needs: terms below 2^−32 of the largest
@@ -95,6 +97,18 @@ const FIXED_LIMIT: f64 = (1u32 << 30) as f64;
 const GAUSS_EXP2_RANGE: u32 = 32;
 /// Right shift from a Q[`U_FRAC`] exponent to the table's index.
 const TABLE_SHIFT: u32 = U_FRAC - crate::fastmath::EXP2_FRAC_BITS;
+
+/// [A₁, A₂, A₃, B] as two 64-bit words: loaded with two LDRDs.
+fn pack_coefficients(c: [i32; 4]) -> [u64; 2] {
+    let word = |lo: i32, hi: i32| u64::from(lo as u32) | (u64::from(hi as u32) << 32);
+    [word(c[0], c[1]), word(c[2], c[3])]
+}
+
+/// Inverse of [`pack_coefficients`].
+#[inline(always)]
+fn unpack_coefficients(p: u64, q: u64) -> [i32; 4] {
+    [p as u32 as i32, (p >> 32) as u32 as i32, q as u32 as i32, (q >> 32) as u32 as i32]
+}
 
 /// High word of the 64-bit product: one SMMUL/SMMLA on a Cortex-M4.
 #[inline(always)]
@@ -149,8 +163,11 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             constant: p.constant,
             linear_raw: [0.0; D],
             constant_raw: p.constant,
-            gauss_scale: 0.0,
-            exponent: [[0; 4]; K],
+            table: false,
+            kernel_mid: [0.0; TABLE_MAX_INPUTS],
+            kernel_gain: [0.0; TABLE_MAX_INPUTS],
+            shared_coeff: [0; TABLE_MAX_INPUTS],
+            exponent: [[0; 2]; K],
             positive: 0,
             negative: 0,
             weight_scale: 1.0,
@@ -229,17 +246,23 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         self.constant_raw = constant as f32;
     }
 
-    /// Enables the integer table path for Gaussian inputs within
-    /// [`kernel_lo`, `kernel_hi`] (input units; the model clamps to them) when
-    /// its conditions hold: one shared width, at most [`TABLE_MAX_INPUTS`]
-    /// kernel inputs, a nonzero weight, S·max‖z‖² over the box at most
-    /// 32 (the exponent offset T must fit the table beside the 32 a term
-    /// needs) and every fixed-point quantity of the evaluation provably
-    /// inside i32 for every input in the box. Otherwise the polynomial path
-    /// stays. f64 arithmetic rounded once: deterministic, so host and target
-    /// prepare the same bits.
+    /// Enables the integer table path for Gaussian inputs clamped to
+    /// [`kernel_lo`, `kernel_hi`] (input units: the training box) when its
+    /// conditions hold: one shared width, at most [`TABLE_MAX_INPUTS`] kernel
+    /// inputs, each with a non-empty range, a nonzero weight, a shared-term
+    /// offset T ≤ 32 (it must fit the table beside the 32 a term needs) and
+    /// every fixed-point quantity of the evaluation provably inside i32.
+    /// Otherwise the polynomial path stays. f64 arithmetic rounded once:
+    /// deterministic, so host and target prepare the same bits.
+    ///
+    /// The table path clamps kernel inputs itself, by the saturating
+    /// conversion q_i = i32(x_i − mid_i)·gain_i) that maps the box onto the
+    /// whole i32 range: z_i = m_i + h_i·q_i/2^31 with m_i, h_i the box's
+    /// normalised centre and half-width. Then
+    /// S‖z − c_j‖² = S‖m − c_j‖² + Σ_i 2S(m_i − c_ji)h_i·q_i/2^31 + S Σ_i h_i²(q_i/2^31)²,
+    /// whose last sum (call it Q, 0 ≤ Q ≤ T) is the same for every centre.
     pub fn prepare_table(&mut self, kernel_lo: &[f32], kernel_hi: &[f32]) {
-        self.gauss_scale = 0.0;
+        self.table = false;
         let (m, k) = (self.kernel_inputs, self.centers_used.min(K));
         let widths = self.widths.get(..k).unwrap_or(&[]);
         let weights = self.weights.get(..k).unwrap_or(&[]);
@@ -254,28 +277,39 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         if !shared || m > TABLE_MAX_INPUTS || !max_log2_w.is_finite() {
             return;
         }
-        // The normalised input box.
-        let mut z_box = [(0.0f64, 0.0f64); TABLE_MAX_INPUTS];
-        for (i, zb) in z_box.iter_mut().enumerate().take(m) {
-            let (Some(lo), Some(hi)) = (kernel_lo.get(i), kernel_hi.get(i)) else {
-                return;
-            };
-            let z = |x: f32| (f64::from(x) - f64::from(self.offset[i])) * f64::from(self.inv_scale[i]);
-            *zb = (z(*lo), z(*hi));
-        }
-        let z_max = z_box.iter().map(|(a, b)| a.abs().max(b.abs())).fold(0.0, f64::max);
-        let norm_sq_max: f64 = z_box.iter().map(|(a, b)| (a * a).max(b * b)).sum();
         let e = libm::ceil(max_log2_w);
         let sigma = f64::from(widths.first().copied().unwrap_or(1.0));
         let s = core::f64::consts::LOG2_E / (2.0 * sigma * sigma);
-        let (u_one, a_one) = (f64::from(1u32 << U_FRAC), f64::from(1u32 << A_FRAC));
-        // The offset: an integer, so 2^T is exact; 2^−20 relative headroom
-        // for the f32 rounding of S‖z‖² (a v_j rounded below 0 reads as 0,
-        // an error far below the table's).
-        let t = libm::ceil(s * norm_sq_max * (1.0 + 1.0 / f64::from(1u32 << 20)));
-        let t_limit = f64::from(crate::fastmath::EXP2_RANGE - GAUSS_EXP2_RANGE);
-        if z_max >= f64::from(1u32 << (31 - Z_FRAC)) - 1.0 || !(t <= t_limit) {
+        let (u_one, q_one) = (f64::from(1u32 << U_FRAC), f64::from(1u32 << 31));
+        // The saturating map of each kernel input, and its box in normalised units.
+        let (mut mid_z, mut half_z) = ([0.0f64; TABLE_MAX_INPUTS], [0.0f64; TABLE_MAX_INPUTS]);
+        let mut t_real = 0.0;
+        for i in 0..m {
+            let (Some(lo), Some(hi)) = (kernel_lo.get(i), kernel_hi.get(i)) else {
+                return;
+            };
+            let half = (f64::from(*hi) - f64::from(*lo)) / 2.0;
+            let mid = ((f64::from(*lo) + f64::from(*hi)) / 2.0) as f32;
+            let gain = (q_one / half) as f32;
+            if !(half > 0.0 && gain.is_finite() && gain > 0.0) {
+                return;
+            }
+            let scale = f64::from(self.scale[i]);
+            mid_z[i] = (f64::from(mid) - f64::from(self.offset[i])) / scale;
+            half_z[i] = q_one / f64::from(gain) / scale;
+            self.kernel_mid[i] = mid;
+            self.kernel_gain[i] = gain;
+            t_real += s * half_z[i] * half_z[i];
+        }
+        // The offset T: an integer, so 2^T is exact. Q in fixed point only
+        // rounds down, so Q ≤ T holds without headroom.
+        let t = libm::ceil(t_real);
+        if !(t <= f64::from(crate::fastmath::EXP2_RANGE - GAUSS_EXP2_RANGE)) {
             return;
+        }
+        // Q·2^16 = Σ_i hi(hi(q_i, q_i), H_i) with H_i = S h_i² 2^18 (< 2^23 as T ≤ 32).
+        for (h, hz) in self.shared_coeff.iter_mut().zip(&half_z).take(m) {
+            *h = (s * hz * hz * f64::from(1u32 << (U_FRAC + 2))) as i32;
         }
         let mut slot = 0;
         for positive in [true, false] {
@@ -283,24 +317,29 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
                 if w == 0.0 || (w > 0.0) != positive {
                     continue;
                 }
-                let Some(coeffs) = self.exponent.get_mut(slot) else {
+                let Some(packed) = self.exponent.get_mut(slot) else {
                     return;
                 };
-                let (mut norm_sq, mut products_max) = (0.0f64, 0.0f64);
-                for (a, ci) in coeffs.iter_mut().zip(c).take(m) {
-                    let a_real = -2.0 * s * f64::from(*ci);
-                    if (a_real * a_one).abs() >= FIXED_LIMIT {
+                let mut coeffs = [0i32; 4];
+                let (mut dist_sq, mut products_max) = (0.0f64, 0.0f64);
+                for (((a, ci), mz), hz) in coeffs.iter_mut().zip(c).zip(&mid_z).zip(&half_z).take(m) {
+                    // hi(A, q) = A·q/2^32 = 2S(m − c)h·(q/2^31)·2^16.
+                    let diff = mz - f64::from(*ci);
+                    let a_real = 2.0 * s * diff * hz;
+                    let a_fixed = a_real * u_one * 2.0;
+                    if a_fixed.abs() >= FIXED_LIMIT {
                         return;
                     }
-                    *a = (a_real * a_one) as i32;
-                    norm_sq += f64::from(*ci) * f64::from(*ci);
-                    products_max += a_real.abs() * z_max * u_one;
+                    *a = a_fixed as i32;
+                    dist_sq += diff * diff;
+                    products_max += a_real.abs() * u_one;
                 }
-                let b = (s * norm_sq + e + t - libm::log2(f64::from(w).abs())) * u_one;
+                let b = (s * dist_sq + e + t - libm::log2(f64::from(w).abs())) * u_one;
                 if b + products_max >= FIXED_LIMIT {
                     return;
                 }
                 coeffs[3] = b as i32;
+                *packed = pack_coefficients(coeffs);
                 slot += 1;
             }
             if positive {
@@ -310,9 +349,14 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         self.negative = slot - self.positive;
         let weight_scale = libm::exp2(e + t) as f32;
         if weight_scale.is_finite() && weight_scale > 0.0 {
-            self.gauss_scale = (s * u_one) as f32;
             self.weight_scale = weight_scale;
+            self.table = true;
         }
+    }
+
+    /// True when [`Self::prepare_table`] enabled the table path.
+    pub fn table_ready(&self) -> bool {
+        self.table
     }
 
     /// Number of centres in use.
@@ -369,38 +413,82 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         self.constant
     }
 
-    /// Evaluates the network, °/h: the Gaussians at `x_kernel`, the linear terms
-    /// at `x_linear` (input units; the model clamps them to different ranges).
+    /// Evaluates the network on its polynomial path, °/h: the Gaussians at
+    /// `x_kernel` (input units, already clamped by the caller), the linear
+    /// terms at `x_linear` (the model clamps them to a wider range).
     ///
-    /// Cost: `K_used × kernel_inputs`
-    /// multiply-adds, `K_used` f32 exponentials ([`crate::fastmath::exp_neg`]) and
-    /// `inputs_used` linear terms, independent of the values; about 45
-    /// instructions per centre at 3 kernel inputs on a Cortex-M4F.
+    /// Cost: `K_used × kernel_inputs` multiply-adds, `K_used` f32
+    /// exponentials ([`crate::fastmath::exp_neg`]) and `inputs_used` linear
+    /// terms, independent of the values; about 45 instructions per centre at
+    /// 3 kernel inputs on a Cortex-M4F. [`Self::eval_table`] is the fast path.
     ///
     /// `N` is the model's input count (the caller's arrays); monomorphised per
     /// N and per kernel-input count so that the code is straight-line.
     #[inline]
     pub fn eval<const N: usize>(&self, x_kernel: &[f32; N], x_linear: &[f32; N]) -> f32 {
+        let z = self.normalised::<D, N>(x_kernel);
+        let k = self.centers_used.min(K);
+        self.linear_sum(x_linear)
+            + match self.kernel_inputs {
+                1 => self.gaussian_sum::<1>(&z, k),
+                2 => self.gaussian_sum::<2>(&z, k),
+                3 => self.gaussian_sum::<3>(&z, k),
+                m => self.gaussian_sum_any(&z, m.min(D), k),
+            }
+    }
+
+    /// Evaluates the network on its table path (only meaningful when
+    /// [`Self::table_ready`]), °/h: the Gaussians at the `M` kernel inputs
+    /// `x_kernel` as they come (the saturating conversion clamps them to the
+    /// box given to [`Self::prepare_table`]; NaN reads as the box's centre),
+    /// the linear terms at `x_linear`.
+    ///
+    /// Σ_j W_j exp(−‖z − c_j‖²/2σ²) = 2^(E+T) · 2^−Q · (Σ_pos 2^−v_j − Σ_neg 2^−v_j)
+    /// with the fixed-point exponents of [`Self::prepare_table`] and the
+    /// table exponential. Per centre: M integer multiply-accumulates of high
+    /// words (SMMLA) onto B_j, one saturation, one table load, one float
+    /// add; no branch, no conversion, no weight multiplication. Integer
+    /// arithmetic, so host and target agree bit for bit.
+    #[inline(always)]
+    pub fn eval_table<const M: usize, const N: usize>(&self, x_kernel: &[f32; M], x_linear: &[f32; N]) -> f32 {
+        let y = self.linear_sum(x_linear);
+        // `as` saturates (VCVT does the same): the clamp to the box.
+        let q: [i32; M] = core::array::from_fn(|i| {
+            match (x_kernel.get(i), self.kernel_mid.get(i), self.kernel_gain.get(i)) {
+                (Some(x), Some(mid), Some(gain)) => ((x - mid) * gain) as i32,
+                _ => 0,
+            }
+        });
+        let mut shared = 0i32;
+        for (qi, h) in q.iter().zip(&self.shared_coeff) {
+            shared = shared.wrapping_add(mul_hi(mul_hi(*qi, *qi), *h));
+        }
+        let sum = |centres: &[[u64; 2]]| {
+            let mut sum = 0.0f32;
+            for &[p, r] in centres {
+                let [a1, a2, a3, b] = unpack_coefficients(p, r);
+                let mut v = b;
+                for (a, qi) in [a1, a2, a3].iter().zip(&q) {
+                    v = v.wrapping_add(mul_hi(*a, *qi));
+                }
+                sum += crate::fastmath::exp2_neg_fixed(v >> TABLE_SHIFT);
+            }
+            sum
+        };
+        let (positive, rest) = self.exponent.split_at(self.positive.min(K));
+        let negative = rest.get(..self.negative).unwrap_or(&[]);
+        let shared_factor = crate::fastmath::exp2_neg_fixed(shared >> TABLE_SHIFT) * self.weight_scale;
+        y + (sum(positive) - sum(negative)) * shared_factor
+    }
+
+    /// c′ + Σ a′_i x_i: the linear terms with the normalisation folded in.
+    #[inline(always)]
+    fn linear_sum<const N: usize>(&self, x_linear: &[f32; N]) -> f32 {
         let mut y = self.constant_raw;
         for (a, x) in self.linear_raw.iter().zip(x_linear) {
             y += a * x;
         }
-        y + match (self.kernel_inputs, self.gauss_scale > 0.0) {
-            (1, true) => self.gaussian_sum_table(self.normalised::<1, N>(x_kernel)),
-            (2, true) => self.gaussian_sum_table(self.normalised::<2, N>(x_kernel)),
-            (3, true) => self.gaussian_sum_table(self.normalised::<3, N>(x_kernel)),
-            (m, _) => {
-                // Per-centre widths or more kernel inputs: the polynomial exponential.
-                let z = self.normalised::<D, N>(x_kernel);
-                let k = self.centers_used.min(K);
-                match m {
-                    1 => self.gaussian_sum::<1>(&z, k),
-                    2 => self.gaussian_sum::<2>(&z, k),
-                    3 => self.gaussian_sum::<3>(&z, k),
-                    _ => self.gaussian_sum_any(&z, m.min(D), k),
-                }
-            }
-        }
+        y
     }
 
     /// The network's value in f64 with exact exponentials (libm), from its
@@ -433,38 +521,6 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             (Some(x), Some(o), Some(s)) => (x - o) * s,
             _ => 0.0,
         })
-    }
-
-    /// Σ_j W_j exp(−‖z − c_j‖²/2σ²) = 2^(E+T) · 2^−S‖z‖² · (Σ_pos 2^−v_j −
-    /// Σ_neg 2^−v_j) with the fixed-point exponents of [`Self::prepare_table`]
-    /// and the table exponential. Per centre: N integer multiply-accumulates
-    /// of high words (SMMLA) onto B_j, one saturation, one table load, one
-    /// float add; no branch, no conversion, no weight multiplication. Integer
-    /// arithmetic, so host and target agree bit for bit.
-    #[inline(always)]
-    fn gaussian_sum_table<const N: usize>(&self, zn: [f32; N]) -> f32 {
-        let mut norm_sq = 0.0f32;
-        for zi in &zn {
-            norm_sq += zi * zi;
-        }
-        // `as` saturates; prepare_table proved the box keeps these in range.
-        let shared = (self.gauss_scale * norm_sq) as i32;
-        let z_fixed: [i32; N] = zn.map(|zi| (zi * (1u32 << Z_FRAC) as f32) as i32);
-        let sum = |centres: &[[i32; 4]]| {
-            let mut sum = 0.0f32;
-            for &[a1, a2, a3, b] in centres {
-                let mut v = b;
-                for (a, zi) in [a1, a2, a3].iter().zip(&z_fixed) {
-                    v = v.wrapping_add(mul_hi(*a, *zi));
-                }
-                sum += crate::fastmath::exp2_neg_fixed(v >> TABLE_SHIFT);
-            }
-            sum
-        };
-        let (positive, rest) = self.exponent.split_at(self.positive.min(K));
-        let negative = rest.get(..self.negative).unwrap_or(&[]);
-        let shared_factor = crate::fastmath::exp2_neg_fixed(shared >> TABLE_SHIFT) * self.weight_scale;
-        (sum(positive) - sum(negative)) * shared_factor
     }
 
     /// Σ_j W_j exp(−‖z − c_j‖²/2σ_j²) over the first `k` centres, `N` inputs.
@@ -529,19 +585,45 @@ mod tests {
     }
 
     #[test]
-    fn evaluates_the_documented_formula() {
-        let net = one_centre();
-        // Each Gaussian is within the table exponential's bound, twice: its
-        // own term and the shared factor (W = 2).
+    fn both_paths_evaluate_the_documented_formula() {
+        let poly = one_centre();
+        let mut table = one_centre();
+        table.prepare_table(&[0.0, -5.0], &[40.0, 5.0]);
+        assert!(table.table_ready() && !poly.table_ready());
+        // The table path: each Gaussian within the table exponential's bound,
+        // twice (its own term and the shared factor), W = 2; the polynomial
+        // path is far closer.
         let tol = 2.0 * 2.0 * crate::fastmath::EXP2_FIXED_REL_ERROR + 1e-6;
-        // At the centre: c + 0 + W·exp(0) = 1 + 2 = 3.
-        assert!((net.eval(&[20.0, 0.0, 0.0], &[20.0, 0.0, 0.0]) as f64 - 3.0).abs() < tol);
-        // One σ away along T (z = 1): 1 + 0.5 + 2·e^{−1/2}.
-        let expected = 1.0 + 0.5 + 2.0 * (-0.5f64).exp();
-        assert!((net.eval(&[30.0, 0.0, 0.0], &[30.0, 0.0, 0.0]) as f64 - expected).abs() < tol);
-        // The Gaussians and the linear terms take their own inputs.
-        let split = 1.0 + 0.5 * 2.0 + 2.0 * (-0.5f64).exp();
-        assert!((net.eval(&[30.0, 0.0, 0.0], &[40.0, 0.0, 0.0]) as f64 - split).abs() < tol);
+        let both = |kernel: [f32; 2], linear: [f32; 2]| {
+            let p = poly.eval(&[kernel[0], kernel[1], 0.0], &[linear[0], linear[1], 0.0]);
+            (f64::from(p), f64::from(table.eval_table(&kernel, &linear)))
+        };
+        let cases = [
+            // At the centre: c + 0 + W·exp(0) = 1 + 2 = 3.
+            ([20.0, 0.0], [20.0, 0.0], 3.0),
+            // One σ away along T (z = 1): 1 + 0.5 + 2·e^{−1/2}.
+            ([30.0, 0.0], [30.0, 0.0], 1.0 + 0.5 + 2.0 * (-0.5f64).exp()),
+            // The Gaussians and the linear terms take their own inputs.
+            ([30.0, 0.0], [40.0, 0.0], 1.0 + 0.5 * 2.0 + 2.0 * (-0.5f64).exp()),
+            // Off-axis: z = (−1, 2), ‖z‖² = 5.
+            ([10.0, 2.0], [10.0, 2.0], 1.0 - 0.5 + 2.0 * (-2.5f64).exp()),
+        ];
+        for (kernel, linear, expected) in cases {
+            let (p, t) = both(kernel, linear);
+            assert!((p - expected).abs() < 1e-6, "{kernel:?}: polynomial {p} vs {expected}");
+            assert!((t - expected).abs() < tol, "{kernel:?}: table {t} vs {expected}");
+        }
+    }
+
+    #[test]
+    fn the_table_path_clamps_kernel_inputs_to_its_box() {
+        let mut table = one_centre();
+        table.prepare_table(&[0.0, -5.0], &[40.0, 5.0]);
+        let at = |t: f32, r: f32| table.eval_table(&[t, r], &[20.0, 0.0]).to_bits();
+        assert_eq!(at(55.0, 0.0), at(40.0, 0.0), "above the box: its edge");
+        assert_eq!(at(-1e30, 0.0), at(0.0, 0.0), "far below: its edge");
+        assert_eq!(at(20.0, f32::INFINITY), at(20.0, 5.0));
+        assert_eq!(at(f32::NAN, 0.0), at(20.0, 0.0), "NaN reads as the box's centre");
     }
 
     #[test]
@@ -567,13 +649,13 @@ mod tests {
         table.prepare_table(&lo, &hi);
         let mut exact = build(&[0.8, 0.8, 0.800_000_1]);
         exact.prepare_table(&lo, &hi);
-        assert!(table.gauss_scale > 0.0 && exact.gauss_scale == 0.0);
+        assert!(table.table_ready() && !exact.table_ready());
         // Each term's table error, and the shared factor's on the sum.
         let rel = (1.0 + crate::fastmath::EXP2_FIXED_REL_ERROR).powi(2) - 1.0;
         let bound = (1.5 + 2.0 + 0.7) * rel;
         for i in 0..40 {
             let x = [5.0 + i as f32, -2.0 + 0.1 * i as f32, 40.0 - 2.0 * i as f32];
-            let (a, b) = (table.eval(&x, &x), exact.eval(&x, &x));
+            let (a, b) = (table.eval_table(&x, &x), exact.eval(&x, &x));
             assert!((a - b).abs() as f64 <= bound + 1e-5, "{x:?}: {a} vs {b}");
         }
     }
