@@ -107,7 +107,12 @@ fn pack_coefficients(c: [i32; 4]) -> [u64; 2] {
 /// Inverse of [`pack_coefficients`].
 #[inline(always)]
 fn unpack_coefficients(p: u64, q: u64) -> [i32; 4] {
-    [p as u32 as i32, (p >> 32) as u32 as i32, q as u32 as i32, (q >> 32) as u32 as i32]
+    [
+        p as u32 as i32,
+        (p >> 32) as u32 as i32,
+        q as u32 as i32,
+        (q >> 32) as u32 as i32,
+    ]
 }
 
 /// High word of the 64-bit product: one SMMUL/SMMLA on a Cortex-M4.
@@ -304,7 +309,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         // The offset T: an integer, so 2^T is exact. Q in fixed point only
         // rounds down, so Q ≤ T holds without headroom.
         let t = libm::ceil(t_real);
-        if !(t <= f64::from(crate::fastmath::EXP2_RANGE - GAUSS_EXP2_RANGE)) {
+        if !t.is_finite() || t > f64::from(crate::fastmath::EXP2_RANGE - GAUSS_EXP2_RANGE) {
             return;
         }
         // Q·2^16 = Σ_i hi(hi(q_i, q_i), H_i) with H_i = S h_i² 2^18 (< 2^23 as T ≤ 32).
@@ -453,12 +458,13 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
     pub fn eval_table<const M: usize, const N: usize>(&self, x_kernel: &[f32; M], x_linear: &[f32; N]) -> f32 {
         let y = self.linear_sum(x_linear);
         // `as` saturates (VCVT does the same): the clamp to the box.
-        let q: [i32; M] = core::array::from_fn(|i| {
-            match (x_kernel.get(i), self.kernel_mid.get(i), self.kernel_gain.get(i)) {
-                (Some(x), Some(mid), Some(gain)) => ((x - mid) * gain) as i32,
-                _ => 0,
-            }
-        });
+        let q: [i32; M] =
+            core::array::from_fn(
+                |i| match (x_kernel.get(i), self.kernel_mid.get(i), self.kernel_gain.get(i)) {
+                    (Some(x), Some(mid), Some(gain)) => ((x - mid) * gain) as i32,
+                    _ => 0,
+                },
+            );
         let mut shared = 0i32;
         for (qi, h) in q.iter().zip(&self.shared_coeff) {
             shared = shared.wrapping_add(mul_hi(mul_hi(*qi, *qi), *h));

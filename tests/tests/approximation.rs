@@ -55,6 +55,10 @@ fn table_evaluation_changes_the_residual_std_by_under_one_percent() {
     };
     for (name, opts) in [("paper K=32", paper), ("default", default)] {
         let model = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model;
+        let rbf_core::model::ModelBody::Rbf(net) = model.body() else {
+            panic!("{name}: not an RBF network");
+        };
+        assert!(net.table_ready(), "{name}: the firmware would not run the table path");
         for run in &verify {
             let (deployed, exact) = residual_stds(&model, run);
             let change = (deployed - exact).abs() / exact;
