@@ -55,8 +55,11 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
     kernel_mid: [f32; TABLE_MAX_INPUTS],
     kernel_gain: [f32; TABLE_MAX_INPUTS],
     /// Per kernel input, H_i = S h_i² 2^18 (h_i the box's normalised
-    /// half-width): Q·2^16 = Σ_i hi(hi(q_i, q_i), H_i).
+    /// half-width): Q·2^16 = Σ_i hi(q_i, hi(q_i, H_i)).
     shared_coeff: [i32; TABLE_MAX_INPUTS],
+    /// Q is added to every exponent (T > 32: it would not fit the table
+    /// as a separate factor) instead of multiplying the sum as 2^−Q.
+    q_in_sum: bool,
     /// 2^(E+T), E = ⌈max log₂|W_j|⌉ (so every folded exponent is ≥ 0) and T
     /// the integer offset of the exponents (see `exponent`).
     weight_scale: f32,
@@ -70,7 +73,8 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
     /// (two LDRDs), centres with positive weights first, then negative ones
     /// (zero weights dropped): W_j·exp(−‖z − c_j‖²/2σ²) = ±2^(E+T) · 2^−Q ·
     /// 2^−v_j with v_j = B_j + Σ_i hi(A_ji, q_i), A_ji = 2S(m_i − c_ji)h_i·2^17
-    /// and B_j = S‖m − c_j‖² + E + T − log₂|W_j| (Q[`U_FRAC`]); see
+    /// and B_j = S‖m − c_j‖² + E + T − log₂|W_j| (Q[`U_FRAC`]; T = 0 when
+    /// Q goes into every exponent instead, see `q_in_sum`); see
     /// [`Self::prepare_table`]. The square expanded, the weight folded in and
     /// the shared term Q taken out of the sum (T ≥ Q keeps v_j ≥ 0): per
     /// centre there is no subtraction, no multiplication by a weight and
@@ -113,6 +117,21 @@ fn unpack_coefficients(p: u64, q: u64) -> [i32; 4] {
         q as u32 as i32,
         (q >> 32) as u32 as i32,
     ]
+}
+
+/// Σ_j 2^−v_j over `centres` with v_j = B_j [+ Q when `ADD_Q`] + Σ_i hi(A_ji, q_i).
+#[inline(always)]
+fn exp2_sum<const M: usize, const ADD_Q: bool>(centres: &[[u64; 2]], q: &[i32; M], shared: i32) -> f32 {
+    let mut sum = 0.0f32;
+    for &[p, r] in centres {
+        let [a1, a2, a3, b] = unpack_coefficients(p, r);
+        let mut v = if ADD_Q { b.wrapping_add(shared) } else { b };
+        for (a, qi) in [a1, a2, a3].iter().zip(q) {
+            v = v.wrapping_add(mul_hi(*a, *qi));
+        }
+        sum += crate::fastmath::exp2_neg_fixed(v >> TABLE_SHIFT);
+    }
+    sum
 }
 
 /// High word of the 64-bit product: one SMMUL/SMMLA on a Cortex-M4.
@@ -172,6 +191,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             kernel_mid: [0.0; TABLE_MAX_INPUTS],
             kernel_gain: [0.0; TABLE_MAX_INPUTS],
             shared_coeff: [0; TABLE_MAX_INPUTS],
+            q_in_sum: false,
             exponent: [[0; 2]; K],
             positive: 0,
             negative: 0,
@@ -306,15 +326,25 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             self.kernel_gain[i] = gain;
             t_real += s * half_z[i] * half_z[i];
         }
-        // The offset T: an integer, so 2^T is exact. Q in fixed point only
-        // rounds down, so Q ≤ T holds without headroom.
+        // The offset T: an integer, so 2^T is exact. Q in fixed point may
+        // exceed T by a unit of 2^−16 through rounding: a v_j of −2^−16 reads
+        // as 0, an error far below the table's. Narrow Gaussians over
+        // a wide box (T > 32) add Q to every exponent instead (one more
+        // instruction per centre): then Q itself must fit.
         let t = libm::ceil(t_real);
-        if !t.is_finite() || t > f64::from(crate::fastmath::EXP2_RANGE - GAUSS_EXP2_RANGE) {
+        let q_max = t_real * u_one;
+        if !(q_max < FIXED_LIMIT) {
             return;
         }
-        // Q·2^16 = Σ_i hi(hi(q_i, q_i), H_i) with H_i = S h_i² 2^18 (< 2^23 as T ≤ 32).
+        let factored = t <= f64::from(crate::fastmath::EXP2_RANGE - GAUSS_EXP2_RANGE);
+        let (offset, q_in_sum) = if factored { (t, 0.0) } else { (0.0, q_max) };
+        // Q·2^16 = Σ_i hi(q_i, hi(q_i, H_i)) with H_i = S h_i² 2^18.
         for (h, hz) in self.shared_coeff.iter_mut().zip(&half_z).take(m) {
-            *h = (s * hz * hz * f64::from(1u32 << (U_FRAC + 2))) as i32;
+            let h_fixed = s * hz * hz * f64::from(1u32 << (U_FRAC + 2));
+            if !(h_fixed < FIXED_LIMIT * 2.0) {
+                return;
+            }
+            *h = h_fixed as i32;
         }
         let mut slot = 0;
         for positive in [true, false] {
@@ -339,8 +369,8 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
                     dist_sq += diff * diff;
                     products_max += a_real.abs() * u_one;
                 }
-                let b = (s * dist_sq + e + t - libm::log2(f64::from(w).abs())) * u_one;
-                if b + products_max >= FIXED_LIMIT {
+                let b = (s * dist_sq + e + offset - libm::log2(f64::from(w).abs())) * u_one;
+                if b + products_max + q_in_sum >= FIXED_LIMIT {
                     return;
                 }
                 coeffs[3] = b as i32;
@@ -352,9 +382,10 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             }
         }
         self.negative = slot - self.positive;
-        let weight_scale = libm::exp2(e + t) as f32;
+        let weight_scale = libm::exp2(e + offset) as f32;
         if weight_scale.is_finite() && weight_scale > 0.0 {
             self.weight_scale = weight_scale;
+            self.q_in_sum = !factored;
             self.table = true;
         }
     }
@@ -465,26 +496,21 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
                     _ => 0,
                 },
             );
+        // Q·2^16 = Σ_i hi(q_i, hi(q_i, H_i)): SMMUL + SMMLA. (hi(hi(q, q), H)
+        // would let the compiler see a non-negative factor and widen it.)
         let mut shared = 0i32;
         for (qi, h) in q.iter().zip(&self.shared_coeff) {
-            shared = shared.wrapping_add(mul_hi(mul_hi(*qi, *qi), *h));
+            shared = shared.wrapping_add(mul_hi(*qi, mul_hi(*qi, *h)));
         }
-        let sum = |centres: &[[u64; 2]]| {
-            let mut sum = 0.0f32;
-            for &[p, r] in centres {
-                let [a1, a2, a3, b] = unpack_coefficients(p, r);
-                let mut v = b;
-                for (a, qi) in [a1, a2, a3].iter().zip(&q) {
-                    v = v.wrapping_add(mul_hi(*a, *qi));
-                }
-                sum += crate::fastmath::exp2_neg_fixed(v >> TABLE_SHIFT);
-            }
-            sum
-        };
         let (positive, rest) = self.exponent.split_at(self.positive.min(K));
         let negative = rest.get(..self.negative).unwrap_or(&[]);
-        let shared_factor = crate::fastmath::exp2_neg_fixed(shared >> TABLE_SHIFT) * self.weight_scale;
-        y + (sum(positive) - sum(negative)) * shared_factor
+        let gaussians = if self.q_in_sum {
+            (exp2_sum::<M, true>(positive, &q, shared) - exp2_sum::<M, true>(negative, &q, shared)) * self.weight_scale
+        } else {
+            let factor = crate::fastmath::exp2_neg_fixed(shared >> TABLE_SHIFT) * self.weight_scale;
+            (exp2_sum::<M, false>(positive, &q, 0) - exp2_sum::<M, false>(negative, &q, 0)) * factor
+        };
+        y + gaussians
     }
 
     /// c′ + Σ a′_i x_i: the linear terms with the normalisation folded in.
@@ -651,18 +677,23 @@ mod tests {
             .unwrap()
         };
         let (lo, hi) = ([5.0, -2.0, -40.0], [45.0, 2.0, 40.0]);
-        let mut table = build(&[0.8, 0.8, 0.8]);
-        table.prepare_table(&lo, &hi);
-        let mut exact = build(&[0.8, 0.8, 0.800_000_1]);
-        exact.prepare_table(&lo, &hi);
-        assert!(table.table_ready() && !exact.table_ready());
-        // Each term's table error, and the shared factor's on the sum.
-        let rel = (1.0 + crate::fastmath::EXP2_FIXED_REL_ERROR).powi(2) - 1.0;
-        let bound = (1.5 + 2.0 + 0.7) * rel;
-        for i in 0..40 {
-            let x = [5.0 + i as f32, -2.0 + 0.1 * i as f32, 40.0 - 2.0 * i as f32];
-            let (a, b) = (table.eval_table(&x, &x), exact.eval(&x, &x));
-            assert!((a - b).abs() as f64 <= bound + 1e-5, "{x:?}: {a} vs {b}");
+        // σ = 0.8: T = S Σh² = 13.5, the shared term is a factor; σ = 0.3:
+        // T = 96, it is added to every exponent.
+        for (sigma, q_in_sum) in [(0.8f32, false), (0.3, true)] {
+            let mut table = build(&[sigma; 3]);
+            table.prepare_table(&lo, &hi);
+            let mut exact = build(&[sigma, sigma, sigma * (1.0 + f32::EPSILON)]);
+            exact.prepare_table(&lo, &hi);
+            assert!(table.table_ready() && !exact.table_ready());
+            assert_eq!(table.q_in_sum, q_in_sum, "σ = {sigma}");
+            // Each term's table error, and the shared factor's on the sum.
+            let rel = (1.0 + crate::fastmath::EXP2_FIXED_REL_ERROR).powi(2) - 1.0;
+            let bound = (1.5 + 2.0 + 0.7) * rel;
+            for i in 0..40 {
+                let x = [5.0 + i as f32, -2.0 + 0.1 * i as f32, 40.0 - 2.0 * i as f32];
+                let (a, b) = (table.eval_table(&x, &x), exact.eval(&x, &x));
+                assert!((a - b).abs() as f64 <= bound + 1e-5, "σ = {sigma}, {x:?}: {a} vs {b}");
+            }
         }
     }
 

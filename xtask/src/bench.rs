@@ -25,7 +25,10 @@ pub fn bench_fw() -> anyhow::Result<()> {
         .lines()
         .filter(|l| l.starts_with("instructions_per_sample"))
         .collect();
-    let k32 = lines.iter().find(|l| l.contains("K=32 D=3")).copied();
+    let k32 = lines
+        .iter()
+        .find(|l| l.starts_with("instructions_per_sample K=32 D=3:"))
+        .copied();
     let Some(k32) = k32 else {
         bail!("no K=32 figure in the benchmark output:\n{}", result.log)
     };
