@@ -459,6 +459,41 @@ mod tests {
     }
 
     #[test]
+    fn the_table_path_flags_exactly_the_inputs_outside_the_training_range() {
+        use crate::rbf::{RbfNetwork, RbfParams};
+        let net = RbfNetwork::new(&RbfParams {
+            offset: &[25.0, 0.0, 0.0],
+            scale: &[10.0, 1.0, 5.0],
+            kernel_inputs: 3,
+            centers: &[0.0, 0.0, 0.0, 1.0, -1.0, 0.5],
+            widths: &[1.0, 1.0],
+            weights: &[0.5, -0.25],
+            linear: &[0.1, 0.2, 0.3],
+            constant: 0.0,
+        })
+        .unwrap();
+        let cfg = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
+        let ranges = [(10.0, 40.0), (-2.0, 2.0), (-10.0, 10.0)];
+        let model = Model::new(cfg, &ranges, ModelBody::Rbf(net), ModelInfo::default()).unwrap();
+        assert_eq!(model.path, EvalPath::Table3Of3);
+        let flag = |x: [f32; 3]| model.eval(&FeatureVector::from_values(&x)).clamped;
+        assert!(!flag([25.0, 0.0, 0.0]));
+        assert!(!flag([10.0, -2.0, 10.0]), "the range's edges are inside");
+        assert!(!flag([40.0, 2.0, -10.0]));
+        let above_40 = f32::from_bits(40.0f32.to_bits() + 1);
+        assert!(flag([above_40, 0.0, 0.0]), "one ulp beyond is outside");
+        assert!(flag([25.0, -2.000_001, 0.0]));
+        assert!(flag([25.0, 0.0, 1e30]));
+        assert!(flag([25.0, f32::NAN, 0.0]));
+        assert!(flag([f32::NEG_INFINITY, 0.0, 0.0]));
+        // Kernel inputs are clamped to the edge: 5 °C beyond it, only the
+        // linear term (0.1 per 10 °C) moves.
+        let bias = |x: [f32; 3]| model.eval(&FeatureVector::from_values(&x)).bias_dph;
+        let step = bias([45.0, 0.0, 0.0]) - bias([40.0, 0.0, 0.0]);
+        assert!((step - 0.05).abs() < 1e-6, "{step}");
+    }
+
+    #[test]
     fn linear_terms_extrapolate_two_spans_beyond_the_training_range_gaussians_stop_at_it() {
         use crate::rbf::{RbfNetwork, RbfParams};
         // bias = 1·z_T (linear, scale 1) + 0 Gaussians; training range of T: 10 … 20.
