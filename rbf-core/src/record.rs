@@ -313,22 +313,21 @@ impl Columns {
 
     /// Parses one data line (trailing `\r` allowed).
     pub fn parse_row(&self, line: &str) -> Result<Row, RowError> {
-        let mut fields: [&[u8]; 5] = [b""; 5];
-        let wanted = [
-            Some(self.time_s),
-            Some(self.rate_dph),
-            self.temp_c,
-            self.ref_dph,
-            self.temp_fault,
-        ];
-        // Fields between commas, as bytes (a plain scan; numbers are parsed
-        // from bytes, text is only made for the rare slow path).
+        self.parse_row_bytes(line.as_bytes())
+    }
+
+    /// [`Self::parse_row`] on the line's bytes (the streaming reader's path:
+    /// no UTF-8 check, a number is ASCII or an error anyway).
+    pub fn parse_row_bytes(&self, line: &[u8]) -> Result<Row, RowError> {
+        // Fields between commas: the first few kept by index in one scan
+        // (every file this project writes has 3 to 5 columns), the wanted
+        // ones picked from a wider layout in a second scan.
+        const DIRECT: usize = 8;
+        let mut direct: [&[u8]; DIRECT] = [b""; DIRECT];
         let mut found = 0;
-        for field in line.as_bytes().split(|&b| b == b',') {
-            for (slot, want) in fields.iter_mut().zip(wanted) {
-                if want == Some(found) {
-                    *slot = field;
-                }
+        for field in line.split(|&b| b == b',') {
+            if let Some(slot) = direct.get_mut(found) {
+                *slot = field;
             }
             found += 1;
         }
@@ -340,6 +339,29 @@ impl Columns {
                     found,
                 },
             });
+        }
+        let wanted = [
+            Some(self.time_s),
+            Some(self.rate_dph),
+            self.temp_c,
+            self.ref_dph,
+            self.temp_fault,
+        ];
+        let mut fields: [&[u8]; 5] = [b""; 5];
+        if found <= DIRECT {
+            for (slot, want) in fields.iter_mut().zip(wanted) {
+                if let Some(field) = want.and_then(|i| direct.get(i)) {
+                    *slot = field;
+                }
+            }
+        } else {
+            for (i, field) in line.split(|&b| b == b',').enumerate() {
+                for (slot, want) in fields.iter_mut().zip(wanted) {
+                    if want == Some(i) {
+                        *slot = field;
+                    }
+                }
+            }
         }
         let number = |index: usize, text: &[u8]| -> Result<f64, RowError> {
             let v: f64 = parse_f64_bytes(trim_field_bytes(text)).ok_or(RowError {
@@ -384,6 +406,22 @@ impl Columns {
 )]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wide_layouts_pick_the_known_columns_wherever_they_are() {
+        let header = "a,b,c,d,e,f,g,h,temp_c,i,time_s,rate_dph";
+        let c = Columns::from_header(header).unwrap();
+        let row = c.parse_row("x,x,x,x,x,x,x,x,21.5,x,3.25,-7").unwrap();
+        assert_eq!((row.time_s, row.rate_dph, row.temp_c), (3.25, -7.0, Some(21.5)));
+        let err = c.parse_row("x,x,x,x,x,x,x,x,21.5,x,3.25").unwrap_err();
+        assert_eq!(
+            err.kind,
+            RowErrorKind::FieldCount {
+                expected: 12,
+                found: 11
+            }
+        );
+    }
 
     #[test]
     fn fields_are_trimmed_of_blanks_only_text_and_bytes_alike() {

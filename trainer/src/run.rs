@@ -39,8 +39,11 @@ pub enum RunError {
 pub struct RunReader {
     path: PathBuf,
     source: Box<dyn BufRead + Send>,
-    /// The current line (reused: no allocation per row).
+    /// The current line's text when it is kept or refused (reused: no
+    /// allocation per row).
     line: String,
+    /// Bytes of a line that did not lie whole in the read buffer (reused).
+    line_bytes: Vec<u8>,
     line_no: usize,
     header_line: String,
     column_names: Vec<String>,
@@ -128,6 +131,7 @@ impl RunReader {
             path: path.to_owned(),
             source,
             line: String::new(),
+            line_bytes: Vec::new(),
             line_no,
             header_line,
             column_names,
@@ -188,58 +192,68 @@ impl RunReader {
 
     /// Reads the next data row; `Ok(None)` at the end of the file.
     pub fn next_row(&mut self) -> Result<Option<RawRow>, RunError> {
-        Ok(self.next_parsed()?.map(|(line, row)| RawRow {
+        Ok(self.read_row(true)?.map(|(line, row)| RawRow {
             line,
             row,
-            text: self.line.trim_end_matches(['\n', '\r']).to_owned(),
+            text: self.line.clone(),
         }))
     }
 
     /// Reads the next data row without keeping its text (the fast path of
-    /// streaming passes: no allocation per row); (line number, row).
+    /// streaming passes: the line is parsed where it lies in the read
+    /// buffer, no copy, no allocation); (line number, row).
     pub fn next_parsed(&mut self) -> Result<Option<(usize, Row)>, RunError> {
+        self.read_row(false)
+    }
+
+    /// The next data row; its text (without line end) in `self.line` when
+    /// `keep_text` or when it is refused (the error message quotes it).
+    fn read_row(&mut self, keep_text: bool) -> Result<Option<(usize, Row)>, RunError> {
         loop {
-            self.line.clear();
             self.line_no += 1;
-            let read = self
+            let buf = self
                 .source
-                .read_line(&mut self.line)
+                .fill_buf()
                 .map_err(|e| io_or_utf8(&self.path, self.line_no, e))?;
-            if read == 0 {
-                self.line_no -= 1;
-                return Ok(None);
-            }
-            let text = self.line.trim_end_matches(['\n', '\r']);
-            if record::is_comment_or_blank(text) {
-                continue;
-            }
-            let row = self.columns.parse_row(text).map_err(|e| {
-                let column = e.column.and_then(|i| self.column_names.get(i).map(|n| (i, n)));
-                let field = e
-                    .column
-                    .and_then(|i| text.split(',').nth(i))
-                    .map(record::trim_field)
-                    .unwrap_or("");
-                let message = match e.kind {
-                    RowErrorKind::FieldCount { expected, found } => {
-                        format!("row has {found} fields, the header has {expected}")
-                    }
-                    RowErrorKind::NotANumber if field.is_empty() => "field is empty, a number is required".to_owned(),
-                    RowErrorKind::NotANumber => format!("\"{}\" is not a number", short(field)),
-                    RowErrorKind::NonFinite => format!("\"{field}\" is not a finite number"),
-                    RowErrorKind::NotAFlag => format!("\"{field}\" is not 0 or 1"),
-                    _ => "unreadable row".to_owned(),
-                };
-                let message = match column {
-                    Some((i, name)) => format!("column {name} (field {}): {message}", i + 1),
-                    None => message,
-                };
-                RunError::Format {
-                    path: self.path.clone(),
-                    line: self.line_no,
-                    message,
+            let outcome = match memchr::memchr(b'\n', buf) {
+                Some(end) => {
+                    let outcome = classify(&self.columns, buf.get(..end).unwrap_or(&[]), &mut self.line, keep_text);
+                    self.source.consume(end + 1);
+                    outcome
                 }
-            })?;
+                None => {
+                    // The line runs past the buffer or ends the file without
+                    // a line end: the copying path.
+                    let mut bytes = std::mem::take(&mut self.line_bytes);
+                    bytes.clear();
+                    let read = self
+                        .source
+                        .read_until(b'\n', &mut bytes)
+                        .map_err(|e| io_or_utf8(&self.path, self.line_no, e));
+                    let outcome = match read {
+                        Ok(0) => {
+                            self.line_no -= 1;
+                            self.line_bytes = bytes;
+                            return Ok(None);
+                        }
+                        Ok(_) => {
+                            let line = bytes.strip_suffix(b"\n").unwrap_or(&bytes);
+                            Ok(classify(&self.columns, line, &mut self.line, keep_text))
+                        }
+                        Err(e) => Err(e),
+                    };
+                    self.line_bytes = bytes;
+                    outcome?
+                }
+            };
+            let row = match outcome {
+                Line::Skip => continue,
+                Line::NotUtf8 => {
+                    return Err(self.error_at(self.line_no, "line is not valid UTF-8 text".into()));
+                }
+                Line::Refused(e) => return Err(self.row_error(e)),
+                Line::Row(row) => row,
+            };
             if let Some(last) = self.last_time_s
                 && row.time_s <= last
             {
@@ -255,6 +269,66 @@ impl RunReader {
             self.last_time_s = Some(row.time_s);
             return Ok(Some((self.line_no, row)));
         }
+    }
+
+    /// The error for a refused row, naming its column and quoting its field
+    /// (the row's text is in `self.line`).
+    fn row_error(&self, e: record::RowError) -> RunError {
+        let text = self.line.as_str();
+        let column = e.column.and_then(|i| self.column_names.get(i).map(|n| (i, n)));
+        let field = e
+            .column
+            .and_then(|i| text.split(',').nth(i))
+            .map(record::trim_field)
+            .unwrap_or("");
+        let message = match e.kind {
+            RowErrorKind::FieldCount { expected, found } => {
+                format!("row has {found} fields, the header has {expected}")
+            }
+            RowErrorKind::NotANumber if field.is_empty() => "field is empty, a number is required".to_owned(),
+            RowErrorKind::NotANumber => format!("\"{}\" is not a number", short(field)),
+            RowErrorKind::NonFinite => format!("\"{field}\" is not a finite number"),
+            RowErrorKind::NotAFlag => format!("\"{field}\" is not 0 or 1"),
+            _ => "unreadable row".to_owned(),
+        };
+        let message = match column {
+            Some((i, name)) => format!("column {name} (field {}): {message}", i + 1),
+            None => message,
+        };
+        self.error_at(self.line_no, message)
+    }
+}
+
+/// What one line of the data section is.
+enum Line {
+    /// Blank or a comment.
+    Skip,
+    /// A data row.
+    Row(Row),
+    /// A data row the format refuses.
+    Refused(record::RowError),
+    /// Bytes that are not UTF-8 text.
+    NotUtf8,
+}
+
+/// Classifies `line` (without its `\n`), copying its text (without a
+/// trailing `\r`) into `text` when `keep_text` or when it is refused.
+fn classify(columns: &Columns, line: &[u8], text: &mut String, keep_text: bool) -> Line {
+    let Ok(line) = std::str::from_utf8(line) else {
+        return Line::NotUtf8;
+    };
+    let line = line.strip_suffix('\r').unwrap_or(line);
+    if record::is_comment_or_blank(line) {
+        return Line::Skip;
+    }
+    let parsed = columns.parse_row_bytes(line.as_bytes());
+    if keep_text || parsed.is_err() {
+        text.clear();
+        text.push_str(line);
+    }
+    match parsed {
+        Ok(row) => Line::Row(row),
+        Err(e) => Line::Refused(e),
     }
 }
 
@@ -499,4 +573,51 @@ fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[Row])) ->
             .map_err(|_| anyhow::anyhow!("the run parser thread panicked"))?
             .map_err(anyhow::Error::from)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TEXT: &str = "# sample_rate_hz: 100\r\ntime_s,rate_dph,temp_c\r\n0.00,1.5,20.0\r\n# a comment\n\n0.01, 2.5 ,20.25\n0.02,3.5,20.5";
+
+    fn rows(capacity: usize, text: &'static str) -> Result<Vec<(usize, Row)>, RunError> {
+        let source = BufReader::with_capacity(capacity, text.as_bytes());
+        let mut reader = RunReader::from_reader(Path::new("run.csv"), source)?;
+        let mut out = Vec::new();
+        while let Some(row) = reader.next_parsed()? {
+            out.push(row);
+        }
+        Ok(out)
+    }
+
+    #[test]
+    fn rows_read_alike_in_place_and_across_buffer_ends() {
+        let whole = rows(1 << 16, TEXT).unwrap();
+        assert_eq!(whole.len(), 3);
+        assert_eq!(whole.iter().map(|(line, _)| *line).collect::<Vec<_>>(), [3, 6, 7]);
+        assert_eq!(whole[1].1.rate_dph, 2.5);
+        assert_eq!(whole[2].1.temp_c, Some(20.5), "last line without a line end");
+        for capacity in [1, 5, 7, 16] {
+            assert_eq!(rows(capacity, TEXT).unwrap(), whole, "buffer of {capacity} bytes");
+        }
+    }
+
+    #[test]
+    fn refused_rows_name_line_and_column_on_either_path() {
+        let text = "time_s,rate_dph,temp_c\n0.00,1.5,20.0\n0.01,x1,20.0\n";
+        for capacity in [1 << 16, 5] {
+            let err = rows(capacity, text).unwrap_err().to_string();
+            assert_eq!(
+                err, "run.csv:3: column rate_dph (field 2): \"x1\" is not a number",
+                "buffer of {capacity} bytes"
+            );
+        }
+        let not_utf8: &'static [u8] = b"time_s,rate_dph\n0.00,1.5\n0.01,\xff\n";
+        let source = BufReader::new(not_utf8);
+        let mut reader = RunReader::from_reader(Path::new("run.csv"), source).unwrap();
+        assert!(reader.next_parsed().unwrap().is_some());
+        let err = reader.next_parsed().unwrap_err().to_string();
+        assert_eq!(err, "run.csv:3: line is not valid UTF-8 text");
+    }
 }
