@@ -576,6 +576,10 @@ fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[Row])) ->
 }
 
 #[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "expected values are exact in binary floating point; exactness is what these tests guard"
+)]
 mod tests {
     use super::*;
 
