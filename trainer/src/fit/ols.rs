@@ -22,15 +22,65 @@ pub struct Selection {
     pub err: Vec<f64>,
 }
 
+/// Independent partial sums of the reductions below: a sum in one chain is
+/// bound by the adder's latency, four chains run at its throughput. Fixed
+/// lanes and a fixed final order, so results do not depend on the machine.
+const LANES: usize = 4;
+
+/// The lanes' total, (s₀ + s₁) + (s₂ + s₃).
+fn lanes_total(lanes: [f64; LANES]) -> f64 {
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3])
+}
+
+/// aᵀb: element i goes to lane i mod [`LANES`].
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut lanes = [0.0f64; LANES];
+    let (a4, b4) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+    let (a_rest, b_rest) = (a4.remainder(), b4.remainder());
+    for (x, y) in a4.zip(b4) {
+        for ((sum, xi), yi) in lanes.iter_mut().zip(x).zip(y) {
+            *sum += xi * yi;
+        }
+    }
+    for ((sum, xi), yi) in lanes.iter_mut().zip(a_rest).zip(b_rest) {
+        *sum += xi * yi;
+    }
+    lanes_total(lanes)
+}
+
+/// col ← col − along·q, returning (‖col‖², colᵀr) of the result, in one pass
+/// with the lanes of [`dot`].
+fn update_column(col: &mut [f64], along: f64, q: &[f64], r: &[f64]) -> (f64, f64) {
+    let (mut n, mut d) = ([0.0f64; LANES], [0.0f64; LANES]);
+    let step = |c: &mut f64, qi: f64, ri: f64, n: &mut f64, d: &mut f64| {
+        *c -= along * qi;
+        *n += *c * *c;
+        *d += *c * ri;
+    };
+    let mut c4 = col.chunks_exact_mut(LANES);
+    let (q4, r4) = (q.chunks_exact(LANES), r.chunks_exact(LANES));
+    let (q_rest, r_rest) = (q4.remainder(), r4.remainder());
+    for ((c, qc), rc) in (&mut c4).zip(q4).zip(r4) {
+        for ((((ci, qi), ri), ni), di) in c.iter_mut().zip(qc).zip(rc).zip(&mut n).zip(&mut d) {
+            step(ci, *qi, *ri, ni, di);
+        }
+    }
+    let c_rest = c4.into_remainder();
+    for ((((ci, qi), ri), ni), di) in c_rest.iter_mut().zip(q_rest).zip(r_rest).zip(&mut n).zip(&mut d) {
+        step(ci, *qi, *ri, ni, di);
+    }
+    (lanes_total(n), lanes_total(d))
+}
+
 fn project_out(q: &[f64], v: &mut [f64]) {
-    let dot: f64 = q.iter().zip(v.iter()).map(|(a, b)| a * b).sum();
+    let along = dot(q, v);
     for (vi, qi) in v.iter_mut().zip(q) {
-        *vi -= dot * qi;
+        *vi -= along * qi;
     }
 }
 
 fn norm_sq(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum()
+    dot(v, v)
 }
 
 /// Selects up to `max_terms` columns of `candidates` (rows × M) for target `y`,
@@ -68,10 +118,10 @@ pub fn forward_select(
         order: Vec::new(),
         err: Vec::new(),
     };
-    let dot = |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).map(|(x, y)| x * y).sum() };
     // (‖col‖², colᵀr) of every column, kept current: each projection pass
-    // below also sums them (in the same order as separate passes would, so
-    // the results are bit for bit those of the textbook loop, in half the passes).
+    // below also sums them (in the same lanes and order as separate passes
+    // would, so the results are bit for bit those of the textbook loop with
+    // these sums, in half the passes).
     let mut stats: Vec<(f64, f64)> = columns.iter().map(|c| (norm_sq(c), dot(c, &residual))).collect();
     while selection.order.len() < max_terms {
         let mut best: Option<(usize, f64)> = None;
@@ -94,13 +144,7 @@ pub fn forward_select(
                 continue;
             }
             let along = dot(&q, col);
-            let (mut n, mut d) = (0.0, 0.0);
-            for ((c, qi), r) in col.iter_mut().zip(&q).zip(&residual) {
-                *c -= along * qi;
-                n += *c * *c;
-                d += *c * r;
-            }
-            stats[m] = (n, d);
+            stats[m] = update_column(col, along, &q, &residual);
         }
         selection.order.push(chosen);
         selection.err.push(score / y_energy);

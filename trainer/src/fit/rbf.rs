@@ -118,15 +118,19 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         let norm = Normaliser::fit(&train_blocks);
         let score_rows = score_cluster_rows(&splits, opts.block_s);
         let z: Vec<FeatureRow> = all.x.iter().map(|r| norm.apply(r)).collect();
+        // Each split's candidate centres do not depend on the width: found
+        // once per split, used by every width.
+        let pools = parallel_map(&splits, |split| candidate_pool(&z, &split.train, shape));
         // Every (width, split) pair on its own core; summed in a fixed order,
         // so the result does not depend on the number of cores.
-        let tasks: Vec<(f64, &Split)> = WIDTHS
+        let tasks: Vec<(f64, &Split, &[usize])> = WIDTHS
             .iter()
-            .flat_map(|&w| splits.iter().map(move |s| (w, s)))
+            .flat_map(|&w| splits.iter().zip(&pools).map(move |(s, p)| (w, s, p.as_slice())))
             .collect();
-        let split_tables = parallel_map(&tasks, |&(width, split)| {
+        let split_tables = parallel_map(&tasks, |&(width, split, pool)| {
             let mut table: ScoreTable = vec![vec![0.0; k_max]; RIDGES.len()];
-            accumulate_scores(&mut table, &z, &all, split, shape, width, k_max, score_rows);
+            let centers = select_centers(&z, &all.y, &split.train, pool, shape, width, k_max);
+            accumulate_scores(&mut table, &z, &all, split, &centers, shape, width, score_rows);
             progress.inc();
             table
         });
@@ -288,16 +292,23 @@ fn score_cluster_rows(splits: &[Split], block_s: f64) -> usize {
     cluster.min(shortest / (3 * MIN_SCORE_CLUSTERS + 1)).max(1)
 }
 
-/// Centres chosen by OLS on (a thinned set of) `rows`, in selection order.
+/// Candidate centres for `rows`: farthest-point picks over (a thinned set
+/// of) them, indices into `z`.
+fn candidate_pool(z: &[FeatureRow], rows: &[usize], shape: InputShape) -> Vec<usize> {
+    farthest_points(z, &thin(rows, MAX_POOL_ROWS), shape.kernel, MAX_CANDIDATES)
+}
+
+/// Centres chosen by OLS from the candidates `pool` on (a thinned set of)
+/// `rows`, in selection order.
 fn select_centers(
     z: &[FeatureRow],
     y: &[f64],
     rows: &[usize],
+    pool: &[usize],
     shape: InputShape,
     width: f64,
     k_max: usize,
 ) -> Vec<FeatureRow> {
-    let pool = farthest_points(z, &thin(rows, MAX_POOL_ROWS), shape.kernel, MAX_CANDIDATES);
     let centers: Vec<FeatureRow> = pool.iter().map(|&i| z[i].map(|v| v as f32 as f64)).collect();
     let sel_rows = thin(rows, MAX_SELECTION_ROWS);
     let a = design(z, &sel_rows, shape, &centers, width);
@@ -321,15 +332,15 @@ fn accumulate_scores(
     z: &[FeatureRow],
     all: &Blocks,
     split: &Split,
+    centers: &[FeatureRow],
     shape: InputShape,
     width: f64,
-    k_max: usize,
     score_rows: usize,
 ) {
     let dims = shape.dims;
-    let centers = select_centers(z, &all.y, &split.train, shape, width, k_max);
+    let k_max = table.first().map_or(0, Vec::len);
     let design_and_target = |rows: &[usize]| {
-        let a: DMatrix<f64> = design(z, rows, shape, &centers, width);
+        let a: DMatrix<f64> = design(z, rows, shape, centers, width);
         (a, DVector::from_iterator(rows.len(), rows.iter().map(|&i| all.y[i])))
     };
     let (a, y) = design_and_target(&thin(&split.train, MAX_SEARCH_TRAIN_ROWS));
@@ -382,7 +393,8 @@ pub(super) fn final_model(
     let norm = Normaliser::fit(blocks);
     let z: Vec<FeatureRow> = blocks.x.iter().map(|r| norm.apply(r)).collect();
     let rows: Vec<usize> = (0..blocks.len()).collect();
-    let centers = select_centers(&z, &blocks.y, &rows, shape, choice.width, choice.centers);
+    let pool = candidate_pool(&z, &rows, shape);
+    let centers = select_centers(&z, &blocks.y, &rows, &pool, shape, choice.width, choice.centers);
     let width = choice.width as f32 as f64;
     let a = design(&z, &rows, shape, &centers, width);
     let stats = GramStats::new(&a, &DVector::from_column_slice(&blocks.y));
