@@ -546,10 +546,14 @@ impl StreamedRun {
 fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[Row])) -> anyhow::Result<()> {
     const BATCH: usize = 4096;
     let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Row>>(4);
+    // Consumed batches go back to the parser: a handful of buffers, warm in
+    // cache, instead of an allocation per batch.
+    let (recycle_tx, recycle_rx) = std::sync::mpsc::channel::<Vec<Row>>();
     std::thread::scope(|scope| {
         let parser = scope.spawn(move || -> Result<(), RunError> {
             loop {
-                let mut batch = Vec::with_capacity(BATCH);
+                let mut batch = recycle_rx.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
+                batch.clear();
                 while batch.len() < BATCH {
                     match reader.next_parsed()? {
                         Some((_, row)) => batch.push(row),
@@ -567,6 +571,8 @@ fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[Row])) ->
         });
         for batch in rx {
             consume(&batch);
+            // The parser may have finished: then the buffer is simply dropped.
+            let _ = recycle_tx.send(batch);
         }
         parser
             .join()

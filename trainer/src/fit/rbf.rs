@@ -16,8 +16,17 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::dataset::{Blocks, RunSet};
 
-/// Candidate centres offered to OLS (farthest-point spread over the blocks).
-const MAX_CANDIDATES: usize = 200;
+/// Candidate centres offered to OLS (farthest-point spread over the
+/// blocks), by the number of kernel inputs: 64 points spread over one
+/// input are already 16 to a width at the narrowest width tried, more
+/// only cost selection time (which is proportional to them).
+fn max_candidates(kernel_inputs: usize) -> usize {
+    match kernel_inputs {
+        1 => 64,
+        2 => 128,
+        _ => 200,
+    }
+}
 /// Rows used for OLS selection (strided); weights are refitted on all rows.
 const MAX_SELECTION_ROWS: usize = 3000;
 /// Training rows (strided) the hyper-parameter search fits each candidate on;
@@ -295,7 +304,12 @@ fn score_cluster_rows(splits: &[Split], block_s: f64) -> usize {
 /// Candidate centres for `rows`: farthest-point picks over (a thinned set
 /// of) them, indices into `z`.
 fn candidate_pool(z: &[FeatureRow], rows: &[usize], shape: InputShape) -> Vec<usize> {
-    farthest_points(z, &thin(rows, MAX_POOL_ROWS), shape.kernel, MAX_CANDIDATES)
+    farthest_points(
+        z,
+        &thin(rows, MAX_POOL_ROWS),
+        shape.kernel,
+        max_candidates(shape.kernel),
+    )
 }
 
 /// Centres chosen by OLS from the candidates `pool` on (a thinned set of)
