@@ -165,3 +165,43 @@ fn temperature_fault_rows_hold_the_last_good_value_and_carry_flag_2() {
         assert_eq!(f.contains(Flags::NO_VALID_MODEL), expired, "row {i}: flags {f:?}");
     }
 }
+
+#[test]
+fn svr_pso_compiles_to_a_deployable_network_that_compensates_unseen_ramp_rates() {
+    // The RLG paper's method on single-point inputs: the SVR's expansion,
+    // reduced to the firmware's capacity, runs as the same RBF model.
+    let dir = TempDir::new().unwrap();
+    let (train, verify) = chamber_set(&dir);
+    let opts = FitOptions {
+        method: Method::SvrPso,
+        ..FitOptions::default()
+    };
+    let outcome = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap();
+    let choice = outcome.svr.clone().expect("svr-pso reports its choice");
+    assert!(choice.centers >= 1 && choice.centers <= rbf_core::MAX_CENTERS);
+    assert!(choice.centers <= choice.support_vectors);
+    assert!(choice.pso_history.windows(2).all(|w| w[1] <= w[0]));
+    let model_path = dir.path().join("svr.bin");
+    write_model(&model_path, &outcome.model, Existing::Replace).unwrap();
+    let (model, _) = read_model(&model_path).unwrap();
+    let rbf_core::model::ModelBody::Rbf(net) = model.body() else {
+        panic!("svr-pso must deploy as an RBF network");
+    };
+    assert!(net.table_ready(), "one shared width: the firmware's fast path");
+    for run in &verify {
+        let e = evaluate_run(&model, run);
+        println!(
+            "svr-pso {}: cluster STD {:.4} → {:.4} °/h ({:.1} %)",
+            e.run, e.cluster_std_before_dph, e.cluster_std_after_dph, e.cluster_std_improvement_pct
+        );
+        assert!(
+            e.cluster_std_improvement_pct >= 80.0,
+            "{}: {:.1} %",
+            e.run,
+            e.cluster_std_improvement_pct
+        );
+    }
+    // Deterministic for the swarm's seed: the same blob again.
+    let again = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap();
+    assert_eq!(again.model, outcome.model);
+}

@@ -172,7 +172,10 @@ struct FitArgs {
     #[arg(long, value_name = "RUN.csv")]
     holdout: Vec<PathBuf>,
     /// Model form: rbf = Gaussian RBF network (inputs: --features); rbf2 = RBF on (T, ΔT),
-    /// the IFOG paper's model before its modification; poly3 = cubic in T (PX4/ArduPilot form).
+    /// the IFOG paper's model before its modification; poly3 = cubic in T (PX4/ArduPilot form);
+    /// svr-pso = ε-SVR on (T, ΔT, T×ΔT) with σ, C, ε tuned by particle swarm on 3 contiguous
+    /// folds (the RLG paper's method; ΔT window: the middle of --rate-window-s), deployed as an
+    /// RBF network with one width (support vectors reduced to 64 by OLS when there are more).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
     /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 8τ, 64τ), their
@@ -364,6 +367,24 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             c.validation_rms_dph
         )?;
     }
+    if let Some(c) = &outcome.svr {
+        writeln!(
+            out,
+            "PSO on 3-fold contiguous validation ({} particles × {} iterations): ΔT window {} s, σ {:.4} (normalised), C {:.4e}, ε {:.3e} °/h; validation RMS {:.4e} °/h",
+            c.pso.particles,
+            c.pso.iterations,
+            c.rate_window_s,
+            c.params.sigma,
+            c.params.c,
+            c.params.epsilon,
+            c.validation_rms_dph
+        )?;
+        writeln!(
+            out,
+            "{} support vectors → {} centres deployed; validation RMS of the deployed network {:.4e} °/h",
+            c.support_vectors, c.centers, c.deployed_validation_rms_dph
+        )?;
+    }
     writeln!(out, "fit took {fit_s:.1} s\n")?;
     let roles = [("train", &a.runs), ("validate", &a.validate), ("holdout", &a.holdout)];
     let evals: Vec<(&str, RunEvaluation)> = roles
@@ -378,6 +399,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         let report = serde_json::json!({
             "method": a.method,
             "choice": outcome.choice,
+            "svr": outcome.svr,
             "fit_seconds": fit_s,
             "blob_bytes": blob.len(),
             "runs": evals.iter().map(|(role, e)| serde_json::json!({"role": role, "evaluation": e})).collect::<Vec<_>>(),
@@ -513,9 +535,14 @@ fn describe(model: &Model) -> String {
     let windows = &f.windows_s()[..f.set.windows()];
     match model.body() {
         ModelBody::Rbf(net) => format!(
-            "Gaussian RBF, {} centres over ({}), linear in ({names}), ΔT windows {windows:?} s",
+            "Gaussian RBF, {} centres over ({}), {}, ΔT windows {windows:?} s",
             net.centers_used(),
-            f.set.names()[..net.kernel_inputs()].join(", ")
+            f.set.names()[..net.kernel_inputs()].join(", "),
+            if net.linear().is_empty() {
+                "no linear terms".to_owned()
+            } else {
+                format!("linear in ({names})")
+            }
         ),
         ModelBody::Poly3(p) => format!("cubic in T about {} °C", p.ref_temp_c),
     }

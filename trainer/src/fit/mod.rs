@@ -4,7 +4,10 @@
 pub mod linalg;
 pub mod ols;
 pub mod poly;
+pub mod pso;
 pub mod rbf;
+pub mod svr;
+pub mod svr_pso;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use rbf_core::model::SERIAL_CAPACITY;
@@ -39,6 +42,11 @@ pub enum Method {
     Rbf2,
     /// Cubic in T about the mid-range temperature, clamped: the PX4/ArduPilot form.
     Poly3,
+    /// ε-SVR with a Gaussian kernel on (T, ΔT, T×ΔT), σ, C and ε tuned by
+    /// particle swarm on contiguous folds (the RLG paper's method), compiled
+    /// into the same RBF network (support vectors reduced by OLS to the
+    /// firmware's 64 centres when there are more).
+    SvrPso,
 }
 
 impl Method {
@@ -49,6 +57,7 @@ impl Method {
             Method::Rbf => FeatureSet::MultiScale,
             Method::Rbf2 => FeatureSet::TempRate,
             Method::Poly3 => FeatureSet::Temp,
+            Method::SvrPso => FeatureSet::TempRateProduct,
         }
     }
 }
@@ -99,8 +108,10 @@ impl Default for FitOptions {
 pub struct FitOutcome {
     /// The deployable model.
     pub model: Model,
-    /// The RBF hyper-parameters chosen (`None` for the cubic).
+    /// The RBF hyper-parameters chosen (`rbf`, `rbf2`).
     pub choice: Option<rbf::RbfChoice>,
+    /// The SVR's hyper-parameters and deployment (`svr-pso`).
+    pub svr: Option<svr_pso::SvrChoice>,
 }
 
 /// Fits `opts.method` on `train`, validating on `validate` (or k-fold when empty).
@@ -122,12 +133,25 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         Method::Poly3 => Ok(FitOutcome {
             model: poly::fit(train, opts)?,
             choice: None,
+            svr: None,
         }),
+        Method::SvrPso => {
+            if validate.count() > 0 {
+                anyhow::bail!("--method svr-pso validates on contiguous folds of the training runs; drop --validate");
+            }
+            let (model, choice) = svr_pso::fit(train, opts, &progress)?;
+            Ok(FitOutcome {
+                model,
+                choice: None,
+                svr: Some(choice),
+            })
+        }
         method => {
             let (model, choice) = rbf::fit(train, validate, method.feature_set(opts.features), opts, &progress)?;
             Ok(FitOutcome {
                 model,
                 choice: Some(choice),
+                svr: None,
             })
         }
     }
