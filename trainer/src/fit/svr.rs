@@ -9,6 +9,13 @@
 //! f(x) = Σ_i (α_i − α*_i) K(x_i, x) − ρ with K(a, b) = exp(−‖a − b‖²/2σ²):
 //! a Gaussian RBF network with one shared width, which is how it is deployed.
 //! The kernel matrix is computed once per fit (l ≤ a few thousand rows).
+//!
+//! Crates considered: smartcore's `SVR` (0.2 API) offers fit and predict but
+//! not the expansion (support vectors, coefficients, ρ) that deployment
+//! compiles into the firmware's network; linfa-svm solves the same dual but
+//! brings ndarray and the linfa dataset and kernel crates into a trainer
+//! built on nalgebra. This solver is LIBSVM's algorithm in ~200 lines, with
+//! tests of its KKT conditions.
 
 use super::linalg::FeatureRow;
 
