@@ -16,6 +16,7 @@ pub mod blobfile;
 pub mod dataset;
 pub mod evaluate;
 pub mod fit;
+pub mod gradients;
 pub mod metrics;
 pub mod output;
 pub mod report;

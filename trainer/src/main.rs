@@ -42,6 +42,33 @@ enum Command {
     Decode(DecodeArgs),
     Report(ReportArgs),
     Blocks(BlocksArgs),
+    Correlate(CorrelateArgs),
+}
+
+/// Which temperatures and gradients explain the bias: the RLG paper's input selection.
+///
+/// Reads the thermometers temp_a … temp_h of multi-point runs (`trainer simulate --multi`
+/// writes them), averages every --block-samples rows (the paper: 100), and prints the Pearson
+/// correlation with the bias (rate_dph − ref_dph) of each temperature (diagonal) and each
+/// gradient T_i − T_j (row i, column j), like the paper's Table 3, marking the inputs selected
+/// by --select-threshold (|r| ≥ 0.9 by default) or --select-top N.
+#[derive(Args, Debug)]
+struct CorrelateArgs {
+    /// Multi-point runs (the same thermometers in each).
+    #[arg(required = true, value_name = "RUN.csv")]
+    runs: Vec<PathBuf>,
+    /// Rows averaged per block (the paper's smoothing).
+    #[arg(long, value_name = "N", default_value_t = 100)]
+    block_samples: usize,
+    /// Select every candidate with |r| at least this.
+    #[arg(long, value_name = "R", default_value_t = 0.9, conflicts_with = "select_top")]
+    select_threshold: f64,
+    /// Select the N candidates of largest |r| instead.
+    #[arg(long, value_name = "N")]
+    select_top: Option<usize>,
+    /// Print JSON (matrix, names, selection) instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 /// Write the training data a fit sees: block means of the features and the bias target.
@@ -293,6 +320,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simulate(a) => cmd_simulate(a),
         Command::Decode(a) => cmd_decode(a),
         Command::Blocks(a) => cmd_blocks(a),
+        Command::Correlate(a) => cmd_correlate(a),
         Command::Report(a) => {
             let (model, _) = read_model(&a.model)?;
             let runs = load_runs(&a.runs)?;
@@ -406,6 +434,53 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         });
         write_bytes(path, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }
+    Ok(())
+}
+
+fn cmd_correlate(a: CorrelateArgs) -> anyhow::Result<()> {
+    use trainer::gradients::{Selection, block_means, candidate_name, correlations, format_table, select};
+    anyhow::ensure!(a.block_samples >= 1, "--block-samples must be at least 1");
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&a.select_threshold),
+        "--select-threshold {}: a correlation magnitude, 0 … 1",
+        a.select_threshold
+    );
+    let blocks = block_means(&a.runs, a.block_samples)?;
+    anyhow::ensure!(
+        blocks.bias.len() >= 3,
+        "only {} blocks of {} rows: too few to correlate",
+        blocks.bias.len(),
+        a.block_samples
+    );
+    let table = correlations(&blocks);
+    let selection = match a.select_top {
+        Some(n) => Selection::Top(n),
+        None => Selection::Threshold(a.select_threshold),
+    };
+    let selected = select(&table, selection);
+    if a.json {
+        let names: Vec<String> = selected.iter().map(|&c| candidate_name(&table, c)).collect();
+        let report = serde_json::json!({ "table": table, "selected": selected, "selected_names": names });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    print!("{}", format_table(&table, &selected));
+    let names: Vec<String> = selected
+        .iter()
+        .map(|&c| format!("{} (r = {:.3})", candidate_name(&table, c), table.r[c.i][c.j]))
+        .collect();
+    println!(
+        "selected ({}): {}",
+        match selection {
+            Selection::Top(n) => format!("top {n}"),
+            Selection::Threshold(t) => format!("|r| ≥ {t}"),
+        },
+        if names.is_empty() {
+            "none".to_owned()
+        } else {
+            names.join(", ")
+        }
+    );
     Ok(())
 }
 

@@ -527,3 +527,50 @@ fn fit_never_overwrites_a_model_without_force() {
         .collect();
     assert!(leftovers.is_empty(), "no temporary files left behind: {leftovers:?}");
 }
+
+#[test]
+fn correlate_prints_the_gradient_matrix_of_a_multi_point_run_and_its_selection() {
+    let dir = TempDir::new().unwrap();
+    let run = dir.path().join("multi.csv");
+    let run_s = run.to_str().unwrap();
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        "cycle",
+        "--ramp",
+        "2",
+        "--hours",
+        "3",
+        "--seed",
+        "3",
+        "--multi",
+        "-o",
+        run_s,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = trainer(&["correlate", run_s, "--select-top", "2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    // Eight rows of the matrix, one per thermometer, and the selection line.
+    for name in ["temp_a", "temp_d", "temp_h"] {
+        assert!(
+            text.lines().any(|l| l.trim_start().starts_with(name)),
+            "{name} row missing:\n{text}"
+        );
+    }
+    let selected = text.lines().last().unwrap();
+    assert!(selected.starts_with("selected (top 2): "), "{selected}");
+    assert_eq!(selected.matches("(r = ").count(), 2, "{selected}");
+    // Marked in the matrix: a temperature once, a gradient in both triangles.
+    let marks: usize = text.lines().skip(1).map(|l| l.matches('*').count()).sum();
+    let expected: usize = selected
+        .split("), ")
+        .map(|name| if name.contains('−') { 2 } else { 1 })
+        .sum();
+    assert_eq!(marks, expected, "{text}");
+    // A single-point run cannot give gradients.
+    let single = shared_data("ifog_verify_3cpm.csv");
+    let o = trainer(&["correlate", single.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("gradients need at least two"), "{}", stderr(&o));
+}
