@@ -54,10 +54,11 @@ const PROTOCOLS: [Protocol; 2] = [
 ];
 
 /// Our methods: (label, `trainer fit` options).
-const METHODS: [(&str, &[&str]); 4] = [
+const METHODS: [(&str, &[&str]); 5] = [
     ("poly3 (PX4/ArduPilot form)", &["--method", "poly3"]),
     ("rbf2 (IFOG paper, before)", &["--method", "rbf2"]),
     ("rbf --features paper (IFOG)", &["--features", "paper"]),
+    ("svr-pso, single-point (RLG)", &["--method", "svr-pso"]),
     ("default (multiscale rbf)", &[]),
 ];
 
