@@ -202,7 +202,8 @@ struct FitArgs {
     /// the IFOG paper's model before its modification; poly3 = cubic in T (PX4/ArduPilot form);
     /// svr-pso = ε-SVR on (T, ΔT, T×ΔT) with σ, C, ε tuned by particle swarm on 3 contiguous
     /// folds (the RLG paper's method; ΔT window: the middle of --rate-window-s), deployed as an
-    /// RBF network with one width (support vectors reduced to 64 by OLS when there are more).
+    /// RBF network with one width (support vectors reduced by OLS to --centers, else
+    /// --max-centers, when there are more).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
     /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 8τ, 64τ), their

@@ -45,7 +45,7 @@ pub enum Method {
     /// ε-SVR with a Gaussian kernel on (T, ΔT, T×ΔT), σ, C and ε tuned by
     /// particle swarm on contiguous folds (the RLG paper's method), compiled
     /// into the same RBF network (support vectors reduced by OLS to the
-    /// firmware's 64 centres when there are more).
+    /// centre budget, `centers` else `max_centers`, when there are more).
     SvrPso,
 }
 

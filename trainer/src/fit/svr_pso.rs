@@ -8,8 +8,9 @@
 //! middle of `--rate-window`'s list). The paper's multi-point gradient inputs
 //! with correlation-based selection are not built yet (issue 5).
 //!
-//! Deployment: when the support vectors exceed the firmware's capacity
-//! ([`rbf_core::MAX_CENTERS`]), orthogonal least squares re-selects that many
+//! Deployment: when the support vectors exceed the centre budget
+//! (`--centers K`, else `--max-centers`, at most the firmware's
+//! [`rbf_core::MAX_CENTERS`]), orthogonal least squares re-selects that many
 //! of them as centres and the weights are refitted (ridge) on the training
 //! blocks; [`SvrChoice`] reports what that costs on the validation folds.
 
@@ -23,6 +24,11 @@ use super::pso::{self, PsoOptions};
 use super::svr::{Svr, SvrParams};
 use super::{FitOptions, Progress, check_excitation, deploy_ranges, rbf, serial};
 use crate::dataset::RunSet;
+
+/// The deployed network's centre budget.
+fn centre_budget(opts: &FitOptions) -> usize {
+    opts.centers.unwrap_or(opts.max_centers).clamp(1, MAX_CENTERS)
+}
 
 /// Blocks an SVR is trained on (strided): the dual's kernel matrix is l².
 const MAX_SVR_ROWS: usize = 1200;
@@ -127,15 +133,16 @@ pub fn fit<T: RunSet + ?Sized>(
     }
     let params = params_at(&result.best);
     let svr = Svr::fit(&x, &y, dims, params, MAX_SMO_STEPS);
-    let (centers, weights, constant) = deployable(&svr, &x, &y, dims)?;
+    let budget = centre_budget(opts);
+    let (centers, weights, constant) = deployable(&svr, &x, &y, dims, budget)?;
     // The cost of the reduction, on the same folds.
-    let deployed_validation_rms_dph = if svr.support.len() > MAX_CENTERS {
+    let deployed_validation_rms_dph = if svr.support.len() > budget {
         folds
             .iter()
             .map(|f| {
                 let (fx, fy) = pick(&x, &y, &f.train);
                 let fold_svr = Svr::fit(&fx, &fy, dims, params, MAX_SMO_STEPS);
-                match deployable(&fold_svr, &fx, &fy, dims) {
+                match deployable(&fold_svr, &fx, &fy, dims, budget) {
                     Ok((c, w, b)) => cluster_rms(
                         f.validate
                             .iter()
@@ -182,11 +189,17 @@ pub fn fit<T: RunSet + ?Sized>(
     Ok((model, choice))
 }
 
-/// The SVR as (centres, weights, constant) within the firmware's capacity:
-/// itself when it fits, else [`MAX_CENTERS`] support vectors chosen by OLS
-/// with weights and constant refitted on (x, y).
-fn deployable(svr: &Svr, x: &[FeatureRow], y: &[f64], dims: usize) -> anyhow::Result<(Vec<FeatureRow>, Vec<f64>, f64)> {
-    if svr.support.len() <= MAX_CENTERS {
+/// The SVR as (centres, weights, constant) within `budget` centres: itself
+/// when it fits, else at most `budget` support vectors chosen by OLS with
+/// weights and constant refitted on (x, y).
+fn deployable(
+    svr: &Svr,
+    x: &[FeatureRow],
+    y: &[f64],
+    dims: usize,
+    budget: usize,
+) -> anyhow::Result<(Vec<FeatureRow>, Vec<f64>, f64)> {
+    if svr.support.len() <= budget {
         return Ok((svr.support.clone(), svr.coef.clone(), svr.bias));
     }
     let rows: Vec<usize> = (0..x.len()).collect();
@@ -196,7 +209,7 @@ fn deployable(svr: &Svr, x: &[FeatureRow], y: &[f64], dims: usize) -> anyhow::Re
     let fixed = a.columns(0, 1).clone_owned();
     let candidates = a.columns(1 + dims, svr.support.len()).clone_owned();
     let target = DVector::from_column_slice(y);
-    let order = super::ols::forward_select(&candidates, &fixed, &target, MAX_CENTERS).order;
+    let order = super::ols::forward_select(&candidates, &fixed, &target, budget).order;
     let centers: Vec<FeatureRow> = order.iter().map(|&m| svr.support[m]).collect();
     let mut reduced = DMatrix::zeros(x.len(), 1 + centers.len());
     reduced.set_column(0, &fixed.column(0));
@@ -304,7 +317,7 @@ mod tests {
         };
         let svr = Svr::fit(&x, &y, 2, params, MAX_SMO_STEPS);
         assert!(svr.support.len() > MAX_CENTERS, "{} support vectors", svr.support.len());
-        let (c, w, b) = deployable(&svr, &x, &y, 2).unwrap();
+        let (c, w, b) = deployable(&svr, &x, &y, 2, MAX_CENTERS).unwrap();
         assert_eq!(c.len(), MAX_CENTERS);
         let rms = offset_free_rms(
             x.iter()
