@@ -353,7 +353,8 @@ impl Columns {
     /// skipped, the same values as the general path. `None` sends the row to
     /// the general path (other number forms, text columns, errors).
     fn parse_row_fast(&self, line: &[u8]) -> Option<Row> {
-        const FIELDS: usize = 8;
+        // Up to 16: a multi-point run has 11 (time, rate, ref, temp_a … temp_h).
+        const FIELDS: usize = 16;
         let mut values = [0.0f64; FIELDS];
         let blank = |b: &u8| *b == b' ' || *b == b'\t' || *b == b'\r';
         let mut rest = line;
