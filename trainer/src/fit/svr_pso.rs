@@ -134,7 +134,7 @@ pub fn fit<T: RunSet + ?Sized>(
     let params = params_at(&result.best);
     let svr = Svr::fit(&x, &y, dims, params, MAX_SMO_STEPS);
     let budget = centre_budget(opts);
-    let (centers, weights, constant) = deployable(&svr, &x, &y, dims, budget)?;
+    let deployed = deployable(&svr, &x, &y, budget)?;
     // The cost of the reduction, on the same folds.
     let deployed_validation_rms_dph = if svr.support.len() > budget {
         folds
@@ -142,13 +142,8 @@ pub fn fit<T: RunSet + ?Sized>(
             .map(|f| {
                 let (fx, fy) = pick(&x, &y, &f.train);
                 let fold_svr = Svr::fit(&fx, &fy, dims, params, MAX_SMO_STEPS);
-                match deployable(&fold_svr, &fx, &fy, dims, budget) {
-                    Ok((c, w, b)) => cluster_rms(
-                        f.validate
-                            .iter()
-                            .map(|&i| y[i] - network_at(&c, &w, b, params.sigma, dims, &x[i])),
-                        per_cluster,
-                    ),
+                match deployable(&fold_svr, &fx, &fy, budget) {
+                    Ok(net) => cluster_rms(f.validate.iter().map(|&i| y[i] - net.predict(&x[i])), per_cluster),
                     Err(_) => f64::INFINITY,
                 }
             })
@@ -158,7 +153,8 @@ pub fn fit<T: RunSet + ?Sized>(
         result.best_cost
     };
     let to_f32 = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
-    let flat_centers: Vec<f32> = centers
+    let flat_centers: Vec<f32> = deployed
+        .support
         .iter()
         .flat_map(|c| c[..dims].iter().map(|&v| v as f32))
         .collect();
@@ -167,10 +163,10 @@ pub fn fit<T: RunSet + ?Sized>(
         scale: &to_f32(&norm.scale),
         kernel_inputs: dims,
         centers: &flat_centers,
-        widths: &vec![params.sigma as f32; centers.len()],
-        weights: &to_f32(&weights),
+        widths: &vec![params.sigma as f32; deployed.support.len()],
+        weights: &to_f32(&deployed.coef),
         linear: &[],
-        constant: constant as f32,
+        constant: deployed.bias as f32,
     })
     .map_err(|e| anyhow::anyhow!("the compiled SVR is not deployable: {e}"))?;
     let info = ModelInfo { serial: serial(opts)? };
@@ -180,7 +176,7 @@ pub fn fit<T: RunSet + ?Sized>(
         rate_window_s: window,
         params,
         support_vectors: svr.support.len(),
-        centers: centers.len(),
+        centers: deployed.support.len(),
         validation_rms_dph: result.best_cost,
         deployed_validation_rms_dph,
         pso: pso_opts,
@@ -189,20 +185,15 @@ pub fn fit<T: RunSet + ?Sized>(
     Ok((model, choice))
 }
 
-/// The SVR as (centres, weights, constant) within `budget` centres: itself
-/// when it fits, else at most `budget` support vectors chosen by OLS with
-/// weights and constant refitted on (x, y).
-fn deployable(
-    svr: &Svr,
-    x: &[FeatureRow],
-    y: &[f64],
-    dims: usize,
-    budget: usize,
-) -> anyhow::Result<(Vec<FeatureRow>, Vec<f64>, f64)> {
+/// The SVR's expansion within `budget` centres: itself when it fits, else
+/// at most `budget` of its support vectors chosen by OLS, with the
+/// coefficients and constant refitted on (x, y).
+fn deployable(svr: &Svr, x: &[FeatureRow], y: &[f64], budget: usize) -> anyhow::Result<Svr> {
     if svr.support.len() <= budget {
-        return Ok((svr.support.clone(), svr.coef.clone(), svr.bias));
+        return Ok(svr.clone());
     }
     let rows: Vec<usize> = (0..x.len()).collect();
+    let dims = svr.dims;
     let shape = InputShape { dims, kernel: dims };
     // design(): [1, linear terms, Gaussians]; the SVR has no linear terms.
     let a = design(x, &rows, shape, &svr.support, svr.sigma);
@@ -219,21 +210,12 @@ fn deployable(
     let stats = GramStats::new(&reduced, &target);
     let w = ridge_solve(&stats, 1 + centers.len(), REFIT_RIDGE)
         .ok_or_else(|| anyhow::anyhow!("the reduced network's weights are singular"))?;
-    Ok((centers, w.as_slice()[1..].to_vec(), w[0]))
-}
-
-/// A Gaussian network with one width at `x` (normalised units).
-fn network_at(centers: &[FeatureRow], weights: &[f64], constant: f64, sigma: f64, dims: usize, x: &FeatureRow) -> f64 {
-    let gamma = 1.0 / (2.0 * sigma * sigma);
-    constant
-        + centers
-            .iter()
-            .zip(weights)
-            .map(|(c, w)| {
-                let d2: f64 = c.iter().zip(x).take(dims).map(|(a, b)| (a - b) * (a - b)).sum();
-                w * (-gamma * d2).exp()
-            })
-            .sum::<f64>()
+    Ok(Svr {
+        support: centers,
+        coef: w.as_slice()[1..].to_vec(),
+        bias: w[0],
+        ..svr.clone()
+    })
 }
 
 /// `count` contiguous folds over `n` rows: each validates on one contiguous
@@ -317,13 +299,9 @@ mod tests {
         };
         let svr = Svr::fit(&x, &y, 2, params, MAX_SMO_STEPS);
         assert!(svr.support.len() > MAX_CENTERS, "{} support vectors", svr.support.len());
-        let (c, w, b) = deployable(&svr, &x, &y, 2, MAX_CENTERS).unwrap();
-        assert_eq!(c.len(), MAX_CENTERS);
-        let rms = offset_free_rms(
-            x.iter()
-                .zip(&y)
-                .map(|(r, t)| t - network_at(&c, &w, b, params.sigma, 2, r)),
-        );
+        let net = deployable(&svr, &x, &y, MAX_CENTERS).unwrap();
+        assert_eq!(net.support.len(), MAX_CENTERS);
+        let rms = offset_free_rms(x.iter().zip(&y).map(|(r, t)| t - net.predict(r)));
         assert!(rms < 0.02, "reduced network RMS {rms}");
     }
 }
