@@ -48,9 +48,10 @@ pub fn block_means(paths: &[PathBuf], block_samples: usize) -> Result<MultiBlock
             .filter_map(|(k, t)| names.iter().position(|n| n == t).map(|c| (k, c)))
             .collect();
         let sensors: Vec<usize> = columns.iter().map(|(k, _)| *k).collect();
+        let header_at = reader.line_number();
         let header_error = |message: String| RunError::Format {
             path: path.clone(),
-            line: 1,
+            line: header_at,
             message,
         };
         if sensors.len() < 2 {
@@ -293,9 +294,9 @@ mod tests {
     fn runs_without_two_thermometers_or_with_bad_values_are_refused_with_their_place() {
         let dir = tempfile::tempdir().unwrap();
         let single = dir.path().join("single.csv");
-        std::fs::write(&single, "time_s,rate_dph,temp_c\n0,1,20\n").unwrap();
+        std::fs::write(&single, "# sample_rate_hz: 1\n\ntime_s,rate_dph,temp_c\n0,1,20\n").unwrap();
         let err = block_means(&[single], 100).unwrap_err().to_string();
-        assert!(err.contains("single.csv:1") && err.contains("at least two"), "{err}");
+        assert!(err.contains("single.csv:3:") && err.contains("at least two"), "{err}");
         let bad = dir.path().join("bad.csv");
         std::fs::write(&bad, "time_s,rate_dph,temp_a,temp_b\n0,1,20,21\n0.01,1,20,x\n").unwrap();
         let err = block_means(&[bad], 100).unwrap_err().to_string();

@@ -151,6 +151,11 @@ impl RunReader {
         &self.header_line
     }
 
+    /// Number of the last line read, 1-based: the header's until a row is read.
+    pub fn line_number(&self) -> usize {
+        self.line_no
+    }
+
     /// Where the known columns are.
     pub fn columns(&self) -> &Columns {
         &self.columns
