@@ -306,7 +306,7 @@ impl Model {
         }
     }
 
-    /// The table path: the flag from range comparisons, the linear inputs
+    /// The table path: the flag from [`outside_measure`], the linear inputs
     /// clamped in f32, the kernel inputs passed as they come (the network's
     /// saturating conversion clamps them to the same training box).
     #[inline(always)]
@@ -318,12 +318,7 @@ impl Model {
         let raw = features.values();
         let mut x_linear = [0.0f32; N];
         let mut outside = 0.0f32;
-        let limits = self
-            .input_min
-            .iter()
-            .zip(&self.input_max)
-            .zip(self.linear_min.iter().zip(&self.linear_max));
-        for ((li, v), ((lo, hi), (llo, lhi))) in x_linear.iter_mut().zip(raw).zip(limits) {
+        for ((li, v), ((lo, hi), (llo, lhi))) in x_linear.iter_mut().zip(raw).zip(self.limits()) {
             outside += outside_measure(*v, *lo, *hi);
             *li = clamp(*v, *llo, *lhi);
         }
@@ -339,23 +334,29 @@ impl Model {
         let raw = features.values();
         let mut x = [0.0f32; N];
         let mut x_linear = [0.0f32; N];
-        let mut clamped = false;
-        let limits = self
-            .input_min
-            .iter()
-            .zip(&self.input_max)
-            .zip(self.linear_min.iter().zip(&self.linear_max));
-        for (((xi, li), v), ((lo, hi), (llo, lhi))) in x.iter_mut().zip(&mut x_linear).zip(raw).zip(limits) {
-            let c = clamp(*v, *lo, *hi);
-            clamped |= c.to_bits() != v.to_bits();
-            *xi = c;
+        let mut outside = 0.0f32;
+        for (((xi, li), v), ((lo, hi), (llo, lhi))) in x.iter_mut().zip(&mut x_linear).zip(raw).zip(self.limits()) {
+            outside += outside_measure(*v, *lo, *hi);
+            *xi = clamp(*v, *lo, *hi);
             *li = clamp(*v, *llo, *lhi);
         }
         let bias_dph = match &self.body {
             ModelBody::Rbf(net) => net.eval(&x, &x_linear),
             ModelBody::Poly3(p) => p.eval(x[0]),
         };
-        Evaluation { bias_dph, clamped }
+        Evaluation {
+            bias_dph,
+            clamped: outside_flag(outside),
+        }
+    }
+
+    /// Per input ((training min, max), (linear min, max)), input units.
+    #[inline(always)]
+    fn limits(&self) -> impl Iterator<Item = ((&f32, &f32), (&f32, &f32))> {
+        self.input_min
+            .iter()
+            .zip(&self.input_max)
+            .zip(self.linear_min.iter().zip(&self.linear_max))
     }
 
     /// The model's mathematical value at `features` in f64 with exact
