@@ -91,10 +91,9 @@ pub fn fit<T: RunSet + ?Sized>(
     let x: Vec<FeatureRow> = rows.iter().map(|&i| norm.apply(&blocks.x[i])).collect();
     let y: Vec<f64> = rows.iter().map(|&i| blocks.y[i]).collect();
     let dims = blocks.dims;
-    let y_mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
-    let y_std = (y.iter().map(|v| (v - y_mean).powi(2)).sum::<f64>() / y.len().max(1) as f64)
-        .sqrt()
-        .max(1e-12);
+    let y_std = offset_free_rms(y.iter().copied());
+    anyhow::ensure!(y_std.is_finite(), "no blocks to fit an SVR on");
+    let y_std = y_std.max(1e-12);
     let folds = contiguous_folds(x.len(), FOLDS);
     // Scored on 100-s cluster means of the residual, as `rbf` is: at 1 s
     // white noise hides model errors ten times smaller than itself.
