@@ -18,8 +18,9 @@ use crate::dataset::{Blocks, RunSet};
 
 /// Candidate centres offered to OLS (farthest-point spread over the
 /// blocks), by the number of kernel inputs: 64 points spread over one
-/// input are already 16 to a width at the narrowest width tried, more
-/// only cost selection time (which is proportional to them).
+/// input spanning about ±2 standard deviations lie 1/16 apart, 8 to the
+/// narrowest width tried (σ = 0.5); more only cost selection time (which is
+/// proportional to them).
 fn max_candidates(kernel_inputs: usize) -> usize {
     match kernel_inputs {
         1 => 64,
