@@ -1,21 +1,22 @@
-//! The per-sample compensation loop: read the front end, read the loop
-//! temperature (every `temp_read_every` samples), compensate with rbf-core,
-//! emit one output frame. Whatever the sensors do, every call emits exactly
+//! The per-sample compensation loop: read the front end, read the
+//! thermometers the model needs (every `temp_read_every` samples), compensate
+//! with rbf-core, emit one output frame. Whatever the sensors do, every call emits exactly
 //! one frame and returns; nothing in here can panic on sensor data.
 
 use embedded_io::Write;
+use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::frame::{self, MAX_FRAME_LEN, OutputFrame};
 use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, GyroSample, Model};
 
-use crate::sensors::{RateFrontEnd, Thermometer};
+use crate::sensors::{RateFrontEnd, Readings, Thermometers};
 
 /// Settings of the loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LoopConfig {
     /// Gap detection, fault hold and plausibility limits (rbf-core).
     pub compensator: CompensatorConfig,
-    /// Read the thermometer on every n-th gyro sample (≥ 1); in between the
-    /// last reading stands. The TMP117 converts every 125 ms at 8 averages.
+    /// Read the thermometers on every n-th gyro sample (≥ 1); in between the
+    /// last readings stand. The TMP117 converts every 125 ms at 8 averages.
     pub temp_read_every: u32,
 }
 
@@ -24,7 +25,7 @@ pub struct LoopConfig {
 pub struct LoopStats {
     /// Samples processed (= frames emitted or attempted).
     pub samples: u32,
-    /// Thermometer reads that failed.
+    /// Thermometer reads that failed (one per thermometer and read).
     pub temp_read_faults: u32,
     /// Front-end reads that failed.
     pub rate_read_faults: u32,
@@ -40,11 +41,12 @@ pub struct CompensationLoop<T, R, W> {
     front_end: R,
     output: W,
     compensator: Compensator,
-    latest_temp_c: Option<f32>,
+    latest_temps_c: Readings,
+    temp_read_due: bool,
     stats: LoopStats,
 }
 
-impl<T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
+impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
     /// A loop over `model` (`None`: absent or invalid blob, output flagged 4).
     pub fn new(model: Option<Model>, config: LoopConfig, thermometer: T, front_end: R, output: W) -> Self {
         CompensationLoop {
@@ -54,7 +56,8 @@ impl<T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
             front_end,
             output,
             compensator: Compensator::new(),
-            latest_temp_c: None,
+            latest_temps_c: [None; THERMOMETERS],
+            temp_read_due: true,
             stats: LoopStats::default(),
         }
     }
@@ -62,16 +65,20 @@ impl<T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
     /// Processes the sample data-ready announced; `dt_s` is the time since the
     /// previous one, s. Emits one frame and returns what it holds.
     ///
-    /// Budget: two bus reads (one every `temp_read_every` for the thermometer),
-    /// one [`Compensator::process`] and a ≤ 32-byte write.
+    /// Budget: one front-end read, one read per thermometer the model uses
+    /// (every `temp_read_every` samples), one [`Compensator::process`] and a
+    /// ≤ 32-byte write.
     pub fn step(&mut self, dt_s: f32) -> CompensatedSample {
         let seq = self.stats.samples;
         self.stats.samples = self.stats.samples.wrapping_add(1);
-        if seq.is_multiple_of(self.config.temp_read_every.max(1)) {
-            self.latest_temp_c = self.thermometer.read_temp_c().ok();
-            if self.latest_temp_c.is_none() {
-                self.stats.temp_read_faults += 1;
-            }
+        if self.temp_read_due || seq.is_multiple_of(self.config.temp_read_every.max(1)) {
+            self.temp_read_due = false;
+            let wanted = self
+                .model
+                .as_ref()
+                .map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
+            let failed = self.thermometer.read_wanted(wanted, &mut self.latest_temps_c);
+            self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
         }
         let (rate_dph, rate_ok) = match self.front_end.read_rate() {
             Ok(s) => (s.rate_dph, s.valid),
@@ -83,7 +90,7 @@ impl<T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
         let sample = GyroSample {
             dt_s,
             rate_dph,
-            temp_c: self.latest_temp_c,
+            temps_c: self.latest_temps_c,
         };
         let mut out = self
             .compensator
@@ -115,10 +122,12 @@ impl<T: Thermometer, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
     }
 
     /// Switches to `model` (after a model update) between two samples; the
-    /// feature filters start afresh, as the new model may compute others.
+    /// feature filters start afresh, as the new model may compute others
+    /// (and read other thermometers: they are read on the next sample).
     pub fn replace_model(&mut self, model: Option<Model>) {
         self.model = model;
         self.compensator = Compensator::new();
+        self.temp_read_due = true;
     }
 
     /// The output (to interleave command replies between frames).

@@ -21,6 +21,9 @@ use crate::replay::{EmulatedFrontEnd, EmulatedTmp117, ReplaySample};
 use crate::tmp117::{self, Tmp117};
 use crate::update::{self, CommandReceiver, Received, UpdateStatus};
 
+/// The loop sensor (`temp_c`) sits at its multi-point-board address: bus 1, third address.
+const LOOP_SENSOR_ADDRESS: u8 = tmp117::ADDRESSES[rbf_core::features::LOOP_THERMOMETER];
+
 /// The kinds of sensor and bus fault the campaign injects.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FaultKind {
@@ -257,10 +260,7 @@ pub fn sensor_campaign(model: Option<Model>, samples: u32, seed: u32) -> SensorC
         samples,
         ..SensorCampaign::default()
     };
-    let mut thermometer = Tmp117::new(
-        EmulatedTmp117::new(&current, tmp117::DEFAULT_ADDRESS),
-        tmp117::DEFAULT_ADDRESS,
-    );
+    let mut thermometer = Tmp117::new(EmulatedTmp117::new(&current, 0), LOOP_SENSOR_ADDRESS);
     let mut front_end = FrontEnd::new(FaultySpi {
         inner: EmulatedFrontEnd::new(&current),
         fault: &spi_fault,
@@ -305,17 +305,14 @@ pub fn sensor_campaign(model: Option<Model>, samples: u32, seed: u32) -> SensorC
             left -= 1;
             report.faulty_samples += 1;
         }
-        let mut sample = ReplaySample {
-            temp_c: Some(temp_c),
-            rate_dph: rate_dph as f32,
-        };
+        let mut sample = ReplaySample::with_loop(Some(temp_c), rate_dph as f32);
         let mut spi = SpiFault::None;
         match kind {
-            Some(FaultKind::I2cNackBurst) => sample.temp_c = None,
-            Some(FaultKind::StuckReading) => sample.temp_c = Some(stuck_c),
-            Some(FaultKind::StuckAtRail) => sample.temp_c = Some(-256.0),
-            Some(FaultKind::TempSpike) => sample.temp_c = Some(temp_c + 30.0),
-            Some(FaultKind::OutOfRangeTemp) => sample.temp_c = Some(180.0),
+            Some(FaultKind::I2cNackBurst) => *sample.loop_temp_c_mut() = None,
+            Some(FaultKind::StuckReading) => *sample.loop_temp_c_mut() = Some(stuck_c),
+            Some(FaultKind::StuckAtRail) => *sample.loop_temp_c_mut() = Some(-256.0),
+            Some(FaultKind::TempSpike) => *sample.loop_temp_c_mut() = Some(temp_c + 30.0),
+            Some(FaultKind::OutOfRangeTemp) => *sample.loop_temp_c_mut() = Some(180.0),
             Some(FaultKind::SpiError) => spi = SpiFault::Error,
             Some(FaultKind::NanRate) => sample.rate_dph = f32::NAN,
             Some(FaultKind::CorruptSample) => spi = SpiFault::FlipBit,
@@ -525,20 +522,14 @@ pub fn command_campaign(old: &[u8], new: &[u8]) -> CommandCampaign {
     let new_model = blob::decode(new).ok().map(|d| d.model);
     if installed.is_some() && installed == new_model {
         let expected = Cell::new(None);
-        let current = Cell::new(ReplaySample {
-            temp_c: Some(25.0),
-            rate_dph: 15.0,
-        });
+        let current = Cell::new(ReplaySample::with_loop(Some(25.0), 15.0));
         let mut lp = CompensationLoop::new(
             None,
             LoopConfig {
                 compensator: CompensatorConfig::for_sample_rate(10.0),
                 temp_read_every: 1,
             },
-            Tmp117::new(
-                EmulatedTmp117::new(&current, tmp117::DEFAULT_ADDRESS),
-                tmp117::DEFAULT_ADDRESS,
-            ),
+            Tmp117::new(EmulatedTmp117::new(&current, 0), LOOP_SENSOR_ADDRESS),
             FrontEnd::new(EmulatedFrontEnd::new(&current)),
             FrameChecker::new(&expected),
         );

@@ -1,10 +1,13 @@
 //! Replay of a recorded run through the real drivers and loop.
 //!
 //! [`EmulatedTmp117`] and [`EmulatedFrontEnd`] implement the embedded-hal 1.0
-//! I2C and SPI traits and answer as the devices would for the current row: a
-//! `temp_fault` row makes the TMP117 NACK; the rate goes out as the front
-//! end's binary32 word. [`Replayer`] feeds a run line by line through
-//! [`Tmp117`], [`FrontEnd`] and [`CompensationLoop`] and writes the compensated
+//! I2C and SPI traits and answer as the devices would for the current row:
+//! two emulated I2C buses carry the eight TMP117s `temp_a` … `temp_h` of a
+//! multi-point board (`temp_c`, the loop sensor, among them); a thermometer
+//! without a value in the row (no such column, or `temp_fault` = 1) NACKs;
+//! the rate goes out as the front end's binary32 word. [`Replayer`] feeds a
+//! run line by line through [`Tmp117Array`], [`FrontEnd`] and
+//! [`CompensationLoop`] and writes the compensated
 //! run exactly as `trainer compensate` does (same row parser, period rule,
 //! time step and row formatter from rbf-core), so the two are byte-identical.
 //! The QEMU board reads and writes the files over semihosting; host tests use
@@ -14,34 +17,50 @@ use core::cell::Cell;
 
 use embedded_hal::i2c::{self, I2c, NoAcknowledgeSource};
 use embedded_hal::spi::{self, SpiDevice};
+use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self, Columns, HeaderError, RowError};
 use rbf_core::sensor::tmp117_raw;
 use rbf_core::{CompensatorConfig, Model};
 
 use crate::compensation::{CompensationLoop, LoopConfig, LoopStats};
 use crate::frontend::{self, FrontEnd};
-use crate::tmp117::{self, Tmp117};
+use crate::tmp117::{self, Tmp117Array};
 
 /// What the buses present for the current row.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ReplaySample {
-    /// Loop temperature, °C; `None` makes the TMP117 NACK.
-    pub temp_c: Option<f64>,
+    /// Thermometers `temp_a` … `temp_h`, °C; `None` makes that TMP117 NACK.
+    pub temps_c: [Option<f64>; THERMOMETERS],
     /// Rate word the front end sends, °/h.
     pub rate_dph: f32,
 }
 
-/// A TMP117 answering from the current replay row.
+impl ReplaySample {
+    /// A sample with the loop sensor (`temp_c`) alone.
+    pub fn with_loop(temp_c: Option<f64>, rate_dph: f32) -> Self {
+        let mut temps_c = [None; THERMOMETERS];
+        temps_c[LOOP_THERMOMETER] = temp_c;
+        ReplaySample { temps_c, rate_dph }
+    }
+
+    /// The loop sensor's value.
+    pub fn loop_temp_c_mut(&mut self) -> &mut Option<f64> {
+        &mut self.temps_c[LOOP_THERMOMETER]
+    }
+}
+
+/// One I2C bus with four TMP117s (at [`tmp117::ADDRESSES`]) answering from
+/// the current replay row: thermometers `first` … `first + 3`.
 #[derive(Debug)]
 pub struct EmulatedTmp117<'c> {
     current: &'c Cell<ReplaySample>,
-    address: u8,
+    first: usize,
 }
 
 impl<'c> EmulatedTmp117<'c> {
-    /// A device at `address` reading `current`.
-    pub fn new(current: &'c Cell<ReplaySample>, address: u8) -> Self {
-        EmulatedTmp117 { current, address }
+    /// The bus carrying thermometers `first` … `first + 3` of `current`.
+    pub fn new(current: &'c Cell<ReplaySample>, first: usize) -> Self {
+        EmulatedTmp117 { current, first }
     }
 }
 
@@ -52,17 +71,18 @@ impl i2c::ErrorType for EmulatedTmp117<'_> {
 impl I2c for EmulatedTmp117<'_> {
     fn transaction(&mut self, address: u8, operations: &mut [i2c::Operation<'_>]) -> Result<(), Self::Error> {
         let nack = i2c::ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address);
-        if address != self.address {
+        let Some(k) = tmp117::ADDRESSES.iter().position(|&a| a == address) else {
             return Err(nack);
-        }
+        };
+        let thermometer = self.first + k;
         match operations {
             [i2c::Operation::Write([register]), i2c::Operation::Read(buf)] if buf.len() == 2 => {
                 let value = match *register {
                     tmp117::REG_DEVICE_ID => tmp117::DEVICE_ID,
                     tmp117::REG_CONFIGURATION => tmp117::CONFIG_CONTINUOUS_AVG8,
-                    tmp117::REG_TEMP_RESULT => match self.current.get().temp_c {
-                        Some(t) => tmp117_raw(t) as u16,
-                        None => return Err(nack),
+                    tmp117::REG_TEMP_RESULT => match self.current.get().temps_c.get(thermometer) {
+                        Some(Some(t)) => tmp117_raw(*t) as u16,
+                        _ => return Err(nack),
                     },
                     _ => return Err(i2c::ErrorKind::Other),
                 };
@@ -200,8 +220,11 @@ fn clean(line: &str, line_no: u32) -> &str {
     line.strip_suffix('\n').unwrap_or(line).trim_end_matches('\r')
 }
 
+/// The replay's thermometers: eight TMP117s on two emulated buses.
+pub type ReplayThermometers<'c> = Tmp117Array<EmulatedTmp117<'c>, EmulatedTmp117<'c>>;
+
 /// The replay loop type: real drivers over emulated buses.
-pub type ReplayLoop<'c, W> = CompensationLoop<Tmp117<EmulatedTmp117<'c>>, FrontEnd<EmulatedFrontEnd<'c>>, W>;
+pub type ReplayLoop<'c, W> = CompensationLoop<ReplayThermometers<'c>, FrontEnd<EmulatedFrontEnd<'c>>, W>;
 
 /// Second pass: feeds rows through the loop and writes the compensated run.
 pub struct Replayer<'c, W> {
@@ -220,11 +243,14 @@ impl<'c, W: embedded_io::Write> Replayer<'c, W> {
         current: &'c Cell<ReplaySample>,
         frames: W,
     ) -> Result<Self, ReplayError> {
-        let mut thermometer = Tmp117::new(
-            EmulatedTmp117::new(current, tmp117::DEFAULT_ADDRESS),
-            tmp117::DEFAULT_ADDRESS,
+        let mut thermometer = Tmp117Array::new(
+            EmulatedTmp117::new(current, 0),
+            EmulatedTmp117::new(current, tmp117::PER_BUS),
+            u8::MAX,
         );
-        thermometer.init().map_err(|_| ReplayError::DeviceInit)?;
+        if thermometer.init() != 0 {
+            return Err(ReplayError::DeviceInit);
+        }
         let mut front_end = FrontEnd::new(EmulatedFrontEnd::new(current));
         front_end.init().map_err(|_| ReplayError::DeviceInit)?;
         let config = LoopConfig {
@@ -257,9 +283,8 @@ impl<'c, W: embedded_io::Write> Replayer<'c, W> {
             return Ok(());
         }
         let row = columns.parse_row(text).map_err(|e| ReplayError::Row(self.line, e))?;
-        let temp_c = if row.temp_fault { None } else { row.temp_c };
         self.current.set(ReplaySample {
-            temp_c,
+            temps_c: row.readings_c(),
             rate_dph: row.rate_dph as f32,
         });
         let dt_s = record::time_step_s(self.prev_time_s, row.time_s);

@@ -1,5 +1,7 @@
 //! What the compensation loop needs from its sensors, independent of buses.
 
+use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
+
 /// Why a sensor produced no usable value this time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]
@@ -16,6 +18,37 @@ pub enum SensorFault {
 pub trait Thermometer {
     /// Reads the latest fiber-loop temperature, °C.
     fn read_temp_c(&mut self) -> Result<f32, SensorFault>;
+}
+
+/// Readings of thermometers `temp_a` … `temp_h`, °C, in index order
+/// (`None`: the read failed or the thermometer was not read).
+pub type Readings = [Option<f32>; THERMOMETERS];
+
+/// The thermometers the loop reads: a single fiber-loop sensor (any
+/// [`Thermometer`]) or an array of them ([`crate::tmp117::Tmp117Array`]).
+pub trait Thermometers {
+    /// Reads the thermometers of `wanted` (bit i = thermometer i) into
+    /// `readings`, `None` where a read failed and for those not wanted;
+    /// returns how many wanted thermometers gave no reading.
+    fn read_wanted(&mut self, wanted: u8, readings: &mut Readings) -> u32;
+}
+
+/// A single loop sensor is thermometer c (`temp_c`), whatever the model wants:
+/// wanted thermometers it cannot provide stay `None` and count as failed.
+impl<T: Thermometer> Thermometers for T {
+    fn read_wanted(&mut self, wanted: u8, readings: &mut Readings) -> u32 {
+        *readings = [None; THERMOMETERS];
+        let loop_bit = 1u8 << LOOP_THERMOMETER;
+        if wanted & loop_bit != 0 {
+            readings[LOOP_THERMOMETER] = self.read_temp_c().ok();
+        }
+        let provided = if readings[LOOP_THERMOMETER].is_some() {
+            loop_bit
+        } else {
+            0
+        };
+        (wanted & !provided).count_ones()
+    }
 }
 
 /// One sample from the gyro front end.

@@ -1,5 +1,6 @@
 //! Minimal TMP117 driver (embedded-hal 1.0 I2C): identity check, continuous
-//! conversion, non-blocking read of the temperature result register.
+//! conversion, non-blocking read of the temperature result register; and
+//! [`Tmp117Array`], up to eight of them on two buses for multi-point models.
 //!
 //! The `tmp117` crate targets embedded-hal 1.0 too, but its high-level API
 //! blocks in `wait_temp` inside mode closures and converts to °C itself; the
@@ -7,9 +8,10 @@
 //! shares with the trainer ([`rbf_core::sensor::tmp117_celsius`]).
 
 use embedded_hal::i2c::I2c;
+use rbf_core::features::THERMOMETERS;
 use rbf_core::sensor::tmp117_celsius;
 
-use crate::sensors::{SensorFault, Thermometer};
+use crate::sensors::{Readings, SensorFault, Thermometer};
 
 /// Temperature result register (i16, 7.8125 m°C/LSB).
 pub const REG_TEMP_RESULT: u8 = 0x00;
@@ -23,6 +25,10 @@ pub const DEVICE_ID: u16 = 0x0117;
 pub const CONFIG_CONTINUOUS_AVG8: u16 = 0x0020;
 /// Address with ADD0 to GND; 0x49 (V+), 0x4A (SDA), 0x4B (SCL) are the others.
 pub const DEFAULT_ADDRESS: u8 = 0x48;
+/// The four addresses a TMP117 can take (ADD0 to GND, V+, SDA, SCL): four per bus.
+pub const ADDRESSES: [u8; 4] = [0x48, 0x49, 0x4A, 0x4B];
+/// Thermometers per bus.
+pub const PER_BUS: usize = ADDRESSES.len();
 
 /// Driver errors: the bus error or a device that is not a TMP117.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -86,6 +92,90 @@ impl<I2C: I2c> Thermometer for Tmp117<I2C> {
     }
 }
 
+/// Up to eight TMP117s on two I2C buses, four addresses each, for
+/// multi-point models: bus 1 carries `temp_a` … `temp_d` at 0x48 … 0x4B
+/// ([`ADDRESSES`] in order), bus 2 `temp_e` … `temp_h`. `temp_c` (bus 1,
+/// 0x4A) is the fiber-loop sensor single-point models read.
+///
+/// Only the thermometers the model reads are read on a sample (bus time is
+/// the loop's budget); one that is not fitted, failed its identity check or
+/// does not answer gives `None` for that sample, and rbf-core holds its last
+/// good value.
+#[derive(Debug)]
+pub struct Tmp117Array<B1, B2> {
+    bus1: B1,
+    bus2: B2,
+    fitted: u8,
+}
+
+impl<B1: I2c, B2: I2c> Tmp117Array<B1, B2> {
+    /// The array over two buses with the thermometers of `fitted` (bit i =
+    /// thermometer i) mounted; no bus traffic yet.
+    pub fn new(bus1: B1, bus2: B2, fitted: u8) -> Self {
+        Tmp117Array { bus1, bus2, fitted }
+    }
+
+    /// Checks each fitted sensor's identity and starts its conversions.
+    /// Those that fail are dropped from the fitted set (reads of them then
+    /// fail); returns their mask (0: all answered).
+    pub fn init(&mut self) -> u8 {
+        let mut failed = 0u8;
+        for i in 0..THERMOMETERS {
+            let bit = 1u8 << i;
+            if self.fitted & bit != 0 && self.with_sensor(i, |t| t.init().is_ok(), |t| t.init().is_ok()) != Some(true) {
+                failed |= bit;
+            }
+        }
+        self.fitted &= !failed;
+        failed
+    }
+
+    /// The thermometers fitted and answering, as a bit mask.
+    pub fn fitted(&self) -> u8 {
+        self.fitted
+    }
+
+    /// Runs `on1` or `on2` on a driver for thermometer `i` on its bus.
+    fn with_sensor<R>(
+        &mut self,
+        i: usize,
+        on1: impl FnOnce(&mut Tmp117<&mut B1>) -> R,
+        on2: impl FnOnce(&mut Tmp117<&mut B2>) -> R,
+    ) -> Option<R> {
+        let &address = ADDRESSES.get(i % PER_BUS)?;
+        match i / PER_BUS {
+            0 => Some(on1(&mut Tmp117::new(&mut self.bus1, address))),
+            1 => Some(on2(&mut Tmp117::new(&mut self.bus2, address))),
+            _ => None,
+        }
+    }
+
+    /// Gives the buses back.
+    pub fn destroy(self) -> (B1, B2) {
+        (self.bus1, self.bus2)
+    }
+}
+
+impl<B1: I2c, B2: I2c> crate::sensors::Thermometers for Tmp117Array<B1, B2> {
+    fn read_wanted(&mut self, wanted: u8, readings: &mut Readings) -> u32 {
+        let mut failed = 0;
+        for (i, reading) in readings.iter_mut().enumerate() {
+            let bit = 1u8 << i;
+            *reading = None;
+            if wanted & bit == 0 {
+                continue;
+            }
+            if self.fitted & bit != 0 {
+                *reading = self
+                    .with_sensor(i, |t| t.read_temp_c().ok(), |t| t.read_temp_c().ok())
+                    .flatten();
+            }
+            failed += u32::from(reading.is_none());
+        }
+        failed
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::float_cmp, reason = "TMP117 codes convert exactly")]
 mod tests {
@@ -126,5 +216,39 @@ mod tests {
         assert_eq!(tmp.read_temp_c(), Ok(-0.007_812_5));
         assert_eq!(tmp.read_temp_c(), Err(SensorFault::Bus));
         tmp.destroy().done();
+    }
+
+    #[test]
+    fn the_array_reads_only_wanted_sensors_each_on_its_bus_and_address() {
+        use crate::sensors::Thermometers;
+        let nack = ErrorKind::NoAcknowledge(embedded_hal::i2c::NoAcknowledgeSource::Address);
+        // Fitted: temp_a, temp_c (bus 1) and temp_e, temp_h (bus 2); temp_h is
+        // another device. Then a read of temp_a, temp_c − temp_e and temp_h.
+        let id = |addr: u8| Transaction::write_read(addr, vec![REG_DEVICE_ID], vec![0x01, 0x17]);
+        let start = |addr: u8| Transaction::write(addr, vec![REG_CONFIGURATION, 0x00, 0x20]);
+        let bus1 = [
+            id(0x48),
+            start(0x48),
+            id(0x4A),
+            start(0x4A),
+            Transaction::write_read(0x48, vec![REG_TEMP_RESULT], vec![0x0C, 0x80]),
+            Transaction::write_read(0x4A, vec![REG_TEMP_RESULT], vec![0, 0]).with_error(nack),
+        ];
+        let bus2 = [
+            id(0x48),
+            start(0x48),
+            Transaction::write_read(0x4B, vec![REG_DEVICE_ID], vec![0x02, 0x75]),
+            Transaction::write_read(0x48, vec![REG_TEMP_RESULT], vec![0x0D, 0x00]),
+        ];
+        let mut array = Tmp117Array::new(Mock::new(&bus1), Mock::new(&bus2), 0b1001_0101);
+        assert_eq!(array.init(), 0b1000_0000, "temp_h is not a TMP117");
+        assert_eq!(array.fitted(), 0b0001_0101);
+        let mut readings = [Some(99.0); THERMOMETERS];
+        let failed = array.read_wanted(0b1001_0101, &mut readings);
+        assert_eq!(readings, [Some(25.0), None, None, None, Some(26.0), None, None, None]);
+        assert_eq!(failed, 2, "temp_c did not answer, temp_h is not there");
+        let (mut b1, mut b2) = array.destroy();
+        b1.done();
+        b2.done();
     }
 }

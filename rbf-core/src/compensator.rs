@@ -1,11 +1,11 @@
 //! The per-sample compensation step, shared by `trainer compensate` and the firmware.
 //!
-//! Per gyro sample: detect gaps, validate the loop temperature (holding the
-//! last good value through a sensor fault for a bounded time), update the
-//! features, evaluate the model and subtract. Every sample yields exactly one
+//! Per gyro sample: detect gaps, validate each thermometer the model reads
+//! (holding its last good value through a sensor fault for a bounded time),
+//! update the features, evaluate the model and subtract. Every sample yields exactly one
 //! [`CompensatedSample`]; what went wrong is said in its [`Flags`].
 
-use crate::features::{FeatureExtractor, FeatureVector};
+use crate::features::{FeatureExtractor, FeatureVector, LOOP_THERMOMETER, THERMOMETERS};
 use crate::flags::Flags;
 use crate::model::Model;
 
@@ -73,8 +73,28 @@ pub struct GyroSample {
     pub dt_s: f32,
     /// Gyro output, °/h.
     pub rate_dph: f32,
-    /// Loop temperature, °C; `None` when the sensor failed to answer.
-    pub temp_c: Option<f32>,
+    /// Thermometer readings `temp_a` … `temp_h`, °C; `None` where a sensor
+    /// failed to answer or is not fitted. Index [`LOOP_THERMOMETER`]
+    /// (`temp_c`) is the fiber-loop sensor single-point models read.
+    pub temps_c: [Option<f32>; THERMOMETERS],
+}
+
+impl GyroSample {
+    /// A sample with the loop temperature only (single-point models).
+    pub const fn new(dt_s: f32, rate_dph: f32, temp_c: Option<f32>) -> Self {
+        let mut temps_c = [None; THERMOMETERS];
+        temps_c[LOOP_THERMOMETER] = temp_c;
+        GyroSample {
+            dt_s,
+            rate_dph,
+            temps_c,
+        }
+    }
+
+    /// The fiber-loop temperature, °C, if the sensor answered.
+    pub const fn temp_c(&self) -> Option<f32> {
+        self.temps_c[LOOP_THERMOMETER]
+    }
 }
 
 /// One output sample: always produced, whatever the inputs were.
@@ -84,7 +104,9 @@ pub struct CompensatedSample {
     pub bias_dph: f32,
     /// `rate_dph − bias_dph`, °/h.
     pub rate_comp_dph: f32,
-    /// Loop temperature the features used (held value during a fault), °C; NaN if none yet.
+    /// Temperature the features used (held value during a fault), °C; NaN if
+    /// none: the loop sensor's, or for a multi-point model its reference
+    /// thermometer's ([`crate::FeatureSet::reference_thermometer`]).
     pub temp_c: f32,
     /// What went wrong, if anything.
     pub flags: Flags,
@@ -99,12 +121,72 @@ pub struct FeatureFrame {
     pub flags: Flags,
 }
 
+/// Fault state of one thermometer: its last good reading and how long that
+/// has been standing in.
+#[derive(Clone, Copy, Debug, Default)]
+struct Channel {
+    last_good_c: Option<f32>,
+    fault_hold_s: f32,
+}
+
+/// What one thermometer contributes to a sample.
+enum Reading {
+    /// A plausible reading within reach of the last good one, °C.
+    Fresh(f32),
+    /// The sensor failed; its last good value stands in, °C.
+    Held(f32),
+    /// The sensor failed and there is no value (held too long, or never one).
+    Expired,
+}
+
+impl Channel {
+    const NEW: Channel = Channel {
+        last_good_c: None,
+        fault_hold_s: 0.0,
+    };
+
+    /// Judges a reading `elapsed_s` after the previous sample. A reading is
+    /// good when plausible and, unless the features start afresh anyway
+    /// (`fresh_start`), within reach of the last good one (no spike).
+    fn accept(
+        &mut self,
+        reading: Option<f32>,
+        config: &CompensatorConfig,
+        elapsed_s: f32,
+        fresh_start: bool,
+    ) -> Reading {
+        let since_good_s = self.fault_hold_s + elapsed_s;
+        let reachable = |t: f32| match self.last_good_c {
+            Some(last) if !fresh_start => {
+                (t - last).abs() <= config.temp_step_tolerance_c + config.max_temp_slew_c_per_s * since_good_s
+            }
+            _ => true,
+        };
+        match reading
+            .filter(|&t| config.is_plausible_temp(t))
+            .filter(|&t| reachable(t))
+        {
+            Some(t) => {
+                self.last_good_c = Some(t);
+                self.fault_hold_s = 0.0;
+                Reading::Fresh(t)
+            }
+            None => {
+                self.fault_hold_s += elapsed_s;
+                match self.last_good_c {
+                    Some(held) if self.fault_hold_s <= config.max_temp_hold_s => Reading::Held(held),
+                    _ => Reading::Expired,
+                }
+            }
+        }
+    }
+}
+
 /// Running state of the compensation loop (the model is passed by reference).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Compensator {
     extractor: FeatureExtractor,
-    last_good_temp_c: Option<f32>,
-    fault_hold_s: f32,
+    channels: [Channel; THERMOMETERS],
     restart_pending: bool,
     started: bool,
 }
@@ -114,8 +196,7 @@ impl Compensator {
     pub const fn new() -> Self {
         Compensator {
             extractor: FeatureExtractor::new(),
-            last_good_temp_c: None,
-            fault_hold_s: 0.0,
+            channels: [Channel::NEW; THERMOMETERS],
             restart_pending: false,
             started: false,
         }
@@ -140,48 +221,46 @@ impl Compensator {
             0.0
         };
 
-        // A reading is good when plausible and, unless the features restart
-        // anyway, within reach of the last good one (no spike).
-        let since_good_s = self.fault_hold_s + elapsed_s;
-        let reachable = |t: f32| match self.last_good_temp_c {
-            Some(last) if !(gap || self.restart_pending) => {
-                (t - last).abs() <= config.temp_step_tolerance_c + config.max_temp_slew_c_per_s * since_good_s
-            }
-            _ => true,
-        };
-        let good = sample
-            .temp_c
-            .filter(|&t| config.is_plausible_temp(t))
-            .filter(|&t| reachable(t));
-        let temp_c = match good {
-            Some(t) => {
-                self.last_good_temp_c = Some(t);
-                self.fault_hold_s = 0.0;
-                if self.restart_pending {
-                    self.restart_pending = false;
-                    self.extractor.restart();
+        // Each thermometer the model reads, in index order (set bits only).
+        let fresh_start = gap || self.restart_pending;
+        let mut temps_c = [0.0f32; THERMOMETERS];
+        let mut expired = false;
+        let mut unvisited = model_features.set.thermometer_mask();
+        while unvisited != 0 {
+            let i = unvisited.trailing_zeros() as usize;
+            unvisited &= unvisited - 1;
+            let (Some(channel), Some(slot), Some(&reading)) =
+                (self.channels.get_mut(i), temps_c.get_mut(i), sample.temps_c.get(i))
+            else {
+                continue;
+            };
+            match channel.accept(reading, config, elapsed_s, fresh_start) {
+                Reading::Fresh(t) => *slot = t,
+                Reading::Held(t) => {
+                    flags |= Flags::TEMP_SENSOR_FAULT;
+                    *slot = t;
                 }
-                t
-            }
-            None => {
-                flags |= Flags::TEMP_SENSOR_FAULT;
-                self.fault_hold_s += elapsed_s;
-                match self.last_good_temp_c {
-                    Some(held) if self.fault_hold_s <= config.max_temp_hold_s => held,
-                    _ => {
-                        // Held too long (or never had a value): stop compensating and
-                        // start the features afresh once the sensor answers again.
-                        self.restart_pending = true;
-                        return FeatureFrame {
-                            features: None,
-                            flags: flags | Flags::NO_VALID_MODEL,
-                        };
-                    }
+                Reading::Expired => {
+                    flags |= Flags::TEMP_SENSOR_FAULT;
+                    expired = true;
                 }
             }
-        };
+        }
+        if expired {
+            // Held too long (or never had a value): stop compensating and start
+            // the features afresh once every sensor has a value again.
+            self.restart_pending = true;
+            return FeatureFrame {
+                features: None,
+                flags: flags | Flags::NO_VALID_MODEL,
+            };
+        }
+        if self.restart_pending {
+            self.restart_pending = false;
+            self.extractor.restart();
+        }
         let dt_s = if gap { 0.0 } else { sample.dt_s };
-        let features = self.extractor.update(model_features, dt_s, temp_c);
+        let features = self.extractor.update(model_features, dt_s, &temps_c);
         if features.warming_up {
             flags |= Flags::WARMING_UP;
         }
@@ -254,11 +333,7 @@ mod tests {
     }
 
     fn sample(temp_c: Option<f32>) -> GyroSample {
-        GyroSample {
-            dt_s: 1.0,
-            rate_dph: 100.0,
-            temp_c,
-        }
+        GyroSample::new(1.0, 100.0, temp_c)
     }
 
     #[test]
@@ -348,18 +423,50 @@ mod tests {
         let cfg = CompensatorConfig::for_sample_rate(1.0);
         let mut comp = Compensator::new();
         for rate in [f32::NAN, f32::INFINITY, 1e9] {
-            let out = comp.process(
-                Some(&model),
-                &cfg,
-                &GyroSample {
-                    dt_s: 1.0,
-                    rate_dph: rate,
-                    temp_c: Some(20.0),
-                },
-            );
+            let out = comp.process(Some(&model), &cfg, &GyroSample::new(1.0, rate, Some(20.0)));
             assert!(out.flags.contains(Flags::RATE_INVALID), "rate {rate}");
             assert!(out.bias_dph.is_finite());
         }
+    }
+
+    #[test]
+    fn multipoint_models_watch_each_thermometer_they_read_and_only_those() {
+        use crate::features::{Probe, Probes};
+        // Inputs temp_a and temp_c − temp_e; temp_h is fitted but unused.
+        let probes = Probes::new(&[Probe::Temp(0), Probe::Gradient(2, 4)]).unwrap();
+        let model_features = FeatureConfig::multipoint(probes);
+        let mut cfg = CompensatorConfig::for_sample_rate(1.0);
+        cfg.max_temp_hold_s = 2.0;
+        let mut comp = Compensator::new();
+        let with = |a: Option<f32>, e: Option<f32>, h: Option<f32>| {
+            let mut s = GyroSample::new(1.0, 0.0, Some(22.0));
+            (s.temps_c[0], s.temps_c[4], s.temps_c[7]) = (a, e, h);
+            s
+        };
+        let inputs = |frame: FeatureFrame| frame.features.map(|f| [f.as_slice()[0], f.as_slice()[1]]);
+        let first = comp.features(&model_features, &cfg, &with(Some(20.0), Some(21.0), None));
+        assert_eq!(inputs(first), Some([20.0, 1.0]));
+        assert!(!first.flags.contains(Flags::TEMP_SENSOR_FAULT), "temp_h is not read");
+        // temp_e fails: its last good value stands in while temp_a moves on.
+        let held = comp.features(&model_features, &cfg, &with(Some(20.5), None, None));
+        assert_eq!(inputs(held), Some([20.5, 1.0]));
+        assert_eq!(held.flags, Flags::TEMP_SENSOR_FAULT);
+        // A spike on temp_a alone is a fault of temp_a alone.
+        let spike = comp.features(&model_features, &cfg, &with(Some(60.0), Some(21.0), None));
+        assert_eq!(inputs(spike), Some([20.5, 1.0]));
+        assert_eq!(spike.flags, Flags::TEMP_SENSOR_FAULT);
+        // temp_e fails for longer than the 2-s hold: no features until it
+        // answers again, then a fresh start.
+        for _ in 0..2 {
+            let within = comp.features(&model_features, &cfg, &with(Some(20.5), None, None));
+            assert!(within.features.is_some());
+        }
+        let expired = comp.features(&model_features, &cfg, &with(Some(20.5), None, None));
+        assert_eq!(expired.features, None);
+        assert_eq!(expired.flags, Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL);
+        let back = comp.features(&model_features, &cfg, &with(Some(20.5), Some(23.0), None));
+        assert_eq!(inputs(back), Some([20.5, -1.0]));
+        assert_eq!(back.flags, Flags::WARMING_UP, "the features restart after recovery");
     }
 
     #[test]
@@ -370,11 +477,7 @@ mod tests {
         comp.features(&cfg_model, &cfg, &sample(Some(20.0)));
         let step = comp.features(&cfg_model, &cfg, &sample(Some(21.0))).features.unwrap();
         assert_eq!(step.as_slice()[1], 60.0, "1 °C in 1 s is 60 °C/min");
-        let after_gap = GyroSample {
-            dt_s: 2.5,
-            rate_dph: 0.0,
-            temp_c: Some(30.0),
-        };
+        let after_gap = GyroSample::new(2.5, 0.0, Some(30.0));
         let frame = comp.features(&cfg_model, &cfg, &after_gap);
         assert_eq!(frame.features.unwrap().as_slice()[1], 0.0);
         assert!(frame.flags.contains(Flags::WARMING_UP));

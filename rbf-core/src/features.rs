@@ -34,6 +34,14 @@
 //! term's derivative (quadratic in T for a cubic) times the rate. Warm-up there
 //! counts 3 × the fastest τ; the slower filters start from the steady state
 //! (ΔT = 0) like the fast one.
+//!
+//! ## Several thermometers
+//! The RLG paper's method reads up to [`THERMOMETERS`] thermometers
+//! (`temp_a` … `temp_h`; `temp_c` is the fiber-loop sensor the single-point
+//! sets use) and feeds a selection of their temperatures and pairwise
+//! gradients T_i − T_j to the model: [`FeatureSet::MultiPoint`] with its
+//! [`Probes`]. These inputs need no filter state (no warm-up beyond the first
+//! sample of a segment).
 
 use serde::{Deserialize, Serialize};
 
@@ -46,6 +54,131 @@ const WARMUP_TIME_CONSTANTS: f32 = 3.0;
 /// Longest derivative time constant accepted, s (one day).
 const MAX_RATE_WINDOW_S: f32 = 86_400.0;
 
+/// Thermometers a multi-point model can read: `temp_a` … `temp_h`.
+pub const THERMOMETERS: usize = 8;
+/// Index of the fiber-loop thermometer (`temp_c`) among [`THERMOMETERS`]:
+/// the one single-point feature sets read.
+pub const LOOP_THERMOMETER: usize = 2;
+
+/// One multi-point model input, from thermometers by index (0 = `temp_a` … 7 = `temp_h`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Probe {
+    /// The temperature of thermometer i, °C.
+    Temp(u8),
+    /// The gradient T_i − T_j between thermometers i and j, °C.
+    Gradient(u8, u8),
+}
+
+impl Probe {
+    /// The thermometers this input reads, as a bit mask (bit i = thermometer i).
+    pub const fn thermometer_mask(self) -> u8 {
+        match self {
+            Probe::Temp(i) => bit(i),
+            Probe::Gradient(i, j) => bit(i) | bit(j),
+        }
+    }
+
+    /// True when the indices name thermometers and a gradient joins two different ones.
+    pub const fn is_valid(self) -> bool {
+        let n = THERMOMETERS as u8;
+        match self {
+            Probe::Temp(i) => i < n,
+            Probe::Gradient(i, j) => i < n && j < n && i != j,
+        }
+    }
+
+    /// The input's value from the thermometer readings, °C.
+    #[inline]
+    pub fn value(self, temps_c: &[f32; THERMOMETERS]) -> f32 {
+        let at = |i: u8| temps_c.get(i as usize).copied().unwrap_or(0.0);
+        match self {
+            Probe::Temp(i) => at(i),
+            Probe::Gradient(i, j) => at(i) - at(j),
+        }
+    }
+}
+
+/// Thermometer readings with the fiber loop at `temp_c` and the others at
+/// 0 °C: what single-point feature sets read.
+pub const fn loop_reading(temp_c: f32) -> [f32; THERMOMETERS] {
+    let mut temps = [0.0; THERMOMETERS];
+    temps[LOOP_THERMOMETER] = temp_c;
+    temps
+}
+
+/// Bit `i` of a thermometer mask (0 past the eighth thermometer).
+const fn bit(i: u8) -> u8 {
+    if (i as usize) < THERMOMETERS { 1 << i } else { 0 }
+}
+
+/// The letter of thermometer `i` in its column name (`temp_a` … `temp_h`).
+pub const fn thermometer_letter(i: u8) -> char {
+    (b'a' + i) as char
+}
+
+impl core::fmt::Display for Probe {
+    /// `temp_a [°C]` or `temp_c − temp_e [°C]`.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Probe::Temp(i) => write!(f, "temp_{} [°C]", thermometer_letter(i)),
+            Probe::Gradient(i, j) => write!(
+                f,
+                "temp_{} − temp_{} [°C]",
+                thermometer_letter(i),
+                thermometer_letter(j)
+            ),
+        }
+    }
+}
+
+/// The inputs of a multi-point model, in order (at most [`MAX_INPUTS`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Probes {
+    list: [Probe; MAX_INPUTS],
+    len: u8,
+}
+
+impl Probes {
+    /// The selection `probes`; `None` when empty, over [`MAX_INPUTS`] or naming
+    /// a thermometer that does not exist.
+    pub fn new(probes: &[Probe]) -> Option<Self> {
+        let mut list = [Probe::Temp(0); MAX_INPUTS];
+        list.get_mut(..probes.len())?.copy_from_slice(probes);
+        let set = Probes {
+            list,
+            len: probes.len() as u8,
+        };
+        set.is_valid().then_some(set)
+    }
+
+    /// The inputs in order.
+    pub fn as_slice(&self) -> &[Probe] {
+        self.list.get(..self.len as usize).unwrap_or(&[])
+    }
+
+    /// Number of inputs (≤ [`MAX_INPUTS`] for a valid set).
+    pub const fn len(&self) -> usize {
+        let n = self.len as usize;
+        if n < MAX_INPUTS { n } else { MAX_INPUTS }
+    }
+
+    /// True when the selection holds no input (never for a valid set).
+    pub const fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// At least one input, at most [`MAX_INPUTS`], each valid.
+    pub fn is_valid(&self) -> bool {
+        let n = self.len as usize;
+        n > 0 && n <= MAX_INPUTS && self.as_slice().iter().all(|p| p.is_valid())
+    }
+
+    /// The thermometers the inputs read, as a bit mask.
+    pub fn thermometer_mask(&self) -> u8 {
+        self.as_slice().iter().fold(0, |m, p| m | p.thermometer_mask())
+    }
+}
+
 /// Which inputs a model takes, in this order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum FeatureSet {
@@ -57,6 +190,9 @@ pub enum FeatureSet {
     TempRateProduct,
     /// (T, ΔT₁, ΔT₂, ΔT₃, T×ΔT₁, T×ΔT₂, T×ΔT₃, T²×ΔT₂) over three filter windows (the default).
     MultiScale,
+    /// Temperatures and gradients of several thermometers (the RLG paper's
+    /// multi-point inputs, `--method svr-pso` on runs with `temp_a` … `temp_h`).
+    MultiPoint(Probes),
 }
 
 impl FeatureSet {
@@ -67,20 +203,56 @@ impl FeatureSet {
             FeatureSet::TempRate => 2,
             FeatureSet::TempRateProduct => 3,
             FeatureSet::MultiScale => 8,
+            FeatureSet::MultiPoint(probes) => probes.len(),
         }
     }
 
     /// Number of ΔT filter windows the set uses.
     pub const fn windows(self) -> usize {
         match self {
-            FeatureSet::Temp => 0,
+            FeatureSet::Temp | FeatureSet::MultiPoint(_) => 0,
             FeatureSet::TempRate | FeatureSet::TempRateProduct => 1,
             FeatureSet::MultiScale => WINDOWS,
         }
     }
 
-    /// Names of the inputs with units, for reports.
-    pub const fn names(self) -> &'static [&'static str] {
+    /// The thermometers the inputs read, as a bit mask (bit i = thermometer i):
+    /// the loop thermometer alone for the single-point sets.
+    pub fn thermometer_mask(self) -> u8 {
+        match self {
+            FeatureSet::MultiPoint(probes) => probes.thermometer_mask(),
+            _ => 1 << LOOP_THERMOMETER,
+        }
+    }
+
+    /// The thermometer whose reading a compensated sample reports as its
+    /// temperature: the loop thermometer, or for a multi-point set the first
+    /// thermometer its first input reads.
+    pub fn reference_thermometer(self) -> usize {
+        match self {
+            FeatureSet::MultiPoint(probes) => match probes.as_slice().first() {
+                Some(Probe::Temp(i) | Probe::Gradient(i, _)) => *i as usize,
+                None => LOOP_THERMOMETER,
+            },
+            _ => LOOP_THERMOMETER,
+        }
+    }
+
+    /// The name of input `i` with its unit, for reports (`None` past the last input).
+    pub fn name(self, i: usize) -> Option<InputName> {
+        match self {
+            FeatureSet::MultiPoint(probes) => probes.as_slice().get(i).copied().map(InputName::Probe),
+            _ => self.fixed_names().get(i).copied().map(InputName::Fixed),
+        }
+    }
+
+    /// The names of all inputs with their units, in order.
+    pub fn names(self) -> impl Iterator<Item = InputName> {
+        (0..self.dims()).filter_map(move |i| self.name(i))
+    }
+
+    /// Names of the single-point inputs with units.
+    const fn fixed_names(self) -> &'static [&'static str] {
         match self {
             FeatureSet::Temp => &["T [°C]"],
             FeatureSet::TempRate => &["T [°C]", "ΔT [°C/min]"],
@@ -95,6 +267,25 @@ impl FeatureSet {
                 "T×ΔT₃ [°C²/min]",
                 "T²×ΔT₂ [°C³/min]",
             ],
+            FeatureSet::MultiPoint(_) => &[],
+        }
+    }
+}
+
+/// The name and unit of one model input ([`FeatureSet::name`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputName {
+    /// A single-point input, e.g. `ΔT [°C/min]`.
+    Fixed(&'static str),
+    /// A multi-point input, e.g. `temp_c − temp_e [°C]`.
+    Probe(Probe),
+}
+
+impl core::fmt::Display for InputName {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            InputName::Fixed(name) => f.write_str(name),
+            InputName::Probe(probe) => probe.fmt(f),
         }
     }
 }
@@ -147,11 +338,23 @@ impl FeatureConfig {
         WARMUP_TIME_CONSTANTS * self.rate_window_s
     }
 
-    /// True when the configuration is usable (finite windows within 0 ..= 1 day).
+    /// True when the configuration is usable (finite windows within 0 ..= 1 day;
+    /// multi-point inputs that name existing thermometers).
     pub fn is_valid(&self) -> bool {
-        self.windows_s()
-            .iter()
-            .all(|w| w.is_finite() && *w >= 0.0 && *w <= MAX_RATE_WINDOW_S)
+        let probes_ok = match self.set {
+            FeatureSet::MultiPoint(probes) => probes.is_valid(),
+            _ => true,
+        };
+        probes_ok
+            && self
+                .windows_s()
+                .iter()
+                .all(|w| w.is_finite() && *w >= 0.0 && *w <= MAX_RATE_WINDOW_S)
+    }
+
+    /// A multi-point configuration over `probes` (no derivative filters).
+    pub const fn multipoint(probes: Probes) -> Self {
+        FeatureConfig::single(FeatureSet::MultiPoint(probes), 0.0)
     }
 }
 
@@ -159,6 +362,7 @@ impl FeatureConfig {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FeatureVector {
     values: [f32; MAX_INPUTS],
+    reference_temp_c: f32,
     len: u8,
     /// The derivative filter has not settled yet (see module docs).
     pub warming_up: bool,
@@ -174,6 +378,7 @@ impl FeatureVector {
         v[..n].copy_from_slice(&values[..n]);
         FeatureVector {
             values: v,
+            reference_temp_c: v[0],
             len: n as u8,
             warming_up: false,
         }
@@ -189,9 +394,11 @@ impl FeatureVector {
         &self.values
     }
 
-    /// The fiber-loop temperature the features were computed from, °C.
+    /// The temperature the features were computed from, °C: the fiber-loop
+    /// sensor's, or for multi-point inputs the reference thermometer's
+    /// ([`FeatureSet::reference_thermometer`]).
     pub fn temp_c(&self) -> f32 {
-        self.values[0]
+        self.reference_temp_c
     }
 }
 
@@ -225,9 +432,12 @@ impl FeatureExtractor {
     ///
     /// `dt_s` is the time since the previous sample in seconds; it is ignored on
     /// the first sample of a segment. A non-finite or non-positive `dt_s`
-    /// restarts the segment. `temp_c` must be finite (the compensator
-    /// guarantees it by holding the last good value).
-    pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temp_c: f32) -> FeatureVector {
+    /// restarts the segment. `temps_c` holds the thermometer readings, °C
+    /// (index [`LOOP_THERMOMETER`] is the fiber loop); those the set reads
+    /// ([`FeatureSet::thermometer_mask`]) must be finite (the compensator
+    /// guarantees it by holding the last good values), the others are ignored.
+    pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temps_c: &[f32; THERMOMETERS]) -> FeatureVector {
+        let temp_c = temps_c[LOOP_THERMOMETER];
         let windows = config.set.windows();
         let taus = config.windows_s();
         let mut rate_c_per_min = [0.0f32; WINDOWS];
@@ -267,9 +477,19 @@ impl FeatureExtractor {
                 }
                 values[1 + 2 * WINDOWS] = temp_c * temp_c * rate_c_per_min[1];
             }
+            FeatureSet::MultiPoint(probes) => {
+                for (v, p) in values.iter_mut().zip(probes.as_slice()) {
+                    *v = p.value(temps_c);
+                }
+            }
         }
+        let reference_temp_c = temps_c
+            .get(config.set.reference_thermometer())
+            .copied()
+            .unwrap_or(f32::NAN);
         FeatureVector {
             values,
+            reference_temp_c,
             len: config.dims() as u8,
             warming_up,
         }
@@ -296,7 +516,7 @@ mod tests {
         let cfg = paper(0.0);
         let mut prev: Option<f32> = None;
         for &t in &temps {
-            let f = fx.update(&cfg, 1.0, t);
+            let f = fx.update(&cfg, 1.0, &loop_reading(t));
             let expected_per_sample = prev.map_or(0.0, |p| t - p);
             // Exact: differences of these binary fractions are exact in f32.
             assert_eq!(f.as_slice()[1], expected_per_sample * 60.0);
@@ -317,7 +537,7 @@ mod tests {
             for i in 0..n {
                 let t_s = i as f64 * dt as f64;
                 let temp = 10.0 + (ramp_c_per_min as f64 / 60.0 * t_s) as f32;
-                last = Some(fx.update(&cfg, dt, temp));
+                last = Some(fx.update(&cfg, dt, &loop_reading(temp)));
             }
             let f = last.unwrap();
             let dtemp = f.as_slice()[1];
@@ -333,19 +553,19 @@ mod tests {
     fn warm_up_lasts_three_time_constants_and_restart_begins_again() {
         let cfg = paper(10.0);
         let mut fx = FeatureExtractor::new();
-        let first = fx.update(&cfg, 1.0, 25.0);
+        let first = fx.update(&cfg, 1.0, &loop_reading(25.0));
         assert!(first.warming_up);
         assert_eq!(first.as_slice()[1], 0.0);
         let mut settled_at = None;
         for i in 1..100 {
-            if !fx.update(&cfg, 1.0, 25.0).warming_up {
+            if !fx.update(&cfg, 1.0, &loop_reading(25.0)).warming_up {
                 settled_at = Some(i);
                 break;
             }
         }
         assert_eq!(settled_at, Some(30));
         fx.restart();
-        let after_gap = fx.update(&cfg, 1.0, 40.0);
+        let after_gap = fx.update(&cfg, 1.0, &loop_reading(40.0));
         assert!(after_gap.warming_up);
         assert_eq!(
             after_gap.as_slice()[1],
@@ -358,9 +578,9 @@ mod tests {
     fn every_multiscale_window_reads_a_steady_ramp_and_its_product_with_t() {
         let cfg = FeatureConfig::multiscale([10.0, 80.0, 640.0]);
         let mut fx = FeatureExtractor::new();
-        let mut f = fx.update(&cfg, 1.0, 0.0);
+        let mut f = fx.update(&cfg, 1.0, &loop_reading(0.0));
         for i in 1..=20_000 {
-            f = fx.update(&cfg, 1.0, 1.5 * i as f32 / 60.0); // 1.5 °C/min
+            f = fx.update(&cfg, 1.0, &loop_reading(1.5 * i as f32 / 60.0)); // 1.5 °C/min
         }
         let v = f.as_slice();
         for w in 0..WINDOWS {
@@ -377,9 +597,9 @@ mod tests {
     fn bad_time_steps_restart_instead_of_producing_nonsense() {
         let cfg = paper(0.0);
         let mut fx = FeatureExtractor::new();
-        fx.update(&cfg, 1.0, 20.0);
+        fx.update(&cfg, 1.0, &loop_reading(20.0));
         for dt in [0.0f32, -1.0, f32::NAN, f32::INFINITY] {
-            let f = fx.update(&cfg, dt, 30.0);
+            let f = fx.update(&cfg, dt, &loop_reading(30.0));
             assert_eq!(f.as_slice()[1], 0.0, "dt = {dt}");
             assert!(f.as_slice().iter().all(|v| v.is_finite()));
         }
@@ -399,8 +619,33 @@ mod tests {
             } else {
                 FeatureConfig::single(set, 5.0)
             };
-            assert_eq!(fx.update(&cfg, 1.0, 20.0).as_slice().len(), set.dims());
-            assert_eq!(set.names().len(), set.dims());
+            assert_eq!(fx.update(&cfg, 1.0, &loop_reading(20.0)).as_slice().len(), set.dims());
+            assert_eq!(set.names().count(), set.dims());
+            assert_eq!(set.name(set.dims()), None);
         }
+    }
+
+    #[test]
+    fn multipoint_inputs_are_the_selected_temperatures_and_gradients() {
+        let probes = Probes::new(&[Probe::Temp(0), Probe::Gradient(2, 4), Probe::Gradient(7, 1)]).unwrap();
+        let cfg = FeatureConfig::multipoint(probes);
+        assert!(cfg.is_valid());
+        assert_eq!(cfg.set.thermometer_mask(), 0b1001_0111);
+        assert_eq!(cfg.set.reference_thermometer(), 0);
+        let temps = [20.0, 21.0, 22.5, 0.0, 25.0, 0.0, 0.0, 30.0];
+        let mut fx = FeatureExtractor::new();
+        let first = fx.update(&cfg, 1.0, &temps);
+        assert_eq!(first.as_slice(), &[20.0, -2.5, 9.0]);
+        assert_eq!(first.temp_c(), 20.0, "reports the reference thermometer");
+        assert!(first.warming_up, "the first sample of a segment");
+        assert!(!fx.update(&cfg, 1.0, &temps).warming_up, "no filter to settle");
+        assert_eq!(cfg.set.name(1).unwrap().to_string(), "temp_c − temp_e [°C]");
+        assert_eq!(cfg.set.name(3), None);
+        // Selections naming missing thermometers, a gradient of a thermometer
+        // with itself, nothing or too much are refused.
+        assert_eq!(Probes::new(&[Probe::Temp(8)]), None);
+        assert_eq!(Probes::new(&[Probe::Gradient(3, 3)]), None);
+        assert_eq!(Probes::new(&[]), None);
+        assert_eq!(Probes::new(&[Probe::Temp(1); MAX_INPUTS + 1]), None);
     }
 }

@@ -421,7 +421,7 @@ fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
 )]
 mod tests {
     use super::*;
-    use crate::features::FeatureExtractor;
+    use crate::features::{FeatureExtractor, loop_reading};
 
     fn poly_model() -> Model {
         let cfg = FeatureConfig::single(FeatureSet::Temp, 0.0);
@@ -433,7 +433,7 @@ mod tests {
     fn inputs_outside_the_training_range_are_clamped_and_flagged() {
         let model = poly_model();
         let mut fx = FeatureExtractor::new();
-        let inside = model.eval(&fx.update(model.features(), 1.0, 25.0));
+        let inside = model.eval(&fx.update(model.features(), 1.0, &loop_reading(25.0)));
         assert_eq!(
             inside,
             Evaluation {
@@ -441,7 +441,7 @@ mod tests {
                 clamped: false
             }
         );
-        let hot = model.eval(&fx.update(model.features(), 1.0, 45.0));
+        let hot = model.eval(&fx.update(model.features(), 1.0, &loop_reading(45.0)));
         assert_eq!(
             hot,
             Evaluation {
@@ -449,7 +449,7 @@ mod tests {
                 clamped: true
             }
         );
-        let cold = model.eval(&fx.update(model.features(), 1.0, -40.0));
+        let cold = model.eval(&fx.update(model.features(), 1.0, &loop_reading(-40.0)));
         assert_eq!(
             cold,
             Evaluation {
@@ -512,7 +512,7 @@ mod tests {
         let cfg = FeatureConfig::single(FeatureSet::Temp, 0.0);
         let model = Model::new(cfg, &[(10.0, 20.0)], ModelBody::Rbf(net), ModelInfo::default()).unwrap();
         let mut fx = FeatureExtractor::new();
-        let e = model.eval(&fx.update(&cfg, 1.0, 35.0));
+        let e = model.eval(&fx.update(&cfg, 1.0, &loop_reading(35.0)));
         assert_eq!(
             e,
             Evaluation {
@@ -521,7 +521,7 @@ mod tests {
             },
             "linear part follows T past the range"
         );
-        let e = model.eval(&fx.update(&cfg, 1.0, 100.0));
+        let e = model.eval(&fx.update(&cfg, 1.0, &loop_reading(100.0)));
         assert_eq!(e.bias_dph, 40.0, "…but no further than two spans (20 + 2·10)");
     }
 

@@ -5,14 +5,20 @@
 //! names live with the callers; this module maps header names to columns and
 //! turns one data line into numbers, never panicking.
 
+use crate::features::{LOOP_THERMOMETER, THERMOMETERS};
+
 /// Column names the format defines.
 pub mod column {
     /// Sample time, s.
     pub const TIME_S: &str = "time_s";
     /// Gyro output, °/h.
     pub const RATE_DPH: &str = "rate_dph";
-    /// Fiber-loop temperature, °C.
+    /// Fiber-loop temperature, °C (thermometer c of a multi-point run).
     pub const TEMP_C: &str = "temp_c";
+    /// Thermometers of multi-point runs, °C, in index order; `temp_c` is the fiber loop's.
+    pub const THERMOMETERS: [&str; crate::features::THERMOMETERS] = [
+        "temp_a", "temp_b", TEMP_C, "temp_d", "temp_e", "temp_f", "temp_g", "temp_h",
+    ];
     /// Known true rate, °/h.
     pub const REF_DPH: &str = "ref_dph";
     /// Replay-only: 1 = the temperature sensor fails on this sample.
@@ -26,8 +32,8 @@ pub struct Columns {
     pub time_s: usize,
     /// Index of `rate_dph`.
     pub rate_dph: usize,
-    /// Index of `temp_c`, if present.
-    pub temp_c: Option<usize>,
+    /// Indices of `temp_a` … `temp_h`, where present (index 2 is `temp_c`).
+    pub temps: [Option<usize>; THERMOMETERS],
     /// Index of `ref_dph`, if present.
     pub ref_dph: Option<usize>,
     /// Index of `temp_fault`, if present.
@@ -81,12 +87,29 @@ pub struct Row {
     pub time_s: f64,
     /// Gyro output, °/h.
     pub rate_dph: f64,
-    /// Loop temperature, °C, if the column exists.
-    pub temp_c: Option<f64>,
+    /// Thermometers `temp_a` … `temp_h`, °C, where the columns exist.
+    pub temps_c: [Option<f64>; THERMOMETERS],
     /// Known true rate, °/h, if the column exists.
     pub ref_dph: Option<f64>,
     /// The sensor is to fail on this sample (replay).
     pub temp_fault: bool,
+}
+
+impl Row {
+    /// Loop temperature (`temp_c`), °C, if the column exists.
+    pub fn temp_c(&self) -> Option<f64> {
+        self.temps_c[LOOP_THERMOMETER]
+    }
+
+    /// The thermometer readings the sensors give for this row: the values,
+    /// or none at all where `temp_fault` says they fail (replay).
+    pub fn readings_c(&self) -> [Option<f64>; THERMOMETERS] {
+        if self.temp_fault {
+            [None; THERMOMETERS]
+        } else {
+            self.temps_c
+        }
+    }
 }
 
 /// Trims spaces, tabs and a trailing carriage return.
@@ -322,17 +345,21 @@ impl Columns {
     /// Maps a header line (a leading UTF-8 BOM is allowed) to column indices.
     pub fn from_header(line: &str) -> Result<Columns, HeaderError> {
         let line = line.strip_prefix('\u{feff}').unwrap_or(line);
-        let (mut time_s, mut rate_dph, mut temp_c, mut ref_dph, mut temp_fault) = (None, None, None, None, None);
+        let (mut time_s, mut rate_dph, mut ref_dph, mut temp_fault) = (None, None, None, None);
+        let mut temps = [None; THERMOMETERS];
         let mut count = 0;
         for (i, name) in line.split(',').enumerate() {
             count = i + 1;
-            let slot = match trim_field(name) {
+            let name = trim_field(name);
+            let slot = match name {
                 column::TIME_S => &mut time_s,
                 column::RATE_DPH => &mut rate_dph,
-                column::TEMP_C => &mut temp_c,
                 column::REF_DPH => &mut ref_dph,
                 column::TEMP_FAULT => &mut temp_fault,
-                _ => continue,
+                _ => match column::THERMOMETERS.iter().position(|t| *t == name) {
+                    Some(k) => &mut temps[k],
+                    None => continue,
+                },
             };
             if slot.replace(i).is_some() {
                 return Err(HeaderError::DuplicateColumn(i));
@@ -341,11 +368,24 @@ impl Columns {
         Ok(Columns {
             time_s: time_s.ok_or(HeaderError::MissingColumn(column::TIME_S))?,
             rate_dph: rate_dph.ok_or(HeaderError::MissingColumn(column::RATE_DPH))?,
-            temp_c,
+            temps,
             ref_dph,
             temp_fault,
             count,
         })
+    }
+
+    /// Index of `temp_c` (the fiber-loop temperature), if present.
+    pub fn temp_c(&self) -> Option<usize> {
+        self.temps[LOOP_THERMOMETER]
+    }
+
+    /// The thermometers present, as a bit mask (bit i = `temps[i]` exists).
+    pub fn thermometer_mask(&self) -> u8 {
+        self.temps
+            .iter()
+            .enumerate()
+            .fold(0, |m, (i, t)| if t.is_some() { m | 1 << i } else { m })
     }
 
     /// One pass over a row whose fields are all plain decimals (what every
@@ -388,10 +428,14 @@ impl Columns {
             Some(1.0) => true,
             Some(_) => return None,
         };
+        let mut temps_c = [None; THERMOMETERS];
+        for (t, &c) in temps_c.iter_mut().zip(&self.temps) {
+            *t = optional(c)?;
+        }
         Some(Row {
             time_s: at(self.time_s)?,
             rate_dph: at(self.rate_dph)?,
-            temp_c: optional(self.temp_c)?,
+            temps_c,
             ref_dph: optional(self.ref_dph)?,
             temp_fault,
         })
@@ -435,14 +479,12 @@ impl Columns {
                 },
             });
         }
-        let wanted = [
-            Some(self.time_s),
-            Some(self.rate_dph),
-            self.temp_c,
-            self.ref_dph,
-            self.temp_fault,
-        ];
-        let mut fields: [&[u8]; 5] = [b""; 5];
+        // time, rate, ref, fault, then the thermometers.
+        const WANTED: usize = 4 + THERMOMETERS;
+        let mut wanted = [None; WANTED];
+        wanted[..4].copy_from_slice(&[Some(self.time_s), Some(self.rate_dph), self.ref_dph, self.temp_fault]);
+        wanted[4..].copy_from_slice(&self.temps);
+        let mut fields: [&[u8]; WANTED] = [b""; WANTED];
         if found <= DIRECT {
             for (slot, want) in fields.iter_mut().zip(wanted) {
                 if let Some(field) = want.and_then(|i| direct.get(i)) {
@@ -473,7 +515,7 @@ impl Columns {
             }
         };
         let optional = |index: Option<usize>, text: &[u8]| index.map(|i| number(i, text)).transpose();
-        let temp_fault = match optional(self.temp_fault, fields[4])? {
+        let temp_fault = match optional(self.temp_fault, fields[3])? {
             None => false,
             Some(0.0) => false,
             Some(1.0) => true,
@@ -484,11 +526,15 @@ impl Columns {
                 });
             }
         };
+        let mut temps_c = [None; THERMOMETERS];
+        for ((t, &c), text) in temps_c.iter_mut().zip(&self.temps).zip(&fields[4..]) {
+            *t = optional(c, text)?;
+        }
         Ok(Row {
             time_s: number(self.time_s, fields[0])?,
             rate_dph: number(self.rate_dph, fields[1])?,
-            temp_c: optional(self.temp_c, fields[2])?,
-            ref_dph: optional(self.ref_dph, fields[3])?,
+            temps_c,
+            ref_dph: optional(self.ref_dph, fields[2])?,
             temp_fault,
         })
     }
@@ -568,7 +614,7 @@ mod tests {
         let header = "a,b,c,d,e,f,g,h,temp_c,i,time_s,rate_dph";
         let c = Columns::from_header(header).unwrap();
         let row = c.parse_row("x,x,x,x,x,x,x,x,21.5,x,3.25,-7").unwrap();
-        assert_eq!((row.time_s, row.rate_dph, row.temp_c), (3.25, -7.0, Some(21.5)));
+        assert_eq!((row.time_s, row.rate_dph, row.temp_c()), (3.25, -7.0, Some(21.5)));
         let err = c.parse_row("x,x,x,x,x,x,x,x,21.5,x,3.25").unwrap_err();
         assert_eq!(
             err.kind,
@@ -576,6 +622,35 @@ mod tests {
                 expected: 12,
                 found: 11
             }
+        );
+    }
+
+    #[test]
+    fn thermometer_columns_parse_alike_on_both_paths_and_name_a_bad_one() {
+        let c = Columns::from_header("time_s,rate_dph,ref_dph,temp_a,temp_b,temp_c,temp_d,temp_e,temp_f,temp_g,temp_h")
+            .unwrap();
+        assert_eq!((c.thermometer_mask(), c.temp_c()), (0xFF, Some(5)));
+        let line = "1,2,3,20.5,21,22,23,24,25,26,27.25";
+        let fast = c.parse_row_fast(line.as_bytes()).unwrap();
+        assert_eq!(Ok(fast), c.parse_row_general(line.as_bytes()));
+        assert_eq!(
+            fast.temps_c,
+            [20.5, 21.0, 22.0, 23.0, 24.0, 25.0, 26.0, 27.25].map(Some)
+        );
+        assert_eq!(fast.temp_c(), Some(22.0));
+        assert_eq!(
+            c.parse_row("1,2,3,20.5,21,22,23,x,25,26,27"),
+            Err(RowError {
+                column: Some(7),
+                kind: RowErrorKind::NotANumber
+            })
+        );
+        let some = Columns::from_header("temp_h,time_s,temp_b,rate_dph").unwrap();
+        assert_eq!(some.thermometer_mask(), 0b1000_0010);
+        let row = some.parse_row("30,1,20,5").unwrap();
+        assert_eq!(
+            (row.temps_c[7], row.temps_c[1], row.temp_c()),
+            (Some(30.0), Some(20.0), None)
         );
     }
 
@@ -597,7 +672,7 @@ mod tests {
     fn header_maps_known_columns_in_any_order_and_ignores_others() {
         let c = Columns::from_header("\u{feff}temp_c, extra ,time_s,rate_dph\r").unwrap();
         assert_eq!(
-            (c.time_s, c.rate_dph, c.temp_c, c.ref_dph, c.count),
+            (c.time_s, c.rate_dph, c.temp_c(), c.ref_dph, c.count),
             (2, 3, Some(0), None, 4)
         );
         assert_eq!(
@@ -615,7 +690,7 @@ mod tests {
         let c = Columns::from_header("time_s,rate_dph,temp_c,temp_fault,note").unwrap();
         let row = c.parse_row(" 1.5 ,-2e-3,20,1,x\r").unwrap();
         assert_eq!(
-            (row.time_s, row.rate_dph, row.temp_c, row.temp_fault),
+            (row.time_s, row.rate_dph, row.temp_c(), row.temp_fault),
             (1.5, -2e-3, Some(20.0), true)
         );
         let err = |line: &str| c.parse_row(line).unwrap_err();

@@ -112,7 +112,7 @@ fn sample() -> impl Strategy<Value = GyroSample> {
         1 => Just(None),
         1 => any_f32().prop_map(Some),
     ];
-    (dt, any_f32(), temp).prop_map(|(dt_s, rate_dph, temp_c)| GyroSample { dt_s, rate_dph, temp_c })
+    (dt, any_f32(), temp).prop_map(|(dt_s, rate_dph, temp_c)| GyroSample::new(dt_s, rate_dph, temp_c))
 }
 
 fn encode(model: &Model) -> Vec<u8> {

@@ -53,11 +53,7 @@ fn check_one_blob(data: &[u8]) {
     let temps = [-1e30, f32::NAN, 25.0, 1e30, -55.0, 150.0, 0.0, -40.0, 60.0];
     for temp_c in temps.into_iter().map(Some).chain([None]) {
         for dt_s in [1.0, f32::INFINITY, 1.0, 0.5] {
-            let sample = GyroSample {
-                dt_s,
-                rate_dph: 1.0,
-                temp_c,
-            };
+            let sample = GyroSample::new(dt_s, 1.0, temp_c);
             let out = compensator.process(Some(&decoded.model), &config, &sample);
             assert!(out.bias_dph.is_finite(), "bias {} for T {temp_c:?}", out.bias_dph);
             assert!(out.rate_comp_dph.is_finite());

@@ -9,10 +9,10 @@
 use std::path::PathBuf;
 use std::sync::Mutex;
 
-use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, Flags, GyroSample, MAX_INPUTS};
+use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, FeatureSet, Flags, GyroSample, MAX_INPUTS};
 
 use crate::metrics::BinIndex;
-use crate::run::{Run, StreamedRun};
+use crate::run::{Run, RunReader, StreamedRun};
 
 /// Block-averaged features and targets of one or more runs.
 #[derive(Clone, Debug, Default)]
@@ -184,11 +184,22 @@ pub trait RunSet {
     fn prepare(&self, _configs: &[FeatureConfig], _block_s: f64) -> anyhow::Result<()> {
         Ok(())
     }
+    /// The thermometer columns every run has (bit i = `temp_a` … `temp_h`).
+    fn thermometer_mask(&self) -> anyhow::Result<u8>;
+}
+
+/// The thermometers all of `runs` have.
+fn common_thermometers(runs: &[Run]) -> u8 {
+    runs.iter().fold(u8::MAX, |m, r| m & r.thermometer_mask)
 }
 
 impl RunSet for [Run] {
     fn count(&self) -> usize {
         self.len()
+    }
+
+    fn thermometer_mask(&self) -> anyhow::Result<u8> {
+        Ok(common_thermometers(self))
     }
 
     fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
@@ -200,6 +211,10 @@ impl RunSet for [Run] {
 impl<const N: usize> RunSet for [Run; N] {
     fn count(&self) -> usize {
         N
+    }
+
+    fn thermometer_mask(&self) -> anyhow::Result<u8> {
+        Ok(common_thermometers(self))
     }
 
     fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
@@ -234,7 +249,7 @@ pub struct RunFiles {
 }
 
 type CacheKey = (FeatureConfigKey, u64);
-type FeatureConfigKey = (u8, [u32; 3]);
+type FeatureConfigKey = (FeatureSet, [u32; 3]);
 
 fn cache_key(features: &FeatureConfig, block_s: f64) -> CacheKey {
     let w = features.windows_s();
@@ -242,7 +257,7 @@ fn cache_key(features: &FeatureConfig, block_s: f64) -> CacheKey {
     for (b, v) in bits.iter_mut().zip(w.iter()) {
         *b = v.to_bits();
     }
-    ((features.set as u8, bits), block_s.to_bits())
+    ((features.set, bits), block_s.to_bits())
 }
 
 impl RunFiles {
@@ -271,7 +286,8 @@ impl RunFiles {
     /// One pass over run `index`: blocks for each of `configs`.
     fn pass(&self, index: usize, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<Vec<Blocks>> {
         let path = &self.paths[index];
-        let run = StreamedRun::open(path)?;
+        let mask = configs.iter().fold(0, |m, c| m | c.set.thermometer_mask());
+        let run = StreamedRun::open(path, mask)?;
         let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
         let mut builders: Vec<BlockBuilder> = configs
             .iter()
@@ -296,6 +312,12 @@ impl RunFiles {
 impl RunSet for RunFiles {
     fn count(&self) -> usize {
         self.paths.len()
+    }
+
+    fn thermometer_mask(&self) -> anyhow::Result<u8> {
+        self.paths.iter().try_fold(u8::MAX, |m, path| {
+            Ok(m & RunReader::open(path)?.columns().thermometer_mask())
+        })
     }
 
     fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {

@@ -4,6 +4,7 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
+use rbf_core::features::LOOP_THERMOMETER;
 use rbf_core::record;
 use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, Model};
 use serde::Serialize;
@@ -11,7 +12,7 @@ use serde::Serialize;
 use crate::allan::{self, AllanDeviation};
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
 use crate::output::write_atomically;
-use crate::run::{Run, RunReader, StreamedRun, gyro_sample, probe_nominal_period_s};
+use crate::run::{Run, RunReader, StreamedRun, probe_nominal_period_s};
 
 /// How many samples carried each flag.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -96,7 +97,7 @@ pub fn evaluate_output(run: &Run, out: &[CompensatedSample]) -> RunEvaluation {
 /// the run's length). Without `ref_dph` deviations are taken about their
 /// mean, which the MSD, cluster STD and Allan deviation are blind to.
 pub fn evaluate_file(model: &Model, path: &Path) -> anyhow::Result<RunEvaluation> {
-    let run = StreamedRun::open(path)?;
+    let run = StreamedRun::open(path, model.features().set.thermometer_mask())?;
     let config = CompensatorConfig::for_nominal_period_s(run.nominal_period_s);
     let mut compensator = Compensator::new();
     let mut evaluator = Evaluator::new(path, run.nominal_period_s, run.has_ref);
@@ -270,7 +271,7 @@ fn truncate(s: &str, max: usize) -> String {
 pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> anyhow::Result<(usize, FlagCounts)> {
     let period_s = probe_nominal_period_s(input)?;
     let mut reader = RunReader::open(input)?;
-    reader.require_temp()?;
+    reader.require_thermometers(model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask()))?;
     let config = CompensatorConfig::for_nominal_period_s(period_s);
     let mut compensator = Compensator::new();
     let (mut rows, mut flagged) = (0usize, FlagCounts::default());
@@ -282,7 +283,7 @@ pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> an
         writeln!(out, "{}{}", reader.header_line(), record::COMPENSATED_COLUMNS).map_err(io)?;
         let mut prev_time_s = None;
         while let Some(raw) = reader.next_row()? {
-            let sample = gyro_sample(prev_time_s, raw.row.time_s, raw.row.rate_dph, raw.temp_c());
+            let sample = raw.sample(prev_time_s);
             prev_time_s = Some(raw.row.time_s);
             let o = compensator.process(model, &config, &sample);
             writeln!(

@@ -10,14 +10,14 @@
 
 use std::path::PathBuf;
 
+use rbf_core::features::Probe;
 use rbf_core::record;
 
+use crate::dataset::Blocks;
 use crate::run::{RunError, RunReader};
 
 /// Column names of the thermometers, in the matrix's order.
-pub const THERMOMETERS: [&str; 8] = [
-    "temp_a", "temp_b", "temp_c", "temp_d", "temp_e", "temp_f", "temp_g", "temp_h",
-];
+pub const THERMOMETERS: [&str; 8] = record::column::THERMOMETERS;
 
 /// Block means of the thermometers a run has, and of its bias.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -30,6 +30,36 @@ pub struct MultiBlocks {
     pub bias: Vec<f64>,
 }
 
+impl MultiBlocks {
+    /// Groups of `group` consecutive blocks of one run averaged (a short last
+    /// group of a run dropped), from training blocks whose inputs are the
+    /// temperatures of `sensors` in order (`trainer fit --method svr-pso`
+    /// computes those with rbf-core, as the firmware would).
+    pub fn from_blocks(blocks: &Blocks, sensors: &[usize], group: usize) -> MultiBlocks {
+        let group = group.max(1);
+        let mut out = MultiBlocks {
+            sensors: sensors.to_vec(),
+            ..MultiBlocks::default()
+        };
+        let mut start = 0;
+        while start < blocks.len() {
+            let run = blocks.run[start];
+            let end = (start..blocks.len())
+                .find(|&i| blocks.run[i] != run)
+                .unwrap_or(blocks.len());
+            for chunk_start in (start..end).step_by(group).filter(|c| c + group <= end) {
+                let rows = chunk_start..chunk_start + group;
+                let mean = |f: &dyn Fn(usize) -> f64| rows.clone().map(f).sum::<f64>() / group as f64;
+                out.temps
+                    .push((0..sensors.len()).map(|k| mean(&|i| blocks.x[i][k])).collect());
+                out.bias.push(mean(&|i| blocks.y[i]));
+            }
+            start = end;
+        }
+        out
+    }
+}
+
 /// Reads `paths` and averages every `block_samples` consecutive rows (a
 /// short last block of a run is dropped). All runs must have the same
 /// thermometers, at least two.
@@ -37,21 +67,11 @@ pub fn block_means(paths: &[PathBuf], block_samples: usize) -> Result<MultiBlock
     let mut out = MultiBlocks::default();
     for (n, path) in paths.iter().enumerate() {
         let mut reader = RunReader::open(path)?;
-        let names: Vec<String> = reader
-            .header_line()
-            .split(',')
-            .map(|s| record::trim_field(s).to_owned())
-            .collect();
-        let columns: Vec<(usize, usize)> = THERMOMETERS
-            .iter()
-            .enumerate()
-            .filter_map(|(k, t)| names.iter().position(|n| n == t).map(|c| (k, c)))
-            .collect();
-        let sensors: Vec<usize> = columns.iter().map(|(k, _)| *k).collect();
-        let header_at = reader.line_number();
+        let mask = reader.columns().thermometer_mask();
+        let sensors: Vec<usize> = (0..THERMOMETERS.len()).filter(|k| mask & (1 << k) != 0).collect();
         let header_error = |message: String| RunError::Format {
             path: path.clone(),
-            line: header_at,
+            line: reader.line_number(),
             message,
         };
         if sensors.len() < 2 {
@@ -66,25 +86,11 @@ pub fn block_means(paths: &[PathBuf], block_samples: usize) -> Result<MultiBlock
             return Err(header_error("its thermometers differ from the first run's".into()));
         }
         let (mut sum_t, mut sum_b, mut count) = (vec![0.0; sensors.len()], 0.0, 0usize);
-        while let Some(raw) = reader.next_row()? {
-            let fields: Vec<&str> = raw.text.split(',').collect();
-            for (slot, &(k, c)) in sum_t.iter_mut().zip(&columns) {
-                let text = fields.get(c).map_or("", |f| record::trim_field(f));
-                let value = record::parse_f64(text)
-                    .ok()
-                    .filter(|v| v.is_finite())
-                    .ok_or_else(|| RunError::Format {
-                        path: path.clone(),
-                        line: raw.line,
-                        message: format!(
-                            "column {} (field {}): \"{text}\" is not a finite number",
-                            THERMOMETERS[k],
-                            c + 1
-                        ),
-                    })?;
-                *slot += value;
+        while let Some((_, row)) = reader.next_parsed()? {
+            for (slot, &k) in sum_t.iter_mut().zip(&sensors) {
+                *slot += row.temps_c[k].unwrap_or(f64::NAN);
             }
-            sum_b += raw.row.rate_dph - raw.row.ref_dph.unwrap_or(0.0);
+            sum_b += row.rate_dph - row.ref_dph.unwrap_or(0.0);
             count += 1;
             if count == block_samples.max(1) {
                 out.temps.push(sum_t.iter().map(|s| s / count as f64).collect());
@@ -127,6 +133,19 @@ pub struct Candidate {
     pub i: usize,
     /// Second thermometer (== `i` for the temperature itself).
     pub j: usize,
+}
+
+impl Candidate {
+    /// The model input this candidate is, given the thermometers behind the
+    /// matrix's rows (`sensors`, indices into [`THERMOMETERS`]).
+    pub fn probe(self, sensors: &[usize]) -> Probe {
+        let at = |k: usize| sensors.get(k).copied().unwrap_or(0) as u8;
+        if self.i == self.j {
+            Probe::Temp(at(self.i))
+        } else {
+            Probe::Gradient(at(self.i), at(self.j))
+        }
+    }
 }
 
 /// Correlations of every candidate with the bias: `r[i][j]` for the
@@ -303,7 +322,7 @@ mod tests {
         assert_eq!(
             err,
             format!(
-                "{}:3: column temp_b (field 4): \"x\" is not a finite number",
+                "{}:3: column temp_b (field 4): \"x\" is not a number",
                 dir.path().join("bad.csv").display()
             )
         );

@@ -6,9 +6,9 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand};
-use rbf_core::Model;
 use rbf_core::blob::{self, Header};
 use rbf_core::model::ModelBody;
+use rbf_core::{FeatureSet, Model};
 use trainer::blobfile::{read_model, write_model};
 use trainer::dataset::RunFiles;
 use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_file, evaluate_run, print_allan_table, print_table};
@@ -60,15 +60,37 @@ struct CorrelateArgs {
     /// Rows averaged per block (the paper's smoothing).
     #[arg(long, value_name = "N", default_value_t = 100)]
     block_samples: usize,
-    /// Select every candidate with |r| at least this.
+    #[command(flatten)]
+    select: SelectArgs,
+    /// Print JSON (matrix, names, selection) instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// How multi-point inputs are selected from their correlations with the bias.
+#[derive(Args, Debug)]
+struct SelectArgs {
+    /// Select every temperature and gradient with |r| at least this (the RLG paper: 0.9).
     #[arg(long, value_name = "R", default_value_t = 0.9, conflicts_with = "select_top")]
     select_threshold: f64,
     /// Select the N candidates of largest |r| instead.
     #[arg(long, value_name = "N")]
     select_top: Option<usize>,
-    /// Print JSON (matrix, names, selection) instead of the table.
-    #[arg(long)]
-    json: bool,
+}
+
+impl SelectArgs {
+    fn selection(&self) -> anyhow::Result<trainer::gradients::Selection> {
+        use trainer::gradients::Selection;
+        anyhow::ensure!(
+            (0.0..=1.0).contains(&self.select_threshold),
+            "--select-threshold {}: a correlation magnitude, 0 … 1",
+            self.select_threshold
+        );
+        Ok(match self.select_top {
+            Some(n) => Selection::Top(n),
+            None => Selection::Threshold(self.select_threshold),
+        })
+    }
 }
 
 /// Write the training data a fit sees: block means of the features and the bias target.
@@ -241,6 +263,8 @@ struct FitArgs {
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
+    #[command(flatten)]
+    select: SelectArgs,
 }
 
 /// Compensate a run with a model, exactly as the firmware does.
@@ -356,6 +380,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         folds: a.folds,
         serial: a.serial,
         progress: !a.quiet,
+        selection: a.select.selection()?,
         ..FitOptions::default()
     };
     anyhow::ensure!(
@@ -397,6 +422,10 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         )?;
     }
     if let Some(c) = &outcome.svr {
+        if let Some(sel) = &c.selection {
+            write!(out, "{}", describe_selection(&sel.table, &sel.selected, opts.selection))?;
+        }
+        writeln!(out, "inputs: {}", c.inputs.join(", "))?;
         writeln!(
             out,
             "PSO on 3-fold contiguous validation ({} particles × {} iterations): ΔT window {} s, σ {:.4} (normalised), C {:.4e}, ε {:.3e} °/h; validation RMS {:.4e} °/h",
@@ -439,13 +468,9 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
 }
 
 fn cmd_correlate(a: CorrelateArgs) -> anyhow::Result<()> {
-    use trainer::gradients::{Selection, block_means, candidate_name, correlations, format_table, select};
+    use trainer::gradients::{block_means, candidate_name, correlations, select};
     anyhow::ensure!(a.block_samples >= 1, "--block-samples must be at least 1");
-    anyhow::ensure!(
-        (0.0..=1.0).contains(&a.select_threshold),
-        "--select-threshold {}: a correlation magnitude, 0 … 1",
-        a.select_threshold
-    );
+    let selection = a.select.selection()?;
     let blocks = block_means(&a.runs, a.block_samples)?;
     anyhow::ensure!(
         blocks.bias.len() >= 3,
@@ -454,10 +479,6 @@ fn cmd_correlate(a: CorrelateArgs) -> anyhow::Result<()> {
         a.block_samples
     );
     let table = correlations(&blocks);
-    let selection = match a.select_top {
-        Some(n) => Selection::Top(n),
-        None => Selection::Threshold(a.select_threshold),
-    };
     let selected = select(&table, selection);
     if a.json {
         let names: Vec<String> = selected.iter().map(|&c| candidate_name(&table, c)).collect();
@@ -465,13 +486,24 @@ fn cmd_correlate(a: CorrelateArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    print!("{}", format_table(&table, &selected));
+    print!("{}", describe_selection(&table, &selected, selection));
+    Ok(())
+}
+
+/// The correlation matrix and the selection's line, as `correlate` and `fit` print them.
+fn describe_selection(
+    table: &trainer::gradients::CorrelationTable,
+    selected: &[trainer::gradients::Candidate],
+    selection: trainer::gradients::Selection,
+) -> String {
+    use trainer::gradients::{Selection, candidate_name, format_table};
     let names: Vec<String> = selected
         .iter()
-        .map(|&c| format!("{} (r = {:.3})", candidate_name(&table, c), table.r[c.i][c.j]))
+        .map(|&c| format!("{} (r = {:.3})", candidate_name(table, c), table.r[c.i][c.j]))
         .collect();
-    println!(
-        "selected ({}): {}",
+    format!(
+        "{}selected ({}): {}\n",
+        format_table(table, selected),
         match selection {
             Selection::Top(n) => format!("top {n}"),
             Selection::Threshold(t) => format!("|r| ≥ {t}"),
@@ -481,8 +513,7 @@ fn cmd_correlate(a: CorrelateArgs) -> anyhow::Result<()> {
         } else {
             names.join(", ")
         }
-    );
-    Ok(())
+    )
 }
 
 fn cmd_blocks(a: BlocksArgs) -> anyhow::Result<()> {
@@ -501,7 +532,7 @@ fn cmd_blocks(a: BlocksArgs) -> anyhow::Result<()> {
     let names: Vec<String> = (0..set.dims()).map(|i| format!("x{i}")).collect();
     let mut csv = format!(
         "# features: {}\nrun,{},target_dph\n",
-        set.names().join(", "),
+        input_names(set).join(", "),
         names.join(",")
     );
     for i in 0..blocks.len() {
@@ -605,15 +636,21 @@ fn cmd_eval(a: EvalArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The names of a feature set's inputs with units, for printing.
+fn input_names(set: FeatureSet) -> Vec<String> {
+    set.names().map(|n| n.to_string()).collect()
+}
+
 fn describe(model: &Model) -> String {
     let f = model.features();
-    let names = f.set.names().join(", ");
+    let all_names = input_names(f.set);
+    let names = all_names.join(", ");
     let windows = &f.windows_s()[..f.set.windows()];
     match model.body() {
         ModelBody::Rbf(net) => format!(
             "Gaussian RBF, {} centres over ({}), {}, ΔT windows {windows:?} s",
             net.centers_used(),
-            f.set.names()[..net.kernel_inputs()].join(", "),
+            all_names[..net.kernel_inputs().min(all_names.len())].join(", "),
             if net.linear().is_empty() {
                 "no linear terms".to_owned()
             } else {
@@ -665,12 +702,15 @@ fn inspect_json(
         let ranges: Vec<_> = (0..f.dims())
             .map(|i| {
                 let (lo, hi) = m.input_range(i).unwrap_or((f32::NAN, f32::NAN));
-                serde_json::json!({"input": f.set.names()[i], "min": lo, "max": hi})
+                serde_json::json!({"input": f.set.name(i).map(|n| n.to_string()), "min": lo, "max": hi})
             })
             .collect();
         v["features"] = serde_json::json!({
-            "set": format!("{:?}", f.set),
-            "inputs": f.set.names(),
+            "set": match f.set {
+                FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
+                set => format!("{set:?}"),
+            },
+            "inputs": input_names(f.set),
             "rate_window_s": f.rate_window_s,
             "windows_s": &f.windows_s()[..f.set.windows()],
             "warmup_s": f.warmup_s(),

@@ -278,6 +278,15 @@ fn steady_bias(model: &Model, t_c: f32, rate: f32) -> f32 {
                 t_c * t_c * rate,
             ]
         }
+        // Multi-point: the first two inputs on the axes, the others at the
+        // middle of their training range.
+        FeatureSet::MultiPoint(probes) => (0..probes.len())
+            .map(|i| match i {
+                0 => t_c,
+                1 => rate,
+                _ => model.input_range(i).map_or(0.0, |(lo, hi)| 0.5 * (lo + hi)),
+            })
+            .collect(),
     };
     model.eval(&FeatureVector::from_values(&values)).bias_dph
 }
@@ -288,10 +297,18 @@ where
 {
     root.fill(&WHITE)?;
     let (t_lo, t_hi) = model.input_range(0).unwrap_or((0.0, 1.0));
-    let (r_lo, r_hi) = if model.features().set == FeatureSet::Temp {
+    let set = model.features().set;
+    let (r_lo, r_hi) = if set.dims() < 2 {
         (-1.0, 1.0)
     } else {
         model.input_range(1).unwrap_or((-1.0, 1.0))
+    };
+    let multi_point = matches!(set, FeatureSet::MultiPoint(_));
+    let axis = |i: usize| set.name(i).map_or_else(String::new, |n| n.to_string());
+    let (x_desc, y_desc) = if multi_point {
+        (axis(0), axis(1))
+    } else {
+        ("loop temperature T [°C]".to_owned(), "ΔT [°C/min]".to_owned())
     };
     const N: usize = 60;
     let grid: Vec<(f32, f32, f32)> = (0..N * N)
@@ -302,7 +319,12 @@ where
         })
         .collect();
     let (b_lo, b_hi) = range(grid.iter().map(|g| g.2 as f64));
-    let caption = format!("fitted bias over T and a steady-ramp ΔT: blue {b_lo:.3} … red {b_hi:.3} °/h");
+    let over = if multi_point {
+        "its first two inputs (others mid-range)"
+    } else {
+        "T and a steady-ramp ΔT"
+    };
+    let caption = format!("fitted bias over {over}: blue {b_lo:.3} … red {b_hi:.3} °/h");
     let mut chart = ChartBuilder::on(&root)
         .caption(caption, ("sans-serif", 22))
         .margin(12)
@@ -311,8 +333,8 @@ where
         .build_cartesian_2d(t_lo as f64..t_hi as f64, r_lo as f64..r_hi as f64)?;
     chart
         .configure_mesh()
-        .x_desc("loop temperature T [°C]")
-        .y_desc("ΔT [°C/min]")
+        .x_desc(x_desc)
+        .y_desc(y_desc)
         .disable_mesh()
         .draw()?;
     let (dt, dr) = (

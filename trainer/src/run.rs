@@ -9,6 +9,7 @@ use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
+use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self, Columns, HeaderError, PeriodEstimator, Row, RowErrorKind};
 use rbf_core::{CompensatorConfig, GyroSample};
 
@@ -175,16 +176,34 @@ impl RunReader {
 
     /// Fails unless the run has a `temp_c` column (single-point models need it).
     pub fn require_temp(&self) -> Result<(), RunError> {
-        if self.columns.temp_c.is_none() {
-            return Err(self.error_at(
-                self.line_no, // still the header line: called before any row is read
-                format!(
-                    "header has no column temp_c, which single-point models need (header: {})",
-                    short(&self.header_line)
-                ),
-            ));
+        self.require_thermometers(1 << LOOP_THERMOMETER)
+    }
+
+    /// Fails unless the run has the thermometer columns of `mask` (bit i =
+    /// `temp_a` … `temp_h`), naming the missing ones.
+    pub fn require_thermometers(&self, mask: u8) -> Result<(), RunError> {
+        let missing: Vec<&str> = record::column::THERMOMETERS
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| mask & !self.columns.thermometer_mask() & (1 << i) != 0)
+            .map(|(_, name)| *name)
+            .collect();
+        if missing.is_empty() {
+            return Ok(());
         }
-        Ok(())
+        let what = if mask == 1 << LOOP_THERMOMETER {
+            "which single-point models need"
+        } else {
+            "which the model's inputs need"
+        };
+        Err(self.error_at(
+            self.line_no, // still the header line: called before any row is read
+            format!(
+                "header has no column {}, {what} (header: {})",
+                missing.join(", "),
+                short(&self.header_line)
+            ),
+        ))
     }
 
     fn error_at(&self, line: usize, message: String) -> RunError {
@@ -372,6 +391,11 @@ pub struct Run {
     pub rate_dph: Vec<f64>,
     /// Loop temperature, °C (`None` where `temp_fault` = 1).
     pub temp_c: Vec<Option<f64>>,
+    /// All thermometers `temp_a` … `temp_h` per row, °C (`None` where absent
+    /// or `temp_fault` = 1); empty unless the run has thermometers besides `temp_c`.
+    pub temps_c: Vec<[Option<f64>; THERMOMETERS]>,
+    /// The thermometer columns the run has (bit i = `temp_a` … `temp_h`).
+    pub thermometer_mask: u8,
     /// Known true rate, °/h, if the run has the column.
     pub ref_dph: Option<Vec<f64>>,
     /// Nominal sample period, s (see [`record::nominal_period_s`]).
@@ -379,25 +403,34 @@ pub struct Run {
 }
 
 impl Run {
-    /// Reads a whole run that has a `temp_c` column.
+    /// Reads a whole run that has a `temp_c` column or other thermometers.
     pub fn load(path: &Path) -> Result<Run, RunError> {
         Self::read(RunReader::open(path)?)
     }
 
-    /// Reads the rest of a run from an open reader (the run needs a `temp_c` column).
+    /// Reads the rest of a run from an open reader (the run needs a `temp_c`
+    /// column or other thermometers).
     pub fn read(mut reader: RunReader) -> Result<Run, RunError> {
         let path = reader.path().to_owned();
-        reader.require_temp()?;
+        if reader.columns().thermometer_mask() == 0 {
+            reader.require_temp()?;
+        }
         let has_ref = reader.columns().ref_dph.is_some();
         let mut period = reader.period_estimator();
-        let (mut time_s, mut rate_dph, mut temp_c, mut ref_dph) = (vec![], vec![], vec![], vec![]);
+        let thermometer_mask = reader.columns().thermometer_mask();
+        let multi_point = thermometer_mask & !(1 << LOOP_THERMOMETER) != 0;
+        let (mut time_s, mut rate_dph, mut temp_c, mut temps_c, mut ref_dph) = (vec![], vec![], vec![], vec![], vec![]);
         while let Some(raw) = reader.next_row()? {
             if !period.is_complete() {
                 period.push_time(raw.row.time_s);
             }
             time_s.push(raw.row.time_s);
             rate_dph.push(raw.row.rate_dph);
-            temp_c.push(raw.temp_c());
+            let readings = raw.row.readings_c();
+            temp_c.push(readings[LOOP_THERMOMETER]);
+            if multi_point {
+                temps_c.push(readings);
+            }
             if has_ref {
                 ref_dph.push(raw.row.ref_dph.unwrap_or(0.0));
             }
@@ -415,6 +448,8 @@ impl Run {
             time_s,
             rate_dph,
             temp_c,
+            temps_c,
+            thermometer_mask,
             ref_dph: has_ref.then_some(ref_dph),
             nominal_period_s,
         })
@@ -447,7 +482,11 @@ impl Run {
     pub fn samples(&self) -> impl Iterator<Item = GyroSample> + '_ {
         (0..self.len()).map(|i| {
             let prev = i.checked_sub(1).map(|p| self.time_s[p]);
-            gyro_sample(prev, self.time_s[i], self.rate_dph[i], self.temp_c[i])
+            let readings = match self.temps_c.get(i) {
+                Some(all) => *all,
+                None => loop_only(self.temp_c[i]),
+            };
+            gyro_sample(prev, self.time_s[i], self.rate_dph[i], &readings)
         })
     }
 }
@@ -475,21 +514,39 @@ impl Reference<'_> {
 /// the time step since the previous row (computed in f64, rounded once to
 /// f32, on host and target alike; 0 for the first row), the rate rounded to
 /// f32 (the front end's binary32 word), and the loop temperature at TMP117
-/// resolution (1/128 °C, the finest the firmware can see).
-/// `temp_c` is `None` when the sensor failed (`temp_fault` = 1).
-pub fn gyro_sample(prev_time_s: Option<f64>, time_s: f64, rate_dph: f64, temp_c: Option<f64>) -> GyroSample {
+/// resolution (1/128 °C, the finest the firmware can see), likewise every
+/// thermometer. A reading is `None` when the sensor failed (`temp_fault` = 1)
+/// or the run has no such column.
+pub fn gyro_sample(
+    prev_time_s: Option<f64>,
+    time_s: f64,
+    rate_dph: f64,
+    temps_c: &[Option<f64>; THERMOMETERS],
+) -> GyroSample {
     GyroSample {
         dt_s: record::time_step_s(prev_time_s, time_s),
         rate_dph: rate_dph as f32,
-        temp_c: temp_c.map(rbf_core::sensor::tmp117_quantise),
+        temps_c: temps_c.map(|t| t.map(rbf_core::sensor::tmp117_quantise)),
     }
+}
+
+/// Thermometer readings with only the loop temperature.
+pub fn loop_only(temp_c: Option<f64>) -> [Option<f64>; THERMOMETERS] {
+    let mut readings = [None; THERMOMETERS];
+    readings[LOOP_THERMOMETER] = temp_c;
+    readings
 }
 
 impl RawRow {
     /// The loop temperature of this row: `None` when the column is absent or
     /// `temp_fault` = 1.
     pub fn temp_c(&self) -> Option<f64> {
-        if self.row.temp_fault { None } else { self.row.temp_c }
+        self.row.readings_c()[LOOP_THERMOMETER]
+    }
+
+    /// The gyro sample of this row (see [`gyro_sample`]).
+    pub fn sample(&self, prev_time_s: Option<f64>) -> GyroSample {
+        gyro_sample(prev_time_s, self.row.time_s, self.row.rate_dph, &self.row.readings_c())
     }
 }
 
@@ -516,11 +573,13 @@ pub struct StreamedRun {
 }
 
 impl StreamedRun {
-    /// Opens a run that has a `temp_c` column.
-    pub fn open(path: &Path) -> Result<Self, RunError> {
+    /// Opens a run that has the thermometer columns of `mask` (bit i =
+    /// `temp_a` … `temp_h`; single-point models read `temp_c`, see
+    /// [`rbf_core::FeatureSet::thermometer_mask`]).
+    pub fn open(path: &Path, mask: u8) -> Result<Self, RunError> {
         let nominal_period_s = probe_nominal_period_s(path)?;
         let reader = RunReader::open(path)?;
-        reader.require_temp()?;
+        reader.require_thermometers(mask)?;
         Ok(StreamedRun {
             nominal_period_s,
             has_ref: reader.columns().ref_dph.is_some(),
@@ -535,8 +594,7 @@ impl StreamedRun {
         let mut rows = 0;
         for_each_row_batch(self.reader, |batch| {
             for row in batch {
-                let temp_c = if row.temp_fault { None } else { row.temp_c };
-                let sample = gyro_sample(prev_time_s, row.time_s, row.rate_dph, temp_c);
+                let sample = gyro_sample(prev_time_s, row.time_s, row.rate_dph, &row.readings_c());
                 prev_time_s = Some(row.time_s);
                 rows += 1;
                 each(row, &sample);
@@ -612,7 +670,7 @@ mod tests {
         assert_eq!(whole.len(), 3);
         assert_eq!(whole.iter().map(|(line, _)| *line).collect::<Vec<_>>(), [3, 6, 7]);
         assert_eq!(whole[1].1.rate_dph, 2.5);
-        assert_eq!(whole[2].1.temp_c, Some(20.5), "last line without a line end");
+        assert_eq!(whole[2].1.temp_c(), Some(20.5), "last line without a line end");
         for capacity in [1, 5, 7, 16] {
             assert_eq!(rows(capacity, TEXT).unwrap(), whole, "buffer of {capacity} bytes");
         }

@@ -147,11 +147,7 @@ mod board {
             let start = SYST::get_current();
             for _ in 0..SAMPLES {
                 temp_c += 0.0001;
-                let sample = GyroSample {
-                    dt_s: 0.001,
-                    rate_dph: 12.5,
-                    temp_c: Some(temp_c),
-                };
+                let sample = GyroSample::new(0.001, 12.5, Some(temp_c));
                 core::hint::black_box(compensator.process(Some(core::hint::black_box(&model)), &config, &sample));
             }
             let step = instructions_per_sample(start);

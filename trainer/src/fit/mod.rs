@@ -85,6 +85,8 @@ pub struct FitOptions {
     pub serial: Option<String>,
     /// Show a progress bar.
     pub progress: bool,
+    /// How `svr-pso` picks multi-point inputs from the candidates' correlations.
+    pub selection: crate::gradients::Selection,
 }
 
 impl Default for FitOptions {
@@ -99,6 +101,7 @@ impl Default for FitOptions {
             folds: 5,
             serial: None,
             progress: false,
+            selection: crate::gradients::Selection::Threshold(0.9),
         }
     }
 }

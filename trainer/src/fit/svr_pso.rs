@@ -4,9 +4,14 @@
 //! the firmware's RBF network: an SVR's kernel expansion is a Gaussian RBF
 //! network with one shared width, so the firmware runs it unchanged.
 //!
-//! Inputs: the IFOG paper's (T, ΔT, T×ΔT) block means (one ΔT window, the
-//! middle of `--rate-window`'s list). The paper's multi-point gradient inputs
-//! with correlation-based selection are not built yet (issue 5).
+//! Inputs: on runs with two or more thermometers (`temp_a` … `temp_h`), the
+//! paper's multi-point inputs: every temperature and pairwise gradient is a
+//! candidate, its 100-s block means are correlated with the bias
+//! ([`crate::gradients`], the paper's Table 3) and the selection rule
+//! ([`FitOptions::selection`]) picks the model's inputs, which rbf-core then
+//! computes per sample ([`rbf_core::FeatureSet::MultiPoint`]). On
+//! single-thermometer runs, the IFOG paper's (T, ΔT, T×ΔT) (one ΔT window,
+//! the middle of `--rate-window`'s list).
 //!
 //! Deployment: when the support vectors exceed the centre budget
 //! (`--centers K`, else `--max-centers`, at most the firmware's
@@ -15,15 +20,17 @@
 //! blocks; [`SvrChoice`] reports what that costs on the validation folds.
 
 use nalgebra::{DMatrix, DVector};
+use rbf_core::features::{Probe, Probes, THERMOMETERS};
 use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
-use rbf_core::{FeatureSet, MAX_CENTERS, Model};
+use rbf_core::{FeatureConfig, FeatureSet, MAX_CENTERS, MAX_INPUTS, Model};
 
 use super::linalg::{FeatureRow, GramStats, InputShape, Normaliser, design, ridge_solve, thin};
 use super::pso::{self, PsoOptions};
 use super::svr::{Svr, SvrParams};
 use super::{FitOptions, Progress, check_excitation, deploy_ranges, rbf, serial};
 use crate::dataset::RunSet;
+use crate::gradients::{self, Candidate, CorrelationTable, MultiBlocks};
 
 /// The deployed network's centre budget.
 fn centre_budget(opts: &FitOptions) -> usize {
@@ -43,10 +50,27 @@ const LOG_EPSILON: (f64, f64) = (-4.0, -0.5);
 /// Ridge strength when the weights of a reduced network are refitted.
 const REFIT_RIDGE: f64 = 1e-7;
 
+/// 1-s training blocks per block of the correlation analysis: 100-s means,
+/// the paper's 100 samples at its 1 Hz.
+const CORRELATION_BLOCK_S: f64 = 100.0;
+
+/// How the multi-point inputs were chosen.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct InputSelection {
+    /// Correlation of every candidate with the bias (the paper's Table 3).
+    pub table: CorrelationTable,
+    /// The candidates chosen, in the model's input order.
+    pub selected: Vec<Candidate>,
+}
+
 /// What the swarm chose and what deployment cost.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct SvrChoice {
-    /// ΔT derivative-filter time constant, s.
+    /// The model's inputs with units.
+    pub inputs: Vec<String>,
+    /// Multi-point runs: the correlation analysis behind the inputs.
+    pub selection: Option<InputSelection>,
+    /// ΔT derivative-filter time constant, s (single-point inputs; 0 for multi-point).
     pub rate_window_s: f32,
     /// The SVR's hyper-parameters (σ in normalised units, ε in °/h).
     pub params: SvrParams,
@@ -78,13 +102,13 @@ pub fn fit<T: RunSet + ?Sized>(
     opts: &FitOptions,
     progress: &Progress,
 ) -> anyhow::Result<(Model, SvrChoice)> {
-    let set = FeatureSet::TempRateProduct;
-    let windows = &opts.rate_windows_s;
-    let window = windows.get(windows.len() / 2).copied().unwrap_or(60.0);
-    let features = rbf::feature_config(set, window);
-    train.prepare(&[features], opts.block_s)?;
+    let (features, selection) = choose_inputs(train, opts)?;
+    let set = features.set;
+    let window = features.rate_window_s;
     let blocks = train.block_means(&features, opts.block_s)?;
-    check_excitation(&blocks, set, opts)?;
+    if selection.is_none() {
+        check_excitation(&blocks, set, opts)?;
+    }
     let norm = Normaliser::fit(&blocks);
     let all: Vec<usize> = (0..blocks.len()).collect();
     let rows = thin(&all, MAX_SVR_ROWS);
@@ -172,6 +196,8 @@ pub fn fit<T: RunSet + ?Sized>(
     let model = Model::new(features, &deploy_ranges(&blocks), ModelBody::Rbf(net), info)
         .map_err(|e| anyhow::anyhow!("the compiled SVR is not deployable: {e}"))?;
     let choice = SvrChoice {
+        inputs: set.names().map(|n| n.to_string()).collect(),
+        selection,
         rate_window_s: window,
         params,
         support_vectors: svr.support.len(),
@@ -182,6 +208,46 @@ pub fn fit<T: RunSet + ?Sized>(
         pso_history: result.history,
     };
     Ok((model, choice))
+}
+
+/// The model's inputs: multi-point ones chosen by correlation where every
+/// training run has two or more thermometers, else (T, ΔT, T×ΔT).
+fn choose_inputs<T: RunSet + ?Sized>(
+    train: &T,
+    opts: &FitOptions,
+) -> anyhow::Result<(FeatureConfig, Option<InputSelection>)> {
+    let mask = train.thermometer_mask()?;
+    if mask.count_ones() < 2 {
+        let windows = &opts.rate_windows_s;
+        let window = windows.get(windows.len() / 2).copied().unwrap_or(60.0);
+        let features = rbf::feature_config(FeatureSet::TempRateProduct, window);
+        train.prepare(&[features], opts.block_s)?;
+        return Ok((features, None));
+    }
+    // Every thermometer's block means, computed by rbf-core as the firmware
+    // would (TMP117 resolution, faults held); gradients are their differences.
+    let sensors: Vec<usize> = (0..THERMOMETERS).filter(|i| mask & (1 << i) != 0).collect();
+    let all_temps: Vec<Probe> = sensors.iter().map(|&i| Probe::Temp(i as u8)).collect();
+    let temps_config =
+        FeatureConfig::multipoint(Probes::new(&all_temps).ok_or_else(|| anyhow::anyhow!("no thermometer to read"))?);
+    train.prepare(&[temps_config], opts.block_s)?;
+    let temps = train.block_means(&temps_config, opts.block_s)?;
+    check_excitation(&temps, FeatureSet::Temp, opts)?;
+    let group = (CORRELATION_BLOCK_S / opts.block_s).round().max(1.0) as usize;
+    let table = gradients::correlations(&MultiBlocks::from_blocks(&temps, &sensors, group));
+    let mut selected = gradients::select(&table, opts.selection);
+    selected.truncate(MAX_INPUTS);
+    anyhow::ensure!(
+        !selected.is_empty(),
+        "no temperature or gradient passes the selection rule (--select-threshold / --select-top); \
+         see `trainer correlate` for the correlations"
+    );
+    let probes: Vec<Probe> = selected.iter().map(|c| c.probe(&sensors)).collect();
+    let features = FeatureConfig::multipoint(
+        Probes::new(&probes).ok_or_else(|| anyhow::anyhow!("the selected inputs do not form a valid set"))?,
+    );
+    train.prepare(&[features], opts.block_s)?;
+    Ok((features, Some(InputSelection { table, selected })))
 }
 
 /// The SVR's expansion within `budget` centres: itself when it fits, else
