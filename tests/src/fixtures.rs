@@ -40,6 +40,31 @@ pub fn model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
     )
 }
 
+/// Fits a 16-centre `svr-pso` model on multi-point inputs (the loop
+/// temperature temp_c and the gradients temp_a − temp_e and temp_c − temp_d)
+/// on a 1 °C/min multi-point run and writes a fault-injected slice of a
+/// 2 °C/min multi-point run into `dir` (`temp_fault` fails every
+/// thermometer); returns (model, slice path).
+pub fn multipoint_model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
+    use rbf_core::features::Probe;
+    let mut chamber = ChamberRun::ifog(1.0, 41);
+    chamber.hold_s = 1800.0;
+    chamber.multi = true;
+    let train_path = dir.join("train_multi.csv");
+    std::fs::write(&train_path, chamber.to_csv()).expect("write training run");
+    let train = Run::load(&train_path).expect("simulated run reads");
+    let opts = FitOptions {
+        method: fit::Method::SvrPso,
+        centers: Some(16),
+        inputs: Some(vec![Probe::Temp(2), Probe::Gradient(0, 4), Probe::Gradient(2, 3)]),
+        ..FitOptions::default()
+    };
+    let model = fit::fit(std::slice::from_ref(&train), &[], &opts).expect("fit").model;
+    let mut verify = ChamberRun::ifog(2.0, 42);
+    verify.multi = true;
+    (model, faulty_slice(dir, &verify.to_csv(), "slice_multi.csv"))
+}
+
 /// The first [`ROWS`] data rows of `run_csv` with a `temp_fault` column marking [`faulty`] rows.
 pub fn faulty_slice(dir: &Path, run_csv: &str, name: &str) -> PathBuf {
     let mut text = String::new();

@@ -47,6 +47,32 @@ fn qemu_replay_with_sensor_faults_is_byte_identical_to_trainer_compensate() {
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn qemu_replay_of_a_multi_point_run_reads_eight_tmp117s_and_matches_trainer_compensate() {
+    let dir = TempDir::new().unwrap();
+    let (model, slice) = fixtures::multipoint_model_and_faulty_slice(dir.path());
+    assert!(
+        matches!(model.features().set, rbf_core::FeatureSet::MultiPoint(_)),
+        "{:?}",
+        model.features()
+    );
+    let model_path = dir.path().join("model.bin");
+    write_model(&model_path, &model, Existing::Replace).unwrap();
+    let expected_path = dir.path().join("expected.csv");
+    let (_, flagged) = compensate_file(Some(&model), &slice, &expected_path).unwrap();
+    let out = dir.path().join("qemu.csv");
+    let summary = xtask::replay::qemu_replay(&model_path, &slice, &out, None).unwrap();
+    assert_eq!(summary.samples, fixtures::ROWS);
+    // The inputs read temp_a, temp_c, temp_d and temp_e: four TMP117s on two
+    // buses, each failing on every faulted row.
+    let reads_failed = format!("temp_read_faults {} ", 4 * fixtures::FAULTY_ROWS);
+    assert!(summary.report.contains(&reads_failed), "{}", summary.report);
+    let (got, want) = (std::fs::read(&out).unwrap(), std::fs::read(&expected_path).unwrap());
+    assert!(got == want, "QEMU replay output differs from trainer compensate");
+    assert_eq!(flagged.temp_sensor_fault, fixtures::FAULTY_ROWS as usize);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn corrupt_model_slot_runs_uncompensated_with_flag_4_never_halts() {
     // The replay command refuses a corrupt blob up front (as trainer compensate
     // does), so place the corrupt bytes in flash directly and run the image.

@@ -146,6 +146,20 @@ impl Candidate {
             Probe::Gradient(at(self.i), at(self.j))
         }
     }
+
+    /// The candidate `probe` is, if its thermometers are among `sensors`
+    /// (a gradient listed as i < j in the matrix; T_j − T_i is its negative).
+    pub fn of_probe(probe: Probe, sensors: &[usize]) -> Option<Candidate> {
+        let row = |t: u8| sensors.iter().position(|&s| s == t as usize);
+        let (i, j) = match probe {
+            Probe::Temp(t) => (row(t)?, row(t)?),
+            Probe::Gradient(a, b) => (row(a)?, row(b)?),
+        };
+        Some(Candidate {
+            i: i.min(j),
+            j: i.max(j),
+        })
+    }
 }
 
 /// Correlations of every candidate with the bias: `r[i][j]` for the

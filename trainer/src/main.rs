@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand};
 use rbf_core::blob::{self, Header};
+use rbf_core::features::Probe;
 use rbf_core::model::ModelBody;
 use rbf_core::{FeatureSet, Model};
 use trainer::blobfile::{read_model, write_model};
@@ -265,6 +266,30 @@ struct FitArgs {
     quiet: bool,
     #[command(flatten)]
     select: SelectArgs,
+    /// svr-pso on multi-point runs: use these inputs instead of a selection, comma-separated
+    /// temperatures and gradients, e.g. `temp_d,temp_c-temp_d,temp_a-temp_b` (at most 8).
+    #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = parse_probe)]
+    inputs: Option<Vec<Probe>>,
+}
+
+/// A multi-point input by its column names: `temp_c` or `temp_c-temp_e`.
+fn parse_probe(text: &str) -> Result<Probe, String> {
+    let index = |name: &str| {
+        rbf_core::record::column::THERMOMETERS
+            .iter()
+            .position(|t| *t == name.trim())
+            .map(|i| i as u8)
+            .ok_or_else(|| format!("{name:?} is not one of temp_a … temp_h"))
+    };
+    let probe = match text.split_once('-') {
+        Some((hot, cold)) => Probe::Gradient(index(hot)?, index(cold)?),
+        None => Probe::Temp(index(text)?),
+    };
+    if probe.is_valid() {
+        Ok(probe)
+    } else {
+        Err(format!("{text:?}: a gradient needs two different thermometers"))
+    }
 }
 
 /// Compensate a run with a model, exactly as the firmware does.
@@ -381,6 +406,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         serial: a.serial,
         progress: !a.quiet,
         selection: a.select.selection()?,
+        inputs: a.inputs.clone(),
         ..FitOptions::default()
     };
     anyhow::ensure!(

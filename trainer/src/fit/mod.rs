@@ -87,6 +87,8 @@ pub struct FitOptions {
     pub progress: bool,
     /// How `svr-pso` picks multi-point inputs from the candidates' correlations.
     pub selection: crate::gradients::Selection,
+    /// `svr-pso` on multi-point runs: these inputs instead of a selection.
+    pub inputs: Option<Vec<rbf_core::features::Probe>>,
 }
 
 impl Default for FitOptions {
@@ -102,6 +104,7 @@ impl Default for FitOptions {
             serial: None,
             progress: false,
             selection: crate::gradients::Selection::Threshold(0.9),
+            inputs: None,
         }
     }
 }

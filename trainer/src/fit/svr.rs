@@ -17,7 +17,15 @@
 //! built on nalgebra. This solver is LIBSVM's algorithm in ~200 lines, with
 //! tests of its KKT conditions.
 
-use super::linalg::FeatureRow;
+use super::linalg::{FeatureRow, GramStats, ridge_solve};
+
+/// Ridge strength of the partially linear SVR's linear part (inputs normalised).
+const LINEAR_RIDGE: f64 = 1e-6;
+
+/// w₀ + Σ w_i x_i over the first `dims` inputs.
+fn linear_part(w: &nalgebra::DVector<f64>, x: &FeatureRow, dims: usize) -> f64 {
+    w[0] + (0..dims).map(|i| w[1 + i] * x[i]).sum::<f64>()
+}
 
 /// Hyper-parameters of one ε-SVR.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -39,6 +47,9 @@ pub struct Svr {
     pub coef: Vec<f64>,
     /// Constant term (−ρ).
     pub bias: f64,
+    /// Weights of a linear part added to the expansion (empty: none; see
+    /// [`Svr::fit_partially_linear`]).
+    pub linear: Vec<f64>,
     /// Kernel width σ.
     pub sigma: f64,
     /// Inputs used.
@@ -234,16 +245,45 @@ impl Svr {
             support,
             coef,
             bias: if rho.is_finite() { -rho } else { 0.0 },
+            linear: Vec::new(),
             sigma: params.sigma,
             dims,
             iterations,
         }
     }
 
+    /// A partially linear ε-SVR (Smola, Frieß & Schölkopf, NIPS 1998): a
+    /// least-squares linear part in the inputs, and an ε-SVR of what it leaves.
+    /// Outside the training range the Gaussians fade and the linear part
+    /// carries on: a faster ramp than any in training still gets the
+    /// proportional share of a rate-driven bias.
+    pub fn fit_partially_linear(
+        x: &[FeatureRow],
+        y: &[f64],
+        dims: usize,
+        params: SvrParams,
+        max_iterations: usize,
+    ) -> Svr {
+        let n = x.len().min(y.len());
+        let a = nalgebra::DMatrix::from_fn(n, 1 + dims, |r, c| if c == 0 { 1.0 } else { x[r][c - 1] });
+        let target = nalgebra::DVector::from_column_slice(&y[..n]);
+        let stats = GramStats::new(&a, &target);
+        let Some(w) = ridge_solve(&stats, 1 + dims, LINEAR_RIDGE) else {
+            return Svr::fit(x, y, dims, params, max_iterations);
+        };
+        let residual: Vec<f64> = (0..n).map(|r| y[r] - linear_part(&w, &x[r], dims)).collect();
+        let mut svr = Svr::fit(x, &residual, dims, params, max_iterations);
+        svr.bias += w[0];
+        svr.linear = w.as_slice()[1..].to_vec();
+        svr
+    }
+
     /// The regression function at `x`.
     pub fn predict(&self, x: &FeatureRow) -> f64 {
         let gamma = 1.0 / (2.0 * self.sigma * self.sigma);
-        self.bias
+        let linear: f64 = self.linear.iter().zip(x).map(|(w, v)| w * v).sum();
+        linear
+            + self.bias
             + self
                 .support
                 .iter()

@@ -133,7 +133,7 @@ pub fn fit<T: RunSet + ?Sized>(
             .iter()
             .map(|f| {
                 let (fx, fy) = pick(&x, &y, &f.train);
-                let svr = Svr::fit(&fx, &fy, dims, params, MAX_SMO_STEPS);
+                let svr = Svr::fit_partially_linear(&fx, &fy, dims, params, MAX_SMO_STEPS);
                 cluster_rms(f.validate.iter().map(|&i| y[i] - svr.predict(&x[i])), per_cluster)
             })
             .sum::<f64>()
@@ -155,7 +155,7 @@ pub fn fit<T: RunSet + ?Sized>(
         anyhow::bail!("no SVR could be fitted (singular or empty data)");
     }
     let params = params_at(&result.best);
-    let svr = Svr::fit(&x, &y, dims, params, MAX_SMO_STEPS);
+    let svr = Svr::fit_partially_linear(&x, &y, dims, params, MAX_SMO_STEPS);
     let budget = centre_budget(opts);
     let deployed = deployable(&svr, &x, &y, budget)?;
     // The cost of the reduction, on the same folds.
@@ -164,7 +164,7 @@ pub fn fit<T: RunSet + ?Sized>(
             .iter()
             .map(|f| {
                 let (fx, fy) = pick(&x, &y, &f.train);
-                let fold_svr = Svr::fit(&fx, &fy, dims, params, MAX_SMO_STEPS);
+                let fold_svr = Svr::fit_partially_linear(&fx, &fy, dims, params, MAX_SMO_STEPS);
                 match deployable(&fold_svr, &fx, &fy, budget) {
                     Ok(net) => cluster_rms(f.validate.iter().map(|&i| y[i] - net.predict(&x[i])), per_cluster),
                     Err(_) => f64::INFINITY,
@@ -188,7 +188,7 @@ pub fn fit<T: RunSet + ?Sized>(
         centers: &flat_centers,
         widths: &vec![params.sigma as f32; deployed.support.len()],
         weights: &to_f32(&deployed.coef),
-        linear: &[],
+        linear: &to_f32(&deployed.linear),
         constant: deployed.bias as f32,
     })
     .map_err(|e| anyhow::anyhow!("the compiled SVR is not deployable: {e}"))?;
@@ -235,14 +235,29 @@ fn choose_inputs<T: RunSet + ?Sized>(
     check_excitation(&temps, FeatureSet::Temp, opts)?;
     let group = (CORRELATION_BLOCK_S / opts.block_s).round().max(1.0) as usize;
     let table = gradients::correlations(&MultiBlocks::from_blocks(&temps, &sensors, group));
-    let mut selected = gradients::select(&table, opts.selection);
-    selected.truncate(MAX_INPUTS);
-    anyhow::ensure!(
-        !selected.is_empty(),
-        "no temperature or gradient passes the selection rule (--select-threshold / --select-top); \
-         see `trainer correlate` for the correlations"
-    );
-    let probes: Vec<Probe> = selected.iter().map(|c| c.probe(&sensors)).collect();
+    let (selected, probes) = match &opts.inputs {
+        Some(given) => {
+            for p in given {
+                anyhow::ensure!(
+                    p.thermometer_mask() & !mask == 0,
+                    "--inputs {p}: the training runs lack that thermometer"
+                );
+            }
+            let selected = given.iter().filter_map(|p| Candidate::of_probe(*p, &sensors)).collect();
+            (selected, given.clone())
+        }
+        None => {
+            let mut selected = gradients::select(&table, opts.selection);
+            selected.truncate(MAX_INPUTS);
+            anyhow::ensure!(
+                !selected.is_empty(),
+                "no temperature or gradient passes the selection rule (--select-threshold / --select-top); \
+                 see `trainer correlate` for the correlations"
+            );
+            let probes = selected.iter().map(|c| c.probe(&sensors)).collect();
+            (selected, probes)
+        }
+    };
     let features = FeatureConfig::multipoint(
         Probes::new(&probes).ok_or_else(|| anyhow::anyhow!("the selected inputs do not form a valid set"))?,
     );
@@ -260,25 +275,30 @@ fn deployable(svr: &Svr, x: &[FeatureRow], y: &[f64], budget: usize) -> anyhow::
     let rows: Vec<usize> = (0..x.len()).collect();
     let dims = svr.dims;
     let shape = InputShape { dims, kernel: dims };
-    // design(): [1, linear terms, Gaussians]; the SVR has no linear terms.
+    // design(): [1, linear terms, Gaussians]; the constant and the linear
+    // part (if the SVR has one) are kept and refitted with the chosen Gaussians.
     let a = design(x, &rows, shape, &svr.support, svr.sigma);
-    let fixed = a.columns(0, 1).clone_owned();
+    let fixed_count = 1 + if svr.linear.is_empty() { 0 } else { dims };
+    let fixed = a.columns(0, fixed_count).clone_owned();
     let candidates = a.columns(1 + dims, svr.support.len()).clone_owned();
     let target = DVector::from_column_slice(y);
     let order = super::ols::forward_select(&candidates, &fixed, &target, budget).order;
     let centers: Vec<FeatureRow> = order.iter().map(|&m| svr.support[m]).collect();
-    let mut reduced = DMatrix::zeros(x.len(), 1 + centers.len());
-    reduced.set_column(0, &fixed.column(0));
+    let mut reduced = DMatrix::zeros(x.len(), fixed_count + centers.len());
+    for c in 0..fixed_count {
+        reduced.set_column(c, &fixed.column(c));
+    }
     for (k, &m) in order.iter().enumerate() {
-        reduced.set_column(1 + k, &candidates.column(m));
+        reduced.set_column(fixed_count + k, &candidates.column(m));
     }
     let stats = GramStats::new(&reduced, &target);
-    let w = ridge_solve(&stats, 1 + centers.len(), REFIT_RIDGE)
+    let w = ridge_solve(&stats, fixed_count + centers.len(), REFIT_RIDGE)
         .ok_or_else(|| anyhow::anyhow!("the reduced network's weights are singular"))?;
     Ok(Svr {
         support: centers,
-        coef: w.as_slice()[1..].to_vec(),
+        coef: w.as_slice()[fixed_count..].to_vec(),
         bias: w[0],
+        linear: w.as_slice()[1..fixed_count].to_vec(),
         ..svr.clone()
     })
 }
