@@ -198,3 +198,54 @@ fn svr_pso_compiles_to_a_deployable_network_that_compensates_unseen_ramp_rates()
     let again = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap();
     assert_eq!(again.model, outcome.model);
 }
+
+#[test]
+fn svr_pso_on_multi_point_runs_selects_by_correlation_and_on_gyro_inputs_generalise() {
+    // The RLG paper's method on 8-thermometer runs: candidates correlated with
+    // the bias, inputs selected, computed per sample by rbf-core.
+    let dir = TempDir::new().unwrap();
+    let multi = |mut run: ChamberRun| {
+        run.multi = true;
+        run
+    };
+    let train = load(&simulated(&dir, "train_multi.csv", &multi(ChamberRun::cycle(1.0, 51))));
+    let verify = [load(&simulated(
+        &dir,
+        "v5_multi.csv",
+        &multi(ChamberRun::cycle(5.0, 52)),
+    ))];
+    // Two inputs by correlation (the threshold rule is unit-tested in
+    // trainer::gradients; a short selection keeps this fit quick).
+    let paper = FitOptions {
+        method: Method::SvrPso,
+        selection: trainer::gradients::Selection::Top(2),
+        ..FitOptions::default()
+    };
+    let outcome = fit::fit(std::slice::from_ref(&train), &[], &paper).unwrap();
+    let selection = outcome
+        .svr
+        .and_then(|c| c.selection)
+        .expect("a multi-point run is correlated");
+    let r = |c: &trainer::gradients::Candidate| selection.table.r[c.i][c.j].abs();
+    assert_eq!(selection.selected.len(), 2);
+    let strongest_left_out = (0..8)
+        .flat_map(|i| (i..8).map(move |j| trainer::gradients::Candidate { i, j }))
+        .filter(|c| !selection.selected.contains(c))
+        .map(|c| r(&c))
+        .fold(0.0, f64::max);
+    assert!(selection.selected.iter().all(|c| r(c) >= strongest_left_out));
+    let rbf_core::FeatureSet::MultiPoint(probes) = outcome.model.features().set else {
+        panic!("multi-point inputs expected, got {:?}", outcome.model.features());
+    };
+    assert_eq!(probes.len(), selection.selected.len());
+
+    // The thermometers on the gyro itself (not the chamber air or the plate),
+    // named with --inputs: beyond the training ramp rate, as well as the
+    // best single-point model.
+    let on_gyro = FitOptions {
+        inputs: Some((0..6).map(rbf_core::features::Probe::Temp).collect()),
+        ..paper
+    };
+    let model = fit::fit(std::slice::from_ref(&train), &[], &on_gyro).unwrap().model;
+    assert_improves(&model, &verify, 90.0, "svr-pso on temp_a … temp_f");
+}

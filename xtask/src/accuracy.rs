@@ -1,6 +1,8 @@
 //! `cargo xtask bench-accuracy`: every method against the peers on simulated
 //! chamber runs of both protocols, trained on one run and verified on runs at
-//! other ramp rates and on a random profile.
+//! other ramp rates and on a random profile; then the RLG paper's comparison
+//! (its Tables 4 and 5): traditional three-point against multi-point inputs
+//! on 8-thermometer runs (`trainer simulate --multi`).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -10,15 +12,49 @@ use anyhow::{Context, bail};
 
 use crate::workspace_root;
 
-/// One protocol: a training run and verification runs (simulate arguments).
+/// One protocol: a training run and verification runs (simulate arguments),
+/// the methods compared and whether the Python peers join.
 struct Protocol {
     name: &'static str,
     rate_hz: f64,
     train: &'static [&'static str],
     verify: &'static [(&'static str, &'static [&'static str])],
+    methods: &'static [(&'static str, &'static [&'static str])],
+    peers: bool,
 }
 
-const PROTOCOLS: [Protocol; 2] = [
+/// Our methods: (label, `trainer fit` options).
+const METHODS: [(&str, &[&str]); 5] = [
+    ("poly3 (PX4/ArduPilot form)", &["--method", "poly3"]),
+    ("rbf2 (IFOG paper, before)", &["--method", "rbf2"]),
+    ("rbf --features paper (IFOG)", &["--features", "paper"]),
+    ("svr-pso, single-point (RLG)", &["--method", "svr-pso"]),
+    ("default (multiscale rbf)", &[]),
+];
+
+/// The RLG paper's comparison on 8-thermometer runs: single-point models,
+/// the traditional three temperatures (base, loop, electronics), and
+/// multi-point inputs by the paper's selection and by hand.
+const MULTI_POINT_METHODS: [(&str, &[&str]); 5] = [
+    ("rbf --features paper (loop only)", &["--features", "paper"]),
+    ("default rbf (loop only)", &[]),
+    (
+        "svr-pso three-point a, c, e",
+        &["--method", "svr-pso", "--inputs", "temp_a,temp_c,temp_e"],
+    ),
+    ("svr-pso multi-point |r| ≥ 0.9", &["--method", "svr-pso"]),
+    (
+        "svr-pso multi-point a … f (on-gyro)",
+        &[
+            "--method",
+            "svr-pso",
+            "--inputs",
+            "temp_a,temp_b,temp_c,temp_d,temp_e,temp_f",
+        ],
+    ),
+];
+
+const PROTOCOLS: [Protocol; 3] = [
     Protocol {
         name: "ifog",
         rate_hz: 1.0,
@@ -34,6 +70,8 @@ const PROTOCOLS: [Protocol; 2] = [
                 &["--profile", "random", "--random-range", "10,40", "--seed", "104"],
             ),
         ],
+        methods: &METHODS,
+        peers: true,
     },
     Protocol {
         name: "cycle",
@@ -50,16 +88,27 @@ const PROTOCOLS: [Protocol; 2] = [
             ),
             ("random −40…60 °C", &["--profile", "random", "--seed", "204"]),
         ],
+        methods: &METHODS,
+        peers: true,
     },
-];
-
-/// Our methods: (label, `trainer fit` options).
-const METHODS: [(&str, &[&str]); 5] = [
-    ("poly3 (PX4/ArduPilot form)", &["--method", "poly3"]),
-    ("rbf2 (IFOG paper, before)", &["--method", "rbf2"]),
-    ("rbf --features paper (IFOG)", &["--features", "paper"]),
-    ("svr-pso, single-point (RLG)", &["--method", "svr-pso"]),
-    ("default (multiscale rbf)", &[]),
+    Protocol {
+        name: "multi-point",
+        rate_hz: 1.0,
+        train: &["--profile", "cycle", "--ramp", "1", "--seed", "301", "--multi"],
+        verify: &[
+            (
+                "cycle 2 °C/min",
+                &["--profile", "cycle", "--ramp", "2", "--seed", "302", "--multi"],
+            ),
+            (
+                "cycle 5 °C/min",
+                &["--profile", "cycle", "--ramp", "5", "--seed", "303", "--multi"],
+            ),
+            ("random −40…60 °C", &["--profile", "random", "--seed", "304", "--multi"]),
+        ],
+        methods: &MULTI_POINT_METHODS,
+        peers: false,
+    },
 ];
 
 fn trainer(args: &[&str]) -> anyhow::Result<String> {
@@ -115,7 +164,7 @@ pub fn bench_accuracy() -> anyhow::Result<()> {
             .collect::<anyhow::Result<_>>()?;
         let mut rows: Vec<Row> = Vec::new();
         let mut before: Vec<f64> = Vec::new();
-        for (label, opts) in METHODS {
+        for &(label, opts) in p.methods {
             let model = dir.join(format!("{}_model.bin", p.name));
             let mut args = vec!["fit", "-q", "--force", path(&train), "-o", path(&model)];
             args.extend(opts);
@@ -150,73 +199,87 @@ pub fn bench_accuracy() -> anyhow::Result<()> {
                 runs,
             });
         }
-        // Peers, on the default's features (60-s fastest window) as `trainer blocks` writes them.
-        let blocks = |file: &Path| -> anyhow::Result<PathBuf> {
-            let out = file.with_extension("blocks.csv");
-            trainer(&["blocks", path(file), "-o", path(&out)])?;
-            Ok(out)
-        };
-        let mut cmd = Command::new(&python);
-        cmd.arg(&script).args(["--train", path(&blocks(&train)?)]);
-        cmd.args([
-            "--cluster-blocks",
-            &((100.0 * p.rate_hz).round().max(1.0) as u32).to_string(),
-        ]);
-        for (i, v) in verify.iter().enumerate() {
-            cmd.args(["--verify", &format!("v{i}={}", path(&blocks(v)?))]);
+        if p.peers {
+            rows.extend(peer_rows(&python, &script, p, &train, &verify)?);
         }
-        let out = cmd.output().context("cannot run peers.py")?;
-        if !out.status.success() {
-            bail!("peers.py failed: {}", String::from_utf8_lossy(&out.stderr));
-        }
-        let peers: serde_json::Value = serde_json::from_slice(&out.stdout)?;
-        for (name, r) in peers.as_object().into_iter().flatten() {
-            let runs = (0..verify.len())
-                .map(|i| {
-                    let run = &r["runs"][format!("v{i}")];
-                    (
-                        run["improvement_pct"].as_f64().unwrap_or(f64::NAN),
-                        run["after_dph"].as_f64().unwrap_or(f64::NAN),
-                    )
-                })
-                .collect();
-            rows.push(Row {
-                method: format!("{name} (same features)"),
-                fit_s: r["fit_s"].as_f64().unwrap_or(f64::NAN),
-                runs,
-            });
-        }
-        println!(
-            "\nprotocol {}: trained on one 1 °C/min run, verified on runs it never saw",
-            p.name
-        );
-        print!("{:<38}", "100-s cluster STD improvement [%]");
-        for (label, _) in p.verify {
-            print!(" {label:>18}");
-        }
-        println!(" {:>8} {:>9}", "mean", "fit [s]");
-        print!("{:<38}", "no compensation (STD [°/h])");
-        for b in &before {
-            print!(" {:>18}", format!("{b:.4}"));
-        }
-        println!();
-        for r in &rows {
-            print!("{:<38}", r.method);
-            for (imp, after) in &r.runs {
-                print!(" {:>18}", format!("{imp:.1} ({after:.4})"));
-            }
-            let mean = r.runs.iter().map(|x| x.0).sum::<f64>() / r.runs.len() as f64;
-            println!(" {mean:>8.1} {:>9.2}", r.fit_s);
-            if r.method.starts_with("default") {
-                means.push(mean);
-            }
-        }
+        print_protocol(p, &before, &rows, &mut means);
     }
     let overall = means.iter().sum::<f64>() / means.len().max(1) as f64;
     println!(
         "\n(improvement % and, in brackets, residual 100-s STD in °/h; ours compensate every sample as the firmware does,"
     );
     println!(" the peers are scored on the 1-s block residuals of the same data)");
-    println!("default: mean improvement over both protocols' verification runs {overall:.1} %");
+    println!("default: mean improvement over the ifog and cycle protocols' verification runs {overall:.1} %");
     Ok(())
+}
+
+/// The Python peers' rows for protocol `p`, on the default's features as
+/// `trainer blocks` writes them.
+fn peer_rows(python: &Path, script: &Path, p: &Protocol, train: &Path, verify: &[PathBuf]) -> anyhow::Result<Vec<Row>> {
+    let mut rows = Vec::new();
+    let blocks = |file: &Path| -> anyhow::Result<PathBuf> {
+        let out = file.with_extension("blocks.csv");
+        trainer(&["blocks", path(file), "-o", path(&out)])?;
+        Ok(out)
+    };
+    let mut cmd = Command::new(python);
+    cmd.arg(script).args(["--train", path(&blocks(train)?)]);
+    cmd.args([
+        "--cluster-blocks",
+        &((100.0 * p.rate_hz).round().max(1.0) as u32).to_string(),
+    ]);
+    for (i, v) in verify.iter().enumerate() {
+        cmd.args(["--verify", &format!("v{i}={}", path(&blocks(v)?))]);
+    }
+    let out = cmd.output().context("cannot run peers.py")?;
+    if !out.status.success() {
+        bail!("peers.py failed: {}", String::from_utf8_lossy(&out.stderr));
+    }
+    let peers: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+    for (name, r) in peers.as_object().into_iter().flatten() {
+        let runs = (0..verify.len())
+            .map(|i| {
+                let run = &r["runs"][format!("v{i}")];
+                (
+                    run["improvement_pct"].as_f64().unwrap_or(f64::NAN),
+                    run["after_dph"].as_f64().unwrap_or(f64::NAN),
+                )
+            })
+            .collect();
+        rows.push(Row {
+            method: format!("{name} (same features)"),
+            fit_s: r["fit_s"].as_f64().unwrap_or(f64::NAN),
+            runs,
+        });
+    }
+    Ok(rows)
+}
+
+/// Prints protocol `p`'s table; the default's mean joins `means` (ifog and cycle only).
+fn print_protocol(p: &Protocol, before: &[f64], rows: &[Row], means: &mut Vec<f64>) {
+    println!(
+        "\nprotocol {}: trained on one 1 °C/min run, verified on runs it never saw",
+        p.name
+    );
+    print!("{:<38}", "100-s cluster STD improvement [%]");
+    for (label, _) in p.verify {
+        print!(" {label:>18}");
+    }
+    println!(" {:>8} {:>9}", "mean", "fit [s]");
+    print!("{:<38}", "no compensation (STD [°/h])");
+    for b in before {
+        print!(" {:>18}", format!("{b:.4}"));
+    }
+    println!();
+    for r in rows {
+        print!("{:<38}", r.method);
+        for (imp, after) in &r.runs {
+            print!(" {:>18}", format!("{imp:.1} ({after:.4})"));
+        }
+        let mean = r.runs.iter().map(|x| x.0).sum::<f64>() / r.runs.len() as f64;
+        println!(" {mean:>8.1} {:>9.2}", r.fit_s);
+        if p.peers && r.method.starts_with("default") {
+            means.push(mean);
+        }
+    }
 }
