@@ -223,10 +223,12 @@ struct FitArgs {
     holdout: Vec<PathBuf>,
     /// Model form: rbf = Gaussian RBF network (inputs: --features); rbf2 = RBF on (T, ΔT),
     /// the IFOG paper's model before its modification; poly3 = cubic in T (PX4/ArduPilot form);
-    /// svr-pso = ε-SVR on (T, ΔT, T×ΔT) with σ, C, ε tuned by particle swarm on 3 contiguous
-    /// folds (the RLG paper's method; ΔT window: the middle of --rate-window-s), deployed as an
-    /// RBF network with one width (support vectors reduced by OLS to --centers, else
-    /// --max-centers, when there are more).
+    /// svr-pso = ε-SVR with σ, C, ε tuned by particle swarm on 3 contiguous folds (the RLG
+    /// paper's method), deployed as an RBF network with one width (support vectors reduced by
+    /// OLS to --centers, else --max-centers, when there are more); its inputs: on runs with
+    /// thermometers temp_a … temp_h, temperatures and gradients selected by correlation
+    /// (--select-threshold, --select-top) or named (--inputs); else (T, ΔT, T×ΔT) (ΔT window:
+    /// the middle of --rate-window-s).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
     /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 8τ, 64τ), their

@@ -50,8 +50,8 @@ const LOG_EPSILON: (f64, f64) = (-4.0, -0.5);
 /// Ridge strength when the weights of a reduced network are refitted.
 const REFIT_RIDGE: f64 = 1e-7;
 
-/// 1-s training blocks per block of the correlation analysis: 100-s means,
-/// the paper's 100 samples at its 1 Hz.
+/// Length of the correlation analysis's blocks, s: the paper's 100 samples
+/// at its 1 Hz.
 const CORRELATION_BLOCK_S: f64 = 100.0;
 
 /// How the multi-point inputs were chosen.
@@ -233,6 +233,11 @@ fn choose_inputs<T: RunSet + ?Sized>(
 ) -> anyhow::Result<(FeatureConfig, Option<InputSelection>)> {
     let mask = train.thermometer_mask()?;
     if mask.count_ones() < 2 {
+        anyhow::ensure!(
+            opts.inputs.is_none(),
+            "--inputs names multi-point inputs, but the training runs do not all have two or more \
+             of the thermometer columns temp_a … temp_h"
+        );
         let windows = &opts.rate_windows_s;
         let window = windows.get(windows.len() / 2).copied().unwrap_or(60.0);
         let features = rbf::feature_config(FeatureSet::TempRateProduct, window);
