@@ -412,12 +412,12 @@ impl Run {
     /// column or other thermometers).
     pub fn read(mut reader: RunReader) -> Result<Run, RunError> {
         let path = reader.path().to_owned();
-        if reader.columns().thermometer_mask() == 0 {
+        let thermometer_mask = reader.columns().thermometer_mask();
+        if thermometer_mask == 0 {
             reader.require_temp()?;
         }
         let has_ref = reader.columns().ref_dph.is_some();
         let mut period = reader.period_estimator();
-        let thermometer_mask = reader.columns().thermometer_mask();
         let multi_point = thermometer_mask & !(1 << LOOP_THERMOMETER) != 0;
         let (mut time_s, mut rate_dph, mut temp_c, mut temps_c, mut ref_dph) = (vec![], vec![], vec![], vec![], vec![]);
         while let Some(raw) = reader.next_row()? {
@@ -531,19 +531,13 @@ pub fn gyro_sample(
 }
 
 /// Thermometer readings with only the loop temperature.
-pub fn loop_only(temp_c: Option<f64>) -> [Option<f64>; THERMOMETERS] {
+fn loop_only(temp_c: Option<f64>) -> [Option<f64>; THERMOMETERS] {
     let mut readings = [None; THERMOMETERS];
     readings[LOOP_THERMOMETER] = temp_c;
     readings
 }
 
 impl RawRow {
-    /// The loop temperature of this row: `None` when the column is absent or
-    /// `temp_fault` = 1.
-    pub fn temp_c(&self) -> Option<f64> {
-        self.row.readings_c()[LOOP_THERMOMETER]
-    }
-
     /// The gyro sample of this row (see [`gyro_sample`]).
     pub fn sample(&self, prev_time_s: Option<f64>) -> GyroSample {
         gyro_sample(prev_time_s, self.row.time_s, self.row.rate_dph, &self.row.readings_c())
