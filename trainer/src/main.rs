@@ -17,7 +17,7 @@ use trainer::fit::{self, FitOptions, Method, RbfFeatures};
 use trainer::output::{Existing, check_target, write_atomically, write_bytes};
 use trainer::run::Run;
 use trainer::run::RunReader;
-use trainer::simulate::{ChamberRun, Profile};
+use trainer::simulate::{ChamberRun, Profile, SimParams};
 
 /// Removes temperature drift from fiber-optic gyros.
 ///
@@ -192,6 +192,13 @@ struct SimulateArgs {
     /// sensor) and add the axial-gradient bias they reveal (RLG paper).
     #[arg(long)]
     multi: bool,
+    /// Another gyro: a JSON file overriding any of the thermal network's time
+    /// constants and the bias and noise coefficients (docs/simulator.md lists
+    /// every field, its unit and default), e.g.
+    /// {"plant": {"tau_top_s": 2400}, "gyro": {"axial_gradient_dph_per_c": 0.05}}.
+    /// The run's header records them (# simulator_params).
+    #[arg(long, value_name = "FILE.json")]
+    params: Option<PathBuf>,
     /// Run to write.
     #[arg(short, long, value_name = "RUN.csv")]
     output: PathBuf,
@@ -639,7 +646,10 @@ fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
         multi: a.multi,
         random_range_c: (lo, hi),
         seed: a.seed,
-        ..ChamberRun::ifog(a.ramp, a.seed)
+        params: match &a.params {
+            Some(path) => read_sim_params(path)?,
+            None => SimParams::default(),
+        },
     };
     write_atomically(&a.output, |w| {
         run.write_csv(w)
@@ -647,6 +657,22 @@ fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
     })?;
     println!("wrote {}", a.output.display());
     Ok(())
+}
+
+/// The simulator's parameters from a JSON file: syntax errors and unknown
+/// fields name the file, line and column; impossible values the field.
+fn read_sim_params(path: &Path) -> anyhow::Result<SimParams> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let params: SimParams = serde_json::from_str(&text).map_err(|e| {
+        let message = e.to_string();
+        // serde_json appends the place; it leads here instead.
+        let message = message.split(" at line ").next().unwrap_or(&message).to_owned();
+        anyhow::anyhow!("{}:{}:{}: {message}", path.display(), e.line(), e.column())
+    })?;
+    params
+        .check()
+        .map_err(|reason| anyhow::anyhow!("{}: {reason}", path.display()))?;
+    Ok(params)
 }
 
 fn cmd_eval(a: EvalArgs) -> anyhow::Result<()> {

@@ -574,3 +574,66 @@ fn correlate_prints_the_gradient_matrix_of_a_multi_point_run_and_its_selection()
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("gradients need at least two"), "{}", stderr(&o));
 }
+
+#[test]
+fn simulate_params_describe_another_gyro_and_bad_files_are_refused_with_their_place() {
+    let dir = TempDir::new().unwrap();
+    let run = |name: &str, params: Option<&Path>| {
+        let out = dir.path().join(name);
+        let mut args = vec!["simulate", "--hours", "1", "--seed", "9", "-o", out.to_str().unwrap()];
+        if let Some(p) = params {
+            args.extend(["--params", p.to_str().unwrap()]);
+        }
+        (trainer(&args), out)
+    };
+    let (o, default_run) = run("default.csv", None);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A field left out keeps its default: an empty object is the default gyro, bit for bit.
+    let empty = write(&dir, "empty.json", b"{}");
+    let (o, same_run) = run("same.csv", Some(&empty));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&default_run).unwrap(), std::fs::read(&same_run).unwrap());
+    // A slower housing and a larger Shupe gain: another run, its parameters in the header.
+    let other = write(
+        &dir,
+        "other.json",
+        br#"{"plant": {"tau_top_s": 2400, "tau_coil_layer_s": 400}, "gyro": {"shupe_dph_per_c_per_min": 0.6}}"#,
+    );
+    let (o, other_run) = run("other.csv", Some(&other));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&other_run).unwrap();
+    let header = text
+        .lines()
+        .find(|l| l.starts_with("# simulator_params: "))
+        .expect("params recorded");
+    assert!(
+        header.contains("\"tau_top_s\":2400.0") && header.contains("\"shupe_dph_per_c_per_min\":0.6"),
+        "{header}"
+    );
+    assert_ne!(
+        data_rows(&text),
+        data_rows(&std::fs::read_to_string(&default_run).unwrap())
+    );
+    // Syntax errors and unknown fields name file, line and column; impossible values the field.
+    for (content, expected) in [
+        (
+            "{\n  \"plant\": {\"tau_top_s\": 2400,}\n}",
+            "bad.json:2:31: trailing comma",
+        ),
+        ("{\"gyro\": {\"shupe\": 1}}", "bad.json:1:17: unknown field `shupe`"),
+        (
+            "{\"plant\": {\"tau_base_s\": 1}}",
+            "bad.json: every time constant must be at least 5 s",
+        ),
+        (
+            "{\"gyro\": {\"arw_deg_per_sqrt_h\": -1}}",
+            "bad.json: arw_deg_per_sqrt_h must be ≥ 0",
+        ),
+    ] {
+        let bad = write(&dir, "bad.json", content.as_bytes());
+        let (o, out) = run("bad.csv", Some(&bad));
+        assert_eq!(o.status.code(), Some(1), "{content}");
+        assert!(stderr(&o).contains(expected), "{content}: {}", stderr(&o));
+        assert!(!out.exists(), "nothing written for {content}");
+    }
+}

@@ -138,12 +138,28 @@ struct Row {
     runs: Vec<(f64, f64)>,
 }
 
-/// Runs the benchmark and prints one table per protocol.
-pub fn bench_accuracy() -> anyhow::Result<()> {
+/// Runs the benchmark and prints one table per protocol; `params` simulates
+/// another gyro (`trainer simulate --params`).
+pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
     crate::run("cargo", &["build", "--release", "--quiet", "--package", "trainer"])?;
-    let dir = workspace_root().join("target/bench-accuracy");
+    let venv_dir = workspace_root().join("target/bench-accuracy");
+    std::fs::create_dir_all(&venv_dir)?;
+    let python = crate::python_venv(&venv_dir, &["scikit-learn", "numpy"], "sklearn, numpy")?;
+    let (dir, params) = match params {
+        Some(file) => {
+            let file = std::path::absolute(file)?;
+            let stem = file
+                .file_stem()
+                .map_or("params".into(), |s| s.to_string_lossy().into_owned());
+            (venv_dir.join(stem), Some(file))
+        }
+        None => (venv_dir, None),
+    };
     std::fs::create_dir_all(&dir)?;
-    let python = crate::python_venv(&dir, &["scikit-learn", "numpy"], "sklearn, numpy")?;
+    match &params {
+        Some(file) => println!("gyro: {} (trainer simulate --params)", file.display()),
+        None => println!("gyro: the simulator's documented default (docs/simulator.md)"),
+    }
     let script = workspace_root().join("bench/accuracy/peers.py");
     let mut means = Vec::new();
     for p in &PROTOCOLS {
@@ -152,6 +168,9 @@ pub fn bench_accuracy() -> anyhow::Result<()> {
             let file = dir.join(format!("{}_{name}.csv", p.name));
             let mut all = vec!["simulate", "--rate-hz", &rate, "-o", path(&file)];
             all.extend(args);
+            if let Some(p) = &params {
+                all.extend(["--params", path(p)]);
+            }
             trainer(&all)?;
             Ok(file)
         };

@@ -47,7 +47,13 @@ enum Cmd {
     /// profile) compare no compensation, poly3, rbf2, the IFOG paper's rbf, the
     /// default, and scikit-learn SVR and KernelRidge on the same features (in a
     /// venv it makes under target/). Prints improvement %, residual 100-s STD, fit time.
-    BenchAccuracy,
+    BenchAccuracy {
+        /// Simulate another gyro (`trainer simulate --params`), e.g.
+        /// bench/accuracy/another-gyro.json: does the default generalise to a
+        /// thermal model it was not developed on?
+        #[arg(long, value_name = "FILE.json")]
+        params: Option<PathBuf>,
+    },
     /// Fault injection on the firmware image under QEMU: 20,000 samples through the
     /// real drivers with I2C NACK bursts, stuck readings, a stuck bus, spikes,
     /// out-of-range temperatures, SPI errors, NaN rates and corrupted front-end
@@ -100,7 +106,7 @@ fn main() -> anyhow::Result<()> {
             Ok(())
         }
         Cmd::BenchFw => xtask::bench::bench_fw(),
-        Cmd::BenchAccuracy => xtask::accuracy::bench_accuracy(),
+        Cmd::BenchAccuracy { params } => xtask::accuracy::bench_accuracy(params.as_deref()),
         Cmd::QemuFaults { model, update } => {
             xtask::qemu::ensure_installed()?;
             for line in xtask::faults::qemu_faults(&model, &update)? {

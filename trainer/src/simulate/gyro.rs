@@ -23,8 +23,10 @@ pub fn earth_rate_projection_dph() -> f64 {
     EARTH_RATE_DPH * LATITUDE_DEG.to_radians().cos() * HEADING_DEG.to_radians().cos()
 }
 
-/// Bias and noise parameters.
-#[derive(Clone, Debug, PartialEq)]
+/// Bias and noise parameters (docs/simulator.md, "Bias"). The defaults are
+/// the documented gyro; `trainer simulate --params FILE.json` overrides any.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct GyroParams {
     /// Angle random walk, °/√h.
     pub arw_deg_per_sqrt_h: f64,
@@ -59,6 +61,36 @@ impl Default for GyroParams {
             radial_gradient_dph_per_c: 0.004,
             axial_gradient_dph_per_c: 0.03,
         }
+    }
+}
+
+impl GyroParams {
+    /// Why these parameters cannot be simulated, if they cannot.
+    pub fn check(&self) -> Result<(), String> {
+        let scalars = [
+            self.shupe_dph_per_c_per_min,
+            self.shupe_temp_coeff_per_c,
+            self.radial_gradient_dph_per_c,
+            self.axial_gradient_dph_per_c,
+        ];
+        let mut coefficients = self
+            .static_coeffs
+            .iter()
+            .chain(&self.shupe_layer_weights)
+            .chain(&scalars);
+        if coefficients.any(|c| !c.is_finite()) {
+            return Err("every bias coefficient must be a finite number".into());
+        }
+        if !(self.arw_deg_per_sqrt_h.is_finite() && self.arw_deg_per_sqrt_h >= 0.0) {
+            return Err("arw_deg_per_sqrt_h must be ≥ 0".into());
+        }
+        if !(self.bias_instability_dph.is_finite() && self.bias_instability_dph >= 0.0) {
+            return Err("bias_instability_dph must be ≥ 0".into());
+        }
+        if !(self.bias_correlation_s.is_finite() && self.bias_correlation_s > 0.0) {
+            return Err("bias_correlation_s must be > 0".into());
+        }
+        Ok(())
     }
 }
 

@@ -24,6 +24,26 @@ pub const MULTI_COLUMNS: [&str; 8] = [
     "temp_a", "temp_b", "temp_c", "temp_d", "temp_e", "temp_f", "temp_g", "temp_h",
 ];
 
+/// The simulated gyro: its thermal network and its bias and noise. Read from
+/// `trainer simulate --params FILE.json` (any field left out keeps its
+/// documented default), e.g. `{"plant": {"tau_top_s": 2400}, "gyro":
+/// {"axial_gradient_dph_per_c": 0.05}}`.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SimParams {
+    /// Time constants and couplings of the thermal network.
+    pub plant: plant::PlantParams,
+    /// Bias and noise.
+    pub gyro: gyro::GyroParams,
+}
+
+impl SimParams {
+    /// Why these parameters cannot be simulated, if they cannot.
+    pub fn check(&self) -> Result<(), String> {
+        self.plant.check().and_then(|()| self.gyro.check())
+    }
+}
+
 /// What to simulate.
 #[derive(Clone, Debug)]
 pub struct ChamberRun {
@@ -41,8 +61,8 @@ pub struct ChamberRun {
     pub multi: bool,
     /// Set-point range of random profiles, °C (min, max).
     pub random_range_c: (f64, f64),
-    /// Noise and bias parameters.
-    pub gyro: gyro::GyroParams,
+    /// The gyro's thermal network and bias model.
+    pub params: SimParams,
     /// Random seed: the same seed gives the same file.
     pub seed: u64,
 }
@@ -58,7 +78,7 @@ impl ChamberRun {
             sample_rate_hz: 1.0,
             multi: false,
             random_range_c: (-40.0, 60.0),
-            gyro: gyro::GyroParams::default(),
+            params: SimParams::default(),
             seed,
         }
     }
@@ -88,7 +108,7 @@ impl ChamberRun {
         let dt = 1.0 / self.sample_rate_hz;
         let start_c = schedule.air_c(0.0);
         let mut plant = plant::Plant::soaked(start_c);
-        let mut gyro = gyro::Gyro::new(&self.gyro, self.sample_rate_hz, self.multi);
+        let mut gyro = gyro::Gyro::new(&self.params.gyro, self.sample_rate_hz, self.multi);
         let mut thermometers = plant::Thermometers::new(start_c);
 
         writeln!(
@@ -109,8 +129,12 @@ impl ChamberRun {
         }
         writeln!(out, "# latitude_deg: {}", gyro::LATITUDE_DEG)?;
         writeln!(out, "# heading_deg: {}", gyro::HEADING_DEG)?;
-        writeln!(out, "# arw_deg_per_sqrt_h: {}", self.gyro.arw_deg_per_sqrt_h)?;
-        writeln!(out, "# bias_instability_dph: {}", self.gyro.bias_instability_dph)?;
+        writeln!(out, "# arw_deg_per_sqrt_h: {}", self.params.gyro.arw_deg_per_sqrt_h)?;
+        writeln!(out, "# bias_instability_dph: {}", self.params.gyro.bias_instability_dph)?;
+        if self.params != SimParams::default() {
+            let json = serde_json::to_string(&self.params).map_err(std::io::Error::other)?;
+            writeln!(out, "# simulator_params: {json}")?;
+        }
         if self.multi {
             writeln!(out, "time_s,rate_dph,ref_dph,{}", MULTI_COLUMNS.join(","))?;
         } else {
@@ -118,7 +142,7 @@ impl ChamberRun {
         }
         let reference = gyro::earth_rate_projection_dph();
         let steps = (duration_s * self.sample_rate_hz).floor() as u64;
-        // Internal thermal step: at most 1 s (explicit Euler, smallest τ 5 s).
+        // Internal thermal step: at most 1 s (explicit Euler, every τ ≥ plant::MIN_TAU_S).
         let substeps = dt.ceil().max(1.0) as u32;
         let h = dt / substeps as f64;
         let mut line = String::with_capacity(160);
@@ -126,8 +150,8 @@ impl ChamberRun {
             let t = i as f64 * dt;
             let mut rates = plant::NodeRates::default();
             for s in 0..substeps {
-                rates = plant.step(schedule.air_c(t + s as f64 * h), h);
-                thermometers.step(&plant, h);
+                rates = plant.step(&self.params.plant, schedule.air_c(t + s as f64 * h), h);
+                thermometers.step(&self.params.plant, &plant, h);
             }
             let rate = reference + gyro.bias_dph(&plant, &rates, &mut rng) + gyro.noise_dph(&mut rng);
             let readings = thermometers.read(&mut rng);

@@ -12,20 +12,78 @@ use rbf_core::sensor::tmp117_quantise;
 
 /// Radial layers of the fiber coil, outer (0) to inner.
 pub const COIL_LAYERS: usize = 4;
-/// Housing base ↔ chamber air, s.
-pub const TAU_BASE_S: f64 = 900.0;
-/// Housing top cover ↔ chamber air, s.
-pub const TAU_TOP_S: f64 = 1500.0;
-/// Electronics board ↔ housing, s.
-pub const TAU_ELECTRONICS_S: f64 = 600.0;
-/// Steady-state rise of the electronics above the housing from its dissipation, °C.
-pub const SELF_HEATING_C: f64 = 4.0;
-/// Share of the electronics' rise seen by the space around the coil.
-pub const ELECTRONICS_TO_COIL: f64 = 0.2;
-/// Outer coil layer ↔ its surroundings, s.
-pub const TAU_COIL_OUTER_S: f64 = 500.0;
-/// Conduction between neighbouring coil layers, s.
-pub const TAU_COIL_LAYER_S: f64 = 700.0;
+
+/// Time constants and couplings of the thermal network (docs/simulator.md,
+/// "Thermal plant"). The defaults are the documented gyro; `trainer simulate
+/// --params FILE.json` overrides any of them to simulate another one.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlantParams {
+    /// Housing base (bolted to the chamber's mounting plate) ↔ chamber air, s.
+    pub tau_base_s: f64,
+    /// Housing top cover ↔ chamber air, s.
+    pub tau_top_s: f64,
+    /// Electronics board ↔ housing, s.
+    pub tau_electronics_s: f64,
+    /// Steady-state rise of the electronics above the housing from its dissipation, °C.
+    pub self_heating_c: f64,
+    /// Share of the electronics' rise seen by the space around the coil.
+    pub electronics_to_coil: f64,
+    /// Outer coil layer ↔ its surroundings, s.
+    pub tau_coil_outer_s: f64,
+    /// Conduction between neighbouring coil layers, s.
+    pub tau_coil_layer_s: f64,
+    /// Each thermometer's own lag, s, in [`THERMOMETERS`] order.
+    pub thermometer_lags_s: [f64; 8],
+}
+
+impl Default for PlantParams {
+    fn default() -> Self {
+        PlantParams {
+            tau_base_s: 900.0,
+            tau_top_s: 1500.0,
+            tau_electronics_s: 600.0,
+            self_heating_c: 4.0,
+            electronics_to_coil: 0.2,
+            tau_coil_outer_s: 500.0,
+            tau_coil_layer_s: 700.0,
+            thermometer_lags_s: THERMOMETERS.map(|(_, lag_s)| lag_s),
+        }
+    }
+}
+
+impl PlantParams {
+    /// Shortest time constant, s: the explicit Euler step must stay well below it.
+    pub fn shortest_tau_s(&self) -> f64 {
+        [
+            self.tau_base_s,
+            self.tau_top_s,
+            self.tau_electronics_s,
+            self.tau_coil_outer_s,
+            self.tau_coil_layer_s,
+        ]
+        .into_iter()
+        .chain(self.thermometer_lags_s)
+        .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Why these parameters cannot be simulated, if they cannot.
+    pub fn check(&self) -> Result<(), String> {
+        if !(self.shortest_tau_s() >= MIN_TAU_S && self.shortest_tau_s().is_finite()) {
+            return Err(format!("every time constant must be at least {MIN_TAU_S} s"));
+        }
+        if !(self.self_heating_c.is_finite() && self.self_heating_c.abs() <= 50.0) {
+            return Err("self_heating_c must lie within −50 … 50 °C".into());
+        }
+        if !(0.0..=1.0).contains(&self.electronics_to_coil) {
+            return Err("electronics_to_coil must lie within 0 … 1".into());
+        }
+        Ok(())
+    }
+}
+
+/// Shortest time constant the integrator accepts, s (its step is ≤ 1 s).
+pub const MIN_TAU_S: f64 = 5.0;
 
 /// Temperatures of the plant's nodes, °C.
 #[derive(Clone, Debug, PartialEq)]
@@ -72,23 +130,23 @@ impl Plant {
     }
 
     /// Advances by `h` seconds with the chamber air at `air_c`; returns the coil rates.
-    pub fn step(&mut self, air_c: f64, h: f64) -> NodeRates {
+    pub fn step(&mut self, p: &PlantParams, air_c: f64, h: f64) -> NodeRates {
         self.air_c = air_c;
         let housing = self.housing_c();
-        let d_base = (air_c - self.base_c) / TAU_BASE_S;
-        let d_top = (air_c - self.top_c) / TAU_TOP_S;
-        let d_elec = (housing + SELF_HEATING_C - self.electronics_c) / TAU_ELECTRONICS_S;
-        let surround = housing + ELECTRONICS_TO_COIL * (self.electronics_c - housing);
+        let d_base = (air_c - self.base_c) / p.tau_base_s;
+        let d_top = (air_c - self.top_c) / p.tau_top_s;
+        let d_elec = (housing + p.self_heating_c - self.electronics_c) / p.tau_electronics_s;
+        let surround = housing + p.electronics_to_coil * (self.electronics_c - housing);
         let c = self.coil_c;
         let mut d_coil = [0.0; COIL_LAYERS];
         for (i, d) in d_coil.iter_mut().enumerate() {
             let outer = if i == 0 {
-                (surround - c[0]) / TAU_COIL_OUTER_S
+                (surround - c[0]) / p.tau_coil_outer_s
             } else {
-                (c[i - 1] - c[i]) / TAU_COIL_LAYER_S
+                (c[i - 1] - c[i]) / p.tau_coil_layer_s
             };
             let inner = if i + 1 < COIL_LAYERS {
-                (c[i + 1] - c[i]) / TAU_COIL_LAYER_S
+                (c[i + 1] - c[i]) / p.tau_coil_layer_s
             } else {
                 0.0
             };
@@ -108,7 +166,8 @@ impl Plant {
 pub const LOOP_SENSOR: usize = 2;
 /// Thermometer noise, °C (1σ, before TMP117 quantisation).
 pub const THERMOMETER_NOISE_C: f64 = 0.002;
-/// Where each of the eight thermometers sits and its own lag, s.
+/// Where each of the eight thermometers sits and its default lag, s
+/// ([`PlantParams::thermometer_lags_s`]).
 pub const THERMOMETERS: [(&str, f64); 8] = [
     ("housing base", 5.0),
     ("housing top cover", 5.0),
@@ -146,9 +205,9 @@ impl Thermometers {
     }
 
     /// Advances each sensor's lag by `h` seconds.
-    pub fn step(&mut self, plant: &Plant, h: f64) {
+    pub fn step(&mut self, p: &PlantParams, plant: &Plant, h: f64) {
         for (i, t) in self.lagged_c.iter_mut().enumerate() {
-            *t += h / THERMOMETERS[i].1 * (Self::sensed_node_c(plant, i) - *t);
+            *t += h / p.thermometer_lags_s[i] * (Self::sensed_node_c(plant, i) - *t);
         }
     }
 
