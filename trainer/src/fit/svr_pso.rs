@@ -29,7 +29,7 @@ use super::linalg::{FeatureRow, GramStats, InputShape, Normaliser, design, ridge
 use super::pso::{self, PsoOptions};
 use super::svr::{Svr, SvrParams};
 use super::{FitOptions, Progress, check_excitation, deploy_ranges, rbf, serial};
-use crate::dataset::RunSet;
+use crate::dataset::{Blocks, RunSet};
 use crate::gradients::{self, Candidate, CorrelationTable, MultiBlocks};
 
 /// The deployed network's centre budget.
@@ -115,20 +115,17 @@ pub fn fit<T: RunSet + ?Sized>(
     if selection.is_none() {
         check_excitation(&blocks, set, opts)?;
     }
-    let norm = Normaliser::fit(&blocks);
-    let all: Vec<usize> = (0..blocks.len()).collect();
-    let rows = thin(&all, MAX_SVR_ROWS);
-    let x: Vec<FeatureRow> = rows.iter().map(|&i| norm.apply(&blocks.x[i])).collect();
-    let y: Vec<f64> = rows.iter().map(|&i| blocks.y[i]).collect();
-    let dims = blocks.dims;
-    let y_std = offset_free_rms(y.iter().copied());
-    anyhow::ensure!(y_std.is_finite(), "no blocks to fit an SVR on");
-    let y_std = y_std.max(1e-12);
-    let folds = contiguous_folds(x.len(), FOLDS);
-    // Scored on 100-s cluster means of the residual, as `rbf` is: at 1 s
-    // white noise hides model errors ten times smaller than itself.
-    let stride = all.len().div_ceil(MAX_SVR_ROWS).max(1) as f64;
-    let per_cluster = (crate::metrics::CLUSTER_S / (opts.block_s * stride)).round().max(1.0) as usize;
+    let data = SvrData::new(&blocks, opts.block_s)?;
+    let SvrData {
+        norm,
+        x,
+        y,
+        dims,
+        y_std,
+        folds,
+        per_cluster,
+    } = &data;
+    let (dims, y_std, per_cluster) = (*dims, *y_std, *per_cluster);
     let params_at = |p: &[f64]| SvrParams {
         sigma: 10f64.powf(p[0]),
         c: 10f64.powf(p[1]),
@@ -138,7 +135,7 @@ pub fn fit<T: RunSet + ?Sized>(
         folds
             .iter()
             .map(|f| {
-                let (fx, fy) = pick(&x, &y, &f.train);
+                let (fx, fy) = pick(x, y, &f.train);
                 let svr = fit_svr(&fx, &fy, dims, params, partially_linear);
                 cluster_rms(f.validate.iter().map(|&i| y[i] - svr.predict(&x[i])), per_cluster)
             })
@@ -161,23 +158,12 @@ pub fn fit<T: RunSet + ?Sized>(
         anyhow::bail!("no SVR could be fitted (singular or empty data)");
     }
     let params = params_at(&result.best);
-    let svr = fit_svr(&x, &y, dims, params, partially_linear);
+    let svr = fit_svr(x, y, dims, params, partially_linear);
     let budget = centre_budget(opts);
-    let deployed = deployable(&svr, &x, &y, budget)?;
+    let deployed = deployable(&svr, x, y, budget)?;
     // The cost of the reduction, on the same folds.
     let deployed_validation_rms_dph = if svr.support.len() > budget {
-        folds
-            .iter()
-            .map(|f| {
-                let (fx, fy) = pick(&x, &y, &f.train);
-                let fold_svr = fit_svr(&fx, &fy, dims, params, partially_linear);
-                match deployable(&fold_svr, &fx, &fy, budget) {
-                    Ok(net) => cluster_rms(f.validate.iter().map(|&i| y[i] - net.predict(&x[i])), per_cluster),
-                    Err(_) => f64::INFINITY,
-                }
-            })
-            .sum::<f64>()
-            / folds.len() as f64
+        data.deployed_validation_rms(params, budget, partially_linear)
     } else {
         result.best_cost
     };
@@ -214,6 +200,66 @@ pub fn fit<T: RunSet + ?Sized>(
         pso_history: result.history,
     };
     Ok((model, choice))
+}
+
+/// An SVR's training data: thinned, normalised blocks with their folds.
+struct SvrData {
+    norm: Normaliser,
+    /// Normalised inputs of the rows used.
+    x: Vec<FeatureRow>,
+    /// Bias target of the rows used, °/h.
+    y: Vec<f64>,
+    dims: usize,
+    /// Offset-free RMS of `y`, °/h (> 0).
+    y_std: f64,
+    folds: Vec<Fold>,
+    /// Rows per 100-s cluster of the validation residual.
+    per_cluster: usize,
+}
+
+impl SvrData {
+    /// Every n-th block (≤ [`MAX_SVR_ROWS`]), normalised, in [`FOLDS`] contiguous folds.
+    fn new(blocks: &Blocks, block_s: f64) -> anyhow::Result<SvrData> {
+        let norm = Normaliser::fit(blocks);
+        let all: Vec<usize> = (0..blocks.len()).collect();
+        let rows = thin(&all, MAX_SVR_ROWS);
+        let x: Vec<FeatureRow> = rows.iter().map(|&i| norm.apply(&blocks.x[i])).collect();
+        let y: Vec<f64> = rows.iter().map(|&i| blocks.y[i]).collect();
+        let y_std = offset_free_rms(y.iter().copied());
+        anyhow::ensure!(y_std.is_finite(), "no blocks to fit an SVR on");
+        let folds = contiguous_folds(x.len(), FOLDS);
+        // Scored on 100-s cluster means of the residual, as `rbf` is: at 1 s
+        // white noise hides model errors ten times smaller than itself.
+        let stride = all.len().div_ceil(MAX_SVR_ROWS).max(1) as f64;
+        let per_cluster = (crate::metrics::CLUSTER_S / (block_s * stride)).round().max(1.0) as usize;
+        Ok(SvrData {
+            norm,
+            x,
+            y,
+            dims: blocks.dims,
+            y_std: y_std.max(1e-12),
+            folds,
+            per_cluster,
+        })
+    }
+
+    /// Validation RMS (100-s clusters, offset removed per fold) of the network
+    /// deployed within `budget` centres, fitted on each fold's training part, °/h.
+    fn deployed_validation_rms(&self, params: SvrParams, budget: usize, partially_linear: bool) -> f64 {
+        let (x, y) = (&self.x, &self.y);
+        self.folds
+            .iter()
+            .map(|f| {
+                let (fx, fy) = pick(x, y, &f.train);
+                let fold_svr = fit_svr(&fx, &fy, self.dims, params, partially_linear);
+                match deployable(&fold_svr, &fx, &fy, budget) {
+                    Ok(net) => cluster_rms(f.validate.iter().map(|&i| y[i] - net.predict(&x[i])), self.per_cluster),
+                    Err(_) => f64::INFINITY,
+                }
+            })
+            .sum::<f64>()
+            / self.folds.len() as f64
+    }
 }
 
 /// The ε-SVR, or its partially linear form ([`Svr::fit_partially_linear`]).
