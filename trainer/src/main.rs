@@ -238,7 +238,7 @@ struct FitArgs {
     /// the middle of --rate-window-s).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
-    /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 8τ, 64τ), their
+    /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 16τ, 256τ), their
     /// products with T and T²×ΔT₂, Gaussians over T and the ΔT terms linear (default; generalises
     /// to other ramp rates); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network.
     #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
@@ -251,7 +251,7 @@ struct FitArgs {
     #[arg(long, value_name = "K", default_value_t = 32)]
     max_centers: usize,
     /// ΔT derivative-filter time constant(s) to choose from, in seconds (for multiscale the
-    /// fastest of three, the others 8 and 64 times it); 0 = one-sample difference (IFOG
+    /// fastest of three, the others 16 and 256 times it); 0 = one-sample difference (IFOG
     /// Eq. 22). Default: choose among 15, 60 and 240 s.
     #[arg(long, value_name = "SECONDS", value_delimiter = ',')]
     rate_window_s: Vec<f32>,

@@ -342,10 +342,10 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["crc"], "ok");
     assert_eq!(v["kind"], "gaussian-rbf");
-    // The default: T, ΔT over τ, 8τ, 64τ, their products with T, and T²×ΔT₂.
+    // The default: T, ΔT over τ, 16τ, 256τ, their products with T, and T²×ΔT₂.
     assert_eq!(v["inputs"], 8);
     assert_eq!(v["features"]["set"], "MultiScale");
-    assert_eq!(v["features"]["windows_s"], serde_json::json!([60.0, 480.0, 3840.0]));
+    assert_eq!(v["features"]["windows_s"], serde_json::json!([60.0, 960.0, 15360.0]));
     assert_eq!(
         v["blob_bytes"].as_u64().unwrap(),
         std::fs::metadata(&model).unwrap().len()

@@ -76,7 +76,7 @@ pub struct FitOptions {
     /// Most centres considered when choosing.
     pub max_centers: usize,
     /// ΔT filter time constants to choose from, s (the fastest of the three
-    /// multi-scale windows, which are 1, 8 and 64 times it).
+    /// multi-scale windows, which are 1, 16 and 256 times it).
     pub rate_windows_s: Vec<f32>,
     /// Contiguous folds per training run for validation when no `--validate`
     /// runs are given (never random rows: neighbouring samples correlate).
