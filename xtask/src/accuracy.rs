@@ -188,7 +188,19 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
             let mut args = vec!["fit", "-q", "--force", path(&train), "-o", path(&model)];
             args.extend(opts);
             let started = Instant::now();
-            trainer(&args)?;
+            if let Err(e) = trainer(&args) {
+                // A method that refuses this data (e.g. no input passes the
+                // paper's selection rule) is a result, not the end of the benchmark.
+                let reason = e.to_string();
+                let reason = reason.lines().last().unwrap_or_default().trim().to_owned();
+                println!("({label}: fit refused: {reason})");
+                rows.push(Row {
+                    method: label.into(),
+                    fit_s: f64::NAN,
+                    runs: vec![(f64::NAN, f64::NAN); p.verify.len()],
+                });
+                continue;
+            }
             let fit_s = started.elapsed().as_secs_f64();
             let json = dir.join(format!("{}_eval.json", p.name));
             let mut eval = vec!["eval", "--model", path(&model), "--json", path(&json)];
