@@ -116,32 +116,14 @@ pub fn fit<T: RunSet + ?Sized>(
         check_excitation(&blocks, set, opts)?;
     }
     let data = SvrData::new(&blocks, opts.block_s)?;
-    let SvrData {
-        norm,
-        x,
-        y,
-        dims,
-        y_std,
-        folds,
-        per_cluster,
-    } = &data;
-    let (dims, y_std, per_cluster) = (*dims, *y_std, *per_cluster);
+    let SvrData { norm, x, y, dims, .. } = &data;
+    let dims = *dims;
     let params_at = |p: &[f64]| SvrParams {
         sigma: 10f64.powf(p[0]),
         c: 10f64.powf(p[1]),
-        epsilon: 10f64.powf(p[2]) * y_std,
+        epsilon: 10f64.powf(p[2]) * data.y_std,
     };
-    let score = |params: SvrParams| {
-        folds
-            .iter()
-            .map(|f| {
-                let (fx, fy) = pick(x, y, &f.train);
-                let svr = fit_svr(&fx, &fy, dims, params, partially_linear);
-                cluster_rms(f.validate.iter().map(|&i| y[i] - svr.predict(&x[i])), per_cluster)
-            })
-            .sum::<f64>()
-            / folds.len() as f64
-    };
+    let score = |params: SvrParams| data.validation_rms(params, None, partially_linear);
     let pso_opts = PsoOptions::default();
     progress.start("tuning σ, C, ε (PSO)", pso_opts.iterations as u64 + 1);
     let lower = [LOG_SIGMA.0, LOG_C.0, LOG_EPSILON.0];
@@ -163,7 +145,7 @@ pub fn fit<T: RunSet + ?Sized>(
     let deployed = deployable(&svr, x, y, budget)?;
     // The cost of the reduction, on the same folds.
     let deployed_validation_rms_dph = if svr.support.len() > budget {
-        data.deployed_validation_rms(params, budget, partially_linear)
+        data.validation_rms(params, Some(budget), partially_linear)
     } else {
         result.best_cost
     };
@@ -243,19 +225,28 @@ impl SvrData {
         })
     }
 
-    /// Validation RMS (100-s clusters, offset removed per fold) of the network
-    /// deployed within `budget` centres, fitted on each fold's training part, °/h.
-    fn deployed_validation_rms(&self, params: SvrParams, budget: usize, partially_linear: bool) -> f64 {
+    /// Mean over the folds of the validation RMS (100-s clusters, offset
+    /// removed per fold) of the SVR fitted on each fold's training part, °/h;
+    /// with `budget`, of the network deployed within that many centres (+∞
+    /// where it cannot be built). The PSO's fitness and the cost of deployment.
+    fn validation_rms(&self, params: SvrParams, budget: Option<usize>, partially_linear: bool) -> f64 {
         let (x, y) = (&self.x, &self.y);
         self.folds
             .iter()
             .map(|f| {
                 let (fx, fy) = pick(x, y, &f.train);
-                let fold_svr = fit_svr(&fx, &fy, self.dims, params, partially_linear);
-                match deployable(&fold_svr, &fx, &fy, budget) {
-                    Ok(net) => cluster_rms(f.validate.iter().map(|&i| y[i] - net.predict(&x[i])), self.per_cluster),
-                    Err(_) => f64::INFINITY,
-                }
+                let svr = fit_svr(&fx, &fy, self.dims, params, partially_linear);
+                let model = match budget {
+                    None => svr,
+                    Some(budget) => match deployable(&svr, &fx, &fy, budget) {
+                        Ok(net) => net,
+                        Err(_) => return f64::INFINITY,
+                    },
+                };
+                cluster_rms(
+                    f.validate.iter().map(|&i| y[i] - model.predict(&x[i])),
+                    self.per_cluster,
+                )
             })
             .sum::<f64>()
             / self.folds.len() as f64

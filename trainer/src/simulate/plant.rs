@@ -69,7 +69,8 @@ impl PlantParams {
 
     /// Why these parameters cannot be simulated, if they cannot.
     pub fn check(&self) -> Result<(), String> {
-        if !(self.shortest_tau_s() >= MIN_TAU_S && self.shortest_tau_s().is_finite()) {
+        let shortest_s = self.shortest_tau_s();
+        if !(shortest_s >= MIN_TAU_S && shortest_s.is_finite()) {
             return Err(format!("every time constant must be at least {MIN_TAU_S} s"));
         }
         if !(self.self_heating_c.is_finite() && self.self_heating_c.abs() <= 50.0) {
