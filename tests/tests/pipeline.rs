@@ -200,7 +200,7 @@ fn svr_pso_compiles_to_a_deployable_network_that_compensates_unseen_ramp_rates()
 }
 
 #[test]
-fn svr_pso_on_multi_point_runs_selects_by_correlation_and_on_gyro_inputs_generalise() {
+fn svr_pso_on_multi_point_runs_selects_by_correlation_or_validation_and_generalises() {
     // The RLG paper's method on 8-thermometer runs: candidates correlated with
     // the bias, inputs selected, computed per sample by rbf-core.
     let dir = TempDir::new().unwrap();
@@ -218,7 +218,7 @@ fn svr_pso_on_multi_point_runs_selects_by_correlation_and_on_gyro_inputs_general
     // trainer::gradients; a short selection keeps this fit quick).
     let paper = FitOptions {
         method: Method::SvrPso,
-        selection: trainer::gradients::Selection::Top(2),
+        selection: Some(trainer::gradients::Selection::Top(2)),
         ..FitOptions::default()
     };
     let outcome = fit::fit(std::slice::from_ref(&train), &[], &paper).unwrap();
@@ -239,13 +239,30 @@ fn svr_pso_on_multi_point_runs_selects_by_correlation_and_on_gyro_inputs_general
     };
     assert_eq!(probes.len(), selection.selected.len());
 
-    // The thermometers on the gyro itself (not the chamber air or the plate),
-    // named with --inputs: beyond the training ramp rate, as well as the
-    // best single-point model.
-    let on_gyro = FitOptions {
-        inputs: Some((0..6).map(rbf_core::features::Probe::Temp).collect()),
-        ..paper
+    // The default: the subset of thermometers that validates best on the
+    // training run's folds. Beyond the training ramp rate it reaches 90 % and
+    // beats the best single-point model (the loop sensor, multiscale rbf).
+    let validated = FitOptions {
+        method: Method::SvrPso,
+        ..FitOptions::default()
     };
-    let model = fit::fit(std::slice::from_ref(&train), &[], &on_gyro).unwrap().model;
-    assert_improves(&model, &verify, 90.0, "svr-pso on temp_a … temp_f");
+    let outcome = fit::fit(std::slice::from_ref(&train), &[], &validated).unwrap();
+    let selection = outcome.svr.and_then(|c| c.selection).expect("a multi-point run");
+    assert!(!selection.ranking.is_empty(), "the validated subsets are reported");
+    let chosen: Vec<usize> = selection.selected.iter().map(|c| c.i).collect();
+    assert!(
+        selection.ranking.iter().any(|s| s.sensors == chosen),
+        "the chosen thermometers {chosen:?} are among the best subsets"
+    );
+    assert_improves(&outcome.model, &verify, 90.0, "svr-pso, validated thermometers");
+    let single_point = fit::fit(std::slice::from_ref(&train), &[], &FitOptions::default())
+        .unwrap()
+        .model;
+    let improvement = |m: &rbf_core::Model| evaluate_run(m, &verify[0]).cluster_std_improvement_pct;
+    assert!(
+        improvement(&outcome.model) > improvement(&single_point),
+        "multi-point {:.1} % vs single-point {:.1} %",
+        improvement(&outcome.model),
+        improvement(&single_point)
+    );
 }

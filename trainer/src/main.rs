@@ -52,7 +52,8 @@ enum Command {
 /// writes them), averages every --block-samples rows (the paper: 100), and prints the Pearson
 /// correlation with the bias (rate_dph − ref_dph) of each temperature (diagonal) and each
 /// gradient T_i − T_j (row i, column j), like the paper's Table 3, marking the inputs selected
-/// by --select-threshold (|r| ≥ 0.9 by default) or --select-top N.
+/// by --select-threshold (|r| ≥ 0.9 by default) or --select-top N. (`trainer fit --method
+/// svr-pso` prints the same table, then by default chooses its thermometers by validation.)
 #[derive(Args, Debug)]
 struct CorrelateArgs {
     /// Multi-point runs (the same thermometers in each).
@@ -71,25 +72,33 @@ struct CorrelateArgs {
 /// How multi-point inputs are selected from their correlations with the bias.
 #[derive(Args, Debug)]
 struct SelectArgs {
-    /// Select every temperature and gradient with |r| at least this (the RLG paper: 0.9).
-    #[arg(long, value_name = "R", default_value_t = 0.9, conflicts_with = "select_top")]
-    select_threshold: f64,
+    /// Select every temperature and gradient with |r| at least R (the RLG paper's rule:
+    /// `--select-threshold 0.9`). `correlate` uses 0.9 when neither this nor --select-top is
+    /// given; `fit --method svr-pso` then chooses the thermometers by validation instead.
+    #[arg(long, value_name = "R", conflicts_with = "select_top")]
+    select_threshold: Option<f64>,
     /// Select the N candidates of largest |r| instead.
     #[arg(long, value_name = "N")]
     select_top: Option<usize>,
 }
 
+/// The RLG paper's correlation threshold.
+const PAPER_THRESHOLD: f64 = 0.9;
+
 impl SelectArgs {
-    fn selection(&self) -> anyhow::Result<trainer::gradients::Selection> {
+    /// The correlation rule asked for, if any.
+    fn selection(&self) -> anyhow::Result<Option<trainer::gradients::Selection>> {
         use trainer::gradients::Selection;
-        anyhow::ensure!(
-            (0.0..=1.0).contains(&self.select_threshold),
-            "--select-threshold {}: a correlation magnitude, 0 … 1",
-            self.select_threshold
-        );
-        Ok(match self.select_top {
-            Some(n) => Selection::Top(n),
-            None => Selection::Threshold(self.select_threshold),
+        if let Some(r) = self.select_threshold {
+            anyhow::ensure!(
+                (0.0..=1.0).contains(&r),
+                "--select-threshold {r}: a correlation magnitude, 0 … 1"
+            );
+        }
+        Ok(match (self.select_top, self.select_threshold) {
+            (Some(n), _) => Some(Selection::Top(n)),
+            (None, Some(r)) => Some(Selection::Threshold(r)),
+            (None, None) => None,
         })
     }
 }
@@ -233,9 +242,12 @@ struct FitArgs {
     /// svr-pso = ε-SVR with σ, C, ε tuned by particle swarm on 3 contiguous folds (the RLG
     /// paper's method), deployed as an RBF network with one width (support vectors reduced by
     /// OLS to --centers, else --max-centers, when there are more); its inputs: on runs with
-    /// thermometers temp_a … temp_h, temperatures and gradients selected by correlation
-    /// (--select-threshold, --select-top) or named (--inputs); else (T, ΔT, T×ΔT) (ΔT window:
-    /// the middle of --rate-window-s).
+    /// thermometers temp_a … temp_h, the subset of thermometers that validates best on the
+    /// same folds (every subset scored by a fast Gaussian + linear ridge network; the gradients
+    /// between the chosen ones are in the model's linear span), or the temperatures and
+    /// gradients the RLG paper's correlation rule selects (--select-threshold 0.9,
+    /// --select-top N), or named ones (--inputs); else (T, ΔT, T×ΔT) (ΔT window: the middle of
+    /// --rate-window-s).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
     /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 16τ, 256τ), their
@@ -458,7 +470,22 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
     }
     if let Some(c) = &outcome.svr {
         if let Some(sel) = &c.selection {
-            write!(out, "{}", describe_selection(&sel.table, &sel.selected, opts.selection))?;
+            let rule = match (&opts.inputs, opts.selection) {
+                (Some(_), _) => "--inputs".to_owned(),
+                (None, Some(rule)) => rule_name(rule),
+                (None, None) => format!(
+                    "the best of {} subsets of thermometers on 3-fold contiguous validation",
+                    (1u32 << sel.table.names.len()) - 1
+                ),
+            };
+            write!(out, "{}", describe_selection(&sel.table, &sel.selected, &rule))?;
+            if !sel.ranking.is_empty() {
+                writeln!(out, "validation RMS of the best subsets (°/h):")?;
+                for s in &sel.ranking {
+                    let names: Vec<&str> = s.sensors.iter().map(|&k| sel.table.names[k].as_str()).collect();
+                    writeln!(out, "  {:.4e}  {}", s.validation_rms_dph, names.join(", "))?;
+                }
+            }
         }
         writeln!(out, "inputs: {}", c.inputs.join(", "))?;
         writeln!(
@@ -503,9 +530,9 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
 }
 
 fn cmd_correlate(a: CorrelateArgs) -> anyhow::Result<()> {
-    use trainer::gradients::{block_means, candidate_name, correlations, select};
+    use trainer::gradients::{Selection, block_means, candidate_name, correlations, select};
     anyhow::ensure!(a.block_samples >= 1, "--block-samples must be at least 1");
-    let selection = a.select.selection()?;
+    let selection = a.select.selection()?.unwrap_or(Selection::Threshold(PAPER_THRESHOLD));
     let blocks = block_means(&a.runs, a.block_samples)?;
     anyhow::ensure!(
         blocks.bias.len() >= 3,
@@ -521,28 +548,34 @@ fn cmd_correlate(a: CorrelateArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    print!("{}", describe_selection(&table, &selected, selection));
+    print!("{}", describe_selection(&table, &selected, &rule_name(selection)));
     Ok(())
 }
 
-/// The correlation matrix and the selection's line, as `correlate` and `fit` print them.
+/// A correlation rule as the selection line names it.
+fn rule_name(selection: trainer::gradients::Selection) -> String {
+    use trainer::gradients::Selection;
+    match selection {
+        Selection::Top(n) => format!("top {n} by |r|"),
+        Selection::Threshold(t) => format!("|r| ≥ {t}"),
+    }
+}
+
+/// The correlation matrix and the selection's line (chosen by `rule`), as
+/// `correlate` and `fit` print them.
 fn describe_selection(
     table: &trainer::gradients::CorrelationTable,
     selected: &[trainer::gradients::Candidate],
-    selection: trainer::gradients::Selection,
+    rule: &str,
 ) -> String {
-    use trainer::gradients::{Selection, candidate_name, format_table};
+    use trainer::gradients::{candidate_name, format_table};
     let names: Vec<String> = selected
         .iter()
         .map(|&c| format!("{} (r = {:.3})", candidate_name(table, c), table.r[c.i][c.j]))
         .collect();
     format!(
-        "{}selected ({}): {}\n",
+        "{}selected ({rule}): {}\n",
         format_table(table, selected),
-        match selection {
-            Selection::Top(n) => format!("top {n}"),
-            Selection::Threshold(t) => format!("|r| ≥ {t}"),
-        },
         if names.is_empty() {
             "none".to_owned()
         } else {

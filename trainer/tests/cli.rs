@@ -559,7 +559,7 @@ fn correlate_prints_the_gradient_matrix_of_a_multi_point_run_and_its_selection()
         );
     }
     let selected = text.lines().last().unwrap();
-    assert!(selected.starts_with("selected (top 2): "), "{selected}");
+    assert!(selected.starts_with("selected (top 2 by |r|): "), "{selected}");
     assert_eq!(selected.matches("(r = ").count(), 2, "{selected}");
     // Marked in the matrix: a temperature once, a gradient in both triangles.
     let marks: usize = text.lines().skip(1).map(|l| l.matches('*').count()).sum();

@@ -34,15 +34,20 @@ const METHODS: [(&str, &[&str]); 5] = [
 
 /// The RLG paper's comparison on 8-thermometer runs: single-point models,
 /// the traditional three temperatures (base, loop, electronics), and
-/// multi-point inputs by the paper's selection and by hand.
-const MULTI_POINT_METHODS: [(&str, &[&str]); 5] = [
+/// multi-point inputs by the paper's selection, by validation (svr-pso's
+/// default) and by hand.
+const MULTI_POINT_METHODS: [(&str, &[&str]); 6] = [
     ("rbf --features paper (loop only)", &["--features", "paper"]),
     ("default rbf (loop only)", &[]),
     (
         "svr-pso three-point a, c, e",
         &["--method", "svr-pso", "--inputs", "temp_a,temp_c,temp_e"],
     ),
-    ("svr-pso multi-point |r| ≥ 0.9", &["--method", "svr-pso"]),
+    (
+        "svr-pso multi-point |r| ≥ 0.9 (paper)",
+        &["--method", "svr-pso", "--select-threshold", "0.9"],
+    ),
+    ("svr-pso multi-point, validated", &["--method", "svr-pso"]),
     (
         "svr-pso multi-point a … f (on-gyro)",
         &[

@@ -8,6 +8,7 @@ pub mod pso;
 pub mod rbf;
 pub mod svr;
 pub mod svr_pso;
+pub mod thermometer_search;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use rbf_core::model::SERIAL_CAPACITY;
@@ -85,8 +86,10 @@ pub struct FitOptions {
     pub serial: Option<String>,
     /// Show a progress bar.
     pub progress: bool,
-    /// How `svr-pso` picks multi-point inputs from the candidates' correlations.
-    pub selection: crate::gradients::Selection,
+    /// How `svr-pso` picks multi-point inputs: `None` = the subset of
+    /// thermometers that validates best ([`thermometer_search`]), else the RLG
+    /// paper's correlation rule.
+    pub selection: Option<crate::gradients::Selection>,
     /// `svr-pso` on multi-point runs: these inputs instead of a selection.
     pub inputs: Option<Vec<rbf_core::features::Probe>>,
 }
@@ -103,7 +106,7 @@ impl Default for FitOptions {
             folds: 5,
             serial: None,
             progress: false,
-            selection: crate::gradients::Selection::Threshold(0.9),
+            selection: None,
             inputs: None,
         }
     }

@@ -44,7 +44,7 @@ const RIDGES: [f64; 3] = [1e-7, 1e-5, 1e-3];
 /// Validation groups with fewer cluster means than this are not scored.
 const MIN_SCORE_CLUSTERS: usize = 3;
 /// A smaller network is preferred when its score is within this factor of the best.
-const PARSIMONY: f64 = 1.005;
+pub(super) const PARSIMONY: f64 = 1.005;
 
 /// Ratios of the slower ΔT windows to the fastest in the multi-scale set:
 /// three scales 16× apart span the coil's and housing's time constants

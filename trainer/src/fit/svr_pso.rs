@@ -7,9 +7,12 @@
 //! Inputs: on runs with two or more thermometers (`temp_a` … `temp_h`), the
 //! paper's multi-point inputs: every temperature and pairwise gradient is a
 //! candidate, its 100-s block means are correlated with the bias
-//! ([`crate::gradients`], the paper's Table 3) and the selection rule
-//! ([`FitOptions::selection`]) picks the model's inputs, which rbf-core then
-//! computes per sample ([`rbf_core::FeatureSet::MultiPoint`]). On
+//! ([`crate::gradients`], the paper's Table 3). By default the thermometers
+//! are then chosen by validation ([`super::thermometer_search`]: correlation
+//! favours sensors whose lead over the coil does not carry to other ramp
+//! rates); with a correlation rule ([`FitOptions::selection`]) the paper's
+//! selection picks the inputs instead. rbf-core computes the inputs per
+//! sample ([`rbf_core::FeatureSet::MultiPoint`]). On
 //! single-thermometer runs, the IFOG paper's (T, ΔT, T×ΔT) (one ΔT window,
 //! the middle of `--rate-window`'s list).
 //!
@@ -28,6 +31,7 @@ use rbf_core::{FeatureConfig, FeatureSet, MAX_CENTERS, MAX_INPUTS, Model};
 use super::linalg::{FeatureRow, GramStats, InputShape, Normaliser, design, ridge_solve, thin};
 use super::pso::{self, PsoOptions};
 use super::svr::{Svr, SvrParams};
+use super::thermometer_search::{self, SubsetScore};
 use super::{FitOptions, Progress, check_excitation, deploy_ranges, rbf, serial};
 use crate::dataset::{Blocks, RunSet};
 use crate::gradients::{self, Candidate, CorrelationTable, MultiBlocks};
@@ -53,6 +57,8 @@ const REFIT_RIDGE: f64 = 1e-7;
 /// Length of the correlation analysis's blocks, s: the paper's 100 samples
 /// at its 1 Hz.
 const CORRELATION_BLOCK_S: f64 = 100.0;
+/// Subsets of thermometers kept in the report of a validated choice.
+const REPORTED_SUBSETS: usize = 8;
 
 /// How the multi-point inputs were chosen.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -61,6 +67,9 @@ pub struct InputSelection {
     pub table: CorrelationTable,
     /// The candidates chosen, in the model's input order.
     pub selected: Vec<Candidate>,
+    /// The best subsets of thermometers by validation, best first, when the
+    /// inputs were chosen that way (empty for a correlation rule or `--inputs`).
+    pub ranking: Vec<SubsetScore>,
 }
 
 /// What the swarm chose and what deployment cost.
@@ -91,9 +100,9 @@ pub struct SvrChoice {
 }
 
 /// One fold: training rows and validation rows (indices into the thinned blocks).
-struct Fold {
-    train: Vec<usize>,
-    validate: Vec<usize>,
+pub(super) struct Fold {
+    pub(super) train: Vec<usize>,
+    pub(super) validate: Vec<usize>,
 }
 
 /// Fits the RLG paper's model on `train` (PSO fitness on contiguous folds).
@@ -102,7 +111,7 @@ pub fn fit<T: RunSet + ?Sized>(
     opts: &FitOptions,
     progress: &Progress,
 ) -> anyhow::Result<(Model, SvrChoice)> {
-    let (features, selection) = choose_inputs(train, opts)?;
+    let (features, selection) = choose_inputs(train, opts, progress)?;
     // Multi-point inputs get a linear part: gradients grow in proportion to
     // the ramp rate, and it carries the model past the training ramps
     // (bench-accuracy: three-point 85.5/81.9 % instead of 69/69 %). On the
@@ -185,23 +194,25 @@ pub fn fit<T: RunSet + ?Sized>(
 }
 
 /// An SVR's training data: thinned, normalised blocks with their folds.
-struct SvrData {
+pub(super) struct SvrData {
     norm: Normaliser,
     /// Normalised inputs of the rows used.
-    x: Vec<FeatureRow>,
+    pub(super) x: Vec<FeatureRow>,
     /// Bias target of the rows used, °/h.
-    y: Vec<f64>,
-    dims: usize,
+    pub(super) y: Vec<f64>,
+    /// Inputs per row.
+    pub(super) dims: usize,
     /// Offset-free RMS of `y`, °/h (> 0).
     y_std: f64,
-    folds: Vec<Fold>,
+    /// The contiguous validation folds.
+    pub(super) folds: Vec<Fold>,
     /// Rows per 100-s cluster of the validation residual.
-    per_cluster: usize,
+    pub(super) per_cluster: usize,
 }
 
 impl SvrData {
     /// Every n-th block (≤ [`MAX_SVR_ROWS`]), normalised, in [`FOLDS`] contiguous folds.
-    fn new(blocks: &Blocks, block_s: f64) -> anyhow::Result<SvrData> {
+    pub(super) fn new(blocks: &Blocks, block_s: f64) -> anyhow::Result<SvrData> {
         let norm = Normaliser::fit(blocks);
         let all: Vec<usize> = (0..blocks.len()).collect();
         let rows = thin(&all, MAX_SVR_ROWS);
@@ -262,11 +273,13 @@ fn fit_svr(x: &[FeatureRow], y: &[f64], dims: usize, params: SvrParams, partiall
     }
 }
 
-/// The model's inputs: multi-point ones chosen by correlation where every
-/// training run has two or more thermometers, else (T, ΔT, T×ΔT).
+/// The model's inputs: multi-point ones (named, chosen by validation or by a
+/// correlation rule) where every training run has two or more thermometers,
+/// else (T, ΔT, T×ΔT).
 fn choose_inputs<T: RunSet + ?Sized>(
     train: &T,
     opts: &FitOptions,
+    progress: &Progress,
 ) -> anyhow::Result<(FeatureConfig, Option<InputSelection>)> {
     let mask = train.thermometer_mask()?;
     if mask.count_ones() < 2 {
@@ -292,8 +305,9 @@ fn choose_inputs<T: RunSet + ?Sized>(
     check_excitation(&temps, FeatureSet::Temp, opts)?;
     let group = (CORRELATION_BLOCK_S / opts.block_s).round().max(1.0) as usize;
     let table = gradients::correlations(&MultiBlocks::from_blocks(&temps, &sensors, group));
-    let (selected, probes) = match &opts.inputs {
-        Some(given) => {
+    let mut ranking = Vec::new();
+    let (selected, probes) = match (&opts.inputs, opts.selection) {
+        (Some(given), _) => {
             for p in given {
                 anyhow::ensure!(
                     p.thermometer_mask() & !mask == 0,
@@ -303,8 +317,17 @@ fn choose_inputs<T: RunSet + ?Sized>(
             let selected = given.iter().filter_map(|p| Candidate::of_probe(*p, &sensors)).collect();
             (selected, given.clone())
         }
-        None => {
-            let mut selected = gradients::select(&table, opts.selection);
+        (None, None) => {
+            let all = thermometer_search::rank(&SvrData::new(&temps, opts.block_s)?, progress);
+            let best = thermometer_search::choose(&all)
+                .ok_or_else(|| anyhow::anyhow!("no subset of the thermometers predicts the bias (singular data)"))?;
+            let selected: Vec<Candidate> = best.sensors.iter().map(|&k| Candidate { i: k, j: k }).collect();
+            let probes = selected.iter().map(|c| c.probe(&sensors)).collect();
+            ranking = all.into_iter().take(REPORTED_SUBSETS).collect();
+            (selected, probes)
+        }
+        (None, Some(rule)) => {
+            let mut selected = gradients::select(&table, rule);
             selected.truncate(MAX_INPUTS);
             anyhow::ensure!(
                 !selected.is_empty(),
@@ -319,7 +342,14 @@ fn choose_inputs<T: RunSet + ?Sized>(
         Probes::new(&probes).ok_or_else(|| anyhow::anyhow!("the selected inputs do not form a valid set"))?,
     );
     train.prepare(&[features], opts.block_s)?;
-    Ok((features, Some(InputSelection { table, selected })))
+    Ok((
+        features,
+        Some(InputSelection {
+            table,
+            selected,
+            ranking,
+        }),
+    ))
 }
 
 /// The SVR's expansion within `budget` centres: itself when it fits, else
@@ -384,7 +414,7 @@ fn pick(x: &[FeatureRow], y: &[f64], rows: &[usize]) -> (Vec<FeatureRow>, Vec<f6
 
 /// [`offset_free_rms`] of the means of consecutive groups of `per_cluster`
 /// residuals (a short last group included).
-fn cluster_rms(residuals: impl Iterator<Item = f64>, per_cluster: usize) -> f64 {
+pub(super) fn cluster_rms(residuals: impl Iterator<Item = f64>, per_cluster: usize) -> f64 {
     let r: Vec<f64> = residuals.collect();
     offset_free_rms(
         r.chunks(per_cluster.max(1))
