@@ -28,7 +28,7 @@ use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
 use rbf_core::{FeatureConfig, FeatureSet, MAX_CENTERS, MAX_INPUTS, Model};
 
-use super::linalg::{FeatureRow, GramStats, InputShape, Normaliser, design, ridge_solve, thin};
+use super::linalg::{FeatureRow, GramStats, InputShape, Normaliser, design, ridge_solve};
 use super::pso::{self, PsoOptions};
 use super::svr::{Svr, SvrParams};
 use super::thermometer_search::{self, SubsetScore};
@@ -99,7 +99,7 @@ pub struct SvrChoice {
     pub pso_history: Vec<f64>,
 }
 
-/// One fold: training rows and validation rows (indices into the thinned blocks).
+/// One fold: training rows and validation rows (indices into the merged blocks).
 pub(super) struct Fold {
     pub(super) train: Vec<usize>,
     pub(super) validate: Vec<usize>,
@@ -193,7 +193,7 @@ pub fn fit<T: RunSet + ?Sized>(
     Ok((model, choice))
 }
 
-/// An SVR's training data: thinned, normalised blocks with their folds.
+/// An SVR's training data: merged, normalised blocks with their folds.
 pub(super) struct SvrData {
     norm: Normaliser,
     /// Normalised inputs of the rows used.
@@ -211,20 +211,24 @@ pub(super) struct SvrData {
 }
 
 impl SvrData {
-    /// Every n-th block (≤ [`MAX_SVR_ROWS`]), normalised, in [`FOLDS`] contiguous folds.
+    /// Means of consecutive blocks of one run (n blocks each, the fewest that
+    /// give ≤ [`MAX_SVR_ROWS`] rows), normalised, in [`FOLDS`] contiguous
+    /// folds. Means, not every n-th block: a 1-s block carries the gyro's
+    /// white noise and the thermometers' quantisation, which at 1200 rows
+    /// would hide the differences between models the swarm and the choice
+    /// of thermometers must see.
     pub(super) fn new(blocks: &Blocks, block_s: f64) -> anyhow::Result<SvrData> {
-        let norm = Normaliser::fit(blocks);
-        let all: Vec<usize> = (0..blocks.len()).collect();
-        let rows = thin(&all, MAX_SVR_ROWS);
-        let x: Vec<FeatureRow> = rows.iter().map(|&i| norm.apply(&blocks.x[i])).collect();
-        let y: Vec<f64> = rows.iter().map(|&i| blocks.y[i]).collect();
+        let group = blocks.len().div_ceil(MAX_SVR_ROWS).max(1);
+        let merged = merge_blocks(blocks, group);
+        let norm = Normaliser::fit(&merged);
+        let x: Vec<FeatureRow> = merged.x.iter().map(|r| norm.apply(r)).collect();
+        let y = merged.y;
         let y_std = offset_free_rms(y.iter().copied());
         anyhow::ensure!(y_std.is_finite(), "no blocks to fit an SVR on");
         let folds = contiguous_folds(x.len(), FOLDS);
         // Scored on 100-s cluster means of the residual, as `rbf` is: at 1 s
         // white noise hides model errors ten times smaller than itself.
-        let stride = all.len().div_ceil(MAX_SVR_ROWS).max(1) as f64;
-        let per_cluster = (crate::metrics::CLUSTER_S / (block_s * stride)).round().max(1.0) as usize;
+        let per_cluster = (crate::metrics::CLUSTER_S / (block_s * group as f64)).round().max(1.0) as usize;
         Ok(SvrData {
             norm,
             x,
@@ -388,6 +392,36 @@ fn deployable(svr: &Svr, x: &[FeatureRow], y: &[f64], budget: usize) -> anyhow::
         linear: w.as_slice()[1..fixed_count].to_vec(),
         ..svr.clone()
     })
+}
+
+/// Means of `group` consecutive blocks (features and target) within each
+/// run; a run's last, shorter group is a mean too.
+fn merge_blocks(blocks: &Blocks, group: usize) -> Blocks {
+    let mut merged = Blocks {
+        dims: blocks.dims,
+        sample_range: blocks.sample_range.clone(),
+        usable_s: blocks.usable_s,
+        ..Blocks::default()
+    };
+    let mut start = 0;
+    while start < blocks.len() {
+        let run = blocks.run[start];
+        let end = (start..blocks.len().min(start + group))
+            .find(|&i| blocks.run[i] != run)
+            .unwrap_or(blocks.len().min(start + group));
+        let n = (end - start) as f64;
+        let mut x = [0.0; MAX_INPUTS];
+        for row in &blocks.x[start..end] {
+            for (m, v) in x.iter_mut().zip(row) {
+                *m += v / n;
+            }
+        }
+        merged.x.push(x);
+        merged.y.push(blocks.y[start..end].iter().sum::<f64>() / n);
+        merged.run.push(run);
+        start = end;
+    }
+    merged
 }
 
 /// `count` contiguous folds over `n` rows: each validates on one contiguous
