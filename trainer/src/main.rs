@@ -490,7 +490,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         writeln!(out, "inputs: {}", c.inputs.join(", "))?;
         writeln!(
             out,
-            "PSO on 3-fold contiguous validation ({} particles × {} iterations): ΔT window {} s, σ {:.4} (normalised), C {:.4e}, ε {:.3e} °/h; validation RMS {:.4e} °/h",
+            "PSO on 3-fold contiguous validation of the deployed network ({} particles × {} iterations): ΔT window {} s, σ {:.4} (normalised), C {:.4e}, ε {:.3e} °/h; the SVR's own validation RMS {:.4e} °/h",
             c.pso.particles,
             c.pso.iterations,
             c.rate_window_s,
@@ -501,7 +501,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         )?;
         writeln!(
             out,
-            "{} support vectors → {} centres deployed; validation RMS of the deployed network {:.4e} °/h",
+            "{} support vectors → {} centres deployed (OLS, weights refitted); validation RMS of the deployed network {:.4e} °/h (the swarm's fitness)",
             c.support_vectors, c.centers, c.deployed_validation_rms_dph
         )?;
     }
