@@ -141,6 +141,8 @@ struct Row {
     method: String,
     fit_s: f64,
     runs: Vec<(f64, f64)>,
+    /// Why the method refused the training data, if it did (then `runs` is empty).
+    refusal: Option<String>,
 }
 
 /// Runs the benchmark and prints one table per protocol; `params` simulates
@@ -197,12 +199,14 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
                 // A method that refuses this data (e.g. no input passes the
                 // paper's selection rule) is a result, not the end of the benchmark.
                 let reason = e.to_string();
-                let reason = reason.lines().last().unwrap_or_default().trim().to_owned();
-                println!("({label}: fit refused: {reason})");
+                let last = reason.lines().last().unwrap_or_default();
+                // The trainer's own message, without the command line before it.
+                let reason = last.rsplit("error: ").next().unwrap_or(last).trim().to_owned();
                 rows.push(Row {
                     method: label.into(),
                     fit_s: f64::NAN,
-                    runs: vec![(f64::NAN, f64::NAN); p.verify.len()],
+                    runs: Vec::new(),
+                    refusal: Some(reason),
                 });
                 continue;
             }
@@ -233,6 +237,7 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
                 method: label.into(),
                 fit_s,
                 runs,
+                refusal: None,
             });
         }
         if p.peers {
@@ -286,6 +291,7 @@ fn peer_rows(python: &Path, script: &Path, p: &Protocol, train: &Path, verify: &
             method: format!("{name} (same features)"),
             fit_s: r["fit_s"].as_f64().unwrap_or(f64::NAN),
             runs,
+            refusal: None,
         });
     }
     Ok(rows)
@@ -309,6 +315,10 @@ fn print_protocol(p: &Protocol, before: &[f64], rows: &[Row], means: &mut Vec<f6
     println!();
     for r in rows {
         print!("{:<38}", r.method);
+        if let Some(reason) = &r.refusal {
+            println!(" fit refused: {reason}");
+            continue;
+        }
         for (imp, after) in &r.runs {
             print!(" {:>18}", format!("{imp:.1} ({after:.4})"));
         }
