@@ -27,13 +27,16 @@
 //! The Shupe bias follows the time derivative of the coil's whole temperature
 //! distribution, whose inner layers lag the outer ones: the loop sensor's rate
 //! seen through derivative filters of three time constants (fast, slow,
-//! slower) spans that history. [`FeatureSet::MultiScale`] gives T, the three
-//! ΔT, their products with T and T²×ΔT₂: the bias follows a nonlinear static
-//! term of the *mean* coil temperature, which lags the sensor by an amount
-//! proportional to the rate, so its first-order correction is the static
-//! term's derivative (quadratic in T for a cubic) times the rate. Warm-up there
-//! counts 3 × the fastest τ; the slower filters start from the steady state
-//! (ΔT = 0) like the fast one.
+//! slower) spans that history. The bias also follows a nonlinear static term
+//! of the *mean* coil temperature T̄, which lags the sensor by an amount L·ΔT
+//! proportional to the rate: f(T − L·ΔT) = f(T) − f′(T)·L·ΔT + ½f″(T)·L²·ΔT² − …
+//! The first-order correction is the static term's derivative (quadratic in T
+//! for a cubic) times the rate, the second-order one the rate squared.
+//! [`FeatureSet::MultiScaleSecondOrder`] (the default) gives T, the three ΔT,
+//! T×ΔT₂, T×ΔT₃, T²×ΔT₂ and ΔT₃² (the slowest scale carries the coil's lag);
+//! [`FeatureSet::MultiScale`] (the first-order set, the default before) has
+//! T×ΔT₁ in place of ΔT₃². Warm-up there counts 3 × the fastest τ; the slower
+//! filters start from the steady state (ΔT = 0) like the fast one.
 //!
 //! ## Several thermometers
 //! The RLG paper's method reads up to [`THERMOMETERS`] thermometers
@@ -193,6 +196,11 @@ pub enum FeatureSet {
     /// Temperatures and gradients of several thermometers (the RLG paper's
     /// multi-point inputs, `--method svr-pso` on runs with `temp_a` … `temp_h`).
     MultiPoint(Probes),
+    /// (T, ΔT₁, ΔT₂, ΔT₃, T×ΔT₂, T×ΔT₃, T²×ΔT₂, ΔT₃²) over three filter
+    /// windows: the multi-scale set with the second-order lag term ΔT₃² in
+    /// place of T×ΔT₁ (the default; see the module docs). Declared last so
+    /// that the blob encoding of the other sets is unchanged.
+    MultiScaleSecondOrder,
 }
 
 impl FeatureSet {
@@ -202,7 +210,7 @@ impl FeatureSet {
             FeatureSet::Temp => 1,
             FeatureSet::TempRate => 2,
             FeatureSet::TempRateProduct => 3,
-            FeatureSet::MultiScale => 8,
+            FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder => 8,
             FeatureSet::MultiPoint(probes) => probes.len(),
         }
     }
@@ -212,8 +220,13 @@ impl FeatureSet {
         match self {
             FeatureSet::Temp | FeatureSet::MultiPoint(_) => 0,
             FeatureSet::TempRate | FeatureSet::TempRateProduct => 1,
-            FeatureSet::MultiScale => WINDOWS,
+            FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder => WINDOWS,
         }
+    }
+
+    /// True for the sets over three ΔT time scales.
+    pub const fn is_multiscale(self) -> bool {
+        matches!(self, FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder)
     }
 
     /// The thermometers the inputs read, as a bit mask (bit i = thermometer i):
@@ -267,6 +280,16 @@ impl FeatureSet {
                 "T×ΔT₃ [°C²/min]",
                 "T²×ΔT₂ [°C³/min]",
             ],
+            FeatureSet::MultiScaleSecondOrder => &[
+                "T [°C]",
+                "ΔT₁ [°C/min]",
+                "ΔT₂ [°C/min]",
+                "ΔT₃ [°C/min]",
+                "T×ΔT₂ [°C²/min]",
+                "T×ΔT₃ [°C²/min]",
+                "T²×ΔT₂ [°C³/min]",
+                "ΔT₃² [°C²/min²]",
+            ],
             FeatureSet::MultiPoint(_) => &[],
         }
     }
@@ -300,7 +323,7 @@ pub struct FeatureConfig {
     pub set: FeatureSet,
     /// Time constant τ of the (fastest) ΔT derivative filter, s. 0 = one-sample difference (Eq. 22).
     pub rate_window_s: f32,
-    /// Time constants of the slower filters, s ([`FeatureSet::MultiScale`] only; else 0).
+    /// Time constants of the slower filters, s (multi-scale sets only; else 0).
     pub slow_windows_s: [f32; WINDOWS - 1],
 }
 
@@ -314,10 +337,10 @@ impl FeatureConfig {
         }
     }
 
-    /// The multi-scale set over windows `[τ₁, τ₂, τ₃]`, s.
-    pub const fn multiscale(windows_s: [f32; WINDOWS]) -> Self {
+    /// The multi-scale `set` ([`FeatureSet::is_multiscale`]) over windows `[τ₁, τ₂, τ₃]`, s.
+    pub const fn multiscale(set: FeatureSet, windows_s: [f32; WINDOWS]) -> Self {
         FeatureConfig {
-            set: FeatureSet::MultiScale,
+            set,
             rate_window_s: windows_s[0],
             slow_windows_s: [windows_s[1], windows_s[2]],
         }
@@ -477,6 +500,19 @@ impl FeatureExtractor {
                 }
                 values[1 + 2 * WINDOWS] = temp_c * temp_c * rate_c_per_min[1];
             }
+            FeatureSet::MultiScaleSecondOrder => {
+                let [fast, slow, slowest] = rate_c_per_min;
+                values = [
+                    temp_c,
+                    fast,
+                    slow,
+                    slowest,
+                    temp_c * slow,
+                    temp_c * slowest,
+                    temp_c * temp_c * slow,
+                    slowest * slowest,
+                ];
+            }
             FeatureSet::MultiPoint(probes) => {
                 for (v, p) in values.iter_mut().zip(probes.as_slice()) {
                     *v = p.value(temps_c);
@@ -576,7 +612,7 @@ mod tests {
 
     #[test]
     fn every_multiscale_window_reads_a_steady_ramp_and_its_product_with_t() {
-        let cfg = FeatureConfig::multiscale([10.0, 80.0, 640.0]);
+        let cfg = FeatureConfig::multiscale(FeatureSet::MultiScale, [10.0, 80.0, 640.0]);
         let mut fx = FeatureExtractor::new();
         let mut f = fx.update(&cfg, 1.0, &loop_reading(0.0));
         for i in 1..=20_000 {
@@ -589,8 +625,27 @@ mod tests {
         }
         assert_eq!(v[7], v[0] * v[0] * v[2]);
         assert!(!f.warming_up);
-        let cfg_bad = FeatureConfig::multiscale([10.0, f32::NAN, 640.0]);
+        let cfg_bad = FeatureConfig::multiscale(FeatureSet::MultiScale, [10.0, f32::NAN, 640.0]);
         assert!(!cfg_bad.is_valid());
+    }
+
+    #[test]
+    fn the_second_order_set_adds_the_slowest_rate_squared_in_place_of_t_times_the_fastest() {
+        let windows = [10.0, 80.0, 640.0];
+        let first = FeatureConfig::multiscale(FeatureSet::MultiScale, windows);
+        let second = FeatureConfig::multiscale(FeatureSet::MultiScaleSecondOrder, windows);
+        let (mut fx1, mut fx2) = (FeatureExtractor::new(), FeatureExtractor::new());
+        for i in 0..=5_000 {
+            // A ramp at 2 °C/min from 15 °C: T = 15 + i/30.
+            let temps = loop_reading(15.0 + 2.0 * i as f32 / 60.0);
+            let (a, b) = (fx1.update(&first, 1.0, &temps), fx2.update(&second, 1.0, &temps));
+            let (a, b) = (a.as_slice(), b.as_slice());
+            // T, the three rates, T×ΔT₂, T×ΔT₃ and T²×ΔT₂: the same filters, the same values.
+            assert_eq!(&b[..4], &a[..4], "sample {i}");
+            assert_eq!(&b[4..7], &[a[5], a[6], a[7]], "sample {i}");
+            assert_eq!(b[7], b[3] * b[3], "sample {i}");
+        }
+        assert_eq!(second.set.name(7), Some(InputName::Fixed("ΔT₃² [°C²/min²]")));
     }
 
     #[test]
@@ -613,9 +668,10 @@ mod tests {
             FeatureSet::TempRate,
             FeatureSet::TempRateProduct,
             FeatureSet::MultiScale,
+            FeatureSet::MultiScaleSecondOrder,
         ] {
-            let cfg = if set == FeatureSet::MultiScale {
-                FeatureConfig::multiscale([5.0, 40.0, 320.0])
+            let cfg = if set.is_multiscale() {
+                FeatureConfig::multiscale(set, [5.0, 40.0, 320.0])
             } else {
                 FeatureConfig::single(set, 5.0)
             };

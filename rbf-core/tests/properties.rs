@@ -38,9 +38,10 @@ fn feature_config() -> impl Strategy<Value = FeatureConfig> {
         FeatureSet::TempRate,
         FeatureSet::TempRateProduct,
         FeatureSet::MultiScale,
+        FeatureSet::MultiScaleSecondOrder,
     ]);
     (set, window).prop_map(|(set, w)| match set {
-        FeatureSet::MultiScale => FeatureConfig::multiscale([w, 8.0 * w, 64.0 * w]),
+        set if set.is_multiscale() => FeatureConfig::multiscale(set, [w, 8.0 * w, 64.0 * w]),
         _ => FeatureConfig::single(set, w),
     })
 }

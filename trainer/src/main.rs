@@ -114,7 +114,7 @@ struct BlocksArgs {
     /// Runs to read (blocks are written in order, with a run column).
     #[arg(required = true, value_name = "RUN.csv")]
     runs: Vec<PathBuf>,
-    /// Inputs: multiscale (default) or paper (T, ΔT, T×ΔT).
+    /// Inputs: multiscale (default), multiscale-first-order or paper (T, ΔT, T×ΔT).
     #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
     features: RbfFeatures,
     /// Fastest ΔT window, s.
@@ -250,9 +250,12 @@ struct FitArgs {
     /// --rate-window-s).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
-    /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 16τ, 256τ), their
-    /// products with T and T²×ΔT₂, Gaussians over T and the ΔT terms linear (default; generalises
-    /// to other ramp rates); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network.
+    /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 16τ, 256τ), T×ΔT₂,
+    /// T×ΔT₃, T²×ΔT₂ and ΔT₃² (the mean coil temperature lags the sensor in proportion to the
+    /// rate: first- and second-order terms of that lag), Gaussians over T and the ΔT terms linear
+    /// (default; generalises to other ramp rates); multiscale-first-order = the same with T×ΔT₁ in
+    /// place of ΔT₃² (the default before); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG
+    /// paper's network.
     #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
     features: RbfFeatures,
     /// Use K Gaussian centres (1–64; fewer if OLS finds fewer independent ones) instead of

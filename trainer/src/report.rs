@@ -115,7 +115,7 @@ impl Figure for SurfacePlot<'_> {
     where
         DB::ErrorType: 'static,
     {
-        if self.model.features().set == FeatureSet::MultiScale {
+        if self.model.features().set.is_multiscale() {
             draw_trajectory(root, &self.trajectory)
         } else {
             draw_surface(root, self.model)
@@ -276,6 +276,18 @@ fn steady_bias(model: &Model, t_c: f32, rate: f32) -> f32 {
                 t_c * rate,
                 t_c * rate,
                 t_c * t_c * rate,
+            ]
+        }
+        FeatureSet::MultiScaleSecondOrder => {
+            vec![
+                t_c,
+                rate,
+                rate,
+                rate,
+                t_c * rate,
+                t_c * rate,
+                t_c * t_c * rate,
+                rate * rate,
             ]
         }
         // Multi-point: the first two inputs on the axes, the others at the

@@ -344,7 +344,7 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     assert_eq!(v["kind"], "gaussian-rbf");
     // The default: T, ΔT over τ, 16τ, 256τ, their products with T, and T²×ΔT₂.
     assert_eq!(v["inputs"], 8);
-    assert_eq!(v["features"]["set"], "MultiScale");
+    assert_eq!(v["features"]["set"], "MultiScaleSecondOrder");
     assert_eq!(v["features"]["windows_s"], serde_json::json!([60.0, 960.0, 15360.0]));
     assert_eq!(
         v["blob_bytes"].as_u64().unwrap(),

@@ -26,10 +26,14 @@ pub const MIN_RATE_SPAN_C_PER_MIN: f64 = 0.2;
 /// Inputs of the `rbf` method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 pub enum RbfFeatures {
-    /// T, ΔT over three time scales, their products with T and T²×ΔT₂; Gaussians
-    /// over T, ΔT terms linear (the Shupe effect's form). The default: it generalises to
-    /// ramp rates and profiles it was not trained on.
+    /// T, ΔT over three time scales, T×ΔT₂, T×ΔT₃, T²×ΔT₂ and ΔT₃²
+    /// (`FeatureSet::MultiScaleSecondOrder`); Gaussians over T, the ΔT terms linear
+    /// (the Shupe effect's form). The default: it generalises to ramp rates and
+    /// profiles it was not trained on.
     Multiscale,
+    /// The first-order multi-scale set (T×ΔT₁ in place of ΔT₃²,
+    /// `FeatureSet::MultiScale`), the default before the second-order term.
+    MultiscaleFirstOrder,
     /// (T, ΔT, T×ΔT) with Gaussians over all three: the IFOG paper's network.
     Paper,
 }
@@ -55,7 +59,8 @@ impl Method {
     pub fn feature_set(self, features: RbfFeatures) -> FeatureSet {
         match self {
             Method::Rbf if features == RbfFeatures::Paper => FeatureSet::TempRateProduct,
-            Method::Rbf => FeatureSet::MultiScale,
+            Method::Rbf if features == RbfFeatures::MultiscaleFirstOrder => FeatureSet::MultiScale,
+            Method::Rbf => FeatureSet::MultiScaleSecondOrder,
             Method::Rbf2 => FeatureSet::TempRate,
             Method::Poly3 => FeatureSet::Temp,
             Method::SvrPso => FeatureSet::TempRateProduct,

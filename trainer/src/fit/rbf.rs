@@ -56,7 +56,7 @@ pub const MULTISCALE_RATIOS: [f32; 3] = [1.0, 16.0, 256.0];
 /// The feature configuration of `set` with fastest window `window_s`.
 pub fn feature_config(set: FeatureSet, window_s: f32) -> FeatureConfig {
     match set {
-        FeatureSet::MultiScale => FeatureConfig::multiscale(MULTISCALE_RATIOS.map(|r| r * window_s)),
+        set if set.is_multiscale() => FeatureConfig::multiscale(set, MULTISCALE_RATIOS.map(|r| r * window_s)),
         FeatureSet::Temp => FeatureConfig::single(set, 0.0),
         _ => FeatureConfig::single(set, window_s),
     }
@@ -67,7 +67,7 @@ pub fn feature_config(set: FeatureSet, window_s: f32) -> FeatureConfig {
 /// inputs in the IFOG paper's networks.
 pub fn kernel_inputs(set: FeatureSet) -> usize {
     match set {
-        FeatureSet::MultiScale => 1,
+        set if set.is_multiscale() => 1,
         _ => set.dims(),
     }
 }
