@@ -114,7 +114,8 @@ struct BlocksArgs {
     /// Runs to read (blocks are written in order, with a run column).
     #[arg(required = true, value_name = "RUN.csv")]
     runs: Vec<PathBuf>,
-    /// Inputs: multiscale (default), multiscale-first-order or paper (T, ΔT, T×ΔT).
+    /// Inputs: multiscale (default: the second-order set), multiscale-first-order,
+    /// multiscale-second-order or paper (T, ΔT, T×ΔT).
     #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
     features: RbfFeatures,
     /// Fastest ΔT window, s.
@@ -250,12 +251,13 @@ struct FitArgs {
     /// --rate-window-s).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
-    /// Inputs of --method rbf: multiscale = T, ΔT over three time scales (τ, 16τ, 256τ), T×ΔT₂,
-    /// T×ΔT₃, T²×ΔT₂ and ΔT₃² (the mean coil temperature lags the sensor in proportion to the
-    /// rate: first- and second-order terms of that lag), Gaussians over T and the ΔT terms linear
-    /// (default; generalises to other ramp rates); multiscale-first-order = the same with T×ΔT₁ in
-    /// place of ΔT₃² (the default before); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG
-    /// paper's network.
+    /// Inputs of --method rbf. multiscale-first-order = T, ΔT over three time scales (τ, 16τ,
+    /// 256τ), T×ΔT₁, T×ΔT₂, T×ΔT₃ and T²×ΔT₂, Gaussians over T and the ΔT terms linear (the mean
+    /// coil temperature lags the sensor in proportion to the rate: first-order terms of that lag);
+    /// multiscale-second-order = the same with the second-order term ΔT₃² in place of T×ΔT₁;
+    /// multiscale (default) = both fitted, the second-order set kept only when its validation RMS
+    /// is below 0.9 × the first-order one (a term fitted at one ramp rate must earn its
+    /// extrapolation); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network.
     #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
     features: RbfFeatures,
     /// Use K Gaussian centres (1–64; fewer if OLS finds fewer independent ones) instead of
@@ -471,6 +473,21 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             c.validation_rms_dph
         )?;
     }
+    if let Some(s) = &outcome.sets {
+        writeln!(
+            out,
+            "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃²) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
+            s.first_order_rms_dph,
+            s.second_order_rms_dph,
+            s.second_order_rms_dph / s.first_order_rms_dph,
+            fit::SECOND_ORDER_GAIN,
+            if s.chosen == rbf_core::FeatureSet::MultiScale {
+                "first-order"
+            } else {
+                "second-order"
+            }
+        )?;
+    }
     if let Some(c) = &outcome.svr {
         if let Some(sel) = &c.selection {
             let rule = match (&opts.inputs, opts.selection) {
@@ -522,6 +539,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         let report = serde_json::json!({
             "method": a.method,
             "choice": outcome.choice,
+            "feature_sets": outcome.sets,
             "svr": outcome.svr,
             "fit_seconds": fit_s,
             "blob_bytes": blob.len(),

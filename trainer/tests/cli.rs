@@ -334,6 +334,66 @@ fn corrupt_blobs_are_refused_with_the_reason() {
 }
 
 #[test]
+fn the_default_keeps_the_second_order_set_only_when_it_validates_clearly_better() {
+    let dir = TempDir::new().unwrap();
+    let run = dir.path().join("cycle.csv");
+    let sim = [
+        "simulate",
+        "--profile",
+        "cycle",
+        "--ramp",
+        "2",
+        "--rate-hz",
+        "0.2",
+        "--seed",
+        "5",
+    ];
+    let o = trainer(&[&sim[..], &["-o", run.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (model, json) = (dir.path().join("m.bin"), dir.path().join("fit.json"));
+    let o = trainer(&[
+        "fit",
+        run.to_str().unwrap(),
+        "-o",
+        model.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("feature sets: first-order validation RMS"));
+    let fit: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let sets = &fit["feature_sets"];
+    let (first, second) = (
+        sets["first_order_rms_dph"].as_f64().unwrap(),
+        sets["second_order_rms_dph"].as_f64().unwrap(),
+    );
+    let expected = if second < trainer::fit::SECOND_ORDER_GAIN * first {
+        "MultiScaleSecondOrder"
+    } else {
+        "MultiScale"
+    };
+    assert_eq!(sets["chosen"], expected, "first {first}, second {second}");
+    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["features"]["set"], expected, "the blob holds the chosen set");
+    // An explicit set is fitted alone.
+    let o = trainer(&[
+        "fit",
+        "--force",
+        "--features",
+        "multiscale-second-order",
+        run.to_str().unwrap(),
+        "-o",
+        model.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stdout(&o).contains("feature sets:"));
+    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["features"]["set"], "MultiScaleSecondOrder");
+}
+
+#[test]
 fn inspect_reports_header_shapes_ranges_and_crc() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
@@ -342,9 +402,10 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["crc"], "ok");
     assert_eq!(v["kind"], "gaussian-rbf");
-    // The default: T, ΔT over τ, 16τ, 256τ, their products with T, and T²×ΔT₂.
+    // The default: T, ΔT over τ, 16τ, 256τ and lag terms, first- or second-order.
     assert_eq!(v["inputs"], 8);
-    assert_eq!(v["features"]["set"], "MultiScaleSecondOrder");
+    let set = v["features"]["set"].as_str().unwrap_or_default();
+    assert!(["MultiScale", "MultiScaleSecondOrder"].contains(&set), "{set}");
     assert_eq!(v["features"]["windows_s"], serde_json::json!([60.0, 960.0, 15360.0]));
     assert_eq!(
         v["blob_bytes"].as_u64().unwrap(),
