@@ -114,8 +114,8 @@ struct BlocksArgs {
     /// Runs to read (blocks are written in order, with a run column).
     #[arg(required = true, value_name = "RUN.csv")]
     runs: Vec<PathBuf>,
-    /// Inputs: multiscale (default: the second-order set), multiscale-first-order,
-    /// multiscale-second-order or paper (T, ΔT, T×ΔT).
+    /// Inputs: multiscale (default), multiscale-second-order (also for
+    /// multiscale-validated) or paper (T, ΔT, T×ΔT).
     #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
     features: RbfFeatures,
     /// Fastest ΔT window, s.
@@ -251,13 +251,14 @@ struct FitArgs {
     /// --rate-window-s).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
-    /// Inputs of --method rbf. multiscale-first-order = T, ΔT over three time scales (τ, 16τ,
+    /// Inputs of --method rbf. multiscale (default) = T, ΔT over three time scales (τ, 16τ,
     /// 256τ), T×ΔT₁, T×ΔT₂, T×ΔT₃ and T²×ΔT₂, Gaussians over T and the ΔT terms linear (the mean
     /// coil temperature lags the sensor in proportion to the rate: first-order terms of that lag);
     /// multiscale-second-order = the same with the second-order term ΔT₃² in place of T×ΔT₁;
-    /// multiscale (default) = both fitted, the second-order set kept only when its validation RMS
+    /// multiscale-validated = both fitted, the second-order set kept only when its validation RMS
     /// is below 0.9 × the first-order one (a term fitted at one ramp rate must earn its
-    /// extrapolation); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network.
+    /// extrapolation; better on cycle runs, 1.5× the fit time); paper = (T, ΔT, T×ΔT) with
+    /// Gaussians over all, the IFOG paper's network.
     #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
     features: RbfFeatures,
     /// Use K Gaussian centres (1–64; fewer if OLS finds fewer independent ones) instead of

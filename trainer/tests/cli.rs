@@ -334,7 +334,7 @@ fn corrupt_blobs_are_refused_with_the_reason() {
 }
 
 #[test]
-fn the_default_keeps_the_second_order_set_only_when_it_validates_clearly_better() {
+fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearly_better() {
     let dir = TempDir::new().unwrap();
     let run = dir.path().join("cycle.csv");
     let sim = [
@@ -353,6 +353,8 @@ fn the_default_keeps_the_second_order_set_only_when_it_validates_clearly_better(
     let (model, json) = (dir.path().join("m.bin"), dir.path().join("fit.json"));
     let o = trainer(&[
         "fit",
+        "--features",
+        "multiscale-validated",
         run.to_str().unwrap(),
         "-o",
         model.to_str().unwrap(),
@@ -402,10 +404,9 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["crc"], "ok");
     assert_eq!(v["kind"], "gaussian-rbf");
-    // The default: T, ΔT over τ, 16τ, 256τ and lag terms, first- or second-order.
+    // The default: T, ΔT over τ, 16τ, 256τ, their products with T, and T²×ΔT₂.
     assert_eq!(v["inputs"], 8);
-    let set = v["features"]["set"].as_str().unwrap_or_default();
-    assert!(["MultiScale", "MultiScaleSecondOrder"].contains(&set), "{set}");
+    assert_eq!(v["features"]["set"], "MultiScale");
     assert_eq!(v["features"]["windows_s"], serde_json::json!([60.0, 960.0, 15360.0]));
     assert_eq!(
         v["blob_bytes"].as_u64().unwrap(),

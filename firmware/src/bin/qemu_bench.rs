@@ -56,7 +56,7 @@ mod board {
         })
         .expect("valid synthetic network");
         let features = if multiscale {
-            FeatureConfig::multiscale(FeatureSet::MultiScaleSecondOrder, [60.0, 480.0, 3840.0])
+            FeatureConfig::multiscale(FeatureSet::MultiScale, [60.0, 480.0, 3840.0])
         } else {
             FeatureConfig::single(FeatureSet::TempRateProduct, 60.0)
         };
