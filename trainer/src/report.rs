@@ -266,29 +266,15 @@ fn steady_bias(model: &Model, t_c: f32, rate: f32) -> f32 {
         FeatureSet::Temp => vec![t_c],
         FeatureSet::TempRate => vec![t_c, rate],
         FeatureSet::TempRateProduct => vec![t_c, rate, t_c * rate],
-        FeatureSet::MultiScale => {
-            vec![
-                t_c,
-                rate,
-                rate,
-                rate,
-                t_c * rate,
-                t_c * rate,
-                t_c * rate,
-                t_c * t_c * rate,
-            ]
-        }
-        FeatureSet::MultiScaleSecondOrder => {
-            vec![
-                t_c,
-                rate,
-                rate,
-                rate,
-                t_c * rate,
-                t_c * rate,
-                t_c * t_c * rate,
-                rate * rate,
-            ]
+        // Every window reads the ramp rate once settled.
+        set @ (FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder) => {
+            let mut v = vec![t_c, rate, rate, rate, t_c * rate, t_c * rate];
+            if set == FeatureSet::MultiScale {
+                v.extend([t_c * rate, t_c * t_c * rate]);
+            } else {
+                v.extend([t_c * t_c * rate, rate * rate]);
+            }
+            v
         }
         // Multi-point: the first two inputs on the axes, the others at the
         // middle of their training range.
