@@ -32,10 +32,10 @@
 //! proportional to the rate: f(T − L·ΔT) = f(T) − f′(T)·L·ΔT + ½f″(T)·L²·ΔT² − …
 //! The first-order correction is the static term's derivative (quadratic in T
 //! for a cubic) times the rate, the second-order one the rate squared.
-//! [`FeatureSet::MultiScaleSecondOrder`] (the default) gives T, the three ΔT,
-//! T×ΔT₂, T×ΔT₃, T²×ΔT₂ and ΔT₃² (the slowest scale carries the coil's lag);
-//! [`FeatureSet::MultiScale`] (the first-order set, the default before) has
-//! T×ΔT₁ in place of ΔT₃². Warm-up there counts 3 × the fastest τ; the slower
+//! [`FeatureSet::MultiScale`] (the default) gives T, the three ΔT, their
+//! products with T and T²×ΔT₂: first-order terms only.
+//! [`FeatureSet::MultiScaleSecondOrder`] has ΔT₃² (the slowest scale carries
+//! the coil's lag) in place of T×ΔT₁. Warm-up there counts 3 × the fastest τ; the slower
 //! filters start from the steady state (ΔT = 0) like the fast one.
 //!
 //! ## Several thermometers
@@ -198,7 +198,7 @@ pub enum FeatureSet {
     MultiPoint(Probes),
     /// (T, ΔT₁, ΔT₂, ΔT₃, T×ΔT₂, T×ΔT₃, T²×ΔT₂, ΔT₃²) over three filter
     /// windows: the multi-scale set with the second-order lag term ΔT₃² in
-    /// place of T×ΔT₁ (the default; see the module docs). Declared last so
+    /// place of T×ΔT₁ (see the module docs). Declared last so
     /// that the blob encoding of the other sets is unchanged.
     MultiScaleSecondOrder,
 }

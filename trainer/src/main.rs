@@ -257,7 +257,7 @@ struct FitArgs {
     /// multiscale-second-order = the same with the second-order term ΔT₃² in place of T×ΔT₁;
     /// multiscale-validated = both fitted, the second-order set kept only when its validation RMS
     /// is below 0.9 × the first-order one (a term fitted at one ramp rate must earn its
-    /// extrapolation; better on cycle runs, 1.5× the fit time); paper = (T, ΔT, T×ΔT) with
+    /// extrapolation; better on cycle runs, 1.5–2× the fit time); paper = (T, ΔT, T×ΔT) with
     /// Gaussians over all, the IFOG paper's network.
     #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
     features: RbfFeatures,

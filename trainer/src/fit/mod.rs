@@ -36,7 +36,7 @@ pub enum RbfFeatures {
     MultiscaleSecondOrder,
     /// Both multi-scale sets fitted; the second-order one kept only when it
     /// validates clearly better ([`SECOND_ORDER_GAIN`]). More accurate on
-    /// cycle runs, but 1.5× the fit time of the default on long runs.
+    /// cycle runs, but 1.5–2× the fit time of the default on long runs.
     MultiscaleValidated,
     /// (T, ΔT, T×ΔT) with Gaussians over all three: the IFOG paper's network.
     Paper,
