@@ -423,6 +423,26 @@ impl FeatureVector {
     pub fn temp_c(&self) -> f32 {
         self.reference_temp_c
     }
+
+    /// The same sample's inputs for the multi-scale set `to`, from this vector
+    /// of the multi-scale set `from` with the same windows: both sets are built
+    /// from the loop temperature and the three ΔT rates (inputs 0 ..= 3), so the
+    /// trainer fits both from one filter pass, bit for bit what
+    /// [`FeatureExtractor::update`] gives for `to`. `None` unless both sets are
+    /// multi-scale and this vector has `from`'s length.
+    pub fn to_multiscale_set(&self, from: FeatureSet, to: FeatureSet) -> Option<FeatureVector> {
+        if !(from.is_multiscale() && to.is_multiscale()) || self.len as usize != from.dims() {
+            return None;
+        }
+        let [temp_c, fast, slow, slowest, ..] = self.values;
+        let mut temps_c = [f32::NAN; THERMOMETERS];
+        temps_c[LOOP_THERMOMETER] = temp_c;
+        Some(FeatureVector {
+            values: assemble(to, [fast, slow, slowest], &temps_c),
+            len: to.dims() as u8,
+            ..*self
+        })
+    }
 }
 
 /// Running state of the feature computation (one `f32` of filter state).
@@ -484,41 +504,7 @@ impl FeatureExtractor {
         }
         let warming_up = self.since_restart_s == 0.0 || self.since_restart_s < config.warmup_s();
 
-        let mut values = [0.0; MAX_INPUTS];
-        values[0] = temp_c;
-        match config.set {
-            FeatureSet::Temp => {}
-            FeatureSet::TempRate => values[1] = rate_c_per_min[0],
-            FeatureSet::TempRateProduct => {
-                values[1] = rate_c_per_min[0];
-                values[2] = temp_c * rate_c_per_min[0];
-            }
-            FeatureSet::MultiScale => {
-                for w in 0..WINDOWS {
-                    values[1 + w] = rate_c_per_min[w];
-                    values[1 + WINDOWS + w] = temp_c * rate_c_per_min[w];
-                }
-                values[1 + 2 * WINDOWS] = temp_c * temp_c * rate_c_per_min[1];
-            }
-            FeatureSet::MultiScaleSecondOrder => {
-                let [fast, slow, slowest] = rate_c_per_min;
-                values = [
-                    temp_c,
-                    fast,
-                    slow,
-                    slowest,
-                    temp_c * slow,
-                    temp_c * slowest,
-                    temp_c * temp_c * slow,
-                    slowest * slowest,
-                ];
-            }
-            FeatureSet::MultiPoint(probes) => {
-                for (v, p) in values.iter_mut().zip(probes.as_slice()) {
-                    *v = p.value(temps_c);
-                }
-            }
-        }
+        let values = assemble(config.set, rate_c_per_min, temps_c);
         let reference_temp_c = temps_c
             .get(config.set.reference_thermometer())
             .copied()
@@ -530,6 +516,48 @@ impl FeatureExtractor {
             warming_up,
         }
     }
+}
+
+/// The inputs of `set` from the three ΔT filters' rates, °C/min, and the
+/// thermometer readings, °C: the one place each set's inputs are defined.
+fn assemble(set: FeatureSet, rate_c_per_min: [f32; WINDOWS], temps_c: &[f32; THERMOMETERS]) -> [f32; MAX_INPUTS] {
+    let temp_c = temps_c[LOOP_THERMOMETER];
+    let mut values = [0.0; MAX_INPUTS];
+    values[0] = temp_c;
+    match set {
+        FeatureSet::Temp => {}
+        FeatureSet::TempRate => values[1] = rate_c_per_min[0],
+        FeatureSet::TempRateProduct => {
+            values[1] = rate_c_per_min[0];
+            values[2] = temp_c * rate_c_per_min[0];
+        }
+        FeatureSet::MultiScale => {
+            for w in 0..WINDOWS {
+                values[1 + w] = rate_c_per_min[w];
+                values[1 + WINDOWS + w] = temp_c * rate_c_per_min[w];
+            }
+            values[1 + 2 * WINDOWS] = temp_c * temp_c * rate_c_per_min[1];
+        }
+        FeatureSet::MultiScaleSecondOrder => {
+            let [fast, slow, slowest] = rate_c_per_min;
+            values = [
+                temp_c,
+                fast,
+                slow,
+                slowest,
+                temp_c * slow,
+                temp_c * slowest,
+                temp_c * temp_c * slow,
+                slowest * slowest,
+            ];
+        }
+        FeatureSet::MultiPoint(probes) => {
+            for (v, p) in values.iter_mut().zip(probes.as_slice()) {
+                *v = p.value(temps_c);
+            }
+        }
+    }
+    values
 }
 
 #[cfg(test)]
@@ -646,6 +674,49 @@ mod tests {
             assert_eq!(b[7], b[3] * b[3], "sample {i}");
         }
         assert_eq!(second.set.name(7), Some(InputName::Fixed("ΔT₃² [°C²/min²]")));
+    }
+
+    #[test]
+    fn a_multiscale_vector_converts_to_the_other_set_bit_for_bit() {
+        let windows = [15.0, 240.0, 3840.0];
+        let sets = [FeatureSet::MultiScale, FeatureSet::MultiScaleSecondOrder];
+        let configs = sets.map(|set| FeatureConfig::multiscale(set, windows));
+        let mut extractors = [FeatureExtractor::new(); 2];
+        // Irregular steps, a gap (dt = NaN restarts) and a non-monotone temperature.
+        for i in 0..20_000u32 {
+            let dt = if i == 7_000 {
+                f32::NAN
+            } else {
+                0.01 + (i % 7) as f32 * 0.003
+            };
+            let temps = loop_reading(-20.0 + 0.004 * i as f32 + (i as f32 * 0.01).sin());
+            let direct = [0, 1].map(|k| extractors[k].update(&configs[k], dt, &temps));
+            for (from, to) in [(0, 1), (1, 0), (0, 0)] {
+                let converted = direct[from].to_multiscale_set(sets[from], sets[to]);
+                assert_eq!(
+                    converted,
+                    Some(direct[to]),
+                    "sample {i}: {:?} -> {:?}",
+                    sets[from],
+                    sets[to]
+                );
+            }
+            // Inputs of the same name are the same computation (the trainer sums them once).
+            for (a, name_a) in sets[0].names().enumerate() {
+                for (b, name_b) in sets[1].names().enumerate() {
+                    if name_a == name_b {
+                        assert_eq!(direct[0].as_slice()[a], direct[1].as_slice()[b], "sample {i}: {name_a}");
+                    }
+                }
+            }
+        }
+        let paper_vector = FeatureExtractor::new().update(&paper(15.0), 1.0, &loop_reading(20.0));
+        assert_eq!(
+            paper_vector.to_multiscale_set(FeatureSet::TempRateProduct, sets[0]),
+            None
+        );
+        let v = FeatureExtractor::new().update(&configs[0], 1.0, &loop_reading(20.0));
+        assert_eq!(v.to_multiscale_set(sets[0], FeatureSet::Temp), None);
     }
 
     #[test]

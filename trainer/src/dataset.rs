@@ -70,65 +70,145 @@ impl Blocks {
     }
 }
 
-#[derive(Default)]
+/// Most configurations one [`BlockBuilder`] builds at once.
+pub const MAX_GROUP: usize = 4;
+/// Distinct inputs one builder accumulates: the union of its sets' inputs.
+const MAX_SLOTS: usize = 2 * MAX_INPUTS;
+
+/// Running sums of one block, and the range of its samples' inputs, per slot.
 struct Accumulator {
-    sum_x: [f64; MAX_INPUTS],
+    sum_x: [f64; MAX_SLOTS],
     sum_y: f64,
     count: usize,
+    min_x: [f32; MAX_SLOTS],
+    max_x: [f32; MAX_SLOTS],
 }
 
-/// Builds the block means of one run sample by sample, for one feature
-/// configuration: the streaming core of [`block_means`] and [`RunFiles`].
+impl Default for Accumulator {
+    fn default() -> Self {
+        Accumulator {
+            sum_x: [0.0; MAX_SLOTS],
+            sum_y: 0.0,
+            count: 0,
+            min_x: [f32::INFINITY; MAX_SLOTS],
+            max_x: [f32::NEG_INFINITY; MAX_SLOTS],
+        }
+    }
+}
+
+/// Where one accumulator slot's value comes from: input `input` of the
+/// vector of configuration `config` (0 = the computed one).
+#[derive(Clone, Copy)]
+struct Slot {
+    config: usize,
+    input: usize,
+}
+
+/// Builds the block means of one run sample by sample: the streaming core of
+/// [`block_means`] and [`RunFiles`]. One compensator computes the features of
+/// the first configuration; configurations that share its filters
+/// ([`shares_filters`]: the multi-scale sets at the same windows) take them
+/// converted. An input two sets share (same name: the same computation) is
+/// summed once, so a second multi-scale set costs only its own inputs.
 pub struct BlockBuilder {
-    features: FeatureConfig,
+    configs: Vec<FeatureConfig>,
+    /// The distinct inputs summed, in order of first appearance.
+    slots: Vec<Slot>,
+    /// Per configuration, the slot of each of its inputs.
+    slot_of: Vec<Vec<usize>>,
+    /// Configurations whose converted vector some slot reads (besides the first).
+    converted: Vec<usize>,
     config: CompensatorConfig,
     block_index: BinIndex,
     nominal_period_s: f64,
     min_count: usize,
     compensator: Compensator,
     acc: Accumulator,
+    outputs: Vec<Blocks>,
     segment_start_s: f64,
     current_block: Option<(u64, u64)>,
     started: bool,
-    out: Blocks,
     run_index: usize,
 }
 
 impl BlockBuilder {
-    /// A builder for run number `run_index` of nominal period `nominal_period_s`.
-    pub fn new(run_index: usize, features: FeatureConfig, nominal_period_s: f64, block_s: f64) -> Self {
-        let dims = features.dims();
-        BlockBuilder {
-            features,
+    /// A builder for run number `run_index` of nominal period `nominal_period_s`,
+    /// for `configs` (the first computed, the others sharing its filters).
+    /// `None` when `configs` is empty, longer than [`MAX_GROUP`], or one does
+    /// not share the first's filters.
+    pub fn new(run_index: usize, configs: &[FeatureConfig], nominal_period_s: f64, block_s: f64) -> Option<Self> {
+        let (first, siblings) = configs.split_first()?;
+        if configs.len() > MAX_GROUP || !siblings.iter().all(|c| shares_filters(first, c)) {
+            return None;
+        }
+        let mut slots: Vec<Slot> = Vec::new();
+        let mut names = Vec::new();
+        let slot_of = configs
+            .iter()
+            .enumerate()
+            .map(|(config, c)| {
+                (0..c.dims())
+                    .map(|input| {
+                        let name = c.set.name(input);
+                        names.iter().position(|n| *n == name).unwrap_or_else(|| {
+                            names.push(name);
+                            slots.push(Slot { config, input });
+                            slots.len() - 1
+                        })
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        if slots.len() > MAX_SLOTS {
+            return None;
+        }
+        let mut converted: Vec<usize> = slots.iter().map(|s| s.config).filter(|&c| c > 0).collect();
+        converted.dedup();
+        let outputs = configs
+            .iter()
+            .map(|c| Blocks {
+                dims: c.dims(),
+                sample_range: vec![(f64::INFINITY, f64::NEG_INFINITY); c.dims()],
+                ..Blocks::default()
+            })
+            .collect();
+        Some(BlockBuilder {
+            configs: configs.to_vec(),
+            slots,
+            slot_of,
+            converted,
             config: CompensatorConfig::for_nominal_period_s(nominal_period_s),
             block_index: BinIndex::new(block_s),
             nominal_period_s,
             min_count: ((0.5 * block_s / nominal_period_s).floor() as usize).max(1),
             compensator: Compensator::new(),
             acc: Accumulator::default(),
+            outputs,
             segment_start_s: 0.0,
             current_block: None,
             started: false,
-            out: Blocks {
-                dims,
-                sample_range: vec![(f64::INFINITY, f64::NEG_INFINITY); dims],
-                ..Blocks::default()
-            },
             run_index,
-        }
+        })
     }
 
     fn flush(&mut self) {
         let acc = std::mem::take(&mut self.acc);
-        if acc.count >= self.min_count {
-            let n = acc.count as f64;
-            let mut mean = [0.0; MAX_INPUTS];
-            for (m, s) in mean.iter_mut().zip(&acc.sum_x) {
-                *m = s / n;
+        let keep = acc.count >= self.min_count;
+        let n = acc.count as f64;
+        for (out, slot_of) in self.outputs.iter_mut().zip(&self.slot_of) {
+            // The range covers every usable sample, in blocks kept or not.
+            for (r, &s) in out.sample_range.iter_mut().zip(slot_of) {
+                *r = (r.0.min(acc.min_x[s] as f64), r.1.max(acc.max_x[s] as f64));
             }
-            self.out.x.push(mean);
-            self.out.y.push(acc.sum_y / n);
-            self.out.run.push(self.run_index);
+            if keep {
+                let mut mean = [0.0; MAX_INPUTS];
+                for (m, &s) in mean.iter_mut().zip(slot_of) {
+                    *m = acc.sum_x[s] / n;
+                }
+                out.x.push(mean);
+                out.y.push(acc.sum_y / n);
+                out.run.push(self.run_index);
+            }
         }
     }
 
@@ -146,30 +226,53 @@ impl BlockBuilder {
             self.flush();
             self.current_block = Some(block);
         }
-        let frame = self.compensator.features(&self.features, &self.config, sample);
+        let head = self.configs[0];
+        let frame = self.compensator.features(&head, &self.config, sample);
         let unusable = Flags::WARMING_UP | Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL;
-        let Some(fv) = frame.features.filter(|_| frame.flags.0 & unusable.0 == 0) else {
+        let Some(computed) = frame.features.filter(|_| frame.flags.0 & unusable.0 == 0) else {
             return;
         };
-        for (k, &v) in fv.as_slice().iter().enumerate() {
-            self.acc.sum_x[k] += v as f64;
-            let r = &mut self.out.sample_range[k];
-            *r = (r.0.min(v as f64), r.1.max(v as f64));
+        let mut vectors = [computed; MAX_GROUP];
+        for &c in &self.converted {
+            match computed.to_multiscale_set(head.set, self.configs[c].set) {
+                Some(v) => vectors[c] = v,
+                None => return,
+            }
         }
-        self.acc.sum_y += target_dph;
-        self.acc.count += 1;
-        self.out.usable_s += self.nominal_period_s;
+        let acc = &mut self.acc;
+        for (s, slot) in self.slots.iter().enumerate() {
+            let v = vectors[slot.config].as_slice()[slot.input];
+            acc.sum_x[s] += v as f64;
+            acc.min_x[s] = acc.min_x[s].min(v);
+            acc.max_x[s] = acc.max_x[s].max(v);
+        }
+        acc.sum_y += target_dph;
+        acc.count += 1;
+        for out in &mut self.outputs {
+            out.usable_s += self.nominal_period_s;
+        }
     }
 
-    /// The blocks; `target_offset_dph` is subtracted from every block's target
-    /// (the run mean, for runs without `ref_dph`, known only at the end).
-    pub fn finish(mut self, target_offset_dph: f64) -> Blocks {
+    /// The blocks of each configuration, in order; `target_offset_dph` is
+    /// subtracted from every block's target (the run mean, for runs without
+    /// `ref_dph`, known only at the end).
+    pub fn finish(mut self, target_offset_dph: f64) -> Vec<Blocks> {
         self.flush();
-        for y in &mut self.out.y {
-            *y -= target_offset_dph;
+        for out in &mut self.outputs {
+            for y in &mut out.y {
+                *y -= target_offset_dph;
+            }
         }
-        self.out
+        self.outputs
     }
+}
+
+/// True when `b`'s features are `a`'s converted ([`rbf_core::FeatureVector::to_multiscale_set`]):
+/// the same configuration, or both multi-scale with the same ΔT windows (and
+/// so the same warm-up).
+fn shares_filters(a: &FeatureConfig, b: &FeatureConfig) -> bool {
+    let windows = |c: &FeatureConfig| c.windows_s().map(f32::to_bits);
+    a == b || (a.set.is_multiscale() && b.set.is_multiscale() && windows(a) == windows(b))
 }
 
 /// Runs the trainer learns from: in memory ([`Run`]) or streamed from files
@@ -230,11 +333,13 @@ pub fn block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) -> Bloc
     };
     for (index, run) in runs.iter().enumerate() {
         let reference = run.reference_dph();
-        let mut builder = BlockBuilder::new(index, *features, run.nominal_period_s, block_s);
+        let Some(mut builder) = BlockBuilder::new(index, &[*features], run.nominal_period_s, block_s) else {
+            continue;
+        };
         for (i, sample) in run.samples().enumerate() {
             builder.push(run.time_s[i], &sample, run.rate_dph[i] - reference.at(i));
         }
-        all.append(builder.finish(0.0));
+        builder.finish(0.0).into_iter().for_each(|b| all.append(b));
     }
     all
 }
@@ -289,10 +394,16 @@ impl RunFiles {
         let mask = configs.iter().fold(0, |m, c| m | c.set.thermometer_mask());
         let run = StreamedRun::open(path, mask)?;
         let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
-        let mut builders: Vec<BlockBuilder> = configs
+        // Configurations sharing filters go to one builder.
+        let groups = filter_groups(configs);
+        let mut builders = groups
             .iter()
-            .map(|c| BlockBuilder::new(index, *c, period_s, block_s))
-            .collect();
+            .map(|members| {
+                let group: Vec<FeatureConfig> = members.iter().map(|&i| configs[i]).collect();
+                BlockBuilder::new(index, &group, period_s, block_s)
+                    .ok_or_else(|| anyhow::anyhow!("feature configurations grouped wrongly"))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
         let mut rate_sum = 0.0f64;
         let rows = run.for_each(|row, sample| {
             let target = row.rate_dph - row.ref_dph.unwrap_or(0.0);
@@ -305,8 +416,31 @@ impl RunFiles {
             anyhow::bail!("{}: run has {rows} data rows; at least 2 are needed", path.display());
         }
         let offset = if has_ref { 0.0 } else { rate_sum / rows as f64 };
-        Ok(builders.into_iter().map(|b| b.finish(offset)).collect())
+        let mut out: Vec<Option<Blocks>> = configs.iter().map(|_| None).collect();
+        for (members, builder) in groups.into_iter().zip(builders) {
+            for (i, blocks) in members.into_iter().zip(builder.finish(offset)) {
+                out[i] = Some(blocks);
+            }
+        }
+        out.into_iter()
+            .map(|b| b.ok_or_else(|| anyhow::anyhow!("a feature configuration was not built")))
+            .collect()
     }
+}
+
+/// `configs` (indices) grouped so that each group shares the filters of its first.
+fn filter_groups(configs: &[FeatureConfig]) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, c) in configs.iter().enumerate() {
+        match groups
+            .iter_mut()
+            .find(|g| g.len() < MAX_GROUP && shares_filters(&configs[g[0]], c))
+        {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    groups
 }
 
 impl RunSet for RunFiles {
@@ -356,5 +490,74 @@ impl RunSet for RunFiles {
             cache.push((cache_key(c, block_s), b));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "one pass must give exactly what separate passes give; exactness is what these tests guard"
+)]
+mod tests {
+    use super::*;
+    use crate::simulate::ChamberRun;
+
+    fn multiscale(set: FeatureSet, window_s: f32) -> FeatureConfig {
+        FeatureConfig::multiscale(set, [window_s, 16.0 * window_s, 256.0 * window_s])
+    }
+
+    #[test]
+    fn one_pass_over_both_multiscale_sets_gives_each_set_s_own_blocks_bit_for_bit() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.csv");
+        let mut sim = ChamberRun::ifog(2.0, 5);
+        sim.duration_s = Some(3.0 * 3600.0);
+        sim.sample_rate_hz = 10.0;
+        sim.write_csv(&mut std::fs::File::create(&path).unwrap()).unwrap();
+        let configs = [
+            multiscale(FeatureSet::MultiScale, 15.0),
+            multiscale(FeatureSet::MultiScaleSecondOrder, 15.0),
+            FeatureConfig::single(FeatureSet::TempRateProduct, 60.0),
+            multiscale(FeatureSet::MultiScaleSecondOrder, 60.0),
+            multiscale(FeatureSet::MultiScale, 60.0),
+        ];
+        let streamed = RunFiles::new(std::slice::from_ref(&path));
+        streamed.prepare(&configs, 1.0).unwrap();
+        let run = Run::load(&path).unwrap();
+        for config in &configs {
+            // The in-memory path builds each configuration alone.
+            let alone = block_means(std::slice::from_ref(&run), config, 1.0);
+            let shared = streamed.block_means(config, 1.0).unwrap();
+            assert!(alone.len() > 10_000, "{config:?}: {} blocks", alone.len());
+            assert_eq!(shared.dims, alone.dims, "{config:?}");
+            assert_eq!(shared.x, alone.x, "{config:?}");
+            assert_eq!(shared.y, alone.y, "{config:?}");
+            assert_eq!(shared.run, alone.run, "{config:?}");
+            assert_eq!(shared.sample_range, alone.sample_range, "{config:?}");
+            assert_eq!(shared.usable_s, alone.usable_s, "{config:?}");
+        }
+    }
+
+    #[test]
+    fn only_configurations_that_share_filters_are_built_together() {
+        let configs = [
+            multiscale(FeatureSet::MultiScale, 15.0),
+            multiscale(FeatureSet::MultiScale, 60.0),
+            multiscale(FeatureSet::MultiScaleSecondOrder, 15.0),
+            FeatureConfig::single(FeatureSet::TempRateProduct, 15.0),
+            multiscale(FeatureSet::MultiScaleSecondOrder, 60.0),
+        ];
+        assert_eq!(filter_groups(&configs), vec![vec![0, 2], vec![1, 4], vec![3]]);
+        let repeats = [multiscale(FeatureSet::MultiScale, 15.0); MAX_GROUP + 1];
+        assert_eq!(filter_groups(&repeats), vec![(0..MAX_GROUP).collect(), vec![MAX_GROUP]]);
+        assert!(
+            BlockBuilder::new(0, &configs[..2], 1.0, 1.0).is_none(),
+            "different windows"
+        );
+        assert!(BlockBuilder::new(0, &configs[2..4], 1.0, 1.0).is_none(), "paper set");
+        assert!(BlockBuilder::new(0, &[], 1.0, 1.0).is_none());
+        let pair = BlockBuilder::new(0, &[configs[0], configs[2]], 1.0, 1.0).unwrap();
+        // Seven of the second-order set's eight inputs are the first-order set's.
+        assert_eq!(pair.slots.len(), 9);
     }
 }

@@ -160,7 +160,7 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
     )
     .context("cubic model")?;
     let models = [
-        ("default", fitted(trainer::fit::RbfFeatures::Multiscale)?),
+        ("default", fitted(trainer::fit::RbfFeatures::MultiscaleValidated)?),
         ("paper", fitted(trainer::fit::RbfFeatures::Paper)?),
         ("cubic", cubic),
     ];
