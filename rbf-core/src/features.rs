@@ -32,10 +32,11 @@
 //! proportional to the rate: f(T − L·ΔT) = f(T) − f′(T)·L·ΔT + ½f″(T)·L²·ΔT² − …
 //! The first-order correction is the static term's derivative (quadratic in T
 //! for a cubic) times the rate, the second-order one the rate squared.
-//! [`FeatureSet::MultiScale`] (the default) gives T, the three ΔT, their
-//! products with T and T²×ΔT₂: first-order terms only.
-//! [`FeatureSet::MultiScaleSecondOrder`] has ΔT₃² (the slowest scale carries
-//! the coil's lag) in place of T×ΔT₁. Warm-up there counts 3 × the fastest τ; the slower
+//! [`FeatureSet::MultiScale`] gives T, the three ΔT, their products with T and
+//! T²×ΔT₂: first-order terms only. [`FeatureSet::MultiScaleSecondOrder`] has
+//! ΔT₃² (the slowest scale carries the coil's lag) in place of T×ΔT₁. The
+//! trainer's default fits both and keeps the second-order set only where it
+//! validates clearly better. Warm-up there counts 3 × the fastest τ; the slower
 //! filters start from the steady state (ΔT = 0) like the fast one.
 //!
 //! ## Several thermometers
@@ -191,7 +192,8 @@ pub enum FeatureSet {
     TempRate,
     /// (T, ΔT, T×ΔT): the IFOG paper's modified model (`--method rbf --features paper`).
     TempRateProduct,
-    /// (T, ΔT₁, ΔT₂, ΔT₃, T×ΔT₁, T×ΔT₂, T×ΔT₃, T²×ΔT₂) over three filter windows (the default).
+    /// (T, ΔT₁, ΔT₂, ΔT₃, T×ΔT₁, T×ΔT₂, T×ΔT₃, T²×ΔT₂) over three filter windows
+    /// (one of the two sets the trainer's default chooses between).
     MultiScale,
     /// Temperatures and gradients of several thermometers (the RLG paper's
     /// multi-point inputs, `--method svr-pso` on runs with `temp_a` … `temp_h`).

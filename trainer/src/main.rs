@@ -114,8 +114,9 @@ struct BlocksArgs {
     /// Runs to read (blocks are written in order, with a run column).
     #[arg(required = true, value_name = "RUN.csv")]
     runs: Vec<PathBuf>,
-    /// Inputs: multiscale (default), multiscale-second-order (also for
-    /// multiscale-validated) or paper (T, ΔT, T×ΔT).
+    /// Inputs: multiscale (default; the first-order set), multiscale-second-order (also for
+    /// multiscale-validated, the fit's default, which chooses between the two) or paper
+    /// (T, ΔT, T×ΔT).
     #[arg(long, value_enum, default_value_t = RbfFeatures::Multiscale)]
     features: RbfFeatures,
     /// Fastest ΔT window, s.

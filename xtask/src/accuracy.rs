@@ -190,10 +190,17 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
             .collect::<anyhow::Result<_>>()?;
         let mut rows: Vec<Row> = Vec::new();
         let mut before: Vec<f64> = Vec::new();
+        // The default's chosen feature set and fastest window: the peers' inputs.
+        let mut default_features: Option<PeerFeatures> = None;
+        let fit_json = dir.join(format!("{}_fit.json", p.name));
         for &(label, opts) in p.methods {
             let model = dir.join(format!("{}_model.bin", p.name));
             let mut args = vec!["fit", "-q", "--force", path(&train), "-o", path(&model)];
             args.extend(opts);
+            let is_default = opts.is_empty();
+            if is_default {
+                args.extend(["--json", path(&fit_json)]);
+            }
             let started = Instant::now();
             if let Err(e) = trainer(&args) {
                 // A method that refuses this data (e.g. no input passes the
@@ -211,6 +218,9 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
                 continue;
             }
             let fit_s = started.elapsed().as_secs_f64();
+            if is_default {
+                default_features = Some(PeerFeatures::of_fit(&fit_json)?);
+            }
             let json = dir.join(format!("{}_eval.json", p.name));
             let mut eval = vec!["eval", "--model", path(&model), "--json", path(&json)];
             eval.extend(verify.iter().map(|v| path(v)));
@@ -241,7 +251,10 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
             });
         }
         if p.peers {
-            rows.extend(peer_rows(&python, &script, p, &train, &verify)?);
+            let features = default_features
+                .as_ref()
+                .context("the peers need the default's features, and the default fit was refused")?;
+            rows.extend(peer_rows(&python, &script, p, features, &train, &verify)?);
         }
         print_protocol(p, &before, &rows, &mut means);
     }
@@ -254,13 +267,56 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The Python peers' rows for protocol `p`, on the default's features as
-/// `trainer blocks` writes them.
-fn peer_rows(python: &Path, script: &Path, p: &Protocol, train: &Path, verify: &[PathBuf]) -> anyhow::Result<Vec<Row>> {
+/// The inputs the default fit chose, as `trainer blocks` options.
+struct PeerFeatures {
+    /// `--features` value: the multi-scale set kept.
+    set: &'static str,
+    /// `--rate-window-s`: the fastest ΔT window, s.
+    rate_window_s: String,
+}
+
+impl PeerFeatures {
+    /// From `trainer fit --json`'s report of the default fit.
+    fn of_fit(json: &Path) -> anyhow::Result<Self> {
+        let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json)?)?;
+        let set = match report["feature_sets"]["chosen"].as_str() {
+            Some("MultiScaleSecondOrder") => "multiscale-second-order",
+            Some("MultiScale") => "multiscale",
+            other => bail!("{}: unexpected feature set {other:?}", json.display()),
+        };
+        let window = report["choice"]["rate_window_s"]
+            .as_f64()
+            .with_context(|| format!("{}: no rate_window_s", json.display()))?;
+        Ok(PeerFeatures {
+            set,
+            rate_window_s: window.to_string(),
+        })
+    }
+}
+
+/// The Python peers' rows for protocol `p`, on the default's features (the
+/// set and fastest window it chose) as `trainer blocks` writes them.
+fn peer_rows(
+    python: &Path,
+    script: &Path,
+    p: &Protocol,
+    features: &PeerFeatures,
+    train: &Path,
+    verify: &[PathBuf],
+) -> anyhow::Result<Vec<Row>> {
     let mut rows = Vec::new();
     let blocks = |file: &Path| -> anyhow::Result<PathBuf> {
         let out = file.with_extension("blocks.csv");
-        trainer(&["blocks", path(file), "-o", path(&out)])?;
+        trainer(&[
+            "blocks",
+            path(file),
+            "--features",
+            features.set,
+            "--rate-window-s",
+            &features.rate_window_s,
+            "-o",
+            path(&out),
+        ])?;
         Ok(out)
     };
     let mut cmd = Command::new(python);

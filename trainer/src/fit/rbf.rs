@@ -33,7 +33,7 @@ const MAX_SELECTION_ROWS: usize = 3000;
 /// Training rows (strided) the hyper-parameter search fits each candidate on;
 /// the final model is fitted on all rows. Above the bundled runs' size, so
 /// it only thins long recordings (a 20-h run's 72,000 1-s blocks by 3).
-const MAX_SEARCH_TRAIN_ROWS: usize = 16_384;
+const MAX_SEARCH_TRAIN_ROWS: usize = 32_768;
 /// Rows (strided) the candidate pool is drawn from by farthest-point sampling:
 /// the pool only needs to cover the input space.
 const MAX_POOL_ROWS: usize = 8192;
