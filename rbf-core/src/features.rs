@@ -522,6 +522,7 @@ impl FeatureExtractor {
 
 /// The inputs of `set` from the three ΔT filters' rates, °C/min, and the
 /// thermometer readings, °C: the one place each set's inputs are defined.
+#[inline(always)]
 fn assemble(set: FeatureSet, rate_c_per_min: [f32; WINDOWS], temps_c: &[f32; THERMOMETERS]) -> [f32; MAX_INPUTS] {
     let temp_c = temps_c[LOOP_THERMOMETER];
     let mut values = [0.0; MAX_INPUTS];

@@ -225,3 +225,57 @@ pub fn thin(rows: &[usize], max: usize) -> Vec<usize> {
     let step = rows.len().div_ceil(max.max(1)).max(1);
     rows.iter().step_by(step).copied().collect()
 }
+
+/// `rows` (ascending indices into `z` and `y`) pooled into at most `max`
+/// means of consecutive runs of rows: the same data with less per-row work,
+/// keeping the noise averaging that striding ([`thin`]) would throw away.
+/// A pool never spans a jump in the indices (a held-out fold or another run).
+pub fn pool_means(z: &[FeatureRow], y: &[f64], rows: &[usize], max: usize) -> (Vec<FeatureRow>, Vec<f64>) {
+    let step = rows.len().div_ceil(max.max(1)).max(1);
+    let mut out_z = Vec::with_capacity(rows.len() / step + 1);
+    let mut out_y = Vec::with_capacity(rows.len() / step + 1);
+    let mut start = 0;
+    while start < rows.len() {
+        let mut end = start + 1;
+        while end < rows.len() && end - start < step && rows[end] == rows[end - 1] + 1 {
+            end += 1;
+        }
+        let n = (end - start) as f64;
+        let mut mean_z = [0.0; MAX_INPUTS];
+        let mut mean_y = 0.0;
+        for &i in &rows[start..end] {
+            for (m, v) in mean_z.iter_mut().zip(&z[i]) {
+                *m += v;
+            }
+            mean_y += y[i];
+        }
+        mean_z.iter_mut().for_each(|m| *m /= n);
+        out_z.push(mean_z);
+        out_y.push(mean_y / n);
+        start = end;
+    }
+    (out_z, out_y)
+}
+
+#[cfg(test)]
+#[allow(clippy::float_cmp, reason = "means of small integers are exact")]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pooled_means_average_consecutive_rows_and_never_span_a_gap() {
+        let z: Vec<FeatureRow> = (0..10).map(|i| [i as f64; MAX_INPUTS]).collect();
+        let y: Vec<f64> = (0..10).map(|i| 10.0 * i as f64).collect();
+        // Rows 4 and 5 are held out: the pools stop at the jump from 3 to 6.
+        let rows = [0, 1, 2, 3, 6, 7, 8, 9];
+        let (pz, py) = pool_means(&z, &y, &rows, 3);
+        assert_eq!(py, [15.0, 25.0, 65.0, 85.0]);
+        assert_eq!(pz.iter().map(|r| r[0]).collect::<Vec<_>>(), [0.5, 2.5, 6.5, 8.5]);
+        let (_, all) = pool_means(&z, &y, &rows, 100);
+        assert_eq!(
+            all,
+            rows.map(|i| 10.0 * i as f64),
+            "under the cap every row is its own pool"
+        );
+    }
+}
