@@ -268,9 +268,15 @@ mod tests {
         let y: Vec<f64> = (0..10).map(|i| 10.0 * i as f64).collect();
         // Rows 4 and 5 are held out: the pools stop at the jump from 3 to 6.
         let rows = [0, 1, 2, 3, 6, 7, 8, 9];
-        let (pz, py) = pool_means(&z, &y, &rows, 3);
-        assert_eq!(py, [15.0, 25.0, 65.0, 85.0]);
+        let (pz, py) = pool_means(&z, &y, &rows, 4);
+        assert_eq!(py, [5.0, 25.0, 65.0, 85.0]);
         assert_eq!(pz.iter().map(|r| r[0]).collect::<Vec<_>>(), [0.5, 2.5, 6.5, 8.5]);
+        let (_, py) = pool_means(&z, &y, &rows, 3);
+        assert_eq!(
+            py,
+            [10.0, 30.0, 70.0, 90.0],
+            "pools of three cut short at the jump and the end"
+        );
         let (_, all) = pool_means(&z, &y, &rows, 100);
         assert_eq!(
             all,
