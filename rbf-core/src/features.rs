@@ -535,11 +535,18 @@ fn assemble(set: FeatureSet, rate_c_per_min: [f32; WINDOWS], temps_c: &[f32; THE
             values[2] = temp_c * rate_c_per_min[0];
         }
         FeatureSet::MultiScale => {
-            for w in 0..WINDOWS {
-                values[1 + w] = rate_c_per_min[w];
-                values[1 + WINDOWS + w] = temp_c * rate_c_per_min[w];
-            }
-            values[1 + 2 * WINDOWS] = temp_c * temp_c * rate_c_per_min[1];
+            // Built whole (not slot by slot): no partial stores read back as a vector.
+            let [fast, slow, slowest] = rate_c_per_min;
+            values = [
+                temp_c,
+                fast,
+                slow,
+                slowest,
+                temp_c * fast,
+                temp_c * slow,
+                temp_c * slowest,
+                temp_c * temp_c * slow,
+            ];
         }
         FeatureSet::MultiScaleSecondOrder => {
             let [fast, slow, slowest] = rate_c_per_min;

@@ -71,7 +71,7 @@ impl Blocks {
 }
 
 /// Most configurations one [`BlockBuilder`] builds at once.
-pub const MAX_GROUP: usize = 4;
+pub const MAX_GROUP: usize = 2;
 /// Distinct inputs one builder accumulates: the union of its sets' inputs.
 const MAX_SLOTS: usize = 2 * MAX_INPUTS;
 
@@ -239,9 +239,12 @@ impl BlockBuilder {
                 None => return,
             }
         }
+        let mut values = [0.0f32; MAX_SLOTS];
+        for (v, slot) in values.iter_mut().zip(&self.slots) {
+            *v = vectors[slot.config].as_slice()[slot.input];
+        }
         let acc = &mut self.acc;
-        for (s, slot) in self.slots.iter().enumerate() {
-            let v = vectors[slot.config].as_slice()[slot.input];
+        for (s, &v) in values.iter().enumerate().take(self.slots.len()) {
             acc.sum_x[s] += v as f64;
             acc.min_x[s] = acc.min_x[s].min(v);
             acc.max_x[s] = acc.max_x[s].max(v);
