@@ -37,7 +37,7 @@ pub enum RbfFeatures {
     /// only when it validates clearly better ([`SECOND_ORDER_GAIN`]): it
     /// generalises to ramp rates and profiles it was not trained on. One pass
     /// over the data builds both sets' blocks (they share their filters and
-    /// seven of eight inputs); the second search adds about a quarter to the
+    /// seven of eight inputs); the second search adds a quarter to a third to the
     /// fit time of one set.
     MultiscaleValidated,
     /// (T, ΔT, T×ΔT) with Gaussians over all three: the IFOG paper's network.
