@@ -549,6 +549,9 @@ fn assemble(set: FeatureSet, rate_c_per_min: [f32; WINDOWS], temps_c: &[f32; THE
             ];
         }
         FeatureSet::MultiScaleSecondOrder => {
+            // Written out like the first-order arm on purpose: one arm for both
+            // sets with a shared prefix cost the firmware's whole step about 96
+            // instructions more (`cargo xtask bench-fw`).
             let [fast, slow, slowest] = rate_c_per_min;
             values = [
                 temp_c,
