@@ -426,6 +426,23 @@ impl FeatureVector {
         self.reference_temp_c
     }
 
+    /// The inputs of the single-point set `set` at loop temperature `temp_c`
+    /// once every ΔT filter reads a steady ramp of `rate_c_per_min` (the bias
+    /// surface of a model, for plots); `None` for multi-point sets.
+    pub fn settled(set: FeatureSet, temp_c: f32, rate_c_per_min: f32) -> Option<FeatureVector> {
+        if matches!(set, FeatureSet::MultiPoint(_)) {
+            return None;
+        }
+        let mut temps_c = [f32::NAN; THERMOMETERS];
+        temps_c[LOOP_THERMOMETER] = temp_c;
+        Some(FeatureVector {
+            values: assemble(set, [rate_c_per_min; WINDOWS], &temps_c),
+            reference_temp_c: temp_c,
+            len: set.dims() as u8,
+            warming_up: false,
+        })
+    }
+
     /// The same sample's inputs for the multi-scale set `to`, from this vector
     /// of the multi-scale set `from` with the same windows: both sets are built
     /// from the loop temperature and the three ΔT rates (inputs 0 ..= 3), so the
@@ -687,6 +704,32 @@ mod tests {
             assert_eq!(b[7], b[3] * b[3], "sample {i}");
         }
         assert_eq!(second.set.name(7), Some(InputName::Fixed("ΔT₃² [°C²/min²]")));
+    }
+
+    #[test]
+    fn settled_inputs_are_what_the_filters_read_at_the_end_of_a_long_steady_ramp() {
+        let sets = [
+            FeatureSet::Temp,
+            FeatureSet::TempRate,
+            FeatureSet::TempRateProduct,
+            FeatureSet::MultiScale,
+            FeatureSet::MultiScaleSecondOrder,
+        ];
+        for set in sets {
+            let config = FeatureConfig::multiscale(set, [2.0, 32.0, 512.0]);
+            let mut fx = FeatureExtractor::new();
+            let mut last = fx.update(&config, 1.0, &loop_reading(10.0));
+            for i in 1..=8_000 {
+                last = fx.update(&config, 1.0, &loop_reading(10.0 + 1.5 * i as f32 / 60.0));
+            }
+            let settled = FeatureVector::settled(set, last.temp_c(), 1.5).unwrap();
+            assert_eq!(settled.as_slice().len(), set.dims(), "{set:?}");
+            for (a, b) in settled.as_slice().iter().zip(last.as_slice()) {
+                assert!((a - b).abs() <= 2e-3 * b.abs().max(1.0), "{set:?}: {a} against {b}");
+            }
+        }
+        let probes = Probes::new(&[Probe::Temp(0)]).unwrap();
+        assert_eq!(FeatureVector::settled(FeatureSet::MultiPoint(probes), 20.0, 1.0), None);
     }
 
     #[test]

@@ -262,31 +262,20 @@ where
 
 /// Bias of `model` at loop temperature `t_c` on a steady ramp of `rate` °C/min.
 fn steady_bias(model: &Model, t_c: f32, rate: f32) -> f32 {
-    let values: Vec<f32> = match model.features().set {
-        FeatureSet::Temp => vec![t_c],
-        FeatureSet::TempRate => vec![t_c, rate],
-        FeatureSet::TempRateProduct => vec![t_c, rate, t_c * rate],
-        // Every window reads the ramp rate once settled.
-        set @ (FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder) => {
-            let mut v = vec![t_c, rate, rate, rate, t_c * rate, t_c * rate];
-            if set == FeatureSet::MultiScale {
-                v.extend([t_c * rate, t_c * t_c * rate]);
-            } else {
-                v.extend([t_c * t_c * rate, rate * rate]);
-            }
-            v
-        }
+    let set = model.features().set;
+    let features = FeatureVector::settled(set, t_c, rate).unwrap_or_else(|| {
         // Multi-point: the first two inputs on the axes, the others at the
         // middle of their training range.
-        FeatureSet::MultiPoint(probes) => (0..probes.len())
+        let values: Vec<f32> = (0..set.dims())
             .map(|i| match i {
                 0 => t_c,
                 1 => rate,
                 _ => model.input_range(i).map_or(0.0, |(lo, hi)| 0.5 * (lo + hi)),
             })
-            .collect(),
-    };
-    model.eval(&FeatureVector::from_values(&values)).bias_dph
+            .collect();
+        FeatureVector::from_values(&values)
+    });
+    model.eval(&features).bias_dph
 }
 
 fn draw_surface<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, model: &Model) -> DrawResult
