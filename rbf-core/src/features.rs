@@ -433,10 +433,8 @@ impl FeatureVector {
         if matches!(set, FeatureSet::MultiPoint(_)) {
             return None;
         }
-        let mut temps_c = [f32::NAN; THERMOMETERS];
-        temps_c[LOOP_THERMOMETER] = temp_c;
         Some(FeatureVector {
-            values: assemble(set, [rate_c_per_min; WINDOWS], &temps_c),
+            values: assemble(set, [rate_c_per_min; WINDOWS], &loop_reading(temp_c)),
             reference_temp_c: temp_c,
             len: set.dims() as u8,
             warming_up: false,
@@ -454,10 +452,8 @@ impl FeatureVector {
             return None;
         }
         let [temp_c, fast, slow, slowest, ..] = self.values;
-        let mut temps_c = [f32::NAN; THERMOMETERS];
-        temps_c[LOOP_THERMOMETER] = temp_c;
         Some(FeatureVector {
-            values: assemble(to, [fast, slow, slowest], &temps_c),
+            values: assemble(to, [fast, slow, slowest], &loop_reading(temp_c)),
             len: to.dims() as u8,
             ..*self
         })
