@@ -34,10 +34,14 @@
 //! for a cubic) times the rate, the second-order one the rate squared.
 //! [`FeatureSet::MultiScale`] gives T, the three ΔT, their products with T and
 //! T²×ΔT₂: first-order terms only. [`FeatureSet::MultiScaleSecondOrder`] has
-//! ΔT₃² (the slowest scale carries the coil's lag) in place of T×ΔT₁. The
-//! trainer's default fits both and keeps the second-order set only where it
-//! validates clearly better. Warm-up there counts 3 × the fastest τ; the slower
-//! filters start from the steady state (ΔT = 0) like the fast one.
+//! ΔT₃² (the slowest scale carries the coil's lag) in place of T×ΔT₁.
+//! [`FeatureSet::MultiScaleLagged`] takes the whole lag into the nonlinear
+//! part instead of its Taylor terms: the Gaussians see T̄ = T − L·ΔT₃, the
+//! mean coil temperature estimated with a coil lag L (minutes) that the
+//! trainer chooses by validation. The trainer's default fits these sets and
+//! keeps a second-order one only where it validates clearly better. Warm-up
+//! there counts 3 × the fastest τ; the slower filters start from the steady
+//! state (ΔT = 0) like the fast one.
 //!
 //! ## Several thermometers
 //! The RLG paper's method reads up to [`THERMOMETERS`] thermometers
@@ -203,6 +207,16 @@ pub enum FeatureSet {
     /// place of T×ΔT₁ (see the module docs). Declared last so
     /// that the blob encoding of the other sets is unchanged.
     MultiScaleSecondOrder,
+    /// The second-order multi-scale set with its first input, the one the
+    /// Gaussians see, the lag-corrected temperature T̄ = T − L·ΔT₃: an estimate
+    /// of the mean coil temperature, which lags the loop sensor in proportion
+    /// to the slow rate (see the module docs). The other inputs are those of
+    /// [`FeatureSet::MultiScaleSecondOrder`]. Declared after it for the same
+    /// reason.
+    MultiScaleLagged {
+        /// The coil lag L, minutes (T̄ = T − L·ΔT₃ with ΔT₃ in °C/min).
+        coil_lag_min: u16,
+    },
 }
 
 impl FeatureSet {
@@ -212,7 +226,7 @@ impl FeatureSet {
             FeatureSet::Temp => 1,
             FeatureSet::TempRate => 2,
             FeatureSet::TempRateProduct => 3,
-            FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder => 8,
+            FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => 8,
             FeatureSet::MultiPoint(probes) => probes.len(),
         }
     }
@@ -222,13 +236,16 @@ impl FeatureSet {
         match self {
             FeatureSet::Temp | FeatureSet::MultiPoint(_) => 0,
             FeatureSet::TempRate | FeatureSet::TempRateProduct => 1,
-            FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder => WINDOWS,
+            FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => WINDOWS,
         }
     }
 
     /// True for the sets over three ΔT time scales.
     pub const fn is_multiscale(self) -> bool {
-        matches!(self, FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder)
+        matches!(
+            self,
+            FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. }
+        )
     }
 
     /// The thermometers the inputs read, as a bit mask (bit i = thermometer i):
@@ -282,20 +299,32 @@ impl FeatureSet {
                 "T×ΔT₃ [°C²/min]",
                 "T²×ΔT₂ [°C³/min]",
             ],
-            FeatureSet::MultiScaleSecondOrder => &[
-                "T [°C]",
-                "ΔT₁ [°C/min]",
-                "ΔT₂ [°C/min]",
-                "ΔT₃ [°C/min]",
-                "T×ΔT₂ [°C²/min]",
-                "T×ΔT₃ [°C²/min]",
-                "T²×ΔT₂ [°C³/min]",
-                "ΔT₃² [°C²/min²]",
-            ],
+            FeatureSet::MultiScaleSecondOrder => &SECOND_ORDER_NAMES,
+            FeatureSet::MultiScaleLagged { .. } => &LAGGED_NAMES,
             FeatureSet::MultiPoint(_) => &[],
         }
     }
 }
+
+/// Input names of [`FeatureSet::MultiScaleSecondOrder`].
+static SECOND_ORDER_NAMES: [&str; 8] = [
+    "T [°C]",
+    "ΔT₁ [°C/min]",
+    "ΔT₂ [°C/min]",
+    "ΔT₃ [°C/min]",
+    "T×ΔT₂ [°C²/min]",
+    "T×ΔT₃ [°C²/min]",
+    "T²×ΔT₂ [°C³/min]",
+    "ΔT₃² [°C²/min²]",
+];
+
+/// Input names of [`FeatureSet::MultiScaleLagged`]: the second-order set's
+/// with the lag-corrected temperature first.
+static LAGGED_NAMES: [&str; 8] = {
+    let mut names = SECOND_ORDER_NAMES;
+    names[0] = "T̄ = T − L·ΔT₃ [°C]";
+    names
+};
 
 /// The name and unit of one model input ([`FeatureSet::name`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -443,7 +472,7 @@ impl FeatureVector {
 
     /// The same sample's inputs for the multi-scale set `to`, from this vector
     /// of the multi-scale set `from` with the same windows: both sets are built
-    /// from the loop temperature and the three ΔT rates (inputs 0 ..= 3), so the
+    /// from the loop temperature and the three ΔT rates (inputs 1 ..= 3), so the
     /// trainer fits both from one filter pass, bit for bit what
     /// [`FeatureExtractor::update`] gives for `to`. `None` unless both sets are
     /// multi-scale and this vector has `from`'s length.
@@ -451,9 +480,11 @@ impl FeatureVector {
         if !(from.is_multiscale() && to.is_multiscale()) || self.len as usize != from.dims() {
             return None;
         }
-        let [temp_c, fast, slow, slowest, ..] = self.values;
+        // The loop temperature from the reference reading: the lagged set's
+        // first input is not T.
+        let [_, fast, slow, slowest, ..] = self.values;
         Some(FeatureVector {
-            values: assemble(to, [fast, slow, slowest], &loop_reading(temp_c)),
+            values: assemble(to, [fast, slow, slowest], &loop_reading(self.reference_temp_c)),
             len: to.dims() as u8,
             ..*self
         })
@@ -561,13 +592,18 @@ fn assemble(set: FeatureSet, rate_c_per_min: [f32; WINDOWS], temps_c: &[f32; THE
                 temp_c * temp_c * slow,
             ];
         }
-        FeatureSet::MultiScaleSecondOrder => {
-            // Written out like the first-order arm on purpose: one arm for both
-            // sets with a shared prefix cost the firmware's whole step about 96
-            // instructions more (`cargo xtask bench-fw`).
+        FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => {
+            // Written out apart from the first-order arm on purpose: one arm for
+            // both sets with a shared prefix cost the firmware's whole step about
+            // 96 instructions more (`cargo xtask bench-fw`).
             let [fast, slow, slowest] = rate_c_per_min;
+            // The lagged set's first input: T̄ = T − L·ΔT₃, the mean coil temperature.
+            let first = match set {
+                FeatureSet::MultiScaleLagged { coil_lag_min } => temp_c - f32::from(coil_lag_min) * slowest,
+                _ => temp_c,
+            };
             values = [
-                temp_c,
+                first,
                 fast,
                 slow,
                 slowest,
@@ -703,6 +739,30 @@ mod tests {
     }
 
     #[test]
+    fn the_lagged_set_is_the_second_order_set_with_t_moved_back_by_the_coil_lag() {
+        let windows = [10.0, 80.0, 640.0];
+        let second = FeatureConfig::multiscale(FeatureSet::MultiScaleSecondOrder, windows);
+        let lagged = FeatureConfig::multiscale(FeatureSet::MultiScaleLagged { coil_lag_min: 40 }, windows);
+        let (mut fx1, mut fx2) = (FeatureExtractor::new(), FeatureExtractor::new());
+        let mut last = None;
+        for i in 0..=20_000 {
+            // A ramp at 1.5 °C/min from −30 °C.
+            let temps = loop_reading(-30.0 + 1.5 * i as f32 / 60.0);
+            let (a, b) = (fx1.update(&second, 1.0, &temps), fx2.update(&lagged, 1.0, &temps));
+            assert_eq!(&b.as_slice()[1..], &a.as_slice()[1..], "sample {i}");
+            assert_eq!(b.as_slice()[0], a.as_slice()[0] - 40.0 * a.as_slice()[3], "sample {i}");
+            assert_eq!(b.temp_c(), a.temp_c(), "the reported temperature stays the sensor's");
+            last = Some(b);
+        }
+        // Settled on the ramp: T̄ is the sensor's reading 40 min × 1.5 °C/min back.
+        let v = last.unwrap();
+        assert!((v.temp_c() - v.as_slice()[0] - 60.0).abs() < 0.2, "{:?}", v.as_slice());
+        assert_eq!(lagged.set.name(0), Some(InputName::Fixed("T̄ = T − L·ΔT₃ [°C]")));
+        assert_eq!(lagged.dims(), 8);
+        assert!(lagged.set.is_multiscale() && lagged.is_valid());
+    }
+
+    #[test]
     fn settled_inputs_are_what_the_filters_read_at_the_end_of_a_long_steady_ramp() {
         let sets = [
             FeatureSet::Temp,
@@ -710,6 +770,7 @@ mod tests {
             FeatureSet::TempRateProduct,
             FeatureSet::MultiScale,
             FeatureSet::MultiScaleSecondOrder,
+            FeatureSet::MultiScaleLagged { coil_lag_min: 20 },
         ];
         for set in sets {
             let config = FeatureConfig::multiscale(set, [2.0, 32.0, 512.0]);
@@ -731,9 +792,13 @@ mod tests {
     #[test]
     fn a_multiscale_vector_converts_to_the_other_set_bit_for_bit() {
         let windows = [15.0, 240.0, 3840.0];
-        let sets = [FeatureSet::MultiScale, FeatureSet::MultiScaleSecondOrder];
+        let sets = [
+            FeatureSet::MultiScale,
+            FeatureSet::MultiScaleSecondOrder,
+            FeatureSet::MultiScaleLagged { coil_lag_min: 10 },
+        ];
         let configs = sets.map(|set| FeatureConfig::multiscale(set, windows));
-        let mut extractors = [FeatureExtractor::new(); 2];
+        let mut extractors = [FeatureExtractor::new(); 3];
         // Irregular steps, a gap (dt = NaN restarts) and a non-monotone temperature.
         for i in 0..20_000u32 {
             let dt = if i == 7_000 {
@@ -742,8 +807,8 @@ mod tests {
                 0.01 + (i % 7) as f32 * 0.003
             };
             let temps = loop_reading(-20.0 + 0.004 * i as f32 + (i as f32 * 0.01).sin());
-            let direct = [0, 1].map(|k| extractors[k].update(&configs[k], dt, &temps));
-            for (from, to) in [(0, 1), (1, 0), (0, 0)] {
+            let direct = [0, 1, 2].map(|k| extractors[k].update(&configs[k], dt, &temps));
+            for (from, to) in [(0, 1), (1, 0), (0, 0), (0, 2), (2, 0), (2, 1)] {
                 let converted = direct[from].to_multiscale_set(sets[from], sets[to]);
                 assert_eq!(
                     converted,
@@ -792,6 +857,7 @@ mod tests {
             FeatureSet::TempRateProduct,
             FeatureSet::MultiScale,
             FeatureSet::MultiScaleSecondOrder,
+            FeatureSet::MultiScaleLagged { coil_lag_min: 80 },
         ] {
             let cfg = if set.is_multiscale() {
                 FeatureConfig::multiscale(set, [5.0, 40.0, 320.0])

@@ -39,6 +39,7 @@ fn feature_config() -> impl Strategy<Value = FeatureConfig> {
         FeatureSet::TempRateProduct,
         FeatureSet::MultiScale,
         FeatureSet::MultiScaleSecondOrder,
+        FeatureSet::MultiScaleLagged { coil_lag_min: 25 },
     ]);
     (set, window).prop_map(|(set, w)| match set {
         set if set.is_multiscale() => FeatureConfig::multiscale(set, [w, 8.0 * w, 64.0 * w]),

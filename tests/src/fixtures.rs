@@ -20,14 +20,19 @@ pub fn faulty(row: usize) -> bool {
 /// Rows [`faulty`] marks.
 pub const FAULTY_ROWS: u32 = 46;
 
+/// `chamber`'s run written into `dir` as `name` and read back as the trainer reads it.
+fn recorded(dir: &Path, chamber: &ChamberRun, name: &str) -> Run {
+    let path = dir.join(name);
+    std::fs::write(&path, chamber.to_csv()).expect("write training run");
+    Run::load(&path).expect("simulated run reads")
+}
+
 /// Fits a 16-centre model on a 1 °C/min run and writes a fault-injected
 /// slice of a 2 °C/min run into `dir`; returns (model, slice path).
 pub fn model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
     let mut chamber = ChamberRun::ifog(1.0, 31);
     chamber.hold_s = 1800.0;
-    let train_path = dir.join("train.csv");
-    std::fs::write(&train_path, chamber.to_csv()).expect("write training run");
-    let train = Run::load(&train_path).expect("simulated run reads");
+    let train = recorded(dir, &chamber, "train.csv");
     let opts = FitOptions {
         centers: Some(16),
         rate_windows_s: vec![60.0],
@@ -37,6 +42,28 @@ pub fn model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
     (
         model,
         faulty_slice(dir, &ChamberRun::ifog(2.0, 32).to_csv(), "slice.csv"),
+    )
+}
+
+/// Fits a 16-centre network of the lagged second-order set
+/// (`FeatureSet::MultiScaleLagged`, coil lag 40 min: Gaussians over
+/// T − L·ΔT₃) on a 1 °C/min cycle run and writes a fault-injected slice of a
+/// 3 °C/min cycle run into `dir`; returns (model, slice path).
+pub fn lagged_model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
+    let mut chamber = ChamberRun::cycle(1.0, 51);
+    chamber.hold_s = 1800.0;
+    let train = recorded(dir, &chamber, "train_cycle.csv");
+    let opts = FitOptions {
+        centers: Some(16),
+        rate_windows_s: vec![15.0],
+        ..FitOptions::default()
+    };
+    let set = rbf_core::FeatureSet::MultiScaleLagged { coil_lag_min: 40 };
+    let progress = fit::Progress::new(false);
+    let (model, _) = fit::rbf::fit(std::slice::from_ref(&train), &[], set, &opts, &progress).expect("fit");
+    (
+        model,
+        faulty_slice(dir, &ChamberRun::cycle(3.0, 52).to_csv(), "slice_cycle.csv"),
     )
 }
 
@@ -50,9 +77,7 @@ pub fn multipoint_model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBu
     let mut chamber = ChamberRun::ifog(1.0, 41);
     chamber.hold_s = 1800.0;
     chamber.multi = true;
-    let train_path = dir.join("train_multi.csv");
-    std::fs::write(&train_path, chamber.to_csv()).expect("write training run");
-    let train = Run::load(&train_path).expect("simulated run reads");
+    let train = recorded(dir, &chamber, "train_multi.csv");
     let opts = FitOptions {
         method: fit::Method::SvrPso,
         centers: Some(16),

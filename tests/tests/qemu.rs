@@ -3,29 +3,45 @@
 //! Ignored in a plain `cargo test` (they need qemu-system-arm and a cross
 //! build); `cargo xtask ci` installs QEMU and runs them with `--ignored`.
 
+use std::path::Path;
+
 use e2e_tests::fixtures;
 use rbf_core::{Flags, frame};
 use tempfile::TempDir;
 use trainer::blobfile::write_model;
-use trainer::evaluate::compensate_file;
+use trainer::evaluate::{FlagCounts, compensate_file};
 use trainer::output::Existing;
+use xtask::replay::ReplaySummary;
+
+/// Writes `model` into `dir`, compensates `slice` with it on the host and
+/// replays it under QEMU (UART frames into `frames` when given); asserts one
+/// output row per input row and byte-identical CSVs. Returns the host's flag
+/// counts and the replay's summary.
+fn replay_matches_host(
+    dir: &Path,
+    model: &rbf_core::Model,
+    slice: &Path,
+    frames: Option<&Path>,
+) -> (FlagCounts, ReplaySummary) {
+    let model_path = dir.join("model.bin");
+    write_model(&model_path, model, Existing::Replace).unwrap();
+    let expected_path = dir.join("expected.csv");
+    let (_, flagged) = compensate_file(Some(model), slice, &expected_path).unwrap();
+    let out = dir.join("qemu.csv");
+    let summary = xtask::replay::qemu_replay(&model_path, slice, &out, frames).unwrap();
+    assert_eq!(summary.samples, fixtures::ROWS);
+    let (got, want) = (std::fs::read(&out).unwrap(), std::fs::read(&expected_path).unwrap());
+    assert!(got == want, "QEMU replay output differs from trainer compensate");
+    (flagged, summary)
+}
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn qemu_replay_with_sensor_faults_is_byte_identical_to_trainer_compensate() {
     let dir = TempDir::new().unwrap();
     let (model, slice) = fixtures::model_and_faulty_slice(dir.path());
-    let model_path = dir.path().join("model.bin");
-    write_model(&model_path, &model, Existing::Replace).unwrap();
-    let expected_path = dir.path().join("expected.csv");
-    compensate_file(Some(&model), &slice, &expected_path).unwrap();
-
-    let out = dir.path().join("qemu.csv");
     let frames_path = dir.path().join("frames.bin");
-    let summary = xtask::replay::qemu_replay(&model_path, &slice, &out, Some(&frames_path)).unwrap();
-    assert_eq!(summary.samples, fixtures::ROWS);
-    let (got, want) = (std::fs::read(&out).unwrap(), std::fs::read(&expected_path).unwrap());
-    assert!(got == want, "QEMU replay output differs from trainer compensate");
+    replay_matches_host(dir.path(), &model, &slice, Some(&frames_path));
 
     // The UART frames say the same: one per row, flag 2 exactly on faulted rows.
     let mut frames = std::fs::read(&frames_path).unwrap();
@@ -47,6 +63,19 @@ fn qemu_replay_with_sensor_faults_is_byte_identical_to_trainer_compensate() {
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn qemu_replay_of_a_lagged_multiscale_model_is_byte_identical_to_trainer_compensate() {
+    let dir = TempDir::new().unwrap();
+    let (model, slice) = fixtures::lagged_model_and_faulty_slice(dir.path());
+    assert_eq!(
+        model.features().set,
+        rbf_core::FeatureSet::MultiScaleLagged { coil_lag_min: 40 }
+    );
+    let (flagged, _) = replay_matches_host(dir.path(), &model, &slice, None);
+    assert_eq!(flagged.temp_sensor_fault, fixtures::FAULTY_ROWS as usize);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn qemu_replay_of_a_multi_point_run_reads_eight_tmp117s_and_matches_trainer_compensate() {
     let dir = TempDir::new().unwrap();
     let (model, slice) = fixtures::multipoint_model_and_faulty_slice(dir.path());
@@ -55,19 +84,11 @@ fn qemu_replay_of_a_multi_point_run_reads_eight_tmp117s_and_matches_trainer_comp
         "{:?}",
         model.features()
     );
-    let model_path = dir.path().join("model.bin");
-    write_model(&model_path, &model, Existing::Replace).unwrap();
-    let expected_path = dir.path().join("expected.csv");
-    let (_, flagged) = compensate_file(Some(&model), &slice, &expected_path).unwrap();
-    let out = dir.path().join("qemu.csv");
-    let summary = xtask::replay::qemu_replay(&model_path, &slice, &out, None).unwrap();
-    assert_eq!(summary.samples, fixtures::ROWS);
+    let (flagged, summary) = replay_matches_host(dir.path(), &model, &slice, None);
     // The inputs read temp_a, temp_c, temp_d and temp_e: four TMP117s on two
     // buses, each failing on every faulted row.
     let reads_failed = format!("temp_read_faults {} ", 4 * fixtures::FAULTY_ROWS);
     assert!(summary.report.contains(&reads_failed), "{}", summary.report);
-    let (got, want) = (std::fs::read(&out).unwrap(), std::fs::read(&expected_path).unwrap());
-    assert!(got == want, "QEMU replay output differs from trainer compensate");
     assert_eq!(flagged.temp_sensor_fault, fixtures::FAULTY_ROWS as usize);
 }
 

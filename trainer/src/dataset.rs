@@ -54,6 +54,23 @@ impl Blocks {
         })
     }
 
+    /// These blocks of [`FeatureSet::MultiScaleSecondOrder`] as blocks of
+    /// [`FeatureSet::MultiScaleLagged`] with coil lag `coil_lag_min`: input 0
+    /// becomes T − L·ΔT₃ (the block mean of that input is the same combination
+    /// of the block means; the firmware computes it per sample). Its per-sample
+    /// range becomes the widest the two inputs' ranges allow, which clamps
+    /// only inputs the training runs cannot have produced.
+    pub fn with_coil_lag(mut self, coil_lag_min: u16) -> Blocks {
+        let lag = f64::from(coil_lag_min);
+        for row in &mut self.x {
+            row[0] -= lag * row[SLOWEST_RATE_INPUT];
+        }
+        if let [temp, _, _, slowest, ..] = self.sample_range[..] {
+            self.sample_range[0] = (temp.0 - lag * slowest.1, temp.1 - lag * slowest.0);
+        }
+        self
+    }
+
     fn append(&mut self, other: Blocks) {
         if self.x.is_empty() && self.sample_range.is_empty() {
             self.sample_range = other.sample_range.clone();
@@ -278,16 +295,57 @@ fn shares_filters(a: &FeatureConfig, b: &FeatureConfig) -> bool {
     a == b || (a.set.is_multiscale() && b.set.is_multiscale() && windows(a) == windows(b))
 }
 
+/// Input 3 of the multi-scale sets: ΔT₃, the slowest rate, °C/min.
+const SLOWEST_RATE_INPUT: usize = 3;
+
+/// The configuration whose blocks `features`' blocks are made from: the
+/// second-order multi-scale set over the same windows for a lagged set
+/// ([`Blocks::with_coil_lag`]), else `features` itself.
+pub fn block_source(features: &FeatureConfig) -> FeatureConfig {
+    match features.set {
+        FeatureSet::MultiScaleLagged { .. } => FeatureConfig {
+            set: FeatureSet::MultiScaleSecondOrder,
+            ..*features
+        },
+        _ => *features,
+    }
+}
+
+/// `blocks` of [`block_source`]`(features)` turned into `features`' blocks.
+fn derive_blocks(blocks: Blocks, features: &FeatureConfig) -> Blocks {
+    match features.set {
+        FeatureSet::MultiScaleLagged { coil_lag_min } => blocks.with_coil_lag(coil_lag_min),
+        _ => blocks,
+    }
+}
+
 /// Runs the trainer learns from: in memory ([`Run`]) or streamed from files
 /// ([`RunFiles`]), seen through their block means.
 pub trait RunSet {
     /// Number of runs.
     fn count(&self) -> usize;
-    /// Block means of every run's features for `features`, concatenated.
-    fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks>;
+    /// Block means of every run's features for `features`, concatenated; a
+    /// lagged set's are derived from the second-order set's ([`block_source`]).
+    fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
+        let blocks = self.filtered_block_means(&block_source(features), block_s)?;
+        Ok(derive_blocks(blocks, features))
+    }
     /// Computes the blocks of several configurations where one pass over the
     /// data serves them all; later [`RunSet::block_means`] calls use them.
-    fn prepare(&self, _configs: &[FeatureConfig], _block_s: f64) -> anyhow::Result<()> {
+    fn prepare(&self, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<()> {
+        let mut sources: Vec<FeatureConfig> = Vec::with_capacity(configs.len());
+        for source in configs.iter().map(block_source) {
+            if !sources.contains(&source) {
+                sources.push(source);
+            }
+        }
+        self.prepare_filtered(&sources, block_s)
+    }
+    /// Block means of a configuration computed from the samples (its own
+    /// [`block_source`]).
+    fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks>;
+    /// [`RunSet::prepare`] for configurations computed from the samples.
+    fn prepare_filtered(&self, _configs: &[FeatureConfig], _block_s: f64) -> anyhow::Result<()> {
         Ok(())
     }
     /// The thermometer columns every run has (bit i = `temp_a` … `temp_h`).
@@ -308,7 +366,7 @@ impl RunSet for [Run] {
         Ok(common_thermometers(self))
     }
 
-    fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
+    fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
         Ok(block_means(self, features, block_s))
     }
 }
@@ -323,20 +381,21 @@ impl<const N: usize> RunSet for [Run; N] {
         Ok(common_thermometers(self))
     }
 
-    fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
+    fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
         Ok(block_means(self, features, block_s))
     }
 }
 
 /// Block means of the features and bias target of each run, concatenated.
 pub fn block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) -> Blocks {
+    let source = block_source(features);
     let mut all = Blocks {
-        dims: features.dims(),
+        dims: source.dims(),
         ..Blocks::default()
     };
     for (index, run) in runs.iter().enumerate() {
         let reference = run.reference_dph();
-        let Some(mut builder) = BlockBuilder::new(index, &[*features], run.nominal_period_s, block_s) else {
+        let Some(mut builder) = BlockBuilder::new(index, &[source], run.nominal_period_s, block_s) else {
             continue;
         };
         for (i, sample) in run.samples().enumerate() {
@@ -344,7 +403,7 @@ pub fn block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) -> Bloc
         }
         builder.finish(0.0).into_iter().for_each(|b| all.append(b));
     }
-    all
+    derive_blocks(all, features)
 }
 
 /// Run files read in streaming passes: only block means and running sums are
@@ -457,17 +516,17 @@ impl RunSet for RunFiles {
         })
     }
 
-    fn block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
+    fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
         let key = cache_key(features, block_s);
         if let Some(b) = self.cached(&key) {
             return Ok(b);
         }
-        self.prepare(std::slice::from_ref(features), block_s)?;
+        self.prepare_filtered(std::slice::from_ref(features), block_s)?;
         self.cached(&key)
             .ok_or_else(|| anyhow::anyhow!("block means were not cached"))
     }
 
-    fn prepare(&self, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<()> {
+    fn prepare_filtered(&self, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<()> {
         let wanted: Vec<FeatureConfig> = configs
             .iter()
             .filter(|c| !self.is_cached(&cache_key(c, block_s)))
@@ -509,14 +568,20 @@ mod tests {
         FeatureConfig::multiscale(set, [window_s, 16.0 * window_s, 256.0 * window_s])
     }
 
-    #[test]
-    fn one_pass_over_both_multiscale_sets_gives_each_set_s_own_blocks_bit_for_bit() {
-        let dir = tempfile::tempdir().unwrap();
+    /// A 3-h simulated IFOG run at 10 Hz and `ramp_c_per_min`, written into `dir`.
+    fn simulated_run(dir: &tempfile::TempDir, ramp_c_per_min: f64, seed: u64) -> PathBuf {
         let path = dir.path().join("run.csv");
-        let mut sim = ChamberRun::ifog(2.0, 5);
+        let mut sim = ChamberRun::ifog(ramp_c_per_min, seed);
         sim.duration_s = Some(3.0 * 3600.0);
         sim.sample_rate_hz = 10.0;
         sim.write_csv(&mut std::fs::File::create(&path).unwrap()).unwrap();
+        path
+    }
+
+    #[test]
+    fn one_pass_over_both_multiscale_sets_gives_each_set_s_own_blocks_bit_for_bit() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = simulated_run(&dir, 2.0, 5);
         let configs = [
             multiscale(FeatureSet::MultiScale, 15.0),
             multiscale(FeatureSet::MultiScaleSecondOrder, 15.0),
@@ -539,6 +604,42 @@ mod tests {
             assert_eq!(shared.sample_range, alone.sample_range, "{config:?}");
             assert_eq!(shared.usable_s, alone.usable_s, "{config:?}");
         }
+    }
+
+    #[test]
+    fn lagged_blocks_derived_from_the_second_order_blocks_match_the_per_sample_features() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = simulated_run(&dir, 3.0, 7);
+        let run = Run::load(&path).unwrap();
+        let lagged = multiscale(FeatureSet::MultiScaleLagged { coil_lag_min: 40 }, 15.0);
+        assert_eq!(
+            block_source(&lagged),
+            multiscale(FeatureSet::MultiScaleSecondOrder, 15.0)
+        );
+        // What the firmware's features average to, computed sample by sample.
+        let mut direct = BlockBuilder::new(0, &[lagged], run.nominal_period_s, 1.0).unwrap();
+        let reference = run.reference_dph();
+        for (i, sample) in run.samples().enumerate() {
+            direct.push(run.time_s[i], &sample, run.rate_dph[i] - reference.at(i));
+        }
+        let direct = direct.finish(0.0).remove(0);
+        let derived = block_means(std::slice::from_ref(&run), &lagged, 1.0);
+        assert_eq!(derived.len(), direct.len());
+        assert_eq!(derived.y, direct.y);
+        for (d, e) in derived.x.iter().zip(&direct.x) {
+            assert!((d[0] - e[0]).abs() < 1e-4, "T̄ {} against {}", d[0], e[0]);
+            assert_eq!(d[1..8], e[1..8]);
+        }
+        let (span, true_span) = (derived.sample_range[0], direct.sample_range[0]);
+        assert!(
+            span.0 <= true_span.0 && span.1 >= true_span.1,
+            "{span:?} must hold {true_span:?}"
+        );
+        assert_eq!(derived.sample_range[1..], direct.sample_range[1..]);
+        // Streamed runs give the same, from the second-order set's cached pass.
+        let streamed = RunFiles::new(std::slice::from_ref(&path));
+        streamed.prepare(&[lagged], 1.0).unwrap();
+        assert_eq!(streamed.block_means(&lagged, 1.0).unwrap().x, derived.x);
     }
 
     #[test]

@@ -122,6 +122,11 @@ struct BlocksArgs {
     /// Fastest ΔT window, s.
     #[arg(long, value_name = "SECONDS", default_value_t = 60.0)]
     rate_window_s: f32,
+    /// With the second-order set: its lagged form, input 0 the mean coil temperature
+    /// estimate T − L·ΔT₃ for a coil lag L in minutes (what `trainer fit` reports as
+    /// `MultiScaleLagged`).
+    #[arg(long, value_name = "MINUTES")]
+    coil_lag_min: Option<u16>,
     /// Block length, s.
     #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
     block_s: f64,
@@ -257,9 +262,11 @@ struct FitArgs {
     /// temperature lags the sensor in proportion to the rate: first-order terms of that lag);
     /// multiscale-second-order = the same with the second-order term ΔT₃² in place of T×ΔT₁;
     /// multiscale-validated (default) = both fitted from one pass over the data, the
-    /// second-order set kept only when its validation RMS is below 0.9 × the first-order one (a
-    /// term fitted at one ramp rate must earn its extrapolation: it does on cycle runs, not on
-    /// the bundled IFOG run); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's
+    /// second-order set also in its lagged forms (Gaussians over the mean coil temperature
+    /// estimate T − L·ΔT₃, coil lag L of 10, 20, 40 or 80 min, at the second-order set's
+    /// window and width), the best of these kept only when its validation RMS is below 0.9 ×
+    /// the first-order one (a term fitted at one ramp rate must earn its extrapolation: it does
+    /// on cycle runs, not on the bundled IFOG run); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's
     /// network.
     #[arg(long, value_enum, default_value_t = RbfFeatures::MultiscaleValidated)]
     features: RbfFeatures,
@@ -481,15 +488,16 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
     if let Some(s) = &outcome.sets {
         writeln!(
             out,
-            "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃²) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
+            "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃², coil lags {:?} min tried) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
             s.first_order_rms_dph,
+            fit::COIL_LAGS_MIN,
             s.second_order_rms_dph,
             s.second_order_rms_dph / s.first_order_rms_dph,
             fit::SECOND_ORDER_GAIN,
-            if s.chosen == rbf_core::FeatureSet::MultiScale {
-                "first-order"
-            } else {
-                "second-order"
+            match s.chosen {
+                FeatureSet::MultiScale => "first-order".to_owned(),
+                FeatureSet::MultiScaleLagged { coil_lag_min } => format!("second-order, coil lag {coil_lag_min} min"),
+                _ => "second-order".to_owned(),
             }
         )?;
     }
@@ -619,8 +627,12 @@ fn cmd_blocks(a: BlocksArgs) -> anyhow::Result<()> {
         a.rate_window_s.is_finite() && (0.0..=86_400.0).contains(&a.rate_window_s),
         "--rate-window-s must be 0 … 86400 s"
     );
+    let set = match (Method::Rbf.feature_set(a.features), a.coil_lag_min) {
+        (set, None) => set,
+        (FeatureSet::MultiScaleSecondOrder, Some(coil_lag_min)) => FeatureSet::MultiScaleLagged { coil_lag_min },
+        (_, Some(_)) => anyhow::bail!("--coil-lag-min needs --features multiscale-second-order"),
+    };
     let runs = load_runs(&a.runs)?;
-    let set = Method::Rbf.feature_set(a.features);
     let features = trainer::fit::rbf::feature_config(set, a.rate_window_s);
     let blocks = trainer::dataset::block_means(&runs, &features, a.block_s);
     let names: Vec<String> = (0..set.dims()).map(|i| format!("x{i}")).collect();
@@ -821,7 +833,12 @@ fn inspect_json(
         v["features"] = serde_json::json!({
             "set": match f.set {
                 FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
+                FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
                 set => format!("{set:?}"),
+            },
+            "coil_lag_min": match f.set {
+                FeatureSet::MultiScaleLagged { coil_lag_min } => Some(coil_lag_min),
+                _ => None,
             },
             "inputs": input_names(f.set),
             "rate_window_s": f.rate_window_s,
@@ -865,8 +882,12 @@ fn print_inspect(v: &serde_json::Value) {
     println!("shape           {} inputs, {} centres", s("inputs"), s("centers"));
     println!("CRC-32          {}", s("crc"));
     if let Some(f) = v.get("features") {
+        let lag = match f["coil_lag_min"].as_u64() {
+            Some(l) => format!(", coil lag L {l} min"),
+            None => String::new(),
+        };
         println!(
-            "features        {} (ΔT window {} s, warm-up {} s)",
+            "features        {} (ΔT window {} s{lag}, warm-up {} s)",
             f["inputs"], f["rate_window_s"], f["warmup_s"]
         );
     }

@@ -273,16 +273,20 @@ struct PeerFeatures {
     set: &'static str,
     /// `--rate-window-s`: the fastest ΔT window, s.
     rate_window_s: String,
+    /// `--coil-lag-min`, for the lagged second-order set.
+    coil_lag_min: Option<String>,
 }
 
 impl PeerFeatures {
     /// From `trainer fit --json`'s report of the default fit.
     fn of_fit(json: &Path) -> anyhow::Result<Self> {
         let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json)?)?;
-        let set = match report["feature_sets"]["chosen"].as_str() {
-            Some("MultiScaleSecondOrder") => "multiscale-second-order",
-            Some("MultiScale") => "multiscale",
-            other => bail!("{}: unexpected feature set {other:?}", json.display()),
+        let chosen = &report["feature_sets"]["chosen"];
+        let lag = chosen["MultiScaleLagged"]["coil_lag_min"].as_u64();
+        let set = match (chosen.as_str(), lag) {
+            (Some("MultiScaleSecondOrder"), _) | (None, Some(_)) => "multiscale-second-order",
+            (Some("MultiScale"), _) => "multiscale",
+            _ => bail!("{}: unexpected feature set {chosen}", json.display()),
         };
         let window = report["choice"]["rate_window_s"]
             .as_f64()
@@ -290,6 +294,7 @@ impl PeerFeatures {
         Ok(PeerFeatures {
             set,
             rate_window_s: window.to_string(),
+            coil_lag_min: lag.map(|l| l.to_string()),
         })
     }
 }
@@ -307,7 +312,7 @@ fn peer_rows(
     let mut rows = Vec::new();
     let blocks = |file: &Path| -> anyhow::Result<PathBuf> {
         let out = file.with_extension("blocks.csv");
-        trainer(&[
+        let mut args = vec![
             "blocks",
             path(file),
             "--features",
@@ -316,7 +321,11 @@ fn peer_rows(
             &features.rate_window_s,
             "-o",
             path(&out),
-        ])?;
+        ];
+        if let Some(lag) = &features.coil_lag_min {
+            args.extend(["--coil-lag-min", lag]);
+        }
+        trainer(&args)?;
         Ok(out)
     };
     let mut cmd = Command::new(python);

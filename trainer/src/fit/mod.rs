@@ -33,12 +33,15 @@ pub enum RbfFeatures {
     /// T, ΔT over three time scales, T×ΔT₂, T×ΔT₃, T²×ΔT₂ and ΔT₃²
     /// (`FeatureSet::MultiScaleSecondOrder`): with the second-order lag term.
     MultiscaleSecondOrder,
-    /// The default: both multi-scale sets fitted, the second-order one kept
-    /// only when it validates clearly better ([`SECOND_ORDER_GAIN`]): it
-    /// generalises to ramp rates and profiles it was not trained on. One pass
-    /// over the data builds both sets' blocks (they share their filters and
-    /// seven of eight inputs); the second search adds a quarter to a third to the
-    /// fit time of one set.
+    /// The default: both multi-scale sets fitted, the second-order one also
+    /// with Gaussians over the lag-corrected temperature T − L·ΔT₃
+    /// (`FeatureSet::MultiScaleLagged`, L from [`COIL_LAGS_MIN`]), the best
+    /// of those kept only when it validates clearly better than the
+    /// first-order set ([`SECOND_ORDER_GAIN`]): it generalises to ramp rates
+    /// and profiles it was not trained on. One pass over the data builds both
+    /// sets' blocks (they share their filters and seven of eight inputs; the
+    /// lagged blocks are derived from the second-order ones); the second
+    /// search adds a quarter to a third to the fit time of one set.
     MultiscaleValidated,
     /// (T, ΔT, T×ΔT) with Gaussians over all three: the IFOG paper's network.
     Paper,
@@ -132,6 +135,40 @@ impl Default for FitOptions {
 /// where it does (cycle runs: 0.40 … 0.64) it gained up to 8 points.
 pub const SECOND_ORDER_GAIN: f64 = 0.9;
 
+/// Coil lags L tried for [`FeatureSet::MultiScaleLagged`], minutes: the
+/// Gaussians see T − L·ΔT₃. The mean coil temperature of the simulated gyros
+/// lags the loop sensor by tens of minutes per °C/min of the slow rate.
+pub const COIL_LAGS_MIN: [u16; 4] = [10, 20, 40, 80];
+
+/// The second-order set's fit `second` against the lagged sets at its window
+/// and Gaussian width (centres and ridge searched): the one that validates
+/// best. At one window and width the four lags cost about a fifth of the
+/// second-order set's own search.
+fn best_coil_lag<T: RunSet + ?Sized, V: RunSet + ?Sized>(
+    train: &T,
+    validate: &V,
+    second: (Model, rbf::RbfChoice),
+    opts: &FitOptions,
+    progress: &Progress,
+) -> anyhow::Result<(Model, rbf::RbfChoice)> {
+    // One width: all six cost the 20-h run's fit 15 % more (`cargo xtask
+    // bench-large-run`) for half a point on one benchmark gyro.
+    let width = [second.1.width];
+    let at_window = FitOptions {
+        rate_windows_s: vec![second.1.rate_window_s],
+        ..opts.clone()
+    };
+    let mut best = second;
+    for coil_lag_min in COIL_LAGS_MIN {
+        let set = FeatureSet::MultiScaleLagged { coil_lag_min };
+        let lagged = rbf::fit_with_widths(train, validate, set, &at_window, &width, progress)?;
+        if lagged.1.validation_rms_dph < best.1.validation_rms_dph {
+            best = lagged;
+        }
+    }
+    Ok(best)
+}
+
 /// How `--features multiscale-validated` chose between the multi-scale sets.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct SetComparison {
@@ -202,6 +239,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             // Searched in full: at the first set's width the second lost its
             // gain on the third gyro's cycle run (validation ratio above 0.9).
             let second = rbf::fit(train, validate, FeatureSet::MultiScaleSecondOrder, opts, &progress)?;
+            let second = best_coil_lag(train, validate, second, opts, &progress)?;
             let (first_rms, second_rms) = (first.1.validation_rms_dph, second.1.validation_rms_dph);
             let keep_second = second_rms < SECOND_ORDER_GAIN * first_rms;
             let (model, choice) = if keep_second { second } else { first };

@@ -108,6 +108,18 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     opts: &FitOptions,
     progress: &Progress,
 ) -> anyhow::Result<(Model, RbfChoice)> {
+    fit_with_widths(train, validate, set, opts, &WIDTHS, progress)
+}
+
+/// [`fit`] choosing the Gaussian width among `widths` (normalised units).
+pub fn fit_with_widths<T: RunSet + ?Sized, V: RunSet + ?Sized>(
+    train: &T,
+    validate: &V,
+    set: FeatureSet,
+    opts: &FitOptions,
+    widths: &[f64],
+    progress: &Progress,
+) -> anyhow::Result<(Model, RbfChoice)> {
     let windows = if set == FeatureSet::Temp {
         vec![0.0]
     } else {
@@ -120,7 +132,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     let configs: Vec<FeatureConfig> = windows.iter().map(|&w| feature_config(set, w)).collect();
     train.prepare(&configs, opts.block_s)?;
     validate.prepare(&configs, opts.block_s)?;
-    progress.start("selecting centres", (windows.len() * WIDTHS.len() * folds) as u64);
+    progress.start("selecting centres", (windows.len() * widths.len() * folds) as u64);
 
     let shape = InputShape {
         dims: set.dims(),
@@ -141,7 +153,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         let pools = parallel_map(&splits, |split| candidate_pool(&z, &split.train, shape));
         // Every (width, split) pair on its own core; summed in a fixed order,
         // so the result does not depend on the number of cores.
-        let tasks: Vec<(f64, &Split, &[usize])> = WIDTHS
+        let tasks: Vec<(f64, &Split, &[usize])> = widths
             .iter()
             .flat_map(|&w| splits.iter().zip(&pools).map(move |(s, p)| (w, s, p.as_slice())))
             .collect();
@@ -152,7 +164,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             progress.inc();
             table
         });
-        for (wi, &width) in WIDTHS.iter().enumerate() {
+        for (wi, &width) in widths.iter().enumerate() {
             let mut table: ScoreTable = vec![vec![0.0; k_max]; RIDGES.len()];
             for part in split_tables.iter().skip(wi * splits.len()).take(splits.len()) {
                 for (row, part_row) in table.iter_mut().zip(part) {
