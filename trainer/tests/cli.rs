@@ -404,6 +404,54 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
 }
 
 #[test]
+fn blocks_with_a_coil_lag_move_input_0_back_by_the_lag_and_refuse_other_sets() {
+    let dir = TempDir::new().unwrap();
+    let run = shared_data("cycle_verify_5cpm.csv");
+    let write_blocks = |name: &str, extra: &[&str]| -> Vec<Vec<f64>> {
+        let out = dir.path().join(name);
+        let mut args = vec!["blocks", run.to_str().unwrap(), "--features", "multiscale-second-order"];
+        args.extend(["--rate-window-s", "15", "--block-s", "60", "-o", out.to_str().unwrap()]);
+        args.extend(extra);
+        let o = trainer(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = std::fs::read_to_string(&out).unwrap();
+        assert!(text.starts_with("# features: "), "{text:.200}");
+        text.lines()
+            .skip(2)
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect()
+    };
+    let plain = write_blocks("plain.csv", &[]);
+    let lagged = write_blocks("lagged.csv", &["--coil-lag-min", "40"]);
+    assert!(plain.len() > 100);
+    assert_eq!(plain.len(), lagged.len());
+    for (p, l) in plain.iter().zip(&lagged) {
+        // Columns: run, x0 … x7, target. x3 is ΔT₃ in °C/min.
+        assert!(
+            (l[1] - (p[1] - 40.0 * p[4])).abs() < 1e-9 * p[1].abs().max(1.0),
+            "{p:?} {l:?}"
+        );
+        assert_eq!(l[2..], p[2..]);
+    }
+    let o = trainer(&[
+        "blocks",
+        run.to_str().unwrap(),
+        "--features",
+        "paper",
+        "--coil-lag-min",
+        "40",
+        "-o",
+        dir.path().join("x.csv").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("--coil-lag-min needs --features multiscale-second-order"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
 fn inspect_reports_header_shapes_ranges_and_crc() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);

@@ -174,7 +174,8 @@ fn best_coil_lag<T: RunSet + ?Sized, V: RunSet + ?Sized>(
 pub struct SetComparison {
     /// Validation RMS of the first-order set, °/h.
     pub first_order_rms_dph: f64,
-    /// Validation RMS of the second-order set, °/h.
+    /// Validation RMS of the second-order set or, when one validates better,
+    /// its best lagged form ([`COIL_LAGS_MIN`]), °/h.
     pub second_order_rms_dph: f64,
     /// The set kept.
     pub chosen: FeatureSet,
