@@ -132,7 +132,14 @@ fn benchmark_image_runs_and_reports_every_model_size() {
     let icount = ["-icount".to_owned(), "shift=0".to_owned()];
     let run = xtask::qemu::run(&elf, dir.path(), &icount, std::time::Duration::from_secs(120)).unwrap();
     assert!(run.success, "{}", run.log);
-    for shape in ["K=32 D=8", "K=8 D=3:", "K=16 D=3:", "K=64 D=3:", "K=32 D=3:"] {
+    for shape in [
+        "K=32 D=8 (default multiscale",
+        "over T̄",
+        "K=8 D=3:",
+        "K=16 D=3:",
+        "K=64 D=3:",
+        "K=32 D=3:",
+    ] {
         let line = run
             .log
             .lines()

@@ -27,9 +27,10 @@ mod board {
 
     /// A deterministic K-centre model (values like a real fit's): the IFOG
     /// paper's (T, ΔT, T×ΔT) with Gaussians over all three inputs, or with
-    /// `multiscale` the default's 8 inputs with Gaussians over T.
-    fn model(k: usize, multiscale: bool, width: f32) -> Model {
-        let (dims, kernel) = if multiscale { (8, 1) } else { (D, D) };
+    /// `multiscale` one of the default's 8-input sets with Gaussians over its
+    /// first input (T, or T̄ = T − L·ΔT₃ for a lagged set).
+    fn model(k: usize, multiscale: Option<FeatureSet>, width: f32) -> Model {
+        let (dims, kernel) = if multiscale.is_some() { (8, 1) } else { (D, D) };
         let mut state = 0x2545_f491u32;
         let mut next = || {
             state ^= state << 13;
@@ -55,10 +56,9 @@ mod board {
             constant: 0.05,
         })
         .expect("valid synthetic network");
-        let features = if multiscale {
-            FeatureConfig::multiscale(FeatureSet::MultiScale, [60.0, 480.0, 3840.0])
-        } else {
-            FeatureConfig::single(FeatureSet::TempRateProduct, 60.0)
+        let features = match multiscale {
+            Some(set) => FeatureConfig::multiscale(set, [60.0, 480.0, 3840.0]),
+            None => FeatureConfig::single(FeatureSet::TempRateProduct, 60.0),
         };
         let ranges = [
             (0.0, 50.0),
@@ -98,15 +98,18 @@ mod board {
         // step (`Compensator::process`: gap and fault logic, feature filters,
         // evaluation, flags). The default's shape first; the last line is the
         // K = 32, D = 3 evaluation figure.
-        // (K, default multi-scale shape, σ): σ = 1.5 keeps the shared term a
-        // factor (T = 32); σ = 0.5 (T = 284) adds it to every exponent.
+        // (K, the default's multi-scale set or the paper's shape, σ): σ = 1.5
+        // keeps the shared term a factor (T = 32); σ = 0.5 (T = 284) adds it
+        // to every exponent.
+        let lagged = FeatureSet::MultiScaleLagged { coil_lag_min: 40 };
         let runs = [
-            (32, true, 1.5),
-            (8, false, 1.5),
-            (16, false, 1.5),
-            (64, false, 1.5),
-            (32, false, 0.5),
-            (32, false, 1.5),
+            (32, Some(FeatureSet::MultiScale), 1.5),
+            (32, Some(lagged), 1.5),
+            (8, None, 1.5),
+            (16, None, 1.5),
+            (64, None, 1.5),
+            (32, None, 0.5),
+            (32, None, 1.5),
         ];
         for (k, multiscale, width) in runs {
             let model = model(k, multiscale, width);
@@ -151,7 +154,14 @@ mod board {
                 core::hint::black_box(compensator.process(Some(core::hint::black_box(&model)), &config, &sample));
             }
             let step = instructions_per_sample(start);
-            if multiscale {
+            if multiscale == Some(lagged) {
+                hprintln!(
+                    "instructions_per_sample K={} D=8 (default, lagged second-order set, Gaussians over T̄ = T − L·ΔT₃): evaluation {} whole step {}",
+                    k,
+                    eval,
+                    step
+                );
+            } else if multiscale.is_some() {
                 hprintln!(
                     "instructions_per_sample K={} D=8 (default multiscale, Gaussians over T): evaluation {} whole step {}",
                     k,
@@ -174,7 +184,7 @@ mod board {
                     step
                 );
             }
-            if k == 32 && !multiscale && width >= 1.0 {
+            if k == 32 && multiscale.is_none() && width >= 1.0 {
                 hprintln!("instructions_per_sample K=32 D=3: {}", eval);
             }
         }
