@@ -386,16 +386,17 @@ impl<const N: usize> RunSet for [Run; N] {
     }
 }
 
-/// Block means of the features and bias target of each run, concatenated.
+/// Block means of the features and bias target of each run, concatenated,
+/// every configuration computed sample by sample (a lagged set too; the
+/// trainer derives those instead, [`RunSet::block_means`]).
 pub fn block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) -> Blocks {
-    let source = block_source(features);
     let mut all = Blocks {
-        dims: source.dims(),
+        dims: features.dims(),
         ..Blocks::default()
     };
     for (index, run) in runs.iter().enumerate() {
         let reference = run.reference_dph();
-        let Some(mut builder) = BlockBuilder::new(index, &[source], run.nominal_period_s, block_s) else {
+        let Some(mut builder) = BlockBuilder::new(index, &[*features], run.nominal_period_s, block_s) else {
             continue;
         };
         for (i, sample) in run.samples().enumerate() {
@@ -403,7 +404,7 @@ pub fn block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) -> Bloc
         }
         builder.finish(0.0).into_iter().for_each(|b| all.append(b));
     }
-    derive_blocks(all, features)
+    all
 }
 
 /// Run files read in streaming passes: only block means and running sums are
@@ -616,14 +617,10 @@ mod tests {
             block_source(&lagged),
             multiscale(FeatureSet::MultiScaleSecondOrder, 15.0)
         );
+        let runs = std::slice::from_ref(&run);
         // What the firmware's features average to, computed sample by sample.
-        let mut direct = BlockBuilder::new(0, &[lagged], run.nominal_period_s, 1.0).unwrap();
-        let reference = run.reference_dph();
-        for (i, sample) in run.samples().enumerate() {
-            direct.push(run.time_s[i], &sample, run.rate_dph[i] - reference.at(i));
-        }
-        let direct = direct.finish(0.0).remove(0);
-        let derived = block_means(std::slice::from_ref(&run), &lagged, 1.0);
+        let direct = block_means(runs, &lagged, 1.0);
+        let derived = runs.block_means(&lagged, 1.0).unwrap();
         assert_eq!(derived.len(), direct.len());
         assert_eq!(derived.y, direct.y);
         for (d, e) in derived.x.iter().zip(&direct.x) {

@@ -634,7 +634,7 @@ fn cmd_blocks(a: BlocksArgs) -> anyhow::Result<()> {
     };
     let runs = load_runs(&a.runs)?;
     let features = trainer::fit::rbf::feature_config(set, a.rate_window_s);
-    let blocks = trainer::dataset::block_means(&runs, &features, a.block_s);
+    let blocks = trainer::dataset::RunSet::block_means(runs.as_slice(), &features, a.block_s)?;
     let names: Vec<String> = (0..set.dims()).map(|i| format!("x{i}")).collect();
     let mut csv = format!(
         "# features: {}\nrun,{},target_dph\n",
