@@ -9,7 +9,7 @@ use clap::{Args, Parser, Subcommand};
 use rbf_core::blob::{self, Header};
 use rbf_core::features::Probe;
 use rbf_core::model::ModelBody;
-use rbf_core::{FeatureSet, Model};
+use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::blobfile::{read_model, write_model};
 use trainer::dataset::RunFiles;
 use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_file, evaluate_run, print_allan_table, print_table};
@@ -127,6 +127,11 @@ struct BlocksArgs {
     /// `MultiScaleLagged`).
     #[arg(long, value_name = "MINUTES")]
     coil_lag_min: Option<u16>,
+    /// Instead of --features, --rate-window-s and --coil-lag-min: the inputs of a fitted
+    /// model, every setting as its blob holds it (set, all three ΔT windows, coil lag).
+    /// How bench/accuracy gives the Python peers the features the default fit chose.
+    #[arg(long, value_name = "MODEL.bin", conflicts_with_all = ["features", "rate_window_s", "coil_lag_min"])]
+    model: Option<PathBuf>,
     /// Block length, s.
     #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
     block_s: f64,
@@ -264,7 +269,9 @@ struct FitArgs {
     /// multiscale-validated (default) = both fitted from one pass over the data, the
     /// second-order set also in its lagged forms (Gaussians over the mean coil temperature
     /// estimate T − L·ΔT₃, coil lag L of 10, 20, 40 or 80 min, at the second-order set's
-    /// window and width), the best of these kept only when its validation RMS is below 0.9 ×
+    /// window and width) and, when that family already validates better than the first-order
+    /// set, all of them again with the slowest window 1.25× longer (320τ: it should follow the
+    /// coil's slowest radial mode), the best of these kept only when its validation RMS is below 0.9 ×
     /// the first-order one (a term fitted at one ramp rate must earn its extrapolation: it does
     /// on cycle runs, not on the bundled IFOG run); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's
     /// network.
@@ -488,9 +495,10 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
     if let Some(s) = &outcome.sets {
         writeln!(
             out,
-            "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃², coil lags {:?} min tried) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
+            "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃², coil lags {:?} min and slowest window ×{:?} tried) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
             s.first_order_rms_dph,
             fit::COIL_LAGS_MIN,
+            fit::rbf::SLOWEST_WINDOW_FACTORS,
             s.second_order_rms_dph,
             s.second_order_rms_dph / s.first_order_rms_dph,
             fit::SECOND_ORDER_GAIN,
@@ -553,6 +561,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             "method": a.method,
             "choice": outcome.choice,
             "feature_sets": outcome.sets,
+            "features": features_json(outcome.model.features()),
             "svr": outcome.svr,
             "fit_seconds": fit_s,
             "blob_bytes": blob.len(),
@@ -627,13 +636,21 @@ fn cmd_blocks(a: BlocksArgs) -> anyhow::Result<()> {
         a.rate_window_s.is_finite() && (0.0..=86_400.0).contains(&a.rate_window_s),
         "--rate-window-s must be 0 … 86400 s"
     );
-    let set = match (Method::Rbf.feature_set(a.features), a.coil_lag_min) {
-        (set, None) => set,
-        (FeatureSet::MultiScaleSecondOrder, Some(coil_lag_min)) => FeatureSet::MultiScaleLagged { coil_lag_min },
-        (_, Some(_)) => anyhow::bail!("--coil-lag-min needs --features multiscale-second-order"),
+    let features = match &a.model {
+        Some(model) => *read_model(model)?.0.features(),
+        None => {
+            let set = match (Method::Rbf.feature_set(a.features), a.coil_lag_min) {
+                (set, None) => set,
+                (FeatureSet::MultiScaleSecondOrder, Some(coil_lag_min)) => {
+                    FeatureSet::MultiScaleLagged { coil_lag_min }
+                }
+                (_, Some(_)) => anyhow::bail!("--coil-lag-min needs --features multiscale-second-order"),
+            };
+            trainer::fit::rbf::feature_config(set, a.rate_window_s, 1.0)
+        }
     };
+    let set = features.set;
     let runs = load_runs(&a.runs)?;
-    let features = trainer::fit::rbf::feature_config(set, a.rate_window_s);
     let blocks = trainer::dataset::RunSet::block_means(runs.as_slice(), &features, a.block_s)?;
     let names: Vec<String> = (0..set.dims()).map(|i| format!("x{i}")).collect();
     let mut csv = format!(
@@ -830,21 +847,7 @@ fn inspect_json(
                 serde_json::json!({"input": f.set.name(i).map(|n| n.to_string()), "min": lo, "max": hi})
             })
             .collect();
-        v["features"] = serde_json::json!({
-            "set": match f.set {
-                FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
-                FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
-                set => format!("{set:?}"),
-            },
-            "coil_lag_min": match f.set {
-                FeatureSet::MultiScaleLagged { coil_lag_min } => Some(coil_lag_min),
-                _ => None,
-            },
-            "inputs": input_names(f.set),
-            "rate_window_s": f.rate_window_s,
-            "windows_s": &f.windows_s()[..f.set.windows()],
-            "warmup_s": f.warmup_s(),
-        });
+        v["features"] = features_json(f);
         v["training_ranges"] = serde_json::Value::Array(ranges);
         v["units"] = serde_json::json!({"bias": "deg/h", "temperature": "degC", "rate_of_change": "degC/min"});
         v["serial"] = serde_json::json!(m.info().serial.as_ref().map(|s| s.as_str()));
@@ -864,6 +867,25 @@ fn inspect_json(
         v["error"] = serde_json::json!(e.to_string());
     }
     v
+}
+
+/// A model's inputs as `trainer inspect --json` and `trainer fit --json` give them.
+fn features_json(f: &FeatureConfig) -> serde_json::Value {
+    serde_json::json!({
+        "set": match f.set {
+            FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
+            FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
+            set => format!("{set:?}"),
+        },
+        "coil_lag_min": match f.set {
+            FeatureSet::MultiScaleLagged { coil_lag_min } => Some(coil_lag_min),
+            _ => None,
+        },
+        "inputs": input_names(f.set),
+        "rate_window_s": f.rate_window_s,
+        "windows_s": &f.windows_s()[..f.set.windows()],
+        "warmup_s": f.warmup_s(),
+    })
 }
 
 fn print_inspect(v: &serde_json::Value) {

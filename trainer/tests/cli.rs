@@ -370,22 +370,28 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
         sets["second_order_rms_dph"].as_f64().unwrap(),
     );
     // The second-order family is the plain set or one of its lagged forms.
-    let second_kept = sets["chosen"] == "MultiScaleSecondOrder" || sets["chosen"].get("MultiScaleLagged").is_some();
+    let chosen = &fit["features"];
+    let second_kept = chosen["set"] == "MultiScaleSecondOrder" || chosen["set"] == "MultiScaleLagged";
     assert_eq!(
         second_kept,
         second < trainer::fit::SECOND_ORDER_GAIN * first,
-        "first {first}, second {second}, chosen {}",
-        sets["chosen"]
+        "first {first}, second {second}, chosen {chosen}"
     );
-    let lag = sets["chosen"]["MultiScaleLagged"]["coil_lag_min"].as_u64();
+    // Only the second-order family tries longer slowest windows.
+    let windows: Vec<f64> = serde_json::from_value(chosen["windows_s"].clone()).unwrap();
+    let factors: &[f32] = match second_kept {
+        true => &trainer::fit::rbf::SLOWEST_WINDOW_FACTORS,
+        false => &[1.0],
+    };
+    assert!(
+        factors
+            .iter()
+            .any(|&f| (windows[2] / windows[0] - f64::from(256.0 * f)).abs() < 1e-3),
+        "{windows:?}"
+    );
     let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
-    let expected = match lag {
-        Some(_) => "MultiScaleLagged",
-        None => sets["chosen"].as_str().unwrap(),
-    };
-    assert_eq!(v["features"]["set"], expected, "the blob holds the chosen set");
-    assert_eq!(v["features"]["coil_lag_min"].as_u64(), lag, "and its coil lag");
+    assert_eq!(&v["features"], chosen, "the blob holds the chosen set, lag and windows");
     // An explicit set is fitted alone.
     let o = trainer(&[
         "fit",
@@ -449,6 +455,69 @@ fn blocks_with_a_coil_lag_move_input_0_back_by_the_lag_and_refuse_other_sets() {
         "{}",
         stderr(&o)
     );
+}
+
+#[test]
+fn blocks_of_a_model_are_the_blocks_of_its_own_inputs() {
+    let dir = TempDir::new().unwrap();
+    let run = shared_data("cycle_verify_5cpm.csv");
+    let (model, explicit, of_model) = (
+        dir.path().join("m.bin"),
+        dir.path().join("explicit.csv"),
+        dir.path().join("of_model.csv"),
+    );
+    let fit = [
+        "fit",
+        run.to_str().unwrap(),
+        "--features",
+        "multiscale-second-order",
+        "--rate-window-s",
+        "60",
+        "--centers",
+        "4",
+        "-q",
+        "-o",
+        model.to_str().unwrap(),
+    ];
+    let o = trainer(&fit);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let blocks = |extra: &[&str], out: &Path| {
+        let args = [
+            &[
+                "blocks",
+                run.to_str().unwrap(),
+                "--block-s",
+                "60",
+                "-o",
+                out.to_str().unwrap(),
+            ],
+            extra,
+        ]
+        .concat();
+        let o = trainer(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read_to_string(out).unwrap()
+    };
+    let explicit = blocks(
+        &["--features", "multiscale-second-order", "--rate-window-s", "60"],
+        &explicit,
+    );
+    let of_model = blocks(&["--model", model.to_str().unwrap()], &of_model);
+    assert!(explicit.lines().count() > 100);
+    assert_eq!(of_model, explicit, "same set, windows and lag, same blocks");
+    // A model's inputs are not mixed with explicit ones.
+    let o = trainer(&[
+        "blocks",
+        run.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--rate-window-s",
+        "15",
+        "-o",
+        dir.path().join("x.csv").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("cannot be used with"), "{}", stderr(&o));
 }
 
 #[test]

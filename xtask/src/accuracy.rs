@@ -190,17 +190,17 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
             .collect::<anyhow::Result<_>>()?;
         let mut rows: Vec<Row> = Vec::new();
         let mut before: Vec<f64> = Vec::new();
-        // The default's chosen feature set and fastest window: the peers' inputs.
-        let mut default_features: Option<PeerFeatures> = None;
-        let fit_json = dir.join(format!("{}_fit.json", p.name));
+        // The default's model: its inputs are the peers' (`trainer blocks --model`).
+        let default_model = dir.join(format!("{}_default.bin", p.name));
+        let mut default_fitted = false;
         for &(label, opts) in p.methods {
-            let model = dir.join(format!("{}_model.bin", p.name));
+            let is_default = opts.is_empty();
+            let model = match is_default {
+                true => default_model.clone(),
+                false => dir.join(format!("{}_model.bin", p.name)),
+            };
             let mut args = vec!["fit", "-q", "--force", path(&train), "-o", path(&model)];
             args.extend(opts);
-            let is_default = opts.is_empty();
-            if is_default {
-                args.extend(["--json", path(&fit_json)]);
-            }
             let started = Instant::now();
             if let Err(e) = trainer(&args) {
                 // A method that refuses this data (e.g. no input passes the
@@ -218,9 +218,7 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
                 continue;
             }
             let fit_s = started.elapsed().as_secs_f64();
-            if is_default {
-                default_features = Some(PeerFeatures::of_fit(&fit_json)?);
-            }
+            default_fitted |= is_default;
             let json = dir.join(format!("{}_eval.json", p.name));
             let mut eval = vec!["eval", "--model", path(&model), "--json", path(&json)];
             eval.extend(verify.iter().map(|v| path(v)));
@@ -251,10 +249,11 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
             });
         }
         if p.peers {
-            let features = default_features
-                .as_ref()
-                .context("the peers need the default's features, and the default fit was refused")?;
-            rows.extend(peer_rows(&python, &script, p, features, &train, &verify)?);
+            anyhow::ensure!(
+                default_fitted,
+                "the peers need the default's features, and the default fit was refused"
+            );
+            rows.extend(peer_rows(&python, &script, p, &default_model, &train, &verify)?);
         }
         print_protocol(p, &before, &rows, &mut means);
     }
@@ -267,65 +266,20 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The inputs the default fit chose, as `trainer blocks` options.
-struct PeerFeatures {
-    /// `--features` value: the multi-scale set kept.
-    set: &'static str,
-    /// `--rate-window-s`: the fastest ΔT window, s.
-    rate_window_s: String,
-    /// `--coil-lag-min`, for the lagged second-order set.
-    coil_lag_min: Option<String>,
-}
-
-impl PeerFeatures {
-    /// From `trainer fit --json`'s report of the default fit.
-    fn of_fit(json: &Path) -> anyhow::Result<Self> {
-        let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json)?)?;
-        let chosen = &report["feature_sets"]["chosen"];
-        let lag = chosen["MultiScaleLagged"]["coil_lag_min"].as_u64();
-        let set = match (chosen.as_str(), lag) {
-            (Some("MultiScaleSecondOrder"), _) | (None, Some(_)) => "multiscale-second-order",
-            (Some("MultiScale"), _) => "multiscale",
-            _ => bail!("{}: unexpected feature set {chosen}", json.display()),
-        };
-        let window = report["choice"]["rate_window_s"]
-            .as_f64()
-            .with_context(|| format!("{}: no rate_window_s", json.display()))?;
-        Ok(PeerFeatures {
-            set,
-            rate_window_s: window.to_string(),
-            coil_lag_min: lag.map(|l| l.to_string()),
-        })
-    }
-}
-
-/// The Python peers' rows for protocol `p`, on the default's features (the
-/// set and fastest window it chose) as `trainer blocks` writes them.
+/// The Python peers' rows for protocol `p`, on the inputs of the default's
+/// model `default_model` as `trainer blocks --model` writes them.
 fn peer_rows(
     python: &Path,
     script: &Path,
     p: &Protocol,
-    features: &PeerFeatures,
+    default_model: &Path,
     train: &Path,
     verify: &[PathBuf],
 ) -> anyhow::Result<Vec<Row>> {
     let mut rows = Vec::new();
     let blocks = |file: &Path| -> anyhow::Result<PathBuf> {
         let out = file.with_extension("blocks.csv");
-        let mut args = vec![
-            "blocks",
-            path(file),
-            "--features",
-            features.set,
-            "--rate-window-s",
-            &features.rate_window_s,
-            "-o",
-            path(&out),
-        ];
-        if let Some(lag) = &features.coil_lag_min {
-            args.extend(["--coil-lag-min", lag]);
-        }
-        trainer(&args)?;
+        trainer(&["blocks", path(file), "--model", path(default_model), "-o", path(&out)])?;
         Ok(out)
     };
     let mut cmd = Command::new(python);

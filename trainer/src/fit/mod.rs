@@ -35,7 +35,8 @@ pub enum RbfFeatures {
     MultiscaleSecondOrder,
     /// The default: both multi-scale sets fitted, the second-order one also
     /// with Gaussians over the lag-corrected temperature T − L·ΔT₃
-    /// (`FeatureSet::MultiScaleLagged`, L from [`COIL_LAGS_MIN`]), the best
+    /// (`FeatureSet::MultiScaleLagged`, L from [`COIL_LAGS_MIN`]) and with a
+    /// longer slowest window ([`rbf::SLOWEST_WINDOW_FACTORS`]), the best
     /// of those kept only when it validates clearly better than the
     /// first-order set ([`SECOND_ORDER_GAIN`]): it generalises to ramp rates
     /// and profiles it was not trained on. One pass over the data builds both
@@ -94,6 +95,10 @@ pub struct FitOptions {
     /// ΔT filter time constants to choose from, s (the fastest of the three
     /// multi-scale windows, which are 1, 16 and 256 times it).
     pub rate_windows_s: Vec<f32>,
+    /// Factor on the slowest multi-scale window (256 × the fastest × this);
+    /// `--features multiscale-validated` also tries
+    /// [`rbf::SLOWEST_WINDOW_FACTORS`] for the second-order family.
+    pub slowest_window_factor: f32,
     /// Contiguous folds per training run for validation when no `--validate`
     /// runs are given (never random rows: neighbouring samples correlate).
     pub folds: usize,
@@ -118,6 +123,7 @@ impl Default for FitOptions {
             centers: None,
             max_centers: 32,
             rate_windows_s: vec![15.0, 60.0, 240.0],
+            slowest_window_factor: 1.0,
             folds: 5,
             serial: None,
             progress: false,
@@ -140,30 +146,47 @@ pub const SECOND_ORDER_GAIN: f64 = 0.9;
 /// lags the loop sensor by tens of minutes per °C/min of the slow rate.
 pub const COIL_LAGS_MIN: [u16; 4] = [10, 20, 40, 80];
 
-/// The second-order set's fit `second` against the lagged sets at its window
-/// and Gaussian width (centres and ridge searched): the one that validates
-/// best. At one window and width the four lags cost about a fifth of the
-/// second-order set's own search.
-fn best_coil_lag<T: RunSet + ?Sized, V: RunSet + ?Sized>(
+/// The second-order set's fit `second` against its variants at its window
+/// and Gaussian width (centres and ridge searched), the one that validates
+/// best: lagged by every coil lag of [`COIL_LAGS_MIN`], then, when the family
+/// already validates better than the first-order set (`first_order_rms_dph`),
+/// the same with the slowest window at the other factors of
+/// [`rbf::SLOWEST_WINDOW_FACTORS`]. Lagged blocks are derived from the plain
+/// set's, but a new slowest window needs its own blocks: a second pass over
+/// streamed runs, made only where the family is in play (the 20-h run of
+/// `cargo xtask bench-large-run` keeps the first-order set without it).
+fn best_second_order_variant<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     train: &T,
     validate: &V,
     second: (Model, rbf::RbfChoice),
+    first_order_rms_dph: f64,
     opts: &FitOptions,
     progress: &Progress,
 ) -> anyhow::Result<(Model, rbf::RbfChoice)> {
     // One width: all six cost the 20-h run's fit 15 % more (`cargo xtask
     // bench-large-run`) for half a point on one benchmark gyro.
-    let width = [second.1.width];
-    let at_window = FitOptions {
-        rate_windows_s: vec![second.1.rate_window_s],
-        ..opts.clone()
+    let (window, width) = (second.1.rate_window_s, [second.1.width]);
+    let plain_and_lagged = || {
+        std::iter::once(FeatureSet::MultiScaleSecondOrder)
+            .chain(COIL_LAGS_MIN.map(|coil_lag_min| FeatureSet::MultiScaleLagged { coil_lag_min }))
     };
     let mut best = second;
-    for coil_lag_min in COIL_LAGS_MIN {
-        let set = FeatureSet::MultiScaleLagged { coil_lag_min };
-        let lagged = rbf::fit_with_widths(train, validate, set, &at_window, &width, progress)?;
-        if lagged.1.validation_rms_dph < best.1.validation_rms_dph {
-            best = lagged;
+    for slowest_window_factor in rbf::SLOWEST_WINDOW_FACTORS {
+        let searched = slowest_window_factor.to_bits() == opts.slowest_window_factor.to_bits();
+        if !searched && best.1.validation_rms_dph >= first_order_rms_dph {
+            continue;
+        }
+        let at_window = FitOptions {
+            rate_windows_s: vec![window],
+            slowest_window_factor,
+            ..opts.clone()
+        };
+        // The plain set at the searched factor is `second` itself.
+        for set in plain_and_lagged().skip(usize::from(searched)) {
+            let variant = rbf::fit_with_widths(train, validate, set, &at_window, &width, progress)?;
+            if variant.1.validation_rms_dph < best.1.validation_rms_dph {
+                best = variant;
+            }
         }
     }
     Ok(best)
@@ -175,9 +198,11 @@ pub struct SetComparison {
     /// Validation RMS of the first-order set, °/h.
     pub first_order_rms_dph: f64,
     /// Validation RMS of the second-order set or, when one validates better,
-    /// its best lagged form ([`COIL_LAGS_MIN`]), °/h.
+    /// its best variant (lagged, [`COIL_LAGS_MIN`], or with a longer slowest
+    /// window, [`rbf::SLOWEST_WINDOW_FACTORS`]), °/h.
     pub second_order_rms_dph: f64,
-    /// The set kept.
+    /// The set kept (reports give it with the model's other feature settings).
+    #[serde(skip)]
     pub chosen: FeatureSet,
 }
 
@@ -232,7 +257,12 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             // Both sets' blocks for every window in one pass over the data.
             let configs: Vec<_> = [FeatureSet::MultiScale, FeatureSet::MultiScaleSecondOrder]
                 .into_iter()
-                .flat_map(|set| opts.rate_windows_s.iter().map(move |&w| rbf::feature_config(set, w)))
+                .flat_map(|set| {
+                    let factor = opts.slowest_window_factor;
+                    opts.rate_windows_s
+                        .iter()
+                        .map(move |&w| rbf::feature_config(set, w, factor))
+                })
                 .collect();
             train.prepare(&configs, opts.block_s)?;
             validate.prepare(&configs, opts.block_s)?;
@@ -240,8 +270,9 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             // Searched in full: at the first set's width the second lost its
             // gain on the third gyro's cycle run (validation ratio above 0.9).
             let second = rbf::fit(train, validate, FeatureSet::MultiScaleSecondOrder, opts, &progress)?;
-            let second = best_coil_lag(train, validate, second, opts, &progress)?;
-            let (first_rms, second_rms) = (first.1.validation_rms_dph, second.1.validation_rms_dph);
+            let first_rms = first.1.validation_rms_dph;
+            let second = best_second_order_variant(train, validate, second, first_rms, opts, &progress)?;
+            let second_rms = second.1.validation_rms_dph;
             let keep_second = second_rms < SECOND_ORDER_GAIN * first_rms;
             let (model, choice) = if keep_second { second } else { first };
             Ok(FitOutcome {

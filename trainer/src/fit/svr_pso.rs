@@ -300,7 +300,7 @@ fn choose_inputs<T: RunSet + ?Sized>(
         );
         let windows = &opts.rate_windows_s;
         let window = windows.get(windows.len() / 2).copied().unwrap_or(60.0);
-        let features = rbf::feature_config(FeatureSet::TempRateProduct, window);
+        let features = rbf::feature_config(FeatureSet::TempRateProduct, window, 1.0);
         train.prepare(&[features], opts.block_s)?;
         return Ok((features, None));
     }
