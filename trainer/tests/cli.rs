@@ -458,6 +458,21 @@ fn blocks_with_a_coil_lag_move_input_0_back_by_the_lag_and_refuse_other_sets() {
 }
 
 #[test]
+fn a_slow_fastest_window_is_not_offered_a_slowest_window_past_one_day() {
+    // 300 s × 256 × 1.25 would be 96,000 s: past the firmware's limit, so
+    // the second-order family (which leads on this run) keeps 256τ.
+    let dir = TempDir::new().unwrap();
+    let model = dir.path().join("m.bin");
+    let run = shared_data("cycle_train_1cpm.csv");
+    let args = ["fit", run.to_str().unwrap(), "--rate-window-s", "300", "-q", "-o"];
+    let o = trainer(&[&args[..], &[model.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["features"]["windows_s"], serde_json::json!([300.0, 4800.0, 76800.0]));
+}
+
+#[test]
 fn blocks_of_a_model_are_the_blocks_of_its_own_inputs() {
     let dir = TempDir::new().unwrap();
     let run = shared_data("cycle_verify_5cpm.csv");

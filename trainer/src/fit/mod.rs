@@ -173,7 +173,11 @@ fn best_second_order_variant<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     let mut best = second;
     for slowest_window_factor in rbf::SLOWEST_WINDOW_FACTORS {
         let searched = slowest_window_factor.to_bits() == opts.slowest_window_factor.to_bits();
-        if !searched && best.1.validation_rms_dph >= first_order_rms_dph {
+        let leads = best.1.validation_rms_dph < first_order_rms_dph;
+        // A slowest window past the firmware's limit (1 day) is not offered.
+        let usable = rbf::feature_config(FeatureSet::MultiScaleSecondOrder, window, slowest_window_factor).is_valid();
+        let offered = searched || (leads && usable);
+        if !offered {
             continue;
         }
         let at_window = FitOptions {
