@@ -502,10 +502,15 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             s.second_order_rms_dph,
             s.second_order_rms_dph / s.first_order_rms_dph,
             fit::SECOND_ORDER_GAIN,
-            match s.chosen {
-                FeatureSet::MultiScale => "first-order".to_owned(),
-                FeatureSet::MultiScaleLagged { coil_lag_min } => format!("second-order, coil lag {coil_lag_min} min"),
-                _ => "second-order".to_owned(),
+            {
+                let slowest_s = outcome.model.features().windows_s()[2];
+                match s.chosen {
+                    FeatureSet::MultiScale => "first-order".to_owned(),
+                    FeatureSet::MultiScaleLagged { coil_lag_min } => {
+                        format!("second-order, coil lag {coil_lag_min} min, slowest window {slowest_s} s")
+                    }
+                    _ => format!("second-order, slowest window {slowest_s} s"),
+                }
             }
         )?;
     }

@@ -362,7 +362,11 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
         json.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stdout(&o).contains("feature sets: first-order validation RMS"));
+    let printed = stdout(&o);
+    assert!(
+        printed.contains("feature sets: first-order validation RMS"),
+        "{printed}"
+    );
     let fit: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let sets = &fit["feature_sets"];
     let (first, second) = (
@@ -389,6 +393,9 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
             .any(|&f| (windows[2] / windows[0] - f64::from(256.0 * f)).abs() < 1e-3),
         "{windows:?}"
     );
+    // The printed choice names the second-order family's slowest window.
+    let slowest = format!("slowest window {} s", windows[2]);
+    assert_eq!(printed.contains(&slowest), second_kept, "{slowest}: {printed}");
     let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(&v["features"], chosen, "the blob holds the chosen set, lag and windows");
