@@ -182,3 +182,54 @@ impl ChamberRun {
         String::from_utf8(buf).expect("the simulator writes ASCII")
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rate column of a simulated run, °/h.
+    fn rates_dph(run: &ChamberRun) -> Vec<f64> {
+        run.to_csv()
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .skip(1)
+            .map(|l| l.split(',').nth(1).and_then(|v| v.parse().ok()).expect("rate column"))
+            .collect()
+    }
+
+    /// Standard deviation of the sample-to-sample differences.
+    fn step_std(x: &[f64]) -> f64 {
+        let d: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
+        let mean = d.iter().sum::<f64>() / d.len() as f64;
+        (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt()
+    }
+
+    #[test]
+    fn zeroing_the_thermal_bias_leaves_the_same_noise_sample_for_sample() {
+        // bench-accuracy's noise ceiling relies on it: the thermal terms may
+        // not draw from the random stream the noise draws from.
+        let thermal = ChamberRun {
+            duration_s: Some(4.0 * 3600.0),
+            multi: true,
+            ..ChamberRun::cycle(5.0, 7)
+        };
+        let mut quiet = thermal.clone();
+        let gyro = &mut quiet.params.gyro;
+        gyro.static_coeffs = [0.0; 4];
+        gyro.shupe_dph_per_c_per_min = 0.0;
+        gyro.radial_gradient_dph_per_c = 0.0;
+        gyro.axial_gradient_dph_per_c = 0.0;
+        let (with, without) = (rates_dph(&thermal), rates_dph(&quiet));
+        assert_eq!(with.len(), without.len());
+        let bias: Vec<f64> = with.iter().zip(&without).map(|(a, b)| a - b).collect();
+        // The difference is the thermal bias alone: smooth from second to
+        // second (5 °C/min ramps), where the white noise is not.
+        let (bias_steps, noise_steps) = (step_std(&bias), step_std(&without));
+        assert!(
+            bias_steps < 0.01 * noise_steps,
+            "bias steps {bias_steps} °/h, noise steps {noise_steps} °/h"
+        );
+        let span = bias.iter().fold(0.0f64, |m, b| m.max(b.abs()));
+        assert!(span > 0.1, "the thermal bias is there: {span} °/h");
+    }
+}
