@@ -493,6 +493,15 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         )?;
     }
     if let Some(s) = &outcome.sets {
+        let kept = outcome.model.features();
+        let slowest_s = kept.windows_s()[2];
+        let kept = match kept.set {
+            FeatureSet::MultiScale => "first-order".to_owned(),
+            FeatureSet::MultiScaleLagged { coil_lag_min } => {
+                format!("second-order, coil lag {coil_lag_min} min, slowest window {slowest_s} s")
+            }
+            _ => format!("second-order, slowest window {slowest_s} s"),
+        };
         writeln!(
             out,
             "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃², coil lags {:?} min and slowest window ×{:?} tried) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
@@ -502,16 +511,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             s.second_order_rms_dph,
             s.second_order_rms_dph / s.first_order_rms_dph,
             fit::SECOND_ORDER_GAIN,
-            {
-                let slowest_s = outcome.model.features().windows_s()[2];
-                match s.chosen {
-                    FeatureSet::MultiScale => "first-order".to_owned(),
-                    FeatureSet::MultiScaleLagged { coil_lag_min } => {
-                        format!("second-order, coil lag {coil_lag_min} min, slowest window {slowest_s} s")
-                    }
-                    _ => format!("second-order, slowest window {slowest_s} s"),
-                }
-            }
+            kept
         )?;
     }
     if let Some(c) = &outcome.svr {

@@ -196,7 +196,8 @@ fn best_second_order_variant<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     Ok(best)
 }
 
-/// How `--features multiscale-validated` chose between the multi-scale sets.
+/// How `--features multiscale-validated` chose between the multi-scale sets
+/// (the set kept is the model's, [`FitOutcome::model`]).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct SetComparison {
     /// Validation RMS of the first-order set, °/h.
@@ -205,9 +206,6 @@ pub struct SetComparison {
     /// its best variant (lagged, [`COIL_LAGS_MIN`], or with a longer slowest
     /// window, [`rbf::SLOWEST_WINDOW_FACTORS`]), °/h.
     pub second_order_rms_dph: f64,
-    /// The set kept (reports give it with the model's other feature settings).
-    #[serde(skip)]
-    pub chosen: FeatureSet,
 }
 
 /// What was fitted and how it was chosen.
@@ -283,7 +281,6 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 sets: Some(SetComparison {
                     first_order_rms_dph: first_rms,
                     second_order_rms_dph: second_rms,
-                    chosen: model.features().set,
                 }),
                 model,
                 choice: Some(choice),
