@@ -76,6 +76,21 @@ fn compensate(model: &Path, run: &Path, out: &Path) -> Output {
     ])
 }
 
+/// `trainer blocks RUN --block-s 60 -o OUT` with `args`, which must succeed; the CSV written.
+fn blocks_csv(run: &Path, out: &Path, args: &[&str]) -> String {
+    let fixed = [
+        "blocks",
+        run.to_str().unwrap(),
+        "--block-s",
+        "60",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    let o = trainer(&[&fixed[..], args].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::read_to_string(out).unwrap()
+}
+
 /// Data rows of a recorded-run file (no metadata, blank lines or header).
 fn data_rows(text: &str) -> Vec<&str> {
     text.lines()
@@ -421,13 +436,12 @@ fn blocks_with_a_coil_lag_move_input_0_back_by_the_lag_and_refuse_other_sets() {
     let dir = TempDir::new().unwrap();
     let run = shared_data("cycle_verify_5cpm.csv");
     let write_blocks = |name: &str, extra: &[&str]| -> Vec<Vec<f64>> {
-        let out = dir.path().join(name);
-        let mut args = vec!["blocks", run.to_str().unwrap(), "--features", "multiscale-second-order"];
-        args.extend(["--rate-window-s", "15", "--block-s", "60", "-o", out.to_str().unwrap()]);
-        args.extend(extra);
-        let o = trainer(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let text = std::fs::read_to_string(&out).unwrap();
+        let args = [
+            &["--features", "multiscale-second-order", "--rate-window-s", "15"],
+            extra,
+        ]
+        .concat();
+        let text = blocks_csv(&run, &dir.path().join(name), &args);
         assert!(text.starts_with("# features: "), "{text:.200}");
         text.lines()
             .skip(2)
@@ -503,28 +517,12 @@ fn blocks_of_a_model_are_the_blocks_of_its_own_inputs() {
     ];
     let o = trainer(&fit);
     assert!(o.status.success(), "{}", stderr(&o));
-    let blocks = |extra: &[&str], out: &Path| {
-        let args = [
-            &[
-                "blocks",
-                run.to_str().unwrap(),
-                "--block-s",
-                "60",
-                "-o",
-                out.to_str().unwrap(),
-            ],
-            extra,
-        ]
-        .concat();
-        let o = trainer(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
-        std::fs::read_to_string(out).unwrap()
-    };
-    let explicit = blocks(
-        &["--features", "multiscale-second-order", "--rate-window-s", "60"],
+    let explicit = blocks_csv(
+        &run,
         &explicit,
+        &["--features", "multiscale-second-order", "--rate-window-s", "60"],
     );
-    let of_model = blocks(&["--model", model.to_str().unwrap()], &of_model);
+    let of_model = blocks_csv(&run, &of_model, &["--model", model.to_str().unwrap()]);
     assert!(explicit.lines().count() > 100);
     assert_eq!(of_model, explicit, "same set, windows and lag, same blocks");
     // A model's inputs are not mixed with explicit ones.
