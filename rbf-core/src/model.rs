@@ -124,55 +124,8 @@ pub struct Model {
     linear_min: [f32; MAX_INPUTS],
     linear_max: [f32; MAX_INPUTS],
     body: ModelBody,
-    path: EvalPath,
     features: FeatureConfig,
     info: ModelInfo,
-}
-
-/// How [`Model::eval`] runs a model, chosen once at construction so that an
-/// evaluation dispatches once: `Clamped<N>` clamps the N inputs in f32 and
-/// runs the cubic or the network's polynomial path; `Table<M>Of<N>` runs the
-/// network's table path over M kernel inputs of N ([`RbfNetwork::eval_table`],
-/// which clamps kernel inputs itself). N = 8 stands for any count above 3.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum EvalPath {
-    Clamped1,
-    Clamped2,
-    Clamped3,
-    Clamped8,
-    Table1Of1,
-    Table1Of2,
-    Table2Of2,
-    Table1Of3,
-    Table2Of3,
-    Table3Of3,
-    Table1Of8,
-    Table2Of8,
-    Table3Of8,
-}
-
-impl EvalPath {
-    fn choose(dims: usize, body: &ModelBody) -> Self {
-        let table_kernel = match body {
-            ModelBody::Rbf(net) if net.table_ready() => net.kernel_inputs(),
-            _ => 0,
-        };
-        match (dims, table_kernel) {
-            (1, 1) => EvalPath::Table1Of1,
-            (2, 1) => EvalPath::Table1Of2,
-            (2, 2) => EvalPath::Table2Of2,
-            (3, 1) => EvalPath::Table1Of3,
-            (3, 2) => EvalPath::Table2Of3,
-            (3, 3) => EvalPath::Table3Of3,
-            (4.., 1) => EvalPath::Table1Of8,
-            (4.., 2) => EvalPath::Table2Of8,
-            (4.., 3) => EvalPath::Table3Of8,
-            (1, _) => EvalPath::Clamped1,
-            (2, _) => EvalPath::Clamped2,
-            (3, _) => EvalPath::Clamped3,
-            _ => EvalPath::Clamped8,
-        }
-    }
 }
 
 impl Model {
@@ -248,7 +201,6 @@ impl Model {
             input_max,
             linear_min,
             linear_max,
-            path: EvalPath::choose(dims, &body),
             body,
             info,
         })
@@ -287,34 +239,19 @@ impl Model {
     /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it. `clamped` says that an
     /// input left its training range.
     pub fn eval(&self, features: &FeatureVector) -> Evaluation {
-        // Monomorphised per input count (the feature sets have 1, 2, 3 or 8)
-        // and kernel-input count: straight-line clamping and evaluation.
-        match self.path {
-            EvalPath::Clamped1 => self.eval_clamped::<1>(features),
-            EvalPath::Clamped2 => self.eval_clamped::<2>(features),
-            EvalPath::Clamped3 => self.eval_clamped::<3>(features),
-            EvalPath::Clamped8 => self.eval_clamped::<MAX_INPUTS>(features),
-            EvalPath::Table1Of1 => self.eval_table::<1, 1>(features),
-            EvalPath::Table1Of2 => self.eval_table::<1, 2>(features),
-            EvalPath::Table2Of2 => self.eval_table::<2, 2>(features),
-            EvalPath::Table1Of3 => self.eval_table::<1, 3>(features),
-            EvalPath::Table2Of3 => self.eval_table::<2, 3>(features),
-            EvalPath::Table3Of3 => self.eval_table::<3, 3>(features),
-            EvalPath::Table1Of8 => self.eval_table::<1, MAX_INPUTS>(features),
-            EvalPath::Table2Of8 => self.eval_table::<2, MAX_INPUTS>(features),
-            EvalPath::Table3Of8 => self.eval_table::<3, MAX_INPUTS>(features),
+        // The input clamping is straight-line per input count (1, 2, 3, or
+        // up to MAX_INPUTS); the rest, and the network's per-centre loops,
+        // are one copy each.
+        match self.features.dims() {
+            1 => self.eval_inputs::<1>(features),
+            2 => self.eval_inputs::<2>(features),
+            3 => self.eval_inputs::<3>(features),
+            _ => self.eval_inputs::<MAX_INPUTS>(features),
         }
     }
 
-    /// The table path: the flag from [`outside_measure`], the linear inputs
-    /// clamped in f32, the kernel inputs passed as they come (the network's
-    /// saturating conversion clamps them to the same training box).
     #[inline(always)]
-    fn eval_table<const M: usize, const N: usize>(&self, features: &FeatureVector) -> Evaluation {
-        let ModelBody::Rbf(net) = &self.body else {
-            // Not reached: `EvalPath::choose` picks table paths for networks only.
-            return self.eval_clamped::<N>(features);
-        };
+    fn eval_inputs<const N: usize>(&self, features: &FeatureVector) -> Evaluation {
         let raw = features.values();
         let mut x_linear = [0.0f32; N];
         let mut outside = 0.0f32;
@@ -322,27 +259,19 @@ impl Model {
             outside += outside_measure(*v, *lo, *hi);
             *li = clamp(*v, *llo, *lhi);
         }
-        let x_kernel: [f32; M] = core::array::from_fn(|i| raw.get(i).copied().unwrap_or(0.0));
-        Evaluation {
-            bias_dph: net.eval_table(&x_kernel, &x_linear),
-            clamped: outside_flag(outside),
-        }
-    }
-
-    #[inline(always)]
-    fn eval_clamped<const N: usize>(&self, features: &FeatureVector) -> Evaluation {
-        let raw = features.values();
-        let mut x = [0.0f32; N];
-        let mut x_linear = [0.0f32; N];
-        let mut outside = 0.0f32;
-        for (((xi, li), v), ((lo, hi), (llo, lhi))) in x.iter_mut().zip(&mut x_linear).zip(raw).zip(self.limits()) {
-            outside += outside_measure(*v, *lo, *hi);
-            *xi = clamp(*v, *lo, *hi);
-            *li = clamp(*v, *llo, *lhi);
-        }
         let bias_dph = match &self.body {
-            ModelBody::Rbf(net) => net.eval(&x, &x_linear),
-            ModelBody::Poly3(p) => p.eval(x[0]),
+            // The table path clamps kernel inputs itself, to the same training box.
+            ModelBody::Rbf(net) if net.table_ready() => net.eval_table(raw, &x_linear),
+            body => {
+                let mut x = [0.0f32; N];
+                for ((xi, v), (lo, hi)) in x.iter_mut().zip(raw).zip(self.input_min.iter().zip(&self.input_max)) {
+                    *xi = clamp(*v, *lo, *hi);
+                }
+                match body {
+                    ModelBody::Rbf(net) => net.eval(&x, &x_linear),
+                    ModelBody::Poly3(p) => p.eval(x[0]),
+                }
+            }
         };
         Evaluation {
             bias_dph,
@@ -476,7 +405,7 @@ mod tests {
         let cfg = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
         let ranges = [(10.0, 40.0), (-2.0, 2.0), (-10.0, 10.0)];
         let model = Model::new(cfg, &ranges, ModelBody::Rbf(net), ModelInfo::default()).unwrap();
-        assert_eq!(model.path, EvalPath::Table3Of3);
+        assert!(matches!(model.body(), ModelBody::Rbf(net) if net.table_ready()));
         let flag = |x: [f32; 3]| model.eval(&FeatureVector::from_values(&x)).clamped;
         assert!(!flag([25.0, 0.0, 0.0]));
         assert!(!flag([10.0, -2.0, 10.0]), "the range's edges are inside");
