@@ -3,7 +3,7 @@
 
 use crate::features::{FeatureConfig, FeatureSet, FeatureVector};
 use crate::poly::Poly3;
-use crate::rbf::RbfNetwork;
+use crate::rbf::{RbfNetwork, RbfParams};
 use crate::{MAX_CENTERS, MAX_INPUTS};
 
 /// Linear terms may follow an input up to this many training spans beyond
@@ -103,6 +103,15 @@ pub enum ModelBody {
     Poly3(Poly3),
 }
 
+/// The parameters of a model body, as [`Model::assign`] takes them.
+#[derive(Clone, Copy, Debug)]
+pub enum BodyParams<'a> {
+    /// A Gaussian RBF network, built in place.
+    Rbf(&'a RbfParams<'a>),
+    /// A cubic baseline.
+    Poly3(Poly3),
+}
+
 /// Result of evaluating a model on one feature vector.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Evaluation {
@@ -129,6 +138,19 @@ pub struct Model {
 }
 
 impl Model {
+    /// The model of no gyro: no inputs' ranges, an empty network, every
+    /// bit zero (a `static` holding one costs no flash). It evaluates to a
+    /// bias of 0; [`crate::blob::decode_into`] fills it in place.
+    pub const EMPTY: Model = Model {
+        input_min: [0.0; MAX_INPUTS],
+        input_max: [0.0; MAX_INPUTS],
+        linear_min: [0.0; MAX_INPUTS],
+        linear_max: [0.0; MAX_INPUTS],
+        body: ModelBody::Rbf(DeployedRbf::EMPTY),
+        features: FeatureConfig::single(FeatureSet::Temp, 0.0),
+        info: ModelInfo { serial: None },
+    };
+
     /// Assembles a model, checking that features, ranges and body agree.
     ///
     /// `input_range` holds (min, max) per input in input units: the training range
@@ -139,11 +161,56 @@ impl Model {
         body: ModelBody,
         info: ModelInfo,
     ) -> Result<Self, ModelError> {
+        let mut model = Model { body, ..Model::EMPTY };
+        model.complete(features, input_range, info)?;
+        Ok(model)
+    }
+
+    /// [`Self::new`] in place, for the firmware's `static` model (no model
+    /// is moved by value): the network is built where it will run. On error
+    /// `self` is [`Self::EMPTY`].
+    pub fn assign(
+        &mut self,
+        features: FeatureConfig,
+        input_range: &[(f32, f32)],
+        body: BodyParams<'_>,
+        info: ModelInfo,
+    ) -> Result<(), ModelError> {
+        let built = match body {
+            BodyParams::Rbf(params) => {
+                if !matches!(self.body, ModelBody::Rbf(_)) {
+                    self.body = ModelBody::Rbf(DeployedRbf::EMPTY);
+                }
+                match &mut self.body {
+                    ModelBody::Rbf(net) => net.init(params),
+                    ModelBody::Poly3(_) => Err(ModelError::ShapeMismatch),
+                }
+            }
+            BodyParams::Poly3(poly) => {
+                self.body = ModelBody::Poly3(poly);
+                Ok(())
+            }
+        };
+        let result = built.and_then(|()| self.complete(features, input_range, info));
+        if result.is_err() {
+            *self = Model::EMPTY;
+        }
+        result
+    }
+
+    /// Checks that features, ranges and the body (already in place) agree,
+    /// sets the ranges and prepares the network's table path.
+    fn complete(
+        &mut self,
+        features: FeatureConfig,
+        input_range: &[(f32, f32)],
+        info: ModelInfo,
+    ) -> Result<(), ModelError> {
         let dims = features.dims();
         if dims > MAX_INPUTS {
             return Err(ModelError::ShapeOverCapacity);
         }
-        let body_dims = match &body {
+        let body_dims = match &self.body {
             ModelBody::Rbf(net) => net.inputs_used(),
             ModelBody::Poly3(_) => {
                 if features.set != FeatureSet::Temp {
@@ -158,52 +225,47 @@ impl Model {
         if !features.is_valid() {
             return Err(ModelError::InvalidParameter);
         }
-        let mut input_min = [0.0; MAX_INPUTS];
-        let mut input_max = [0.0; MAX_INPUTS];
-        let mut linear_min = [0.0; MAX_INPUTS];
-        let mut linear_max = [0.0; MAX_INPUTS];
-        for (i, &(lo, hi)) in input_range.iter().enumerate() {
+        self.input_min = [0.0; MAX_INPUTS];
+        self.input_max = [0.0; MAX_INPUTS];
+        self.linear_min = [0.0; MAX_INPUTS];
+        self.linear_max = [0.0; MAX_INPUTS];
+        for (i, &(lo, hi)) in input_range.iter().enumerate().take(MAX_INPUTS) {
             if !(lo.is_finite() && hi.is_finite()) {
                 return Err(ModelError::NonFiniteParameter);
             }
             if lo > hi {
                 return Err(ModelError::InvalidParameter);
             }
-            input_min[i] = lo;
-            input_max[i] = hi;
             let reach = LINEAR_EXTRAPOLATION_SPANS * (hi - lo);
-            linear_min[i] = lo - reach;
-            linear_max[i] = hi + reach;
-            if !(linear_min[i].is_finite() && linear_max[i].is_finite()) {
+            let (linear_lo, linear_hi) = (lo - reach, hi + reach);
+            if !(linear_lo.is_finite() && linear_hi.is_finite()) {
                 return Err(ModelError::InvalidParameter);
             }
+            self.input_min[i] = lo;
+            self.input_max[i] = hi;
+            self.linear_min[i] = linear_lo;
+            self.linear_max[i] = linear_hi;
         }
-        let mut body = body;
-        if let ModelBody::Rbf(net) = &mut body {
+        let (input_min, input_max) = (&self.input_min, &self.input_max);
+        if let ModelBody::Rbf(net) = &mut self.body {
             let m = net.kernel_inputs().min(MAX_INPUTS);
             net.prepare_table(&input_min[..m], &input_max[..m]);
         }
-        let bound_dph = match &body {
+        let bound_dph = match &self.body {
             ModelBody::Rbf(net) => net.output_bound(
-                &linear_min[..dims],
-                &linear_max[..dims],
-                &input_min[..dims],
-                &input_max[..dims],
+                &self.linear_min[..dims],
+                &self.linear_max[..dims],
+                &self.input_min[..dims],
+                &self.input_max[..dims],
             ),
-            ModelBody::Poly3(p) => p.output_bound(input_min[0], input_max[0]),
+            ModelBody::Poly3(p) => p.output_bound(self.input_min[0], self.input_max[0]),
         };
         if bound_dph.is_nan() || bound_dph > MAX_ABS_BIAS_DPH {
             return Err(ModelError::OutputUnbounded);
         }
-        Ok(Model {
-            features,
-            input_min,
-            input_max,
-            linear_min,
-            linear_max,
-            body,
-            info,
-        })
+        self.features = features;
+        self.info = info;
+        Ok(())
     }
 
     /// How the firmware must compute this model's inputs.
@@ -452,6 +514,13 @@ mod tests {
         );
         let e = model.eval(&fx.update(&cfg, 1.0, &loop_reading(100.0)));
         assert_eq!(e.bias_dph, 40.0, "…but no further than two spans (20 + 2·10)");
+    }
+
+    #[test]
+    fn the_empty_model_evaluates_to_zero_bias_without_flagging() {
+        let e = Model::EMPTY.eval(&FeatureVector::from_values(&[25.0]));
+        assert_eq!(e.bias_dph.to_bits(), 0f32.to_bits());
+        assert_eq!(Model::EMPTY.features().dims(), 1);
     }
 
     #[test]

@@ -165,8 +165,56 @@ fn all_finite(values: &[f32]) -> bool {
 }
 
 impl<const K: usize, const D: usize> RbfNetwork<K, D> {
+    /// A network with no centres, no inputs and every parameter 0 (all bits
+    /// zero, so a `static` holding one costs no flash): what
+    /// [`Self::init`] starts from.
+    pub const EMPTY: Self = RbfNetwork {
+        kernel_inputs: 0,
+        centers_used: 0,
+        inputs_used: 0,
+        positive: 0,
+        negative: 0,
+        table: false,
+        kernel_mid: [0.0; TABLE_MAX_INPUTS],
+        kernel_gain: [0.0; TABLE_MAX_INPUTS],
+        shared_coeff: [0; TABLE_MAX_INPUTS],
+        q_in_sum: false,
+        weight_scale: 0.0,
+        constant_raw: 0.0,
+        linear_raw: [0.0; D],
+        offset: [0.0; D],
+        inv_scale: [0.0; D],
+        exponent: [[0; 2]; K],
+        scale: [0.0; D],
+        centers: [[0.0; D]; K],
+        widths: [0.0; K],
+        neg_half_inv_var: [0.0; K],
+        weights: [0.0; K],
+        linear: [0.0; D],
+        has_linear: false,
+        constant: 0.0,
+    };
+
     /// Builds a network, checking shapes against capacity and every parameter.
     pub fn new(p: &RbfParams<'_>) -> Result<Self, ModelError> {
+        let mut net = Self::EMPTY;
+        net.init(p)?;
+        Ok(net)
+    }
+
+    /// [`Self::new`] in place: overwrites `self` with the network `p`
+    /// describes (no network is moved by value). On error `self` is
+    /// [`Self::EMPTY`].
+    pub fn init(&mut self, p: &RbfParams<'_>) -> Result<(), ModelError> {
+        *self = Self::EMPTY;
+        let result = self.assign(p);
+        if result.is_err() {
+            *self = Self::EMPTY;
+        }
+        result
+    }
+
+    fn assign(&mut self, p: &RbfParams<'_>) -> Result<(), ModelError> {
         let d = p.offset.len();
         let k = p.widths.len();
         if d == 0 || d > D || k > K {
@@ -191,32 +239,14 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         if p.scale.iter().chain(p.widths).any(|&v| v <= 0.0) {
             return Err(ModelError::InvalidParameter);
         }
-        let mut net = RbfNetwork {
-            centers_used: k,
-            inputs_used: d,
-            kernel_inputs: m,
-            offset: [0.0; D],
-            scale: [1.0; D],
-            inv_scale: [1.0; D],
-            centers: [[0.0; D]; K],
-            widths: [1.0; K],
-            neg_half_inv_var: [0.0; K],
-            weights: [0.0; K],
-            linear: [0.0; D],
-            has_linear: !p.linear.is_empty(),
-            constant: p.constant,
-            linear_raw: [0.0; D],
-            constant_raw: p.constant,
-            table: false,
-            kernel_mid: [0.0; TABLE_MAX_INPUTS],
-            kernel_gain: [0.0; TABLE_MAX_INPUTS],
-            shared_coeff: [0; TABLE_MAX_INPUTS],
-            q_in_sum: false,
-            exponent: [[0; 2]; K],
-            positive: 0,
-            negative: 0,
-            weight_scale: 1.0,
-        };
+        let net = self;
+        net.centers_used = k;
+        net.inputs_used = d;
+        net.kernel_inputs = m;
+        net.has_linear = !p.linear.is_empty();
+        net.constant = p.constant;
+        net.constant_raw = p.constant;
+        net.weight_scale = 1.0;
         // Zipped iterators rather than indexing: the firmware validates blobs
         // on a path proven panic-free at link time (panic_free_check.rs).
         let copy = |dst: &mut [f32], src: &[f32]| dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
@@ -241,7 +271,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             return Err(ModelError::InvalidParameter);
         }
         net.fold_linear(d);
-        Ok(net)
+        Ok(())
     }
 
     /// Upper bound of |output| when the linear terms see inputs in
