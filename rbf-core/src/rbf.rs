@@ -154,6 +154,21 @@ fn exp2_sums<const M: usize, const ADD_Q: bool>(
     sum(positive) - sum(negative)
 }
 
+/// 2^n for an integer-valued `n`, exactly `libm::exp2(n) as f32` (0 below
+/// 2^−149, +∞ above 2^127) built in the exponent bits: libm's exp2 would
+/// bring a 4 KiB table into the firmware for a power of two.
+fn exp2_integer(n: f64) -> f32 {
+    if n > 127.0 {
+        f32::INFINITY
+    } else if n >= -126.0 {
+        f32::from_bits(((n as i32 + 127) as u32) << 23)
+    } else if n >= -149.0 {
+        f32::from_bits(1 << (n as i32 + 149) as u32)
+    } else {
+        0.0
+    }
+}
+
 /// High word of the 64-bit product: one SMMUL/SMMLA on a Cortex-M4.
 #[inline(always)]
 fn mul_hi(a: i32, b: i32) -> i32 {
@@ -432,7 +447,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             }
         }
         self.negative = slot - self.positive;
-        let weight_scale = libm::exp2(e + offset) as f32;
+        let weight_scale = exp2_integer(e + offset);
         if weight_scale.is_finite() && weight_scale > 0.0 {
             self.weight_scale = weight_scale;
             self.q_in_sum = !factored;
@@ -741,6 +756,14 @@ mod tests {
                 let (a, b) = (table.eval_table(&slots(&x), &x), exact.eval(&x, &x));
                 assert!((a - b).abs() as f64 <= bound + 1e-5, "σ = {sigma}, {x:?}: {a} vs {b}");
             }
+        }
+    }
+
+    #[test]
+    fn integer_powers_of_two_match_libm_bit_for_bit() {
+        for n in -200..=200 {
+            let n = f64::from(n);
+            assert_eq!(exp2_integer(n).to_bits(), (libm::exp2(n) as f32).to_bits(), "2^{n}");
         }
     }
 
