@@ -5,6 +5,7 @@
 //! - [`tmp117`]: loop-thermometer driver (I2C); [`frontend`]: rate front end (SPI, docs/frontend.md);
 //! - [`sensors`]: the traits the loop needs from them;
 //! - [`compensation`]: the per-sample loop (rbf-core compensation, one output frame per sample);
+//! - [`uart`]: the transmit queue an interrupt drains (frames whole or dropped and counted);
 //! - [`replay`]: emulated devices and the recorded-run replayer of the QEMU board;
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
 //! - [`emulated_flash`]: NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
@@ -23,6 +24,7 @@ pub mod model_store;
 pub mod replay;
 pub mod sensors;
 pub mod tmp117;
+pub mod uart;
 pub mod update;
 
 #[cfg(target_os = "none")]
