@@ -10,6 +10,7 @@
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
 //! - [`emulated_flash`]: NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
 //! - [`fault_injection`]: buses that fail on a schedule and the fault campaign of the QEMU fault board;
+//! - [`fault`]: the fault record kept across a reset and the boot report frame;
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
 //! The board binaries in `src/bin/` only wire peripherals to these.
@@ -18,6 +19,7 @@
 
 pub mod compensation;
 pub mod emulated_flash;
+pub mod fault;
 pub mod fault_injection;
 pub mod frontend;
 pub mod model_store;
