@@ -137,7 +137,7 @@ mod tests {
         let mut out = [0u8; 16];
         let n = encode_boot_report(panic, 0x24, &mut out).unwrap();
         let mut frame = out[..n].to_vec();
-        let len = cobs::decode_in_place(&mut frame[..n - 1]).unwrap();
+        let len = crate::update::cobs_decode_in_place(&mut frame[..n - 1]).unwrap();
         assert_eq!(len, BOOT_REPORT_LEN);
         assert_eq!(frame[0], BOOT_REPORT_TAG);
         assert_eq!(frame[1], FaultReason::Panic as u8);
