@@ -4,6 +4,27 @@
 
 use core::panic::PanicInfo;
 
+// Copies the tables memory.x keeps in RAM (`.ram_tables`: rbf-core's exp2
+// octave table) from their load address in flash, before RAM is initialised
+// and before main. Assembly, as cortex-m-rt asks of a pre-init: no Rust code
+// may run before RAM is set up.
+core::arch::global_asm!(
+    ".section .text.__pre_init,\"ax\"",
+    ".global __pre_init",
+    ".type __pre_init,%function",
+    ".thumb_func",
+    "__pre_init:",
+    "    ldr r0, =__sram_tables",
+    "    ldr r1, =__eram_tables",
+    "    ldr r2, =__siram_tables",
+    "1:  cmp r1, r0",
+    "    beq 2f",
+    "    ldm r2!, {{r3}}",
+    "    stm r0!, {{r3}}",
+    "    b 1b",
+    "2:  bx lr",
+);
+
 unsafe extern "C" {
     static _model_a_start: u8;
     static _model_b_start: u8;
