@@ -170,14 +170,18 @@ impl embedded_io::Write for BrokenUart {
     }
 }
 
-#[test]
-fn a_failing_output_is_counted_and_never_stops_the_loop() {
+/// A loop without a model at 1 Hz over `samples` valid front-end samples
+/// and one thermometer read, writing to `output`.
+fn loop_over<W: embedded_io::Write>(
+    samples: usize,
+    output: W,
+) -> CompensationLoop<Tmp117<I2cMock>, FrontEnd<SpiMock<u8>>, W> {
     let i2c = [I2cTransaction::write_read(
         ADDRESS,
         vec![tmp117::REG_TEMP_RESULT],
         vec![0x0C, 0x80],
     )];
-    let spi: Vec<_> = (0..3)
+    let spi: Vec<_> = (0..samples)
         .flat_map(|_| {
             spi_read(
                 frontend::REG_SAMPLE,
@@ -189,13 +193,18 @@ fn a_failing_output_is_counted_and_never_stops_the_loop() {
         compensator: CompensatorConfig::for_sample_rate(1.0),
         temp_read_every: 100,
     };
-    let mut lp = CompensationLoop::new(
+    CompensationLoop::new(
         None,
         config,
         Tmp117::new(I2cMock::new(&i2c), ADDRESS),
         FrontEnd::new(SpiMock::new(&spi)),
-        BrokenUart,
-    );
+        output,
+    )
+}
+
+#[test]
+fn a_failing_output_is_counted_and_never_stops_the_loop() {
+    let mut lp = loop_over(3, BrokenUart);
     for _ in 0..3 {
         lp.step(1.0);
     }
@@ -233,28 +242,8 @@ impl embedded_io::Write for StallingUart {
 
 #[test]
 fn an_output_that_takes_nothing_drops_the_frame_and_flags_the_next_one_without_panicking() {
-    let i2c = [I2cTransaction::write_read(
-        ADDRESS,
-        vec![tmp117::REG_TEMP_RESULT],
-        vec![0x0C, 0x80],
-    )];
-    let spi: Vec<_> = (0..4)
-        .flat_map(|_| {
-            spi_read(
-                frontend::REG_SAMPLE,
-                frontend::encode_sample(frontend::STATUS_VALID, 1.0).to_vec(),
-            )
-        })
-        .collect();
-    let config = LoopConfig {
-        compensator: CompensatorConfig::for_sample_rate(1.0),
-        temp_read_every: 100,
-    };
-    let mut lp = CompensationLoop::new(
-        None,
-        config,
-        Tmp117::new(I2cMock::new(&i2c), ADDRESS),
-        FrontEnd::new(SpiMock::new(&spi)),
+    let mut lp = loop_over(
+        4,
         StallingUart {
             busy: 2,
             taken: Vec::new(),
