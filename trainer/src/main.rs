@@ -786,6 +786,9 @@ fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
         Some(path) => read_sim_params(path, &unit_params)?,
         None => unit_params,
     };
+    run.params
+        .check()
+        .map_err(|reason| anyhow::anyhow!("cannot simulate these parameters: {reason}"))?;
     write_atomically(&a.output, |w| {
         run.write_csv(w)
             .with_context(|| format!("{}: write failed", a.output.display()))

@@ -371,28 +371,112 @@ mod tests {
     fn zeroing_the_thermal_bias_leaves_the_same_noise_sample_for_sample() {
         // bench-accuracy's noise ceiling relies on it: the thermal terms may
         // not draw from the random stream the noise draws from.
-        let thermal = ChamberRun {
+        let documented = ChamberRun {
             duration_s: Some(4.0 * 3600.0),
             multi: true,
             ..ChamberRun::cycle(5.0, 7)
         };
-        let mut quiet = thermal.clone();
-        let gyro = &mut quiet.params.gyro;
-        gyro.static_coeffs = [0.0; 4];
-        gyro.shupe_dph_per_c_per_min = 0.0;
-        gyro.radial_gradient_dph_per_c = 0.0;
-        gyro.axial_gradient_dph_per_c = 0.0;
-        let (with, without) = (rates_dph(&thermal), rates_dph(&quiet));
-        assert_eq!(with.len(), without.len());
-        let bias: Vec<f64> = with.iter().zip(&without).map(|(a, b)| a - b).collect();
-        // The difference is the thermal bias alone: smooth from second to
-        // second (5 °C/min ramps), where the white noise is not.
-        let (bias_steps, noise_steps) = (step_std(&bias), step_std(&without));
-        assert!(
-            bias_steps < 0.01 * noise_steps,
-            "bias steps {bias_steps} °/h, noise steps {noise_steps} °/h"
+        // A drawn unit (hub, stress and hub-expansion terms) in a field history.
+        let unit = ChamberRun {
+            params: unit::unit_params(3),
+            multi: true,
+            ..ChamberRun::with_profile(Profile::Field, 8)
+        };
+        for thermal in [documented, unit] {
+            let quiet = ChamberRun {
+                noise_only: true,
+                ..thermal.clone()
+            };
+            let (with, without) = (rates_dph(&thermal), rates_dph(&quiet));
+            assert_eq!(with.len(), without.len());
+            let bias: Vec<f64> = with.iter().zip(&without).map(|(a, b)| a - b).collect();
+            // The difference is the thermal bias alone: smooth from second to
+            // second, where the white noise is not.
+            let (bias_steps, noise_steps) = (step_std(&bias), step_std(&without));
+            assert!(
+                bias_steps < 0.01 * noise_steps,
+                "bias steps {bias_steps} °/h, noise steps {noise_steps} °/h"
+            );
+            let span = bias.iter().fold(0.0f64, |m, b| m.max(b.abs()));
+            assert!(span > 0.1, "the thermal bias is there: {span} °/h");
+            // And nothing thermal is left: the 100-s cluster STD of the quiet
+            // run is that of white noise plus the Gauss–Markov bias instability.
+            let g = &thermal.params.gyro;
+            let white_dph = 60.0 * g.arw_deg_per_sqrt_h / 100f64.sqrt();
+            let gm_dph = 0.664 * g.bias_instability_dph / 0.62;
+            let expected = white_dph.hypot(gm_dph);
+            let reference = gyro::earth_rate_projection_dph();
+            let deviation: Vec<f64> = without.iter().map(|r| r - reference).collect();
+            let time_s: Vec<f64> = (0..deviation.len()).map(|i| i as f64).collect();
+            let measured = crate::metrics::cluster_std(&time_s, &deviation, 1.0);
+            assert!(
+                measured < 1.3 * expected && measured > 0.5 * expected,
+                "noise-only 100-s STD {measured} °/h, expected ≈ {expected} °/h"
+            );
+        }
+    }
+
+    #[test]
+    fn the_same_unit_and_seed_give_the_same_file_and_record_the_gyro() {
+        let run = |unit: u64, seed: u64| {
+            ChamberRun {
+                params: unit::unit_params(unit),
+                unit: Some(unit),
+                duration_s: Some(1800.0),
+                ..ChamberRun::with_profile(Profile::ColdStart, seed)
+            }
+            .to_csv()
+        };
+        let first = run(4, 1);
+        assert_eq!(first, run(4, 1));
+        assert_ne!(first, run(5, 1), "another unit, another gyro");
+        assert!(first.contains("# unit: 4\n"));
+        let recorded = first
+            .lines()
+            .find_map(|l| l.strip_prefix("# simulator_params: "))
+            .expect("parameters recorded");
+        // The record is the gyro: read back as --params, it is unit 4.
+        let params = SimParams::default().overridden(recorded).expect("a valid record");
+        assert_eq!(params, unit::unit_params(4));
+    }
+
+    #[test]
+    fn params_override_a_unit_field_by_field_and_are_checked_as_a_whole() {
+        let unit = unit::unit_params(2);
+        let over = unit
+            .overridden(
+                r#"{"plant": {"tau_top_s": 999, "hub": {"tau_coil_s": 77}}, "gyro": {"arw_deg_per_sqrt_h": 0.002}}"#,
+            )
+            .unwrap();
+        assert_eq!(over.plant.tau_top_s.to_bits(), 999f64.to_bits());
+        let (hub, unit_hub) = (over.plant.hub.unwrap(), unit.plant.hub.unwrap());
+        assert_eq!(hub.tau_coil_s.to_bits(), 77f64.to_bits());
+        assert_eq!(
+            hub.tau_base_s.to_bits(),
+            unit_hub.tau_base_s.to_bits(),
+            "the unit's other hub fields stay"
         );
-        let span = bias.iter().fold(0.0f64, |m, b| m.max(b.abs()));
-        assert!(span > 0.1, "the thermal bias is there: {span} °/h");
+        assert_eq!(over.plant.tau_base_s.to_bits(), unit.plant.tau_base_s.to_bits());
+        assert_eq!(
+            over.gyro.static_coeffs.map(f64::to_bits),
+            unit.gyro.static_coeffs.map(f64::to_bits)
+        );
+        // On the documented gyro a hub given in part takes the documented hub's other fields.
+        let hubbed = SimParams::default()
+            .overridden(r#"{"plant": {"hub": {"tau_base_s": 400}}}"#)
+            .unwrap();
+        assert_eq!(
+            hubbed.plant.hub.unwrap().tau_coil_s.to_bits(),
+            plant::Hub::default().tau_coil_s.to_bits()
+        );
+        // More layers need as many Shupe weights.
+        let error = SimParams::default()
+            .overridden(r#"{"plant": {"coil_layers": 6}}"#)
+            .unwrap_err();
+        assert!(error.to_string().contains("4 weights, the coil 6 layers"), "{error}");
+        let error = SimParams::default()
+            .overridden("{\"plant\": {\"hub\": {\"tau\": 1}}}")
+            .unwrap_err();
+        assert!(error.to_string().starts_with("1:24: unknown field `tau`"), "{error}");
     }
 }

@@ -372,3 +372,164 @@ impl Thermometers {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A plant with a hub, self-heating into air, base and hub, six layers.
+    fn hub_plant() -> PlantParams {
+        PlantParams {
+            electronics_to_base: 0.2,
+            electronics_to_hub: 0.3,
+            coil_layers: 6,
+            tau_coil_layer_s: 300.0,
+            hub: Some(Hub::default()),
+            ..PlantParams::default()
+        }
+    }
+
+    /// Runs `plant` for `seconds` at 1-s steps with the air at `air_c(t)`; the last rates.
+    fn run(p: &PlantParams, plant: &mut Plant, seconds: u32, air_c: impl Fn(f64) -> f64) -> NodeRates {
+        let mut rates = NodeRates::default();
+        for s in 0..seconds {
+            rates = plant.step(p, air_c(s as f64), 1.0);
+        }
+        rates
+    }
+
+    #[test]
+    #[allow(
+        clippy::float_cmp,
+        reason = "every exchange is a difference of equal temperatures: exactly zero, so nothing may move"
+    )]
+    fn a_soaked_plant_without_self_heating_stays_put() {
+        for p in [PlantParams::default(), hub_plant()] {
+            let p = PlantParams {
+                self_heating_c: 0.0,
+                ..p
+            };
+            let mut plant = Plant::soaked(&p, 13.7);
+            let before = plant.clone();
+            let rates = run(&p, &mut plant, 20_000, |_| 13.7);
+            assert_eq!(plant, before, "{p:?}");
+            assert_eq!(rates, NodeRates::default());
+        }
+    }
+
+    #[test]
+    fn self_heating_settles_where_its_shares_put_it() {
+        let p = hub_plant();
+        let mut plant = Plant::soaked(&p, -20.0);
+        let rates = run(&p, &mut plant, 100 * 3600, |_| -20.0);
+        assert!(rates.coil_c_per_s.iter().all(|r| r.abs() < 1e-12), "{rates:?}");
+        let close = |a: f64, b: f64, what: &str| assert!((a - b).abs() < 1e-6, "{what}: {a} vs {b}");
+        close(
+            plant.electronics_c - plant.housing_c(),
+            p.self_heating_c,
+            "electronics rise",
+        );
+        close(
+            plant.base_c + 20.0,
+            p.electronics_to_base * p.self_heating_c,
+            "base rise",
+        );
+        close(plant.top_c, -20.0, "top cover");
+        let hub_c = plant.hub_c.expect("a hub");
+        // The hub settles between its mount (base + its share) and the coil it exchanges with.
+        let mount = plant.base_c + p.electronics_to_hub * p.self_heating_c;
+        assert!(
+            hub_c > plant.base_c && hub_c <= mount.max(plant.inner_c()) + 1e-9,
+            "hub {hub_c}"
+        );
+        // Steady heat flows through the winding, so the layers keep a steady radial gradient.
+        assert!(plant.layers_c().windows(2).all(|w| (w[0] - w[1]).abs() < 1.0));
+    }
+
+    #[test]
+    fn on_a_steady_ramp_the_layers_lag_in_order_outer_to_inner() {
+        let p = PlantParams {
+            self_heating_c: 0.0,
+            coil_layers: 6,
+            tau_coil_layer_s: 300.0,
+            ..PlantParams::default()
+        };
+        let mut plant = Plant::soaked(&p, 0.0);
+        let rates = run(&p, &mut plant, 12 * 3600, |t| t / 60.0);
+        let layers = plant.layers_c();
+        assert!(
+            layers.windows(2).all(|w| w[0] > w[1] + 0.01),
+            "warming from outside: outer ahead of inner, {layers:?}"
+        );
+        assert!(plant.housing_c() > layers[0], "the housing leads the coil");
+        // Settled ramp: every layer warms at the air's 1 °C/min.
+        for r in &rates.coil_c_per_s[..6] {
+            assert!((r * 60.0 - 1.0).abs() < 0.02, "{:?}", rates.coil_c_per_s);
+        }
+    }
+
+    #[test]
+    fn a_hub_feeds_the_inner_layers_from_inside() {
+        let no_hub = PlantParams {
+            self_heating_c: 0.0,
+            coil_layers: 6,
+            tau_coil_layer_s: 300.0,
+            ..PlantParams::default()
+        };
+        let with_hub = PlantParams {
+            hub: Some(Hub {
+                tau_base_s: 300.0,
+                tau_coil_s: 200.0,
+                heat_capacity_ratio: 1.0,
+            }),
+            ..no_hub.clone()
+        };
+        let ramp = |t: f64| t / 60.0;
+        let mut plain = Plant::soaked(&no_hub, 0.0);
+        run(&no_hub, &mut plain, 3 * 3600, ramp);
+        let mut hubbed = Plant::soaked(&with_hub, 0.0);
+        run(&with_hub, &mut hubbed, 3 * 3600, ramp);
+        let air_c = 3.0 * 60.0;
+        let (plain_lag, hub_lag) = (air_c - plain.inner_c(), air_c - hubbed.inner_c());
+        assert!(
+            hub_lag < 0.5 * plain_lag,
+            "inner layer lag: {hub_lag} °C with the hub, {plain_lag} °C without"
+        );
+        // Heat now comes from both sides: the coldest layer lies inside the winding.
+        let layers = hubbed.layers_c();
+        let coldest = (0..layers.len())
+            .min_by(|&a, &b| layers[a].total_cmp(&layers[b]))
+            .unwrap();
+        assert!(0 < coldest && coldest < layers.len() - 1, "{layers:?}");
+        // The outer layer hardly notices the hub.
+        assert!((hubbed.outer_c() - plain.outer_c()).abs() < 0.3 * (air_c - plain.outer_c()));
+    }
+
+    #[test]
+    fn the_loop_sensor_reads_the_node_it_is_placed_on() {
+        let p = hub_plant();
+        let mut plant = Plant::soaked(&p, 0.0);
+        run(&p, &mut plant, 3600, |t| t / 60.0);
+        let hub_c = plant.hub_c.unwrap();
+        for (sensor, expected) in [
+            (LoopSensor::OuterSurface, plant.coil_c[0]),
+            (LoopSensor::Layer(4), plant.coil_c[4]),
+            (LoopSensor::Hub, hub_c),
+            (LoopSensor::Flange, 0.5 * (plant.coil_c[1] + hub_c)),
+            (LoopSensor::HousingWall, plant.housing_c()),
+        ] {
+            assert_eq!(sensor.node_c(&plant).to_bits(), expected.to_bits(), "{sensor:?}");
+        }
+        // A place that does not exist is refused before any run.
+        let bad = |loop_sensor| {
+            PlantParams {
+                loop_sensor,
+                ..PlantParams::default()
+            }
+            .check()
+        };
+        assert!(bad(LoopSensor::Hub).unwrap_err().contains("needs a hub"));
+        assert!(bad(LoopSensor::Layer(4)).unwrap_err().contains("layers 0 … 3"));
+        assert!(bad(LoopSensor::Layer(3)).is_ok());
+    }
+}

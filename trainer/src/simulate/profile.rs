@@ -314,7 +314,7 @@ fn ambient_steps(end_s: f64, rng: &mut impl Rng) -> Vec<(f64, f64)> {
         let outside = step_target(rng, limits::OUTSIDE_C, hangar);
         k.step_to(outside, uniform(rng, limits::STEP_S));
         k.hold(uniform(rng, limits::DWELL_MIN) * 60.0);
-        k.step_to(uniform(rng, limits::HANGAR_C), uniform(rng, limits::STEP_S));
+        k.step_to(hangar, uniform(rng, limits::STEP_S));
         k.hold(uniform(rng, limits::DWELL_MIN) * 60.0);
     }
     k.done()
@@ -386,4 +386,142 @@ pub fn schedule(run: &ChamberRun, rng: &mut impl Rng) -> Schedule {
         Profile::Planned => run.planned.as_ref().map_or_else(Vec::new, |s| s.knots.clone()),
     };
     Schedule { knots }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::SeedableRng;
+    use rand_pcg::Pcg64;
+
+    use super::*;
+
+    fn knots_of(run: &ChamberRun) -> Vec<(f64, f64)> {
+        schedule(run, &mut Pcg64::seed_from_u64(run.seed)).knots
+    }
+
+    /// Each piece as (duration s, change °C), with its rate in °C/min.
+    fn pieces(knots: &[(f64, f64)]) -> Vec<(f64, f64, f64)> {
+        knots
+            .windows(2)
+            .map(|w| {
+                let (dt, dc) = (w[1].0 - w[0].0, w[1].1 - w[0].1);
+                (dt, dc, if dt > 0.0 { dc.abs() / dt * 60.0 } else { 0.0 })
+            })
+            .collect()
+    }
+
+    fn within((lo, hi): (f64, f64), x: f64) -> bool {
+        x >= lo - 1e-9 && x <= hi + 1e-9
+    }
+
+    #[test]
+    fn in_use_histories_keep_their_documented_rates_and_ranges() {
+        let in_use = [
+            Profile::ColdStart,
+            Profile::AmbientSteps,
+            Profile::Swings,
+            Profile::DayCycle,
+            Profile::Field,
+        ];
+        for profile in in_use {
+            let mut swing_legs = 0;
+            for seed in 0..40 {
+                let run = ChamberRun::with_profile(profile, seed);
+                let knots = knots_of(&run);
+                let what = format!("{profile:?} seed {seed}");
+                assert_eq!(knots[0].0.to_bits(), 0f64.to_bits(), "{what}: starts at power-on");
+                assert!(
+                    knots.last().unwrap().0 >= profile.default_duration_s().unwrap(),
+                    "{what}"
+                );
+                assert!(
+                    knots.iter().all(|k| within(limits::AMBIENT_C, k.1)),
+                    "{what}: {knots:?}"
+                );
+                for (dt, dc, rate) in pieces(&knots) {
+                    assert!(dt >= 0.0, "{what}: time goes forward");
+                    let step = within(limits::STEP_S, dt) && dc.abs() >= limits::MIN_STEP_C - 1e-9;
+                    let held = dc == 0.0;
+                    let ramp = rate <= limits::SWING_C_PER_MIN.1 + 1e-9;
+                    assert!(held || step || ramp, "{what}: {dc} °C in {dt} s");
+                    if !step && within(limits::SWING_C_PER_MIN, rate) {
+                        swing_legs += 1;
+                    }
+                }
+                match profile {
+                    Profile::ColdStart | Profile::Field => {
+                        assert!(within(limits::COLD_SOAK_C, knots[0].1), "{what}: soaked cold");
+                        let warm_up_min = (knots[1].0 - knots[0].0) / 60.0;
+                        assert!(
+                            within(limits::WARM_UP_MIN, warm_up_min),
+                            "{what}: warm-up {warm_up_min} min"
+                        );
+                        assert!(within(limits::COLD_START_AMBIENT_C, knots[2].1), "{what}");
+                    }
+                    Profile::AmbientSteps => {
+                        // Nothing but holds and near-instant steps between hangar and outside.
+                        for (dt, dc, _) in pieces(&knots[1..]) {
+                            assert!(dc == 0.0 || within(limits::STEP_S, dt), "{what}: {dc} °C in {dt} s");
+                        }
+                    }
+                    Profile::Swings => {
+                        for (_, dc, rate) in pieces(&knots) {
+                            assert!(
+                                dc == 0.0 || within(limits::SWING_C_PER_MIN, rate),
+                                "{what}: {rate} °C/min"
+                            );
+                        }
+                        let centre = knots[0].1;
+                        let amplitude = limits::SWING_AMPLITUDE_C.1;
+                        assert!(knots.iter().all(|k| (k.1 - centre).abs() <= amplitude + 1e-9));
+                    }
+                    Profile::DayCycle => {
+                        let fastest = 2.0 * PI * limits::DAY_AMPLITUDE_C.1 / limits::DAY_S * 60.0;
+                        assert!(pieces(&knots).iter().all(|p| p.2 <= fastest), "{what}");
+                    }
+                    _ => unreachable!(),
+                }
+            }
+            if matches!(profile, Profile::Swings | Profile::Field) {
+                assert!(swing_legs > 40, "{profile:?}: {swing_legs} swing legs at 3 … 8 °C/min");
+            }
+        }
+    }
+
+    #[test]
+    fn random_set_points_keep_the_asked_range_and_rates() {
+        for seed in 0..40 {
+            let run = ChamberRun {
+                random_range_c: (-20.0, 50.0),
+                ramp_range_c_per_min: (0.2, 3.0),
+                duration_s: Some(8.0 * 3600.0),
+                ..ChamberRun::with_profile(Profile::Random, seed)
+            };
+            let knots = knots_of(&run);
+            assert!(knots.iter().all(|k| within((-20.0, 50.0), k.1)), "seed {seed}");
+            for (_, dc, rate) in pieces(&knots) {
+                assert!(dc == 0.0 || within((0.2, 3.0), rate), "seed {seed}: {rate} °C/min");
+            }
+        }
+    }
+
+    #[test]
+    fn the_designed_run_spans_minus_40_to_60_at_5_c_per_min_in_about_11_hours() {
+        for seed in 0..20 {
+            let knots = knots_of(&ChamberRun::designed(seed));
+            assert_eq!(knots[0].1.to_bits(), (-20f64).to_bits(), "cold start at −20 °C");
+            for (dt, dc, rate) in pieces(&knots) {
+                if dc == 0.0 {
+                    assert!(within(DESIGNED_HOLD_MIN, dt / 60.0), "hold {} min", dt / 60.0);
+                } else {
+                    assert!((rate - 5.0).abs() < 1e-9, "{rate} °C/min");
+                }
+            }
+            let hours = knots.last().unwrap().0 / 3600.0;
+            // 15 holds of 15 … 50 min: 10.9 h on average, σ ≈ 0.65 h.
+            assert!((8.5..=13.5).contains(&hours), "{hours} h");
+        }
+        let levels: Vec<f64> = DESIGNED_LEVELS_C.to_vec();
+        assert!(levels.contains(&-40.0) && levels.contains(&60.0));
+    }
 }

@@ -72,8 +72,9 @@ pub const HUB_TAU_COIL_S: Range = Range::LogUniform(200.0, 2000.0);
 /// Hub heat capacity over one layer's.
 pub const HUB_HEAT_CAPACITY_RATIO: Range = Range::LogUniform(0.5, 4.0);
 /// The loop sensor's own lag, s (thermal paste on the coil … a sensor behind a board).
-pub const LOOP_SENSOR_LAG_S: Range = Range::LogUniform(3.0, 60.0);
-/// The other thermometers' lags, as a factor of their documented default.
+pub const LOOP_SENSOR_LAG_S: Range = Range::LogUniform(MIN_TAU_S, 60.0);
+/// The other thermometers' lags, as a factor of their documented default
+/// (at least [`MIN_TAU_S`]).
 pub const OTHER_LAG_FACTOR: Range = Range::LogUniform(0.5, 2.0);
 /// Thermometer noise, °C.
 pub const THERMOMETER_NOISE_C: Range = Range::Uniform(0.001, 0.004);
@@ -120,7 +121,7 @@ pub fn unit_params(unit: u64) -> SimParams {
     let mut rng = Pcg64::seed_from_u64(UNIT_STREAM ^ unit);
     let rng = &mut rng;
     let layers = rng.random_range(MIN_COIL_LAYERS..=MAX_COIL_LAYERS);
-    let mut lags = THERMOMETERS.map(|(_, lag_s)| lag_s * OTHER_LAG_FACTOR.draw(rng));
+    let mut lags = THERMOMETERS.map(|(_, lag_s)| (lag_s * OTHER_LAG_FACTOR.draw(rng)).max(MIN_TAU_S));
     lags[super::plant::LOOP_SENSOR] = LOOP_SENSOR_LAG_S.draw(rng);
     let plant = PlantParams {
         tau_base_s: TAU_BASE_S.draw(rng),
@@ -188,6 +189,85 @@ fn shupe_weights(rng: &mut impl Rng, layers: usize) -> Vec<f64> {
         // A sum near zero would blow the weights up: draw the scatter again.
         if sum > 0.5 {
             return raw.iter().map(|w| w / sum).collect();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_unit_is_the_same_gyro_every_time_and_units_differ() {
+        assert_eq!(unit_params(7), unit_params(7));
+        let units: Vec<SimParams> = (0..200).map(unit_params).collect();
+        for (i, a) in units.iter().enumerate() {
+            a.check().unwrap_or_else(|e| panic!("unit {i}: {e}"));
+            for b in &units[i + 1..] {
+                assert_ne!(a.plant.tau_base_s.to_bits(), b.plant.tau_base_s.to_bits());
+                assert_ne!(
+                    a.gyro.static_coeffs.map(f64::to_bits),
+                    b.gyro.static_coeffs.map(f64::to_bits)
+                );
+            }
+        }
+        // The discrete choices cover their whole range.
+        for layers in MIN_COIL_LAYERS..=MAX_COIL_LAYERS {
+            assert!(units.iter().any(|u| u.plant.coil_layers == layers), "{layers} layers");
+        }
+        let placed = |want: fn(LoopSensor) -> bool| units.iter().any(|u| want(u.plant.loop_sensor));
+        assert!(placed(|s| s == LoopSensor::OuterSurface));
+        assert!(placed(|s| s == LoopSensor::Flange));
+        assert!(placed(|s| s == LoopSensor::Hub));
+        assert!(placed(|s| s == LoopSensor::HousingWall));
+        assert!(placed(|s| matches!(s, LoopSensor::Layer(k) if k > 0)));
+    }
+
+    #[test]
+    fn every_drawn_constant_lies_in_its_documented_range() {
+        for unit in 0..200 {
+            let SimParams { plant: p, gyro: g } = unit_params(unit);
+            let hub = p.hub.expect("every drawn unit has a hub");
+            let layers = p.coil_layers as f64;
+            for (name, range, value) in [
+                ("tau_base_s", TAU_BASE_S, p.tau_base_s),
+                ("tau_top_s", TAU_TOP_S, p.tau_top_s),
+                ("tau_electronics_s", TAU_ELECTRONICS_S, p.tau_electronics_s),
+                ("self_heating_c", SELF_HEATING_C, p.self_heating_c),
+                ("electronics_to_coil", ELECTRONICS_TO_COIL, p.electronics_to_coil),
+                ("electronics_to_base", ELECTRONICS_TO_BASE, p.electronics_to_base),
+                ("electronics_to_hub", ELECTRONICS_TO_HUB, p.electronics_to_hub),
+                ("tau_coil_outer_s", TAU_COIL_OUTER_S, p.tau_coil_outer_s),
+                ("coil diffusion", COIL_DIFFUSION_S, p.tau_coil_layer_s * layers * layers),
+                ("hub.tau_base_s", HUB_TAU_BASE_S, hub.tau_base_s),
+                ("hub.tau_coil_s", HUB_TAU_COIL_S, hub.tau_coil_s),
+                (
+                    "hub.heat_capacity_ratio",
+                    HUB_HEAT_CAPACITY_RATIO,
+                    hub.heat_capacity_ratio,
+                ),
+                ("loop sensor lag", LOOP_SENSOR_LAG_S, p.thermometer_lags_s[2]),
+                ("thermometer_noise_c", THERMOMETER_NOISE_C, p.thermometer_noise_c),
+                ("c0", STATIC_C0, g.static_coeffs[0]),
+                ("c1", STATIC_C1, g.static_coeffs[1]),
+                ("c2", STATIC_C2, g.static_coeffs[2]),
+                ("c3", STATIC_C3, g.static_coeffs[3]),
+                ("shupe", SHUPE_DPH_PER_C_PER_MIN, g.shupe_dph_per_c_per_min),
+                ("shupe temp coeff", SHUPE_TEMP_COEFF_PER_C, g.shupe_temp_coeff_per_c),
+                ("radial", RADIAL_GRADIENT_DPH_PER_C, g.radial_gradient_dph_per_c),
+                ("stress", STRESS_GRADIENT_DPH_PER_C, g.stress_gradient_dph_per_c),
+                ("stress temp coeff", STRESS_TEMP_COEFF_PER_C, g.stress_temp_coeff_per_c),
+                ("hub expansion", HUB_EXPANSION_DPH_PER_C, g.hub_expansion_dph_per_c),
+                ("axial", AXIAL_GRADIENT_DPH_PER_C, g.axial_gradient_dph_per_c),
+                ("arw", ARW_DEG_PER_SQRT_H, g.arw_deg_per_sqrt_h),
+                ("bias instability", BIAS_INSTABILITY_DPH, g.bias_instability_dph),
+                ("correlation", BIAS_CORRELATION_S, g.bias_correlation_s),
+            ] {
+                assert!(range.contains(value), "unit {unit}: {name} = {value} outside {range:?}");
+            }
+            let sum: f64 = g.shupe_layer_weights.iter().sum();
+            assert!((sum - 1.0).abs() < 1e-12, "unit {unit}: Shupe weights sum to {sum}");
+            assert!(g.shupe_layer_weights[0] > 0.0, "unit {unit}: the outer turns weigh in");
         }
     }
 }
