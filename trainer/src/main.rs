@@ -216,7 +216,8 @@ struct SimulateArgs {
     /// Hold at each set point, minutes (ifog and cycle).
     #[arg(long, value_name = "MINUTES", default_value_t = 120.0)]
     hold_min: f64,
-    /// Total length, hours: cuts the profile or extends its last hold (random: default 8 h).
+    /// Total length, hours: cuts the profile or extends its last hold (random: 8 h and the hold
+    /// it is in; cold-start 4, ambient-steps 6, swings 4, day-cycle 24, field 8 h).
     #[arg(long, value_name = "H")]
     hours: Option<f64>,
     /// Set-point range of the random profile, °C, as MIN,MAX.

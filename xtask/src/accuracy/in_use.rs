@@ -255,7 +255,10 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             .map(|n| Ok(residual_std(&read_columns(n, &["time_s", "rate_dph", "ref_dph"])?)))
             .collect::<anyhow::Result<_>>()?;
         let mut training_json = Vec::new();
-        println!("\nplant: {} (trainer simulate {})", plant.name, plant.args.join(" "));
+        match plant.args {
+            [] => println!("\nplant: {} (trainer simulate's defaults)", plant.name),
+            args => println!("\nplant: {} (trainer simulate {})", plant.name, args.join(" ")),
+        }
         print_header();
         print_cells("no compensation (STD [°/h])", before.iter().map(|b| format!("{b:.4}")));
         println!();
