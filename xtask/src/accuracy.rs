@@ -120,14 +120,19 @@ const PROTOCOLS: [Protocol; 3] = [
 ];
 
 fn trainer(args: &[&str]) -> anyhow::Result<String> {
-    let exe = workspace_root().join("target/release/trainer");
-    let out = Command::new(&exe)
+    run_tool(&workspace_root().join("target/release/trainer"), args)
+}
+
+/// Runs `exe` with `args`; its standard output, or an error with its standard error.
+fn run_tool(exe: &Path, args: &[&str]) -> anyhow::Result<String> {
+    let out = Command::new(exe)
         .args(args)
         .output()
         .with_context(|| format!("cannot run {}", exe.display()))?;
     if !out.status.success() {
         bail!(
-            "trainer {} failed: {}",
+            "{} {} failed: {}",
+            exe.display(),
             args.join(" "),
             String::from_utf8_lossy(&out.stderr)
         );

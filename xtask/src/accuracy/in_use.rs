@@ -19,6 +19,7 @@ use anyhow::{Context, bail};
 use serde_json::{Value, json};
 use trainer::metrics::{cluster_std, improvement_pct};
 
+use super::{path, run_tool};
 use crate::workspace_root;
 
 /// What the in-use section runs and where its results go.
@@ -137,26 +138,6 @@ struct ModelScores {
     /// Share of samples `trainer compensate` flagged as clamped (input outside
     /// the training range), per run; `None` for the lag bank.
     clamped_pct: Vec<Option<f64>>,
-}
-
-fn run_tool(exe: &Path, args: &[&str]) -> anyhow::Result<String> {
-    let out = Command::new(exe)
-        .args(args)
-        .output()
-        .with_context(|| format!("cannot run {}", exe.display()))?;
-    if !out.status.success() {
-        bail!(
-            "{} {} failed: {}",
-            exe.display(),
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
-}
-
-fn path(p: &Path) -> &str {
-    p.to_str().expect("UTF-8 paths under target/")
 }
 
 /// The named columns of a CSV with `#` metadata lines, in the order asked.
