@@ -75,6 +75,10 @@ enum Cmd {
         /// as one string, e.g. --fit-args="--method poly3".
         #[arg(long, value_name = "ARGS", allow_hyphen_values = true)]
         fit_args: Option<String>,
+        /// In-use section: also train on this planned chamber run (time_s,chamber_c
+        /// set points, as `trainer plan` writes them).
+        #[arg(long, value_name = "PLAN.csv")]
+        plan: Option<PathBuf>,
     },
     /// Fault injection on the firmware image under QEMU: 20,000 samples through the
     /// real drivers with I2C NACK bursts, stuck readings, a stuck bus, spikes,
@@ -135,6 +139,7 @@ fn main() -> anyhow::Result<()> {
             json,
             trainer,
             fit_args,
+            plan,
         } => xtask::accuracy::bench_accuracy(&xtask::accuracy::AccuracyOptions {
             params,
             in_use_only: in_use,
@@ -146,6 +151,7 @@ fn main() -> anyhow::Result<()> {
                     .flat_map(|a| a.split_whitespace())
                     .map(str::to_owned)
                     .collect(),
+                plan: plan.map(std::path::absolute).transpose()?,
             },
             json,
         }),

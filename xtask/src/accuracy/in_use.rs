@@ -32,6 +32,9 @@ pub struct InUseOptions {
     pub trainer: Option<PathBuf>,
     /// Options added to `trainer fit` (default: none, the default model).
     pub fit_args: Vec<String>,
+    /// A planned chamber run (`trainer simulate --chamber-profile`) to train on
+    /// as a third scenario.
+    pub plan: Option<PathBuf>,
 }
 
 /// A simulated gyro: label, `trainer simulate` options, whether `--quick` keeps it.
@@ -67,9 +70,19 @@ const PLANTS: [Plant; 4] = [
 /// A simulated run: label, `trainer simulate` options, seed (plus
 /// [`PLANT_SEED_STEP`] × the plant's index, so every plant meets other histories).
 struct RunSpec {
-    name: &'static str,
-    args: &'static [&'static str],
+    name: String,
+    args: Vec<String>,
     seed: u64,
+}
+
+impl RunSpec {
+    fn new(name: &str, args: &[&str], seed: u64) -> Self {
+        RunSpec {
+            name: name.into(),
+            args: args.iter().map(|a| a.to_string()).collect(),
+            seed,
+        }
+    }
 }
 
 const PLANT_SEED_STEP: u64 = 1000;
@@ -77,52 +90,47 @@ const PLANT_SEED_STEP: u64 = 1000;
 /// Sample rate of every run, Hz: one 100-s cluster is 100 samples.
 const RATE_HZ: f64 = 1.0;
 
-const TRAINING: [RunSpec; 2] = [
-    RunSpec {
-        name: "cycle −40…60 °C, 1 °C/min, 2-h holds",
-        args: &["--profile", "cycle", "--ramp", "1", "--hold-min", "120"],
-        seed: 501,
-    },
-    RunSpec {
-        name: "designed 10.9 h, 5 °C/min",
-        args: &["--profile", "designed"],
-        seed: 502,
-    },
-];
+/// The training runs: the cycle, the designed run and, when given, a planned chamber run.
+fn training_runs(plan: Option<&Path>) -> Vec<RunSpec> {
+    let mut runs = vec![
+        RunSpec::new(
+            "cycle −40…60 °C, 1 °C/min, 2-h holds",
+            &["--profile", "cycle", "--ramp", "1", "--hold-min", "120"],
+            501,
+        ),
+        RunSpec::new("designed 10.9 h, 5 °C/min", &["--profile", "designed"], 502),
+    ];
+    if let Some(plan) = plan {
+        let name = plan.file_name().map_or("plan".into(), |n| n.to_string_lossy());
+        let plan = plan.to_str().expect("a UTF-8 path for the plan");
+        runs.push(RunSpec::new(
+            &format!("planned {name}"),
+            &["--chamber-profile", plan],
+            503,
+        ));
+    }
+    runs
+}
 
-const IN_USE: [RunSpec; 4] = [
-    RunSpec {
-        name: "random 1",
-        args: &RANDOM_IN_USE,
-        seed: 511,
-    },
-    RunSpec {
-        name: "random 2",
-        args: &RANDOM_IN_USE,
-        seed: 512,
-    },
-    RunSpec {
-        name: "field 1",
-        args: &["--profile", "field"],
-        seed: 513,
-    },
-    RunSpec {
-        name: "field 2",
-        args: &["--profile", "field"],
-        seed: 514,
-    },
-];
-
-/// Random set points −20 … 50 °C at 0.2 … 3 °C/min, 8 h.
-const RANDOM_IN_USE: [&str; 7] = [
-    "--profile",
-    "random",
-    "--random-range=-20,50",
-    "--ramp-range",
-    "0.2,3",
-    "--hours",
-    "8",
-];
+/// The in-use histories: random set points −20 … 50 °C at 0.2 … 3 °C/min
+/// for 8 h, twice, and two field histories.
+fn in_use_runs() -> Vec<RunSpec> {
+    let random = [
+        "--profile",
+        "random",
+        "--random-range=-20,50",
+        "--ramp-range",
+        "0.2,3",
+        "--hours",
+        "8",
+    ];
+    vec![
+        RunSpec::new("random 1", &random, 511),
+        RunSpec::new("random 2", &random, 512),
+        RunSpec::new("field 1", &["--profile", "field"], 513),
+        RunSpec::new("field 2", &["--profile", "field"], 514),
+    ]
+}
 
 /// The models compared, in print order.
 const DEFAULT_MODEL: &str = "trainer fit (default)";
@@ -181,6 +189,8 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
     let dir = dir.join("in-use");
     std::fs::create_dir_all(&dir)?;
     let fit_args: Vec<&str> = opts.fit_args.iter().map(String::as_str).collect();
+    let training = training_runs(opts.plan.as_deref());
+    let in_use = in_use_runs();
     println!("\nin use: trained on one chamber run, verified on in-use histories it never saw");
     println!(
         "(1 Hz; 100-s cluster STD improvement against ref_dph [%], residual STD [°/h] in brackets; judged: {} fit {})",
@@ -202,7 +212,7 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             let file = dir.join(format!("{tag}_{name}.csv"));
             let seed = (spec.seed + PLANT_SEED_STEP * p as u64).to_string();
             let mut args = vec!["simulate", "--rate-hz", "1", "--seed", &seed, "-o", path(&file)];
-            args.extend(spec.args);
+            args.extend(spec.args.iter().map(String::as_str));
             let params;
             if let [flag @ "--params", file] = plant.args {
                 params = workspace_root().join(file);
@@ -216,12 +226,12 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             run_tool(&simulator, &args)?;
             Ok(file)
         };
-        let verify: Vec<PathBuf> = IN_USE
+        let verify: Vec<PathBuf> = in_use
             .iter()
             .enumerate()
             .map(|(i, spec)| simulate(spec, &format!("use{i}"), false))
             .collect::<anyhow::Result<_>>()?;
-        let noise: Vec<PathBuf> = IN_USE
+        let noise: Vec<PathBuf> = in_use
             .iter()
             .enumerate()
             .map(|(i, spec)| simulate(spec, &format!("use{i}_noise"), true))
@@ -240,10 +250,10 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             [] => println!("\nplant: {} (trainer simulate's defaults)", plant.name),
             args => println!("\nplant: {} (trainer simulate {})", plant.name, args.join(" ")),
         }
-        print_header();
+        print_header(&in_use);
         print_cells("no compensation (STD [°/h])", before.iter().map(|b| format!("{b:.4}")));
         println!();
-        for (s, scenario) in TRAINING.iter().enumerate() {
+        for (s, scenario) in training.iter().enumerate() {
             let train = simulate(scenario, &format!("train{s}"), false)?;
             let model = dir.join(format!("{tag}_train{s}.bin"));
             let default = fit_and_compensate(&judged, &fit_args, &train, &model, &verify, &raw)?;
@@ -299,11 +309,11 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
         );
         let (mean, worst) = mean_and_worst(&ceiling_pct);
         println!(" {mean:>7.1} {worst:>7.1}");
-        summary.push((plant.name, TRAINING.len(), "noise ceiling".into(), mean, worst, false));
+        summary.push((plant.name, training.len(), "noise ceiling".into(), mean, worst, false));
         plants_json.push(json!({
             "plant": plant.name,
             "simulate_args": plant.args,
-            "runs": IN_USE.iter().enumerate().map(|(i, spec)| json!({
+            "runs": in_use.iter().enumerate().map(|(i, spec)| json!({
                 "run": spec.name,
                 "simulate_args": spec.args,
                 "seed": spec.seed + PLANT_SEED_STEP * p as u64,
@@ -314,7 +324,7 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             "training": training_json,
         }));
     }
-    print_summary(&summary);
+    print_summary(&summary, &training);
     let runtime_s = started.elapsed().as_secs_f64();
     println!("in-use section: {runtime_s:.0} s");
     Ok(json!({
@@ -440,8 +450,8 @@ fn print_cells(label: &str, cells: impl Iterator<Item = String>) {
     }
 }
 
-fn print_header() {
-    print_cells("", IN_USE.iter().map(|r| r.name.to_owned()));
+fn print_header(in_use: &[RunSpec]) {
+    print_cells("", in_use.iter().map(|r| r.name.clone()));
     println!(" {:>7} {:>7} {:>8}", "mean", "worst", "fit [s]");
 }
 
@@ -468,11 +478,11 @@ fn print_model(scores: &ModelScores, before: &[f64]) {
 }
 
 /// Mean and worst improvement per plant, training scenario and model, then over all plants.
-fn print_summary(rows: &[(&str, usize, String, f64, f64, bool)]) {
+fn print_summary(rows: &[(&str, usize, String, f64, f64, bool)], training: &[RunSpec]) {
     println!("\nin-use summary: mean / worst improvement over the four in-use runs [%]");
     print!("{:<18}", "plant");
-    for scenario in &TRAINING {
-        let short = scenario.name.split(' ').next().unwrap_or(scenario.name);
+    for scenario in training {
+        let short = scenario.name.split(' ').next().unwrap_or_default();
         print!(
             " {:>22} {:>22}",
             format!("{short}: default"),
@@ -496,13 +506,13 @@ fn print_summary(rows: &[(&str, usize, String, f64, f64, bool)]) {
     };
     for plant in plants.iter().map(|p| Some(*p)).chain([None]) {
         print!("{:<18}", plant.unwrap_or("all plants"));
-        for s in 0..TRAINING.len() {
+        for s in 0..training.len() {
             print!(
                 " {:>22} {:>22}",
                 cell(plant, s, DEFAULT_MODEL),
                 cell(plant, s, LAG_BANK)
             );
         }
-        println!(" {:>16}", cell(plant, TRAINING.len(), "noise ceiling"));
+        println!(" {:>16}", cell(plant, training.len(), "noise ceiling"));
     }
 }
