@@ -137,7 +137,7 @@ pub struct ChamberRun {
     pub random_range_c: (f64, f64),
     /// Ramp-rate range of random profiles, °C/min (slowest, fastest).
     pub ramp_range_c_per_min: (f64, f64),
-    /// The chamber profile of [`Profile::Planned`] runs and where it was read.
+    /// The chamber profile of [`Profile::Planned`] runs.
     pub planned: Option<Schedule>,
     /// Where the planned profile was read from (metadata).
     pub planned_source: Option<String>,
@@ -225,14 +225,9 @@ impl ChamberRun {
     pub fn write_csv(&self, out: &mut impl Write) -> std::io::Result<()> {
         let mut rng = Pcg64::seed_from_u64(self.seed);
         let schedule = profile::schedule(self, &mut rng);
-        let duration_s = self
-            .duration_s
-            .or(self
-                .profile
-                .in_use()
-                .then(|| self.profile.default_duration_s())
-                .flatten())
-            .unwrap_or(schedule.duration_s());
+        // In-use histories end at their length; chamber runs with their last hold.
+        let in_use_s = self.profile.default_duration_s().filter(|_| self.profile.in_use());
+        let duration_s = self.duration_s.or(in_use_s).unwrap_or(schedule.duration_s());
         let dt = 1.0 / self.sample_rate_hz;
         let start_c = schedule.air_c(0.0);
         let params = match self.noise_only {
