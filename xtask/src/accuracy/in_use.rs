@@ -475,6 +475,17 @@ fn print_model(scores: &ModelScores, before: &[f64]) {
     );
     let (mean, worst) = mean_and_worst(&pct);
     println!(" {mean:>7.1} {worst:>7.1} {:>8.1}", scores.fit_s);
+    // trainer compensate's flag 1: inputs outside the training range (extrapolation).
+    if scores.clamped_pct.iter().any(Option::is_some) {
+        print_cells(
+            "    samples flagged clamped [%]",
+            scores
+                .clamped_pct
+                .iter()
+                .map(|c| c.map_or("-".into(), |c| format!("{c:.1}"))),
+        );
+        println!();
+    }
 }
 
 /// Mean and worst improvement per plant, training scenario and model, then over all plants.
