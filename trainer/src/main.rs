@@ -17,7 +17,7 @@ use trainer::fit::{self, FitOptions, Method, RbfFeatures};
 use trainer::output::{Existing, check_target, write_atomically, write_bytes};
 use trainer::run::Run;
 use trainer::run::RunReader;
-use trainer::simulate::{ChamberRun, Profile, SimParams};
+use trainer::simulate::{ChamberRun, ParamsError, Profile, SimParams};
 
 /// Removes temperature drift from fiber-optic gyros.
 ///
@@ -175,47 +175,68 @@ struct DecodeArgs {
     output: PathBuf,
 }
 
-/// Write a simulated IFOG thermal-chamber run (recorded-run CSV with ref_dph).
+/// Write a simulated IFOG run, in a thermal chamber or in use (recorded-run CSV with ref_dph).
 ///
-/// A physics-based plant (docs/simulator.md): chamber air → housing base and top
-/// → self-heated electronics → fiber coil in 4 radial layers → thermometers with
-/// their own lags, noise and TMP117 quantisation. Bias = static cubic in the
-/// coil temperature + Shupe term in the layers' temperature rates with a
-/// T-dependent gain + radial gradient term (+ axial gradient with --multi) +
-/// bias instability + angle random walk. ref_dph is the Earth-rate projection at
-/// 39.9° N, axis heading 30°. Every profile starts with a 1-h hold. Same seed,
-/// same file.
+/// A physics-based plant (docs/simulator.md): air → housing base and top →
+/// self-heated electronics → fiber coil in 2 … 8 radial layers on its hub →
+/// thermometers with their own lags, noise and TMP117 quantisation. Bias =
+/// static cubic in the coil temperature + Shupe term in the layers'
+/// temperature rates with a T-dependent gain + thermal stress and radial
+/// gradient terms (+ axial gradient with --multi) + bias instability + angle
+/// random walk. ref_dph is the Earth-rate projection at 39.9° N, axis heading
+/// 30°. Every run starts at power-on, soaked at its first temperature; the
+/// chamber protocols ifog, cycle and random start with a 1-h hold. --unit N
+/// draws a whole gyro from documented ranges. Same seed, same file.
+///
+/// Example: trainer simulate --profile field --unit 3 --seed 7 -o field.csv
 #[derive(Args, Debug)]
 struct SimulateArgs {
-    /// Temperature profile: ifog (25 → 10 → 40 → 25 °C with holds, IFOG paper), cycle
-    /// (20 → −40 → 60 → −40 → 60 → 20 °C, RLG paper) or random set points and ramps.
-    #[arg(long, value_enum, default_value_t = Profile::Ifog)]
+    /// Temperature history: chamber ifog, cycle, random, designed; in use cold-start,
+    /// ambient-steps, swings, day-cycle, field (docs/simulator.md, "Profiles").
+    #[arg(long, value_enum, default_value_t = Profile::Ifog, conflicts_with = "chamber_profile")]
     profile: Profile,
+    /// Simulate a planned chamber run: a CSV with time_s,chamber_c set points
+    /// (piecewise linear, as `trainer plan` writes it).
+    #[arg(long, value_name = "PLAN.csv")]
+    chamber_profile: Option<PathBuf>,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Chamber ramp rate between set points, °C/min (ifog and cycle; the RLG paper used 1, 2, 3, 5).
-    #[arg(long, value_name = "C_PER_MIN", default_value_t = 1.0)]
-    ramp: f64,
+    /// Another gyro of the same kind: draw every plant and bias constant from the
+    /// documented unit-to-unit ranges, seeded by N (--params overrides fields of it).
+    #[arg(long, value_name = "N")]
+    unit: Option<u64>,
+    /// Chamber ramp rate between set points, °C/min (ifog and cycle: 1, the RLG paper
+    /// used 1, 2, 3, 5; designed: 5).
+    #[arg(long, value_name = "C_PER_MIN")]
+    ramp: Option<f64>,
     /// Gyro sample rate, Hz.
     #[arg(long, value_name = "F", default_value_t = 1.0)]
     rate_hz: f64,
     /// Hold at each set point, minutes (ifog and cycle).
     #[arg(long, value_name = "MINUTES", default_value_t = 120.0)]
     hold_min: f64,
-    /// Total length, hours: cuts the profile or extends its last hold (random: default 8 h).
+    /// Total length, hours: cuts the profile or extends its last hold (random: 8 h and the hold
+    /// it is in; cold-start 4, ambient-steps 6, swings 4, day-cycle 24, field 8 h).
     #[arg(long, value_name = "H")]
     hours: Option<f64>,
     /// Set-point range of the random profile, °C, as MIN,MAX.
     #[arg(long, value_name = "MIN,MAX", value_delimiter = ',', allow_hyphen_values = true, default_values_t = [-40.0, 60.0])]
     random_range: Vec<f64>,
+    /// Ramp-rate range of the random profile, °C/min, as SLOWEST,FASTEST.
+    #[arg(long, value_name = "MIN,MAX", value_delimiter = ',', default_values_t = [0.5, 5.0])]
+    ramp_range: Vec<f64>,
+    /// The same run with every thermal bias term zeroed: its noise alone, sample
+    /// for sample (the run's noise ceiling).
+    #[arg(long)]
+    noise_only: bool,
     /// Write 8 thermometers temp_a … temp_h at different places (temp_c is the loop
     /// sensor) and add the axial-gradient bias they reveal (RLG paper).
     #[arg(long)]
     multi: bool,
     /// Another gyro: a JSON file overriding any of the thermal network's time
     /// constants and the bias and noise coefficients (docs/simulator.md lists
-    /// every field, its unit and default), e.g.
+    /// every field, its unit and default; with --unit, over that unit's), e.g.
     /// {"plant": {"tau_top_s": 2400}, "gyro": {"axial_gradient_dph_per_c": 0.05}}.
     /// The run's header records them (# simulator_params).
     #[arg(long, value_name = "FILE.json")]
@@ -708,10 +729,12 @@ fn cmd_decode(a: DecodeArgs) -> anyhow::Result<()> {
 }
 
 fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        a.ramp.is_finite() && a.ramp > 0.0 && a.ramp <= 20.0,
-        "--ramp must be 0 … 20 °C/min"
-    );
+    if let Some(ramp) = a.ramp {
+        anyhow::ensure!(
+            ramp.is_finite() && ramp > 0.0 && ramp <= 20.0,
+            "--ramp must be 0 … 20 °C/min"
+        );
+    }
     anyhow::ensure!(
         a.rate_hz.is_finite() && a.rate_hz > 0.0 && a.rate_hz <= 10_000.0,
         "--rate-hz must be 0 … 10000 Hz"
@@ -727,23 +750,46 @@ fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
         lo.is_finite() && hi.is_finite() && lo >= -55.0 && hi <= 150.0 && hi - lo >= 5.0,
         "--random-range must lie within −55 … 150 °C (the TMP117's range) and span at least 5 °C"
     );
+    let [slowest, fastest] = a.ramp_range[..] else {
+        anyhow::bail!("--ramp-range takes SLOWEST,FASTEST in °C/min")
+    };
+    anyhow::ensure!(
+        slowest.is_finite() && fastest.is_finite() && 0.01 <= slowest && slowest <= fastest && fastest <= 20.0,
+        "--ramp-range must lie within 0.01 … 20 °C/min, slowest first"
+    );
     if let Some(h) = a.hours {
         anyhow::ensure!(h.is_finite() && h > 0.0 && h <= 1000.0, "--hours must be 0 … 1000");
     }
-    let run = ChamberRun {
-        profile: a.profile,
-        ramp_c_per_min: a.ramp,
-        hold_s: a.hold_min * 60.0,
-        duration_s: a.hours.map(|h| h * 3600.0),
-        sample_rate_hz: a.rate_hz,
-        multi: a.multi,
-        random_range_c: (lo, hi),
-        seed: a.seed,
-        params: match &a.params {
-            Some(path) => read_sim_params(path)?,
-            None => SimParams::default(),
-        },
+    let unit_params = a
+        .unit
+        .map_or_else(SimParams::default, trainer::simulate::unit::unit_params);
+    let mut run = match &a.chamber_profile {
+        Some(path) => ChamberRun::planned(
+            trainer::simulate::chamber_file::read_chamber_profile(path)?,
+            &path.display().to_string(),
+            a.seed,
+        ),
+        None => ChamberRun::with_profile(a.profile, a.seed),
     };
+    run.ramp_c_per_min = a.ramp.unwrap_or(match a.profile {
+        Profile::Designed => trainer::simulate::profile::DESIGNED_RAMP_C_PER_MIN,
+        _ => 1.0,
+    });
+    run.hold_s = a.hold_min * 60.0;
+    run.duration_s = a.hours.map(|h| h * 3600.0);
+    run.sample_rate_hz = a.rate_hz;
+    run.multi = a.multi;
+    run.random_range_c = (lo, hi);
+    run.ramp_range_c_per_min = (slowest, fastest);
+    run.unit = a.unit;
+    run.noise_only = a.noise_only;
+    run.params = match &a.params {
+        Some(path) => read_sim_params(path, &unit_params)?,
+        None => unit_params,
+    };
+    run.params
+        .check()
+        .map_err(|reason| anyhow::anyhow!("cannot simulate these parameters: {reason}"))?;
     write_atomically(&a.output, |w| {
         run.write_csv(w)
             .with_context(|| format!("{}: write failed", a.output.display()))
@@ -752,20 +798,15 @@ fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The simulator's parameters from a JSON file: syntax errors and unknown
-/// fields name the file, line and column; impossible values the field.
-fn read_sim_params(path: &Path) -> anyhow::Result<SimParams> {
+/// The simulator's parameters `base` with a JSON file's fields over them:
+/// syntax errors and unknown fields name the file, line and column;
+/// impossible values the field.
+fn read_sim_params(path: &Path, base: &SimParams) -> anyhow::Result<SimParams> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let params: SimParams = serde_json::from_str(&text).map_err(|e| {
-        let message = e.to_string();
-        // serde_json appends the place; it leads here instead.
-        let message = message.split(" at line ").next().unwrap_or(&message).to_owned();
-        anyhow::anyhow!("{}:{}:{}: {message}", path.display(), e.line(), e.column())
-    })?;
-    params
-        .check()
-        .map_err(|reason| anyhow::anyhow!("{}: {reason}", path.display()))?;
-    Ok(params)
+    base.overridden(&text).map_err(|e| match e {
+        ParamsError::Syntax { .. } => anyhow::anyhow!("{}:{e}", path.display()),
+        ParamsError::Invalid(_) => anyhow::anyhow!("{}: {e}", path.display()),
+    })
 }
 
 fn cmd_eval(a: EvalArgs) -> anyhow::Result<()> {

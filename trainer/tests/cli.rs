@@ -844,3 +844,105 @@ fn simulate_params_describe_another_gyro_and_bad_files_are_refused_with_their_pl
         assert!(!out.exists(), "nothing written for {content}");
     }
 }
+
+#[test]
+fn simulate_runs_a_planned_chamber_profile_and_refuses_bad_plans_with_their_place() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("planned.csv");
+    let simulate = |plan: &Path| {
+        trainer(&[
+            "simulate",
+            "--chamber-profile",
+            plan.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let plan = write(
+        &dir,
+        "plan.csv",
+        b"# written by: trainer plan\ntime_s,chamber_c\n0,-20\n600,-20\n1800,40\n3600,40\n",
+    );
+    let o = simulate(&plan);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("# profile: chamber-profile\n"), "{text:.400}");
+    assert!(
+        text.contains("# power_on: at 0 s, soaked at -20.00 °C\n"),
+        "{text:.400}"
+    );
+    // One sample a second up to the plan's last set point; the coil follows the chamber up.
+    let rows = data_rows(&text);
+    assert_eq!(rows.len(), 3600);
+    let temp = |row: &str| row.split(',').nth(2).unwrap().parse::<f64>().unwrap();
+    assert!(
+        temp(rows[0]) < -19.9 && temp(rows[3599]) > 0.0,
+        "{} … {}",
+        rows[0],
+        rows[3599]
+    );
+    std::fs::remove_file(&out).unwrap();
+    let bad = write(&dir, "bad.csv", b"time_s,chamber_c\n0,20\n60,2O\n");
+    let o = simulate(&bad);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("bad.csv:3:4: chamber_c: \"2O\" is not a number"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists(), "nothing written for a bad plan");
+    // A plan is the profile: both at once is a usage error.
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        "cycle",
+        "--chamber-profile",
+        plan.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+#[test]
+fn simulate_unit_draws_a_recorded_gyro_that_params_override_and_in_use_runs_start_at_power_on() {
+    let dir = TempDir::new().unwrap();
+    let run = |name: &str, args: &[&str]| {
+        let out = dir.path().join(name);
+        let mut all = vec![
+            "simulate",
+            "--profile",
+            "cold-start",
+            "--seed",
+            "4",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        all.extend(args);
+        let o = trainer(&all);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read_to_string(out).unwrap()
+    };
+    let unit = run("unit.csv", &["--unit", "3"]);
+    assert!(
+        unit.contains("# unit: 3\n") && unit.contains("# simulator_params: {"),
+        "{unit:.600}"
+    );
+    assert!(unit.contains("in-use history") && unit.contains("# power_on: at 0 s, soaked at -"));
+    // The in-use cold start lasts 4 h at 1 Hz unless --hours says otherwise.
+    assert_eq!(data_rows(&unit).len(), 4 * 3600);
+    assert_ne!(data_rows(&unit), data_rows(&run("documented.csv", &[])));
+    // --params over --unit: the unit with that one field changed.
+    let arw = write(&dir, "arw.json", br#"{"gyro": {"arw_deg_per_sqrt_h": 0.004}}"#);
+    let noisier = run("noisier.csv", &["--unit", "3", "--params", arw.to_str().unwrap()]);
+    let params = |text: &str| -> serde_json::Value {
+        let line = text
+            .lines()
+            .find_map(|l| l.strip_prefix("# simulator_params: "))
+            .unwrap();
+        serde_json::from_str(line).unwrap()
+    };
+    let (mut expected, got) = (params(&unit), params(&noisier));
+    expected["gyro"]["arw_deg_per_sqrt_h"] = serde_json::json!(0.004);
+    assert_eq!(got, expected);
+}
