@@ -133,6 +133,7 @@ fn malformed_runs_are_refused_naming_file_line_and_column() {
             ":4: column rate_dph (field 2): field is empty",
         ),
     ];
+    let out = dir.path().join("out.csv");
     for (name, rows, expected) in cases {
         let run = write(&dir, &format!("{name}.csv"), format!("{GOOD_HEADER}{rows}").as_bytes());
         for args in [
@@ -142,7 +143,7 @@ fn malformed_runs_are_refused_naming_file_line_and_column() {
                 model.to_str().unwrap(),
                 run.to_str().unwrap(),
                 "-o",
-                "/dev/null",
+                out.to_str().unwrap(),
             ],
             vec!["eval", "--model", model.to_str().unwrap(), run.to_str().unwrap()],
             vec![
@@ -198,16 +199,10 @@ fn header_problems_are_refused_at_the_header_line() {
             "bad_flag.csv:2: column temp_fault (field 4): \"2\" is not 0 or 1",
         ),
     ];
+    let out = dir.path().join("out.csv");
     for (name, content, expected) in cases {
         let run = write(&dir, &format!("{name}.csv"), content);
-        let o = trainer(&[
-            "compensate",
-            "--model",
-            model.to_str().unwrap(),
-            run.to_str().unwrap(),
-            "-o",
-            "/dev/null",
-        ]);
+        let o = compensate(&model, &run, &out);
         assert_eq!(o.status.code(), Some(1), "{name}");
         assert!(stderr(&o).contains(expected), "{name}: {}", stderr(&o));
     }
@@ -222,7 +217,9 @@ fn original_bmi270_terminal_logs_get_a_clear_error() {
         eprintln!("skipping: {} not present", original.display());
         return;
     }
-    let o = trainer(&["fit", "-q", original.to_str().unwrap(), "-o", "/dev/null"]);
+    let dir = TempDir::new().unwrap();
+    let model = dir.path().join("m.bin");
+    let o = trainer(&["fit", "-q", original.to_str().unwrap(), "-o", model.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
         stderr(&o).contains("BMI_270_hot_test.csv:1: header has no required column time_s"),
@@ -324,6 +321,7 @@ fn corrupt_blobs_are_refused_with_the_reason() {
         ("empty", Vec::new(), "truncated"),
         ("version", version, "unsupported format version 7"),
     ];
+    let out = dir.path().join("out.csv");
     for (name, bytes, reason) in cases {
         let blob = write(&dir, &format!("{name}.bin"), &bytes);
         for args in [
@@ -333,7 +331,7 @@ fn corrupt_blobs_are_refused_with_the_reason() {
                 blob.to_str().unwrap(),
                 run.to_str().unwrap(),
                 "-o",
-                "/dev/null",
+                out.to_str().unwrap(),
             ],
             vec!["inspect", blob.to_str().unwrap()],
         ] {
@@ -602,7 +600,11 @@ fn fit_rejects_bad_options_and_writes_nothing() {
     let run = shared_data("ifog_train_1cpm.csv");
     let out = dir.path().join("m.bin");
     for (args, reason) in [
-        (vec!["--centers", "65"], "--centers 65"),
+        (vec!["--centers", "65"], "invalid value '65' for '--centers <K>': 65 is not in 1..=64"),
+        (vec!["--max-centers", "0"], "invalid value '0' for '--max-centers <K>'"),
+        (vec!["--folds", "0"], "invalid value '0' for '--folds <N>': 0 is not in 2..=20"),
+        (vec!["--folds", "1"], "invalid value '1' for '--folds <N>'"),
+        (vec!["--folds", "100000"], "invalid value '100000' for '--folds <N>'"),
         (vec!["--block-s", "0"], "--block-s"),
         (vec!["--rate-window-s=-3"], "--rate-window-s"),
         (
