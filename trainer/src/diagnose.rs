@@ -187,7 +187,9 @@ pub fn with_causes(error: anyhow::Error, paths: &[PathBuf], mask: u8) -> anyhow:
     if causes.is_empty() {
         error
     } else {
-        anyhow::anyhow!("{error}. Why: {}", causes.join("; "))
+        let error = error.to_string();
+        let stop = if error.ends_with('.') { "" } else { "." };
+        anyhow::anyhow!("{error}{stop} Why: {}", causes.join("; "))
     }
 }
 

@@ -204,7 +204,7 @@ impl Evaluator {
             ]
         };
         Evaluator {
-            run: path.display().to_string(),
+            run: text::path(path),
             nominal_period_s,
             has_ref,
             samples: 0,
@@ -398,7 +398,7 @@ pub fn compensate_reader(
 pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> anyhow::Result<(usize, FlagCounts)> {
     let mut out = Output::create(output, &[input], Existing::Replace)?;
     let c = compensate_reader(model, RunReader::open(input)?, &mut out)
-        .with_context(|| format!("compensating {}", text::path(input)))?;
+        .with_context(|| format!("{}: compensating {}", text::path(output), text::path(input)))?;
     out.commit()?;
     Ok((c.rows, c.flagged))
 }
@@ -422,8 +422,14 @@ pub fn compensate_command(
     let mask = model.features().set.thermometer_mask();
     reader.require_thermometers(mask)?;
     let mut out = Output::open(target)?;
-    let c = compensate_reader(Some(&model), reader, &mut out)
-        .with_context(|| format!("{}: compensating {}", text::path(output), text::path(run)))?;
+    // Errors of the run name it and the line; write errors name the output.
+    let c = compensate_reader(Some(&model), reader, &mut out).map_err(|e| {
+        if e.is::<crate::run::RunError>() {
+            e
+        } else {
+            e.context(text::path(output))
+        }
+    })?;
     require_compensated(run, c.rows, c.compensated, &c.diagnosis, mask, allow_uncompensated)?;
     out.commit()?;
     Ok(c)

@@ -16,8 +16,8 @@ pub const MAX_PREAMBLE_BYTES: usize = 1 << 20;
 /// Lowest `# sample_rate_hz` a run may state, Hz (one sample in 1000 s).
 pub const MIN_SAMPLE_RATE_HZ: f64 = 1e-3;
 
-/// Highest `# sample_rate_hz` a run may state, Hz.
-pub const MAX_SAMPLE_RATE_HZ: f64 = 1e5;
+/// Highest `# sample_rate_hz` a run may state, Hz (past any gyro's output rate).
+pub const MAX_SAMPLE_RATE_HZ: f64 = 1e6;
 
 /// Largest `trainer simulate --params` file, bytes.
 pub const MAX_PARAMS_BYTES: u64 = 1 << 20;

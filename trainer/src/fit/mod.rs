@@ -332,7 +332,8 @@ pub fn check_excitation(blocks: &Blocks, set: FeatureSet, opts: &FitOptions) -> 
         });
     if y_hi - y_lo < MIN_TARGET_SPREAD_DPH {
         missing.push(format!(
-            "the bias target rate_dph − ref_dph is {y_lo:.3e} °/h in every block: no excitation to fit (is rate_dph the gyro output?)"
+            "the bias target rate_dph − ref_dph is {} °/h in every block: no excitation to fit (is rate_dph the gyro output?)",
+            crate::sampling::sig(y_lo)
         ));
     }
     let (lo, hi) = blocks.block_range(0);
