@@ -29,7 +29,8 @@ pub struct Decoded {
 /// [`CSV_HEADER`]). A damaged frame is skipped and counted (a capture that
 /// starts mid-frame loses only that first partial frame); a capture without
 /// one valid frame in its first [`MAX_FRAME_SEARCH_BYTES`] is refused as
-/// not a capture, so an endless source ends quickly.
+/// not a capture, so an endless source ends quickly, and so is a capture
+/// that holds damaged frames only (an empty one decodes to no rows).
 pub fn decode_capture(capture: impl Read, out: &mut impl Write) -> anyhow::Result<Decoded> {
     let mut source = BufReader::with_capacity(1 << 16, capture);
     let mut decoded = Decoded::default();
@@ -80,6 +81,12 @@ pub fn decode_capture(capture: impl Read, out: &mut impl Write) -> anyhow::Resul
             }
         }
     }
+    if decoded.frames == 0 && decoded.damaged > 0 {
+        anyhow::bail!(
+            "{} damaged frame(s) and not one valid frame: not a capture of firmware output frames",
+            decoded.damaged
+        );
+    }
     Ok(decoded)
 }
 
@@ -110,6 +117,19 @@ fn skip_to_delimiter(source: &mut impl BufRead) -> std::io::Result<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_capture_of_damaged_frames_only_is_refused_an_empty_one_is_not() {
+        let mut out = Vec::new();
+        let err = decode_capture(&b"\x03abc\x00\x05\x00"[..], &mut out).unwrap_err();
+        assert!(
+            err.to_string().contains("2 damaged frame(s) and not one valid frame"),
+            "{err}"
+        );
+        let mut out = Vec::new();
+        assert_eq!(decode_capture(&b""[..], &mut out).unwrap(), Decoded::default());
+        assert_eq!(String::from_utf8(out).unwrap(), format!("{CSV_HEADER}\n"));
+    }
 
     #[test]
     fn endless_zeros_or_noise_are_refused_after_the_search_limit() {

@@ -808,8 +808,7 @@ fn cmd_decode(a: DecodeArgs) -> anyhow::Result<()> {
     let target = output::check_target(&a.output, &[&a.frames], a.force.existing())?;
     let capture = input::open(&a.frames).with_context(|| format!("{}: cannot read", text::path(&a.frames)))?;
     let mut out = Output::open(target)?;
-    let decoded =
-        trainer::frames::decode_capture(capture, &mut out).with_context(|| text::path(&a.frames))?;
+    let decoded = trainer::frames::decode_capture(capture, &mut out).with_context(|| text::path(&a.frames))?;
     out.commit()?;
     writeln!(stdout(), "wrote {} ({} frames)", text::path(&a.output), decoded.frames)?;
     if decoded.damaged > 0 {

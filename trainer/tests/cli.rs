@@ -1,68 +1,13 @@
 //! The `trainer` binary as a user meets it: exit codes, messages naming file,
 //! line and column, files written.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
+use std::path::Path;
+use std::process::Output;
+
+use common::{fitted_model, shared_data, stderr, stdout, trainer, write};
 use tempfile::TempDir;
-
-fn trainer(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_trainer"))
-        .args(args)
-        .output()
-        .expect("trainer runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn shared_data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../examples/data")
-        .join(name)
-}
-
-fn write(dir: &TempDir, name: &str, content: &[u8]) -> PathBuf {
-    let p = dir.path().join(name);
-    std::fs::write(&p, content).unwrap();
-    p
-}
-
-/// A model fitted once on a short synthetic chamber run, shared by the tests
-/// that need any valid model.
-fn fitted_model(dir: &TempDir) -> PathBuf {
-    let run = dir.path().join("train.csv");
-    let o = trainer(&[
-        "simulate",
-        "--ramp",
-        "1",
-        "--hold-min",
-        "30",
-        "--seed",
-        "7",
-        "-o",
-        run.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let model = dir.path().join("model.bin");
-    // The option before the run file: it must not swallow it.
-    let o = trainer(&[
-        "fit",
-        "-q",
-        "--rate-window-s",
-        "60",
-        run.to_str().unwrap(),
-        "-o",
-        model.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    model
-}
 
 /// `trainer compensate --model MODEL RUN -o OUT`.
 fn compensate(model: &Path, run: &Path, out: &Path) -> Output {
@@ -600,9 +545,15 @@ fn fit_rejects_bad_options_and_writes_nothing() {
     let run = shared_data("ifog_train_1cpm.csv");
     let out = dir.path().join("m.bin");
     for (args, reason) in [
-        (vec!["--centers", "65"], "invalid value '65' for '--centers <K>': 65 is not in 1..=64"),
+        (
+            vec!["--centers", "65"],
+            "invalid value '65' for '--centers <K>': 65 is not in 1..=64",
+        ),
         (vec!["--max-centers", "0"], "invalid value '0' for '--max-centers <K>'"),
-        (vec!["--folds", "0"], "invalid value '0' for '--folds <N>': 0 is not in 2..=20"),
+        (
+            vec!["--folds", "0"],
+            "invalid value '0' for '--folds <N>': 0 is not in 2..=20",
+        ),
         (vec!["--folds", "1"], "invalid value '1' for '--folds <N>'"),
         (vec!["--folds", "100000"], "invalid value '100000' for '--folds <N>'"),
         (vec!["--block-s", "0"], "--block-s"),

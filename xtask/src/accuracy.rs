@@ -350,7 +350,15 @@ fn peer_rows(
     let mut rows = Vec::new();
     let blocks = |file: &Path| -> anyhow::Result<PathBuf> {
         let out = file.with_extension("blocks.csv");
-        trainer(&["blocks", "--force", path(file), "--model", path(default_model), "-o", path(&out)])?;
+        trainer(&[
+            "blocks",
+            "--force",
+            path(file),
+            "--model",
+            path(default_model),
+            "-o",
+            path(&out),
+        ])?;
         Ok(out)
     };
     let mut cmd = Command::new(python);
