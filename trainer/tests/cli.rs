@@ -4,22 +4,9 @@
 mod common;
 
 use std::path::Path;
-use std::process::Output;
 
-use common::{fitted_model, shared_data, stderr, stdout, trainer, write};
+use common::{compensate, fitted_model, shared_data, stderr, stdout, trainer, write};
 use tempfile::TempDir;
-
-/// `trainer compensate --model MODEL RUN -o OUT`.
-fn compensate(model: &Path, run: &Path, out: &Path) -> Output {
-    trainer(&[
-        "compensate",
-        "--model",
-        model.to_str().unwrap(),
-        run.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ])
-}
 
 /// `trainer blocks RUN --block-s 60 -o OUT` with `args`, which must succeed; the CSV written.
 fn blocks_csv(run: &Path, out: &Path, args: &[&str]) -> String {
@@ -147,7 +134,7 @@ fn header_problems_are_refused_at_the_header_line() {
     let out = dir.path().join("out.csv");
     for (name, content, expected) in cases {
         let run = write(&dir, &format!("{name}.csv"), content);
-        let o = compensate(&model, &run, &out);
+        let o = compensate(&model, &run, &out, &[]);
         assert_eq!(o.status.code(), Some(1), "{name}");
         assert!(stderr(&o).contains(expected), "{name}: {}", stderr(&o));
     }
@@ -193,7 +180,7 @@ fn converted_bmi270_logs_are_read_but_cannot_identify_a_model() {
 
     // compensate accepts them: one output row per input row.
     let out = dir.path().join("hot_comp.csv");
-    let o = compensate(&model, &hot, &out);
+    let o = compensate(&model, &hot, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (input, output) = (
         std::fs::read_to_string(&hot).unwrap(),
@@ -229,7 +216,7 @@ fn tolerable_variants_are_accepted_row_for_row() {
     for (name, content) in variants {
         let run = write(&dir, &format!("{name}.csv"), content.as_bytes());
         let out = dir.path().join(format!("{name}_out.csv"));
-        let o = compensate(&model, &run, &out);
+        let o = compensate(&model, &run, &out, &[]);
         assert!(o.status.success(), "{name}: {}", stderr(&o));
         let text = std::fs::read_to_string(&out).unwrap();
         let data = data_rows(&text);

@@ -8,7 +8,7 @@ use std::os::unix::fs::{PermissionsExt, symlink};
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use common::{fitted_model, stderr, stdout, trainer, trainer_with_stdin, write};
+use common::{compensate, fitted_model, stderr, stdout, trainer, trainer_with_stdin, write};
 use tempfile::TempDir;
 
 /// Fails unless `o` exited 1 with a message containing `expected` and no panic.
@@ -118,15 +118,7 @@ fn no_command_replaces_a_link_a_device_an_input_the_model_or_an_existing_file_wi
     refused(&o, "is also an input of this command");
     // With --force an ordinary file is replaced, keeping its mode.
     std::fs::set_permissions(&existing, std::fs::Permissions::from_mode(0o640)).unwrap();
-    let o = trainer(&[
-        "compensate",
-        "--model",
-        m,
-        r,
-        "-o",
-        existing.to_str().unwrap(),
-        "--force",
-    ]);
+    let o = compensate(&model, &run, &existing, &["--force"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_ne!(std::fs::read(&existing).unwrap(), b"old");
     let mode = std::fs::metadata(&existing).unwrap().permissions().mode() & 0o777;
@@ -253,23 +245,14 @@ fn every_input_is_read_within_its_limit_whatever_its_shape() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
     let out = dir.path().join("out.csv");
-    let compensate = |run: &Path| {
-        trainer(&[
-            "compensate",
-            "--model",
-            model.to_str().unwrap(),
-            run.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-        ])
-    };
+    let compensate_run = |run: &Path| compensate(&model, run, &out, &[]);
     let commas = write(
         &dir,
         "commas.csv",
         format!("{}\n0,1,2\n", ",".repeat(10_000_000)).as_bytes(),
     );
     refused(
-        &compensate(&commas),
+        &compensate_run(&commas),
         "commas.csv:1: line is longer than 64 KiB (the limit",
     );
     let wide = write(
@@ -278,29 +261,22 @@ fn every_input_is_read_within_its_limit_whatever_its_shape() {
         format!("time_s,rate_dph,temp_c{}\n", ",x".repeat(2000)).as_bytes(),
     );
     refused(
-        &compensate(&wide),
+        &compensate_run(&wide),
         "wide.csv:1: header has 2003 columns; at most 1024 are read (the limit)",
     );
     let comments = write(&dir, "comments.csv", "# a comment line\n".repeat(100_000).as_bytes());
     refused(
-        &compensate(&comments),
+        &compensate_run(&comments),
         "of metadata, comment and blank lines before the header (the limit)",
     );
     refused(
-        &compensate(Path::new("/dev/zero")),
+        &compensate_run(Path::new("/dev/zero")),
         "/dev/zero:1: line is longer than 64 KiB",
     );
     assert!(!out.exists());
     // Model blobs: at most 4 KiB, one blob per file.
     let run = dir.path().join("train.csv");
-    let o = trainer(&[
-        "compensate",
-        "--model",
-        "/dev/zero",
-        run.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = compensate(Path::new("/dev/zero"), &run, &out, &[]);
     refused(&o, "/dev/zero: model refused: more than 4096 bytes");
     let mut padded = std::fs::read(&model).unwrap();
     padded.extend_from_slice(b"trailing bytes");
@@ -324,9 +300,9 @@ fn standard_input_and_fifos_are_read_once_and_fit_asks_for_a_file() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
     let run = dir.path().join("train.csv");
-    let (m, r) = (model.to_str().unwrap(), run.to_str().unwrap());
+    let m = model.to_str().unwrap();
     let from_file = dir.path().join("file.csv");
-    let o = trainer(&["compensate", "--model", m, r, "-o", from_file.to_str().unwrap()]);
+    let o = compensate(&model, &run, &from_file, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let from_stdin = dir.path().join("stdin.csv");
     let text = std::fs::read(&run).unwrap();
@@ -361,14 +337,7 @@ fn standard_input_and_fifos_are_read_once_and_fit_asks_for_a_file() {
         std::thread::spawn(move || std::fs::write(fifo, text))
     };
     let from_fifo = dir.path().join("fifo.csv");
-    let o = trainer(&[
-        "compensate",
-        "--model",
-        m,
-        fifo.to_str().unwrap(),
-        "-o",
-        from_fifo.to_str().unwrap(),
-    ]);
+    let o = compensate(&model, &fifo, &from_fifo, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     writer.join().unwrap().unwrap();
     assert_eq!(std::fs::read(&from_fifo).unwrap(), std::fs::read(&from_file).unwrap());
@@ -405,22 +374,14 @@ fn implausible_temperatures_are_named_with_their_range_and_a_units_hint() {
         let o = trainer(&["fit", "-q", r, "-o", dir.path().join("m.bin").to_str().unwrap()]);
         refused(&o, range);
         refused(&o, hint);
-        let o = trainer(&["compensate", "--model", m, r, "-o", out.to_str().unwrap()]);
+        let o = compensate(&model, &run, &out, &[]);
         refused(&o, "no row could be compensated");
         refused(&o, hint);
         assert!(!out.exists(), "{name}: nothing compensated, nothing written");
         let o = trainer(&["eval", "--model", m, r]);
         refused(&o, range);
         // Asked for, the uncompensated output is written.
-        let o = trainer(&[
-            "compensate",
-            "--model",
-            m,
-            r,
-            "-o",
-            out.to_str().unwrap(),
-            "--allow-uncompensated",
-        ]);
+        let o = compensate(&model, &run, &out, &["--allow-uncompensated"]);
         assert!(o.status.success(), "{}", stderr(&o));
         assert!(stdout(&o).contains("\"no_valid_model\":12600"), "{}", stdout(&o));
         std::fs::remove_file(&out).unwrap();
@@ -469,22 +430,12 @@ fn sample_rate_metadata_and_changes_of_rate_are_refused_where_they_are() {
             &trainer(&["fit", "-q", r, "-o", dir.path().join("m.bin").to_str().unwrap()]),
             expected,
         );
-        refused(
-            &trainer(&["compensate", "--model", m, r, "-o", out.to_str().unwrap()]),
-            expected,
-        );
+        refused(&compensate(&model, run, &out, &[]), expected);
         refused(&trainer(&["eval", "--model", m, r]), expected);
     }
     // An annotation that is not a number states nothing and is ignored, as by the firmware replay.
     let noted = edited_run(&dir, "noted.csv", "# sample_rate_hz: 1 (assumed)\n", |_, _| {});
-    let o = trainer(&[
-        "compensate",
-        "--model",
-        m,
-        noted.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = compensate(&model, &noted, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
 

@@ -33,6 +33,19 @@ pub fn trainer_with_stdin(args: &[&str], input: &[u8]) -> Output {
     child.wait_with_output().expect("trainer finishes")
 }
 
+/// `trainer compensate --model MODEL RUN -o OUT` and `extra` options.
+pub fn compensate(model: &Path, run: &Path, out: &Path, extra: &[&str]) -> Output {
+    let args = [
+        "compensate",
+        "--model",
+        model.to_str().unwrap(),
+        run.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    trainer(&[&args[..], extra].concat())
+}
+
 /// What the command printed on standard error.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
