@@ -103,8 +103,8 @@ pub fn evaluate_file(model: &Model, path: &Path) -> anyhow::Result<RunEvaluation
     Ok(evaluate_reader(model, RunReader::open(path)?)?.0)
 }
 
-/// [`evaluate_file`] on an open reader; also returns the flag counts'
-/// source facts ([`RunDiagnosis`]) and the number of compensated rows.
+/// [`evaluate_file`] on an open reader; also returns what the rows showed
+/// ([`RunDiagnosis`]) and the number of compensated rows (no flag 4).
 pub fn evaluate_reader(model: &Model, reader: RunReader) -> anyhow::Result<(RunEvaluation, RunDiagnosis, usize)> {
     let path = reader.path().to_owned();
     let run = StreamedRun::from_reader(reader, model.features().set.thermometer_mask())?;
@@ -123,9 +123,10 @@ pub fn evaluate_reader(model: &Model, reader: RunReader) -> anyhow::Result<(RunE
     Ok((evaluator.finish(), diagnosis, compensated))
 }
 
-/// Refuses a run where no row could be compensated (`compensated` = 0),
-/// naming the causes [`RunDiagnosis::causes`] finds for the thermometers
-/// of `mask`, unless `allow_uncompensated`.
+/// Refuses a run of `rows` rows where none could be compensated
+/// (`compensated` = 0), naming the causes [`RunDiagnosis::causes`] finds
+/// for the thermometers of `mask`, unless `allow_uncompensated`. A run
+/// without rows has nothing to compensate and passes.
 pub fn require_compensated(
     path: &Path,
     rows: usize,
@@ -134,7 +135,7 @@ pub fn require_compensated(
     mask: u8,
     allow_uncompensated: bool,
 ) -> anyhow::Result<()> {
-    if compensated > 0 || allow_uncompensated {
+    if compensated > 0 || rows == 0 || allow_uncompensated {
         return Ok(());
     }
     let causes = diagnosis.causes(mask);
@@ -149,10 +150,22 @@ pub fn require_compensated(
     )
 }
 
-/// `trainer eval`: before/after accuracy of the model at `model_path` on each
-/// run (`-`: standard input), each read once. A run where no row could be
-/// compensated is refused unless `allow_uncompensated`; a run whose rate
-/// never varies is refused (there is nothing to measure).
+/// Refuses a run that cannot be evaluated: fewer than 2 rows, or a bias
+/// target that never varies (its before/after gains would be 0/0).
+pub fn require_evaluable(path: &Path, rows: usize, diagnosis: &RunDiagnosis) -> anyhow::Result<()> {
+    if rows < 2 {
+        anyhow::bail!("{}: run has {rows} data rows; at least 2 are needed", text::path(path));
+    }
+    if diagnosis.target_is_constant() {
+        anyhow::bail!("{}: {}", text::path(path), diagnosis.constant_target());
+    }
+    Ok(())
+}
+
+/// `trainer eval`: before/after accuracy of `model` on each run (`-`:
+/// standard input), each read once. A run where no row could be
+/// compensated is refused unless `allow_uncompensated`, as is one that
+/// cannot be evaluated ([`require_evaluable`]).
 pub fn evaluate_files(
     model: &Model,
     paths: &[std::path::PathBuf],
@@ -164,9 +177,7 @@ pub fn evaluate_files(
         .iter()
         .map(|path| {
             let (evaluation, diagnosis, compensated) = evaluate_reader(model, RunReader::open(path)?)?;
-            if diagnosis.target_is_constant() {
-                anyhow::bail!("{}: {}", text::path(path), diagnosis.constant_target());
-            }
+            require_evaluable(path, evaluation.samples, &diagnosis)?;
             require_compensated(
                 path,
                 evaluation.samples,

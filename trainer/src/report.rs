@@ -14,7 +14,7 @@ use plotters::prelude::*;
 use rbf_core::{FeatureSet, FeatureVector, Model};
 
 use crate::diagnose::RunDiagnosis;
-use crate::evaluate::{Evaluator, RunEvaluation, require_compensated};
+use crate::evaluate::{Evaluator, RunEvaluation, require_compensated, require_evaluable};
 use crate::output::{self, Existing, Output};
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, text};
@@ -458,9 +458,7 @@ fn read_run(
         rows += 1;
     })?;
     *first_index += rows;
-    if diagnosis.target_is_constant() {
-        anyhow::bail!("{}: {}", text::path(&path), diagnosis.constant_target());
-    }
+    require_evaluable(&path, rows, &diagnosis)?;
     require_compensated(&path, rows, compensated, &diagnosis, mask, allow_uncompensated)?;
     // Without ref_dph the reference is the run's mean rate, known only now:
     // a block mean of (v − m) is the block mean of v, less m.

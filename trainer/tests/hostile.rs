@@ -475,6 +475,19 @@ fn rates_beyond_any_gyro_and_a_rate_that_never_varies_are_refused() {
         &trainer(&["eval", "--model", m, r]),
         "rate_dph − ref_dph is 0 °/h on every one of its 12600 rows",
     );
+    // A header alone: nothing to evaluate; compensating it gives the header alone.
+    let empty = write(&dir, "empty.csv", b"time_s,rate_dph,temp_c\n");
+    refused(
+        &trainer(&["eval", "--model", m, empty.to_str().unwrap()]),
+        "empty.csv: run has 0 data rows; at least 2 are needed",
+    );
+    let out = dir.path().join("empty_out.csv");
+    let o = compensate(&model, &empty, &out, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read_to_string(&out).unwrap(),
+        "time_s,rate_dph,temp_c,bias_dph,rate_comp_dph,flags\n"
+    );
 }
 
 #[test]
