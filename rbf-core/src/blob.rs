@@ -24,9 +24,9 @@ use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 use crate::features::FeatureConfig;
-use crate::model::{Model, ModelBody, ModelError, ModelInfo, ModelKind, SERIAL_CAPACITY};
+use crate::model::{BodyParams, Model, ModelBody, ModelError, ModelInfo, ModelKind, SERIAL_CAPACITY};
 use crate::poly::Poly3;
-use crate::rbf::{RbfNetwork, RbfParams};
+use crate::rbf::RbfParams;
 use crate::{MAX_CENTERS, MAX_INPUTS};
 
 /// First four bytes of every blob.
@@ -345,6 +345,24 @@ pub fn encode(model: &Model, out: &mut [u8]) -> Result<usize, EncodeError> {
 
 /// Decodes and validates a blob from untrusted bytes (trailing bytes ignored).
 pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
+    let mut model = Model::EMPTY;
+    let len = decode_into(&mut model, bytes)?;
+    Ok(Decoded { model, len })
+}
+
+/// [`decode`] in place: validates the blob in `bytes` and builds its model
+/// in `model` (the firmware's `static`, so that no 4 KiB model is moved by
+/// value); returns the bytes the blob occupied. On error `model` is
+/// [`Model::EMPTY`] and the reason is returned.
+pub fn decode_into(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError> {
+    let result = decode_payload(model, bytes);
+    if result.is_err() {
+        *model = Model::EMPTY;
+    }
+    result
+}
+
+fn decode_payload(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError> {
     let header = Header::parse(bytes)?;
     crc_status(bytes, &header)?;
     let payload = bytes
@@ -356,16 +374,18 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
         return Err(DecodeError::Malformed);
     }
     let mut ranges = [(0.0f32, 0.0f32); MAX_INPUTS];
-    for (i, r) in ranges.iter_mut().enumerate().take(dims) {
-        *r = (common.input_min[i], common.input_max[i]);
+    for ((r, lo), hi) in ranges.iter_mut().zip(&common.input_min).zip(&common.input_max) {
+        *r = (*lo, *hi);
     }
-    let (body, rest) = match ModelKind::from_code(header.kind_code) {
+    let ranges = ranges.get(..dims).ok_or(DecodeError::Malformed)?;
+    let info = ModelInfo { serial: common.serial };
+    match ModelKind::from_code(header.kind_code) {
         Some(ModelKind::Rbf) => {
             let (w, rest): (RbfWire, _) = postcard::take_from_bytes(rest).map_err(|_| DecodeError::Malformed)?;
-            if w.widths.len() != header.centers as usize {
+            if w.widths.len() != header.centers as usize || !rest.is_empty() {
                 return Err(DecodeError::Malformed);
             }
-            let net = RbfNetwork::new(&RbfParams {
+            let params = RbfParams {
                 offset: &w.offset,
                 scale: &w.scale,
                 kernel_inputs: w.kernel_inputs as usize,
@@ -374,28 +394,20 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
                 weights: &w.weights,
                 linear: &w.linear,
                 constant: w.constant,
-            })?;
-            (ModelBody::Rbf(net), rest)
+            };
+            model.assign(common.features, ranges, BodyParams::Rbf(&params), info)?;
         }
         Some(ModelKind::Poly3) => {
             let (w, rest): (Poly3Wire, _) = postcard::take_from_bytes(rest).map_err(|_| DecodeError::Malformed)?;
-            if header.centers != 0 {
+            if header.centers != 0 || !rest.is_empty() {
                 return Err(DecodeError::Malformed);
             }
-            (ModelBody::Poly3(Poly3::new(w.ref_temp_c, w.coeffs)?), rest)
+            let poly = Poly3::new(w.ref_temp_c, w.coeffs)?;
+            model.assign(common.features, ranges, BodyParams::Poly3(poly), info)?;
         }
         None => return Err(DecodeError::UnknownKind(header.kind_code)),
-    };
-    if !rest.is_empty() {
-        return Err(DecodeError::Malformed);
     }
-    let info = ModelInfo { serial: common.serial };
-    let ranges = ranges.get(..dims).ok_or(DecodeError::Malformed)?;
-    let model = Model::new(common.features, ranges, body, info)?;
-    Ok(Decoded {
-        model,
-        len: header.blob_len(),
-    })
+    Ok(header.blob_len())
 }
 
 #[cfg(test)]
@@ -406,6 +418,7 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
 mod tests {
     use super::*;
     use crate::features::FeatureSet;
+    use crate::rbf::RbfNetwork;
 
     fn rbf_model() -> Model {
         let features = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
@@ -455,6 +468,39 @@ mod tests {
             assert_eq!(decoded.model, model);
             assert_eq!(decoded.len, blob.len());
         }
+    }
+
+    #[test]
+    fn decode_into_builds_the_model_in_place_and_empties_it_on_a_defect() {
+        let rbf = encoded(&rbf_model());
+        let poly_model = Model::new(
+            FeatureConfig::single(FeatureSet::Temp, 0.0),
+            &[(10.0, 30.0)],
+            ModelBody::Poly3(Poly3::new(20.0, [0.1, 0.01, 0.0, 0.0]).unwrap()),
+            ModelInfo::default(),
+        )
+        .unwrap();
+        let poly = encoded(&poly_model);
+        // Over a model of the other kind, then over one of the same kind.
+        let mut model = poly_model.clone();
+        assert_eq!(decode_into(&mut model, &rbf), Ok(rbf.len()));
+        assert_eq!(model, rbf_model());
+        assert_eq!(decode_into(&mut model, &poly), Ok(poly.len()));
+        assert_eq!(model, poly_model);
+        assert_eq!(decode_into(&mut model, &rbf), Ok(rbf.len()));
+        assert_eq!(decode_into(&mut model, &rbf), Ok(rbf.len()));
+        assert_eq!(model, rbf_model());
+        let mut corrupt = rbf.clone();
+        corrupt[HEADER_LEN + 3] ^= 0x10;
+        assert!(matches!(
+            decode_into(&mut model, &corrupt),
+            Err(DecodeError::CrcMismatch { .. })
+        ));
+        assert_eq!(
+            model,
+            Model::EMPTY,
+            "a refused blob leaves the empty model, not a half-built one"
+        );
     }
 
     #[test]

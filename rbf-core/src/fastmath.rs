@@ -68,18 +68,19 @@ pub fn exp_neg(x: f32) -> f32 {
 
 /// Fraction bits of the fixed-point exponent [`exp2_neg_fixed`] takes.
 pub const EXP2_FRAC_BITS: u32 = 9;
-/// Exponents u ≥ this give 0 (the true 2^−u is below 5.5e-20). Twice the
+/// Exponents u ≥ this saturate (the true 2^−u is below 5.5e-20). Twice the
 /// 32 bits a Gaussian term needs: the RBF table path offsets every exponent
 /// by up to 32 to take the input's shared term out of its loop.
 pub const EXP2_RANGE: u32 = 64;
-/// Entries of [`EXP2_NEG_TABLE`]: one per 2^−F step of u over [0, EXP2_RANGE).
-const EXP2_TABLE_LEN: usize = (EXP2_RANGE as usize) << EXP2_FRAC_BITS;
-/// Largest index [`exp2_neg_fixed`] reads (its entry is 0).
-pub const EXP2_FIXED_MAX: i32 = EXP2_TABLE_LEN as i32 - 1;
+/// Cells of one octave of the fixed-point exponent: 2^F.
+const EXP2_CELLS: usize = 1 << EXP2_FRAC_BITS;
+/// Largest cell index [`exp2_neg_fixed`] reads: the exponent saturates at
+/// 64 − 2^−F.
+pub const EXP2_FIXED_MAX: i32 = ((EXP2_RANGE as i32) << EXP2_FRAC_BITS) - 1;
 /// Bound of the relative error of [`exp2_neg_fixed`] against 2^−u for the u
 /// whose truncation gave the index, u < EXP2_RANGE − 2^−F: 2^(2^−(F+1)) − 1
 /// from the cell's width, plus the entry's rounding to f32 (2^−24). Beyond,
-/// the result is 0 where the truth is below 2^−64 + 2^−73.
+/// the result is below 2^−63 where the truth is below 2^−64 + 2^−73.
 pub const EXP2_FIXED_REL_ERROR: f64 = 6.7718e-4 + 6.0e-8;
 
 /// e^−x for 0 ≤ x ≤ ln 2 in f64 by its Taylor series (26 terms: truncation
@@ -96,41 +97,63 @@ const fn exp_neg_f64(x: f64) -> f64 {
     sum
 }
 
-/// Bits of 2^−((i + ½)/2^F) for i = 0 … 2^F·64 − 2 (the middle of each cell,
-/// so that truncating the fixed-point exponent errs symmetrically), and 0 in
-/// the last entry, which saturated exponents read. 128 KiB of flash buys a
-/// Gaussian in one load (see [`exp2_neg_fixed`]). Computed at compile time
-/// with IEEE f64 arithmetic (the fraction by a Taylor series, the integer
-/// part as an exact power of two), hence the same bits on every machine.
-pub static EXP2_NEG_TABLE: [u32; EXP2_TABLE_LEN] = {
-    let cells = 1usize << EXP2_FRAC_BITS;
-    let mut fraction = [0.0f64; 1 << EXP2_FRAC_BITS];
-    let mut i = 0;
-    while i < cells {
-        fraction[i] = exp_neg_f64((i as f64 + 0.5) / cells as f64 * core::f64::consts::LN_2);
-        i += 1;
-    }
-    let mut t = [0u32; EXP2_TABLE_LEN];
-    let mut i = 0;
-    let mut power = 1.0f64;
-    while i < EXP2_TABLE_LEN - 1 {
-        if i > 0 && i % cells == 0 {
-            power *= 0.5;
-        }
-        t[i] = ((fraction[i % cells] * power) as f32).to_bits();
-        i += 1;
+/// 2^−((j + ½)/2^F) rounded to f32, for the cells j of the first octave (the
+/// middle of each cell, so that truncating the fixed-point exponent errs
+/// symmetrically). Computed at compile time with IEEE f64 arithmetic (a
+/// Taylor series), hence the same bits on every machine.
+const EXP2_OCTAVE: [f32; EXP2_CELLS] = {
+    let mut t = [0.0f32; EXP2_CELLS];
+    let mut j = 0;
+    while j < EXP2_CELLS {
+        t[j] = exp_neg_f64((j as f64 + 0.5) / EXP2_CELLS as f64 * core::f64::consts::LN_2) as f32;
+        j += 1;
     }
     t
 };
 
-/// 2^−u for a fixed-point exponent `u_fixed` = trunc(u · 2^F): one saturation
-/// (USAT on a Cortex-M4) and one table load, no polynomial, no branch.
-/// Negative inputs (the rounding of a u that is 0) read as u = 0; u ≥ 64 as 0.
-/// Relative error ≤ [`EXP2_FIXED_REL_ERROR`].
+/// The one table behind [`exp2_neg_fixed`]: per cell j of an octave, the
+/// bits of 2^−((j + ½)/2^F) plus j·2^(23−F) (2 KiB).
+///
+/// Every value of the octave lies in (½, 1], an f32 with the exponent field
+/// 126, and 2^−n·x for n < 64 stays a normal f32, so cell c = n·2^F + j is
+/// the octave's bits minus n·2^23: the exponent field lowered by n, the
+/// mantissa untouched, exactly the f32 of 2^−((c + ½)/2^F). With j·2^(23−F)
+/// folded into the entry, that is `entry(j) − c·2^(23−F)`: one subtraction
+/// with a shifted operand (`SUB r, r, c, LSL #14` on a Cortex-M4).
+///
+/// Read on every Gaussian of every sample: the firmware keeps it in RAM
+/// (memory.x and firmware::board; docs/firmware.md), where a read takes no
+/// flash wait state.
+pub static EXP2_OCTAVE_BITS: [u32; EXP2_CELLS] = {
+    let mut t = [0u32; EXP2_CELLS];
+    let mut j = 0;
+    while j < EXP2_CELLS {
+        t[j] = EXP2_OCTAVE[j].to_bits() + ((j as u32) << (23 - EXP2_FRAC_BITS));
+        j += 1;
+    }
+    t
+};
+
+/// 2^−u for a fixed-point exponent `u_fixed` = trunc(u · 2^F): one
+/// saturation (USAT on a Cortex-M4), one bit-field extract (UBFX), one table
+/// load and one subtraction in the exponent bits; no polynomial, no branch.
+///
+/// For 0 ≤ `u_fixed` < [`EXP2_FIXED_MAX`] the result is exactly the f32 of
+/// 2^−((u_fixed + ½)/2^F), the middle of its cell (relative error ≤
+/// [`EXP2_FIXED_REL_ERROR`] against 2^−u). From `EXP2_FIXED_MAX` on the
+/// exponent saturates: the result lies in (2^−65, 2^−63), below 1.1e-19.
+/// Slightly negative inputs (−2^F ≤ `u_fixed` < 0, the rounding of a u that
+/// is 0) read within that bound of 1.
 #[inline(always)]
 pub fn exp2_neg_fixed(u_fixed: i32) -> f32 {
-    let cell = u_fixed.clamp(0, EXP2_FIXED_MAX) as usize;
-    f32::from_bits(EXP2_NEG_TABLE.get(cell).copied().unwrap_or(0))
+    // The cell within its octave comes from the unsaturated exponent: a
+    // bit-field extract, where the saturated one would cost a copy and a
+    // clear. Only outside [0, max) do the two differ, where the result is
+    // already bounded as documented.
+    let octave_cell = (u_fixed as u32) & (EXP2_CELLS as u32 - 1);
+    let cell = u_fixed.clamp(0, EXP2_FIXED_MAX) as u32;
+    let entry = EXP2_OCTAVE_BITS.get(octave_cell as usize).copied().unwrap_or(0);
+    f32::from_bits(entry.wrapping_sub(cell << (23 - EXP2_FRAC_BITS)))
 }
 
 #[cfg(test)]
@@ -151,9 +174,61 @@ mod tests {
         assert!(worst <= EXP2_FIXED_REL_ERROR, "worst relative error {worst:e}");
         assert!(worst > 0.9 * 6.7718e-4, "the bound is tight: {worst:e}");
         let bits = |u: i32| exp2_neg_fixed(u).to_bits();
-        assert_eq!(bits(-5), bits(0), "negative rounds to u = 0");
-        assert_eq!(bits(64 << EXP2_FRAC_BITS), 0, "beyond the range: 0");
-        assert_eq!(bits(i32::MAX), 0);
+        let first_cell_middle = (-0.5f64 / f64::from(1u32 << EXP2_FRAC_BITS)).exp2() as f32;
+        assert_eq!(
+            bits(0),
+            first_cell_middle.to_bits(),
+            "the middle of the first cell: 2^−(½/512)"
+        );
+    }
+
+    /// The 2^F·64-entry table the octave table replaces, as it was
+    /// computed: each cell's f64 value times an exact power of two, rounded
+    /// once to f32 (that table stored 0 in place of its last entry).
+    fn full_table() -> std::vec::Vec<u32> {
+        let len = (EXP2_RANGE as usize) << EXP2_FRAC_BITS;
+        let fraction: std::vec::Vec<f64> = (0..EXP2_CELLS)
+            .map(|j| exp_neg_f64((j as f64 + 0.5) / EXP2_CELLS as f64 * core::f64::consts::LN_2))
+            .collect();
+        let mut power = 1.0f64;
+        (0..len)
+            .map(|i| {
+                if i > 0 && i % EXP2_CELLS == 0 {
+                    power *= 0.5;
+                }
+                ((fraction[i % EXP2_CELLS] * power) as f32).to_bits()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn octave_table_reproduces_every_entry_of_the_full_table_bit_for_bit() {
+        let full = full_table();
+        assert_eq!(full.len(), EXP2_FIXED_MAX as usize + 1);
+        for (i, want) in full.iter().enumerate() {
+            assert_eq!(exp2_neg_fixed(i as i32).to_bits(), *want, "index {i}");
+        }
+    }
+
+    #[test]
+    fn saturated_and_negative_exponents_stay_within_their_documented_bounds() {
+        for u in [
+            EXP2_FIXED_MAX + 1,
+            EXP2_FIXED_MAX + 300,
+            1 << 20,
+            (1 << 22) + 77,
+            i32::MAX,
+        ] {
+            let v = f64::from(exp2_neg_fixed(u));
+            assert!(v > (-65f64).exp2() && v < (-63f64).exp2(), "u = {u}: {v:e}");
+        }
+        // The table path's exponents round to −1 at worst (u = 0 by a unit).
+        let at_minus_one = f64::from(exp2_neg_fixed(-1));
+        assert!((at_minus_one - 1.0).abs() < EXP2_FIXED_REL_ERROR, "{at_minus_one}");
+        for u in -(EXP2_CELLS as i32)..0 {
+            let v = exp2_neg_fixed(u);
+            assert!((0.9..1.0).contains(&v), "u = {u}: {v}");
+        }
     }
 
     fn ulp_error(x: f32) -> f64 {

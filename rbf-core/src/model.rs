@@ -3,7 +3,7 @@
 
 use crate::features::{FeatureConfig, FeatureSet, FeatureVector};
 use crate::poly::Poly3;
-use crate::rbf::RbfNetwork;
+use crate::rbf::{RbfNetwork, RbfParams};
 use crate::{MAX_CENTERS, MAX_INPUTS};
 
 /// Linear terms may follow an input up to this many training spans beyond
@@ -103,6 +103,15 @@ pub enum ModelBody {
     Poly3(Poly3),
 }
 
+/// The parameters of a model body, as [`Model::assign`] takes them.
+#[derive(Clone, Copy, Debug)]
+pub enum BodyParams<'a> {
+    /// A Gaussian RBF network, built in place.
+    Rbf(&'a RbfParams<'a>),
+    /// A cubic baseline.
+    Poly3(Poly3),
+}
+
 /// Result of evaluating a model on one feature vector.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Evaluation {
@@ -124,58 +133,24 @@ pub struct Model {
     linear_min: [f32; MAX_INPUTS],
     linear_max: [f32; MAX_INPUTS],
     body: ModelBody,
-    path: EvalPath,
     features: FeatureConfig,
     info: ModelInfo,
 }
 
-/// How [`Model::eval`] runs a model, chosen once at construction so that an
-/// evaluation dispatches once: `Clamped<N>` clamps the N inputs in f32 and
-/// runs the cubic or the network's polynomial path; `Table<M>Of<N>` runs the
-/// network's table path over M kernel inputs of N ([`RbfNetwork::eval_table`],
-/// which clamps kernel inputs itself). N = 8 stands for any count above 3.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum EvalPath {
-    Clamped1,
-    Clamped2,
-    Clamped3,
-    Clamped8,
-    Table1Of1,
-    Table1Of2,
-    Table2Of2,
-    Table1Of3,
-    Table2Of3,
-    Table3Of3,
-    Table1Of8,
-    Table2Of8,
-    Table3Of8,
-}
-
-impl EvalPath {
-    fn choose(dims: usize, body: &ModelBody) -> Self {
-        let table_kernel = match body {
-            ModelBody::Rbf(net) if net.table_ready() => net.kernel_inputs(),
-            _ => 0,
-        };
-        match (dims, table_kernel) {
-            (1, 1) => EvalPath::Table1Of1,
-            (2, 1) => EvalPath::Table1Of2,
-            (2, 2) => EvalPath::Table2Of2,
-            (3, 1) => EvalPath::Table1Of3,
-            (3, 2) => EvalPath::Table2Of3,
-            (3, 3) => EvalPath::Table3Of3,
-            (4.., 1) => EvalPath::Table1Of8,
-            (4.., 2) => EvalPath::Table2Of8,
-            (4.., 3) => EvalPath::Table3Of8,
-            (1, _) => EvalPath::Clamped1,
-            (2, _) => EvalPath::Clamped2,
-            (3, _) => EvalPath::Clamped3,
-            _ => EvalPath::Clamped8,
-        }
-    }
-}
-
 impl Model {
+    /// The model of no gyro: no inputs' ranges, an empty network, every
+    /// bit zero (a `static` holding one costs no flash). It evaluates to a
+    /// bias of 0; [`crate::blob::decode_into`] fills it in place.
+    pub const EMPTY: Model = Model {
+        input_min: [0.0; MAX_INPUTS],
+        input_max: [0.0; MAX_INPUTS],
+        linear_min: [0.0; MAX_INPUTS],
+        linear_max: [0.0; MAX_INPUTS],
+        body: ModelBody::Rbf(DeployedRbf::EMPTY),
+        features: FeatureConfig::single(FeatureSet::Temp, 0.0),
+        info: ModelInfo { serial: None },
+    };
+
     /// Assembles a model, checking that features, ranges and body agree.
     ///
     /// `input_range` holds (min, max) per input in input units: the training range
@@ -186,11 +161,56 @@ impl Model {
         body: ModelBody,
         info: ModelInfo,
     ) -> Result<Self, ModelError> {
+        let mut model = Model { body, ..Model::EMPTY };
+        model.complete(features, input_range, info)?;
+        Ok(model)
+    }
+
+    /// [`Self::new`] in place, for the firmware's `static` model (no model
+    /// is moved by value): the network is built where it will run. On error
+    /// `self` is [`Self::EMPTY`].
+    pub fn assign(
+        &mut self,
+        features: FeatureConfig,
+        input_range: &[(f32, f32)],
+        body: BodyParams<'_>,
+        info: ModelInfo,
+    ) -> Result<(), ModelError> {
+        let built = match body {
+            BodyParams::Rbf(params) => {
+                if !matches!(self.body, ModelBody::Rbf(_)) {
+                    self.body = ModelBody::Rbf(DeployedRbf::EMPTY);
+                }
+                match &mut self.body {
+                    ModelBody::Rbf(net) => net.init(params),
+                    ModelBody::Poly3(_) => Err(ModelError::ShapeMismatch),
+                }
+            }
+            BodyParams::Poly3(poly) => {
+                self.body = ModelBody::Poly3(poly);
+                Ok(())
+            }
+        };
+        let result = built.and_then(|()| self.complete(features, input_range, info));
+        if result.is_err() {
+            *self = Model::EMPTY;
+        }
+        result
+    }
+
+    /// Checks that features, ranges and the body (already in place) agree,
+    /// sets the ranges and prepares the network's table path.
+    fn complete(
+        &mut self,
+        features: FeatureConfig,
+        input_range: &[(f32, f32)],
+        info: ModelInfo,
+    ) -> Result<(), ModelError> {
         let dims = features.dims();
         if dims > MAX_INPUTS {
             return Err(ModelError::ShapeOverCapacity);
         }
-        let body_dims = match &body {
+        let body_dims = match &self.body {
             ModelBody::Rbf(net) => net.inputs_used(),
             ModelBody::Poly3(_) => {
                 if features.set != FeatureSet::Temp {
@@ -205,53 +225,47 @@ impl Model {
         if !features.is_valid() {
             return Err(ModelError::InvalidParameter);
         }
-        let mut input_min = [0.0; MAX_INPUTS];
-        let mut input_max = [0.0; MAX_INPUTS];
-        let mut linear_min = [0.0; MAX_INPUTS];
-        let mut linear_max = [0.0; MAX_INPUTS];
-        for (i, &(lo, hi)) in input_range.iter().enumerate() {
+        self.input_min = [0.0; MAX_INPUTS];
+        self.input_max = [0.0; MAX_INPUTS];
+        self.linear_min = [0.0; MAX_INPUTS];
+        self.linear_max = [0.0; MAX_INPUTS];
+        for (i, &(lo, hi)) in input_range.iter().enumerate().take(MAX_INPUTS) {
             if !(lo.is_finite() && hi.is_finite()) {
                 return Err(ModelError::NonFiniteParameter);
             }
             if lo > hi {
                 return Err(ModelError::InvalidParameter);
             }
-            input_min[i] = lo;
-            input_max[i] = hi;
             let reach = LINEAR_EXTRAPOLATION_SPANS * (hi - lo);
-            linear_min[i] = lo - reach;
-            linear_max[i] = hi + reach;
-            if !(linear_min[i].is_finite() && linear_max[i].is_finite()) {
+            let (linear_lo, linear_hi) = (lo - reach, hi + reach);
+            if !(linear_lo.is_finite() && linear_hi.is_finite()) {
                 return Err(ModelError::InvalidParameter);
             }
+            self.input_min[i] = lo;
+            self.input_max[i] = hi;
+            self.linear_min[i] = linear_lo;
+            self.linear_max[i] = linear_hi;
         }
-        let mut body = body;
-        if let ModelBody::Rbf(net) = &mut body {
+        let (input_min, input_max) = (&self.input_min, &self.input_max);
+        if let ModelBody::Rbf(net) = &mut self.body {
             let m = net.kernel_inputs().min(MAX_INPUTS);
             net.prepare_table(&input_min[..m], &input_max[..m]);
         }
-        let bound_dph = match &body {
+        let bound_dph = match &self.body {
             ModelBody::Rbf(net) => net.output_bound(
-                &linear_min[..dims],
-                &linear_max[..dims],
-                &input_min[..dims],
-                &input_max[..dims],
+                &self.linear_min[..dims],
+                &self.linear_max[..dims],
+                &self.input_min[..dims],
+                &self.input_max[..dims],
             ),
-            ModelBody::Poly3(p) => p.output_bound(input_min[0], input_max[0]),
+            ModelBody::Poly3(p) => p.output_bound(self.input_min[0], self.input_max[0]),
         };
         if bound_dph.is_nan() || bound_dph > MAX_ABS_BIAS_DPH {
             return Err(ModelError::OutputUnbounded);
         }
-        Ok(Model {
-            features,
-            input_min,
-            input_max,
-            linear_min,
-            linear_max,
-            path: EvalPath::choose(dims, &body),
-            body,
-            info,
-        })
+        self.features = features;
+        self.info = info;
+        Ok(())
     }
 
     /// How the firmware must compute this model's inputs.
@@ -287,34 +301,19 @@ impl Model {
     /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it. `clamped` says that an
     /// input left its training range.
     pub fn eval(&self, features: &FeatureVector) -> Evaluation {
-        // Monomorphised per input count (the feature sets have 1, 2, 3 or 8)
-        // and kernel-input count: straight-line clamping and evaluation.
-        match self.path {
-            EvalPath::Clamped1 => self.eval_clamped::<1>(features),
-            EvalPath::Clamped2 => self.eval_clamped::<2>(features),
-            EvalPath::Clamped3 => self.eval_clamped::<3>(features),
-            EvalPath::Clamped8 => self.eval_clamped::<MAX_INPUTS>(features),
-            EvalPath::Table1Of1 => self.eval_table::<1, 1>(features),
-            EvalPath::Table1Of2 => self.eval_table::<1, 2>(features),
-            EvalPath::Table2Of2 => self.eval_table::<2, 2>(features),
-            EvalPath::Table1Of3 => self.eval_table::<1, 3>(features),
-            EvalPath::Table2Of3 => self.eval_table::<2, 3>(features),
-            EvalPath::Table3Of3 => self.eval_table::<3, 3>(features),
-            EvalPath::Table1Of8 => self.eval_table::<1, MAX_INPUTS>(features),
-            EvalPath::Table2Of8 => self.eval_table::<2, MAX_INPUTS>(features),
-            EvalPath::Table3Of8 => self.eval_table::<3, MAX_INPUTS>(features),
+        // The input clamping is straight-line per input count (1, 2, 3, or
+        // up to MAX_INPUTS); the rest, and the network's per-centre loops,
+        // are one copy each.
+        match self.features.dims() {
+            1 => self.eval_inputs::<1>(features),
+            2 => self.eval_inputs::<2>(features),
+            3 => self.eval_inputs::<3>(features),
+            _ => self.eval_inputs::<MAX_INPUTS>(features),
         }
     }
 
-    /// The table path: the flag from [`outside_measure`], the linear inputs
-    /// clamped in f32, the kernel inputs passed as they come (the network's
-    /// saturating conversion clamps them to the same training box).
     #[inline(always)]
-    fn eval_table<const M: usize, const N: usize>(&self, features: &FeatureVector) -> Evaluation {
-        let ModelBody::Rbf(net) = &self.body else {
-            // Not reached: `EvalPath::choose` picks table paths for networks only.
-            return self.eval_clamped::<N>(features);
-        };
+    fn eval_inputs<const N: usize>(&self, features: &FeatureVector) -> Evaluation {
         let raw = features.values();
         let mut x_linear = [0.0f32; N];
         let mut outside = 0.0f32;
@@ -322,27 +321,19 @@ impl Model {
             outside += outside_measure(*v, *lo, *hi);
             *li = clamp(*v, *llo, *lhi);
         }
-        let x_kernel: [f32; M] = core::array::from_fn(|i| raw.get(i).copied().unwrap_or(0.0));
-        Evaluation {
-            bias_dph: net.eval_table(&x_kernel, &x_linear),
-            clamped: outside_flag(outside),
-        }
-    }
-
-    #[inline(always)]
-    fn eval_clamped<const N: usize>(&self, features: &FeatureVector) -> Evaluation {
-        let raw = features.values();
-        let mut x = [0.0f32; N];
-        let mut x_linear = [0.0f32; N];
-        let mut outside = 0.0f32;
-        for (((xi, li), v), ((lo, hi), (llo, lhi))) in x.iter_mut().zip(&mut x_linear).zip(raw).zip(self.limits()) {
-            outside += outside_measure(*v, *lo, *hi);
-            *xi = clamp(*v, *lo, *hi);
-            *li = clamp(*v, *llo, *lhi);
-        }
         let bias_dph = match &self.body {
-            ModelBody::Rbf(net) => net.eval(&x, &x_linear),
-            ModelBody::Poly3(p) => p.eval(x[0]),
+            // The table path clamps kernel inputs itself, to the same training box.
+            ModelBody::Rbf(net) if net.table_ready() => net.eval_table(raw, &x_linear),
+            body => {
+                let mut x = [0.0f32; N];
+                for ((xi, v), (lo, hi)) in x.iter_mut().zip(raw).zip(self.input_min.iter().zip(&self.input_max)) {
+                    *xi = clamp(*v, *lo, *hi);
+                }
+                match body {
+                    ModelBody::Rbf(net) => net.eval(&x, &x_linear),
+                    ModelBody::Poly3(p) => p.eval(x[0]),
+                }
+            }
         };
         Evaluation {
             bias_dph,
@@ -476,7 +467,7 @@ mod tests {
         let cfg = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
         let ranges = [(10.0, 40.0), (-2.0, 2.0), (-10.0, 10.0)];
         let model = Model::new(cfg, &ranges, ModelBody::Rbf(net), ModelInfo::default()).unwrap();
-        assert_eq!(model.path, EvalPath::Table3Of3);
+        assert!(matches!(model.body(), ModelBody::Rbf(net) if net.table_ready()));
         let flag = |x: [f32; 3]| model.eval(&FeatureVector::from_values(&x)).clamped;
         assert!(!flag([25.0, 0.0, 0.0]));
         assert!(!flag([10.0, -2.0, 10.0]), "the range's edges are inside");
@@ -523,6 +514,13 @@ mod tests {
         );
         let e = model.eval(&fx.update(&cfg, 1.0, &loop_reading(100.0)));
         assert_eq!(e.bias_dph, 40.0, "…but no further than two spans (20 + 2·10)");
+    }
+
+    #[test]
+    fn the_empty_model_evaluates_to_zero_bias_without_flagging() {
+        let e = Model::EMPTY.eval(&FeatureVector::from_values(&[25.0]));
+        assert_eq!(e.bias_dph.to_bits(), 0f32.to_bits());
+        assert_eq!(Model::EMPTY.features().dims(), 1);
     }
 
     #[test]

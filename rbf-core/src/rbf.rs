@@ -90,6 +90,9 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
     constant: f32,
 }
 
+/// Input slots of a feature vector ([`crate::MAX_INPUTS`]).
+const MAX_INPUTS_ALL: usize = crate::MAX_INPUTS;
+
 /// Most kernel inputs the table path ([`crate::fastmath::exp2_neg_fixed`]) handles.
 pub const TABLE_MAX_INPUTS: usize = 3;
 /// Fraction bits of the fixed-point Gaussian exponent u (Q16).
@@ -119,21 +122,51 @@ fn unpack_coefficients(p: u64, q: u64) -> [i32; 4] {
     ]
 }
 
-/// Σ_j 2^−v_j over `centres` with v_j = B_j [+ Q when `ADD_Q`] + Σ_i hi(A_ji, q_i).
+/// Σ_pos 2^−v_j − Σ_neg 2^−v_j with v_j = B_j [+ Q when `ADD_Q`] + Σ_i hi(A_ji, q_i)
+/// over the first `M` kernel inputs: the per-centre loop of
+/// [`RbfNetwork::eval_table`], one small function per (M, ADD_Q) so that
+/// each loop is straight-line; everything around it is shared.
 #[inline(always)]
-fn exp2_sum<const M: usize, const ADD_Q: bool>(centres: &[[u64; 2]], q: &[i32; M], shared: i32) -> f32 {
-    let mut sum = 0.0f32;
-    // Last centre first: the order the compiler turns into the shorter loop
-    // (measured by `cargo xtask bench-fw`); any fixed order is bit-exact.
-    for &[p, r] in centres.iter().rev() {
-        let [a1, a2, a3, b] = unpack_coefficients(p, r);
-        let mut v = if ADD_Q { b.wrapping_add(shared) } else { b };
-        for (a, qi) in [a1, a2, a3].iter().zip(q) {
-            v = v.wrapping_add(mul_hi(*a, *qi));
+fn exp2_sums<const M: usize, const ADD_Q: bool>(
+    positive: &[[u64; 2]],
+    negative: &[[u64; 2]],
+    q: &[i32; TABLE_MAX_INPUTS],
+    shared: i32,
+) -> f32 {
+    let sum = |centres: &[[u64; 2]]| {
+        let mut sum = 0.0f32;
+        for &[p, r] in centres {
+            let [a1, a2, a3, b] = unpack_coefficients(p, r);
+            let mut v = if ADD_Q { b.wrapping_add(shared) } else { b };
+            if M >= 1 {
+                v = v.wrapping_add(mul_hi(a1, q[0]));
+            }
+            if M >= 2 {
+                v = v.wrapping_add(mul_hi(a2, q[1]));
+            }
+            if M >= 3 {
+                v = v.wrapping_add(mul_hi(a3, q[2]));
+            }
+            sum += crate::fastmath::exp2_neg_fixed(v >> TABLE_SHIFT);
         }
-        sum += crate::fastmath::exp2_neg_fixed(v >> TABLE_SHIFT);
+        sum
+    };
+    sum(positive) - sum(negative)
+}
+
+/// 2^n for an integer-valued `n`, exactly `libm::exp2(n) as f32` (0 below
+/// 2^−149, +∞ above 2^127) built in the exponent bits: libm's exp2 would
+/// bring a 4 KiB table into the firmware for a power of two.
+fn exp2_integer(n: f64) -> f32 {
+    if n > 127.0 {
+        f32::INFINITY
+    } else if n >= -126.0 {
+        f32::from_bits(((n as i32 + 127) as u32) << 23)
+    } else if n >= -149.0 {
+        f32::from_bits(1 << (n as i32 + 149) as u32)
+    } else {
+        0.0
     }
-    sum
 }
 
 /// High word of the 64-bit product: one SMMUL/SMMLA on a Cortex-M4.
@@ -147,8 +180,56 @@ fn all_finite(values: &[f32]) -> bool {
 }
 
 impl<const K: usize, const D: usize> RbfNetwork<K, D> {
+    /// A network with no centres, no inputs and every parameter 0 (all bits
+    /// zero, so a `static` holding one costs no flash): what
+    /// [`Self::init`] starts from.
+    pub const EMPTY: Self = RbfNetwork {
+        kernel_inputs: 0,
+        centers_used: 0,
+        inputs_used: 0,
+        positive: 0,
+        negative: 0,
+        table: false,
+        kernel_mid: [0.0; TABLE_MAX_INPUTS],
+        kernel_gain: [0.0; TABLE_MAX_INPUTS],
+        shared_coeff: [0; TABLE_MAX_INPUTS],
+        q_in_sum: false,
+        weight_scale: 0.0,
+        constant_raw: 0.0,
+        linear_raw: [0.0; D],
+        offset: [0.0; D],
+        inv_scale: [0.0; D],
+        exponent: [[0; 2]; K],
+        scale: [0.0; D],
+        centers: [[0.0; D]; K],
+        widths: [0.0; K],
+        neg_half_inv_var: [0.0; K],
+        weights: [0.0; K],
+        linear: [0.0; D],
+        has_linear: false,
+        constant: 0.0,
+    };
+
     /// Builds a network, checking shapes against capacity and every parameter.
     pub fn new(p: &RbfParams<'_>) -> Result<Self, ModelError> {
+        let mut net = Self::EMPTY;
+        net.init(p)?;
+        Ok(net)
+    }
+
+    /// [`Self::new`] in place: overwrites `self` with the network `p`
+    /// describes (no network is moved by value). On error `self` is
+    /// [`Self::EMPTY`].
+    pub fn init(&mut self, p: &RbfParams<'_>) -> Result<(), ModelError> {
+        *self = Self::EMPTY;
+        let result = self.assign(p);
+        if result.is_err() {
+            *self = Self::EMPTY;
+        }
+        result
+    }
+
+    fn assign(&mut self, p: &RbfParams<'_>) -> Result<(), ModelError> {
         let d = p.offset.len();
         let k = p.widths.len();
         if d == 0 || d > D || k > K {
@@ -173,32 +254,14 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         if p.scale.iter().chain(p.widths).any(|&v| v <= 0.0) {
             return Err(ModelError::InvalidParameter);
         }
-        let mut net = RbfNetwork {
-            centers_used: k,
-            inputs_used: d,
-            kernel_inputs: m,
-            offset: [0.0; D],
-            scale: [1.0; D],
-            inv_scale: [1.0; D],
-            centers: [[0.0; D]; K],
-            widths: [1.0; K],
-            neg_half_inv_var: [0.0; K],
-            weights: [0.0; K],
-            linear: [0.0; D],
-            has_linear: !p.linear.is_empty(),
-            constant: p.constant,
-            linear_raw: [0.0; D],
-            constant_raw: p.constant,
-            table: false,
-            kernel_mid: [0.0; TABLE_MAX_INPUTS],
-            kernel_gain: [0.0; TABLE_MAX_INPUTS],
-            shared_coeff: [0; TABLE_MAX_INPUTS],
-            q_in_sum: false,
-            exponent: [[0; 2]; K],
-            positive: 0,
-            negative: 0,
-            weight_scale: 1.0,
-        };
+        let net = self;
+        net.centers_used = k;
+        net.inputs_used = d;
+        net.kernel_inputs = m;
+        net.has_linear = !p.linear.is_empty();
+        net.constant = p.constant;
+        net.constant_raw = p.constant;
+        net.weight_scale = 1.0;
         // Zipped iterators rather than indexing: the firmware validates blobs
         // on a path proven panic-free at link time (panic_free_check.rs).
         let copy = |dst: &mut [f32], src: &[f32]| dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
@@ -223,7 +286,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             return Err(ModelError::InvalidParameter);
         }
         net.fold_linear(d);
-        Ok(net)
+        Ok(())
     }
 
     /// Upper bound of |output| when the linear terms see inputs in
@@ -384,7 +447,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             }
         }
         self.negative = slot - self.positive;
-        let weight_scale = libm::exp2(e + offset) as f32;
+        let weight_scale = exp2_integer(e + offset);
         if weight_scale.is_finite() && weight_scale > 0.0 {
             self.weight_scale = weight_scale;
             self.q_in_sum = !factored;
@@ -453,45 +516,76 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
 
     /// Evaluates the network on its polynomial path, °/h: the Gaussians at
     /// `x_kernel` (input units, already clamped by the caller), the linear
-    /// terms at `x_linear` (the model clamps them to a wider range).
+    /// terms at `x_linear` (the model clamps them to a wider range); `N` is
+    /// the model's input count.
     ///
     /// Cost: `K_used × kernel_inputs` multiply-adds, `K_used` f32
     /// exponentials ([`crate::fastmath::exp_neg`]) and `inputs_used` linear
-    /// terms, independent of the values; about 45 instructions per centre at
-    /// 3 kernel inputs on a Cortex-M4F. [`Self::eval_table`] is the fast path.
-    ///
-    /// `N` is the model's input count (the caller's arrays); monomorphised per
-    /// N and per kernel-input count so that the code is straight-line.
-    #[inline]
+    /// terms, independent of the values. [`Self::eval_table`] is the fast path.
     pub fn eval<const N: usize>(&self, x_kernel: &[f32; N], x_linear: &[f32; N]) -> f32 {
-        let z = self.normalised::<D, N>(x_kernel);
+        self.linear_sum(x_linear) + self.polynomial_gaussians(x_kernel)
+    }
+
+    /// The Gaussian sum of [`Self::eval`], °/h.
+    fn polynomial_gaussians(&self, x_kernel: &[f32]) -> f32 {
+        let m = self.kernel_inputs.min(D);
+        let mut z = [0.0f32; D];
+        for (((zi, x), o), s) in z
+            .iter_mut()
+            .zip(x_kernel)
+            .zip(&self.offset)
+            .zip(&self.inv_scale)
+            .take(m)
+        {
+            *zi = (x - o) * s;
+        }
+        let z = z.get(..m).unwrap_or(&[]);
         let k = self.centers_used.min(K);
-        self.linear_sum(x_linear)
-            + match self.kernel_inputs {
-                1 => self.gaussian_sum::<1>(&z, k),
-                2 => self.gaussian_sum::<2>(&z, k),
-                3 => self.gaussian_sum::<3>(&z, k),
-                m => self.gaussian_sum_any(&z, m.min(D), k),
+        let mut sum = 0.0f32;
+        for ((c, w), g) in self
+            .centers
+            .iter()
+            .zip(&self.weights)
+            .zip(&self.neg_half_inv_var)
+            .take(k)
+        {
+            let mut dist_sq = 0.0f32;
+            for (zi, ci) in z.iter().zip(c) {
+                let diff = zi - ci;
+                dist_sq += diff * diff;
             }
+            sum += w * crate::fastmath::exp_neg(dist_sq * g);
+        }
+        sum
     }
 
     /// Evaluates the network on its table path (only meaningful when
-    /// [`Self::table_ready`]), °/h: the Gaussians at the `M` kernel inputs
+    /// [`Self::table_ready`]), °/h: the Gaussians at the kernel inputs
     /// `x_kernel` as they come (the saturating conversion clamps them to the
     /// box given to [`Self::prepare_table`]; NaN reads as the box's centre),
-    /// the linear terms at `x_linear`.
+    /// the linear terms at `x_linear`; `x_kernel` holds a feature vector's
+    /// slots, the first `kernel_inputs` of which the Gaussians see.
     ///
     /// Σ_j W_j exp(−‖z − c_j‖²/2σ²) = 2^(E+T) · 2^−Q · (Σ_pos 2^−v_j − Σ_neg 2^−v_j)
     /// with the fixed-point exponents of [`Self::prepare_table`] and the
-    /// table exponential. Per centre: M integer multiply-accumulates of high
-    /// words (SMMLA) onto B_j, one saturation, one table load, one float
-    /// add; no branch, no conversion, no weight multiplication. Integer
-    /// arithmetic, so host and target agree bit for bit.
+    /// table exponential. Per centre: one integer multiply-accumulate of
+    /// high words (SMMLA) per kernel input onto B_j, one saturation, one
+    /// table load, the exponent subtraction, one float add; no branch, no
+    /// conversion, no weight multiplication. Integer arithmetic, so host and
+    /// target agree bit for bit.
+    ///
+    /// `N` is the caller's linear input count (the linear sum is straight-line).
     #[inline(always)]
-    pub fn eval_table<const M: usize, const N: usize>(&self, x_kernel: &[f32; M], x_linear: &[f32; N]) -> f32 {
-        let y = self.linear_sum(x_linear);
-        // `as` saturates (VCVT does the same): the clamp to the box.
-        let q: [i32; M] =
+    pub fn eval_table<const N: usize>(&self, x_kernel: &[f32; MAX_INPUTS_ALL], x_linear: &[f32; N]) -> f32 {
+        self.linear_sum(x_linear) + self.table_gaussians(x_kernel)
+    }
+
+    /// The Gaussian sum of [`Self::eval_table`], °/h.
+    fn table_gaussians(&self, x_kernel: &[f32; MAX_INPUTS_ALL]) -> f32 {
+        // `as` saturates (VCVT does the same): the clamp to the box. Past the
+        // kernel inputs mid = gain = 0 makes q = 0 (NaN converts to 0 too),
+        // and their coefficients are 0 as well.
+        let q: [i32; TABLE_MAX_INPUTS] =
             core::array::from_fn(
                 |i| match (x_kernel.get(i), self.kernel_mid.get(i), self.kernel_gain.get(i)) {
                     (Some(x), Some(mid), Some(gain)) => ((x - mid) * gain) as i32,
@@ -506,13 +600,21 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         }
         let (positive, rest) = self.exponent.split_at(self.positive.min(K));
         let negative = rest.get(..self.negative).unwrap_or(&[]);
-        let gaussians = if self.q_in_sum {
-            (exp2_sum::<M, true>(positive, &q, shared) - exp2_sum::<M, true>(negative, &q, shared)) * self.weight_scale
+        let shared_in_sum = if self.q_in_sum { shared } else { 0 };
+        let sums = match (self.kernel_inputs, self.q_in_sum) {
+            (1, false) => exp2_sums::<1, false>(positive, negative, &q, 0),
+            (2, false) => exp2_sums::<2, false>(positive, negative, &q, 0),
+            (_, false) => exp2_sums::<3, false>(positive, negative, &q, 0),
+            (1, true) => exp2_sums::<1, true>(positive, negative, &q, shared_in_sum),
+            (2, true) => exp2_sums::<2, true>(positive, negative, &q, shared_in_sum),
+            (_, true) => exp2_sums::<3, true>(positive, negative, &q, shared_in_sum),
+        };
+        if self.q_in_sum {
+            sums * self.weight_scale
         } else {
             let factor = crate::fastmath::exp2_neg_fixed(shared >> TABLE_SHIFT) * self.weight_scale;
-            (exp2_sum::<M, false>(positive, &q, 0) - exp2_sum::<M, false>(negative, &q, 0)) * factor
-        };
-        y + gaussians
+            sums * factor
+        }
     }
 
     /// c′ + Σ a′_i x_i: the linear terms with the normalisation folded in.
@@ -547,53 +649,6 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         }
         y
     }
-
-    /// The first `M` inputs normalised, z_i = (x_i − offset_i) / scale_i (0 past N).
-    #[inline(always)]
-    fn normalised<const M: usize, const N: usize>(&self, x: &[f32; N]) -> [f32; M] {
-        core::array::from_fn(|i| match (x.get(i), self.offset.get(i), self.inv_scale.get(i)) {
-            (Some(x), Some(o), Some(s)) => (x - o) * s,
-            _ => 0.0,
-        })
-    }
-
-    /// Σ_j W_j exp(−‖z − c_j‖²/2σ_j²) over the first `k` centres, `N` inputs.
-    #[inline(always)]
-    fn gaussian_sum<const N: usize>(&self, z: &[f32; D], k: usize) -> f32 {
-        let zn: [f32; N] = core::array::from_fn(|i| z.get(i).copied().unwrap_or(0.0));
-        let mut sum = 0.0f32;
-        for ((c, w), g) in self.centers[..k]
-            .iter()
-            .zip(&self.weights[..k])
-            .zip(&self.neg_half_inv_var[..k])
-        {
-            let mut dist_sq = 0.0f32;
-            for (zi, ci) in zn.iter().zip(c) {
-                let diff = zi - ci;
-                dist_sq += diff * diff;
-            }
-            sum += w * crate::fastmath::exp_neg(dist_sq * g);
-        }
-        sum
-    }
-
-    /// [`Self::gaussian_sum`] for any number of inputs `d` ≤ D.
-    fn gaussian_sum_any(&self, z: &[f32; D], d: usize, k: usize) -> f32 {
-        let mut sum = 0.0f32;
-        for ((c, w), g) in self.centers[..k]
-            .iter()
-            .zip(&self.weights[..k])
-            .zip(&self.neg_half_inv_var[..k])
-        {
-            let mut dist_sq = 0.0f32;
-            for (zi, ci) in z[..d].iter().zip(&c[..d]) {
-                let diff = zi - ci;
-                dist_sq += diff * diff;
-            }
-            sum += w * crate::fastmath::exp_neg(dist_sq * g);
-        }
-        sum
-    }
 }
 
 #[cfg(test)]
@@ -603,6 +658,11 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
 )]
 mod tests {
     use super::*;
+
+    /// Kernel inputs as a feature vector's slots (the rest 0).
+    fn slots(x: &[f32]) -> [f32; MAX_INPUTS_ALL] {
+        core::array::from_fn(|i| x.get(i).copied().unwrap_or(0.0))
+    }
 
     fn one_centre() -> RbfNetwork<4, 3> {
         RbfNetwork::new(&RbfParams {
@@ -630,7 +690,7 @@ mod tests {
         let tol = 2.0 * 2.0 * crate::fastmath::EXP2_FIXED_REL_ERROR + 1e-6;
         let both = |kernel: [f32; 2], linear: [f32; 2]| {
             let p = poly.eval(&[kernel[0], kernel[1], 0.0], &[linear[0], linear[1], 0.0]);
-            (f64::from(p), f64::from(table.eval_table(&kernel, &linear)))
+            (f64::from(p), f64::from(table.eval_table(&slots(&kernel), &linear)))
         };
         let cases = [
             // At the centre: c + 0 + W·exp(0) = 1 + 2 = 3.
@@ -653,7 +713,7 @@ mod tests {
     fn the_table_path_clamps_kernel_inputs_to_its_box() {
         let mut table = one_centre();
         table.prepare_table(&[0.0, -5.0], &[40.0, 5.0]);
-        let at = |t: f32, r: f32| table.eval_table(&[t, r], &[20.0, 0.0]).to_bits();
+        let at = |t: f32, r: f32| table.eval_table(&slots(&[t, r]), &[20.0, 0.0]).to_bits();
         assert_eq!(at(55.0, 0.0), at(40.0, 0.0), "above the box: its edge");
         assert_eq!(at(-1e30, 0.0), at(0.0, 0.0), "far below: its edge");
         assert_eq!(at(20.0, f32::INFINITY), at(20.0, 5.0));
@@ -693,9 +753,17 @@ mod tests {
             let bound = (1.5 + 2.0 + 0.7) * rel;
             for i in 0..40 {
                 let x = [5.0 + i as f32, -2.0 + 0.1 * i as f32, 40.0 - 2.0 * i as f32];
-                let (a, b) = (table.eval_table(&x, &x), exact.eval(&x, &x));
+                let (a, b) = (table.eval_table(&slots(&x), &x), exact.eval(&x, &x));
                 assert!((a - b).abs() as f64 <= bound + 1e-5, "σ = {sigma}, {x:?}: {a} vs {b}");
             }
+        }
+    }
+
+    #[test]
+    fn integer_powers_of_two_match_libm_bit_for_bit() {
+        for n in -200..=200 {
+            let n = f64::from(n);
+            assert_eq!(exp2_integer(n).to_bits(), (libm::exp2(n) as f32).to_bits(), "2^{n}");
         }
     }
 
