@@ -213,7 +213,7 @@ fn chamber_protocols(params: Option<&Path>, python: &Path, venv_dir: &Path) -> a
         let rate = p.rate_hz.to_string();
         let sim = |name: &str, args: &[&str]| -> anyhow::Result<PathBuf> {
             let file = dir.join(format!("{}_{name}.csv", p.name));
-            let mut all = vec!["simulate", "--rate-hz", &rate, "-o", path(&file)];
+            let mut all = vec!["simulate", "--force", "--rate-hz", &rate, "-o", path(&file)];
             all.extend(args);
             if let Some(params) = &params {
                 all.extend(["--params", path(params)]);
@@ -267,7 +267,7 @@ fn chamber_protocols(params: Option<&Path>, python: &Path, venv_dir: &Path) -> a
             let fit_s = started.elapsed().as_secs_f64();
             default_fitted |= is_default;
             let json = dir.join(format!("{}_eval.json", p.name));
-            let mut eval = vec!["eval", "--model", path(&model), "--json", path(&json)];
+            let mut eval = vec!["eval", "--force", "--model", path(&model), "--json", path(&json)];
             eval.extend(verify.iter().map(|v| path(v)));
             trainer(&eval)?;
             let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
@@ -327,7 +327,7 @@ fn chamber_protocols(params: Option<&Path>, python: &Path, venv_dir: &Path) -> a
 /// the raw run's (`before`). `model` is only there for `trainer eval`, which reports
 /// the uncompensated STD of any run.
 fn noise_ceiling(model: &Path, noise: &[PathBuf], before: &[f64], json: &Path) -> anyhow::Result<Row> {
-    let mut eval = vec!["eval", "--model", path(model), "--json", path(json)];
+    let mut eval = vec!["eval", "--force", "--model", path(model), "--json", path(json)];
     eval.extend(noise.iter().map(|n| path(n)));
     trainer(&eval)?;
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json)?)?;
@@ -357,7 +357,15 @@ fn peer_rows(
     let mut rows = Vec::new();
     let blocks = |file: &Path| -> anyhow::Result<PathBuf> {
         let out = file.with_extension("blocks.csv");
-        trainer(&["blocks", path(file), "--model", path(default_model), "-o", path(&out)])?;
+        trainer(&[
+            "blocks",
+            "--force",
+            path(file),
+            "--model",
+            path(default_model),
+            "-o",
+            path(&out),
+        ])?;
         Ok(out)
     };
     let mut cmd = Command::new(python);
