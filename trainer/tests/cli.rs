@@ -831,7 +831,7 @@ fn simulate_runs_a_planned_chamber_profile_and_refuses_bad_plans_with_their_plac
         stderr(&o)
     );
     assert!(!out.exists(), "nothing written for a bad plan");
-    // A plan is the profile: both at once is a usage error.
+    // A plan is the profile: both at once is a usage error (exit 1, as every error).
     let o = trainer(&[
         "simulate",
         "--profile",
@@ -841,7 +841,8 @@ fn simulate_runs_a_planned_chamber_profile_and_refuses_bad_plans_with_their_plac
         "-o",
         out.to_str().unwrap(),
     ]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("cannot be used with"), "{}", stderr(&o));
 }
 
 #[test]
