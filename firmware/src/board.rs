@@ -4,6 +4,27 @@
 
 use core::panic::PanicInfo;
 
+// Copies the tables memory.x keeps in RAM (`.ram_tables`: rbf-core's exp2
+// octave table) from their load address in flash, before RAM is initialised
+// and before main. Assembly, as cortex-m-rt asks of a pre-init: no Rust code
+// may run before RAM is set up.
+core::arch::global_asm!(
+    ".section .text.__pre_init,\"ax\"",
+    ".global __pre_init",
+    ".type __pre_init,%function",
+    ".thumb_func",
+    "__pre_init:",
+    "    ldr r0, =__sram_tables",
+    "    ldr r1, =__eram_tables",
+    "    ldr r2, =__siram_tables",
+    "1:  cmp r1, r0",
+    "    beq 2f",
+    "    ldm r2!, {{r3}}",
+    "    stm r0!, {{r3}}",
+    "    b 1b",
+    "2:  bx lr",
+);
+
 unsafe extern "C" {
     static _model_a_start: u8;
     static _model_b_start: u8;
@@ -22,9 +43,52 @@ pub fn model_slot_b() -> &'static [u8] {
     unsafe { core::slice::from_raw_parts(&raw const _model_b_start, crate::MODEL_SLOT_LEN) }
 }
 
-/// A panic is a bug: stop at a permanent undefined instruction so a debugger
-/// (or QEMU) shows where; the watchdog of a real board resets it.
-#[cfg(not(feature = "panic-free-check"))]
+/// The fault record ([`crate::fault`]): words the runtime never
+/// initialises (`.uninit`), so they survive a reset.
+#[unsafe(link_section = ".uninit.FAULT_RECORD")]
+static mut FAULT_RECORD: [u32; crate::fault::RECORD_WORDS] = [0; crate::fault::RECORD_WORDS];
+
+fn store_fault_words(words: [u32; crate::fault::RECORD_WORDS]) {
+    for (i, w) in words.into_iter().enumerate() {
+        // SAFETY: word writes into the record's own four words.
+        unsafe { core::ptr::write_volatile((&raw mut FAULT_RECORD).cast::<u32>().add(i), w) };
+    }
+}
+
+/// Stores `record` for the next boot (call from a fault handler, then reset).
+pub fn store_fault(record: crate::fault::FaultRecord) {
+    store_fault_words(record.to_words());
+}
+
+/// The record a fault handler left before the last reset, if any; clears it.
+pub fn take_fault() -> Option<crate::fault::FaultRecord> {
+    let mut words = [0u32; crate::fault::RECORD_WORDS];
+    for (i, w) in words.iter_mut().enumerate() {
+        // SAFETY: mapped RAM; any bits are a valid u32.
+        *w = unsafe { core::ptr::read_volatile((&raw const FAULT_RECORD).cast::<u32>().add(i)) };
+    }
+    store_fault_words([0; crate::fault::RECORD_WORDS]);
+    crate::fault::FaultRecord::from_words(words)
+}
+
+/// A panic is a bug (the panic-free check proves none reachable after
+/// init). On the gyro board: record it with the handler's return address
+/// and reset; the next boot reports it (firmware::fault).
+#[cfg(all(not(feature = "panic-free-check"), feature = "board-stm32f405"))]
+#[panic_handler]
+fn panic(_: &PanicInfo) -> ! {
+    let return_address = cortex_m::register::lr::read();
+    store_fault(crate::fault::FaultRecord {
+        reason: crate::fault::FaultReason::Panic,
+        pc: return_address,
+        lr: return_address,
+    });
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+/// A panic is a bug: on the QEMU boards stop at a permanent undefined
+/// instruction, so that the run fails where it happened.
+#[cfg(all(not(feature = "panic-free-check"), not(feature = "board-stm32f405")))]
 #[panic_handler]
 fn panic(_: &PanicInfo) -> ! {
     cortex_m::asm::udf()

@@ -1,7 +1,10 @@
 //! The per-sample compensation loop: read the front end, read the
 //! thermometers the model needs (every `temp_read_every` samples), compensate
 //! with rbf-core, emit one output frame. Whatever the sensors do, every call emits exactly
-//! one frame and returns; nothing in here can panic on sensor data.
+//! one frame and returns; nothing in here can panic on sensor data, and
+//! nothing waits on the output: a frame the output cannot take whole is
+//! dropped, counted, and flagged on the next frame that goes out
+//! ([`Flags::OUTPUT_DROPPED`]).
 
 use embedded_io::Write;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
@@ -9,6 +12,24 @@ use rbf_core::frame::{self, MAX_FRAME_LEN, OutputFrame};
 use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, GyroSample, Model};
 
 use crate::sensors::{RateFrontEnd, Readings, Thermometers};
+
+/// Writes `bytes` to `output` without waiting and without panicking: as
+/// many `write` calls as make progress, then gives up. An output that takes
+/// nothing (`Ok(0)`, which `embedded_io::Write::write_all` turns into a
+/// panic), refuses (`WouldBlock`, any error) or takes part of the frame
+/// leaves it unsent; false then. A transmit queue that takes frames whole
+/// ([`crate::uart::FrameQueue`]) never leaves half a frame on the wire.
+pub fn write_frame<W: Write>(output: &mut W, bytes: &[u8]) -> bool {
+    let mut rest = bytes;
+    // Each call either takes a byte or ends the loop: bounded by the frame length.
+    while !rest.is_empty() {
+        match output.write(rest) {
+            Ok(n) if n > 0 => rest = rest.get(n..).unwrap_or(&[]),
+            _ => return false,
+        }
+    }
+    true
+}
 
 /// Settings of the loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -31,6 +52,9 @@ pub struct LoopStats {
     pub rate_read_faults: u32,
     /// Frames the output refused (the output is the only thing that can lose data).
     pub output_errors: u32,
+    /// Data-ready edges that passed without a processed sample (see
+    /// [`CompensationLoop::step_at`]).
+    pub samples_missed: u32,
 }
 
 /// The loop: owns the model, the sensors and the output.
@@ -44,6 +68,10 @@ pub struct CompensationLoop<T, R, W> {
     latest_temps_c: Readings,
     temp_read_due: bool,
     stats: LoopStats,
+    /// The sequence number the next sample should have.
+    next_seq: u32,
+    /// Flags for the next frame that goes out (a dropped frame, a fault reset).
+    pending_flags: Flags,
 }
 
 impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
@@ -59,7 +87,15 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
             latest_temps_c: [None; THERMOMETERS],
             temp_read_due: true,
             stats: LoopStats::default(),
+            next_seq: 0,
+            pending_flags: Flags::NONE,
         }
+    }
+
+    /// Marks the next frame with `flags` (the board: [`Flags::FAULT_RESET`]
+    /// after a reset by the fault handler or the watchdog).
+    pub fn flag_next_frame(&mut self, flags: Flags) {
+        self.pending_flags |= flags;
     }
 
     /// Processes the sample data-ready announced; `dt_s` is the time since the
@@ -69,7 +105,23 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
     /// (every `temp_read_every` samples), one [`Compensator::process`] and a
     /// ≤ 32-byte write.
     pub fn step(&mut self, dt_s: f32) -> CompensatedSample {
-        let seq = self.stats.samples;
+        self.step_at(self.next_seq, dt_s)
+    }
+
+    /// [`Self::step`] for the sample whose data-ready edge is number `seq`
+    /// (counted by the board from timer timestamps, so edges that passed
+    /// while the CPU was stalled count too). Edges between the previous
+    /// sample and this one are counted in [`LoopStats::samples_missed`] and
+    /// flagged ([`Flags::SAMPLES_MISSED`]); the frame carries `seq`.
+    pub fn step_at(&mut self, seq: u32, dt_s: f32) -> CompensatedSample {
+        let missed = seq.wrapping_sub(self.next_seq);
+        // A sequence number behind the expected one (a wrap or a board bug)
+        // is no gap; only a jump forward by less than half the range is.
+        if missed != 0 && missed < u32::MAX / 2 {
+            self.stats.samples_missed = self.stats.samples_missed.wrapping_add(missed);
+            self.pending_flags |= Flags::SAMPLES_MISSED;
+        }
+        self.next_seq = seq.wrapping_add(1);
         self.stats.samples = self.stats.samples.wrapping_add(1);
         if self.temp_read_due || seq.is_multiple_of(self.config.temp_read_every.max(1)) {
             self.temp_read_due = false;
@@ -83,7 +135,7 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
         let (rate_dph, rate_ok) = match self.front_end.read_rate() {
             Ok(s) => (s.rate_dph, s.valid),
             Err(_) => {
-                self.stats.rate_read_faults += 1;
+                self.stats.rate_read_faults = self.stats.rate_read_faults.wrapping_add(1);
                 (f32::NAN, false)
             }
         };
@@ -98,11 +150,18 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
         if !rate_ok {
             out.flags |= Flags::RATE_INVALID;
         }
-        self.emit(seq, rate_dph, &out);
+        out.flags |= self.pending_flags;
+        if self.emit(seq, rate_dph, &out) {
+            self.pending_flags = Flags::NONE;
+        } else {
+            self.stats.output_errors = self.stats.output_errors.wrapping_add(1);
+            self.pending_flags = Flags::OUTPUT_DROPPED;
+        }
         out
     }
 
-    fn emit(&mut self, seq: u32, rate_dph: f32, out: &CompensatedSample) {
+    /// Frames and writes one output frame; false when the output did not take it whole.
+    fn emit(&mut self, seq: u32, rate_dph: f32, out: &CompensatedSample) -> bool {
         let frame = OutputFrame {
             seq,
             rate_dph,
@@ -112,13 +171,10 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
             flags: out.flags.bits(),
         };
         let mut buf = [0u8; MAX_FRAME_LEN];
-        let written = frame::encode(&frame, &mut buf)
+        frame::encode(&frame, &mut buf)
             .ok()
             .and_then(|n| buf.get(..n))
-            .and_then(|bytes| self.output.write_all(bytes).ok());
-        if written.is_none() {
-            self.stats.output_errors += 1;
-        }
+            .is_some_and(|bytes| write_frame(&mut self.output, bytes))
     }
 
     /// Switches to `model` (after a model update) between two samples; the

@@ -5,10 +5,12 @@
 //! - [`tmp117`]: loop-thermometer driver (I2C); [`frontend`]: rate front end (SPI, docs/frontend.md);
 //! - [`sensors`]: the traits the loop needs from them;
 //! - [`compensation`]: the per-sample loop (rbf-core compensation, one output frame per sample);
+//! - [`uart`]: the transmit queue an interrupt drains (frames whole or dropped and counted);
 //! - [`replay`]: emulated devices and the recorded-run replayer of the QEMU board;
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
 //! - [`emulated_flash`]: NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
 //! - [`fault_injection`]: buses that fail on a schedule and the fault campaign of the QEMU fault board;
+//! - [`fault`]: the fault record kept across a reset and the boot report frame;
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
 //! The board binaries in `src/bin/` only wire peripherals to these.
@@ -17,12 +19,14 @@
 
 pub mod compensation;
 pub mod emulated_flash;
+pub mod fault;
 pub mod fault_injection;
 pub mod frontend;
 pub mod model_store;
 pub mod replay;
 pub mod sensors;
 pub mod tmp117;
+pub mod uart;
 pub mod update;
 
 #[cfg(target_os = "none")]

@@ -95,11 +95,41 @@ impl CommandReceiver {
             return Some(Received::Rejected(UpdateStatus::TooLong));
         }
         let frame = self.buf.get_mut(..len)?;
-        match cobs::decode_in_place(frame) {
-            Ok(n) if n > 0 => frame.get(..n).map(Received::Command),
+        match cobs_decode_in_place(frame) {
+            Some(n) if n > 0 => frame.get(..n).map(Received::Command),
             _ => Some(Received::Rejected(UpdateStatus::Malformed)),
         }
     }
+}
+
+/// Decodes one COBS frame (without its 0x00 terminator) in place; the
+/// decoded length, or `None` when the bytes are not COBS (a zero inside, a
+/// block longer than the frame). Every access is checked, so it links in
+/// the panic-free image (the `cobs` crate's decoder indexes its buffer).
+/// The decoded bytes never overtake the encoded ones: writing in place is safe.
+pub fn cobs_decode_in_place(frame: &mut [u8]) -> Option<usize> {
+    let (mut read, mut write) = (0usize, 0usize);
+    let end = frame.len();
+    while let Some(&code) = frame.get(read) {
+        if code == 0 {
+            return None;
+        }
+        read += 1;
+        for _ in 1..code {
+            let byte = *frame.get(read)?;
+            if byte == 0 {
+                return None;
+            }
+            *frame.get_mut(write)? = byte;
+            read += 1;
+            write += 1;
+        }
+        if code != 0xFF && read < end {
+            *frame.get_mut(write)? = 0;
+            write += 1;
+        }
+    }
+    Some(write)
 }
 
 /// Carries out one command payload on `store`; the status and, when a model
@@ -128,4 +158,33 @@ pub fn encode_install_command(blob: &[u8], out: &mut [u8]) -> Option<usize> {
     let body = rest.get_mut(..blob.len())?;
     body.copy_from_slice(blob);
     cobs_encode(payload.get(..1 + blob.len())?, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cobs_decoding_inverts_the_encoder_and_refuses_what_is_not_cobs() {
+        // Payloads with zeros in every position and runs past 254 bytes.
+        let mut state = 0x1234_5678u32;
+        for len in (0..600).step_by(7) {
+            let payload: std::vec::Vec<u8> = (0..len)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 17;
+                    state ^= state << 5;
+                    if state.is_multiple_of(5) { 0 } else { state as u8 }
+                })
+                .collect();
+            let mut out = std::vec![0u8; len + len / 254 + 2];
+            let n = cobs_encode(&payload, &mut out).unwrap();
+            let frame = &mut out[..n - 1];
+            let decoded = cobs_decode_in_place(frame).unwrap();
+            assert_eq!(&frame[..decoded], &payload[..], "length {len}");
+        }
+        assert_eq!(cobs_decode_in_place(&mut [3, 1, 0, 2]), None, "a zero inside");
+        assert_eq!(cobs_decode_in_place(&mut [5, 1, 2]), None, "a block past the end");
+        assert_eq!(cobs_decode_in_place(&mut []), Some(0));
+    }
 }

@@ -10,8 +10,9 @@ use embedded_hal_mock::eh1::spi::{Mock as SpiMock, Transaction as SpiTransaction
 use firmware::compensation::{CompensationLoop, LoopConfig};
 use firmware::frontend::{self, FrontEnd};
 use firmware::tmp117::{self, Tmp117};
+use rbf_core::frame::{self, OutputFrame};
 use rbf_core::sensor::tmp117_raw;
-use rbf_core::{CompensatorConfig, Flags, frame};
+use rbf_core::{CompensatorConfig, Flags};
 use trainer::evaluate::compensate_run;
 use trainer::run::Run;
 
@@ -169,14 +170,18 @@ impl embedded_io::Write for BrokenUart {
     }
 }
 
-#[test]
-fn a_failing_output_is_counted_and_never_stops_the_loop() {
+/// A loop without a model at 1 Hz over `samples` valid front-end samples
+/// and one thermometer read, writing to `output`.
+fn loop_over<W: embedded_io::Write>(
+    samples: usize,
+    output: W,
+) -> CompensationLoop<Tmp117<I2cMock>, FrontEnd<SpiMock<u8>>, W> {
     let i2c = [I2cTransaction::write_read(
         ADDRESS,
         vec![tmp117::REG_TEMP_RESULT],
         vec![0x0C, 0x80],
     )];
-    let spi: Vec<_> = (0..3)
+    let spi: Vec<_> = (0..samples)
         .flat_map(|_| {
             spi_read(
                 frontend::REG_SAMPLE,
@@ -188,13 +193,18 @@ fn a_failing_output_is_counted_and_never_stops_the_loop() {
         compensator: CompensatorConfig::for_sample_rate(1.0),
         temp_read_every: 100,
     };
-    let mut lp = CompensationLoop::new(
+    CompensationLoop::new(
         None,
         config,
         Tmp117::new(I2cMock::new(&i2c), ADDRESS),
         FrontEnd::new(SpiMock::new(&spi)),
-        BrokenUart,
-    );
+        output,
+    )
+}
+
+#[test]
+fn a_failing_output_is_counted_and_never_stops_the_loop() {
+    let mut lp = loop_over(3, BrokenUart);
     for _ in 0..3 {
         lp.step(1.0);
     }
@@ -203,4 +213,67 @@ fn a_failing_output_is_counted_and_never_stops_the_loop() {
     let (t, f, _) = lp.destroy();
     t.destroy().done();
     f.destroy().done();
+}
+
+/// A UART like the stm32f4xx-hal one while its data register is full: it
+/// takes nothing (`Ok(0)`) for the first `busy` writes, then everything.
+struct StallingUart {
+    busy: u32,
+    taken: Vec<u8>,
+}
+
+impl embedded_io::ErrorType for StallingUart {
+    type Error = embedded_io::ErrorKind;
+}
+
+impl embedded_io::Write for StallingUart {
+    fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+        if self.busy > 0 {
+            self.busy -= 1;
+            return Ok(0);
+        }
+        self.taken.extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> Result<(), Self::Error> {
+        Ok(())
+    }
+}
+
+#[test]
+fn an_output_that_takes_nothing_drops_the_frame_and_flags_the_next_one_without_panicking() {
+    let mut lp = loop_over(
+        4,
+        StallingUart {
+            busy: 2,
+            taken: Vec::new(),
+        },
+    );
+    // Edge 0, 1, 2 refused/sent as the UART allows; edge 3 then 6 (4 and 5
+    // passed while the CPU was stalled).
+    lp.step_at(0, 1.0);
+    lp.step_at(1, 1.0);
+    lp.step_at(2, 1.0);
+    lp.step_at(5, 3.0);
+    assert_eq!(lp.stats().output_errors, 2);
+    assert_eq!(lp.stats().samples_missed, 2);
+    let (t, f, uart) = lp.destroy();
+    t.destroy().done();
+    f.destroy().done();
+    let frames: Vec<OutputFrame> = uart
+        .taken
+        .split(|b| *b == 0)
+        .filter(|f| !f.is_empty())
+        .map(|f| {
+            let mut f = f.to_vec();
+            f.push(0);
+            rbf_core::frame::decode(&mut f).unwrap()
+        })
+        .collect();
+    assert_eq!(frames.len(), 2, "two frames sent, two dropped");
+    assert_eq!(frames[0].seq, 2);
+    assert!(Flags(frames[0].flags).contains(Flags::OUTPUT_DROPPED));
+    assert_eq!(frames[1].seq, 5, "the sequence number counts data-ready edges");
+    assert!(Flags(frames[1].flags).contains(Flags::SAMPLES_MISSED));
+    assert!(!Flags(frames[1].flags).contains(Flags::OUTPUT_DROPPED));
 }

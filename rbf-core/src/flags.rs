@@ -20,6 +20,15 @@ impl Flags {
     pub const WARMING_UP: Flags = Flags(8);
     /// The gyro rate sample itself was NaN or over range; passed through unchanged.
     pub const RATE_INVALID: Flags = Flags(16);
+    /// Firmware only: data-ready edges passed unprocessed before this sample
+    /// (its sequence number jumped by that many; a model install stalls the CPU).
+    pub const SAMPLES_MISSED: Flags = Flags(32);
+    /// Firmware only: output frames were dropped before this one (the UART
+    /// transmit queue was full; the sequence numbers show how many).
+    pub const OUTPUT_DROPPED: Flags = Flags(64);
+    /// Firmware only: the first frame after a reset by the fault handler or
+    /// the watchdog (the boot report frame before it gives the cause).
+    pub const FAULT_RESET: Flags = Flags(128);
 
     /// True when every bit of `other` is set in `self`.
     pub const fn contains(self, other: Flags) -> bool {

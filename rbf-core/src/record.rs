@@ -69,6 +69,18 @@ pub enum RowErrorKind {
     NonFinite,
     /// `temp_fault` is neither 0 nor 1.
     NotAFlag,
+    /// A rate (`rate_dph`, `ref_dph`) beyond [`MAX_ABS_RATE_DPH`].
+    OverRange,
+}
+
+/// Largest |rate| a run may hold in `rate_dph` or `ref_dph`, °/h: 1000 °/s,
+/// the compensator's plausible-rate limit (beyond it a live sample is
+/// flagged invalid; a file holding one is refused).
+pub const MAX_ABS_RATE_DPH: f64 = 3.6e6;
+
+/// True when `rate_dph` lies within ±[`MAX_ABS_RATE_DPH`].
+fn rate_in_range(rate_dph: f64) -> bool {
+    rate_dph.abs() <= MAX_ABS_RATE_DPH
 }
 
 /// A row error and the 0-based column index it concerns (None: the whole row).
@@ -432,11 +444,16 @@ impl Columns {
         for (t, &c) in temps_c.iter_mut().zip(&self.temps) {
             *t = optional(c)?;
         }
+        let rate_dph = at(self.rate_dph).filter(|r| rate_in_range(*r))?;
+        let ref_dph = optional(self.ref_dph)?;
+        if !ref_dph.is_none_or(rate_in_range) {
+            return None;
+        }
         Some(Row {
             time_s: at(self.time_s)?,
-            rate_dph: at(self.rate_dph)?,
+            rate_dph,
             temps_c,
-            ref_dph: optional(self.ref_dph)?,
+            ref_dph,
             temp_fault,
         })
     }
@@ -515,6 +532,13 @@ impl Columns {
             }
         };
         let optional = |index: Option<usize>, text: &[u8]| index.map(|i| number(i, text)).transpose();
+        let in_range = |index: Option<usize>, v: Option<f64>| match v {
+            Some(r) if !rate_in_range(r) => Err(RowError {
+                column: index,
+                kind: RowErrorKind::OverRange,
+            }),
+            _ => Ok(v),
+        };
         let temp_fault = match optional(self.temp_fault, fields[3])? {
             None => false,
             Some(0.0) => false,
@@ -530,11 +554,15 @@ impl Columns {
         for ((t, &c), text) in temps_c.iter_mut().zip(&self.temps).zip(&fields[4..]) {
             *t = optional(c, text)?;
         }
+        let time_s = number(self.time_s, fields[0])?;
+        let rate_dph = number(self.rate_dph, fields[1])?;
+        in_range(Some(self.rate_dph), Some(rate_dph))?;
+        let ref_dph = in_range(self.ref_dph, optional(self.ref_dph, fields[2])?)?;
         Ok(Row {
-            time_s: number(self.time_s, fields[0])?,
-            rate_dph: number(self.rate_dph, fields[1])?,
+            time_s,
+            rate_dph,
             temps_c,
-            ref_dph: optional(self.ref_dph, fields[2])?,
+            ref_dph,
             temp_fault,
         })
     }
@@ -714,6 +742,22 @@ mod tests {
                 column: Some(2),
                 kind: RowErrorKind::NonFinite
             }
+        );
+        assert_eq!(
+            err("1,-3600000.5,20,0,x"),
+            RowError {
+                column: Some(1),
+                kind: RowErrorKind::OverRange
+            }
+        );
+        assert!(c.parse_row("1,-3600000,20,0,x").is_ok(), "1000 °/s itself is a rate");
+        let with_ref = Columns::from_header("time_s,rate_dph,ref_dph").unwrap();
+        assert_eq!(
+            with_ref.parse_row("1,2,1e30"),
+            Err(RowError {
+                column: Some(2),
+                kind: RowErrorKind::OverRange
+            })
         );
         assert_eq!(
             err("1,2,20,0.5,x"),

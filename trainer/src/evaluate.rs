@@ -10,9 +10,12 @@ use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, Model};
 use serde::Serialize;
 
 use crate::allan::{self, AllanDeviation};
+use crate::blobfile::read_model;
+use crate::diagnose::RunDiagnosis;
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
-use crate::output::write_atomically;
-use crate::run::{Run, RunReader, StreamedRun, probe_nominal_period_s};
+use crate::output::{self, Existing, Output};
+use crate::run::{Run, RunReader, StreamedRun};
+use crate::{input, text};
 
 /// How many samples carried each flag.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -97,16 +100,95 @@ pub fn evaluate_output(run: &Run, out: &[CompensatedSample]) -> RunEvaluation {
 /// the run's length). Without `ref_dph` deviations are taken about their
 /// mean, which the MSD, cluster STD and Allan deviation are blind to.
 pub fn evaluate_file(model: &Model, path: &Path) -> anyhow::Result<RunEvaluation> {
-    let run = StreamedRun::open(path, model.features().set.thermometer_mask())?;
+    Ok(evaluate_reader(model, RunReader::open(path)?)?.0)
+}
+
+/// [`evaluate_file`] on an open reader; also returns what the rows showed
+/// ([`RunDiagnosis`]) and the number of compensated rows (no flag 4).
+pub fn evaluate_reader(model: &Model, reader: RunReader) -> anyhow::Result<(RunEvaluation, RunDiagnosis, usize)> {
+    let path = reader.path().to_owned();
+    let run = StreamedRun::from_reader(reader, model.features().set.thermometer_mask())?;
     let config = CompensatorConfig::for_nominal_period_s(run.nominal_period_s);
     let mut compensator = Compensator::new();
-    let mut evaluator = Evaluator::new(path, run.nominal_period_s, run.has_ref);
-    run.for_each(|row, sample| {
+    let mut evaluator = Evaluator::new(&path, run.nominal_period_s, run.has_ref);
+    let mut diagnosis = RunDiagnosis::new(&path, run.nominal_period_s);
+    let mut compensated = 0usize;
+    run.for_each_line(|line, row, sample| {
         let out = compensator.process(Some(model), &config, sample);
         let r = row.ref_dph.unwrap_or(0.0);
         evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
+        diagnosis.push(line, row);
+        compensated += usize::from(!out.flags.contains(Flags::NO_VALID_MODEL));
     })?;
-    Ok(evaluator.finish())
+    Ok((evaluator.finish(), diagnosis, compensated))
+}
+
+/// Refuses a run of `rows` rows where none could be compensated
+/// (`compensated` = 0), naming the causes [`RunDiagnosis::causes`] finds
+/// for the thermometers of `mask`, unless `allow_uncompensated`. A run
+/// without rows has nothing to compensate and passes.
+pub fn require_compensated(
+    path: &Path,
+    rows: usize,
+    compensated: usize,
+    diagnosis: &RunDiagnosis,
+    mask: u8,
+    allow_uncompensated: bool,
+) -> anyhow::Result<()> {
+    if compensated > 0 || rows == 0 || allow_uncompensated {
+        return Ok(());
+    }
+    let causes = diagnosis.causes(mask);
+    let why = if causes.is_empty() {
+        String::new()
+    } else {
+        format!(". Why: {}", causes.join("; "))
+    };
+    anyhow::bail!(
+        "{}: no row could be compensated: all {rows} carry flag 4 (uncompensated){why}. Pass --allow-uncompensated to accept such a run",
+        text::path(path)
+    )
+}
+
+/// Refuses a run that cannot be evaluated: fewer than 2 rows, or a bias
+/// target that never varies (its before/after gains would be 0/0).
+pub fn require_evaluable(path: &Path, rows: usize, diagnosis: &RunDiagnosis) -> anyhow::Result<()> {
+    if rows < 2 {
+        anyhow::bail!("{}: run has {rows} data rows; at least 2 are needed", text::path(path));
+    }
+    if diagnosis.target_is_constant() {
+        anyhow::bail!("{}: {}", text::path(path), diagnosis.constant_target());
+    }
+    Ok(())
+}
+
+/// `trainer eval`: before/after accuracy of `model` on each run (`-`:
+/// standard input), each read once. A run where no row could be
+/// compensated is refused unless `allow_uncompensated`, as is one that
+/// cannot be evaluated ([`require_evaluable`]).
+pub fn evaluate_files(
+    model: &Model,
+    paths: &[std::path::PathBuf],
+    allow_uncompensated: bool,
+) -> anyhow::Result<Vec<RunEvaluation>> {
+    input::check_stdin_once(paths.iter().map(|p| p.as_path()))?;
+    let mask = model.features().set.thermometer_mask();
+    paths
+        .iter()
+        .map(|path| {
+            let (evaluation, diagnosis, compensated) = evaluate_reader(model, RunReader::open(path)?)?;
+            require_evaluable(path, evaluation.samples, &diagnosis)?;
+            require_compensated(
+                path,
+                evaluation.samples,
+                compensated,
+                &diagnosis,
+                mask,
+                allow_uncompensated,
+            )?;
+            Ok(evaluation)
+        })
+        .collect()
 }
 
 /// Accumulates a run's before/after accuracy sample by sample: 1-s and 100-s
@@ -133,7 +215,7 @@ impl Evaluator {
             ]
         };
         Evaluator {
-            run: path.display().to_string(),
+            run: text::path(path),
             nominal_period_s,
             has_ref,
             samples: 0,
@@ -264,42 +346,102 @@ fn truncate(s: &str, max: usize) -> String {
     }
 }
 
-/// Streams `input` through the compensator into `output` (recorded-run format
-/// with `bias_dph`, `rate_comp_dph`, `flags` appended); returns the flag counts.
-///
-/// Input lines are passed through as read; one output row per input row.
-pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> anyhow::Result<(usize, FlagCounts)> {
-    let period_s = probe_nominal_period_s(input)?;
-    let mut reader = RunReader::open(input)?;
+/// How compensating a run went.
+#[derive(Clone, Debug)]
+pub struct Compensation {
+    /// Rows written, one per input row.
+    pub rows: usize,
+    /// Samples per flag.
+    pub flagged: FlagCounts,
+    /// Rows whose output is compensated (no flag 4).
+    pub compensated: usize,
+    /// What the rows showed, to explain an output with nothing compensated.
+    pub diagnosis: RunDiagnosis,
+}
+
+/// Streams the rows of `reader` through the compensator into `out`
+/// (recorded-run format with `bias_dph`, `rate_comp_dph`, `flags`
+/// appended): input lines are passed through as read, one output row per
+/// input row.
+pub fn compensate_reader(
+    model: Option<&Model>,
+    mut reader: RunReader,
+    out: &mut impl Write,
+) -> anyhow::Result<Compensation> {
     reader.require_thermometers(model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask()))?;
-    let config = CompensatorConfig::for_nominal_period_s(period_s);
+    let config = CompensatorConfig::for_nominal_period_s(reader.nominal_period_s());
     let mut compensator = Compensator::new();
-    let (mut rows, mut flagged) = (0usize, FlagCounts::default());
-    write_atomically(output, |out| {
-        let io = |e: std::io::Error| anyhow::Error::new(e).context(format!("{}: write failed", output.display()));
-        for line in reader.preamble() {
-            writeln!(out, "{line}").map_err(io)?;
+    let mut c = Compensation {
+        rows: 0,
+        flagged: FlagCounts::default(),
+        compensated: 0,
+        diagnosis: RunDiagnosis::new(reader.path(), reader.nominal_period_s()),
+    };
+    let io = |e: std::io::Error| anyhow::Error::new(e).context("write failed");
+    for line in reader.preamble() {
+        writeln!(out, "{line}").map_err(io)?;
+    }
+    writeln!(out, "{}{}", reader.header_line(), record::COMPENSATED_COLUMNS).map_err(io)?;
+    let mut prev_time_s = None;
+    while let Some(raw) = reader.next_row()? {
+        let sample = raw.sample(prev_time_s);
+        prev_time_s = Some(raw.row.time_s);
+        let o = compensator.process(model, &config, &sample);
+        writeln!(
+            out,
+            "{},{},{},{}",
+            raw.text,
+            o.bias_dph,
+            o.rate_comp_dph,
+            o.flags.bits()
+        )
+        .map_err(io)?;
+        c.flagged.add(o.flags);
+        c.compensated += usize::from(!o.flags.contains(Flags::NO_VALID_MODEL));
+        c.diagnosis.push(raw.line, &raw.row);
+        c.rows += 1;
+    }
+    Ok(c)
+}
+
+/// Streams `input` through the compensator into `output` (replacing it;
+/// see [`compensate_reader`]); returns the row and flag counts.
+pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> anyhow::Result<(usize, FlagCounts)> {
+    let mut out = Output::create(output, &[input], Existing::Replace)?;
+    let c = compensate_reader(model, RunReader::open(input)?, &mut out)
+        .with_context(|| format!("{}: compensating {}", text::path(output), text::path(input)))?;
+    out.commit()?;
+    Ok((c.rows, c.flagged))
+}
+
+/// `trainer compensate`: the run at `run` (`-`: standard input) compensated
+/// with the model at `model_path` into `output`. Every check comes first (the
+/// output target against the inputs and `existing`, the model, the run's
+/// header); the output appears only when the whole run is written, and not
+/// at all when no row could be compensated, unless `allow_uncompensated`.
+pub fn compensate_command(
+    model_path: &Path,
+    run: &Path,
+    output: &Path,
+    existing: Existing,
+    allow_uncompensated: bool,
+) -> anyhow::Result<Compensation> {
+    input::check_stdin_once([model_path, run])?;
+    let target = output::check_target(output, &[model_path, run], existing)?;
+    let (model, _) = read_model(model_path)?;
+    let reader = RunReader::open(run)?;
+    let mask = model.features().set.thermometer_mask();
+    reader.require_thermometers(mask)?;
+    let mut out = Output::open(target)?;
+    // Errors of the run name it and the line; write errors name the output.
+    let c = compensate_reader(Some(&model), reader, &mut out).map_err(|e| {
+        if e.is::<crate::run::RunError>() {
+            e
+        } else {
+            e.context(text::path(output))
         }
-        writeln!(out, "{}{}", reader.header_line(), record::COMPENSATED_COLUMNS).map_err(io)?;
-        let mut prev_time_s = None;
-        while let Some(raw) = reader.next_row()? {
-            let sample = raw.sample(prev_time_s);
-            prev_time_s = Some(raw.row.time_s);
-            let o = compensator.process(model, &config, &sample);
-            writeln!(
-                out,
-                "{},{},{},{}",
-                raw.text,
-                o.bias_dph,
-                o.rate_comp_dph,
-                o.flags.bits()
-            )
-            .map_err(io)?;
-            flagged.add(o.flags);
-            rows += 1;
-        }
-        Ok(())
-    })
-    .with_context(|| format!("compensating {}", input.display()))?;
-    Ok((rows, flagged))
+    })?;
+    require_compensated(run, c.rows, c.compensated, &c.diagnosis, mask, allow_uncompensated)?;
+    out.commit()?;
+    Ok(c)
 }

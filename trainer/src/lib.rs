@@ -14,11 +14,17 @@
 pub mod allan;
 pub mod blobfile;
 pub mod dataset;
+pub mod diagnose;
 pub mod evaluate;
 pub mod fit;
+pub mod frames;
 pub mod gradients;
+pub mod input;
+pub mod limits;
 pub mod metrics;
 pub mod output;
 pub mod report;
 pub mod run;
+pub mod sampling;
 pub mod simulate;
+pub mod text;

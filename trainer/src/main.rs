@@ -5,19 +5,44 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
+use clap::builder::RangedU64ValueParser;
 use clap::{Args, Parser, Subcommand};
 use rbf_core::blob::{self, Header};
 use rbf_core::features::Probe;
 use rbf_core::model::ModelBody;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
-use trainer::blobfile::{read_model, write_model};
-use trainer::dataset::RunFiles;
-use trainer::evaluate::{RunEvaluation, compensate_file, evaluate_file, evaluate_run, print_allan_table, print_table};
+use trainer::blobfile::{encode_model, file_problem, read_blob, read_model};
+use trainer::dataset::{RunFiles, RunSet};
+use trainer::evaluate::{
+    RunEvaluation, compensate_command, evaluate_file, evaluate_files, print_allan_table, print_table,
+};
 use trainer::fit::{self, FitOptions, Method, RbfFeatures};
-use trainer::output::{Existing, check_target, write_atomically, write_bytes};
-use trainer::run::Run;
+use trainer::limits::{MAX_BLOCK_SAMPLES, MAX_FOLDS, MAX_PARAMS_BYTES};
+use trainer::output::{self, Existing, Output};
 use trainer::run::RunReader;
-use trainer::simulate::{ChamberRun, Profile, SimParams};
+use trainer::simulate::{ChamberRun, ParamsError, Profile, SimParams};
+use trainer::text::{self, SafeWriter};
+use trainer::{diagnose, input};
+
+/// Standard output, control characters from outside escaped on the way.
+fn stdout() -> SafeWriter<std::io::StdoutLock<'static>> {
+    SafeWriter::new(std::io::stdout().lock())
+}
+
+/// Options every command that writes files shares.
+#[derive(Args, Debug)]
+struct ForceArg {
+    /// Replace the output if it exists (by default an existing file is never replaced;
+    /// even with --force a link, a device, a read-only file or an input is not).
+    #[arg(long)]
+    force: bool,
+}
+
+impl ForceArg {
+    fn existing(&self) -> Existing {
+        Existing::from_force(self.force)
+    }
+}
 
 /// Removes temperature drift from fiber-optic gyros.
 ///
@@ -56,11 +81,12 @@ enum Command {
 /// svr-pso` prints the same table, then by default chooses its thermometers by validation.)
 #[derive(Args, Debug)]
 struct CorrelateArgs {
-    /// Multi-point runs (the same thermometers in each).
+    /// Multi-point runs (the same thermometers in each; - reads standard input).
     #[arg(required = true, value_name = "RUN.csv")]
     runs: Vec<PathBuf>,
     /// Rows averaged per block (the paper's smoothing).
-    #[arg(long, value_name = "N", default_value_t = 100)]
+    #[arg(long, value_name = "N", default_value_t = 100,
+          value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_BLOCK_SAMPLES))]
     block_samples: usize,
     #[command(flatten)]
     select: SelectArgs,
@@ -77,8 +103,8 @@ struct SelectArgs {
     /// given; `fit --method svr-pso` then chooses the thermometers by validation instead.
     #[arg(long, value_name = "R", conflicts_with = "select_top")]
     select_threshold: Option<f64>,
-    /// Select the N candidates of largest |r| instead.
-    #[arg(long, value_name = "N")]
+    /// Select the N candidates of largest |r| instead (8 temperatures and 28 gradients at most).
+    #[arg(long, value_name = "N", value_parser = RangedU64ValueParser::<usize>::new().range(1..=36))]
     select_top: Option<usize>,
 }
 
@@ -111,7 +137,7 @@ impl SelectArgs {
 /// exactly the same data (bench/accuracy).
 #[derive(Args, Debug)]
 struct BlocksArgs {
-    /// Runs to read (blocks are written in order, with a run column).
+    /// Runs to read (blocks are written in order, with a run column; - reads standard input).
     #[arg(required = true, value_name = "RUN.csv")]
     runs: Vec<PathBuf>,
     /// Inputs: multiscale (default; the first-order set), multiscale-second-order (also for
@@ -138,6 +164,8 @@ struct BlocksArgs {
     /// CSV to write.
     #[arg(short, long, value_name = "BLOCKS.csv")]
     output: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
 }
 
 /// Plots and a written summary of a model on runs, for people who would rather look.
@@ -151,12 +179,26 @@ struct ReportArgs {
     /// Model blob.
     #[arg(long, value_name = "MODEL.bin")]
     model: PathBuf,
-    /// Runs to report on.
+    /// Runs to report on (- reads standard input).
     #[arg(required = true, value_name = "RUN.csv")]
     runs: Vec<PathBuf>,
     /// Directory to write into (created if missing).
     #[arg(short, long, value_name = "DIR")]
     output: PathBuf,
+    /// Replace report files that exist in DIR (by default none is replaced).
+    #[arg(long)]
+    force: bool,
+    #[command(flatten)]
+    uncompensated: AllowUncompensated,
+}
+
+/// What to do with a run where no row could be compensated.
+#[derive(Args, Debug)]
+struct AllowUncompensated {
+    /// Accept a run where no row could be compensated (every row flag 4); by default that
+    /// is an error naming the cause (temperatures out of range, sensor faults).
+    #[arg(long)]
+    allow_uncompensated: bool,
 }
 
 /// Decode firmware output frames (a UART capture) into CSV.
@@ -167,55 +209,78 @@ struct ReportArgs {
 /// that starts mid-frame loses only that first partial frame.
 #[derive(Args, Debug)]
 struct DecodeArgs {
-    /// Captured frame bytes.
+    /// Captured frame bytes (- reads standard input).
     #[arg(value_name = "FRAMES.bin")]
     frames: PathBuf,
     /// CSV to write.
     #[arg(short, long, value_name = "OUT.csv")]
     output: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
 }
 
-/// Write a simulated IFOG thermal-chamber run (recorded-run CSV with ref_dph).
+/// Write a simulated IFOG run, in a thermal chamber or in use (recorded-run CSV with ref_dph).
 ///
-/// A physics-based plant (docs/simulator.md): chamber air → housing base and top
-/// → self-heated electronics → fiber coil in 4 radial layers → thermometers with
-/// their own lags, noise and TMP117 quantisation. Bias = static cubic in the
-/// coil temperature + Shupe term in the layers' temperature rates with a
-/// T-dependent gain + radial gradient term (+ axial gradient with --multi) +
-/// bias instability + angle random walk. ref_dph is the Earth-rate projection at
-/// 39.9° N, axis heading 30°. Every profile starts with a 1-h hold. Same seed,
-/// same file.
+/// A physics-based plant (docs/simulator.md): air → housing base and top →
+/// self-heated electronics → fiber coil in 2 … 8 radial layers on its hub →
+/// thermometers with their own lags, noise and TMP117 quantisation. Bias =
+/// static cubic in the coil temperature + Shupe term in the layers'
+/// temperature rates with a T-dependent gain + thermal stress and radial
+/// gradient terms (+ axial gradient with --multi) + bias instability + angle
+/// random walk. ref_dph is the Earth-rate projection at 39.9° N, axis heading
+/// 30°. Every run starts at power-on, soaked at its first temperature; the
+/// chamber protocols ifog, cycle and random start with a 1-h hold. --unit N
+/// draws a whole gyro from documented ranges. Same seed, same file.
+///
+/// Example: trainer simulate --profile field --unit 3 --seed 7 -o field.csv
 #[derive(Args, Debug)]
 struct SimulateArgs {
-    /// Temperature profile: ifog (25 → 10 → 40 → 25 °C with holds, IFOG paper), cycle
-    /// (20 → −40 → 60 → −40 → 60 → 20 °C, RLG paper) or random set points and ramps.
-    #[arg(long, value_enum, default_value_t = Profile::Ifog)]
+    /// Temperature history: chamber ifog, cycle, random, designed; in use cold-start,
+    /// ambient-steps, swings, day-cycle, field (docs/simulator.md, "Profiles").
+    #[arg(long, value_enum, default_value_t = Profile::Ifog, conflicts_with = "chamber_profile")]
     profile: Profile,
+    /// Simulate a planned chamber run: a CSV with time_s,chamber_c set points
+    /// (piecewise linear, as `trainer plan` writes it).
+    #[arg(long, value_name = "PLAN.csv")]
+    chamber_profile: Option<PathBuf>,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Chamber ramp rate between set points, °C/min (ifog and cycle; the RLG paper used 1, 2, 3, 5).
-    #[arg(long, value_name = "C_PER_MIN", default_value_t = 1.0)]
-    ramp: f64,
+    /// Another gyro of the same kind: draw every plant and bias constant from the
+    /// documented unit-to-unit ranges, seeded by N (--params overrides fields of it).
+    #[arg(long, value_name = "N")]
+    unit: Option<u64>,
+    /// Chamber ramp rate between set points, °C/min (ifog and cycle: 1, the RLG paper
+    /// used 1, 2, 3, 5; designed: 5).
+    #[arg(long, value_name = "C_PER_MIN")]
+    ramp: Option<f64>,
     /// Gyro sample rate, Hz.
     #[arg(long, value_name = "F", default_value_t = 1.0)]
     rate_hz: f64,
     /// Hold at each set point, minutes (ifog and cycle).
     #[arg(long, value_name = "MINUTES", default_value_t = 120.0)]
     hold_min: f64,
-    /// Total length, hours: cuts the profile or extends its last hold (random: default 8 h).
+    /// Total length, hours: cuts the profile or extends its last hold (random: 8 h and the hold
+    /// it is in; cold-start 4, ambient-steps 6, swings 4, day-cycle 24, field 8 h).
     #[arg(long, value_name = "H")]
     hours: Option<f64>,
     /// Set-point range of the random profile, °C, as MIN,MAX.
     #[arg(long, value_name = "MIN,MAX", value_delimiter = ',', allow_hyphen_values = true, default_values_t = [-40.0, 60.0])]
     random_range: Vec<f64>,
+    /// Ramp-rate range of the random profile, °C/min, as SLOWEST,FASTEST.
+    #[arg(long, value_name = "MIN,MAX", value_delimiter = ',', default_values_t = [0.5, 5.0])]
+    ramp_range: Vec<f64>,
+    /// The same run with every thermal bias term zeroed: its noise alone, sample
+    /// for sample (the run's noise ceiling).
+    #[arg(long)]
+    noise_only: bool,
     /// Write 8 thermometers temp_a … temp_h at different places (temp_c is the loop
     /// sensor) and add the axial-gradient bias they reveal (RLG paper).
     #[arg(long)]
     multi: bool,
     /// Another gyro: a JSON file overriding any of the thermal network's time
     /// constants and the bias and noise coefficients (docs/simulator.md lists
-    /// every field, its unit and default), e.g.
+    /// every field, its unit and default; with --unit, over that unit's), e.g.
     /// {"plant": {"tau_top_s": 2400}, "gyro": {"axial_gradient_dph_per_c": 0.05}}.
     /// The run's header records them (# simulator_params).
     #[arg(long, value_name = "FILE.json")]
@@ -223,6 +288,8 @@ struct SimulateArgs {
     /// Run to write.
     #[arg(short, long, value_name = "RUN.csv")]
     output: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
 }
 
 /// Fit a bias model to recorded chamber runs and write the model blob.
@@ -279,10 +346,10 @@ struct FitArgs {
     features: RbfFeatures,
     /// Use K Gaussian centres (1–64; fewer if OLS finds fewer independent ones) instead of
     /// choosing K ≤ --max-centers on validation.
-    #[arg(long, value_name = "K")]
+    #[arg(long, value_name = "K", value_parser = centres_parser())]
     centers: Option<usize>,
-    /// Most centres considered when K is chosen on validation (firmware cost grows with K).
-    #[arg(long, value_name = "K", default_value_t = 32)]
+    /// Most centres considered when K is chosen on validation (1–64; firmware cost grows with K).
+    #[arg(long, value_name = "K", default_value_t = 32, value_parser = centres_parser())]
     max_centers: usize,
     /// ΔT derivative-filter time constant(s) to choose from, in seconds (for multiscale the
     /// fastest of three, the others 16 and 256 times it); 0 = one-sample difference (IFOG
@@ -292,8 +359,9 @@ struct FitArgs {
     /// Averaging block for training, seconds.
     #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
     block_s: f64,
-    /// Contiguous folds per run for validation when no --validate runs are given.
-    #[arg(long, default_value_t = 5)]
+    /// Contiguous folds per run for validation when no --validate runs are given (2–20).
+    #[arg(long, value_name = "N", default_value_t = 5,
+          value_parser = RangedU64ValueParser::<usize>::new().range(2..=MAX_FOLDS))]
     folds: usize,
     /// Serial number of the gyro, stored in the blob (at most 32 bytes).
     #[arg(long)]
@@ -313,6 +381,11 @@ struct FitArgs {
     /// temperatures and gradients, e.g. `temp_d,temp_c-temp_d,temp_a-temp_b` (at most 8).
     #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = parse_probe)]
     inputs: Option<Vec<Probe>>,
+}
+
+/// Centre counts the firmware holds: 1 … [`rbf_core::MAX_CENTERS`].
+fn centres_parser() -> RangedU64ValueParser<usize> {
+    RangedU64ValueParser::<usize>::new().range(1..=rbf_core::MAX_CENTERS as u64)
 }
 
 /// A multi-point input by its column names: `temp_c` or `temp_c-temp_e`.
@@ -346,12 +419,16 @@ struct CompensateArgs {
     /// Model blob written by `trainer fit`.
     #[arg(long, value_name = "MODEL.bin")]
     model: PathBuf,
-    /// Run to compensate.
+    /// Run to compensate (- reads standard input).
     #[arg(value_name = "RUN.csv")]
     run: PathBuf,
     /// Compensated run to write.
     #[arg(short, long, value_name = "OUT.csv")]
     output: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
+    #[command(flatten)]
+    uncompensated: AllowUncompensated,
 }
 
 /// Before/after accuracy of a model on runs.
@@ -366,30 +443,55 @@ struct EvalArgs {
     /// Model blob.
     #[arg(long, value_name = "MODEL.bin")]
     model: PathBuf,
-    /// Runs to evaluate.
+    /// Runs to evaluate (- reads standard input).
     #[arg(required = true, value_name = "RUN.csv")]
     runs: Vec<PathBuf>,
     /// Also write the figures as JSON.
     #[arg(long, value_name = "REPORT.json")]
     json: Option<PathBuf>,
+    #[command(flatten)]
+    force: ForceArg,
+    #[command(flatten)]
+    uncompensated: AllowUncompensated,
 }
 
 /// Show what a model blob holds and whether it is intact.
 #[derive(Args, Debug)]
 struct InspectArgs {
-    /// Model blob.
-    #[arg(value_name = "MODEL.bin")]
-    model: PathBuf,
+    /// Model blob (- reads standard input).
+    #[arg(
+        value_name = "MODEL.bin",
+        required_unless_present = "model_option",
+        conflicts_with = "model_option"
+    )]
+    model: Option<PathBuf>,
+    /// Model blob, as the other commands name it.
+    #[arg(long = "model", id = "model_option", value_name = "MODEL.bin")]
+    model_option: Option<PathBuf>,
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    // A command line clap refuses exits 1 like every other error (--help and
+    // --version print to stdout and exit 0).
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::FAILURE
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            // File names, fields and serials from outside may hold control characters.
+            eprintln!("error: {}", text::terminal_safe(&format!("{e:#}")));
             ExitCode::FAILURE
         }
     }
@@ -399,13 +501,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Fit(a) => cmd_fit(a),
         Command::Compensate(a) => {
-            let (model, _) = read_model(&a.model)?;
-            let (rows, flagged) = compensate_file(Some(&model), &a.run, &a.output)?;
-            println!(
-                "wrote {} ({rows} rows; flagged: {})",
-                a.output.display(),
-                serde_json::to_string(&flagged)?
-            );
+            let c = compensate_command(
+                &a.model,
+                &a.run,
+                &a.output,
+                a.force.existing(),
+                a.uncompensated.allow_uncompensated,
+            )?;
+            writeln!(
+                stdout(),
+                "wrote {} ({} rows; flagged: {})",
+                text::path(&a.output),
+                c.rows,
+                serde_json::to_string(&c.flagged)?
+            )?;
             Ok(())
         }
         Command::Eval(a) => cmd_eval(a),
@@ -416,25 +525,39 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Correlate(a) => cmd_correlate(a),
         Command::Report(a) => {
             let (model, _) = read_model(&a.model)?;
-            let runs = load_runs(&a.runs)?;
-            let files = trainer::report::write_report(&model, &a.model, &runs, &a.output)?;
-            println!("wrote {} files into {}", files.len(), a.output.display());
+            let existing = Existing::from_force(a.force);
+            let files = trainer::report::write_report(
+                &model,
+                &a.model,
+                &a.runs,
+                &a.output,
+                existing,
+                a.uncompensated.allow_uncompensated,
+            )?;
+            writeln!(stdout(), "wrote {} files into {}", files.len(), text::path(&a.output))?;
             Ok(())
         }
     }
 }
 
-fn load_runs(paths: &[PathBuf]) -> anyhow::Result<Vec<Run>> {
-    paths
-        .iter()
-        .map(|p| Run::load(p).map_err(anyhow::Error::from))
-        .collect()
-}
-
 fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
+    // A fit reads its runs several times: files only. Outputs are checked
+    // against them before any work; the model and the JSON are written last,
+    // after every fallible step, so a failure never leaves a replaced model.
+    let all_runs: Vec<&Path> = a
+        .runs
+        .iter()
+        .chain(&a.validate)
+        .chain(&a.holdout)
+        .map(|p| p.as_path())
+        .collect();
+    input::require_seekable(all_runs.iter().copied(), "`trainer fit` reads its runs several times")?;
+    let existing = Existing::from_force(a.force);
+    let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(a.json.as_deref()).collect();
+    let mut targets = output::check_targets(&outputs, &all_runs, existing)?.into_iter();
     // Runs are streamed (memory stays flat whatever their length); their
-    // headers are checked now, so a bad file is reported before any work.
-    for path in a.runs.iter().chain(&a.validate).chain(&a.holdout) {
+    // headers and first rows are checked now, so a bad file is reported before any work.
+    for path in &all_runs {
         RunReader::open(path)?.require_temp()?;
     }
     let train = RunFiles::new(&a.runs);
@@ -444,7 +567,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         features: a.features,
         block_s: a.block_s,
         centers: a.centers,
-        max_centers: a.max_centers.clamp(1, rbf_core::MAX_CENTERS),
+        max_centers: a.max_centers,
         folds: a.folds,
         serial: a.serial,
         progress: !a.quiet,
@@ -465,16 +588,25 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         );
         opts.rate_windows_s = a.rate_window_s;
     }
-    let existing = if a.force { Existing::Replace } else { Existing::Refuse };
-    check_target(&a.output, existing)?;
+    let model_out = targets.next().map(Output::open).transpose()?;
+    let json_out = targets.next().map(Output::open).transpose()?;
     let started = std::time::Instant::now();
-    let outcome = fit::fit(&train, &validate, &opts)?;
+    let outcome = fit::fit(&train, &validate, &opts).map_err(|e| {
+        if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
+            let mask =
+                opts.method.feature_set(opts.features).thermometer_mask() | (1 << rbf_core::features::LOOP_THERMOMETER);
+            diagnose::with_causes(e, &a.runs, mask)
+        } else {
+            e
+        }
+    })?;
     let fit_s = started.elapsed().as_secs_f64();
     // The cached block means are done with: freed before the evaluation pass.
     drop((train, validate));
-    let blob = write_model(&a.output, &outcome.model, existing)?;
+    let blob = encode_model(&outcome.model)?;
 
-    let mut out = std::io::stdout().lock();
+    // Printed once everything is written.
+    let mut out: Vec<u8> = Vec::new();
     writeln!(out, "method {:?}: {}", a.method, describe(&outcome.model))?;
     if let Some(c) = &outcome.choice {
         writeln!(
@@ -563,9 +695,10 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         .collect::<anyhow::Result<_>>()?;
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
-    writeln!(out, "\nwrote {} ({} bytes)", a.output.display(), blob.len())?;
-    if let Some(path) = &a.json {
-        let report = serde_json::json!({
+    writeln!(out, "\nwrote {} ({} bytes)", text::path(&a.output), blob.len())?;
+    let json = match &a.json {
+        None => None,
+        Some(_) => Some(serde_json::to_string_pretty(&serde_json::json!({
             "method": a.method,
             "choice": outcome.choice,
             "feature_sets": outcome.sets,
@@ -574,15 +707,26 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             "fit_seconds": fit_s,
             "blob_bytes": blob.len(),
             "runs": evals.iter().map(|(role, e)| serde_json::json!({"role": role, "evaluation": e})).collect::<Vec<_>>(),
-        });
-        write_bytes(path, serde_json::to_string_pretty(&report)?.as_bytes())?;
+        }))?),
+    };
+    for (output, bytes) in [
+        (model_out, Some(blob.clone())),
+        (json_out, json.map(String::into_bytes)),
+    ] {
+        if let (Some(mut output), Some(bytes)) = (output, bytes) {
+            output
+                .write_all(&bytes)
+                .with_context(|| format!("{}: write failed", text::path(output.path())))?;
+            output.commit()?;
+        }
     }
+    stdout().write_all(&out)?;
     Ok(())
 }
 
 fn cmd_correlate(a: CorrelateArgs) -> anyhow::Result<()> {
     use trainer::gradients::{Selection, block_means, candidate_name, correlations, select};
-    anyhow::ensure!(a.block_samples >= 1, "--block-samples must be at least 1");
+    input::check_stdin_once(a.runs.iter().map(|p| p.as_path()))?;
     let selection = a.select.selection()?.unwrap_or(Selection::Threshold(PAPER_THRESHOLD));
     let blocks = block_means(&a.runs, a.block_samples)?;
     anyhow::ensure!(
@@ -596,10 +740,14 @@ fn cmd_correlate(a: CorrelateArgs) -> anyhow::Result<()> {
     if a.json {
         let names: Vec<String> = selected.iter().map(|&c| candidate_name(&table, c)).collect();
         let report = serde_json::json!({ "table": table, "selected": selected, "selected_names": names });
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        writeln!(stdout(), "{}", serde_json::to_string_pretty(&report)?)?;
         return Ok(());
     }
-    print!("{}", describe_selection(&table, &selected, &rule_name(selection)));
+    write!(
+        stdout(),
+        "{}",
+        describe_selection(&table, &selected, &rule_name(selection))
+    )?;
     Ok(())
 }
 
@@ -644,6 +792,9 @@ fn cmd_blocks(a: BlocksArgs) -> anyhow::Result<()> {
         a.rate_window_s.is_finite() && (0.0..=86_400.0).contains(&a.rate_window_s),
         "--rate-window-s must be 0 … 86400 s"
     );
+    let inputs: Vec<&Path> = a.runs.iter().map(|p| p.as_path()).chain(a.model.as_deref()).collect();
+    input::check_stdin_once(inputs.iter().copied())?;
+    let target = output::check_target(&a.output, &inputs, a.force.existing())?;
     let features = match &a.model {
         Some(model) => *read_model(model)?.0.features(),
         None => {
@@ -658,63 +809,50 @@ fn cmd_blocks(a: BlocksArgs) -> anyhow::Result<()> {
         }
     };
     let set = features.set;
-    let runs = load_runs(&a.runs)?;
-    let blocks = trainer::dataset::RunSet::block_means(runs.as_slice(), &features, a.block_s)?;
+    // Streamed: one pass per run, only block means held.
+    let blocks = RunFiles::new(&a.runs).block_means(&features, a.block_s)?;
+    let mut out = Output::open(target)?;
     let names: Vec<String> = (0..set.dims()).map(|i| format!("x{i}")).collect();
-    let mut csv = format!(
-        "# features: {}\nrun,{},target_dph\n",
-        input_names(set).join(", "),
-        names.join(",")
-    );
-    for i in 0..blocks.len() {
-        let x: Vec<String> = (0..set.dims()).map(|k| blocks.feature(i, k).to_string()).collect();
-        csv.push_str(&format!("{},{},{}\n", blocks.run[i], x.join(","), blocks.y[i]));
-    }
-    write_bytes(&a.output, csv.as_bytes())?;
-    println!("wrote {} ({} blocks)", a.output.display(), blocks.len());
+    let write = |out: &mut Output| -> std::io::Result<()> {
+        writeln!(out, "# features: {}", input_names(set).join(", "))?;
+        writeln!(out, "run,{},target_dph", names.join(","))?;
+        for i in 0..blocks.len() {
+            let x: Vec<String> = (0..set.dims()).map(|k| blocks.feature(i, k).to_string()).collect();
+            writeln!(out, "{},{},{}", blocks.run[i], x.join(","), blocks.y[i])?;
+        }
+        Ok(())
+    };
+    write(&mut out).with_context(|| format!("{}: write failed", text::path(&a.output)))?;
+    out.commit()?;
+    writeln!(stdout(), "wrote {} ({} blocks)", text::path(&a.output), blocks.len())?;
     Ok(())
 }
 
 fn cmd_decode(a: DecodeArgs) -> anyhow::Result<()> {
-    let mut bytes = std::fs::read(&a.frames).with_context(|| format!("{}: cannot read", a.frames.display()))?;
-    let (mut good, mut damaged) = (0usize, Vec::new());
-    let mut csv = String::from("seq,rate_dph,bias_dph,rate_comp_dph,temp_c,flags\n");
-    let mut start = 0;
-    let len = bytes.len();
-    while start < len {
-        let end = bytes[start..].iter().position(|&b| b == 0).map_or(len, |p| start + p);
-        if end > start {
-            match rbf_core::frame::decode(&mut bytes[start..end]) {
-                Ok(f) => {
-                    csv.push_str(&format!(
-                        "{},{},{},{},{},{}\n",
-                        f.seq, f.rate_dph, f.bias_dph, f.rate_comp_dph, f.temp_c, f.flags
-                    ));
-                    good += 1;
-                }
-                Err(_) => damaged.push(start),
-            }
-        }
-        start = end + 1;
-    }
-    write_bytes(&a.output, csv.as_bytes())?;
-    println!("wrote {} ({good} frames)", a.output.display());
-    if !damaged.is_empty() {
+    let target = output::check_target(&a.output, &[&a.frames], a.force.existing())?;
+    let capture = input::open(&a.frames).with_context(|| format!("{}: cannot read", text::path(&a.frames)))?;
+    let mut out = Output::open(target)?;
+    let decoded = trainer::frames::decode_capture(capture, &mut out).with_context(|| text::path(&a.frames))?;
+    out.commit()?;
+    writeln!(stdout(), "wrote {} ({} frames)", text::path(&a.output), decoded.frames)?;
+    if decoded.damaged > 0 {
         eprintln!(
             "warning: {}: {} damaged frame(s) skipped, at byte offsets {:?}",
-            a.frames.display(),
-            damaged.len(),
-            &damaged[..damaged.len().min(10)]
+            text::path(&a.frames),
+            decoded.damaged,
+            decoded.damaged_at
         );
     }
     Ok(())
 }
 
 fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        a.ramp.is_finite() && a.ramp > 0.0 && a.ramp <= 20.0,
-        "--ramp must be 0 … 20 °C/min"
-    );
+    if let Some(ramp) = a.ramp {
+        anyhow::ensure!(
+            ramp.is_finite() && ramp > 0.0 && ramp <= 20.0,
+            "--ramp must be 0 … 20 °C/min"
+        );
+    }
     anyhow::ensure!(
         a.rate_hz.is_finite() && a.rate_hz > 0.0 && a.rate_hz <= 10_000.0,
         "--rate-hz must be 0 … 10000 Hz"
@@ -730,59 +868,87 @@ fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
         lo.is_finite() && hi.is_finite() && lo >= -55.0 && hi <= 150.0 && hi - lo >= 5.0,
         "--random-range must lie within −55 … 150 °C (the TMP117's range) and span at least 5 °C"
     );
+    let [slowest, fastest] = a.ramp_range[..] else {
+        anyhow::bail!("--ramp-range takes SLOWEST,FASTEST in °C/min")
+    };
+    anyhow::ensure!(
+        slowest.is_finite() && fastest.is_finite() && 0.01 <= slowest && slowest <= fastest && fastest <= 20.0,
+        "--ramp-range must lie within 0.01 … 20 °C/min, slowest first"
+    );
     if let Some(h) = a.hours {
         anyhow::ensure!(h.is_finite() && h > 0.0 && h <= 1000.0, "--hours must be 0 … 1000");
     }
-    let run = ChamberRun {
-        profile: a.profile,
-        ramp_c_per_min: a.ramp,
-        hold_s: a.hold_min * 60.0,
-        duration_s: a.hours.map(|h| h * 3600.0),
-        sample_rate_hz: a.rate_hz,
-        multi: a.multi,
-        random_range_c: (lo, hi),
-        seed: a.seed,
-        params: match &a.params {
-            Some(path) => read_sim_params(path)?,
-            None => SimParams::default(),
-        },
+    let inputs: Vec<&Path> = a.params.iter().chain(&a.chamber_profile).map(PathBuf::as_path).collect();
+    let target = output::check_target(&a.output, &inputs, a.force.existing())?;
+    let unit_params = a
+        .unit
+        .map_or_else(SimParams::default, trainer::simulate::unit::unit_params);
+    let mut run = match &a.chamber_profile {
+        Some(path) => ChamberRun::planned(
+            trainer::simulate::chamber_file::read_chamber_profile(path)?,
+            &path.display().to_string(),
+            a.seed,
+        ),
+        None => ChamberRun::with_profile(a.profile, a.seed),
     };
-    write_atomically(&a.output, |w| {
-        run.write_csv(w)
-            .with_context(|| format!("{}: write failed", a.output.display()))
-    })?;
-    println!("wrote {}", a.output.display());
+    run.ramp_c_per_min = a.ramp.unwrap_or(match a.profile {
+        Profile::Designed => trainer::simulate::profile::DESIGNED_RAMP_C_PER_MIN,
+        _ => 1.0,
+    });
+    run.hold_s = a.hold_min * 60.0;
+    run.duration_s = a.hours.map(|h| h * 3600.0);
+    run.sample_rate_hz = a.rate_hz;
+    run.multi = a.multi;
+    run.random_range_c = (lo, hi);
+    run.ramp_range_c_per_min = (slowest, fastest);
+    run.unit = a.unit;
+    run.noise_only = a.noise_only;
+    run.params = match &a.params {
+        Some(path) => read_sim_params(path, &unit_params)?,
+        None => unit_params,
+    };
+    run.params
+        .check()
+        .map_err(|reason| anyhow::anyhow!("cannot simulate these parameters: {reason}"))?;
+    let mut out = Output::open(target)?;
+    run.write_csv(&mut out)
+        .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
+    out.commit()?;
+    writeln!(stdout(), "wrote {}", text::path(&a.output))?;
     Ok(())
 }
 
-/// The simulator's parameters from a JSON file: syntax errors and unknown
-/// fields name the file, line and column; impossible values the field.
-fn read_sim_params(path: &Path) -> anyhow::Result<SimParams> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let params: SimParams = serde_json::from_str(&text).map_err(|e| {
-        let message = e.to_string();
-        // serde_json appends the place; it leads here instead.
-        let message = message.split(" at line ").next().unwrap_or(&message).to_owned();
-        anyhow::anyhow!("{}:{}:{}: {message}", path.display(), e.line(), e.column())
-    })?;
-    params
-        .check()
-        .map_err(|reason| anyhow::anyhow!("{}: {reason}", path.display()))?;
-    Ok(params)
+/// The simulator's parameters `base` with a JSON file's fields over them:
+/// syntax errors and unknown fields name the file, line and column;
+/// impossible values the field.
+fn read_sim_params(path: &Path, base: &SimParams) -> anyhow::Result<SimParams> {
+    let bytes = input::read_limited(path, MAX_PARAMS_BYTES, "a simulator parameter file")?;
+    let json = String::from_utf8(bytes).map_err(|_| anyhow::anyhow!("{}: not UTF-8 text", text::path(path)))?;
+    base.overridden(&json).map_err(|e| match e {
+        ParamsError::Syntax { .. } => anyhow::anyhow!("{}:{e}", text::path(path)),
+        ParamsError::Invalid(_) => anyhow::anyhow!("{}: {e}", text::path(path)),
+    })
 }
 
 fn cmd_eval(a: EvalArgs) -> anyhow::Result<()> {
+    let inputs: Vec<&Path> = a.runs.iter().map(|p| p.as_path()).chain([a.model.as_path()]).collect();
+    input::check_stdin_once(inputs.iter().copied())?;
+    let json_out = match &a.json {
+        Some(path) => Some(Output::create(path, &inputs, a.force.existing())?),
+        None => None,
+    };
     let (model, _) = read_model(&a.model)?;
-    let runs = load_runs(&a.runs)?;
-    let evals: Vec<RunEvaluation> = runs.iter().map(|r| evaluate_run(&model, r)).collect();
+    let evals = evaluate_files(&model, &a.runs, a.uncompensated.allow_uncompensated)?;
+    if let Some(mut json) = json_out {
+        json.write_all(serde_json::to_string_pretty(&evals)?.as_bytes())
+            .with_context(|| format!("{}: write failed", text::path(json.path())))?;
+        json.commit()?;
+    }
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|e| ("eval", e)).collect();
-    let mut out = std::io::stdout().lock();
+    let mut out = stdout();
     print_table(&mut out, &rows)?;
     writeln!(out, "\nOverlapping Allan deviation (IEEE Std 952) of rate − reference:")?;
     print_allan_table(&mut out, &rows)?;
-    if let Some(path) = &a.json {
-        write_bytes(path, serde_json::to_string_pretty(&evals)?.as_bytes())?;
-    }
     Ok(())
 }
 
@@ -861,19 +1027,29 @@ fn describe(model: &Model) -> String {
 }
 
 fn cmd_inspect(a: InspectArgs) -> anyhow::Result<()> {
-    let bytes = std::fs::read(&a.model).with_context(|| format!("{}: cannot read model", a.model.display()))?;
-    let header = Header::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: model refused: {e}", a.model.display()))?;
+    let Some(path) = a.model.or(a.model_option) else {
+        anyhow::bail!("inspect needs a model: trainer inspect MODEL.bin");
+    };
+    let bytes = read_blob(&path)?;
+    let header = Header::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: model refused: {e}", text::path(&path)))?;
     let crc = blob::crc_status(&bytes, &header);
     let decoded = crc.and_then(|_| blob::decode(&bytes));
-    let info = inspect_json(&a.model, &bytes, &header, &crc, &decoded);
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&info)?);
-    } else {
-        print_inspect(&info);
+    // Also what a valid blob leaves over: a file holds one blob.
+    let problem = decoded.as_ref().ok().and_then(|_| file_problem(&bytes));
+    let mut info = inspect_json(&path, &bytes, &header, &crc, &decoded);
+    if let Some(problem) = &problem {
+        info["valid"] = serde_json::json!(false);
+        info["error"] = serde_json::json!(problem);
     }
-    match decoded {
-        Ok(_) => Ok(()),
-        Err(e) => Err(anyhow::anyhow!("{}: model refused: {e}", a.model.display())),
+    if a.json {
+        writeln!(stdout(), "{}", serde_json::to_string_pretty(&info)?)?;
+    } else {
+        print_inspect(&info)?;
+    }
+    match (decoded, problem) {
+        (Ok(_), None) => Ok(()),
+        (Ok(_), Some(problem)) => Err(anyhow::anyhow!("{}: model refused: {problem}", text::path(&path))),
+        (Err(e), _) => Err(anyhow::anyhow!("{}: model refused: {e}", text::path(&path))),
     }
 }
 
@@ -885,7 +1061,7 @@ fn inspect_json(
     decoded: &Result<blob::Decoded, blob::DecodeError>,
 ) -> serde_json::Value {
     let mut v = serde_json::json!({
-        "file": path.display().to_string(),
+        "file": text::path(path),
         "file_bytes": bytes.len(),
         "blob_bytes": header.blob_len(),
         "format_version": header.version,
@@ -945,45 +1121,53 @@ fn features_json(f: &FeatureConfig) -> serde_json::Value {
     })
 }
 
-fn print_inspect(v: &serde_json::Value) {
+fn print_inspect(v: &serde_json::Value) -> std::io::Result<()> {
+    // Strings from the blob (the serial) are shown with control characters escaped.
     let s = |k: &str| {
-        v.get(k)
-            .map_or("-".to_owned(), |x| x.as_str().map_or(x.to_string(), str::to_owned))
+        v.get(k).map_or("-".to_owned(), |x| {
+            x.as_str()
+                .map_or(x.to_string(), |s| text::escape_controls(s).into_owned())
+        })
     };
-    println!(
+    let mut out = stdout();
+    writeln!(
+        out,
         "file            {} ({} bytes, blob {} bytes)",
         s("file"),
         s("file_bytes"),
         s("blob_bytes")
-    );
-    println!("format version  {}", s("format_version"));
-    println!("kind            {}", s("kind"));
-    println!("shape           {} inputs, {} centres", s("inputs"), s("centers"));
-    println!("CRC-32          {}", s("crc"));
+    )?;
+    writeln!(out, "format version  {}", s("format_version"))?;
+    writeln!(out, "kind            {}", s("kind"))?;
+    writeln!(out, "shape           {} inputs, {} centres", s("inputs"), s("centers"))?;
+    writeln!(out, "CRC-32          {}", s("crc"))?;
     if let Some(f) = v.get("features") {
         let lag = match f["coil_lag_min"].as_u64() {
             Some(l) => format!(", coil lag L {l} min"),
             None => String::new(),
         };
-        println!(
+        writeln!(
+            out,
             "features        {} (ΔT window {} s{lag}, warm-up {} s)",
             f["inputs"], f["rate_window_s"], f["warmup_s"]
-        );
+        )?;
     }
     if let Some(ranges) = v.get("training_ranges").and_then(|r| r.as_array()) {
         for r in ranges {
-            println!(
+            writeln!(
+                out,
                 "  range         {:<16} {} … {}",
                 r["input"].as_str().unwrap_or("?"),
                 r["min"],
                 r["max"]
-            );
+            )?;
         }
     }
-    println!("serial          {}", s("serial"));
-    println!(
+    writeln!(out, "serial          {}", s("serial"))?;
+    writeln!(
+        out,
         "valid           {}{}",
         s("valid"),
         v.get("error").map_or(String::new(), |e| format!(" ({e})"))
-    );
+    )
 }

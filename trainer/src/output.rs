@@ -1,98 +1,485 @@
-//! Writing output files so that a crash or a full disk never leaves a
-//! half-written model or run behind: write a temporary file beside the
-//! target, flush and sync it, then rename it over the target.
+//! Writing output files so that nothing is destroyed that should not be and
+//! nothing is left half-written (docs/reliability.md, "Outputs").
+//!
+//! Every command that writes goes through [`Output`]:
+//! - **checked before the work starts** ([`check_target`]): the target must
+//!   be a regular file or not exist yet (a symbolic link, a device, a FIFO or
+//!   a directory is never replaced), must not be one of the command's inputs
+//!   or model (same device and inode) nor another of its outputs, and an
+//!   existing file is replaced only with `--force` ([`Existing::Replace`])
+//!   and only when it is writable;
+//! - **written beside the target** into a temporary file created exclusively
+//!   (`O_EXCL`) under an unpredictable name (the `tempfile` crate), with the
+//!   mode of the file it replaces (a new file: 0666 less the umask);
+//! - **committed** by [`Output::commit`]: flushed, synced, renamed over the
+//!   target (or hard-linked, when replacing is not allowed, so a file that
+//!   appeared meanwhile is not overwritten either) and the directory synced;
+//! - **removed** when the command fails (the [`Output`] is dropped), panics,
+//!   or is stopped by SIGINT, SIGTERM or SIGHUP (a handler thread deletes
+//!   every temporary file not yet committed, then lets the signal end the
+//!   process). Only SIGKILL and a power cut can leave one behind: hidden,
+//!   named `.TARGET.` plus six random characters.
 
-use std::fs::File;
+use std::fs::{File, Metadata, Permissions};
 use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::os::unix::fs::{FileTypeExt, MetadataExt, PermissionsExt};
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard, Once};
 
 use anyhow::Context;
+use tempfile::NamedTempFile;
+
+use crate::input;
+use crate::text;
 
 /// What to do when the target file already exists.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Existing {
-    /// Replace it (atomically).
+    /// Replace it (`--force`), if it is a writable regular file.
     Replace,
-    /// Refuse with an error naming the file; the check and the final step are
-    /// one atomic operation (a hard link, which fails if the name exists), so
-    /// a file appearing meanwhile is not overwritten either.
+    /// Refuse with an error naming the file (the default of every command).
     Refuse,
 }
 
-/// Fails if `path` exists and `existing` is [`Existing::Refuse`]: call it
-/// before long work so the user learns at once.
-pub fn check_target(path: &Path, existing: Existing) -> anyhow::Result<()> {
-    if existing == Existing::Refuse && path.symlink_metadata().is_ok() {
-        anyhow::bail!("{}: exists; pass --force to overwrite it", path.display());
+impl Existing {
+    /// [`Existing::Replace`] with `--force`, else [`Existing::Refuse`].
+    pub fn from_force(force: bool) -> Self {
+        if force { Existing::Replace } else { Existing::Refuse }
+    }
+}
+
+/// An output target that passed [`check_target`].
+#[derive(Clone, Debug)]
+pub struct Target {
+    path: PathBuf,
+    dir: PathBuf,
+    existing: Existing,
+}
+
+impl Target {
+    /// The file to be written.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+/// What kind of file `meta` describes, for messages.
+fn kind(meta: &Metadata) -> &'static str {
+    let t = meta.file_type();
+    if t.is_symlink() {
+        "a symbolic link"
+    } else if t.is_dir() {
+        "a directory"
+    } else if t.is_char_device() {
+        "a character device"
+    } else if t.is_block_device() {
+        "a block device"
+    } else if t.is_fifo() {
+        "a FIFO"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "a regular file"
+    }
+}
+
+/// Refuses an existing target that is not a regular file, is read-only, or
+/// may not be replaced.
+fn check_existing(path: &Path, meta: &Metadata, existing: Existing) -> anyhow::Result<()> {
+    let shown = text::path(path);
+    if !meta.file_type().is_file() {
+        let advice = if meta.file_type().is_symlink() {
+            "outputs never replace a link; name the file itself"
+        } else {
+            "outputs are written only to regular files"
+        };
+        anyhow::bail!("{shown}: is {}; {advice}", kind(meta));
+    }
+    if existing == Existing::Refuse {
+        anyhow::bail!("{shown}: exists; pass --force to overwrite it");
+    }
+    if meta.mode() & 0o222 == 0 {
+        anyhow::bail!(
+            "{shown}: is read-only (mode {:04o}); not replaced, even with --force",
+            meta.mode() & 0o7777
+        );
     }
     Ok(())
 }
 
-/// Writes `path` atomically with the content `write` produces (replacing it).
-pub fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&mut BufWriter<File>) -> anyhow::Result<()>,
-) -> anyhow::Result<()> {
-    write_atomically_with(path, Existing::Replace, write)
+/// Checks `path` as an output of a command that reads `inputs` (run files,
+/// model, parameter files; `-` is standard input), before any work: see
+/// the module documentation for what is refused.
+pub fn check_target(path: &Path, inputs: &[&Path], existing: Existing) -> anyhow::Result<Target> {
+    let shown = text::path(path);
+    path.file_name()
+        .filter(|_| !input::is_stdin(path))
+        .with_context(|| format!("{shown}: not a file name to write"))?;
+    let dir = match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        Some(dir) => dir.to_owned(),
+        None => PathBuf::from("."),
+    };
+    match std::fs::metadata(&dir) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => anyhow::bail!("{shown}: {} is not a directory", text::path(&dir)),
+        Err(e) => anyhow::bail!("{shown}: directory {}: {e}", text::path(&dir)),
+    }
+    match std::fs::symlink_metadata(path) {
+        Ok(meta) => {
+            let id = (meta.dev(), meta.ino());
+            if let Some(input) = inputs.iter().find(|i| input::identity(i) == Some(id)) {
+                anyhow::bail!(
+                    "{shown}: is also an input of this command ({}); an output never overwrites an input",
+                    text::path(input)
+                );
+            }
+            check_existing(path, &meta, existing)?;
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => anyhow::bail!("{shown}: {e}"),
+    }
+    Ok(Target {
+        path: path.to_owned(),
+        dir,
+        existing,
+    })
 }
 
-/// Writes `path` atomically with the content `write` produces; `existing`
-/// says whether an existing file may be replaced.
-pub fn write_atomically_with(
-    path: &Path,
-    existing: Existing,
-    write: impl FnOnce(&mut BufWriter<File>) -> anyhow::Result<()>,
-) -> anyhow::Result<()> {
-    check_target(path, existing)?;
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .with_context(|| format!("{}: not a file path", path.display()))?;
-    let tmp = dir.join(format!(".{}.tmp-{}", name.to_string_lossy(), std::process::id()));
-    let result = (|| {
-        let file = File::create(&tmp).with_context(|| format!("{}: cannot create", tmp.display()))?;
-        let mut out = BufWriter::new(file);
-        write(&mut out)?;
-        let file = out
+/// [`check_target`] for every output of a command, which must also differ
+/// from each other.
+pub fn check_targets(outputs: &[&Path], inputs: &[&Path], existing: Existing) -> anyhow::Result<Vec<Target>> {
+    let targets = outputs
+        .iter()
+        .map(|p| check_target(p, inputs, existing))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    for (i, a) in targets.iter().enumerate() {
+        for b in &targets[..i] {
+            if same_place(&a.path, &b.path) {
+                anyhow::bail!(
+                    "{} is named as two outputs; each output needs its own file",
+                    text::path(&a.path)
+                );
+            }
+        }
+    }
+    Ok(targets)
+}
+
+/// True when `a` and `b` name the same file: one directory (by identity) and one name.
+fn same_place(a: &Path, b: &Path) -> bool {
+    let dir = |p: &Path| {
+        let d = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        input::identity(d)
+    };
+    a.file_name() == b.file_name() && dir(a).is_some() && dir(a) == dir(b)
+}
+
+/// Prepares `dir` as an output directory: an existing directory, or one
+/// created now (`report -o DIR`).
+pub fn prepare_dir(dir: &Path) -> anyhow::Result<()> {
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Ok(m) => anyhow::bail!("{}: is {}, not a directory", text::path(dir), kind(&m)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", text::path(dir)))
+        }
+        Err(e) => anyhow::bail!("{}: {e}", text::path(dir)),
+    }
+}
+
+/// Temporary files not yet committed: what a stopping signal removes.
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn pending() -> MutexGuard<'static, Vec<PathBuf>> {
+    PENDING.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Starts, once per process, the thread that removes the pending temporary
+/// files on SIGINT, SIGTERM or SIGHUP and then ends the process as the
+/// signal would have.
+fn install_signal_cleanup() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+        let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+            return;
+        };
+        let spawned = std::thread::Builder::new()
+            .name("output-cleanup".into())
+            .spawn(move || {
+                if let Some(signal) = signals.forever().next() {
+                    // The lock is never released: a commit in progress
+                    // finishes first, none starts after.
+                    let files = pending();
+                    for file in files.iter() {
+                        let _ = std::fs::remove_file(file);
+                    }
+                    let _ = signal_hook::low_level::emulate_default_handler(signal);
+                    std::process::exit(128 + signal);
+                }
+            });
+        drop(spawned);
+    });
+}
+
+/// An output being written: a temporary file beside its target until
+/// [`Output::commit`]; dropped uncommitted, it is removed.
+pub struct Output {
+    target: Target,
+    file: Option<BufWriter<NamedTempFile>>,
+}
+
+impl std::fmt::Debug for Output {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Output").field("target", &self.target.path).finish()
+    }
+}
+
+impl Output {
+    /// Checks `path` ([`check_target`]) and creates its temporary file.
+    pub fn create(path: &Path, inputs: &[&Path], existing: Existing) -> anyhow::Result<Output> {
+        Self::open(check_target(path, inputs, existing)?)
+    }
+
+    /// Creates the temporary file of a checked target.
+    pub fn open(target: Target) -> anyhow::Result<Output> {
+        install_signal_cleanup();
+        let name = target.path.file_name().unwrap_or_default().to_string_lossy();
+        let mut files = pending();
+        let file = tempfile::Builder::new()
+            .prefix(&format!(".{name}."))
+            .permissions(Permissions::from_mode(0o666))
+            .tempfile_in(&target.dir)
+            .with_context(|| format!("{}: cannot create a file in its directory", text::path(&target.path)))?;
+        files.push(file.path().to_owned());
+        drop(files);
+        Ok(Output {
+            target,
+            file: Some(BufWriter::with_capacity(1 << 16, file)),
+        })
+    }
+
+    /// The file this output becomes.
+    pub fn path(&self) -> &Path {
+        &self.target.path
+    }
+
+    /// Makes the written content the target: flush, sync, rename over the
+    /// target (keeping the replaced file's mode), sync the directory.
+    pub fn commit(mut self) -> anyhow::Result<()> {
+        let shown = text::path(&self.target.path);
+        let Some(writer) = self.file.take() else {
+            anyhow::bail!("{shown}: already committed");
+        };
+        let temp = writer
             .into_inner()
             .map_err(|e| e.into_error())
-            .with_context(|| format!("{}: write failed", path.display()))?;
-        file.sync_all()
-            .with_context(|| format!("{}: sync failed", path.display()))?;
-        match existing {
-            Existing::Replace => {
-                std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot replace", path.display()))
-            }
-            Existing::Refuse => match std::fs::hard_link(&tmp, path) {
-                Ok(()) => {
-                    let _ = std::fs::remove_file(&tmp);
-                    Ok(())
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                    anyhow::bail!("{}: exists; pass --force to overwrite it", path.display())
-                }
-                Err(e) => Err(e).with_context(|| format!("{}: cannot create", path.display())),
-            },
-        }
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+            .with_context(|| format!("{shown}: write failed"))?;
+        temp.as_file()
+            .sync_all()
+            .with_context(|| format!("{shown}: sync failed"))?;
+        let temp_path = temp.path().to_owned();
+        let mut files = pending();
+        let result = self.rename_into_place(temp);
+        files.retain(|p| p != &temp_path);
+        drop(files);
+        result?;
+        // The rename is durable once the directory is.
+        File::open(&self.target.dir)
+            .and_then(|d| d.sync_all())
+            .with_context(|| format!("{shown}: directory sync failed"))
     }
-    result
+
+    fn rename_into_place(&self, temp: NamedTempFile) -> anyhow::Result<()> {
+        let path = &self.target.path;
+        let shown = text::path(path);
+        // Checked again: the target may have changed during the work.
+        match std::fs::symlink_metadata(path) {
+            Ok(meta) => {
+                check_existing(path, &meta, self.target.existing)?;
+                temp.as_file()
+                    .set_permissions(Permissions::from_mode(meta.mode() & 0o7777))
+                    .with_context(|| format!("{shown}: cannot keep the replaced file's mode"))?;
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => anyhow::bail!("{shown}: {e}"),
+        }
+        let persisted = match self.target.existing {
+            Existing::Replace => temp.persist(path),
+            Existing::Refuse => temp.persist_noclobber(path),
+        };
+        match persisted {
+            Ok(_) => Ok(()),
+            Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => {
+                anyhow::bail!("{shown}: exists; pass --force to overwrite it")
+            }
+            Err(e) => Err(e.error).with_context(|| format!("{shown}: cannot create")),
+        }
+    }
 }
 
-/// Writes `bytes` to `path` atomically (replacing it).
-pub fn write_bytes(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    write_bytes_with(path, Existing::Replace, bytes)
+impl Write for Output {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match &mut self.file {
+            Some(w) => w.write(buf),
+            None => Err(std::io::Error::other("output already committed")),
+        }
+    }
+
+    fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
+        match &mut self.file {
+            Some(w) => w.write_all(buf),
+            None => Err(std::io::Error::other("output already committed")),
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        match &mut self.file {
+            Some(w) => w.flush(),
+            None => Ok(()),
+        }
+    }
 }
 
-/// Writes `bytes` to `path` atomically; `existing` says whether an existing file may be replaced.
-pub fn write_bytes_with(path: &Path, existing: Existing, bytes: &[u8]) -> anyhow::Result<()> {
-    write_atomically_with(path, existing, |w| {
-        w.write_all(bytes)
-            .with_context(|| format!("{}: write failed", path.display()))
-    })
+impl Drop for Output {
+    fn drop(&mut self) {
+        if let Some(writer) = self.file.take() {
+            let mut files = pending();
+            let (temp, _) = writer.into_parts();
+            let temp_path = temp.path().to_owned();
+            let _ = temp.close();
+            files.retain(|p| p != &temp_path);
+        }
+    }
+}
+
+/// Writes `bytes` to `path` through an [`Output`] (checked against `inputs`).
+pub fn write_bytes_with(path: &Path, inputs: &[&Path], existing: Existing, bytes: &[u8]) -> anyhow::Result<()> {
+    let mut out = Output::create(path, inputs, existing)?;
+    out.write_all(bytes)
+        .with_context(|| format!("{}: write failed", text::path(path)))?;
+    out.commit()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::fs::symlink;
+
+    fn leftovers(dir: &Path) -> Vec<String> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with('.'))
+            .collect()
+    }
+
+    #[test]
+    fn a_new_file_appears_only_at_commit_and_a_dropped_output_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.csv");
+        let mut out = Output::create(&path, &[], Existing::Refuse).unwrap();
+        out.write_all(b"a,b\n").unwrap();
+        assert!(!path.exists(), "nothing at the target before the commit");
+        assert_eq!(leftovers(dir.path()).len(), 1, "one hidden temporary file");
+        drop(out);
+        assert!(leftovers(dir.path()).is_empty(), "removed when dropped");
+        assert!(!path.exists());
+        let mut out = Output::create(&path, &[], Existing::Refuse).unwrap();
+        out.write_all(b"a,b\n").unwrap();
+        out.commit().unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"a,b\n");
+        assert!(leftovers(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn temporary_names_are_unpredictable_and_never_follow_a_planted_link() {
+        let dir = tempfile::tempdir().unwrap();
+        let victim = dir.path().join("victim.txt");
+        std::fs::write(&victim, "keep").unwrap();
+        // The name an older scheme would have used, planted as a link.
+        symlink(&victim, dir.path().join(format!(".out.csv.tmp-{}", std::process::id()))).unwrap();
+        let path = dir.path().join("out.csv");
+        let a = Output::create(&path, &[], Existing::Refuse).unwrap();
+        let b = Output::create(&dir.path().join("other.csv"), &[], Existing::Refuse).unwrap();
+        let names = leftovers(dir.path());
+        assert_eq!(names.len(), 3, "{names:?}");
+        let mut out = a;
+        out.write_all(b"new").unwrap();
+        out.commit().unwrap();
+        drop(b);
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
+    }
+
+    #[test]
+    fn replacing_needs_replace_a_writable_regular_file_and_keeps_its_mode() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("model.bin");
+        std::fs::write(&path, "old").unwrap();
+        std::fs::set_permissions(&path, Permissions::from_mode(0o640)).unwrap();
+        let err = Output::create(&path, &[], Existing::Refuse).unwrap_err().to_string();
+        assert!(err.ends_with("exists; pass --force to overwrite it"), "{err}");
+        write_bytes_with(&path, &[], Existing::Replace, b"new").unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+        let mode = std::fs::metadata(&path).unwrap().mode() & 0o7777;
+        assert_eq!(mode, 0o640, "the replaced file's mode is kept");
+        std::fs::set_permissions(&path, Permissions::from_mode(0o444)).unwrap();
+        let err = Output::create(&path, &[], Existing::Replace).unwrap_err().to_string();
+        assert!(err.contains("is read-only (mode 0444)"), "{err}");
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+    }
+
+    #[test]
+    fn links_devices_directories_and_inputs_are_never_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("run.csv");
+        std::fs::write(&input, "data").unwrap();
+        let link = dir.path().join("link.csv");
+        symlink(&input, &link).unwrap();
+        let hard = dir.path().join("hard.csv");
+        std::fs::hard_link(&input, &hard).unwrap();
+        let cases: [(&Path, &str); 5] = [
+            (&link, "is a symbolic link"),
+            (Path::new("/dev/null"), "is a character device"),
+            (dir.path(), "is a directory"),
+            (&input, "is also an input of this command"),
+            (&hard, "is also an input of this command"),
+        ];
+        for (target, expected) in cases {
+            let err = check_target(target, &[&input], Existing::Replace)
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(expected), "{}: {err}", target.display());
+        }
+        assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert_eq!(std::fs::read_to_string(&input).unwrap(), "data");
+        let same = check_targets(
+            &[&dir.path().join("a.csv"), &dir.path().join("./a.csv")],
+            &[],
+            Existing::Refuse,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(same.contains("named as two outputs"), "{same}");
+        let missing = check_target(&dir.path().join("no/such/out.csv"), &[], Existing::Refuse)
+            .unwrap_err()
+            .to_string();
+        assert!(missing.contains("directory"), "{missing}");
+    }
+
+    #[test]
+    fn a_file_that_appears_during_the_work_is_not_overwritten_without_replace() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.csv");
+        let mut out = Output::create(&path, &[], Existing::Refuse).unwrap();
+        out.write_all(b"ours").unwrap();
+        std::fs::write(&path, "theirs").unwrap();
+        let err = out.commit().unwrap_err().to_string();
+        assert!(err.contains("exists"), "{err}");
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "theirs");
+        assert!(leftovers(dir.path()).is_empty());
+    }
 }

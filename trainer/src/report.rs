@@ -13,9 +13,11 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use rbf_core::{FeatureSet, FeatureVector, Model};
 
-use crate::evaluate::{RunEvaluation, compensate_run, evaluate_output};
-use crate::output::write_bytes;
-use crate::run::Run;
+use crate::diagnose::RunDiagnosis;
+use crate::evaluate::{Evaluator, RunEvaluation, require_compensated, require_evaluable};
+use crate::output::{self, Existing, Output};
+use crate::run::{RunReader, StreamedRun};
+use crate::{input, text};
 
 /// Plot size, pixels.
 const SIZE: (u32, u32) = (1000, 560);
@@ -32,35 +34,66 @@ trait Figure {
         DB::ErrorType: 'static;
 }
 
-/// Draws `figure` to `stem.svg` and `stem.png`.
-fn both(stem: &Path, figure: &impl Figure) -> anyhow::Result<Vec<PathBuf>> {
-    let svg = stem.with_extension("svg");
-    let png = stem.with_extension("png");
+/// `figure` drawn as SVG text and as PNG bytes.
+fn render(figure: &impl Figure) -> anyhow::Result<(String, Vec<u8>)> {
+    let mut svg = String::new();
     figure
-        .draw(SVGBackend::new(&svg, SIZE).into_drawing_area())
-        .map_err(|e| anyhow::anyhow!("{}: {e}", svg.display()))?;
+        .draw(SVGBackend::with_string(&mut svg, SIZE).into_drawing_area())
+        .map_err(|e| anyhow::anyhow!("drawing the SVG: {e}"))?;
+    let mut rgb = vec![0u8; SIZE.0 as usize * SIZE.1 as usize * 3];
     figure
-        .draw(BitMapBackend::new(&png, SIZE).into_drawing_area())
-        .map_err(|e| anyhow::anyhow!("{}: {e}", png.display()))?;
-    Ok(vec![svg, png])
+        .draw(BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area())
+        .map_err(|e| anyhow::anyhow!("drawing the PNG: {e}"))?;
+    let mut png = Vec::new();
+    image::ImageEncoder::write_image(
+        image::codecs::png::PngEncoder::new(&mut png),
+        &rgb,
+        SIZE.0,
+        SIZE.1,
+        image::ColorType::Rgb8,
+    )
+    .map_err(|e| anyhow::anyhow!("encoding the PNG: {e}"))?;
+    Ok((svg, png))
 }
 
-fn block_means(time_s: &[f64], values: &[f64], block_s: f64) -> Vec<(f64, f64)> {
-    let mut out = Vec::new();
-    let (mut t0, mut sum_t, mut sum_v, mut n) = (time_s.first().copied().unwrap_or(0.0), 0.0, 0.0, 0.0);
-    for (&t, &v) in time_s.iter().zip(values) {
-        if t - t0 >= block_s && n > 0.0 {
-            out.push((sum_t / n, sum_v / n));
-            (t0, sum_t, sum_v, n) = (t, 0.0, 0.0, 0.0);
+/// Running means over consecutive blocks of `block_s` seconds (a block
+/// starts with the first sample at least `block_s` after the previous
+/// block's first): (mean time, mean value) per block.
+#[derive(Clone, Debug, Default)]
+struct BlockMeans {
+    block_s: f64,
+    t0: Option<f64>,
+    sum_t: f64,
+    sum_v: f64,
+    n: f64,
+    out: Vec<(f64, f64)>,
+}
+
+impl BlockMeans {
+    fn new(block_s: f64) -> Self {
+        BlockMeans {
+            block_s,
+            ..BlockMeans::default()
         }
-        sum_t += t;
-        sum_v += v;
-        n += 1.0;
     }
-    if n > 0.0 {
-        out.push((sum_t / n, sum_v / n));
+
+    fn push(&mut self, t: f64, v: f64) {
+        let t0 = *self.t0.get_or_insert(t);
+        if t - t0 >= self.block_s && self.n > 0.0 {
+            self.out.push((self.sum_t / self.n, self.sum_v / self.n));
+            (self.t0, self.sum_t, self.sum_v, self.n) = (Some(t), 0.0, 0.0, 0.0);
+        }
+        self.sum_t += t;
+        self.sum_v += v;
+        self.n += 1.0;
     }
-    out
+
+    fn finish(mut self) -> Vec<(f64, f64)> {
+        if self.n > 0.0 {
+            self.out.push((self.sum_t / self.n, self.sum_v / self.n));
+        }
+        self.out
+    }
 }
 
 fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
@@ -337,52 +370,215 @@ where
     Ok(())
 }
 
-/// Writes the report for `model` on `runs` into `dir`; returns the files written.
-pub fn write_report(model: &Model, model_path: &Path, runs: &[Run], dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+/// Points of the bias trajectory kept per report (between this and twice it).
+const TRAJECTORY_POINTS: usize = 3000;
+
+/// Every `stride`-th sample's (T, ΔT₁, bias), the stride doubling whenever
+/// twice [`TRAJECTORY_POINTS`] are held: bounded whatever the run's length.
+#[derive(Debug)]
+struct Trajectory {
+    stride: usize,
+    points: Vec<(usize, (f32, f32, f32))>,
+}
+
+impl Trajectory {
+    fn new() -> Self {
+        Trajectory {
+            stride: 1,
+            points: Vec::new(),
+        }
+    }
+
+    /// Takes the point of sample `index` (counted over all runs).
+    fn push(&mut self, index: usize, point: (f32, f32, f32)) {
+        if !index.is_multiple_of(self.stride) {
+            return;
+        }
+        self.points.push((index, point));
+        if self.points.len() >= 2 * TRAJECTORY_POINTS {
+            self.stride *= 2;
+            let stride = self.stride;
+            self.points.retain(|(i, _)| i.is_multiple_of(stride));
+        }
+    }
+}
+
+/// What one run contributes to the report, gathered in one streaming pass.
+struct RunPlots {
+    stem: String,
+    evaluation: RunEvaluation,
+    rate: RatePlot,
+}
+
+/// One pass over the run of `reader`: evaluation, 10-s means for the rate
+/// plot, trajectory points (sample indices from `first_index` on).
+fn read_run(
+    model: &Model,
+    reader: RunReader,
+    stem: &str,
+    trajectory: &mut Trajectory,
+    first_index: &mut usize,
+    allow_uncompensated: bool,
+) -> anyhow::Result<RunPlots> {
+    let path = reader.path().to_owned();
+    let mask = model.features().set.thermometer_mask();
+    let run = StreamedRun::from_reader(reader, mask)?;
+    let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
+    let config = rbf_core::CompensatorConfig::for_nominal_period_s(period_s);
+    let (mut compensator, mut features) = (rbf_core::Compensator::new(), rbf_core::Compensator::new());
+    let mut evaluator = Evaluator::new(&path, period_s, has_ref);
+    let mut diagnosis = RunDiagnosis::new(&path, period_s);
+    let (mut raw, mut comp, mut temp) = (
+        BlockMeans::new(PLOT_MEAN_S),
+        BlockMeans::new(PLOT_MEAN_S),
+        BlockMeans::new(PLOT_MEAN_S),
+    );
+    let (mut rows, mut compensated, mut rate_sum) = (0usize, 0usize, 0.0f64);
+    run.for_each_line(|line, row, sample| {
+        let out = compensator.process(Some(model), &config, sample);
+        let r = row.ref_dph.unwrap_or(0.0);
+        evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
+        diagnosis.push(line, row);
+        compensated += usize::from(!out.flags.contains(rbf_core::Flags::NO_VALID_MODEL));
+        rate_sum += row.rate_dph;
+        raw.push(row.time_s, row.rate_dph - r);
+        comp.push(row.time_s, out.rate_comp_dph as f64 - r);
+        temp.push(
+            row.time_s,
+            row.readings_c()[rbf_core::features::LOOP_THERMOMETER].unwrap_or(f64::NAN),
+        );
+        let frame = features.features(model.features(), &config, sample);
+        if let Some(f) = frame.features {
+            let v = f.as_slice();
+            trajectory.push(
+                *first_index + rows,
+                (v[0], v.get(1).copied().unwrap_or(0.0), out.bias_dph),
+            );
+        }
+        rows += 1;
+    })?;
+    *first_index += rows;
+    require_evaluable(&path, rows, &diagnosis)?;
+    require_compensated(&path, rows, compensated, &diagnosis, mask, allow_uncompensated)?;
+    // Without ref_dph the reference is the run's mean rate, known only now:
+    // a block mean of (v − m) is the block mean of v, less m.
+    let mean = if has_ref { 0.0 } else { rate_sum / rows.max(1) as f64 };
+    let less_mean =
+        |blocks: BlockMeans| -> Vec<(f64, f64)> { blocks.finish().into_iter().map(|(t, v)| (t, v - mean)).collect() };
+    Ok(RunPlots {
+        stem: stem.to_owned(),
+        evaluation: evaluator.finish(),
+        rate: RatePlot {
+            title: format!("{stem}: rate before and after compensation"),
+            raw: less_mean(raw),
+            comp: less_mean(comp),
+            temp: temp.finish(),
+        },
+    })
+}
+
+/// The name a run's plots take: its file stem (`stdin` for `-`).
+fn run_stem(path: &Path) -> String {
+    if input::is_stdin(path) {
+        return "stdin".to_owned();
+    }
+    path.file_stem()
+        .map_or("run".into(), |s| s.to_string_lossy().into_owned())
+}
+
+/// The files `trainer report` writes into `dir` for runs named `stems`.
+pub fn report_files(dir: &Path, stems: &[String]) -> Vec<PathBuf> {
     let mut files = Vec::new();
-    let mut evaluations = Vec::new();
-    let mut trajectory = Vec::new();
-    let mut md = String::from("# Compensation report\n\n");
-    md.push_str(&format!("Model: `{}`\n\n", model_path.display()));
-    md.push_str("| run | 100-s STD before [°/h] | after [°/h] | improvement | MSD improvement | ARW after [°/√h] | BI before → after [°/h] |\n|---|---|---|---|---|---|---|\n");
-    for run in runs {
-        let stem = run
-            .path
-            .file_stem()
-            .map_or("run".into(), |s| s.to_string_lossy().into_owned());
-        let out = compensate_run(Some(model), run);
-        let e = evaluate_output(run, &out);
-        let config = run.compensator_config();
-        let mut compensator = rbf_core::Compensator::new();
-        let stride = (run.len() / 3000).max(1);
-        for (i, sample) in run.samples().enumerate() {
-            let frame = compensator.features(model.features(), &config, &sample);
-            if let Some(f) = frame.features.filter(|_| i % stride == 0) {
-                let v = f.as_slice();
-                trajectory.push((v[0], v.get(1).copied().unwrap_or(0.0), out[i].bias_dph));
+    for stem in stems {
+        for plot in ["rate", "allan"] {
+            for ext in ["svg", "png"] {
+                files.push(dir.join(format!("{stem}_{plot}.{ext}")));
             }
         }
-        let reference = run.reference_dph();
-        let raw: Vec<f64> = (0..run.len()).map(|i| run.rate_dph[i] - reference.at(i)).collect();
-        let comp: Vec<f64> = (0..run.len())
-            .map(|i| out[i].rate_comp_dph as f64 - reference.at(i))
-            .collect();
-        let temp: Vec<f64> = run.temp_c.iter().map(|t| t.unwrap_or(f64::NAN)).collect();
-        let plot = RatePlot {
-            title: format!("{stem}: rate before and after compensation"),
-            raw: block_means(&run.time_s, &raw, PLOT_MEAN_S),
-            comp: block_means(&run.time_s, &comp, PLOT_MEAN_S),
-            temp: block_means(&run.time_s, &temp, PLOT_MEAN_S),
-        };
-        files.extend(both(&dir.join(format!("{stem}_rate")), &plot)?);
+    }
+    files.extend(["bias_surface.svg", "bias_surface.png", "report.json", "report.md"].map(|f| dir.join(f)));
+    files
+}
+
+/// Writes the report for `model` (read from `model_path`) on the runs at
+/// `runs` (`-`: standard input) into `dir`; returns the files written.
+///
+/// Every target is checked first ([`output::check_targets`]: an existing
+/// file is replaced only with [`Existing::Replace`]); every run is then read
+/// once, streaming (memory: 10-s means and a bounded trajectory, whatever
+/// the run's length); only then are the files written, each through an
+/// [`Output`]. A run where no row could be compensated is refused unless
+/// `allow_uncompensated`.
+pub fn write_report(
+    model: &Model,
+    model_path: &Path,
+    runs: &[PathBuf],
+    dir: &Path,
+    existing: Existing,
+    allow_uncompensated: bool,
+) -> anyhow::Result<Vec<PathBuf>> {
+    input::check_stdin_once(runs.iter().map(|p| p.as_path()).chain([model_path]))?;
+    let stems: Vec<String> = runs.iter().map(|p| run_stem(p)).collect();
+    for (i, stem) in stems.iter().enumerate() {
+        if stems[..i].contains(stem) {
+            anyhow::bail!(
+                "two runs are named {}: their plots would overwrite each other; rename one",
+                text::escape_controls(stem)
+            );
+        }
+    }
+    let files = report_files(dir, &stems);
+    let inputs: Vec<&Path> = runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
+    if std::fs::symlink_metadata(dir).is_ok() {
+        output::prepare_dir(dir)?;
+        let targets: Vec<&Path> = files.iter().map(|f| f.as_path()).collect();
+        output::check_targets(&targets, &inputs, existing)?;
+    }
+    let mut trajectory = Trajectory::new();
+    let mut first_index = 0;
+    let plots = runs
+        .iter()
+        .zip(&stems)
+        .map(|(path, stem)| {
+            let reader = RunReader::open(path)?;
+            read_run(
+                model,
+                reader,
+                stem,
+                &mut trajectory,
+                &mut first_index,
+                allow_uncompensated,
+            )
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+
+    output::prepare_dir(dir)?;
+    let write = |path: &Path, bytes: &[u8]| -> anyhow::Result<()> {
+        let mut out = Output::create(path, &inputs, existing)?;
+        out.write_all(bytes)
+            .with_context(|| format!("{}: write failed", text::path(path)))?;
+        out.commit()
+    };
+    let both = |stem: &str, drawn: anyhow::Result<(String, Vec<u8>)>| -> anyhow::Result<()> {
+        let (svg, png) = drawn.with_context(|| format!("{}: plot {stem}", text::path(dir)))?;
+        write(&dir.join(format!("{stem}.svg")), svg.as_bytes())?;
+        write(&dir.join(format!("{stem}.png")), &png)
+    };
+    let mut md = String::from("# Compensation report\n\n");
+    md.push_str(&format!("Model: `{}`\n\n", text::path(model_path)));
+    md.push_str("| run | 100-s STD before [°/h] | after [°/h] | improvement | MSD improvement | ARW after [°/√h] | BI before → after [°/h] |\n|---|---|---|---|---|---|---|\n");
+    for p in &plots {
+        let stem = &p.stem;
+        both(&format!("{stem}_rate"), render(&p.rate))?;
         let allan = AllanPlot {
             title: format!("{stem}: overlapping Allan deviation"),
-            evaluation: &e,
+            evaluation: &p.evaluation,
         };
-        files.extend(both(&dir.join(format!("{stem}_allan")), &allan)?);
+        both(&format!("{stem}_allan"), render(&allan))?;
+        let e = &p.evaluation;
         md.push_str(&format!(
-            "| {stem} | {:.4} | {:.4} | {:.1} % | {:.1} % | {:.2e} | {:.2e} → {:.2e} |\n",
+            "| {} | {:.4} | {:.4} | {:.1} % | {:.1} % | {:.2e} | {:.2e} → {:.2e} |\n",
+            text::escape_controls(stem),
             e.cluster_std_before_dph,
             e.cluster_std_after_dph,
             e.cluster_std_improvement_pct,
@@ -391,31 +587,24 @@ pub fn write_report(model: &Model, model_path: &Path, runs: &[Run], dir: &Path) 
             e.allan_before.bias_instability_dph,
             e.allan_after.bias_instability_dph
         ));
-        evaluations.push(e);
     }
-    files.extend(both(&dir.join("bias_surface"), &SurfacePlot { model, trajectory })?);
+    let surface = SurfacePlot {
+        model,
+        trajectory: trajectory.points.into_iter().map(|(_, p)| p).collect(),
+    };
+    both("bias_surface", render(&surface))?;
     md.push_str("\n## Plots\n\n![bias surface](bias_surface.svg)\n\n");
-    for run in runs {
-        let stem = run
-            .path
-            .file_stem()
-            .map_or("run".into(), |s| s.to_string_lossy().into_owned());
+    for p in &plots {
+        let stem = &p.stem;
         md.push_str(&format!(
-            "### {stem}\n\n![rate]({stem}_rate.svg)\n\n![Allan deviation]({stem}_allan.svg)\n\n"
+            "### {}\n\n![rate]({stem}_rate.svg)\n\n![Allan deviation]({stem}_allan.svg)\n\n",
+            text::escape_controls(stem)
         ));
     }
-    let json = dir.join("report.json");
-    write_bytes(
-        &json,
-        serde_json::to_string_pretty(
-            &serde_json::json!({"model": model_path.display().to_string(), "runs": evaluations}),
-        )?
-        .as_bytes(),
-    )?;
-    let md_path = dir.join("report.md");
-    let mut f = std::fs::File::create(&md_path).with_context(|| format!("{}: cannot create", md_path.display()))?;
-    f.write_all(md.as_bytes())?;
-    files.push(json);
-    files.push(md_path);
+    let evaluations: Vec<&RunEvaluation> = plots.iter().map(|p| &p.evaluation).collect();
+    let json =
+        serde_json::to_string_pretty(&serde_json::json!({"model": text::path(model_path), "runs": evaluations}))?;
+    write(&dir.join("report.json"), json.as_bytes())?;
+    write(&dir.join("report.md"), md.as_bytes())?;
     Ok(files)
 }

@@ -1,23 +1,34 @@
-//! Reading recorded runs (`shared/recorded-run-format.md`) from files.
+//! Reading recorded runs (`shared/recorded-run-format.md`) from files or
+//! standard input (`-`).
 //!
 //! Row parsing is [`rbf_core::record`] (shared with the firmware replay); this
 //! module adds files, line numbers, metadata, the strictly-increasing time
-//! check and error messages of the form
+//! check, the sample-rate checks of [`crate::sampling`], the limits of
+//! [`crate::limits`] and error messages of the form
 //! `run.csv:1042: column rate_dph: "1.2.3" is not a number`.
+//!
+//! A run is read once, front to back: [`RunReader::open`] reads the
+//! metadata, the header and the first [`PERIOD_ESTIMATE_STEPS`] + 1 rows
+//! (the nominal period needs them) and hands those rows out again first, so
+//! pipes and FIFOs read like files.
 
-use std::fs::File;
-use std::io::{BufRead, BufReader};
+use std::collections::VecDeque;
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
-use rbf_core::record::{self, Columns, HeaderError, PeriodEstimator, Row, RowErrorKind};
+use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row, RowErrorKind};
 use rbf_core::{CompensatorConfig, GyroSample};
+
+use crate::limits::{MAX_COLUMNS, MAX_LINE_BYTES, MAX_PREAMBLE_BYTES, bytes};
+use crate::sampling::{self, PeriodSource, PeriodWatch};
+use crate::{input, text};
 
 /// A defect in a run file, with its position.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
     /// The file could not be opened or read.
-    #[error("{path}: {error}")]
+    #[error("{}: {error}", text::path(.path))]
     Io {
         /// File concerned.
         path: PathBuf,
@@ -25,7 +36,7 @@ pub enum RunError {
         error: std::io::Error,
     },
     /// The content breaks the format.
-    #[error("{path}:{line}: {message}")]
+    #[error("{}:{line}: {message}", text::path(.path))]
     Format {
         /// File concerned.
         path: PathBuf,
@@ -45,12 +56,21 @@ pub struct RunReader {
     line: String,
     /// Bytes of a line that did not lie whole in the read buffer (reused).
     line_bytes: Vec<u8>,
+    /// Lines read from the source so far.
     line_no: usize,
+    /// Line of the last row handed out (the header's before any).
+    last_line_out: usize,
+    header_line_no: usize,
     header_line: String,
     column_names: Vec<String>,
     columns: Columns,
     preamble: Vec<String>,
     last_time_s: Option<f64>,
+    /// Rows read ahead at opening, handed out first.
+    ahead: VecDeque<RawRow>,
+    nominal_period_s: f64,
+    /// Checks the steps of rows read after the look-ahead.
+    watch: Option<PeriodWatch>,
 }
 
 impl std::fmt::Debug for RunReader {
@@ -73,23 +93,60 @@ pub struct RawRow {
     pub text: String,
 }
 
+/// One line read through the line-length limit.
+enum Bounded {
+    /// The line's bytes are in the buffer (its `\n`, if any, removed).
+    Line,
+    /// The end of the input.
+    End,
+    /// The line exceeds [`MAX_LINE_BYTES`].
+    TooLong,
+}
+
+/// Reads one line of at most [`MAX_LINE_BYTES`] (plus its `\n`) into `buf`,
+/// reading no further than one byte past the limit.
+fn read_line_bounded(source: &mut (dyn BufRead + Send), buf: &mut Vec<u8>) -> std::io::Result<Bounded> {
+    buf.clear();
+    let read = source.take(MAX_LINE_BYTES as u64 + 1).read_until(b'\n', buf)?;
+    if read == 0 {
+        return Ok(Bounded::End);
+    }
+    if buf.last() == Some(&b'\n') {
+        buf.pop();
+    } else if buf.len() > MAX_LINE_BYTES {
+        return Ok(Bounded::TooLong);
+    }
+    Ok(Bounded::Line)
+}
+
+/// The message for a line past [`MAX_LINE_BYTES`].
+fn too_long() -> String {
+    format!(
+        "line is longer than {} (the limit for one line; a recorded-run row is a few dozen bytes)",
+        bytes(MAX_LINE_BYTES as u64)
+    )
+}
+
 impl RunReader {
-    /// Opens a run and reads its metadata and header.
+    /// Opens a run (`-`: standard input) and reads its metadata, header and
+    /// first rows.
     pub fn open(path: &Path) -> Result<RunReader, RunError> {
-        let file = File::open(path).map_err(|source| RunError::Io {
+        let source = input::open(path).map_err(|error| RunError::Io {
             path: path.to_owned(),
-            error: source,
+            error,
         })?;
         // 1 MiB reads: a tenth of the system calls of the default on long runs.
-        Self::from_reader(path, BufReader::with_capacity(1 << 20, file))
+        Self::from_reader(path, BufReader::with_capacity(1 << 20, source))
     }
 
     /// Reads a run from any buffered source; `path` names it in messages.
     pub fn from_reader(path: &Path, source: impl BufRead + Send + 'static) -> Result<RunReader, RunError> {
         let mut source: Box<dyn BufRead + Send> = Box::new(source);
-        let mut buf = String::new();
+        let mut buf = Vec::new();
         let mut line_no = 0;
         let mut preamble = Vec::new();
+        let mut preamble_bytes = 0usize;
+        let mut metadata_rates: Vec<(usize, f64)> = Vec::new();
         let format_error = |line: usize, message: String| RunError::Format {
             path: path.to_owned(),
             line,
@@ -97,22 +154,51 @@ impl RunReader {
         };
         let header_line = loop {
             line_no += 1;
-            buf.clear();
-            let read = source.read_line(&mut buf).map_err(|e| io_or_utf8(path, line_no, e))?;
-            if read == 0 {
-                return Err(format_error(line_no, "no header line: the file has no columns".into()));
+            match read_line_bounded(source.as_mut(), &mut buf).map_err(|e| io_or_utf8(path, line_no, e))? {
+                Bounded::End => {
+                    return Err(format_error(line_no, "no header line: the file has no columns".into()));
+                }
+                Bounded::TooLong => return Err(format_error(line_no, too_long())),
+                Bounded::Line => {}
             }
-            let line = buf.strip_suffix('\n').unwrap_or(&buf).to_owned();
+            let Ok(line) = std::str::from_utf8(&buf) else {
+                return Err(format_error(line_no, "line is not valid UTF-8 text".into()));
+            };
             let line = if line_no == 1 {
-                line.trim_start_matches('\u{feff}').to_owned()
+                line.trim_start_matches('\u{feff}')
             } else {
                 line
             };
-            if !record::is_comment_or_blank(&line) {
-                break line.trim_end_matches('\r').to_owned();
+            let line = line.trim_end_matches('\r');
+            if !record::is_comment_or_blank(line) {
+                break line.to_owned();
             }
-            preamble.push(line.trim_end_matches('\r').to_owned());
+            preamble_bytes += line.len() + 1;
+            if preamble_bytes > MAX_PREAMBLE_BYTES {
+                return Err(format_error(
+                    line_no,
+                    format!(
+                        "more than {} of metadata, comment and blank lines before the header (the limit)",
+                        bytes(MAX_PREAMBLE_BYTES as u64)
+                    ),
+                ));
+            }
+            if let Some(value) = record::metadata(line)
+                .filter(|(key, _)| *key == "sample_rate_hz")
+                .map(|(_, value)| value)
+                && let Some(hz) = sampling::metadata_rate_hz(value).map_err(|m| format_error(line_no, m))?
+            {
+                metadata_rates.push((line_no, hz));
+            }
+            preamble.push(line.to_owned());
         };
+        let columns_count = memchr::memchr_iter(b',', header_line.as_bytes()).count() + 1;
+        if columns_count > MAX_COLUMNS {
+            return Err(format_error(
+                line_no,
+                format!("header has {columns_count} columns; at most {MAX_COLUMNS} are read (the limit)"),
+            ));
+        }
         let column_names: Vec<String> = header_line
             .split(',')
             .map(|s| record::trim_field(s).to_owned())
@@ -124,25 +210,90 @@ impl RunReader {
             ),
             HeaderError::DuplicateColumn(i) => format_error(
                 line_no,
-                format!("column {} appears twice in the header", column_names[i]),
+                format!(
+                    "column {} appears twice in the header",
+                    text::escape_controls(&column_names[i])
+                ),
             ),
             _ => format_error(line_no, "unusable header".into()),
         })?;
-        Ok(RunReader {
+        let mut reader = RunReader {
             path: path.to_owned(),
             source,
             line: String::new(),
-            line_bytes: Vec::new(),
+            line_bytes: buf,
             line_no,
+            last_line_out: line_no,
+            header_line_no: line_no,
             header_line,
             column_names,
             columns,
             preamble,
             last_time_s: None,
-        })
+            ahead: VecDeque::new(),
+            nominal_period_s: 1.0,
+            watch: None,
+        };
+        reader.read_ahead(&metadata_rates)?;
+        Ok(reader)
     }
 
-    /// The file being read.
+    /// Reads the first [`PERIOD_ESTIMATE_STEPS`] + 1 rows, settles the
+    /// nominal period, checks every stated rate (line, Hz) against the time
+    /// column and the rows against the period.
+    fn read_ahead(&mut self, metadata_rates: &[(usize, f64)]) -> Result<(), RunError> {
+        while self.ahead.len() <= PERIOD_ESTIMATE_STEPS {
+            match self.read_source_row(true)? {
+                Some((line, row)) => self.ahead.push_back(RawRow {
+                    line,
+                    row,
+                    text: self.line.clone(),
+                }),
+                None => break,
+            }
+        }
+        let mut estimator = self.period_estimator();
+        let mut steps: Vec<f64> = Vec::with_capacity(self.ahead.len());
+        let mut prev: Option<f64> = None;
+        for raw in &self.ahead {
+            if !estimator.is_complete() {
+                estimator.push_time(raw.row.time_s);
+            }
+            if let Some(p) = prev {
+                steps.push(raw.row.time_s - p);
+            }
+            prev = Some(raw.row.time_s);
+        }
+        self.nominal_period_s = estimator.period_s();
+        let count = steps.len();
+        let median = record::nominal_period_s(None, &mut steps);
+        let lines = (
+            self.ahead.front().map_or(0, |r| r.line),
+            self.ahead.back().map_or(0, |r| r.line),
+        );
+        for &(line, hz) in metadata_rates {
+            sampling::check_agreement(hz, median, count, lines).map_err(|m| self.error_at(line, m))?;
+        }
+        let source = if metadata_rates.is_empty() {
+            PeriodSource::Median
+        } else {
+            PeriodSource::Metadata
+        };
+        let mut watch = PeriodWatch::new(self.nominal_period_s, source);
+        let mut prev: Option<f64> = None;
+        for raw in &self.ahead {
+            if let Some(p) = prev {
+                watch
+                    .push(raw.row.time_s - p, raw.line)
+                    .map_err(|(line, m)| self.error_at(line, m))?;
+            }
+            prev = Some(raw.row.time_s);
+        }
+        self.watch = Some(watch);
+        Ok(())
+    }
+
+    /// The file being read (`-`: standard input).
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -152,9 +303,14 @@ impl RunReader {
         &self.header_line
     }
 
-    /// Number of the last line read, 1-based: the header's until a row is read.
+    /// Line number of the header, 1-based.
+    pub fn header_line_number(&self) -> usize {
+        self.header_line_no
+    }
+
+    /// Number of the last row handed out, 1-based: the header's until a row is.
     pub fn line_number(&self) -> usize {
-        self.line_no
+        self.last_line_out
     }
 
     /// Where the known columns are.
@@ -165,6 +321,13 @@ impl RunReader {
     /// The lines before the header (metadata, blank lines) as read, without line ends.
     pub fn preamble(&self) -> &[String] {
         &self.preamble
+    }
+
+    /// The run's nominal sample period, s: `# sample_rate_hz`, else the
+    /// median of the first steps ([`record::nominal_period_s`], the rule the
+    /// firmware replay follows too).
+    pub fn nominal_period_s(&self) -> f64 {
+        self.nominal_period_s
     }
 
     /// A period estimator primed with this run's metadata (see [`PeriodEstimator`]).
@@ -197,7 +360,7 @@ impl RunReader {
             "which the model's inputs need"
         };
         Err(self.error_at(
-            self.line_no, // still the header line: called before any row is read
+            self.header_line_no,
             format!(
                 "header has no column {}, {what} (header: {})",
                 missing.join(", "),
@@ -216,6 +379,10 @@ impl RunReader {
 
     /// Reads the next data row; `Ok(None)` at the end of the file.
     pub fn next_row(&mut self) -> Result<Option<RawRow>, RunError> {
+        if let Some(raw) = self.ahead.pop_front() {
+            self.last_line_out = raw.line;
+            return Ok(Some(raw));
+        }
         Ok(self.read_row(true)?.map(|(line, row)| RawRow {
             line,
             row,
@@ -227,12 +394,31 @@ impl RunReader {
     /// streaming passes: the line is parsed where it lies in the read
     /// buffer, no copy, no allocation); (line number, row).
     pub fn next_parsed(&mut self) -> Result<Option<(usize, Row)>, RunError> {
+        if let Some(raw) = self.ahead.pop_front() {
+            self.last_line_out = raw.line;
+            return Ok(Some((raw.line, raw.row)));
+        }
         self.read_row(false)
     }
 
-    /// The next data row; its text (without line end) in `self.line` when
-    /// `keep_text` or when it is refused (the error message quotes it).
+    /// The next row from the source, its time step watched for a change of rate.
     fn read_row(&mut self, keep_text: bool) -> Result<Option<(usize, Row)>, RunError> {
+        let previous_s = self.last_time_s;
+        let Some((line, row)) = self.read_source_row(keep_text)? else {
+            return Ok(None);
+        };
+        if let (Some(watch), Some(p)) = (&mut self.watch, previous_s) {
+            let checked = watch.push(row.time_s - p, line);
+            checked.map_err(|(start, m)| self.error_at(start, m))?;
+        }
+        self.last_line_out = line;
+        Ok(Some((line, row)))
+    }
+
+    /// The next data row read from the source; its text (without line end)
+    /// in `self.line` when `keep_text` or when it is refused (the error
+    /// message quotes it).
+    fn read_source_row(&mut self, keep_text: bool) -> Result<Option<(usize, Row)>, RunError> {
         loop {
             self.line_no += 1;
             let buf = self
@@ -240,30 +426,26 @@ impl RunReader {
                 .fill_buf()
                 .map_err(|e| io_or_utf8(&self.path, self.line_no, e))?;
             let outcome = match memchr::memchr(b'\n', buf) {
-                Some(end) => {
+                Some(end) if end <= MAX_LINE_BYTES => {
                     let outcome = classify(&self.columns, buf.get(..end).unwrap_or(&[]), &mut self.line, keep_text);
                     self.source.consume(end + 1);
                     outcome
                 }
+                Some(_) => return Err(self.error_at(self.line_no, too_long())),
                 None => {
                     // The line runs past the buffer or ends the file without
                     // a line end: the copying path.
                     let mut bytes = std::mem::take(&mut self.line_bytes);
-                    bytes.clear();
-                    let read = self
-                        .source
-                        .read_until(b'\n', &mut bytes)
+                    let read = read_line_bounded(self.source.as_mut(), &mut bytes)
                         .map_err(|e| io_or_utf8(&self.path, self.line_no, e));
                     let outcome = match read {
-                        Ok(0) => {
+                        Ok(Bounded::End) => {
                             self.line_no -= 1;
                             self.line_bytes = bytes;
                             return Ok(None);
                         }
-                        Ok(_) => {
-                            let line = bytes.strip_suffix(b"\n").unwrap_or(&bytes);
-                            Ok(classify(&self.columns, line, &mut self.line, keep_text))
-                        }
+                        Ok(Bounded::TooLong) => Err(self.error_at(self.line_no, too_long())),
+                        Ok(Bounded::Line) => Ok(classify(&self.columns, &bytes, &mut self.line, keep_text)),
                         Err(e) => Err(e),
                     };
                     self.line_bytes = bytes;
@@ -311,12 +493,17 @@ impl RunReader {
             }
             RowErrorKind::NotANumber if field.is_empty() => "field is empty, a number is required".to_owned(),
             RowErrorKind::NotANumber => format!("\"{}\" is not a number", short(field)),
-            RowErrorKind::NonFinite => format!("\"{field}\" is not a finite number"),
-            RowErrorKind::NotAFlag => format!("\"{field}\" is not 0 or 1"),
+            RowErrorKind::NonFinite => format!("\"{}\" is not a finite number", short(field)),
+            RowErrorKind::NotAFlag => format!("\"{}\" is not 0 or 1", short(field)),
+            RowErrorKind::OverRange => format!(
+                "\"{}\" is beyond ±{} °/h (1000 °/s), the range a recorded run may hold; is the column in °/h?",
+                short(field),
+                record::MAX_ABS_RATE_DPH
+            ),
             _ => "unreadable row".to_owned(),
         };
         let message = match column {
-            Some((i, name)) => format!("column {name} (field {}): {message}", i + 1),
+            Some((i, name)) => format!("column {} (field {}): {message}", text::escape_controls(name), i + 1),
             None => message,
         };
         self.error_at(self.line_no, message)
@@ -371,13 +558,15 @@ fn io_or_utf8(path: &Path, line: usize, e: std::io::Error) -> RunError {
     }
 }
 
+/// `s` for a message: at most 60 characters, control characters escaped.
 fn short(s: &str) -> String {
     const MAX: usize = 60;
-    if s.chars().count() <= MAX {
+    let s = if s.chars().count() <= MAX {
         s.to_owned()
     } else {
         format!("{}…", s.chars().take(MAX).collect::<String>())
-    }
+    };
+    text::escape_controls(&s).into_owned()
 }
 
 /// A whole run in memory, column-wise.
@@ -417,32 +606,27 @@ impl Run {
             reader.require_temp()?;
         }
         let has_ref = reader.columns().ref_dph.is_some();
-        let mut period = reader.period_estimator();
         let multi_point = thermometer_mask & !(1 << LOOP_THERMOMETER) != 0;
         let (mut time_s, mut rate_dph, mut temp_c, mut temps_c, mut ref_dph) = (vec![], vec![], vec![], vec![], vec![]);
-        while let Some(raw) = reader.next_row()? {
-            if !period.is_complete() {
-                period.push_time(raw.row.time_s);
-            }
-            time_s.push(raw.row.time_s);
-            rate_dph.push(raw.row.rate_dph);
-            let readings = raw.row.readings_c();
+        while let Some((_, row)) = reader.next_parsed()? {
+            time_s.push(row.time_s);
+            rate_dph.push(row.rate_dph);
+            let readings = row.readings_c();
             temp_c.push(readings[LOOP_THERMOMETER]);
             if multi_point {
                 temps_c.push(readings);
             }
             if has_ref {
-                ref_dph.push(raw.row.ref_dph.unwrap_or(0.0));
+                ref_dph.push(row.ref_dph.unwrap_or(0.0));
             }
         }
         if time_s.len() < 2 {
             return Err(RunError::Format {
                 path: path.to_owned(),
-                line: reader.line_no,
+                line: reader.line_number(),
                 message: format!("run has {} data rows; at least 2 are needed", time_s.len()),
             });
         }
-        let nominal_period_s = period.period_s();
         Ok(Run {
             path,
             time_s,
@@ -451,7 +635,7 @@ impl Run {
             temps_c,
             thermometer_mask,
             ref_dph: has_ref.then_some(ref_dph),
-            nominal_period_s,
+            nominal_period_s: reader.nominal_period_s(),
         })
     }
 
@@ -545,21 +729,11 @@ impl RawRow {
 }
 
 /// Nominal period of a run file read in a first pass (for streaming commands).
-pub fn probe_nominal_period_s(path: &Path) -> Result<f64, RunError> {
-    let mut reader = RunReader::open(path)?;
-    let mut period = reader.period_estimator();
-    while !period.is_complete() {
-        let Some(raw) = reader.next_row()? else { break };
-        period.push_time(raw.row.time_s);
-    }
-    Ok(period.period_s())
-}
-
 /// A run read in one streaming pass: its nominal period and reference are
 /// known up front, its samples are handed out one by one, parsed on a second
 /// thread (so parsing and computation overlap); nothing holds the whole run.
 pub struct StreamedRun {
-    /// Nominal sample period, s (see [`record::PeriodEstimator`]).
+    /// Nominal sample period, s (see [`RunReader::nominal_period_s`]).
     pub nominal_period_s: f64,
     /// The run has a `ref_dph` column.
     pub has_ref: bool,
@@ -571,11 +745,14 @@ impl StreamedRun {
     /// `temp_a` … `temp_h`; single-point models read `temp_c`, see
     /// [`rbf_core::FeatureSet::thermometer_mask`]).
     pub fn open(path: &Path, mask: u8) -> Result<Self, RunError> {
-        let nominal_period_s = probe_nominal_period_s(path)?;
-        let reader = RunReader::open(path)?;
+        Self::from_reader(RunReader::open(path)?, mask)
+    }
+
+    /// [`StreamedRun::open`] on an open reader.
+    pub fn from_reader(reader: RunReader, mask: u8) -> Result<Self, RunError> {
         reader.require_thermometers(mask)?;
         Ok(StreamedRun {
-            nominal_period_s,
+            nominal_period_s: reader.nominal_period_s(),
             has_ref: reader.columns().ref_dph.is_some(),
             reader,
         })
@@ -584,14 +761,19 @@ impl StreamedRun {
     /// Feeds every data row and its gyro sample (as the firmware sees it) to
     /// `each`, in order; returns the number of rows.
     pub fn for_each(self, mut each: impl FnMut(&Row, &GyroSample)) -> anyhow::Result<usize> {
+        self.for_each_line(|_, row, sample| each(row, sample))
+    }
+
+    /// [`StreamedRun::for_each`] with each row's line number.
+    pub fn for_each_line(self, mut each: impl FnMut(usize, &Row, &GyroSample)) -> anyhow::Result<usize> {
         let mut prev_time_s = None;
         let mut rows = 0;
         for_each_row_batch(self.reader, |batch| {
-            for row in batch {
+            for (line, row) in batch {
                 let sample = gyro_sample(prev_time_s, row.time_s, row.rate_dph, &row.readings_c());
                 prev_time_s = Some(row.time_s);
                 rows += 1;
-                each(row, &sample);
+                each(*line, row, &sample);
             }
         })?;
         Ok(rows)
@@ -599,13 +781,14 @@ impl StreamedRun {
 }
 
 /// Parses `reader`'s rows on a second thread in batches and hands each batch
-/// to `consume` on this one, so parsing and feature computation overlap.
-fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[Row])) -> anyhow::Result<()> {
+/// (line number, row) to `consume` on this one, so parsing and feature
+/// computation overlap.
+fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[(usize, Row)])) -> anyhow::Result<()> {
     const BATCH: usize = 4096;
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Row>>(4);
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<(usize, Row)>>(4);
     // Consumed batches go back to the parser: a handful of buffers, warm in
     // cache, instead of an allocation per batch.
-    let (recycle_tx, recycle_rx) = std::sync::mpsc::channel::<Vec<Row>>();
+    let (recycle_tx, recycle_rx) = std::sync::mpsc::channel::<Vec<(usize, Row)>>();
     std::thread::scope(|scope| {
         let parser = scope.spawn(move || -> Result<(), RunError> {
             loop {
@@ -613,7 +796,7 @@ fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[Row])) ->
                 batch.clear();
                 while batch.len() < BATCH {
                     match reader.next_parsed()? {
-                        Some((_, row)) => batch.push(row),
+                        Some(row) => batch.push(row),
                         None => break,
                     }
                 }
@@ -681,10 +864,7 @@ mod tests {
             );
         }
         let not_utf8: &'static [u8] = b"time_s,rate_dph\n0.00,1.5\n0.01,\xff\n";
-        let source = BufReader::new(not_utf8);
-        let mut reader = RunReader::from_reader(Path::new("run.csv"), source).unwrap();
-        assert!(reader.next_parsed().unwrap().is_some());
-        let err = reader.next_parsed().unwrap_err().to_string();
-        assert_eq!(err, "run.csv:3: line is not valid UTF-8 text");
+        let err = RunReader::from_reader(Path::new("run.csv"), BufReader::new(not_utf8)).unwrap_err();
+        assert_eq!(err.to_string(), "run.csv:3: line is not valid UTF-8 text");
     }
 }

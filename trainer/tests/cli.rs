@@ -1,80 +1,12 @@
 //! The `trainer` binary as a user meets it: exit codes, messages naming file,
 //! line and column, files written.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
+use std::path::Path;
+
+use common::{compensate, fitted_model, shared_data, stderr, stdout, trainer, write};
 use tempfile::TempDir;
-
-fn trainer(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_trainer"))
-        .args(args)
-        .output()
-        .expect("trainer runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn shared_data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../examples/data")
-        .join(name)
-}
-
-fn write(dir: &TempDir, name: &str, content: &[u8]) -> PathBuf {
-    let p = dir.path().join(name);
-    std::fs::write(&p, content).unwrap();
-    p
-}
-
-/// A model fitted once on a short synthetic chamber run, shared by the tests
-/// that need any valid model.
-fn fitted_model(dir: &TempDir) -> PathBuf {
-    let run = dir.path().join("train.csv");
-    let o = trainer(&[
-        "simulate",
-        "--ramp",
-        "1",
-        "--hold-min",
-        "30",
-        "--seed",
-        "7",
-        "-o",
-        run.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let model = dir.path().join("model.bin");
-    // The option before the run file: it must not swallow it.
-    let o = trainer(&[
-        "fit",
-        "-q",
-        "--rate-window-s",
-        "60",
-        run.to_str().unwrap(),
-        "-o",
-        model.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    model
-}
-
-/// `trainer compensate --model MODEL RUN -o OUT`.
-fn compensate(model: &Path, run: &Path, out: &Path) -> Output {
-    trainer(&[
-        "compensate",
-        "--model",
-        model.to_str().unwrap(),
-        run.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ])
-}
 
 /// `trainer blocks RUN --block-s 60 -o OUT` with `args`, which must succeed; the CSV written.
 fn blocks_csv(run: &Path, out: &Path, args: &[&str]) -> String {
@@ -133,6 +65,7 @@ fn malformed_runs_are_refused_naming_file_line_and_column() {
             ":4: column rate_dph (field 2): field is empty",
         ),
     ];
+    let out = dir.path().join("out.csv");
     for (name, rows, expected) in cases {
         let run = write(&dir, &format!("{name}.csv"), format!("{GOOD_HEADER}{rows}").as_bytes());
         for args in [
@@ -142,7 +75,7 @@ fn malformed_runs_are_refused_naming_file_line_and_column() {
                 model.to_str().unwrap(),
                 run.to_str().unwrap(),
                 "-o",
-                "/dev/null",
+                out.to_str().unwrap(),
             ],
             vec!["eval", "--model", model.to_str().unwrap(), run.to_str().unwrap()],
             vec![
@@ -198,16 +131,10 @@ fn header_problems_are_refused_at_the_header_line() {
             "bad_flag.csv:2: column temp_fault (field 4): \"2\" is not 0 or 1",
         ),
     ];
+    let out = dir.path().join("out.csv");
     for (name, content, expected) in cases {
         let run = write(&dir, &format!("{name}.csv"), content);
-        let o = trainer(&[
-            "compensate",
-            "--model",
-            model.to_str().unwrap(),
-            run.to_str().unwrap(),
-            "-o",
-            "/dev/null",
-        ]);
+        let o = compensate(&model, &run, &out, &[]);
         assert_eq!(o.status.code(), Some(1), "{name}");
         assert!(stderr(&o).contains(expected), "{name}: {}", stderr(&o));
     }
@@ -222,7 +149,9 @@ fn original_bmi270_terminal_logs_get_a_clear_error() {
         eprintln!("skipping: {} not present", original.display());
         return;
     }
-    let o = trainer(&["fit", "-q", original.to_str().unwrap(), "-o", "/dev/null"]);
+    let dir = TempDir::new().unwrap();
+    let model = dir.path().join("m.bin");
+    let o = trainer(&["fit", "-q", original.to_str().unwrap(), "-o", model.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
         stderr(&o).contains("BMI_270_hot_test.csv:1: header has no required column time_s"),
@@ -251,7 +180,7 @@ fn converted_bmi270_logs_are_read_but_cannot_identify_a_model() {
 
     // compensate accepts them: one output row per input row.
     let out = dir.path().join("hot_comp.csv");
-    let o = compensate(&model, &hot, &out);
+    let o = compensate(&model, &hot, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (input, output) = (
         std::fs::read_to_string(&hot).unwrap(),
@@ -287,7 +216,7 @@ fn tolerable_variants_are_accepted_row_for_row() {
     for (name, content) in variants {
         let run = write(&dir, &format!("{name}.csv"), content.as_bytes());
         let out = dir.path().join(format!("{name}_out.csv"));
-        let o = compensate(&model, &run, &out);
+        let o = compensate(&model, &run, &out, &[]);
         assert!(o.status.success(), "{name}: {}", stderr(&o));
         let text = std::fs::read_to_string(&out).unwrap();
         let data = data_rows(&text);
@@ -324,6 +253,7 @@ fn corrupt_blobs_are_refused_with_the_reason() {
         ("empty", Vec::new(), "truncated"),
         ("version", version, "unsupported format version 7"),
     ];
+    let out = dir.path().join("out.csv");
     for (name, bytes, reason) in cases {
         let blob = write(&dir, &format!("{name}.bin"), &bytes);
         for args in [
@@ -333,7 +263,7 @@ fn corrupt_blobs_are_refused_with_the_reason() {
                 blob.to_str().unwrap(),
                 run.to_str().unwrap(),
                 "-o",
-                "/dev/null",
+                out.to_str().unwrap(),
             ],
             vec!["inspect", blob.to_str().unwrap()],
         ] {
@@ -602,7 +532,17 @@ fn fit_rejects_bad_options_and_writes_nothing() {
     let run = shared_data("ifog_train_1cpm.csv");
     let out = dir.path().join("m.bin");
     for (args, reason) in [
-        (vec!["--centers", "65"], "--centers 65"),
+        (
+            vec!["--centers", "65"],
+            "invalid value '65' for '--centers <K>': 65 is not in 1..=64",
+        ),
+        (vec!["--max-centers", "0"], "invalid value '0' for '--max-centers <K>'"),
+        (
+            vec!["--folds", "0"],
+            "invalid value '0' for '--folds <N>': 0 is not in 2..=20",
+        ),
+        (vec!["--folds", "1"], "invalid value '1' for '--folds <N>'"),
+        (vec!["--folds", "100000"], "invalid value '100000' for '--folds <N>'"),
         (vec!["--block-s", "0"], "--block-s"),
         (vec!["--rate-window-s=-3"], "--rate-window-s"),
         (
@@ -730,7 +670,7 @@ fn fit_never_overwrites_a_model_without_force() {
     let leftovers: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()
         .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
         .collect();
     assert!(leftovers.is_empty(), "no temporary files left behind: {leftovers:?}");
 }
@@ -843,4 +783,107 @@ fn simulate_params_describe_another_gyro_and_bad_files_are_refused_with_their_pl
         assert!(stderr(&o).contains(expected), "{content}: {}", stderr(&o));
         assert!(!out.exists(), "nothing written for {content}");
     }
+}
+
+#[test]
+fn simulate_runs_a_planned_chamber_profile_and_refuses_bad_plans_with_their_place() {
+    let dir = TempDir::new().unwrap();
+    let out = dir.path().join("planned.csv");
+    let simulate = |plan: &Path| {
+        trainer(&[
+            "simulate",
+            "--chamber-profile",
+            plan.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let plan = write(
+        &dir,
+        "plan.csv",
+        b"# written by: trainer plan\ntime_s,chamber_c\n0,-20\n600,-20\n1800,40\n3600,40\n",
+    );
+    let o = simulate(&plan);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("# profile: chamber-profile\n"), "{text:.400}");
+    assert!(
+        text.contains("# power_on: at 0 s, soaked at -20.00 °C\n"),
+        "{text:.400}"
+    );
+    // One sample a second up to the plan's last set point; the coil follows the chamber up.
+    let rows = data_rows(&text);
+    assert_eq!(rows.len(), 3600);
+    let temp = |row: &str| row.split(',').nth(2).unwrap().parse::<f64>().unwrap();
+    assert!(
+        temp(rows[0]) < -19.9 && temp(rows[3599]) > 0.0,
+        "{} … {}",
+        rows[0],
+        rows[3599]
+    );
+    std::fs::remove_file(&out).unwrap();
+    let bad = write(&dir, "bad.csv", b"time_s,chamber_c\n0,20\n60,2O\n");
+    let o = simulate(&bad);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("bad.csv:3:4: chamber_c: \"2O\" is not a number"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists(), "nothing written for a bad plan");
+    // A plan is the profile: both at once is a usage error (exit 1, as every error).
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        "cycle",
+        "--chamber-profile",
+        plan.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("cannot be used with"), "{}", stderr(&o));
+}
+
+#[test]
+fn simulate_unit_draws_a_recorded_gyro_that_params_override_and_in_use_runs_start_at_power_on() {
+    let dir = TempDir::new().unwrap();
+    let run = |name: &str, args: &[&str]| {
+        let out = dir.path().join(name);
+        let mut all = vec![
+            "simulate",
+            "--profile",
+            "cold-start",
+            "--seed",
+            "4",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        all.extend(args);
+        let o = trainer(&all);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read_to_string(out).unwrap()
+    };
+    let unit = run("unit.csv", &["--unit", "3"]);
+    assert!(
+        unit.contains("# unit: 3\n") && unit.contains("# simulator_params: {"),
+        "{unit:.600}"
+    );
+    assert!(unit.contains("in-use history") && unit.contains("# power_on: at 0 s, soaked at -"));
+    // The in-use cold start lasts 4 h at 1 Hz unless --hours says otherwise.
+    assert_eq!(data_rows(&unit).len(), 4 * 3600);
+    assert_ne!(data_rows(&unit), data_rows(&run("documented.csv", &[])));
+    // --params over --unit: the unit with that one field changed.
+    let arw = write(&dir, "arw.json", br#"{"gyro": {"arw_deg_per_sqrt_h": 0.004}}"#);
+    let noisier = run("noisier.csv", &["--unit", "3", "--params", arw.to_str().unwrap()]);
+    let params = |text: &str| -> serde_json::Value {
+        let line = text
+            .lines()
+            .find_map(|l| l.strip_prefix("# simulator_params: "))
+            .unwrap();
+        serde_json::from_str(line).unwrap()
+    };
+    let (mut expected, got) = (params(&unit), params(&noisier));
+    expected["gyro"]["arw_deg_per_sqrt_h"] = serde_json::json!(0.004);
+    assert_eq!(got, expected);
 }

@@ -2,7 +2,10 @@
 //! chamber runs of both protocols, trained on one run and verified on runs at
 //! other ramp rates and on a random profile; then the RLG paper's comparison
 //! (its Tables 4 and 5): traditional three-point against multi-point inputs
-//! on 8-thermometer runs (`trainer simulate --multi`).
+//! on 8-thermometer runs (`trainer simulate --multi`); then [`in_use`]:
+//! trained on a chamber run, verified on in-use histories, over several plants.
+
+pub mod in_use;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -117,14 +120,19 @@ const PROTOCOLS: [Protocol; 3] = [
 ];
 
 fn trainer(args: &[&str]) -> anyhow::Result<String> {
-    let exe = workspace_root().join("target/release/trainer");
-    let out = Command::new(&exe)
+    run_tool(&workspace_root().join("target/release/trainer"), args)
+}
+
+/// Runs `exe` with `args`; its standard output, or an error with its standard error.
+fn run_tool(exe: &Path, args: &[&str]) -> anyhow::Result<String> {
+    let out = Command::new(exe)
         .args(args)
         .output()
         .with_context(|| format!("cannot run {}", exe.display()))?;
     if !out.status.success() {
         bail!(
-            "trainer {} failed: {}",
+            "{} {} failed: {}",
+            exe.display(),
             args.join(" "),
             String::from_utf8_lossy(&out.stderr)
         );
@@ -145,13 +153,45 @@ struct Row {
     refusal: Option<String>,
 }
 
-/// Runs the benchmark and prints one table per protocol; `params` simulates
-/// another gyro (`trainer simulate --params`).
-pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
+/// What `cargo xtask bench-accuracy` runs.
+#[derive(Clone, Debug, Default)]
+pub struct AccuracyOptions {
+    /// Simulate another gyro in the chamber protocols (`trainer simulate --params`).
+    pub params: Option<PathBuf>,
+    /// Only the in-use section.
+    pub in_use_only: bool,
+    /// The in-use section's options.
+    pub in_use: in_use::InUseOptions,
+    /// Write the in-use section's results here as JSON (`-`: stdout).
+    pub json: Option<PathBuf>,
+}
+
+/// Runs the benchmark: one table per chamber protocol (unless
+/// `in_use_only`), then the in-use section.
+pub fn bench_accuracy(opts: &AccuracyOptions) -> anyhow::Result<()> {
     crate::run("cargo", &["build", "--release", "--quiet", "--package", "trainer"])?;
     let venv_dir = workspace_root().join("target/bench-accuracy");
     std::fs::create_dir_all(&venv_dir)?;
     let python = crate::python_venv(&venv_dir, &["scikit-learn", "numpy"], "sklearn, numpy")?;
+    if !opts.in_use_only {
+        chamber_protocols(opts.params.as_deref(), &python, &venv_dir)?;
+    }
+    let results = in_use::bench_in_use(&opts.in_use, &python, &venv_dir)?;
+    if let Some(file) = &opts.json {
+        let text = serde_json::to_string_pretty(&results)?;
+        if file.as_os_str() == "-" {
+            println!("{text}");
+        } else {
+            std::fs::write(file, text).with_context(|| format!("cannot write {}", file.display()))?;
+        }
+    }
+    Ok(())
+}
+
+/// The chamber protocols' tables; `params` simulates another gyro
+/// (`trainer simulate --params`).
+fn chamber_protocols(params: Option<&Path>, python: &Path, venv_dir: &Path) -> anyhow::Result<()> {
+    let venv_dir = venv_dir.to_owned();
     let (dir, params) = match params {
         Some(file) => {
             let file = std::path::absolute(file)?;
@@ -171,17 +211,16 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
     let mut means = Vec::new();
     for p in &PROTOCOLS {
         let rate = p.rate_hz.to_string();
-        let simulate = |name: &str, args: &[&str], params: Option<&Path>| -> anyhow::Result<PathBuf> {
+        let sim = |name: &str, args: &[&str]| -> anyhow::Result<PathBuf> {
             let file = dir.join(format!("{}_{name}.csv", p.name));
-            let mut all = vec!["simulate", "--rate-hz", &rate, "-o", path(&file)];
+            let mut all = vec!["simulate", "--force", "--rate-hz", &rate, "-o", path(&file)];
             all.extend(args);
-            if let Some(params) = params {
+            if let Some(params) = &params {
                 all.extend(["--params", path(params)]);
             }
             trainer(&all)?;
             Ok(file)
         };
-        let sim = |name: &str, args: &[&str]| simulate(name, args, params.as_deref());
         let train = sim("train", p.train)?;
         let verify: Vec<PathBuf> = p
             .verify
@@ -193,12 +232,8 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
         let noise: Vec<PathBuf> = p
             .verify
             .iter()
-            .zip(&verify)
             .enumerate()
-            .map(|(i, ((_, a), run))| {
-                let params = noise_only_params(run)?;
-                simulate(&format!("verify{i}_noise"), a, Some(&params))
-            })
+            .map(|(i, (_, a))| sim(&format!("verify{i}_noise"), &[a, &["--noise-only"][..]].concat()))
             .collect::<anyhow::Result<_>>()?;
         let mut rows: Vec<Row> = Vec::new();
         let mut before: Vec<f64> = Vec::new();
@@ -232,7 +267,7 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
             let fit_s = started.elapsed().as_secs_f64();
             default_fitted |= is_default;
             let json = dir.join(format!("{}_eval.json", p.name));
-            let mut eval = vec!["eval", "--model", path(&model), "--json", path(&json)];
+            let mut eval = vec!["eval", "--force", "--model", path(&model), "--json", path(&json)];
             eval.extend(verify.iter().map(|v| path(v)));
             trainer(&eval)?;
             let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
@@ -265,7 +300,7 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
                 default_fitted,
                 "the peers need the default's features, and the default fit was refused"
             );
-            rows.extend(peer_rows(&python, &script, p, &default_model, &train, &verify)?);
+            rows.extend(peer_rows(python, &script, p, &default_model, &train, &verify)?);
         }
         if default_fitted {
             rows.push(noise_ceiling(
@@ -287,40 +322,12 @@ pub fn bench_accuracy(params: Option<&Path>) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The simulator parameters of `run` (its `# simulator_params:` line; none
-/// for the documented default) with every thermal bias term zeroed (static
-/// curve, Shupe, radial and axial gradients), written beside it: simulated
-/// with the same seed, the run's noise alone (angle random walk and bias
-/// instability draw the same numbers).
-fn noise_only_params(run: &Path) -> anyhow::Result<PathBuf> {
-    const KEY: &str = "# simulator_params:";
-    let text = std::fs::read_to_string(run)?;
-    let line = text
-        .lines()
-        .take_while(|l| l.starts_with('#'))
-        .find_map(|l| l.strip_prefix(KEY));
-    let mut params: serde_json::Value = serde_json::from_str(line.unwrap_or("{}").trim())
-        .with_context(|| format!("{}: unreadable `{KEY}` line", run.display()))?;
-    let gyro = &mut params["gyro"];
-    gyro["static_coeffs"] = serde_json::json!([0.0, 0.0, 0.0, 0.0]);
-    for gain in [
-        "shupe_dph_per_c_per_min",
-        "radial_gradient_dph_per_c",
-        "axial_gradient_dph_per_c",
-    ] {
-        gyro[gain] = serde_json::json!(0.0);
-    }
-    let out = run.with_extension("noise-params.json");
-    std::fs::write(&out, serde_json::to_string_pretty(&params)?)?;
-    Ok(out)
-}
-
 /// The best any model can do on each verification run: the 100-s cluster STD
-/// of its noise alone (`noise`, from [`noise_only_params`]) against the raw
-/// run's (`before`). `model` is only there for `trainer eval`, which reports
+/// of its noise alone (`noise`: simulated again with `--noise-only`) against
+/// the raw run's (`before`). `model` is only there for `trainer eval`, which reports
 /// the uncompensated STD of any run.
 fn noise_ceiling(model: &Path, noise: &[PathBuf], before: &[f64], json: &Path) -> anyhow::Result<Row> {
-    let mut eval = vec!["eval", "--model", path(model), "--json", path(json)];
+    let mut eval = vec!["eval", "--force", "--model", path(model), "--json", path(json)];
     eval.extend(noise.iter().map(|n| path(n)));
     trainer(&eval)?;
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json)?)?;
@@ -350,7 +357,15 @@ fn peer_rows(
     let mut rows = Vec::new();
     let blocks = |file: &Path| -> anyhow::Result<PathBuf> {
         let out = file.with_extension("blocks.csv");
-        trainer(&["blocks", path(file), "--model", path(default_model), "-o", path(&out)])?;
+        trainer(&[
+            "blocks",
+            "--force",
+            path(file),
+            "--model",
+            path(default_model),
+            "-o",
+            path(&out),
+        ])?;
         Ok(out)
     };
     let mut cmd = Command::new(python);

@@ -84,12 +84,17 @@ fn build_command(bin: &str, features: &[&str]) -> Command {
 }
 
 /// Flash and RAM a firmware image uses, from its ELF sections, bytes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ImageSize {
-    /// Flash: vector table, code, read-only data and the initial values of .data.
+    /// Flash: vector table, code, read-only data and the initial values of
+    /// .data and of the tables memory.x copies to RAM (.ram_tables).
     pub flash: u64,
-    /// Static RAM: .data, .bss and .uninit (the stack comes on top).
+    /// Static RAM: .ram_tables, .data, .bss and .uninit (the stack comes on top).
     pub static_ram: u64,
+    /// The largest object in flash's read-only data (name, bytes).
+    pub largest_rodata: (String, u64),
+    /// Whether rbf-core's exp2 table lies in RAM (memory.x's .ram_tables).
+    pub exp2_table_in_ram: bool,
 }
 
 /// Reads the section sizes of an ELF image.
@@ -97,9 +102,29 @@ pub fn image_size(elf: &std::path::Path) -> anyhow::Result<ImageSize> {
     use object::{Object, ObjectSection};
     let data = std::fs::read(elf).with_context(|| format!("{}: cannot read", elf.display()))?;
     let file = object::File::parse(&*data).with_context(|| format!("{}: not an ELF image", elf.display()))?;
+    use object::{ObjectSymbol, SectionIndex};
     let size = |name: &str| file.section_by_name(name).map_or(0, |s| s.size());
+    let index = |name: &str| file.section_by_name(name).map(|s| s.index());
+    let in_section = |sym: &object::Symbol<'_, '_>, section: Option<SectionIndex>| {
+        section.is_some() && sym.section_index() == section
+    };
+    let (rodata, ram_tables) = (index(".rodata"), index(".ram_tables"));
+    let mut largest_rodata = (String::new(), 0);
+    let mut exp2_table_in_ram = false;
+    for sym in file.symbols() {
+        let name = sym.name().unwrap_or("");
+        if in_section(&sym, rodata) && sym.size() > largest_rodata.1 {
+            largest_rodata = (name.to_owned(), sym.size());
+        }
+        if in_section(&sym, ram_tables) && name.contains("EXP2_OCTAVE_BITS") {
+            exp2_table_in_ram = true;
+        }
+    }
+    let ram_tables_len = size(".ram_tables");
     Ok(ImageSize {
-        flash: size(".vector_table") + size(".text") + size(".rodata") + size(".data"),
-        static_ram: size(".data") + size(".bss") + size(".uninit"),
+        flash: size(".vector_table") + size(".text") + size(".rodata") + size(".data") + ram_tables_len,
+        static_ram: ram_tables_len + size(".data") + size(".bss") + size(".uninit"),
+        largest_rodata,
+        exp2_table_in_ram,
     })
 }

@@ -46,13 +46,39 @@ enum Cmd {
     /// (trained on one 1 °C/min run, verified at other ramp rates and on a random
     /// profile) compare no compensation, poly3, rbf2, the IFOG paper's rbf, the
     /// default, and scikit-learn SVR and KernelRidge on the same features (in a
-    /// venv it makes under target/). Prints improvement %, residual 100-s STD, fit time.
+    /// venv it makes under target/). Then in use: on four plants (the documented
+    /// gyro, units 1 and 2, another mechanical design) the default trained on the
+    /// 1 °C/min cycle and on the designed run alone, verified on two random
+    /// set-point runs and two field histories, beside a lag-bank least-squares
+    /// reference and each run's noise ceiling. Prints improvement %, residual
+    /// 100-s STD, fit time.
     BenchAccuracy {
-        /// Simulate another gyro (`trainer simulate --params`), e.g.
-        /// bench/accuracy/another-gyro.json: does the default generalise to a
-        /// thermal model it was not developed on?
+        /// Simulate another gyro in the chamber protocols (`trainer simulate
+        /// --params`), e.g. bench/accuracy/another-gyro.json: does the default
+        /// generalise to a thermal model it was not developed on?
         #[arg(long, value_name = "FILE.json")]
         params: Option<PathBuf>,
+        /// Only the in-use section (train on a chamber run, verify in use).
+        #[arg(long)]
+        in_use: bool,
+        /// In-use section on two plants (the documented gyro and unit 1).
+        #[arg(long)]
+        quick: bool,
+        /// Write the in-use section's results as JSON (`-`: stdout).
+        #[arg(long, value_name = "FILE")]
+        json: Option<PathBuf>,
+        /// In-use section: judge this trainer's fit and compensate (e.g. another
+        /// branch's build); the simulator stays this workspace's.
+        #[arg(long, value_name = "PATH")]
+        trainer: Option<PathBuf>,
+        /// In-use section: options for `trainer fit` instead of the default model,
+        /// as one string, e.g. --fit-args="--method poly3".
+        #[arg(long, value_name = "ARGS", allow_hyphen_values = true)]
+        fit_args: Option<String>,
+        /// In-use section: also train on this planned chamber run (time_s,chamber_c
+        /// set points, as `trainer plan` writes them).
+        #[arg(long, value_name = "PLAN.csv")]
+        plan: Option<PathBuf>,
     },
     /// Fault injection on the firmware image under QEMU: 20,000 samples through the
     /// real drivers with I2C NACK bursts, stuck readings, a stuck bus, spikes,
@@ -106,7 +132,29 @@ fn main() -> anyhow::Result<()> {
             Ok(())
         }
         Cmd::BenchFw => xtask::bench::bench_fw(),
-        Cmd::BenchAccuracy { params } => xtask::accuracy::bench_accuracy(params.as_deref()),
+        Cmd::BenchAccuracy {
+            params,
+            in_use,
+            quick,
+            json,
+            trainer,
+            fit_args,
+            plan,
+        } => xtask::accuracy::bench_accuracy(&xtask::accuracy::AccuracyOptions {
+            params,
+            in_use_only: in_use,
+            in_use: xtask::accuracy::in_use::InUseOptions {
+                quick,
+                trainer: trainer.map(std::path::absolute).transpose()?,
+                fit_args: fit_args
+                    .iter()
+                    .flat_map(|a| a.split_whitespace())
+                    .map(str::to_owned)
+                    .collect(),
+                plan: plan.map(std::path::absolute).transpose()?,
+            },
+            json,
+        }),
         Cmd::QemuFaults { model, update } => {
             xtask::qemu::ensure_installed()?;
             for line in xtask::faults::qemu_faults(&model, &update)? {

@@ -1,11 +1,16 @@
-//! Link-time proof that the per-sample path cannot panic.
+//! Link-time proof that nothing the board image runs after init can panic.
 //!
 //! Built only with the `panic-free-check` feature, under which the panic
 //! handler ([`firmware::board`]) calls `hot_path_can_panic`, a symbol that is
-//! defined nowhere. This image runs boot-time model validation and then
-//! [`CompensationLoop::step`] forever, through the real TMP117 and front-end
-//! drivers, on buses whose bytes, time steps and model slot are volatile
-//! reads the optimiser knows nothing about. If any panic (index out of
+//! defined nowhere. This image runs what the stm32f405 board runs: boot-time
+//! model selection and validation over a flash device, the boot report, and
+//! then forever [`CompensationLoop::step_at`] through the real TMP117 and
+//! front-end drivers, command bytes through the update receiver (COBS), the
+//! update command with the two-slot model store (erase, write, verify,
+//! commit, rescan) and its reply. Buses, flash, time steps, edge numbers and
+//! model slots are volatile reads the optimiser knows nothing about, and the
+//! UART output behaves as the stm32f4xx-hal driver does: it may take nothing
+//! (`Ok(0)`), part of a buffer, or refuse (`WouldBlock`). If any panic (index out of
 //! bounds, unwrap, overflow check, arithmetic panic, formatting) survives
 //! optimisation on that path, the link fails naming the symbol. CI builds it
 //! (`xtask::firmware::check_panic_free`), and its canary (feature
@@ -23,10 +28,14 @@ mod board {
     use cortex_m_rt::entry;
     use embedded_hal::i2c::{self, I2c};
     use embedded_hal::spi::{self, SpiDevice};
-    use firmware::compensation::{CompensationLoop, LoopConfig};
+    use embedded_storage::nor_flash;
+    use firmware::compensation::{CompensationLoop, LoopConfig, write_frame};
+    use firmware::fault::{self, FaultRecord};
     use firmware::frontend::FrontEnd;
+    use firmware::model_store::{ModelStore, SlotLayout};
     use firmware::tmp117::{self, Tmp117};
-    use rbf_core::CompensatorConfig;
+    use firmware::update::{self, CommandReceiver, Received};
+    use rbf_core::{CompensatorConfig, Flags};
 
     /// Bytes the fake buses return, unknown to the optimiser.
     static BUS: [AtomicU8; 64] = [const { AtomicU8::new(0) }; 64];
@@ -87,7 +96,9 @@ mod board {
         }
     }
 
-    /// A UART that accepts or refuses bytes as the opaque word says.
+    /// A UART like the real driver: takes nothing (`Ok(0)`, data register
+    /// full), part of the buffer, all of it, or refuses (`WouldBlock`, an
+    /// overrun), as the opaque word says.
     struct OpaqueUart;
 
     impl embedded_io::ErrorType for OpaqueUart {
@@ -99,10 +110,11 @@ mod board {
             for &b in buf {
                 BUS[usize::from(b) % BUS.len()].store(b, Ordering::Relaxed);
             }
-            if opaque_word() & 4 != 0 {
-                Err(embedded_io::ErrorKind::Other)
-            } else {
-                Ok(buf.len())
+            match opaque_word() & 0xC {
+                0 => Ok(0),
+                4 => Err(embedded_io::ErrorKind::Other),
+                8 => Ok(buf.len().min(opaque_word() as usize)),
+                _ => Ok(buf.len()),
             }
         }
         fn flush(&mut self) -> Result<(), Self::Error> {
@@ -110,10 +122,65 @@ mod board {
         }
     }
 
+    /// NOR flash whose reads return opaque bytes and whose operations fail
+    /// or succeed as the opaque word says.
+    struct OpaqueFlash;
+
+    impl nor_flash::ErrorType for OpaqueFlash {
+        type Error = nor_flash::NorFlashErrorKind;
+    }
+
+    impl nor_flash::ReadNorFlash for OpaqueFlash {
+        const READ_SIZE: usize = 1;
+        fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+            if opaque_word() & 16 != 0 {
+                return Err(nor_flash::NorFlashErrorKind::Other);
+            }
+            for (i, b) in bytes.iter_mut().enumerate() {
+                *b = opaque_byte(i + offset as usize);
+            }
+            Ok(())
+        }
+        fn capacity(&self) -> usize {
+            opaque_word() as usize
+        }
+    }
+
+    impl nor_flash::NorFlash for OpaqueFlash {
+        const WRITE_SIZE: usize = 1;
+        const ERASE_SIZE: usize = 128 * 1024;
+        fn erase(&mut self, _: u32, _: u32) -> Result<(), Self::Error> {
+            if opaque_word() & 32 != 0 {
+                return Err(nor_flash::NorFlashErrorKind::Other);
+            }
+            Ok(())
+        }
+        fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+            for (i, b) in bytes.iter().enumerate() {
+                BUS[(offset as usize + i) % BUS.len()].store(*b, Ordering::Relaxed);
+            }
+            if opaque_word() & 64 != 0 {
+                return Err(nor_flash::NorFlashErrorKind::Other);
+            }
+            Ok(())
+        }
+    }
+
+    const SLOTS: SlotLayout = SlotLayout {
+        offsets: [0x000C_0000, 0x000E_0000],
+        len: firmware::MODEL_SLOT_LEN as u32,
+    };
+
     #[entry]
     fn main() -> ! {
-        // Boot: validate the model slot (any bytes) and the devices (any answers).
-        let model = firmware::load_model(firmware::board::model_slot_a()).ok();
+        // Boot: the fault record and its report, model selection over the
+        // flash (any bytes), the model slot A as the QEMU boards read it,
+        // the devices (any answers).
+        let cause = fault::boot_cause(FaultRecord::from_words([opaque_word(); 4]), opaque_word() & 1 != 0);
+        let model = ModelStore::open(OpaqueFlash, SLOTS)
+            .load()
+            .ok()
+            .or_else(|| firmware::load_model(firmware::board::model_slot_a()).ok());
         let mut thermometer = Tmp117::new(OpaqueI2c, tmp117::DEFAULT_ADDRESS);
         let _ = thermometer.init();
         let mut front_end = FrontEnd::new(OpaqueSpi);
@@ -123,9 +190,37 @@ mod board {
             temp_read_every: opaque_word(),
         };
         let mut compensation = CompensationLoop::new(model, config, thermometer, front_end, OpaqueUart);
+        if let Some(cause) = cause {
+            let mut report = [0u8; 16];
+            if let Some(n) = fault::encode_boot_report(cause, opaque_byte(3), &mut report) {
+                write_frame(compensation.output_mut(), report.get(..n).unwrap_or(&[]));
+            }
+            compensation.flag_next_frame(Flags::FAULT_RESET);
+        }
+        let mut commands = CommandReceiver::new();
         loop {
-            let out = compensation.step(f32::from_bits(opaque_word()));
+            // A sample, as the board runs it from a data-ready stamp.
+            let out = compensation.step_at(opaque_word(), f32::from_bits(opaque_word()));
             WORD.store(out.bias_dph.to_bits() ^ u32::from(out.flags.bits()), Ordering::Relaxed);
+            // A command byte, as the board takes it from the receive queue.
+            let reply = match commands.push(opaque_byte(7)) {
+                None => None,
+                Some(Received::Rejected(status)) => Some((0, status, None)),
+                Some(Received::Command(payload)) => {
+                    let mut store = ModelStore::open(OpaqueFlash, SLOTS);
+                    let (status, model) = update::execute(&mut store, payload);
+                    Some((payload.first().copied().unwrap_or(0), status, model))
+                }
+            };
+            if let Some((command, status, model)) = reply {
+                if model.is_some() {
+                    compensation.replace_model(model);
+                }
+                let mut bytes = [0u8; 8];
+                if let Some(n) = update::encode_reply(command, status, &mut bytes) {
+                    write_frame(compensation.output_mut(), bytes.get(..n).unwrap_or(&[]));
+                }
+            }
             #[cfg(feature = "panic-free-check-canary")]
             {
                 // A bounds check the optimiser cannot remove: this must not link.

@@ -1,41 +1,57 @@
-//! STM32F405 gyro board at 168 MHz: wiring only.
+//! STM32F405 gyro board at 168 MHz: wiring and interrupt handlers only.
 //!
 //! - TMP117 on I2C1 (PB6 SCL, PB7 SDA, 400 kHz), address 0x48;
 //! - IFOG front end on SPI1 (PA5 SCK, PA6 MISO, PA7 MOSI, PA4 CS, mode 3,
-//!   8 MHz) with data-ready on PB0 (EXTI, rising edge), 1 kHz;
+//!   8 MHz) with data-ready on PB0 (EXTI0, rising edge), 1 kHz;
 //! - output frames on USART1 TX (PA9, 921 600 Bd, 8N1); model-update
 //!   commands on USART1 RX (PA10), replies on TX (firmware::update);
 //! - the model in flash slot MODEL_A (0x080C_0000) or MODEL_B (0x080E_0000),
 //!   whichever holds the newest committed blob (firmware::model_store).
 //!
-//! Known limits of this board's update path: RX is polled between samples
-//! (a byte every 10.9 µs at 921 600 Bd, about one compensation step), so the
-//! host paces command bytes ≥ 20 µs apart; erasing a 128 KiB sector stalls
-//! the CPU (code runs from flash) for about a second, so output frames pause
-//! during an install (their sequence numbers show the gap). DMA reception and
-//! a RAM-resident flash routine are the next steps.
+//! Timing (docs/firmware.md): the EXTI0 interrupt timestamps every
+//! data-ready edge with TIM2 (32 bits at the 84 MHz timer clock) and queues
+//! the stamp; the main loop takes stamps from the queue, derives dt and the
+//! edge number from them (edges lost while the CPU stalled, as during a
+//! flash erase, count and are flagged) and runs one compensation step per
+//! stamp. USART1's interrupt moves bytes between the UART and two queues:
+//! frames out (firmware::uart::FrameQueue, whole or dropped and flagged) and
+//! command bytes in (overruns counted). The independent watchdog (3 s,
+//! longer than the 2 s worst-case sector erase) is fed once per processed
+//! sample. A panic or HardFault records its cause in RAM that survives the
+//! reset (firmware::fault) and resets; the next boot reports it.
 //!
 //! Flash with `cargo run --release -p firmware --features board-stm32f405
-//! --bin stm32f405 --target thumbv7em-none-eabihf` (probe-rs, see README).
+//! --bin stm32f405 --target thumbv7em-none-eabihf` (probe-rs, see docs/firmware.md).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
 mod board {
-    use cortex_m_rt::entry;
+    #![allow(unsafe_code)]
+
+    use core::cell::RefCell;
+    use core::sync::atomic::{AtomicU32, Ordering};
+
+    use cortex_m::interrupt::Mutex;
+    use cortex_m_rt::{ExceptionFrame, entry, exception};
     use embedded_hal_bus::spi::ExclusiveDevice;
-    use firmware::compensation::{CompensationLoop, LoopConfig};
+    use firmware::compensation::{CompensationLoop, LoopConfig, write_frame};
+    use firmware::fault::{self, FaultReason, FaultRecord};
     use firmware::frontend::FrontEnd;
     use firmware::model_store::{ModelStore, SlotLayout};
     use firmware::tmp117::{self, Tmp117};
+    use firmware::uart::FrameQueue;
     use firmware::update::{self, CommandReceiver, Received};
-    use rbf_core::CompensatorConfig;
+    use heapless::spsc::{Consumer, Producer, Queue};
+    use rbf_core::{CompensatorConfig, Flags};
     use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
-    use stm32f4xx_hal::gpio::{Edge, ExtiPin};
+    use stm32f4xx_hal::gpio::{Edge, ExtiPin, Input, PB0};
     use stm32f4xx_hal::i2c::{self, I2c};
-    use stm32f4xx_hal::pac;
+    use stm32f4xx_hal::pac::{self, interrupt};
     use stm32f4xx_hal::prelude::*;
-    use stm32f4xx_hal::rcc::Config;
+    use stm32f4xx_hal::rcc::{Config, Enable, Reset};
+    use stm32f4xx_hal::serial::{Rx, RxListen, Tx, TxListen};
     use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
+    use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
     /// Front-end output data rate, Hz (paced by its crystal; data-ready marks each sample).
     const GYRO_RATE_HZ: f32 = 1000.0;
@@ -46,6 +62,93 @@ mod board {
         offsets: [0x000C_0000, 0x000E_0000],
         len: firmware::MODEL_SLOT_LEN as u32,
     };
+    /// Watchdog period, ms: above the worst-case 128 KiB sector erase (2 s at x32).
+    const WATCHDOG_MS: u32 = 3000;
+    /// Bytes of the transmit queue: 24 output frames (≤ 21 B each at 1 kHz
+    /// take 0.23 ms of the 1 ms at 921 600 Bd), or a reply and a burst.
+    const TX_QUEUE: usize = 512;
+    /// Bytes of the receive queue: commands arrive faster than the loop
+    /// takes them only while it is busy (2.8 ms of bytes at 921 600 Bd).
+    const RX_QUEUE: usize = 256;
+    /// Data-ready stamps waiting for the loop.
+    const STAMP_QUEUE: usize = 16;
+
+    /// USART1's halves and the queue ends its interrupt serves.
+    struct UartIsr {
+        tx: Tx<pac::USART1>,
+        rx: Rx<pac::USART1>,
+        outgoing: Consumer<'static, u8>,
+        incoming: Producer<'static, u8>,
+    }
+
+    /// The data-ready pin and the stamp queue its interrupt fills.
+    struct DataReadyIsr {
+        pin: PB0<Input>,
+        stamps: Producer<'static, u32>,
+    }
+
+    static UART: Mutex<RefCell<Option<UartIsr>>> = Mutex::new(RefCell::new(None));
+    static DATA_READY: Mutex<RefCell<Option<DataReadyIsr>>> = Mutex::new(RefCell::new(None));
+    /// Command bytes lost: the UART overran or the receive queue was full.
+    static RX_OVERRUNS: AtomicU32 = AtomicU32::new(0);
+    /// Data-ready stamps lost to a full stamp queue (the edge count still includes them).
+    static STAMP_OVERRUNS: AtomicU32 = AtomicU32::new(0);
+
+    #[exception]
+    unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+        firmware::board::store_fault(FaultRecord {
+            reason: FaultReason::HardFault,
+            pc: frame.pc(),
+            lr: frame.lr(),
+        });
+        cortex_m::peripheral::SCB::sys_reset()
+    }
+
+    #[interrupt]
+    fn USART1() {
+        cortex_m::interrupt::free(|cs| {
+            let mut uart = UART.borrow(cs).borrow_mut();
+            let Some(u) = uart.as_mut() else { return };
+            // The byte the receiver holds (an error read clears its flag;
+            // bounded, so a line full of errors cannot hold the handler).
+            for _ in 0..4 {
+                match u.rx.read() {
+                    Ok(byte) => {
+                        if u.incoming.enqueue(byte).is_err() {
+                            RX_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+                        }
+                    }
+                    Err(stm32f4xx_hal::nb::Error::WouldBlock) => break,
+                    Err(stm32f4xx_hal::nb::Error::Other(_)) => {
+                        RX_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            }
+            match u.outgoing.peek().copied() {
+                Some(byte) => {
+                    if u.tx.write(byte).is_ok() {
+                        let _ = u.outgoing.dequeue();
+                    }
+                }
+                None => u.tx.unlisten(),
+            }
+        });
+    }
+
+    #[interrupt]
+    fn EXTI0() {
+        // SAFETY: a read of TIM2's free-running counter, which only this
+        // board's setup writes (before interrupts are enabled).
+        let stamp = unsafe { (*pac::TIM2::ptr()).cnt().read().bits() };
+        cortex_m::interrupt::free(|cs| {
+            if let Some(d) = DATA_READY.borrow(cs).borrow_mut().as_mut() {
+                d.pin.clear_interrupt_pending_bit();
+                if d.stamps.enqueue(stamp).is_err() {
+                    STAMP_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        });
+    }
 
     fn halt() -> ! {
         loop {
@@ -53,13 +156,64 @@ mod board {
         }
     }
 
+    /// Starts the transmit interrupt after a frame was queued.
+    fn start_tx() {
+        cortex_m::interrupt::free(|cs| {
+            if let Some(u) = UART.borrow(cs).borrow_mut().as_mut() {
+                u.tx.listen();
+            }
+        });
+    }
+
+    /// Turns data-ready stamps (timer ticks) into edge numbers and time steps.
+    struct EdgeClock {
+        ticks_per_s: f32,
+        period_ticks: u32,
+        last: Option<(u32, u32)>,
+    }
+
+    impl EdgeClock {
+        /// The edge number and dt (s) of the stamp; the first edge is 0 with the nominal dt.
+        fn edge(&mut self, stamp: u32) -> (u32, f32) {
+            let (seq, dt_s) = match self.last {
+                None => (0, self.period_ticks as f32 / self.ticks_per_s),
+                Some((seq, last)) => {
+                    let ticks = stamp.wrapping_sub(last);
+                    // Whole periods since the last edge, at least one.
+                    let periods = (ticks.saturating_add(self.period_ticks / 2) / self.period_ticks.max(1)).max(1);
+                    (seq.wrapping_add(periods), ticks as f32 / self.ticks_per_s)
+                }
+            };
+            self.last = Some((seq, stamp));
+            (seq, dt_s)
+        }
+    }
+
     #[entry]
     fn main() -> ! {
         let Some(mut dp) = pac::Peripherals::take() else { halt() };
+        let Some(mut core) = cortex_m::Peripherals::take() else {
+            halt()
+        };
+        let reset_flags = (dp.RCC.csr().read().bits() >> 24) as u8;
+        let watchdog_reset = dp.RCC.csr().read().wdgrstf().bit_is_set();
+        dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
+        let boot_cause = fault::boot_cause(firmware::board::take_fault(), watchdog_reset);
+
         let mut rcc = dp.RCC.freeze(Config::hse(8.MHz()).sysclk(168.MHz()));
+        let mut watchdog = IndependentWatchdog::new(dp.IWDG);
+        watchdog.start(WATCHDOG_MS.millis());
+
         let gpioa = dp.GPIOA.split(&mut rcc);
         let gpiob = dp.GPIOB.split(&mut rcc);
         let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
+
+        // TIM2 free-running over 32 bits at the timer clock: the data-ready timestamps.
+        let timer_hz = rcc.clocks.timclk1().raw();
+        pac::TIM2::enable(&mut rcc);
+        pac::TIM2::reset(&mut rcc);
+        dp.TIM2.arr().write(|w| unsafe { w.bits(u32::MAX) });
+        dp.TIM2.cr1().modify(|_, w| w.cen().set_bit());
 
         let i2c = I2c::new(
             dp.I2C1,
@@ -79,15 +233,51 @@ mod board {
             &mut rcc,
         );
         let Ok(spi_device) = ExclusiveDevice::new_no_delay(spi, gpioa.pa4.into_push_pull_output());
+        let Ok(serial) = dp.USART1.serial::<u8>((gpioa.pa9, gpioa.pa10), 921_600.bps(), &mut rcc) else {
+            halt()
+        };
+        let (tx, mut rx) = serial.split();
+        rx.listen();
+        let mut flash = LockedFlash::new(dp.FLASH);
+
+        let Some(out_queue) = cortex_m::singleton!(: Queue<u8, TX_QUEUE> = Queue::new()) else {
+            halt()
+        };
+        let Some(in_queue) = cortex_m::singleton!(: Queue<u8, RX_QUEUE> = Queue::new()) else {
+            halt()
+        };
+        let Some(stamp_queue) = cortex_m::singleton!(: Queue<u32, STAMP_QUEUE> = Queue::new()) else {
+            halt()
+        };
+        let (out_producer, outgoing) = out_queue.split();
+        let (incoming, mut in_consumer) = in_queue.split();
+        let (stamps, mut stamp_consumer) = stamp_queue.split();
+        let mut output = FrameQueue::new(out_producer, start_tx);
+
         let mut data_ready = gpiob.pb0.into_pull_down_input();
         data_ready.make_interrupt_source(&mut syscfg);
         data_ready.trigger_on_edge(&mut dp.EXTI, Edge::Rising);
         data_ready.enable_interrupt(&mut dp.EXTI);
-        let Ok(serial) = dp.USART1.serial::<u8>((gpioa.pa9, gpioa.pa10), 921_600.bps(), &mut rcc) else {
-            halt()
-        };
-        let (uart, mut uart_rx) = serial.split();
-        let mut flash = LockedFlash::new(dp.FLASH);
+        cortex_m::interrupt::free(|cs| {
+            UART.borrow(cs).replace(Some(UartIsr {
+                tx,
+                rx,
+                outgoing,
+                incoming,
+            }));
+            DATA_READY.borrow(cs).replace(Some(DataReadyIsr {
+                pin: data_ready,
+                stamps,
+            }));
+        });
+
+        // The boot report goes out first (a fault or watchdog reset before this boot).
+        if let Some(cause) = boot_cause {
+            let mut report = [0u8; 16];
+            if let Some(n) = fault::encode_boot_report(cause, reset_flags, &mut report) {
+                write_frame(&mut output, report.get(..n).unwrap_or(&[]));
+            }
+        }
 
         // An invalid or absent model is not fatal: every frame then carries flag 4.
         let model = ModelStore::open(flash.unlocked(), MODEL_SLOTS).load().ok();
@@ -101,19 +291,41 @@ mod board {
             compensator: CompensatorConfig::for_sample_rate(GYRO_RATE_HZ),
             temp_read_every: TEMP_READ_EVERY,
         };
-        let mut compensation = CompensationLoop::new(model, config, thermometer, front_end, uart);
-        let period_s = 1.0 / GYRO_RATE_HZ;
+        let mut compensation = CompensationLoop::new(model, config, thermometer, front_end, output);
+        if boot_cause.is_some() {
+            compensation.flag_next_frame(Flags::FAULT_RESET);
+        }
+        let mut clock = EdgeClock {
+            ticks_per_s: timer_hz as f32,
+            period_ticks: (timer_hz as f32 / GYRO_RATE_HZ) as u32,
+            last: None,
+        };
         let mut commands = CommandReceiver::new();
+        // SAFETY: the handlers' state is in place; enabling their interrupts is all that is left.
+        unsafe {
+            core.NVIC.set_priority(pac::Interrupt::EXTI0, 0x40);
+            core.NVIC.set_priority(pac::Interrupt::USART1, 0x80);
+            cortex_m::peripheral::NVIC::unmask(pac::Interrupt::EXTI0);
+            cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
+        }
         loop {
-            // Model-update commands arrive between samples.
-            while let Ok(byte) = uart_rx.read() {
+            // One step per data-ready edge, in order; the watchdog is fed by samples only.
+            while let Some(stamp) = stamp_consumer.dequeue() {
+                let (seq, dt_s) = clock.edge(stamp);
+                compensation.step_at(seq, dt_s);
+                watchdog.feed();
+            }
+            // Model-update commands between samples.
+            while let Some(byte) = in_consumer.dequeue() {
                 let (command, status, model) = match commands.push(byte) {
                     None => continue,
                     Some(Received::Rejected(status)) => (0, status, None),
                     Some(Received::Command(payload)) => {
-                        // Unlocked only for the command; relocked when the store drops.
+                        // The erase stalls the CPU for up to 2 s: feed the watchdog first.
+                        watchdog.feed();
                         let mut store = ModelStore::open(flash.unlocked(), MODEL_SLOTS);
                         let (status, model) = update::execute(&mut store, payload);
+                        watchdog.feed();
                         (payload.first().copied().unwrap_or(0), status, model)
                     }
                 };
@@ -122,20 +334,15 @@ mod board {
                 }
                 let mut reply = [0u8; 8];
                 if let Some(n) = update::encode_reply(command, status, &mut reply) {
-                    let _ = embedded_io::Write::write_all(compensation.output_mut(), reply.get(..n).unwrap_or(&[]));
+                    write_frame(compensation.output_mut(), reply.get(..n).unwrap_or(&[]));
                 }
             }
-            // The EXTI pending bit latches the data-ready edge, so none is missed
-            // while the previous sample is processed (≈ 11 µs at K = 32).
-            if data_ready.check_interrupt() {
-                data_ready.clear_interrupt_pending_bit();
-                compensation.step(period_s);
-            }
+            cortex_m::asm::wfi();
         }
     }
 }
 
 #[cfg(not(target_os = "none"))]
 fn main() {
-    eprintln!("the stm32f405 board runs on the MCU: see README (cargo run with probe-rs)");
+    eprintln!("the stm32f405 board runs on the MCU: see docs/firmware.md (cargo run with probe-rs)");
 }

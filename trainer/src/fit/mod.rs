@@ -330,6 +330,17 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     }
 }
 
+/// Training data that cannot identify a model: what is missing (see
+/// [`check_excitation`]; `trainer fit` adds the causes it finds in the runs,
+/// [`crate::diagnose::with_causes`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct Unidentifiable(pub String);
+
+/// Least spread of the block-mean bias target, °/h: below it the rate
+/// column carries no gyro signal (a real gyro's noise alone is larger).
+pub const MIN_TARGET_SPREAD_DPH: f64 = 1e-9;
+
 /// Refuses training data that cannot identify a model of `set`, saying what is missing.
 pub fn check_excitation(blocks: &Blocks, set: FeatureSet, opts: &FitOptions) -> anyhow::Result<()> {
     let mut missing = Vec::new();
@@ -340,7 +351,21 @@ pub fn check_excitation(blocks: &Blocks, set: FeatureSet, opts: &FitOptions) -> 
         ));
     }
     if blocks.is_empty() {
-        anyhow::bail!("no usable samples in the training runs (all warming up or sensor faults)");
+        return Err(
+            Unidentifiable("no usable samples in the training runs (all warming up or sensor faults)".into()).into(),
+        );
+    }
+    let (y_lo, y_hi) = blocks
+        .y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &y| {
+            (lo.min(y), hi.max(y))
+        });
+    if y_hi - y_lo < MIN_TARGET_SPREAD_DPH {
+        missing.push(format!(
+            "the bias target rate_dph − ref_dph is {} °/h in every block: no excitation to fit (is rate_dph the gyro output?)",
+            crate::sampling::sig(y_lo)
+        ));
     }
     let (lo, hi) = blocks.block_range(0);
     if hi - lo < MIN_TEMP_SPAN_C {
@@ -373,10 +398,11 @@ pub fn check_excitation(blocks: &Blocks, set: FeatureSet, opts: &FitOptions) -> 
     if missing.is_empty() {
         Ok(())
     } else {
-        anyhow::bail!(
+        Err(Unidentifiable(format!(
             "the training data cannot identify a thermal model: {}. Record a chamber run with temperature holds and ramps.",
             missing.join("; ")
-        )
+        ))
+        .into())
     }
 }
 

@@ -3,7 +3,7 @@
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use super::plant::{COIL_LAYERS, NodeRates, Plant};
+use super::plant::{NodeRates, Plant};
 
 /// Earth rotation rate, °/h.
 pub const EARTH_RATE_DPH: f64 = 15.041_067;
@@ -40,10 +40,19 @@ pub struct GyroParams {
     pub shupe_dph_per_c_per_min: f64,
     /// Relative change of the Shupe gain per °C (IFOG paper Eq. 13: the T×ΔT term).
     pub shupe_temp_coeff_per_c: f64,
-    /// Weights of the layers' temperature rates in the Shupe term, outer to inner.
-    pub shupe_layer_weights: [f64; COIL_LAYERS],
+    /// Weights of the layers' temperature rates in the Shupe term, outer to
+    /// inner, one per coil layer.
+    pub shupe_layer_weights: Vec<f64>,
     /// Bias per °C of housing − coil (radial gradient), °/h/°C.
     pub radial_gradient_dph_per_c: f64,
+    /// Thermal stress: bias per °C of innermost − outer coil layer, °/h/°C.
+    pub stress_gradient_dph_per_c: f64,
+    /// Relative change of the stress gain per °C of the mean coil temperature
+    /// (the fiber coating stiffens in the cold), 1/°C.
+    pub stress_temp_coeff_per_c: f64,
+    /// Differential expansion of the hub against the coil: bias per °C of
+    /// hub − mean coil temperature (coils with a hub), °/h/°C.
+    pub hub_expansion_dph_per_c: f64,
     /// Bias per °C of base − top (axial gradient across the housing; multi-point runs), °/h/°C.
     pub axial_gradient_dph_per_c: f64,
 }
@@ -57,8 +66,11 @@ impl Default for GyroParams {
             static_coeffs: [0.08, 0.02, 2e-4, -2e-6],
             shupe_dph_per_c_per_min: 0.3,
             shupe_temp_coeff_per_c: 0.01,
-            shupe_layer_weights: [0.55, 0.30, 0.10, 0.05],
+            shupe_layer_weights: vec![0.55, 0.30, 0.10, 0.05],
             radial_gradient_dph_per_c: 0.004,
+            stress_gradient_dph_per_c: 0.0,
+            stress_temp_coeff_per_c: 0.0,
+            hub_expansion_dph_per_c: 0.0,
             axial_gradient_dph_per_c: 0.03,
         }
     }
@@ -71,6 +83,9 @@ impl GyroParams {
             self.shupe_dph_per_c_per_min,
             self.shupe_temp_coeff_per_c,
             self.radial_gradient_dph_per_c,
+            self.stress_gradient_dph_per_c,
+            self.stress_temp_coeff_per_c,
+            self.hub_expansion_dph_per_c,
             self.axial_gradient_dph_per_c,
         ];
         let mut coefficients = self
@@ -91,6 +106,22 @@ impl GyroParams {
             return Err("bias_correlation_s must be > 0".into());
         }
         Ok(())
+    }
+
+    /// These parameters with every thermal bias term zeroed (static curve,
+    /// Shupe, radial gradient, stress, hub expansion, axial gradient): the
+    /// same noise, sample for sample, and nothing else. Simulated with the
+    /// same seed, a run's noise ceiling.
+    pub fn noise_only(&self) -> GyroParams {
+        GyroParams {
+            static_coeffs: [0.0; 4],
+            shupe_dph_per_c_per_min: 0.0,
+            radial_gradient_dph_per_c: 0.0,
+            stress_gradient_dph_per_c: 0.0,
+            hub_expansion_dph_per_c: 0.0,
+            axial_gradient_dph_per_c: 0.0,
+            ..self.clone()
+        }
     }
 }
 
@@ -136,6 +167,11 @@ impl Gyro {
             .sum();
         let shupe_dph = p.shupe_dph_per_c_per_min * (1.0 + p.shupe_temp_coeff_per_c * u) * weighted_rate_c_per_min;
         let radial_dph = p.radial_gradient_dph_per_c * (plant.housing_c() - plant.coil_mean_c());
+        let stress_dph =
+            p.stress_gradient_dph_per_c * (1.0 + p.stress_temp_coeff_per_c * u) * (plant.inner_c() - plant.outer_c())
+                + plant
+                    .hub_c
+                    .map_or(0.0, |hub_c| p.hub_expansion_dph_per_c * (hub_c - plant.coil_mean_c()));
         let axial_dph = if self.multi {
             p.axial_gradient_dph_per_c * (plant.base_c - plant.top_c)
         } else {
@@ -143,7 +179,8 @@ impl Gyro {
         };
         let drive: f64 = StandardNormal.sample(rng);
         self.gm_dph = self.gm_phi * self.gm_dph + self.gm_drive_dph * drive;
-        static_dph + shupe_dph + radial_dph + axial_dph + self.gm_dph
+        // Zero terms add ±0 exactly: the documented gyro's runs stay bit for bit.
+        static_dph + shupe_dph + radial_dph + axial_dph + stress_dph + self.gm_dph
     }
 
     /// White rate noise of one sample (angle random walk), °/h.

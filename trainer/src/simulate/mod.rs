@@ -1,22 +1,27 @@
-//! `trainer simulate`: a physics-based IFOG in a thermal chamber
+//! `trainer simulate`: a physics-based IFOG in a thermal chamber or in use
 //! (equations, parameter values and their sources: docs/simulator.md).
 //!
-//! [`profile`] gives the chamber set-point schedule, [`plant`] integrates the
-//! thermal network (chamber air → housing base/top → electronics → fiber coil
-//! in radial layers → thermometers), [`gyro`] turns the coil's temperature
-//! distribution into bias and adds noise. [`ChamberRun::write_csv`] streams
-//! the recorded run, so hundreds of MB never sit in memory.
+//! [`profile`] gives the air temperature history (chamber set points, in-use
+//! histories, or a planned chamber run read by [`chamber_file`]), [`plant`]
+//! integrates the thermal network (air → housing base/top → self-heated
+//! electronics → fiber coil in radial layers on its hub → thermometers),
+//! [`gyro`] turns the coil's temperature distribution into bias and adds
+//! noise, [`unit`] draws a whole gyro from the documented ranges.
+//! [`ChamberRun::write_csv`] streams the recorded run, so hundreds of MB
+//! never sit in memory.
 
+pub mod chamber_file;
 pub mod gyro;
 pub mod plant;
 pub mod profile;
+pub mod unit;
 
 use std::io::Write;
 
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
-pub use profile::Profile;
+pub use profile::{Profile, Schedule};
 
 /// Thermometer columns of multi-point runs; `temp_c` is the fiber-loop sensor,
 /// so single-point models read the same files.
@@ -25,9 +30,9 @@ pub const MULTI_COLUMNS: [&str; 8] = [
 ];
 
 /// The simulated gyro: its thermal network and its bias and noise. Read from
-/// `trainer simulate --params FILE.json` (any field left out keeps its
-/// documented default), e.g. `{"plant": {"tau_top_s": 2400}, "gyro":
-/// {"axial_gradient_dph_per_c": 0.05}}`.
+/// `trainer simulate --params FILE.json` (any field left out keeps the
+/// documented default, or the `--unit` draw's value), e.g. `{"plant":
+/// {"tau_top_s": 2400}, "gyro": {"axial_gradient_dph_per_c": 0.05}}`.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SimParams {
@@ -40,20 +45,89 @@ pub struct SimParams {
 impl SimParams {
     /// Why these parameters cannot be simulated, if they cannot.
     pub fn check(&self) -> Result<(), String> {
-        self.plant.check().and_then(|()| self.gyro.check())
+        self.plant.check().and_then(|()| self.gyro.check())?;
+        if self.gyro.shupe_layer_weights.len() != self.plant.coil_layers {
+            return Err(format!(
+                "gyro.shupe_layer_weights has {} weights, the coil {} layers (plant.coil_layers): give one per layer",
+                self.gyro.shupe_layer_weights.len(),
+                self.plant.coil_layers
+            ));
+        }
+        Ok(())
+    }
+
+    /// These parameters with the fields of the JSON object `json` (the text
+    /// of a `--params` file) put over them; nested objects (`plant`, `gyro`,
+    /// `plant.hub`) field by field, any other value whole. Syntax errors and
+    /// unknown fields give the line and column; the result is checked.
+    pub fn overridden(&self, json: &str) -> Result<SimParams, ParamsError> {
+        // Parsing alone first: it places syntax errors and unknown fields.
+        serde_json::from_str::<SimParams>(json).map_err(|e| {
+            let message = e.to_string();
+            // serde_json appends the place; the caller leads with it instead.
+            let message = message.split(" at line ").next().unwrap_or(&message).to_owned();
+            ParamsError::Syntax {
+                line: e.line(),
+                column: e.column(),
+                message,
+            }
+        })?;
+        let overrides: serde_json::Value =
+            serde_json::from_str(json).map_err(|e| ParamsError::Invalid(e.to_string()))?;
+        let mut merged = serde_json::to_value(self).map_err(|e| ParamsError::Invalid(e.to_string()))?;
+        merge(&mut merged, overrides);
+        let params: SimParams = serde_json::from_value(merged).map_err(|e| ParamsError::Invalid(e.to_string()))?;
+        params.check().map_err(ParamsError::Invalid)?;
+        Ok(params)
     }
 }
 
-/// What to simulate.
+/// Why a `--params` file cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ParamsError {
+    /// Bad JSON or an unknown field, at a place.
+    #[error("{line}:{column}: {message}")]
+    Syntax {
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// Parameters that cannot be simulated.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// Puts `over` over `base`: objects field by field, anything else whole.
+fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
+    match (base, over) {
+        (serde_json::Value::Object(base), serde_json::Value::Object(over)) => {
+            for (key, value) in over {
+                match base.get_mut(&key) {
+                    Some(slot) => merge(slot, value),
+                    None => {
+                        base.insert(key, value);
+                    }
+                }
+            }
+        }
+        (slot, value) => *slot = value,
+    }
+}
+
+/// What to simulate: a chamber run or a history in use.
 #[derive(Clone, Debug)]
 pub struct ChamberRun {
     /// Temperature profile.
     pub profile: Profile,
-    /// Chamber ramp rate between set points, °C/min (ifog and cycle profiles).
+    /// Chamber ramp rate between set points, °C/min (ifog, cycle and designed profiles).
     pub ramp_c_per_min: f64,
     /// Hold at each set point, s (ifog and cycle profiles).
     pub hold_s: f64,
-    /// Total duration, s; `None`: as long as the profile (random: 8 h).
+    /// Total duration, s; `None`: as long as the profile (random: 8 h and the
+    /// hold it is in; in-use histories: [`Profile::default_duration_s`]).
     pub duration_s: Option<f64>,
     /// Gyro sample rate, Hz.
     pub sample_rate_hz: f64,
@@ -61,11 +135,25 @@ pub struct ChamberRun {
     pub multi: bool,
     /// Set-point range of random profiles, °C (min, max).
     pub random_range_c: (f64, f64),
+    /// Ramp-rate range of random profiles, °C/min (slowest, fastest).
+    pub ramp_range_c_per_min: (f64, f64),
+    /// The chamber profile of [`Profile::Planned`] runs.
+    pub planned: Option<Schedule>,
+    /// Where the planned profile was read from (metadata).
+    pub planned_source: Option<String>,
     /// The gyro's thermal network and bias model.
     pub params: SimParams,
+    /// The unit the parameters were drawn for (`--unit`; metadata).
+    pub unit: Option<u64>,
+    /// Zero every thermal bias term: the run's noise alone, sample for sample
+    /// the noise of the same run with its thermal bias (its noise ceiling).
+    pub noise_only: bool,
     /// Random seed: the same seed gives the same file.
     pub seed: u64,
 }
+
+/// Ramp-rate range of random profiles unless told otherwise, °C/min.
+pub const RANDOM_RAMP_RANGE_C_PER_MIN: (f64, f64) = (0.5, 5.0);
 
 impl ChamberRun {
     /// The IFOG paper's protocol: 25 °C, down to 10 °C, hold, up to 40 °C, hold, back to 25 °C; 1 Hz.
@@ -78,7 +166,12 @@ impl ChamberRun {
             sample_rate_hz: 1.0,
             multi: false,
             random_range_c: (-40.0, 60.0),
+            ramp_range_c_per_min: RANDOM_RAMP_RANGE_C_PER_MIN,
+            planned: None,
+            planned_source: None,
             params: SimParams::default(),
+            unit: None,
+            noise_only: false,
             seed,
         }
     }
@@ -100,39 +193,104 @@ impl ChamberRun {
         }
     }
 
+    /// The designed multi-rate chamber run: cold start at −20 °C, ramps at
+    /// 5 °C/min between levels across −40 … 60 °C, holds of 15 … 50 min.
+    pub fn designed(seed: u64) -> Self {
+        ChamberRun {
+            profile: Profile::Designed,
+            ramp_c_per_min: profile::DESIGNED_RAMP_C_PER_MIN,
+            ..ChamberRun::ifog(1.0, seed)
+        }
+    }
+
+    /// A run of `profile` with the defaults of [`ChamberRun::ifog`] (1 °C/min, 2-h holds, 1 Hz).
+    pub fn with_profile(profile: Profile, seed: u64) -> Self {
+        ChamberRun {
+            profile,
+            ..ChamberRun::ifog(1.0, seed)
+        }
+    }
+
+    /// The chamber profile `schedule` (read from `source`, for the metadata).
+    pub fn planned(schedule: Schedule, source: &str, seed: u64) -> Self {
+        ChamberRun {
+            profile: Profile::Planned,
+            planned: Some(schedule),
+            planned_source: Some(source.to_owned()),
+            ..ChamberRun::ifog(1.0, seed)
+        }
+    }
+
     /// Streams the run as recorded-run CSV.
     pub fn write_csv(&self, out: &mut impl Write) -> std::io::Result<()> {
         let mut rng = Pcg64::seed_from_u64(self.seed);
         let schedule = profile::schedule(self, &mut rng);
-        let duration_s = self.duration_s.unwrap_or(schedule.duration_s());
+        // In-use histories end at their length; chamber runs with their last hold.
+        let in_use_s = self.profile.default_duration_s().filter(|_| self.profile.in_use());
+        let duration_s = self.duration_s.or(in_use_s).unwrap_or(schedule.duration_s());
         let dt = 1.0 / self.sample_rate_hz;
         let start_c = schedule.air_c(0.0);
-        let mut plant = plant::Plant::soaked(start_c);
-        let mut gyro = gyro::Gyro::new(&self.params.gyro, self.sample_rate_hz, self.multi);
+        let params = match self.noise_only {
+            true => SimParams {
+                gyro: self.params.gyro.noise_only(),
+                ..self.params.clone()
+            },
+            false => self.params.clone(),
+        };
+        let mut plant = plant::Plant::soaked(&params.plant, start_c);
+        let mut gyro = gyro::Gyro::new(&params.gyro, self.sample_rate_hz, self.multi);
         let mut thermometers = plant::Thermometers::new(start_c);
 
+        let kind = if self.profile.in_use() {
+            "in-use history"
+        } else {
+            "chamber run"
+        };
         writeln!(
             out,
-            "# source: trainer simulate (physics-based IFOG chamber run, docs/simulator.md)"
+            "# source: trainer simulate (physics-based IFOG {kind}, docs/simulator.md)"
         )?;
         writeln!(out, "# profile: {}", self.profile.name())?;
+        if let Some(source) = &self.planned_source {
+            writeln!(out, "# chamber_profile: {source}")?;
+        }
         writeln!(out, "# seed: {}", self.seed)?;
         writeln!(out, "# sample_rate_hz: {}", self.sample_rate_hz)?;
-        if self.profile == Profile::Random {
-            writeln!(
-                out,
-                "# set_point_range_c: {} .. {}",
-                self.random_range_c.0, self.random_range_c.1
-            )?;
-        } else {
-            writeln!(out, "# ramp_c_per_min: {}", self.ramp_c_per_min)?;
+        match self.profile {
+            Profile::Random => {
+                writeln!(
+                    out,
+                    "# set_point_range_c: {} .. {}",
+                    self.random_range_c.0, self.random_range_c.1
+                )?;
+                if self.ramp_range_c_per_min != RANDOM_RAMP_RANGE_C_PER_MIN {
+                    let (slowest, fastest) = self.ramp_range_c_per_min;
+                    writeln!(out, "# ramp_range_c_per_min: {slowest} .. {fastest}")?;
+                }
+            }
+            Profile::Ifog | Profile::Cycle | Profile::Designed => {
+                writeln!(out, "# ramp_c_per_min: {}", self.ramp_c_per_min)?;
+            }
+            _ => {}
+        }
+        if matches!(self.profile, Profile::Designed | Profile::Planned) || self.profile.in_use() {
+            writeln!(out, "# power_on: at 0 s, soaked at {start_c:.2} °C")?;
         }
         writeln!(out, "# latitude_deg: {}", gyro::LATITUDE_DEG)?;
         writeln!(out, "# heading_deg: {}", gyro::HEADING_DEG)?;
-        writeln!(out, "# arw_deg_per_sqrt_h: {}", self.params.gyro.arw_deg_per_sqrt_h)?;
-        writeln!(out, "# bias_instability_dph: {}", self.params.gyro.bias_instability_dph)?;
-        if self.params != SimParams::default() {
-            let json = serde_json::to_string(&self.params).map_err(std::io::Error::other)?;
+        writeln!(out, "# arw_deg_per_sqrt_h: {}", params.gyro.arw_deg_per_sqrt_h)?;
+        writeln!(out, "# bias_instability_dph: {}", params.gyro.bias_instability_dph)?;
+        if let Some(unit) = self.unit {
+            writeln!(out, "# unit: {unit}")?;
+        }
+        if self.noise_only {
+            writeln!(
+                out,
+                "# noise_only: every thermal bias term zeroed (the run's noise ceiling)"
+            )?;
+        }
+        if params != SimParams::default() {
+            let json = serde_json::to_string(&params).map_err(std::io::Error::other)?;
             writeln!(out, "# simulator_params: {json}")?;
         }
         if self.multi {
@@ -150,11 +308,11 @@ impl ChamberRun {
             let t = i as f64 * dt;
             let mut rates = plant::NodeRates::default();
             for s in 0..substeps {
-                rates = plant.step(&self.params.plant, schedule.air_c(t + s as f64 * h), h);
-                thermometers.step(&self.params.plant, &plant, h);
+                rates = plant.step(&params.plant, schedule.air_c(t + s as f64 * h), h);
+                thermometers.step(&params.plant, &plant, h);
             }
             let rate = reference + gyro.bias_dph(&plant, &rates, &mut rng) + gyro.noise_dph(&mut rng);
-            let readings = thermometers.read(&mut rng);
+            let readings = thermometers.read(&params.plant, &mut rng);
             line.clear();
             use std::fmt::Write as _;
             if self.multi {
@@ -208,28 +366,112 @@ mod tests {
     fn zeroing_the_thermal_bias_leaves_the_same_noise_sample_for_sample() {
         // bench-accuracy's noise ceiling relies on it: the thermal terms may
         // not draw from the random stream the noise draws from.
-        let thermal = ChamberRun {
+        let documented = ChamberRun {
             duration_s: Some(4.0 * 3600.0),
             multi: true,
             ..ChamberRun::cycle(5.0, 7)
         };
-        let mut quiet = thermal.clone();
-        let gyro = &mut quiet.params.gyro;
-        gyro.static_coeffs = [0.0; 4];
-        gyro.shupe_dph_per_c_per_min = 0.0;
-        gyro.radial_gradient_dph_per_c = 0.0;
-        gyro.axial_gradient_dph_per_c = 0.0;
-        let (with, without) = (rates_dph(&thermal), rates_dph(&quiet));
-        assert_eq!(with.len(), without.len());
-        let bias: Vec<f64> = with.iter().zip(&without).map(|(a, b)| a - b).collect();
-        // The difference is the thermal bias alone: smooth from second to
-        // second (5 °C/min ramps), where the white noise is not.
-        let (bias_steps, noise_steps) = (step_std(&bias), step_std(&without));
-        assert!(
-            bias_steps < 0.01 * noise_steps,
-            "bias steps {bias_steps} °/h, noise steps {noise_steps} °/h"
+        // A drawn unit (hub, stress and hub-expansion terms) in a field history.
+        let unit = ChamberRun {
+            params: unit::unit_params(3),
+            multi: true,
+            ..ChamberRun::with_profile(Profile::Field, 8)
+        };
+        for thermal in [documented, unit] {
+            let quiet = ChamberRun {
+                noise_only: true,
+                ..thermal.clone()
+            };
+            let (with, without) = (rates_dph(&thermal), rates_dph(&quiet));
+            assert_eq!(with.len(), without.len());
+            let bias: Vec<f64> = with.iter().zip(&without).map(|(a, b)| a - b).collect();
+            // The difference is the thermal bias alone: smooth from second to
+            // second, where the white noise is not.
+            let (bias_steps, noise_steps) = (step_std(&bias), step_std(&without));
+            assert!(
+                bias_steps < 0.01 * noise_steps,
+                "bias steps {bias_steps} °/h, noise steps {noise_steps} °/h"
+            );
+            let span = bias.iter().fold(0.0f64, |m, b| m.max(b.abs()));
+            assert!(span > 0.1, "the thermal bias is there: {span} °/h");
+            // And nothing thermal is left: the 100-s cluster STD of the quiet
+            // run is that of white noise plus the Gauss–Markov bias instability.
+            let g = &thermal.params.gyro;
+            let white_dph = 60.0 * g.arw_deg_per_sqrt_h / 100f64.sqrt();
+            let gm_dph = 0.664 * g.bias_instability_dph / 0.62;
+            let expected = white_dph.hypot(gm_dph);
+            let reference = gyro::earth_rate_projection_dph();
+            let deviation: Vec<f64> = without.iter().map(|r| r - reference).collect();
+            let time_s: Vec<f64> = (0..deviation.len()).map(|i| i as f64).collect();
+            let measured = crate::metrics::cluster_std(&time_s, &deviation, 1.0);
+            assert!(
+                measured < 1.3 * expected && measured > 0.5 * expected,
+                "noise-only 100-s STD {measured} °/h, expected ≈ {expected} °/h"
+            );
+        }
+    }
+
+    #[test]
+    fn the_same_unit_and_seed_give_the_same_file_and_record_the_gyro() {
+        let run = |unit: u64, seed: u64| {
+            ChamberRun {
+                params: unit::unit_params(unit),
+                unit: Some(unit),
+                duration_s: Some(1800.0),
+                ..ChamberRun::with_profile(Profile::ColdStart, seed)
+            }
+            .to_csv()
+        };
+        let first = run(4, 1);
+        assert_eq!(first, run(4, 1));
+        assert_ne!(first, run(5, 1), "another unit, another gyro");
+        assert!(first.contains("# unit: 4\n"));
+        let recorded = first
+            .lines()
+            .find_map(|l| l.strip_prefix("# simulator_params: "))
+            .expect("parameters recorded");
+        // The record is the gyro: read back as --params, it is unit 4.
+        let params = SimParams::default().overridden(recorded).expect("a valid record");
+        assert_eq!(params, unit::unit_params(4));
+    }
+
+    #[test]
+    fn params_override_a_unit_field_by_field_and_are_checked_as_a_whole() {
+        let unit = unit::unit_params(2);
+        let over = unit
+            .overridden(
+                r#"{"plant": {"tau_top_s": 999, "hub": {"tau_coil_s": 77}}, "gyro": {"arw_deg_per_sqrt_h": 0.002}}"#,
+            )
+            .unwrap();
+        assert_eq!(over.plant.tau_top_s.to_bits(), 999f64.to_bits());
+        let (hub, unit_hub) = (over.plant.hub.unwrap(), unit.plant.hub.unwrap());
+        assert_eq!(hub.tau_coil_s.to_bits(), 77f64.to_bits());
+        assert_eq!(
+            hub.tau_base_s.to_bits(),
+            unit_hub.tau_base_s.to_bits(),
+            "the unit's other hub fields stay"
         );
-        let span = bias.iter().fold(0.0f64, |m, b| m.max(b.abs()));
-        assert!(span > 0.1, "the thermal bias is there: {span} °/h");
+        assert_eq!(over.plant.tau_base_s.to_bits(), unit.plant.tau_base_s.to_bits());
+        assert_eq!(
+            over.gyro.static_coeffs.map(f64::to_bits),
+            unit.gyro.static_coeffs.map(f64::to_bits)
+        );
+        // On the documented gyro a hub given in part takes the documented hub's other fields.
+        let hubbed = SimParams::default()
+            .overridden(r#"{"plant": {"hub": {"tau_base_s": 400}}}"#)
+            .unwrap();
+        assert_eq!(
+            hubbed.plant.hub.unwrap().tau_coil_s.to_bits(),
+            plant::Hub::default().tau_coil_s.to_bits()
+        );
+        // More layers need as many Shupe weights.
+        let error = SimParams::default()
+            .overridden(r#"{"plant": {"coil_layers": 6}}"#)
+            .unwrap_err();
+        assert!(error.to_string().contains("4 weights, the coil 6 layers"), "{error}");
+        let error = SimParams::default()
+            .overridden("{\"plant\": {\"hub\": {\"tau\": 1}}}")
+            .unwrap_err();
+        assert!(error.to_string().starts_with("1:24: unknown field `tau`"), "{error}");
     }
 }

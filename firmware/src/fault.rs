@@ -1,0 +1,147 @@
+//! What the board remembers across a reset: the cause of the last fault, and
+//! the boot report frame that tells the host about it.
+//!
+//! The fault handlers (panic, HardFault; `firmware::board` and the board
+//! binary) write a [`FaultRecord`] into four words of RAM that the runtime
+//! never initialises (`.uninit`), then reset. At boot the record is read
+//! and cleared; a valid one (magic and check word) or a watchdog reset flag
+//! makes the board send a boot report frame before its first output frame,
+//! and flag that frame ([`rbf_core::Flags::FAULT_RESET`]).
+//!
+//! Boot report on the wire: `COBS([0xFB, reason, pc (u32 LE), lr (u32 LE),
+//! reset flags]) 0x00`, 11 payload bytes: told from an output frame (at
+//! least 18) and an update reply (2) by its length.
+
+use rbf_core::frame::cobs_encode;
+
+/// First payload byte of a boot report frame.
+pub const BOOT_REPORT_TAG: u8 = 0xFB;
+/// Payload bytes of a boot report frame.
+pub const BOOT_REPORT_LEN: usize = 11;
+/// Words the record occupies in RAM.
+pub const RECORD_WORDS: usize = 4;
+/// Marks a written record (a cold start leaves random RAM, which the check word rejects).
+const MAGIC: u32 = 0xFA17_5AFE;
+
+/// Why the firmware stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum FaultReason {
+    /// No fault recorded (a power-on or a reset by the debugger).
+    None = 0,
+    /// A Rust panic (a bug: the panic-free check says none is reachable after init).
+    Panic = 1,
+    /// A HardFault (bus, memory or usage fault escalated): PC and LR of the faulting code.
+    HardFault = 2,
+    /// No record, but the independent watchdog reset the chip (a hang, or a
+    /// lockup such as a stack overflow fault with no stack left to report it).
+    Watchdog = 3,
+}
+
+/// A fault as the handler recorded it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FaultRecord {
+    /// What happened.
+    pub reason: FaultReason,
+    /// Program counter of the faulting instruction (HardFault) or the
+    /// panic handler's return address (panic).
+    pub pc: u32,
+    /// Link register at the fault.
+    pub lr: u32,
+}
+
+impl FaultRecord {
+    /// The words the handler stores: magic, reason, PC, LR xor-folded into a check word.
+    pub fn to_words(self) -> [u32; RECORD_WORDS] {
+        let reason = self.reason as u32;
+        [MAGIC ^ reason, self.pc, self.lr, check(reason, self.pc, self.lr)]
+    }
+
+    /// The record in `words`, if one was written whole (random RAM after a
+    /// power-on fails the check).
+    pub fn from_words(words: [u32; RECORD_WORDS]) -> Option<Self> {
+        let [tagged, pc, lr, check_word] = words;
+        let reason = match tagged ^ MAGIC {
+            1 => FaultReason::Panic,
+            2 => FaultReason::HardFault,
+            _ => return None,
+        };
+        (check(reason as u32, pc, lr) == check_word).then_some(FaultRecord { reason, pc, lr })
+    }
+}
+
+fn check(reason: u32, pc: u32, lr: u32) -> u32 {
+    (MAGIC.rotate_left(7) ^ reason ^ pc.rotate_left(13) ^ lr.rotate_left(23)).wrapping_add(0x9E37_79B9)
+}
+
+/// The cause of this boot from the record found in RAM and whether the
+/// watchdog's reset flag was set; `None` for an ordinary start.
+pub fn boot_cause(record: Option<FaultRecord>, watchdog_reset: bool) -> Option<FaultRecord> {
+    match record {
+        Some(r) => Some(r),
+        None if watchdog_reset => Some(FaultRecord {
+            reason: FaultReason::Watchdog,
+            pc: 0,
+            lr: 0,
+        }),
+        None => None,
+    }
+}
+
+/// Encodes the boot report for `cause` and the raw reset flags
+/// (RCC_CSR bits 24..31 on the STM32F4) into `out`; the bytes used.
+pub fn encode_boot_report(cause: FaultRecord, reset_flags: u8, out: &mut [u8]) -> Option<usize> {
+    let mut payload = [0u8; BOOT_REPORT_LEN];
+    payload[0] = BOOT_REPORT_TAG;
+    payload[1] = cause.reason as u8;
+    payload[2..6].copy_from_slice(&cause.pc.to_le_bytes());
+    payload[6..10].copy_from_slice(&cause.lr.to_le_bytes());
+    payload[10] = reset_flags;
+    cobs_encode(&payload, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_record_survives_as_words_and_random_ram_is_no_record() {
+        let r = FaultRecord {
+            reason: FaultReason::HardFault,
+            pc: 0x0800_1234,
+            lr: 0xFFFF_FFF9,
+        };
+        assert_eq!(FaultRecord::from_words(r.to_words()), Some(r));
+        let mut torn = r.to_words();
+        torn[1] ^= 4;
+        assert_eq!(FaultRecord::from_words(torn), None, "a changed PC fails the check");
+        assert_eq!(FaultRecord::from_words([0; 4]), None);
+        assert_eq!(FaultRecord::from_words([0xDEAD_BEEF, 1, 2, 3]), None);
+    }
+
+    #[test]
+    fn the_boot_report_names_the_cause_and_is_told_apart_by_its_length() {
+        assert_eq!(boot_cause(None, false), None);
+        let dog = boot_cause(None, true).unwrap();
+        assert_eq!(dog.reason, FaultReason::Watchdog);
+        let panic = FaultRecord {
+            reason: FaultReason::Panic,
+            pc: 0x0800_4321,
+            lr: 0x0800_1111,
+        };
+        assert_eq!(
+            boot_cause(Some(panic), true),
+            Some(panic),
+            "the record says more than the flag"
+        );
+        let mut out = [0u8; 16];
+        let n = encode_boot_report(panic, 0x24, &mut out).unwrap();
+        let mut frame = out[..n].to_vec();
+        let len = crate::update::cobs_decode_in_place(&mut frame[..n - 1]).unwrap();
+        assert_eq!(len, BOOT_REPORT_LEN);
+        assert_eq!(frame[0], BOOT_REPORT_TAG);
+        assert_eq!(frame[1], FaultReason::Panic as u8);
+        assert_eq!(u32::from_le_bytes(frame[2..6].try_into().unwrap()), 0x0800_4321);
+        assert_eq!(frame[10], 0x24);
+    }
+}

@@ -1,0 +1,249 @@
+//! Why a run gave nothing usable, in the user's terms: when no sample could
+//! be compensated or trained on, the message names the cause found in the
+//! rows (temperatures outside the sensor's range, with a units hint; a
+//! sensor fault on every row; a gap at every step; a rate that never
+//! varies) instead of only the flag counts.
+
+use std::path::{Path, PathBuf};
+
+use rbf_core::CompensatorConfig;
+use rbf_core::features::THERMOMETERS;
+use rbf_core::record::{Row, column};
+
+use crate::run::{RunError, RunReader};
+use crate::sampling::sig;
+use crate::text;
+
+/// Least and greatest of a column's values and how many there were.
+#[derive(Clone, Copy, Debug)]
+struct Spread {
+    min: f64,
+    max: f64,
+    count: usize,
+    /// Readings outside the compensator's plausible temperature range.
+    implausible: usize,
+    first_implausible_line: usize,
+}
+
+impl Spread {
+    const EMPTY: Spread = Spread {
+        min: f64::INFINITY,
+        max: f64::NEG_INFINITY,
+        count: 0,
+        implausible: 0,
+        first_implausible_line: 0,
+    };
+
+    fn push(&mut self, v: f64) {
+        self.min = self.min.min(v);
+        self.max = self.max.max(v);
+        self.count += 1;
+    }
+}
+
+/// Facts gathered row by row for [`RunDiagnosis::causes`]; a few numbers per
+/// column, whatever the run's length.
+#[derive(Clone, Debug)]
+pub struct RunDiagnosis {
+    path: PathBuf,
+    nominal_period_s: f64,
+    plausible_c: (f64, f64),
+    rows: usize,
+    prev_time_s: Option<f64>,
+    gaps: usize,
+    temp_fault_rows: usize,
+    temps: [Spread; THERMOMETERS],
+    target_dph: Spread,
+}
+
+impl RunDiagnosis {
+    /// Nothing seen yet of the run at `path`, sampled every `nominal_period_s`.
+    pub fn new(path: &Path, nominal_period_s: f64) -> Self {
+        let config = CompensatorConfig::for_nominal_period_s(nominal_period_s);
+        RunDiagnosis {
+            path: path.to_owned(),
+            nominal_period_s,
+            plausible_c: (
+                f64::from(config.min_plausible_temp_c),
+                f64::from(config.max_plausible_temp_c),
+            ),
+            rows: 0,
+            prev_time_s: None,
+            gaps: 0,
+            temp_fault_rows: 0,
+            temps: [Spread::EMPTY; THERMOMETERS],
+            target_dph: Spread::EMPTY,
+        }
+    }
+
+    /// Takes the row at `line`.
+    pub fn push(&mut self, line: usize, row: &Row) {
+        self.rows += 1;
+        if let Some(prev) = self.prev_time_s
+            && row.time_s - prev > 2.0 * self.nominal_period_s
+        {
+            self.gaps += 1;
+        }
+        self.prev_time_s = Some(row.time_s);
+        self.temp_fault_rows += usize::from(row.temp_fault);
+        let (lo, hi) = self.plausible_c;
+        for (spread, t) in self.temps.iter_mut().zip(row.temps_c) {
+            if let Some(t) = t {
+                spread.push(t);
+                if !(lo..=hi).contains(&t) {
+                    if spread.implausible == 0 {
+                        spread.first_implausible_line = line;
+                    }
+                    spread.implausible += 1;
+                }
+            }
+        }
+        self.target_dph.push(row.rate_dph - row.ref_dph.unwrap_or(0.0));
+    }
+
+    /// True when the bias target (`rate_dph − ref_dph`) is the same on every
+    /// row (within [`crate::fit::MIN_TARGET_SPREAD_DPH`]).
+    pub fn target_is_constant(&self) -> bool {
+        self.target_dph.count > 0 && self.target_dph.max - self.target_dph.min < crate::fit::MIN_TARGET_SPREAD_DPH
+    }
+
+    /// The message for a target that never varies.
+    pub fn constant_target(&self) -> String {
+        format!(
+            "rate_dph − ref_dph is {} °/h on every one of its {} rows: no gyro signal to compensate or fit (is rate_dph the gyro output?)",
+            sig(self.target_dph.min),
+            self.rows
+        )
+    }
+
+    /// What in this run keeps samples from being compensated or trained on,
+    /// for the thermometers of `mask` (bit i = `temp_a` … `temp_h`); empty
+    /// when the rows show nothing wrong.
+    pub fn causes(&self, mask: u8) -> Vec<String> {
+        let name = text::path(&self.path);
+        let mut causes = Vec::new();
+        let (lo, hi) = self.plausible_c;
+        for (i, spread) in self.temps.iter().enumerate() {
+            if mask & (1 << i) == 0 || spread.implausible == 0 || 2 * spread.implausible < spread.count {
+                continue;
+            }
+            let hint = if spread.min >= 200.0 && spread.max <= 500.0 {
+                "; kelvin? temperatures are °C (subtract 273.15)"
+            } else if spread.max > 500.0 {
+                "; not a temperature in °C"
+            } else {
+                ""
+            };
+            causes.push(format!(
+                "{name}: {}: {} of {} readings lie outside {lo} … {hi} °C, the range a loop thermometer can read (first at line {}; read {} … {} °C){hint}; such readings count as sensor faults",
+                column::THERMOMETERS[i],
+                spread.implausible,
+                spread.count,
+                spread.first_implausible_line,
+                sig(spread.min),
+                sig(spread.max),
+            ));
+        }
+        if self.rows > 0 && self.temp_fault_rows == self.rows {
+            causes.push(format!(
+                "{name}: temp_fault is 1 on every row: the temperature sensor never answers"
+            ));
+        }
+        if self.rows > 1 && 2 * self.gaps >= self.rows - 1 {
+            causes.push(format!(
+                "{name}: {} of {} time steps are gaps (over twice the nominal period of {} s); each gap restarts the features",
+                self.gaps,
+                self.rows - 1,
+                sig(self.nominal_period_s)
+            ));
+        }
+        if self.target_is_constant() {
+            causes.push(format!("{name}: {}", self.constant_target()));
+        }
+        causes
+    }
+}
+
+/// Reads the run at `path` once and diagnoses it ([`RunDiagnosis`]).
+pub fn diagnose_file(path: &Path) -> Result<RunDiagnosis, RunError> {
+    let mut reader = RunReader::open(path)?;
+    let mut diagnosis = RunDiagnosis::new(path, reader.nominal_period_s());
+    while let Some((line, row)) = reader.next_parsed()? {
+        diagnosis.push(line, &row);
+    }
+    Ok(diagnosis)
+}
+
+/// `error` with the causes found in the runs at `paths` (thermometers of
+/// `mask`) appended, when there are any: for a fit refused for lack of
+/// usable data. Runs that cannot be read add nothing (their error was
+/// reported first).
+pub fn with_causes(error: anyhow::Error, paths: &[PathBuf], mask: u8) -> anyhow::Error {
+    let causes: Vec<String> = paths
+        .iter()
+        .filter_map(|p| diagnose_file(p).ok())
+        .flat_map(|d| d.causes(mask))
+        .collect();
+    if causes.is_empty() {
+        error
+    } else {
+        let error = error.to_string();
+        let stop = if error.ends_with('.') { "" } else { "." };
+        anyhow::anyhow!("{error}{stop} Why: {}", causes.join("; "))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(time_s: f64, rate_dph: f64, temp_c: f64) -> Row {
+        let mut temps_c = [None; THERMOMETERS];
+        temps_c[rbf_core::features::LOOP_THERMOMETER] = Some(temp_c);
+        Row {
+            time_s,
+            rate_dph,
+            temps_c,
+            ref_dph: None,
+            temp_fault: false,
+        }
+    }
+
+    fn diagnose(rows: impl Iterator<Item = Row>) -> Vec<String> {
+        let mut d = RunDiagnosis::new(Path::new("run.csv"), 1.0);
+        for (i, r) in rows.enumerate() {
+            d.push(i + 3, &r);
+        }
+        d.causes(0xFF)
+    }
+
+    #[test]
+    fn kelvin_and_absurd_temperatures_are_named_with_a_units_hint() {
+        let kelvin = diagnose((0..100).map(|i| row(i as f64, 0.1 * i as f64, 293.15 + 0.1 * i as f64)));
+        assert_eq!(kelvin.len(), 1, "{kelvin:?}");
+        assert!(
+            kelvin[0].contains("temp_c: 100 of 100 readings lie outside -60 … 160 °C")
+                && kelvin[0].contains("first at line 3")
+                && kelvin[0].contains("kelvin?"),
+            "{}",
+            kelvin[0]
+        );
+        let hot = diagnose((0..10).map(|i| row(i as f64, i as f64, 10_000.0)));
+        assert!(hot[0].contains("not a temperature in °C"), "{hot:?}");
+        let cold = diagnose((0..10).map(|i| row(i as f64, i as f64, -273.15)));
+        assert!(cold[0].contains("read -273.1 … -273.1 °C"), "{cold:?}");
+        let fine = diagnose((0..10).map(|i| row(i as f64, i as f64, 25.0)));
+        assert!(fine.is_empty(), "{fine:?}");
+    }
+
+    #[test]
+    fn a_rate_that_never_varies_and_gaps_at_every_step_are_named() {
+        let flat = diagnose((0..10).map(|i| row(i as f64, 0.0, 25.0)));
+        assert!(
+            flat[0].contains("rate_dph − ref_dph is 0 °/h on every one of its 10 rows"),
+            "{flat:?}"
+        );
+        let gaps = diagnose((0..10).map(|i| row(10.0 * i as f64, i as f64, 25.0)));
+        assert!(gaps[0].contains("9 of 9 time steps are gaps"), "{gaps:?}");
+    }
+}

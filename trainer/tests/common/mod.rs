@@ -1,0 +1,102 @@
+//! Helpers the `trainer` CLI tests share: running the binary, reading what
+//! it printed, a fitted model to work with.
+
+#![allow(dead_code, reason = "each test file uses its own subset")]
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+use tempfile::TempDir;
+
+/// Runs `trainer` with `args`.
+pub fn trainer(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_trainer"))
+        .args(args)
+        .output()
+        .expect("trainer runs")
+}
+
+/// Runs `trainer` with `args`, `input` on its standard input.
+pub fn trainer_with_stdin(args: &[&str], input: &[u8]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_trainer"))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("trainer runs");
+    let mut stdin = child.stdin.take().expect("piped stdin");
+    // A command may stop reading early (an error): a broken pipe is fine.
+    let _ = stdin.write_all(input);
+    drop(stdin);
+    child.wait_with_output().expect("trainer finishes")
+}
+
+/// `trainer compensate --model MODEL RUN -o OUT` and `extra` options.
+pub fn compensate(model: &Path, run: &Path, out: &Path, extra: &[&str]) -> Output {
+    let args = [
+        "compensate",
+        "--model",
+        model.to_str().unwrap(),
+        run.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    trainer(&[&args[..], extra].concat())
+}
+
+/// What the command printed on standard error.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// What the command printed on standard output.
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// A file of the bundled example data.
+pub fn shared_data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../examples/data")
+        .join(name)
+}
+
+/// Writes `content` to `name` in `dir`.
+pub fn write(dir: &TempDir, name: &str, content: &[u8]) -> PathBuf {
+    let p = dir.path().join(name);
+    std::fs::write(&p, content).unwrap();
+    p
+}
+
+/// A model fitted on a short simulated chamber run (`train.csv` in `dir`,
+/// 1 Hz, 12,600 rows), for the tests that need any valid model.
+pub fn fitted_model(dir: &TempDir) -> PathBuf {
+    let run = dir.path().join("train.csv");
+    let o = trainer(&[
+        "simulate",
+        "--ramp",
+        "1",
+        "--hold-min",
+        "30",
+        "--seed",
+        "7",
+        "-o",
+        run.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let model = dir.path().join("model.bin");
+    // The option before the run file: it must not swallow it.
+    let o = trainer(&[
+        "fit",
+        "-q",
+        "--rate-window-s",
+        "60",
+        run.to_str().unwrap(),
+        "-o",
+        model.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    model
+}
