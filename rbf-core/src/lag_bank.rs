@@ -17,6 +17,14 @@
 //! inputs = [T̂, u², u³ (up to `static_degree`), g·ΔT_1, …, g·ΔT_K]
 //! ```
 //!
+//! Beyond the range of T̂ the training runs covered, the powers continue
+//! along their tangent at the range's edge (u_c the clamped u: u² becomes
+//! u_c² + 2u_c(u − u_c), u³ becomes u_c³ + 3u_c²(u − u_c)), so the static
+//! curve extrapolates as a straight line with its edge slope: a cubic left
+//! to itself beyond its data swings the wrong way within a few degrees, and
+//! a short chamber run (or a slow gyro that never reaches the chamber's
+//! extremes) leaves in-use temperatures outside the range.
+//!
 //! The static bias is a curve of the mean coil temperature (Gaussians over T̂
 //! and its powers); the Shupe, stress and gradient biases are linear in the
 //! coil's temperature rates (IFOG paper Eq. 13), each a mixture of the bank's
@@ -34,6 +42,8 @@ pub const MAX_STATIC_DEGREE: u8 = 3;
 const MAX_TAU_S: f32 = 86_400.0;
 /// Largest |a_k|, minutes: a coil cannot lag its sensor by more than a day per °C/min.
 const MAX_COIL_LAG_MIN: f32 = 1440.0;
+/// Largest |temperature| a bank's reference and range may name, °C.
+const MAX_TEMP_C: f32 = 1000.0;
 
 /// The configuration of a lag bank, stored in the model blob.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -52,6 +62,11 @@ pub struct LagBank {
     pub gain_per_c2: f32,
     /// Powers of (T̂ − T₀) among the inputs: 1 (T̂ alone) ..= [`MAX_STATIC_DEGREE`].
     pub static_degree: u8,
+    /// The range of T̂ the training runs covered, °C: the powers continue
+    /// along their tangent beyond it.
+    pub coil_min_c: f32,
+    /// Upper end of that range, °C.
+    pub coil_max_c: f32,
 }
 
 impl LagBank {
@@ -69,6 +84,8 @@ impl LagBank {
             gain_per_c: 0.0,
             gain_per_c2: 0.0,
             static_degree: 1,
+            coil_min_c: -MAX_TEMP_C,
+            coil_max_c: MAX_TEMP_C,
         };
         bank.is_valid().then_some(bank)
     }
@@ -106,16 +123,23 @@ impl LagBank {
     pub fn is_valid(&self) -> bool {
         let n = self.filters as usize;
         let taus_ok = self.taus_s.get(..n).is_some_and(|t| {
-            t.iter().all(|&tau| tau.is_finite() && tau > 0.0 && tau <= MAX_TAU_S)
-                && t.windows(2).all(|w| w[0] < w[1])
+            t.iter().all(|&tau| tau.is_finite() && tau > 0.0 && tau <= MAX_TAU_S) && t.windows(2).all(|w| w[0] < w[1])
         });
-        let lags_ok = self.coil_lag_min.iter().all(|a| a.is_finite() && a.abs() <= MAX_COIL_LAG_MIN);
+        let lags_ok = self
+            .coil_lag_min
+            .iter()
+            .all(|a| a.is_finite() && a.abs() <= MAX_COIL_LAG_MIN);
         (1..=BANK_FILTERS).contains(&n)
             && taus_ok
             && lags_ok
             && (1..=MAX_STATIC_DEGREE).contains(&self.static_degree)
-            && [self.ref_c, self.gain_per_c, self.gain_per_c2].iter().all(|v| v.is_finite())
-            && self.ref_c.abs() <= 1000.0
+            && [self.ref_c, self.gain_per_c, self.gain_per_c2]
+                .iter()
+                .all(|v| v.is_finite())
+            && [self.ref_c, self.coil_min_c, self.coil_max_c]
+                .iter()
+                .all(|v| v.abs() <= MAX_TEMP_C)
+            && self.coil_min_c <= self.coil_max_c
     }
 
     /// The estimated mean coil temperature T̂, °C, from the loop temperature
@@ -135,7 +159,11 @@ impl LagBank {
     pub fn inputs(&self, temp_c: f32, rates_c_per_min: &[f32; BANK_FILTERS], out: &mut [f32]) {
         let t_hat = self.coil_temp_c(temp_c, rates_c_per_min);
         let u = t_hat - self.ref_c;
-        let powers = [t_hat, u * u, u * u * u];
+        // Tangent continuation past the covered range (module docs); max/min,
+        // not clamp: no panic path even for a range the decoder would refuse.
+        let uc = t_hat.max(self.coil_min_c).min(self.coil_max_c) - self.ref_c;
+        let beyond = u - uc;
+        let powers = [t_hat, uc * (uc + 2.0 * beyond), uc * uc * (uc + 3.0 * beyond)];
         let s = self.static_inputs();
         let dt = temp_c - self.ref_c;
         let gain = 1.0 + dt * (self.gain_per_c + dt * self.gain_per_c2);
@@ -220,6 +248,26 @@ mod tests {
         // T̂ = 24 − 2·0.5 − 8·0.25 = 21; u = 1; g = 1 + 4/16 = 1.25.
         assert_eq!(out, [21.0, 1.0, 1.0, 0.625, 0.3125]);
         assert_eq!(b.dims(), 5);
+    }
+
+    #[test]
+    fn past_the_covered_range_the_powers_follow_their_tangent() {
+        let b = LagBank {
+            coil_min_c: 10.0,
+            coil_max_c: 30.0,
+            ..bank()
+        };
+        let rates = [0.0; BANK_FILTERS];
+        let mut out = [0.0; 5];
+        // T̂ = 34 °C, 4 °C past the edge at u_c = 10: u² → 100 + 2·10·4, u³ → 1000 + 3·100·4.
+        b.inputs(34.0, &rates, &mut out);
+        assert_eq!(out[..3], [34.0, 180.0, 2200.0]);
+        // Inside the range the powers are exact.
+        b.inputs(25.0, &rates, &mut out);
+        assert_eq!(out[..3], [25.0, 25.0, 125.0]);
+        let mut wrong = b;
+        wrong.coil_min_c = 40.0;
+        assert!(!wrong.is_valid(), "range upside down");
     }
 
     #[test]

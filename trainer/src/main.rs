@@ -342,7 +342,7 @@ struct FitArgs {
     /// the first-order one (a term fitted at one ramp rate must earn its extrapolation: it does
     /// on cycle runs, not on the bundled IFOG run); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's
     /// network.
-    #[arg(long, value_enum, default_value_t = RbfFeatures::LagBank)]
+    #[arg(long, value_enum, default_value_t = RbfFeatures::MultiscaleValidated)]
     features: RbfFeatures,
     /// Use K Gaussian centres (1–64; fewer if OLS finds fewer independent ones) instead of
     /// choosing K ≤ --max-centers on validation.
@@ -878,7 +878,12 @@ fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
     if let Some(h) = a.hours {
         anyhow::ensure!(h.is_finite() && h > 0.0 && h <= 1000.0, "--hours must be 0 … 1000");
     }
-    let inputs: Vec<&Path> = a.params.iter().chain(&a.chamber_profile).map(PathBuf::as_path).collect();
+    let inputs: Vec<&Path> = a
+        .params
+        .iter()
+        .chain(&a.chamber_profile)
+        .map(PathBuf::as_path)
+        .collect();
     let target = output::check_target(&a.output, &inputs, a.force.existing())?;
     let unit_params = a
         .unit
@@ -991,7 +996,10 @@ fn print_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankS
         let (Some(name), Some((lo, hi))) = (model.features().set.name(i), model.input_range(i)) else {
             continue;
         };
-        if matches!(name, rbf_core::features::InputName::Bank(rbf_core::lag_bank::BankInput::CoilTemp { power: 2.. })) {
+        if matches!(
+            name,
+            rbf_core::features::InputName::Bank(rbf_core::lag_bank::BankInput::CoilTemp { power: 2.. })
+        ) {
             continue;
         }
         covered.push(format!("{name} {lo:.3} … {hi:.3}"));

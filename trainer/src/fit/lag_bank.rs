@@ -120,31 +120,76 @@ impl Structure {
     }
 }
 
-/// Fitted parameters of one structure (temperatures scaled by [`TEMP_SCALE_C`]).
+/// Fitted parameters of one structure (temperatures scaled by
+/// [`TEMP_SCALE_C`]) and the range of T̂ its training rows covered.
 #[derive(Clone, Debug)]
 struct Fitted {
     p: Vec<f64>,
+    range: CoilRange,
 }
 
-/// The model's value and its Jacobian row at one data row.
-fn predict_row(s: &Structure, p: &[f64], t0: f64, temp_c: f64, rates: &[f64; BANK_FILTERS], jac: Option<&mut [f64]>) -> f64 {
+impl Fitted {
+    fn new(s: &Structure, p: Vec<f64>, data: &LadderData, rows: &[usize]) -> Fitted {
+        let range = coil_range(s, &p, data, rows);
+        Fitted { p, range }
+    }
+}
+
+/// The range of T̂ no extrapolation is needed within, °C.
+type CoilRange = (f64, f64);
+/// No limit: the rows a structure is fitted on lie within their own range.
+const UNLIMITED: CoilRange = (f64::NEG_INFINITY, f64::INFINITY);
+
+/// The estimated mean coil temperature T̂ at one row, °C.
+fn coil_temp(s: &Structure, p: &[f64], temp_c: f64, rates: &[f64; BANK_FILTERS]) -> f64 {
+    let n = s.filters;
+    let d = &rates[s.first..s.first + n];
+    temp_c + p[4 + n..4 + 2 * n].iter().zip(d).map(|(a, d)| a * d).sum::<f64>()
+}
+
+/// The range of T̂ over `rows`, °C.
+fn coil_range(s: &Structure, p: &[f64], data: &LadderData, rows: &[usize]) -> CoilRange {
+    rows.iter()
+        .map(|&i| coil_temp(s, p, data.temp_c[i], &data.rates[i]))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| (lo.min(t), hi.max(t)))
+}
+
+/// The model's value and its Jacobian row at one data row; past `range`
+/// the static cubic continues along its tangent, as the deployed bank does
+/// ([`rbf_core::lag_bank`]).
+fn predict_row(
+    s: &Structure,
+    p: &[f64],
+    t0: f64,
+    range: CoilRange,
+    temp_c: f64,
+    rates: &[f64; BANK_FILTERS],
+    jac: Option<&mut [f64]>,
+) -> f64 {
     let n = s.filters;
     let d = &rates[s.first..s.first + n];
     let (c, rest) = p.split_at(4);
     let (w, rest) = rest.split_at(n);
-    let (a, g) = rest.split_at(n);
-    let t_hat = temp_c + a.iter().zip(d).map(|(a, d)| a * d).sum::<f64>();
+    let g = &rest[n..];
+    let t_hat = coil_temp(s, p, temp_c, rates);
     let u = (t_hat - t0) / TEMP_SCALE_C;
+    let uc = (t_hat.max(range.0).min(range.1) - t0) / TEMP_SCALE_C;
+    let beyond = u - uc;
+    let (p2, p3) = (uc * (uc + 2.0 * beyond), uc * uc * (uc + 3.0 * beyond));
     let v = (temp_c - t0) / TEMP_SCALE_C;
-    let gain = 1.0 + g.iter().enumerate().map(|(j, gj)| gj * v.powi(j as i32 + 1)).sum::<f64>();
+    let gain = 1.0
+        + g.iter()
+            .enumerate()
+            .map(|(j, gj)| gj * v.powi(j as i32 + 1))
+            .sum::<f64>();
     let rate_sum: f64 = w.iter().zip(d).map(|(w, d)| w * d).sum();
-    let value = c[0] + u * (c[1] + u * (c[2] + u * c[3])) + gain * rate_sum;
+    let value = c[0] + c[1] * u + c[2] * p2 + c[3] * p3 + gain * rate_sum;
     if let Some(jac) = jac {
-        let slope = (c[1] + u * (2.0 * c[2] + 3.0 * u * c[3])) / TEMP_SCALE_C;
+        let slope = (c[1] + uc * (2.0 * c[2] + 3.0 * uc * c[3])) / TEMP_SCALE_C;
         jac[0] = 1.0;
         jac[1] = u;
-        jac[2] = u * u;
-        jac[3] = u * u * u;
+        jac[2] = p2;
+        jac[3] = p3;
         for k in 0..n {
             jac[4 + k] = gain * d[k];
             jac[4 + n + k] = slope * d[k];
@@ -159,7 +204,7 @@ fn predict_row(s: &Structure, p: &[f64], t0: f64, temp_c: f64, rates: &[f64; BAN
 /// Sum of squared residuals over `rows`.
 fn cost(s: &Structure, p: &[f64], t0: f64, data: &LadderData, rows: &[usize]) -> f64 {
     rows.iter()
-        .map(|&i| (predict_row(s, p, t0, data.temp_c[i], &data.rates[i], None) - data.y[i]).powi(2))
+        .map(|&i| (predict_row(s, p, t0, UNLIMITED, data.temp_c[i], &data.rates[i], None) - data.y[i]).powi(2))
         .sum()
 }
 
@@ -173,7 +218,7 @@ fn linear_start(s: &Structure, lags_min: f64, t0: f64, data: &LadderData, rows: 
     let mut gram = DMatrix::<f64>::zeros(linear, linear);
     let mut aty = DVector::<f64>::zeros(linear);
     for &i in rows {
-        predict_row(s, &p, t0, data.temp_c[i], &data.rates[i], Some(&mut jac));
+        predict_row(s, &p, t0, UNLIMITED, data.temp_c[i], &data.rates[i], Some(&mut jac));
         // The model is linear in (c, s): its Jacobian columns are the design.
         let row = DVector::from_column_slice(&jac[..linear]);
         gram += &row * row.transpose();
@@ -198,7 +243,7 @@ fn levenberg_marquardt(s: &Structure, mut p: Vec<f64>, t0: f64, data: &LadderDat
         let mut jtj = DMatrix::<f64>::zeros(m, m);
         let mut jtr = DVector::<f64>::zeros(m);
         for &i in rows {
-            let r = predict_row(s, &p, t0, data.temp_c[i], &data.rates[i], Some(&mut jac)) - data.y[i];
+            let r = predict_row(s, &p, t0, UNLIMITED, data.temp_c[i], &data.rates[i], Some(&mut jac)) - data.y[i];
             let row = DVector::from_column_slice(&jac);
             jtj.syger(1.0, &row, &row, 1.0);
             jtr += &row * r;
@@ -243,7 +288,7 @@ fn fit_structure(s: &Structure, t0: f64, data: &LadderData, rows: &[usize], star
         .map(|p| levenberg_marquardt(s, p, t0, data, rows))
         .filter(|(_, c)| c.is_finite())
         .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(p, _)| Fitted { p })
+        .map(|(p, _)| Fitted::new(s, p, data, rows))
 }
 
 /// RMS of the residual's [`SCORE_MEAN_S`] means over `groups` (each a
@@ -258,7 +303,9 @@ fn score(s: &Structure, fits: &[(Fitted, Vec<usize>)], t0: f64, data: &LadderDat
             if chunk.len() * 2 >= per_mean {
                 let r = chunk
                     .iter()
-                    .map(|&i| data.y[i] - predict_row(s, &fitted.p, t0, data.temp_c[i], &data.rates[i], None))
+                    .map(|&i| {
+                        data.y[i] - predict_row(s, &fitted.p, t0, fitted.range, data.temp_c[i], &data.rates[i], None)
+                    })
                     .sum::<f64>()
                     / chunk.len() as f64;
                 means.push((data.run[chunk[0]], r));
@@ -319,7 +366,9 @@ impl BankSearch {
     /// The chosen candidate's validation RMS, °/h: what the search predicts
     /// for 100-s means on histories like the held-out ones.
     pub fn predicted_rms_dph(&self) -> f64 {
-        self.candidates.get(self.chosen).map_or(f64::NAN, |c| c.validation_rms_dph)
+        self.candidates
+            .get(self.chosen)
+            .map_or(f64::NAN, |c| c.validation_rms_dph)
     }
 }
 
@@ -359,7 +408,9 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         .0
         .temp_c
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| (lo.min(t), hi.max(t)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+            (lo.min(t), hi.max(t))
+        });
     // T₀ on a 0.5 °C grid: the blob stores it in f32, the fit uses the same value.
     let t0 = (0.5 * (t_lo + t_hi) * 2.0).round() / 2.0;
     let folds: Vec<Folds> = ladders
@@ -394,8 +445,9 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 let fits: Vec<(Fitted, Vec<usize>)> = (0..f.held_out.len())
                     .filter_map(|k| {
                         let rows = f.train_rows(k, data.len());
-                        let fold = levenberg_marquardt(s, full.p.clone(), t0, data, &rows);
-                        fold.1.is_finite().then(|| (Fitted { p: fold.0 }, f.held_out[k].clone()))
+                        let (p, c) = levenberg_marquardt(s, full.p.clone(), t0, data, &rows);
+                        c.is_finite()
+                            .then(|| (Fitted::new(s, p, data, &rows), f.held_out[k].clone()))
                     })
                     .collect();
                 score(s, &fits, t0, data)
@@ -414,8 +466,9 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         .ok_or_else(|| anyhow::anyhow!("no lag-bank structure could be fitted to the training runs (singular data)"))?;
     let s = structures[chosen];
     let fitted = results[chosen].0.as_ref().expect("chosen among fitted candidates");
-    let bank = to_bank(&s, fitted, t0)
-        .ok_or_else(|| anyhow::anyhow!("the identified lag bank is out of the firmware's range (coil lags over a day)"))?;
+    let bank = to_bank(&s, fitted, t0).ok_or_else(|| {
+        anyhow::anyhow!("the identified lag bank is out of the firmware's range (coil lags over a day)")
+    })?;
     let (fold_kind, fold_count) = if validate.count() > 0 {
         (FoldKind::Runs, validate.count())
     } else {
@@ -452,6 +505,7 @@ fn to_bank(s: &Structure, fitted: &Fitted, t0: f64) -> Option<LagBank> {
     bank.gain_per_c = g.first().map_or(0.0, |g1| (g1 / TEMP_SCALE_C) as f32);
     bank.gain_per_c2 = g.get(1).map_or(0.0, |g2| (g2 / (TEMP_SCALE_C * TEMP_SCALE_C)) as f32);
     bank.static_degree = rbf_core::lag_bank::MAX_STATIC_DEGREE;
+    (bank.coil_min_c, bank.coil_max_c) = (fitted.range.0 as f32, fitted.range.1 as f32);
     bank.is_valid().then_some(bank)
 }
 
@@ -481,7 +535,7 @@ mod tests {
                 filters[k] += 10.0 * r;
                 rates[k] = r * 60.0;
             }
-            data.y.push(predict_row(s, truth, t0, temp, &rates, None));
+            data.y.push(predict_row(s, truth, t0, UNLIMITED, temp, &rates, None));
             data.temp_c.push(temp);
             data.rates.push(rates);
             data.run.push(0);
@@ -498,7 +552,9 @@ mod tests {
             gain_degree: 1,
         };
         // c, s (°/h per °C/min), a (min), g₁.
-        let truth = [0.1, 0.05, 0.02, -0.01, 0.2, 0.1, -0.05, 0.02, -1.0, -4.0, -10.0, -2.0, 0.3];
+        let truth = [
+            0.1, 0.05, 0.02, -0.01, 0.2, 0.1, -0.05, 0.02, -1.0, -4.0, -10.0, -2.0, 0.3,
+        ];
         let data = synthetic(&s, &truth, 20.0);
         let rows: Vec<usize> = (0..data.len()).collect();
         let fitted = fit_structure(&s, 20.0, &data, &rows, &START_LAGS_MIN).unwrap();
@@ -515,12 +571,21 @@ mod tests {
             gain_degree: 2,
         };
         let p = vec![0.0, 1.0, 0.0, 0.0, 0.1, 0.2, 0.3, -2.0, -6.0, -12.0, 0.6, 0.9];
-        let bank = to_bank(&s, &Fitted { p }, 22.5).unwrap();
+        let bank = to_bank(
+            &s,
+            &Fitted {
+                p,
+                range: (-10.0, 40.0),
+            },
+            22.5,
+        )
+        .unwrap();
         assert_eq!(bank.taus(), &[60.0, 240.0, 960.0]);
         assert_eq!(bank.coil_lags(), &[-2.0, -6.0, -12.0]);
         assert!((bank.gain_per_c - 0.02).abs() < 1e-9);
         assert!((bank.gain_per_c2 - 0.001).abs() < 1e-9);
         assert!((bank.ref_c - 22.5).abs() < 1e-6);
         assert_eq!(bank.static_degree, 3);
+        assert_eq!((bank.coil_min_c, bank.coil_max_c), (-10.0, 40.0));
     }
 }

@@ -131,7 +131,7 @@ impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
             method: Method::Rbf,
-            features: RbfFeatures::LagBank,
+            features: RbfFeatures::MultiscaleValidated,
             block_s: 1.0,
             centers: None,
             max_centers: 32,
