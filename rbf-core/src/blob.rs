@@ -27,7 +27,7 @@ use crate::features::FeatureConfig;
 use crate::model::{BodyParams, Model, ModelBody, ModelError, ModelInfo, ModelKind, SERIAL_CAPACITY};
 use crate::poly::Poly3;
 use crate::rbf::RbfParams;
-use crate::{MAX_CENTERS, MAX_INPUTS};
+use crate::{MAX_CENTERS, MAX_INPUTS, MAX_KERNEL_INPUTS};
 
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"IFOG";
@@ -71,7 +71,7 @@ struct RbfWire {
     kernel_inputs: u8,
     offset: Vec<f32, MAX_INPUTS>,
     scale: Vec<f32, MAX_INPUTS>,
-    centers: Vec<f32, { MAX_CENTERS * MAX_INPUTS }>,
+    centers: Vec<f32, { MAX_CENTERS * MAX_KERNEL_INPUTS }>,
     widths: Vec<f32, MAX_CENTERS>,
     weights: Vec<f32, MAX_CENTERS>,
     linear: Vec<f32, MAX_INPUTS>,
@@ -292,7 +292,7 @@ pub fn encode(model: &Model, out: &mut [u8]) -> Result<usize, EncodeError> {
     let body_area = &mut payload_area[common_len..];
     let (centers, body_len) = match model.body() {
         ModelBody::Rbf(net) => {
-            let mut centers = Vec::<f32, { MAX_CENTERS * MAX_INPUTS }>::new();
+            let mut centers = Vec::<f32, { MAX_CENTERS * MAX_KERNEL_INPUTS }>::new();
             for j in 0..net.centers_used() {
                 centers
                     .extend_from_slice(net.center(j))

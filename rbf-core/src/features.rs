@@ -54,6 +54,14 @@
 use serde::{Deserialize, Serialize};
 
 use crate::MAX_INPUTS;
+pub use crate::lag_bank::{BANK_FILTERS, BankInput, LagBank};
+
+/// Derivative filters the extractor runs at most: a lag bank's
+/// ([`BANK_FILTERS`]), more than the multi-scale sets' [`WINDOWS`].
+const FILTERS: usize = BANK_FILTERS;
+/// Most inputs of a multi-point model (the RLG method's thermometer selection);
+/// its blob encoding holds exactly this many probe slots.
+pub const MAX_PROBES: usize = 8;
 
 /// Seconds per minute: ΔT is reported in °C/min.
 const SECONDS_PER_MINUTE: f32 = 60.0;
@@ -139,18 +147,18 @@ impl core::fmt::Display for Probe {
     }
 }
 
-/// The inputs of a multi-point model, in order (at most [`MAX_INPUTS`]).
+/// The inputs of a multi-point model, in order (at most [`MAX_PROBES`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Probes {
-    list: [Probe; MAX_INPUTS],
+    list: [Probe; MAX_PROBES],
     len: u8,
 }
 
 impl Probes {
-    /// The selection `probes`; `None` when empty, over [`MAX_INPUTS`] or naming
+    /// The selection `probes`; `None` when empty, over [`MAX_PROBES`] or naming
     /// a thermometer that does not exist.
     pub fn new(probes: &[Probe]) -> Option<Self> {
-        let mut list = [Probe::Temp(0); MAX_INPUTS];
+        let mut list = [Probe::Temp(0); MAX_PROBES];
         list.get_mut(..probes.len())?.copy_from_slice(probes);
         let set = Probes {
             list,
@@ -164,10 +172,10 @@ impl Probes {
         self.list.get(..self.len as usize).unwrap_or(&[])
     }
 
-    /// Number of inputs (≤ [`MAX_INPUTS`] for a valid set).
+    /// Number of inputs (≤ [`MAX_PROBES`] for a valid set).
     pub const fn len(&self) -> usize {
         let n = self.len as usize;
-        if n < MAX_INPUTS { n } else { MAX_INPUTS }
+        if n < MAX_PROBES { n } else { MAX_PROBES }
     }
 
     /// True when the selection holds no input (never for a valid set).
@@ -175,10 +183,10 @@ impl Probes {
         self.len == 0
     }
 
-    /// At least one input, at most [`MAX_INPUTS`], each valid.
+    /// At least one input, at most [`MAX_PROBES`], each valid.
     pub fn is_valid(&self) -> bool {
         let n = self.len as usize;
-        n > 0 && n <= MAX_INPUTS && self.as_slice().iter().all(|p| p.is_valid())
+        n > 0 && n <= MAX_PROBES && self.as_slice().iter().all(|p| p.is_valid())
     }
 
     /// The thermometers the inputs read, as a bit mask.
@@ -188,7 +196,7 @@ impl Probes {
 }
 
 /// Which inputs a model takes, in this order.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum FeatureSet {
     /// (T): the loop temperature alone, for the cubic-in-T baseline.
     Temp,
@@ -217,6 +225,11 @@ pub enum FeatureSet {
         /// The coil lag L, minutes (T̄ = T − L·ΔT₃ with ΔT₃ in °C/min).
         coil_lag_min: u16,
     },
+    /// The thermal lag bank ([`crate::lag_bank`]): the mean coil temperature
+    /// T̂ (and its powers) and the Shupe-gained rates of up to
+    /// [`BANK_FILTERS`] derivative filters whose time constants and weights
+    /// the trainer identifies. Declared last for the same reason.
+    LagBank(LagBank),
 }
 
 impl FeatureSet {
@@ -228,15 +241,17 @@ impl FeatureSet {
             FeatureSet::TempRateProduct => 3,
             FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => 8,
             FeatureSet::MultiPoint(probes) => probes.len(),
+            FeatureSet::LagBank(bank) => bank.dims(),
         }
     }
 
-    /// Number of ΔT filter windows the set uses.
+    /// Number of ΔT derivative filters the set uses.
     pub const fn windows(self) -> usize {
         match self {
             FeatureSet::Temp | FeatureSet::MultiPoint(_) => 0,
             FeatureSet::TempRate | FeatureSet::TempRateProduct => 1,
             FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => WINDOWS,
+            FeatureSet::LagBank(bank) => bank.filter_count(),
         }
     }
 
@@ -274,6 +289,7 @@ impl FeatureSet {
     pub fn name(self, i: usize) -> Option<InputName> {
         match self {
             FeatureSet::MultiPoint(probes) => probes.as_slice().get(i).copied().map(InputName::Probe),
+            FeatureSet::LagBank(bank) => bank.input(i).map(InputName::Bank),
             _ => self.fixed_names().get(i).copied().map(InputName::Fixed),
         }
     }
@@ -301,7 +317,7 @@ impl FeatureSet {
             ],
             FeatureSet::MultiScaleSecondOrder => &SECOND_ORDER_NAMES,
             FeatureSet::MultiScaleLagged { .. } => &LAGGED_NAMES,
-            FeatureSet::MultiPoint(_) => &[],
+            FeatureSet::MultiPoint(_) | FeatureSet::LagBank(_) => &[],
         }
     }
 }
@@ -327,12 +343,14 @@ static LAGGED_NAMES: [&str; 8] = {
 };
 
 /// The name and unit of one model input ([`FeatureSet::name`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum InputName {
     /// A single-point input, e.g. `ΔT [°C/min]`.
     Fixed(&'static str),
     /// A multi-point input, e.g. `temp_c − temp_e [°C]`.
     Probe(Probe),
+    /// A lag-bank input, e.g. `g·ΔT(τ 240 s) [°C/min]`.
+    Bank(BankInput),
 }
 
 impl core::fmt::Display for InputName {
@@ -340,6 +358,7 @@ impl core::fmt::Display for InputName {
         match self {
             InputName::Fixed(name) => f.write_str(name),
             InputName::Probe(probe) => probe.fmt(f),
+            InputName::Bank(input) => input.fmt(f),
         }
     }
 }
@@ -382,6 +401,28 @@ impl FeatureConfig {
         [self.rate_window_s, self.slow_windows_s[0], self.slow_windows_s[1]]
     }
 
+    /// A lag bank's configuration: its filters, with the fastest as
+    /// `rate_window_s` (which sets the warm-up).
+    pub fn lag_bank(bank: LagBank) -> Self {
+        FeatureConfig {
+            set: FeatureSet::LagBank(bank),
+            rate_window_s: bank.taus_s[0],
+            slow_windows_s: [0.0; WINDOWS - 1],
+        }
+    }
+
+    /// The time constants of every derivative filter the set runs, s, and
+    /// their number: a lag bank's filters, else the ΔT windows.
+    #[inline(always)]
+    pub fn filter_taus_s(&self) -> ([f32; FILTERS], usize) {
+        let mut taus = [0.0; FILTERS];
+        match self.set {
+            FeatureSet::LagBank(bank) => taus = bank.taus_s,
+            _ => taus[..WINDOWS].copy_from_slice(&self.windows_s()),
+        }
+        (taus, self.set.windows().min(FILTERS))
+    }
+
     /// Number of model inputs.
     pub const fn dims(&self) -> usize {
         self.set.dims()
@@ -393,13 +434,15 @@ impl FeatureConfig {
     }
 
     /// True when the configuration is usable (finite windows within 0 ..= 1 day;
-    /// multi-point inputs that name existing thermometers).
+    /// multi-point inputs that name existing thermometers; a valid lag bank
+    /// whose fastest filter is `rate_window_s`).
     pub fn is_valid(&self) -> bool {
-        let probes_ok = match self.set {
+        let set_ok = match self.set {
             FeatureSet::MultiPoint(probes) => probes.is_valid(),
+            FeatureSet::LagBank(bank) => bank.is_valid() && bank.taus_s[0].to_bits() == self.rate_window_s.to_bits(),
             _ => true,
         };
-        probes_ok
+        set_ok
             && self
                 .windows_s()
                 .iter()
@@ -463,7 +506,7 @@ impl FeatureVector {
             return None;
         }
         Some(FeatureVector {
-            values: assemble(set, [rate_c_per_min; WINDOWS], &loop_reading(temp_c)),
+            values: assemble(set, [rate_c_per_min; FILTERS], &loop_reading(temp_c)),
             reference_temp_c: temp_c,
             len: set.dims() as u8,
             warming_up: false,
@@ -483,8 +526,10 @@ impl FeatureVector {
         // The loop temperature from the reference reading: the lagged set's
         // first input is not T.
         let [_, fast, slow, slowest, ..] = self.values;
+        let mut rates = [0.0; FILTERS];
+        rates[..WINDOWS].copy_from_slice(&[fast, slow, slowest]);
         Some(FeatureVector {
-            values: assemble(to, [fast, slow, slowest], &loop_reading(self.reference_temp_c)),
+            values: assemble(to, rates, &loop_reading(self.reference_temp_c)),
             len: to.dims() as u8,
             ..*self
         })
@@ -497,7 +542,7 @@ impl FeatureVector {
 /// model stays the single owner of it (principle: model is data, state is separate).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct FeatureExtractor {
-    smoothed_c: [f32; WINDOWS],
+    smoothed_c: [f32; FILTERS],
     since_restart_s: f32,
     started: bool,
 }
@@ -506,7 +551,7 @@ impl FeatureExtractor {
     /// A fresh extractor; the first sample starts a segment.
     pub const fn new() -> Self {
         FeatureExtractor {
-            smoothed_c: [0.0; WINDOWS],
+            smoothed_c: [0.0; FILTERS],
             since_restart_s: 0.0,
             started: false,
         }
@@ -527,15 +572,14 @@ impl FeatureExtractor {
     /// guarantees it by holding the last good values), the others are ignored.
     pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temps_c: &[f32; THERMOMETERS]) -> FeatureVector {
         let temp_c = temps_c[LOOP_THERMOMETER];
-        let windows = config.set.windows();
-        let taus = config.windows_s();
-        let mut rate_c_per_min = [0.0f32; WINDOWS];
+        let (taus, windows) = config.filter_taus_s();
+        let mut rate_c_per_min = [0.0f32; FILTERS];
         if !(self.started && dt_s.is_finite() && dt_s > 0.0) {
             self.started = true;
             self.since_restart_s = 0.0;
-            self.smoothed_c = [temp_c; WINDOWS];
+            self.smoothed_c = [temp_c; FILTERS];
         } else {
-            for w in 0..windows.min(WINDOWS) {
+            for w in 0..windows.min(FILTERS) {
                 let tau_s = taus[w];
                 let rate = (temp_c - self.smoothed_c[w]) / (tau_s + dt_s);
                 // τ = 0 is exactly the one-sample difference: keep S = T bit for bit.
@@ -564,10 +608,18 @@ impl FeatureExtractor {
     }
 }
 
-/// The inputs of `set` from the three ΔT filters' rates, °C/min, and the
-/// thermometer readings, °C: the one place each set's inputs are defined.
+/// The eight inputs of a multi-scale set, the remaining slots 0.
 #[inline(always)]
-fn assemble(set: FeatureSet, rate_c_per_min: [f32; WINDOWS], temps_c: &[f32; THERMOMETERS]) -> [f32; MAX_INPUTS] {
+fn padded(v: [f32; 8]) -> [f32; MAX_INPUTS] {
+    let [a, b, c, d, e, f, g, h] = v;
+    [a, b, c, d, e, f, g, h, 0.0, 0.0, 0.0, 0.0]
+}
+
+/// The inputs of `set` from the ΔT filters' rates, °C/min (the first three
+/// for the multi-scale sets), and the thermometer readings, °C: the one place
+/// each set's inputs are defined.
+#[inline(always)]
+fn assemble(set: FeatureSet, rate_c_per_min: [f32; FILTERS], temps_c: &[f32; THERMOMETERS]) -> [f32; MAX_INPUTS] {
     let temp_c = temps_c[LOOP_THERMOMETER];
     let mut values = [0.0; MAX_INPUTS];
     values[0] = temp_c;
@@ -580,8 +632,8 @@ fn assemble(set: FeatureSet, rate_c_per_min: [f32; WINDOWS], temps_c: &[f32; THE
         }
         FeatureSet::MultiScale => {
             // Built whole (not slot by slot): no partial stores read back as a vector.
-            let [fast, slow, slowest] = rate_c_per_min;
-            values = [
+            let [fast, slow, slowest, ..] = rate_c_per_min;
+            values = padded([
                 temp_c,
                 fast,
                 slow,
@@ -590,19 +642,19 @@ fn assemble(set: FeatureSet, rate_c_per_min: [f32; WINDOWS], temps_c: &[f32; THE
                 temp_c * slow,
                 temp_c * slowest,
                 temp_c * temp_c * slow,
-            ];
+            ]);
         }
         FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => {
             // Written out apart from the first-order arm on purpose: one arm for
             // both sets with a shared prefix cost the firmware's whole step about
             // 96 instructions more (`cargo xtask bench-fw`).
-            let [fast, slow, slowest] = rate_c_per_min;
+            let [fast, slow, slowest, ..] = rate_c_per_min;
             // The lagged set's first input: T̄ = T − L·ΔT₃, the mean coil temperature.
             let first = match set {
                 FeatureSet::MultiScaleLagged { coil_lag_min } => temp_c - f32::from(coil_lag_min) * slowest,
                 _ => temp_c,
             };
-            values = [
+            values = padded([
                 first,
                 fast,
                 slow,
@@ -611,13 +663,14 @@ fn assemble(set: FeatureSet, rate_c_per_min: [f32; WINDOWS], temps_c: &[f32; THE
                 temp_c * slowest,
                 temp_c * temp_c * slow,
                 slowest * slowest,
-            ];
+            ]);
         }
         FeatureSet::MultiPoint(probes) => {
             for (v, p) in values.iter_mut().zip(probes.as_slice()) {
                 *v = p.value(temps_c);
             }
         }
+        FeatureSet::LagBank(bank) => bank.inputs(temp_c, &rate_c_per_min, &mut values),
     }
     values
 }

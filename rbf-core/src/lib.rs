@@ -4,7 +4,8 @@
 //! `firmware` both call these functions, so a model evaluates to the same bits
 //! on the calibration PC and on the gyro's Cortex-M4F.
 //!
-//! - [`features`]: streaming fiber-loop temperature features (T, ΔT, T×ΔT), ΔT in °C/min.
+//! - [`features`]: streaming fiber-loop temperature features (T, ΔT, T×ΔT), ΔT in °C/min;
+//!   [`lag_bank`]: the thermal lag bank (mean coil temperature and coil rates).
 //! - [`rbf`]: a fixed-capacity Gaussian RBF network with input normalisation and clamping.
 //! - [`poly`]: the cubic-in-T baseline (the PX4 / ArduPilot form).
 //! - [`model`]: a deployable model (either kind + feature configuration + ranges).
@@ -23,6 +24,7 @@ pub mod fastmath;
 pub mod features;
 pub mod flags;
 pub mod frame;
+pub mod lag_bank;
 pub mod model;
 pub mod poly;
 pub mod rbf;
@@ -32,7 +34,9 @@ pub mod sensor;
 /// Most Gaussian centres a deployable model may hold (firmware RAM is sized for it).
 pub const MAX_CENTERS: usize = 64;
 /// Most model inputs (features) a deployable model may use.
-pub const MAX_INPUTS: usize = 8;
+pub const MAX_INPUTS: usize = 12;
+/// Most inputs the Gaussians of a network may see (the rest enter linearly).
+pub const MAX_KERNEL_INPUTS: usize = 8;
 
 pub use compensator::{CompensatedSample, Compensator, CompensatorConfig, GyroSample};
 pub use features::{FeatureConfig, FeatureExtractor, FeatureSet, FeatureVector};

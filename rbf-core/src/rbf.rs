@@ -81,7 +81,7 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
     /// nothing but its four coefficients.
     exponent: [[u64; 2]; K],
     scale: [f32; D],
-    centers: [[f32; D]; K],
+    centers: [[f32; KERNEL]; K],
     widths: [f32; K],
     neg_half_inv_var: [f32; K],
     weights: [f32; K],
@@ -92,6 +92,8 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
 
 /// Input slots of a feature vector ([`crate::MAX_INPUTS`]).
 const MAX_INPUTS_ALL: usize = crate::MAX_INPUTS;
+/// Most inputs the Gaussians see ([`crate::MAX_KERNEL_INPUTS`]): centres hold that many coordinates.
+const KERNEL: usize = crate::MAX_KERNEL_INPUTS;
 
 /// Most kernel inputs the table path ([`crate::fastmath::exp2_neg_fixed`]) handles.
 pub const TABLE_MAX_INPUTS: usize = 3;
@@ -201,7 +203,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         inv_scale: [0.0; D],
         exponent: [[0; 2]; K],
         scale: [0.0; D],
-        centers: [[0.0; D]; K],
+        centers: [[0.0; KERNEL]; K],
         widths: [0.0; K],
         neg_half_inv_var: [0.0; K],
         weights: [0.0; K],
@@ -236,6 +238,9 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             return Err(ModelError::ShapeOverCapacity);
         }
         let m = p.kernel_inputs;
+        if m > KERNEL {
+            return Err(ModelError::ShapeOverCapacity);
+        }
         let linear_ok = p.linear.is_empty() || p.linear.len() == d;
         if !(1..=d).contains(&m) || p.scale.len() != d || p.centers.len() != k * m || p.weights.len() != k || !linear_ok
         {

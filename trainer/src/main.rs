@@ -624,6 +624,9 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             c.validation_rms_dph
         )?;
     }
+    if let Some(search) = &outcome.bank {
+        print_bank(&mut out, &outcome.model, search)?;
+    }
     if let Some(s) = &outcome.sets {
         let kept = outcome.model.features();
         let slowest_s = kept.windows_s()[2];
@@ -875,7 +878,12 @@ fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
     if let Some(h) = a.hours {
         anyhow::ensure!(h.is_finite() && h > 0.0 && h <= 1000.0, "--hours must be 0 … 1000");
     }
-    let inputs: Vec<&Path> = a.params.iter().chain(&a.chamber_profile).map(PathBuf::as_path).collect();
+    let inputs: Vec<&Path> = a
+        .params
+        .iter()
+        .chain(&a.chamber_profile)
+        .map(PathBuf::as_path)
+        .collect();
     let target = output::check_target(&a.output, &inputs, a.force.existing())?;
     let unit_params = a
         .unit
@@ -949,6 +957,57 @@ fn cmd_eval(a: EvalArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The lag bank a fit identified, how it was chosen, and what the training runs covered.
+fn print_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankSearch) -> anyhow::Result<()> {
+    let FeatureSet::LagBank(bank) = model.features().set else {
+        return Ok(());
+    };
+    let list = |v: &[f32], digits: usize| v.iter().map(|x| format!("{x:.digits$}")).collect::<Vec<_>>().join(", ");
+    writeln!(
+        out,
+        "lag bank: τ [{}] s; coil lags a [{}] min (T̂ = T + Σ a·ΔT); Shupe gain g = 1 {:+.3e}·(T − {}) {:+.3e}·(T − {})²",
+        list(bank.taus(), 0),
+        list(bank.coil_lags(), 2),
+        bank.gain_per_c,
+        bank.ref_c,
+        bank.gain_per_c2,
+        bank.ref_c
+    )?;
+    let how = match search.folds {
+        fit::events::FoldKind::Runs => format!("leave-one-run-out ({} folds)", search.fold_count),
+        fit::events::FoldKind::Events => format!(
+            "{} folds of whole thermal events ({} events found)",
+            search.fold_count, search.events
+        ),
+        fit::events::FoldKind::Contiguous => format!(
+            "{} contiguous folds (only {} thermal events found)",
+            search.fold_count, search.events
+        ),
+    };
+    writeln!(
+        out,
+        "structure chosen on {how} among {} candidates; predicted RMS of 100-s means on unseen histories {:.4e} °/h",
+        search.candidates.len(),
+        search.predicted_rms_dph()
+    )?;
+    let dims = model.features().dims();
+    let mut covered = Vec::new();
+    for i in 0..dims {
+        let (Some(name), Some((lo, hi))) = (model.features().set.name(i), model.input_range(i)) else {
+            continue;
+        };
+        if matches!(
+            name,
+            rbf_core::features::InputName::Bank(rbf_core::lag_bank::BankInput::CoilTemp { power: 2.. })
+        ) {
+            continue;
+        }
+        covered.push(format!("{name} {lo:.3} … {hi:.3}"));
+    }
+    writeln!(out, "training covered: {}", covered.join("; "))?;
+    Ok(())
+}
+
 /// The names of a feature set's inputs with units, for printing.
 fn input_names(set: FeatureSet) -> Vec<String> {
     set.names().map(|n| n.to_string()).collect()
@@ -958,7 +1017,8 @@ fn describe(model: &Model) -> String {
     let f = model.features();
     let all_names = input_names(f.set);
     let names = all_names.join(", ");
-    let windows = &f.windows_s()[..f.set.windows()];
+    let (taus, filters) = f.filter_taus_s();
+    let windows = &taus[..filters];
     match model.body() {
         ModelBody::Rbf(net) => format!(
             "Gaussian RBF, {} centres over ({}), {}, ΔT windows {windows:?} s",

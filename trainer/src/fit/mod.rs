@@ -1,6 +1,8 @@
 //! Model fitting: the methods `trainer fit` offers and the checks that a
 //! recording can identify them at all.
 
+pub mod events;
+pub mod lag_bank;
 pub mod linalg;
 pub mod ols;
 pub mod poly;
@@ -26,6 +28,13 @@ pub const MIN_RATE_SPAN_C_PER_MIN: f64 = 0.2;
 /// Inputs of the `rbf` method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 pub enum RbfFeatures {
+    /// The default: the thermal lag bank (`FeatureSet::LagBank`): the mean
+    /// coil temperature T̂ and the loop temperature's rates through up to six
+    /// derivative filters from seconds to hours, their time constants, coil
+    /// lags and Shupe gain identified from the runs ([`lag_bank`]) and chosen
+    /// on held-out thermal events; Gaussians and a cubic over T̂, the rates
+    /// linear. Generalises to temperature histories unlike the chamber's.
+    LagBank,
     /// T, ΔT over three time scales, T×ΔT₁, T×ΔT₂, T×ΔT₃ and T²×ΔT₂
     /// (`FeatureSet::MultiScale`: first-order lag terms); Gaussians over T, the
     /// ΔT terms linear (the Shupe effect's form).
@@ -70,6 +79,10 @@ impl Method {
         match self {
             Method::Rbf if features == RbfFeatures::Paper => FeatureSet::TempRateProduct,
             Method::Rbf if features == RbfFeatures::Multiscale => FeatureSet::MultiScale,
+            // A placeholder: the bank's structure is identified by the fit.
+            Method::Rbf if features == RbfFeatures::LagBank => {
+                FeatureSet::LagBank(rbf_core::lag_bank::LagBank::plain(&[60.0], 25.0).unwrap_or_else(|| unreachable!()))
+            }
             // The validated choice's second candidate; `fit` tries both.
             Method::Rbf => FeatureSet::MultiScaleSecondOrder,
             Method::Rbf2 => FeatureSet::TempRate,
@@ -219,6 +232,8 @@ pub struct FitOutcome {
     pub sets: Option<SetComparison>,
     /// The SVR's hyper-parameters and deployment (`svr-pso`).
     pub svr: Option<svr_pso::SvrChoice>,
+    /// How the lag bank's structure was chosen (`--features lag-bank`).
+    pub bank: Option<lag_bank::BankSearch>,
 }
 
 /// Fits `opts.method` on `train`, validating on `validate` (or k-fold when empty).
@@ -242,6 +257,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             choice: None,
             sets: None,
             svr: None,
+            bank: None,
         }),
         Method::SvrPso => {
             if validate.count() > 0 {
@@ -253,6 +269,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 choice: None,
                 sets: None,
                 svr: Some(choice),
+                bank: None,
             })
         }
         Method::Rbf if opts.features == RbfFeatures::MultiscaleValidated => {
@@ -285,6 +302,19 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 model,
                 choice: Some(choice),
                 svr: None,
+                bank: None,
+            })
+        }
+        Method::Rbf if opts.features == RbfFeatures::LagBank => {
+            let (bank, search) = lag_bank::search(train, validate, opts, &progress)?;
+            let config = rbf_core::FeatureConfig::lag_bank(bank);
+            let (model, choice) = rbf::fit_configs(train, validate, &[config], opts, &rbf::WIDTHS, &progress)?;
+            Ok(FitOutcome {
+                model,
+                choice: Some(choice),
+                sets: None,
+                svr: None,
+                bank: Some(search),
             })
         }
         method => {
@@ -294,6 +324,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 choice: Some(choice),
                 sets: None,
                 svr: None,
+                bank: None,
             })
         }
     }
@@ -344,7 +375,11 @@ pub fn check_excitation(blocks: &Blocks, set: FeatureSet, opts: &FitOptions) -> 
         ));
     }
     if set != FeatureSet::Temp {
-        let (lo, hi) = blocks.block_range(1);
+        let first_rate = match set {
+            FeatureSet::LagBank(bank) => bank.static_inputs(),
+            _ => 1,
+        };
+        let (lo, hi) = blocks.block_range(first_rate);
         if hi - lo < MIN_RATE_SPAN_C_PER_MIN {
             missing.push(format!(
                 "ΔT spans only {:.3} °C/min; at least {MIN_RATE_SPAN_C_PER_MIN} °C/min is needed (the run needs temperature ramps)",

@@ -42,7 +42,7 @@ const MAX_SEARCH_TRAIN_ROWS: usize = 16_384;
 /// the pool only needs to cover the input space.
 const MAX_POOL_ROWS: usize = 8192;
 /// Gaussian widths σ tried, in normalised (standard-deviation) units.
-const WIDTHS: [f64; 6] = [0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
+pub const WIDTHS: [f64; 6] = [0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 /// Ridge strengths λ tried (per row, relative to normalised inputs).
 const RIDGES: [f64; 3] = [1e-7, 1e-5, 1e-3];
 /// Validation groups with fewer cluster means than this are not scored.
@@ -87,6 +87,8 @@ pub fn feature_config(set: FeatureSet, window_s: f32, slowest_factor: f32) -> Fe
 pub fn kernel_inputs(set: FeatureSet) -> usize {
     match set {
         set if set.is_multiscale() => 1,
+        // Gaussians over the mean coil temperature T̂ alone.
+        FeatureSet::LagBank(_) => 1,
         _ => set.dims(),
     }
 }
@@ -94,6 +96,9 @@ pub fn kernel_inputs(set: FeatureSet) -> usize {
 /// The hyper-parameters chosen and what they scored.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct RbfChoice {
+    /// Index of the chosen feature configuration among the candidates.
+    #[serde(skip)]
+    pub config: usize,
     /// Fastest ΔT derivative-filter time constant, s.
     pub rate_window_s: f32,
     /// Gaussian width σ, normalised units.
@@ -140,17 +145,34 @@ pub fn fit_with_widths<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     } else {
         opts.rate_windows_s.clone()
     };
-    let k_max = opts.centers.unwrap_or(opts.max_centers);
-    let k_min = opts.centers.unwrap_or(1);
-    let folds = if validate.count() == 0 { opts.folds.max(2) } else { 1 };
     // Every window's blocks in one pass over the data (streamed runs).
     let configs: Vec<FeatureConfig> = windows
         .iter()
         .map(|&w| feature_config(set, w, opts.slowest_window_factor))
         .collect();
-    train.prepare(&configs, opts.block_s)?;
-    validate.prepare(&configs, opts.block_s)?;
-    progress.start("selecting centres", (windows.len() * widths.len() * folds) as u64);
+    fit_configs(train, validate, &configs, opts, widths, progress)
+}
+
+/// [`fit_with_widths`] over given feature configurations of one set (the
+/// candidates, e.g. one per ΔT window), choosing among them too.
+pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
+    train: &T,
+    validate: &V,
+    configs: &[FeatureConfig],
+    opts: &FitOptions,
+    widths: &[f64],
+    progress: &Progress,
+) -> anyhow::Result<(Model, RbfChoice)> {
+    let set = configs
+        .first()
+        .ok_or_else(|| anyhow::anyhow!("no feature configuration to fit"))?
+        .set;
+    let k_max = opts.centers.unwrap_or(opts.max_centers);
+    let k_min = opts.centers.unwrap_or(1);
+    let folds = if validate.count() == 0 { opts.folds.max(2) } else { 1 };
+    train.prepare(configs, opts.block_s)?;
+    validate.prepare(configs, opts.block_s)?;
+    progress.start("selecting centres", (configs.len() * widths.len() * folds) as u64);
 
     let shape = InputShape {
         dims: set.dims(),
@@ -158,11 +180,11 @@ pub fn fit_with_widths<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     };
     let mut best: Option<(f64, RbfChoice)> = None;
     let mut candidates_all: Vec<(f64, RbfChoice)> = Vec::new();
-    for &window in &windows {
-        let features = feature_config(set, window, opts.slowest_window_factor);
-        let train_blocks = train.block_means(&features, opts.block_s)?;
+    for (ci, features) in configs.iter().enumerate() {
+        let window = features.rate_window_s;
+        let train_blocks = train.block_means(features, opts.block_s)?;
         super::check_excitation(&train_blocks, set, opts)?;
-        let (all, splits) = splits(&train_blocks, validate, &features, opts, folds)?;
+        let (all, splits) = splits(&train_blocks, validate, features, opts, folds)?;
         let norm = Normaliser::fit(&train_blocks);
         let score_rows = score_cluster_rows(&splits, opts.block_s);
         let z: Vec<FeatureRow> = all.x.iter().map(|r| norm.apply(r)).collect();
@@ -198,6 +220,7 @@ pub fn fit_with_widths<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                         continue;
                     }
                     let choice = RbfChoice {
+                        config: ci,
                         rate_window_s: window,
                         width,
                         ridge: RIDGES[ri],
@@ -223,7 +246,7 @@ pub fn fit_with_widths<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         .map(|(_, c)| c)
         .expect("the best candidate passes its own filter");
 
-    let features = feature_config(set, choice.rate_window_s, opts.slowest_window_factor);
+    let features = configs[choice.config];
     let blocks = train.block_means(&features, opts.block_s)?;
     let model = final_model(&blocks, features, &choice, opts)?;
     let used = match model.body() {

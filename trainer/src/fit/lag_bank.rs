@@ -1,0 +1,591 @@
+//! Identifying the thermal lag bank ([`rbf_core::lag_bank`]) from chamber runs.
+//!
+//! The bias is modelled as a grey box with few parameters:
+//!
+//! ```text
+//! b = f(T̂) + g(T)·Σ_k s_k·ΔT_k,   T̂ = T + Σ_k a_k·ΔT_k,   g = 1 + g₁(T − T₀) + g₂(T − T₀)²
+//! ```
+//!
+//! f a cubic in T̂ (the static bias of the mean coil temperature), s_k the
+//! rate weights (Shupe, stress and gradient terms, each linear in the coil's
+//! rates), a_k the coil-lag weights that make T̂ a mixture of lags of the
+//! loop temperature. The a_k and g enter nonlinearly: the whole structure is
+//! fitted jointly by Levenberg–Marquardt with an analytic Jacobian on 10-s
+//! means of the training blocks. What the chamber runs cannot pin down (which
+//! filter time constants, whether the gain curves) is chosen by how well each
+//! candidate predicts held-out thermal events ([`super::events`]) or the
+//! `--validate` runs. The chosen structure becomes the model's feature
+//! configuration; the RBF stage then fits the network on its exact inputs.
+
+use nalgebra::{DMatrix, DVector};
+use rbf_core::FeatureConfig;
+use rbf_core::lag_bank::{BANK_FILTERS, LagBank};
+
+use super::events::{FoldKind, Folds, thermal_folds};
+use super::rbf::parallel_map;
+use super::{FitOptions, Progress};
+use crate::dataset::{Blocks, RunSet};
+
+/// The two filter ladders whose blocks one pass over the data builds, s:
+/// time constants 4× apart from 15 s and from 30 s. Every candidate is a
+/// stretch of one of them.
+pub const LADDERS_S: [&[f32]; 2] = [
+    &[15.0, 60.0, 240.0, 960.0, 3840.0, 15360.0],
+    &[30.0, 120.0, 480.0, 1920.0, 7680.0],
+];
+
+/// Candidate banks: (ladder, first filter, filters). 4× spacing spans the
+/// coil's radial modes and the housing from seconds to hours without
+/// filters so alike that their weights are not identified; which stretch
+/// fits a gyro differs from unit to unit, so validation chooses.
+pub const CANDIDATES: [(usize, usize, usize); 4] = [(1, 0, 5), (0, 0, 6), (0, 1, 5), (1, 0, 4)];
+
+/// Degrees of the Shupe gain g(T) tried: linear and quadratic in T.
+const GAIN_DEGREES: [usize; 2] = [1, 2];
+/// Length of the means the search fits on, s.
+const SEARCH_MEAN_S: f64 = 10.0;
+/// Length of the residual means validation scores, s (the cluster-STD window).
+const SCORE_MEAN_S: f64 = crate::metrics::CLUSTER_S;
+/// Temperature scale of the polynomial terms inside the fit, °C (conditioning only).
+const TEMP_SCALE_C: f64 = 30.0;
+/// Starting coil lags tried for the full fit (total over the filters), minutes.
+const START_LAGS_MIN: [f64; 3] = [-0.1, -5.0, -20.0];
+/// Levenberg–Marquardt iterations at most.
+const MAX_ITERATIONS: usize = 200;
+
+/// The training data the search sees: 10-s means of the loop temperature,
+/// every ladder filter's rate and the bias target.
+#[derive(Clone, Debug, Default)]
+struct LadderData {
+    temp_c: Vec<f64>,
+    rates: Vec<[f64; BANK_FILTERS]>,
+    y: Vec<f64>,
+    run: Vec<usize>,
+}
+
+impl LadderData {
+    /// 10-s means of the blocks of a plain ladder bank (inputs [T, ΔT_1 …]),
+    /// never across a run boundary or a gap in the blocks.
+    fn from_blocks(blocks: &Blocks, filters: usize, block_s: f64) -> LadderData {
+        let per_mean = (SEARCH_MEAN_S / block_s).round().max(1.0) as usize;
+        let mut out = LadderData::default();
+        let mut start = 0;
+        while start < blocks.len() {
+            let mut end = start + 1;
+            while end < blocks.len() && end - start < per_mean && blocks.run[end] == blocks.run[start] {
+                end += 1;
+            }
+            let n = (end - start) as f64;
+            let mean = |i: usize| blocks.x[start..end].iter().map(|r| r[i]).sum::<f64>() / n;
+            let mut rates = [0.0; BANK_FILTERS];
+            for (k, r) in rates.iter_mut().enumerate().take(filters) {
+                *r = mean(1 + k);
+            }
+            out.temp_c.push(mean(0));
+            out.rates.push(rates);
+            out.y.push(blocks.y[start..end].iter().sum::<f64>() / n);
+            out.run.push(blocks.run[start]);
+            start = end;
+        }
+        out
+    }
+
+    fn len(&self) -> usize {
+        self.y.len()
+    }
+}
+
+/// One candidate structure: which filters of which ladder, and the gain's degree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Structure {
+    ladder: usize,
+    first: usize,
+    filters: usize,
+    gain_degree: usize,
+}
+
+impl Structure {
+    fn taus_s(&self) -> &'static [f32] {
+        &LADDERS_S[self.ladder][self.first..self.first + self.filters]
+    }
+
+    /// Parameters: c0..c3, s_k, a_k, g₁ (.. g₂).
+    fn params(&self) -> usize {
+        4 + 2 * self.filters + self.gain_degree
+    }
+
+    fn label(&self) -> String {
+        let taus: Vec<String> = self.taus_s().iter().map(|t| format!("{t:.0}")).collect();
+        format!("τ {} s, gain degree {}", taus.join("/"), self.gain_degree)
+    }
+}
+
+/// Fitted parameters of one structure (temperatures scaled by
+/// [`TEMP_SCALE_C`]) and the range of T̂ its training rows covered.
+#[derive(Clone, Debug)]
+struct Fitted {
+    p: Vec<f64>,
+    range: CoilRange,
+}
+
+impl Fitted {
+    fn new(s: &Structure, p: Vec<f64>, data: &LadderData, rows: &[usize]) -> Fitted {
+        let range = coil_range(s, &p, data, rows);
+        Fitted { p, range }
+    }
+}
+
+/// The range of T̂ no extrapolation is needed within, °C.
+type CoilRange = (f64, f64);
+/// No limit: the rows a structure is fitted on lie within their own range.
+const UNLIMITED: CoilRange = (f64::NEG_INFINITY, f64::INFINITY);
+
+/// The estimated mean coil temperature T̂ at one row, °C.
+fn coil_temp(s: &Structure, p: &[f64], temp_c: f64, rates: &[f64; BANK_FILTERS]) -> f64 {
+    let n = s.filters;
+    let d = &rates[s.first..s.first + n];
+    temp_c + p[4 + n..4 + 2 * n].iter().zip(d).map(|(a, d)| a * d).sum::<f64>()
+}
+
+/// The range of T̂ over `rows`, °C.
+fn coil_range(s: &Structure, p: &[f64], data: &LadderData, rows: &[usize]) -> CoilRange {
+    rows.iter()
+        .map(|&i| coil_temp(s, p, data.temp_c[i], &data.rates[i]))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| (lo.min(t), hi.max(t)))
+}
+
+/// The model's value and its Jacobian row at one data row; past `range`
+/// the static cubic continues along its tangent, as the deployed bank does
+/// ([`rbf_core::lag_bank`]).
+fn predict_row(
+    s: &Structure,
+    p: &[f64],
+    t0: f64,
+    range: CoilRange,
+    temp_c: f64,
+    rates: &[f64; BANK_FILTERS],
+    jac: Option<&mut [f64]>,
+) -> f64 {
+    let n = s.filters;
+    let d = &rates[s.first..s.first + n];
+    let (c, rest) = p.split_at(4);
+    let (w, rest) = rest.split_at(n);
+    let g = &rest[n..];
+    let t_hat = coil_temp(s, p, temp_c, rates);
+    let u = (t_hat - t0) / TEMP_SCALE_C;
+    let uc = (t_hat.max(range.0).min(range.1) - t0) / TEMP_SCALE_C;
+    let beyond = u - uc;
+    let (p2, p3) = (uc * (uc + 2.0 * beyond), uc * uc * (uc + 3.0 * beyond));
+    let v = (temp_c - t0) / TEMP_SCALE_C;
+    let gain = 1.0
+        + g.iter()
+            .enumerate()
+            .map(|(j, gj)| gj * v.powi(j as i32 + 1))
+            .sum::<f64>();
+    let rate_sum: f64 = w.iter().zip(d).map(|(w, d)| w * d).sum();
+    let value = c[0] + c[1] * u + c[2] * p2 + c[3] * p3 + gain * rate_sum;
+    if let Some(jac) = jac {
+        let slope = (c[1] + uc * (2.0 * c[2] + 3.0 * uc * c[3])) / TEMP_SCALE_C;
+        jac[0] = 1.0;
+        jac[1] = u;
+        jac[2] = p2;
+        jac[3] = p3;
+        for k in 0..n {
+            jac[4 + k] = gain * d[k];
+            jac[4 + n + k] = slope * d[k];
+        }
+        for j in 0..g.len() {
+            jac[4 + 2 * n + j] = v.powi(j as i32 + 1) * rate_sum;
+        }
+    }
+    value
+}
+
+/// Sum of squared residuals over `rows`.
+fn cost(s: &Structure, p: &[f64], t0: f64, data: &LadderData, rows: &[usize]) -> f64 {
+    rows.iter()
+        .map(|&i| (predict_row(s, p, t0, UNLIMITED, data.temp_c[i], &data.rates[i], None) - data.y[i]).powi(2))
+        .sum()
+}
+
+/// Least squares of the linear parameters (c, s) with a and g held: the start of the joint fit.
+fn linear_start(s: &Structure, lags_min: f64, t0: f64, data: &LadderData, rows: &[usize]) -> Option<Vec<f64>> {
+    let n = s.filters;
+    let mut p = vec![0.0; s.params()];
+    p[4 + n..4 + 2 * n].iter_mut().for_each(|a| *a = lags_min / n as f64);
+    let linear = 4 + n;
+    let mut jac = vec![0.0; s.params()];
+    let mut gram = DMatrix::<f64>::zeros(linear, linear);
+    let mut aty = DVector::<f64>::zeros(linear);
+    for &i in rows {
+        predict_row(s, &p, t0, UNLIMITED, data.temp_c[i], &data.rates[i], Some(&mut jac));
+        // The model is linear in (c, s): its Jacobian columns are the design.
+        let row = DVector::from_column_slice(&jac[..linear]);
+        gram += &row * row.transpose();
+        aty += &row * data.y[i];
+    }
+    let trace = gram.trace() / linear as f64;
+    for j in 0..linear {
+        gram[(j, j)] += 1e-10 * trace;
+    }
+    let w = gram.cholesky()?.solve(&aty);
+    p[..linear].copy_from_slice(w.as_slice());
+    Some(p)
+}
+
+/// Levenberg–Marquardt from `p` on `rows`; returns the parameters and their cost.
+fn levenberg_marquardt(s: &Structure, mut p: Vec<f64>, t0: f64, data: &LadderData, rows: &[usize]) -> (Vec<f64>, f64) {
+    let m = s.params();
+    let mut current = cost(s, &p, t0, data, rows);
+    let mut lambda = 1e-3;
+    let mut jac = vec![0.0; m];
+    for _ in 0..MAX_ITERATIONS {
+        let mut jtj = DMatrix::<f64>::zeros(m, m);
+        let mut jtr = DVector::<f64>::zeros(m);
+        for &i in rows {
+            let r = predict_row(s, &p, t0, UNLIMITED, data.temp_c[i], &data.rates[i], Some(&mut jac)) - data.y[i];
+            let row = DVector::from_column_slice(&jac);
+            jtj.syger(1.0, &row, &row, 1.0);
+            jtr += &row * r;
+        }
+        jtj.fill_upper_triangle_with_lower_triangle();
+        let diag: Vec<f64> = (0..m).map(|j| jtj[(j, j)].max(1e-12)).collect();
+        let mut improved = false;
+        while lambda < 1e12 {
+            let mut a = jtj.clone();
+            for j in 0..m {
+                a[(j, j)] += lambda * diag[j];
+            }
+            let Some(chol) = a.cholesky() else {
+                lambda *= 4.0;
+                continue;
+            };
+            let step = chol.solve(&(-&jtr));
+            let trial: Vec<f64> = p.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
+            let trial_cost = cost(s, &trial, t0, data, rows);
+            if trial_cost.is_finite() && trial_cost < current {
+                let gain = (current - trial_cost) / current.max(f64::MIN_POSITIVE);
+                p = trial;
+                current = trial_cost;
+                lambda = (lambda / 3.0).max(1e-12);
+                improved = gain > 1e-10;
+                break;
+            }
+            lambda *= 4.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    (p, current)
+}
+
+/// The best of several starts on `rows`.
+fn fit_structure(s: &Structure, t0: f64, data: &LadderData, rows: &[usize], starts: &[f64]) -> Option<Fitted> {
+    starts
+        .iter()
+        .filter_map(|&lags| linear_start(s, lags, t0, data, rows))
+        .map(|p| levenberg_marquardt(s, p, t0, data, rows))
+        .filter(|(_, c)| c.is_finite())
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(p, _)| Fitted::new(s, p, data, rows))
+}
+
+/// RMS of the residual's [`SCORE_MEAN_S`] means over `groups` (each a
+/// contiguous stretch), the mean residual of each run removed: what the
+/// cluster STD of an unseen history would see.
+fn score(s: &Structure, fits: &[(Fitted, Vec<usize>)], t0: f64, data: &LadderData) -> f64 {
+    let per_mean = (SCORE_MEAN_S / SEARCH_MEAN_S).round().max(1.0) as usize;
+    let mut means: Vec<(usize, f64)> = Vec::new();
+    for (fitted, held) in fits {
+        let mut chunk: Vec<usize> = Vec::new();
+        let mut flush = |chunk: &mut Vec<usize>| {
+            if chunk.len() * 2 >= per_mean {
+                let r = chunk
+                    .iter()
+                    .map(|&i| {
+                        data.y[i] - predict_row(s, &fitted.p, t0, fitted.range, data.temp_c[i], &data.rates[i], None)
+                    })
+                    .sum::<f64>()
+                    / chunk.len() as f64;
+                means.push((data.run[chunk[0]], r));
+            }
+            chunk.clear();
+        };
+        for &i in held {
+            let contiguous = chunk.last().is_none_or(|&l| l + 1 == i && data.run[l] == data.run[i]);
+            if !contiguous || chunk.len() == per_mean {
+                flush(&mut chunk);
+            }
+            chunk.push(i);
+        }
+        flush(&mut chunk);
+    }
+    let runs = means.iter().map(|m| m.0).max().map_or(0, |m| m + 1);
+    let mut sse = 0.0;
+    for r in 0..runs {
+        let vals: Vec<f64> = means.iter().filter(|m| m.0 == r).map(|m| m.1).collect();
+        if vals.is_empty() {
+            continue;
+        }
+        let mean = vals.iter().sum::<f64>() / vals.len() as f64;
+        sse += vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
+    }
+    if means.len() < 3 {
+        f64::INFINITY
+    } else {
+        (sse / means.len() as f64).sqrt()
+    }
+}
+
+/// One candidate's result in the search.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct CandidateScore {
+    /// The candidate: time constants and gain degree.
+    pub label: String,
+    /// Validation RMS of 100-s means of the residual, °/h.
+    pub validation_rms_dph: f64,
+}
+
+/// What the lag-bank search chose and why.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct BankSearch {
+    /// Every candidate's validation score, in the order tried.
+    pub candidates: Vec<CandidateScore>,
+    /// Index of the chosen candidate.
+    pub chosen: usize,
+    /// How validation held data out.
+    pub folds: FoldKind,
+    /// Number of folds (or validation runs).
+    pub fold_count: usize,
+    /// Thermal events found in the training runs.
+    pub events: usize,
+}
+
+impl BankSearch {
+    /// The chosen candidate's validation RMS, °/h: what the search predicts
+    /// for 100-s means on histories like the held-out ones.
+    pub fn predicted_rms_dph(&self) -> f64 {
+        self.candidates
+            .get(self.chosen)
+            .map_or(f64::NAN, |c| c.validation_rms_dph)
+    }
+}
+
+/// Plain banks over each ladder: the configurations whose blocks the search reads.
+pub fn ladder_configs() -> Vec<FeatureConfig> {
+    LADDERS_S
+        .iter()
+        .filter_map(|taus| LagBank::plain(taus, 0.0).map(FeatureConfig::lag_bank))
+        .collect()
+}
+
+/// Chooses and identifies the lag bank for `train` (validated on `validate`
+/// when given, else on held-out thermal events).
+pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
+    train: &T,
+    validate: &V,
+    opts: &FitOptions,
+    progress: &Progress,
+) -> anyhow::Result<(LagBank, BankSearch)> {
+    let configs = ladder_configs();
+    train.prepare(&configs, opts.block_s)?;
+    validate.prepare(&configs, opts.block_s)?;
+    let mut ladders = Vec::new();
+    for (config, taus) in configs.iter().zip(LADDERS_S) {
+        let blocks = train.block_means(config, opts.block_s)?;
+        super::check_excitation(&blocks, config.set, opts)?;
+        let data = LadderData::from_blocks(&blocks, taus.len(), opts.block_s);
+        let val = if validate.count() > 0 {
+            let b = validate.block_means(config, opts.block_s)?;
+            Some(LadderData::from_blocks(&b, taus.len(), opts.block_s))
+        } else {
+            None
+        };
+        ladders.push((data, val));
+    }
+    let (t_lo, t_hi) = ladders[0]
+        .0
+        .temp_c
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+            (lo.min(t), hi.max(t))
+        });
+    // T₀ on a 0.5 °C grid: the blob stores it in f32, the fit uses the same value.
+    let t0 = (0.5 * (t_lo + t_hi) * 2.0).round() / 2.0;
+    let folds: Vec<Folds> = ladders
+        .iter()
+        .map(|(d, _)| thermal_folds(&d.temp_c, &d.run, SEARCH_MEAN_S, opts.folds))
+        .collect();
+    let structures: Vec<Structure> = CANDIDATES
+        .iter()
+        .flat_map(|&(ladder, first, filters)| {
+            GAIN_DEGREES.iter().map(move |&gain_degree| Structure {
+                ladder,
+                first,
+                filters,
+                gain_degree,
+            })
+        })
+        .collect();
+    progress.start("lag-bank structure", structures.len() as u64);
+    let results = parallel_map(&structures, |s| {
+        let (data, val) = &ladders[s.ladder];
+        let all: Vec<usize> = (0..data.len()).collect();
+        let full = fit_structure(s, t0, data, &all, &START_LAGS_MIN);
+        let score = match (&full, val) {
+            (None, _) => f64::INFINITY,
+            (Some(full), Some(val)) => {
+                let rows: Vec<usize> = (0..val.len()).collect();
+                score(s, &[(full.clone(), rows)], t0, val)
+            }
+            (Some(full), None) => {
+                // Each fold starts from the full fit's solution (one start).
+                let f = &folds[s.ladder];
+                let fits: Vec<(Fitted, Vec<usize>)> = (0..f.held_out.len())
+                    .filter_map(|k| {
+                        let rows = f.train_rows(k, data.len());
+                        let (p, c) = levenberg_marquardt(s, full.p.clone(), t0, data, &rows);
+                        c.is_finite()
+                            .then(|| (Fitted::new(s, p, data, &rows), f.held_out[k].clone()))
+                    })
+                    .collect();
+                score(s, &fits, t0, data)
+            }
+        };
+        progress.inc();
+        (full, score)
+    });
+    progress.finish();
+    let chosen = results
+        .iter()
+        .enumerate()
+        .filter(|(_, (f, sc))| f.is_some() && sc.is_finite())
+        .min_by(|a, b| a.1.1.total_cmp(&b.1.1))
+        .map(|(i, _)| i)
+        .ok_or_else(|| anyhow::anyhow!("no lag-bank structure could be fitted to the training runs (singular data)"))?;
+    let s = structures[chosen];
+    let fitted = results[chosen].0.as_ref().expect("chosen among fitted candidates");
+    let bank = to_bank(&s, fitted, t0).ok_or_else(|| {
+        anyhow::anyhow!("the identified lag bank is out of the firmware's range (coil lags over a day)")
+    })?;
+    let (fold_kind, fold_count) = if validate.count() > 0 {
+        (FoldKind::Runs, validate.count())
+    } else {
+        (folds[s.ladder].kind.clone(), folds[s.ladder].held_out.len())
+    };
+    Ok((
+        bank,
+        BankSearch {
+            candidates: structures
+                .iter()
+                .zip(&results)
+                .map(|(s, (_, sc))| CandidateScore {
+                    label: s.label(),
+                    validation_rms_dph: *sc,
+                })
+                .collect(),
+            chosen,
+            folds: fold_kind,
+            fold_count,
+            events: folds[s.ladder].events,
+        },
+    ))
+}
+
+/// The deployable bank of a fitted structure: time constants, coil lags and
+/// gain in the blob's units, the static part as T̂ and its powers.
+fn to_bank(s: &Structure, fitted: &Fitted, t0: f64) -> Option<LagBank> {
+    let n = s.filters;
+    let mut bank = LagBank::plain(s.taus_s(), t0 as f32)?;
+    for (dst, a) in bank.coil_lag_min.iter_mut().zip(&fitted.p[4 + n..4 + 2 * n]) {
+        *dst = *a as f32;
+    }
+    let g = &fitted.p[4 + 2 * n..];
+    bank.gain_per_c = g.first().map_or(0.0, |g1| (g1 / TEMP_SCALE_C) as f32);
+    bank.gain_per_c2 = g.get(1).map_or(0.0, |g2| (g2 / (TEMP_SCALE_C * TEMP_SCALE_C)) as f32);
+    bank.static_degree = rbf_core::lag_bank::MAX_STATIC_DEGREE;
+    (bank.coil_min_c, bank.coil_max_c) = (fitted.range.0 as f32, fitted.range.1 as f32);
+    bank.is_valid().then_some(bank)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rows of a synthetic gyro whose bias is exactly the bank's structure.
+    fn synthetic(s: &Structure, truth: &[f64], t0: f64) -> LadderData {
+        let mut data = LadderData::default();
+        let mut filters = [0.0f64; BANK_FILTERS];
+        let taus = LADDERS_S[s.ladder];
+        let mut temp = 20.0;
+        for i in 0..20_000 {
+            // A slow triangle wave with holds: ramps of 1 °C/min.
+            let phase = (i / 900) % 8;
+            let step = match phase {
+                0 | 1 => 1.0 / 6.0,
+                4 | 5 => -1.0 / 6.0,
+                _ => 0.0,
+            };
+            temp += step;
+            let mut rates = [0.0; BANK_FILTERS];
+            for (k, tau) in taus.iter().enumerate() {
+                let tau = f64::from(*tau);
+                let r = (temp - filters[k]) / (tau + 10.0);
+                filters[k] += 10.0 * r;
+                rates[k] = r * 60.0;
+            }
+            data.y.push(predict_row(s, truth, t0, UNLIMITED, temp, &rates, None));
+            data.temp_c.push(temp);
+            data.rates.push(rates);
+            data.run.push(0);
+        }
+        data
+    }
+
+    #[test]
+    fn the_joint_fit_recovers_a_structure_from_noise_free_data() {
+        let s = Structure {
+            ladder: 1,
+            first: 0,
+            filters: 4,
+            gain_degree: 1,
+        };
+        // c, s (°/h per °C/min), a (min), g₁.
+        let truth = [
+            0.1, 0.05, 0.02, -0.01, 0.2, 0.1, -0.05, 0.02, -1.0, -4.0, -10.0, -2.0, 0.3,
+        ];
+        let data = synthetic(&s, &truth, 20.0);
+        let rows: Vec<usize> = (0..data.len()).collect();
+        let fitted = fit_structure(&s, 20.0, &data, &rows, &START_LAGS_MIN).unwrap();
+        let rms = (cost(&s, &fitted.p, 20.0, &data, &rows) / data.len() as f64).sqrt();
+        assert!(rms < 1e-6, "residual RMS {rms}");
+    }
+
+    #[test]
+    fn the_deployed_bank_carries_the_fitted_lags_and_gain_in_blob_units() {
+        let s = Structure {
+            ladder: 0,
+            first: 1,
+            filters: 3,
+            gain_degree: 2,
+        };
+        let p = vec![0.0, 1.0, 0.0, 0.0, 0.1, 0.2, 0.3, -2.0, -6.0, -12.0, 0.6, 0.9];
+        let bank = to_bank(
+            &s,
+            &Fitted {
+                p,
+                range: (-10.0, 40.0),
+            },
+            22.5,
+        )
+        .unwrap();
+        assert_eq!(bank.taus(), &[60.0, 240.0, 960.0]);
+        assert_eq!(bank.coil_lags(), &[-2.0, -6.0, -12.0]);
+        assert!((bank.gain_per_c - 0.02).abs() < 1e-9);
+        assert!((bank.gain_per_c2 - 0.001).abs() < 1e-9);
+        assert!((bank.ref_c - 22.5).abs() < 1e-6);
+        assert_eq!(bank.static_degree, 3);
+        assert_eq!((bank.coil_min_c, bank.coil_max_c), (-10.0, 40.0));
+    }
+}
