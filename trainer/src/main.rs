@@ -702,6 +702,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             "method": a.method,
             "choice": outcome.choice,
             "feature_sets": outcome.sets,
+            "lag_bank_search": outcome.bank,
             "features": features_json(outcome.model.features()),
             "svr": outcome.svr,
             "fit_seconds": fit_s,
@@ -1116,6 +1117,7 @@ fn features_json(f: &FeatureConfig) -> serde_json::Value {
         "set": match f.set {
             FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
             FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
+            FeatureSet::LagBank(_) => "LagBank".to_owned(),
             set => format!("{set:?}"),
         },
         "coil_lag_min": match f.set {
@@ -1124,7 +1126,19 @@ fn features_json(f: &FeatureConfig) -> serde_json::Value {
         },
         "inputs": input_names(f.set),
         "rate_window_s": f.rate_window_s,
-        "windows_s": &f.windows_s()[..f.set.windows()],
+        "windows_s": &f.filter_taus_s().0[..f.filter_taus_s().1],
+        "lag_bank": match f.set {
+            FeatureSet::LagBank(b) => Some(serde_json::json!({
+                "taus_s": b.taus(),
+                "coil_lag_min": b.coil_lags(),
+                "ref_c": b.ref_c,
+                "gain_per_c": b.gain_per_c,
+                "gain_per_c2": b.gain_per_c2,
+                "static_degree": b.static_degree,
+                "coil_range_c": [b.coil_min_c, b.coil_max_c],
+            })),
+            _ => None,
+        },
         "warmup_s": f.warmup_s(),
     })
 }
