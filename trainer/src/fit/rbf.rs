@@ -225,8 +225,8 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 }
             }
             for (ri, row) in table.iter().enumerate() {
-                for k in k_min..=k_max {
-                    let score = row[k] / splits.len() as f64;
+                for (k, total) in row.iter().enumerate().take(k_max + 1).skip(k_min) {
+                    let score = total / splits.len() as f64;
                     if !score.is_finite() {
                         continue;
                     }
@@ -344,7 +344,10 @@ fn splits<V: RunSet + ?Sized>(
         let splits = (0..f.held_out.len())
             .map(|k| Split {
                 train: f.train_rows(k, train.len()),
-                groups: vec![f.held_out[k].clone()].into_iter().filter(|g| g.len() > 2).collect(),
+                groups: vec![f.held_out[k].clone()]
+                    .into_iter()
+                    .filter(|g| g.len() > 2)
+                    .collect(),
             })
             .collect();
         return Ok((train.clone(), splits));
@@ -458,8 +461,8 @@ fn accumulate_scores(
         })
         .filter(|g| g.n >= MIN_SCORE_CLUSTERS)
         .collect();
-    for (ri, &ridge) in RIDGES.iter().enumerate() {
-        for k in 0..=k_max {
+    for (&ridge, table_row) in RIDGES.iter().zip(table.iter_mut()) {
+        for (k, slot) in table_row.iter_mut().enumerate().take(k_max + 1) {
             // OLS skips dependent candidates (wide Gaussians over one input are
             // nearly collinear): past the centres it found, the path stays put.
             let k_used = k.min(centers.len());
@@ -474,7 +477,7 @@ fn accumulate_scores(
                     None => f64::INFINITY,
                 }
             };
-            table[ri][k] += score;
+            *slot += score;
         }
     }
 }
