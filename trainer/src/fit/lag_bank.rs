@@ -54,7 +54,8 @@ const TEMP_SCALE_C: f64 = 30.0;
 /// Starting coil lags tried for the full fit (total over the filters), minutes.
 const START_LAGS_MIN: [f64; 3] = [-0.1, -5.0, -20.0];
 /// Residual, °/h per row, that a coil-lag weight of one filter time constant
-/// costs ([`lag_prior`]).
+/// costs ([`lag_prior`]) when the training runs hold too few thermal events
+/// to validate the lags on.
 const LAG_PRIOR_DPH: f64 = 1e-3;
 /// Levenberg–Marquardt iterations at most.
 const MAX_ITERATIONS: usize = 200;
@@ -67,6 +68,8 @@ struct LadderData {
     rates: Vec<[f64; BANK_FILTERS]>,
     y: Vec<f64>,
     run: Vec<usize>,
+    /// Weight of the lag prior, °/h per row ([`lag_prior`]); 0: none.
+    lag_prior_dph: f64,
 }
 
 impl LadderData {
@@ -216,18 +219,20 @@ fn sse(s: &Structure, p: &[f64], t0: f64, data: &LadderData, rows: &[usize]) -> 
 
 /// What the joint fit minimises: the residuals over `rows` plus the lag prior.
 fn cost(s: &Structure, p: &[f64], t0: f64, data: &LadderData, rows: &[usize]) -> f64 {
-    sse(s, p, t0, data, rows) + lag_prior(s, p, rows.len()).0
+    sse(s, p, t0, data, rows) + lag_prior(s, p, data, rows.len()).0
 }
 
 /// The soft prior on the coil lags, (its cost, per a_k its curvature): each
 /// lag weight in units of its filter's time constant, β_k = a_k / τ_k, is
 /// held near the physically plausible |β| ≲ 1 (T̂ a mixture of lags of T)
-/// by a cost of [`LAG_PRIOR_DPH`]² per row per β². Runs that barely
-/// identify the lags (few thermal events) otherwise fit weights of
-/// opposite sign and days in size that cancel on the training run and
-/// nowhere else.
-fn lag_prior(s: &Structure, p: &[f64], rows: usize) -> (f64, [f64; BANK_FILTERS]) {
-    let weight = rows as f64 * LAG_PRIOR_DPH * LAG_PRIOR_DPH;
+/// by a cost of `data.lag_prior_dph`² per row per β². Used only where the
+/// runs hold too few thermal events to hold any out: such runs barely
+/// identify the lags and otherwise give weights of opposite sign and hours
+/// in size that cancel on the training run and nowhere else. Where events
+/// can be held out, validation judges the lags instead (a prior there
+/// validated worse on independent plants; docs/methods.md).
+fn lag_prior(s: &Structure, p: &[f64], data: &LadderData, rows: usize) -> (f64, [f64; BANK_FILTERS]) {
+    let weight = rows as f64 * data.lag_prior_dph * data.lag_prior_dph;
     let mut curvature = [0.0; BANK_FILTERS];
     let mut cost = 0.0;
     for (k, tau) in s.taus_s().iter().enumerate() {
@@ -279,7 +284,7 @@ fn levenberg_marquardt(s: &Structure, mut p: Vec<f64>, t0: f64, data: &LadderDat
             jtj.syger(1.0, &row, &row, 1.0);
             jtr += &row * r;
         }
-        let (_, curvature) = lag_prior(s, &p, rows.len());
+        let (_, curvature) = lag_prior(s, &p, data, rows.len());
         for (k, c) in curvature.iter().enumerate().take(s.filters) {
             let j = 4 + s.filters + k;
             jtj[(j, j)] += c;
@@ -454,6 +459,11 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         .iter()
         .map(|(d, _)| thermal_folds(&d.temp_c, &d.run, SEARCH_MEAN_S, opts.folds))
         .collect();
+    for ((data, val), f) in ladders.iter_mut().zip(&folds) {
+        if val.is_none() && f.kind == FoldKind::Contiguous {
+            data.lag_prior_dph = LAG_PRIOR_DPH;
+        }
+    }
     let structures: Vec<Structure> = CANDIDATES
         .iter()
         .flat_map(|&(ladder, first, filters)| {
@@ -497,10 +507,16 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     let chosen = results
         .iter()
         .enumerate()
-        .filter(|(_, (f, sc))| f.is_some() && sc.is_finite())
+        // Only banks the blob can carry: a candidate whose identified coil
+        // lags exceed a day per °C/min is passed over, not deployed.
+        .filter(|(i, (f, sc))| sc.is_finite() && f.as_ref().is_some_and(|f| to_bank(&structures[*i], f, t0).is_some()))
         .min_by(|a, b| a.1.1.total_cmp(&b.1.1))
         .map(|(i, _)| i)
-        .ok_or_else(|| anyhow::anyhow!("no lag-bank structure could be fitted to the training runs (singular data)"))?;
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "no lag-bank structure could be identified from the training runs (singular data, or coil lags over a day)"
+            )
+        })?;
     let s = structures[chosen];
     let fitted = results[chosen].0.as_ref().expect("chosen among fitted candidates");
     let bank = to_bank(&s, fitted, t0).ok_or_else(|| {
