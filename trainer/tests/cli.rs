@@ -415,7 +415,16 @@ fn a_slow_fastest_window_is_not_offered_a_slowest_window_past_one_day() {
     let dir = TempDir::new().unwrap();
     let model = dir.path().join("m.bin");
     let run = shared_data("cycle_train_1cpm.csv");
-    let args = ["fit", run.to_str().unwrap(), "--rate-window-s", "300", "-q", "-o"];
+    let args = [
+        "fit",
+        run.to_str().unwrap(),
+        "--features",
+        "multiscale-validated",
+        "--rate-window-s",
+        "300",
+        "-q",
+        "-o",
+    ];
     let o = trainer(&[&args[..], &[model.to_str().unwrap()]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
@@ -479,15 +488,29 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["crc"], "ok");
     assert_eq!(v["kind"], "gaussian-rbf");
-    // The default: T, ΔT over τ, 16τ, 256τ, their products with T, and T²×ΔT₂.
-    assert_eq!(v["inputs"], 8);
-    assert_eq!(v["features"]["set"], "MultiScale");
-    assert_eq!(v["features"]["windows_s"], serde_json::json!([60.0, 960.0, 15360.0]));
+    // The default, the lag bank: T̂, its square and cube, and one Shupe rate
+    // per filter; the filters' time constants rise from seconds to hours and
+    // are the ΔT windows the firmware runs.
+    assert_eq!(v["features"]["set"], "LagBank");
+    let taus: Vec<f64> = v["features"]["lag_bank"]["taus_s"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_f64().unwrap())
+        .collect();
+    assert!((4..=6).contains(&taus.len()), "{taus:?}");
+    assert!(taus.windows(2).all(|w| w[1] > w[0]) && taus[0] >= 15.0 && taus[taus.len() - 1] <= 15360.0);
+    assert_eq!(v["inputs"].as_u64().unwrap() as usize, 3 + taus.len());
+    assert_eq!(v["features"]["windows_s"], v["features"]["lag_bank"]["taus_s"]);
+    assert_eq!(v["features"]["inputs"][0], "T̂ [°C]");
     assert_eq!(
         v["blob_bytes"].as_u64().unwrap(),
         std::fs::metadata(&model).unwrap().len()
     );
-    // The T range is the loop-temperature range of the training run's used samples.
+    // The first range is that of the mean coil temperature T̂ over the
+    // training run's used samples: the range the bank's cubic covers, and a
+    // lagged (or led) copy of the loop temperature: near its range, most of
+    // its span. The bank covers T̂ from 10-s means, the ranges from samples.
     let train = std::fs::read_to_string(dir.path().join("train.csv")).unwrap();
     let temps: Vec<f64> = data_rows(&train)
         .iter()
@@ -497,14 +520,21 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| (a.min(t), b.max(t)));
     let t_range = &v["training_ranges"][0];
+    let (t_min, t_max) = (t_range["min"].as_f64().unwrap(), t_range["max"].as_f64().unwrap());
+    let covered = &v["features"]["lag_bank"]["coil_range_c"];
     assert!(
-        (t_range["min"].as_f64().unwrap() - lo).abs() < 0.01,
-        "{t_range} vs {lo}"
+        (t_min - covered[0].as_f64().unwrap()).abs() < 0.5,
+        "{t_range} vs {covered}"
     );
     assert!(
-        (t_range["max"].as_f64().unwrap() - hi).abs() < 0.01,
-        "{t_range} vs {hi}"
+        (t_max - covered[1].as_f64().unwrap()).abs() < 0.5,
+        "{t_range} vs {covered}"
     );
+    assert!(
+        (t_min - lo).abs() < 5.0 && (t_max - hi).abs() < 5.0,
+        "{t_range} vs loop {lo} … {hi}"
+    );
+    assert!(t_max - t_min > 0.8 * (hi - lo), "{t_range} vs loop {lo} … {hi}");
     let text = stdout(&trainer(&["inspect", model.to_str().unwrap()]));
     assert!(text.contains("CRC-32          ok"), "{text}");
 }
@@ -886,4 +916,107 @@ fn simulate_unit_draws_a_recorded_gyro_that_params_override_and_in_use_runs_star
     let (mut expected, got) = (params(&unit), params(&noisier));
     expected["gyro"]["arw_deg_per_sqrt_h"] = serde_json::json!(0.004);
     assert_eq!(got, expected);
+}
+
+/// Number of data rows of a compensated run whose flags carry `bit`.
+fn rows_flagged(compensated: &str, bit: u32) -> usize {
+    let mut lines = compensated.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "flags").unwrap();
+    lines
+        .filter(|l| l.split(',').nth(col).unwrap().parse::<u32>().unwrap() & bit != 0)
+        .count()
+}
+
+#[test]
+fn samples_whose_rates_leave_the_training_range_are_flagged_clamped() {
+    let dir = TempDir::new().unwrap();
+    // Trained on 1 °C/min ramps.
+    let model = fitted_model(&dir);
+    let fast = dir.path().join("fast.csv");
+    let o = trainer(&[
+        "simulate",
+        "--ramp",
+        "4",
+        "--hold-min",
+        "30",
+        "--seed",
+        "8",
+        "-o",
+        fast.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let compensated = |run: &Path, out: &str| {
+        let out = dir.path().join(out);
+        let o = compensate(&model, run, &out, &[]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read_to_string(out).unwrap()
+    };
+    const INPUT_CLAMPED: u32 = 1;
+    // The training run itself stays inside what it covered ...
+    assert_eq!(
+        rows_flagged(&compensated(&dir.path().join("train.csv"), "t.csv"), INPUT_CLAMPED),
+        0
+    );
+    // ... 4 °C/min ramps drive the filter rates past it: the ramps are flagged
+    // (the holds between them are not).
+    let fast_out = compensated(&fast, "f.csv");
+    let rows = data_rows(&fast_out).len();
+    let clamped = rows_flagged(&fast_out, INPUT_CLAMPED);
+    assert!(
+        clamped > rows / 20 && clamped < rows / 2,
+        "{clamped} of {rows} rows clamped"
+    );
+}
+
+/// `trainer eval --json` on `run` with `model`: the 100-s cluster STD after compensation, °/h.
+fn cluster_std_after_dph(dir: &TempDir, model: &Path, run: &Path) -> f64 {
+    let json = dir.path().join("eval.json");
+    let o = trainer(&[
+        "eval",
+        "--model",
+        model.to_str().unwrap(),
+        run.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--force",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    v[0]["cluster_std_after_dph"].as_f64().unwrap()
+}
+
+#[test]
+fn a_second_training_run_at_another_sample_rate_is_left_out_in_turn_and_improves_the_model() {
+    let dir = TempDir::new().unwrap();
+    // Run 1: 1 °C/min ramps over 17–32 °C at 10 Hz (the fixture's model).
+    let one_run = fitted_model(&dir);
+    let sim = |args: &[&str], name: &str| {
+        let path = dir.path().join(name);
+        let o = trainer(&[&["simulate"], args, &["-o", path.to_str().unwrap()]].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        path
+    };
+    // Run 2: random set points over −40…60 °C, sampled at 2 Hz.
+    let random = sim(
+        &["--profile", "random", "--hours", "6", "--rate-hz", "2", "--seed", "9"],
+        "random.csv",
+    );
+    // The unseen history: other random set points.
+    let unseen = sim(&["--profile", "random", "--hours", "6", "--seed", "11"], "unseen.csv");
+    let two_runs = dir.path().join("two.bin");
+    let o = trainer(&[
+        "fit",
+        dir.path().join("train.csv").to_str().unwrap(),
+        random.to_str().unwrap(),
+        "-o",
+        two_runs.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("leave-one-run-out (2 folds)"), "{}", stdout(&o));
+    let (one, two) = (
+        cluster_std_after_dph(&dir, &one_run, &unseen),
+        cluster_std_after_dph(&dir, &two_runs, &unseen),
+    );
+    assert!(two < 0.7 * one, "two runs {two} °/h vs one run {one} °/h");
 }
