@@ -301,13 +301,15 @@ impl Model {
     /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it. `clamped` says that an
     /// input left its training range.
     pub fn eval(&self, features: &FeatureVector) -> Evaluation {
-        // The input clamping is straight-line per input count (1, 2, 3, or
-        // up to MAX_INPUTS); the rest, and the network's per-centre loops,
-        // are one copy each.
+        // The input clamping is straight-line per input count (1, 2, 3, the
+        // 8 of the multi-scale sets and of the default lag bank, or up to
+        // MAX_INPUTS); the rest, and the network's per-centre loops, are one
+        // copy each.
         match self.features.dims() {
             1 => self.eval_inputs::<1>(features),
             2 => self.eval_inputs::<2>(features),
             3 => self.eval_inputs::<3>(features),
+            8 => self.eval_inputs::<8>(features),
             _ => self.eval_inputs::<MAX_INPUTS>(features),
         }
     }
@@ -400,7 +402,7 @@ fn outside_flag(sum: f32) -> bool {
 /// and selects (f32::max/min are library calls on a Cortex-M4F, whose FPU has
 /// no VMAXNM).
 #[inline(always)]
-fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
+pub(crate) fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
     let above = if v > lo { v } else { lo };
     if above < hi { above } else { hi }
 }

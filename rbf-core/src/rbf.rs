@@ -104,8 +104,6 @@ const FIXED_LIMIT: f64 = (1u32 << 30) as f64;
 /// Exponent range a Gaussian term needs: terms below 2^−32 of the largest
 /// weight may be dropped. The offset T may use the rest of the table's range.
 const GAUSS_EXP2_RANGE: u32 = 32;
-/// Right shift from a Q[`U_FRAC`] exponent to the table's index.
-const TABLE_SHIFT: u32 = U_FRAC - crate::fastmath::EXP2_FRAC_BITS;
 
 /// [A₁, A₂, A₃, B] as two 64-bit words: loaded with two LDRDs.
 fn pack_coefficients(c: [i32; 4]) -> [u64; 2] {
@@ -135,6 +133,7 @@ fn exp2_sums<const M: usize, const ADD_Q: bool>(
     q: &[i32; TABLE_MAX_INPUTS],
     shared: i32,
 ) -> f32 {
+    let table = &crate::fastmath::EXP2_OCTAVE_BITS;
     let sum = |centres: &[[u64; 2]]| {
         let mut sum = 0.0f32;
         for &[p, r] in centres {
@@ -149,7 +148,7 @@ fn exp2_sums<const M: usize, const ADD_Q: bool>(
             if M >= 3 {
                 v = v.wrapping_add(mul_hi(a3, q[2]));
             }
-            sum += crate::fastmath::exp2_neg_fixed(v >> TABLE_SHIFT);
+            sum += crate::fastmath::exp2_neg_q16(table, v);
         }
         sum
     };
@@ -587,37 +586,39 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
 
     /// The Gaussian sum of [`Self::eval_table`], °/h.
     fn table_gaussians(&self, x_kernel: &[f32; MAX_INPUTS_ALL]) -> f32 {
-        // `as` saturates (VCVT does the same): the clamp to the box. Past the
-        // kernel inputs mid = gain = 0 makes q = 0 (NaN converts to 0 too),
-        // and their coefficients are 0 as well.
+        match self.kernel_inputs {
+            1 => self.table_gaussians_over::<1>(x_kernel),
+            2 => self.table_gaussians_over::<2>(x_kernel),
+            _ => self.table_gaussians_over::<3>(x_kernel),
+        }
+    }
+
+    /// [`Self::table_gaussians`] over the first `M` kernel inputs: the
+    /// inputs past them take no instruction.
+    #[inline(always)]
+    fn table_gaussians_over<const M: usize>(&self, x_kernel: &[f32; MAX_INPUTS_ALL]) -> f32 {
+        // `as` saturates (VCVT does the same): the clamp to the box. NaN
+        // converts to 0, the box's centre.
         let q: [i32; TABLE_MAX_INPUTS] =
             core::array::from_fn(
-                |i| match (x_kernel.get(i), self.kernel_mid.get(i), self.kernel_gain.get(i)) {
-                    (Some(x), Some(mid), Some(gain)) => ((x - mid) * gain) as i32,
+                |i| match (i < M, x_kernel.get(i), self.kernel_mid.get(i), self.kernel_gain.get(i)) {
+                    (true, Some(x), Some(mid), Some(gain)) => ((x - mid) * gain) as i32,
                     _ => 0,
                 },
             );
         // Q·2^16 = Σ_i hi(q_i, hi(q_i, H_i)): SMMUL + SMMLA. (hi(hi(q, q), H)
         // would let the compiler see a non-negative factor and widen it.)
         let mut shared = 0i32;
-        for (qi, h) in q.iter().zip(&self.shared_coeff) {
+        for (qi, h) in q.iter().zip(&self.shared_coeff).take(M) {
             shared = shared.wrapping_add(mul_hi(*qi, mul_hi(*qi, *h)));
         }
         let (positive, rest) = self.exponent.split_at(self.positive.min(K));
         let negative = rest.get(..self.negative).unwrap_or(&[]);
-        let shared_in_sum = if self.q_in_sum { shared } else { 0 };
-        let sums = match (self.kernel_inputs, self.q_in_sum) {
-            (1, false) => exp2_sums::<1, false>(positive, negative, &q, 0),
-            (2, false) => exp2_sums::<2, false>(positive, negative, &q, 0),
-            (_, false) => exp2_sums::<3, false>(positive, negative, &q, 0),
-            (1, true) => exp2_sums::<1, true>(positive, negative, &q, shared_in_sum),
-            (2, true) => exp2_sums::<2, true>(positive, negative, &q, shared_in_sum),
-            (_, true) => exp2_sums::<3, true>(positive, negative, &q, shared_in_sum),
-        };
         if self.q_in_sum {
-            sums * self.weight_scale
+            exp2_sums::<M, true>(positive, negative, &q, shared) * self.weight_scale
         } else {
-            let factor = crate::fastmath::exp2_neg_fixed(shared >> TABLE_SHIFT) * self.weight_scale;
+            let sums = exp2_sums::<M, false>(positive, negative, &q, 0);
+            let factor = crate::fastmath::exp2_neg_q16(&crate::fastmath::EXP2_OCTAVE_BITS, shared) * self.weight_scale;
             sums * factor
         }
     }
