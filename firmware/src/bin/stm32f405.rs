@@ -34,15 +34,15 @@ mod board {
     use cortex_m::interrupt::Mutex;
     use cortex_m_rt::{ExceptionFrame, entry, exception};
     use embedded_hal_bus::spi::ExclusiveDevice;
-    use firmware::compensation::{CompensationLoop, LoopConfig, write_frame};
+    use firmware::compensation::{CompensationLoop, InPlaceModel, LoopConfig, write_frame};
     use firmware::fault::{self, FaultReason, FaultRecord};
     use firmware::frontend::FrontEnd;
-    use firmware::model_store::{ModelStore, SlotLayout};
+    use firmware::model_store::{MappedFlash, ModelStore, SlotLayout};
     use firmware::tmp117::{self, Tmp117};
     use firmware::uart::FrameQueue;
     use firmware::update::{self, CommandReceiver, Received};
     use heapless::spsc::{Consumer, Producer, Queue};
-    use rbf_core::{CompensatorConfig, Flags};
+    use rbf_core::{CompensatorConfig, Flags, Model};
     use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
     use stm32f4xx_hal::gpio::{Edge, ExtiPin, Input, PB0};
     use stm32f4xx_hal::i2c::{self, I2c};
@@ -85,6 +85,47 @@ mod board {
     struct DataReadyIsr {
         pin: PB0<Input>,
         stamps: Producer<'static, u32>,
+    }
+
+    /// The running model, decoded in place (all bits zero: .bss, no flash).
+    static mut MODEL: Model = Model::EMPTY;
+    /// Command bytes collect here between samples (4 KiB: off the stack).
+    static mut COMMANDS: CommandReceiver = CommandReceiver::new();
+
+    /// The model slots in the chip's flash: erased and programmed through
+    /// the HAL, read in place (the flash is memory-mapped).
+    struct BoardFlash(LockedFlash);
+
+    impl embedded_storage::nor_flash::ErrorType for BoardFlash {
+        type Error = stm32f4xx_hal::flash::Error;
+    }
+
+    impl embedded_storage::nor_flash::ReadNorFlash for BoardFlash {
+        const READ_SIZE: usize = 1;
+        fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+            embedded_storage::nor_flash::ReadNorFlash::read(&mut self.0, offset, bytes)
+        }
+        fn capacity(&self) -> usize {
+            embedded_storage::nor_flash::ReadNorFlash::capacity(&self.0)
+        }
+    }
+
+    impl embedded_storage::nor_flash::NorFlash for BoardFlash {
+        const WRITE_SIZE: usize = 1;
+        const ERASE_SIZE: usize = 128 * 1024;
+        fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+            embedded_storage::nor_flash::NorFlash::erase(&mut self.0.unlocked(), from, to)
+        }
+        fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+            embedded_storage::nor_flash::NorFlash::write(&mut self.0.unlocked(), offset, bytes)
+        }
+    }
+
+    impl MappedFlash for BoardFlash {
+        fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
+            let start = offset as usize;
+            FlashExt::read(&self.0).get(start..start.checked_add(len)?)
+        }
     }
 
     static UART: Mutex<RefCell<Option<UartIsr>>> = Mutex::new(RefCell::new(None));
@@ -238,7 +279,7 @@ mod board {
         };
         let (tx, mut rx) = serial.split();
         rx.listen();
-        let mut flash = LockedFlash::new(dp.FLASH);
+        let flash = BoardFlash(LockedFlash::new(dp.FLASH));
 
         let Some(out_queue) = cortex_m::singleton!(: Queue<u8, TX_QUEUE> = Queue::new()) else {
             halt()
@@ -279,8 +320,14 @@ mod board {
             }
         }
 
+        // SAFETY: `main` runs once and these are the only references to the
+        // two statics (no interrupt handler touches them).
+        let (model, commands) = (&raw mut MODEL, &raw mut COMMANDS);
+        let (model, commands) = unsafe { (&mut *model, &mut *commands) };
         // An invalid or absent model is not fatal: every frame then carries flag 4.
-        let model = ModelStore::open(flash.unlocked(), MODEL_SLOTS).load().ok();
+        let mut store = ModelStore::open_with(flash, MODEL_SLOTS, model);
+        let loaded = store.load_into(model).is_ok();
+        let model = InPlaceModel::new(model, loaded);
         // Sensor init failures are not fatal either: the loop's reads fail and flag them.
         let mut thermometer = Tmp117::new(i2c, tmp117::DEFAULT_ADDRESS);
         let _ = thermometer.init();
@@ -300,7 +347,6 @@ mod board {
             period_ticks: (timer_hz as f32 / GYRO_RATE_HZ) as u32,
             last: None,
         };
-        let mut commands = CommandReceiver::new();
         // SAFETY: the handlers' state is in place; enabling their interrupts is all that is left.
         unsafe {
             core.NVIC.set_priority(pac::Interrupt::EXTI0, 0x40);
@@ -317,21 +363,23 @@ mod board {
             }
             // Model-update commands between samples.
             while let Some(byte) = in_consumer.dequeue() {
-                let (command, status, model) = match commands.push(byte) {
+                let (command, status) = match commands.push(byte) {
                     None => continue,
-                    Some(Received::Rejected(status)) => (0, status, None),
+                    Some(Received::Rejected(status)) => (0, status),
                     Some(Received::Command(payload)) => {
                         // The erase stalls the CPU for up to 2 s: feed the watchdog first.
                         watchdog.feed();
-                        let mut store = ModelStore::open(flash.unlocked(), MODEL_SLOTS);
-                        let (status, model) = update::execute(&mut store, payload);
+                        let mut status = update::UpdateStatus::UnknownCommand;
+                        compensation.update_model(|model| {
+                            model.rebuild(|m| {
+                                status = update::execute_into(&mut store, payload, m);
+                                store.model_loaded()
+                            })
+                        });
                         watchdog.feed();
-                        (payload.first().copied().unwrap_or(0), status, model)
+                        (payload.first().copied().unwrap_or(0), status)
                     }
                 };
-                if model.is_some() {
-                    compensation.replace_model(model);
-                }
                 let mut reply = [0u8; 8];
                 if let Some(n) = update::encode_reply(command, status, &mut reply) {
                     write_frame(compensation.output_mut(), reply.get(..n).unwrap_or(&[]));
