@@ -3,7 +3,7 @@
 
 use crate::features::{FeatureConfig, FeatureSet, FeatureVector};
 use crate::poly::Poly3;
-use crate::rbf::{RbfNetwork, RbfParams};
+use crate::rbf::{RbfNetwork, RbfParams, RbfShape, RbfStorage};
 use crate::{MAX_CENTERS, MAX_INPUTS};
 
 /// Linear terms may follow an input up to this many training spans beyond
@@ -112,6 +112,18 @@ pub enum BodyParams<'a> {
     Poly3(Poly3),
 }
 
+/// The network of `body`, made an RBF body first if it is not one (in
+/// place: a network is never moved by value).
+fn rbf_body(body: &mut ModelBody) -> Result<&mut DeployedRbf, ModelError> {
+    if !matches!(body, ModelBody::Rbf(_)) {
+        *body = ModelBody::Rbf(DeployedRbf::EMPTY);
+    }
+    match body {
+        ModelBody::Rbf(net) => Ok(net),
+        ModelBody::Poly3(_) => Err(ModelError::ShapeMismatch),
+    }
+}
+
 /// Result of evaluating a model on one feature vector.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Evaluation {
@@ -176,22 +188,38 @@ impl Model {
         body: BodyParams<'_>,
         info: ModelInfo,
     ) -> Result<(), ModelError> {
-        let built = match body {
-            BodyParams::Rbf(params) => {
-                if !matches!(self.body, ModelBody::Rbf(_)) {
-                    self.body = ModelBody::Rbf(DeployedRbf::EMPTY);
-                }
-                match &mut self.body {
-                    ModelBody::Rbf(net) => net.init(params),
-                    ModelBody::Poly3(_) => Err(ModelError::ShapeMismatch),
-                }
-            }
+        self.assign_with(features, input_range, info, |model_body| match body {
+            BodyParams::Rbf(params) => rbf_body(model_body)?.init(params),
             BodyParams::Poly3(poly) => {
-                self.body = ModelBody::Poly3(poly);
+                *model_body = ModelBody::Poly3(poly);
                 Ok(())
             }
-        };
-        let result = built.and_then(|()| self.complete(features, input_range, info));
+        })
+    }
+
+    /// [`Self::assign`] for a Gaussian RBF network whose parameters a
+    /// decoder writes straight into the network's arrays
+    /// ([`RbfNetwork::init_in_place`]: the blob decoder stages nothing).
+    pub fn assign_rbf_in_place<E: From<ModelError>>(
+        &mut self,
+        features: FeatureConfig,
+        input_range: &[(f32, f32)],
+        info: ModelInfo,
+        fill: impl FnOnce(RbfStorage<'_>) -> Result<RbfShape, E>,
+    ) -> Result<(), E> {
+        self.assign_with(features, input_range, info, |body| rbf_body(body)?.init_in_place(fill))
+    }
+
+    /// Builds the body with `build`, then completes the model; on error
+    /// `self` is [`Self::EMPTY`].
+    fn assign_with<E: From<ModelError>>(
+        &mut self,
+        features: FeatureConfig,
+        input_range: &[(f32, f32)],
+        info: ModelInfo,
+        build: impl FnOnce(&mut ModelBody) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let result = build(&mut self.body).and_then(|()| self.complete(features, input_range, info).map_err(E::from));
         if result.is_err() {
             *self = Model::EMPTY;
         }

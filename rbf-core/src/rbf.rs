@@ -34,6 +34,48 @@ pub struct RbfParams<'a> {
     pub constant: f32,
 }
 
+/// A network's parameter arrays, for a decoder that fills them where the
+/// network keeps them ([`RbfNetwork::init_in_place`]): no parameter is
+/// staged anywhere else. Centres are rows of [`crate::MAX_KERNEL_INPUTS`]
+/// values, of which the first `kernel_inputs` are used.
+#[derive(Debug)]
+pub struct RbfStorage<'a> {
+    /// Per-input offsets, input units.
+    pub offset: &'a mut [f32],
+    /// Per-input scales, input units.
+    pub scale: &'a mut [f32],
+    /// Centres, normalised units, one row per centre.
+    pub centers: &'a mut [[f32; KERNEL]],
+    /// Gaussian widths, normalised units.
+    pub widths: &'a mut [f32],
+    /// Output weights, °/h.
+    pub weights: &'a mut [f32],
+    /// Linear coefficients, °/h.
+    pub linear: &'a mut [f32],
+}
+
+/// How much of an [`RbfStorage`] a decoder filled, and the scalars: the
+/// shape [`RbfParams`] gives by its slices' lengths.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RbfShape {
+    /// Offsets given (the input count).
+    pub offsets: usize,
+    /// Scales given.
+    pub scales: usize,
+    /// Leading inputs the Gaussians see.
+    pub kernel_inputs: usize,
+    /// Centre coordinates given (centres × kernel inputs).
+    pub center_values: usize,
+    /// Widths given (the centre count).
+    pub widths: usize,
+    /// Weights given.
+    pub weights: usize,
+    /// Linear coefficients given (0 or the input count).
+    pub linear: usize,
+    /// Constant term c, °/h.
+    pub constant: f32,
+}
+
 /// A Gaussian RBF network holding at most `K` centres over at most `D` inputs.
 ///
 /// `repr(C)` with what [`Self::eval`] reads first: the hot fields sit within
@@ -176,6 +218,21 @@ fn mul_hi(a: i32, b: i32) -> i32 {
     ((i64::from(a) * i64::from(b)) >> 32) as i32
 }
 
+/// The shape rules of a network of capacity `K` × `D`: counts within
+/// capacity ([`ModelError::ShapeOverCapacity`]) and agreeing with each
+/// other ([`ModelError::ShapeMismatch`]).
+fn check_shape<const K: usize, const D: usize>(shape: &RbfShape) -> Result<(), ModelError> {
+    let (d, k, m) = (shape.offsets, shape.widths, shape.kernel_inputs);
+    if d == 0 || d > D || k > K || m > KERNEL {
+        return Err(ModelError::ShapeOverCapacity);
+    }
+    let linear_ok = shape.linear == 0 || shape.linear == d;
+    if !(1..=d).contains(&m) || shape.scales != d || shape.center_values != k * m || shape.weights != k || !linear_ok {
+        return Err(ModelError::ShapeMismatch);
+    }
+    Ok(())
+}
+
 fn all_finite(values: &[f32]) -> bool {
     values.iter().all(|v| v.is_finite())
 }
@@ -230,57 +287,96 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         result
     }
 
+    /// [`Self::init`] for a decoder that writes the parameters straight into
+    /// the network's arrays: `fill` gets them (all zero) and returns how
+    /// much it filled, or its own error. The same checks as [`Self::init`]
+    /// follow. On any error `self` is [`Self::EMPTY`].
+    pub fn init_in_place<E: From<ModelError>>(
+        &mut self,
+        fill: impl FnOnce(RbfStorage<'_>) -> Result<RbfShape, E>,
+    ) -> Result<(), E> {
+        *self = Self::EMPTY;
+        let result = fill(RbfStorage {
+            offset: &mut self.offset,
+            scale: &mut self.scale,
+            centers: &mut self.centers,
+            widths: &mut self.widths,
+            weights: &mut self.weights,
+            linear: &mut self.linear,
+        })
+        .and_then(|shape| self.finish(&shape).map_err(E::from));
+        if result.is_err() {
+            *self = Self::EMPTY;
+        }
+        result
+    }
+
     fn assign(&mut self, p: &RbfParams<'_>) -> Result<(), ModelError> {
-        let d = p.offset.len();
-        let k = p.widths.len();
-        if d == 0 || d > D || k > K {
-            return Err(ModelError::ShapeOverCapacity);
-        }
-        let m = p.kernel_inputs;
-        if m > KERNEL {
-            return Err(ModelError::ShapeOverCapacity);
-        }
-        let linear_ok = p.linear.is_empty() || p.linear.len() == d;
-        if !(1..=d).contains(&m) || p.scale.len() != d || p.centers.len() != k * m || p.weights.len() != k || !linear_ok
+        let shape = RbfShape {
+            offsets: p.offset.len(),
+            scales: p.scale.len(),
+            kernel_inputs: p.kernel_inputs,
+            center_values: p.centers.len(),
+            widths: p.widths.len(),
+            weights: p.weights.len(),
+            linear: p.linear.len(),
+            constant: p.constant,
+        };
+        check_shape::<K, D>(&shape)?;
+        // Zipped iterators rather than indexing: the firmware validates blobs
+        // on a path proven panic-free at link time (panic_free_check.rs).
+        let copy = |dst: &mut [f32], src: &[f32]| dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+        copy(&mut self.offset, p.offset);
+        copy(&mut self.scale, p.scale);
+        copy(&mut self.linear, p.linear);
+        copy(&mut self.widths, p.widths);
+        copy(&mut self.weights, p.weights);
+        for (row, src) in self
+            .centers
+            .iter_mut()
+            .zip(p.centers.chunks_exact(p.kernel_inputs.max(1)))
         {
-            return Err(ModelError::ShapeMismatch);
+            copy(row, src);
         }
-        let finite = all_finite(p.offset)
-            && all_finite(p.scale)
-            && all_finite(p.centers)
-            && all_finite(p.widths)
-            && all_finite(p.weights)
-            && all_finite(p.linear)
-            && p.constant.is_finite();
+        self.finish(&shape)
+    }
+
+    /// Checks the parameters in the arrays against `shape` and derives the
+    /// evaluation's values from them.
+    fn finish(&mut self, shape: &RbfShape) -> Result<(), ModelError> {
+        check_shape::<K, D>(shape)?;
+        let (d, k, m) = (shape.offsets, shape.widths, shape.kernel_inputs);
+        let used = |a: &[f32], n: usize| -> bool { a.get(..n).is_some_and(all_finite) };
+        let centres_finite = self
+            .centers
+            .get(..k)
+            .is_some_and(|rows| rows.iter().all(|row| used(row, m)));
+        let finite = used(&self.offset, d)
+            && used(&self.scale, d)
+            && centres_finite
+            && used(&self.widths, k)
+            && used(&self.weights, k)
+            && used(&self.linear, shape.linear)
+            && shape.constant.is_finite();
         if !finite {
             return Err(ModelError::NonFiniteParameter);
         }
-        if p.scale.iter().chain(p.widths).any(|&v| v <= 0.0) {
+        let positive = |a: &[f32], n: usize| a.iter().take(n).all(|&v| v > 0.0);
+        if !(positive(&self.scale, d) && positive(&self.widths, k)) {
             return Err(ModelError::InvalidParameter);
         }
         let net = self;
         net.centers_used = k;
         net.inputs_used = d;
         net.kernel_inputs = m;
-        net.has_linear = !p.linear.is_empty();
-        net.constant = p.constant;
-        net.constant_raw = p.constant;
+        net.has_linear = shape.linear > 0;
+        net.constant = shape.constant;
+        net.constant_raw = shape.constant;
         net.weight_scale = 1.0;
-        // Zipped iterators rather than indexing: the firmware validates blobs
-        // on a path proven panic-free at link time (panic_free_check.rs).
-        let copy = |dst: &mut [f32], src: &[f32]| dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
-        copy(&mut net.offset, p.offset);
-        copy(&mut net.scale, p.scale);
-        copy(&mut net.linear, p.linear);
-        copy(&mut net.widths, p.widths);
-        copy(&mut net.weights, p.weights);
-        for (inv, s) in net.inv_scale.iter_mut().zip(p.scale) {
+        for (inv, s) in net.inv_scale.iter_mut().zip(&net.scale).take(d) {
             *inv = 1.0 / s;
         }
-        for (row, src) in net.centers.iter_mut().zip(p.centers.chunks_exact(m.max(1))) {
-            copy(row, src);
-        }
-        for (g, w) in net.neg_half_inv_var.iter_mut().zip(p.widths) {
+        for (g, w) in net.neg_half_inv_var.iter_mut().zip(&net.widths).take(k) {
             *g = -0.5 / (w * w);
             if !g.is_finite() {
                 return Err(ModelError::InvalidParameter);
