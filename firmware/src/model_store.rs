@@ -44,6 +44,12 @@ pub trait MappedFlash: NorFlash {
     fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]>;
 }
 
+impl<T: MappedFlash> MappedFlash for &mut T {
+    fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
+        T::mapped(self, offset, len)
+    }
+}
+
 /// Bytes of the commit record at the end of a slot.
 pub const COMMIT_LEN: usize = 16;
 /// First bytes of a commit record.

@@ -37,18 +37,24 @@ mod board {
     use firmware::compensation::{CompensationLoop, InPlaceModel, LoopConfig, write_frame};
     use firmware::fault::{self, FaultReason, FaultRecord};
     use firmware::frontend::FrontEnd;
-    use firmware::model_store::{MappedFlash, ModelStore, SlotLayout};
+    use firmware::model_store::ModelStore;
+    #[cfg(not(feature = "board-qemu"))]
+    use firmware::model_store::SlotLayout;
     use firmware::tmp117::{self, Tmp117};
     use firmware::uart::FrameQueue;
     use firmware::update::{self, CommandReceiver, Received};
     use heapless::spsc::{Consumer, Producer, Queue};
     use rbf_core::{CompensatorConfig, Flags, Model};
-    use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
+    #[cfg(not(feature = "board-qemu"))]
+    use stm32f4xx_hal::flash::LockedFlash;
     use stm32f4xx_hal::gpio::{Edge, ExtiPin, Input, PB0};
+    #[cfg(not(feature = "board-qemu"))]
     use stm32f4xx_hal::i2c::{self, I2c};
     use stm32f4xx_hal::pac::{self, interrupt};
     use stm32f4xx_hal::prelude::*;
-    use stm32f4xx_hal::rcc::{Config, Enable, Reset};
+    #[cfg(not(feature = "board-qemu"))]
+    use stm32f4xx_hal::rcc::Config;
+    use stm32f4xx_hal::rcc::{Enable, Reset};
     use stm32f4xx_hal::serial::{Rx, RxListen, Tx, TxListen};
     use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
@@ -58,6 +64,7 @@ mod board {
     /// Read the TMP117 every 125th sample: 8 Hz, its conversion rate at 8 averages.
     const TEMP_READ_EVERY: u32 = 125;
     /// MODEL_A and MODEL_B (memory.x) as offsets from the start of flash: sectors 10 and 11.
+    #[cfg(not(feature = "board-qemu"))]
     const MODEL_SLOTS: SlotLayout = SlotLayout {
         offsets: [0x000C_0000, 0x000E_0000],
         len: firmware::MODEL_SLOT_LEN as u32,
@@ -92,41 +99,50 @@ mod board {
     /// Command bytes collect here between samples (4 KiB: off the stack).
     static mut COMMANDS: CommandReceiver = CommandReceiver::new();
 
-    /// The model slots in the chip's flash: erased and programmed through
-    /// the HAL, read in place (the flash is memory-mapped).
-    struct BoardFlash(LockedFlash);
+    /// The chip's flash as the model store's device (not in the QEMU image).
+    #[cfg(not(feature = "board-qemu"))]
+    mod board_flash {
+        use firmware::model_store::MappedFlash;
+        use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
 
-    impl embedded_storage::nor_flash::ErrorType for BoardFlash {
-        type Error = stm32f4xx_hal::flash::Error;
-    }
+        /// The model slots in the chip's flash: erased and programmed through
+        /// the HAL, read in place (the flash is memory-mapped).
+        pub struct BoardFlash(pub LockedFlash);
 
-    impl embedded_storage::nor_flash::ReadNorFlash for BoardFlash {
-        const READ_SIZE: usize = 1;
-        fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-            embedded_storage::nor_flash::ReadNorFlash::read(&mut self.0, offset, bytes)
+        impl embedded_storage::nor_flash::ErrorType for BoardFlash {
+            type Error = stm32f4xx_hal::flash::Error;
         }
-        fn capacity(&self) -> usize {
-            embedded_storage::nor_flash::ReadNorFlash::capacity(&self.0)
-        }
-    }
 
-    impl embedded_storage::nor_flash::NorFlash for BoardFlash {
-        const WRITE_SIZE: usize = 1;
-        const ERASE_SIZE: usize = 128 * 1024;
-        fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-            embedded_storage::nor_flash::NorFlash::erase(&mut self.0.unlocked(), from, to)
+        impl embedded_storage::nor_flash::ReadNorFlash for BoardFlash {
+            const READ_SIZE: usize = 1;
+            fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+                embedded_storage::nor_flash::ReadNorFlash::read(&mut self.0, offset, bytes)
+            }
+            fn capacity(&self) -> usize {
+                embedded_storage::nor_flash::ReadNorFlash::capacity(&self.0)
+            }
         }
-        fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-            embedded_storage::nor_flash::NorFlash::write(&mut self.0.unlocked(), offset, bytes)
-        }
-    }
 
-    impl MappedFlash for BoardFlash {
-        fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
-            let start = offset as usize;
-            FlashExt::read(&self.0).get(start..start.checked_add(len)?)
+        impl embedded_storage::nor_flash::NorFlash for BoardFlash {
+            const WRITE_SIZE: usize = 1;
+            const ERASE_SIZE: usize = 128 * 1024;
+            fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+                embedded_storage::nor_flash::NorFlash::erase(&mut self.0.unlocked(), from, to)
+            }
+            fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+                embedded_storage::nor_flash::NorFlash::write(&mut self.0.unlocked(), offset, bytes)
+            }
+        }
+
+        impl MappedFlash for BoardFlash {
+            fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
+                let start = offset as usize;
+                FlashExt::read(&self.0).get(start..start.checked_add(len)?)
+            }
         }
     }
+    #[cfg(not(feature = "board-qemu"))]
+    use board_flash::BoardFlash;
 
     static UART: Mutex<RefCell<Option<UartIsr>>> = Mutex::new(RefCell::new(None));
     static DATA_READY: Mutex<RefCell<Option<DataReadyIsr>>> = Mutex::new(RefCell::new(None));
@@ -170,6 +186,11 @@ mod board {
                     if u.tx.write(byte).is_ok() {
                         let _ = u.outgoing.dequeue();
                     }
+                    // QEMU's USART never raises its transmit-empty
+                    // interrupt (its data register is always empty): the
+                    // handler asks for itself again, as TXE would.
+                    #[cfg(feature = "board-qemu")]
+                    cortex_m::peripheral::NVIC::pend(pac::Interrupt::USART1);
                 }
                 None => u.tx.unlisten(),
             }
@@ -204,6 +225,8 @@ mod board {
                 u.tx.listen();
             }
         });
+        #[cfg(feature = "board-qemu")]
+        cortex_m::peripheral::NVIC::pend(pac::Interrupt::USART1);
     }
 
     /// Turns data-ready stamps (timer ticks) into edge numbers and time steps.
@@ -230,6 +253,126 @@ mod board {
         }
     }
 
+    /// The pieces of the board that QEMU's netduinoplus2 lacks, swapped for
+    /// the `board-qemu` image (`cargo xtask bench-fw`, board_stack_peak_bytes;
+    /// docs/firmware.md): everything else is the board's own code.
+    #[cfg(feature = "board-qemu")]
+    mod qemu {
+        use core::cell::Cell;
+
+        use cortex_m_semihosting::{debug, hprintln};
+        use firmware::compensation::LoopStats;
+        use firmware::fault_injection::{EMULATED_LAYOUT, EMULATED_SLOT_LEN, ModelFlash};
+        use firmware::model_store::SlotLayout;
+        use firmware::replay::{EmulatedTmp117, ReplaySample};
+        use firmware::update::UpdateStatus;
+        use stm32f4xx_hal::pac::{self, interrupt};
+
+        /// Samples the run lasts at least, and at least this many after the update.
+        const SAMPLES: u32 = 10_000;
+        const SAMPLES_AFTER_UPDATE: u32 = 1_000;
+        /// Samples after which a run that never received an update gives up.
+        const SAMPLES_WITHOUT_UPDATE: u32 = 200_000;
+
+        /// The model slots: QEMU maps flash as ROM and has no flash
+        /// controller, so they live in emulated NOR flash in RAM (the
+        /// board's [`firmware::model_store::ModelStore`] code runs on it).
+        /// Slot A starts as the blob QEMU's loader placed in flash slot A.
+        static mut FLASH: ModelFlash = ModelFlash::new();
+
+        /// Where the slots lie in [`FLASH`].
+        pub const SLOTS: SlotLayout = EMULATED_LAYOUT;
+
+        /// The emulated model flash, slot A seeded from the real slot A.
+        pub fn model_flash() -> &'static mut ModelFlash {
+            let flash = &raw mut FLASH;
+            // SAFETY: called once, from main; the only reference.
+            let flash = unsafe { &mut *flash };
+            let seed = firmware::board::model_slot_a().get(..EMULATED_SLOT_LEN).unwrap_or(&[]);
+            for (d, s) in flash.contents_mut().iter_mut().zip(seed) {
+                *d = *s;
+            }
+            flash
+        }
+
+        /// The loop TMP117 of sample `seq`: a slow ramp (QEMU has no I2C).
+        pub fn sample(seq: u32) -> ReplaySample {
+            ReplaySample::with_loop(Some(20.0 + f64::from(seq % 100_000) * 1e-4), 0.0)
+        }
+
+        /// An I2C bus with the loop TMP117 at its default address.
+        pub fn thermometer_bus(current: &Cell<ReplaySample>) -> EmulatedTmp117<'_> {
+            EmulatedTmp117::new(current, rbf_core::features::LOOP_THERMOMETER)
+        }
+
+        /// The run's progress and its end.
+        pub struct Run {
+            updated: Option<(UpdateStatus, u32)>,
+            samples: u32,
+        }
+
+        impl Run {
+            /// Starts the data-ready source: TIM3 (which QEMU emulates) at
+            /// one period of `period_ticks` TIM2 ticks pends EXTI0, whose
+            /// handler (the board's) stamps the edge as on the board, where
+            /// the front end's data-ready line raises it (QEMU has no GPIO).
+            pub fn start(tim3: pac::TIM3, nvic: &mut cortex_m::peripheral::NVIC, period_ticks: u32) -> Run {
+                tim3.psc().write(|w| w.psc().set(0));
+                tim3.arr().write(|w| unsafe { w.bits(period_ticks.saturating_sub(1)) });
+                tim3.dier().write(|w| w.uie().set_bit());
+                tim3.cr1().modify(|_, w| w.cen().set_bit());
+                // SAFETY: the handler only pends EXTI0, whose state is in place.
+                unsafe {
+                    nvic.set_priority(pac::Interrupt::TIM3, 0x40);
+                    cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIM3);
+                }
+                Run {
+                    updated: None,
+                    samples: 0,
+                }
+            }
+
+            /// An update command was answered with `status`.
+            pub fn replied(&mut self, status: UpdateStatus) {
+                self.updated = Some((status, self.samples));
+            }
+
+            /// Ends the run once it has done what it is for: reports the
+            /// stack's high-water mark and exits (semihosting).
+            pub fn check(&mut self, stats: &LoopStats) {
+                self.samples = stats.samples;
+                let done = match self.updated {
+                    Some((_, at)) => self.samples >= SAMPLES && self.samples - at >= SAMPLES_AFTER_UPDATE,
+                    None => self.samples >= SAMPLES_WITHOUT_UPDATE,
+                };
+                if !done {
+                    return;
+                }
+                hprintln!(
+                    "samples {} missed {} output_errors {} update {:?}",
+                    stats.samples,
+                    stats.samples_missed,
+                    stats.output_errors,
+                    self.updated.map(|(status, _)| status)
+                );
+                hprintln!("board_stack_peak_bytes {}", firmware::board::stack_peak_bytes());
+                let installed = matches!(self.updated, Some((UpdateStatus::Installed, _)));
+                debug::exit(if installed {
+                    debug::EXIT_SUCCESS
+                } else {
+                    debug::EXIT_FAILURE
+                });
+            }
+        }
+
+        #[interrupt]
+        fn TIM3() {
+            // SAFETY: clears TIM3's update flag, which only this handler reads.
+            unsafe { (*pac::TIM3::ptr()).sr().write(|w| w.bits(0)) };
+            cortex_m::peripheral::NVIC::pend(pac::Interrupt::EXTI0);
+        }
+    }
+
     #[entry]
     fn main() -> ! {
         let Some(mut dp) = pac::Peripherals::take() else { halt() };
@@ -241,7 +384,13 @@ mod board {
         dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
         let boot_cause = fault::boot_cause(firmware::board::take_fault(), watchdog_reset);
 
+        #[cfg(feature = "board-qemu")]
+        firmware::board::paint_stack();
+        #[cfg(not(feature = "board-qemu"))]
         let mut rcc = dp.RCC.freeze(Config::hse(8.MHz()).sysclk(168.MHz()));
+        // QEMU has no clock controller (the HSE never reports ready): the reset clocks.
+        #[cfg(feature = "board-qemu")]
+        let mut rcc = dp.RCC.constrain();
         let mut watchdog = IndependentWatchdog::new(dp.IWDG);
         watchdog.start(WATCHDOG_MS.millis());
 
@@ -256,6 +405,7 @@ mod board {
         dp.TIM2.arr().write(|w| unsafe { w.bits(u32::MAX) });
         dp.TIM2.cr1().modify(|_, w| w.cen().set_bit());
 
+        #[cfg(not(feature = "board-qemu"))]
         let i2c = I2c::new(
             dp.I2C1,
             (gpiob.pb6, gpiob.pb7),
@@ -279,7 +429,10 @@ mod board {
         };
         let (tx, mut rx) = serial.split();
         rx.listen();
+        #[cfg(not(feature = "board-qemu"))]
         let flash = BoardFlash(LockedFlash::new(dp.FLASH));
+        #[cfg(feature = "board-qemu")]
+        let flash = qemu::model_flash();
 
         let Some(out_queue) = cortex_m::singleton!(: Queue<u8, TX_QUEUE> = Queue::new()) else {
             halt()
@@ -325,10 +478,17 @@ mod board {
         let (model, commands) = (&raw mut MODEL, &raw mut COMMANDS);
         let (model, commands) = unsafe { (&mut *model, &mut *commands) };
         // An invalid or absent model is not fatal: every frame then carries flag 4.
+        #[cfg(feature = "board-qemu")]
+        let mut store = ModelStore::open_with(flash, qemu::SLOTS, model);
+        #[cfg(not(feature = "board-qemu"))]
         let mut store = ModelStore::open_with(flash, MODEL_SLOTS, model);
         let loaded = store.load_into(model).is_ok();
         let model = InPlaceModel::new(model, loaded);
         // Sensor init failures are not fatal either: the loop's reads fail and flag them.
+        #[cfg(feature = "board-qemu")]
+        let loop_temp = core::cell::Cell::new(qemu::sample(0));
+        #[cfg(feature = "board-qemu")]
+        let i2c = qemu::thermometer_bus(&loop_temp);
         let mut thermometer = Tmp117::new(i2c, tmp117::DEFAULT_ADDRESS);
         let _ = thermometer.init();
         let mut front_end = FrontEnd::new(spi_device);
@@ -354,12 +514,16 @@ mod board {
             cortex_m::peripheral::NVIC::unmask(pac::Interrupt::EXTI0);
             cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
         }
+        #[cfg(feature = "board-qemu")]
+        let mut run = qemu::Run::start(dp.TIM3, &mut core.NVIC, (timer_hz as f32 / GYRO_RATE_HZ) as u32);
         loop {
             // One step per data-ready edge, in order; the watchdog is fed by samples only.
             while let Some(stamp) = stamp_consumer.dequeue() {
                 let (seq, dt_s) = clock.edge(stamp);
                 compensation.step_at(seq, dt_s);
                 watchdog.feed();
+                #[cfg(feature = "board-qemu")]
+                loop_temp.set(qemu::sample(seq));
             }
             // Model-update commands between samples.
             while let Some(byte) = in_consumer.dequeue() {
@@ -384,7 +548,11 @@ mod board {
                 if let Some(n) = update::encode_reply(command, status, &mut reply) {
                     write_frame(compensation.output_mut(), reply.get(..n).unwrap_or(&[]));
                 }
+                #[cfg(feature = "board-qemu")]
+                run.replied(status);
             }
+            #[cfg(feature = "board-qemu")]
+            run.check(&compensation.stats());
             cortex_m::asm::wfi();
         }
     }
