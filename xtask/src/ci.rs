@@ -67,6 +67,7 @@ fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
 pub fn ci() -> anyhow::Result<()> {
     let started = Instant::now();
     ensure_toolchain()?;
+    crate::firmware::ensure_flip_link()?;
     qemu::ensure_installed()?;
     run("cargo", &["fmt", "--all", "--check"])?;
     run("cargo", &["fmt", "--manifest-path", "fuzz/Cargo.toml", "--check"])?;
