@@ -95,9 +95,9 @@ pub fn bench_fw() -> anyhow::Result<()> {
         board_size.largest_rodata.0, board_size.largest_rodata.1
     );
     println!(
-        "stm32f405 main loop under QEMU (board-qemu image: boot with a model, an update over the UART, \
-         {} frames received; {})",
-        board_run.frames, board_run.summary
+        "stm32f405 main loop under QEMU (board-qemu image: boot with a model, an update and a bench command \
+         over the UART ({} steps reported), {} frames received; {})",
+        board_run.bench_steps, board_run.frames, board_run.summary
     );
     println!("  board_stack_peak_bytes {}", board_run.stack_peak_bytes);
     println!(

@@ -2,15 +2,15 @@
 //! image of the stm32f405 binary (the board's main loop, interrupt handlers
 //! and drivers; the clock setup and the pieces QEMU lacks swapped, see
 //! docs/firmware.md) boots with a model in flash slot A, receives a model
-//! update over its UART (this module plays the host: it reads the output
-//! frames and sends the install command), runs at least 10,000 samples and
-//! reports `board_stack_peak_bytes N` from its painted stack.
+//! update and a `bench` command over its UART (this module plays the host:
+//! it reads the output frames and sends the commands), runs at least 10,000
+//! samples and reports `board_stack_peak_bytes N` from its painted stack.
 
 use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
 use std::path::Path;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU8, AtomicU32, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
@@ -36,6 +36,9 @@ pub struct BoardRun {
     pub summary: String,
     /// Output frames the host received.
     pub frames: usize,
+    /// Steps the bench command's report counted (its cycle counts are 0
+    /// under QEMU, which has no cycle counter).
+    pub bench_steps: u32,
 }
 
 /// A K = 32 network over `dims` inputs with Gaussians over the first
@@ -103,10 +106,13 @@ pub fn measure() -> anyhow::Result<BoardRun> {
     std::fs::copy(&built, &elf).context("copy the board-qemu image")?;
     std::fs::write(dir.path().join("boot.bin"), encode(&boot_model()?)?)?;
     let update = encode(&update_model()?)?;
-    let mut command = vec![0u8; firmware_lib::update::MAX_COMMAND_FRAME_LEN];
-    let n = firmware_lib::update::encode_install_command(&update, &mut command).context("encode the command")?;
-    command.truncate(n);
-    run(&elf, dir.path(), &command)
+    let mut commands = vec![0u8; firmware_lib::update::MAX_COMMAND_FRAME_LEN];
+    let n = firmware_lib::update::encode_install_command(&update, &mut commands).context("encode the command")?;
+    commands.truncate(n);
+    let mut bench = [0u8; 4];
+    let n = rbf_core::frame::cobs_encode(&[firmware_lib::bench::CMD_BENCH], &mut bench).context("bench command")?;
+    commands.extend_from_slice(&bench[..n]);
+    run(&elf, dir.path(), &commands)
 }
 
 fn run(elf: &Path, dir: &Path, command: &[u8]) -> anyhow::Result<BoardRun> {
@@ -130,9 +136,15 @@ fn run(elf: &Path, dir: &Path, command: &[u8]) -> anyhow::Result<BoardRun> {
     };
     let frames = Arc::new(AtomicUsize::new(0));
     let reply = Arc::new(AtomicU8::new(NO_REPLY));
+    let bench_steps = Arc::new(AtomicU32::new(0));
     let reader = {
-        let (mut uart, frames, reply) = (uart.try_clone()?, frames.clone(), reply.clone());
-        std::thread::spawn(move || read_frames(&mut uart, &frames, &reply))
+        let heard = Heard {
+            frames: frames.clone(),
+            reply: reply.clone(),
+            bench_steps: bench_steps.clone(),
+        };
+        let mut uart = uart.try_clone()?;
+        std::thread::spawn(move || read_frames(&mut uart, &heard))
     };
     while frames.load(Ordering::Relaxed) < FRAMES_BEFORE_UPDATE && started.elapsed() < Duration::from_secs(60) {
         std::thread::sleep(Duration::from_millis(5));
@@ -153,23 +165,38 @@ fn run(elf: &Path, dir: &Path, command: &[u8]) -> anyhow::Result<BoardRun> {
         .unwrap_or("")
         .to_owned();
     let reply = reply.load(Ordering::Relaxed);
+    let bench_steps = bench_steps.load(Ordering::Relaxed);
     match peak {
-        Some(stack_peak_bytes) if result.success && reply == 0 => Ok(BoardRun {
-            stack_peak_bytes,
-            summary,
-            frames: frames.load(Ordering::Relaxed),
-        }),
+        Some(stack_peak_bytes) if result.success && reply == 0 && bench_steps == firmware_lib::bench::BENCH_STEPS => {
+            Ok(BoardRun {
+                stack_peak_bytes,
+                summary,
+                frames: frames.load(Ordering::Relaxed),
+                bench_steps,
+            })
+        }
         _ => bail!(
-            "the board-qemu run failed (update reply status {reply}, {} frames):\n{}",
+            "the board-qemu run failed (update reply status {reply}, bench report of {bench_steps} steps, {} frames):\n{}",
             frames.load(Ordering::Relaxed),
             result.log
         ),
     }
 }
 
-/// Reads COBS frames from the board until the socket closes: counts them
-/// and keeps the status of an install reply (`[0x01, status]`).
-fn read_frames(uart: &mut UnixStream, frames: &AtomicUsize, reply: &AtomicU8) {
+/// What the host heard from the board.
+struct Heard {
+    frames: Arc<AtomicUsize>,
+    /// Status of the install reply ([`NO_REPLY`] before one).
+    reply: Arc<AtomicU8>,
+    /// Steps of the bench report (0 before one).
+    bench_steps: Arc<AtomicU32>,
+}
+
+/// Reads COBS frames from the board until the socket closes: counts them,
+/// keeps the status of an install reply (`[0x01, status]`) and the step
+/// count of a bench report.
+fn read_frames(uart: &mut UnixStream, heard: &Heard) {
+    use firmware_lib::{bench, update};
     let mut frame = Vec::new();
     let mut buf = [0u8; 4096];
     while let Ok(n) = uart.read(&mut buf) {
@@ -181,12 +208,16 @@ fn read_frames(uart: &mut UnixStream, frames: &AtomicUsize, reply: &AtomicU8) {
                 frame.push(byte);
                 continue;
             }
-            frames.fetch_add(1, Ordering::Relaxed);
-            if let Some(len) = firmware_lib::update::cobs_decode_in_place(&mut frame)
-                && len == firmware_lib::update::REPLY_LEN
-                && frame.first() == Some(&firmware_lib::update::CMD_INSTALL_MODEL)
-            {
-                reply.store(frame[1], Ordering::Relaxed);
+            heard.frames.fetch_add(1, Ordering::Relaxed);
+            match update::cobs_decode_in_place(&mut frame) {
+                Some(update::REPLY_LEN) if frame[0] == update::CMD_INSTALL_MODEL => {
+                    heard.reply.store(frame[1], Ordering::Relaxed);
+                }
+                Some(bench::REPORT_LEN) if frame[0] == bench::CMD_BENCH => {
+                    let steps = u32::from_le_bytes([frame[1], frame[2], frame[3], frame[4]]);
+                    heard.bench_steps.store(steps, Ordering::Relaxed);
+                }
+                _ => {}
             }
             frame.clear();
         }

@@ -88,6 +88,26 @@ pub fn ci() -> anyhow::Result<()> {
         "--bin",
         "stm32f405",
     ];
+    let debug_board = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "board-debug",
+        "--bin",
+        "stm32f405",
+    ];
+    let qemu_board = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "board-qemu",
+        "--bin",
+        "stm32f405",
+    ];
     let panic_check = [
         "--package",
         "firmware",
@@ -98,7 +118,13 @@ pub fn ci() -> anyhow::Result<()> {
         "--bin",
         "panic-free-check",
     ];
-    for board in [&qemu_boards[..], &stm32_board[..], &panic_check[..]] {
+    for board in [
+        &qemu_boards[..],
+        &stm32_board[..],
+        &debug_board[..],
+        &qemu_board[..],
+        &panic_check[..],
+    ] {
         run("cargo", &[&["clippy"][..], board, &["--", "-D", "warnings"]].concat())?;
     }
     run(
@@ -112,7 +138,7 @@ pub fn ci() -> anyhow::Result<()> {
             "--no-default-features",
         ],
     )?;
-    for board in [&qemu_boards[..], &stm32_board[..]] {
+    for board in [&qemu_boards[..], &stm32_board[..], &debug_board[..]] {
         run("cargo", &[&["build", "--release"][..], board].concat())?;
     }
     crate::firmware::check_panic_free()?;

@@ -196,7 +196,7 @@ mod board {
             let step = instructions_per_sample(start);
             if shape == Shape::LagBank {
                 hprintln!(
-                    "instructions_per_sample lag-bank K={} F=5: {} (whole step: 5 derivative filters, T̂ and its powers, 8 inputs, Gaussians over T̂; evaluation alone {})",
+                    "instructions_per_sample lag-bank K={} F=5: {} whole step (5 derivative filters, T̂ and its powers, 8 inputs, Gaussians over T̂), evaluation alone {}",
                     k,
                     step,
                     eval

@@ -32,8 +32,12 @@ mod board {
     use core::sync::atomic::{AtomicU32, Ordering};
 
     use cortex_m::interrupt::Mutex;
+    use cortex_m::peripheral::DWT;
     use cortex_m_rt::{ExceptionFrame, entry, exception};
+    #[cfg(feature = "board-debug")]
+    use defmt_rtt as _;
     use embedded_hal_bus::spi::ExclusiveDevice;
+    use firmware::bench::{Bench, CMD_BENCH};
     use firmware::compensation::{CompensationLoop, InPlaceModel, LoopConfig, write_frame};
     use firmware::fault::{self, FaultReason, FaultRecord};
     use firmware::frontend::FrontEnd;
@@ -58,6 +62,14 @@ mod board {
     use stm32f4xx_hal::serial::{Rx, RxListen, Tx, TxListen};
     use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
+
+    /// Logs over RTT in the debug image (`board-debug`); nothing otherwise.
+    macro_rules! log {
+        ($($arg:tt)*) => {
+            #[cfg(feature = "board-debug")]
+            defmt::info!($($arg)*);
+        };
+    }
 
     /// Front-end output data rate, Hz (paced by its crystal; data-ready marks each sample).
     const GYRO_RATE_HZ: f32 = 1000.0;
@@ -270,7 +282,7 @@ mod board {
 
         /// Samples the run lasts at least, and at least this many after the update.
         const SAMPLES: u32 = 10_000;
-        const SAMPLES_AFTER_UPDATE: u32 = 1_000;
+        const SAMPLES_AFTER_UPDATE: u32 = 2_000;
         /// Samples after which a run that never received an update gives up.
         const SAMPLES_WITHOUT_UPDATE: u32 = 200_000;
 
@@ -391,6 +403,9 @@ mod board {
         // QEMU has no clock controller (the HSE never reports ready): the reset clocks.
         #[cfg(feature = "board-qemu")]
         let mut rcc = dp.RCC.constrain();
+        // The cycle counter the `bench` command reads (firmware::bench).
+        core.DCB.enable_trace();
+        core.DWT.enable_cycle_counter();
         let mut watchdog = IndependentWatchdog::new(dp.IWDG);
         watchdog.start(WATCHDOG_MS.millis());
 
@@ -484,6 +499,12 @@ mod board {
         let mut store = ModelStore::open_with(flash, MODEL_SLOTS, model);
         let loaded = store.load_into(model).is_ok();
         let model = InPlaceModel::new(model, loaded);
+        log!(
+            "boot: reset flags {=u8:#x}, fault or watchdog reset {=bool}, model loaded {=bool}",
+            reset_flags,
+            boot_cause.is_some(),
+            loaded
+        );
         // Sensor init failures are not fatal either: the loop's reads fail and flag them.
         #[cfg(feature = "board-qemu")]
         let loop_temp = core::cell::Cell::new(qemu::sample(0));
@@ -502,6 +523,7 @@ mod board {
         if boot_cause.is_some() {
             compensation.flag_next_frame(Flags::FAULT_RESET);
         }
+        let mut bench = Bench::default();
         let mut clock = EdgeClock {
             ticks_per_s: timer_hz as f32,
             period_ticks: (timer_hz as f32 / GYRO_RATE_HZ) as u32,
@@ -520,7 +542,21 @@ mod board {
             // One step per data-ready edge, in order; the watchdog is fed by samples only.
             while let Some(stamp) = stamp_consumer.dequeue() {
                 let (seq, dt_s) = clock.edge(stamp);
+                let started = DWT::cycle_count();
                 compensation.step_at(seq, dt_s);
+                if let Some(stats) = bench.record(DWT::cycle_count().wrapping_sub(started)) {
+                    log!(
+                        "bench: {=u32} steps, cycles min {=u32} mean {=u32} max {=u32}",
+                        stats.steps,
+                        stats.min,
+                        stats.mean(),
+                        stats.max
+                    );
+                    let mut report = [0u8; 24];
+                    if let Some(n) = stats.encode_report(&mut report) {
+                        write_frame(compensation.output_mut(), report.get(..n).unwrap_or(&[]));
+                    }
+                }
                 watchdog.feed();
                 #[cfg(feature = "board-qemu")]
                 loop_temp.set(qemu::sample(seq));
@@ -530,6 +566,11 @@ mod board {
                 let (command, status) = match commands.push(byte) {
                     None => continue,
                     Some(Received::Rejected(status)) => (0, status),
+                    // Answered by its report after the timed steps.
+                    Some(Received::Command(&[CMD_BENCH])) => {
+                        bench.start();
+                        continue;
+                    }
                     Some(Received::Command(payload)) => {
                         // The erase stalls the CPU for up to 2 s: feed the watchdog first.
                         watchdog.feed();
@@ -541,6 +582,11 @@ mod board {
                             })
                         });
                         watchdog.feed();
+                        log!(
+                            "update: status {=u8}, model loaded {=bool}",
+                            status as u8,
+                            store.model_loaded()
+                        );
                         (payload.first().copied().unwrap_or(0), status)
                     }
                 };
