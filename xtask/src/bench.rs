@@ -32,13 +32,11 @@ pub fn bench_fw() -> anyhow::Result<()> {
         .filter(|l| l.starts_with("instructions_per_sample"))
         .collect();
     // The contract line: `instructions_per_sample K=32 D=3: N`, N a number.
-    let k32 = lines
-        .iter()
-        .find(|l| {
-            l.strip_prefix("instructions_per_sample K=32 D=3: ")
-                .is_some_and(|n| n.parse::<u64>().is_ok())
-        })
-        .copied();
+    let is_contract = |l: &str| {
+        l.strip_prefix("instructions_per_sample K=32 D=3: ")
+            .is_some_and(|n| n.parse::<u64>().is_ok())
+    };
+    let k32 = lines.iter().copied().find(|l| is_contract(l));
     let Some(k32) = k32 else {
         bail!("no K=32 figure in the benchmark output:\n{}", result.log)
     };
@@ -51,10 +49,7 @@ pub fn bench_fw() -> anyhow::Result<()> {
          terms; harness loop subtracted); whole step = rbf_core::Compensator::process (gap and fault logic, \
          feature filters, evaluation, flags)"
     );
-    for line in lines
-        .iter()
-        .filter(|l| !l.starts_with("instructions_per_sample K=32 D=3:"))
-    {
+    for line in lines.iter().filter(|l| !is_contract(l)) {
         println!("  {line}");
     }
     if let Some(stack) = result.log.lines().find(|l| l.starts_with("stack_peak_bytes")) {

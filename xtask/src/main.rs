@@ -39,8 +39,11 @@ enum Cmd {
         frames: Option<PathBuf>,
     },
     /// Count instructions per compensated sample in QEMU (-icount shift=0,
-    /// SysTick) for K = 8, 16, 32, 64 centres at D = 3, and report flash/RAM
-    /// of the images. The last line is `instructions_per_sample K=32 D=3: N`.
+    /// SysTick) for K = 8, 16, 32, 64 centres at D = 3, the multi-scale sets
+    /// and a five-filter lag bank; run the stm32f405 board's own main loop
+    /// under QEMU through a model update and a bench command
+    /// (`board_stack_peak_bytes N`); report flash/RAM of the images. The last
+    /// line is `instructions_per_sample K=32 D=3: N`.
     BenchFw,
     /// Accuracy against the peers: on simulated chamber runs of both protocols
     /// (trained on one 1 °C/min run, verified at other ramp rates and on a random
