@@ -27,8 +27,9 @@ fn recorded(dir: &Path, chamber: &ChamberRun, name: &str) -> Run {
     Run::load(&path).expect("simulated run reads")
 }
 
-/// Fits a 16-centre model on a 1 °C/min run and writes a fault-injected
-/// slice of a 2 °C/min run into `dir`; returns (model, slice path).
+/// Fits a 16-centre model of the default features (the lag bank) on a
+/// 1 °C/min run and writes a fault-injected slice of a 2 °C/min run into
+/// `dir`; returns (model, slice path).
 pub fn model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
     let mut chamber = ChamberRun::ifog(1.0, 31);
     chamber.hold_s = 1800.0;

@@ -40,6 +40,8 @@ fn replay_matches_host(
 fn qemu_replay_with_sensor_faults_is_byte_identical_to_trainer_compensate() {
     let dir = TempDir::new().unwrap();
     let (model, slice) = fixtures::model_and_faulty_slice(dir.path());
+    // The default model: a lag bank (filters, coil lags, gain, tangent powers) and Gaussians over T̂.
+    assert!(matches!(model.features().set, rbf_core::FeatureSet::LagBank(_)));
     let frames_path = dir.path().join("frames.bin");
     replay_matches_host(dir.path(), &model, &slice, Some(&frames_path));
 

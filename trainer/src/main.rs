@@ -329,11 +329,19 @@ struct FitArgs {
     /// --rate-window-s).
     #[arg(long, value_enum, default_value_t = Method::Rbf)]
     method: Method,
-    /// Inputs of --method rbf. multiscale = T, ΔT over three time scales (τ, 16τ, 256τ), T×ΔT₁,
-    /// T×ΔT₂, T×ΔT₃ and T²×ΔT₂, Gaussians over T and the ΔT terms linear (the mean coil
-    /// temperature lags the sensor in proportion to the rate: first-order terms of that lag);
-    /// multiscale-second-order = the same with the second-order term ΔT₃² in place of T×ΔT₁;
-    /// multiscale-validated (default) = both fitted from one pass over the data, the
+    /// Inputs of --method rbf. lag-bank (default) = the thermal lag bank: the mean coil
+    /// temperature T̂ = T + Σ a_k·ΔT_k and the loop temperature's rates ΔT_k through 4–6
+    /// derivative filters from 15 s to 4 h, times a Shupe gain linear in T; a cubic in T̂
+    /// (extrapolated along its tangent past the covered range) and the rates linear; filter
+    /// set, coil lags a_k and gain identified from the runs and chosen by how well they
+    /// predict held-out thermal events (or whole runs, or --validate runs); Gaussians over T̂
+    /// only where that validation wants them. It holds on temperature histories unlike the
+    /// chamber's (cold starts, ambient steps, fast swings). multiscale = T, ΔT over three time
+    /// scales (τ, 16τ, 256τ), T×ΔT₁, T×ΔT₂, T×ΔT₃ and T²×ΔT₂, Gaussians over T and the ΔT
+    /// terms linear (the mean coil temperature lags the sensor in proportion to the rate:
+    /// first-order terms of that lag); multiscale-second-order = the same with the
+    /// second-order term ΔT₃² in place of T×ΔT₁; multiscale-validated = both fitted from one
+    /// pass over the data, the
     /// second-order set also in its lagged forms (Gaussians over the mean coil temperature
     /// estimate T − L·ΔT₃, coil lag L of 10, 20, 40 or 80 min, at the second-order set's
     /// window and width) and, when that family already validates better than the first-order
@@ -342,7 +350,7 @@ struct FitArgs {
     /// the first-order one (a term fitted at one ramp rate must earn its extrapolation: it does
     /// on cycle runs, not on the bundled IFOG run); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's
     /// network.
-    #[arg(long, value_enum, default_value_t = RbfFeatures::MultiscaleValidated)]
+    #[arg(long, value_enum, default_value_t = RbfFeatures::LagBank)]
     features: RbfFeatures,
     /// Use K Gaussian centres (1–64; fewer if OLS finds fewer independent ones) instead of
     /// choosing K ≤ --max-centers on validation.
@@ -612,10 +620,12 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         writeln!(
             out,
             "chosen on {}: ΔT window {} s, width σ {} (normalised), ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
-            if a.validate.is_empty() {
-                format!("{}-fold contiguous validation", opts.folds.max(2))
-            } else {
+            if !a.validate.is_empty() {
                 "--validate runs".into()
+            } else if let Some(search) = &outcome.bank {
+                format!("the same {} folds as the bank's structure", search.fold_count)
+            } else {
+                format!("{}-fold contiguous validation", opts.folds.max(2))
             },
             c.rate_window_s,
             c.width,
@@ -702,6 +712,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             "method": a.method,
             "choice": outcome.choice,
             "feature_sets": outcome.sets,
+            "lag_bank_search": outcome.bank,
             "features": features_json(outcome.model.features()),
             "svr": outcome.svr,
             "fit_seconds": fit_s,
@@ -1116,6 +1127,7 @@ fn features_json(f: &FeatureConfig) -> serde_json::Value {
         "set": match f.set {
             FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
             FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
+            FeatureSet::LagBank(_) => "LagBank".to_owned(),
             set => format!("{set:?}"),
         },
         "coil_lag_min": match f.set {
@@ -1124,7 +1136,19 @@ fn features_json(f: &FeatureConfig) -> serde_json::Value {
         },
         "inputs": input_names(f.set),
         "rate_window_s": f.rate_window_s,
-        "windows_s": &f.windows_s()[..f.set.windows()],
+        "windows_s": &f.filter_taus_s().0[..f.filter_taus_s().1],
+        "lag_bank": match f.set {
+            FeatureSet::LagBank(b) => Some(serde_json::json!({
+                "taus_s": b.taus(),
+                "coil_lag_min": b.coil_lags(),
+                "ref_c": b.ref_c,
+                "gain_per_c": b.gain_per_c,
+                "gain_per_c2": b.gain_per_c2,
+                "static_degree": b.static_degree,
+                "coil_range_c": [b.coil_min_c, b.coil_max_c],
+            })),
+            _ => None,
+        },
         "warmup_s": f.warmup_s(),
     })
 }

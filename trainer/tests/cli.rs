@@ -415,7 +415,16 @@ fn a_slow_fastest_window_is_not_offered_a_slowest_window_past_one_day() {
     let dir = TempDir::new().unwrap();
     let model = dir.path().join("m.bin");
     let run = shared_data("cycle_train_1cpm.csv");
-    let args = ["fit", run.to_str().unwrap(), "--rate-window-s", "300", "-q", "-o"];
+    let args = [
+        "fit",
+        run.to_str().unwrap(),
+        "--features",
+        "multiscale-validated",
+        "--rate-window-s",
+        "300",
+        "-q",
+        "-o",
+    ];
     let o = trainer(&[&args[..], &[model.to_str().unwrap()]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
@@ -479,15 +488,29 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["crc"], "ok");
     assert_eq!(v["kind"], "gaussian-rbf");
-    // The default: T, ΔT over τ, 16τ, 256τ, their products with T, and T²×ΔT₂.
-    assert_eq!(v["inputs"], 8);
-    assert_eq!(v["features"]["set"], "MultiScale");
-    assert_eq!(v["features"]["windows_s"], serde_json::json!([60.0, 960.0, 15360.0]));
+    // The default, the lag bank: T̂, its square and cube, and one Shupe rate
+    // per filter; the filters' time constants rise from seconds to hours and
+    // are the ΔT windows the firmware runs.
+    assert_eq!(v["features"]["set"], "LagBank");
+    let taus: Vec<f64> = v["features"]["lag_bank"]["taus_s"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_f64().unwrap())
+        .collect();
+    assert!((4..=6).contains(&taus.len()), "{taus:?}");
+    assert!(taus.windows(2).all(|w| w[1] > w[0]) && taus[0] >= 15.0 && taus[taus.len() - 1] <= 15360.0);
+    assert_eq!(v["inputs"].as_u64().unwrap() as usize, 3 + taus.len());
+    assert_eq!(v["features"]["windows_s"], v["features"]["lag_bank"]["taus_s"]);
+    assert_eq!(v["features"]["inputs"][0], "T̂ [°C]");
     assert_eq!(
         v["blob_bytes"].as_u64().unwrap(),
         std::fs::metadata(&model).unwrap().len()
     );
-    // The T range is the loop-temperature range of the training run's used samples.
+    // The first range is that of the mean coil temperature T̂ over the
+    // training run's used samples: the range the bank's cubic covers, and a
+    // lagged copy of the loop temperature (inside its range, most of its span;
+    // the bank covers it from 10-s means, hence the 0.05 °C).
     let train = std::fs::read_to_string(dir.path().join("train.csv")).unwrap();
     let temps: Vec<f64> = data_rows(&train)
         .iter()
@@ -497,14 +520,18 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| (a.min(t), b.max(t)));
     let t_range = &v["training_ranges"][0];
+    let (t_min, t_max) = (t_range["min"].as_f64().unwrap(), t_range["max"].as_f64().unwrap());
+    let covered = &v["features"]["lag_bank"]["coil_range_c"];
     assert!(
-        (t_range["min"].as_f64().unwrap() - lo).abs() < 0.01,
-        "{t_range} vs {lo}"
+        (t_min - covered[0].as_f64().unwrap()).abs() < 0.05,
+        "{t_range} vs {covered}"
     );
     assert!(
-        (t_range["max"].as_f64().unwrap() - hi).abs() < 0.01,
-        "{t_range} vs {hi}"
+        (t_max - covered[1].as_f64().unwrap()).abs() < 0.05,
+        "{t_range} vs {covered}"
     );
+    assert!(t_min >= lo - 0.5 && t_max <= hi + 0.5, "{t_range} vs loop {lo} … {hi}");
+    assert!(t_max - t_min > 0.8 * (hi - lo), "{t_range} vs loop {lo} … {hi}");
     let text = stdout(&trainer(&["inspect", model.to_str().unwrap()]));
     assert!(text.contains("CRC-32          ok"), "{text}");
 }

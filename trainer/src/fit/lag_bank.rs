@@ -40,8 +40,11 @@ pub const LADDERS_S: [&[f32]; 2] = [
 /// fits a gyro differs from unit to unit, so validation chooses.
 pub const CANDIDATES: [(usize, usize, usize); 4] = [(1, 0, 5), (0, 0, 6), (0, 1, 5), (1, 0, 4)];
 
-/// Degrees of the Shupe gain g(T) tried: linear and quadratic in T.
-const GAIN_DEGREES: [usize; 2] = [1, 2];
+/// Degrees of the Shupe gain g(T) tried: linear in T. A quadratic gain
+/// validated better on held-out events of a chamber cycle (the same ramp
+/// rate) and then extrapolated worse to fast in-use swings on the bench's
+/// gyros; the fiber's gain drifts smoothly, so the simpler form is kept.
+const GAIN_DEGREES: [usize; 1] = [1];
 /// Length of the means the search fits on, s.
 const SEARCH_MEAN_S: f64 = 10.0;
 /// Length of the residual means validation scores, s (the cluster-STD window).
@@ -50,6 +53,9 @@ const SCORE_MEAN_S: f64 = crate::metrics::CLUSTER_S;
 const TEMP_SCALE_C: f64 = 30.0;
 /// Starting coil lags tried for the full fit (total over the filters), minutes.
 const START_LAGS_MIN: [f64; 3] = [-0.1, -5.0, -20.0];
+/// Residual, °/h per row, that a coil-lag weight of one filter time constant
+/// costs ([`lag_prior`]).
+const LAG_PRIOR_DPH: f64 = 1e-3;
 /// Levenberg–Marquardt iterations at most.
 const MAX_ITERATIONS: usize = 200;
 
@@ -202,10 +208,35 @@ fn predict_row(
 }
 
 /// Sum of squared residuals over `rows`.
-fn cost(s: &Structure, p: &[f64], t0: f64, data: &LadderData, rows: &[usize]) -> f64 {
+fn sse(s: &Structure, p: &[f64], t0: f64, data: &LadderData, rows: &[usize]) -> f64 {
     rows.iter()
         .map(|&i| (predict_row(s, p, t0, UNLIMITED, data.temp_c[i], &data.rates[i], None) - data.y[i]).powi(2))
         .sum()
+}
+
+/// What the joint fit minimises: the residuals over `rows` plus the lag prior.
+fn cost(s: &Structure, p: &[f64], t0: f64, data: &LadderData, rows: &[usize]) -> f64 {
+    sse(s, p, t0, data, rows) + lag_prior(s, p, rows.len()).0
+}
+
+/// The soft prior on the coil lags, (its cost, per a_k its curvature): each
+/// lag weight in units of its filter's time constant, β_k = a_k / τ_k, is
+/// held near the physically plausible |β| ≲ 1 (T̂ a mixture of lags of T)
+/// by a cost of [`LAG_PRIOR_DPH`]² per row per β². Runs that barely
+/// identify the lags (few thermal events) otherwise fit weights of
+/// opposite sign and days in size that cancel on the training run and
+/// nowhere else.
+fn lag_prior(s: &Structure, p: &[f64], rows: usize) -> (f64, [f64; BANK_FILTERS]) {
+    let weight = rows as f64 * LAG_PRIOR_DPH * LAG_PRIOR_DPH;
+    let mut curvature = [0.0; BANK_FILTERS];
+    let mut cost = 0.0;
+    for (k, tau) in s.taus_s().iter().enumerate() {
+        let per_tau = 60.0 / f64::from(*tau);
+        let beta = p[4 + s.filters + k] * per_tau;
+        cost += weight * beta * beta;
+        curvature[k] = weight * per_tau * per_tau;
+    }
+    (cost, curvature)
 }
 
 /// Least squares of the linear parameters (c, s) with a and g held: the start of the joint fit.
@@ -247,6 +278,12 @@ fn levenberg_marquardt(s: &Structure, mut p: Vec<f64>, t0: f64, data: &LadderDat
             let row = DVector::from_column_slice(&jac);
             jtj.syger(1.0, &row, &row, 1.0);
             jtr += &row * r;
+        }
+        let (_, curvature) = lag_prior(s, &p, rows.len());
+        for (k, c) in curvature.iter().enumerate().take(s.filters) {
+            let j = 4 + s.filters + k;
+            jtj[(j, j)] += c;
+            jtr[j] += c * p[j];
         }
         jtj.fill_upper_triangle_with_lower_triangle();
         let diag: Vec<f64> = (0..m).map(|j| jtj[(j, j)].max(1e-12)).collect();
@@ -551,15 +588,29 @@ mod tests {
             filters: 4,
             gain_degree: 1,
         };
-        // c, s (°/h per °C/min), a (min), g₁.
+        // c, s (°/h per °C/min), a (min), g₁; coil lags of a physical size
+        // (|a_k| below one filter time constant), which the lag prior leaves alone.
         let truth = [
-            0.1, 0.05, 0.02, -0.01, 0.2, 0.1, -0.05, 0.02, -1.0, -4.0, -10.0, -2.0, 0.3,
+            0.1, 0.05, 0.02, -0.01, 0.2, 0.1, -0.05, 0.02, -0.25, -1.0, -4.0, -10.0, 0.3,
         ];
         let data = synthetic(&s, &truth, 20.0);
         let rows: Vec<usize> = (0..data.len()).collect();
         let fitted = fit_structure(&s, 20.0, &data, &rows, &START_LAGS_MIN).unwrap();
-        let rms = (cost(&s, &fitted.p, 20.0, &data, &rows) / data.len() as f64).sqrt();
-        assert!(rms < 1e-6, "residual RMS {rms}");
+        let bias_rms = (data.y.iter().map(|y| y * y).sum::<f64>() / data.len() as f64).sqrt();
+        let rms = (sse(&s, &fitted.p, 20.0, &data, &rows) / data.len() as f64).sqrt();
+        assert!(rms < 1e-3 * bias_rms, "residual RMS {rms} of a {bias_rms} °/h bias");
+        // On ramps the total coil lag is what the data pins down (the 15-s
+        // filter's share of it barely shows); the slowest lag on its own too.
+        let (total, want_total): (f64, f64) = (fitted.p[8..12].iter().sum(), truth[8..12].iter().sum());
+        assert!(
+            (total - want_total).abs() < 0.02 * want_total.abs(),
+            "total lag {total} min, truth {want_total} min"
+        );
+        assert!(
+            (fitted.p[11] - truth[11]).abs() < 0.05 * truth[11].abs(),
+            "slowest lag {} min",
+            fitted.p[11]
+        );
     }
 
     #[test]

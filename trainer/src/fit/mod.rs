@@ -42,7 +42,7 @@ pub enum RbfFeatures {
     /// T, ΔT over three time scales, T×ΔT₂, T×ΔT₃, T²×ΔT₂ and ΔT₃²
     /// (`FeatureSet::MultiScaleSecondOrder`): with the second-order lag term.
     MultiscaleSecondOrder,
-    /// The default: both multi-scale sets fitted, the second-order one also
+    /// Both multi-scale sets fitted, the second-order one also
     /// with Gaussians over the lag-corrected temperature T − L·ΔT₃
     /// (`FeatureSet::MultiScaleLagged`, L from [`COIL_LAGS_MIN`]) and with a
     /// longer slowest window ([`rbf::SLOWEST_WINDOW_FACTORS`]), the best
@@ -131,7 +131,7 @@ impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
             method: Method::Rbf,
-            features: RbfFeatures::MultiscaleValidated,
+            features: RbfFeatures::LagBank,
             block_s: 1.0,
             centers: None,
             max_centers: 32,

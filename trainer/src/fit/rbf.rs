@@ -93,6 +93,17 @@ pub fn kernel_inputs(set: FeatureSet) -> usize {
     }
 }
 
+/// Fewest centres a network of `set` may have: none for the lag bank, whose
+/// static curve is a cubic in T̂ that extrapolates along its tangent (a
+/// Gaussian clamped at the covered range does not), so Gaussians are added
+/// only where validation on held-out thermal events wants them.
+fn min_centers(set: FeatureSet) -> usize {
+    match set {
+        FeatureSet::LagBank(_) => 0,
+        _ => 1,
+    }
+}
+
 /// The hyper-parameters chosen and what they scored.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct RbfChoice {
@@ -117,7 +128,7 @@ struct Split {
     groups: Vec<Vec<usize>>,
 }
 
-/// Scores for one (window, width) pair: `scores[ridge][k - 1]`, summed over splits.
+/// Scores for one (window, width) pair: `scores[ridge][k]` (k centres), summed over splits.
 type ScoreTable = Vec<Vec<f64>>;
 
 /// Fits the RBF network of `set` on `train`, choosing hyper-parameters by `opts.validation`.
@@ -168,7 +179,7 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         .ok_or_else(|| anyhow::anyhow!("no feature configuration to fit"))?
         .set;
     let k_max = opts.centers.unwrap_or(opts.max_centers);
-    let k_min = opts.centers.unwrap_or(1);
+    let k_min = opts.centers.unwrap_or(min_centers(set));
     let folds = if validate.count() == 0 { opts.folds.max(2) } else { 1 };
     train.prepare(configs, opts.block_s)?;
     validate.prepare(configs, opts.block_s)?;
@@ -198,14 +209,14 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             .flat_map(|&w| splits.iter().zip(&pools).map(move |(s, p)| (w, s, p.as_slice())))
             .collect();
         let split_tables = parallel_map(&tasks, |&(width, split, pool)| {
-            let mut table: ScoreTable = vec![vec![0.0; k_max]; RIDGES.len()];
+            let mut table: ScoreTable = vec![vec![0.0; k_max + 1]; RIDGES.len()];
             let centers = select_centers(&z, &all.y, &split.train, pool, shape, width, k_max);
             accumulate_scores(&mut table, &z, &all, split, &centers, shape, width, score_rows);
             progress.inc();
             table
         });
         for (wi, &width) in widths.iter().enumerate() {
-            let mut table: ScoreTable = vec![vec![0.0; k_max]; RIDGES.len()];
+            let mut table: ScoreTable = vec![vec![0.0; k_max + 1]; RIDGES.len()];
             for part in split_tables.iter().skip(wi * splits.len()).take(splits.len()) {
                 for (row, part_row) in table.iter_mut().zip(part) {
                     for (t, p) in row.iter_mut().zip(part_row) {
@@ -214,8 +225,8 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 }
             }
             for (ri, row) in table.iter().enumerate() {
-                for k in k_min..=k_max {
-                    let score = row[k - 1] / splits.len() as f64;
+                for (k, total) in row.iter().enumerate().take(k_max + 1).skip(k_min) {
+                    let score = total / splits.len() as f64;
                     if !score.is_finite() {
                         continue;
                     }
@@ -326,6 +337,21 @@ fn splits<V: RunSet + ?Sized>(
             }],
         ));
     }
+    if matches!(features.set, FeatureSet::LagBank(_)) {
+        // Whole thermal events (or whole runs) held out, as the bank's search does.
+        let temps: Vec<f64> = train.x.iter().map(|r| r[0]).collect();
+        let f = super::events::thermal_folds(&temps, &train.run, opts.block_s, folds);
+        let splits = (0..f.held_out.len())
+            .map(|k| Split {
+                train: f.train_rows(k, train.len()),
+                groups: vec![f.held_out[k].clone()]
+                    .into_iter()
+                    .filter(|g| g.len() > 2)
+                    .collect(),
+            })
+            .collect();
+        return Ok((train.clone(), splits));
+    }
     let runs = train.run.iter().max().map_or(0, |m| m + 1);
     let per_run: Vec<Vec<usize>> = (0..runs)
         .map(|r| (0..train.len()).filter(|&i| train.run[i] == r).collect())
@@ -414,7 +440,7 @@ fn accumulate_scores(
     score_rows: usize,
 ) {
     let dims = shape.dims;
-    let k_max = table.first().map_or(0, Vec::len);
+    let k_max = table.first().map_or(0, Vec::len).saturating_sub(1);
     let design_and_target = |rows: &[usize]| {
         let a: DMatrix<f64> = design(z, rows, shape, centers, width);
         (a, DVector::from_iterator(rows.len(), rows.iter().map(|&i| all.y[i])))
@@ -435,12 +461,12 @@ fn accumulate_scores(
         })
         .filter(|g| g.n >= MIN_SCORE_CLUSTERS)
         .collect();
-    for (ri, &ridge) in RIDGES.iter().enumerate() {
-        for k in 1..=k_max {
+    for (&ridge, table_row) in RIDGES.iter().zip(table.iter_mut()) {
+        for (k, slot) in table_row.iter_mut().enumerate().take(k_max + 1) {
             // OLS skips dependent candidates (wide Gaussians over one input are
             // nearly collinear): past the centres it found, the path stays put.
             let k_used = k.min(centers.len());
-            let score = if k_used == 0 {
+            let score = if k_used == 0 && k > 0 {
                 f64::INFINITY
             } else {
                 match ridge_solve(&train, 1 + dims + k_used, ridge) {
@@ -451,7 +477,7 @@ fn accumulate_scores(
                     None => f64::INFINITY,
                 }
             };
-            table[ri][k - 1] += score;
+            *slot += score;
         }
     }
 }
