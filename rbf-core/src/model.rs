@@ -331,30 +331,43 @@ impl Model {
     pub fn eval(&self, features: &FeatureVector) -> Evaluation {
         // The input clamping is straight-line per input count (1, 2, 3, the
         // 8 of the multi-scale sets and of the default lag bank, or up to
-        // MAX_INPUTS); the rest, and the network's per-centre loops, are one
-        // copy each.
-        match self.features.dims() {
-            1 => self.eval_inputs::<1>(features),
-            2 => self.eval_inputs::<2>(features),
-            3 => self.eval_inputs::<3>(features),
-            8 => self.eval_inputs::<8>(features),
-            _ => self.eval_inputs::<MAX_INPUTS>(features),
-        }
+        // MAX_INPUTS); the Gaussians of the table path, with the network's
+        // per-centre loops, are one copy after it.
+        let raw = features.values();
+        let table_net = match &self.body {
+            ModelBody::Rbf(net) if net.table_ready() => Some(net),
+            _ => None,
+        };
+        let (value, clamped) = match self.features.dims() {
+            1 => self.eval_inputs::<1>(raw, table_net),
+            2 => self.eval_inputs::<2>(raw, table_net),
+            3 => self.eval_inputs::<3>(raw, table_net),
+            8 => self.eval_inputs::<8>(raw, table_net),
+            _ => self.eval_inputs::<MAX_INPUTS>(raw, table_net),
+        };
+        let bias_dph = match table_net {
+            // The table path clamps kernel inputs itself, to the same training box.
+            Some(net) => value + net.table_gaussians(raw),
+            None => value,
+        };
+        Evaluation { bias_dph, clamped }
     }
 
+    /// The clamping of [`Self::eval`] for `N` inputs and the value of
+    /// everything but the Gaussians of `table_net` (the network when its
+    /// table path is ready: then its linear terms), with whether an input
+    /// left its training range.
     #[inline(always)]
-    fn eval_inputs<const N: usize>(&self, features: &FeatureVector) -> Evaluation {
-        let raw = features.values();
+    fn eval_inputs<const N: usize>(&self, raw: &[f32; MAX_INPUTS], table_net: Option<&DeployedRbf>) -> (f32, bool) {
         let mut x_linear = [0.0f32; N];
         let mut outside = 0.0f32;
         for ((li, v), ((lo, hi), (llo, lhi))) in x_linear.iter_mut().zip(raw).zip(self.limits()) {
             outside += outside_measure(*v, *lo, *hi);
             *li = clamp(*v, *llo, *lhi);
         }
-        let bias_dph = match &self.body {
-            // The table path clamps kernel inputs itself, to the same training box.
-            ModelBody::Rbf(net) if net.table_ready() => net.eval_table(raw, &x_linear),
-            body => {
+        let value = match (table_net, &self.body) {
+            (Some(net), _) => net.linear_sum(&x_linear),
+            (None, body) => {
                 let mut x = [0.0f32; N];
                 for ((xi, v), (lo, hi)) in x.iter_mut().zip(raw).zip(self.input_min.iter().zip(&self.input_max)) {
                     *xi = clamp(*v, *lo, *hi);
@@ -365,10 +378,7 @@ impl Model {
                 }
             }
         };
-        Evaluation {
-            bias_dph,
-            clamped: outside_flag(outside),
-        }
+        (value, outside_flag(outside))
     }
 
     /// Per input ((training min, max), (linear min, max)), input units.

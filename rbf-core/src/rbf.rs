@@ -165,7 +165,7 @@ fn unpack_coefficients(p: u64, q: u64) -> [i32; 4] {
 }
 
 /// Σ_pos 2^−v_j − Σ_neg 2^−v_j with v_j = B_j [+ Q when `ADD_Q`] + Σ_i hi(A_ji, q_i)
-/// over the first `M` kernel inputs: the per-centre loop of
+/// over the first `M` kernel inputs: the per-centre loops of
 /// [`RbfNetwork::eval_table`], one small function per (M, ADD_Q) so that
 /// each loop is straight-line; everything around it is shared.
 #[inline(always)]
@@ -175,26 +175,63 @@ fn exp2_sums<const M: usize, const ADD_Q: bool>(
     q: &[i32; TABLE_MAX_INPUTS],
     shared: i32,
 ) -> f32 {
+    let q = *q;
+    exp2_sum::<M, ADD_Q>(positive, q, shared) - exp2_sum::<M, ADD_Q>(negative, q, shared)
+}
+
+/// Σ_j 2^−v_j over `centres`, in their order.
+///
+/// Over three kernel inputs, two centres per iteration: LLVM's own
+/// unrolling would hold two centres' eight coefficient words, the three
+/// q_i, the table, the pointer and the count at once, one register more
+/// than a Cortex-M4 has free (r7 is the frame pointer), and rebuild the
+/// table's address in every iteration. The empty `black_box` (no
+/// instruction) keeps it from unrolling this loop further. With fewer
+/// kernel inputs the registers suffice and LLVM's unrolling is left alone.
+#[inline(always)]
+fn exp2_sum<const M: usize, const ADD_Q: bool>(centres: &[[u64; 2]], q: [i32; TABLE_MAX_INPUTS], shared: i32) -> f32 {
     let table = &crate::fastmath::EXP2_OCTAVE_BITS;
-    let sum = |centres: &[[u64; 2]]| {
-        let mut sum = 0.0f32;
-        for &[p, r] in centres {
-            let [a1, a2, a3, b] = unpack_coefficients(p, r);
-            let mut v = if ADD_Q { b.wrapping_add(shared) } else { b };
-            if M >= 1 {
-                v = v.wrapping_add(mul_hi(a1, q[0]));
-            }
-            if M >= 2 {
-                v = v.wrapping_add(mul_hi(a2, q[1]));
-            }
-            if M >= 3 {
-                v = v.wrapping_add(mul_hi(a3, q[2]));
-            }
-            sum += crate::fastmath::exp2_neg_q16(table, v);
+    let mut sum = 0.0f32;
+    if M < 3 {
+        for centre in centres {
+            sum += exp2_term::<M, ADD_Q>(table, centre, q, shared);
         }
-        sum
-    };
-    sum(positive) - sum(negative)
+        return sum;
+    }
+    let mut pairs = centres.chunks_exact(2);
+    for pair in &mut pairs {
+        if let [first, second] = pair {
+            sum += exp2_term::<M, ADD_Q>(table, first, q, shared);
+            core::hint::black_box(());
+            sum += exp2_term::<M, ADD_Q>(table, second, q, shared);
+        }
+    }
+    for centre in pairs.remainder() {
+        sum += exp2_term::<M, ADD_Q>(table, centre, q, shared);
+    }
+    sum
+}
+
+/// 2^−v_j of one centre's packed coefficients.
+#[inline(always)]
+fn exp2_term<const M: usize, const ADD_Q: bool>(
+    table: &[u32; crate::fastmath::EXP2_CELLS],
+    &[p, r]: &[u64; 2],
+    q: [i32; TABLE_MAX_INPUTS],
+    shared: i32,
+) -> f32 {
+    let [a1, a2, a3, b] = unpack_coefficients(p, r);
+    let mut v = if ADD_Q { b.wrapping_add(shared) } else { b };
+    if M >= 1 {
+        v = v.wrapping_add(mul_hi(a1, q[0]));
+    }
+    if M >= 2 {
+        v = v.wrapping_add(mul_hi(a2, q[1]));
+    }
+    if M >= 3 {
+        v = v.wrapping_add(mul_hi(a3, q[2]));
+    }
+    crate::fastmath::exp2_neg_q16(table, v)
 }
 
 /// 2^n for an integer-valued `n`, exactly `libm::exp2(n) as f32` (0 below
@@ -681,7 +718,8 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
     }
 
     /// The Gaussian sum of [`Self::eval_table`], °/h.
-    fn table_gaussians(&self, x_kernel: &[f32; MAX_INPUTS_ALL]) -> f32 {
+    #[inline(always)]
+    pub(crate) fn table_gaussians(&self, x_kernel: &[f32; MAX_INPUTS_ALL]) -> f32 {
         match self.kernel_inputs {
             1 => self.table_gaussians_over::<1>(x_kernel),
             2 => self.table_gaussians_over::<2>(x_kernel),
@@ -721,7 +759,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
 
     /// c′ + Σ a′_i x_i: the linear terms with the normalisation folded in.
     #[inline(always)]
-    fn linear_sum<const N: usize>(&self, x_linear: &[f32; N]) -> f32 {
+    pub(crate) fn linear_sum<const N: usize>(&self, x_linear: &[f32; N]) -> f32 {
         let mut y = self.constant_raw;
         for (a, x) in self.linear_raw.iter().zip(x_linear) {
             y += a * x;
