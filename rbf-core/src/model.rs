@@ -278,6 +278,7 @@ impl Model {
         if let ModelBody::Rbf(net) = &mut self.body {
             let m = net.kernel_inputs().min(MAX_INPUTS);
             net.prepare_table(&input_min[..m], &input_max[..m]);
+            net.prepare_linear(&self.linear_min[..dims], &self.linear_max[..dims]);
         }
         let bound_dph = match &self.body {
             ModelBody::Rbf(net) => net.output_bound(
@@ -326,8 +327,10 @@ impl Model {
 
     /// Evaluates the bias, °/h: nonlinear parts (Gaussians, the cubic) at the
     /// inputs clamped to the training range, linear terms at the inputs clamped
-    /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it. `clamped` says that an
-    /// input left its training range.
+    /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it (on the RBF table
+    /// path by a saturating conversion, [`RbfNetwork::prepare_linear`]: no
+    /// compares; a NaN input reads as its box's centre). `clamped` says that
+    /// an input left its training range.
     pub fn eval(&self, features: &FeatureVector) -> Evaluation {
         // The input clamping is straight-line per input count (1, 2, 3, the
         // 8 of the multi-scale sets and of the default lag bank, or up to
@@ -359,15 +362,21 @@ impl Model {
     /// left its training range.
     #[inline(always)]
     fn eval_inputs<const N: usize>(&self, raw: &[f32; MAX_INPUTS], table_net: Option<&DeployedRbf>) -> (f32, bool) {
-        let mut x_linear = [0.0f32; N];
         let mut outside = 0.0f32;
-        for ((li, v), ((lo, hi), (llo, lhi))) in x_linear.iter_mut().zip(raw).zip(self.limits()) {
+        for (v, (lo, hi)) in raw.iter().zip(self.input_min.iter().zip(&self.input_max)).take(N) {
             outside += outside_measure(*v, *lo, *hi);
-            *li = clamp(*v, *llo, *lhi);
         }
         let value = match (table_net, &self.body) {
-            (Some(net), _) => net.linear_sum(&x_linear),
+            (Some(net), _) => net.linear_sum_boxed::<N>(raw),
             (None, body) => {
+                let mut x_linear = [0.0f32; N];
+                for ((li, v), (llo, lhi)) in x_linear
+                    .iter_mut()
+                    .zip(raw)
+                    .zip(self.linear_min.iter().zip(&self.linear_max))
+                {
+                    *li = clamp(*v, *llo, *lhi);
+                }
                 let mut x = [0.0f32; N];
                 for ((xi, v), (lo, hi)) in x.iter_mut().zip(raw).zip(self.input_min.iter().zip(&self.input_max)) {
                     *xi = clamp(*v, *lo, *hi);
@@ -379,15 +388,6 @@ impl Model {
             }
         };
         (value, outside_flag(outside))
-    }
-
-    /// Per input ((training min, max), (linear min, max)), input units.
-    #[inline(always)]
-    fn limits(&self) -> impl Iterator<Item = ((&f32, &f32), (&f32, &f32))> {
-        self.input_min
-            .iter()
-            .zip(&self.input_max)
-            .zip(self.linear_min.iter().zip(&self.linear_max))
     }
 
     /// The model's mathematical value at `features` in f64 with exact
@@ -554,6 +554,44 @@ mod tests {
         );
         let e = model.eval(&fx.update(&cfg, 1.0, &loop_reading(100.0)));
         assert_eq!(e.bias_dph, 40.0, "…but no further than two spans (20 + 2·10)");
+    }
+
+    #[test]
+    fn on_the_table_path_linear_terms_follow_the_input_to_two_spans_and_hold() {
+        use crate::rbf::{RbfNetwork, RbfParams};
+        // bias = 1·z_T + 0.5·Gaussian; training range of T: 10 … 20, so the
+        // Gaussian holds its value at 20 beyond it and only the linear part moves.
+        let net = RbfNetwork::new(&RbfParams {
+            offset: &[0.0],
+            scale: &[1.0],
+            kernel_inputs: 1,
+            centers: &[15.0],
+            widths: &[3.0],
+            weights: &[0.5],
+            linear: &[1.0],
+            constant: 0.0,
+        })
+        .unwrap();
+        let cfg = FeatureConfig::single(FeatureSet::Temp, 0.0);
+        let model = Model::new(cfg, &[(10.0, 20.0)], ModelBody::Rbf(net), ModelInfo::default()).unwrap();
+        assert!(
+            matches!(&model.body, ModelBody::Rbf(n) if n.table_ready()),
+            "the table path runs"
+        );
+        let bias = |t: f32| model.eval(&FeatureVector::from_values(&[t])).bias_dph;
+        let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * b.abs().max(1.0);
+        assert!(close(bias(35.0) - bias(25.0), 10.0), "{}", bias(35.0) - bias(25.0));
+        assert!(
+            close(bias(100.0), bias(40.0)),
+            "held at 20 + 2·10: {} {}",
+            bias(100.0),
+            bias(40.0)
+        );
+        assert!(close(bias(-1e9), bias(-10.0)), "and at 10 − 2·10");
+        assert!(
+            bias(f32::NAN).is_finite(),
+            "NaN reads as a point of the box, not as NaN"
+        );
     }
 
     #[test]

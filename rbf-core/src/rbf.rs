@@ -109,6 +109,12 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
     /// Linear terms with the normalisation folded in: y_lin = c′ + Σ a′_i x_i,
     /// a′_i = a_i / scale_i, c′ = c − Σ a′_i offset_i.
     linear_raw: [f32; D],
+    /// The linear terms over the saturating map of each input's linear box
+    /// ([`Self::prepare_linear`]): y_lin = c″ + Σ b_i·f32(i32((x_i − mid_i)·gain_i)).
+    linear_box_mid: [f32; D],
+    linear_box_gain: [f32; D],
+    linear_box_coeff: [f32; D],
+    linear_box_constant: f32,
     offset: [f32; D],
     inv_scale: [f32; D],
     /// Per centre [A₁, A₂, A₃, B] in fixed point, packed two to a word
@@ -292,6 +298,10 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         weight_scale: 0.0,
         constant_raw: 0.0,
         linear_raw: [0.0; D],
+        linear_box_mid: [0.0; D],
+        linear_box_gain: [0.0; D],
+        linear_box_coeff: [0.0; D],
+        linear_box_constant: 0.0,
         offset: [0.0; D],
         inv_scale: [0.0; D],
         exponent: [[0; 2]; K],
@@ -592,6 +602,32 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         }
     }
 
+    /// Prepares the linear terms of the table path for inputs clamped to
+    /// [`linear_lo`, `linear_hi`] (input units) by the saturating conversion
+    /// q_i = i32((x_i − mid_i)·gain_i), which maps the box onto the i32
+    /// range: x_i = mid_i + q_i/gain_i, so a′_i x_i = a′_i mid_i + (a′_i/gain_i)·q_i,
+    /// and the constants go into c″. An empty box maps every value to its
+    /// one point. f64 arithmetic rounded once: host and target agree.
+    pub fn prepare_linear(&mut self, linear_lo: &[f32], linear_hi: &[f32]) {
+        let mut constant = f64::from(self.constant_raw);
+        let q_one = f64::from(1u32 << 31);
+        for i in 0..self.inputs_used.min(D) {
+            let (lo, hi) = (
+                f64::from(linear_lo.get(i).copied().unwrap_or(0.0)),
+                f64::from(linear_hi.get(i).copied().unwrap_or(0.0)),
+            );
+            let mid = ((lo + hi) / 2.0) as f32;
+            let half = (hi - lo) / 2.0;
+            let gain = if half > 0.0 { (q_one / half) as f32 } else { 0.0 };
+            let a = f64::from(self.linear_raw[i]);
+            self.linear_box_mid[i] = mid;
+            self.linear_box_gain[i] = gain;
+            self.linear_box_coeff[i] = if gain > 0.0 { (a / f64::from(gain)) as f32 } else { 0.0 };
+            constant += a * f64::from(mid);
+        }
+        self.linear_box_constant = constant as f32;
+    }
+
     /// True when [`Self::prepare_table`] enabled the table path.
     pub fn table_ready(&self) -> bool {
         self.table
@@ -755,6 +791,24 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             let factor = crate::fastmath::exp2_neg_q16(&crate::fastmath::EXP2_OCTAVE_BITS, shared) * self.weight_scale;
             sums * factor
         }
+    }
+
+    /// The linear terms at `raw` clamped to the box given to
+    /// [`Self::prepare_linear`] by the saturating conversion (NaN reads as
+    /// the box's centre): no compare, no branch.
+    #[inline(always)]
+    pub(crate) fn linear_sum_boxed<const N: usize>(&self, raw: &[f32; MAX_INPUTS_ALL]) -> f32 {
+        let mut y = self.linear_box_constant;
+        for (((x, mid), gain), b) in raw
+            .iter()
+            .zip(&self.linear_box_mid)
+            .zip(&self.linear_box_gain)
+            .zip(&self.linear_box_coeff)
+            .take(N)
+        {
+            y += b * (((x - mid) * gain) as i32) as f32;
+        }
+        y
     }
 
     /// c′ + Σ a′_i x_i: the linear terms with the normalisation folded in.
