@@ -20,6 +20,7 @@ pub mod faults;
 pub mod firmware;
 pub mod fuzz;
 pub mod large_run;
+pub mod panic_paths;
 pub mod qemu;
 pub mod replay;
 

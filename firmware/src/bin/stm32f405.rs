@@ -45,12 +45,12 @@ mod board {
     #[cfg(not(feature = "board-qemu"))]
     use firmware::model_store::SlotLayout;
     use firmware::tmp117::{self, Tmp117};
-    use firmware::uart::FrameQueue;
+    use firmware::uart::{self, FrameQueue};
     use firmware::update::{self, CommandReceiver, Received};
     use heapless::spsc::{Consumer, Producer, Queue};
     use rbf_core::{CompensatorConfig, Flags, Model};
     #[cfg(not(feature = "board-qemu"))]
-    use stm32f4xx_hal::flash::LockedFlash;
+    use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
     use stm32f4xx_hal::gpio::{Edge, ExtiPin, Input, PB0};
     #[cfg(not(feature = "board-qemu"))]
     use stm32f4xx_hal::i2c::{self, I2c};
@@ -115,11 +115,16 @@ mod board {
     #[cfg(not(feature = "board-qemu"))]
     mod board_flash {
         use firmware::model_store::MappedFlash;
-        use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
+        use stm32f4xx_hal::flash::UnlockedFlash;
 
         /// The model slots in the chip's flash: erased and programmed through
         /// the HAL, read in place (the flash is memory-mapped).
-        pub struct BoardFlash(pub LockedFlash);
+        ///
+        /// The flash controller is unlocked once, at init: the HAL's unlock
+        /// asserts that the keys took, which would put a panic on the update
+        /// path. Unlocked, a stray write still programs nothing (it needs the
+        /// PG bit, and an erase needs SER and STRT).
+        pub struct BoardFlash(pub UnlockedFlash<'static>);
 
         impl embedded_storage::nor_flash::ErrorType for BoardFlash {
             type Error = stm32f4xx_hal::flash::Error;
@@ -139,17 +144,21 @@ mod board {
             const WRITE_SIZE: usize = 1;
             const ERASE_SIZE: usize = 128 * 1024;
             fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-                embedded_storage::nor_flash::NorFlash::erase(&mut self.0.unlocked(), from, to)
+                embedded_storage::nor_flash::NorFlash::erase(&mut self.0, from, to)
             }
             fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-                embedded_storage::nor_flash::NorFlash::write(&mut self.0.unlocked(), offset, bytes)
+                embedded_storage::nor_flash::NorFlash::write(&mut self.0, offset, bytes)
             }
         }
 
         impl MappedFlash for BoardFlash {
             fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
-                let start = offset as usize;
-                FlashExt::read(&self.0).get(start..start.checked_add(len)?)
+                // Only the model slots are read (the linker's MODEL_A and MODEL_B).
+                let slots = [firmware::board::model_slot_a(), firmware::board::model_slot_b()];
+                super::MODEL_SLOTS.offsets.iter().zip(slots).find_map(|(start, slot)| {
+                    let from = offset.checked_sub(*start)? as usize;
+                    slot.get(from..from.checked_add(len)?)
+                })
             }
         }
     }
@@ -176,14 +185,18 @@ mod board {
     #[interrupt]
     fn USART1() {
         cortex_m::interrupt::free(|cs| {
-            let mut uart = UART.borrow(cs).borrow_mut();
+            // `try_borrow_mut`: a critical section on one core cannot find
+            // the cell borrowed, and this way no panic path is linked.
+            let Ok(mut uart) = UART.borrow(cs).try_borrow_mut() else {
+                return;
+            };
             let Some(u) = uart.as_mut() else { return };
             // The byte the receiver holds (an error read clears its flag;
             // bounded, so a line full of errors cannot hold the handler).
             for _ in 0..4 {
                 match u.rx.read() {
                     Ok(byte) => {
-                        if u.incoming.enqueue(byte).is_err() {
+                        if uart::enqueue(&mut u.incoming, byte).is_err() {
                             RX_OVERRUNS.fetch_add(1, Ordering::Relaxed);
                         }
                     }
@@ -196,7 +209,7 @@ mod board {
             match u.outgoing.peek().copied() {
                 Some(byte) => {
                     if u.tx.write(byte).is_ok() {
-                        let _ = u.outgoing.dequeue();
+                        let _ = uart::dequeue(&mut u.outgoing);
                     }
                     // QEMU's USART never raises its transmit-empty
                     // interrupt (its data register is always empty): the
@@ -215,13 +228,43 @@ mod board {
         // board's setup writes (before interrupts are enabled).
         let stamp = unsafe { (*pac::TIM2::ptr()).cnt().read().bits() };
         cortex_m::interrupt::free(|cs| {
-            if let Some(d) = DATA_READY.borrow(cs).borrow_mut().as_mut() {
+            if let Some(d) = DATA_READY
+                .borrow(cs)
+                .try_borrow_mut()
+                .ok()
+                .as_deref_mut()
+                .and_then(Option::as_mut)
+            {
                 d.pin.clear_interrupt_pending_bit();
-                if d.stamps.enqueue(stamp).is_err() {
+                if uart::enqueue(&mut d.stamps, stamp).is_err() {
                     STAMP_OVERRUNS.fetch_add(1, Ordering::Relaxed);
                 }
             }
         });
+    }
+
+    /// Busy-waits on the core clock: the SPI device's delay (embedded-hal-bus's
+    /// `NoDelay` would link a panic for a delay operation).
+    struct CycleDelay {
+        core_hz: u32,
+    }
+
+    impl embedded_hal::delay::DelayNs for CycleDelay {
+        fn delay_ns(&mut self, ns: u32) {
+            let cycles = u64::from(ns) * u64::from(self.core_hz) / 1_000_000_000;
+            cortex_m::asm::delay(u32::try_from(cycles).unwrap_or(u32::MAX));
+        }
+    }
+
+    /// Everything the board does after init: `serve` once per wake-up,
+    /// forever. Its own function (never inlined), so that `cargo xtask
+    /// check-board-panics` can prove from the image that no panic is
+    /// reachable from here or from the interrupt handlers.
+    #[inline(never)]
+    fn run_forever(mut serve: impl FnMut()) -> ! {
+        loop {
+            serve();
+        }
     }
 
     fn halt() -> ! {
@@ -233,7 +276,13 @@ mod board {
     /// Starts the transmit interrupt after a frame was queued.
     fn start_tx() {
         cortex_m::interrupt::free(|cs| {
-            if let Some(u) = UART.borrow(cs).borrow_mut().as_mut() {
+            if let Some(u) = UART
+                .borrow(cs)
+                .try_borrow_mut()
+                .ok()
+                .as_deref_mut()
+                .and_then(Option::as_mut)
+            {
                 u.tx.listen();
             }
         });
@@ -438,14 +487,19 @@ mod board {
             8.MHz(),
             &mut rcc,
         );
-        let Ok(spi_device) = ExclusiveDevice::new_no_delay(spi, gpioa.pa4.into_push_pull_output());
+        let core_hz = rcc.clocks.sysclk().raw();
+        let Ok(spi_device) = ExclusiveDevice::new(spi, gpioa.pa4.into_push_pull_output(), CycleDelay { core_hz });
         let Ok(serial) = dp.USART1.serial::<u8>((gpioa.pa9, gpioa.pa10), 921_600.bps(), &mut rcc) else {
             halt()
         };
         let (tx, mut rx) = serial.split();
         rx.listen();
         #[cfg(not(feature = "board-qemu"))]
-        let flash = BoardFlash(LockedFlash::new(dp.FLASH));
+        let Some(locked_flash) = cortex_m::singleton!(: LockedFlash = LockedFlash::new(dp.FLASH)) else {
+            halt()
+        };
+        #[cfg(not(feature = "board-qemu"))]
+        let flash = BoardFlash(locked_flash.unlocked());
         #[cfg(feature = "board-qemu")]
         let flash = qemu::model_flash();
 
@@ -538,9 +592,12 @@ mod board {
         }
         #[cfg(feature = "board-qemu")]
         let mut run = qemu::Run::start(dp.TIM3, &mut core.NVIC, (timer_hz as f32 / GYRO_RATE_HZ) as u32);
-        loop {
+        // The closure below takes the emulated thermometer's reading by reference.
+        #[cfg(feature = "board-qemu")]
+        let loop_temp = &loop_temp;
+        run_forever(move || {
             // One step per data-ready edge, in order; the watchdog is fed by samples only.
-            while let Some(stamp) = stamp_consumer.dequeue() {
+            while let Some(stamp) = uart::dequeue(&mut stamp_consumer) {
                 let (seq, dt_s) = clock.edge(stamp);
                 let started = DWT::cycle_count();
                 compensation.step_at(seq, dt_s);
@@ -562,7 +619,7 @@ mod board {
                 loop_temp.set(qemu::sample(seq));
             }
             // Model-update commands between samples.
-            while let Some(byte) = in_consumer.dequeue() {
+            while let Some(byte) = uart::dequeue(&mut in_consumer) {
                 let (command, status) = match commands.push(byte) {
                     None => continue,
                     Some(Received::Rejected(status)) => (0, status),
@@ -599,8 +656,17 @@ mod board {
             }
             #[cfg(feature = "board-qemu")]
             run.check(&compensation.stats());
-            cortex_m::asm::wfi();
-        }
+            // Sleep only if no interrupt queued work since the checks above:
+            // with interrupts masked, an edge or byte that arrives now stays
+            // pending and ends the WFI at once (unmasked, its handler could
+            // run between the check and the WFI, and the stamp would wait a
+            // whole sample period for the next wake-up).
+            cortex_m::interrupt::free(|_| {
+                if !stamp_consumer.ready() && !in_consumer.ready() {
+                    cortex_m::asm::wfi();
+                }
+            });
+        })
     }
 }
 
