@@ -136,7 +136,7 @@ fn benchmark_image_runs_and_reports_every_model_size() {
     assert!(run.success, "{}", run.log);
     for shape in [
         "lag-bank K=32 F=5:",
-        "K=32 D=8 (default multiscale",
+        "K=32 D=8 (multi-scale set",
         "over T̄",
         "K=8 D=3:",
         "K=16 D=3:",

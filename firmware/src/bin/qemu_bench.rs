@@ -135,9 +135,9 @@ mod board {
         // Per model shape: the model evaluation alone (clamping, normalisation,
         // Gaussians, linear terms: `Model::eval`), then the whole per-sample
         // step (`Compensator::process`: gap and fault logic, feature filters,
-        // evaluation, flags). The default's shape first; the last line is the
+        // evaluation, flags). The default's shape (the lag bank) first; the last line is the
         // K = 32, D = 3 evaluation figure.
-        // (K, the default's multi-scale set or the paper's shape, σ): σ = 1.5
+        // (K, the shape, σ): σ = 1.5
         // keeps the shared term a factor (T = 32); σ = 0.5 (T = 284) adds it
         // to every exponent.
         let lagged = Shape::MultiScale(FeatureSet::MultiScaleLagged { coil_lag_min: 40 });
@@ -196,21 +196,21 @@ mod board {
             let step = instructions_per_sample(start);
             if shape == Shape::LagBank {
                 hprintln!(
-                    "instructions_per_sample lag-bank K={} F=5: {} whole step (5 derivative filters, T̂ and its powers, 8 inputs, Gaussians over T̂), evaluation alone {}",
+                    "instructions_per_sample lag-bank K={} F=5: {} whole step (the default features: 5 derivative filters, T̂ and its powers, 8 inputs, Gaussians over T̂), evaluation alone {}",
                     k,
                     step,
                     eval
                 );
             } else if shape == lagged {
                 hprintln!(
-                    "instructions_per_sample K={} D=8 (default, lagged second-order set, Gaussians over T̄ = T − L·ΔT₃): evaluation {} whole step {}",
+                    "instructions_per_sample K={} D=8 (lagged second-order multi-scale set, Gaussians over T̄ = T − L·ΔT₃): evaluation {} whole step {}",
                     k,
                     eval,
                     step
                 );
             } else if shape != Shape::Paper {
                 hprintln!(
-                    "instructions_per_sample K={} D=8 (default multiscale, Gaussians over T): evaluation {} whole step {}",
+                    "instructions_per_sample K={} D=8 (multi-scale set, Gaussians over T): evaluation {} whole step {}",
                     k,
                     eval,
                     step
