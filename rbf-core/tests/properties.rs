@@ -2,10 +2,13 @@
 //! - whatever the samples (finite or not, gaps, faults), every sample yields
 //!   a finite bias and a compensated rate that is finite or flagged;
 //! - every valid model survives blob encode → decode unchanged, bytes too;
-//! - every single-bit flip of a blob is refused.
+//! - every single-bit flip of a blob is refused;
+//!
+//! the models drawn include thermal lag banks of every filter count.
 
 use proptest::prelude::*;
 use rbf_core::blob::{self, MAX_BLOB_LEN};
+use rbf_core::lag_bank::{BANK_FILTERS, LagBank, MAX_STATIC_DEGREE};
 use rbf_core::model::{DeployedRbf, ModelBody};
 use rbf_core::poly::Poly3;
 use rbf_core::rbf::RbfParams;
@@ -41,10 +44,38 @@ fn feature_config() -> impl Strategy<Value = FeatureConfig> {
         FeatureSet::MultiScaleSecondOrder,
         FeatureSet::MultiScaleLagged { coil_lag_min: 25 },
     ]);
-    (set, window).prop_map(|(set, w)| match set {
+    let seed_sets = (set, window).prop_map(|(set, w)| match set {
         set if set.is_multiscale() => FeatureConfig::multiscale(set, [w, 8.0 * w, 64.0 * w]),
         _ => FeatureConfig::single(set, w),
-    })
+    });
+    prop_oneof![3 => seed_sets, 1 => lag_bank_config()]
+}
+
+/// A valid lag bank: 1–8 filters log-spaced from `fastest_s` by `ratio`,
+/// coil lags within one filter time constant, a Shupe gain, a static degree
+/// and a covered range of T̂.
+fn lag_bank_config() -> impl Strategy<Value = FeatureConfig> {
+    (
+        1usize..=BANK_FILTERS,
+        1.0f32..60.0,
+        2.0f32..4.0,
+        prop::array::uniform8(-1.0f32..1.0),
+        -0.01f32..0.01,
+        1u8..=MAX_STATIC_DEGREE,
+        -40.0f32..20.0,
+        1.0f32..80.0,
+    )
+        .prop_filter_map("refused bank", |(n, fastest_s, ratio, lag, gain, degree, lo, span)| {
+            let taus: Vec<f32> = (0..n).map(|k| fastest_s * ratio.powi(k as i32)).collect();
+            let mut bank = LagBank::plain(&taus, lo + 0.5 * span)?;
+            for k in 0..n {
+                bank.coil_lag_min[k] = lag[k] * taus[k] / 60.0;
+            }
+            bank.gain_per_c = gain;
+            bank.static_degree = degree;
+            (bank.coil_min_c, bank.coil_max_c) = (lo, lo + span);
+            bank.is_valid().then(|| FeatureConfig::lag_bank(bank))
+        })
 }
 
 /// A valid RBF model of configuration `cfg` with `k` centres, its parameters

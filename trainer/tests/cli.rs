@@ -914,3 +914,106 @@ fn simulate_unit_draws_a_recorded_gyro_that_params_override_and_in_use_runs_star
     expected["gyro"]["arw_deg_per_sqrt_h"] = serde_json::json!(0.004);
     assert_eq!(got, expected);
 }
+
+/// Number of data rows of a compensated run whose flags carry `bit`.
+fn rows_flagged(compensated: &str, bit: u32) -> usize {
+    let mut lines = compensated.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "flags").unwrap();
+    lines
+        .filter(|l| l.split(',').nth(col).unwrap().parse::<u32>().unwrap() & bit != 0)
+        .count()
+}
+
+#[test]
+fn samples_whose_rates_leave_the_training_range_are_flagged_clamped() {
+    let dir = TempDir::new().unwrap();
+    // Trained on 1 °C/min ramps.
+    let model = fitted_model(&dir);
+    let fast = dir.path().join("fast.csv");
+    let o = trainer(&[
+        "simulate",
+        "--ramp",
+        "4",
+        "--hold-min",
+        "30",
+        "--seed",
+        "8",
+        "-o",
+        fast.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let compensated = |run: &Path, out: &str| {
+        let out = dir.path().join(out);
+        let o = compensate(&model, run, &out, &[]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read_to_string(out).unwrap()
+    };
+    const INPUT_CLAMPED: u32 = 1;
+    // The training run itself stays inside what it covered ...
+    assert_eq!(
+        rows_flagged(&compensated(&dir.path().join("train.csv"), "t.csv"), INPUT_CLAMPED),
+        0
+    );
+    // ... 4 °C/min ramps drive the filter rates past it: the ramps are flagged
+    // (the holds between them are not).
+    let fast_out = compensated(&fast, "f.csv");
+    let rows = data_rows(&fast_out).len();
+    let clamped = rows_flagged(&fast_out, INPUT_CLAMPED);
+    assert!(
+        clamped > rows / 20 && clamped < rows / 2,
+        "{clamped} of {rows} rows clamped"
+    );
+}
+
+/// `trainer eval --json` on `run` with `model`: the 100-s cluster STD after compensation, °/h.
+fn cluster_std_after_dph(dir: &TempDir, model: &Path, run: &Path) -> f64 {
+    let json = dir.path().join("eval.json");
+    let o = trainer(&[
+        "eval",
+        "--model",
+        model.to_str().unwrap(),
+        run.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--force",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    v[0]["cluster_std_after_dph"].as_f64().unwrap()
+}
+
+#[test]
+fn a_second_training_run_at_another_sample_rate_is_left_out_in_turn_and_improves_the_model() {
+    let dir = TempDir::new().unwrap();
+    // Run 1: 1 °C/min ramps over 17–32 °C at 10 Hz (the fixture's model).
+    let one_run = fitted_model(&dir);
+    let sim = |args: &[&str], name: &str| {
+        let path = dir.path().join(name);
+        let o = trainer(&[&["simulate"], args, &["-o", path.to_str().unwrap()]].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        path
+    };
+    // Run 2: random set points over −40…60 °C, sampled at 2 Hz.
+    let random = sim(
+        &["--profile", "random", "--hours", "6", "--rate-hz", "2", "--seed", "9"],
+        "random.csv",
+    );
+    // The unseen history: other random set points.
+    let unseen = sim(&["--profile", "random", "--hours", "6", "--seed", "11"], "unseen.csv");
+    let two_runs = dir.path().join("two.bin");
+    let o = trainer(&[
+        "fit",
+        dir.path().join("train.csv").to_str().unwrap(),
+        random.to_str().unwrap(),
+        "-o",
+        two_runs.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("leave-one-run-out (2 folds)"), "{}", stdout(&o));
+    let (one, two) = (
+        cluster_std_after_dph(&dir, &one_run, &unseen),
+        cluster_std_after_dph(&dir, &two_runs, &unseen),
+    );
+    assert!(two < 0.7 * one, "two runs {two} °/h vs one run {one} °/h");
+}
