@@ -14,4 +14,8 @@ fn main() {
     std::fs::copy("../memory.x", out.join("memory.x")).expect("copy memory.x");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
+    // defmt's log strings live in an ELF section its linker script describes.
+    if std::env::var_os("CARGO_FEATURE_BOARD_DEBUG").is_some() {
+        println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
+    }
 }

@@ -57,9 +57,49 @@ pub struct LoopStats {
     pub samples_missed: u32,
 }
 
-/// The loop: owns the model, the sensors and the output.
-pub struct CompensationLoop<T, R, W> {
-    model: Option<Model>,
+/// Where the loop's model lives: owned (`Option<Model>`, host tools and
+/// tests) or decoded in place into storage the board owns ([`InPlaceModel`]).
+pub trait ModelHolder {
+    /// The model to run, if there is a usable one.
+    fn model(&self) -> Option<&Model>;
+}
+
+impl ModelHolder for Option<Model> {
+    fn model(&self) -> Option<&Model> {
+        self.as_ref()
+    }
+}
+
+/// A model decoded in place into storage that outlives the loop (the
+/// board's `static`): no model is ever moved by value.
+#[derive(Debug)]
+pub struct InPlaceModel<'m> {
+    storage: &'m mut Model,
+    valid: bool,
+}
+
+impl<'m> InPlaceModel<'m> {
+    /// The model in `storage`, usable when `valid` (a decoder said so).
+    pub fn new(storage: &'m mut Model, valid: bool) -> Self {
+        InPlaceModel { storage, valid }
+    }
+
+    /// Lets `decode` rebuild the model in place; it says whether the
+    /// storage then holds a usable model.
+    pub fn rebuild(&mut self, decode: impl FnOnce(&mut Model) -> bool) {
+        self.valid = decode(self.storage);
+    }
+}
+
+impl ModelHolder for InPlaceModel<'_> {
+    fn model(&self) -> Option<&Model> {
+        self.valid.then_some(&*self.storage)
+    }
+}
+
+/// The loop: owns the model (or holds it in place), the sensors and the output.
+pub struct CompensationLoop<T, R, W, M = Option<Model>> {
+    model: M,
     config: LoopConfig,
     thermometer: T,
     front_end: R,
@@ -74,9 +114,9 @@ pub struct CompensationLoop<T, R, W> {
     pending_flags: Flags,
 }
 
-impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
-    /// A loop over `model` (`None`: absent or invalid blob, output flagged 4).
-    pub fn new(model: Option<Model>, config: LoopConfig, thermometer: T, front_end: R, output: W) -> Self {
+impl<T: Thermometers, R: RateFrontEnd, W: Write, M: ModelHolder> CompensationLoop<T, R, W, M> {
+    /// A loop over `model` (none: absent or invalid blob, output flagged 4).
+    pub fn new(model: M, config: LoopConfig, thermometer: T, front_end: R, output: W) -> Self {
         CompensationLoop {
             model,
             config,
@@ -127,7 +167,7 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
             self.temp_read_due = false;
             let wanted = self
                 .model
-                .as_ref()
+                .model()
                 .map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
             let failed = self.thermometer.read_wanted(wanted, &mut self.latest_temps_c);
             self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
@@ -146,7 +186,7 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
         };
         let mut out = self
             .compensator
-            .process(self.model.as_ref(), &self.config.compensator, &sample);
+            .process(self.model.model(), &self.config.compensator, &sample);
         if !rate_ok {
             out.flags |= Flags::RATE_INVALID;
         }
@@ -180,8 +220,15 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
     /// Switches to `model` (after a model update) between two samples; the
     /// feature filters start afresh, as the new model may compute others
     /// (and read other thermometers: they are read on the next sample).
-    pub fn replace_model(&mut self, model: Option<Model>) {
-        self.model = model;
+    pub fn replace_model(&mut self, model: M) {
+        self.update_model(|m| *m = model);
+    }
+
+    /// Changes the model in place between two samples (the board rebuilds
+    /// its `static` model through [`InPlaceModel::rebuild`]); the feature
+    /// filters start afresh as after [`Self::replace_model`].
+    pub fn update_model(&mut self, change: impl FnOnce(&mut M)) {
+        change(&mut self.model);
         self.compensator = Compensator::new();
         self.temp_read_due = true;
     }
@@ -193,7 +240,7 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write> CompensationLoop<T, R, W> {
 
     /// The model in use.
     pub fn model(&self) -> Option<&Model> {
-        self.model.as_ref()
+        self.model.model()
     }
 
     /// Health counters.

@@ -135,6 +135,13 @@ impl<const N: usize> ReadNorFlash for EmulatedFlash<N> {
     }
 }
 
+impl<const N: usize> crate::model_store::MappedFlash for EmulatedFlash<N> {
+    fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
+        let start = offset as usize;
+        self.bytes.get(start..start.checked_add(len)?)
+    }
+}
+
 impl<const N: usize> NorFlash for EmulatedFlash<N> {
     const WRITE_SIZE: usize = WORD;
     const ERASE_SIZE: usize = PAGE;

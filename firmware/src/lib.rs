@@ -11,12 +11,14 @@
 //! - [`emulated_flash`]: NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
 //! - [`fault_injection`]: buses that fail on a schedule and the fault campaign of the QEMU fault board;
 //! - [`fault`]: the fault record kept across a reset and the boot report frame;
+//! - [`bench`]: the board's `bench` command (DWT cycle counts of its sample steps);
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
 //! The board binaries in `src/bin/` only wire peripherals to these.
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
+pub mod bench;
 pub mod compensation;
 pub mod emulated_flash;
 pub mod fault;

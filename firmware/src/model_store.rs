@@ -23,10 +23,32 @@
 //! switches. A reset at any point leaves either the old model or the new one
 //! selected at the next boot, never neither (`tests/model_update.rs`, and the
 //! QEMU fault campaign which cuts power after every flash operation).
+//!
+//! Blobs are read where they lie ([`MappedFlash`]: the STM32's flash is
+//! memory-mapped) and decoded in place into a model the caller owns
+//! ([`ModelStore::open_with`], [`ModelStore::load_into`],
+//! [`ModelStore::install_into`]): the board keeps its one model in a
+//! `static`, and neither a 4 KiB blob buffer nor a 4 KiB model lands on its
+//! stack. [`ModelStore::open`], [`ModelStore::load`] and
+//! [`ModelStore::install`] return models by value for host tools and tests.
 
 use embedded_storage::nor_flash::NorFlash;
 use rbf_core::Model;
 use rbf_core::blob::{self, DecodeError, HEADER_LEN, Header, MAX_BLOB_LEN};
+
+/// A NOR flash whose contents can also be read in place, as the STM32's
+/// memory-mapped flash can: blobs are checked and decoded where they lie.
+pub trait MappedFlash: NorFlash {
+    /// The `len` bytes at `offset` from the start of the device; `None` out
+    /// of bounds (or while the device cannot be read).
+    fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]>;
+}
+
+impl<T: MappedFlash> MappedFlash for &mut T {
+    fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
+        T::mapped(self, offset, len)
+    }
+}
 
 /// Bytes of the commit record at the end of a slot.
 pub const COMMIT_LEN: usize = 16;
@@ -92,25 +114,35 @@ pub struct ModelStore<F> {
     layout: SlotLayout,
     states: [SlotState; 2],
     active: Option<usize>,
+    /// The last [`ModelStore::load_into`] left a usable model behind.
+    loaded: bool,
 }
 
-impl<F: NorFlash> ModelStore<F> {
-    /// Scans both slots and selects the one to run (see the module docs).
+impl<F: MappedFlash> ModelStore<F> {
+    /// Scans both slots and selects the one to run (see the module docs);
+    /// host tools and tests (the scan decodes into a model on the stack).
     pub fn open(flash: F, layout: SlotLayout) -> Self {
+        let mut scratch = Model::EMPTY;
+        Self::open_with(flash, layout, &mut scratch)
+    }
+
+    /// [`Self::open`] decoding each slot into `scratch` (left holding no
+    /// particular model: [`Self::load_into`] it).
+    pub fn open_with(flash: F, layout: SlotLayout, scratch: &mut Model) -> Self {
         let mut store = ModelStore {
             flash,
             layout,
             states: [SlotState::Invalid(DecodeError::BadMagic); 2],
             active: None,
+            loaded: false,
         };
-        store.rescan();
+        store.rescan(scratch);
         store
     }
 
-    fn rescan(&mut self) {
-        let mut buf = [0u8; MAX_BLOB_LEN];
+    fn rescan(&mut self, scratch: &mut Model) {
         for slot in 0..2 {
-            self.states[slot] = self.scan(slot, &mut buf);
+            self.states[slot] = self.scan(slot, scratch);
         }
         self.active = match self.states {
             [SlotState::Invalid(_), SlotState::Invalid(_)] => None,
@@ -118,14 +150,11 @@ impl<F: NorFlash> ModelStore<F> {
         };
     }
 
-    /// Reads slot `slot`'s blob into `buf`; its length.
-    fn read_blob(&mut self, slot: usize, buf: &mut [u8; MAX_BLOB_LEN]) -> Result<usize, DecodeError> {
+    /// Slot `slot`'s blob where it lies (its length from its header).
+    fn blob(&self, slot: usize) -> Result<&[u8], DecodeError> {
         let start = self.layout.offsets[slot & 1];
-        let header_bytes = buf.get_mut(..HEADER_LEN).ok_or(DecodeError::Malformed)?;
-        self.flash
-            .read(start, header_bytes)
-            .map_err(|_| DecodeError::Malformed)?;
-        let len = Header::parse(header_bytes)?.blob_len();
+        let header = self.flash.mapped(start, HEADER_LEN).ok_or(DecodeError::Malformed)?;
+        let len = Header::parse(header)?.blob_len();
         let room = (self.layout.len as usize).saturating_sub(COMMIT_LEN);
         if len > MAX_BLOB_LEN || len > room {
             return Err(DecodeError::Truncated {
@@ -133,25 +162,22 @@ impl<F: NorFlash> ModelStore<F> {
                 available: room.min(MAX_BLOB_LEN),
             });
         }
-        let bytes = buf.get_mut(..len).ok_or(DecodeError::Malformed)?;
-        self.flash.read(start, bytes).map_err(|_| DecodeError::Malformed)?;
-        Ok(len)
+        self.flash.mapped(start, len).ok_or(DecodeError::Malformed)
     }
 
-    fn scan(&mut self, slot: usize, buf: &mut [u8; MAX_BLOB_LEN]) -> SlotState {
-        let len = match self.read_blob(slot, buf) {
-            Ok(len) => len,
+    fn scan(&mut self, slot: usize, scratch: &mut Model) -> SlotState {
+        let blob_bytes = match self.blob(slot) {
+            Ok(bytes) => bytes,
             Err(e) => return SlotState::Invalid(e),
         };
-        let blob_bytes = buf.get(..len).unwrap_or(&[]);
-        if let Err(e) = blob::decode(blob_bytes) {
+        if let Err(e) = blob::decode_into(scratch, blob_bytes) {
             return SlotState::Invalid(e);
         }
-        let mut record = [0u8; COMMIT_LEN];
-        if self.flash.read(self.layout.commit_offset(slot), &mut record).is_err() {
-            return SlotState::Uncommitted;
-        }
-        match parse_commit(&record, blob_bytes) {
+        let record = self
+            .flash
+            .mapped(self.layout.commit_offset(slot), COMMIT_LEN)
+            .and_then(|r| <&[u8; COMMIT_LEN]>::try_from(r).ok());
+        match record.and_then(|r| parse_commit(r, blob_bytes)) {
             Some(sequence) => SlotState::Committed(sequence),
             None => SlotState::Uncommitted,
         }
@@ -169,18 +195,61 @@ impl<F: NorFlash> ModelStore<F> {
 
     /// Decodes the selected slot's model; the reason if there is none.
     pub fn load(&mut self) -> Result<Model, DecodeError> {
-        let slot = self.active.ok_or(self.states[0].invalid_reason())?;
-        let mut buf = [0u8; MAX_BLOB_LEN];
-        let len = self.read_blob(slot, &mut buf)?;
-        blob::decode(buf.get(..len).unwrap_or(&[])).map(|d| d.model)
+        let mut model = Model::EMPTY;
+        self.load_into(&mut model).map(|()| model)
+    }
+
+    /// [`Self::load`] in place: `model` holds the selected slot's model, or
+    /// [`Model::EMPTY`] and the reason.
+    pub fn load_into(&mut self, model: &mut Model) -> Result<(), DecodeError> {
+        let Some(slot) = self.active else {
+            *model = Model::EMPTY;
+            self.loaded = false;
+            return Err(self.states[0].invalid_reason());
+        };
+        let bytes = self.blob(slot);
+        let result = bytes.and_then(|b| blob::decode_into(model, b));
+        if result.is_err() {
+            *model = Model::EMPTY;
+        }
+        self.loaded = result.is_ok();
+        result.map(|_| ())
+    }
+
+    /// Whether the model the last [`Self::load_into`] (or
+    /// [`Self::install_into`]) decoded is usable: the selected slot's.
+    pub fn model_loaded(&self) -> bool {
+        self.loaded
     }
 
     /// Installs `blob` in the slot not running and switches to it; returns
     /// the new model. On any error the running slot is untouched and still
     /// selected.
     pub fn install(&mut self, blob_bytes: &[u8]) -> Result<Model, InstallError<F::Error>> {
-        let decoded = blob::decode(blob_bytes).map_err(InstallError::Refused)?;
-        let blob_bytes = blob_bytes.get(..decoded.len).ok_or(InstallError::Verify)?;
+        let mut model = Model::EMPTY;
+        self.install_into(blob_bytes, &mut model).map(|()| model)
+    }
+
+    /// [`Self::install`] in place: on success `model` holds the new model;
+    /// on any error the running slot is untouched and still selected, and
+    /// `model` holds its model again (decoded afresh from its slot:
+    /// [`Model::EMPTY`] if there is none).
+    pub fn install_into(&mut self, blob_bytes: &[u8], model: &mut Model) -> Result<(), InstallError<F::Error>> {
+        let result = self.write_and_switch(blob_bytes, model);
+        // The running model is rebuilt from its slot: the old one after an
+        // error, the new one (now selected) after success.
+        let loaded = self.load_into(model);
+        match result {
+            Ok(()) if loaded.is_err() => Err(InstallError::Verify),
+            other => other,
+        }
+    }
+
+    /// Checks `blob_bytes` (decoding it into `scratch`), writes it to the
+    /// slot not running, verifies it and commits it.
+    fn write_and_switch(&mut self, blob_bytes: &[u8], scratch: &mut Model) -> Result<(), InstallError<F::Error>> {
+        let len = blob::decode_into(scratch, blob_bytes).map_err(InstallError::Refused)?;
+        let blob_bytes = blob_bytes.get(..len).ok_or(InstallError::Verify)?;
         let target = self.active.map_or(0, |a| 1 - (a & 1));
         let sequence = match self.active.map(|a| self.states[a & 1]) {
             Some(SlotState::Committed(s)) => s.wrapping_add(1),
@@ -191,19 +260,17 @@ impl<F: NorFlash> ModelStore<F> {
             .erase(start, start + self.layout.len)
             .map_err(InstallError::Flash)?;
         self.write_padded(start, blob_bytes)?;
-        let mut buf = [0u8; MAX_BLOB_LEN];
-        let read_back = self.read_blob(target, &mut buf).map_err(|_| InstallError::Verify)?;
-        if buf.get(..read_back) != Some(blob_bytes) {
+        if self.blob(target).ok() != Some(blob_bytes) {
             return Err(InstallError::Verify);
         }
         // The switch: one small record, valid only if written whole.
         let record = commit_record(sequence, blob_bytes);
         self.write_padded(self.layout.commit_offset(target), &record)?;
-        self.rescan();
+        self.rescan(scratch);
         if self.active != Some(target) || self.states[target] != SlotState::Committed(sequence) {
             return Err(InstallError::Verify);
         }
-        Ok(decoded.model)
+        Ok(())
     }
 
     /// Writes `bytes` at `offset`, the last write unit padded with 0xFF (erased state).

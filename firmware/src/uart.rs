@@ -14,7 +14,31 @@
 //! (a byte the hardware or the full queue lost); the main loop pops them
 //! into [`crate::update::CommandReceiver`].
 
-use heapless::spsc::Producer;
+use heapless::spsc::{Consumer, Producer};
+
+/// `producer.enqueue(value)` with no panic path. heapless 0.9 computes queue
+/// positions modulo `capacity + 1`, a run-time value behind the producer's
+/// view, so every `enqueue` and `dequeue` links a division-by-zero panic;
+/// testing that value first (it is never 0: a queue holds at least one
+/// slot) lets the optimiser drop it. The board's interrupt handlers and its
+/// loop use these, and `cargo xtask check-board-panics` proves from the
+/// image that no panic is left (docs/panic-free.md).
+#[inline(always)]
+pub fn enqueue<T>(producer: &mut Producer<'_, T>, value: T) -> Result<(), T> {
+    if producer.capacity() == usize::MAX {
+        return Err(value);
+    }
+    producer.enqueue(value)
+}
+
+/// `consumer.dequeue()` with no panic path (see [`enqueue`]).
+#[inline(always)]
+pub fn dequeue<T>(consumer: &mut Consumer<'_, T>) -> Option<T> {
+    if consumer.capacity() == usize::MAX {
+        return None;
+    }
+    consumer.dequeue()
+}
 
 /// Why a frame was not queued.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -52,7 +76,13 @@ impl<'a, S: FnMut()> FrameQueue<'a, S> {
 
     /// Bytes that fit now.
     pub fn free(&self) -> usize {
-        self.bytes.capacity().saturating_sub(self.bytes.len())
+        // The test for a zero modulus (capacity + 1 = 0) drops `len`'s
+        // division-by-zero panic, as in [`enqueue`].
+        let capacity = self.bytes.capacity();
+        if capacity == usize::MAX {
+            return 0;
+        }
+        capacity.saturating_sub(self.bytes.len())
     }
 
     /// Queues `frame` whole and starts the transmitter, or drops it.
@@ -63,7 +93,7 @@ impl<'a, S: FnMut()> FrameQueue<'a, S> {
         }
         for &b in frame {
             // Cannot fail: the room was checked, and only this end adds bytes.
-            let _ = self.bytes.enqueue(b);
+            let _ = enqueue(&mut self.bytes, b);
         }
         (self.start)();
         Ok(())

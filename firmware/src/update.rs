@@ -9,12 +9,11 @@
 //! UART as the output frames; a reply is told from an output frame by its
 //! length (2 payload bytes, an output frame has at least 18).
 
-use embedded_storage::nor_flash::NorFlash;
 use rbf_core::Model;
 use rbf_core::blob::MAX_BLOB_LEN;
 use rbf_core::frame::cobs_encode;
 
-use crate::model_store::{InstallError, ModelStore};
+use crate::model_store::{InstallError, MappedFlash, ModelStore};
 
 /// Command: install the model blob that follows.
 pub const CMD_INSTALL_MODEL: u8 = 0x01;
@@ -133,15 +132,25 @@ pub fn cobs_decode_in_place(frame: &mut [u8]) -> Option<usize> {
 }
 
 /// Carries out one command payload on `store`; the status and, when a model
-/// was installed, the model to switch the loop to.
-pub fn execute<F: NorFlash>(store: &mut ModelStore<F>, payload: &[u8]) -> (UpdateStatus, Option<Model>) {
+/// was installed, the model to switch the loop to (host tools and tests).
+pub fn execute<F: MappedFlash>(store: &mut ModelStore<F>, payload: &[u8]) -> (UpdateStatus, Option<Model>) {
+    let mut model = Model::EMPTY;
+    let status = execute_into(store, payload, &mut model);
+    (status, (status == UpdateStatus::Installed).then_some(model))
+}
+
+/// [`execute`] in place on the running model (the board's `static`): after
+/// an install command `model` holds the model of the slot selected now,
+/// the new one ([`UpdateStatus::Installed`]) or the old one decoded afresh
+/// from its untouched slot; after any other command it is untouched.
+pub fn execute_into<F: MappedFlash>(store: &mut ModelStore<F>, payload: &[u8], model: &mut Model) -> UpdateStatus {
     match payload.split_first() {
-        Some((&CMD_INSTALL_MODEL, blob)) => match store.install(blob) {
-            Ok(model) => (UpdateStatus::Installed, Some(model)),
-            Err(InstallError::Refused(_)) => (UpdateStatus::Refused, None),
-            Err(InstallError::Flash(_) | InstallError::Verify) => (UpdateStatus::FlashFailed, None),
+        Some((&CMD_INSTALL_MODEL, blob)) => match store.install_into(blob, model) {
+            Ok(()) => UpdateStatus::Installed,
+            Err(InstallError::Refused(_)) => UpdateStatus::Refused,
+            Err(InstallError::Flash(_) | InstallError::Verify) => UpdateStatus::FlashFailed,
         },
-        _ => (UpdateStatus::UnknownCommand, None),
+        _ => UpdateStatus::UnknownCommand,
     }
 }
 

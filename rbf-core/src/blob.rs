@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 use crate::features::FeatureConfig;
 use crate::model::{BodyParams, Model, ModelBody, ModelError, ModelInfo, ModelKind, SERIAL_CAPACITY};
 use crate::poly::Poly3;
-use crate::rbf::RbfParams;
+use crate::rbf::{RbfShape, RbfStorage};
 use crate::{MAX_CENTERS, MAX_INPUTS, MAX_KERNEL_INPUTS};
 
 /// First four bytes of every blob.
@@ -66,7 +66,9 @@ struct CommonWire {
     serial: Option<heapless::String<SERIAL_CAPACITY>>,
 }
 
-#[derive(Serialize, Deserialize)]
+/// The body of an RBF blob as the encoder writes it; the decoder reads the
+/// same fields in place ([`read_rbf_in_place`]).
+#[derive(Serialize)]
 struct RbfWire {
     kernel_inputs: u8,
     offset: Vec<f32, MAX_INPUTS>,
@@ -381,21 +383,10 @@ fn decode_payload(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError>
     let info = ModelInfo { serial: common.serial };
     match ModelKind::from_code(header.kind_code) {
         Some(ModelKind::Rbf) => {
-            let (w, rest): (RbfWire, _) = postcard::take_from_bytes(rest).map_err(|_| DecodeError::Malformed)?;
-            if w.widths.len() != header.centers as usize || !rest.is_empty() {
-                return Err(DecodeError::Malformed);
-            }
-            let params = RbfParams {
-                offset: &w.offset,
-                scale: &w.scale,
-                kernel_inputs: w.kernel_inputs as usize,
-                centers: &w.centers,
-                widths: &w.widths,
-                weights: &w.weights,
-                linear: &w.linear,
-                constant: w.constant,
-            };
-            model.assign(common.features, ranges, BodyParams::Rbf(&params), info)?;
+            let centers = usize::from(header.centers);
+            model.assign_rbf_in_place(common.features, ranges, info, |storage| {
+                read_rbf_in_place(rest, centers, storage)
+            })?;
         }
         Some(ModelKind::Poly3) => {
             let (w, rest): (Poly3Wire, _) = postcard::take_from_bytes(rest).map_err(|_| DecodeError::Malformed)?;
@@ -410,6 +401,120 @@ fn decode_payload(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError>
     Ok(header.blob_len())
 }
 
+/// Reads an RBF body ([`RbfWire`], postcard) straight into a network's
+/// arrays: the fields in their wire order, each sequence through
+/// [`F32Seq`]; the body must fill `rest` exactly and announce `centers`
+/// centres, as the header does. Sequences longer than the wire format
+/// allows are refused as malformed, exactly as decoding into `RbfWire`
+/// would.
+fn read_rbf_in_place(rest: &[u8], centers: usize, storage: RbfStorage<'_>) -> Result<RbfShape, DecodeError> {
+    use serde::de::DeserializeSeed;
+    let malformed = |_| DecodeError::Malformed;
+    let RbfStorage {
+        offset,
+        scale,
+        centers: centre_rows,
+        widths,
+        weights,
+        linear,
+    } = storage;
+    let mut de = postcard::Deserializer::from_bytes(rest);
+    let kernel_inputs = usize::from(u8::deserialize(&mut de).map_err(malformed)?);
+    let offsets = F32Seq::into_slice(offset, MAX_INPUTS)
+        .deserialize(&mut de)
+        .map_err(malformed)?;
+    let scales = F32Seq::into_slice(scale, MAX_INPUTS)
+        .deserialize(&mut de)
+        .map_err(malformed)?;
+    // Rows of `kernel_inputs` values; a count the network cannot hold is
+    // read and refused by the shape check after.
+    let m = kernel_inputs.max(1);
+    let center_values = F32Seq {
+        capacity: MAX_CENTERS * MAX_KERNEL_INPUTS,
+        put: |i: usize, v: f32| {
+            if let Some(c) = centre_rows.get_mut(i / m).and_then(|row| row.get_mut(i % m)) {
+                *c = v;
+            }
+        },
+    }
+    .deserialize(&mut de)
+    .map_err(malformed)?;
+    let widths = F32Seq::into_slice(widths, MAX_CENTERS)
+        .deserialize(&mut de)
+        .map_err(malformed)?;
+    let weights = F32Seq::into_slice(weights, MAX_CENTERS)
+        .deserialize(&mut de)
+        .map_err(malformed)?;
+    let linear = F32Seq::into_slice(linear, MAX_INPUTS)
+        .deserialize(&mut de)
+        .map_err(malformed)?;
+    let constant = f32::deserialize(&mut de).map_err(malformed)?;
+    let left = de.finalize().map_err(malformed)?;
+    if widths != centers || !left.is_empty() {
+        return Err(DecodeError::Malformed);
+    }
+    Ok(RbfShape {
+        offsets,
+        scales,
+        kernel_inputs,
+        center_values,
+        widths,
+        weights,
+        linear,
+        constant,
+    })
+}
+
+/// A postcard sequence of f32 handed to `put` (index, value) as it is
+/// read, at most `capacity` long; its length.
+struct F32Seq<P> {
+    capacity: usize,
+    put: P,
+}
+
+impl<'a> F32Seq<()> {
+    /// A sequence written into `out` (at most `capacity` long; values past
+    /// `out` are read and dropped).
+    fn into_slice(out: &'a mut [f32], capacity: usize) -> F32Seq<impl FnMut(usize, f32) + 'a> {
+        F32Seq {
+            capacity,
+            put: move |i: usize, v: f32| {
+                if let Some(slot) = out.get_mut(i) {
+                    *slot = v;
+                }
+            },
+        }
+    }
+}
+
+impl<'de, P: FnMut(usize, f32)> serde::de::DeserializeSeed<'de> for F32Seq<P> {
+    type Value = usize;
+
+    fn deserialize<D: serde::Deserializer<'de>>(self, deserializer: D) -> Result<usize, D::Error> {
+        deserializer.deserialize_seq(self)
+    }
+}
+
+impl<'de, P: FnMut(usize, f32)> serde::de::Visitor<'de> for F32Seq<P> {
+    type Value = usize;
+
+    fn expecting(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "at most {} f32 values", self.capacity)
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(mut self, mut seq: A) -> Result<usize, A::Error> {
+        let mut n = 0;
+        while let Some(v) = seq.next_element::<f32>()? {
+            if n == self.capacity {
+                return Err(serde::de::Error::invalid_length(n + 1, &self));
+            }
+            (self.put)(n, v);
+            n += 1;
+        }
+        Ok(n)
+    }
+}
+
 #[cfg(test)]
 #[allow(
     clippy::float_cmp,
@@ -418,7 +523,7 @@ fn decode_payload(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError>
 mod tests {
     use super::*;
     use crate::features::FeatureSet;
-    use crate::rbf::RbfNetwork;
+    use crate::rbf::{RbfNetwork, RbfParams};
 
     fn rbf_model() -> Model {
         let features = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);

@@ -73,7 +73,7 @@ pub const EXP2_FRAC_BITS: u32 = 9;
 /// by up to 32 to take the input's shared term out of its loop.
 pub const EXP2_RANGE: u32 = 64;
 /// Cells of one octave of the fixed-point exponent: 2^F.
-const EXP2_CELLS: usize = 1 << EXP2_FRAC_BITS;
+pub const EXP2_CELLS: usize = 1 << EXP2_FRAC_BITS;
 /// Largest cell index [`exp2_neg_fixed`] reads: the exponent saturates at
 /// 64 − 2^−F.
 pub const EXP2_FIXED_MAX: i32 = ((EXP2_RANGE as i32) << EXP2_FRAC_BITS) - 1;
@@ -156,6 +156,20 @@ pub fn exp2_neg_fixed(u_fixed: i32) -> f32 {
     f32::from_bits(entry.wrapping_sub(cell << (23 - EXP2_FRAC_BITS)))
 }
 
+/// [`exp2_neg_fixed`] of `u_q16 >> (16 − F)` for an exponent in Q16, bit
+/// for bit, in the form a Cortex-M4 does in two instructions: the cell
+/// within its octave is the bit field 16 − F .. 16 of `u_q16` (UBFX), and
+/// the saturation takes the shift with it (USAT with ASR). `table` is
+/// [`EXP2_OCTAVE_BITS`] (a loop passes the address it holds in a register).
+#[inline(always)]
+pub fn exp2_neg_q16(table: &[u32; EXP2_CELLS], u_q16: i32) -> f32 {
+    const SHIFT: u32 = 16 - EXP2_FRAC_BITS;
+    let octave_cell = ((u_q16 as u32) << (32 - 16)) >> (32 - EXP2_FRAC_BITS);
+    let cell = (u_q16 >> SHIFT).clamp(0, EXP2_FIXED_MAX) as u32;
+    let entry = table.get(octave_cell as usize).copied().unwrap_or(0);
+    f32::from_bits(entry.wrapping_sub(cell << (23 - EXP2_FRAC_BITS)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -207,6 +221,21 @@ mod tests {
         assert_eq!(full.len(), EXP2_FIXED_MAX as usize + 1);
         for (i, want) in full.iter().enumerate() {
             assert_eq!(exp2_neg_fixed(i as i32).to_bits(), *want, "index {i}");
+        }
+    }
+
+    #[test]
+    fn the_q16_form_reads_the_same_cell_as_the_fixed_point_form_bit_for_bit() {
+        // Every octave cell, the saturation at both ends, and the whole i32 range sparsely.
+        let shift = 16 - EXP2_FRAC_BITS;
+        let dense = -(1 << 17)..(EXP2_FIXED_MAX + 600) << shift;
+        let sparse = (i32::MIN..=i32::MAX).step_by(65_537);
+        for u in dense.step_by(7).chain(sparse).chain([i32::MIN, -1, 0, i32::MAX]) {
+            assert_eq!(
+                exp2_neg_q16(&EXP2_OCTAVE_BITS, u).to_bits(),
+                exp2_neg_fixed(u >> shift).to_bits(),
+                "u = {u}"
+            );
         }
     }
 

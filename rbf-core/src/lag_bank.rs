@@ -159,9 +159,12 @@ impl LagBank {
     pub fn inputs(&self, temp_c: f32, rates_c_per_min: &[f32; BANK_FILTERS], out: &mut [f32]) {
         let t_hat = self.coil_temp_c(temp_c, rates_c_per_min);
         let u = t_hat - self.ref_c;
-        // Tangent continuation past the covered range (module docs); max/min,
-        // not clamp: no panic path even for a range the decoder would refuse.
-        let uc = t_hat.max(self.coil_min_c).min(self.coil_max_c) - self.ref_c;
+        // Tangent continuation past the covered range (module docs), with
+        // the model's compare-and-select clamp (f32::max/min are library
+        // calls on a Cortex-M4F; f32::clamp would panic on a range upside
+        // down, which the decoder refuses anyway).
+        let clamped = crate::model::clamp(t_hat, self.coil_min_c, self.coil_max_c);
+        let uc = clamped - self.ref_c;
         let beyond = u - uc;
         let powers = [t_hat, uc * (uc + 2.0 * beyond), uc * uc * (uc + 3.0 * beyond)];
         let s = self.static_inputs();

@@ -3,7 +3,7 @@
 
 use crate::features::{FeatureConfig, FeatureSet, FeatureVector};
 use crate::poly::Poly3;
-use crate::rbf::{RbfNetwork, RbfParams};
+use crate::rbf::{RbfNetwork, RbfParams, RbfShape, RbfStorage};
 use crate::{MAX_CENTERS, MAX_INPUTS};
 
 /// Linear terms may follow an input up to this many training spans beyond
@@ -112,6 +112,18 @@ pub enum BodyParams<'a> {
     Poly3(Poly3),
 }
 
+/// The network of `body`, made an RBF body first if it is not one (in
+/// place: a network is never moved by value).
+fn rbf_body(body: &mut ModelBody) -> Result<&mut DeployedRbf, ModelError> {
+    if !matches!(body, ModelBody::Rbf(_)) {
+        *body = ModelBody::Rbf(DeployedRbf::EMPTY);
+    }
+    match body {
+        ModelBody::Rbf(net) => Ok(net),
+        ModelBody::Poly3(_) => Err(ModelError::ShapeMismatch),
+    }
+}
+
 /// Result of evaluating a model on one feature vector.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Evaluation {
@@ -176,22 +188,38 @@ impl Model {
         body: BodyParams<'_>,
         info: ModelInfo,
     ) -> Result<(), ModelError> {
-        let built = match body {
-            BodyParams::Rbf(params) => {
-                if !matches!(self.body, ModelBody::Rbf(_)) {
-                    self.body = ModelBody::Rbf(DeployedRbf::EMPTY);
-                }
-                match &mut self.body {
-                    ModelBody::Rbf(net) => net.init(params),
-                    ModelBody::Poly3(_) => Err(ModelError::ShapeMismatch),
-                }
-            }
+        self.assign_with(features, input_range, info, |model_body| match body {
+            BodyParams::Rbf(params) => rbf_body(model_body)?.init(params),
             BodyParams::Poly3(poly) => {
-                self.body = ModelBody::Poly3(poly);
+                *model_body = ModelBody::Poly3(poly);
                 Ok(())
             }
-        };
-        let result = built.and_then(|()| self.complete(features, input_range, info));
+        })
+    }
+
+    /// [`Self::assign`] for a Gaussian RBF network whose parameters a
+    /// decoder writes straight into the network's arrays
+    /// ([`RbfNetwork::init_in_place`]: the blob decoder stages nothing).
+    pub fn assign_rbf_in_place<E: From<ModelError>>(
+        &mut self,
+        features: FeatureConfig,
+        input_range: &[(f32, f32)],
+        info: ModelInfo,
+        fill: impl FnOnce(RbfStorage<'_>) -> Result<RbfShape, E>,
+    ) -> Result<(), E> {
+        self.assign_with(features, input_range, info, |body| rbf_body(body)?.init_in_place(fill))
+    }
+
+    /// Builds the body with `build`, then completes the model; on error
+    /// `self` is [`Self::EMPTY`].
+    fn assign_with<E: From<ModelError>>(
+        &mut self,
+        features: FeatureConfig,
+        input_range: &[(f32, f32)],
+        info: ModelInfo,
+        build: impl FnOnce(&mut ModelBody) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let result = build(&mut self.body).and_then(|()| self.complete(features, input_range, info).map_err(E::from));
         if result.is_err() {
             *self = Model::EMPTY;
         }
@@ -250,6 +278,7 @@ impl Model {
         if let ModelBody::Rbf(net) = &mut self.body {
             let m = net.kernel_inputs().min(MAX_INPUTS);
             net.prepare_table(&input_min[..m], &input_max[..m]);
+            net.prepare_linear(&self.linear_min[..dims], &self.linear_max[..dims]);
         }
         let bound_dph = match &self.body {
             ModelBody::Rbf(net) => net.output_bound(
@@ -298,33 +327,56 @@ impl Model {
 
     /// Evaluates the bias, °/h: nonlinear parts (Gaussians, the cubic) at the
     /// inputs clamped to the training range, linear terms at the inputs clamped
-    /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it. `clamped` says that an
-    /// input left its training range.
+    /// to [`LINEAR_EXTRAPOLATION_SPANS`] spans beyond it (on the RBF table
+    /// path by a saturating conversion, [`RbfNetwork::prepare_linear`]: no
+    /// compares; a NaN input reads as its box's centre). `clamped` says that
+    /// an input left its training range.
     pub fn eval(&self, features: &FeatureVector) -> Evaluation {
-        // The input clamping is straight-line per input count (1, 2, 3, or
-        // up to MAX_INPUTS); the rest, and the network's per-centre loops,
-        // are one copy each.
-        match self.features.dims() {
-            1 => self.eval_inputs::<1>(features),
-            2 => self.eval_inputs::<2>(features),
-            3 => self.eval_inputs::<3>(features),
-            _ => self.eval_inputs::<MAX_INPUTS>(features),
-        }
+        // The input clamping is straight-line per input count (1, 2, 3, the
+        // 8 of the multi-scale sets and of the default lag bank, or up to
+        // MAX_INPUTS); the Gaussians of the table path, with the network's
+        // per-centre loops, are one copy after it.
+        let raw = features.values();
+        let table_net = match &self.body {
+            ModelBody::Rbf(net) if net.table_ready() => Some(net),
+            _ => None,
+        };
+        let (value, clamped) = match self.features.dims() {
+            1 => self.eval_inputs::<1>(raw, table_net),
+            2 => self.eval_inputs::<2>(raw, table_net),
+            3 => self.eval_inputs::<3>(raw, table_net),
+            8 => self.eval_inputs::<8>(raw, table_net),
+            _ => self.eval_inputs::<MAX_INPUTS>(raw, table_net),
+        };
+        let bias_dph = match table_net {
+            // The table path clamps kernel inputs itself, to the same training box.
+            Some(net) => value + net.table_gaussians(raw),
+            None => value,
+        };
+        Evaluation { bias_dph, clamped }
     }
 
+    /// The clamping of [`Self::eval`] for `N` inputs and the value of
+    /// everything but the Gaussians of `table_net` (the network when its
+    /// table path is ready: then its linear terms), with whether an input
+    /// left its training range.
     #[inline(always)]
-    fn eval_inputs<const N: usize>(&self, features: &FeatureVector) -> Evaluation {
-        let raw = features.values();
-        let mut x_linear = [0.0f32; N];
+    fn eval_inputs<const N: usize>(&self, raw: &[f32; MAX_INPUTS], table_net: Option<&DeployedRbf>) -> (f32, bool) {
         let mut outside = 0.0f32;
-        for ((li, v), ((lo, hi), (llo, lhi))) in x_linear.iter_mut().zip(raw).zip(self.limits()) {
+        for (v, (lo, hi)) in raw.iter().zip(self.input_min.iter().zip(&self.input_max)).take(N) {
             outside += outside_measure(*v, *lo, *hi);
-            *li = clamp(*v, *llo, *lhi);
         }
-        let bias_dph = match &self.body {
-            // The table path clamps kernel inputs itself, to the same training box.
-            ModelBody::Rbf(net) if net.table_ready() => net.eval_table(raw, &x_linear),
-            body => {
+        let value = match (table_net, &self.body) {
+            (Some(net), _) => net.linear_sum_boxed::<N>(raw),
+            (None, body) => {
+                let mut x_linear = [0.0f32; N];
+                for ((li, v), (llo, lhi)) in x_linear
+                    .iter_mut()
+                    .zip(raw)
+                    .zip(self.linear_min.iter().zip(&self.linear_max))
+                {
+                    *li = clamp(*v, *llo, *lhi);
+                }
                 let mut x = [0.0f32; N];
                 for ((xi, v), (lo, hi)) in x.iter_mut().zip(raw).zip(self.input_min.iter().zip(&self.input_max)) {
                     *xi = clamp(*v, *lo, *hi);
@@ -335,19 +387,7 @@ impl Model {
                 }
             }
         };
-        Evaluation {
-            bias_dph,
-            clamped: outside_flag(outside),
-        }
-    }
-
-    /// Per input ((training min, max), (linear min, max)), input units.
-    #[inline(always)]
-    fn limits(&self) -> impl Iterator<Item = ((&f32, &f32), (&f32, &f32))> {
-        self.input_min
-            .iter()
-            .zip(&self.input_max)
-            .zip(self.linear_min.iter().zip(&self.linear_max))
+        (value, outside_flag(outside))
     }
 
     /// The model's mathematical value at `features` in f64 with exact
@@ -400,7 +440,7 @@ fn outside_flag(sum: f32) -> bool {
 /// and selects (f32::max/min are library calls on a Cortex-M4F, whose FPU has
 /// no VMAXNM).
 #[inline(always)]
-fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
+pub(crate) fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
     let above = if v > lo { v } else { lo };
     if above < hi { above } else { hi }
 }
@@ -514,6 +554,44 @@ mod tests {
         );
         let e = model.eval(&fx.update(&cfg, 1.0, &loop_reading(100.0)));
         assert_eq!(e.bias_dph, 40.0, "…but no further than two spans (20 + 2·10)");
+    }
+
+    #[test]
+    fn on_the_table_path_linear_terms_follow_the_input_to_two_spans_and_hold() {
+        use crate::rbf::{RbfNetwork, RbfParams};
+        // bias = 1·z_T + 0.5·Gaussian; training range of T: 10 … 20, so the
+        // Gaussian holds its value at 20 beyond it and only the linear part moves.
+        let net = RbfNetwork::new(&RbfParams {
+            offset: &[0.0],
+            scale: &[1.0],
+            kernel_inputs: 1,
+            centers: &[15.0],
+            widths: &[3.0],
+            weights: &[0.5],
+            linear: &[1.0],
+            constant: 0.0,
+        })
+        .unwrap();
+        let cfg = FeatureConfig::single(FeatureSet::Temp, 0.0);
+        let model = Model::new(cfg, &[(10.0, 20.0)], ModelBody::Rbf(net), ModelInfo::default()).unwrap();
+        assert!(
+            matches!(&model.body, ModelBody::Rbf(n) if n.table_ready()),
+            "the table path runs"
+        );
+        let bias = |t: f32| model.eval(&FeatureVector::from_values(&[t])).bias_dph;
+        let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * b.abs().max(1.0);
+        assert!(close(bias(35.0) - bias(25.0), 10.0), "{}", bias(35.0) - bias(25.0));
+        assert!(
+            close(bias(100.0), bias(40.0)),
+            "held at 20 + 2·10: {} {}",
+            bias(100.0),
+            bias(40.0)
+        );
+        assert!(close(bias(-1e9), bias(-10.0)), "and at 10 − 2·10");
+        assert!(
+            bias(f32::NAN).is_finite(),
+            "NaN reads as a point of the box, not as NaN"
+        );
     }
 
     #[test]

@@ -34,6 +34,48 @@ pub struct RbfParams<'a> {
     pub constant: f32,
 }
 
+/// A network's parameter arrays, for a decoder that fills them where the
+/// network keeps them ([`RbfNetwork::init_in_place`]): no parameter is
+/// staged anywhere else. Centres are rows of [`crate::MAX_KERNEL_INPUTS`]
+/// values, of which the first `kernel_inputs` are used.
+#[derive(Debug)]
+pub struct RbfStorage<'a> {
+    /// Per-input offsets, input units.
+    pub offset: &'a mut [f32],
+    /// Per-input scales, input units.
+    pub scale: &'a mut [f32],
+    /// Centres, normalised units, one row per centre.
+    pub centers: &'a mut [[f32; KERNEL]],
+    /// Gaussian widths, normalised units.
+    pub widths: &'a mut [f32],
+    /// Output weights, °/h.
+    pub weights: &'a mut [f32],
+    /// Linear coefficients, °/h.
+    pub linear: &'a mut [f32],
+}
+
+/// How much of an [`RbfStorage`] a decoder filled, and the scalars: the
+/// shape [`RbfParams`] gives by its slices' lengths.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RbfShape {
+    /// Offsets given (the input count).
+    pub offsets: usize,
+    /// Scales given.
+    pub scales: usize,
+    /// Leading inputs the Gaussians see.
+    pub kernel_inputs: usize,
+    /// Centre coordinates given (centres × kernel inputs).
+    pub center_values: usize,
+    /// Widths given (the centre count).
+    pub widths: usize,
+    /// Weights given.
+    pub weights: usize,
+    /// Linear coefficients given (0 or the input count).
+    pub linear: usize,
+    /// Constant term c, °/h.
+    pub constant: f32,
+}
+
 /// A Gaussian RBF network holding at most `K` centres over at most `D` inputs.
 ///
 /// `repr(C)` with what [`Self::eval`] reads first: the hot fields sit within
@@ -67,6 +109,12 @@ pub struct RbfNetwork<const K: usize, const D: usize> {
     /// Linear terms with the normalisation folded in: y_lin = c′ + Σ a′_i x_i,
     /// a′_i = a_i / scale_i, c′ = c − Σ a′_i offset_i.
     linear_raw: [f32; D],
+    /// The linear terms over the saturating map of each input's linear box
+    /// ([`Self::prepare_linear`]): y_lin = c″ + Σ b_i·f32(i32((x_i − mid_i)·gain_i)).
+    linear_box_mid: [f32; D],
+    linear_box_gain: [f32; D],
+    linear_box_coeff: [f32; D],
+    linear_box_constant: f32,
     offset: [f32; D],
     inv_scale: [f32; D],
     /// Per centre [A₁, A₂, A₃, B] in fixed point, packed two to a word
@@ -104,8 +152,6 @@ const FIXED_LIMIT: f64 = (1u32 << 30) as f64;
 /// Exponent range a Gaussian term needs: terms below 2^−32 of the largest
 /// weight may be dropped. The offset T may use the rest of the table's range.
 const GAUSS_EXP2_RANGE: u32 = 32;
-/// Right shift from a Q[`U_FRAC`] exponent to the table's index.
-const TABLE_SHIFT: u32 = U_FRAC - crate::fastmath::EXP2_FRAC_BITS;
 
 /// [A₁, A₂, A₃, B] as two 64-bit words: loaded with two LDRDs.
 fn pack_coefficients(c: [i32; 4]) -> [u64; 2] {
@@ -125,7 +171,7 @@ fn unpack_coefficients(p: u64, q: u64) -> [i32; 4] {
 }
 
 /// Σ_pos 2^−v_j − Σ_neg 2^−v_j with v_j = B_j [+ Q when `ADD_Q`] + Σ_i hi(A_ji, q_i)
-/// over the first `M` kernel inputs: the per-centre loop of
+/// over the first `M` kernel inputs: the per-centre loops of
 /// [`RbfNetwork::eval_table`], one small function per (M, ADD_Q) so that
 /// each loop is straight-line; everything around it is shared.
 #[inline(always)]
@@ -135,25 +181,63 @@ fn exp2_sums<const M: usize, const ADD_Q: bool>(
     q: &[i32; TABLE_MAX_INPUTS],
     shared: i32,
 ) -> f32 {
-    let sum = |centres: &[[u64; 2]]| {
-        let mut sum = 0.0f32;
-        for &[p, r] in centres {
-            let [a1, a2, a3, b] = unpack_coefficients(p, r);
-            let mut v = if ADD_Q { b.wrapping_add(shared) } else { b };
-            if M >= 1 {
-                v = v.wrapping_add(mul_hi(a1, q[0]));
-            }
-            if M >= 2 {
-                v = v.wrapping_add(mul_hi(a2, q[1]));
-            }
-            if M >= 3 {
-                v = v.wrapping_add(mul_hi(a3, q[2]));
-            }
-            sum += crate::fastmath::exp2_neg_fixed(v >> TABLE_SHIFT);
+    let q = *q;
+    exp2_sum::<M, ADD_Q>(positive, q, shared) - exp2_sum::<M, ADD_Q>(negative, q, shared)
+}
+
+/// Σ_j 2^−v_j over `centres`, in their order.
+///
+/// Over three kernel inputs, two centres per iteration: LLVM's own
+/// unrolling would hold two centres' eight coefficient words, the three
+/// q_i, the table, the pointer and the count at once, one register more
+/// than a Cortex-M4 has free (r7 is the frame pointer), and rebuild the
+/// table's address in every iteration. The empty `black_box` (no
+/// instruction) keeps it from unrolling this loop further. With fewer
+/// kernel inputs the registers suffice and LLVM's unrolling is left alone.
+#[inline(always)]
+fn exp2_sum<const M: usize, const ADD_Q: bool>(centres: &[[u64; 2]], q: [i32; TABLE_MAX_INPUTS], shared: i32) -> f32 {
+    let table = &crate::fastmath::EXP2_OCTAVE_BITS;
+    let mut sum = 0.0f32;
+    if M < 3 {
+        for centre in centres {
+            sum += exp2_term::<M, ADD_Q>(table, centre, q, shared);
         }
-        sum
-    };
-    sum(positive) - sum(negative)
+        return sum;
+    }
+    let mut pairs = centres.chunks_exact(2);
+    for pair in &mut pairs {
+        if let [first, second] = pair {
+            sum += exp2_term::<M, ADD_Q>(table, first, q, shared);
+            core::hint::black_box(());
+            sum += exp2_term::<M, ADD_Q>(table, second, q, shared);
+        }
+    }
+    for centre in pairs.remainder() {
+        sum += exp2_term::<M, ADD_Q>(table, centre, q, shared);
+    }
+    sum
+}
+
+/// 2^−v_j of one centre's packed coefficients.
+#[inline(always)]
+fn exp2_term<const M: usize, const ADD_Q: bool>(
+    table: &[u32; crate::fastmath::EXP2_CELLS],
+    &[p, r]: &[u64; 2],
+    q: [i32; TABLE_MAX_INPUTS],
+    shared: i32,
+) -> f32 {
+    let [a1, a2, a3, b] = unpack_coefficients(p, r);
+    let mut v = if ADD_Q { b.wrapping_add(shared) } else { b };
+    if M >= 1 {
+        v = v.wrapping_add(mul_hi(a1, q[0]));
+    }
+    if M >= 2 {
+        v = v.wrapping_add(mul_hi(a2, q[1]));
+    }
+    if M >= 3 {
+        v = v.wrapping_add(mul_hi(a3, q[2]));
+    }
+    crate::fastmath::exp2_neg_q16(table, v)
 }
 
 /// 2^n for an integer-valued `n`, exactly `libm::exp2(n) as f32` (0 below
@@ -175,6 +259,21 @@ fn exp2_integer(n: f64) -> f32 {
 #[inline(always)]
 fn mul_hi(a: i32, b: i32) -> i32 {
     ((i64::from(a) * i64::from(b)) >> 32) as i32
+}
+
+/// The shape rules of a network of capacity `K` × `D`: counts within
+/// capacity ([`ModelError::ShapeOverCapacity`]) and agreeing with each
+/// other ([`ModelError::ShapeMismatch`]).
+fn check_shape<const K: usize, const D: usize>(shape: &RbfShape) -> Result<(), ModelError> {
+    let (d, k, m) = (shape.offsets, shape.widths, shape.kernel_inputs);
+    if d == 0 || d > D || k > K || m > KERNEL {
+        return Err(ModelError::ShapeOverCapacity);
+    }
+    let linear_ok = shape.linear == 0 || shape.linear == d;
+    if !(1..=d).contains(&m) || shape.scales != d || shape.center_values != k * m || shape.weights != k || !linear_ok {
+        return Err(ModelError::ShapeMismatch);
+    }
+    Ok(())
 }
 
 fn all_finite(values: &[f32]) -> bool {
@@ -199,6 +298,10 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         weight_scale: 0.0,
         constant_raw: 0.0,
         linear_raw: [0.0; D],
+        linear_box_mid: [0.0; D],
+        linear_box_gain: [0.0; D],
+        linear_box_coeff: [0.0; D],
+        linear_box_constant: 0.0,
         offset: [0.0; D],
         inv_scale: [0.0; D],
         exponent: [[0; 2]; K],
@@ -231,57 +334,96 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         result
     }
 
+    /// [`Self::init`] for a decoder that writes the parameters straight into
+    /// the network's arrays: `fill` gets them (all zero) and returns how
+    /// much it filled, or its own error. The same checks as [`Self::init`]
+    /// follow. On any error `self` is [`Self::EMPTY`].
+    pub fn init_in_place<E: From<ModelError>>(
+        &mut self,
+        fill: impl FnOnce(RbfStorage<'_>) -> Result<RbfShape, E>,
+    ) -> Result<(), E> {
+        *self = Self::EMPTY;
+        let result = fill(RbfStorage {
+            offset: &mut self.offset,
+            scale: &mut self.scale,
+            centers: &mut self.centers,
+            widths: &mut self.widths,
+            weights: &mut self.weights,
+            linear: &mut self.linear,
+        })
+        .and_then(|shape| self.finish(&shape).map_err(E::from));
+        if result.is_err() {
+            *self = Self::EMPTY;
+        }
+        result
+    }
+
     fn assign(&mut self, p: &RbfParams<'_>) -> Result<(), ModelError> {
-        let d = p.offset.len();
-        let k = p.widths.len();
-        if d == 0 || d > D || k > K {
-            return Err(ModelError::ShapeOverCapacity);
-        }
-        let m = p.kernel_inputs;
-        if m > KERNEL {
-            return Err(ModelError::ShapeOverCapacity);
-        }
-        let linear_ok = p.linear.is_empty() || p.linear.len() == d;
-        if !(1..=d).contains(&m) || p.scale.len() != d || p.centers.len() != k * m || p.weights.len() != k || !linear_ok
+        let shape = RbfShape {
+            offsets: p.offset.len(),
+            scales: p.scale.len(),
+            kernel_inputs: p.kernel_inputs,
+            center_values: p.centers.len(),
+            widths: p.widths.len(),
+            weights: p.weights.len(),
+            linear: p.linear.len(),
+            constant: p.constant,
+        };
+        check_shape::<K, D>(&shape)?;
+        // Zipped iterators rather than indexing: the firmware validates blobs
+        // on a path proven panic-free at link time (panic_free_check.rs).
+        let copy = |dst: &mut [f32], src: &[f32]| dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+        copy(&mut self.offset, p.offset);
+        copy(&mut self.scale, p.scale);
+        copy(&mut self.linear, p.linear);
+        copy(&mut self.widths, p.widths);
+        copy(&mut self.weights, p.weights);
+        for (row, src) in self
+            .centers
+            .iter_mut()
+            .zip(p.centers.chunks_exact(p.kernel_inputs.max(1)))
         {
-            return Err(ModelError::ShapeMismatch);
+            copy(row, src);
         }
-        let finite = all_finite(p.offset)
-            && all_finite(p.scale)
-            && all_finite(p.centers)
-            && all_finite(p.widths)
-            && all_finite(p.weights)
-            && all_finite(p.linear)
-            && p.constant.is_finite();
+        self.finish(&shape)
+    }
+
+    /// Checks the parameters in the arrays against `shape` and derives the
+    /// evaluation's values from them.
+    fn finish(&mut self, shape: &RbfShape) -> Result<(), ModelError> {
+        check_shape::<K, D>(shape)?;
+        let (d, k, m) = (shape.offsets, shape.widths, shape.kernel_inputs);
+        let used = |a: &[f32], n: usize| -> bool { a.get(..n).is_some_and(all_finite) };
+        let centres_finite = self
+            .centers
+            .get(..k)
+            .is_some_and(|rows| rows.iter().all(|row| used(row, m)));
+        let finite = used(&self.offset, d)
+            && used(&self.scale, d)
+            && centres_finite
+            && used(&self.widths, k)
+            && used(&self.weights, k)
+            && used(&self.linear, shape.linear)
+            && shape.constant.is_finite();
         if !finite {
             return Err(ModelError::NonFiniteParameter);
         }
-        if p.scale.iter().chain(p.widths).any(|&v| v <= 0.0) {
+        let positive = |a: &[f32], n: usize| a.iter().take(n).all(|&v| v > 0.0);
+        if !(positive(&self.scale, d) && positive(&self.widths, k)) {
             return Err(ModelError::InvalidParameter);
         }
         let net = self;
         net.centers_used = k;
         net.inputs_used = d;
         net.kernel_inputs = m;
-        net.has_linear = !p.linear.is_empty();
-        net.constant = p.constant;
-        net.constant_raw = p.constant;
+        net.has_linear = shape.linear > 0;
+        net.constant = shape.constant;
+        net.constant_raw = shape.constant;
         net.weight_scale = 1.0;
-        // Zipped iterators rather than indexing: the firmware validates blobs
-        // on a path proven panic-free at link time (panic_free_check.rs).
-        let copy = |dst: &mut [f32], src: &[f32]| dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
-        copy(&mut net.offset, p.offset);
-        copy(&mut net.scale, p.scale);
-        copy(&mut net.linear, p.linear);
-        copy(&mut net.widths, p.widths);
-        copy(&mut net.weights, p.weights);
-        for (inv, s) in net.inv_scale.iter_mut().zip(p.scale) {
+        for (inv, s) in net.inv_scale.iter_mut().zip(&net.scale).take(d) {
             *inv = 1.0 / s;
         }
-        for (row, src) in net.centers.iter_mut().zip(p.centers.chunks_exact(m.max(1))) {
-            copy(row, src);
-        }
-        for (g, w) in net.neg_half_inv_var.iter_mut().zip(p.widths) {
+        for (g, w) in net.neg_half_inv_var.iter_mut().zip(&net.widths).take(k) {
             *g = -0.5 / (w * w);
             if !g.is_finite() {
                 return Err(ModelError::InvalidParameter);
@@ -460,6 +602,32 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         }
     }
 
+    /// Prepares the linear terms of the table path for inputs clamped to
+    /// [`linear_lo`, `linear_hi`] (input units) by the saturating conversion
+    /// q_i = i32((x_i − mid_i)·gain_i), which maps the box onto the i32
+    /// range: x_i = mid_i + q_i/gain_i, so a′_i x_i = a′_i mid_i + (a′_i/gain_i)·q_i,
+    /// and the constants go into c″. An empty box maps every value to its
+    /// one point. f64 arithmetic rounded once: host and target agree.
+    pub fn prepare_linear(&mut self, linear_lo: &[f32], linear_hi: &[f32]) {
+        let mut constant = f64::from(self.constant_raw);
+        let q_one = f64::from(1u32 << 31);
+        for i in 0..self.inputs_used.min(D) {
+            let (lo, hi) = (
+                f64::from(linear_lo.get(i).copied().unwrap_or(0.0)),
+                f64::from(linear_hi.get(i).copied().unwrap_or(0.0)),
+            );
+            let mid = ((lo + hi) / 2.0) as f32;
+            let half = (hi - lo) / 2.0;
+            let gain = if half > 0.0 { (q_one / half) as f32 } else { 0.0 };
+            let a = f64::from(self.linear_raw[i]);
+            self.linear_box_mid[i] = mid;
+            self.linear_box_gain[i] = gain;
+            self.linear_box_coeff[i] = if gain > 0.0 { (a / f64::from(gain)) as f32 } else { 0.0 };
+            constant += a * f64::from(mid);
+        }
+        self.linear_box_constant = constant as f32;
+    }
+
     /// True when [`Self::prepare_table`] enabled the table path.
     pub fn table_ready(&self) -> bool {
         self.table
@@ -586,45 +754,66 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
     }
 
     /// The Gaussian sum of [`Self::eval_table`], °/h.
-    fn table_gaussians(&self, x_kernel: &[f32; MAX_INPUTS_ALL]) -> f32 {
-        // `as` saturates (VCVT does the same): the clamp to the box. Past the
-        // kernel inputs mid = gain = 0 makes q = 0 (NaN converts to 0 too),
-        // and their coefficients are 0 as well.
+    #[inline(always)]
+    pub(crate) fn table_gaussians(&self, x_kernel: &[f32; MAX_INPUTS_ALL]) -> f32 {
+        match self.kernel_inputs {
+            1 => self.table_gaussians_over::<1>(x_kernel),
+            2 => self.table_gaussians_over::<2>(x_kernel),
+            _ => self.table_gaussians_over::<3>(x_kernel),
+        }
+    }
+
+    /// [`Self::table_gaussians`] over the first `M` kernel inputs: the
+    /// inputs past them take no instruction.
+    #[inline(always)]
+    fn table_gaussians_over<const M: usize>(&self, x_kernel: &[f32; MAX_INPUTS_ALL]) -> f32 {
+        // `as` saturates (VCVT does the same): the clamp to the box. NaN
+        // converts to 0, the box's centre.
         let q: [i32; TABLE_MAX_INPUTS] =
             core::array::from_fn(
-                |i| match (x_kernel.get(i), self.kernel_mid.get(i), self.kernel_gain.get(i)) {
-                    (Some(x), Some(mid), Some(gain)) => ((x - mid) * gain) as i32,
+                |i| match (i < M, x_kernel.get(i), self.kernel_mid.get(i), self.kernel_gain.get(i)) {
+                    (true, Some(x), Some(mid), Some(gain)) => ((x - mid) * gain) as i32,
                     _ => 0,
                 },
             );
         // Q·2^16 = Σ_i hi(q_i, hi(q_i, H_i)): SMMUL + SMMLA. (hi(hi(q, q), H)
         // would let the compiler see a non-negative factor and widen it.)
         let mut shared = 0i32;
-        for (qi, h) in q.iter().zip(&self.shared_coeff) {
+        for (qi, h) in q.iter().zip(&self.shared_coeff).take(M) {
             shared = shared.wrapping_add(mul_hi(*qi, mul_hi(*qi, *h)));
         }
         let (positive, rest) = self.exponent.split_at(self.positive.min(K));
         let negative = rest.get(..self.negative).unwrap_or(&[]);
-        let shared_in_sum = if self.q_in_sum { shared } else { 0 };
-        let sums = match (self.kernel_inputs, self.q_in_sum) {
-            (1, false) => exp2_sums::<1, false>(positive, negative, &q, 0),
-            (2, false) => exp2_sums::<2, false>(positive, negative, &q, 0),
-            (_, false) => exp2_sums::<3, false>(positive, negative, &q, 0),
-            (1, true) => exp2_sums::<1, true>(positive, negative, &q, shared_in_sum),
-            (2, true) => exp2_sums::<2, true>(positive, negative, &q, shared_in_sum),
-            (_, true) => exp2_sums::<3, true>(positive, negative, &q, shared_in_sum),
-        };
         if self.q_in_sum {
-            sums * self.weight_scale
+            exp2_sums::<M, true>(positive, negative, &q, shared) * self.weight_scale
         } else {
-            let factor = crate::fastmath::exp2_neg_fixed(shared >> TABLE_SHIFT) * self.weight_scale;
+            let sums = exp2_sums::<M, false>(positive, negative, &q, 0);
+            let factor = crate::fastmath::exp2_neg_q16(&crate::fastmath::EXP2_OCTAVE_BITS, shared) * self.weight_scale;
             sums * factor
         }
     }
 
+    /// The linear terms at `raw` clamped to the box given to
+    /// [`Self::prepare_linear`] by the saturating conversion (NaN reads as
+    /// the box's centre): no compare, no branch.
+    #[inline(always)]
+    pub(crate) fn linear_sum_boxed<const N: usize>(&self, raw: &[f32; MAX_INPUTS_ALL]) -> f32 {
+        let mut y = self.linear_box_constant;
+        for (((x, mid), gain), b) in raw
+            .iter()
+            .zip(&self.linear_box_mid)
+            .zip(&self.linear_box_gain)
+            .zip(&self.linear_box_coeff)
+            .take(N)
+        {
+            y += b * (((x - mid) * gain) as i32) as f32;
+        }
+        y
+    }
+
     /// c′ + Σ a′_i x_i: the linear terms with the normalisation folded in.
     #[inline(always)]
-    fn linear_sum<const N: usize>(&self, x_linear: &[f32; N]) -> f32 {
+    pub(crate) fn linear_sum<const N: usize>(&self, x_linear: &[f32; N]) -> f32 {
         let mut y = self.constant_raw;
         for (a, x) in self.linear_raw.iter().zip(x_linear) {
             y += a * x;

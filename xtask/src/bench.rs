@@ -7,10 +7,16 @@ use anyhow::bail;
 
 use crate::{firmware, qemu};
 
+/// Static RAM plus stack the board may use (issue budget: 16 KiB).
+const RAM_BUDGET_BYTES: u64 = 16 * 1024;
+
 /// Runs the benchmark image and prints its figures; the last line printed is
 /// `instructions_per_sample K=32 D=3: N`, N the model evaluation's count.
 pub fn bench_fw() -> anyhow::Result<()> {
     qemu::ensure_installed()?;
+    // First: it builds the board binary with `board-qemu` to the path the
+    // board image is built to next.
+    let board_run = crate::board_stack::measure()?;
     let bench = firmware::build("qemu-bench", &[])?;
     let replay = firmware::build("qemu-replay", &[])?;
     let board = firmware::build("stm32f405", &["board-stm32f405"])?;
@@ -26,13 +32,11 @@ pub fn bench_fw() -> anyhow::Result<()> {
         .filter(|l| l.starts_with("instructions_per_sample"))
         .collect();
     // The contract line: `instructions_per_sample K=32 D=3: N`, N a number.
-    let k32 = lines
-        .iter()
-        .find(|l| {
-            l.strip_prefix("instructions_per_sample K=32 D=3: ")
-                .is_some_and(|n| n.parse::<u64>().is_ok())
-        })
-        .copied();
+    let is_contract = |l: &str| {
+        l.strip_prefix("instructions_per_sample K=32 D=3: ")
+            .is_some_and(|n| n.parse::<u64>().is_ok())
+    };
+    let k32 = lines.iter().copied().find(|l| is_contract(l));
     let Some(k32) = k32 else {
         bail!("no K=32 figure in the benchmark output:\n{}", result.log)
     };
@@ -45,10 +49,7 @@ pub fn bench_fw() -> anyhow::Result<()> {
          terms; harness loop subtracted); whole step = rbf_core::Compensator::process (gap and fault logic, \
          feature filters, evaluation, flags)"
     );
-    for line in lines
-        .iter()
-        .filter(|l| !l.starts_with("instructions_per_sample K=32 D=3:"))
-    {
+    for line in lines.iter().filter(|l| !is_contract(l)) {
         println!("  {line}");
     }
     if let Some(stack) = result.log.lines().find(|l| l.starts_with("stack_peak_bytes")) {
@@ -87,6 +88,17 @@ pub fn bench_fw() -> anyhow::Result<()> {
     println!(
         "  stm32f405 largest read-only object: {} ({} B); the exp2 table is in RAM (.ram_tables)",
         board_size.largest_rodata.0, board_size.largest_rodata.1
+    );
+    println!(
+        "stm32f405 main loop under QEMU (board-qemu image: boot with a model, an update and a bench command \
+         over the UART ({} steps reported), {} frames received; {})",
+        board_run.bench_steps, board_run.frames, board_run.summary
+    );
+    println!("  board_stack_peak_bytes {}", board_run.stack_peak_bytes);
+    println!(
+        "  static RAM + board stack peak: {} B (budget {} B)",
+        board_size.static_ram + board_run.stack_peak_bytes,
+        RAM_BUDGET_BYTES
     );
     println!("{k32}");
     Ok(())

@@ -67,6 +67,7 @@ fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
 pub fn ci() -> anyhow::Result<()> {
     let started = Instant::now();
     ensure_toolchain()?;
+    crate::firmware::ensure_flip_link()?;
     qemu::ensure_installed()?;
     run("cargo", &["fmt", "--all", "--check"])?;
     run("cargo", &["fmt", "--manifest-path", "fuzz/Cargo.toml", "--check"])?;
@@ -87,6 +88,26 @@ pub fn ci() -> anyhow::Result<()> {
         "--bin",
         "stm32f405",
     ];
+    let debug_board = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "board-debug",
+        "--bin",
+        "stm32f405",
+    ];
+    let qemu_board = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "board-qemu",
+        "--bin",
+        "stm32f405",
+    ];
     let panic_check = [
         "--package",
         "firmware",
@@ -97,7 +118,13 @@ pub fn ci() -> anyhow::Result<()> {
         "--bin",
         "panic-free-check",
     ];
-    for board in [&qemu_boards[..], &stm32_board[..], &panic_check[..]] {
+    for board in [
+        &qemu_boards[..],
+        &stm32_board[..],
+        &debug_board[..],
+        &qemu_board[..],
+        &panic_check[..],
+    ] {
         run("cargo", &[&["clippy"][..], board, &["--", "-D", "warnings"]].concat())?;
     }
     run(
@@ -111,7 +138,7 @@ pub fn ci() -> anyhow::Result<()> {
             "--no-default-features",
         ],
     )?;
-    for board in [&qemu_boards[..], &stm32_board[..]] {
+    for board in [&qemu_boards[..], &stm32_board[..], &debug_board[..]] {
         run("cargo", &[&["build", "--release"][..], board].concat())?;
     }
     crate::firmware::check_panic_free()?;

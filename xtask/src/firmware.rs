@@ -17,8 +17,30 @@ pub fn target_dir() -> PathBuf {
     workspace_root().join("target").join("firmware")
 }
 
+/// The linker .cargo/config.toml sets for the firmware target.
+const FLIP_LINK: &str = "flip-link";
+
+/// Installs flip-link (`cargo install`) when it is missing.
+pub fn ensure_flip_link() -> anyhow::Result<()> {
+    // It has no --version: whether it starts at all says it is installed.
+    let present = Command::new(FLIP_LINK).output().is_ok();
+    if present {
+        return Ok(());
+    }
+    eprintln!("\n==> installing {FLIP_LINK} (cargo install, once): the firmware images link through it");
+    let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+        .args(["install", "--locked", FLIP_LINK])
+        .status()
+        .context("cannot start cargo install")?;
+    if !status.success() {
+        bail!("cargo install {FLIP_LINK} failed");
+    }
+    Ok(())
+}
+
 /// Builds board binary `bin` (release) and returns the ELF path.
 pub fn build(bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
+    ensure_flip_link()?;
     let status = build_command(bin, features).status().context("cannot start cargo")?;
     if !status.success() {
         bail!("building firmware binary {bin} for {TARGET} failed");
@@ -59,6 +81,19 @@ pub fn check_panic_free() -> anyhow::Result<()> {
         bail!("the panic-free canary linked (or failed otherwise): the check proves nothing\n{log}");
     }
     eprintln!("    ok: no panic path; the canary's panic path fails the link as it must");
+    check_board_panics()
+}
+
+/// Builds the board image (what is flashed) and proves from its machine
+/// code that no panic is reachable after init ([`crate::panic_paths`]).
+pub fn check_board_panics() -> anyhow::Result<()> {
+    eprintln!("\n==> board image: no panic reachable from its loop and interrupt handlers");
+    let board = build("stm32f405", &["board-stm32f405"])?;
+    let reach = crate::panic_paths::check_board_image(&board)?;
+    eprintln!(
+        "    ok: {} functions reachable from run_forever, EXTI0, USART1 and HardFault; none panics",
+        reach.functions
+    );
     Ok(())
 }
 

@@ -4,7 +4,7 @@
 //! - [`firmware`]: cross builds of the board binaries;
 //! - [`qemu`]: running an image under `qemu-system-arm` with a hard deadline;
 //! - [`replay`]: `cargo xtask qemu-replay`;
-//! - [`bench`]: `cargo xtask bench-fw`;
+//! - [`bench`]: `cargo xtask bench-fw`; [`board_stack`]: its board stack measurement;
 //! - [`accuracy`]: `cargo xtask bench-accuracy`;
 //! - [`fuzz`]: `cargo xtask fuzz`;
 //! - [`faults`]: `cargo xtask qemu-faults`;
@@ -14,11 +14,13 @@
 
 pub mod accuracy;
 pub mod bench;
+pub mod board_stack;
 pub mod ci;
 pub mod faults;
 pub mod firmware;
 pub mod fuzz;
 pub mod large_run;
+pub mod panic_paths;
 pub mod qemu;
 pub mod replay;
 

@@ -39,9 +39,16 @@ enum Cmd {
         frames: Option<PathBuf>,
     },
     /// Count instructions per compensated sample in QEMU (-icount shift=0,
-    /// SysTick) for K = 8, 16, 32, 64 centres at D = 3, and report flash/RAM
-    /// of the images. The last line is `instructions_per_sample K=32 D=3: N`.
+    /// SysTick) for K = 8, 16, 32, 64 centres at D = 3, the multi-scale sets
+    /// and a five-filter lag bank; run the stm32f405 board's own main loop
+    /// under QEMU through a model update and a bench command
+    /// (`board_stack_peak_bytes N`); report flash/RAM of the images. The last
+    /// line is `instructions_per_sample K=32 D=3: N`.
     BenchFw,
+    /// Build the stm32f405 board image and prove from its machine code that
+    /// no panic is reachable from its loop and interrupt handlers (part of
+    /// `ci`; docs/panic-free.md).
+    CheckBoardPanics,
     /// Accuracy against the peers: on simulated chamber runs of both protocols
     /// (trained on one 1 °C/min run, verified at other ramp rates and on a random
     /// profile) compare no compensation, poly3, rbf2, the IFOG paper's rbf, the
@@ -132,6 +139,7 @@ fn main() -> anyhow::Result<()> {
             Ok(())
         }
         Cmd::BenchFw => xtask::bench::bench_fw(),
+        Cmd::CheckBoardPanics => xtask::firmware::check_board_panics(),
         Cmd::BenchAccuracy {
             params,
             in_use,

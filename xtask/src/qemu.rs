@@ -6,7 +6,7 @@
 
 use std::fs::File;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
@@ -62,10 +62,17 @@ pub struct QemuRun {
 
 /// Runs `elf` in `dir` with `extra` arguments; kills it after `deadline`.
 pub fn run(elf: &Path, dir: &Path, extra: &[String], deadline: Duration) -> anyhow::Result<QemuRun> {
-    let log_path = dir.join("qemu.log");
-    let log = File::create(&log_path).context("cannot create qemu.log")?;
-    let mut child = Command::new(QEMU)
-        .args(["-machine", MACHINE, "-nographic", "-monitor", "none", "-serial", "none"])
+    let child = spawn(elf, dir, "none", extra)?;
+    wait(child, dir, deadline)
+}
+
+/// Starts `elf` in `dir` with USART1 on the chardev spec `serial` (`none`,
+/// `chardev:ID` with a `-chardev` among `extra`); its log goes to
+/// `dir/qemu.log`. [`wait`] for it.
+pub fn spawn(elf: &Path, dir: &Path, serial: &str, extra: &[String]) -> anyhow::Result<Child> {
+    let log = File::create(dir.join(LOG)).context("cannot create qemu.log")?;
+    Command::new(QEMU)
+        .args(["-machine", MACHINE, "-nographic", "-monitor", "none", "-serial", serial])
         .args(["-semihosting-config", "enable=on,target=native"])
         .args(extra)
         .arg("-kernel")
@@ -75,7 +82,15 @@ pub fn run(elf: &Path, dir: &Path, extra: &[String], deadline: Duration) -> anyh
         .stdout(log.try_clone()?)
         .stderr(log)
         .spawn()
-        .with_context(|| format!("cannot start {QEMU}"))?;
+        .with_context(|| format!("cannot start {QEMU}"))
+}
+
+/// File in the run directory that holds QEMU's output.
+const LOG: &str = "qemu.log";
+
+/// Waits for a [`spawn`]ed QEMU to end; kills it after `deadline`.
+pub fn wait(mut child: Child, dir: &Path, deadline: Duration) -> anyhow::Result<QemuRun> {
+    let log_path = dir.join(LOG);
     let started = Instant::now();
     let status = loop {
         if let Some(status) = child.try_wait()? {

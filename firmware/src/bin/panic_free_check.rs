@@ -29,13 +29,13 @@ mod board {
     use embedded_hal::i2c::{self, I2c};
     use embedded_hal::spi::{self, SpiDevice};
     use embedded_storage::nor_flash;
-    use firmware::compensation::{CompensationLoop, LoopConfig, write_frame};
+    use firmware::compensation::{CompensationLoop, InPlaceModel, LoopConfig, write_frame};
     use firmware::fault::{self, FaultRecord};
     use firmware::frontend::FrontEnd;
-    use firmware::model_store::{ModelStore, SlotLayout};
+    use firmware::model_store::{MappedFlash, ModelStore, SlotLayout};
     use firmware::tmp117::{self, Tmp117};
     use firmware::update::{self, CommandReceiver, Received};
-    use rbf_core::{CompensatorConfig, Flags};
+    use rbf_core::{CompensatorConfig, Flags, Model};
 
     /// Bytes the fake buses return, unknown to the optimiser.
     static BUS: [AtomicU8; 64] = [const { AtomicU8::new(0) }; 64];
@@ -166,6 +166,18 @@ mod board {
         }
     }
 
+    impl MappedFlash for OpaqueFlash {
+        /// Any bytes: the model slot the linker places, from an opaque offset.
+        fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
+            let start = (offset ^ opaque_word()) as usize;
+            firmware::board::model_slot_a().get(start..start.checked_add(len)?)
+        }
+    }
+
+    /// The running model and the command buffer, as the board keeps them.
+    static mut MODEL: Model = Model::EMPTY;
+    static mut COMMANDS: CommandReceiver = CommandReceiver::new();
+
     const SLOTS: SlotLayout = SlotLayout {
         offsets: [0x000C_0000, 0x000E_0000],
         len: firmware::MODEL_SLOT_LEN as u32,
@@ -177,10 +189,12 @@ mod board {
         // flash (any bytes), the model slot A as the QEMU boards read it,
         // the devices (any answers).
         let cause = fault::boot_cause(FaultRecord::from_words([opaque_word(); 4]), opaque_word() & 1 != 0);
-        let model = ModelStore::open(OpaqueFlash, SLOTS)
-            .load()
-            .ok()
-            .or_else(|| firmware::load_model(firmware::board::model_slot_a()).ok());
+        let (model, commands) = (&raw mut MODEL, &raw mut COMMANDS);
+        // SAFETY: main runs once; the only references to the two statics.
+        let (model, commands) = unsafe { (&mut *model, &mut *commands) };
+        let mut store = ModelStore::open_with(OpaqueFlash, SLOTS, model);
+        let loaded = store.load_into(model).is_ok();
+        let model = InPlaceModel::new(model, loaded);
         let mut thermometer = Tmp117::new(OpaqueI2c, tmp117::DEFAULT_ADDRESS);
         let _ = thermometer.init();
         let mut front_end = FrontEnd::new(OpaqueSpi);
@@ -197,7 +211,6 @@ mod board {
             }
             compensation.flag_next_frame(Flags::FAULT_RESET);
         }
-        let mut commands = CommandReceiver::new();
         loop {
             // A sample, as the board runs it from a data-ready stamp.
             let out = compensation.step_at(opaque_word(), f32::from_bits(opaque_word()));
@@ -205,17 +218,19 @@ mod board {
             // A command byte, as the board takes it from the receive queue.
             let reply = match commands.push(opaque_byte(7)) {
                 None => None,
-                Some(Received::Rejected(status)) => Some((0, status, None)),
+                Some(Received::Rejected(status)) => Some((0, status)),
                 Some(Received::Command(payload)) => {
-                    let mut store = ModelStore::open(OpaqueFlash, SLOTS);
-                    let (status, model) = update::execute(&mut store, payload);
-                    Some((payload.first().copied().unwrap_or(0), status, model))
+                    let mut status = update::UpdateStatus::UnknownCommand;
+                    compensation.update_model(|model| {
+                        model.rebuild(|m| {
+                            status = update::execute_into(&mut store, payload, m);
+                            store.model_loaded()
+                        })
+                    });
+                    Some((payload.first().copied().unwrap_or(0), status))
                 }
             };
-            if let Some((command, status, model)) = reply {
-                if model.is_some() {
-                    compensation.replace_model(model);
-                }
+            if let Some((command, status)) = reply {
                 let mut bytes = [0u8; 8];
                 if let Some(n) = update::encode_reply(command, status, &mut bytes) {
                     write_frame(compensation.output_mut(), bytes.get(..n).unwrap_or(&[]));

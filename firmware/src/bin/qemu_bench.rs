@@ -1,5 +1,6 @@
 //! Firmware benchmark board for QEMU (netduinoplus2): instructions per
-//! compensated sample for K = 8, 16, 32, 64 Gaussian centres at D = 3.
+//! compensated sample for K = 8, 16, 32, 64 Gaussian centres at D = 3, for
+//! the multi-scale sets and for a lag bank of five filters (K = 32).
 //!
 //! QEMU runs with `-icount shift=0` (one instruction = 1 ns of virtual time),
 //! so SysTick on the 168 MHz core clock counts 0.168 ticks per instruction:
@@ -13,6 +14,7 @@ mod board {
     use cortex_m::peripheral::syst::SystClkSource;
     use cortex_m_rt::entry;
     use cortex_m_semihosting::{debug, hprintln};
+    use rbf_core::lag_bank::LagBank;
     use rbf_core::model::{ModelBody, ModelInfo};
     use rbf_core::rbf::{RbfNetwork, RbfParams};
     use rbf_core::{
@@ -25,12 +27,21 @@ mod board {
     const TICKS_PER_KILO_INSTRUCTION: u64 = 168;
     const D: usize = 3;
 
-    /// A deterministic K-centre model (values like a real fit's): the IFOG
-    /// paper's (T, ΔT, T×ΔT) with Gaussians over all three inputs, or with
-    /// `multiscale` one of the default's 8-input sets with Gaussians over its
-    /// first input (T, or T̄ = T − L·ΔT₃ for a lagged set).
-    fn model(k: usize, multiscale: Option<FeatureSet>, width: f32) -> Model {
-        let (dims, kernel) = if multiscale.is_some() { (8, 1) } else { (D, D) };
+    /// The shape of a benchmark model.
+    #[derive(Clone, Copy, PartialEq)]
+    enum Shape {
+        /// The IFOG paper's (T, ΔT, T×ΔT) with Gaussians over all three inputs.
+        Paper,
+        /// One of the 8-input multi-scale sets with Gaussians over its first input.
+        MultiScale(FeatureSet),
+        /// A lag bank of five filters (30 s … 7680 s, the trainer's second
+        /// ladder), static degree 3: 8 inputs, Gaussians over T̂.
+        LagBank,
+    }
+
+    /// A deterministic K-centre model of `shape` with values like a real fit's.
+    fn model(k: usize, shape: Shape, width: f32) -> Model {
+        let (dims, kernel) = if shape == Shape::Paper { (D, D) } else { (8, 1) };
         let mut state = 0x2545_f491u32;
         let mut next = || {
             state ^= state << 13;
@@ -42,9 +53,38 @@ mod board {
         centers[..k * kernel].iter_mut().for_each(|c| *c = next());
         let mut weights = [0.0f32; MAX_CENTERS];
         weights[..k].iter_mut().for_each(|w| *w = 0.05 * next());
-        let offset = [25.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-        let scale = [10.0, 0.5, 0.4, 0.3, 12.0, 10.0, 8.0, 200.0];
-        let linear = [0.01, 0.2, 0.1, 0.05, 0.003, 0.002, 0.001, 0.0001];
+        let (offset, scale, linear, ranges) = match shape {
+            Shape::LagBank => (
+                [25.0, 300.0, 2000.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [10.0, 300.0, 8000.0, 0.5, 0.4, 0.3, 0.2, 0.1],
+                [0.01, 0.001, 0.0001, 0.2, 0.1, 0.05, 0.02, 0.01],
+                [
+                    (-10.0, 60.0),
+                    (0.0, 1300.0),
+                    (-3500.0, 42000.0),
+                    (-3.0, 3.0),
+                    (-3.0, 3.0),
+                    (-3.0, 3.0),
+                    (-3.0, 3.0),
+                    (-3.0, 3.0),
+                ],
+            ),
+            _ => (
+                [25.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [10.0, 0.5, 0.4, 0.3, 12.0, 10.0, 8.0, 200.0],
+                [0.01, 0.2, 0.1, 0.05, 0.003, 0.002, 0.001, 0.0001],
+                [
+                    (0.0, 50.0),
+                    (-3.0, 3.0),
+                    (-3.0, 3.0),
+                    (-3.0, 3.0),
+                    (-150.0, 150.0),
+                    (-150.0, 150.0),
+                    (-150.0, 150.0),
+                    (-7500.0, 7500.0),
+                ],
+            ),
+        };
         let net = RbfNetwork::new(&RbfParams {
             offset: &offset[..dims],
             scale: &scale[..dims],
@@ -56,20 +96,19 @@ mod board {
             constant: 0.05,
         })
         .expect("valid synthetic network");
-        let features = match multiscale {
-            Some(set) => FeatureConfig::multiscale(set, [60.0, 480.0, 3840.0]),
-            None => FeatureConfig::single(FeatureSet::TempRateProduct, 60.0),
+        let features = match shape {
+            Shape::Paper => FeatureConfig::single(FeatureSet::TempRateProduct, 60.0),
+            Shape::MultiScale(set) => FeatureConfig::multiscale(set, [60.0, 480.0, 3840.0]),
+            Shape::LagBank => {
+                let mut bank = LagBank::plain(&[30.0, 120.0, 480.0, 1920.0, 7680.0], 25.0).expect("valid bank");
+                bank.coil_lag_min[..5].copy_from_slice(&[-0.5, -2.0, -8.0, -30.0, -100.0]);
+                bank.gain_per_c = 0.01;
+                bank.gain_per_c2 = 1e-4;
+                bank.static_degree = 3;
+                (bank.coil_min_c, bank.coil_max_c) = (-10.0, 60.0);
+                FeatureConfig::lag_bank(bank)
+            }
         };
-        let ranges = [
-            (0.0, 50.0),
-            (-3.0, 3.0),
-            (-3.0, 3.0),
-            (-3.0, 3.0),
-            (-150.0, 150.0),
-            (-150.0, 150.0),
-            (-150.0, 150.0),
-            (-7500.0, 7500.0),
-        ];
         Model::new(features, &ranges[..dims], ModelBody::Rbf(net), ModelInfo::default()).expect("valid synthetic model")
     }
 
@@ -96,23 +135,24 @@ mod board {
         // Per model shape: the model evaluation alone (clamping, normalisation,
         // Gaussians, linear terms: `Model::eval`), then the whole per-sample
         // step (`Compensator::process`: gap and fault logic, feature filters,
-        // evaluation, flags). The default's shape first; the last line is the
+        // evaluation, flags). The default's shape (the lag bank) first; the last line is the
         // K = 32, D = 3 evaluation figure.
-        // (K, the default's multi-scale set or the paper's shape, σ): σ = 1.5
+        // (K, the shape, σ): σ = 1.5
         // keeps the shared term a factor (T = 32); σ = 0.5 (T = 284) adds it
         // to every exponent.
-        let lagged = FeatureSet::MultiScaleLagged { coil_lag_min: 40 };
+        let lagged = Shape::MultiScale(FeatureSet::MultiScaleLagged { coil_lag_min: 40 });
         let runs = [
-            (32, Some(FeatureSet::MultiScale), 1.5),
-            (32, Some(lagged), 1.5),
-            (8, None, 1.5),
-            (16, None, 1.5),
-            (64, None, 1.5),
-            (32, None, 0.5),
-            (32, None, 1.5),
+            (32, Shape::LagBank, 1.5),
+            (32, Shape::MultiScale(FeatureSet::MultiScale), 1.5),
+            (32, lagged, 1.5),
+            (8, Shape::Paper, 1.5),
+            (16, Shape::Paper, 1.5),
+            (64, Shape::Paper, 1.5),
+            (32, Shape::Paper, 0.5),
+            (32, Shape::Paper, 1.5),
         ];
-        for (k, multiscale, width) in runs {
-            let model = model(k, multiscale, width);
+        for (k, shape, width) in runs {
+            let model = model(k, shape, width);
             let dims = model.features().dims();
             // Evaluation: a slow ramp through the input box, so every call is
             // real work; the same loop without the call measures the harness
@@ -154,16 +194,23 @@ mod board {
                 core::hint::black_box(compensator.process(Some(core::hint::black_box(&model)), &config, &sample));
             }
             let step = instructions_per_sample(start);
-            if multiscale == Some(lagged) {
+            if shape == Shape::LagBank {
                 hprintln!(
-                    "instructions_per_sample K={} D=8 (default, lagged second-order set, Gaussians over T̄ = T − L·ΔT₃): evaluation {} whole step {}",
+                    "instructions_per_sample lag-bank K={} F=5: {} whole step (the default features: 5 derivative filters, T̂ and its powers, 8 inputs, Gaussians over T̂), evaluation alone {}",
+                    k,
+                    step,
+                    eval
+                );
+            } else if shape == lagged {
+                hprintln!(
+                    "instructions_per_sample K={} D=8 (lagged second-order multi-scale set, Gaussians over T̄ = T − L·ΔT₃): evaluation {} whole step {}",
                     k,
                     eval,
                     step
                 );
-            } else if multiscale.is_some() {
+            } else if shape != Shape::Paper {
                 hprintln!(
-                    "instructions_per_sample K={} D=8 (default multiscale, Gaussians over T): evaluation {} whole step {}",
+                    "instructions_per_sample K={} D=8 (multi-scale set, Gaussians over T): evaluation {} whole step {}",
                     k,
                     eval,
                     step
@@ -184,7 +231,7 @@ mod board {
                     step
                 );
             }
-            if k == 32 && multiscale.is_none() && width >= 1.0 {
+            if k == 32 && shape == Shape::Paper && width >= 1.0 {
                 hprintln!("instructions_per_sample K=32 D=3: {}", eval);
             }
         }

@@ -32,32 +32,51 @@ mod board {
     use core::sync::atomic::{AtomicU32, Ordering};
 
     use cortex_m::interrupt::Mutex;
+    use cortex_m::peripheral::DWT;
     use cortex_m_rt::{ExceptionFrame, entry, exception};
+    #[cfg(feature = "board-debug")]
+    use defmt_rtt as _;
     use embedded_hal_bus::spi::ExclusiveDevice;
-    use firmware::compensation::{CompensationLoop, LoopConfig, write_frame};
+    use firmware::bench::{Bench, CMD_BENCH};
+    use firmware::compensation::{CompensationLoop, InPlaceModel, LoopConfig, write_frame};
     use firmware::fault::{self, FaultReason, FaultRecord};
     use firmware::frontend::FrontEnd;
-    use firmware::model_store::{ModelStore, SlotLayout};
+    use firmware::model_store::ModelStore;
+    #[cfg(not(feature = "board-qemu"))]
+    use firmware::model_store::SlotLayout;
     use firmware::tmp117::{self, Tmp117};
-    use firmware::uart::FrameQueue;
+    use firmware::uart::{self, FrameQueue};
     use firmware::update::{self, CommandReceiver, Received};
     use heapless::spsc::{Consumer, Producer, Queue};
-    use rbf_core::{CompensatorConfig, Flags};
+    use rbf_core::{CompensatorConfig, Flags, Model};
+    #[cfg(not(feature = "board-qemu"))]
     use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
     use stm32f4xx_hal::gpio::{Edge, ExtiPin, Input, PB0};
+    #[cfg(not(feature = "board-qemu"))]
     use stm32f4xx_hal::i2c::{self, I2c};
     use stm32f4xx_hal::pac::{self, interrupt};
     use stm32f4xx_hal::prelude::*;
-    use stm32f4xx_hal::rcc::{Config, Enable, Reset};
+    #[cfg(not(feature = "board-qemu"))]
+    use stm32f4xx_hal::rcc::Config;
+    use stm32f4xx_hal::rcc::{Enable, Reset};
     use stm32f4xx_hal::serial::{Rx, RxListen, Tx, TxListen};
     use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
+
+    /// Logs over RTT in the debug image (`board-debug`); nothing otherwise.
+    macro_rules! log {
+        ($($arg:tt)*) => {
+            #[cfg(feature = "board-debug")]
+            defmt::info!($($arg)*);
+        };
+    }
 
     /// Front-end output data rate, Hz (paced by its crystal; data-ready marks each sample).
     const GYRO_RATE_HZ: f32 = 1000.0;
     /// Read the TMP117 every 125th sample: 8 Hz, its conversion rate at 8 averages.
     const TEMP_READ_EVERY: u32 = 125;
     /// MODEL_A and MODEL_B (memory.x) as offsets from the start of flash: sectors 10 and 11.
+    #[cfg(not(feature = "board-qemu"))]
     const MODEL_SLOTS: SlotLayout = SlotLayout {
         offsets: [0x000C_0000, 0x000E_0000],
         len: firmware::MODEL_SLOT_LEN as u32,
@@ -87,6 +106,65 @@ mod board {
         stamps: Producer<'static, u32>,
     }
 
+    /// The running model, decoded in place (all bits zero: .bss, no flash).
+    static mut MODEL: Model = Model::EMPTY;
+    /// Command bytes collect here between samples (4 KiB: off the stack).
+    static mut COMMANDS: CommandReceiver = CommandReceiver::new();
+
+    /// The chip's flash as the model store's device (not in the QEMU image).
+    #[cfg(not(feature = "board-qemu"))]
+    mod board_flash {
+        use firmware::model_store::MappedFlash;
+        use stm32f4xx_hal::flash::UnlockedFlash;
+
+        /// The model slots in the chip's flash: erased and programmed through
+        /// the HAL, read in place (the flash is memory-mapped).
+        ///
+        /// The flash controller is unlocked once, at init: the HAL's unlock
+        /// asserts that the keys took, which would put a panic on the update
+        /// path. Unlocked, a stray write still programs nothing (it needs the
+        /// PG bit, and an erase needs SER and STRT).
+        pub struct BoardFlash(pub UnlockedFlash<'static>);
+
+        impl embedded_storage::nor_flash::ErrorType for BoardFlash {
+            type Error = stm32f4xx_hal::flash::Error;
+        }
+
+        impl embedded_storage::nor_flash::ReadNorFlash for BoardFlash {
+            const READ_SIZE: usize = 1;
+            fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+                embedded_storage::nor_flash::ReadNorFlash::read(&mut self.0, offset, bytes)
+            }
+            fn capacity(&self) -> usize {
+                embedded_storage::nor_flash::ReadNorFlash::capacity(&self.0)
+            }
+        }
+
+        impl embedded_storage::nor_flash::NorFlash for BoardFlash {
+            const WRITE_SIZE: usize = 1;
+            const ERASE_SIZE: usize = 128 * 1024;
+            fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+                embedded_storage::nor_flash::NorFlash::erase(&mut self.0, from, to)
+            }
+            fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+                embedded_storage::nor_flash::NorFlash::write(&mut self.0, offset, bytes)
+            }
+        }
+
+        impl MappedFlash for BoardFlash {
+            fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
+                // Only the model slots are read (the linker's MODEL_A and MODEL_B).
+                let slots = [firmware::board::model_slot_a(), firmware::board::model_slot_b()];
+                super::MODEL_SLOTS.offsets.iter().zip(slots).find_map(|(start, slot)| {
+                    let from = offset.checked_sub(*start)? as usize;
+                    slot.get(from..from.checked_add(len)?)
+                })
+            }
+        }
+    }
+    #[cfg(not(feature = "board-qemu"))]
+    use board_flash::BoardFlash;
+
     static UART: Mutex<RefCell<Option<UartIsr>>> = Mutex::new(RefCell::new(None));
     static DATA_READY: Mutex<RefCell<Option<DataReadyIsr>>> = Mutex::new(RefCell::new(None));
     /// Command bytes lost: the UART overran or the receive queue was full.
@@ -107,14 +185,18 @@ mod board {
     #[interrupt]
     fn USART1() {
         cortex_m::interrupt::free(|cs| {
-            let mut uart = UART.borrow(cs).borrow_mut();
+            // `try_borrow_mut`: a critical section on one core cannot find
+            // the cell borrowed, and this way no panic path is linked.
+            let Ok(mut uart) = UART.borrow(cs).try_borrow_mut() else {
+                return;
+            };
             let Some(u) = uart.as_mut() else { return };
             // The byte the receiver holds (an error read clears its flag;
             // bounded, so a line full of errors cannot hold the handler).
             for _ in 0..4 {
                 match u.rx.read() {
                     Ok(byte) => {
-                        if u.incoming.enqueue(byte).is_err() {
+                        if uart::enqueue(&mut u.incoming, byte).is_err() {
                             RX_OVERRUNS.fetch_add(1, Ordering::Relaxed);
                         }
                     }
@@ -127,8 +209,13 @@ mod board {
             match u.outgoing.peek().copied() {
                 Some(byte) => {
                     if u.tx.write(byte).is_ok() {
-                        let _ = u.outgoing.dequeue();
+                        let _ = uart::dequeue(&mut u.outgoing);
                     }
+                    // QEMU's USART never raises its transmit-empty
+                    // interrupt (its data register is always empty): the
+                    // handler asks for itself again, as TXE would.
+                    #[cfg(feature = "board-qemu")]
+                    cortex_m::peripheral::NVIC::pend(pac::Interrupt::USART1);
                 }
                 None => u.tx.unlisten(),
             }
@@ -141,13 +228,43 @@ mod board {
         // board's setup writes (before interrupts are enabled).
         let stamp = unsafe { (*pac::TIM2::ptr()).cnt().read().bits() };
         cortex_m::interrupt::free(|cs| {
-            if let Some(d) = DATA_READY.borrow(cs).borrow_mut().as_mut() {
+            if let Some(d) = DATA_READY
+                .borrow(cs)
+                .try_borrow_mut()
+                .ok()
+                .as_deref_mut()
+                .and_then(Option::as_mut)
+            {
                 d.pin.clear_interrupt_pending_bit();
-                if d.stamps.enqueue(stamp).is_err() {
+                if uart::enqueue(&mut d.stamps, stamp).is_err() {
                     STAMP_OVERRUNS.fetch_add(1, Ordering::Relaxed);
                 }
             }
         });
+    }
+
+    /// Busy-waits on the core clock: the SPI device's delay (embedded-hal-bus's
+    /// `NoDelay` would link a panic for a delay operation).
+    struct CycleDelay {
+        core_hz: u32,
+    }
+
+    impl embedded_hal::delay::DelayNs for CycleDelay {
+        fn delay_ns(&mut self, ns: u32) {
+            let cycles = u64::from(ns) * u64::from(self.core_hz) / 1_000_000_000;
+            cortex_m::asm::delay(u32::try_from(cycles).unwrap_or(u32::MAX));
+        }
+    }
+
+    /// Everything the board does after init: `serve` once per wake-up,
+    /// forever. Its own function (never inlined), so that `cargo xtask
+    /// check-board-panics` can prove from the image that no panic is
+    /// reachable from here or from the interrupt handlers.
+    #[inline(never)]
+    fn run_forever(mut serve: impl FnMut()) -> ! {
+        loop {
+            serve();
+        }
     }
 
     fn halt() -> ! {
@@ -159,10 +276,18 @@ mod board {
     /// Starts the transmit interrupt after a frame was queued.
     fn start_tx() {
         cortex_m::interrupt::free(|cs| {
-            if let Some(u) = UART.borrow(cs).borrow_mut().as_mut() {
+            if let Some(u) = UART
+                .borrow(cs)
+                .try_borrow_mut()
+                .ok()
+                .as_deref_mut()
+                .and_then(Option::as_mut)
+            {
                 u.tx.listen();
             }
         });
+        #[cfg(feature = "board-qemu")]
+        cortex_m::peripheral::NVIC::pend(pac::Interrupt::USART1);
     }
 
     /// Turns data-ready stamps (timer ticks) into edge numbers and time steps.
@@ -189,6 +314,126 @@ mod board {
         }
     }
 
+    /// The pieces of the board that QEMU's netduinoplus2 lacks, swapped for
+    /// the `board-qemu` image (`cargo xtask bench-fw`, board_stack_peak_bytes;
+    /// docs/firmware.md): everything else is the board's own code.
+    #[cfg(feature = "board-qemu")]
+    mod qemu {
+        use core::cell::Cell;
+
+        use cortex_m_semihosting::{debug, hprintln};
+        use firmware::compensation::LoopStats;
+        use firmware::fault_injection::{EMULATED_LAYOUT, EMULATED_SLOT_LEN, ModelFlash};
+        use firmware::model_store::SlotLayout;
+        use firmware::replay::{EmulatedTmp117, ReplaySample};
+        use firmware::update::UpdateStatus;
+        use stm32f4xx_hal::pac::{self, interrupt};
+
+        /// Samples the run lasts at least, and at least this many after the update.
+        const SAMPLES: u32 = 10_000;
+        const SAMPLES_AFTER_UPDATE: u32 = 2_000;
+        /// Samples after which a run that never received an update gives up.
+        const SAMPLES_WITHOUT_UPDATE: u32 = 200_000;
+
+        /// The model slots: QEMU maps flash as ROM and has no flash
+        /// controller, so they live in emulated NOR flash in RAM (the
+        /// board's [`firmware::model_store::ModelStore`] code runs on it).
+        /// Slot A starts as the blob QEMU's loader placed in flash slot A.
+        static mut FLASH: ModelFlash = ModelFlash::new();
+
+        /// Where the slots lie in [`FLASH`].
+        pub const SLOTS: SlotLayout = EMULATED_LAYOUT;
+
+        /// The emulated model flash, slot A seeded from the real slot A.
+        pub fn model_flash() -> &'static mut ModelFlash {
+            let flash = &raw mut FLASH;
+            // SAFETY: called once, from main; the only reference.
+            let flash = unsafe { &mut *flash };
+            let seed = firmware::board::model_slot_a().get(..EMULATED_SLOT_LEN).unwrap_or(&[]);
+            for (d, s) in flash.contents_mut().iter_mut().zip(seed) {
+                *d = *s;
+            }
+            flash
+        }
+
+        /// The loop TMP117 of sample `seq`: a slow ramp (QEMU has no I2C).
+        pub fn sample(seq: u32) -> ReplaySample {
+            ReplaySample::with_loop(Some(20.0 + f64::from(seq % 100_000) * 1e-4), 0.0)
+        }
+
+        /// An I2C bus with the loop TMP117 at its default address.
+        pub fn thermometer_bus(current: &Cell<ReplaySample>) -> EmulatedTmp117<'_> {
+            EmulatedTmp117::new(current, rbf_core::features::LOOP_THERMOMETER)
+        }
+
+        /// The run's progress and its end.
+        pub struct Run {
+            updated: Option<(UpdateStatus, u32)>,
+            samples: u32,
+        }
+
+        impl Run {
+            /// Starts the data-ready source: TIM3 (which QEMU emulates) at
+            /// one period of `period_ticks` TIM2 ticks pends EXTI0, whose
+            /// handler (the board's) stamps the edge as on the board, where
+            /// the front end's data-ready line raises it (QEMU has no GPIO).
+            pub fn start(tim3: pac::TIM3, nvic: &mut cortex_m::peripheral::NVIC, period_ticks: u32) -> Run {
+                tim3.psc().write(|w| w.psc().set(0));
+                tim3.arr().write(|w| unsafe { w.bits(period_ticks.saturating_sub(1)) });
+                tim3.dier().write(|w| w.uie().set_bit());
+                tim3.cr1().modify(|_, w| w.cen().set_bit());
+                // SAFETY: the handler only pends EXTI0, whose state is in place.
+                unsafe {
+                    nvic.set_priority(pac::Interrupt::TIM3, 0x40);
+                    cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIM3);
+                }
+                Run {
+                    updated: None,
+                    samples: 0,
+                }
+            }
+
+            /// An update command was answered with `status`.
+            pub fn replied(&mut self, status: UpdateStatus) {
+                self.updated = Some((status, self.samples));
+            }
+
+            /// Ends the run once it has done what it is for: reports the
+            /// stack's high-water mark and exits (semihosting).
+            pub fn check(&mut self, stats: &LoopStats) {
+                self.samples = stats.samples;
+                let done = match self.updated {
+                    Some((_, at)) => self.samples >= SAMPLES && self.samples - at >= SAMPLES_AFTER_UPDATE,
+                    None => self.samples >= SAMPLES_WITHOUT_UPDATE,
+                };
+                if !done {
+                    return;
+                }
+                hprintln!(
+                    "samples {} missed {} output_errors {} update {:?}",
+                    stats.samples,
+                    stats.samples_missed,
+                    stats.output_errors,
+                    self.updated.map(|(status, _)| status)
+                );
+                hprintln!("board_stack_peak_bytes {}", firmware::board::stack_peak_bytes());
+                let installed = matches!(self.updated, Some((UpdateStatus::Installed, _)));
+                debug::exit(if installed {
+                    debug::EXIT_SUCCESS
+                } else {
+                    debug::EXIT_FAILURE
+                });
+            }
+        }
+
+        #[interrupt]
+        fn TIM3() {
+            // SAFETY: clears TIM3's update flag, which only this handler reads.
+            unsafe { (*pac::TIM3::ptr()).sr().write(|w| w.bits(0)) };
+            cortex_m::peripheral::NVIC::pend(pac::Interrupt::EXTI0);
+        }
+    }
+
     #[entry]
     fn main() -> ! {
         let Some(mut dp) = pac::Peripherals::take() else { halt() };
@@ -200,7 +445,16 @@ mod board {
         dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
         let boot_cause = fault::boot_cause(firmware::board::take_fault(), watchdog_reset);
 
+        #[cfg(feature = "board-qemu")]
+        firmware::board::paint_stack();
+        #[cfg(not(feature = "board-qemu"))]
         let mut rcc = dp.RCC.freeze(Config::hse(8.MHz()).sysclk(168.MHz()));
+        // QEMU has no clock controller (the HSE never reports ready): the reset clocks.
+        #[cfg(feature = "board-qemu")]
+        let mut rcc = dp.RCC.constrain();
+        // The cycle counter the `bench` command reads (firmware::bench).
+        core.DCB.enable_trace();
+        core.DWT.enable_cycle_counter();
         let mut watchdog = IndependentWatchdog::new(dp.IWDG);
         watchdog.start(WATCHDOG_MS.millis());
 
@@ -215,6 +469,7 @@ mod board {
         dp.TIM2.arr().write(|w| unsafe { w.bits(u32::MAX) });
         dp.TIM2.cr1().modify(|_, w| w.cen().set_bit());
 
+        #[cfg(not(feature = "board-qemu"))]
         let i2c = I2c::new(
             dp.I2C1,
             (gpiob.pb6, gpiob.pb7),
@@ -232,13 +487,21 @@ mod board {
             8.MHz(),
             &mut rcc,
         );
-        let Ok(spi_device) = ExclusiveDevice::new_no_delay(spi, gpioa.pa4.into_push_pull_output());
+        let core_hz = rcc.clocks.sysclk().raw();
+        let Ok(spi_device) = ExclusiveDevice::new(spi, gpioa.pa4.into_push_pull_output(), CycleDelay { core_hz });
         let Ok(serial) = dp.USART1.serial::<u8>((gpioa.pa9, gpioa.pa10), 921_600.bps(), &mut rcc) else {
             halt()
         };
         let (tx, mut rx) = serial.split();
         rx.listen();
-        let mut flash = LockedFlash::new(dp.FLASH);
+        #[cfg(not(feature = "board-qemu"))]
+        let Some(locked_flash) = cortex_m::singleton!(: LockedFlash = LockedFlash::new(dp.FLASH)) else {
+            halt()
+        };
+        #[cfg(not(feature = "board-qemu"))]
+        let flash = BoardFlash(locked_flash.unlocked());
+        #[cfg(feature = "board-qemu")]
+        let flash = qemu::model_flash();
 
         let Some(out_queue) = cortex_m::singleton!(: Queue<u8, TX_QUEUE> = Queue::new()) else {
             halt()
@@ -279,9 +542,28 @@ mod board {
             }
         }
 
+        // SAFETY: `main` runs once and these are the only references to the
+        // two statics (no interrupt handler touches them).
+        let (model, commands) = (&raw mut MODEL, &raw mut COMMANDS);
+        let (model, commands) = unsafe { (&mut *model, &mut *commands) };
         // An invalid or absent model is not fatal: every frame then carries flag 4.
-        let model = ModelStore::open(flash.unlocked(), MODEL_SLOTS).load().ok();
+        #[cfg(feature = "board-qemu")]
+        let mut store = ModelStore::open_with(flash, qemu::SLOTS, model);
+        #[cfg(not(feature = "board-qemu"))]
+        let mut store = ModelStore::open_with(flash, MODEL_SLOTS, model);
+        let loaded = store.load_into(model).is_ok();
+        let model = InPlaceModel::new(model, loaded);
+        log!(
+            "boot: reset flags {=u8:#x}, fault or watchdog reset {=bool}, model loaded {=bool}",
+            reset_flags,
+            boot_cause.is_some(),
+            loaded
+        );
         // Sensor init failures are not fatal either: the loop's reads fail and flag them.
+        #[cfg(feature = "board-qemu")]
+        let loop_temp = core::cell::Cell::new(qemu::sample(0));
+        #[cfg(feature = "board-qemu")]
+        let i2c = qemu::thermometer_bus(&loop_temp);
         let mut thermometer = Tmp117::new(i2c, tmp117::DEFAULT_ADDRESS);
         let _ = thermometer.init();
         let mut front_end = FrontEnd::new(spi_device);
@@ -295,12 +577,12 @@ mod board {
         if boot_cause.is_some() {
             compensation.flag_next_frame(Flags::FAULT_RESET);
         }
+        let mut bench = Bench::default();
         let mut clock = EdgeClock {
             ticks_per_s: timer_hz as f32,
             period_ticks: (timer_hz as f32 / GYRO_RATE_HZ) as u32,
             last: None,
         };
-        let mut commands = CommandReceiver::new();
         // SAFETY: the handlers' state is in place; enabling their interrupts is all that is left.
         unsafe {
             core.NVIC.set_priority(pac::Interrupt::EXTI0, 0x40);
@@ -308,37 +590,83 @@ mod board {
             cortex_m::peripheral::NVIC::unmask(pac::Interrupt::EXTI0);
             cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
         }
-        loop {
+        #[cfg(feature = "board-qemu")]
+        let mut run = qemu::Run::start(dp.TIM3, &mut core.NVIC, (timer_hz as f32 / GYRO_RATE_HZ) as u32);
+        // The closure below takes the emulated thermometer's reading by reference.
+        #[cfg(feature = "board-qemu")]
+        let loop_temp = &loop_temp;
+        run_forever(move || {
             // One step per data-ready edge, in order; the watchdog is fed by samples only.
-            while let Some(stamp) = stamp_consumer.dequeue() {
+            while let Some(stamp) = uart::dequeue(&mut stamp_consumer) {
                 let (seq, dt_s) = clock.edge(stamp);
+                let started = DWT::cycle_count();
                 compensation.step_at(seq, dt_s);
+                if let Some(stats) = bench.record(DWT::cycle_count().wrapping_sub(started)) {
+                    log!(
+                        "bench: {=u32} steps, cycles min {=u32} mean {=u32} max {=u32}",
+                        stats.steps,
+                        stats.min,
+                        stats.mean(),
+                        stats.max
+                    );
+                    let mut report = [0u8; 24];
+                    if let Some(n) = stats.encode_report(&mut report) {
+                        write_frame(compensation.output_mut(), report.get(..n).unwrap_or(&[]));
+                    }
+                }
                 watchdog.feed();
+                #[cfg(feature = "board-qemu")]
+                loop_temp.set(qemu::sample(seq));
             }
             // Model-update commands between samples.
-            while let Some(byte) = in_consumer.dequeue() {
-                let (command, status, model) = match commands.push(byte) {
+            while let Some(byte) = uart::dequeue(&mut in_consumer) {
+                let (command, status) = match commands.push(byte) {
                     None => continue,
-                    Some(Received::Rejected(status)) => (0, status, None),
+                    Some(Received::Rejected(status)) => (0, status),
+                    // Answered by its report after the timed steps.
+                    Some(Received::Command(&[CMD_BENCH])) => {
+                        bench.start();
+                        continue;
+                    }
                     Some(Received::Command(payload)) => {
                         // The erase stalls the CPU for up to 2 s: feed the watchdog first.
                         watchdog.feed();
-                        let mut store = ModelStore::open(flash.unlocked(), MODEL_SLOTS);
-                        let (status, model) = update::execute(&mut store, payload);
+                        let mut status = update::UpdateStatus::UnknownCommand;
+                        compensation.update_model(|model| {
+                            model.rebuild(|m| {
+                                status = update::execute_into(&mut store, payload, m);
+                                store.model_loaded()
+                            })
+                        });
                         watchdog.feed();
-                        (payload.first().copied().unwrap_or(0), status, model)
+                        log!(
+                            "update: status {=u8}, model loaded {=bool}",
+                            status as u8,
+                            store.model_loaded()
+                        );
+                        (payload.first().copied().unwrap_or(0), status)
                     }
                 };
-                if model.is_some() {
-                    compensation.replace_model(model);
-                }
                 let mut reply = [0u8; 8];
                 if let Some(n) = update::encode_reply(command, status, &mut reply) {
                     write_frame(compensation.output_mut(), reply.get(..n).unwrap_or(&[]));
                 }
+                #[cfg(feature = "board-qemu")]
+                run.replied(status);
             }
-            cortex_m::asm::wfi();
-        }
+            #[cfg(feature = "board-qemu")]
+            run.check(&compensation.stats());
+            // Sleep only if no interrupt queued work since the checks above:
+            // with interrupts masked, an edge or byte that arrives now stays
+            // pending and ends the WFI at once (unmasked, its handler could
+            // run between the check and the WFI, and the stamp would wait a
+            // whole sample period for the next wake-up).
+            cortex_m::interrupt::free(|_| {
+                if !stamp_consumer.ready() && !in_consumer.ready() {
+                    cortex_m::asm::wfi();
+                }
+            });
+        })
     }
 }
 

@@ -1,0 +1,128 @@
+//! The `bench` command: cycle counts of the board's own sample steps.
+//!
+//! Host → gyro: `COBS([CMD_BENCH]) 0x00`. The board then times its next
+//! [`BENCH_STEPS`] sample steps (front-end read, thermometer reads when due,
+//! the compensation, framing and queueing the output frame) with the
+//! Cortex-M DWT cycle counter and answers
+//! `COBS([CMD_BENCH, steps u32, min u32, mean u32, max u32]) 0x00`
+//! (little-endian, CPU cycles at the core clock), so a user with a board
+//! measures real cycles: flash wait states, bus transfers and interrupts
+//! included, which QEMU's instruction counts (`cargo xtask bench-fw`) leave
+//! out. The debug image (`board-debug`) logs the same figures over RTT.
+
+use rbf_core::frame::cobs_encode;
+
+/// Command: time the next [`BENCH_STEPS`] sample steps.
+pub const CMD_BENCH: u8 = 0x02;
+/// Sample steps one bench command times (one second at 1 kHz).
+pub const BENCH_STEPS: u32 = 1000;
+/// Payload bytes of the bench report: command byte and four u32.
+pub const REPORT_LEN: usize = 1 + 4 * 4;
+
+/// Cycle counts of timed steps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CycleStats {
+    /// Steps timed.
+    pub steps: u32,
+    /// Fewest cycles of a step.
+    pub min: u32,
+    /// Most cycles of a step.
+    pub max: u32,
+    /// Cycles of all steps.
+    pub total: u64,
+}
+
+impl CycleStats {
+    /// Adds one step that took `cycles`.
+    pub fn record(&mut self, cycles: u32) {
+        self.min = if self.steps == 0 { cycles } else { self.min.min(cycles) };
+        self.max = self.max.max(cycles);
+        self.total = self.total.saturating_add(u64::from(cycles));
+        self.steps = self.steps.saturating_add(1);
+    }
+
+    /// Mean cycles per step (0 before any).
+    pub fn mean(&self) -> u32 {
+        u32::try_from(self.total.checked_div(u64::from(self.steps)).unwrap_or(0)).unwrap_or(u32::MAX)
+    }
+
+    /// Encodes the report frame into `out`; the bytes used.
+    pub fn encode_report(&self, out: &mut [u8]) -> Option<usize> {
+        let mut payload = [0u8; REPORT_LEN];
+        let (command, fields) = payload.split_first_mut()?;
+        *command = CMD_BENCH;
+        for (chunk, value) in fields
+            .chunks_exact_mut(4)
+            .zip([self.steps, self.min, self.mean(), self.max])
+        {
+            chunk.copy_from_slice(&value.to_le_bytes());
+        }
+        cobs_encode(&payload, out)
+    }
+}
+
+/// A bench in progress: which steps to time and what they took.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Bench {
+    stats: CycleStats,
+    running: bool,
+}
+
+impl Bench {
+    /// Starts timing (again, from zero).
+    pub fn start(&mut self) {
+        *self = Bench {
+            stats: CycleStats::default(),
+            running: true,
+        };
+    }
+
+    /// Whether steps are being timed.
+    pub fn running(&self) -> bool {
+        self.running
+    }
+
+    /// Adds a timed step; the statistics once [`BENCH_STEPS`] are in (the bench then stops).
+    pub fn record(&mut self, cycles: u32) -> Option<CycleStats> {
+        if !self.running {
+            return None;
+        }
+        self.stats.record(cycles);
+        if self.stats.steps < BENCH_STEPS {
+            return None;
+        }
+        self.running = false;
+        Some(self.stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::update::cobs_decode_in_place;
+
+    #[test]
+    fn a_bench_times_its_steps_then_reports_min_mean_max_once() {
+        let mut bench = Bench::default();
+        assert_eq!(bench.record(5), None, "nothing is timed before the command");
+        bench.start();
+        let mut report = None;
+        for i in 0..BENCH_STEPS {
+            report = bench.record(1000 + i % 3);
+        }
+        let stats = report.expect("a report after BENCH_STEPS steps");
+        assert_eq!(
+            (stats.steps, stats.min, stats.max, stats.mean()),
+            (BENCH_STEPS, 1000, 1002, 1000)
+        );
+        assert!(!bench.running() && bench.record(1).is_none(), "one report per command");
+        let mut out = [0u8; 32];
+        let n = stats.encode_report(&mut out).unwrap();
+        let frame = &mut out[..n - 1];
+        let len = cobs_decode_in_place(frame).unwrap();
+        let word = |i: usize| u32::from_le_bytes(frame[1 + 4 * i..5 + 4 * i].try_into().unwrap());
+        assert_eq!(len, REPORT_LEN);
+        assert_eq!(frame[0], CMD_BENCH);
+        assert_eq!([word(0), word(1), word(2), word(3)], [BENCH_STEPS, 1000, 1000, 1002]);
+    }
+}

@@ -1,0 +1,225 @@
+//! The gyro board's own stack peak, measured under QEMU: the `board-qemu`
+//! image of the stm32f405 binary (the board's main loop, interrupt handlers
+//! and drivers; the clock setup and the pieces QEMU lacks swapped, see
+//! docs/firmware.md) boots with a model in flash slot A, receives a model
+//! update and a `bench` command over its UART (this module plays the host:
+//! it reads the output frames and sends the commands), runs at least 10,000
+//! samples and reports `board_stack_peak_bytes N` from its painted stack.
+
+use std::io::{Read, Write};
+use std::os::unix::net::UnixStream;
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, AtomicU32, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use rbf_core::lag_bank::LagBank;
+use rbf_core::model::{ModelBody, ModelInfo};
+use rbf_core::rbf::{RbfNetwork, RbfParams};
+use rbf_core::{FeatureConfig, FeatureSet, Model};
+
+use crate::replay::MODEL_SLOT_A;
+use crate::{firmware, qemu};
+
+/// Output frames the host waits for before it sends the update (boot is over).
+const FRAMES_BEFORE_UPDATE: usize = 200;
+/// No reply status seen yet.
+const NO_REPLY: u8 = u8::MAX;
+
+/// What the board run reported.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BoardRun {
+    /// Deepest stack use, bytes.
+    pub stack_peak_bytes: u64,
+    /// The image's own summary line (samples, missed, output errors, update status).
+    pub summary: String,
+    /// Output frames the host received.
+    pub frames: usize,
+    /// Steps the bench command's report counted (its cycle counts are 0
+    /// under QEMU, which has no cycle counter).
+    pub bench_steps: u32,
+}
+
+/// A K = 32 network over `dims` inputs with Gaussians over the first
+/// `kernel` (values like a real fit's, shared width).
+fn network(dims: usize, kernel: usize, scale: &[f32]) -> anyhow::Result<RbfNetwork<64, 12>> {
+    const K: usize = 32;
+    let mut state = 0x2545_f491u32;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        (state >> 8) as f32 / (1 << 24) as f32 * 4.0 - 2.0
+    };
+    let centers: Vec<f32> = (0..K * kernel).map(|_| next()).collect();
+    let weights: Vec<f32> = (0..K).map(|_| 0.05 * next()).collect();
+    let mut offset = vec![0.0; dims];
+    offset[0] = 25.0;
+    RbfNetwork::new(&RbfParams {
+        offset: &offset,
+        scale,
+        kernel_inputs: kernel,
+        centers: &centers,
+        widths: &[1.5; K],
+        weights: &weights,
+        linear: &vec![0.01; dims],
+        constant: 0.05,
+    })
+    .map_err(|e| anyhow::anyhow!("synthetic network: {e}"))
+}
+
+/// The model at boot: the IFOG paper's (T, ΔT, T×ΔT), K = 32.
+fn boot_model() -> anyhow::Result<Model> {
+    let net = network(3, 3, &[10.0, 0.5, 12.0])?;
+    let features = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
+    let ranges = [(0.0, 50.0), (-3.0, 3.0), (-150.0, 150.0)];
+    Model::new(features, &ranges, ModelBody::Rbf(net), ModelInfo::default()).map_err(|e| anyhow::anyhow!("{e}"))
+}
+
+/// The update: a lag bank of five filters, K = 32 over T̂.
+fn update_model() -> anyhow::Result<Model> {
+    let net = network(8, 1, &[10.0, 300.0, 8000.0, 0.5, 0.4, 0.3, 0.2, 0.1])?;
+    let mut bank = LagBank::plain(&[30.0, 120.0, 480.0, 1920.0, 7680.0], 25.0).context("bank")?;
+    bank.coil_lag_min[..5].copy_from_slice(&[-0.5, -2.0, -8.0, -30.0, -100.0]);
+    bank.static_degree = 3;
+    (bank.coil_min_c, bank.coil_max_c) = (-10.0, 60.0);
+    let mut ranges = vec![(-10.0, 60.0), (0.0, 1300.0), (-3500.0, 42000.0)];
+    ranges.resize(8, (-3.0, 3.0));
+    let features = FeatureConfig::lag_bank(bank);
+    Model::new(features, &ranges, ModelBody::Rbf(net), ModelInfo::default()).map_err(|e| anyhow::anyhow!("{e}"))
+}
+
+fn encode(model: &Model) -> anyhow::Result<Vec<u8>> {
+    let mut blob = vec![0u8; rbf_core::blob::MAX_BLOB_LEN];
+    let n = rbf_core::blob::encode(model, &mut blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    blob.truncate(n);
+    Ok(blob)
+}
+
+/// Builds the `board-qemu` image and runs it as the module docs say.
+pub fn measure() -> anyhow::Result<BoardRun> {
+    let built = firmware::build("stm32f405", &["board-qemu"])?;
+    let dir = tempfile::TempDir::new()?;
+    // The real board image is built to the same path: keep this one apart.
+    let elf = dir.path().join("stm32f405-qemu");
+    std::fs::copy(&built, &elf).context("copy the board-qemu image")?;
+    std::fs::write(dir.path().join("boot.bin"), encode(&boot_model()?)?)?;
+    let update = encode(&update_model()?)?;
+    let mut commands = vec![0u8; firmware_lib::update::MAX_COMMAND_FRAME_LEN];
+    let n = firmware_lib::update::encode_install_command(&update, &mut commands).context("encode the command")?;
+    commands.truncate(n);
+    let mut bench = [0u8; 4];
+    let n = rbf_core::frame::cobs_encode(&[firmware_lib::bench::CMD_BENCH], &mut bench).context("bench command")?;
+    commands.extend_from_slice(&bench[..n]);
+    run(&elf, dir.path(), &commands)
+}
+
+fn run(elf: &Path, dir: &Path, command: &[u8]) -> anyhow::Result<BoardRun> {
+    let extra = [
+        "-icount".to_owned(),
+        "shift=0,sleep=off".to_owned(),
+        "-device".to_owned(),
+        format!("loader,file=boot.bin,addr={MODEL_SLOT_A:#x}"),
+        "-chardev".to_owned(),
+        "socket,id=uart,path=uart.sock,server=on,wait=on".to_owned(),
+    ];
+    let child = qemu::spawn(elf, dir, "chardev:uart", &extra)?;
+    // QEMU waits for this connection before it starts the guest.
+    let started = Instant::now();
+    let mut uart = loop {
+        match UnixStream::connect(dir.join("uart.sock")) {
+            Ok(stream) => break stream,
+            Err(_) if started.elapsed() < Duration::from_secs(10) => std::thread::sleep(Duration::from_millis(20)),
+            Err(e) => return Err(e).context("cannot connect to QEMU's UART socket"),
+        }
+    };
+    let frames = Arc::new(AtomicUsize::new(0));
+    let reply = Arc::new(AtomicU8::new(NO_REPLY));
+    let bench_steps = Arc::new(AtomicU32::new(0));
+    let reader = {
+        let heard = Heard {
+            frames: frames.clone(),
+            reply: reply.clone(),
+            bench_steps: bench_steps.clone(),
+        };
+        let mut uart = uart.try_clone()?;
+        std::thread::spawn(move || read_frames(&mut uart, &heard))
+    };
+    while frames.load(Ordering::Relaxed) < FRAMES_BEFORE_UPDATE && started.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    uart.write_all(command).context("send the install command")?;
+    let result = qemu::wait(child, dir, Duration::from_secs(300))?;
+    drop(uart);
+    let _ = reader.join();
+    let peak = result
+        .log
+        .lines()
+        .find_map(|l| l.strip_prefix("board_stack_peak_bytes "))
+        .and_then(|n| n.trim().parse::<u64>().ok());
+    let summary = result
+        .log
+        .lines()
+        .find(|l| l.starts_with("samples "))
+        .unwrap_or("")
+        .to_owned();
+    let reply = reply.load(Ordering::Relaxed);
+    let bench_steps = bench_steps.load(Ordering::Relaxed);
+    match peak {
+        Some(stack_peak_bytes) if result.success && reply == 0 && bench_steps == firmware_lib::bench::BENCH_STEPS => {
+            Ok(BoardRun {
+                stack_peak_bytes,
+                summary,
+                frames: frames.load(Ordering::Relaxed),
+                bench_steps,
+            })
+        }
+        _ => bail!(
+            "the board-qemu run failed (update reply status {reply}, bench report of {bench_steps} steps, {} frames):\n{}",
+            frames.load(Ordering::Relaxed),
+            result.log
+        ),
+    }
+}
+
+/// What the host heard from the board.
+struct Heard {
+    frames: Arc<AtomicUsize>,
+    /// Status of the install reply ([`NO_REPLY`] before one).
+    reply: Arc<AtomicU8>,
+    /// Steps of the bench report (0 before one).
+    bench_steps: Arc<AtomicU32>,
+}
+
+/// Reads COBS frames from the board until the socket closes: counts them,
+/// keeps the status of an install reply (`[0x01, status]`) and the step
+/// count of a bench report.
+fn read_frames(uart: &mut UnixStream, heard: &Heard) {
+    use firmware_lib::{bench, update};
+    let mut frame = Vec::new();
+    let mut buf = [0u8; 4096];
+    while let Ok(n) = uart.read(&mut buf) {
+        if n == 0 {
+            break;
+        }
+        for &byte in &buf[..n] {
+            if byte != 0 {
+                frame.push(byte);
+                continue;
+            }
+            heard.frames.fetch_add(1, Ordering::Relaxed);
+            match update::cobs_decode_in_place(&mut frame) {
+                Some(update::REPLY_LEN) if frame[0] == update::CMD_INSTALL_MODEL => {
+                    heard.reply.store(frame[1], Ordering::Relaxed);
+                }
+                Some(bench::REPORT_LEN) if frame[0] == bench::CMD_BENCH => {
+                    let steps = u32::from_le_bytes([frame[1], frame[2], frame[3], frame[4]]);
+                    heard.bench_steps.store(steps, Ordering::Relaxed);
+                }
+                _ => {}
+            }
+            frame.clear();
+        }
+    }
+}
