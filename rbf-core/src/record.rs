@@ -1,4 +1,4 @@
-//! Row-level parsing of the recorded-run CSV (`shared/recorded-run-format.md`).
+//! Row-level parsing of the recorded-run CSV (`docs/recorded-run-format.md`).
 //!
 //! `no_std` so that the trainer and the firmware's replay board parse runs with
 //! the same code. File handling, line numbering and error messages with file

@@ -1,4 +1,4 @@
-//! Reading recorded runs (`shared/recorded-run-format.md`) from files or
+//! Reading recorded runs (`docs/recorded-run-format.md`) from files or
 //! standard input (`-`).
 //!
 //! Row parsing is [`rbf_core::record`] (shared with the firmware replay); this
