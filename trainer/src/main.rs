@@ -619,7 +619,7 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
     if let Some(c) = &outcome.choice {
         writeln!(
             out,
-            "chosen on {}: ΔT window {} s, width σ {} (normalised), ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
+            "chosen on {}: {}width σ {} (normalised), ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
             if !a.validate.is_empty() {
                 "--validate runs".into()
             } else if let Some(search) = &outcome.bank {
@@ -627,7 +627,12 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
             } else {
                 format!("{}-fold contiguous validation", opts.folds.max(2))
             },
-            c.rate_window_s,
+            // The lag bank's filters are its structure (printed below), not one window.
+            if outcome.bank.is_some() {
+                String::new()
+            } else {
+                format!("ΔT window {} s, ", c.rate_window_s)
+            },
             c.width,
             c.ridge,
             c.centers,

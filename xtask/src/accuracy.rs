@@ -32,7 +32,7 @@ const METHODS: [(&str, &[&str]); 5] = [
     ("rbf2 (IFOG paper, before)", &["--method", "rbf2"]),
     ("rbf --features paper (IFOG)", &["--features", "paper"]),
     ("svr-pso, single-point (RLG)", &["--method", "svr-pso"]),
-    ("default (multiscale rbf)", &[]),
+    ("default (lag-bank rbf)", &[]),
 ];
 
 /// The RLG paper's comparison on 8-thermometer runs: single-point models,

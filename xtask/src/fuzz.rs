@@ -140,7 +140,7 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
         std::fs::write(d.join(name), bytes).with_context(|| format!("{}: cannot write seed", d.display()))
     };
 
-    // Model blobs: a fitted default model, the paper's network, a cubic; each
+    // Model blobs: a fitted default (lag-bank) and multiscale model, the paper's network, a cubic; each
     // also in the target's "sealed" form (header fields from byte 6, then payload).
     let run = Run::load(&data.join("ifog_verify_3cpm.csv"))?;
     let fitted = |features| -> anyhow::Result<Model> {
@@ -160,7 +160,8 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
     )
     .context("cubic model")?;
     let models = [
-        ("default", fitted(trainer::fit::RbfFeatures::MultiscaleValidated)?),
+        ("default", fitted(trainer::fit::RbfFeatures::LagBank)?),
+        ("multiscale", fitted(trainer::fit::RbfFeatures::MultiscaleValidated)?),
         ("paper", fitted(trainer::fit::RbfFeatures::Paper)?),
         ("cubic", cubic),
     ];
@@ -234,4 +235,23 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
         write("run_reader", name, text.as_bytes())?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The blob target starts from a decodable blob of every model kind the
+    /// trainer writes by default, so the fuzzer mutates the layout users flash.
+    #[test]
+    fn blob_seeds_hold_the_default_lag_bank_model_and_every_other_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        write_seeds(dir.path()).unwrap();
+        let blobs = dir.path().join("blob_decode");
+        let decoded = |name: &str| blob::decode(&std::fs::read(blobs.join(name)).unwrap()).unwrap().model;
+        assert!(matches!(decoded("default.bin").features().set, FeatureSet::LagBank(_)));
+        for name in ["multiscale.bin", "paper.bin", "cubic.bin"] {
+            assert!(!matches!(decoded(name).features().set, FeatureSet::LagBank(_)));
+        }
+    }
 }
