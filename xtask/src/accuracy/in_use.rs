@@ -187,6 +187,11 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
     let judged = opts.trainer.clone().unwrap_or_else(|| simulator.clone());
     let lag_bank = workspace_root().join("bench/accuracy/lag_bank.py");
     let dir = dir.join("in-use");
+    // A fresh directory each time: the trainer refuses to replace outputs
+    // without --force, and a judged build (--trainer) may predate that flag.
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir).with_context(|| format!("{}: cannot clear", dir.display()))?;
+    }
     std::fs::create_dir_all(&dir)?;
     let fit_args: Vec<&str> = opts.fit_args.iter().map(String::as_str).collect();
     let training = training_runs(opts.plan.as_deref());
