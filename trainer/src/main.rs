@@ -762,6 +762,12 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         .collect::<anyhow::Result<_>>()?;
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
+    if let Some(search) = &outcome.bank {
+        writeln!(out)?;
+        for line in search.coverage.lines() {
+            writeln!(out, "{line}")?;
+        }
+    }
     writeln!(out, "\nwrote {} ({} bytes)", text::path(&a.output), blob.len())?;
     let json = match &a.json {
         None => None,

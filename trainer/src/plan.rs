@@ -125,9 +125,9 @@ impl PlanLimits {
 pub struct Segment {
     /// Set point, °C.
     pub target_c: f64,
-    /// Ramp duration, s (whole seconds; 0 for the first segment, the soak).
+    /// Ramp duration, s (whole tenths of a minute; 0 for the first segment, the soak).
     pub ramp_s: f64,
-    /// Hold at the set point after the ramp, s (whole seconds, may be 0).
+    /// Hold at the set point after the ramp, s (whole tenths of a minute, may be 0).
     pub hold_s: f64,
 }
 
@@ -219,14 +219,10 @@ impl Plan {
     }
 }
 
-/// Whole seconds as minutes, exactly as many digits as needed.
+/// A duration in minutes: every duration of a plan is a whole number of
+/// tenths of a minute, so one decimal is exact.
 fn minutes(s: f64) -> String {
-    let m = s / 60.0;
-    if (m * 60.0).round() % 60.0 == 0.0 {
-        format!("{m:.0}")
-    } else {
-        format!("{m:.4}").trim_end_matches('0').to_owned()
-    }
+    format!("{:.1}", s / 60.0)
 }
 
 /// Set points of `segments`: the start, then each ramp's end and hold's end.
@@ -249,13 +245,22 @@ fn knots(segments: &[Segment]) -> Vec<(f64, f64)> {
     k
 }
 
-/// Whole seconds a ramp of `delta_c` takes at no more than `rate` °C/min:
-/// rounded up, one second more when exact, so no rounding of the written
-/// values can make a segment faster than the limit.
+/// Seconds a ramp of `delta_c` takes at no more than `rate` °C/min, in
+/// whole tenths of a minute (what segment tables hold): rounded up, a tenth
+/// more when exact, so no rounding of the written values can make a
+/// segment faster than the limit.
 fn ramp_seconds(delta_c: f64, rate_c_per_min: f64) -> f64 {
     let s = delta_c.abs() / rate_c_per_min * 60.0;
-    let up = s.ceil();
-    if up - s < 1e-6 { up + 1.0 } else { up }
+    let up = (s / TENTH_MIN_S).ceil() * TENTH_MIN_S;
+    if up - s < 1e-6 { up + TENTH_MIN_S } else { up }
+}
+
+/// Durations are whole multiples of this, s (a tenth of a minute).
+const TENTH_MIN_S: f64 = 6.0;
+
+/// `s` rounded to whole tenths of a minute.
+fn tenths(s: f64) -> f64 {
+    (s / TENTH_MIN_S).round().max(0.0) * TENTH_MIN_S
 }
 
 /// A temperature on a 0.01-°C grid, kept within the limits.
@@ -279,7 +284,7 @@ impl Builder<'_> {
             return;
         }
         let ramp_s = ramp_seconds(target_c - self.now_c, rate);
-        let hold_s = hold_s.round().max(0.0);
+        let hold_s = tenths(hold_s);
         self.segments.push(Segment {
             target_c,
             ramp_s,
@@ -290,7 +295,7 @@ impl Builder<'_> {
     }
 
     fn hold(&mut self, hold_s: f64) {
-        let hold_s = hold_s.round().max(0.0);
+        let hold_s = tenths(hold_s);
         if let Some(last) = self.segments.last_mut() {
             last.hold_s += hold_s;
         }
@@ -304,7 +309,7 @@ pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
     let span = l.max_c - l.min_c;
     let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
     let r = l.max_rate_c_per_min;
-    let end_s = (l.hours * 3600.0).floor();
+    let end_s = (l.hours * 3600.0 / TENTH_MIN_S).floor() * TENTH_MIN_S;
     // Cold start: soaked in the lowest fifth of the range.
     let start = set_point(level(rng.random_range(0..=2)), l);
     let mut b = Builder {
@@ -312,7 +317,7 @@ pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
         segments: vec![Segment {
             target_c: start,
             ramp_s: 0.0,
-            hold_s: rng.random_range(WARM_UP_S.0..=WARM_UP_S.1).round(),
+            hold_s: tenths(rng.random_range(WARM_UP_S.0..=WARM_UP_S.1)),
         }],
         now_c: start,
         t_s: 0.0,
@@ -326,18 +331,16 @@ pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
             _ => rng.random_range(LONG_HOLD_S..=1.4 * LONG_HOLD_S),
         };
         match kind {
-            // A burst of swings about the current level at the full rate.
+            // A burst of swings at the full rate about a centre near the
+            // current level, legs alternating sides.
             0..=1 => {
                 let legs = rng.random_range(2..=4);
-                let centre = b.now_c;
+                let reach = span * SWING_AMPLITUDE.1;
+                let centre = b.now_c.clamp(l.min_c + reach, l.max_c - reach);
                 let mut side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
                 for _ in 0..legs {
                     let amp = span * rng.random_range(SWING_AMPLITUDE.0..=SWING_AMPLITUDE.1);
-                    let mut target = centre + side * amp;
-                    if target < l.min_c || target > l.max_c {
-                        target = centre - side * amp;
-                    }
-                    b.ramp_hold(target, r, rng.random_range(0.0..=300.0));
+                    b.ramp_hold(centre + side * amp, r, rng.random_range(0.0..=300.0));
                     side = -side;
                 }
                 b.ramp_hold(centre, r, hold_s);
@@ -667,10 +670,10 @@ mod tests {
 
     #[test]
     fn ramps_are_rounded_up_to_stay_under_the_limit() {
-        assert_eq!(ramp_seconds(100.0, 5.0), 1201.0);
-        assert_eq!(ramp_seconds(10.0, 3.0), 201.0);
-        assert_eq!(ramp_seconds(7.0, 3.0), 140.0);
+        assert_eq!(ramp_seconds(100.0, 5.0), 1206.0);
+        assert_eq!(ramp_seconds(10.0, 3.0), 204.0);
+        assert_eq!(ramp_seconds(7.0, 3.0), 144.0);
         assert_eq!(minutes(90.0), "1.5");
-        assert_eq!(minutes(3600.0), "60");
+        assert_eq!(minutes(3600.0), "60.0");
     }
 }
