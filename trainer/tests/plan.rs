@@ -228,7 +228,7 @@ fn the_segment_table_describes_the_same_profile_and_the_plot_is_drawn() {
 }
 
 #[test]
-fn a_plan_runs_through_the_simulator() {
+fn a_plan_runs_through_the_simulator_and_a_fit_reports_its_coverage() {
     let dir = TempDir::new().unwrap();
     let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--candidates", "8"]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -254,4 +254,42 @@ fn a_plan_runs_through_the_simulator() {
     // The run lasts to the last set point (5-s samples).
     let expected = (knots.last().unwrap().0 * 0.2).floor() as usize;
     assert_eq!(rows, expected);
+    // The fit says what the run covered; on the plan nothing the bank needs is missing,
+    // on a slow warm cycle the cold start and the fast changes are.
+    let model = dir.path().join("m.bin");
+    let o = trainer(&["fit", "-q", run.to_str().unwrap(), "-o", model.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = stdout(&o);
+    assert!(report.contains("coverage: T "), "{report}");
+    assert!(
+        report.contains(&format!("cold start at {:.1} °C", knots[0].1)),
+        "{report}"
+    );
+    assert!(report.contains("missing: nothing the lag bank needs"), "{report}");
+    let cycle = dir.path().join("cycle.csv");
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        "cycle",
+        "--ramp",
+        "1",
+        "--rate-hz",
+        "0.2",
+        "-o",
+        cycle.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = trainer(&[
+        "fit",
+        "-q",
+        cycle.to_str().unwrap(),
+        "-o",
+        dir.path().join("c.bin").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = stdout(&o);
+    for gap in ["missing: no cold start", "missing: no fast change"] {
+        assert!(report.contains(gap), "{gap}: {report}");
+    }
+    assert!(!report.contains("missing: nothing"), "{report}");
 }

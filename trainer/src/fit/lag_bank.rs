@@ -71,6 +71,9 @@ struct LadderData {
     run: Vec<usize>,
     /// Weight of the lag prior, °/h per row ([`lag_prior`]); 0: none.
     lag_prior_dph: f64,
+    /// Seconds of samples behind each mean, on average (10 s at 1 Hz and
+    /// faster; more when a sample spans more than a block).
+    mean_s: f64,
 }
 
 impl LadderData {
@@ -97,6 +100,7 @@ impl LadderData {
             out.run.push(blocks.run[start]);
             start = end;
         }
+        out.mean_s = blocks.usable_s / out.len().max(1) as f64;
         out
     }
 
@@ -467,15 +471,7 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         let rates: Vec<&[f64]> = data.rates.iter().map(|r| &r[..LADDERS_S[0].len()]).collect();
         let taus: Vec<f64> = LADDERS_S[0].iter().map(|&t| f64::from(t)).collect();
         // The 960-s filter tells a settled level from a ramp.
-        Coverage::of_means(
-            &data.temp_c,
-            &rates,
-            &data.run,
-            &taus,
-            3,
-            SEARCH_MEAN_S,
-            folds[0].events,
-        )
+        Coverage::of_means(&data.temp_c, &rates, &data.run, &taus, 3, data.mean_s, folds[0].events)
     };
     for ((data, val), f) in ladders.iter_mut().zip(&folds) {
         if val.is_none() && f.kind == FoldKind::Contiguous {
