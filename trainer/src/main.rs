@@ -322,9 +322,9 @@ struct PlanArgs {
     /// reads) or segments (segment,target_c,ramp_min,hold_min; what chamber controllers take).
     #[arg(long, value_enum, default_value_t = PlanFormat::SetPoints)]
     format: PlanFormat,
-    /// Candidate profiles scored (more: a better criterion, longer design).
+    /// Candidate profiles scored, 1–1000 (more: a higher criterion, a longer design).
     #[arg(long, value_name = "N", default_value_t = trainer::plan::DEFAULT_CANDIDATES,
-          value_parser = RangedU64ValueParser::<usize>::new().range(1..=10_000))]
+          value_parser = RangedU64ValueParser::<usize>::new().range(1..=1000))]
     candidates: usize,
     /// Random seed of the candidates.
     #[arg(long, default_value_t = 1)]
