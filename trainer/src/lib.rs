@@ -23,6 +23,7 @@ pub mod input;
 pub mod limits;
 pub mod metrics;
 pub mod output;
+pub mod plan;
 pub mod report;
 pub mod run;
 pub mod sampling;

@@ -65,6 +65,7 @@ enum Command {
     Eval(EvalArgs),
     Inspect(InspectArgs),
     Simulate(SimulateArgs),
+    Plan(PlanArgs),
     Decode(DecodeArgs),
     Report(ReportArgs),
     Blocks(BlocksArgs),
@@ -290,6 +291,61 @@ struct SimulateArgs {
     output: PathBuf,
     #[command(flatten)]
     force: ForceArg,
+}
+
+/// Design the chamber run to calibrate on: a profile the default model can be identified from.
+///
+/// Draws --candidates profiles from a family that holds what the lag bank needs (a power-on
+/// soak at the cold end whose self-heating transient is recorded, levels across the range,
+/// full-rate steps, bursts of swings, slow ramps, holds as long as the coil's slowest mode)
+/// and keeps the one of largest D-criterion: the log-determinant of the information matrix of
+/// the lag-bank regression on the documented gyro's plant (docs/plan.md). Writes the set
+/// points `trainer simulate --chamber-profile` reads (time_s,chamber_c, piecewise linear), or
+/// with --format segments the segment table a chamber controller takes. Same seed, same plan.
+///
+/// Example: trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 -o plan.csv
+#[derive(Args, Debug)]
+struct PlanArgs {
+    /// Lowest set point, °C.
+    #[arg(long, value_name = "C", allow_hyphen_values = true)]
+    min_c: f64,
+    /// Highest set point, °C.
+    #[arg(long, value_name = "C", allow_hyphen_values = true)]
+    max_c: f64,
+    /// Fastest ramp the chamber may run, °C/min (every segment stays at or below it).
+    #[arg(long, value_name = "C_PER_MIN", allow_hyphen_values = true)]
+    max_rate_c_per_min: f64,
+    /// Longest run, hours (the last set point is at most this far in).
+    #[arg(long, value_name = "H", allow_hyphen_values = true)]
+    hours: f64,
+    /// What -o holds: set-points (time_s,chamber_c; what `trainer simulate --chamber-profile`
+    /// reads) or segments (segment,target_c,ramp_min,hold_min; what chamber controllers take).
+    #[arg(long, value_enum, default_value_t = PlanFormat::SetPoints)]
+    format: PlanFormat,
+    /// Candidate profiles scored, 1–1000 (more: a higher criterion, a longer design).
+    #[arg(long, value_name = "N", default_value_t = trainer::plan::DEFAULT_CANDIDATES,
+          value_parser = RangedU64ValueParser::<usize>::new().range(1..=1000))]
+    candidates: usize,
+    /// Random seed of the candidates.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Also draw the plan (set points and the nominal loop temperature) as SVG or PNG, by extension.
+    #[arg(long, value_name = "FILE.svg|png")]
+    plot: Option<PathBuf>,
+    /// Plan to write.
+    #[arg(short, long, value_name = "PLAN.csv")]
+    output: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
+}
+
+/// What `trainer plan` writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum PlanFormat {
+    /// Piecewise-linear set points, time_s,chamber_c.
+    SetPoints,
+    /// Segment table: target °C, ramp minutes, hold minutes.
+    Segments,
 }
 
 /// Fit a bias model to recorded chamber runs and write the model blob.
@@ -528,6 +584,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(a) => cmd_eval(a),
         Command::Inspect(a) => cmd_inspect(a),
         Command::Simulate(a) => cmd_simulate(a),
+        Command::Plan(a) => cmd_plan(a),
         Command::Decode(a) => cmd_decode(a),
         Command::Blocks(a) => cmd_blocks(a),
         Command::Correlate(a) => cmd_correlate(a),
@@ -710,6 +767,12 @@ fn cmd_fit(a: FitArgs) -> anyhow::Result<()> {
         .collect::<anyhow::Result<_>>()?;
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
+    if let Some(search) = &outcome.bank {
+        writeln!(out)?;
+        for line in search.coverage.lines() {
+            writeln!(out, "{line}")?;
+        }
+    }
     writeln!(out, "\nwrote {} ({} bytes)", text::path(&a.output), blob.len())?;
     let json = match &a.json {
         None => None,
@@ -936,6 +999,62 @@ fn cmd_simulate(a: SimulateArgs) -> anyhow::Result<()> {
         .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
     out.commit()?;
     writeln!(stdout(), "wrote {}", text::path(&a.output))?;
+    Ok(())
+}
+
+fn cmd_plan(a: PlanArgs) -> anyhow::Result<()> {
+    use trainer::plan::{PlanLimits, PlotFormat};
+    let limits = PlanLimits {
+        min_c: a.min_c,
+        max_c: a.max_c,
+        max_rate_c_per_min: a.max_rate_c_per_min,
+        hours: a.hours,
+    };
+    limits.check().map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
+    let plot_format = match &a.plot {
+        None => None,
+        Some(path) => Some(
+            match path
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .as_deref()
+            {
+                Some("svg") => PlotFormat::Svg,
+                Some("png") => PlotFormat::Png,
+                _ => anyhow::bail!("--plot {}: the file name must end in .svg or .png", text::path(path)),
+            },
+        ),
+    };
+    let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(a.plot.as_deref()).collect();
+    let mut targets = output::check_targets(&outputs, &[], a.force.existing())?.into_iter();
+    let plan = trainer::plan::design(&limits, a.seed, a.candidates).map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
+    let text_out = match a.format {
+        PlanFormat::SetPoints => plan.set_points_csv(),
+        PlanFormat::Segments => plan.segments_csv(),
+    };
+    let plot = plot_format.map(|f| trainer::plan::plot(&plan, f)).transpose()?;
+    for bytes in std::iter::once(text_out.into_bytes()).chain(plot) {
+        let Some(target) = targets.next() else { break };
+        let mut out = Output::open(target)?;
+        out.write_all(&bytes)
+            .with_context(|| format!("{}: write failed", text::path(out.path())))?;
+        out.commit()?;
+    }
+    let mut out = stdout();
+    writeln!(
+        out,
+        "wrote {} ({} segments, {:.2} h, D-criterion {:.4}, best of {} candidates; median {:.4})",
+        text::path(&a.output),
+        plan.segments.len(),
+        plan.duration_s() / 3600.0,
+        plan.criterion,
+        plan.candidates,
+        plan.median_criterion
+    )?;
+    if let Some(p) = &a.plot {
+        writeln!(out, "wrote {}", text::path(p))?;
+    }
     Ok(())
 }
 

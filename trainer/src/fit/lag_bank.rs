@@ -21,6 +21,7 @@ use nalgebra::{DMatrix, DVector};
 use rbf_core::FeatureConfig;
 use rbf_core::lag_bank::{BANK_FILTERS, LagBank};
 
+use super::coverage::Coverage;
 use super::events::{FoldKind, Folds, thermal_folds};
 use super::rbf::parallel_map;
 use super::{FitOptions, Progress};
@@ -70,6 +71,9 @@ struct LadderData {
     run: Vec<usize>,
     /// Weight of the lag prior, °/h per row ([`lag_prior`]); 0: none.
     lag_prior_dph: f64,
+    /// Seconds of samples behind each mean, on average (10 s at 1 Hz and
+    /// faster; more when a sample spans more than a block).
+    mean_s: f64,
 }
 
 impl LadderData {
@@ -96,6 +100,7 @@ impl LadderData {
             out.run.push(blocks.run[start]);
             start = end;
         }
+        out.mean_s = blocks.usable_s / out.len().max(1) as f64;
         out
     }
 
@@ -402,6 +407,8 @@ pub struct BankSearch {
     pub fold_count: usize,
     /// Thermal events found in the training runs.
     pub events: usize,
+    /// What the training runs covered of what the bank needs.
+    pub coverage: Coverage,
 }
 
 impl BankSearch {
@@ -459,6 +466,13 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         .iter()
         .map(|(d, _)| thermal_folds(&d.temp_c, &d.run, SEARCH_MEAN_S, opts.folds))
         .collect();
+    let coverage = {
+        let data = &ladders[0].0;
+        let rates: Vec<&[f64]> = data.rates.iter().map(|r| &r[..LADDERS_S[0].len()]).collect();
+        let taus: Vec<f64> = LADDERS_S[0].iter().map(|&t| f64::from(t)).collect();
+        // The 960-s filter tells a settled level from a ramp.
+        Coverage::of_means(&data.temp_c, &rates, &data.run, &taus, 3, data.mean_s, folds[0].events)
+    };
     for ((data, val), f) in ladders.iter_mut().zip(&folds) {
         if val.is_none() && f.kind == FoldKind::Contiguous {
             data.lag_prior_dph = LAG_PRIOR_DPH;
@@ -542,6 +556,7 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             folds: fold_kind,
             fold_count,
             events: folds[s.ladder].events,
+            coverage,
         },
     ))
 }

@@ -1,6 +1,7 @@
 //! Model fitting: the methods `trainer fit` offers and the checks that a
 //! recording can identify them at all.
 
+pub mod coverage;
 pub mod events;
 pub mod lag_bank;
 pub mod linalg;

@@ -274,7 +274,7 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
 }
 
 /// `f` of every item, on all available cores; results in the items' order.
-pub(super) fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+pub(crate) fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
     let workers = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .clamp(1, items.len().max(1));

@@ -1,0 +1,326 @@
+//! What the training runs showed the lag bank, against what it needs to be
+//! identified and to hold in use: settled levels across the range (the
+//! static curve), fast changes of both signs at every filter's time scale
+//! (the rate weights and coil lags), holds long enough for the slowest
+//! filter (the slow lags apart from the static curve), thermal events to
+//! validate on, and a power-on in the cold (the self-heating transient).
+//! `trainer fit` prints it after its table and names what is missing.
+
+use serde::Serialize;
+
+/// A 10-s mean counts as slow (near a level) below this rate at the 960-s
+/// filter, °C/min: a sensor behind a housing of tens of minutes still
+/// drifts this fast half an hour into a hold after a large step.
+const SLOW_C_PER_MIN: f64 = 0.3;
+/// A temperature band is covered by at least this long slow in it, s.
+const LEVEL_S: f64 = 1200.0;
+/// Width of the temperature bands, °C: a cubic static curve is bridged
+/// safely across one band without a level, not across two.
+const BAND_C: f64 = 20.0;
+/// A long hold: a slow stretch at least this long, s (long enough for the
+/// 960-s and 3840-s filters to read the slow decay apart from the static curve).
+pub const LONG_HOLD_S: f64 = 2400.0;
+/// The fastest filter should have seen changes at least this fast, °C/min:
+/// an in-use air step of tens of °C reaches a sensor behind a housing of
+/// tens of minutes faster than that, a 1-°C/min chamber ramp does not.
+pub const FAST_C_PER_MIN: f64 = 1.0;
+/// Thermal events below which validation falls back to contiguous folds.
+const FEW_EVENTS: usize = 5;
+/// A power-on counts as cold in the lowest this share of the covered range.
+const COLD_SHARE: f64 = 0.25;
+
+/// One filter's covered rates.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RateCoverage {
+    /// Filter time constant, s.
+    pub tau_s: f64,
+    /// Fastest rise the filter read, °C/min.
+    pub max_c_per_min: f64,
+    /// Fastest fall the filter read (negative), °C/min.
+    pub min_c_per_min: f64,
+}
+
+/// What the training runs covered.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Coverage {
+    /// Loop-temperature range of the 10-s means, °C.
+    pub temp_range_c: (f64, f64),
+    /// Lower edges of the 20-°C bands (from the coldest reading up) the runs stayed in slowly for 20 min or more, °C, ascending.
+    pub bands_c: Vec<f64>,
+    /// Lower edges of the bands within the covered range that they did not, °C.
+    pub uncovered_c: Vec<f64>,
+    /// Per filter, fastest to slowest.
+    pub rates: Vec<RateCoverage>,
+    /// Slow stretches at least [`LONG_HOLD_S`] long.
+    pub long_holds: usize,
+    /// Thermal events the event folds found.
+    pub events: usize,
+    /// Loop temperature at the power-on of the coldest run that starts cold and holds, °C.
+    pub cold_start_c: Option<f64>,
+}
+
+impl Coverage {
+    /// Coverage of 10-s means: loop temperature `temp_c`, the filters'
+    /// rates `rates[i][k]` (°C/min) at `taus_s`, run index per mean.
+    /// `settle_filter` is the index of the filter read for settling (≈ 960 s).
+    pub fn of_means(
+        temp_c: &[f64],
+        rates: &[&[f64]],
+        run: &[usize],
+        taus_s: &[f64],
+        settle_filter: usize,
+        mean_s: f64,
+        events: usize,
+    ) -> Coverage {
+        let lo = temp_c.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = temp_c.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let rate_cov = taus_s
+            .iter()
+            .enumerate()
+            .map(|(k, &tau_s)| RateCoverage {
+                tau_s,
+                max_c_per_min: rates.iter().map(|r| r[k]).fold(0.0, f64::max),
+                min_c_per_min: rates.iter().map(|r| r[k]).fold(0.0, f64::min),
+            })
+            .collect();
+        // Settled stretches, never across a run boundary.
+        let mut stretches: Vec<(usize, usize)> = Vec::new();
+        let mut start: Option<usize> = None;
+        for i in 0..=temp_c.len() {
+            let settled = i < temp_c.len()
+                && rates[i][settle_filter].abs() < SLOW_C_PER_MIN
+                && start.is_none_or(|s| run[s] == run[i]);
+            match (settled, start) {
+                (true, None) => start = Some(i),
+                (false, Some(s)) => {
+                    stretches.push((s, i));
+                    start = (i < temp_c.len() && rates[i][settle_filter].abs() < SLOW_C_PER_MIN).then_some(i);
+                }
+                _ => {}
+            }
+        }
+        let len_s = |&(s, e): &(usize, usize)| (e - s) as f64 * mean_s;
+        // Bands from the coldest reading up; the hottest falls in the last.
+        let bands = if hi > lo {
+            ((hi - lo) / BAND_C).ceil().max(1.0) as usize
+        } else {
+            1
+        };
+        let band_of = |t: f64| (((t - lo) / BAND_C).floor().max(0.0) as usize).min(bands - 1);
+        let mut dwell_s = vec![0.0; bands];
+        for &(s, e) in &stretches {
+            for &t in &temp_c[s..e] {
+                if t.is_finite() {
+                    dwell_s[band_of(t)] += mean_s;
+                }
+            }
+        }
+        let edge = |b: usize| lo + b as f64 * BAND_C;
+        let bands_c: Vec<f64> = (0..bands).filter(|&b| dwell_s[b] >= LEVEL_S).map(edge).collect();
+        let uncovered_c: Vec<f64> = (0..bands).filter(|&b| dwell_s[b] < LEVEL_S).map(edge).collect();
+        let long_holds = stretches.iter().filter(|st| len_s(st) >= LONG_HOLD_S).count();
+        // A cold power-on: a run whose first mean lies in the lowest quarter
+        // and that does not ramp in its first settled stretch's place.
+        let cold_limit = lo + COLD_SHARE * (hi - lo);
+        let cold_start_c = (0..temp_c.len())
+            .filter(|&i| i == 0 || run[i] != run[i - 1])
+            .filter(|&i| temp_c[i] <= cold_limit)
+            .filter(|&i| {
+                stretches
+                    .iter()
+                    .any(|&(s, e)| s <= i + 1 && e > i && len_s(&(s, e)) >= LEVEL_S)
+            })
+            .map(|i| temp_c[i])
+            .fold(None, |best: Option<f64>, t| Some(best.map_or(t, |b| b.min(t))));
+        Coverage {
+            temp_range_c: (lo, hi),
+            bands_c,
+            uncovered_c,
+            rates: rate_cov,
+            long_holds,
+            events,
+            cold_start_c,
+        }
+    }
+
+    /// What the lag bank needs and these runs lack, in words an engineer acts on.
+    pub fn missing(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let (lo, hi) = self.temp_range_c;
+        if !self.uncovered_c.is_empty() {
+            out.push(format!(
+                "no level in {} °C: the static curve there is only read while the temperature moves; hold there for {:.0} min or more",
+                band_list(&self.uncovered_c, hi),
+                LEVEL_S / 60.0
+            ));
+        }
+        if let Some(fast) = self.rates.first() {
+            if fast.max_c_per_min.max(-fast.min_c_per_min) < FAST_C_PER_MIN {
+                out.push(format!(
+                    "no fast change: the sensor never moved faster than {:.1} °C/min (τ {:.0} s); in use, steps and swings do; ramp at the chamber's full rate",
+                    fast.max_c_per_min.max(-fast.min_c_per_min),
+                    fast.tau_s
+                ));
+            } else if fast.max_c_per_min.min(-fast.min_c_per_min) < 0.5 * FAST_C_PER_MIN {
+                let which = if fast.max_c_per_min < -fast.min_c_per_min {
+                    "heating"
+                } else {
+                    "cooling"
+                };
+                out.push(format!(
+                    "no fast {which}: only one direction was fast; ramp the other way at the full rate too"
+                ));
+            }
+        }
+        if self.long_holds == 0 {
+            out.push(format!(
+                "no long hold ({:.0} min slower than {SLOW_C_PER_MIN} °C/min): the slowest lags are not told apart from the static curve; hold an hour at least once after a fast change",
+                LONG_HOLD_S / 60.0
+            ));
+        }
+        if self.events < FEW_EVENTS {
+            out.push(format!(
+                "only {} thermal events (ramps or steps with their holds): too few to validate the structure on; add steps between levels",
+                self.events
+            ));
+        }
+        if self.cold_start_c.is_none() {
+            out.push(format!(
+                "no cold start: no run powers on in the coldest quarter of the range ({:.0} … {:.0} °C) and holds there; in use the gyro is switched on cold and self-heats: soak it cold unpowered, then power on and hold {:.0} min",
+                lo,
+                lo + COLD_SHARE * (hi - lo),
+                LEVEL_S / 60.0 * 2.0
+            ));
+        }
+        out
+    }
+
+    /// The coverage in a few lines, then what is missing.
+    pub fn lines(&self) -> Vec<String> {
+        let rates: Vec<String> = self
+            .rates
+            .iter()
+            .map(|r| format!("{:.0} s {:+.1}/{:+.1}", r.tau_s, r.min_c_per_min, r.max_c_per_min))
+            .collect();
+        let mut out = vec![
+            format!(
+                "coverage: T {:.1} … {:.1} °C; levels (20 min slower than {SLOW_C_PER_MIN} °C/min) in {} °C; {} thermal events; {} holds ≥ {:.0} min; {}",
+                self.temp_range_c.0,
+                self.temp_range_c.1,
+                band_list(&self.bands_c, self.temp_range_c.1),
+                self.events,
+                self.long_holds,
+                LONG_HOLD_S / 60.0,
+                match self.cold_start_c {
+                    Some(c) => format!("cold start at {c:.1} °C"),
+                    None => "no cold start".to_owned(),
+                }
+            ),
+            format!("coverage: fastest fall/rise per filter [°C/min]: {}", rates.join(", ")),
+        ];
+        let missing = self.missing();
+        if missing.is_empty() {
+            out.push("missing: nothing the lag bank needs".to_owned());
+        } else {
+            out.extend(missing.into_iter().map(|m| format!("missing: {m}")));
+        }
+        out
+    }
+}
+
+/// Bands by their lower edges as merged ranges: `-40 … -10, 20 … 30`.
+fn band_list(edges: &[f64], hi: f64) -> String {
+    if edges.is_empty() {
+        return "none".to_owned();
+    }
+    let mut ranges: Vec<(f64, f64)> = Vec::new();
+    for &e in edges {
+        match ranges.last_mut() {
+            Some(r) if (r.1 - e).abs() < 1e-9 => r.1 = e + BAND_C,
+            _ => ranges.push((e, e + BAND_C)),
+        }
+    }
+    for r in &mut ranges {
+        r.1 = r.1.min(hi);
+    }
+    ranges
+        .iter()
+        .map(|(a, b)| format!("{a:.0} … {b:.0}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 10-s means of a history of (duration s, rate °C/min) pieces from `start`,
+    /// with an idealised 960-s filter (the rate itself) and a 15-s filter.
+    fn history(start: f64, pieces: &[(f64, f64)]) -> (Vec<f64>, Vec<[f64; 2]>) {
+        let (mut t, mut temps, mut rates) = (start, Vec::new(), Vec::new());
+        for &(dur, rate) in pieces {
+            for _ in 0..(dur / 10.0) as usize {
+                t += rate / 6.0;
+                temps.push(t);
+                rates.push([rate, rate]);
+            }
+        }
+        (temps, rates)
+    }
+
+    fn coverage(start: f64, pieces: &[(f64, f64)], events: usize) -> Coverage {
+        let (temps, rates) = history(start, pieces);
+        let rows: Vec<&[f64]> = rates.iter().map(|r| &r[..]).collect();
+        let run = vec![0; temps.len()];
+        Coverage::of_means(&temps, &rows, &run, &[15.0, 960.0], 1, 10.0, events)
+    }
+
+    #[test]
+    fn a_slow_warm_cycle_is_told_what_it_lacks() {
+        // 25 °C, to −40 at 0.8 °C/min (what a 1-°C/min chamber ramp reaches
+        // a lagging sensor at), hold 2 h, to 60, hold 2 h, back to 25.
+        let c = coverage(
+            25.0,
+            &[
+                (3600.0, 0.0),
+                (4880.0, -0.8),
+                (7200.0, 0.0),
+                (7500.0, 0.8),
+                (7200.0, 0.0),
+                (2630.0, -0.8),
+            ],
+            3,
+        );
+        let missing = c.missing().join("\n");
+        assert!(missing.contains("no fast change"), "{missing}");
+        assert!(missing.contains("no cold start"), "{missing}");
+        assert!(missing.contains("only 3 thermal events"), "{missing}");
+        assert!(missing.contains("no level in -20 … 20 °C"), "{missing}");
+        assert!(!missing.contains("no long hold"), "{missing}");
+        assert_eq!(c.long_holds, 3);
+    }
+
+    #[test]
+    fn a_planned_run_with_a_cold_start_and_fast_steps_misses_nothing() {
+        let c = coverage(
+            -40.0,
+            &[
+                (3600.0, 0.0),
+                (1200.0, 5.0),
+                (2400.0, 0.0),
+                (480.0, -5.0),
+                (4000.0, 0.0),
+                (960.0, -2.5),
+                (1800.0, 0.0),
+                (240.0, 5.0),
+                (1800.0, 0.0),
+                (480.0, 5.0),
+                (1800.0, 0.0),
+            ],
+            8,
+        );
+        assert_eq!(c.missing(), Vec::<String>::new(), "{:?}", c.lines());
+        assert_eq!(c.cold_start_c, Some(-40.0));
+        assert!(c.lines().last().unwrap().contains("nothing the lag bank needs"));
+    }
+}

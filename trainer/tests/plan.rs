@@ -1,0 +1,300 @@
+//! `trainer plan` as a user meets it: the limits hold for any arguments it
+//! accepts, bad arguments are refused in words, the plan runs through
+//! `trainer simulate --chamber-profile` and `trainer fit`.
+
+mod common;
+
+use std::path::Path;
+
+use common::{stderr, stdout, trainer};
+use tempfile::TempDir;
+
+/// Set points (time s, °C) of a plan file, and its `#` metadata lines.
+fn read_plan(path: &Path) -> (Vec<(f64, f64)>, Vec<String>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let meta: Vec<String> = text.lines().filter(|l| l.starts_with('#')).map(str::to_owned).collect();
+    let mut rows = text.lines().filter(|l| !l.starts_with('#'));
+    assert_eq!(rows.next(), Some("time_s,chamber_c"), "{text:.600}");
+    let knots = rows
+        .map(|l| {
+            let (t, c) = l.split_once(',').unwrap();
+            (t.parse().unwrap(), c.parse().unwrap())
+        })
+        .collect();
+    (knots, meta)
+}
+
+fn plan(dir: &TempDir, name: &str, limits: [&str; 4], extra: &[&str]) -> std::process::Output {
+    let out = dir.path().join(name);
+    let [lo, hi, rate, hours] = limits;
+    let args = [
+        "plan",
+        "--min-c",
+        lo,
+        "--max-c",
+        hi,
+        "--max-rate-c-per-min",
+        rate,
+        "--hours",
+        hours,
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    trainer(&[&args[..], extra].concat())
+}
+
+#[test]
+fn every_plan_keeps_its_limits_for_ordinary_and_odd_arguments() {
+    let dir = TempDir::new().unwrap();
+    for (i, limits) in [
+        ["-40", "60", "5", "12"],
+        ["-55", "150", "20", "30"],
+        ["-3.3", "7.7", "0.37", "4.5"],
+        ["20", "85", "1", "14"],
+        ["-40", "60", "5", "3.95"],
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let name = format!("plan{i}.csv");
+        let o = plan(&dir, &name, limits, &["--seed", &i.to_string(), "--candidates", "12"]);
+        assert!(o.status.success(), "{limits:?}: {}", stderr(&o));
+        assert!(stdout(&o).contains("D-criterion"), "{}", stdout(&o));
+        let [lo, hi, rate, hours]: [f64; 4] = limits.map(|v| v.parse().unwrap());
+        let (knots, meta) = read_plan(&dir.path().join(&name));
+        assert!(knots.len() >= 4, "{limits:?}: {knots:?}");
+        // Written as "0": exact.
+        assert_eq!(knots[0].0.to_bits(), 0.0f64.to_bits(), "{limits:?}: starts at 0");
+        assert!(
+            knots.last().unwrap().0 <= hours * 3600.0,
+            "{limits:?}: {:?}",
+            knots.last()
+        );
+        // Within a minute of the budget: the time is used, not left over.
+        assert!(
+            knots.last().unwrap().0 >= hours * 3600.0 - 60.0,
+            "{limits:?}: {:?}",
+            knots.last()
+        );
+        for &(_, c) in &knots {
+            assert!((lo..=hi).contains(&c), "{limits:?}: {c} °C");
+        }
+        let mut fastest: f64 = 0.0;
+        for w in knots.windows(2) {
+            assert!(w[1].0 > w[0].0, "{limits:?}: time does not increase at {w:?}");
+            let r = (w[1].1 - w[0].1).abs() / (w[1].0 - w[0].0) * 60.0;
+            assert!(r <= rate, "{limits:?}: {r} °C/min at {w:?}");
+            fastest = fastest.max(r);
+        }
+        // Some segments run at (within 5 % of) the full rate.
+        assert!(fastest >= 0.95 * rate, "{limits:?}: fastest {fastest} °C/min");
+        // The power-on soak starts in the cold half of the range.
+        assert!(knots[0].1 <= 0.5 * (lo + hi), "{limits:?}: starts at {}", knots[0].1);
+        for key in [
+            "# min_c: ",
+            "# max_c: ",
+            "# max_rate_c_per_min: ",
+            "# hours: ",
+            "# criterion: D-optimal",
+            "# criterion_value: ",
+        ] {
+            assert!(
+                meta.iter().any(|m| m.starts_with(key)),
+                "{limits:?}: no {key} in {meta:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn bad_limits_are_refused_in_words_without_a_file() {
+    let dir = TempDir::new().unwrap();
+    for (limits, expected) in [
+        (
+            ["60", "-40", "5", "12"],
+            "--min-c 60 must lie at least 10 °C below --max-c -40",
+        ),
+        (["20", "20", "5", "12"], "at least 10 °C below"),
+        (["-40", "60", "0", "12"], "--max-rate-c-per-min 0: must be above 0"),
+        (["-40", "60", "-2", "12"], "--max-rate-c-per-min -2: must be above 0"),
+        (
+            ["-40", "60", "5", "2"],
+            "--hours 2: too short; these limits need at least",
+        ),
+        (["-40", "60", "5", "-1"], "--hours -1: too short"),
+        (["-80", "60", "5", "12"], "set points must lie within -55 … 150 °C"),
+        (["-40", "nan", "5", "12"], "--max-c NaN: not a finite number"),
+    ] {
+        let o = plan(&dir, "bad.csv", limits, &[]);
+        assert_eq!(o.status.code(), Some(1), "{limits:?}");
+        let err = stderr(&o);
+        assert!(err.contains(expected), "{limits:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!dir.path().join("bad.csv").exists(), "{limits:?}: a file was written");
+    }
+    let o = plan(&dir, "x.csv", ["-40", "60", "5", "12"], &["--plot", "x.gif"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("must end in .svg or .png"), "{}", stderr(&o));
+    let o = plan(&dir, "y.csv", ["-40", "60", "abc", "12"], &[]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--max-rate-c-per-min"), "{}", stderr(&o));
+}
+
+#[test]
+fn an_existing_plan_is_replaced_only_with_force() {
+    let dir = TempDir::new().unwrap();
+    let limits = ["-40", "60", "5", "12"];
+    assert!(plan(&dir, "p.csv", limits, &["--candidates", "4"]).status.success());
+    let first = std::fs::read(dir.path().join("p.csv")).unwrap();
+    let o = plan(&dir, "p.csv", limits, &["--candidates", "4", "--seed", "2"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("exists"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(dir.path().join("p.csv")).unwrap(), first);
+    let o = plan(&dir, "p.csv", limits, &["--candidates", "4", "--seed", "2", "--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(std::fs::read(dir.path().join("p.csv")).unwrap(), first);
+    // The same seed gives the same file.
+    assert!(
+        plan(&dir, "q.csv", limits, &["--candidates", "4", "--seed", "2"])
+            .status
+            .success()
+    );
+    assert_eq!(
+        std::fs::read(dir.path().join("p.csv")).unwrap(),
+        std::fs::read(dir.path().join("q.csv")).unwrap()
+    );
+}
+
+#[test]
+fn the_segment_table_describes_the_same_profile_and_the_plot_is_drawn() {
+    let dir = TempDir::new().unwrap();
+    let limits = ["-40", "60", "5", "12"];
+    let o = plan(
+        &dir,
+        "p.csv",
+        limits,
+        &[
+            "--candidates",
+            "6",
+            "--plot",
+            dir.path().join("p.svg").to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = plan(
+        &dir,
+        "s.csv",
+        limits,
+        &[
+            "--candidates",
+            "6",
+            "--format",
+            "segments",
+            "--plot",
+            dir.path().join("p.png").to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let svg = std::fs::read_to_string(dir.path().join("p.svg")).unwrap();
+    assert!(
+        svg.starts_with("<svg") && svg.contains("chamber set point"),
+        "{svg:.300}"
+    );
+    let png = std::fs::read(dir.path().join("p.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    // Replaying the segments gives the set points.
+    let (knots, _) = read_plan(&dir.path().join("p.csv"));
+    let table = std::fs::read_to_string(dir.path().join("s.csv")).unwrap();
+    let mut rows = table.lines().filter(|l| !l.starts_with('#'));
+    assert_eq!(rows.next(), Some("segment,target_c,ramp_min,hold_min"));
+    let mut replay = Vec::new();
+    let mut t = 0.0;
+    for row in rows {
+        let f: Vec<f64> = row.split(',').map(|v| v.parse().unwrap()).collect();
+        if replay.is_empty() {
+            replay.push((0.0, f[1]));
+        } else if f[2] > 0.0 {
+            t += f[2] * 60.0;
+            replay.push((t, f[1]));
+        }
+        if f[3] > 0.0 {
+            t += f[3] * 60.0;
+            replay.push((t, f[1]));
+        }
+    }
+    assert_eq!(replay.len(), knots.len());
+    for (a, b) in replay.iter().zip(&knots) {
+        // Times are sums of tenths of minutes; temperatures the same decimal text, so the same bits.
+        assert!(
+            (a.0 - b.0).abs() < 0.01 && a.1.to_bits() == b.1.to_bits(),
+            "{a:?} vs {b:?}"
+        );
+    }
+}
+
+#[test]
+fn a_plan_runs_through_the_simulator_and_a_fit_reports_its_coverage() {
+    let dir = TempDir::new().unwrap();
+    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--candidates", "8"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let p = dir.path().join("p.csv");
+    let run = dir.path().join("run.csv");
+    let o = trainer(&[
+        "simulate",
+        "--chamber-profile",
+        p.to_str().unwrap(),
+        "--rate-hz",
+        "0.2",
+        "-o",
+        run.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (knots, _) = read_plan(&p);
+    let text = std::fs::read_to_string(&run).unwrap();
+    assert!(
+        text.contains(&format!("# power_on: at 0 s, soaked at {:.2} °C", knots[0].1)),
+        "{text:.800}"
+    );
+    let rows = text.lines().filter(|l| !l.starts_with('#')).count() - 1;
+    // The run lasts to the last set point (5-s samples).
+    let expected = (knots.last().unwrap().0 * 0.2).floor() as usize;
+    assert_eq!(rows, expected);
+    // The fit says what the run covered; on the plan nothing the bank needs is missing,
+    // on a slow warm cycle the cold start and the fast changes are.
+    let model = dir.path().join("m.bin");
+    let o = trainer(&["fit", "-q", run.to_str().unwrap(), "-o", model.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = stdout(&o);
+    assert!(report.contains("coverage: T "), "{report}");
+    assert!(
+        report.contains(&format!("cold start at {:.1} °C", knots[0].1)),
+        "{report}"
+    );
+    assert!(report.contains("missing: nothing the lag bank needs"), "{report}");
+    let cycle = dir.path().join("cycle.csv");
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        "cycle",
+        "--ramp",
+        "1",
+        "--rate-hz",
+        "0.2",
+        "-o",
+        cycle.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = trainer(&[
+        "fit",
+        "-q",
+        cycle.to_str().unwrap(),
+        "-o",
+        dir.path().join("c.bin").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = stdout(&o);
+    for gap in ["missing: no cold start", "missing: no fast change"] {
+        assert!(report.contains(gap), "{gap}: {report}");
+    }
+    assert!(!report.contains("missing: nothing"), "{report}");
+}
