@@ -341,7 +341,7 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
     // The printed choice names the second-order family's slowest window.
     let slowest = format!("slowest window {} s", windows[2]);
     assert_eq!(printed.contains(&slowest), second_kept, "{slowest}: {printed}");
-    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let o = trainer(&["inspect", "--json", "-", model.to_str().unwrap()]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(&v["features"], chosen, "the blob holds the chosen set, lag and windows");
     // An explicit set is fitted alone.
@@ -356,7 +356,7 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stdout(&o).contains("feature sets:"));
-    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let o = trainer(&["inspect", "--json", "-", model.to_str().unwrap()]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["features"]["set"], "MultiScaleSecondOrder");
 }
@@ -427,7 +427,7 @@ fn a_slow_fastest_window_is_not_offered_a_slowest_window_past_one_day() {
     ];
     let o = trainer(&[&args[..], &[model.to_str().unwrap()]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
-    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let o = trainer(&["inspect", "--json", "-", model.to_str().unwrap()]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["features"]["windows_s"], serde_json::json!([300.0, 4800.0, 76800.0]));
 }
@@ -483,7 +483,7 @@ fn blocks_of_a_model_are_the_blocks_of_its_own_inputs() {
 fn inspect_reports_header_shapes_ranges_and_crc() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
-    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let o = trainer(&["inspect", "--json", "-", model.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["crc"], "ok");
@@ -574,7 +574,7 @@ fn fit_rejects_bad_options_and_writes_nothing() {
         (vec!["--folds", "1"], "invalid value '1' for '--folds <N>'"),
         (vec!["--folds", "100000"], "invalid value '100000' for '--folds <N>'"),
         (vec!["--block-s", "0"], "--block-s"),
-        (vec!["--rate-window-s=-3"], "--rate-window-s"),
+        (vec!["--rate-window-s=-3"], "--dt-window-s"),
         (
             vec!["--serial", "a-serial-number-far-longer-than-thirty-two-bytes"],
             "--serial",
