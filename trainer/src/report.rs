@@ -794,3 +794,31 @@ pub fn write_report(
     write(&dir.join("report.md"), md.as_bytes())?;
     Ok(files)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bias_points_are_coloured_by_the_direction_the_temperature_moves() {
+        // 10-s means: heating at 1 °C/min, a hold, cooling at 1 °C/min.
+        let temps = [20.0, 20.1667, 20.3333, 20.3333, 20.3333, 20.1667, 20.0];
+        let temp: Vec<(f64, f64)> = temps.iter().enumerate().map(|(i, &t)| (10.0 * i as f64, t)).collect();
+        let value = |v: f64| temp.iter().map(|&(t, _)| (t, v)).collect::<Vec<_>>();
+        let points = bias_points(&temp, &value(1.0), &value(0.75), &value(0.25));
+        let ramps: Vec<Ramp> = points.iter().map(|p| p.ramp).collect();
+        use Ramp::{Cooling, Heating, Steady};
+        assert_eq!(ramps, [Heating, Heating, Heating, Steady, Cooling, Cooling, Cooling]);
+        assert_eq!(
+            (points[0].measured_dph, points[0].model_dph, points[0].residual_dph),
+            (1.0, 0.75, 0.25)
+        );
+    }
+
+    #[test]
+    fn a_point_without_a_temperature_is_left_out() {
+        let temp = [(0.0, 20.0), (10.0, f64::NAN), (20.0, 20.0)];
+        let v = [(0.0, 1.0), (10.0, 1.0), (20.0, 1.0)];
+        assert_eq!(bias_points(&temp, &v, &v, &v).len(), 2);
+    }
+}

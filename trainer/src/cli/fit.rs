@@ -474,7 +474,7 @@ fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankS
 }
 
 /// One line naming a model's form, centres, inputs and ΔT windows.
-pub fn describe(model: &Model) -> String {
+pub(super) fn describe(model: &Model) -> String {
     let f = model.features();
     let all_names = input_names(f.set);
     let names = all_names.join(", ");
@@ -482,8 +482,11 @@ pub fn describe(model: &Model) -> String {
     let windows = &taus[..filters];
     match model.body() {
         ModelBody::Rbf(net) => format!(
-            "Gaussian RBF, {} centres over ({}), {}, ΔT windows {windows:?} s",
-            net.centers_used(),
+            "Gaussian RBF, {} over ({}), {}, ΔT windows {windows:?} s",
+            match net.centers_used() {
+                1 => "1 centre".to_owned(),
+                n => format!("{n} centres"),
+            },
             all_names[..net.kernel_inputs().min(all_names.len())].join(", "),
             if net.linear().is_empty() {
                 "no linear terms".to_owned()

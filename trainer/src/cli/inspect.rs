@@ -11,7 +11,7 @@ use trainer::output::Existing;
 use trainer::text;
 
 use super::common::{JsonArg, print_text, stdout};
-use super::fit::{describe, features_json};
+use super::fit::features_json;
 use super::toml;
 
 /// Show what a model blob holds and whether it is intact.
@@ -137,6 +137,26 @@ fn inspect_json(
     v
 }
 
+/// The model's form in a few words: the regression and how the inputs enter it.
+fn form(model: &rbf_core::Model) -> String {
+    match model.body() {
+        ModelBody::Rbf(net) => {
+            let names: Vec<String> = model.features().set.names().map(|n| n.to_string()).collect();
+            let kernel = &names[..net.kernel_inputs().min(names.len())];
+            format!(
+                "Gaussian RBF, {} over {}{}",
+                count(net.centers_used() as u64, "centre", "centres"),
+                kernel.join(", "),
+                match net.linear().len() {
+                    0 => String::new(),
+                    n => format!("; {}", count(n as u64, "linear term", "linear terms")),
+                }
+            )
+        }
+        ModelBody::Poly3(p) => format!("cubic in T about {} °C", sig(f64::from(p.ref_temp_c), 4)),
+    }
+}
+
 /// `n` and the noun, singular for one (`1 centre`, `12 centres`).
 fn count(n: u64, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
@@ -190,7 +210,7 @@ pub fn summary(v: &serde_json::Value, model: Option<&rbf_core::Model>) -> String
     );
     let _ = writeln!(out, "CRC-32          {}", string(&v["crc"]).unwrap_or_default());
     if let Some(model) = model {
-        let _ = writeln!(out, "model           {}", describe(model));
+        let _ = writeln!(out, "model           {}", form(model));
     }
     let f = &v["features"];
     if f.is_object() {
@@ -214,7 +234,7 @@ pub fn summary(v: &serde_json::Value, model: Option<&rbf_core::Model>) -> String
         for r in ranges {
             let _ = writeln!(
                 out,
-                "  {:<22} {} … {}",
+                "  {:<24} {} … {}",
                 string(&r["input"]).unwrap_or_else(|| "?".to_owned()),
                 sig(r["min"].as_f64().unwrap_or(f64::NAN), 4),
                 sig(r["max"].as_f64().unwrap_or(f64::NAN), 4)
@@ -257,7 +277,7 @@ mod tests {
         let s = summary(&info(), None);
         assert!(s.contains("shape           1 input, 1 centre\n"), "{s}");
         assert!(s.contains("ΔT windows      15, 240 s; warm-up 900 s\n"), "{s}");
-        assert!(s.contains("  T [°C]                 -9.877 … 40.12\n"), "{s}");
+        assert!(s.contains("  T [°C]                   -9.877 … 40.12\n"), "{s}");
         assert!(s.contains("serial          none\n"), "{s}");
         assert!(s.contains("valid           yes\n"), "{s}");
         assert!(s.contains("file            m\\u{1b}.bin (300 bytes"), "{s}");

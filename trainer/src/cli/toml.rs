@@ -93,8 +93,16 @@ fn float(f: f64) -> String {
     if f.is_infinite() {
         return if f > 0.0 { "inf" } else { "-inf" }.to_owned();
     }
-    // Debug is the shortest form that reads back exactly, with a `.` or an exponent.
-    format!("{f:?}")
+    // Debug is the shortest form that reads back exactly, with a `.` or an
+    // exponent; a blob's parameters are f32, shown as the f32 they are.
+    // Exact comparison on purpose: only a value that is an f32 is shown as one.
+    #[allow(clippy::float_cmp)]
+    let is_f32 = f64::from(f as f32) == f;
+    if is_f32 {
+        format!("{:?}", f as f32)
+    } else {
+        format!("{f:?}")
+    }
 }
 
 #[cfg(test)]
@@ -122,6 +130,7 @@ mod tests {
     fn floats_keep_a_point_and_specials_are_spelled_as_toml_does() {
         assert_eq!(float(3.0), "3.0");
         assert_eq!(float(1e300), "1e300");
+        assert_eq!(float(f64::from(-28.123835f32)), "-28.123835");
         assert_eq!(float(f64::NEG_INFINITY), "-inf");
         assert_eq!(inline(&serde_json::json!([1, null])), "[1, nan]");
     }
