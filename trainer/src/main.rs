@@ -42,7 +42,8 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // File names, fields and serials from outside may hold control characters.
-            eprintln!("error: {}", text::terminal_safe(&format!("{e:#}")));
+            let message = format!("{e:#}{}", cli::flag_hint(&e));
+            eprintln!("error: {}", text::terminal_safe(&message));
             ExitCode::FAILURE
         }
     }

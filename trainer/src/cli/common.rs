@@ -20,6 +20,20 @@ pub fn stderr() -> SafeWriter<std::io::StderrLock<'static>> {
     SafeWriter::new(std::io::stderr().lock())
 }
 
+/// What the command line adds to a library error: the flag that changes the outcome.
+pub fn flag_hint(e: &anyhow::Error) -> &'static str {
+    let root = e.root_cause();
+    if root.is::<trainer::output::OutputExists>() {
+        "; pass --force to overwrite it"
+    } else if root.is::<trainer::output::OutputReadOnly>() {
+        ", even with --force"
+    } else if root.is::<trainer::evaluate::NothingCompensated>() {
+        ". Pass --allow-uncompensated to accept such a run"
+    } else {
+        ""
+    }
+}
+
 /// `--force`: whether an existing output may be replaced.
 #[derive(Args, Debug)]
 pub struct ForceArg {

@@ -10,6 +10,7 @@ mod toml;
 mod values;
 
 use clap::Subcommand;
+pub use common::flag_hint;
 
 /// Declares the subcommand modules, the [`Command`] enum (in this order in
 /// `--help`) and its dispatch.
