@@ -442,6 +442,50 @@ where
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
         chart.draw_series(series.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
     }
+    // Read-offs of the compensated curve: the τ^−½ line of its angle random
+    // walk, the floor that gives its bias instability, a τ^+½ guide through
+    // its last point (rate random walk or a residual ramp rises that way).
+    let a = &e.allan_after;
+    let guide = RGBColor(90, 90, 90);
+    let in_box = |d: f64| d.is_finite() && d >= d_lo * 0.8 && d <= d_hi * 1.25;
+    let taus = |from: f64, to: f64| (0..=40).map(move |k| from * (to / from).powf(f64::from(k) / 40.0));
+    if a.arw_deg_per_sqrt_h.is_finite() && a.arw_deg_per_sqrt_h > 0.0 {
+        let arw = a.arw_deg_per_sqrt_h;
+        let line: Vec<(f64, f64)> = taus(t_lo, t_hi)
+            .map(|t| (t, arw / (t / 3600.0).sqrt()))
+            .filter(|p| in_box(p.1))
+            .collect();
+        chart
+            .draw_series(DashedLineSeries::new(line, 6, 4, guide.into()))?
+            .label(format!("τ^−½: ARW {arw:.2e} °/√h"))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], guide));
+    }
+    let floor = a.bias_instability_dph * 0.664;
+    if floor.is_finite() && floor > 0.0 {
+        let orange = RGBColor(230, 140, 20);
+        chart
+            .draw_series(DashedLineSeries::new(
+                [(t_lo, floor), (t_hi, floor)],
+                3,
+                3,
+                orange.into(),
+            ))?
+            .label(format!(
+                "0.664·BI at τ {:.0} s: bias instability {:.2e} °/h",
+                a.floor_tau_s, a.bias_instability_dph
+            ))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], orange));
+    }
+    if let Some(&(t_last, d_last)) = after.last() {
+        let line: Vec<(f64, f64)> = taus(t_last / 16.0, t_last)
+            .map(|t| (t, d_last * (t / t_last).sqrt()))
+            .filter(|p| in_box(p.1))
+            .collect();
+        chart
+            .draw_series(DashedLineSeries::new(line, 2, 4, guide.into()))?
+            .label("τ^+½ guide")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], guide));
+    }
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
@@ -638,13 +682,16 @@ fn read_run(
             ),
             points,
         },
-        evaluation,
         rate: RatePlot {
-            title: format!("{stem}: rate before and after compensation"),
+            title: format!(
+                "{stem}: rate before and after compensation; 100-s STD {:.3} → {:.3} °/h",
+                evaluation.cluster_std_before_dph, evaluation.cluster_std_after_dph
+            ),
             raw,
             comp,
             temp,
         },
+        evaluation,
     })
 }
 
@@ -757,7 +804,10 @@ pub fn write_report(
         both(&format!("{stem}_rate"), render(&p.rate))?;
         both(&format!("{stem}_bias_vs_temp"), render(&p.bias_temp))?;
         let allan = AllanPlot {
-            title: format!("{stem}: overlapping Allan deviation"),
+            title: format!(
+                "{stem}: overlapping Allan deviation; bias instability {:.2e} → {:.2e} °/h",
+                p.evaluation.allan_before.bias_instability_dph, p.evaluation.allan_after.bias_instability_dph
+            ),
             evaluation: &p.evaluation,
         };
         both(&format!("{stem}_allan"), render(&allan))?;
