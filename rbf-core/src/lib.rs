@@ -8,6 +8,7 @@
 //!   [`lag_bank`]: the thermal lag bank (mean coil temperature and coil rates).
 //! - [`rbf`]: a fixed-capacity Gaussian RBF network with input normalisation and clamping.
 //! - [`poly`]: the cubic-in-T baseline (the PX4 / ArduPilot form).
+//! - [`error`]: why parameters are not a usable model ([`ModelError`]).
 //! - [`model`]: a deployable model (either kind + feature configuration + ranges).
 //! - [`compensator`]: the per-sample loop state (sensor-fault hold, gaps, flags).
 //! - [`blob`]: the model blob format (header, postcard payload, CRC-32) and its decoder.
@@ -20,6 +21,7 @@
 
 pub mod blob;
 pub mod compensator;
+pub mod error;
 pub mod fastmath;
 pub mod features;
 pub mod flags;

@@ -4,7 +4,7 @@
 //! `bias = c0 + c1·u + c2·u² + c3·u³`, with `u = T − T_ref` in °C and T
 //! clamped to the training range by the caller ([`crate::Model`]).
 
-use crate::model::ModelError;
+use crate::error::ModelError;
 
 /// Cubic polynomial in loop temperature about a reference temperature.
 #[derive(Clone, Copy, Debug, PartialEq)]

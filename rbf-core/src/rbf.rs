@@ -11,7 +11,7 @@
 //! type (`K` centres, `D` inputs); the cost of [`RbfNetwork::eval`] depends only
 //! on the model's shape, never on the input values (no data-dependent loops).
 
-use crate::model::ModelError;
+use crate::error::ModelError;
 
 /// Parameters of a network, as slices (host construction and blob decoding).
 #[derive(Clone, Copy, Debug)]

@@ -122,7 +122,7 @@ struct Slot {
 }
 
 /// Builds the block means of one run sample by sample: the streaming core of
-/// [`block_means`] and [`RunFiles`]. One compensator computes the features of
+/// [`sample_block_means`] and [`RunFiles`]. One compensator computes the features of
 /// the first configuration; configurations that share its filters
 /// ([`shares_filters`]: the multi-scale sets at the same windows) take them
 /// converted. An input two sets share (same name: the same computation) is
@@ -367,7 +367,7 @@ impl RunSet for [Run] {
     }
 
     fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
-        Ok(block_means(self, features, block_s))
+        Ok(sample_block_means(self, features, block_s))
     }
 }
 
@@ -382,14 +382,14 @@ impl<const N: usize> RunSet for [Run; N] {
     }
 
     fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
-        Ok(block_means(self, features, block_s))
+        Ok(sample_block_means(self, features, block_s))
     }
 }
 
 /// Block means of the features and bias target of each run, concatenated,
 /// every configuration computed sample by sample (a lagged set too; the
 /// trainer derives those instead, [`RunSet::block_means`]).
-pub fn block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) -> Blocks {
+pub fn sample_block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) -> Blocks {
     let mut all = Blocks {
         dims: features.dims(),
         ..Blocks::default()
@@ -595,7 +595,7 @@ mod tests {
         let run = Run::load(&path).unwrap();
         for config in &configs {
             // The in-memory path builds each configuration alone.
-            let alone = block_means(std::slice::from_ref(&run), config, 1.0);
+            let alone = sample_block_means(std::slice::from_ref(&run), config, 1.0);
             let shared = streamed.block_means(config, 1.0).unwrap();
             assert!(alone.len() > 10_000, "{config:?}: {} blocks", alone.len());
             assert_eq!(shared.dims, alone.dims, "{config:?}");
@@ -619,7 +619,7 @@ mod tests {
         );
         let runs = std::slice::from_ref(&run);
         // What the firmware's features average to, computed sample by sample.
-        let direct = block_means(runs, &lagged, 1.0);
+        let direct = sample_block_means(runs, &lagged, 1.0);
         let derived = runs.block_means(&lagged, 1.0).unwrap();
         assert_eq!(derived.len(), direct.len());
         assert_eq!(derived.y, direct.y);

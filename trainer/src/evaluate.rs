@@ -144,11 +144,18 @@ pub fn require_compensated(
     } else {
         format!(". Why: {}", causes.join("; "))
     };
-    anyhow::bail!(
-        "{}: no row could be compensated: all {rows} carry flag 4 (uncompensated){why}. Pass --allow-uncompensated to accept such a run",
+    Err(NothingCompensated(format!(
+        "{}: no row could be compensated: all {rows} carry flag 4 (uncompensated){why}",
         text::path(path)
-    )
+    ))
+    .into())
 }
+
+/// A run where no row could be compensated, refused unless the caller
+/// accepts such runs; the message names the run and the causes.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct NothingCompensated(pub String);
 
 /// Refuses a run that cannot be evaluated: fewer than 2 rows, or a bias
 /// target that never varies (its before/after gains would be 0/0).

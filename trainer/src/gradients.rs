@@ -63,7 +63,7 @@ impl MultiBlocks {
 /// Reads `paths` and averages every `block_samples` consecutive rows (a
 /// short last block of a run is dropped). All runs must have the same
 /// thermometers, at least two.
-pub fn block_means(paths: &[PathBuf], block_samples: usize) -> Result<MultiBlocks, RunError> {
+pub fn row_block_means(paths: &[PathBuf], block_samples: usize) -> Result<MultiBlocks, RunError> {
     let mut out = MultiBlocks::default();
     for (n, path) in paths.iter().enumerate() {
         let mut reader = RunReader::open(path)?;
@@ -307,7 +307,7 @@ mod tests {
     fn the_gradient_that_drives_the_bias_correlates_best_and_is_selected() {
         let dir = tempfile::tempdir().unwrap();
         let run = write_run(dir.path(), "run.csv", 20_000, |t| 0.5 * (t[1] - t[2]));
-        let blocks = block_means(&[run], 100).unwrap();
+        let blocks = row_block_means(&[run], 100).unwrap();
         assert_eq!(blocks.temps.len(), 200);
         assert_eq!(blocks.sensors, [0, 1, 2, 3]);
         let table = correlations(&blocks);
@@ -328,11 +328,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let single = dir.path().join("single.csv");
         std::fs::write(&single, "# sample_rate_hz: 1\n\ntime_s,rate_dph,temp_c\n0,1,20\n").unwrap();
-        let err = block_means(&[single], 100).unwrap_err().to_string();
+        let err = row_block_means(&[single], 100).unwrap_err().to_string();
         assert!(err.contains("single.csv:3:") && err.contains("at least two"), "{err}");
         let bad = dir.path().join("bad.csv");
         std::fs::write(&bad, "time_s,rate_dph,temp_a,temp_b\n0,1,20,21\n0.01,1,20,x\n").unwrap();
-        let err = block_means(&[bad], 100).unwrap_err().to_string();
+        let err = row_block_means(&[bad], 100).unwrap_err().to_string();
         assert_eq!(
             err,
             format!(

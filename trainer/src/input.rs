@@ -11,7 +11,7 @@ use crate::text;
 
 /// True for `-`, the name of standard input.
 pub fn is_stdin(path: &Path) -> bool {
-    path.as_os_str() == "-"
+    path.as_os_str() == text::STDIN_PATH
 }
 
 /// Opens `path` for reading (`-`: standard input).

@@ -96,13 +96,14 @@ fn check_existing(path: &Path, meta: &Metadata, existing: Existing) -> anyhow::R
         anyhow::bail!("{shown}: is {}; {advice}", kind(meta));
     }
     if existing == Existing::Refuse {
-        anyhow::bail!("{shown}: exists; pass --force to overwrite it");
+        return Err(OutputExists { shown }.into());
     }
     if meta.mode() & 0o222 == 0 {
-        anyhow::bail!(
-            "{shown}: is read-only (mode {:04o}); not replaced, even with --force",
-            meta.mode() & 0o7777
-        );
+        return Err(OutputReadOnly {
+            shown,
+            mode: meta.mode() & 0o7777,
+        }
+        .into());
     }
     Ok(())
 }
@@ -313,9 +314,7 @@ impl Output {
         };
         match persisted {
             Ok(_) => Ok(()),
-            Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => {
-                anyhow::bail!("{shown}: exists; pass --force to overwrite it")
-            }
+            Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => Err(OutputExists { shown }.into()),
             Err(e) => Err(e.error).with_context(|| format!("{shown}: cannot create")),
         }
     }
@@ -354,6 +353,25 @@ impl Drop for Output {
             files.retain(|p| p != &temp_path);
         }
     }
+}
+
+/// An output that exists where the command may not replace one
+/// ([`Existing::Refuse`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{shown}: exists")]
+pub struct OutputExists {
+    /// The output as messages name it ([`text::path`]).
+    pub shown: String,
+}
+
+/// An existing output that is read-only: never replaced.
+#[derive(Debug, thiserror::Error)]
+#[error("{shown}: is read-only (mode {mode:04o}); not replaced")]
+pub struct OutputReadOnly {
+    /// The output as messages name it ([`text::path`]).
+    pub shown: String,
+    /// Its permission bits.
+    pub mode: u32,
 }
 
 /// Writes `bytes` to `path` through an [`Output`] (checked against `inputs`).
@@ -421,7 +439,7 @@ mod tests {
         std::fs::write(&path, "old").unwrap();
         std::fs::set_permissions(&path, Permissions::from_mode(0o640)).unwrap();
         let err = Output::create(&path, &[], Existing::Refuse).unwrap_err().to_string();
-        assert!(err.ends_with("exists; pass --force to overwrite it"), "{err}");
+        assert!(err.ends_with(": exists"), "{err}");
         write_bytes_with(&path, &[], Existing::Replace, b"new").unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
         let mode = std::fs::metadata(&path).unwrap().mode() & 0o7777;

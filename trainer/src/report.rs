@@ -1,7 +1,9 @@
 //! `trainer report`: plots (SVG and PNG) and a written summary of a model on runs.
 //!
 //! Per run: raw and compensated rate − reference (10-s means) with the loop
-//! temperature, and the Allan deviation before/after on log-log axes. For the
+//! temperature; the measured bias (10-s means) against the loop temperature,
+//! coloured by ramp direction, with the model overlaid, and the residual
+//! against temperature; the Allan deviation before/after on log-log axes. For the
 //! model: its bias over T and a steady ramp rate ΔT (every ΔT window reads the
 //! same rate on a steady ramp). Plus report.json and report.md.
 
@@ -121,6 +123,162 @@ impl Figure for RatePlot {
     {
         draw_rate(root, self)
     }
+}
+
+/// Below this |dT/dt|, °C/min, the loop temperature counts as steady.
+const STEADY_C_PER_MIN: f64 = 0.05;
+
+/// Which way the loop temperature is moving at a plotted point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Ramp {
+    Heating,
+    Cooling,
+    Steady,
+}
+
+impl Ramp {
+    /// The direction of `rate_c_per_min`.
+    fn of(rate_c_per_min: f64) -> Ramp {
+        if rate_c_per_min > STEADY_C_PER_MIN {
+            Ramp::Heating
+        } else if rate_c_per_min < -STEADY_C_PER_MIN {
+            Ramp::Cooling
+        } else {
+            Ramp::Steady
+        }
+    }
+
+    fn colour(self) -> RGBColor {
+        match self {
+            Ramp::Heating => RGBColor(210, 60, 40),
+            Ramp::Cooling => RGBColor(30, 90, 210),
+            Ramp::Steady => RGBColor(150, 150, 150),
+        }
+    }
+
+    fn label(self) -> &'static str {
+        match self {
+            Ramp::Heating => "measured, heating",
+            Ramp::Cooling => "measured, cooling",
+            Ramp::Steady => "measured, steady",
+        }
+    }
+}
+
+/// One 10-s mean of a run: loop temperature, measured bias (rate − reference),
+/// the model's bias, the residual after compensation, and the ramp direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct BiasPoint {
+    temp_c: f64,
+    measured_dph: f64,
+    model_dph: f64,
+    residual_dph: f64,
+    ramp: Ramp,
+}
+
+/// The points of the bias-against-temperature plot from aligned 10-s means
+/// (`temp`, `raw`, `model`, `comp`: (time s, value)); the ramp direction from
+/// the temperature's central difference.
+fn bias_points(temp: &[(f64, f64)], raw: &[(f64, f64)], model: &[(f64, f64)], comp: &[(f64, f64)]) -> Vec<BiasPoint> {
+    let n = temp.len().min(raw.len()).min(model.len()).min(comp.len());
+    (0..n)
+        .filter(|&i| temp[i].1.is_finite() && raw[i].1.is_finite())
+        .map(|i| {
+            let (a, b) = (temp[i.saturating_sub(1)], temp[(i + 1).min(n - 1)]);
+            let rate_c_per_min = if b.0 > a.0 {
+                (b.1 - a.1) / (b.0 - a.0) * 60.0
+            } else {
+                0.0
+            };
+            BiasPoint {
+                temp_c: temp[i].1,
+                measured_dph: raw[i].1,
+                model_dph: model[i].1,
+                residual_dph: comp[i].1,
+                ramp: Ramp::of(rate_c_per_min),
+            }
+        })
+        .collect()
+}
+
+/// Measured bias against loop temperature, coloured by ramp direction, with
+/// the model overlaid (top), and the residual after compensation (bottom).
+struct BiasTempPlot {
+    title: String,
+    points: Vec<BiasPoint>,
+}
+
+impl Figure for BiasTempPlot {
+    fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> DrawResult
+    where
+        DB::ErrorType: 'static,
+    {
+        draw_bias_temp(root, self)
+    }
+}
+
+fn draw_bias_temp<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, p: &BiasTempPlot) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE)?;
+    let root = root.titled(&p.title, ("sans-serif", 22))?;
+    let (top, bottom) = root.split_vertically((SIZE.1 as f64 * 0.58) as u32);
+    let (t_lo, t_hi) = range(p.points.iter().map(|q| q.temp_c));
+    let (y_lo, y_hi) = range(p.points.iter().flat_map(|q| [q.measured_dph, q.model_dph]));
+    let mut chart = ChartBuilder::on(&top)
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(80)
+        .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
+    chart.configure_mesh().y_desc("bias [°/h] (10-s means)").draw()?;
+    for ramp in [Ramp::Steady, Ramp::Cooling, Ramp::Heating] {
+        let colour = ramp.colour();
+        chart
+            .draw_series(
+                p.points
+                    .iter()
+                    .filter(|q| q.ramp == ramp)
+                    .map(|q| Circle::new((q.temp_c, q.measured_dph), 2, colour.filled())),
+            )?
+            .label(ramp.label())
+            .legend(move |(x, y)| Circle::new((x + 10, y), 3, colour.filled()));
+    }
+    chart
+        .draw_series(
+            p.points
+                .iter()
+                .map(|q| Circle::new((q.temp_c, q.model_dph), 1, BLACK.filled())),
+        )?
+        .label("model")
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, BLACK.filled()));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    let (r_lo, r_hi) = range(p.points.iter().map(|q| q.residual_dph));
+    let mut residual = ChartBuilder::on(&bottom)
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(80)
+        .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
+    residual
+        .configure_mesh()
+        .x_desc("loop temperature T [°C]")
+        .y_desc("residual [°/h]")
+        .draw()?;
+    for ramp in [Ramp::Steady, Ramp::Cooling, Ramp::Heating] {
+        let colour = ramp.colour();
+        residual.draw_series(
+            p.points
+                .iter()
+                .filter(|q| q.ramp == ramp)
+                .map(|q| Circle::new((q.temp_c, q.residual_dph), 2, colour.filled())),
+        )?;
+    }
+    root.present()?;
+    Ok(())
 }
 
 struct AllanPlot<'a> {
@@ -284,6 +442,50 @@ where
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
         chart.draw_series(series.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
     }
+    // Read-offs of the compensated curve: the τ^−½ line of its angle random
+    // walk, the floor that gives its bias instability, a τ^+½ guide through
+    // its last point (rate random walk or a residual ramp rises that way).
+    let a = &e.allan_after;
+    let guide = RGBColor(90, 90, 90);
+    let in_box = |d: f64| d.is_finite() && d >= d_lo * 0.8 && d <= d_hi * 1.25;
+    let taus = |from: f64, to: f64| (0..=40).map(move |k| from * (to / from).powf(f64::from(k) / 40.0));
+    if a.arw_deg_per_sqrt_h.is_finite() && a.arw_deg_per_sqrt_h > 0.0 {
+        let arw = a.arw_deg_per_sqrt_h;
+        let line: Vec<(f64, f64)> = taus(t_lo, t_hi)
+            .map(|t| (t, arw / (t / 3600.0).sqrt()))
+            .filter(|p| in_box(p.1))
+            .collect();
+        chart
+            .draw_series(DashedLineSeries::new(line, 6, 4, guide.into()))?
+            .label(format!("τ^−½: ARW {arw:.2e} °/√h"))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], guide));
+    }
+    let floor = a.bias_instability_dph * 0.664;
+    if floor.is_finite() && floor > 0.0 {
+        let orange = RGBColor(230, 140, 20);
+        chart
+            .draw_series(DashedLineSeries::new(
+                [(t_lo, floor), (t_hi, floor)],
+                3,
+                3,
+                orange.into(),
+            ))?
+            .label(format!(
+                "0.664·BI at τ {:.0} s: bias instability {:.2e} °/h",
+                a.floor_tau_s, a.bias_instability_dph
+            ))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], orange));
+    }
+    if let Some(&(t_last, d_last)) = after.last() {
+        let line: Vec<(f64, f64)> = taus(t_last / 16.0, t_last)
+            .map(|t| (t, d_last * (t / t_last).sqrt()))
+            .filter(|p| in_box(p.1))
+            .collect();
+        chart
+            .draw_series(DashedLineSeries::new(line, 2, 4, guide.into()))?
+            .label("τ^+½ guide")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], guide));
+    }
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
@@ -408,6 +610,7 @@ struct RunPlots {
     stem: String,
     evaluation: RunEvaluation,
     rate: RatePlot,
+    bias_temp: BiasTempPlot,
 }
 
 /// One pass over the run of `reader`: evaluation, 10-s means for the rate
@@ -428,7 +631,8 @@ fn read_run(
     let (mut compensator, mut features) = (rbf_core::Compensator::new(), rbf_core::Compensator::new());
     let mut evaluator = Evaluator::new(&path, period_s, has_ref);
     let mut diagnosis = RunDiagnosis::new(&path, period_s);
-    let (mut raw, mut comp, mut temp) = (
+    let (mut raw, mut comp, mut temp, mut bias) = (
+        BlockMeans::new(PLOT_MEAN_S),
         BlockMeans::new(PLOT_MEAN_S),
         BlockMeans::new(PLOT_MEAN_S),
         BlockMeans::new(PLOT_MEAN_S),
@@ -443,6 +647,7 @@ fn read_run(
         rate_sum += row.rate_dph;
         raw.push(row.time_s, row.rate_dph - r);
         comp.push(row.time_s, out.rate_comp_dph as f64 - r);
+        bias.push(row.time_s, out.bias_dph as f64);
         temp.push(
             row.time_s,
             row.readings_c()[rbf_core::features::LOOP_THERMOMETER].unwrap_or(f64::NAN),
@@ -465,15 +670,28 @@ fn read_run(
     let mean = if has_ref { 0.0 } else { rate_sum / rows.max(1) as f64 };
     let less_mean =
         |blocks: BlockMeans| -> Vec<(f64, f64)> { blocks.finish().into_iter().map(|(t, v)| (t, v - mean)).collect() };
+    let evaluation = evaluator.finish();
+    let (raw, comp, temp) = (less_mean(raw), less_mean(comp), temp.finish());
+    let points = bias_points(&temp, &raw, &bias.finish(), &comp);
     Ok(RunPlots {
         stem: stem.to_owned(),
-        evaluation: evaluator.finish(),
-        rate: RatePlot {
-            title: format!("{stem}: rate before and after compensation"),
-            raw: less_mean(raw),
-            comp: less_mean(comp),
-            temp: temp.finish(),
+        bias_temp: BiasTempPlot {
+            title: format!(
+                "{stem}: bias against loop temperature; 100-s STD {:.3} → {:.3} °/h",
+                evaluation.cluster_std_before_dph, evaluation.cluster_std_after_dph
+            ),
+            points,
         },
+        rate: RatePlot {
+            title: format!(
+                "{stem}: rate before and after compensation; 100-s STD {:.3} → {:.3} °/h",
+                evaluation.cluster_std_before_dph, evaluation.cluster_std_after_dph
+            ),
+            raw,
+            comp,
+            temp,
+        },
+        evaluation,
     })
 }
 
@@ -490,7 +708,7 @@ fn run_stem(path: &Path) -> String {
 pub fn report_files(dir: &Path, stems: &[String]) -> Vec<PathBuf> {
     let mut files = Vec::new();
     for stem in stems {
-        for plot in ["rate", "allan"] {
+        for plot in ["rate", "bias_vs_temp", "allan"] {
             for ext in ["svg", "png"] {
                 files.push(dir.join(format!("{stem}_{plot}.{ext}")));
             }
@@ -498,6 +716,34 @@ pub fn report_files(dir: &Path, stems: &[String]) -> Vec<PathBuf> {
     }
     files.extend(["bias_surface.svg", "bias_surface.png", "report.json", "report.md"].map(|f| dir.join(f)));
     files
+}
+
+/// Checks, before any work, that a report on `runs` can be written into
+/// `dir`: the runs' plot names differ, and no file of the report would
+/// replace one of `inputs` or (unless `existing` allows) an existing file.
+/// Returns the runs' plot names and the report's files.
+pub fn check_report_targets(
+    runs: &[PathBuf],
+    dir: &Path,
+    inputs: &[&Path],
+    existing: Existing,
+) -> anyhow::Result<(Vec<String>, Vec<PathBuf>)> {
+    let stems: Vec<String> = runs.iter().map(|p| run_stem(p)).collect();
+    for (i, stem) in stems.iter().enumerate() {
+        if stems[..i].contains(stem) {
+            anyhow::bail!(
+                "two runs are named {}: their plots would overwrite each other; rename one",
+                text::escape_controls(stem)
+            );
+        }
+    }
+    let files = report_files(dir, &stems);
+    if std::fs::symlink_metadata(dir).is_ok() {
+        output::prepare_dir(dir)?;
+        let targets: Vec<&Path> = files.iter().map(|f| f.as_path()).collect();
+        output::check_targets(&targets, inputs, existing)?;
+    }
+    Ok((stems, files))
 }
 
 /// Writes the report for `model` (read from `model_path`) on the runs at
@@ -518,22 +764,8 @@ pub fn write_report(
     allow_uncompensated: bool,
 ) -> anyhow::Result<Vec<PathBuf>> {
     input::check_stdin_once(runs.iter().map(|p| p.as_path()).chain([model_path]))?;
-    let stems: Vec<String> = runs.iter().map(|p| run_stem(p)).collect();
-    for (i, stem) in stems.iter().enumerate() {
-        if stems[..i].contains(stem) {
-            anyhow::bail!(
-                "two runs are named {}: their plots would overwrite each other; rename one",
-                text::escape_controls(stem)
-            );
-        }
-    }
-    let files = report_files(dir, &stems);
     let inputs: Vec<&Path> = runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
-    if std::fs::symlink_metadata(dir).is_ok() {
-        output::prepare_dir(dir)?;
-        let targets: Vec<&Path> = files.iter().map(|f| f.as_path()).collect();
-        output::check_targets(&targets, &inputs, existing)?;
-    }
+    let (stems, files) = check_report_targets(runs, dir, &inputs, existing)?;
     let mut trajectory = Trajectory::new();
     let mut first_index = 0;
     let plots = runs
@@ -570,8 +802,12 @@ pub fn write_report(
     for p in &plots {
         let stem = &p.stem;
         both(&format!("{stem}_rate"), render(&p.rate))?;
+        both(&format!("{stem}_bias_vs_temp"), render(&p.bias_temp))?;
         let allan = AllanPlot {
-            title: format!("{stem}: overlapping Allan deviation"),
+            title: format!(
+                "{stem}: overlapping Allan deviation; bias instability {:.2e} → {:.2e} °/h",
+                p.evaluation.allan_before.bias_instability_dph, p.evaluation.allan_after.bias_instability_dph
+            ),
             evaluation: &p.evaluation,
         };
         both(&format!("{stem}_allan"), render(&allan))?;
@@ -597,7 +833,7 @@ pub fn write_report(
     for p in &plots {
         let stem = &p.stem;
         md.push_str(&format!(
-            "### {}\n\n![rate]({stem}_rate.svg)\n\n![Allan deviation]({stem}_allan.svg)\n\n",
+            "### {}\n\n![rate]({stem}_rate.svg)\n\n![bias against temperature]({stem}_bias_vs_temp.svg)\n\n![Allan deviation]({stem}_allan.svg)\n\n",
             text::escape_controls(stem)
         ));
     }
@@ -607,4 +843,32 @@ pub fn write_report(
     write(&dir.join("report.json"), json.as_bytes())?;
     write(&dir.join("report.md"), md.as_bytes())?;
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bias_points_are_coloured_by_the_direction_the_temperature_moves() {
+        // 10-s means: heating at 1 °C/min, a hold, cooling at 1 °C/min.
+        let temps = [20.0, 20.1667, 20.3333, 20.3333, 20.3333, 20.1667, 20.0];
+        let temp: Vec<(f64, f64)> = temps.iter().enumerate().map(|(i, &t)| (10.0 * i as f64, t)).collect();
+        let value = |v: f64| temp.iter().map(|&(t, _)| (t, v)).collect::<Vec<_>>();
+        let points = bias_points(&temp, &value(1.0), &value(0.75), &value(0.25));
+        let ramps: Vec<Ramp> = points.iter().map(|p| p.ramp).collect();
+        use Ramp::{Cooling, Heating, Steady};
+        assert_eq!(ramps, [Heating, Heating, Heating, Steady, Cooling, Cooling, Cooling]);
+        assert_eq!(
+            (points[0].measured_dph, points[0].model_dph, points[0].residual_dph),
+            (1.0, 0.75, 0.25)
+        );
+    }
+
+    #[test]
+    fn a_point_without_a_temperature_is_left_out() {
+        let temp = [(0.0, 20.0), (10.0, f64::NAN), (20.0, 20.0)];
+        let v = [(0.0, 1.0), (10.0, 1.0), (20.0, 1.0)];
+        assert_eq!(bias_points(&temp, &v, &v, &v).len(), 2);
+    }
 }

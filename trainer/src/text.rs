@@ -6,8 +6,6 @@ use std::borrow::Cow;
 use std::io::Write;
 use std::path::Path;
 
-use crate::input;
-
 /// `s` with every control character (C0, DEL, C1; `\n` and `\t` too)
 /// written as its Rust escape (`\n`, `\u{1b}`): for fragments that come from
 /// outside, such as file names, CSV fields and serial numbers.
@@ -36,9 +34,12 @@ fn escape_where(s: &str, escape: impl Fn(char) -> bool) -> Cow<'_, str> {
     Cow::Owned(out)
 }
 
+/// The path that names standard input on a command line.
+pub const STDIN_PATH: &str = "-";
+
 /// A path as messages name it: `<stdin>` for `-`, control characters escaped.
 pub fn path(p: &Path) -> String {
-    if input::is_stdin(p) {
+    if p.as_os_str() == STDIN_PATH {
         return "<stdin>".to_owned();
     }
     escape_controls(&p.to_string_lossy()).into_owned()

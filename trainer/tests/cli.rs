@@ -341,7 +341,7 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
     // The printed choice names the second-order family's slowest window.
     let slowest = format!("slowest window {} s", windows[2]);
     assert_eq!(printed.contains(&slowest), second_kept, "{slowest}: {printed}");
-    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let o = trainer(&["inspect", "--json", "-", model.to_str().unwrap()]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(&v["features"], chosen, "the blob holds the chosen set, lag and windows");
     // An explicit set is fitted alone.
@@ -356,7 +356,7 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stdout(&o).contains("feature sets:"));
-    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let o = trainer(&["inspect", "--json", "-", model.to_str().unwrap()]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["features"]["set"], "MultiScaleSecondOrder");
 }
@@ -427,7 +427,7 @@ fn a_slow_fastest_window_is_not_offered_a_slowest_window_past_one_day() {
     ];
     let o = trainer(&[&args[..], &[model.to_str().unwrap()]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
-    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let o = trainer(&["inspect", "--json", "-", model.to_str().unwrap()]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["features"]["windows_s"], serde_json::json!([300.0, 4800.0, 76800.0]));
 }
@@ -483,7 +483,7 @@ fn blocks_of_a_model_are_the_blocks_of_its_own_inputs() {
 fn inspect_reports_header_shapes_ranges_and_crc() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
-    let o = trainer(&["inspect", "--json", model.to_str().unwrap()]);
+    let o = trainer(&["inspect", "--json", "-", model.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["crc"], "ok");
@@ -574,7 +574,7 @@ fn fit_rejects_bad_options_and_writes_nothing() {
         (vec!["--folds", "1"], "invalid value '1' for '--folds <N>'"),
         (vec!["--folds", "100000"], "invalid value '100000' for '--folds <N>'"),
         (vec!["--block-s", "0"], "--block-s"),
-        (vec!["--rate-window-s=-3"], "--rate-window-s"),
+        (vec!["--rate-window-s=-3"], "--dt-window-s"),
         (
             vec!["--serial", "a-serial-number-far-longer-than-thirty-two-bytes"],
             "--serial",
@@ -1019,4 +1019,117 @@ fn a_second_training_run_at_another_sample_rate_is_left_out_in_turn_and_improves
         cluster_std_after_dph(&dir, &two_runs, &unseen),
     );
     assert!(two < 0.7 * one, "two runs {two} °/h vs one run {one} °/h");
+}
+
+#[test]
+fn fit_with_report_writes_the_model_the_table_and_the_bias_against_temperature() {
+    let dir = TempDir::new().unwrap();
+    let run = shared_data("ifog_train_1cpm.csv");
+    let (model, report) = (dir.path().join("m.bin"), dir.path().join("report"));
+    let fit = |extra: &[&str]| {
+        let mut args = vec![
+            "fit",
+            "-q",
+            "--method",
+            "poly3",
+            run.to_str().unwrap(),
+            "-o",
+            model.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        trainer(&args)
+    };
+    let o = fit(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(model.exists());
+    let png = std::fs::read(report.join("ifog_train_1cpm_bias_vs_temp.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let svg = std::fs::read_to_string(report.join("ifog_train_1cpm_bias_vs_temp.svg")).unwrap();
+    for needle in [
+        "loop temperature T [°C]",
+        "residual [°/h]",
+        "measured, heating",
+        "model",
+    ] {
+        assert!(svg.contains(needle), "bias_vs_temp.svg lacks {needle:?}");
+    }
+    // fit.txt is what the command printed, table included.
+    let printed = stdout(&o);
+    let fit_txt = std::fs::read_to_string(report.join("fit.txt")).unwrap();
+    assert!(
+        fit_txt.contains("STD100 bef") && printed.starts_with(&fit_txt),
+        "{fit_txt}"
+    );
+    assert!(printed.contains("files into"), "{printed}");
+    let md = std::fs::read_to_string(report.join("report.md")).unwrap();
+    assert!(md.contains("(ifog_train_1cpm_bias_vs_temp.svg)"), "{md}");
+    // A second fit into the same report replaces nothing without --force.
+    let o = fit(&["--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::remove_file(&model).unwrap();
+    let o = fit(&[]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("exists"), "{}", stderr(&o));
+    assert!(!model.exists(), "refused before the fit");
+}
+
+#[test]
+fn inspect_and_eval_take_model_and_json_file_with_dash_for_stdout() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let (m, run) = (model.to_str().unwrap(), dir.path().join("train.csv"));
+    // The summary: no JSON fragments.
+    let text = stdout(&trainer(&["inspect", "--model", m]));
+    assert!(
+        text.contains("CRC-32          ok") && text.contains("serial          none"),
+        "{text}"
+    );
+    assert!(!text.contains("null") && !text.contains('"'), "{text}");
+    // --json FILE writes the file, --json - standard output (the summary then goes to stderr).
+    let json_file = dir.path().join("inspect.json");
+    let o = trainer(&["inspect", "--model", m, "--json", json_file.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json_file).unwrap()).unwrap();
+    assert_eq!(v["crc"], "ok");
+    let o = trainer(&["inspect", "--model", m, "--json", "-"]);
+    let w: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v, w);
+    assert!(stderr(&o).contains("CRC-32          ok"));
+    // --format toml: every parameter, one per line, tables per group.
+    let toml = stdout(&trainer(&["inspect", "--model", m, "--format", "toml"]));
+    assert!(toml.contains("crc = \"ok\"\n") && toml.contains("\n[rbf]\n"), "{toml}");
+    assert!(toml.contains("\n[[training_ranges]]\n"), "{toml}");
+    let o = trainer(&["eval", "--model", m, run.to_str().unwrap(), "--json", "-"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let evals: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert!(evals[0]["cluster_std_improvement_pct"].as_f64().unwrap() > 50.0);
+    assert!(stderr(&o).contains("Overlapping Allan deviation"));
+}
+
+#[test]
+fn every_subcommand_shows_an_example_and_fit_short_help_fits_a_screen() {
+    for command in [
+        "fit",
+        "compensate",
+        "eval",
+        "inspect",
+        "report",
+        "simulate",
+        "decode",
+        "blocks",
+        "correlate",
+    ] {
+        let help = stdout(&trainer(&[command, "-h"]));
+        assert!(
+            help.contains(&format!("\n  trainer {command} ")),
+            "{command} -h has no example:\n{help}"
+        );
+    }
+    let short = stdout(&trainer(&["fit", "-h"]));
+    assert!(short.lines().count() <= 45, "{short}");
+    for heading in ["Data:", "Model:", "Search:", "Output:", "Multi-point:"] {
+        assert!(short.contains(heading), "fit -h lacks {heading}");
+    }
 }

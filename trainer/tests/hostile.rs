@@ -283,7 +283,7 @@ fn every_input_is_read_within_its_limit_whatever_its_shape() {
     let padded = write(&dir, "padded.bin", &padded);
     let o = trainer(&["inspect", padded.to_str().unwrap()]);
     refused(&o, "padded.bin: model refused: 14 bytes follow the blob's end");
-    assert!(stdout(&o).contains("valid           false"), "{}", stdout(&o));
+    assert!(stdout(&o).contains("valid           no"), "{}", stdout(&o));
     let o = trainer(&["eval", "--model", padded.to_str().unwrap(), run.to_str().unwrap()]);
     refused(&o, "14 bytes follow the blob's end");
     // A frame capture without a frame: refused after the search limit, not read forever.

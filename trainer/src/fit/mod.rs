@@ -10,6 +10,7 @@ pub mod poly;
 pub mod pso;
 pub mod rbf;
 pub mod svr;
+pub(crate) mod svr_data;
 pub mod svr_pso;
 pub mod thermometer_search;
 
@@ -27,7 +28,7 @@ pub const MIN_TEMP_SPAN_C: f64 = 5.0;
 pub const MIN_RATE_SPAN_C_PER_MIN: f64 = 0.2;
 
 /// Inputs of the `rbf` method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum RbfFeatures {
     /// The default: the thermal lag bank (`FeatureSet::LagBank`): the mean
     /// coil temperature T̂ and the loop temperature's rates through up to six
@@ -59,7 +60,7 @@ pub enum RbfFeatures {
 }
 
 /// The model forms `trainer fit` can produce.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum Method {
     /// Gaussian RBF network (default); inputs chosen by `--features`.
     Rbf,
@@ -247,7 +248,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         && !(1..=rbf_core::MAX_CENTERS).contains(&k)
     {
         anyhow::bail!(
-            "--centers {k}: must be 1 ..= {} (firmware capacity)",
+            "{k} centres asked for: must be 1 ..= {} (firmware capacity)",
             rbf_core::MAX_CENTERS
         );
     }
@@ -262,7 +263,9 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         }),
         Method::SvrPso => {
             if validate.count() > 0 {
-                anyhow::bail!("--method svr-pso validates on contiguous folds of the training runs; drop --validate");
+                anyhow::bail!(
+                    "svr-pso validates on contiguous folds of the training runs; it takes no validation runs"
+                );
             }
             let (model, choice) = svr_pso::fit(train, opts, &progress)?;
             Ok(FitOutcome {
@@ -421,8 +424,7 @@ pub(crate) fn serial(opts: &FitOptions) -> anyhow::Result<Option<heapless::Strin
     opts.serial
         .as_deref()
         .map(|s| {
-            heapless::String::try_from(s)
-                .map_err(|_| anyhow::anyhow!("--serial {s:?}: at most {SERIAL_CAPACITY} bytes"))
+            heapless::String::try_from(s).map_err(|_| anyhow::anyhow!("serial {s:?}: at most {SERIAL_CAPACITY} bytes"))
         })
         .transpose()
 }

@@ -28,12 +28,13 @@ use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
 use rbf_core::{FeatureConfig, FeatureSet, MAX_CENTERS, MAX_INPUTS, Model};
 
-use super::linalg::{FeatureRow, GramStats, InputShape, Normaliser, design, ridge_solve};
+use super::linalg::{FeatureRow, GramStats, InputShape, design, ridge_solve};
 use super::pso::{self, PsoOptions};
 use super::svr::{Svr, SvrParams};
+use super::svr_data::{SvrData, cluster_rms};
 use super::thermometer_search::{self, SubsetScore};
 use super::{FitOptions, Progress, check_excitation, deploy_ranges, rbf, serial};
-use crate::dataset::{Blocks, RunSet};
+use crate::dataset::RunSet;
 use crate::gradients::{self, Candidate, CorrelationTable, MultiBlocks};
 
 /// The deployed network's centre budget.
@@ -41,11 +42,6 @@ fn centre_budget(opts: &FitOptions) -> usize {
     opts.centers.unwrap_or(opts.max_centers).clamp(1, MAX_CENTERS)
 }
 
-/// Rows an SVR is trained on (means of consecutive blocks, about 100 s each on
-/// a 17-h chamber run, the RLG paper's smoothing): the dual's kernel matrix is l².
-const MAX_SVR_ROWS: usize = 600;
-/// Contiguous validation folds of the PSO's fitness.
-const FOLDS: usize = 3;
 /// SMO steps per solve before it settles for the best reached.
 const MAX_SMO_STEPS: usize = 200_000;
 /// Search box, log₁₀: σ (normalised units), C, and ε relative to the target's STD.
@@ -98,12 +94,6 @@ pub struct SvrChoice {
     pub pso: PsoOptions,
     /// Swarm's best fitness after each iteration (validation RMS, °/h).
     pub pso_history: Vec<f64>,
-}
-
-/// One fold: training rows and validation rows (indices into the merged blocks).
-pub(super) struct Fold {
-    pub(super) train: Vec<usize>,
-    pub(super) validate: Vec<usize>,
 }
 
 /// Fits the RLG paper's model on `train` (PSO fitness on contiguous folds).
@@ -199,53 +189,7 @@ pub fn fit<T: RunSet + ?Sized>(
     Ok((model, choice))
 }
 
-/// An SVR's training data: merged, normalised blocks with their folds.
-pub(super) struct SvrData {
-    norm: Normaliser,
-    /// Normalised inputs of the rows used.
-    pub(super) x: Vec<FeatureRow>,
-    /// Bias target of the rows used, °/h.
-    pub(super) y: Vec<f64>,
-    /// Inputs per row.
-    pub(super) dims: usize,
-    /// Offset-free RMS of `y`, °/h (> 0).
-    y_std: f64,
-    /// The contiguous validation folds.
-    pub(super) folds: Vec<Fold>,
-    /// Rows per 100-s cluster of the validation residual.
-    pub(super) per_cluster: usize,
-}
-
 impl SvrData {
-    /// Means of consecutive blocks of one run (n blocks each, the fewest that
-    /// give ≤ [`MAX_SVR_ROWS`] rows), normalised, in [`FOLDS`] contiguous
-    /// folds. Means, not every n-th block: a 1-s block carries the gyro's
-    /// white noise and the thermometers' quantisation, which at 1200 rows
-    /// would hide the differences between models the swarm and the choice
-    /// of thermometers must see.
-    pub(super) fn new(blocks: &Blocks, block_s: f64) -> anyhow::Result<SvrData> {
-        let group = blocks.len().div_ceil(MAX_SVR_ROWS).max(1);
-        let merged = merge_blocks(blocks, group);
-        let norm = Normaliser::fit(&merged);
-        let x: Vec<FeatureRow> = merged.x.iter().map(|r| norm.apply(r)).collect();
-        let y = merged.y;
-        let y_std = offset_free_rms(y.iter().copied());
-        anyhow::ensure!(y_std.is_finite(), "no blocks to fit an SVR on");
-        let folds = contiguous_folds(x.len(), FOLDS);
-        // Scored on 100-s cluster means of the residual, as `rbf` is: at 1 s
-        // white noise hides model errors ten times smaller than itself.
-        let per_cluster = (crate::metrics::CLUSTER_S / (block_s * group as f64)).round().max(1.0) as usize;
-        Ok(SvrData {
-            norm,
-            x,
-            y,
-            dims: blocks.dims,
-            y_std: y_std.max(1e-12),
-            folds,
-            per_cluster,
-        })
-    }
-
     /// Mean over the folds of the validation RMS (100-s clusters, offset
     /// removed per fold) of the SVR fitted on each fold's training part, °/h;
     /// with `budget`, of the network deployed within that many centres (+∞
@@ -295,7 +239,7 @@ fn choose_inputs<T: RunSet + ?Sized>(
     if mask.count_ones() < 2 {
         anyhow::ensure!(
             opts.inputs.is_none(),
-            "--inputs names multi-point inputs, but the training runs do not all have two or more \
+            "named multi-point inputs given, but the training runs do not all have two or more \
              of the thermometer columns temp_a … temp_h"
         );
         let windows = &opts.rate_windows_s;
@@ -321,7 +265,7 @@ fn choose_inputs<T: RunSet + ?Sized>(
             for p in given {
                 anyhow::ensure!(
                     p.thermometer_mask() & !mask == 0,
-                    "--inputs {p}: the training runs lack that thermometer"
+                    "input {p}: the training runs lack that thermometer"
                 );
             }
             let selected = given.iter().filter_map(|p| Candidate::of_probe(*p, &sensors)).collect();
@@ -341,7 +285,7 @@ fn choose_inputs<T: RunSet + ?Sized>(
             selected.truncate(MAX_INPUTS);
             anyhow::ensure!(
                 !selected.is_empty(),
-                "no temperature or gradient passes the selection rule (--select-threshold / --select-top); \
+                "no temperature or gradient passes the correlation rule {rule:?}; \
                  see `trainer correlate` for the correlations"
             );
             let probes = selected.iter().map(|c| c.probe(&sensors)).collect();
@@ -400,51 +344,6 @@ fn deployable(svr: &Svr, x: &[FeatureRow], y: &[f64], budget: usize) -> anyhow::
     })
 }
 
-/// Means of `group` consecutive blocks (features and target) within each
-/// run; a run's last, shorter group is a mean too.
-fn merge_blocks(blocks: &Blocks, group: usize) -> Blocks {
-    let mut merged = Blocks {
-        dims: blocks.dims,
-        sample_range: blocks.sample_range.clone(),
-        usable_s: blocks.usable_s,
-        ..Blocks::default()
-    };
-    let mut start = 0;
-    while start < blocks.len() {
-        let run = blocks.run[start];
-        let end = (start..blocks.len().min(start + group))
-            .find(|&i| blocks.run[i] != run)
-            .unwrap_or(blocks.len().min(start + group));
-        let n = (end - start) as f64;
-        let mut x = [0.0; MAX_INPUTS];
-        for row in &blocks.x[start..end] {
-            for (m, v) in x.iter_mut().zip(row) {
-                *m += v / n;
-            }
-        }
-        merged.x.push(x);
-        merged.y.push(blocks.y[start..end].iter().sum::<f64>() / n);
-        merged.run.push(run);
-        start = end;
-    }
-    merged
-}
-
-/// `count` contiguous folds over `n` rows: each validates on one contiguous
-/// stretch and trains on the rest (never random rows: neighbours correlate).
-fn contiguous_folds(n: usize, count: usize) -> Vec<Fold> {
-    let count = count.clamp(1, n.max(1));
-    (0..count)
-        .map(|f| {
-            let (start, end) = (f * n / count, (f + 1) * n / count);
-            Fold {
-                train: (0..n).filter(|i| *i < start || *i >= end).collect(),
-                validate: (start..end).collect(),
-            }
-        })
-        .collect()
-}
-
 fn pick(x: &[FeatureRow], y: &[f64], rows: &[usize]) -> (Vec<FeatureRow>, Vec<f64>) {
     (
         rows.iter().map(|&i| x[i]).collect(),
@@ -452,43 +351,10 @@ fn pick(x: &[FeatureRow], y: &[f64], rows: &[usize]) -> (Vec<FeatureRow>, Vec<f6
     )
 }
 
-/// [`offset_free_rms`] of the means of consecutive groups of `per_cluster`
-/// residuals (a short last group included).
-pub(super) fn cluster_rms(residuals: impl Iterator<Item = f64>, per_cluster: usize) -> f64 {
-    let r: Vec<f64> = residuals.collect();
-    offset_free_rms(
-        r.chunks(per_cluster.max(1))
-            .map(|c| c.iter().sum::<f64>() / c.len() as f64),
-    )
-}
-
-/// RMS of `residuals` about their mean (the gyro's constant offset is not
-/// the thermal model's business); +∞ for none.
-fn offset_free_rms(residuals: impl Iterator<Item = f64>) -> f64 {
-    let r: Vec<f64> = residuals.collect();
-    if r.is_empty() {
-        return f64::INFINITY;
-    }
-    let mean = r.iter().sum::<f64>() / r.len() as f64;
-    (r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / r.len() as f64).sqrt()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn folds_are_contiguous_and_cover_every_row_once() {
-        let folds = contiguous_folds(10, 3);
-        assert_eq!(folds.len(), 3);
-        let mut seen: Vec<usize> = folds.iter().flat_map(|f| f.validate.clone()).collect();
-        seen.sort_unstable();
-        assert_eq!(seen, (0..10).collect::<Vec<_>>());
-        for f in &folds {
-            assert!(f.validate.windows(2).all(|w| w[1] == w[0] + 1));
-            assert_eq!(f.train.len() + f.validate.len(), 10);
-        }
-    }
+    use crate::fit::svr_data::offset_free_rms;
 
     #[test]
     fn a_large_expansion_is_reduced_to_the_firmware_capacity_and_still_fits() {

@@ -10,7 +10,7 @@ use rand::Rng;
 use super::ChamberRun;
 
 /// The temperature histories.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Profile {
     /// Chamber, IFOG paper: 25 °C, down to 10 °C, hold, up to 40 °C, hold, back to 25 °C.
     Ifog,
@@ -33,7 +33,6 @@ pub enum Profile {
     /// In use: a cold start followed by a seeded mix of steps, swings and slow drifts.
     Field,
     /// A chamber profile read from a file (`trainer simulate --chamber-profile PLAN.csv`).
-    #[value(skip)]
     Planned,
 }
 

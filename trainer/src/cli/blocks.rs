@@ -1,0 +1,113 @@
+//! `trainer blocks`: the training data a fit sees, as CSV.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use rbf_core::FeatureSet;
+use trainer::blobfile::read_model;
+use trainer::dataset::{Blocks, RunFiles, RunSet};
+use trainer::fit::Method;
+use trainer::output::{self, Output};
+use trainer::{input, text};
+
+use super::common::{ForceArg, input_names, stdout};
+use super::values::FeaturesArg;
+
+/// Write the training data a fit sees: block means of the features and the bias target.
+///
+/// The features are rbf-core's (the firmware's own computation), averaged with
+/// the target rate_dph − ref_dph (or minus the run mean) over blocks; warm-up
+/// and sensor-fault samples are left out. For comparing other learners on
+/// exactly the same data (bench/accuracy).
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:\n  trainer blocks --model model.bin chamber.csv --block-s 10 -o blocks.csv")]
+pub struct Args {
+    /// Runs to read (- reads standard input).
+    ///
+    /// Blocks are written in order, with a run column.
+    #[arg(required = true, value_name = "RUN.csv", help_heading = "Data")]
+    runs: Vec<PathBuf>,
+    /// Block length, s.
+    #[arg(long, value_name = "SECONDS", default_value_t = 1.0, help_heading = "Data")]
+    block_s: f64,
+    /// Input set (without --model).
+    ///
+    /// multiscale (default; the first-order set), multiscale-second-order (also for
+    /// multiscale-validated, the fit's default, which chooses between the two) or paper
+    /// (T, ΔT, T×ΔT).
+    #[arg(long, value_enum, default_value_t = FeaturesArg::Multiscale, hide_possible_values = true,
+          help_heading = "Model")]
+    features: FeaturesArg,
+    /// Fastest ΔT filter time constant, s (without --model).
+    #[arg(long = "dt-window-s", alias = "rate-window-s", value_name = "SECONDS", default_value_t = 60.0,
+          help_heading = "Model")]
+    dt_window_s: f32,
+    /// Coil lag of the second-order set's lagged form, minutes.
+    ///
+    /// Input 0 becomes the mean coil temperature estimate T − L·ΔT₃ for a coil lag L
+    /// (what `trainer fit` reports as `MultiScaleLagged`).
+    #[arg(long, value_name = "MINUTES", help_heading = "Model")]
+    coil_lag_min: Option<u16>,
+    /// The inputs of a fitted model instead of --features.
+    ///
+    /// Every setting as the blob holds it (set, all ΔT windows, coil lag): how
+    /// bench/accuracy gives the Python peers the features the default fit chose.
+    #[arg(long, value_name = "MODEL.bin", conflicts_with_all = ["features", "dt_window_s", "coil_lag_min"],
+          help_heading = "Model")]
+    model: Option<PathBuf>,
+    /// CSV to write.
+    #[arg(short, long, value_name = "BLOCKS.csv", help_heading = "Output")]
+    output: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
+}
+
+/// Runs `trainer blocks`.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        a.block_s.is_finite() && a.block_s > 0.0,
+        "--block-s must be a positive number of seconds"
+    );
+    anyhow::ensure!(
+        a.dt_window_s.is_finite() && (0.0..=86_400.0).contains(&a.dt_window_s),
+        "--dt-window-s must be 0 … 86400 s"
+    );
+    let inputs: Vec<&Path> = a.runs.iter().map(|p| p.as_path()).chain(a.model.as_deref()).collect();
+    input::check_stdin_once(inputs.iter().copied())?;
+    let target = output::check_target(&a.output, &inputs, a.force.existing())?;
+    let features = match &a.model {
+        Some(model) => *read_model(model)?.0.features(),
+        None => {
+            let set = match (Method::Rbf.feature_set(a.features.into()), a.coil_lag_min) {
+                (set, None) => set,
+                (FeatureSet::MultiScaleSecondOrder, Some(coil_lag_min)) => {
+                    FeatureSet::MultiScaleLagged { coil_lag_min }
+                }
+                (_, Some(_)) => anyhow::bail!("--coil-lag-min needs --features multiscale-second-order"),
+            };
+            trainer::fit::rbf::feature_config(set, a.dt_window_s, 1.0)
+        }
+    };
+    // Streamed: one pass per run, only block means held.
+    let blocks = RunFiles::new(&a.runs).block_means(&features, a.block_s)?;
+    let mut out = Output::open(target)?;
+    write_csv(&mut out, features.set, &blocks)
+        .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
+    out.commit()?;
+    writeln!(stdout(), "wrote {} ({} blocks)", text::path(&a.output), blocks.len())?;
+    Ok(())
+}
+
+/// The blocks CSV: a `# features` comment naming the inputs, then
+/// `run,x0,…,target_dph` rows.
+pub fn write_csv(out: &mut impl Write, set: FeatureSet, blocks: &Blocks) -> std::io::Result<()> {
+    let names: Vec<String> = (0..set.dims()).map(|i| format!("x{i}")).collect();
+    writeln!(out, "# features: {}", input_names(set).join(", "))?;
+    writeln!(out, "run,{},target_dph", names.join(","))?;
+    for i in 0..blocks.len() {
+        let x: Vec<String> = (0..set.dims()).map(|k| blocks.feature(i, k).to_string()).collect();
+        writeln!(out, "{},{},{}", blocks.run[i], x.join(","), blocks.y[i])?;
+    }
+    Ok(())
+}

@@ -1,0 +1,228 @@
+//! Argument groups and output helpers every subcommand shares.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::Args;
+use clap::builder::RangedU64ValueParser;
+use trainer::gradients::Selection;
+use trainer::output::{Existing, Output};
+use trainer::text::{self, SafeWriter};
+
+/// Standard output, control characters from outside escaped on the way.
+pub fn stdout() -> SafeWriter<std::io::StdoutLock<'static>> {
+    SafeWriter::new(std::io::stdout().lock())
+}
+
+/// Standard error, control characters from outside escaped on the way.
+pub fn stderr() -> SafeWriter<std::io::StderrLock<'static>> {
+    SafeWriter::new(std::io::stderr().lock())
+}
+
+/// What the command line adds to a library error: the flag that changes the outcome.
+pub fn flag_hint(e: &anyhow::Error) -> &'static str {
+    let root = e.root_cause();
+    if root.is::<trainer::output::OutputExists>() {
+        "; pass --force to overwrite it"
+    } else if root.is::<trainer::output::OutputReadOnly>() {
+        ", even with --force"
+    } else if root.is::<trainer::evaluate::NothingCompensated>() {
+        ". Pass --allow-uncompensated to accept such a run"
+    } else {
+        ""
+    }
+}
+
+/// `--force`: whether an existing output may be replaced.
+#[derive(Args, Debug)]
+pub struct ForceArg {
+    /// Replace outputs that exist.
+    ///
+    /// By default an existing file is never replaced; even with --force a link, a
+    /// device, a read-only file or an input is not.
+    #[arg(long, help_heading = "Output")]
+    pub force: bool,
+}
+
+impl ForceArg {
+    /// The replacement policy asked for.
+    pub fn existing(&self) -> Existing {
+        Existing::from_force(self.force)
+    }
+}
+
+/// `--allow-uncompensated`: what to do with a run where no row could be compensated.
+#[derive(Args, Debug)]
+pub struct AllowUncompensated {
+    /// Accept a run where no row could be compensated.
+    ///
+    /// A run where every row carries flag 4 is by default an error naming the cause
+    /// (temperatures out of range, sensor faults).
+    #[arg(long, help_heading = "Data")]
+    pub allow_uncompensated: bool,
+}
+
+/// `--json FILE`: the figures as JSON, `-` for standard output.
+#[derive(Args, Debug)]
+pub struct JsonArg {
+    /// Also write the figures as JSON (- = standard output).
+    ///
+    /// With `-` the JSON is standard output and the human-readable text goes to
+    /// standard error.
+    #[arg(long, value_name = "FILE", help_heading = "Output")]
+    pub json: Option<PathBuf>,
+}
+
+/// Where `--json` sends its document.
+pub enum JsonSink {
+    /// No JSON asked for.
+    None,
+    /// Standard output (`--json -`).
+    Stdout,
+    /// A file, written in full or not at all.
+    File(Output),
+}
+
+impl JsonArg {
+    /// Checks the JSON target against `inputs` before any work.
+    pub fn sink(&self, inputs: &[&Path], existing: Existing) -> anyhow::Result<JsonSink> {
+        Ok(match &self.json {
+            None => JsonSink::None,
+            Some(p) if trainer::input::is_stdin(p) => JsonSink::Stdout,
+            Some(p) => JsonSink::File(Output::create(p, inputs, existing)?),
+        })
+    }
+}
+
+impl JsonSink {
+    /// Whether the JSON goes to standard output (and the text to standard error).
+    pub fn is_stdout(&self) -> bool {
+        matches!(self, JsonSink::Stdout)
+    }
+
+    /// Writes `value` pretty-printed and commits it.
+    pub fn write(self, value: &serde_json::Value) -> anyhow::Result<()> {
+        let json = serde_json::to_string_pretty(value)?;
+        match self {
+            JsonSink::None => Ok(()),
+            JsonSink::Stdout => Ok(writeln!(stdout(), "{json}")?),
+            JsonSink::File(mut out) => {
+                out.write_all(json.as_bytes())
+                    .with_context(|| format!("{}: write failed", text::path(out.path())))?;
+                out.commit()
+            }
+        }
+    }
+}
+
+/// Writes the human-readable `text` where it belongs: standard output, or
+/// standard error when the JSON took standard output.
+pub fn print_text(text: &[u8], json_on_stdout: bool) -> std::io::Result<()> {
+    if json_on_stdout {
+        stderr().write_all(text)
+    } else {
+        stdout().write_all(text)
+    }
+}
+
+/// How multi-point inputs are selected from their correlations with the bias.
+#[derive(Args, Debug)]
+pub struct SelectArgs {
+    /// Select inputs with |r| ≥ R.
+    ///
+    /// Every temperature and gradient whose correlation with the bias has magnitude at
+    /// least R (the RLG paper's rule: `--select-threshold 0.9`). `correlate` uses 0.9 when
+    /// neither this nor --select-top is given; `fit --method svr-pso` then chooses the
+    /// thermometers by validation instead.
+    #[arg(long, value_name = "R", conflicts_with = "select_top", help_heading = "Multi-point")]
+    pub select_threshold: Option<f64>,
+    /// Select the N inputs of largest |r|.
+    ///
+    /// 8 temperatures and 28 gradients at most.
+    #[arg(long, value_name = "N", help_heading = "Multi-point",
+          value_parser = RangedU64ValueParser::<usize>::new().range(1..=36))]
+    pub select_top: Option<usize>,
+}
+
+/// The RLG paper's correlation threshold.
+pub const PAPER_THRESHOLD: f64 = 0.9;
+
+impl SelectArgs {
+    /// The correlation rule asked for, if any.
+    pub fn selection(&self) -> anyhow::Result<Option<Selection>> {
+        if let Some(r) = self.select_threshold {
+            anyhow::ensure!(
+                (0.0..=1.0).contains(&r),
+                "--select-threshold {r}: a correlation magnitude, 0 … 1"
+            );
+        }
+        Ok(match (self.select_top, self.select_threshold) {
+            (Some(n), _) => Some(Selection::Top(n)),
+            (None, Some(r)) => Some(Selection::Threshold(r)),
+            (None, None) => None,
+        })
+    }
+}
+
+/// A correlation rule as the selection line names it.
+pub fn rule_name(selection: Selection) -> String {
+    match selection {
+        Selection::Top(n) => format!("top {n} by |r|"),
+        Selection::Threshold(t) => format!("|r| ≥ {t}"),
+    }
+}
+
+/// The correlation matrix and the selection's line (chosen by `rule`), as
+/// `correlate` and `fit` print them.
+pub fn describe_selection(
+    table: &trainer::gradients::CorrelationTable,
+    selected: &[trainer::gradients::Candidate],
+    rule: &str,
+) -> String {
+    use trainer::gradients::{candidate_name, format_table};
+    let names: Vec<String> = selected
+        .iter()
+        .map(|&c| format!("{} (r = {:.3})", candidate_name(table, c), table.r[c.i][c.j]))
+        .collect();
+    format!(
+        "{}selected ({rule}): {}\n",
+        format_table(table, selected),
+        if names.is_empty() {
+            "none".to_owned()
+        } else {
+            names.join(", ")
+        }
+    )
+}
+
+/// The names of a feature set's inputs with units, for printing.
+pub fn input_names(set: rbf_core::FeatureSet) -> Vec<String> {
+    set.names().map(|n| n.to_string()).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rules_are_named_as_the_selection_line_prints_them() {
+        assert_eq!(rule_name(Selection::Top(3)), "top 3 by |r|");
+        assert_eq!(rule_name(Selection::Threshold(0.9)), "|r| ≥ 0.9");
+    }
+
+    #[test]
+    fn a_threshold_outside_0_to_1_is_refused() {
+        let select = SelectArgs {
+            select_threshold: Some(1.5),
+            select_top: None,
+        };
+        let err = select.selection().unwrap_err().to_string();
+        assert!(err.contains("--select-threshold 1.5"), "{err}");
+        let select = SelectArgs {
+            select_threshold: None,
+            select_top: Some(4),
+        };
+        assert!(matches!(select.selection().unwrap(), Some(Selection::Top(4))));
+    }
+}

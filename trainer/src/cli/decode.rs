@@ -1,0 +1,48 @@
+//! `trainer decode`: firmware output frames (a UART capture) to CSV.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::Context;
+use trainer::output::{self, Output};
+use trainer::{input, text};
+
+use super::common::{ForceArg, stdout};
+
+/// Decode firmware output frames (a UART capture) into CSV.
+///
+/// Frames are postcard + COBS, each ended by 0x00. Writes
+/// seq, rate_dph [°/h], bias_dph [°/h], rate_comp_dph [°/h], temp_c [°C], flags.
+/// A damaged frame is skipped and reported (the seq gap shows where); a capture
+/// that starts mid-frame loses only that first partial frame.
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:\n  trainer decode uart.bin -o frames.csv")]
+pub struct Args {
+    /// Captured frame bytes (- reads standard input).
+    #[arg(value_name = "FRAMES.bin", help_heading = "Data")]
+    frames: PathBuf,
+    /// CSV to write.
+    #[arg(short, long, value_name = "OUT.csv", help_heading = "Output")]
+    output: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
+}
+
+/// Runs `trainer decode`.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let target = output::check_target(&a.output, &[&a.frames], a.force.existing())?;
+    let capture = input::open(&a.frames).with_context(|| format!("{}: cannot read", text::path(&a.frames)))?;
+    let mut out = Output::open(target)?;
+    let decoded = trainer::frames::decode_capture(capture, &mut out).with_context(|| text::path(&a.frames))?;
+    out.commit()?;
+    writeln!(stdout(), "wrote {} ({} frames)", text::path(&a.output), decoded.frames)?;
+    if decoded.damaged > 0 {
+        eprintln!(
+            "warning: {}: {} damaged frame(s) skipped, at byte offsets {:?}",
+            text::path(&a.frames),
+            decoded.damaged,
+            decoded.damaged_at
+        );
+    }
+    Ok(())
+}

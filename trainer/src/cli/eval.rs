@@ -1,0 +1,59 @@
+//! `trainer eval`: before/after accuracy of a model on runs.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use trainer::blobfile::read_model;
+use trainer::evaluate::{RunEvaluation, evaluate_files, print_allan_table, print_table};
+use trainer::input;
+
+use super::common::{AllowUncompensated, ForceArg, JsonArg, print_text};
+use super::model_arg::ModelArg;
+
+/// Before/after accuracy of a model on runs.
+///
+/// Per run: MSD (IFOG paper Eq. 24) of 1-s means against ref_dph (or about the
+/// mean), and the bias STD of 100-s cluster means (RLG paper), before and after
+/// compensation, with the improvement in %; then the overlapping Allan
+/// deviation (IEEE Std 952) before and after, with angle random walk [°/√h] and
+/// bias instability [°/h] read off it (--json has the whole curves).
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:\n  trainer eval --model model.bin check.csv field.csv --json eval.json")]
+pub struct Args {
+    #[command(flatten)]
+    model: ModelArg,
+    /// Runs to evaluate (- reads standard input).
+    #[arg(required = true, value_name = "RUN.csv", help_heading = "Data")]
+    runs: Vec<PathBuf>,
+    #[command(flatten)]
+    json: JsonArg,
+    #[command(flatten)]
+    force: ForceArg,
+    #[command(flatten)]
+    uncompensated: AllowUncompensated,
+}
+
+/// Runs `trainer eval`.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let model_path = a.model.path.as_path();
+    let inputs: Vec<&Path> = a.runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
+    input::check_stdin_once(inputs.iter().copied())?;
+    let json_out = a.json.sink(&inputs, a.force.existing())?;
+    let (model, _) = read_model(model_path)?;
+    let evals = evaluate_files(&model, &a.runs, a.uncompensated.allow_uncompensated)?;
+    let json_on_stdout = json_out.is_stdout();
+    json_out.write(&serde_json::to_value(&evals)?)?;
+    let mut text = Vec::new();
+    write_tables(&mut text, &evals)?;
+    print_text(&text, json_on_stdout)?;
+    Ok(())
+}
+
+/// The accuracy and Allan tables `trainer eval` prints.
+pub fn write_tables(out: &mut impl Write, evals: &[RunEvaluation]) -> anyhow::Result<()> {
+    let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|e| ("eval", e)).collect();
+    print_table(out, &rows)?;
+    writeln!(out, "\nOverlapping Allan deviation (IEEE Std 952) of rate − reference:")?;
+    print_allan_table(out, &rows)?;
+    Ok(())
+}

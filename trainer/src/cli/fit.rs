@@ -1,0 +1,550 @@
+//! `trainer fit`: fit a bias model to recorded runs and write the model blob.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::builder::RangedU64ValueParser;
+use rbf_core::features::Probe;
+use rbf_core::model::ModelBody;
+use rbf_core::{FeatureConfig, FeatureSet, Model};
+use trainer::blobfile::encode_model;
+use trainer::dataset::RunFiles;
+use trainer::evaluate::{RunEvaluation, evaluate_file, print_table};
+use trainer::fit::{self, FitOptions, FitOutcome};
+use trainer::limits::MAX_FOLDS;
+use trainer::output::{self, Output};
+use trainer::run::RunReader;
+use trainer::text;
+use trainer::{diagnose, input};
+
+use super::common::{
+    ForceArg, JsonArg, JsonSink, SelectArgs, describe_selection, input_names, print_text, rule_name,
+};
+use super::values::{FeaturesArg, MethodArg};
+
+/// Fit a bias model to recorded chamber runs and write the model blob.
+///
+/// Features (T [°C], ΔT [°C/min], T×ΔT) are computed per sample by rbf-core, as
+/// the firmware does, then averaged over blocks together with the bias target
+/// `rate_dph − ref_dph` (or minus the run mean without ref_dph). The RBF
+/// methods choose centres by orthogonal least squares and ridge output weights;
+/// the ΔT window, Gaussian width, ridge strength and number of centres are
+/// chosen on the --validate runs, or by contiguous 5-fold validation over the
+/// training runs. Prints a before/after accuracy table, then writes the blob.
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:\n  trainer fit chamber.csv --validate check.csv -o model.bin --report fit-report")]
+pub struct Args {
+    /// Training runs (recorded-run CSV with temp_c).
+    #[arg(required = true, value_name = "RUN.csv", help_heading = "Data")]
+    runs: Vec<PathBuf>,
+    /// Runs that choose the hyper-parameters (repeatable).
+    ///
+    /// Used only to choose hyper-parameters and report generalisation.
+    #[arg(long, value_name = "RUN.csv", help_heading = "Data")]
+    validate: Vec<PathBuf>,
+    /// Runs only reported, never used to choose.
+    ///
+    /// Reported in the accuracy table and never used to choose anything: an honest
+    /// test of generalisation.
+    #[arg(long, value_name = "RUN.csv", help_heading = "Data")]
+    holdout: Vec<PathBuf>,
+    /// Averaging block for training, s.
+    #[arg(long, value_name = "SECONDS", default_value_t = 1.0, help_heading = "Data")]
+    block_s: f64,
+    /// Model form (see --help).
+    ///
+    /// rbf = Gaussian RBF network (inputs: --features); rbf2 = RBF on (T, ΔT), the IFOG
+    /// paper's model before its modification; poly3 = cubic in T (PX4/ArduPilot form);
+    /// svr-pso = ε-SVR with σ, C, ε tuned by particle swarm on 3 contiguous folds (the RLG
+    /// paper's method), deployed as an RBF network with one width (support vectors reduced by
+    /// OLS to --centers, else --max-centers, when there are more); its inputs: on runs with
+    /// thermometers temp_a … temp_h, the subset of thermometers that validates best on the
+    /// same folds (every subset scored by a fast Gaussian + linear ridge network; the gradients
+    /// between the chosen ones are in the model's linear span), or the temperatures and
+    /// gradients the RLG paper's correlation rule selects (--select-threshold 0.9,
+    /// --select-top N), or named ones (--inputs); else (T, ΔT, T×ΔT) (ΔT window: the middle of
+    /// --dt-window-s).
+    #[arg(long, value_enum, default_value_t = MethodArg::Rbf, hide_possible_values = true, help_heading = "Model")]
+    method: MethodArg,
+    /// Inputs of --method rbf (see --help).
+    ///
+    /// lag-bank (default) = the thermal lag bank: the mean coil temperature
+    /// T̂ = T + Σ a_k·ΔT_k and the loop temperature's rates ΔT_k through 4–6 derivative
+    /// filters from 15 s to 4 h, times a Shupe gain linear in T; a cubic in T̂ (extrapolated
+    /// along its tangent past the covered range) and the rates linear; filter set, coil lags
+    /// a_k and gain identified from the runs and chosen by how well they predict held-out
+    /// thermal events (or whole runs, or --validate runs); Gaussians over T̂ only where that
+    /// validation wants them. It holds on temperature histories unlike the chamber's (cold
+    /// starts, ambient steps, fast swings). multiscale = T, ΔT over three time scales (τ, 16τ,
+    /// 256τ), T×ΔT₁, T×ΔT₂, T×ΔT₃ and T²×ΔT₂, Gaussians over T and the ΔT terms linear (the
+    /// mean coil temperature lags the sensor in proportion to the rate: first-order terms of
+    /// that lag); multiscale-second-order = the same with the second-order term ΔT₃² in place
+    /// of T×ΔT₁; multiscale-validated = both fitted from one pass over the data, the
+    /// second-order set also in its lagged forms (Gaussians over the mean coil temperature
+    /// estimate T − L·ΔT₃, coil lag L of 10, 20, 40 or 80 min, at the second-order set's
+    /// window and width) and, when that family already validates better than the first-order
+    /// set, all of them again with the slowest window 1.25× longer (320τ: it should follow the
+    /// coil's slowest radial mode), the best of these kept only when its validation RMS is
+    /// below 0.9 × the first-order one (a term fitted at one ramp rate must earn its
+    /// extrapolation); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network.
+    #[arg(long, value_enum, default_value_t = FeaturesArg::LagBank, hide_possible_values = true, help_heading = "Model")]
+    features: FeaturesArg,
+    /// Use exactly K Gaussian centres (1–64).
+    ///
+    /// Fewer if OLS finds fewer independent ones; without it K ≤ --max-centers is chosen
+    /// on validation.
+    #[arg(long, value_name = "K", value_parser = centres_parser(), help_heading = "Model")]
+    centers: Option<usize>,
+    /// Most centres tried (1–64).
+    ///
+    /// The firmware's evaluation cost grows with K.
+    #[arg(long, value_name = "K", default_value_t = 32, value_parser = centres_parser(), help_heading = "Search")]
+    max_centers: usize,
+    /// ΔT filter time constants to choose from, s.
+    ///
+    /// Comma-separated; for multiscale the fastest of three, the others 16 and 256 times
+    /// it; 0 = one-sample difference (IFOG Eq. 22). Default: choose among 15, 60 and 240 s.
+    #[arg(long = "dt-window-s", alias = "rate-window-s", value_name = "SECONDS",
+          value_delimiter = ',', help_heading = "Search")]
+    dt_window_s: Vec<f32>,
+    /// Folds per run without --validate (2–20).
+    ///
+    /// Validation splits each training run into N contiguous folds when no --validate
+    /// runs are given.
+    #[arg(long, value_name = "N", default_value_t = 5, help_heading = "Search",
+          value_parser = RangedU64ValueParser::<usize>::new().range(2..=MAX_FOLDS))]
+    folds: usize,
+    /// Gyro serial number stored in the blob (≤ 32 bytes).
+    #[arg(long, help_heading = "Model")]
+    serial: Option<String>,
+    #[command(flatten)]
+    select: SelectArgs,
+    /// svr-pso: these inputs, not a selection.
+    ///
+    /// Comma-separated temperatures and gradients, e.g. `temp_d,temp_c-temp_d,temp_a-temp_b`
+    /// (at most 8).
+    #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = parse_probe,
+          help_heading = "Multi-point")]
+    inputs: Option<Vec<Probe>>,
+    /// Model blob to write.
+    ///
+    /// postcard + CRC-32; flash it into the firmware's model region.
+    #[arg(short, long, value_name = "MODEL.bin", help_heading = "Output")]
+    output: PathBuf,
+    #[command(flatten)]
+    json: JsonArg,
+    #[command(flatten)]
+    force: ForceArg,
+    /// Also write plots, table and report into DIR.
+    ///
+    /// What `trainer report` writes for the model on every run of the fit (bias against
+    /// loop temperature with the model overlaid and the residual, rate before and after,
+    /// Allan deviation, report.md, report.json), plus fit.txt: what this command prints.
+    #[arg(long, value_name = "DIR", help_heading = "Output")]
+    report: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(short, long, help_heading = "Output")]
+    quiet: bool,
+}
+
+/// Centre counts the firmware holds: 1 … [`rbf_core::MAX_CENTERS`].
+fn centres_parser() -> RangedU64ValueParser<usize> {
+    RangedU64ValueParser::<usize>::new().range(1..=rbf_core::MAX_CENTERS as u64)
+}
+
+/// A multi-point input by its column names: `temp_c` or `temp_c-temp_e`.
+fn parse_probe(text: &str) -> Result<Probe, String> {
+    let index = |name: &str| {
+        rbf_core::record::column::THERMOMETERS
+            .iter()
+            .position(|t| *t == name.trim())
+            .map(|i| i as u8)
+            .ok_or_else(|| format!("{name:?} is not one of temp_a … temp_h"))
+    };
+    let probe = match text.split_once('-') {
+        Some((hot, cold)) => Probe::Gradient(index(hot)?, index(cold)?),
+        None => Probe::Temp(index(text)?),
+    };
+    if probe.is_valid() {
+        Ok(probe)
+    } else {
+        Err(format!("{text:?}: a gradient needs two different thermometers"))
+    }
+}
+
+/// Runs `trainer fit`.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    // A fit reads its runs several times: files only. Outputs are checked
+    // against them before any work; the model and the JSON are written last,
+    // after every fallible step, so a failure never leaves a replaced model.
+    let all_runs: Vec<&Path> = a
+        .runs
+        .iter()
+        .chain(&a.validate)
+        .chain(&a.holdout)
+        .map(|p| p.as_path())
+        .collect();
+    input::require_seekable(all_runs.iter().copied(), "`trainer fit` reads its runs several times")?;
+    let existing = a.force.existing();
+    let json_file = a.json.json.as_deref().filter(|p| !input::is_stdin(p));
+    let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(json_file).collect();
+    let mut targets = output::check_targets(&outputs, &all_runs, existing)?.into_iter();
+    let report_inputs: Vec<&Path> = all_runs.iter().copied().chain([a.output.as_path()]).collect();
+    let report_runs: Vec<PathBuf> = all_runs.iter().map(|p| p.to_path_buf()).collect();
+    if let Some(dir) = &a.report {
+        let fit_txt = dir.join(FIT_TEXT);
+        trainer::report::check_report_targets(&report_runs, dir, &report_inputs, existing)?;
+        if std::fs::symlink_metadata(dir).is_ok() {
+            output::check_target(&fit_txt, &report_inputs, existing)?;
+        }
+    }
+    // Runs are streamed (memory stays flat whatever their length); their
+    // headers and first rows are checked now, so a bad file is reported before any work.
+    for path in &all_runs {
+        RunReader::open(path)?.require_temp()?;
+    }
+    anyhow::ensure!(
+        a.block_s.is_finite() && a.block_s > 0.0,
+        "--block-s must be a positive number of seconds"
+    );
+    if let Some(s) = &a.serial {
+        anyhow::ensure!(
+            s.len() <= rbf_core::model::SERIAL_CAPACITY,
+            "--serial {s:?}: at most {} bytes",
+            rbf_core::model::SERIAL_CAPACITY
+        );
+    }
+    anyhow::ensure!(
+        a.method != MethodArg::SvrPso || a.validate.is_empty(),
+        "--method svr-pso validates on contiguous folds of the training runs; drop --validate"
+    );
+    let train = RunFiles::new(&a.runs);
+    let validate = RunFiles::new(&a.validate);
+    let mut opts = FitOptions {
+        method: a.method.into(),
+        features: a.features.into(),
+        block_s: a.block_s,
+        centers: a.centers,
+        max_centers: a.max_centers,
+        folds: a.folds,
+        serial: a.serial.clone(),
+        progress: !a.quiet,
+        selection: a.select.selection()?,
+        inputs: a.inputs.clone(),
+        ..FitOptions::default()
+    };
+    if !a.dt_window_s.is_empty() {
+        anyhow::ensure!(
+            a.dt_window_s
+                .iter()
+                .all(|w| w.is_finite() && (0.0..=86_400.0).contains(w)),
+            "--dt-window-s values must be 0 … 86400 s"
+        );
+        opts.rate_windows_s = a.dt_window_s.clone();
+    }
+    let model_out = targets.next().map(Output::open).transpose()?;
+    let json_out = match targets.next() {
+        Some(target) => JsonSink::File(Output::open(target)?),
+        None if a.json.json.is_some() => JsonSink::Stdout,
+        None => JsonSink::None,
+    };
+    let started = std::time::Instant::now();
+    let outcome = fit::fit(&train, &validate, &opts).map_err(|e| {
+        if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
+            let mask =
+                opts.method.feature_set(opts.features).thermometer_mask() | (1 << rbf_core::features::LOOP_THERMOMETER);
+            diagnose::with_causes(e, &a.runs, mask)
+        } else {
+            e
+        }
+    })?;
+    let fit_s = started.elapsed().as_secs_f64();
+    // The cached block means are done with: freed before the evaluation pass.
+    drop((train, validate));
+    let blob = encode_model(&outcome.model)?;
+
+    // Printed once everything is written.
+    let mut out: Vec<u8> = Vec::new();
+    let how = FitHow {
+        with_validate_runs: !a.validate.is_empty(),
+        folds: opts.folds,
+        named_inputs: opts.inputs.is_some(),
+        selection: opts.selection,
+    };
+    write_summary(&mut out, opts.method, &outcome, &how)?;
+    writeln!(out, "fit took {fit_s:.1} s\n")?;
+    let roles = [("train", &a.runs), ("validate", &a.validate), ("holdout", &a.holdout)];
+    let evals: Vec<(&str, RunEvaluation)> = roles
+        .iter()
+        .flat_map(|(role, paths)| paths.iter().map(move |p| (*role, p)))
+        .map(|(role, p)| evaluate_file(&outcome.model, p).map(|e| (role, e)))
+        .collect::<anyhow::Result<_>>()?;
+    let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
+    print_table(&mut out, &rows)?;
+    if let Some(search) = &outcome.bank {
+        writeln!(out)?;
+        for line in search.coverage.lines() {
+            writeln!(out, "{line}")?;
+        }
+    }
+    writeln!(out, "\nwrote {} ({} bytes)", text::path(&a.output), blob.len())?;
+    let json = serde_json::json!({
+        "method": opts.method,
+        "choice": outcome.choice,
+        "feature_sets": outcome.sets,
+        "lag_bank_search": outcome.bank,
+        "features": features_json(outcome.model.features()),
+        "svr": outcome.svr,
+        "fit_seconds": fit_s,
+        "blob_bytes": blob.len(),
+        "runs": evals.iter().map(|(role, e)| serde_json::json!({"role": role, "evaluation": e})).collect::<Vec<_>>(),
+    });
+    if let Some(mut output) = model_out {
+        output
+            .write_all(&blob)
+            .with_context(|| format!("{}: write failed", text::path(output.path())))?;
+        output.commit()?;
+    }
+    let json_on_stdout = json_out.is_stdout();
+    json_out.write(&json)?;
+    if let Some(dir) = &a.report {
+        let files = trainer::report::write_report(&outcome.model, &a.output, &report_runs, dir, existing, true)?;
+        output::write_bytes_with(&dir.join(FIT_TEXT), &report_inputs, existing, &out)?;
+        writeln!(out, "wrote {} files into {}", files.len() + 1, text::path(dir))?;
+    }
+    print_text(&out, json_on_stdout)?;
+    Ok(())
+}
+
+/// The file in `--report DIR` that holds what `fit` prints.
+const FIT_TEXT: &str = "fit.txt";
+
+/// How the fit was asked to choose, for the summary's wording.
+pub struct FitHow {
+    /// Whether --validate runs chose the hyper-parameters.
+    pub with_validate_runs: bool,
+    /// Contiguous folds per run otherwise.
+    pub folds: usize,
+    /// Whether the multi-point inputs were named (--inputs).
+    pub named_inputs: bool,
+    /// The correlation rule asked for, if any.
+    pub selection: Option<trainer::gradients::Selection>,
+}
+
+/// The fit's choices as `trainer fit` prints them above its accuracy table.
+pub fn write_summary(
+    out: &mut impl Write,
+    method: fit::Method,
+    outcome: &FitOutcome,
+    how: &FitHow,
+) -> anyhow::Result<()> {
+    writeln!(out, "method {method:?}: {}", describe(&outcome.model))?;
+    if let Some(c) = &outcome.choice {
+        writeln!(
+            out,
+            "chosen on {}: {}width σ {} (normalised), ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
+            if how.with_validate_runs {
+                "--validate runs".into()
+            } else if let Some(search) = &outcome.bank {
+                format!("the same {} folds as the bank's structure", search.fold_count)
+            } else {
+                format!("{}-fold contiguous validation", how.folds.max(2))
+            },
+            // The lag bank's filters are its structure (printed below), not one window.
+            if outcome.bank.is_some() {
+                String::new()
+            } else {
+                format!("ΔT window {} s, ", c.rate_window_s)
+            },
+            c.width,
+            c.ridge,
+            c.centers,
+            c.validation_rms_dph
+        )?;
+    }
+    if let Some(search) = &outcome.bank {
+        write_bank(out, &outcome.model, search)?;
+    }
+    if let Some(s) = &outcome.sets {
+        let kept = outcome.model.features();
+        let slowest_s = kept.windows_s()[2];
+        let kept = match kept.set {
+            FeatureSet::MultiScale => "first-order".to_owned(),
+            FeatureSet::MultiScaleLagged { coil_lag_min } => {
+                format!("second-order, coil lag {coil_lag_min} min, slowest window {slowest_s} s")
+            }
+            _ => format!("second-order, slowest window {slowest_s} s"),
+        };
+        writeln!(
+            out,
+            "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃², coil lags {:?} min and slowest window ×{:?} tried) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
+            s.first_order_rms_dph,
+            fit::COIL_LAGS_MIN,
+            fit::rbf::SLOWEST_WINDOW_FACTORS,
+            s.second_order_rms_dph,
+            s.second_order_rms_dph / s.first_order_rms_dph,
+            fit::SECOND_ORDER_GAIN,
+            kept
+        )?;
+    }
+    if let Some(c) = &outcome.svr {
+        if let Some(sel) = &c.selection {
+            let rule = match (how.named_inputs, how.selection) {
+                (true, _) => "--inputs".to_owned(),
+                (false, Some(rule)) => rule_name(rule),
+                (false, None) => format!(
+                    "the best of {} subsets of thermometers on 3-fold contiguous validation",
+                    (1u32 << sel.table.names.len()) - 1
+                ),
+            };
+            write!(out, "{}", describe_selection(&sel.table, &sel.selected, &rule))?;
+            if !sel.ranking.is_empty() {
+                writeln!(out, "validation RMS of the best subsets (°/h):")?;
+                for s in &sel.ranking {
+                    let names: Vec<&str> = s.sensors.iter().map(|&k| sel.table.names[k].as_str()).collect();
+                    writeln!(out, "  {:.4e}  {}", s.validation_rms_dph, names.join(", "))?;
+                }
+            }
+        }
+        writeln!(out, "inputs: {}", c.inputs.join(", "))?;
+        writeln!(
+            out,
+            "PSO on 3-fold contiguous validation of the deployed network ({} particles × {} iterations): ΔT window {} s, σ {:.4} (normalised), C {:.4e}, ε {:.3e} °/h; the SVR's own validation RMS {:.4e} °/h",
+            c.pso.particles,
+            c.pso.iterations,
+            c.rate_window_s,
+            c.params.sigma,
+            c.params.c,
+            c.params.epsilon,
+            c.validation_rms_dph
+        )?;
+        writeln!(
+            out,
+            "{} support vectors → {} centres deployed (OLS, weights refitted); validation RMS of the deployed network {:.4e} °/h (the swarm's fitness)",
+            c.support_vectors, c.centers, c.deployed_validation_rms_dph
+        )?;
+    }
+    Ok(())
+}
+
+/// The lag bank a fit identified, how it was chosen, and what the training runs covered.
+fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankSearch) -> anyhow::Result<()> {
+    let FeatureSet::LagBank(bank) = model.features().set else {
+        return Ok(());
+    };
+    let list = |v: &[f32], digits: usize| v.iter().map(|x| format!("{x:.digits$}")).collect::<Vec<_>>().join(", ");
+    writeln!(
+        out,
+        "lag bank: τ [{}] s; coil lags a [{}] min (T̂ = T + Σ a·ΔT); Shupe gain g = 1 {:+.3e}·(T − {}) {:+.3e}·(T − {})²",
+        list(bank.taus(), 0),
+        list(bank.coil_lags(), 2),
+        bank.gain_per_c,
+        bank.ref_c,
+        bank.gain_per_c2,
+        bank.ref_c
+    )?;
+    let how = match search.folds {
+        fit::events::FoldKind::Runs => format!("leave-one-run-out ({} folds)", search.fold_count),
+        fit::events::FoldKind::Events => format!(
+            "{} folds of whole thermal events ({} events found)",
+            search.fold_count, search.events
+        ),
+        fit::events::FoldKind::Contiguous => format!(
+            "{} contiguous folds (only {} thermal events found)",
+            search.fold_count, search.events
+        ),
+    };
+    writeln!(
+        out,
+        "structure chosen on {how} among {} candidates; predicted RMS of 100-s means on unseen histories {:.4e} °/h",
+        search.candidates.len(),
+        search.predicted_rms_dph()
+    )?;
+    let dims = model.features().dims();
+    let mut covered = Vec::new();
+    for i in 0..dims {
+        let (Some(name), Some((lo, hi))) = (model.features().set.name(i), model.input_range(i)) else {
+            continue;
+        };
+        if matches!(
+            name,
+            rbf_core::features::InputName::Bank(rbf_core::lag_bank::BankInput::CoilTemp { power: 2.. })
+        ) {
+            continue;
+        }
+        covered.push(format!("{name} {lo:.3} … {hi:.3}"));
+    }
+    writeln!(out, "training covered: {}", covered.join("; "))?;
+    Ok(())
+}
+
+/// One line naming a model's form, centres, inputs and ΔT windows.
+pub(super) fn describe(model: &Model) -> String {
+    let f = model.features();
+    let all_names = input_names(f.set);
+    let names = all_names.join(", ");
+    let (taus, filters) = f.filter_taus_s();
+    let windows = &taus[..filters];
+    match model.body() {
+        ModelBody::Rbf(net) => format!(
+            "Gaussian RBF, {} over ({}), {}, ΔT windows {windows:?} s",
+            match net.centers_used() {
+                1 => "1 centre".to_owned(),
+                n => format!("{n} centres"),
+            },
+            all_names[..net.kernel_inputs().min(all_names.len())].join(", "),
+            if net.linear().is_empty() {
+                "no linear terms".to_owned()
+            } else {
+                format!("linear in ({names})")
+            }
+        ),
+        ModelBody::Poly3(p) => format!("cubic in T about {} °C", p.ref_temp_c),
+    }
+}
+
+/// A model's inputs as `trainer inspect --json` and `trainer fit --json` give them.
+pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
+    serde_json::json!({
+        "set": match f.set {
+            FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
+            FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
+            FeatureSet::LagBank(_) => "LagBank".to_owned(),
+            set => format!("{set:?}"),
+        },
+        "coil_lag_min": match f.set {
+            FeatureSet::MultiScaleLagged { coil_lag_min } => Some(coil_lag_min),
+            _ => None,
+        },
+        "inputs": input_names(f.set),
+        "rate_window_s": f.rate_window_s,
+        "windows_s": &f.filter_taus_s().0[..f.filter_taus_s().1],
+        "lag_bank": match f.set {
+            FeatureSet::LagBank(b) => Some(serde_json::json!({
+                "taus_s": b.taus(),
+                "coil_lag_min": b.coil_lags(),
+                "ref_c": b.ref_c,
+                "gain_per_c": b.gain_per_c,
+                "gain_per_c2": b.gain_per_c2,
+                "static_degree": b.static_degree,
+                "coil_range_c": [b.coil_min_c, b.coil_max_c],
+            })),
+            _ => None,
+        },
+        "warmup_s": f.warmup_s(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn probes_are_read_by_column_name() {
+        assert!(matches!(parse_probe("temp_c"), Ok(Probe::Temp(2))));
+        assert!(matches!(parse_probe("temp_a-temp_h"), Ok(Probe::Gradient(0, 7))));
+        assert!(parse_probe("temp_z").unwrap_err().contains("not one of temp_a"));
+        assert!(parse_probe("temp_b-temp_b").unwrap_err().contains("two different"));
+    }
+}

@@ -1,0 +1,306 @@
+//! `trainer inspect`: what a model blob holds and whether it is intact.
+
+use std::fmt::Write as _;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use rbf_core::blob::{self, Header};
+use rbf_core::model::ModelBody;
+use trainer::blobfile::{file_problem, read_blob};
+use trainer::output::Existing;
+use trainer::text;
+
+use super::common::{JsonArg, print_text, stdout};
+use super::fit::features_json;
+use super::toml;
+
+/// Show what a model blob holds and whether it is intact.
+///
+/// Prints a summary (format, shape, model form, inputs with the temperature and rate
+/// ranges the training covered, serial, CRC); `--format toml|json` prints every
+/// parameter instead, in a text form two models can be diffed in.
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Examples:\n  trainer inspect --model model.bin\n  \
+                        trainer inspect --model model.bin --format toml > model.toml")]
+pub struct Args {
+    /// Model blob written by `trainer fit` (- reads standard input).
+    #[arg(long = "model", id = "model_option", value_name = "MODEL.bin", help_heading = "Model",
+          required_unless_present = "model", conflicts_with = "model")]
+    model_option: Option<PathBuf>,
+    /// The model blob given without --model.
+    #[arg(value_name = "MODEL.bin", hide = true)]
+    model: Option<PathBuf>,
+    /// What to print: a summary, or every parameter as TOML or JSON.
+    #[arg(long, value_enum, default_value_t = Format::Text, help_heading = "Output")]
+    format: Format,
+    #[command(flatten)]
+    json: JsonArg,
+    /// Replace the JSON file if it exists.
+    #[arg(long, help_heading = "Output")]
+    force: bool,
+}
+
+/// `inspect`'s printed forms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// A summary for people.
+    Text,
+    /// Every parameter as TOML.
+    Toml,
+    /// Every parameter as JSON.
+    Json,
+}
+
+/// Runs `trainer inspect`.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let Some(path) = a.model_option.or(a.model) else {
+        anyhow::bail!("inspect needs a model: trainer inspect --model MODEL.bin");
+    };
+    let json_out = a.json.sink(&[&path], Existing::from_force(a.force))?;
+    let bytes = read_blob(&path)?;
+    let header = Header::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: model refused: {e}", text::path(&path)))?;
+    let crc = blob::crc_status(&bytes, &header);
+    let decoded = crc.and_then(|_| blob::decode(&bytes));
+    // Also what a valid blob leaves over: a file holds one blob.
+    let problem = decoded.as_ref().ok().and_then(|_| file_problem(&bytes));
+    let mut info = inspect_json(&path, &bytes, &header, &crc, &decoded);
+    if let Some(problem) = &problem {
+        info["valid"] = serde_json::json!(false);
+        info["error"] = serde_json::json!(problem);
+    }
+    let json_on_stdout = json_out.is_stdout();
+    json_out.write(&info)?;
+    let printed = match a.format {
+        Format::Text => summary(&info, decoded.as_ref().ok().map(|d| &d.model)),
+        Format::Toml => toml::to_toml(&info),
+        Format::Json => format!("{}\n", serde_json::to_string_pretty(&info)?),
+    };
+    if json_on_stdout && a.format == Format::Text {
+        print_text(printed.as_bytes(), true)?;
+    } else {
+        stdout().write_all(printed.as_bytes())?;
+    }
+    match (decoded, problem) {
+        (Ok(_), None) => Ok(()),
+        (Ok(_), Some(problem)) => Err(anyhow::anyhow!("{}: model refused: {problem}", text::path(&path))),
+        (Err(e), _) => Err(anyhow::anyhow!("{}: model refused: {e}", text::path(&path))),
+    }
+}
+
+/// Every field of a blob as `--format json`, `--format toml` and `--json` give it.
+fn inspect_json(
+    path: &Path,
+    bytes: &[u8],
+    header: &Header,
+    crc: &Result<(), blob::DecodeError>,
+    decoded: &Result<blob::Decoded, blob::DecodeError>,
+) -> serde_json::Value {
+    let mut v = serde_json::json!({
+        "file": text::path(path),
+        "file_bytes": bytes.len(),
+        "blob_bytes": header.blob_len(),
+        "format_version": header.version,
+        "kind": rbf_core::model::ModelKind::from_code(header.kind_code).map(|k| k.name()),
+        "inputs": header.inputs,
+        "centers": header.centers,
+        "crc": match crc { Ok(()) => "ok".to_owned(), Err(e) => e.to_string() },
+        "valid": decoded.is_ok(),
+    });
+    if let Ok(d) = decoded {
+        let m = &d.model;
+        let f = m.features();
+        let ranges: Vec<_> = (0..f.dims())
+            .map(|i| {
+                let (lo, hi) = m.input_range(i).unwrap_or((f32::NAN, f32::NAN));
+                serde_json::json!({"input": f.set.name(i).map(|n| n.to_string()), "min": lo, "max": hi})
+            })
+            .collect();
+        v["features"] = features_json(f);
+        v["training_ranges"] = serde_json::Value::Array(ranges);
+        v["units"] = serde_json::json!({"bias": "deg/h", "temperature": "degC", "rate_of_change": "degC/min"});
+        v["serial"] = serde_json::json!(m.info().serial.as_ref().map(|s| s.as_str()));
+        match m.body() {
+            ModelBody::Rbf(net) => {
+                v["rbf"] = serde_json::json!({
+                    "offset": net.offset(), "scale": net.scale(),
+                    "widths": net.widths(), "weights_dph": net.weights(),
+                    "linear_dph": net.linear(), "constant_dph": net.constant(),
+                });
+            }
+            ModelBody::Poly3(p) => {
+                v["poly3"] = serde_json::json!({"ref_temp_c": p.ref_temp_c, "coeffs": p.coeffs});
+            }
+        }
+    } else if let Err(e) = decoded {
+        v["error"] = serde_json::json!(e.to_string());
+    }
+    v
+}
+
+/// The model's form in a few words: the regression and how the inputs enter it.
+fn form(model: &rbf_core::Model) -> String {
+    match model.body() {
+        ModelBody::Rbf(net) => {
+            let names: Vec<String> = model.features().set.names().map(|n| n.to_string()).collect();
+            let kernel = &names[..net.kernel_inputs().min(names.len())];
+            format!(
+                "Gaussian RBF, {} over {}{}",
+                count(net.centers_used() as u64, "centre", "centres"),
+                kernel.join(", "),
+                match net.linear().len() {
+                    0 => String::new(),
+                    n => format!("; {}", count(n as u64, "linear term", "linear terms")),
+                }
+            )
+        }
+        ModelBody::Poly3(p) => format!("cubic in T about {} °C", sig(f64::from(p.ref_temp_c), 4)),
+    }
+}
+
+/// `n` and the noun, singular for one (`1 centre`, `12 centres`).
+fn count(n: u64, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// A number with `digits` significant digits, without trailing zeros.
+fn sig(x: f64, digits: usize) -> String {
+    if !x.is_finite() {
+        return "?".to_owned();
+    }
+    if x == 0.0 {
+        return "0".to_owned();
+    }
+    let magnitude = x.abs().log10().floor() as i64;
+    if !(-4..=6).contains(&magnitude) {
+        return format!("{x:.*e}", digits.saturating_sub(1));
+    }
+    let decimals = (digits as i64 - 1 - magnitude).max(0) as usize;
+    let s = format!("{x:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        s
+    }
+}
+
+/// The summary `trainer inspect` prints: one labelled line per fact, numbers
+/// to the digits that matter, strings from the blob with control characters escaped.
+pub fn summary(v: &serde_json::Value, model: Option<&rbf_core::Model>) -> String {
+    let mut out = String::new();
+    let num = |k: &str| v[k].as_u64().unwrap_or(0);
+    let string = |x: &serde_json::Value| x.as_str().map(|s| text::escape_controls(s).into_owned());
+    let _ = writeln!(
+        out,
+        "file            {} ({} bytes, blob {} bytes)",
+        string(&v["file"]).unwrap_or_default(),
+        num("file_bytes"),
+        num("blob_bytes")
+    );
+    let _ = writeln!(out, "format version  {}", num("format_version"));
+    let _ = writeln!(
+        out,
+        "kind            {}",
+        string(&v["kind"]).unwrap_or_else(|| "unknown".to_owned())
+    );
+    let _ = writeln!(
+        out,
+        "shape           {}, {}",
+        count(num("inputs"), "input", "inputs"),
+        count(num("centers"), "centre", "centres")
+    );
+    let _ = writeln!(out, "CRC-32          {}", string(&v["crc"]).unwrap_or_default());
+    if let Some(model) = model {
+        let _ = writeln!(out, "model           {}", form(model));
+    }
+    let f = &v["features"];
+    if f.is_object() {
+        let windows: Vec<String> = f["windows_s"]
+            .as_array()
+            .map(|w| w.iter().map(|x| sig(x.as_f64().unwrap_or(f64::NAN), 4)).collect())
+            .unwrap_or_default();
+        let lag = match f["coil_lag_min"].as_u64() {
+            Some(l) => format!(", coil lag {l} min"),
+            None => String::new(),
+        };
+        let _ = writeln!(
+            out,
+            "ΔT windows      {} s{lag}; warm-up {} s",
+            windows.join(", "),
+            sig(f["warmup_s"].as_f64().unwrap_or(f64::NAN), 4)
+        );
+    }
+    if let Some(ranges) = v["training_ranges"].as_array() {
+        let _ = writeln!(out, "training ranges");
+        for r in ranges {
+            let _ = writeln!(
+                out,
+                "  {:<24} {} … {}",
+                string(&r["input"]).unwrap_or_else(|| "?".to_owned()),
+                sig(r["min"].as_f64().unwrap_or(f64::NAN), 4),
+                sig(r["max"].as_f64().unwrap_or(f64::NAN), 4)
+            );
+        }
+    }
+    if v.get("serial").is_some() {
+        let _ = writeln!(
+            out,
+            "serial          {}",
+            string(&v["serial"]).unwrap_or_else(|| "none".to_owned())
+        );
+    }
+    let valid = v["valid"].as_bool().unwrap_or(false);
+    let _ = writeln!(
+        out,
+        "valid           {}{}",
+        if valid { "yes" } else { "no" },
+        string(&v["error"]).map_or(String::new(), |e| format!(" ({e})"))
+    );
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info() -> serde_json::Value {
+        serde_json::json!({
+            "file": "m\u{1b}.bin", "file_bytes": 300, "blob_bytes": 300, "format_version": 3,
+            "kind": "gaussian-rbf", "inputs": 1, "centers": 1, "crc": "ok", "valid": true,
+            "features": {"windows_s": [15.000000953674316, 240.0], "coil_lag_min": null, "warmup_s": 900.0},
+            "training_ranges": [{"input": "T [°C]", "min": -9.876543212890625, "max": 40.1234}],
+            "serial": null,
+        })
+    }
+
+    #[test]
+    fn the_summary_is_tidy() {
+        let s = summary(&info(), None);
+        assert!(s.contains("shape           1 input, 1 centre\n"), "{s}");
+        assert!(s.contains("ΔT windows      15, 240 s; warm-up 900 s\n"), "{s}");
+        assert!(s.contains("  T [°C]                   -9.877 … 40.12\n"), "{s}");
+        assert!(s.contains("serial          none\n"), "{s}");
+        assert!(s.contains("valid           yes\n"), "{s}");
+        assert!(s.contains("file            m\\u{1b}.bin (300 bytes"), "{s}");
+        assert!(!s.contains('"') && !s.contains("null"), "{s}");
+    }
+
+    #[test]
+    fn a_refused_blob_says_why() {
+        let mut v = info();
+        v["valid"] = serde_json::json!(false);
+        v["error"] = serde_json::json!("14 bytes follow the blob's end");
+        v["centers"] = serde_json::json!(12);
+        let s = summary(&v, None);
+        assert!(s.contains("valid           no (14 bytes follow the blob's end)"), "{s}");
+        assert!(s.contains("12 centres"), "{s}");
+    }
+
+    #[test]
+    fn significant_digits_drop_trailing_zeros() {
+        assert_eq!(sig(15.000000953674316, 4), "15");
+        assert_eq!(sig(-0.012345, 3), "-0.0123");
+        assert_eq!(sig(1.5e-7, 3), "1.50e-7");
+        assert_eq!(sig(0.0, 3), "0");
+        assert_eq!(sig(f64::NAN, 3), "?");
+    }
+}

@@ -1,0 +1,52 @@
+//! The `trainer` command line: one module per subcommand, each holding its
+//! clap arguments and a `run` function; shared argument groups in [`common`].
+//!
+//! A new subcommand is one file here with `pub struct Args` and
+//! `pub fn run(Args) -> anyhow::Result<()>`, plus one line in [`commands!`].
+
+mod common;
+mod model_arg;
+mod toml;
+mod values;
+
+use clap::Subcommand;
+pub use common::flag_hint;
+
+/// Declares the subcommand modules, the [`Command`] enum (in this order in
+/// `--help`) and its dispatch.
+macro_rules! commands {
+    ($($module:ident => $variant:ident),* $(,)?) => {
+        $(mod $module;)*
+
+        /// The subcommands.
+        #[derive(Subcommand, Debug)]
+        pub enum Command {
+            $(
+                #[allow(missing_docs)]
+                $variant($module::Args),
+            )*
+        }
+
+        impl Command {
+            /// Runs the subcommand.
+            pub fn run(self) -> anyhow::Result<()> {
+                match self {
+                    $(Command::$variant(a) => $module::run(a),)*
+                }
+            }
+        }
+    };
+}
+
+commands! {
+    fit => Fit,
+    compensate => Compensate,
+    eval => Eval,
+    inspect => Inspect,
+    simulate => Simulate,
+    decode => Decode,
+    report => Report,
+    blocks => Blocks,
+    correlate => Correlate,
+    plan => Plan,
+}

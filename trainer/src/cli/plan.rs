@@ -1,0 +1,122 @@
+//! `trainer plan`: design the chamber run to calibrate on.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::builder::RangedU64ValueParser;
+use trainer::output::{self, Output};
+use trainer::text;
+
+use super::common::{ForceArg, stdout};
+
+/// Design the chamber run to calibrate on: a profile the default model can be identified from.
+///
+/// Draws --candidates profiles from a family that holds what the lag bank needs (a power-on
+/// soak at the cold end whose self-heating transient is recorded, levels across the range,
+/// full-rate steps, bursts of swings, slow ramps, holds as long as the coil's slowest mode)
+/// and keeps the one of largest D-criterion: the log-determinant of the information matrix of
+/// the lag-bank regression on the documented gyro's plant (docs/plan.md). Writes the set
+/// points `trainer simulate --chamber-profile` reads (time_s,chamber_c, piecewise linear), or
+/// with --format segments the segment table a chamber controller takes. Same seed, same plan.
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 -o plan.csv\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 --format segments --plot plan.svg -o segments.csv")]
+pub struct Args {
+    /// Lowest set point, °C.
+    #[arg(long, value_name = "C", allow_hyphen_values = true, help_heading = "Chamber limits")]
+    min_c: f64,
+    /// Highest set point, °C.
+    #[arg(long, value_name = "C", allow_hyphen_values = true, help_heading = "Chamber limits")]
+    max_c: f64,
+    /// Fastest ramp the chamber may run, °C/min (every segment stays at or below it).
+    #[arg(long, value_name = "C_PER_MIN", allow_hyphen_values = true, help_heading = "Chamber limits")]
+    max_rate_c_per_min: f64,
+    /// Longest run, hours (the last set point is at most this far in).
+    #[arg(long, value_name = "H", allow_hyphen_values = true, help_heading = "Chamber limits")]
+    hours: f64,
+    /// What -o holds: set-points (time_s,chamber_c; what `trainer simulate --chamber-profile`
+    /// reads) or segments (segment,target_c,ramp_min,hold_min; what chamber controllers take).
+    #[arg(long, value_enum, default_value_t = PlanFormat::SetPoints, help_heading = "Output")]
+    format: PlanFormat,
+    /// Candidate profiles scored, 1–1000 (more: a higher criterion, a longer design).
+    #[arg(long, value_name = "N", default_value_t = trainer::plan::DEFAULT_CANDIDATES,
+          value_parser = RangedU64ValueParser::<usize>::new().range(1..=1000))]
+    candidates: usize,
+    /// Random seed of the candidates.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Also draw the plan (set points and the nominal loop temperature) as SVG or PNG, by extension.
+    #[arg(long, value_name = "FILE.svg|png", help_heading = "Output")]
+    plot: Option<PathBuf>,
+    /// Plan to write.
+    #[arg(short, long, value_name = "PLAN.csv", help_heading = "Output")]
+    output: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
+}
+
+/// What `trainer plan` writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PlanFormat {
+    /// Piecewise-linear set points, time_s,chamber_c.
+    SetPoints,
+    /// Segment table: target °C, ramp minutes, hold minutes.
+    Segments,
+}
+
+/// Runs `trainer plan`.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    use trainer::plan::{PlanLimits, PlotFormat};
+    let limits = PlanLimits {
+        min_c: a.min_c,
+        max_c: a.max_c,
+        max_rate_c_per_min: a.max_rate_c_per_min,
+        hours: a.hours,
+    };
+    limits.check().map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
+    let plot_format = match &a.plot {
+        None => None,
+        Some(path) => Some(
+            match path
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .as_deref()
+            {
+                Some("svg") => PlotFormat::Svg,
+                Some("png") => PlotFormat::Png,
+                _ => anyhow::bail!("--plot {}: the file name must end in .svg or .png", text::path(path)),
+            },
+        ),
+    };
+    let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(a.plot.as_deref()).collect();
+    let mut targets = output::check_targets(&outputs, &[], a.force.existing())?.into_iter();
+    let plan = trainer::plan::design(&limits, a.seed, a.candidates).map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
+    let text_out = match a.format {
+        PlanFormat::SetPoints => plan.set_points_csv(),
+        PlanFormat::Segments => plan.segments_csv(),
+    };
+    let plot = plot_format.map(|f| trainer::plan::plot(&plan, f)).transpose()?;
+    for bytes in std::iter::once(text_out.into_bytes()).chain(plot) {
+        let Some(target) = targets.next() else { break };
+        let mut out = Output::open(target)?;
+        out.write_all(&bytes)
+            .with_context(|| format!("{}: write failed", text::path(out.path())))?;
+        out.commit()?;
+    }
+    let mut out = stdout();
+    writeln!(
+        out,
+        "wrote {} ({} segments, {:.2} h, D-criterion {:.4}, best of {} candidates; median {:.4})",
+        text::path(&a.output),
+        plan.segments.len(),
+        plan.duration_s() / 3600.0,
+        plan.criterion,
+        plan.candidates,
+        plan.median_criterion
+    )?;
+    if let Some(p) = &a.plot {
+        writeln!(out, "wrote {}", text::path(p))?;
+    }
+    Ok(())
+}

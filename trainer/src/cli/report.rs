@@ -1,0 +1,49 @@
+//! `trainer report`: plots and a written summary of a model on runs.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use trainer::blobfile::read_model;
+use trainer::text;
+
+use super::common::{AllowUncompensated, ForceArg, stdout};
+use super::model_arg::ModelArg;
+
+/// Plots and a written summary of a model on runs, for people who would rather look.
+///
+/// Writes into DIR, as SVG and PNG: per run the raw and compensated rate − reference
+/// (10-s means) with the loop temperature, the bias (10-s means) against the loop
+/// temperature with the model overlaid and the residual, and the overlapping Allan
+/// deviation before and after on log-log axes; the model's bias over T and a steady
+/// ramp ΔT. Plus report.json (every figure of `trainer eval --json`) and report.md.
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:\n  trainer report --model model.bin check.csv -o report/")]
+pub struct Args {
+    #[command(flatten)]
+    model: ModelArg,
+    /// Runs to report on (- reads standard input).
+    #[arg(required = true, value_name = "RUN.csv", help_heading = "Data")]
+    runs: Vec<PathBuf>,
+    /// Directory to write into (created if missing).
+    #[arg(short, long, value_name = "DIR", help_heading = "Output")]
+    output: PathBuf,
+    #[command(flatten)]
+    force: ForceArg,
+    #[command(flatten)]
+    uncompensated: AllowUncompensated,
+}
+
+/// Runs `trainer report`.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let (model, _) = read_model(&a.model.path)?;
+    let files = trainer::report::write_report(
+        &model,
+        &a.model.path,
+        &a.runs,
+        &a.output,
+        a.force.existing(),
+        a.uncompensated.allow_uncompensated,
+    )?;
+    writeln!(stdout(), "wrote {} files into {}", files.len(), text::path(&a.output))?;
+    Ok(())
+}
