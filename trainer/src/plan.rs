@@ -534,16 +534,7 @@ pub fn plot(plan: &Plan, format: PlotFormat) -> anyhow::Result<Vec<u8>> {
                 &temps,
             )
             .map_err(|e| anyhow::anyhow!("drawing the PNG: {e}"))?;
-            let mut png = Vec::new();
-            image::ImageEncoder::write_image(
-                image::codecs::png::PngEncoder::new(&mut png),
-                &rgb,
-                PLOT_SIZE.0,
-                PLOT_SIZE.1,
-                image::ColorType::Rgb8,
-            )
-            .map_err(|e| anyhow::anyhow!("encoding the PNG: {e}"))?;
-            Ok(png)
+            crate::report::encode_png(&rgb, PLOT_SIZE)
         }
     }
 }

@@ -46,16 +46,22 @@ fn render(figure: &impl Figure) -> anyhow::Result<(String, Vec<u8>)> {
     figure
         .draw(BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area())
         .map_err(|e| anyhow::anyhow!("drawing the PNG: {e}"))?;
+    Ok((svg, encode_png(&rgb, SIZE)?))
+}
+
+/// PNG bytes of an RGB8 bitmap of `size` (width, height) pixels, as plotters'
+/// bitmap backend draws it.
+pub(crate) fn encode_png(rgb: &[u8], size: (u32, u32)) -> anyhow::Result<Vec<u8>> {
     let mut png = Vec::new();
     image::ImageEncoder::write_image(
         image::codecs::png::PngEncoder::new(&mut png),
-        &rgb,
-        SIZE.0,
-        SIZE.1,
+        rgb,
+        size.0,
+        size.1,
         image::ColorType::Rgb8,
     )
     .map_err(|e| anyhow::anyhow!("encoding the PNG: {e}"))?;
-    Ok((svg, png))
+    Ok(png)
 }
 
 /// Running means over consecutive blocks of `block_s` seconds (a block
