@@ -13,6 +13,7 @@
 
 pub mod allan;
 pub mod blobfile;
+pub mod chunked;
 pub mod dataset;
 pub mod diagnose;
 pub mod evaluate;
