@@ -15,6 +15,7 @@ pub mod allan;
 pub mod blobfile;
 pub mod chunked;
 pub mod dataset;
+pub mod decimal;
 pub mod diagnose;
 pub mod evaluate;
 pub mod fit;
