@@ -13,6 +13,7 @@ use std::ops::Range;
 use std::sync::mpsc::{Receiver, sync_channel};
 use std::sync::{Arc, Mutex};
 
+use rbf_core::GyroSample;
 use rbf_core::features::THERMOMETERS;
 use rbf_core::record::{self, Columns, Row, RowError};
 
@@ -61,6 +62,8 @@ pub struct Batch {
     temps: Vec<f64>,
     mask: u8,
     stride: usize,
+    /// Each row's gyro sample as the firmware receives it ([`crate::run::gyro_sample`]).
+    samples: Vec<GyroSample>,
     /// The first defect in the chunk, after the rows: its line, what it is,
     /// and where the line's text lies in `text`.
     defect: Option<(usize, Defect, Range<usize>)>,
@@ -102,6 +105,54 @@ impl Batch {
         }
     }
 
+    /// Computes the rows' gyro samples, the first one's time step from
+    /// `prev_time_s` (the time of the row before the batch).
+    fn make_samples(&mut self, prev_time_s: Option<f64>) {
+        self.samples.clear();
+        self.samples.reserve(self.rows.len());
+        let mut prev = prev_time_s;
+        for i in 0..self.rows.len() {
+            let row = self.row(i);
+            self.samples.push(crate::run::gyro_sample(
+                prev,
+                row.time_s,
+                row.rate_dph,
+                &row.readings_c(),
+            ));
+            prev = Some(row.time_s);
+        }
+    }
+
+    /// Sets the time of the row before the batch (the first row's time step
+    /// depends on it; the samples are made without it on the workers).
+    pub fn set_previous_time(&mut self, prev_time_s: Option<f64>) {
+        if self.samples.len() != self.rows.len() {
+            self.make_samples(prev_time_s);
+        } else if let (Some(sample), Some(first)) = (self.samples.first_mut(), self.rows.first()) {
+            sample.dt_s = record::time_step_s(prev_time_s, first.time_s);
+        }
+    }
+
+    /// The gyro sample of row `i` as the firmware receives it
+    /// ([`crate::run::gyro_sample`], the time step from the row before).
+    pub fn sample(&self, i: usize) -> GyroSample {
+        self.samples.get(i).copied().unwrap_or(GyroSample {
+            dt_s: 0.0,
+            rate_dph: f32::NAN,
+            temps_c: [None; THERMOMETERS],
+        })
+    }
+
+    /// The rate of row `i`, °/h.
+    pub fn rate_dph(&self, i: usize) -> f64 {
+        self.rows.get(i).map_or(f64::NAN, |r| r.rate_dph)
+    }
+
+    /// The known true rate of row `i`, °/h, where the run has `ref_dph`.
+    pub fn ref_dph(&self, i: usize) -> Option<f64> {
+        self.rows.get(i).map(|r| r.ref_dph).filter(|r| !r.is_nan())
+    }
+
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.rows.len()
@@ -115,6 +166,7 @@ impl Batch {
     /// Keeps the first `len` rows.
     pub fn truncate(&mut self, len: usize) {
         self.rows.truncate(len);
+        self.samples.truncate(len);
         self.temps.truncate(len * self.stride);
     }
 
@@ -300,6 +352,7 @@ pub fn parse_chunk(columns: &Columns, text: Vec<u8>, first_line: usize) -> Batch
     }
     batch.text = text;
     batch.defect = defect;
+    batch.make_samples(None);
     batch
 }
 

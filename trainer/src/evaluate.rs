@@ -386,7 +386,6 @@ pub fn compensate_reader(
     // The rows are parsed on every core, compensated in order here, and
     // formatted and written on a thread of their own, a batch at a time.
     let (tx, rx) = std::sync::mpsc::sync_channel::<(Batch, Vec<CompensatedSample>)>(4);
-    let mut prev_time_s = None;
     std::thread::scope(|scope| {
         let writer = scope.spawn(move || -> std::io::Result<()> {
             let mut text = Vec::new();
@@ -404,9 +403,7 @@ pub fn compensate_reader(
             let mut outputs = Vec::with_capacity(batch.len());
             for i in 0..batch.len() {
                 let row = batch.row(i);
-                let sample = crate::run::gyro_sample(prev_time_s, row.time_s, row.rate_dph, &row.readings_c());
-                prev_time_s = Some(row.time_s);
-                let o = compensator.process(model, &config, &sample);
+                let o = compensator.process(model, &config, &batch.sample(i));
                 c.flagged.add(o.flags);
                 c.compensated += usize::from(!o.flags.contains(Flags::NO_VALID_MODEL));
                 c.diagnosis.push(batch.line(i), &row);

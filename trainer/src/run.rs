@@ -500,6 +500,7 @@ impl RunReader {
                 first.push(raw.line, &raw.row, raw.text.as_bytes());
                 self.last_line_out = raw.line;
             }
+            first.set_previous_time(None);
             rows += first.len();
             consume(first);
         }
@@ -515,6 +516,7 @@ impl RunReader {
             self.chunk_bytes,
             parse_workers(),
             |mut batch| {
+                batch.set_previous_time(self.last_time_s);
                 let failed = self.check_batch(&batch);
                 let defect = batch.take_defect();
                 if let Some((k, _)) = failed {
@@ -865,15 +867,17 @@ impl StreamedRun {
         self.for_each_line(|_, row, sample| each(row, sample))
     }
 
+    /// Hands the rows to `consume` in batches, in order (see
+    /// [`RunReader::for_each_batch`]); returns the number of rows.
+    pub fn for_each_batch(self, consume: impl FnMut(Batch)) -> anyhow::Result<usize> {
+        Ok(self.reader.for_each_batch(consume)?)
+    }
+
     /// [`StreamedRun::for_each`] with each row's line number.
     pub fn for_each_line(self, mut each: impl FnMut(usize, &Row, &GyroSample)) -> anyhow::Result<usize> {
-        let mut prev_time_s = None;
         let rows = self.reader.for_each_batch(|batch| {
             for i in 0..batch.len() {
-                let row = batch.row(i);
-                let sample = gyro_sample(prev_time_s, row.time_s, row.rate_dph, &row.readings_c());
-                prev_time_s = Some(row.time_s);
-                each(batch.line(i), &row, &sample);
+                each(batch.line(i), &batch.row(i), &batch.sample(i));
             }
         })?;
         Ok(rows)
