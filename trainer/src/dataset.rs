@@ -703,4 +703,25 @@ mod tests {
         // Seven of the second-order set's eight inputs are the first-order set's.
         assert_eq!(pair.slots.len(), 9);
     }
+
+    #[test]
+    fn the_default_fit_streamed_in_chunks_writes_the_blob_of_the_fit_on_runs_read_line_by_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = simulated_run(&dir, 1.0, 11);
+        let opts = crate::fit::FitOptions {
+            progress: false,
+            ..crate::fit::FitOptions::default()
+        };
+        let streamed = RunFiles::new(std::slice::from_ref(&path));
+        let none = RunFiles::new(&[]);
+        let from_files = crate::fit::fit(&streamed, &none, &opts).unwrap();
+        let runs = [Run::load(&path).unwrap()];
+        let no_runs: [Run; 0] = [];
+        let in_memory = crate::fit::fit(&runs[..], &no_runs[..], &opts).unwrap();
+        assert!(from_files.bank.is_some(), "the default is the lag bank");
+        assert_eq!(
+            crate::blobfile::encode_model(&from_files.model).unwrap(),
+            crate::blobfile::encode_model(&in_memory.model).unwrap()
+        );
+    }
 }
