@@ -321,7 +321,11 @@ pub fn parse_chunk(columns: &Columns, text: Vec<u8>, first_line: usize) -> Batch
     // chunk, and one per line only when it fails.
     let all_utf8 = std::str::from_utf8(&text).is_ok();
     let mut batch = Batch::new(columns);
-    batch.rows.reserve(text.len() / 40);
+    // Room for every row without a reallocation (a row is at least
+    // `count` numbers and separators, two bytes each).
+    let most_rows = text.len() / (2 * columns.count).max(1) + 1;
+    batch.rows.reserve(most_rows);
+    batch.temps.reserve(most_rows * batch.stride);
     let mut defect = None;
     let mut pos = 0;
     let mut line = first_line;
