@@ -292,8 +292,8 @@ fn parse_row_fast(columns: &Columns, line: &[u8]) -> Option<Row> {
     let in_range = |r: f64| r.abs() <= record::MAX_ABS_RATE_DPH;
     let temp_fault = match optional(columns.temp_fault)? {
         None => false,
-        Some(f) if f == 0.0 => false,
-        Some(f) if f == 1.0 => true,
+        Some(0.0) => false,
+        Some(1.0) => true,
         Some(_) => return None,
     };
     let mut temps_c = [None; THERMOMETERS];
