@@ -7,10 +7,11 @@
 //! averages; blocks with under half their nominal samples are dropped.
 
 use std::path::PathBuf;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, FeatureSet, Flags, GyroSample, MAX_INPUTS};
 
+use crate::chunked::Batch;
 use crate::metrics::BinIndex;
 use crate::run::{Run, RunReader, StreamedRun};
 
@@ -243,8 +244,10 @@ impl BlockBuilder {
             self.flush();
             self.current_block = Some(block);
         }
-        let head = self.configs[0];
-        let frame = self.compensator.features(&head, &self.config, sample);
+        let Some(head) = self.configs.first() else {
+            return;
+        };
+        let frame = self.compensator.features(head, &self.config, sample);
         let unusable = Flags::WARMING_UP | Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL;
         let Some(computed) = frame.features.filter(|_| frame.flags.0 & unusable.0 == 0) else {
             return;
@@ -467,14 +470,45 @@ impl RunFiles {
                     .ok_or_else(|| anyhow::anyhow!("feature configurations grouped wrongly"))
             })
             .collect::<anyhow::Result<Vec<_>>>()?;
+        // The first builder runs here with the run's sums; every other on a
+        // thread of its own, fed the same batches (each builder's features
+        // are sequential, but the builders are independent).
+        let mut rest = builders.split_off(1.min(builders.len()));
         let mut rate_sum = 0.0f64;
-        let rows = run.for_each(|row, sample| {
-            let target = row.rate_dph - row.ref_dph.unwrap_or(0.0);
-            rate_sum += row.rate_dph;
-            for b in &mut builders {
-                b.push(row.time_s, sample, target);
+        let rows = std::thread::scope(|scope| -> anyhow::Result<usize> {
+            let mut feeds = Vec::new();
+            let mut workers = Vec::new();
+            for builder in &mut rest {
+                let (tx, rx) = std::sync::mpsc::sync_channel::<Arc<Batch>>(4);
+                feeds.push(tx);
+                workers.push(scope.spawn(move || {
+                    for batch in rx {
+                        feed(builder, &batch);
+                    }
+                }));
             }
+            let rows = run.for_each_batch(|batch| {
+                let batch = Arc::new(batch);
+                for tx in &feeds {
+                    // A worker stops only by panicking, reported at its join.
+                    let _ = tx.send(Arc::clone(&batch));
+                }
+                for i in 0..batch.len() {
+                    rate_sum += batch.rate_dph(i);
+                }
+                if let Some(first) = builders.first_mut() {
+                    feed(first, &batch);
+                }
+            });
+            drop(feeds);
+            for worker in workers {
+                worker
+                    .join()
+                    .map_err(|_| anyhow::anyhow!("a block-means thread panicked"))?;
+            }
+            rows
         })?;
+        builders.append(&mut rest);
         if rows < 2 {
             anyhow::bail!("{}: run has {rows} data rows; at least 2 are needed", path.display());
         }
@@ -488,6 +522,14 @@ impl RunFiles {
         out.into_iter()
             .map(|b| b.ok_or_else(|| anyhow::anyhow!("a feature configuration was not built")))
             .collect()
+    }
+}
+
+/// Pushes the rows of `batch` into `builder`.
+fn feed(builder: &mut BlockBuilder, batch: &Batch) {
+    for i in 0..batch.len() {
+        let target = batch.rate_dph(i) - batch.ref_dph(i).unwrap_or(0.0);
+        builder.push(batch.time_s(i), &batch.sample(i), target);
     }
 }
 
@@ -660,5 +702,26 @@ mod tests {
         let pair = BlockBuilder::new(0, &[configs[0], configs[2]], 1.0, 1.0).unwrap();
         // Seven of the second-order set's eight inputs are the first-order set's.
         assert_eq!(pair.slots.len(), 9);
+    }
+
+    #[test]
+    fn the_default_fit_streamed_in_chunks_writes_the_blob_of_the_fit_on_runs_read_line_by_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = simulated_run(&dir, 1.0, 11);
+        let opts = crate::fit::FitOptions {
+            progress: false,
+            ..crate::fit::FitOptions::default()
+        };
+        let streamed = RunFiles::new(std::slice::from_ref(&path));
+        let none = RunFiles::new(&[]);
+        let from_files = crate::fit::fit(&streamed, &none, &opts).unwrap();
+        let runs = [Run::load(&path).unwrap()];
+        let no_runs: [Run; 0] = [];
+        let in_memory = crate::fit::fit(&runs[..], &no_runs[..], &opts).unwrap();
+        assert!(from_files.bank.is_some(), "the default is the lag bank");
+        assert_eq!(
+            crate::blobfile::encode_model(&from_files.model).unwrap(),
+            crate::blobfile::encode_model(&in_memory.model).unwrap()
+        );
     }
 }

@@ -11,11 +11,12 @@ use serde::Serialize;
 
 use crate::allan::{self, AllanDeviation};
 use crate::blobfile::read_model;
+use crate::chunked::Batch;
 use crate::diagnose::RunDiagnosis;
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
 use crate::output::{self, Existing, Output};
 use crate::run::{Run, RunReader, StreamedRun};
-use crate::{input, text};
+use crate::{decimal, input, text};
 
 /// How many samples carried each flag.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -372,8 +373,8 @@ pub struct Compensation {
 /// input row.
 pub fn compensate_reader(
     model: Option<&Model>,
-    mut reader: RunReader,
-    out: &mut impl Write,
+    reader: RunReader,
+    out: &mut (impl Write + Send),
 ) -> anyhow::Result<Compensation> {
     reader.require_thermometers(model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask()))?;
     let config = CompensatorConfig::for_nominal_period_s(reader.nominal_period_s());
@@ -389,26 +390,58 @@ pub fn compensate_reader(
         writeln!(out, "{line}").map_err(io)?;
     }
     writeln!(out, "{}{}", reader.header_line(), record::COMPENSATED_COLUMNS).map_err(io)?;
-    let mut prev_time_s = None;
-    while let Some(raw) = reader.next_row()? {
-        let sample = raw.sample(prev_time_s);
-        prev_time_s = Some(raw.row.time_s);
-        let o = compensator.process(model, &config, &sample);
-        writeln!(
-            out,
-            "{},{},{},{}",
-            raw.text,
-            o.bias_dph,
-            o.rate_comp_dph,
-            o.flags.bits()
-        )
-        .map_err(io)?;
-        c.flagged.add(o.flags);
-        c.compensated += usize::from(!o.flags.contains(Flags::NO_VALID_MODEL));
-        c.diagnosis.push(raw.line, &raw.row);
-        c.rows += 1;
-    }
+    // The rows are parsed on every core, compensated in order here, and
+    // formatted and written on a thread of their own, a batch at a time.
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(Batch, Vec<CompensatedSample>)>(4);
+    std::thread::scope(|scope| {
+        let writer = scope.spawn(move || -> std::io::Result<()> {
+            let mut text = Vec::new();
+            for (batch, outputs) in rx {
+                text.clear();
+                for (i, o) in outputs.iter().enumerate() {
+                    write_compensated_row(&mut text, batch.line_text(i), o);
+                }
+                out.write_all(&text)?;
+            }
+            Ok(())
+        });
+        let mut writing = true;
+        let read = reader.for_each_batch(|batch| {
+            let mut outputs = Vec::with_capacity(batch.len());
+            for i in 0..batch.len() {
+                let row = batch.row(i);
+                let o = compensator.process(model, &config, &batch.sample(i));
+                c.flagged.add(o.flags);
+                c.compensated += usize::from(!o.flags.contains(Flags::NO_VALID_MODEL));
+                c.diagnosis.push(batch.line(i), &row);
+                c.rows += 1;
+                outputs.push(o);
+            }
+            // A failed write stops the writer; its error is reported below.
+            writing = writing && tx.send((batch, outputs)).is_ok();
+        });
+        drop(tx);
+        let written = writer
+            .join()
+            .map_err(|_| anyhow::anyhow!("the output writer thread panicked"))?;
+        read?;
+        written.map_err(io)
+    })?;
     Ok(c)
+}
+
+/// Appends one compensated output row: the input line as read, then
+/// `bias_dph`, `rate_comp_dph` and `flags` and a `\n`, byte for byte what
+/// [`record::write_compensated_row`] (the firmware replay's writer) writes.
+pub fn write_compensated_row(out: &mut Vec<u8>, input_line: &[u8], sample: &CompensatedSample) {
+    out.extend_from_slice(input_line);
+    out.push(b',');
+    decimal::push_f32(out, sample.bias_dph);
+    out.push(b',');
+    decimal::push_f32(out, sample.rate_comp_dph);
+    out.push(b',');
+    decimal::push_u8(out, sample.flags.bits());
+    out.push(b'\n');
 }
 
 /// Streams `input` through the compensator into `output` (replacing it;
@@ -451,4 +484,35 @@ pub fn compensate_command(
     require_compensated(run, c.rows, c.compensated, &c.diagnosis, mask, allow_uncompensated)?;
     out.commit()?;
     Ok(c)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compensated_rows_are_written_byte_for_byte_as_the_firmware_replay_writes_them() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let mut fast = Vec::new();
+        let mut shared = String::new();
+        for i in 0..200_000u32 {
+            let bias_dph = match i % 4 {
+                0 => f32::from_bits(rng.random()),
+                1 => rng.random_range(-1.0f32..1.0),
+                2 => (rng.random_range(-4096i32..4096) as f32) / 512.0,
+                _ => rng.random_range(-1e6f32..1e6),
+            };
+            let sample = CompensatedSample {
+                bias_dph,
+                rate_comp_dph: 9.75 - bias_dph,
+                temp_c: 20.0,
+                flags: Flags(rng.random()),
+            };
+            let line = format!("{i}.01,9.75,20.0078125");
+            write_compensated_row(&mut fast, line.as_bytes(), &sample);
+            record::write_compensated_row(&mut shared, &line, &sample).unwrap();
+        }
+        assert_eq!(String::from_utf8(fast).unwrap(), shared);
+    }
 }

@@ -13,7 +13,9 @@
 
 pub mod allan;
 pub mod blobfile;
+pub mod chunked;
 pub mod dataset;
+pub mod decimal;
 pub mod diagnose;
 pub mod evaluate;
 pub mod fit;

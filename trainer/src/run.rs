@@ -20,6 +20,7 @@ use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row, RowErrorKind};
 use rbf_core::{CompensatorConfig, GyroSample};
 
+use crate::chunked::{self, Batch, Defect};
 use crate::limits::{MAX_COLUMNS, MAX_LINE_BYTES, MAX_PREAMBLE_BYTES, bytes};
 use crate::sampling::{self, PeriodSource, PeriodWatch};
 use crate::{input, text};
@@ -71,6 +72,8 @@ pub struct RunReader {
     nominal_period_s: f64,
     /// Checks the steps of rows read after the look-ahead.
     watch: Option<PeriodWatch>,
+    /// Text per parsing job of [`RunReader::for_each_batch`].
+    chunk_bytes: usize,
 }
 
 impl std::fmt::Debug for RunReader {
@@ -233,6 +236,7 @@ impl RunReader {
             ahead: VecDeque::new(),
             nominal_period_s: 1.0,
             watch: None,
+            chunk_bytes: chunked::CHUNK_BYTES,
         };
         reader.read_ahead(&metadata_rates)?;
         Ok(reader)
@@ -291,6 +295,12 @@ impl RunReader {
         }
         self.watch = Some(watch);
         Ok(())
+    }
+
+    /// Sets the text per parsing job of [`RunReader::for_each_batch`] (at
+    /// least 1 byte; the tests cut small runs into many chunks with it).
+    pub fn set_chunk_bytes(&mut self, bytes: usize) {
+        self.chunk_bytes = bytes.max(1);
     }
 
     /// The file being read (`-`: standard input).
@@ -477,6 +487,94 @@ impl RunReader {
         }
     }
 
+    /// Hands every remaining data row to `consume` in batches, in file
+    /// order, parsed on every core ([`crate::chunked`]) with the checks and
+    /// the error messages of [`RunReader::next_row`]: a batch holds only rows
+    /// that passed, and the error of the first that did not follows it.
+    /// Returns the number of rows handed out.
+    pub fn for_each_batch(mut self, mut consume: impl FnMut(Batch)) -> Result<usize, RunError> {
+        let mut rows = 0;
+        if !self.ahead.is_empty() {
+            let mut first = Batch::new(&self.columns);
+            for raw in std::mem::take(&mut self.ahead) {
+                first.push(raw.line, &raw.row, raw.text.as_bytes());
+                self.last_line_out = raw.line;
+            }
+            first.set_previous_time(None);
+            rows += first.len();
+            consume(first);
+        }
+        let mut source: Box<dyn BufRead + Send> = Box::new(std::io::empty());
+        std::mem::swap(&mut source, &mut self.source);
+        let first_line = self.line_no + 1;
+        let columns = self.columns;
+        let path = self.path.clone();
+        chunked::for_each_batch(
+            source.as_mut(),
+            &columns,
+            first_line,
+            self.chunk_bytes,
+            parse_workers(),
+            |mut batch| {
+                batch.set_previous_time(self.last_time_s);
+                let failed = self.check_batch(&batch);
+                let defect = batch.take_defect();
+                if let Some((k, _)) = failed {
+                    batch.truncate(k);
+                }
+                rows += batch.len();
+                if !batch.is_empty() {
+                    self.last_line_out = batch.line(batch.len() - 1);
+                }
+                consume(batch);
+                if let Some((_, e)) = failed {
+                    return Err(e);
+                }
+                match defect {
+                    None => Ok(()),
+                    Some((line, defect, text)) => {
+                        self.line_no = line;
+                        self.line = text;
+                        Err(match defect {
+                            Defect::TooLong => self.error_at(line, too_long()),
+                            Defect::NotUtf8 => self.error_at(line, "line is not valid UTF-8 text".into()),
+                            Defect::Refused(e) => self.row_error(e),
+                        })
+                    }
+                }
+            },
+            |line, error| io_or_utf8(&path, line, error),
+        )?;
+        Ok(rows)
+    }
+
+    /// The first row of `batch` that breaks the strictly increasing time or
+    /// the sample-rate watch, with its error; the time of the last good row
+    /// is kept for the next batch.
+    fn check_batch(&mut self, batch: &Batch) -> Option<(usize, RunError)> {
+        for k in 0..batch.len() {
+            let time_s = batch.time_s(k);
+            let line = batch.line(k);
+            if let Some(last) = self.last_time_s {
+                if time_s <= last {
+                    let message = format!(
+                        "column time_s (field {}): {} does not increase (previous row {last})",
+                        self.columns.time_s + 1,
+                        time_s
+                    );
+                    return Some((k, self.error_at(line, message)));
+                }
+                if let Some(watch) = &mut self.watch
+                    && let Err((start, m)) = watch.push(time_s - last, line)
+                {
+                    return Some((k, self.error_at(start, m)));
+                }
+            }
+            self.last_time_s = Some(time_s);
+        }
+        None
+    }
+
     /// The error for a refused row, naming its column and quoting its field
     /// (the row's text is in `self.line`).
     fn row_error(&self, e: record::RowError) -> RunError {
@@ -508,6 +606,11 @@ impl RunReader {
         };
         self.error_at(self.line_no, message)
     }
+}
+
+/// Threads that parse a run's chunks: one per core.
+fn parse_workers() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 /// What one line of the data section is.
@@ -764,61 +867,21 @@ impl StreamedRun {
         self.for_each_line(|_, row, sample| each(row, sample))
     }
 
+    /// Hands the rows to `consume` in batches, in order (see
+    /// [`RunReader::for_each_batch`]); returns the number of rows.
+    pub fn for_each_batch(self, consume: impl FnMut(Batch)) -> anyhow::Result<usize> {
+        Ok(self.reader.for_each_batch(consume)?)
+    }
+
     /// [`StreamedRun::for_each`] with each row's line number.
     pub fn for_each_line(self, mut each: impl FnMut(usize, &Row, &GyroSample)) -> anyhow::Result<usize> {
-        let mut prev_time_s = None;
-        let mut rows = 0;
-        for_each_row_batch(self.reader, |batch| {
-            for (line, row) in batch {
-                let sample = gyro_sample(prev_time_s, row.time_s, row.rate_dph, &row.readings_c());
-                prev_time_s = Some(row.time_s);
-                rows += 1;
-                each(*line, row, &sample);
+        let rows = self.reader.for_each_batch(|batch| {
+            for i in 0..batch.len() {
+                each(batch.line(i), &batch.row(i), &batch.sample(i));
             }
         })?;
         Ok(rows)
     }
-}
-
-/// Parses `reader`'s rows on a second thread in batches and hands each batch
-/// (line number, row) to `consume` on this one, so parsing and feature
-/// computation overlap.
-fn for_each_row_batch(mut reader: RunReader, mut consume: impl FnMut(&[(usize, Row)])) -> anyhow::Result<()> {
-    const BATCH: usize = 4096;
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<(usize, Row)>>(4);
-    // Consumed batches go back to the parser: a handful of buffers, warm in
-    // cache, instead of an allocation per batch.
-    let (recycle_tx, recycle_rx) = std::sync::mpsc::channel::<Vec<(usize, Row)>>();
-    std::thread::scope(|scope| {
-        let parser = scope.spawn(move || -> Result<(), RunError> {
-            loop {
-                let mut batch = recycle_rx.try_recv().unwrap_or_else(|_| Vec::with_capacity(BATCH));
-                batch.clear();
-                while batch.len() < BATCH {
-                    match reader.next_parsed()? {
-                        Some(row) => batch.push(row),
-                        None => break,
-                    }
-                }
-                let last = batch.len() < BATCH;
-                if !batch.is_empty() && tx.send(batch).is_err() {
-                    return Ok(());
-                }
-                if last {
-                    return Ok(());
-                }
-            }
-        });
-        for batch in rx {
-            consume(&batch);
-            // The parser may have finished: then the buffer is simply dropped.
-            let _ = recycle_tx.send(batch);
-        }
-        parser
-            .join()
-            .map_err(|_| anyhow::anyhow!("the run parser thread panicked"))?
-            .map_err(anyhow::Error::from)
-    })
 }
 
 #[cfg(test)]
@@ -866,5 +929,144 @@ mod tests {
         let not_utf8: &'static [u8] = b"time_s,rate_dph\n0.00,1.5\n0.01,\xff\n";
         let err = RunReader::from_reader(Path::new("run.csv"), BufReader::new(not_utf8)).unwrap_err();
         assert_eq!(err.to_string(), "run.csv:3: line is not valid UTF-8 text");
+    }
+
+    /// Every row and the error of a run read line by line ([`RunReader::next_parsed`]).
+    fn line_by_line(text: &[u8]) -> (Vec<(usize, Row)>, Option<String>) {
+        let source = BufReader::with_capacity(64, std::io::Cursor::new(text.to_vec()));
+        let mut reader = match RunReader::from_reader(Path::new("run.csv"), source) {
+            Ok(r) => r,
+            Err(e) => return (Vec::new(), Some(e.to_string())),
+        };
+        let mut out = Vec::new();
+        loop {
+            match reader.next_parsed() {
+                Ok(Some(row)) => out.push(row),
+                Ok(None) => return (out, None),
+                Err(e) => return (out, Some(e.to_string())),
+            }
+        }
+    }
+
+    /// The same by [`RunReader::for_each_batch`] in chunks of `chunk_bytes`.
+    fn chunked(text: &[u8], chunk_bytes: usize) -> (Vec<(usize, Row)>, Option<String>) {
+        let source = BufReader::with_capacity(64, std::io::Cursor::new(text.to_vec()));
+        let mut reader = match RunReader::from_reader(Path::new("run.csv"), source) {
+            Ok(r) => r,
+            Err(e) => return (Vec::new(), Some(e.to_string())),
+        };
+        reader.set_chunk_bytes(chunk_bytes);
+        let mut out = Vec::new();
+        let result = reader.for_each_batch(|batch| {
+            for i in 0..batch.len() {
+                out.push((batch.line(i), batch.row(i)));
+            }
+        });
+        (out, result.err().map(|e| e.to_string()))
+    }
+
+    /// A run of `rows` rows at 10 Hz with a known set of columns, then `edit` applied to its text.
+    fn generated(rows: usize, header: &str, seed: u64) -> Vec<u8> {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        let mut text = format!("# sample_rate_hz: 10\n{header}\n").into_bytes();
+        let columns = header.split(',').count();
+        for i in 0..rows {
+            let mut fields = vec![format!("{:.2}", i as f64 * 0.1)];
+            for c in 1..columns {
+                let v: f64 = rng.random_range(-50.0..50.0);
+                fields.push(match (c + i) % 5 {
+                    0 => format!("{v:.7}"),
+                    1 => format!("{v:e}"),
+                    2 => format!(" {v:.3}\t"),
+                    3 => format!("{}", v as f32),
+                    _ => format!("{v}"),
+                });
+            }
+            text.extend_from_slice(fields.join(",").as_bytes());
+            text.extend_from_slice(if i % 7 == 0 { b"\r\n" } else { b"\n" });
+            if i % 50 == 3 {
+                text.extend_from_slice(b"# note\n\n");
+            }
+        }
+        text
+    }
+
+    #[test]
+    fn the_chunked_reader_gives_the_rows_and_the_errors_of_the_line_reader() {
+        use rand::{Rng, SeedableRng};
+        let headers = [
+            "time_s,rate_dph,temp_c",
+            "time_s,rate_dph,temp_c,ref_dph",
+            "rate_dph,temp_a,time_s,note,temp_c,temp_h",
+        ];
+        // Edits that break a file somewhere, each in its own way.
+        let damage: [&[u8]; 12] = [
+            b"1.2.3",
+            b"",
+            b"\xff\xfe",
+            b"nan",
+            b"1e999",
+            b"#",
+            b"\n",
+            b",",
+            b"0",
+            b"-",
+            b"4e6",
+            b"\r\r",
+        ];
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let mut cases = 0;
+        for (h, header) in headers.iter().enumerate() {
+            for seed in 0..12u64 {
+                let mut text = generated(400, header, seed + 100 * h as u64);
+                if seed > 0 {
+                    let edits = 1 + seed as usize % 3;
+                    for _ in 0..edits {
+                        let at = rng.random_range(text.len() / 3..text.len());
+                        let len = rng.random_range(0..4).min(text.len() - at);
+                        let with = damage[rng.random_range(0..damage.len())];
+                        text.splice(at..at + len, with.iter().copied());
+                    }
+                }
+                if seed == 5 {
+                    // A line past the limit, mid-file.
+                    let at = text.len() / 2;
+                    text.splice(at..at, std::iter::repeat_n(b'7', MAX_LINE_BYTES + 3));
+                }
+                if seed == 6 {
+                    text.pop();
+                }
+                let expected = line_by_line(&text);
+                for chunk_bytes in [1, 97, 4096, chunked::CHUNK_BYTES] {
+                    assert_eq!(
+                        chunked(&text, chunk_bytes),
+                        expected,
+                        "header {header}, seed {seed}, chunks of {chunk_bytes} bytes"
+                    );
+                }
+                cases += usize::from(expected.1.is_some());
+            }
+        }
+        assert!(
+            cases >= 20,
+            "only {cases} files were refused: the edits test too little"
+        );
+    }
+
+    #[test]
+    fn a_non_increasing_time_and_a_rate_change_are_refused_at_their_line_on_both_paths() {
+        let mut text = generated(300, "time_s,rate_dph,temp_c", 1);
+        text.extend_from_slice(b"29.9,1,2\n");
+        let (_, error) = chunked(&text, 128);
+        assert_eq!(error, line_by_line(&text).1);
+        assert!(error.unwrap().contains("does not increase"));
+        let mut text = generated(300, "time_s,rate_dph,temp_c", 2);
+        for i in 0..200 {
+            text.extend_from_slice(format!("{},1,2\n", 40.0 + i as f64).as_bytes());
+        }
+        let expected = line_by_line(&text);
+        assert!(expected.1.is_some(), "a 1-Hz stretch in a 10-Hz run is refused");
+        assert_eq!(chunked(&text, 128), expected);
     }
 }

@@ -1,6 +1,8 @@
-//! `cargo xtask bench-large-run`: `trainer fit` against a pandas +
-//! scikit-learn pipeline doing the same job on a 20-h, 100-Hz chamber run
-//! (7.2 million rows, 277 MB), one after the other, with peak memory.
+//! `cargo xtask bench-large-run`: `trainer fit` and `trainer compensate`
+//! against pandas pipelines doing the same jobs on a 20-h, 100-Hz chamber
+//! run (7.2 million rows, 277 MB), one after the other, with peak memory,
+//! throughput, the floor (one pass that only finds line ends) and the peak
+//! memory of a fit on a run 10× shorter (memory flat in the run length).
 
 use std::process::Command;
 
@@ -12,6 +14,8 @@ use crate::{python_venv, run, workspace_root};
 pub const HOURS: &str = "20";
 /// Its sample rate, Hz.
 pub const RATE_HZ: &str = "100";
+/// Hours of the short run whose fit's peak memory the long run's is compared with.
+pub const SHORT_HOURS: &str = "2";
 
 /// Generates the run (once), then runs bench/large-run/run.py, which prints both.
 pub fn bench_large_run() -> anyhow::Result<()> {
@@ -21,10 +25,14 @@ pub fn bench_large_run() -> anyhow::Result<()> {
     run("cargo", &["build", "--release", "--quiet", "--package", "trainer"])?;
     let trainer = root.join("target/release/trainer");
     let csv = dir.join("run_20h_100hz.csv");
-    if !csv.exists() {
-        let path = csv.to_str().context("UTF-8 path")?;
+    let short = dir.join("run_2h_100hz.csv");
+    for (path, hours) in [(&csv, HOURS), (&short, SHORT_HOURS)] {
+        if path.exists() {
+            continue;
+        }
+        let path = path.to_str().context("UTF-8 path")?;
         let status = Command::new(&trainer)
-            .args(["simulate", "--profile", "ifog", "--hours", HOURS, "--rate-hz", RATE_HZ])
+            .args(["simulate", "--profile", "ifog", "--hours", hours, "--rate-hz", RATE_HZ])
             .args(["--seed", "11", "-o", path])
             .status()
             .context("cannot run trainer simulate")?;
@@ -38,6 +46,7 @@ pub fn bench_large_run() -> anyhow::Result<()> {
         .arg(&trainer)
         .arg(&csv)
         .arg(&dir)
+        .arg(&short)
         .status()
         .context("cannot run bench/large-run/run.py")?;
     if !status.success() {
