@@ -151,9 +151,9 @@ impl Default for FitOptions {
 /// The second-order multi-scale set must validate at least this much better
 /// (RMS ratio to the first-order set) to be chosen (`--features multiscale-validated`). The ΔT₃²
 /// term is fitted on one training ramp rate and extrapolated to others: where
-/// it does not clearly explain the training run (the bundled IFOG run: ratio
-/// 0.99) it extrapolated badly (78 % instead of 89 % on a random profile),
-/// where it does (cycle runs: 0.40 … 0.64) it gained up to 8 points.
+/// it does not clearly explain the training run it extrapolated badly, where
+/// it does (cycle runs) it gained (figures: docs/benchmarks.md, "Measurements
+/// behind design choices").
 pub const SECOND_ORDER_GAIN: f64 = 0.9;
 
 /// Coil lags L tried for [`FeatureSet::MultiScaleLagged`], minutes: the
@@ -178,8 +178,8 @@ fn best_second_order_variant<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     opts: &FitOptions,
     progress: &Progress,
 ) -> anyhow::Result<(Model, rbf::RbfChoice)> {
-    // One width: all six cost the 20-h run's fit 15 % more (`cargo xtask
-    // bench-large-run`) for half a point on one benchmark gyro.
+    // One width: all six make the 20-h run's fit noticeably slower (`cargo
+    // xtask bench-large-run`) for a marginal gain on one benchmark gyro.
     let (window, width) = (second.1.rate_window_s, [second.1.width]);
     let plain_and_lagged = || {
         std::iter::once(FeatureSet::MultiScaleSecondOrder)

@@ -104,10 +104,10 @@ pub fn fit<T: RunSet + ?Sized>(
 ) -> anyhow::Result<(Model, SvrChoice)> {
     let (features, selection) = choose_inputs(train, opts, progress)?;
     // Multi-point inputs get a linear part: gradients grow in proportion to
-    // the ramp rate, and it carries the model past the training ramps
-    // (bench-accuracy: three-point 85.5/81.9 % instead of 69/69 %). On the
+    // the ramp rate, and it carries the model past the training ramps. On the
     // single-point (T, ΔT, T×ΔT) it extrapolates worse than the paper's pure
-    // ε-SVR (72.0/55.8 % mean instead of 77.0/64.8 %), so that stays pure.
+    // ε-SVR, so that stays pure (figures: docs/benchmarks.md, "Measurements
+    // behind design choices").
     let partially_linear = selection.is_some();
     let set = features.set;
     let window = features.rate_window_s;

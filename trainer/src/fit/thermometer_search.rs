@@ -8,8 +8,9 @@
 //! sensors that *lead* the fiber coil, such as chamber air or the mounting
 //! plate: on a 1 °C/min cycle their lead stands in for the Shupe rate term,
 //! but the lead grows with the ramp rate, so a model on them does not carry
-//! to other rates (simulated 8-thermometer runs, trained on a 1 °C/min cycle:
-//! 53 % on a 5 °C/min cycle, 40 % on a random profile), and the candidates
+//! to other rates (simulated 8-thermometer runs trained on a 1 °C/min cycle
+//! lose much of their improvement on a 5 °C/min cycle and a random profile;
+//! figures: docs/benchmarks.md), and the candidates
 //! that pass are often near copies of one another.
 //!
 //! Here every non-empty subset of the thermometers (at most 255) is scored
