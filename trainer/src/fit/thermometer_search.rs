@@ -28,7 +28,8 @@ use rbf_core::MAX_INPUTS;
 use super::Progress;
 use super::linalg::{FeatureRow, GramStats, InputShape, design, farthest_points, ridge_solve};
 use super::rbf::{PARSIMONY, parallel_map};
-use super::svr_data::{SvrData, cluster_rms};
+use super::scoring::cluster_rms;
+use super::svr_data::SvrData;
 
 /// Gaussian centres of the stand-in network.
 const CENTRES: usize = 32;
