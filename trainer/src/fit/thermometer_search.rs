@@ -19,7 +19,7 @@
 //! over a few widths and ridge strengths, the best kept. Every gradient
 //! between a subset's thermometers lies in the span of that linear part, so
 //! a subset stands for its temperatures and all their gradients. The
-//! smallest subset within [`PARSIMONY`] of the lowest validation error
+//! smallest subset within `PARSIMONY` of the lowest validation error
 //! becomes the SVR's inputs.
 
 use nalgebra::DVector;
