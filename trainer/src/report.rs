@@ -968,7 +968,7 @@ pub fn write_report(
     }
     md.push_str(
         "\nClamped samples: inputs outside the model's training range, held at its edge \
-         (flag 1); the model extrapolates there no further than the edge.\n",
+         (flag 1).\n",
     );
     let surface = SurfacePlot {
         model,
