@@ -1,7 +1,8 @@
 //! An all-`f32` exponential for the Gaussian basis.
 //!
 //! `libm::expf` follows musl and computes in `f64`, which is soft-float on a
-//! Cortex-M4F (single-precision FPU): about 60 % of a 32-centre evaluation.
+//! Cortex-M4F (single-precision FPU) and dominated a 32-centre evaluation
+//! (docs/benchmarks.md, "Measurements behind design choices").
 //! [`exp`] needs only f32 operations. Being plain IEEE-754 arithmetic in a
 //! fixed order (Rust never contracts to FMA), it gives the same bits on the
 //! host and the target.

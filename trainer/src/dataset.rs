@@ -125,7 +125,7 @@ struct Slot {
 /// Builds the block means of one run sample by sample: the streaming core of
 /// [`sample_block_means`] and [`RunFiles`]. One compensator computes the features of
 /// the first configuration; configurations that share its filters
-/// ([`shares_filters`]: the multi-scale sets at the same windows) take them
+/// (`shares_filters`: the multi-scale sets at the same windows) take them
 /// converted. An input two sets share (same name: the same computation) is
 /// summed once, so a second multi-scale set costs only its own inputs.
 pub struct BlockBuilder {

@@ -164,7 +164,7 @@ impl Candidate {
 
 /// Correlations of every candidate with the bias: `r[i][j]` for the
 /// thermometer (i == j) or the gradient T_i − T_j (i < j; symmetric, so
-/// r[j][i] = −r[i][j]).
+/// `r[j][i] = −r[i][j]`).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct CorrelationTable {
     /// Column names of the thermometers, in the matrix's order.

@@ -30,4 +30,5 @@ pub mod report;
 pub mod run;
 pub mod sampling;
 pub mod simulate;
+pub mod summary;
 pub mod text;

@@ -3,9 +3,11 @@
 //! Per run: raw and compensated rate − reference (10-s means) with the loop
 //! temperature; the measured bias (10-s means) against the loop temperature,
 //! coloured by ramp direction, with the model overlaid, and the residual
-//! against temperature; the Allan deviation before/after on log-log axes. For the
-//! model: its bias over T and a steady ramp rate ΔT (every ΔT window reads the
-//! same rate on a steady ramp). Plus report.json and report.md.
+//! against temperature; the Allan deviation before/after on log-log axes with
+//! shaded ±1-σ confidence bands. For the model: its bias over T and a steady
+//! ramp rate ΔT (every ΔT window reads the same rate on a steady ramp), with a
+//! colour bar. Plus report.json and report.md (the model, and per run its
+//! figures and how many samples were clamped).
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -19,7 +21,7 @@ use crate::diagnose::RunDiagnosis;
 use crate::evaluate::{Evaluator, RunEvaluation, require_compensated, require_evaluable};
 use crate::output::{self, Existing, Output};
 use crate::run::{RunReader, StreamedRun};
-use crate::{input, text};
+use crate::{input, summary, text};
 
 /// Plot size, pixels.
 const SIZE: (u32, u32) = (1000, 560);
@@ -290,6 +292,8 @@ where
 struct AllanPlot<'a> {
     title: String,
     evaluation: &'a RunEvaluation,
+    /// Length of the run, s (the confidence bands' T).
+    duration_s: f64,
 }
 
 impl Figure for AllanPlot<'_> {
@@ -297,7 +301,7 @@ impl Figure for AllanPlot<'_> {
     where
         DB::ErrorType: 'static,
     {
-        draw_allan(root, &self.title, self.evaluation)
+        draw_allan(root, &self.title, self.evaluation, self.duration_s)
     }
 }
 
@@ -330,6 +334,51 @@ fn colour(x: f64) -> RGBColor {
     )
 }
 
+/// Width of the colour bar beside a plot whose colour carries a value, pixels.
+const COLOUR_BAR_PX: u32 = 120;
+
+/// Splits `root` into the plot's area and the colour bar's, draws the bar
+/// (the [`colour`] scale from `lo` at the bottom to `hi` at the top, with an
+/// axis labelled `label`) and returns the plot's area.
+fn with_colour_bar<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    lo: f64,
+    hi: f64,
+    label: &str,
+) -> Result<DrawingArea<DB, Shift>, Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    let width = root.dim_in_pixel().0;
+    let (plot, bar) = root.split_horizontally(width.saturating_sub(COLOUR_BAR_PX));
+    let (lo, hi) = if hi > lo { (lo, hi) } else { (lo - 0.5, lo + 0.5) };
+    let mut chart = ChartBuilder::on(&bar)
+        .margin_top(46)
+        .margin_bottom(52)
+        .margin_right(8)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..1.0, lo..hi)?;
+    chart
+        .configure_mesh()
+        .disable_x_axis()
+        .disable_mesh()
+        .y_desc(label)
+        .label_style(("sans-serif", 13))
+        .axis_desc_style(("sans-serif", 14))
+        .y_label_formatter(&|v| format!("{v:.3}"))
+        .draw()?;
+    const STEPS: usize = 100;
+    let step = (hi - lo) / STEPS as f64;
+    chart.draw_series((0..STEPS).map(|k| {
+        let from = lo + step * k as f64;
+        Rectangle::new(
+            [(0.0, from), (1.0, from + step)],
+            colour((k as f64 + 0.5) / STEPS as f64).filled(),
+        )
+    }))?;
+    Ok(plot)
+}
+
 /// Multi-scale models: a steady ramp (all ΔT windows equal) never occurs in a
 /// chamber run, so a (T, ΔT) surface would show extrapolation; plot the bias
 /// along the runs' own (T, ΔT₁) trajectory instead.
@@ -341,8 +390,9 @@ where
     let (t_lo, t_hi) = range(points.iter().map(|p| p.0 as f64));
     let (r_lo, r_hi) = range(points.iter().map(|p| p.1 as f64));
     let (b_lo, b_hi) = range(points.iter().map(|p| p.2 as f64));
-    let caption = format!("model bias along the runs' (T, ΔT₁) path: blue {b_lo:.3} … red {b_hi:.3} °/h");
-    let mut chart = ChartBuilder::on(&root)
+    let caption = "model bias along the runs' (T, ΔT₁) path".to_owned();
+    let plot = with_colour_bar(&root, b_lo, b_hi, "model bias [°/h]")?;
+    let mut chart = ChartBuilder::on(&plot)
         .caption(caption, ("sans-serif", 22))
         .margin(12)
         .x_label_area_size(40)
@@ -411,7 +461,38 @@ where
     Ok(())
 }
 
-fn draw_allan<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, title: &str, e: &RunEvaluation) -> DrawResult
+/// Relative 1-σ uncertainty of an Allan deviation at cluster time `tau_s`
+/// from a run `duration_s` long: 1/√(2(T/τ − 1)), the approximation of
+/// IEEE Std 952 (Annex C) with T/τ independent clusters. Conservative for the
+/// overlapping estimator, whose equivalent degrees of freedom are more.
+/// Infinite when the run holds fewer than two clusters.
+pub fn allan_relative_error(tau_s: f64, duration_s: f64) -> f64 {
+    let clusters = duration_s / tau_s;
+    if clusters > 1.0 {
+        1.0 / (2.0 * (clusters - 1.0)).sqrt()
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The ±1-σ band (τ, lower, upper) of an Allan curve, per
+/// [`allan_relative_error`]; the lower edge kept above zero for log axes.
+fn allan_band(points: &[(f64, f64)], duration_s: f64) -> Vec<(f64, f64, f64)> {
+    points
+        .iter()
+        .map(|&(t, d)| {
+            let e = allan_relative_error(t, duration_s).min(0.95);
+            (t, d * (1.0 - e), d * (1.0 + e))
+        })
+        .collect()
+}
+
+fn draw_allan<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    title: &str,
+    e: &RunEvaluation,
+    duration_s: f64,
+) -> DrawResult
 where
     DB::ErrorType: 'static,
 {
@@ -425,8 +506,13 @@ where
             .collect::<Vec<_>>()
     };
     let (before, after) = (pts(&e.allan_before), pts(&e.allan_after));
+    let bands = [allan_band(&before, duration_s), allan_band(&after, duration_s)];
     let (t_lo, t_hi) = range(before.iter().map(|p| p.0));
     let (d_lo, d_hi) = range(before.iter().chain(&after).map(|p| p.1));
+    let (d_lo, d_hi) = (
+        bands.iter().flatten().map(|b| b.1).fold(d_lo, f64::min),
+        bands.iter().flatten().map(|b| b.2).fold(d_hi, f64::max),
+    );
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 22))
         .margin(12)
@@ -438,10 +524,23 @@ where
         .x_desc("cluster time τ [s]")
         .y_desc("Allan deviation [°/h]")
         .draw()?;
-    for (series, label, color) in [
-        (&before, "before", RGBColor(200, 60, 40)),
-        (&after, "after", RGBColor(30, 90, 200)),
+    for (series, band, label, color) in [
+        (&before, &bands[0], "before", RGBColor(200, 60, 40)),
+        (&after, &bands[1], "after", RGBColor(30, 90, 200)),
     ] {
+        // The ±1-σ confidence band as a shaded area: the upper edge left to
+        // right, the lower edge back.
+        let outline: Vec<(f64, f64)> = band
+            .iter()
+            .map(|b| (b.0, b.2))
+            .chain(band.iter().rev().map(|b| (b.0, b.1)))
+            .collect();
+        if outline.len() >= 4 {
+            chart
+                .draw_series(std::iter::once(Polygon::new(outline, color.mix(0.18).filled())))?
+                .label(format!("{label}: ±1σ band, 1/√(2(T/τ−1)) (IEEE 952)"))
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], color.mix(0.18).filled()));
+        }
         chart
             .draw_series(LineSeries::new(series.iter().copied(), color))?
             .label(format!("{label} compensation"))
@@ -552,8 +651,9 @@ where
     } else {
         "T and a steady-ramp ΔT"
     };
-    let caption = format!("fitted bias over {over}: blue {b_lo:.3} … red {b_hi:.3} °/h");
-    let mut chart = ChartBuilder::on(&root)
+    let caption = format!("fitted bias over {over}");
+    let plot = with_colour_bar(&root, b_lo, b_hi, "fitted bias [°/h]")?;
+    let mut chart = ChartBuilder::on(&plot)
         .caption(caption, ("sans-serif", 22))
         .margin(12)
         .x_label_area_size(40)
@@ -614,6 +714,8 @@ impl Trajectory {
 /// What one run contributes to the report, gathered in one streaming pass.
 struct RunPlots {
     stem: String,
+    /// Rows × nominal sample period, s.
+    duration_s: f64,
     evaluation: RunEvaluation,
     rate: RatePlot,
     bias_temp: BiasTempPlot,
@@ -681,6 +783,7 @@ fn read_run(
     let points = bias_points(&temp, &raw, &bias.finish(), &comp);
     Ok(RunPlots {
         stem: stem.to_owned(),
+        duration_s: rows as f64 * period_s,
         bias_temp: BiasTempPlot {
             title: format!(
                 "{stem}: bias against loop temperature; 100-s STD {:.3} → {:.3} °/h",
@@ -752,6 +855,37 @@ pub fn check_report_targets(
     Ok((stems, files))
 }
 
+/// The model section of report.md: its file, kind, form, centres and every
+/// input with its training range.
+fn model_markdown(model: &Model, model_path: &Path) -> String {
+    let mut md = format!("## Model\n\n- file: `{}`\n", text::path(model_path));
+    md.push_str(&format!("- kind: {}\n", model.kind().name()));
+    md.push_str(&format!("- form: {}\n", summary::form(model)));
+    md.push_str(&format!(
+        "- centres: {}\n",
+        summary::count(summary::centres(model) as u64, "centre", "centres")
+    ));
+    md.push_str("- inputs (training range):\n");
+    for (name, lo, hi) in summary::training_ranges(model) {
+        md.push_str(&format!(
+            "  - {}: {} … {}\n",
+            text::escape_controls(&name),
+            summary::sig(f64::from(lo), 4),
+            summary::sig(f64::from(hi), 4)
+        ));
+    }
+    md.push('\n');
+    md
+}
+
+/// `n` of `samples` as a table cell: the count and its percentage.
+fn clamped_cell(n: usize, samples: usize) -> String {
+    if samples == 0 {
+        return n.to_string();
+    }
+    format!("{n} ({:.1} %)", 100.0 * n as f64 / samples as f64)
+}
+
 /// Writes the report for `model` (read from `model_path`) on the runs at
 /// `runs` (`-`: standard input) into `dir`; returns the files written.
 ///
@@ -803,8 +937,8 @@ pub fn write_report(
         write(&dir.join(format!("{stem}.png")), &png)
     };
     let mut md = String::from("# Compensation report\n\n");
-    md.push_str(&format!("Model: `{}`\n\n", text::path(model_path)));
-    md.push_str("| run | 100-s STD before [°/h] | after [°/h] | improvement | MSD improvement | ARW after [°/√h] | BI before → after [°/h] |\n|---|---|---|---|---|---|---|\n");
+    md.push_str(&model_markdown(model, model_path));
+    md.push_str("## Runs\n\n| run | 100-s STD before [°/h] | after [°/h] | improvement | MSD improvement | ARW after [°/√h] | BI before → after [°/h] | clamped samples |\n|---|---|---|---|---|---|---|---|\n");
     for p in &plots {
         let stem = &p.stem;
         both(&format!("{stem}_rate"), render(&p.rate))?;
@@ -815,11 +949,12 @@ pub fn write_report(
                 p.evaluation.allan_before.bias_instability_dph, p.evaluation.allan_after.bias_instability_dph
             ),
             evaluation: &p.evaluation,
+            duration_s: p.duration_s,
         };
         both(&format!("{stem}_allan"), render(&allan))?;
         let e = &p.evaluation;
         md.push_str(&format!(
-            "| {} | {:.4} | {:.4} | {:.1} % | {:.1} % | {:.2e} | {:.2e} → {:.2e} |\n",
+            "| {} | {:.4} | {:.4} | {:.1} % | {:.1} % | {:.2e} | {:.2e} → {:.2e} | {} |\n",
             text::escape_controls(stem),
             e.cluster_std_before_dph,
             e.cluster_std_after_dph,
@@ -827,9 +962,14 @@ pub fn write_report(
             e.msd_improvement_pct,
             e.allan_after.arw_deg_per_sqrt_h,
             e.allan_before.bias_instability_dph,
-            e.allan_after.bias_instability_dph
+            e.allan_after.bias_instability_dph,
+            clamped_cell(e.flagged.input_clamped, e.samples)
         ));
     }
+    md.push_str(
+        "\nClamped samples: inputs outside the model's training range, held at its edge \
+         (flag 1).\n",
+    );
     let surface = SurfacePlot {
         model,
         trajectory: trajectory.points.into_iter().map(|(_, p)| p).collect(),
@@ -869,6 +1009,22 @@ mod tests {
             (points[0].measured_dph, points[0].model_dph, points[0].residual_dph),
             (1.0, 0.75, 0.25)
         );
+    }
+
+    #[test]
+    fn allan_bands_narrow_with_more_clusters() {
+        // T/τ = 3: 1/√4; T/τ = 51: 1/√100.
+        assert!((allan_relative_error(10.0, 30.0) - 0.5).abs() < 1e-12);
+        assert!((allan_relative_error(1.0, 51.0) - 0.1).abs() < 1e-12);
+        assert!(allan_relative_error(10.0, 10.0).is_infinite());
+        let band = allan_band(&[(1.0, 2.0)], 51.0);
+        assert!((band[0].1 - 1.8).abs() < 1e-12 && (band[0].2 - 2.2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn clamped_samples_are_a_count_and_a_percentage() {
+        assert_eq!(clamped_cell(11, 100), "11 (11.0 %)");
+        assert_eq!(clamped_cell(0, 0), "0");
     }
 
     #[test]

@@ -667,6 +667,21 @@ fn report_writes_svg_and_png_plots_json_and_markdown() {
         md.contains("| train |") && md.contains("![rate](train_rate.svg)"),
         "{md}"
     );
+    // The model is listed, and every run says how many samples were clamped.
+    assert!(
+        md.contains("## Model") && md.contains("- kind: gaussian-rbf") && md.contains("- form: Gaussian RBF, "),
+        "{md}"
+    );
+    assert!(md.contains("- centres: ") && md.contains("  - T̂ [°C]: "), "{md}");
+    let clamped = e["flagged"]["input_clamped"].as_u64().unwrap();
+    let samples = e["samples"].as_u64().unwrap();
+    let cell = format!("| {clamped} ({:.1} %) |", 100.0 * clamped as f64 / samples as f64);
+    assert!(md.contains(&cell), "{cell} in {md}");
+    // Allan plots shade confidence bands; the bias surface has a colour bar.
+    let allan = std::fs::read_to_string(out.join("train_allan.svg")).unwrap();
+    assert!(allan.contains("<polygon") && allan.contains("IEEE 952"), "Allan bands");
+    let surface = std::fs::read_to_string(out.join("bias_surface.svg")).unwrap();
+    assert!(surface.contains("fitted bias [°/h]"), "colour bar axis");
 }
 
 #[test]

@@ -8,6 +8,7 @@ use rbf_core::blob::{self, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{file_problem, read_blob};
 use trainer::output::Existing;
+use trainer::summary::{count, form, sig};
 use trainer::text;
 
 use super::common::{JsonArg, print_text, stdout};
@@ -137,52 +138,6 @@ fn inspect_json(
     v
 }
 
-/// The model's form in a few words: the regression and how the inputs enter it.
-fn form(model: &rbf_core::Model) -> String {
-    match model.body() {
-        ModelBody::Rbf(net) => {
-            let names: Vec<String> = model.features().set.names().map(|n| n.to_string()).collect();
-            let kernel = &names[..net.kernel_inputs().min(names.len())];
-            format!(
-                "Gaussian RBF, {} over {}{}",
-                count(net.centers_used() as u64, "centre", "centres"),
-                kernel.join(", "),
-                match net.linear().len() {
-                    0 => String::new(),
-                    n => format!("; {}", count(n as u64, "linear term", "linear terms")),
-                }
-            )
-        }
-        ModelBody::Poly3(p) => format!("cubic in T about {} °C", sig(f64::from(p.ref_temp_c), 4)),
-    }
-}
-
-/// `n` and the noun, singular for one (`1 centre`, `12 centres`).
-fn count(n: u64, one: &str, many: &str) -> String {
-    format!("{n} {}", if n == 1 { one } else { many })
-}
-
-/// A number with `digits` significant digits, without trailing zeros.
-fn sig(x: f64, digits: usize) -> String {
-    if !x.is_finite() {
-        return "?".to_owned();
-    }
-    if x == 0.0 {
-        return "0".to_owned();
-    }
-    let magnitude = x.abs().log10().floor() as i64;
-    if !(-4..=6).contains(&magnitude) {
-        return format!("{x:.*e}", digits.saturating_sub(1));
-    }
-    let decimals = (digits as i64 - 1 - magnitude).max(0) as usize;
-    let s = format!("{x:.decimals$}");
-    if s.contains('.') {
-        s.trim_end_matches('0').trim_end_matches('.').to_owned()
-    } else {
-        s
-    }
-}
-
 /// The summary `trainer inspect` prints: one labelled line per fact, numbers
 /// to the digits that matter, strings from the blob with control characters escaped.
 pub fn summary(v: &serde_json::Value, model: Option<&rbf_core::Model>) -> String {
@@ -293,14 +248,5 @@ mod tests {
         let s = summary(&v, None);
         assert!(s.contains("valid           no (14 bytes follow the blob's end)"), "{s}");
         assert!(s.contains("12 centres"), "{s}");
-    }
-
-    #[test]
-    fn significant_digits_drop_trailing_zeros() {
-        assert_eq!(sig(15.000000953674316, 4), "15");
-        assert_eq!(sig(-0.012345, 3), "-0.0123");
-        assert_eq!(sig(1.5e-7, 3), "1.50e-7");
-        assert_eq!(sig(0.0, 3), "0");
-        assert_eq!(sig(f64::NAN, 3), "?");
     }
 }

@@ -52,9 +52,9 @@ pub(super) const PARSIMONY: f64 = 1.005;
 
 /// Ratios of the slower ΔT windows to the fastest in the multi-scale set:
 /// three scales 16× apart span the coil's and housing's time constants
-/// (minutes to hours). Chosen on both simulated gyros' bench-accuracy
-/// (`--params bench/accuracy/another-gyro.json`): 16× spacing gave 93.5 % and
-/// 95.4 % mean improvement where 8× (1, 8, 64) gave 92.7 % and 95.3 %.
+/// (minutes to hours). Chosen on both simulated gyros' bench-accuracy, where
+/// 16× spacing improved more than 8× (1, 8, 64) (figures: docs/benchmarks.md,
+/// "Measurements behind design choices").
 pub const MULTISCALE_RATIOS: [f32; 3] = [1.0, 16.0, 256.0];
 
 /// Factors on the slowest multi-scale window (256 times the fastest) that the
@@ -63,8 +63,9 @@ pub const MULTISCALE_RATIOS: [f32; 3] = [1.0, 16.0, 256.0];
 /// the coil's slowest radial mode, and the rate it reads also sets the coil
 /// lag term. On the third benchmark gyro's cycle run (`--params
 /// bench/accuracy/third-gyro.json`) validation picks ×1.25 and its
-/// verification mean rises from 92.0 to 94.3 %; the other two gyros keep ×1.
-/// ×0.67 and ×1.5 validated worse wherever the second-order family is kept.
+/// verification improves; the other two gyros keep ×1. ×0.67 and ×1.5
+/// validated worse wherever the second-order family is kept (figures:
+/// docs/benchmarks.md, "Measurements behind design choices").
 pub const SLOWEST_WINDOW_FACTORS: [f32; 2] = [1.0, 1.25];
 
 /// The feature configuration of `set` with fastest window `window_s`; the

@@ -1,23 +1,16 @@
 //! An SVR's training data ([`SvrData`]): blocks merged to a few hundred
-//! rows, normalised, in contiguous validation folds; and the clustered
-//! validation RMS that `svr-pso` and the thermometer search both score with.
+//! rows, normalised, in contiguous validation folds ([`super::folds`]).
 
 use rbf_core::MAX_INPUTS;
 
+use super::folds::{FOLDS, Fold, contiguous_folds};
 use super::linalg::{FeatureRow, Normaliser};
+use super::scoring::offset_free_rms;
 use crate::dataset::Blocks;
 
 /// Rows an SVR is trained on (means of consecutive blocks, about 100 s each on
 /// a 17-h chamber run, the RLG paper's smoothing): the dual's kernel matrix is l².
 pub(super) const MAX_SVR_ROWS: usize = 600;
-/// Contiguous validation folds of the PSO's fitness.
-pub(super) const FOLDS: usize = 3;
-/// One fold: training rows and validation rows (indices into the merged blocks).
-pub(super) struct Fold {
-    pub(super) train: Vec<usize>,
-    pub(super) validate: Vec<usize>,
-}
-
 /// An SVR's training data: merged, normalised blocks with their folds.
 pub(super) struct SvrData {
     pub(super) norm: Normaliser,
@@ -94,58 +87,4 @@ fn merge_blocks(blocks: &Blocks, group: usize) -> Blocks {
         start = end;
     }
     merged
-}
-
-/// `count` contiguous folds over `n` rows: each validates on one contiguous
-/// stretch and trains on the rest (never random rows: neighbours correlate).
-fn contiguous_folds(n: usize, count: usize) -> Vec<Fold> {
-    let count = count.clamp(1, n.max(1));
-    (0..count)
-        .map(|f| {
-            let (start, end) = (f * n / count, (f + 1) * n / count);
-            Fold {
-                train: (0..n).filter(|i| *i < start || *i >= end).collect(),
-                validate: (start..end).collect(),
-            }
-        })
-        .collect()
-}
-
-/// [`offset_free_rms`] of the means of consecutive groups of `per_cluster`
-/// residuals (a short last group included).
-pub(super) fn cluster_rms(residuals: impl Iterator<Item = f64>, per_cluster: usize) -> f64 {
-    let r: Vec<f64> = residuals.collect();
-    offset_free_rms(
-        r.chunks(per_cluster.max(1))
-            .map(|c| c.iter().sum::<f64>() / c.len() as f64),
-    )
-}
-
-/// RMS of `residuals` about their mean (the gyro's constant offset is not
-/// the thermal model's business); +∞ for none.
-pub(super) fn offset_free_rms(residuals: impl Iterator<Item = f64>) -> f64 {
-    let r: Vec<f64> = residuals.collect();
-    if r.is_empty() {
-        return f64::INFINITY;
-    }
-    let mean = r.iter().sum::<f64>() / r.len() as f64;
-    (r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / r.len() as f64).sqrt()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn folds_are_contiguous_and_cover_every_row_once() {
-        let folds = contiguous_folds(10, 3);
-        assert_eq!(folds.len(), 3);
-        let mut seen: Vec<usize> = folds.iter().flat_map(|f| f.validate.clone()).collect();
-        seen.sort_unstable();
-        assert_eq!(seen, (0..10).collect::<Vec<_>>());
-        for f in &folds {
-            assert!(f.validate.windows(2).all(|w| w[1] == w[0] + 1));
-            assert_eq!(f.train.len() + f.validate.len(), 10);
-        }
-    }
 }

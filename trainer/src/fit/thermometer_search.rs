@@ -8,8 +8,9 @@
 //! sensors that *lead* the fiber coil, such as chamber air or the mounting
 //! plate: on a 1 °C/min cycle their lead stands in for the Shupe rate term,
 //! but the lead grows with the ramp rate, so a model on them does not carry
-//! to other rates (simulated 8-thermometer runs, trained on a 1 °C/min cycle:
-//! 53 % on a 5 °C/min cycle, 40 % on a random profile), and the candidates
+//! to other rates (simulated 8-thermometer runs trained on a 1 °C/min cycle
+//! lose much of their improvement on a 5 °C/min cycle and a random profile;
+//! figures: docs/benchmarks.md), and the candidates
 //! that pass are often near copies of one another.
 //!
 //! Here every non-empty subset of the thermometers (at most 255) is scored
@@ -18,7 +19,7 @@
 //! over a few widths and ridge strengths, the best kept. Every gradient
 //! between a subset's thermometers lies in the span of that linear part, so
 //! a subset stands for its temperatures and all their gradients. The
-//! smallest subset within [`PARSIMONY`] of the lowest validation error
+//! smallest subset within `PARSIMONY` of the lowest validation error
 //! becomes the SVR's inputs.
 
 use nalgebra::DVector;
@@ -27,7 +28,8 @@ use rbf_core::MAX_INPUTS;
 use super::Progress;
 use super::linalg::{FeatureRow, GramStats, InputShape, design, farthest_points, ridge_solve};
 use super::rbf::{PARSIMONY, parallel_map};
-use super::svr_data::{SvrData, cluster_rms};
+use super::scoring::cluster_rms;
+use super::svr_data::SvrData;
 
 /// Gaussian centres of the stand-in network.
 const CENTRES: usize = 32;

@@ -6,7 +6,7 @@
 //! integrates the thermal network (air → housing base/top → self-heated
 //! electronics → fiber coil in radial layers on its hub → thermometers),
 //! [`gyro`] turns the coil's temperature distribution into bias and adds
-//! noise, [`unit`] draws a whole gyro from the documented ranges.
+//! noise, [`unit`](mod@unit) draws a whole gyro from the documented ranges.
 //! [`ChamberRun::write_csv`] streams the recorded run, so hundreds of MB
 //! never sit in memory.
 

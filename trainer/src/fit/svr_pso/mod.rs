@@ -1,6 +1,6 @@
 //! `--method svr-pso`: the RLG paper's model (Li et al., Sensors 2015), an
-//! ε-SVR with a Gaussian kernel ([`super::svr`]) whose σ, C and ε a particle
-//! swarm ([`super::pso`]) tunes on contiguous validation folds, compiled into
+//! ε-SVR with a Gaussian kernel ([`svr`]) whose σ, C and ε a particle
+//! swarm ([`pso`]) tunes on contiguous validation folds, compiled into
 //! the firmware's RBF network: an SVR's kernel expansion is a Gaussian RBF
 //! network with one shared width, so the firmware runs it unchanged.
 //!
@@ -22,16 +22,20 @@
 //! of them as centres and the weights are refitted (ridge) on the training
 //! blocks; [`SvrChoice`] reports what that costs on the validation folds.
 
+pub mod pso;
+pub mod svr;
+
 use nalgebra::{DMatrix, DVector};
 use rbf_core::features::{Probe, Probes, THERMOMETERS};
 use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
 use rbf_core::{FeatureConfig, FeatureSet, MAX_CENTERS, MAX_INPUTS, Model};
 
+use self::pso::PsoOptions;
+use self::svr::{Svr, SvrParams};
 use super::linalg::{FeatureRow, GramStats, InputShape, design, ridge_solve};
-use super::pso::{self, PsoOptions};
-use super::svr::{Svr, SvrParams};
-use super::svr_data::{SvrData, cluster_rms};
+use super::scoring::cluster_rms;
+use super::svr_data::SvrData;
 use super::thermometer_search::{self, SubsetScore};
 use super::{FitOptions, Progress, check_excitation, deploy_ranges, rbf, serial};
 use crate::dataset::RunSet;
@@ -104,10 +108,10 @@ pub fn fit<T: RunSet + ?Sized>(
 ) -> anyhow::Result<(Model, SvrChoice)> {
     let (features, selection) = choose_inputs(train, opts, progress)?;
     // Multi-point inputs get a linear part: gradients grow in proportion to
-    // the ramp rate, and it carries the model past the training ramps
-    // (bench-accuracy: three-point 85.5/81.9 % instead of 69/69 %). On the
+    // the ramp rate, and it carries the model past the training ramps. On the
     // single-point (T, ΔT, T×ΔT) it extrapolates worse than the paper's pure
-    // ε-SVR (72.0/55.8 % mean instead of 77.0/64.8 %), so that stays pure.
+    // ε-SVR, so that stays pure (figures: docs/benchmarks.md, "Measurements
+    // behind design choices").
     let partially_linear = selection.is_some();
     let set = features.set;
     let window = features.rate_window_s;
@@ -354,7 +358,7 @@ fn pick(x: &[FeatureRow], y: &[f64], rows: &[usize]) -> (Vec<FeatureRow>, Vec<f6
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::svr_data::offset_free_rms;
+    use crate::fit::scoring::offset_free_rms;
 
     #[test]
     fn a_large_expansion_is_reduced_to_the_firmware_capacity_and_still_fits() {

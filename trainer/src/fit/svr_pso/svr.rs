@@ -17,7 +17,7 @@
 //! built on nalgebra. This solver is LIBSVM's algorithm in ~200 lines, with
 //! tests of its KKT conditions.
 
-use super::linalg::{FeatureRow, GramStats, ridge_solve};
+use crate::fit::linalg::{FeatureRow, GramStats, ridge_solve};
 
 /// Ridge strength of the partially linear SVR's linear part (inputs normalised).
 const LINEAR_RIDGE: f64 = 1e-6;
