@@ -618,6 +618,22 @@ fn steady_bias(model: &Model, t_c: f32, rate: f32) -> f32 {
     model.eval(&features).bias_dph
 }
 
+/// The bias surface's second axis, °C/min (multi-point: input 1's units): the
+/// training range of the fastest rate input (input 1 of the paper and
+/// multi-scale sets; the first after the static powers of T̂ in the lag bank).
+fn surface_rate_range(model: &Model) -> (f32, f32) {
+    let set = model.features().set;
+    let rate_input = match set {
+        FeatureSet::LagBank(bank) => bank.static_inputs(),
+        _ => 1,
+    };
+    if set.dims() <= rate_input {
+        (-1.0, 1.0)
+    } else {
+        model.input_range(rate_input).unwrap_or((-1.0, 1.0))
+    }
+}
+
 fn draw_surface<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, model: &Model) -> DrawResult
 where
     DB::ErrorType: 'static,
@@ -625,11 +641,7 @@ where
     root.fill(&WHITE)?;
     let (t_lo, t_hi) = model.input_range(0).unwrap_or((0.0, 1.0));
     let set = model.features().set;
-    let (r_lo, r_hi) = if set.dims() < 2 {
-        (-1.0, 1.0)
-    } else {
-        model.input_range(1).unwrap_or((-1.0, 1.0))
-    };
+    let (r_lo, r_hi) = surface_rate_range(model);
     let multi_point = matches!(set, FeatureSet::MultiPoint(_));
     let axis = |i: usize| set.name(i).map_or_else(String::new, |n| n.to_string());
     let (x_desc, y_desc) = if multi_point {
@@ -994,6 +1006,21 @@ pub fn write_report(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_default_models_surface_spans_its_fastest_rate_input_not_a_power_of_temperature() {
+        let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
+        let run = crate::run::Run::load(&data).unwrap();
+        let opts = crate::fit::FitOptions::default();
+        let model = crate::fit::fit(std::slice::from_ref(&run), &[], &opts).unwrap().model;
+        let FeatureSet::LagBank(bank) = model.features().set else {
+            panic!("the default is the lag bank")
+        };
+        let fastest = model.input_range(bank.static_inputs()).unwrap();
+        assert_eq!(surface_rate_range(&model), fastest);
+        // The 1 °C/min run's rates stay within ±1 °C/min; (T̂ − T₀)² reaches 100 °C².
+        assert!(fastest.0 > -1.0 && fastest.1 < 1.0, "{fastest:?}");
+    }
 
     #[test]
     fn bias_points_are_coloured_by_the_direction_the_temperature_moves() {
