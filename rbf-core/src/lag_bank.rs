@@ -48,7 +48,8 @@ const MAX_TEMP_C: f32 = 1000.0;
 /// The configuration of a lag bank, stored in the model blob.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LagBank {
-    /// Filter time constants τ_k, s, fastest first (the first `filters` are used).
+    /// Filter time constants τ_k, s, fastest first (the first `filters` are used;
+    /// the others are 0, so a decoded bank equals itself and re-encodes to the same bytes).
     pub taus_s: [f32; BANK_FILTERS],
     /// Number of filters in use, 1 ..= [`BANK_FILTERS`].
     pub filters: u8,
@@ -124,7 +125,10 @@ impl LagBank {
         let n = self.filters as usize;
         let taus_ok = self.taus_s.get(..n).is_some_and(|t| {
             t.iter().all(|&tau| tau.is_finite() && tau > 0.0 && tau <= MAX_TAU_S) && t.windows(2).all(|w| w[0] < w[1])
-        });
+        }) && self
+            .taus_s
+            .get(n..)
+            .is_some_and(|unused| unused.iter().all(|&tau| tau == 0.0));
         let lags_ok = self
             .coil_lag_min
             .iter()
@@ -293,6 +297,12 @@ mod tests {
         let mut b = bank();
         b.coil_lag_min[7] = f32::NAN;
         assert!(!b.is_valid(), "NaN weight, even unused");
+        let mut b = bank();
+        b.taus_s[5] = f32::NAN;
+        assert!(
+            !b.is_valid(),
+            "an unused time constant that is not 0 (a NaN would not equal itself)"
+        );
         let mut b = bank();
         b.static_degree = 4;
         assert!(!b.is_valid());
