@@ -6,10 +6,10 @@
 //! - [`sensors`]: the traits the loop needs from them;
 //! - [`compensation`]: the per-sample loop (rbf-core compensation, one output frame per sample);
 //! - [`uart`]: the transmit queue an interrupt drains (frames whole or dropped and counted);
-//! - [`replay`]: emulated devices and the recorded-run replayer of the QEMU board;
+//! - `replay` (feature `test-harness`): emulated devices and the recorded-run replayer of the QEMU board;
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
-//! - [`emulated_flash`]: NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
-//! - [`fault_injection`]: buses that fail on a schedule and the fault campaign of the QEMU fault board;
+//! - `emulated_flash` (feature `test-harness`): NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
+//! - `fault_injection` (feature `test-harness`): buses that fail on a schedule and the fault campaign of the QEMU fault board;
 //! - [`fault`]: the fault record kept across a reset and the boot report frame;
 //! - [`bench`]: the board's `bench` command (DWT cycle counts of its sample steps);
 //! - [`load_model`]: boot-time validation of the model flash slot.
@@ -20,11 +20,14 @@
 
 pub mod bench;
 pub mod compensation;
+#[cfg(any(test, feature = "test-harness"))]
 pub mod emulated_flash;
 pub mod fault;
+#[cfg(any(test, feature = "test-harness"))]
 pub mod fault_injection;
 pub mod frontend;
 pub mod model_store;
+#[cfg(any(test, feature = "test-harness"))]
 pub mod replay;
 pub mod sensors;
 pub mod tmp117;

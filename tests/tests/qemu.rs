@@ -105,7 +105,7 @@ fn corrupt_model_slot_runs_uncompensated_with_flag_4_never_halts() {
     blob[20] ^= 0x40;
     std::fs::write(dir.path().join("model.bin"), &blob).unwrap();
     std::fs::copy(&slice, dir.path().join("input.csv")).unwrap();
-    let elf = xtask::firmware::build("qemu-replay", &[]).unwrap();
+    let elf = xtask::firmware::build("qemu-replay", &["test-harness"]).unwrap();
     let loader = format!("loader,file=model.bin,addr={:#x}", xtask::replay::MODEL_SLOT_A);
     let run = xtask::qemu::run(
         &elf,

@@ -18,7 +18,7 @@ pub fn bench_fw() -> anyhow::Result<()> {
     // board image is built to next.
     let board_run = crate::board_stack::measure()?;
     let bench = firmware::build("qemu-bench", &[])?;
-    let replay = firmware::build("qemu-replay", &[])?;
+    let replay = firmware::build("qemu-replay", &["test-harness"])?;
     let board = firmware::build("stm32f405", &["board-stm32f405"])?;
     let dir = tempfile::TempDir::new()?;
     let icount = ["-icount".to_owned(), "shift=0".to_owned()];

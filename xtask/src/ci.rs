@@ -77,7 +77,15 @@ pub fn ci() -> anyhow::Result<()> {
     )?;
     // The QEMU boards, then the STM32F405 board on its own: its HAL switches
     // cortex-m-rt to device mode, whose vector table the QEMU boards lack.
-    let qemu_boards = ["--package", "firmware", "--target", TARGET, "--bins"];
+    let qemu_boards = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "test-harness",
+        "--bins",
+    ];
     let stm32_board = [
         "--package",
         "firmware",

@@ -28,7 +28,7 @@ pub fn qemu_replay(model: &Path, run: &Path, output: &Path, frames: Option<&Path
     // Refuse what `trainer compensate` refuses, with its messages.
     read_model(model)?;
     let rows = Run::load(run)?.len();
-    let elf = firmware::build("qemu-replay", &[])?;
+    let elf = firmware::build("qemu-replay", &["test-harness"])?;
     let dir = tempfile::TempDir::new().context("cannot create a working directory")?;
     std::fs::copy(run, dir.path().join("input.csv")).with_context(|| format!("{}: cannot copy", run.display()))?;
     std::fs::copy(model, dir.path().join("model.bin")).with_context(|| format!("{}: cannot copy", model.display()))?;
