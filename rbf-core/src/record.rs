@@ -429,6 +429,14 @@ impl Columns {
         if found != self.count {
             return None;
         }
+        self.row_from_fields(values.get(..found)?)
+    }
+
+    /// The row of a line whose fields were all parsed as finite numbers, in
+    /// column order: `None` when a rate or reference is out of range or
+    /// `temp_fault` is neither 0 nor 1 (the general path says why). The fast
+    /// paths of this reader and of the trainer's parallel one share it.
+    pub fn row_from_fields(&self, values: &[f64]) -> Option<Row> {
         let at = |i: usize| values.get(i).copied();
         let optional = |i: Option<usize>| match i {
             Some(i) => at(i).map(Some),

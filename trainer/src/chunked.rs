@@ -284,34 +284,7 @@ fn parse_row_fast(columns: &Columns, line: &[u8]) -> Option<Row> {
     if found != columns.count {
         return None;
     }
-    let at = |i: usize| values.get(i).copied();
-    let optional = |i: Option<usize>| match i {
-        Some(i) => at(i).map(Some),
-        None => Some(None),
-    };
-    let in_range = |r: f64| r.abs() <= record::MAX_ABS_RATE_DPH;
-    let temp_fault = match optional(columns.temp_fault)? {
-        None => false,
-        Some(0.0) => false,
-        Some(1.0) => true,
-        Some(_) => return None,
-    };
-    let mut temps_c = [None; THERMOMETERS];
-    for (t, &c) in temps_c.iter_mut().zip(&columns.temps) {
-        *t = optional(c)?;
-    }
-    let rate_dph = at(columns.rate_dph).filter(|r| in_range(*r))?;
-    let ref_dph = optional(columns.ref_dph)?;
-    if !ref_dph.is_none_or(in_range) {
-        return None;
-    }
-    Some(Row {
-        time_s: at(columns.time_s)?,
-        rate_dph,
-        temps_c,
-        ref_dph,
-        temp_fault,
-    })
+    columns.row_from_fields(values.get(..found)?)
 }
 
 /// Parses the lines of `text` (line `first_line` first) with `columns`,
