@@ -23,19 +23,100 @@ pub mod column {
     pub const REF_DPH: &str = "ref_dph";
     /// Replay-only: 1 = the temperature sensor fails on this sample.
     pub const TEMP_FAULT: &str = "temp_fault";
+    /// Per-axis gyro outputs of a multi-axis run, °/h, in [`super::Axis`] order.
+    pub const AXIS_RATES_DPH: [&str; 3] = ["rate_x_dph", "rate_y_dph", "rate_z_dph"];
+    /// Per-axis fiber-loop thermometers, °C (absent: `temp_c` serves the axis).
+    pub const AXIS_TEMPS_C: [&str; 3] = ["temp_x_c", "temp_y_c", "temp_z_c"];
+    /// Per-axis known true rates, °/h.
+    pub const AXIS_REFS_DPH: [&str; 3] = ["ref_x_dph", "ref_y_dph", "ref_z_dph"];
+}
+
+/// Most gyro axes a run or a model blob carries.
+pub const MAX_AXES: usize = 3;
+
+/// One sensitive axis of a multi-axis IMU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Axis {
+    /// The x axis.
+    X,
+    /// The y axis.
+    Y,
+    /// The z axis.
+    Z,
+}
+
+impl Axis {
+    /// Every axis, in column and blob order.
+    pub const ALL: [Axis; MAX_AXES] = [Axis::X, Axis::Y, Axis::Z];
+
+    /// 0 for x, 1 for y, 2 for z.
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The axis of index 0, 1 or 2.
+    pub const fn from_index(index: usize) -> Option<Axis> {
+        match index {
+            0 => Some(Axis::X),
+            1 => Some(Axis::Y),
+            2 => Some(Axis::Z),
+            _ => None,
+        }
+    }
+
+    /// `x`, `y` or `z`: the letter in the column names.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Axis::X => "x",
+            Axis::Y => "y",
+            Axis::Z => "z",
+        }
+    }
+
+    /// The axis named `x`, `y` or `z`.
+    pub fn from_name(name: &str) -> Option<Axis> {
+        Axis::ALL.into_iter().find(|a| a.name() == name)
+    }
+
+    /// The axis's rate column, e.g. `rate_x_dph`.
+    pub const fn rate_column(self) -> &'static str {
+        column::AXIS_RATES_DPH[self.index()]
+    }
+}
+
+/// Where one axis's columns sit in a multi-axis header.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AxisColumns {
+    /// Index of `rate_<axis>_dph`.
+    pub rate_dph: usize,
+    /// Index of the axis's loop thermometer: `temp_<axis>_c`, else `temp_c`, if either exists.
+    pub temp_c: Option<usize>,
+    /// Index of `ref_<axis>_dph`, if present.
+    pub ref_dph: Option<usize>,
 }
 
 /// Where the known columns sit in a header.
+///
+/// A multi-axis header is read one axis at a time: [`Columns::for_axis`]
+/// maps the axis's rate, loop thermometer and reference onto `rate_dph`,
+/// `temps[2]` (`temp_c`) and `ref_dph`, so every single-axis path (row
+/// parsing, features, compensation) serves each axis unchanged.
+/// [`Columns::from_header`] gives the first axis present.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Columns {
     /// Index of `time_s`.
     pub time_s: usize,
-    /// Index of `rate_dph`.
+    /// Index of `rate_dph` (multi-axis: of the selected axis's rate).
     pub rate_dph: usize,
-    /// Indices of `temp_a` … `temp_h`, where present (index 2 is `temp_c`).
+    /// Indices of `temp_a` … `temp_h`, where present (index 2 is `temp_c`;
+    /// multi-axis: the selected axis's loop thermometer).
     pub temps: [Option<usize>; THERMOMETERS],
-    /// Index of `ref_dph`, if present.
+    /// Index of `ref_dph` (multi-axis: of `ref_<axis>_dph`), if present.
     pub ref_dph: Option<usize>,
+    /// The axes of a multi-axis run (all `None` in a single-axis run).
+    pub axes: [Option<AxisColumns>; MAX_AXES],
+    /// The axis these columns read (`None` in a single-axis run).
+    pub axis: Option<Axis>,
     /// Index of `temp_fault`, if present.
     pub temp_fault: Option<usize>,
     /// Number of columns every data row must have.
@@ -50,6 +131,8 @@ pub enum HeaderError {
     MissingColumn(&'static str),
     /// A known column appears twice (at this index the second time).
     DuplicateColumn(usize),
+    /// The header has both `rate_dph` and the per-axis rate at this index.
+    MixedAxes(usize),
 }
 
 /// What is wrong with a data row.
@@ -343,26 +426,59 @@ pub fn write_compensated_row<W: core::fmt::Write>(
     input_line: &str,
     sample: &crate::CompensatedSample,
 ) -> core::fmt::Result {
-    writeln!(
-        out,
-        "{},{},{},{}",
-        input_line,
-        sample.bias_dph,
-        sample.rate_comp_dph,
-        sample.flags.bits()
-    )
+    write_compensated_axes_row(out, input_line, core::slice::from_ref(sample))
+}
+
+/// Writes the header of a compensated output: the input header as read,
+/// then per axis present `bias_<axis>_dph`, `rate_comp_<axis>_dph`,
+/// `flags_<axis>` (a single-axis run: [`COMPENSATED_COLUMNS`]), and a `\n`.
+pub fn write_compensated_header<W: core::fmt::Write>(
+    out: &mut W,
+    input_header: &str,
+    columns: &Columns,
+) -> core::fmt::Result {
+    out.write_str(input_header)?;
+    if !columns.is_multi_axis() {
+        out.write_str(COMPENSATED_COLUMNS)?;
+    }
+    for axis in columns.axes_present() {
+        let a = axis.name();
+        write!(out, ",bias_{a}_dph,rate_comp_{a}_dph,flags_{a}")?;
+    }
+    out.write_char('\n')
+}
+
+/// Writes one compensated output row of a run with one or more axes: the
+/// input line as read, then `bias`, `rate_comp` and `flags` of each sample
+/// in axis order (one sample: exactly [`write_compensated_row`]), and a `\n`.
+pub fn write_compensated_axes_row<W: core::fmt::Write>(
+    out: &mut W,
+    input_line: &str,
+    samples: &[crate::CompensatedSample],
+) -> core::fmt::Result {
+    out.write_str(input_line)?;
+    for s in samples {
+        write!(out, ",{},{},{}", s.bias_dph, s.rate_comp_dph, s.flags.bits())?;
+    }
+    out.write_char('\n')
 }
 
 impl Columns {
     /// Maps a header line (a leading UTF-8 BOM is allowed) to column indices.
+    ///
+    /// A run has `rate_dph` (one axis) or one to three of `rate_x_dph`,
+    /// `rate_y_dph`, `rate_z_dph`, never both; a multi-axis header maps to
+    /// its first axis present (see [`Columns::for_axis`]).
     pub fn from_header(line: &str) -> Result<Columns, HeaderError> {
         let line = line.strip_prefix('\u{feff}').unwrap_or(line);
         let (mut time_s, mut rate_dph, mut ref_dph, mut temp_fault) = (None, None, None, None);
         let mut temps = [None; THERMOMETERS];
+        let (mut axis_rates, mut axis_temps, mut axis_refs) = ([None; MAX_AXES], [None; MAX_AXES], [None; MAX_AXES]);
         let mut count = 0;
         for (i, name) in line.split(',').enumerate() {
             count = i + 1;
             let name = trim_field(name);
+            let in_list = |list: &[&str; MAX_AXES]| list.iter().position(|t| *t == name);
             let slot = match name {
                 column::TIME_S => &mut time_s,
                 column::RATE_DPH => &mut rate_dph,
@@ -370,20 +486,78 @@ impl Columns {
                 column::TEMP_FAULT => &mut temp_fault,
                 _ => match column::THERMOMETERS.iter().position(|t| *t == name) {
                     Some(k) => &mut temps[k],
-                    None => continue,
+                    None => match (
+                        in_list(&column::AXIS_RATES_DPH),
+                        in_list(&column::AXIS_TEMPS_C),
+                        in_list(&column::AXIS_REFS_DPH),
+                    ) {
+                        (Some(k), _, _) => &mut axis_rates[k],
+                        (_, Some(k), _) => &mut axis_temps[k],
+                        (_, _, Some(k)) => &mut axis_refs[k],
+                        _ => continue,
+                    },
                 },
             };
             if slot.replace(i).is_some() {
                 return Err(HeaderError::DuplicateColumn(i));
             }
         }
-        Ok(Columns {
-            time_s: time_s.ok_or(HeaderError::MissingColumn(column::TIME_S))?,
-            rate_dph: rate_dph.ok_or(HeaderError::MissingColumn(column::RATE_DPH))?,
+        let time_s = time_s.ok_or(HeaderError::MissingColumn(column::TIME_S))?;
+        let mut axes = [None; MAX_AXES];
+        for (k, axis) in axes.iter_mut().enumerate() {
+            *axis = axis_rates[k].map(|rate_dph| AxisColumns {
+                rate_dph,
+                temp_c: axis_temps[k].or(temps[LOOP_THERMOMETER]),
+                ref_dph: axis_refs[k],
+            });
+        }
+        let single = Columns {
+            time_s,
+            rate_dph: 0,
             temps,
             ref_dph,
+            axes: [None; MAX_AXES],
+            axis: None,
             temp_fault,
             count,
+        };
+        match (rate_dph, axis_rates.iter().flatten().min()) {
+            (Some(_), Some(&per_axis)) => Err(HeaderError::MixedAxes(per_axis)),
+            (Some(rate_dph), None) => Ok(Columns { rate_dph, ..single }),
+            (None, Some(_)) => {
+                let multi = Columns { axes, ..single };
+                let first = multi.axes_present().next();
+                first
+                    .and_then(|a| multi.for_axis(a))
+                    .ok_or(HeaderError::MissingColumn(column::RATE_DPH))
+            }
+            (None, None) => Err(HeaderError::MissingColumn(column::RATE_DPH)),
+        }
+    }
+
+    /// True when the run carries per-axis rates (`rate_x_dph` …) rather than `rate_dph`.
+    pub fn is_multi_axis(&self) -> bool {
+        self.axes.iter().any(Option::is_some)
+    }
+
+    /// The axes of a multi-axis run, in x, y, z order (none for a single-axis run).
+    pub fn axes_present(&self) -> impl Iterator<Item = Axis> + '_ {
+        Axis::ALL.into_iter().filter(|a| self.axes[a.index()].is_some())
+    }
+
+    /// The columns that read `axis` of a multi-axis run as a single-axis
+    /// run: its rate as `rate_dph`, its loop thermometer as `temp_c`, its
+    /// reference as `ref_dph`; `None` when the run has no such axis.
+    pub fn for_axis(&self, axis: Axis) -> Option<Columns> {
+        let a = self.axes[axis.index()]?;
+        let mut temps = self.temps;
+        temps[LOOP_THERMOMETER] = a.temp_c;
+        Some(Columns {
+            rate_dph: a.rate_dph,
+            temps,
+            ref_dph: a.ref_dph,
+            axis: Some(axis),
+            ..*self
         })
     }
 
@@ -718,6 +892,82 @@ mod tests {
         assert_eq!(
             Columns::from_header("time_s,rate_dph,time_s"),
             Err(HeaderError::DuplicateColumn(2))
+        );
+    }
+
+    #[test]
+    fn a_multi_axis_header_reads_each_axis_as_a_single_axis_run() {
+        let header = "time_s,rate_x_dph,temp_c,rate_z_dph,temp_z_c,ref_z_dph,note";
+        let c = Columns::from_header(header).unwrap();
+        assert!(c.is_multi_axis());
+        assert_eq!(c.axes_present().collect::<std::vec::Vec<_>>(), [Axis::X, Axis::Z]);
+        assert_eq!(
+            (c.axis, c.rate_dph, c.temp_c(), c.ref_dph),
+            (Some(Axis::X), 1, Some(2), None)
+        );
+        assert_eq!(c.for_axis(Axis::Y), None);
+        let z = c.for_axis(Axis::Z).unwrap();
+        assert_eq!(
+            (z.axis, z.rate_dph, z.temp_c(), z.ref_dph),
+            (Some(Axis::Z), 3, Some(4), Some(5))
+        );
+        let line = "1.5,10,20.5,-30,21.25,-29.5,x";
+        let (rx, rz) = (c.parse_row(line).unwrap(), z.parse_row(line).unwrap());
+        assert_eq!((rx.rate_dph, rx.temp_c(), rx.ref_dph), (10.0, Some(20.5), None));
+        assert_eq!(
+            (rz.rate_dph, rz.temp_c(), rz.ref_dph),
+            (-30.0, Some(21.25), Some(-29.5))
+        );
+        assert_eq!(
+            z.parse_row("1.5,10,20.5,x,21.25,-29.5,x"),
+            Err(RowError {
+                column: Some(3),
+                kind: RowErrorKind::NotANumber
+            }),
+            "the axis's rate column is named"
+        );
+        assert_eq!(
+            Columns::from_header("time_s,rate_dph,temp_c,rate_y_dph"),
+            Err(HeaderError::MixedAxes(3))
+        );
+        assert_eq!(
+            Columns::from_header("time_s,temp_x_c,ref_x_dph"),
+            Err(HeaderError::MissingColumn("rate_dph"))
+        );
+        assert_eq!(
+            Columns::from_header("time_s,rate_y_dph,rate_y_dph"),
+            Err(HeaderError::DuplicateColumn(2))
+        );
+        let single = Columns::from_header("time_s,rate_dph,temp_c,temp_x_c").unwrap();
+        assert!(!single.is_multi_axis() && single.axis.is_none());
+        assert_eq!(single.temp_c(), Some(2), "temp_x_c means nothing to a single-axis run");
+    }
+
+    #[test]
+    fn compensated_output_names_and_writes_every_axis_and_single_axis_output_is_unchanged() {
+        use crate::{CompensatedSample, Flags};
+        let sample = |bias_dph: f32, bits: u8| CompensatedSample {
+            bias_dph,
+            rate_comp_dph: 1.0 - bias_dph,
+            temp_c: 20.0,
+            flags: Flags(bits),
+        };
+        let mut text = heapless::String::<256>::new();
+        let multi = Columns::from_header("time_s,rate_x_dph,rate_y_dph,temp_c").unwrap();
+        write_compensated_header(&mut text, "time_s,rate_x_dph,rate_y_dph,temp_c", &multi).unwrap();
+        write_compensated_axes_row(&mut text, "0,1,1,20", &[sample(0.25, 0), sample(-0.5, 9)]).unwrap();
+        assert_eq!(
+            text.as_str(),
+            "time_s,rate_x_dph,rate_y_dph,temp_c,bias_x_dph,rate_comp_x_dph,flags_x,bias_y_dph,rate_comp_y_dph,flags_y\n\
+             0,1,1,20,0.25,0.75,0,-0.5,1.5,9\n"
+        );
+        text.clear();
+        let single = Columns::from_header("time_s,rate_dph,temp_c").unwrap();
+        write_compensated_header(&mut text, "time_s,rate_dph,temp_c", &single).unwrap();
+        write_compensated_row(&mut text, "0,1,20", &sample(0.1, 8)).unwrap();
+        assert_eq!(
+            text.as_str(),
+            "time_s,rate_dph,temp_c,bias_dph,rate_comp_dph,flags\n0,1,20,0.1,0.9,8\n"
         );
     }
 

@@ -17,7 +17,7 @@ use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
-use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row, RowErrorKind};
+use rbf_core::record::{self, Axis, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row, RowErrorKind};
 use rbf_core::{CompensatorConfig, GyroSample};
 
 use crate::chunked::{self, Batch, Defect};
@@ -65,6 +65,8 @@ pub struct RunReader {
     header_line: String,
     column_names: Vec<String>,
     columns: Columns,
+    /// The header's columns before an axis was selected.
+    header_columns: Columns,
     preamble: Vec<String>,
     last_time_s: Option<f64>,
     /// Rows read ahead at opening, handed out first.
@@ -218,6 +220,15 @@ impl RunReader {
                     text::escape_controls(&column_names[i])
                 ),
             ),
+            HeaderError::MixedAxes(i) => format_error(
+                line_no,
+                format!(
+                    "column {} (field {}): a run has rate_dph (one axis) or rate_x_dph, rate_y_dph, \
+                     rate_z_dph (one to three axes), not both",
+                    text::escape_controls(&column_names[i]),
+                    i + 1
+                ),
+            ),
             _ => format_error(line_no, "unusable header".into()),
         })?;
         let mut reader = RunReader {
@@ -231,6 +242,7 @@ impl RunReader {
             header_line,
             column_names,
             columns,
+            header_columns: columns,
             preamble,
             last_time_s: None,
             ahead: VecDeque::new(),
@@ -323,9 +335,50 @@ impl RunReader {
         self.last_line_out
     }
 
-    /// Where the known columns are.
+    /// Where the known columns are (of the selected axis in a multi-axis run).
     pub fn columns(&self) -> &Columns {
         &self.columns
+    }
+
+    /// The axes of a multi-axis run, in x, y, z order; empty for a single-axis run.
+    pub fn axes(&self) -> Vec<Axis> {
+        self.header_columns.axes_present().collect()
+    }
+
+    /// The columns that read `axis` ([`Columns::for_axis`]), or an error at
+    /// the header naming the missing rate column.
+    pub fn axis_columns(&self, axis: Axis) -> Result<Columns, RunError> {
+        self.header_columns.for_axis(axis).ok_or_else(|| {
+            self.error_at(
+                self.header_line_no,
+                format!(
+                    "header has no column {} (header: {})",
+                    axis.rate_column(),
+                    short(&self.header_line)
+                ),
+            )
+        })
+    }
+
+    /// Reads `axis` of a multi-axis run from here on, as a single-axis run
+    /// (its rate as `rate_dph`, its loop thermometer as `temp_c`, its
+    /// reference as `ref_dph`); the rows already read ahead are parsed again.
+    pub fn select_axis(&mut self, axis: Axis) -> Result<(), RunError> {
+        let columns = self.axis_columns(axis)?;
+        let mut ahead = std::mem::take(&mut self.ahead);
+        for raw in &mut ahead {
+            raw.row = self.parse_with(&columns, raw.line, &raw.text)?;
+        }
+        self.ahead = ahead;
+        self.columns = columns;
+        Ok(())
+    }
+
+    /// Parses the text of data line `line` with `columns` (another axis's
+    /// columns of this run, see [`RunReader::axis_columns`]); a refused
+    /// row's error names this file, the line and the column.
+    pub fn parse_with(&self, columns: &Columns, line: usize, text: &str) -> Result<Row, RunError> {
+        columns.parse_row(text).map_err(|e| self.row_error_in(line, text, e))
     }
 
     /// The lines before the header (metadata, blank lines) as read, without line ends.
@@ -578,7 +631,11 @@ impl RunReader {
     /// The error for a refused row, naming its column and quoting its field
     /// (the row's text is in `self.line`).
     fn row_error(&self, e: record::RowError) -> RunError {
-        let text = self.line.as_str();
+        self.row_error_in(self.line_no, &self.line, e)
+    }
+
+    /// The error for row `text` of line `line`, refused by the row parser.
+    fn row_error_in(&self, line: usize, text: &str, e: record::RowError) -> RunError {
         let column = e.column.and_then(|i| self.column_names.get(i).map(|n| (i, n)));
         let field = e
             .column
@@ -604,7 +661,7 @@ impl RunReader {
             Some((i, name)) => format!("column {} (field {}): {message}", text::escape_controls(name), i + 1),
             None => message,
         };
-        self.error_at(self.line_no, message)
+        self.error_at(line, message)
     }
 }
 
@@ -933,8 +990,22 @@ mod tests {
 
     /// Every row and the error of a run read line by line ([`RunReader::next_parsed`]).
     fn line_by_line(text: &[u8]) -> (Vec<(usize, Row)>, Option<String>) {
+        line_by_line_axis(text, None)
+    }
+
+    /// A reader of `text` on `axis` (none: the run as it opens).
+    fn open_axis(text: &[u8], axis: Option<Axis>) -> Result<RunReader, RunError> {
         let source = BufReader::with_capacity(64, std::io::Cursor::new(text.to_vec()));
-        let mut reader = match RunReader::from_reader(Path::new("run.csv"), source) {
+        let mut reader = RunReader::from_reader(Path::new("run.csv"), source)?;
+        if let Some(axis) = axis {
+            reader.select_axis(axis)?;
+        }
+        Ok(reader)
+    }
+
+    /// [`line_by_line`] of one axis.
+    fn line_by_line_axis(text: &[u8], axis: Option<Axis>) -> (Vec<(usize, Row)>, Option<String>) {
+        let mut reader = match open_axis(text, axis) {
             Ok(r) => r,
             Err(e) => return (Vec::new(), Some(e.to_string())),
         };
@@ -950,8 +1021,12 @@ mod tests {
 
     /// The same by [`RunReader::for_each_batch`] in chunks of `chunk_bytes`.
     fn chunked(text: &[u8], chunk_bytes: usize) -> (Vec<(usize, Row)>, Option<String>) {
-        let source = BufReader::with_capacity(64, std::io::Cursor::new(text.to_vec()));
-        let mut reader = match RunReader::from_reader(Path::new("run.csv"), source) {
+        chunked_axis(text, chunk_bytes, None)
+    }
+
+    /// [`chunked`] of one axis.
+    fn chunked_axis(text: &[u8], chunk_bytes: usize, axis: Option<Axis>) -> (Vec<(usize, Row)>, Option<String>) {
+        let mut reader = match open_axis(text, axis) {
             Ok(r) => r,
             Err(e) => return (Vec::new(), Some(e.to_string())),
         };
@@ -1052,6 +1127,71 @@ mod tests {
             cases >= 20,
             "only {cases} files were refused: the edits test too little"
         );
+    }
+
+    #[test]
+    fn the_chunked_reader_gives_each_axis_the_rows_and_errors_of_the_line_reader() {
+        use rand::{Rng, SeedableRng};
+        let header = "time_s,rate_x_dph,temp_x_c,rate_y_dph,temp_c,ref_y_dph,rate_z_dph,temp_z_c";
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(25);
+        let mut refused = 0;
+        for seed in 0..8u64 {
+            let mut text = generated(300, header, seed);
+            if seed > 0 {
+                let at = rng.random_range(text.len() / 3..text.len());
+                text.splice(at..at + 1, b"x".iter().copied());
+            }
+            for axis in Axis::ALL {
+                let expected = line_by_line_axis(&text, Some(axis));
+                for chunk_bytes in [1, 97, chunked::CHUNK_BYTES] {
+                    assert_eq!(
+                        chunked_axis(&text, chunk_bytes, Some(axis)),
+                        expected,
+                        "axis {axis:?}, seed {seed}, chunks of {chunk_bytes} bytes"
+                    );
+                }
+                refused += usize::from(expected.1.is_some());
+            }
+            // Each axis reads its own rate, thermometer and reference.
+            let clean = generated(3, header, seed);
+            let fields: Vec<f64> = String::from_utf8(clean)
+                .unwrap()
+                .lines()
+                .nth(2)
+                .unwrap()
+                .split(',')
+                .map(|f| f.trim().parse().unwrap())
+                .collect();
+            let text = generated(3, header, seed);
+            let (y, _) = line_by_line_axis(&text, Some(Axis::Y));
+            assert_eq!(
+                (y[0].1.rate_dph, y[0].1.temp_c(), y[0].1.ref_dph),
+                (fields[3], Some(fields[4]), Some(fields[5]))
+            );
+            let (z, _) = line_by_line_axis(&text, Some(Axis::Z));
+            assert_eq!(
+                (z[0].1.rate_dph, z[0].1.temp_c(), z[0].1.ref_dph),
+                (fields[6], Some(fields[7]), None)
+            );
+        }
+        assert!(refused >= 6, "only {refused} axis readings were refused");
+    }
+
+    #[test]
+    fn a_run_with_rate_dph_and_a_per_axis_rate_is_refused_naming_the_column() {
+        let text = b"# sample_rate_hz: 10\ntime_s,rate_dph,temp_c,rate_z_dph\n0,1,20,2\n";
+        let err = open_axis(text, None).unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "run.csv:2: column rate_z_dph (field 4): a run has rate_dph (one axis) or rate_x_dph, rate_y_dph, \
+             rate_z_dph (one to three axes), not both"
+        );
+        let text = b"time_s,rate_x_dph,temp_c\n0,1,20\n0.1,2,20\n";
+        let err = open_axis(text, Some(Axis::Y)).unwrap_err().to_string();
+        assert!(err.starts_with("run.csv:1: header has no column rate_y_dph"), "{err}");
+        let text = b"time_s,rate_x_dph,temp_c,rate_y_dph\n0,1,20,2\n0.1,2,20,oops\n";
+        let err = open_axis(text, Some(Axis::Y)).unwrap_err().to_string();
+        assert_eq!(err, "run.csv:3: column rate_y_dph (field 4): \"oops\" is not a number");
     }
 
     #[test]
