@@ -40,6 +40,8 @@ pub const CRC_LEN: usize = 4;
 /// Upper bound of an encoded blob at full capacity, bytes: size buffers with it.
 pub const MAX_BLOB_LEN: usize = 4096;
 
+pub mod axes;
+
 const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// Physical unit of the model output; stored so a reader can refuse surprises.
@@ -123,6 +125,9 @@ impl Header {
             centers: u16::from_le_bytes([h[8], h[9]]),
             payload_len: u32::from_le_bytes([h[12], h[13], h[14], h[15]]),
         };
+        if header.version == axes::AXES_FORMAT_VERSION {
+            return Err(DecodeError::MultiAxis);
+        }
         if header.version != FORMAT_VERSION {
             return Err(DecodeError::UnsupportedVersion(header.version));
         }
@@ -177,6 +182,11 @@ pub enum DecodeError {
     Malformed,
     /// The parameters parse but do not form a valid model.
     Model(ModelError),
+    /// A multi-axis blob ([`axes::AXES_FORMAT_VERSION`]) where one model was
+    /// expected: decode it with [`axes::decode_axes_into`].
+    MultiAxis,
+    /// A multi-axis blob's axis mask is 0 or names an axis beyond z.
+    BadAxisMask(u8),
 }
 
 impl core::fmt::Display for DecodeError {
@@ -202,6 +212,10 @@ impl core::fmt::Display for DecodeError {
             ),
             DecodeError::Malformed => f.write_str("malformed payload"),
             DecodeError::Model(e) => write!(f, "invalid model: {e}"),
+            DecodeError::MultiAxis => {
+                f.write_str("a multi-axis blob (one model per gyro axis) where a single-axis model is expected")
+            }
+            DecodeError::BadAxisMask(m) => write!(f, "axis mask {m:#04x} names no axis or one beyond z"),
         }
     }
 }
@@ -219,13 +233,19 @@ impl From<ModelError> for DecodeError {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum EncodeError {
-    /// The output buffer is too small; [`MAX_BLOB_LEN`] always suffices.
+    /// The output buffer is too small; [`MAX_BLOB_LEN`] always suffices
+    /// for one model (a multi-axis blob may not fit it at all).
     BufferTooSmall,
+    /// A multi-axis blob without any axis's model.
+    NoModel,
 }
 
 impl core::fmt::Display for EncodeError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str("output buffer too small for the model blob")
+        match self {
+            EncodeError::BufferTooSmall => f.write_str("output buffer too small for the model blob"),
+            EncodeError::NoModel => f.write_str("no axis has a model"),
+        }
     }
 }
 
@@ -243,8 +263,12 @@ pub struct Decoded {
 
 /// True when the CRC over the blob described by `header` matches.
 pub fn crc_status(bytes: &[u8], header: &Header) -> Result<(), DecodeError> {
-    let body_len = HEADER_LEN + header.payload_len as usize;
-    let need = header.blob_len();
+    crc_status_at(bytes, HEADER_LEN + header.payload_len as usize)
+}
+
+/// True when the CRC after the first `body_len` bytes (header and payload) matches them.
+pub(crate) fn crc_status_at(bytes: &[u8], body_len: usize) -> Result<(), DecodeError> {
+    let need = body_len + CRC_LEN;
     let (Some(body), Some(crc)) = (bytes.get(..body_len), bytes.get(body_len..need)) else {
         return Err(DecodeError::Truncated {
             needed: need,
@@ -269,8 +293,23 @@ fn copy_vec<const N: usize>(src: &[f32]) -> Result<Vec<f32, N>, EncodeError> {
     Vec::from_slice(src).map_err(|_| EncodeError::BufferTooSmall)
 }
 
-/// Encodes `model` into `out`; returns the number of bytes written.
-pub fn encode(model: &Model, out: &mut [u8]) -> Result<usize, EncodeError> {
+/// The shape of one encoded model (v2 header fields, a v3 section's header).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct SectionShape {
+    /// Model kind code.
+    pub kind_code: u8,
+    /// Inputs D.
+    pub inputs: u8,
+    /// Centres K (0 for the cubic).
+    pub centers: u16,
+}
+
+/// Writes `model`'s payload, postcard(common part) ++ postcard(body), at
+/// the start of `out`; returns its shape and length.
+pub(crate) fn encode_section<const K: usize>(
+    model: &Model<K>,
+    out: &mut [u8],
+) -> Result<(SectionShape, usize), EncodeError> {
     let dims = model.features().dims();
     let mut input_min = Vec::<f32, MAX_INPUTS>::new();
     let mut input_max = Vec::<f32, MAX_INPUTS>::new();
@@ -287,11 +326,10 @@ pub fn encode(model: &Model, out: &mut [u8]) -> Result<usize, EncodeError> {
         input_max,
         serial: model.info().serial.clone(),
     };
-    let payload_area = out.get_mut(HEADER_LEN..).ok_or(EncodeError::BufferTooSmall)?;
-    let common_len = postcard::to_slice(&common, payload_area)
+    let common_len = postcard::to_slice(&common, out)
         .map_err(|_| EncodeError::BufferTooSmall)?
         .len();
-    let body_area = &mut payload_area[common_len..];
+    let body_area = out.get_mut(common_len..).ok_or(EncodeError::BufferTooSmall)?;
     let (centers, body_len) = match model.body() {
         ModelBody::Rbf(net) => {
             let mut centers = Vec::<f32, { MAX_CENTERS * MAX_KERNEL_INPUTS }>::new();
@@ -328,21 +366,40 @@ pub fn encode(model: &Model, out: &mut [u8]) -> Result<usize, EncodeError> {
             )
         }
     };
-    let payload_len = common_len + body_len;
+    let shape = SectionShape {
+        kind_code: model.kind() as u8,
+        inputs: dims as u8,
+        centers,
+    };
+    Ok((shape, common_len + body_len))
+}
+
+/// Writes the CRC-32 of `out[..body_len]` after it; returns the blob's length.
+pub(crate) fn seal(out: &mut [u8], body_len: usize) -> Result<usize, EncodeError> {
+    let total = body_len + CRC_LEN;
+    let crc = CRC32.checksum(out.get(..body_len).ok_or(EncodeError::BufferTooSmall)?);
+    out.get_mut(body_len..total)
+        .ok_or(EncodeError::BufferTooSmall)?
+        .copy_from_slice(&crc.to_le_bytes());
+    Ok(total)
+}
+
+/// Encodes `model` into `out`; returns the number of bytes written.
+pub fn encode<const K: usize>(model: &Model<K>, out: &mut [u8]) -> Result<usize, EncodeError> {
+    let payload_area = out.get_mut(HEADER_LEN..).ok_or(EncodeError::BufferTooSmall)?;
+    let (shape, payload_len) = encode_section(model, payload_area)?;
     let total = HEADER_LEN + payload_len + CRC_LEN;
     if out.len() < total {
         return Err(EncodeError::BufferTooSmall);
     }
     out[0..4].copy_from_slice(&MAGIC);
     out[4..6].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
-    out[6] = model.kind() as u8;
-    out[7] = dims as u8;
-    out[8..10].copy_from_slice(&centers.to_le_bytes());
+    out[6] = shape.kind_code;
+    out[7] = shape.inputs;
+    out[8..10].copy_from_slice(&shape.centers.to_le_bytes());
     out[10..12].copy_from_slice(&[0, 0]);
     out[12..16].copy_from_slice(&(payload_len as u32).to_le_bytes());
-    let crc = CRC32.checksum(&out[..HEADER_LEN + payload_len]);
-    out[HEADER_LEN + payload_len..total].copy_from_slice(&crc.to_le_bytes());
-    Ok(total)
+    seal(out, HEADER_LEN + payload_len)
 }
 
 /// Decodes and validates a blob from untrusted bytes (trailing bytes ignored).
@@ -356,7 +413,7 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
 /// in `model` (the firmware's `static`, so that no 4 KiB model is moved by
 /// value); returns the bytes the blob occupied. On error `model` is
 /// [`Model::EMPTY`] and the reason is returned.
-pub fn decode_into(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError> {
+pub fn decode_into<const K: usize>(model: &mut Model<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
     let result = decode_payload(model, bytes);
     if result.is_err() {
         *model = Model::EMPTY;
@@ -364,12 +421,35 @@ pub fn decode_into(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError
     result
 }
 
-fn decode_payload(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError> {
+fn decode_payload<const K: usize>(model: &mut Model<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
     let header = Header::parse(bytes)?;
     crc_status(bytes, &header)?;
     let payload = bytes
         .get(HEADER_LEN..HEADER_LEN + header.payload_len as usize)
         .ok_or(DecodeError::Malformed)?;
+    let shape = SectionShape {
+        kind_code: header.kind_code,
+        inputs: header.inputs,
+        centers: header.centers,
+    };
+    decode_section(model, shape, payload)?;
+    Ok(header.blob_len())
+}
+
+/// Builds `model` from one model's payload (common part ++ body) of the
+/// announced `shape`, in place; the CRC is already checked.
+pub(crate) fn decode_section<const K: usize>(
+    model: &mut Model<K>,
+    shape: SectionShape,
+    payload: &[u8],
+) -> Result<(), DecodeError> {
+    if usize::from(shape.centers) > K || usize::from(shape.inputs) > MAX_INPUTS {
+        return Err(DecodeError::ShapeOverCapacity {
+            centers: shape.centers,
+            inputs: shape.inputs,
+        });
+    }
+    let header = shape;
     let (common, rest): (CommonWire, _) = postcard::take_from_bytes(payload).map_err(|_| DecodeError::Malformed)?;
     let dims = common.features.dims();
     if dims != header.inputs as usize || common.input_min.len() != dims || common.input_max.len() != dims {
@@ -398,7 +478,7 @@ fn decode_payload(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError>
         }
         None => return Err(DecodeError::UnknownKind(header.kind_code)),
     }
-    Ok(header.blob_len())
+    Ok(())
 }
 
 /// Reads an RBF body ([`RbfWire`], postcard) straight into a network's

@@ -272,9 +272,23 @@ impl Compensator {
 
     /// Compensates one sample. `model = None` (absent or invalid blob) passes the
     /// rate through with flag 4 while still tracking temperature faults.
+    ///
     pub fn process(
         &mut self,
         model: Option<&Model>,
+        config: &CompensatorConfig,
+        sample: &GyroSample,
+    ) -> CompensatedSample {
+        self.process_with(model, config, sample)
+    }
+
+    /// [`Self::process`] with a model of any centre capacity `K`: a
+    /// multi-axis IMU runs one compensator per axis, each with its axis's
+    /// model ([`crate::blob::axes::AxisModels::get`]) and samples, through
+    /// this same step.
+    pub fn process_with<const K: usize>(
+        &mut self,
+        model: Option<&Model<K>>,
         config: &CompensatorConfig,
         sample: &GyroSample,
     ) -> CompensatedSample {

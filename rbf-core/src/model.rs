@@ -59,9 +59,9 @@ pub type DeployedRbf = RbfNetwork<MAX_CENTERS, MAX_INPUTS>;
     clippy::large_enum_variant,
     reason = "no_std without alloc: nothing to box into; one model lives in RAM"
 )]
-pub enum ModelBody {
+pub enum ModelBody<const K: usize = MAX_CENTERS> {
     /// Gaussian RBF network.
-    Rbf(DeployedRbf),
+    Rbf(RbfNetwork<K, MAX_INPUTS>),
     /// Cubic baseline in T.
     Poly3(Poly3),
 }
@@ -77,9 +77,9 @@ pub enum BodyParams<'a> {
 
 /// The network of `body`, made an RBF body first if it is not one (in
 /// place: a network is never moved by value).
-fn rbf_body(body: &mut ModelBody) -> Result<&mut DeployedRbf, ModelError> {
+fn rbf_body<const K: usize>(body: &mut ModelBody<K>) -> Result<&mut RbfNetwork<K, MAX_INPUTS>, ModelError> {
     if !matches!(body, ModelBody::Rbf(_)) {
-        *body = ModelBody::Rbf(DeployedRbf::EMPTY);
+        *body = ModelBody::Rbf(RbfNetwork::EMPTY);
     }
     match body {
         ModelBody::Rbf(net) => Ok(net),
@@ -102,30 +102,17 @@ pub struct Evaluation {
 /// [`Self::eval`] reads sits within the immediate offsets of Cortex-M loads.
 #[derive(Clone, Debug, PartialEq)]
 #[repr(C)]
-pub struct Model {
+pub struct Model<const K: usize = MAX_CENTERS> {
     input_min: [f32; MAX_INPUTS],
     input_max: [f32; MAX_INPUTS],
     linear_min: [f32; MAX_INPUTS],
     linear_max: [f32; MAX_INPUTS],
-    body: ModelBody,
+    body: ModelBody<K>,
     features: FeatureConfig,
     info: ModelInfo,
 }
 
 impl Model {
-    /// The model of no gyro: no inputs' ranges, an empty network, every
-    /// bit zero (a `static` holding one costs no flash). It evaluates to a
-    /// bias of 0; [`crate::blob::decode_into`] fills it in place.
-    pub const EMPTY: Model = Model {
-        input_min: [0.0; MAX_INPUTS],
-        input_max: [0.0; MAX_INPUTS],
-        linear_min: [0.0; MAX_INPUTS],
-        linear_max: [0.0; MAX_INPUTS],
-        body: ModelBody::Rbf(DeployedRbf::EMPTY),
-        features: FeatureConfig::single(FeatureSet::Temp, 0.0),
-        info: ModelInfo { serial: None },
-    };
-
     /// Assembles a model, checking that features, ranges and body agree.
     ///
     /// `input_range` holds (min, max) per input in input units: the training range
@@ -136,10 +123,25 @@ impl Model {
         body: ModelBody,
         info: ModelInfo,
     ) -> Result<Self, ModelError> {
-        let mut model = Model { body, ..Model::EMPTY };
+        let mut model = Model { body, ..Self::EMPTY };
         model.complete(features, input_range, info)?;
         Ok(model)
     }
+}
+
+impl<const K: usize> Model<K> {
+    /// The model of no gyro: no inputs' ranges, an empty network, every
+    /// bit zero (a `static` holding one costs no flash). It evaluates to a
+    /// bias of 0; [`crate::blob::decode_into`] fills it in place.
+    pub const EMPTY: Self = Model {
+        input_min: [0.0; MAX_INPUTS],
+        input_max: [0.0; MAX_INPUTS],
+        linear_min: [0.0; MAX_INPUTS],
+        linear_max: [0.0; MAX_INPUTS],
+        body: ModelBody::Rbf(RbfNetwork::EMPTY),
+        features: FeatureConfig::single(FeatureSet::Temp, 0.0),
+        info: ModelInfo { serial: None },
+    };
 
     /// [`Self::new`] in place, for the firmware's `static` model (no model
     /// is moved by value): the network is built where it will run. On error
@@ -180,11 +182,11 @@ impl Model {
         features: FeatureConfig,
         input_range: &[(f32, f32)],
         info: ModelInfo,
-        build: impl FnOnce(&mut ModelBody) -> Result<(), E>,
+        build: impl FnOnce(&mut ModelBody<K>) -> Result<(), E>,
     ) -> Result<(), E> {
         let result = build(&mut self.body).and_then(|()| self.complete(features, input_range, info).map_err(E::from));
         if result.is_err() {
-            *self = Model::EMPTY;
+            *self = Self::EMPTY;
         }
         result
     }
@@ -266,7 +268,7 @@ impl Model {
     }
 
     /// The regression body.
-    pub fn body(&self) -> &ModelBody {
+    pub fn body(&self) -> &ModelBody<K> {
         &self.body
     }
 
@@ -324,7 +326,11 @@ impl Model {
     /// table path is ready: then its linear terms), with whether an input
     /// left its training range.
     #[inline(always)]
-    fn eval_inputs<const N: usize>(&self, raw: &[f32; MAX_INPUTS], table_net: Option<&DeployedRbf>) -> (f32, bool) {
+    fn eval_inputs<const N: usize>(
+        &self,
+        raw: &[f32; MAX_INPUTS],
+        table_net: Option<&RbfNetwork<K, MAX_INPUTS>>,
+    ) -> (f32, bool) {
         let mut outside = 0.0f32;
         for (v, (lo, hi)) in raw.iter().zip(self.input_min.iter().zip(&self.input_max)).take(N) {
             outside += outside_measure(*v, *lo, *hi);
@@ -559,9 +565,10 @@ mod tests {
 
     #[test]
     fn the_empty_model_evaluates_to_zero_bias_without_flagging() {
-        let e = Model::EMPTY.eval(&FeatureVector::from_values(&[25.0]));
+        let empty: Model = Model::EMPTY;
+        let e = empty.eval(&FeatureVector::from_values(&[25.0]));
         assert_eq!(e.bias_dph.to_bits(), 0f32.to_bits());
-        assert_eq!(Model::EMPTY.features().dims(), 1);
+        assert_eq!(empty.features().dims(), 1);
     }
 
     #[test]

@@ -6,7 +6,7 @@
 use std::io::Cursor;
 use std::path::Path;
 
-use rbf_core::blob::{self, FORMAT_VERSION, HEADER_LEN, MAGIC, MAX_BLOB_LEN};
+use rbf_core::blob::{self, FORMAT_VERSION, HEADER_LEN, MAGIC, MAX_BLOB_LEN, axes};
 use rbf_core::frame::{self, MAX_FRAME_LEN};
 use rbf_core::{Compensator, CompensatorConfig, GyroSample};
 use trainer::run::{Run, RunError, RunReader};
@@ -35,8 +35,51 @@ pub fn sealed_blob(data: &[u8]) -> Option<Vec<u8>> {
 /// decode unchanged and give a finite bias for any temperature sequence.
 pub fn check_blob(data: &[u8]) {
     check_one_blob(data);
+    check_axes_blob(data);
     if let Some(blob) = sealed_blob(data) {
         check_one_blob(&blob);
+    }
+    if let Some(blob) = sealed_axes_blob(data) {
+        check_axes_blob(&blob);
+    }
+}
+
+/// `data` as a multi-axis blob: its first byte the axis mask, the rest the
+/// payload, given magic, version 3, length and a valid CRC.
+pub fn sealed_axes_blob(data: &[u8]) -> Option<Vec<u8>> {
+    let (&mask, payload) = data.split_first()?;
+    let mut blob = Vec::with_capacity(HEADER_LEN + payload.len() + 4);
+    blob.extend_from_slice(&MAGIC);
+    blob.extend_from_slice(&axes::AXES_FORMAT_VERSION.to_le_bytes());
+    blob.extend_from_slice(&[mask, 0, 0, 0, 0, 0]);
+    blob.extend_from_slice(&u32::try_from(payload.len()).ok()?.to_le_bytes());
+    blob.extend_from_slice(payload);
+    blob.extend_from_slice(&CRC32.checksum(&blob).to_le_bytes());
+    Some(blob)
+}
+
+/// A decoded multi-axis blob re-encodes to models that decode the same, at
+/// the firmware's smaller capacity too, and every axis gives a finite bias.
+fn check_axes_blob(data: &[u8]) {
+    let mut models = Box::new(axes::AxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
+    let Ok(len) = axes::decode_axes_into(&mut models, data) else {
+        return;
+    };
+    assert!(len <= data.len());
+    let mut small = Box::new(axes::AxisModels::<16>::EMPTY);
+    let _ = axes::decode_axes_into(&mut small, data);
+    let mut buf = [0u8; MAX_BLOB_LEN];
+    let len = axes::encode_axes(&models, &mut buf).expect("a decoded blob encodes");
+    let mut again = Box::new(axes::AxisModels::EMPTY);
+    axes::decode_axes_into(&mut again, &buf[..len]).expect("a re-encoded blob decodes");
+    assert_eq!(*again, *models);
+    let config = CompensatorConfig::for_sample_rate(1.0);
+    for axis in models.axes() {
+        let mut compensator = Compensator::new();
+        for temp_c in [-1e30, f32::NAN, 25.0, 1e30].into_iter().map(Some).chain([None]) {
+            let out = compensator.process_with(models.get(axis), &config, &GyroSample::new(1.0, 1.0, temp_c));
+            assert!(out.bias_dph.is_finite() && out.rate_comp_dph.is_finite());
+        }
     }
 }
 

@@ -1,0 +1,399 @@
+//! The multi-axis model blob: one model per gyro axis (up to x, y, z of an
+//! IMU), one header, one CRC.
+//!
+//! ```text
+//! offset  size  field
+//!      0     4  magic  b"IFOG"
+//!      4     2  format version, u16 LE (3: multi-axis)
+//!      6     1  axis mask: bit 0 = x, bit 1 = y, bit 2 = z (at least one)
+//!      7     5  reserved, 0
+//!     12     4  payload length N, u32 LE
+//!     16     N  payload: per axis in the mask, x first, an 8-byte section
+//!               header (kind u8, inputs D u8, centres K u16 LE, section
+//!               length L u32 LE) and L bytes: postcard(common part) ++
+//!               postcard(body), exactly a version-2 payload
+//!   16+N     4  CRC-32/ISO-HDLC of bytes 0 .. 16+N, u32 LE
+//! ```
+//! The whole blob stays within [`MAX_BLOB_LEN`]. Each section is encoded
+//! and decoded by the single-axis code ([`super::encode`], [`super::decode_into`]
+//! share it), so an axis's model is bit for bit what a single-axis blob of
+//! it would give.
+//!
+//! [`AxisModels`] holds the decoded models with a centre capacity `K` per
+//! axis chosen by the user of the crate: RAM is `3 × size_of::<Model<K>>()`
+//! (see `docs/blob-format.md` for the figures), so a firmware picks the
+//! smallest `K` its blobs need. [`decode_axes_into`] builds them in place.
+
+use super::{
+    CRC_LEN, DecodeError, EncodeError, HEADER_LEN, MAGIC, MAX_BLOB_LEN, SectionShape, crc_status_at, decode_section,
+    encode_section, seal,
+};
+use crate::MAX_CENTERS;
+use crate::model::Model;
+use crate::record::{Axis, MAX_AXES};
+
+/// Format version of multi-axis blobs.
+pub const AXES_FORMAT_VERSION: u16 = 3;
+/// Length of the header in front of each axis's section, bytes.
+pub const SECTION_HEADER_LEN: usize = 8;
+
+/// The header of a multi-axis blob.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AxesHeader {
+    /// Axes present: bit 0 = x, bit 1 = y, bit 2 = z.
+    pub axis_mask: u8,
+    /// Payload length, bytes.
+    pub payload_len: u32,
+}
+
+impl AxesHeader {
+    /// Total blob length (header + payload + CRC), bytes.
+    pub fn blob_len(&self) -> usize {
+        HEADER_LEN + self.payload_len as usize + CRC_LEN
+    }
+
+    /// Parses and checks a multi-axis header: magic, version, axis mask,
+    /// reserved bytes and the length limit.
+    pub fn parse(bytes: &[u8]) -> Result<AxesHeader, DecodeError> {
+        let h = bytes.get(..HEADER_LEN).ok_or(DecodeError::Truncated {
+            needed: HEADER_LEN,
+            available: bytes.len(),
+        })?;
+        if h[0..4] != MAGIC {
+            return Err(DecodeError::BadMagic);
+        }
+        let version = u16::from_le_bytes([h[4], h[5]]);
+        if version != AXES_FORMAT_VERSION {
+            return Err(DecodeError::UnsupportedVersion(version));
+        }
+        let axis_mask = h[6];
+        if axis_mask == 0 || axis_mask >> MAX_AXES != 0 {
+            return Err(DecodeError::BadAxisMask(axis_mask));
+        }
+        if h[7..12].iter().any(|&b| b != 0) {
+            return Err(DecodeError::Malformed);
+        }
+        let header = AxesHeader {
+            axis_mask,
+            payload_len: u32::from_le_bytes([h[12], h[13], h[14], h[15]]),
+        };
+        if header.blob_len() > MAX_BLOB_LEN {
+            return Err(DecodeError::Malformed);
+        }
+        Ok(header)
+    }
+}
+
+/// The models of a multi-axis IMU, one per axis present, each with room
+/// for `K` Gaussian centres; a model is read through `&self` and never
+/// changes while it runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AxisModels<const K: usize = MAX_CENTERS> {
+    models: [Model<K>; MAX_AXES],
+    mask: u8,
+}
+
+impl<const K: usize> AxisModels<K> {
+    /// No axis: every model [`Model::EMPTY`] (all bits zero: a `static`
+    /// holding it costs no flash).
+    pub const EMPTY: Self = AxisModels {
+        models: [Model::EMPTY, Model::EMPTY, Model::EMPTY],
+        mask: 0,
+    };
+
+    /// The model of `axis`, if the blob had one.
+    pub fn get(&self, axis: Axis) -> Option<&Model<K>> {
+        self.models.get(axis.index()).filter(|_| self.has(axis))
+    }
+
+    /// True when `axis` has a model.
+    pub fn has(&self, axis: Axis) -> bool {
+        self.mask & (1 << axis.index()) != 0
+    }
+
+    /// The axes with a model, x first.
+    pub fn axes(&self) -> impl Iterator<Item = Axis> + '_ {
+        Axis::ALL.into_iter().filter(|a| self.has(*a))
+    }
+
+    /// Axes present as a bit mask (bit 0 = x).
+    pub fn mask(&self) -> u8 {
+        self.mask
+    }
+
+    /// Sets the model of `axis` (host tools assembling a blob).
+    pub fn insert(&mut self, axis: Axis, model: Model<K>) {
+        if let Some(slot) = self.models.get_mut(axis.index()) {
+            *slot = model;
+            self.mask |= 1 << axis.index();
+        }
+    }
+}
+
+/// Encodes the models of `axes` into `out` as one multi-axis blob; returns
+/// the number of bytes written. [`EncodeError::NoModel`] when there is no
+/// axis, [`EncodeError::BufferTooSmall`] when the blob would pass `out`
+/// or [`MAX_BLOB_LEN`].
+pub fn encode_axes<const K: usize>(axes: &AxisModels<K>, out: &mut [u8]) -> Result<usize, EncodeError> {
+    if axes.mask == 0 {
+        return Err(EncodeError::NoModel);
+    }
+    let limit = out.len().min(MAX_BLOB_LEN);
+    let out = out.get_mut(..limit).ok_or(EncodeError::BufferTooSmall)?;
+    let mut at = HEADER_LEN;
+    for axis in axes.axes() {
+        let model = &axes.models[axis.index()];
+        let section = out
+            .get_mut(at + SECTION_HEADER_LEN..)
+            .ok_or(EncodeError::BufferTooSmall)?;
+        let (shape, len) = encode_section(model, section)?;
+        let head = out
+            .get_mut(at..at + SECTION_HEADER_LEN)
+            .ok_or(EncodeError::BufferTooSmall)?;
+        head[0] = shape.kind_code;
+        head[1] = shape.inputs;
+        head[2..4].copy_from_slice(&shape.centers.to_le_bytes());
+        head[4..8].copy_from_slice(&(len as u32).to_le_bytes());
+        at += SECTION_HEADER_LEN + len;
+    }
+    if at + CRC_LEN > out.len() {
+        return Err(EncodeError::BufferTooSmall);
+    }
+    out[0..4].copy_from_slice(&MAGIC);
+    out[4..6].copy_from_slice(&AXES_FORMAT_VERSION.to_le_bytes());
+    out[6] = axes.mask;
+    out[7..12].fill(0);
+    out[12..16].copy_from_slice(&((at - HEADER_LEN) as u32).to_le_bytes());
+    seal(out, at)
+}
+
+/// Decodes and validates a multi-axis blob from untrusted bytes into
+/// `axes`, in place (the firmware's `static`: no model is moved by value);
+/// returns the bytes the blob occupied (trailing bytes are ignored). On
+/// error `axes` is [`AxisModels::EMPTY`] and the reason is returned; it
+/// never panics.
+pub fn decode_axes_into<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
+    let result = decode_axes_payload(axes, bytes);
+    if result.is_err() {
+        *axes = AxisModels::EMPTY;
+    }
+    result
+}
+
+fn decode_axes_payload<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
+    let header = AxesHeader::parse(bytes)?;
+    crc_status_at(bytes, HEADER_LEN + header.payload_len as usize)?;
+    let mut rest = bytes
+        .get(HEADER_LEN..HEADER_LEN + header.payload_len as usize)
+        .ok_or(DecodeError::Malformed)?;
+    axes.mask = 0;
+    for axis in Axis::ALL {
+        let slot = &mut axes.models[axis.index()];
+        if header.axis_mask & (1 << axis.index()) == 0 {
+            *slot = Model::EMPTY;
+            continue;
+        }
+        let (head, tail) = rest
+            .split_at_checked(SECTION_HEADER_LEN)
+            .ok_or(DecodeError::Malformed)?;
+        let shape = SectionShape {
+            kind_code: head[0],
+            inputs: head[1],
+            centers: u16::from_le_bytes([head[2], head[3]]),
+        };
+        let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
+        let (section, tail) = tail.split_at_checked(len).ok_or(DecodeError::Malformed)?;
+        decode_section(slot, shape, section)?;
+        rest = tail;
+    }
+    if !rest.is_empty() {
+        return Err(DecodeError::Malformed);
+    }
+    axes.mask = header.axis_mask;
+    Ok(header.blob_len())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blob::{self, decode};
+    use crate::features::{FeatureConfig, FeatureSet};
+    use crate::model::ModelInfo;
+    use crate::poly::Poly3;
+    use crate::rbf::RbfParams;
+
+    /// An RBF model of `centers` centres over (T, ΔT, T×ΔT), its weights scaled by `gain`.
+    fn rbf_model<const K: usize>(centers: usize, gain: f32) -> Model<K> {
+        let features = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
+        let c: std::vec::Vec<f32> = (0..centers * 3).map(|i| (i as f32 * 0.37).sin()).collect();
+        let widths: std::vec::Vec<f32> = (0..centers).map(|j| 0.8 + 0.01 * j as f32).collect();
+        let weights: std::vec::Vec<f32> = (0..centers).map(|j| gain * (0.02 - 0.001 * j as f32)).collect();
+        let params = RbfParams {
+            offset: &[25.0, 0.0, 0.0],
+            scale: &[10.0, 0.5, 12.0],
+            kernel_inputs: 3,
+            centers: &c,
+            widths: &widths,
+            weights: &weights,
+            linear: &[0.001, 0.003, -0.002],
+            constant: 0.05,
+        };
+        let mut model = Model::<K>::EMPTY;
+        let ranges = [(10.0, 40.0), (-1.5, 1.5), (-60.0, 60.0)];
+        model
+            .assign(
+                features,
+                &ranges,
+                crate::model::BodyParams::Rbf(&params),
+                ModelInfo::default(),
+            )
+            .unwrap();
+        model
+    }
+
+    fn poly_model<const K: usize>() -> Model<K> {
+        let mut model = Model::<K>::EMPTY;
+        let body = crate::model::BodyParams::Poly3(Poly3::new(25.0, [0.1, 0.2, -0.3, 0.004]).unwrap());
+        let f = FeatureConfig::single(FeatureSet::Temp, 0.0);
+        model.assign(f, &[(10.0, 40.0)], body, ModelInfo::default()).unwrap();
+        model
+    }
+
+    fn three_axes() -> AxisModels {
+        let mut axes = AxisModels::EMPTY;
+        axes.insert(Axis::X, rbf_model(32, 1.0));
+        axes.insert(Axis::Y, poly_model());
+        axes.insert(Axis::Z, rbf_model(20, -2.0));
+        axes
+    }
+
+    fn encoded<const K: usize>(axes: &AxisModels<K>) -> std::vec::Vec<u8> {
+        let mut buf = [0u8; MAX_BLOB_LEN];
+        let n = encode_axes(axes, &mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    fn reseal(blob: &mut [u8]) {
+        let n = blob.len() - CRC_LEN;
+        let crc = super::super::CRC32.checksum(&blob[..n]);
+        blob[n..].copy_from_slice(&crc.to_le_bytes());
+    }
+
+    #[test]
+    fn three_axes_round_trip_bit_for_bit_each_as_its_single_axis_blob_would() {
+        let axes = three_axes();
+        let blob = encoded(&axes);
+        assert!(blob.len() <= MAX_BLOB_LEN);
+        let mut back = AxisModels::EMPTY;
+        assert_eq!(decode_axes_into(&mut back, &blob), Ok(blob.len()));
+        assert_eq!(back, axes);
+        assert_eq!(back.axes().collect::<std::vec::Vec<_>>(), Axis::ALL);
+        // Each section is the single-axis payload: the model decoded from
+        // its own version-2 blob is the same.
+        for axis in Axis::ALL {
+            let model = axes.get(axis).unwrap();
+            let mut single = [0u8; MAX_BLOB_LEN];
+            let n = blob::encode(model, &mut single).unwrap();
+            assert_eq!(decode(&single[..n]).unwrap().model, *model, "axis {axis:?}");
+        }
+        // Two axes, and a smaller capacity per axis.
+        let mut xz = AxisModels::<32>::EMPTY;
+        xz.insert(Axis::X, rbf_model(32, 0.5));
+        xz.insert(Axis::Z, poly_model());
+        let blob = encoded(&xz);
+        let mut back = AxisModels::<32>::EMPTY;
+        assert_eq!(decode_axes_into(&mut back, &blob), Ok(blob.len()));
+        assert_eq!(back, xz);
+        assert!(back.get(Axis::Y).is_none() && back.get(Axis::Z).is_some());
+    }
+
+    #[test]
+    fn single_and_multi_axis_readers_refuse_each_other_with_a_reason() {
+        let blob = encoded(&three_axes());
+        assert_eq!(decode(&blob), Err(DecodeError::MultiAxis));
+        let mut single = [0u8; MAX_BLOB_LEN];
+        let n = blob::encode(&rbf_model::<{ MAX_CENTERS }>(4, 1.0), &mut single).unwrap();
+        let mut axes = three_axes();
+        assert_eq!(
+            decode_axes_into(&mut axes, &single[..n]),
+            Err(DecodeError::UnsupportedVersion(2))
+        );
+        assert_eq!(axes, AxisModels::EMPTY, "a refused blob leaves no model behind");
+    }
+
+    #[test]
+    fn every_defect_has_its_own_error_and_none_panics() {
+        let good = encoded(&three_axes());
+        let mut axes = AxisModels::<{ MAX_CENTERS }>::EMPTY;
+        let mut decode = |bytes: &[u8]| decode_axes_into(&mut axes, bytes).map(|_| ());
+        assert!(matches!(decode(&good[..10]), Err(DecodeError::Truncated { .. })));
+        assert!(matches!(
+            decode(&good[..good.len() - 1]),
+            Err(DecodeError::Truncated { .. })
+        ));
+        assert_eq!(decode(&[0xFF; 64]), Err(DecodeError::BadMagic));
+        for mask in [0u8, 0b1000, 0xFF] {
+            let mut v = good.clone();
+            v[6] = mask;
+            reseal(&mut v);
+            assert_eq!(decode(&v), Err(DecodeError::BadAxisMask(mask)));
+        }
+        // The mask names two axes, the payload holds three sections.
+        let mut v = good.clone();
+        v[6] = 0b011;
+        reseal(&mut v);
+        assert_eq!(decode(&v), Err(DecodeError::Malformed));
+        // A section longer than the payload.
+        let mut v = good.clone();
+        v[HEADER_LEN + 4..HEADER_LEN + 8].copy_from_slice(&u32::MAX.to_le_bytes());
+        reseal(&mut v);
+        assert_eq!(decode(&v), Err(DecodeError::Malformed));
+        // A payload length past the 4 KiB limit.
+        let mut v = good.clone();
+        v[12..16].copy_from_slice(&(MAX_BLOB_LEN as u32).to_le_bytes());
+        assert_eq!(decode(&v), Err(DecodeError::Malformed));
+        // Every single-bit flip is refused.
+        for byte in 0..good.len() {
+            for bit in 0..8 {
+                let mut v = good.clone();
+                v[byte] ^= 1 << bit;
+                assert!(decode(&v).is_err(), "flip of bit {bit} in byte {byte} accepted");
+            }
+        }
+        // Resealed garbage: refused or decoded, never a panic.
+        let mut state = 0x2545_f491u32;
+        for _ in 0..5_000 {
+            let mut v = good.clone();
+            for _ in 0..3 {
+                state ^= state << 13;
+                state ^= state >> 17;
+                state ^= state << 5;
+                let i = state as usize % v.len();
+                v[i] = (state >> 24) as u8;
+            }
+            reseal(&mut v);
+            let _ = decode(&v);
+            let _ = decode(&v[..state as usize % v.len()]);
+        }
+    }
+
+    #[test]
+    fn a_capacity_too_small_for_an_axis_or_a_blob_past_4_kib_is_refused() {
+        let blob = encoded(&three_axes());
+        let mut small = AxisModels::<16>::EMPTY;
+        assert_eq!(
+            decode_axes_into(&mut small, &blob),
+            Err(DecodeError::ShapeOverCapacity { centers: 32, inputs: 3 })
+        );
+        let mut big = AxisModels::<{ MAX_CENTERS }>::EMPTY;
+        for axis in Axis::ALL {
+            big.insert(axis, rbf_model(64, 1.0));
+        }
+        let mut buf = [0u8; 2 * MAX_BLOB_LEN];
+        assert_eq!(encode_axes(&big, &mut buf), Err(EncodeError::BufferTooSmall));
+        assert_eq!(
+            encode_axes(&AxisModels::<8>::EMPTY, &mut buf),
+            Err(EncodeError::NoModel)
+        );
+    }
+}
