@@ -6,7 +6,9 @@ use std::path::Path;
 
 use anyhow::Context;
 use rbf_core::Model;
+use rbf_core::blob::axes::{self, AXES_FORMAT_VERSION, AxisModels};
 use rbf_core::blob::{self, MAX_BLOB_LEN};
+use rbf_core::record::Axis;
 
 use crate::input;
 use crate::output::{Existing, write_bytes_with};
@@ -53,18 +55,100 @@ pub fn read_blob(path: &Path) -> anyhow::Result<Vec<u8>> {
 /// Bytes after the blob's end are refused (a file holds one blob; the
 /// firmware's flash region may hold erased bytes after it, a file may not).
 pub fn file_problem(bytes: &[u8]) -> Option<String> {
-    let decoded = match blob::decode(bytes) {
-        Ok(d) => d,
+    let len = match decode_file(bytes) {
+        Ok((_, len)) => len,
         Err(e) => return Some(e.to_string()),
     };
-    (bytes.len() > decoded.len).then(|| {
+    (bytes.len() > len).then(|| {
         format!(
             "{} bytes follow the blob's end (the blob is {} bytes, the file {})",
-            bytes.len() - decoded.len,
-            decoded.len,
+            bytes.len() - len,
+            len,
             bytes.len()
         )
     })
+}
+
+/// What a model file holds: one model, or one per gyro axis.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ModelFile {
+    /// A single-axis model (format 2), for runs with `rate_dph`.
+    Single(Box<Model>),
+    /// A multi-axis blob (format 3): a model per axis, for runs with `rate_x_dph` ….
+    Axes(Box<AxisModels>),
+}
+
+impl ModelFile {
+    /// The axes with a model (empty for a single-axis model).
+    pub fn axes(&self) -> Vec<Axis> {
+        match self {
+            ModelFile::Single(_) => Vec::new(),
+            ModelFile::Axes(m) => m.axes().collect(),
+        }
+    }
+
+    /// The model of `axis` (`None`: the single-axis model), if the file has it.
+    pub fn model(&self, axis: Option<Axis>) -> Option<&Model> {
+        match (self, axis) {
+            (ModelFile::Single(m), None) => Some(m),
+            (ModelFile::Axes(m), Some(axis)) => m.get(axis),
+            _ => None,
+        }
+    }
+}
+
+/// Decodes a blob of either format; with the bytes it occupied.
+fn decode_file(bytes: &[u8]) -> Result<(ModelFile, usize), blob::DecodeError> {
+    let version = bytes.get(4..6).map(|v| u16::from_le_bytes([v[0], v[1]]));
+    if bytes.get(..4) == Some(&blob::MAGIC[..]) && version == Some(AXES_FORMAT_VERSION) {
+        let mut models = Box::new(AxisModels::EMPTY);
+        let len = axes::decode_axes_into(&mut models, bytes)?;
+        Ok((ModelFile::Axes(models), len))
+    } else {
+        let decoded = blob::decode(bytes)?;
+        Ok((ModelFile::Single(Box::new(decoded.model)), decoded.len))
+    }
+}
+
+/// Reads and validates a model file of either format, refusing a corrupt one with the reason.
+pub fn read_model_file(path: &Path) -> anyhow::Result<(ModelFile, Vec<u8>)> {
+    let bytes = read_blob(path)?;
+    if let Some(reason) = file_problem(&bytes) {
+        anyhow::bail!("{}: model refused: {reason}", text::path(path));
+    }
+    let (file, _) = decode_file(&bytes).map_err(|e| anyhow::anyhow!("{}: model refused: {e}", text::path(path)))?;
+    Ok((file, bytes))
+}
+
+/// Encodes one model per axis into a multi-axis blob, decoded again and
+/// compared (see [`encode_model`]); refused, naming the fix, when the
+/// models together pass the [`MAX_BLOB_LEN`] a blob may take.
+pub fn encode_axis_models(models: &[(Axis, &Model)]) -> anyhow::Result<Vec<u8>> {
+    let mut set = Box::new(AxisModels::EMPTY);
+    for (axis, model) in models {
+        set.insert(*axis, (*model).clone());
+    }
+    let mut buf = vec![0u8; MAX_BLOB_LEN];
+    let len = axes::encode_axes(&set, &mut buf).map_err(|e| {
+        let singles: Vec<String> = models
+            .iter()
+            .map(|(axis, m)| {
+                let mut one = vec![0u8; MAX_BLOB_LEN];
+                let n = blob::encode(*m, &mut one).map_or("?".to_owned(), |n| n.to_string());
+                format!("{} {n} bytes", axis.name())
+            })
+            .collect();
+        anyhow::anyhow!(
+            "the axis models do not fit one {MAX_BLOB_LEN}-byte blob ({e}; alone: {}); fit with fewer \
+             --max-centers",
+            singles.join(", ")
+        )
+    })?;
+    buf.truncate(len);
+    let mut back = Box::new(AxisModels::EMPTY);
+    axes::decode_axes_into(&mut back, &buf).context("the encoded multi-axis blob does not decode")?;
+    anyhow::ensure!(back == set, "the encoded blob does not reproduce the axis models");
+    Ok(buf)
 }
 
 /// Reads and validates a model file, refusing a corrupt one with the reason.

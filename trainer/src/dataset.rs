@@ -9,6 +9,7 @@
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
+use rbf_core::record::Axis;
 use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, FeatureSet, Flags, GyroSample, MAX_INPUTS};
 
 use crate::chunked::Batch;
@@ -416,6 +417,8 @@ pub fn sample_block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) 
 /// own thread, ahead of the feature computation.
 pub struct RunFiles {
     paths: Vec<PathBuf>,
+    /// The gyro axis read from multi-axis runs (`None`: single-axis runs).
+    axis: Option<Axis>,
     cache: Mutex<Vec<(CacheKey, Blocks)>>,
 }
 
@@ -434,10 +437,26 @@ fn cache_key(features: &FeatureConfig, block_s: f64) -> CacheKey {
 impl RunFiles {
     /// Runs read from `paths` (nothing is read yet).
     pub fn new(paths: &[PathBuf]) -> Self {
+        Self::for_axis(paths, None)
+    }
+
+    /// Runs read from `paths`, each as the single-axis run of `axis` (see
+    /// [`RunReader::select_axis`]); `None` reads single-axis runs.
+    pub fn for_axis(paths: &[PathBuf], axis: Option<Axis>) -> Self {
         RunFiles {
             paths: paths.to_vec(),
+            axis,
             cache: Mutex::new(Vec::new()),
         }
+    }
+
+    /// A reader of `path` on this set's axis.
+    fn open(&self, path: &std::path::Path) -> Result<RunReader, crate::run::RunError> {
+        let mut reader = RunReader::open(path)?;
+        if let Some(axis) = self.axis {
+            reader.select_axis(axis)?;
+        }
+        Ok(reader)
     }
 
     /// The files.
@@ -458,7 +477,7 @@ impl RunFiles {
     fn pass(&self, index: usize, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<Vec<Blocks>> {
         let path = &self.paths[index];
         let mask = configs.iter().fold(0, |m, c| m | c.set.thermometer_mask());
-        let run = StreamedRun::open(path, mask)?;
+        let run = StreamedRun::from_reader(self.open(path)?, mask)?;
         let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
         // Configurations sharing filters go to one builder.
         let groups = filter_groups(configs);
@@ -554,9 +573,9 @@ impl RunSet for RunFiles {
     }
 
     fn thermometer_mask(&self) -> anyhow::Result<u8> {
-        self.paths.iter().try_fold(u8::MAX, |m, path| {
-            Ok(m & RunReader::open(path)?.columns().thermometer_mask())
-        })
+        self.paths
+            .iter()
+            .try_fold(u8::MAX, |m, path| Ok(m & self.open(path)?.columns().thermometer_mask()))
     }
 
     fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {

@@ -5,18 +5,17 @@ use std::path::Path;
 
 use anyhow::Context;
 use rbf_core::features::LOOP_THERMOMETER;
-use rbf_core::record;
-use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, Model};
+use rbf_core::record::{self, Axis, Columns};
+use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, GyroSample, Model};
 use serde::Serialize;
 
 use crate::allan::{self, AllanDeviation};
-use crate::blobfile::read_model;
 use crate::chunked::Batch;
 use crate::diagnose::RunDiagnosis;
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
-use crate::output::{self, Existing, Output};
+use crate::output::{Existing, Output};
 use crate::run::{Run, RunReader, StreamedRun};
-use crate::{decimal, input, text};
+use crate::{decimal, text};
 
 /// How many samples carried each flag.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -49,6 +48,9 @@ impl FlagCounts {
 pub struct RunEvaluation {
     /// The run file.
     pub run: String,
+    /// The gyro axis of a multi-axis run (`x`, `y`, `z`); absent for a single-axis run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub axis: Option<&'static str>,
     /// Number of samples (= output rows).
     pub samples: usize,
     /// What the rate was compared with: `ref_dph` or `run mean`.
@@ -102,6 +104,26 @@ pub fn evaluate_output(run: &Run, out: &[CompensatedSample]) -> RunEvaluation {
 /// mean, which the MSD, cluster STD and Allan deviation are blind to.
 pub fn evaluate_file(model: &Model, path: &Path) -> anyhow::Result<RunEvaluation> {
     Ok(evaluate_reader(model, RunReader::open(path)?)?.0)
+}
+
+/// [`evaluate_file`] on `axis` of a multi-axis run (`None`: a single-axis run).
+pub fn evaluate_axis_file(model: &Model, path: &Path, axis: Option<Axis>) -> anyhow::Result<RunEvaluation> {
+    Ok(evaluate_axis_reader(model, RunReader::open(path)?, axis)?.0)
+}
+
+/// [`evaluate_reader`] on `axis` of a multi-axis run (`None`: a single-axis
+/// run); the evaluation names the axis.
+pub fn evaluate_axis_reader(
+    model: &Model,
+    mut reader: RunReader,
+    axis: Option<Axis>,
+) -> anyhow::Result<(RunEvaluation, RunDiagnosis, usize)> {
+    if let Some(axis) = axis {
+        reader.select_axis(axis)?;
+    }
+    let (mut evaluation, diagnosis, compensated) = evaluate_reader(model, reader)?;
+    evaluation.axis = axis.map(Axis::name);
+    Ok((evaluation, diagnosis, compensated))
 }
 
 /// [`evaluate_file`] on an open reader; also returns what the rows showed
@@ -170,35 +192,6 @@ pub fn require_evaluable(path: &Path, rows: usize, diagnosis: &RunDiagnosis) -> 
     Ok(())
 }
 
-/// `trainer eval`: before/after accuracy of `model` on each run (`-`:
-/// standard input), each read once. A run where no row could be
-/// compensated is refused unless `allow_uncompensated`, as is one that
-/// cannot be evaluated ([`require_evaluable`]).
-pub fn evaluate_files(
-    model: &Model,
-    paths: &[std::path::PathBuf],
-    allow_uncompensated: bool,
-) -> anyhow::Result<Vec<RunEvaluation>> {
-    input::check_stdin_once(paths.iter().map(|p| p.as_path()))?;
-    let mask = model.features().set.thermometer_mask();
-    paths
-        .iter()
-        .map(|path| {
-            let (evaluation, diagnosis, compensated) = evaluate_reader(model, RunReader::open(path)?)?;
-            require_evaluable(path, evaluation.samples, &diagnosis)?;
-            require_compensated(
-                path,
-                evaluation.samples,
-                compensated,
-                &diagnosis,
-                mask,
-                allow_uncompensated,
-            )?;
-            Ok(evaluation)
-        })
-        .collect()
-}
-
 /// Accumulates a run's before/after accuracy sample by sample: 1-s and 100-s
 /// bin means, flag counts and bounded Allan series ([`allan::Decimated`]).
 pub struct Evaluator {
@@ -257,6 +250,7 @@ impl Evaluator {
         });
         RunEvaluation {
             run: self.run,
+            axis: None,
             samples: self.samples,
             reference: if about_mean { "run mean" } else { "ref_dph" },
             msd_before_dph2: msd_before,
@@ -273,23 +267,42 @@ impl Evaluator {
 }
 
 /// Writes a before/after table, one line per (role, evaluation).
+/// A row per run, or per run and axis when a row names an axis (a multi-axis
+/// run: the axis follows the run's name).
 pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std::io::Result<()> {
     writeln!(
         out,
-        "{:<10} {:<28} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7}",
-        "role", "run", "MSD before", "MSD after", "gain", "STD100 bef", "STD100 aft", "gain"
+        "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7}",
+        "role",
+        "run",
+        axis_cell(rows, Some("axis")),
+        "MSD before",
+        "MSD after",
+        "gain",
+        "STD100 bef",
+        "STD100 aft",
+        "gain"
     )?;
     writeln!(
         out,
-        "{:<10} {:<28} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7}",
-        "", "", "[°²/h²]", "[°²/h²]", "[%]", "[°/h]", "[°/h]", "[%]"
+        "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7}",
+        "",
+        "",
+        axis_cell(rows, Some("")),
+        "[°²/h²]",
+        "[°²/h²]",
+        "[%]",
+        "[°/h]",
+        "[°/h]",
+        "[%]"
     )?;
     for (role, e) in rows {
         writeln!(
             out,
-            "{:<10} {:<28} {:>11.4e} {:>11.4e} {:>7.1}  {:>11.4e} {:>11.4e} {:>7.1}",
+            "{:<10} {:<28}{} {:>11.4e} {:>11.4e} {:>7.1}  {:>11.4e} {:>11.4e} {:>7.1}",
             role,
             table_name(&e.run),
+            axis_cell(rows, e.axis),
             e.msd_before_dph2,
             e.msd_after_dph2,
             e.msd_improvement_pct,
@@ -301,24 +314,48 @@ pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std
     Ok(())
 }
 
+/// The axis column of a table row: absent (empty) unless some row names an axis.
+fn axis_cell(rows: &[(&str, &RunEvaluation)], text: Option<&str>) -> String {
+    if rows.iter().any(|(_, e)| e.axis.is_some()) {
+        format!(" {:<4}", text.unwrap_or(""))
+    } else {
+        String::new()
+    }
+}
+
 /// Writes the Allan read-offs (ARW, bias instability), one line per (role, evaluation).
 pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std::io::Result<()> {
     writeln!(
         out,
-        "{:<10} {:<28} {:>11} {:>11}  {:>11} {:>11} {:>9}",
-        "role", "run", "ARW before", "ARW after", "BI before", "BI after", "BI at τ"
+        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>9}",
+        "role",
+        "run",
+        axis_cell(rows, Some("axis")),
+        "ARW before",
+        "ARW after",
+        "BI before",
+        "BI after",
+        "BI at τ"
     )?;
     writeln!(
         out,
-        "{:<10} {:<28} {:>11} {:>11}  {:>11} {:>11} {:>9}",
-        "", "", "[°/√h]", "[°/√h]", "[°/h]", "[°/h]", "[s]"
+        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>9}",
+        "",
+        "",
+        axis_cell(rows, Some("")),
+        "[°/√h]",
+        "[°/√h]",
+        "[°/h]",
+        "[°/h]",
+        "[s]"
     )?;
     for (role, e) in rows {
         writeln!(
             out,
-            "{:<10} {:<28} {:>11.3e} {:>11.3e}  {:>11.3e} {:>11.3e} {:>9.0}",
+            "{:<10} {:<28}{} {:>11.3e} {:>11.3e}  {:>11.3e} {:>11.3e} {:>9.0}",
             role,
             table_name(&e.run),
+            axis_cell(rows, e.axis),
             e.allan_before.arw_deg_per_sqrt_h,
             e.allan_after.arw_deg_per_sqrt_h,
             e.allan_before.bias_instability_dph,
@@ -376,20 +413,47 @@ pub fn compensate_reader(
     reader: RunReader,
     out: &mut (impl Write + Send),
 ) -> anyhow::Result<Compensation> {
-    reader.require_thermometers(model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask()))?;
+    let columns = *reader.columns();
+    let mut axes = compensate_axes_reader(&[(model, columns)], reader, out)?;
+    axes.pop().ok_or_else(|| anyhow::anyhow!("no axis was compensated"))
+}
+
+/// [`compensate_reader`] for one or more axes, each given its model and its
+/// columns (the first the reader's own, the others from
+/// [`RunReader::axis_columns`]): one compensator per axis, each the
+/// single-axis step on that axis's samples, and per axis
+/// `bias_<axis>_dph`, `rate_comp_<axis>_dph`, `flags_<axis>` appended in the
+/// order given ([`record::write_compensated_header`]). Returns what each axis's
+/// compensation did, in that order.
+pub fn compensate_axes_reader(
+    axes: &[(Option<&Model>, Columns)],
+    reader: RunReader,
+    out: &mut (impl Write + Send),
+) -> anyhow::Result<Vec<Compensation>> {
+    for (model, columns) in axes {
+        let mask = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
+        reader.require_thermometers_of(columns, mask)?;
+    }
+    let n = axes.len();
     let config = CompensatorConfig::for_nominal_period_s(reader.nominal_period_s());
-    let mut compensator = Compensator::new();
-    let mut c = Compensation {
-        rows: 0,
-        flagged: FlagCounts::default(),
-        compensated: 0,
-        diagnosis: RunDiagnosis::new(reader.path(), reader.nominal_period_s()),
-    };
+    let mut compensators: Vec<Compensator> = (0..n).map(|_| Compensator::new()).collect();
+    let mut c: Vec<Compensation> = (0..n)
+        .map(|_| Compensation {
+            rows: 0,
+            flagged: FlagCounts::default(),
+            compensated: 0,
+            diagnosis: RunDiagnosis::new(reader.path(), reader.nominal_period_s()),
+        })
+        .collect();
     let io = |e: std::io::Error| anyhow::Error::new(e).context("write failed");
     for line in reader.preamble() {
         writeln!(out, "{line}").map_err(io)?;
     }
-    writeln!(out, "{}{}", reader.header_line(), record::COMPENSATED_COLUMNS).map_err(io)?;
+    let mut header = String::new();
+    record::write_compensated_header(&mut header, reader.header_line(), reader.columns())?;
+    out.write_all(header.as_bytes()).map_err(io)?;
+    let parser = reader.row_parser();
+    let mut refused: Option<crate::run::RunError> = None;
     // The rows are parsed on every core, compensated in order here, and
     // formatted and written on a thread of their own, a batch at a time.
     let (tx, rx) = std::sync::mpsc::sync_channel::<(Batch, Vec<CompensatedSample>)>(4);
@@ -398,8 +462,8 @@ pub fn compensate_reader(
             let mut text = Vec::new();
             for (batch, outputs) in rx {
                 text.clear();
-                for (i, o) in outputs.iter().enumerate() {
-                    write_compensated_row(&mut text, batch.line_text(i), o);
+                for (i, row) in outputs.chunks_exact(n).enumerate() {
+                    write_compensated_axes_row(&mut text, batch.line_text(i), row);
                 }
                 out.write_all(&text)?;
             }
@@ -407,15 +471,43 @@ pub fn compensate_reader(
         });
         let mut writing = true;
         let read = reader.for_each_batch(|batch| {
-            let mut outputs = Vec::with_capacity(batch.len());
-            for i in 0..batch.len() {
-                let row = batch.row(i);
-                let o = compensator.process(model, &config, &batch.sample(i));
-                c.flagged.add(o.flags);
-                c.compensated += usize::from(!o.flags.contains(Flags::NO_VALID_MODEL));
-                c.diagnosis.push(batch.line(i), &row);
-                c.rows += 1;
-                outputs.push(o);
+            if refused.is_some() {
+                return;
+            }
+            let mut outputs = Vec::with_capacity(batch.len() * n);
+            'rows: for i in 0..batch.len() {
+                let first = (batch.row(i), batch.sample(i));
+                for (k, (model, columns)) in axes.iter().enumerate() {
+                    let (row, sample) = if k == 0 {
+                        first
+                    } else {
+                        let text = std::str::from_utf8(batch.line_text(i)).unwrap_or("");
+                        match parser.parse(columns, batch.line(i), text) {
+                            Ok(row) => {
+                                let sample = crate::run::gyro_sample(None, row.time_s, row.rate_dph, &row.readings_c());
+                                (
+                                    row,
+                                    GyroSample {
+                                        dt_s: first.1.dt_s,
+                                        ..sample
+                                    },
+                                )
+                            }
+                            Err(e) => {
+                                refused = Some(e);
+                                outputs.truncate(i * n);
+                                break 'rows;
+                            }
+                        }
+                    };
+                    let o = compensators[k].process(*model, &config, &sample);
+                    let axis = &mut c[k];
+                    axis.flagged.add(o.flags);
+                    axis.compensated += usize::from(!o.flags.contains(Flags::NO_VALID_MODEL));
+                    axis.diagnosis.push(batch.line(i), &row);
+                    axis.rows += 1;
+                    outputs.push(o);
+                }
             }
             // A failed write stops the writer; its error is reported below.
             writing = writing && tx.send((batch, outputs)).is_ok();
@@ -425,6 +517,9 @@ pub fn compensate_reader(
             .join()
             .map_err(|_| anyhow::anyhow!("the output writer thread panicked"))?;
         read?;
+        if let Some(e) = refused.take() {
+            return Err(e.into());
+        }
         written.map_err(io)
     })?;
     Ok(c)
@@ -434,13 +529,21 @@ pub fn compensate_reader(
 /// `bias_dph`, `rate_comp_dph` and `flags` and a `\n`, byte for byte what
 /// [`record::write_compensated_row`] (the firmware replay's writer) writes.
 pub fn write_compensated_row(out: &mut Vec<u8>, input_line: &[u8], sample: &CompensatedSample) {
+    write_compensated_axes_row(out, input_line, std::slice::from_ref(sample));
+}
+
+/// [`write_compensated_row`] for the samples of one or more axes, byte for
+/// byte what [`record::write_compensated_axes_row`] writes.
+pub fn write_compensated_axes_row(out: &mut Vec<u8>, input_line: &[u8], samples: &[CompensatedSample]) {
     out.extend_from_slice(input_line);
-    out.push(b',');
-    decimal::push_f32(out, sample.bias_dph);
-    out.push(b',');
-    decimal::push_f32(out, sample.rate_comp_dph);
-    out.push(b',');
-    decimal::push_u8(out, sample.flags.bits());
+    for sample in samples {
+        out.push(b',');
+        decimal::push_f32(out, sample.bias_dph);
+        out.push(b',');
+        decimal::push_f32(out, sample.rate_comp_dph);
+        out.push(b',');
+        decimal::push_u8(out, sample.flags.bits());
+    }
     out.push(b'\n');
 }
 
@@ -452,38 +555,6 @@ pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> an
         .with_context(|| format!("{}: compensating {}", text::path(output), text::path(input)))?;
     out.commit()?;
     Ok((c.rows, c.flagged))
-}
-
-/// `trainer compensate`: the run at `run` (`-`: standard input) compensated
-/// with the model at `model_path` into `output`. Every check comes first (the
-/// output target against the inputs and `existing`, the model, the run's
-/// header); the output appears only when the whole run is written, and not
-/// at all when no row could be compensated, unless `allow_uncompensated`.
-pub fn compensate_command(
-    model_path: &Path,
-    run: &Path,
-    output: &Path,
-    existing: Existing,
-    allow_uncompensated: bool,
-) -> anyhow::Result<Compensation> {
-    input::check_stdin_once([model_path, run])?;
-    let target = output::check_target(output, &[model_path, run], existing)?;
-    let (model, _) = read_model(model_path)?;
-    let reader = RunReader::open(run)?;
-    let mask = model.features().set.thermometer_mask();
-    reader.require_thermometers(mask)?;
-    let mut out = Output::open(target)?;
-    // Errors of the run name it and the line; write errors name the output.
-    let c = compensate_reader(Some(&model), reader, &mut out).map_err(|e| {
-        if e.is::<crate::run::RunError>() {
-            e
-        } else {
-            e.context(text::path(output))
-        }
-    })?;
-    require_compensated(run, c.rows, c.compensated, &c.diagnosis, mask, allow_uncompensated)?;
-    out.commit()?;
-    Ok(c)
 }
 
 #[cfg(test)]

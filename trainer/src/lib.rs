@@ -12,6 +12,7 @@
 #![forbid(unsafe_code)]
 
 pub mod allan;
+pub mod axes;
 pub mod blobfile;
 pub mod chunked;
 pub mod dataset;

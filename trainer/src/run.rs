@@ -378,7 +378,7 @@ impl RunReader {
     /// columns of this run, see [`RunReader::axis_columns`]); a refused
     /// row's error names this file, the line and the column.
     pub fn parse_with(&self, columns: &Columns, line: usize, text: &str) -> Result<Row, RunError> {
-        columns.parse_row(text).map_err(|e| self.row_error_in(line, text, e))
+        self.row_parser().parse(columns, line, text)
     }
 
     /// The lines before the header (metadata, blank lines) as read, without line ends.
@@ -408,10 +408,15 @@ impl RunReader {
     /// Fails unless the run has the thermometer columns of `mask` (bit i =
     /// `temp_a` … `temp_h`), naming the missing ones.
     pub fn require_thermometers(&self, mask: u8) -> Result<(), RunError> {
+        self.require_thermometers_of(&self.columns, mask)
+    }
+
+    /// [`RunReader::require_thermometers`] for `columns` (another axis's).
+    pub fn require_thermometers_of(&self, columns: &Columns, mask: u8) -> Result<(), RunError> {
         let missing: Vec<&str> = record::column::THERMOMETERS
             .iter()
             .enumerate()
-            .filter(|(i, _)| mask & !self.columns.thermometer_mask() & (1 << i) != 0)
+            .filter(|(i, _)| mask & !columns.thermometer_mask() & (1 << i) != 0)
             .map(|(_, name)| *name)
             .collect();
         if missing.is_empty() {
@@ -636,6 +641,35 @@ impl RunReader {
 
     /// The error for row `text` of line `line`, refused by the row parser.
     fn row_error_in(&self, line: usize, text: &str, e: record::RowError) -> RunError {
+        self.row_parser().error(line, text, e)
+    }
+
+    /// A parser of this run's lines by other columns (another axis's, see
+    /// [`RunReader::axis_columns`]) that outlives the reader: its errors
+    /// name this file, the line and the column.
+    pub fn row_parser(&self) -> RowParser {
+        RowParser {
+            path: self.path.clone(),
+            column_names: self.column_names.clone(),
+        }
+    }
+}
+
+/// Parses a run's data lines by given columns, with the reader's error messages.
+#[derive(Clone, Debug)]
+pub struct RowParser {
+    path: PathBuf,
+    column_names: Vec<String>,
+}
+
+impl RowParser {
+    /// Parses the text of data line `line` with `columns`.
+    pub fn parse(&self, columns: &Columns, line: usize, text: &str) -> Result<Row, RunError> {
+        columns.parse_row(text).map_err(|e| self.error(line, text, e))
+    }
+
+    /// The error for row `text` of line `line`, naming its column and quoting its field.
+    fn error(&self, line: usize, text: &str, e: record::RowError) -> RunError {
         let column = e.column.and_then(|i| self.column_names.get(i).map(|n| (i, n)));
         let field = e
             .column
@@ -661,7 +695,11 @@ impl RunReader {
             Some((i, name)) => format!("column {} (field {}): {message}", text::escape_controls(name), i + 1),
             None => message,
         };
-        self.error_at(line, message)
+        RunError::Format {
+            path: self.path.clone(),
+            line,
+            message,
+        }
     }
 }
 

@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use trainer::evaluate::compensate_command;
+use trainer::axes::{self, compensate_command};
 use trainer::text;
 
 use super::common::{AllowUncompensated, ForceArg, stdout};
@@ -14,7 +14,9 @@ use super::model_arg::ModelArg;
 /// Writes the input lines unchanged followed by bias_dph [°/h], rate_comp_dph
 /// [°/h] and flags (1 clamped · 2 temperature-sensor fault · 4 no valid model ·
 /// 8 warming up · 16 rate invalid); one output row per input row. Rows with
-/// temp_fault = 1 are treated as a sensor that does not answer.
+/// temp_fault = 1 are treated as a sensor that does not answer. A multi-axis
+/// run (rate_x_dph …) with a multi-axis model gets bias_<axis>_dph,
+/// rate_comp_<axis>_dph and flags_<axis> per axis.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  trainer compensate --model model.bin field.csv -o field-compensated.csv")]
 pub struct Args {
@@ -41,12 +43,28 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.force.existing(),
         a.uncompensated.allow_uncompensated,
     )?;
+    let rows = c.first().map_or(0, |(_, c)| c.rows);
+    let flagged = match c.as_slice() {
+        [(None, single)] => serde_json::to_string(&single.flagged)?,
+        _ => c
+            .iter()
+            .map(|(axis, c)| {
+                let name = axis.map_or("", |a| a.name());
+                Ok(format!("{name} {}", serde_json::to_string(&c.flagged)?))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?
+            .join(", "),
+    };
+    let axes: Vec<_> = c.iter().filter_map(|(a, _)| *a).collect();
+    let what = if axes.is_empty() {
+        String::new()
+    } else {
+        format!(", axes {}", axes::names(&axes))
+    };
     writeln!(
         stdout(),
-        "wrote {} ({} rows; flagged: {})",
-        text::path(&a.output),
-        c.rows,
-        serde_json::to_string(&c.flagged)?
+        "wrote {} ({rows} rows{what}; flagged: {flagged})",
+        text::path(&a.output)
     )?;
     Ok(())
 }

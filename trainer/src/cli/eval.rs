@@ -3,8 +3,9 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use trainer::blobfile::read_model;
-use trainer::evaluate::{RunEvaluation, evaluate_files, print_allan_table, print_table};
+use trainer::axes::evaluate_files;
+use trainer::blobfile::read_model_file;
+use trainer::evaluate::{RunEvaluation, print_allan_table, print_table};
 use trainer::input;
 
 use super::common::{AllowUncompensated, ForceArg, JsonArg, print_text};
@@ -16,7 +17,8 @@ use super::model_arg::ModelArg;
 /// mean), and the bias STD of 100-s cluster means (RLG paper), before and after
 /// compensation, with the improvement in %; then the overlapping Allan
 /// deviation (IEEE Std 952) before and after, with angle random walk [°/√h] and
-/// bias instability [°/h] read off it (--json has the whole curves).
+/// bias instability [°/h] read off it (--json has the whole curves). A
+/// multi-axis run gets a row per axis, with its axis's model.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  trainer eval --model model.bin check.csv field.csv --json eval.json")]
 pub struct Args {
@@ -39,8 +41,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let inputs: Vec<&Path> = a.runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
     input::check_stdin_once(inputs.iter().copied())?;
     let json_out = a.json.sink(&inputs, a.force.existing())?;
-    let (model, _) = read_model(model_path)?;
-    let evals = evaluate_files(&model, &a.runs, a.uncompensated.allow_uncompensated)?;
+    let (model, _) = read_model_file(model_path)?;
+    let evals = evaluate_files(&model, model_path, &a.runs, a.uncompensated.allow_uncompensated)?;
     let json_on_stdout = json_out.is_stdout();
     json_out.write(&serde_json::to_value(&evals)?)?;
     let mut text = Vec::new();

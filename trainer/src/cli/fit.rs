@@ -23,6 +23,8 @@ use super::common::{
 };
 use super::values::{FeaturesArg, MethodArg};
 
+mod axes;
+
 /// Fit a bias model to recorded chamber runs and write the model blob.
 ///
 /// Features (T [°C], ΔT [°C/min], T×ΔT) are computed per sample by rbf-core, as
@@ -32,6 +34,11 @@ use super::values::{FeaturesArg, MethodArg};
 /// the ΔT window, Gaussian width, ridge strength and number of centres are
 /// chosen on the --validate runs, or by contiguous 5-fold validation over the
 /// training runs. Prints a before/after accuracy table, then writes the blob.
+///
+/// Runs with rate_x_dph, rate_y_dph, rate_z_dph (all runs the same axes):
+/// every axis is fitted as above on its own rate, thermometer and reference,
+/// and one multi-axis blob holds the axis models; the table has a row per run
+/// and axis.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  trainer fit chamber.csv --validate check.csv -o model.bin --report fit-report")]
 pub struct Args {
@@ -200,7 +207,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     // Runs are streamed (memory stays flat whatever their length); their
-    // headers and first rows are checked now, so a bad file is reported before any work.
+    // headers and first rows are checked now, so a bad file is reported
+    // before any work (a multi-axis run's other axes: by `axes::run`).
     for path in &all_runs {
         RunReader::open(path)?.require_temp()?;
     }
@@ -243,12 +251,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
         opts.rate_windows_s = a.dt_window_s.clone();
     }
+    let axes = trainer::axes::common_axes(&all_runs)?;
     let model_out = targets.next().map(Output::open).transpose()?;
     let json_out = match targets.next() {
         Some(target) => JsonSink::File(Output::open(target)?),
         None if a.json.json.is_some() => JsonSink::Stdout,
         None => JsonSink::None,
     };
+    if !axes.is_empty() {
+        let how = FitHow {
+            with_validate_runs: !a.validate.is_empty(),
+            folds: opts.folds,
+            named_inputs: opts.inputs.is_some(),
+            selection: opts.selection,
+        };
+        return axes::run(&a, &opts, &how, &axes, model_out, json_out);
+    }
     let started = std::time::Instant::now();
     let outcome = fit::fit(&train, &validate, &opts).map_err(|e| {
         if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {

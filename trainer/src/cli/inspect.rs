@@ -4,6 +4,7 @@ use std::fmt::Write as _;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+use rbf_core::blob::axes::{AXES_FORMAT_VERSION, AxesHeader, AxisModels, decode_axes_into};
 use rbf_core::blob::{self, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{file_problem, read_blob};
@@ -19,7 +20,8 @@ use super::toml;
 ///
 /// Prints a summary (format, shape, model form, inputs with the temperature and rate
 /// ranges the training covered, serial, CRC); `--format toml|json` prints every
-/// parameter instead, in a text form two models can be diffed in.
+/// parameter instead, in a text form two models can be diffed in. A
+/// multi-axis blob shows each axis's model.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Examples:\n  trainer inspect --model model.bin\n  \
                         trainer inspect --model model.bin --format toml > model.toml")]
@@ -59,6 +61,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let json_out = a.json.sink(&[&path], Existing::from_force(a.force))?;
     let bytes = read_blob(&path)?;
+    if bytes.get(..4) == Some(&blob::MAGIC[..]) && bytes.get(4..6) == Some(&AXES_FORMAT_VERSION.to_le_bytes()[..]) {
+        return inspect_axes(&path, &bytes, a.format, json_out);
+    }
     let header = Header::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: model refused: {e}", text::path(&path)))?;
     let crc = blob::crc_status(&bytes, &header);
     let decoded = crc.and_then(|_| blob::decode(&bytes));
@@ -108,7 +113,17 @@ fn inspect_json(
         "valid": decoded.is_ok(),
     });
     if let Ok(d) = decoded {
-        let m = &d.model;
+        add_model_json(&mut v, &d.model);
+    } else if let Err(e) = decoded {
+        v["error"] = serde_json::json!(e.to_string());
+    }
+    v
+}
+
+/// Adds what `m` holds to an inspect JSON object: features, training ranges,
+/// units, serial and every parameter.
+fn add_model_json(v: &mut serde_json::Value, m: &rbf_core::Model) {
+    {
         let f = m.features();
         let ranges: Vec<_> = (0..f.dims())
             .map(|i| {
@@ -132,10 +147,80 @@ fn inspect_json(
                 v["poly3"] = serde_json::json!({"ref_temp_c": p.ref_temp_c, "coeffs": p.coeffs});
             }
         }
-    } else if let Err(e) = decoded {
-        v["error"] = serde_json::json!(e.to_string());
     }
-    v
+}
+
+/// `trainer inspect` of a multi-axis blob: the blob's facts once, then each
+/// axis's model as a single-axis blob's is shown.
+fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::common::JsonSink) -> anyhow::Result<()> {
+    let refused = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: model refused: {e}", text::path(path));
+    let header = AxesHeader::parse(bytes).map_err(|e| refused(&e))?;
+    let mut models = Box::new(AxisModels::EMPTY);
+    let decoded = decode_axes_into(&mut models, bytes);
+    let problem = match &decoded {
+        Ok(_) => file_problem(bytes),
+        Err(e) => Some(e.to_string()),
+    };
+    let crc = match decoded {
+        Err(e @ (blob::DecodeError::CrcMismatch { .. } | blob::DecodeError::Truncated { .. })) => e.to_string(),
+        _ => "ok".to_owned(),
+    };
+    let axis_json: Vec<serde_json::Value> = models
+        .axes()
+        .filter_map(|axis| {
+            let m = models.get(axis)?;
+            let (centers, kind) = match m.body() {
+                ModelBody::Rbf(net) => (net.centers_used(), m.kind()),
+                ModelBody::Poly3(_) => (0, m.kind()),
+            };
+            let mut v = serde_json::json!({
+                "axis": axis.name(), "kind": kind.name(), "inputs": m.features().dims(), "centers": centers,
+            });
+            add_model_json(&mut v, m);
+            Some(v)
+        })
+        .collect();
+    let info = serde_json::json!({
+        "file": text::path(path),
+        "file_bytes": bytes.len(),
+        "blob_bytes": header.blob_len(),
+        "format_version": AXES_FORMAT_VERSION,
+        "axis_mask": header.axis_mask,
+        "crc": crc,
+        "valid": problem.is_none(),
+        "error": problem,
+        "axes": axis_json,
+    });
+    let json_on_stdout = json_out.is_stdout();
+    json_out.write(&info)?;
+    let printed = match format {
+        Format::Text => {
+            let mut text = summary(&info, None)
+                .lines()
+                .filter(|l| !l.starts_with("kind") && !l.starts_with("shape"))
+                .fold(String::new(), |t, l| t + l + "\n");
+            for (axis, v) in models.axes().zip(info["axes"].as_array().into_iter().flatten()) {
+                let _ = writeln!(text, "axis {}", axis.name());
+                for line in summary(v, models.get(axis)).lines() {
+                    if !["file", "format version", "CRC-32", "valid"].iter().any(|k| line.starts_with(k)) {
+                        let _ = writeln!(text, "  {line}");
+                    }
+                }
+            }
+            text
+        }
+        Format::Toml => toml::to_toml(&info),
+        Format::Json => format!("{}\n", serde_json::to_string_pretty(&info)?),
+    };
+    if json_on_stdout && format == Format::Text {
+        print_text(printed.as_bytes(), true)?;
+    } else {
+        stdout().write_all(printed.as_bytes())?;
+    }
+    match problem {
+        None => Ok(()),
+        Some(problem) => Err(refused(&problem)),
+    }
 }
 
 /// The summary `trainer inspect` prints: one labelled line per fact, numbers

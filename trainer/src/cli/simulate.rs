@@ -25,7 +25,8 @@ use super::values::ProfileArg;
 /// chamber protocols ifog, cycle and random start with a 1-h hold. --unit N
 /// draws a whole gyro from documented ranges. Same seed, same file.
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:\n  trainer simulate --profile field --unit 3 --seed 7 -o field.csv")]
+#[command(after_help = "Examples:\n  trainer simulate --profile field --unit 3 --seed 7 -o field.csv\n  \
+                        trainer simulate --profile cycle --axes 3 -o imu-cycle.csv")]
 pub struct Args {
     /// Temperature history (docs/simulator.md, "Profiles").
     ///
@@ -85,6 +86,17 @@ pub struct Args {
     /// reveal (RLG paper).
     #[arg(long, help_heading = "Multi-point")]
     multi: bool,
+    /// Write a multi-axis IMU run of N axes (1–3): x, y, z.
+    ///
+    /// Up to three coils in one housing, each with its own static and Shupe coefficients,
+    /// radial-gradient gain and coil time constants (docs/simulator.md, "Multi-axis IMUs"),
+    /// written as rate_<axis>_dph, temp_<axis>_c (its loop sensor) and ref_<axis>_dph.
+    #[arg(long, value_name = "N", conflicts_with = "multi", help_heading = "Multi-axis",
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=3))]
+    axes: Option<usize>,
+    /// With --axes: one temp_c (the x coil's loop sensor) serves every axis.
+    #[arg(long, requires = "axes", help_heading = "Multi-axis")]
+    shared_thermometer: bool,
     /// JSON overriding simulator constants (another gyro).
     ///
     /// Overrides any of the thermal network's time constants and the bias and noise
@@ -173,8 +185,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .check()
         .map_err(|reason| anyhow::anyhow!("cannot simulate these parameters: {reason}"))?;
     let mut out = Output::open(target)?;
-    run.write_csv(&mut out)
-        .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
+    match a.axes {
+        Some(axes) => trainer::simulate::axes::write_axes_csv(&run, axes, a.shared_thermometer, &mut out),
+        None => run.write_csv(&mut out),
+    }
+    .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
     out.commit()?;
     writeln!(stdout(), "wrote {}", text::path(&a.output))?;
     Ok(())

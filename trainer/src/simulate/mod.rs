@@ -10,6 +10,7 @@
 //! [`ChamberRun::write_csv`] streams the recorded run, so hundreds of MB
 //! never sit in memory.
 
+pub mod axes;
 pub mod chamber_file;
 pub mod gyro;
 pub mod plant;
@@ -224,12 +225,60 @@ impl ChamberRun {
     /// Streams the run as recorded-run CSV.
     pub fn write_csv(&self, out: &mut impl Write) -> std::io::Result<()> {
         let mut rng = Pcg64::seed_from_u64(self.seed);
-        let schedule = profile::schedule(self, &mut rng);
+        let (schedule, duration_s, params) = self.setup(&mut rng);
+        let dt = 1.0 / self.sample_rate_hz;
+        let start_c = schedule.air_c(0.0);
+        let mut plant = plant::Plant::soaked(&params.plant, start_c);
+        let mut gyro = gyro::Gyro::new(&params.gyro, self.sample_rate_hz, self.multi);
+        let mut thermometers = plant::Thermometers::new(start_c);
+        self.write_metadata(out, &params, start_c)?;
+        if self.multi {
+            writeln!(out, "time_s,rate_dph,ref_dph,{}", MULTI_COLUMNS.join(","))?;
+        } else {
+            writeln!(out, "time_s,rate_dph,temp_c,ref_dph")?;
+        }
+        let reference = gyro::earth_rate_projection_dph();
+        let steps = (duration_s * self.sample_rate_hz).floor() as u64;
+        // Internal thermal step: at most 1 s (explicit Euler, every τ ≥ plant::MIN_TAU_S).
+        let substeps = dt.ceil().max(1.0) as u32;
+        let h = dt / substeps as f64;
+        let mut line = String::with_capacity(160);
+        for i in 0..steps {
+            let t = i as f64 * dt;
+            let mut rates = plant::NodeRates::default();
+            for s in 0..substeps {
+                rates = plant.step(&params.plant, schedule.air_c(t + s as f64 * h), h);
+                thermometers.step(&params.plant, &plant, h);
+            }
+            let rate = reference + gyro.bias_dph(&plant, &rates, &mut rng) + gyro.noise_dph(&mut rng);
+            let readings = thermometers.read(&params.plant, &mut rng);
+            line.clear();
+            use std::fmt::Write as _;
+            if self.multi {
+                let _ = write!(line, "{t:.4},{rate:.5},{reference:.5}");
+                for r in readings {
+                    let _ = write!(line, ",{r:.7}");
+                }
+            } else {
+                let _ = write!(
+                    line,
+                    "{t:.4},{rate:.5},{:.7},{reference:.5}",
+                    readings[plant::LOOP_SENSOR]
+                );
+            }
+            line.push('\n');
+            out.write_all(line.as_bytes())?;
+        }
+        Ok(())
+    }
+
+    /// The air schedule, the run's length, s, and the simulated gyro's
+    /// parameters (noise alone with `noise_only`), drawn from `rng` first.
+    pub(crate) fn setup(&self, rng: &mut Pcg64) -> (Schedule, f64, SimParams) {
+        let schedule = profile::schedule(self, rng);
         // In-use histories end at their length; chamber runs with their last hold.
         let in_use_s = self.profile.default_duration_s().filter(|_| self.profile.in_use());
         let duration_s = self.duration_s.or(in_use_s).unwrap_or(schedule.duration_s());
-        let dt = 1.0 / self.sample_rate_hz;
-        let start_c = schedule.air_c(0.0);
         let params = match self.noise_only {
             true => SimParams {
                 gyro: self.params.gyro.noise_only(),
@@ -237,10 +286,11 @@ impl ChamberRun {
             },
             false => self.params.clone(),
         };
-        let mut plant = plant::Plant::soaked(&params.plant, start_c);
-        let mut gyro = gyro::Gyro::new(&params.gyro, self.sample_rate_hz, self.multi);
-        let mut thermometers = plant::Thermometers::new(start_c);
+        (schedule, duration_s, params)
+    }
 
+    /// The `#` metadata lines of the run, for a gyro of `params` powered on at `start_c`, °C.
+    pub(crate) fn write_metadata(&self, out: &mut impl Write, params: &SimParams, start_c: f64) -> std::io::Result<()> {
         let kind = if self.profile.in_use() {
             "in-use history"
         } else {
@@ -289,46 +339,9 @@ impl ChamberRun {
                 "# noise_only: every thermal bias term zeroed (the run's noise ceiling)"
             )?;
         }
-        if params != SimParams::default() {
+        if *params != SimParams::default() {
             let json = serde_json::to_string(&params).map_err(std::io::Error::other)?;
             writeln!(out, "# simulator_params: {json}")?;
-        }
-        if self.multi {
-            writeln!(out, "time_s,rate_dph,ref_dph,{}", MULTI_COLUMNS.join(","))?;
-        } else {
-            writeln!(out, "time_s,rate_dph,temp_c,ref_dph")?;
-        }
-        let reference = gyro::earth_rate_projection_dph();
-        let steps = (duration_s * self.sample_rate_hz).floor() as u64;
-        // Internal thermal step: at most 1 s (explicit Euler, every τ ≥ plant::MIN_TAU_S).
-        let substeps = dt.ceil().max(1.0) as u32;
-        let h = dt / substeps as f64;
-        let mut line = String::with_capacity(160);
-        for i in 0..steps {
-            let t = i as f64 * dt;
-            let mut rates = plant::NodeRates::default();
-            for s in 0..substeps {
-                rates = plant.step(&params.plant, schedule.air_c(t + s as f64 * h), h);
-                thermometers.step(&params.plant, &plant, h);
-            }
-            let rate = reference + gyro.bias_dph(&plant, &rates, &mut rng) + gyro.noise_dph(&mut rng);
-            let readings = thermometers.read(&params.plant, &mut rng);
-            line.clear();
-            use std::fmt::Write as _;
-            if self.multi {
-                let _ = write!(line, "{t:.4},{rate:.5},{reference:.5}");
-                for r in readings {
-                    let _ = write!(line, ",{r:.7}");
-                }
-            } else {
-                let _ = write!(
-                    line,
-                    "{t:.4},{rate:.5},{:.7},{reference:.5}",
-                    readings[plant::LOOP_SENSOR]
-                );
-            }
-            line.push('\n');
-            out.write_all(line.as_bytes())?;
         }
         Ok(())
     }

@@ -1,0 +1,181 @@
+//! Multi-axis runs and models on the commands: which axes a set of runs
+//! carries, which model serves each axis of a run, and `compensate` /
+//! `eval` of every axis. Each axis goes through the single-axis code
+//! ([`crate::evaluate`]) with its own columns and model.
+
+use std::path::{Path, PathBuf};
+
+use rbf_core::Model;
+use rbf_core::record::{Axis, Columns};
+
+use crate::blobfile::{ModelFile, read_model_file};
+use crate::evaluate::{
+    Compensation, RunEvaluation, compensate_axes_reader, evaluate_axis_reader, require_compensated, require_evaluable,
+};
+use crate::output::{self, Existing, Output};
+use crate::run::RunReader;
+use crate::{input, text};
+
+/// Axis names as a message lists them, e.g. `x, y, z`.
+pub fn names(axes: &[Axis]) -> String {
+    axes.iter().map(|a| a.name()).collect::<Vec<_>>().join(", ")
+}
+
+/// The axes every run of `paths` carries: empty for single-axis runs, the
+/// same axes for all of them, else an error naming the run that differs.
+pub fn common_axes(paths: &[&Path]) -> anyhow::Result<Vec<Axis>> {
+    let mut first: Option<(&Path, Vec<Axis>)> = None;
+    for path in paths {
+        let axes = RunReader::open(path)?.axes();
+        match &first {
+            None => first = Some((path, axes)),
+            Some((p, a)) if *a != axes => anyhow::bail!(
+                "{} has {}, {} has {}: the runs of one fit carry the same axes",
+                text::path(p),
+                describe(a),
+                text::path(path),
+                describe(&axes)
+            ),
+            Some(_) => {}
+        }
+    }
+    Ok(first.map(|(_, a)| a).unwrap_or_default())
+}
+
+/// `axes x, y, z` or `one axis (rate_dph)`.
+fn describe(axes: &[Axis]) -> String {
+    if axes.is_empty() {
+        "one axis (rate_dph)".to_owned()
+    } else {
+        format!("axes {}", names(axes))
+    }
+}
+
+/// The model of each axis of the run `reader` reads, with the axis's
+/// columns, in x, y, z order (a single-axis run: the one model and the
+/// run's columns). A single-axis model on a multi-axis run, or the
+/// reverse, or a run axis the model lacks, is refused naming both files.
+pub fn models_for_run<'m>(
+    file: &'m ModelFile,
+    model_path: &Path,
+    reader: &RunReader,
+) -> anyhow::Result<Vec<(Option<Axis>, &'m Model, Columns)>> {
+    let run_axes = reader.axes();
+    let mismatch = || {
+        anyhow::anyhow!(
+            "{} holds a model for {}, {} has {}: fit a model on runs like it",
+            text::path(model_path),
+            describe(&file.axes()),
+            text::path(reader.path()),
+            describe(&run_axes)
+        )
+    };
+    if run_axes.is_empty() {
+        let model = file.model(None).ok_or_else(mismatch)?;
+        return Ok(vec![(None, model, *reader.columns())]);
+    }
+    run_axes
+        .iter()
+        .map(|&axis| {
+            let model = file.model(Some(axis)).ok_or_else(mismatch)?;
+            Ok((Some(axis), model, reader.axis_columns(axis)?))
+        })
+        .collect()
+}
+
+/// `trainer compensate`: the run at `run` (`-`: standard input) compensated
+/// with the model file at `model_path` into `output`, every axis of a
+/// multi-axis run with its own model. Every check comes first (the output
+/// target against the inputs and `existing`, the model, the run's header);
+/// the output appears only when the whole run is written, and not at all
+/// when an axis had no row compensated, unless `allow_uncompensated`.
+/// Returns what each axis's compensation did.
+pub fn compensate_command(
+    model_path: &Path,
+    run: &Path,
+    output: &Path,
+    existing: Existing,
+    allow_uncompensated: bool,
+) -> anyhow::Result<Vec<(Option<Axis>, Compensation)>> {
+    input::check_stdin_once([model_path, run])?;
+    let target = output::check_target(output, &[model_path, run], existing)?;
+    let (file, _) = read_model_file(model_path)?;
+    let reader = RunReader::open(run)?;
+    let pairs = models_for_run(&file, model_path, &reader)?;
+    let axes: Vec<(Option<&Model>, Columns)> = pairs.iter().map(|(_, m, c)| (Some(*m), *c)).collect();
+    for (_, model, columns) in &pairs {
+        reader.require_thermometers_of(columns, model.features().set.thermometer_mask())?;
+    }
+    let mut out = Output::open(target)?;
+    // Errors of the run name it and the line; write errors name the output.
+    let done = compensate_axes_reader(&axes, reader, &mut out).map_err(|e| {
+        if e.is::<crate::run::RunError>() {
+            e
+        } else {
+            e.context(text::path(output))
+        }
+    })?;
+    let mut result = Vec::with_capacity(done.len());
+    for ((axis, model, _), c) in pairs.iter().zip(done) {
+        let mask = model.features().set.thermometer_mask();
+        require_compensated(run, c.rows, c.compensated, &c.diagnosis, mask, allow_uncompensated)
+            .map_err(|e| on_axis(e, *axis))?;
+        result.push((*axis, c));
+    }
+    out.commit()?;
+    Ok(result)
+}
+
+/// `e` with the axis named, where there is one.
+fn on_axis(e: anyhow::Error, axis: Option<Axis>) -> anyhow::Error {
+    match axis {
+        Some(a) => e.context(format!("axis {}", a.name())),
+        None => e,
+    }
+}
+
+/// `trainer eval`: before/after accuracy of the model file on each run,
+/// per axis for a multi-axis run (each axis read in a pass of its own:
+/// such runs must be files, not standard input). A run where no row could
+/// be compensated is refused unless `allow_uncompensated`, as is one that
+/// cannot be evaluated ([`require_evaluable`]).
+pub fn evaluate_files(
+    file: &ModelFile,
+    model_path: &Path,
+    paths: &[PathBuf],
+    allow_uncompensated: bool,
+) -> anyhow::Result<Vec<RunEvaluation>> {
+    input::check_stdin_once(paths.iter().map(|p| p.as_path()))?;
+    let mut evaluations = Vec::new();
+    for path in paths {
+        let reader = RunReader::open(path)?;
+        let pairs: Vec<(Option<Axis>, &Model)> = models_for_run(file, model_path, &reader)?
+            .into_iter()
+            .map(|(a, m, _)| (a, m))
+            .collect();
+        if pairs.len() > 1 {
+            input::require_seekable([path.as_path()], "a multi-axis run is read once per axis")?;
+        }
+        let mut reader = Some(reader);
+        for (axis, model) in pairs {
+            let reader = match reader.take() {
+                Some(r) => r,
+                None => RunReader::open(path)?,
+            };
+            let (evaluation, diagnosis, compensated) = evaluate_axis_reader(model, reader, axis)?;
+            let mask = model.features().set.thermometer_mask();
+            require_evaluable(path, evaluation.samples, &diagnosis).map_err(|e| on_axis(e, axis))?;
+            require_compensated(
+                path,
+                evaluation.samples,
+                compensated,
+                &diagnosis,
+                mask,
+                allow_uncompensated,
+            )
+            .map_err(|e| on_axis(e, axis))?;
+            evaluations.push(evaluation);
+        }
+    }
+    Ok(evaluations)
+}
