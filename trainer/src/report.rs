@@ -925,6 +925,7 @@ pub fn write_report(
         .zip(&stems)
         .map(|(path, stem)| {
             let reader = RunReader::open(path)?;
+            reader.require_single_axis()?;
             read_run(
                 model,
                 reader,
