@@ -198,6 +198,22 @@ fn models_and_runs_of_different_axes_are_refused_naming_both() {
     fit(&single_run, &single_model);
     let imu_model = dir.path().join("imu.bin");
     fit(&imu, &imu_model);
+    // A report per axis.
+    let report = dir.path().join("report");
+    let o = trainer(&[
+        "report",
+        "--model",
+        imu_model.to_str().unwrap(),
+        imu.to_str().unwrap(),
+        "-o",
+        report.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for axis in ["x", "y"] {
+        let md = std::fs::read_to_string(report.join(format!("axis-{axis}/report.md"))).unwrap();
+        assert!(md.contains("| imu |"), "{md}");
+    }
+    assert!(!report.join("axis-z").exists());
     let out = dir.path().join("out.csv");
     let o = compensate(&single_model, &imu, &out, &[]);
     assert!(!o.status.success());
