@@ -245,6 +245,39 @@ fn models_and_runs_of_different_axes_are_refused_naming_both() {
         "{}",
         stderr(&o)
     );
+    // A bad field of the second axis, deep in the run: named by file, line
+    // and column, and nothing written.
+    let text = std::fs::read_to_string(&imu).unwrap();
+    let header_line = text.lines().position(|l| !l.starts_with('#')).unwrap();
+    let bad_line = header_line + 5000;
+    let damaged: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == bad_line {
+                let mut f: Vec<&str> = l.split(',').collect();
+                f[4] = "1.2.3";
+                f.join(",")
+            } else {
+                l.to_owned()
+            }
+        })
+        .collect();
+    let damaged = common::write(&dir, "damaged.csv", (damaged.join("\n") + "\n").as_bytes());
+    let want = format!(
+        "damaged.csv:{}: column rate_y_dph (field 5): \"1.2.3\" is not a number",
+        bad_line + 1
+    );
+    let o = compensate(&imu_model, &damaged, &out, &[]);
+    assert!(!o.status.success() && stderr(&o).contains(&want), "{}", stderr(&o));
+    assert!(!out.exists(), "nothing written");
+    let o = trainer(&[
+        "eval",
+        "--model",
+        imu_model.to_str().unwrap(),
+        damaged.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success() && stderr(&o).contains(&want), "{}", stderr(&o));
     // A run with rate_dph and a per-axis rate.
     let mixed = common::write(
         &dir,
