@@ -35,6 +35,10 @@ pub struct Blocks {
     /// gap) began, s: which blocks a slower filter's warm-up would have
     /// left out. Filled by [`BlockBuilder`]; empty for blocks made otherwise.
     pub segment_s: Vec<f32>,
+    /// Start of each block on the run's clock, s (filled as `segment_s`).
+    pub time_s: Vec<f64>,
+    /// Samples behind each block's means (filled as `segment_s`).
+    pub samples: Vec<u32>,
 }
 
 impl Blocks {
@@ -90,6 +94,8 @@ impl Blocks {
         self.y.extend(other.y);
         self.run.extend(other.run);
         self.segment_s.extend(other.segment_s);
+        self.time_s.extend(other.time_s);
+        self.samples.extend(other.samples);
         self.usable_s += other.usable_s;
     }
 }
@@ -219,9 +225,10 @@ impl BlockBuilder {
 
     fn flush(&mut self) {
         let acc = std::mem::take(&mut self.acc);
-        let segment_s = self
-            .current_block
-            .map_or(0.0, |(_, index)| (index as f64 * self.block_s) as f32);
+        // The block being closed: its segment's start and its index in it.
+        let (segment_start_s, since_start_s) = self.current_block.map_or((0.0, 0.0), |(start, index)| {
+            (f64::from_bits(start), index as f64 * self.block_s)
+        });
         let keep = acc.count >= self.min_count;
         let n = acc.count as f64;
         for (out, slot_of) in self.outputs.iter_mut().zip(&self.slot_of) {
@@ -237,7 +244,9 @@ impl BlockBuilder {
                 out.x.push(mean);
                 out.y.push(acc.sum_y / n);
                 out.run.push(self.run_index);
-                out.segment_s.push(segment_s);
+                out.segment_s.push(since_start_s as f32);
+                out.time_s.push(segment_start_s + since_start_s);
+                out.samples.push(acc.count as u32);
             }
         }
     }
@@ -371,6 +380,8 @@ pub fn bank_blocks(plain: &Blocks, bank: &LagBank) -> Blocks {
         run: plain.run.clone(),
         usable_s: plain.usable_s,
         segment_s: plain.segment_s.clone(),
+        time_s: plain.time_s.clone(),
+        samples: plain.samples.clone(),
         ..Blocks::default()
     };
     out.x = plain.x.iter().map(|row| inputs(row[0], &row[1..=n])).collect();
@@ -467,6 +478,10 @@ fn slice_plain(have: &LagBank, blocks: &Blocks, want: &LagBank) -> Option<Blocks
         out.y.push(blocks.y[i]);
         out.run.push(blocks.run[i]);
         out.segment_s.push(blocks.segment_s[i]);
+        if let (Some(t), Some(n)) = (blocks.time_s.get(i), blocks.samples.get(i)) {
+            out.time_s.push(*t);
+            out.samples.push(*n);
+        }
     }
     out.usable_s = blocks.usable_s * out.len() as f64 / blocks.len().max(1) as f64;
     Some(out)
