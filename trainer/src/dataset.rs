@@ -9,6 +9,7 @@
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
+use rbf_core::lag_bank::{BANK_FILTERS, LagBank};
 use rbf_core::record::Axis;
 use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, FeatureSet, Flags, GyroSample, MAX_INPUTS};
 
@@ -31,6 +32,14 @@ pub struct Blocks {
     pub sample_range: Vec<(f64, f64)>,
     /// Seconds of usable samples behind the blocks.
     pub usable_s: f64,
+    /// Start of each block since its segment (the run's start or its last
+    /// gap) began, s: which blocks a slower filter's warm-up would have
+    /// left out. Filled by [`BlockBuilder`]; empty for blocks made otherwise.
+    pub segment_s: Vec<f32>,
+    /// Start of each block on the run's clock, s (filled as `segment_s`).
+    pub time_s: Vec<f64>,
+    /// Samples behind each block's means (filled as `segment_s`).
+    pub samples: Vec<u32>,
 }
 
 impl Blocks {
@@ -85,6 +94,9 @@ impl Blocks {
         self.x.extend(other.x);
         self.y.extend(other.y);
         self.run.extend(other.run);
+        self.segment_s.extend(other.segment_s);
+        self.time_s.extend(other.time_s);
+        self.samples.extend(other.samples);
         self.usable_s += other.usable_s;
     }
 }
@@ -139,6 +151,7 @@ pub struct BlockBuilder {
     converted: Vec<usize>,
     config: CompensatorConfig,
     block_index: BinIndex,
+    block_s: f64,
     nominal_period_s: f64,
     min_count: usize,
     compensator: Compensator,
@@ -198,6 +211,7 @@ impl BlockBuilder {
             converted,
             config: CompensatorConfig::for_nominal_period_s(nominal_period_s),
             block_index: BinIndex::new(block_s),
+            block_s,
             nominal_period_s,
             min_count: ((0.5 * block_s / nominal_period_s).floor() as usize).max(1),
             compensator: Compensator::new(),
@@ -212,6 +226,10 @@ impl BlockBuilder {
 
     fn flush(&mut self) {
         let acc = std::mem::take(&mut self.acc);
+        // The block being closed: its segment's start and its index in it.
+        let (segment_start_s, since_start_s) = self.current_block.map_or((0.0, 0.0), |(start, index)| {
+            (f64::from_bits(start), index as f64 * self.block_s)
+        });
         let keep = acc.count >= self.min_count;
         let n = acc.count as f64;
         for (out, slot_of) in self.outputs.iter_mut().zip(&self.slot_of) {
@@ -227,6 +245,9 @@ impl BlockBuilder {
                 out.x.push(mean);
                 out.y.push(acc.sum_y / n);
                 out.run.push(self.run_index);
+                out.segment_s.push(since_start_s as f32);
+                out.time_s.push(segment_start_s + since_start_s);
+                out.samples.push(acc.count as u32);
             }
         }
     }
@@ -304,23 +325,167 @@ const SLOWEST_RATE_INPUT: usize = 3;
 
 /// The configuration whose blocks `features`' blocks are made from: the
 /// second-order multi-scale set over the same windows for a lagged set
-/// ([`Blocks::with_coil_lag`]), else `features` itself.
+/// ([`Blocks::with_coil_lag`]), the plain bank over the same filters for a
+/// shaped lag bank ([`bank_blocks`]), else `features` itself.
 pub fn block_source(features: &FeatureConfig) -> FeatureConfig {
     match features.set {
         FeatureSet::MultiScaleLagged { .. } => FeatureConfig {
             set: FeatureSet::MultiScaleSecondOrder,
             ..*features
         },
+        FeatureSet::LagBank(bank) => plain_bank(&bank).map_or(*features, FeatureConfig::lag_bank),
         _ => *features,
     }
+}
+
+/// The plain bank over `bank`'s filters: inputs [T, ΔT_1 … ΔT_n], no coil
+/// lag, unit gain (`None` for a bank of no filters).
+fn plain_bank(bank: &LagBank) -> Option<LagBank> {
+    LagBank::plain(bank.taus_s.get(..bank.filter_count())?, 0.0)
 }
 
 /// `blocks` of [`block_source`]`(features)` turned into `features`' blocks.
 fn derive_blocks(blocks: Blocks, features: &FeatureConfig) -> Blocks {
     match features.set {
         FeatureSet::MultiScaleLagged { coil_lag_min } => blocks.with_coil_lag(coil_lag_min),
+        FeatureSet::LagBank(bank) if plain_bank(&bank) != Some(bank) => bank_blocks(&blocks, &bank),
         _ => blocks,
     }
+}
+
+/// The blocks of a shaped lag bank from those of the plain bank over its
+/// filters, without another pass over the samples: each block's inputs are
+/// `bank`'s inputs ([`LagBank::inputs`], the firmware's code) at the block's
+/// mean temperature and mean rates. The bank's inputs are smooth in those
+/// (powers of T̂ and a gain of T times the rates), and within a 1-s block
+/// the temperature moves by hundredths of a degree, so the mean of the
+/// inputs and the inputs of the means differ far below the bias noise
+/// (`the_default_fit_from_derived_blocks_matches_the_fit_on_per_sample_blocks`
+/// bounds it). The per-sample ranges (the model's clamping box) are the
+/// derived blocks' ranges widened by how far the plain inputs' samples went
+/// beyond their block means, through the bank's coil lags and gain.
+pub fn bank_blocks(plain: &Blocks, bank: &LagBank) -> Blocks {
+    let n = bank.filter_count();
+    let inputs = |temp_c: f64, rates: &[f64]| {
+        let mut r = [0.0f32; BANK_FILTERS];
+        for (r, v) in r.iter_mut().zip(rates) {
+            *r = *v as f32;
+        }
+        let mut out = [0.0f32; MAX_INPUTS];
+        bank.inputs(temp_c as f32, &r, &mut out);
+        out.map(f64::from)
+    };
+    let mut out = Blocks {
+        dims: bank.dims(),
+        y: plain.y.clone(),
+        run: plain.run.clone(),
+        usable_s: plain.usable_s,
+        segment_s: plain.segment_s.clone(),
+        time_s: plain.time_s.clone(),
+        samples: plain.samples.clone(),
+        ..Blocks::default()
+    };
+    out.x = plain.x.iter().map(|row| inputs(row[0], &row[1..=n])).collect();
+    // How far samples went below and above their blocks' means, per plain input.
+    let beyond: Vec<(f64, f64)> = (0..=n)
+        .map(|i| {
+            let (lo, hi) = plain.block_range(i);
+            let (sample_lo, sample_hi) = plain.sample_range.get(i).copied().unwrap_or((lo, hi));
+            ((lo - sample_lo).max(0.0), (sample_hi - hi).max(0.0))
+        })
+        .collect();
+    let statics = bank.static_inputs();
+    let lag: f64 = bank.coil_lag_min[..n]
+        .iter()
+        .zip(&beyond[1..])
+        .map(|(a, m)| f64::from(a.abs()) * m.0.max(m.1))
+        .sum();
+    let coil = {
+        let (lo, hi) = out.block_range(0);
+        (lo - beyond[0].0 - lag, hi + beyond[0].1 + lag)
+    };
+    // The gain's largest size, and its largest change within a block, over
+    // the temperatures the samples reached.
+    let (temp_lo, temp_hi) = plain
+        .sample_range
+        .first()
+        .copied()
+        .unwrap_or_else(|| plain.block_range(0));
+    let ones = [1.0; BANK_FILTERS];
+    let gain_at = |t: f64| inputs(t, &ones[..n])[statics];
+    let gain = gain_at(temp_lo).abs().max(gain_at(temp_hi).abs());
+    let gain_change = [temp_lo, temp_hi]
+        .iter()
+        .flat_map(|&t| [beyond[0].1, -beyond[0].0].map(|d| (gain_at(t + d) - gain_at(t)).abs()))
+        .fold(0.0, f64::max);
+    out.sample_range = (0..out.dims)
+        .map(|i| {
+            let (lo, hi) = out.block_range(i);
+            if i == 0 {
+                coil
+            } else if i < statics {
+                // The powers of T̂ over the widened coil range (T̂ = T at rest).
+                let ref_c = f64::from(bank.ref_c);
+                [coil.0, coil.1, ref_c.clamp(coil.0, coil.1)]
+                    .iter()
+                    .map(|&t| inputs(t, &[])[i])
+                    .fold((lo, hi), |(lo, hi), v| (lo.min(v), hi.max(v)))
+            } else {
+                let (below, above) = beyond[1 + i - statics];
+                let drift = gain_change * lo.abs().max(hi.abs());
+                (lo - gain * below - drift, hi + gain * above + drift)
+            }
+        })
+        // The inputs' spread within a block away from the extremes (noise
+        // through the gain) is not in those margins.
+        .map(|(lo, hi)| (lo - SPREAD_MARGIN * (hi - lo), hi + SPREAD_MARGIN * (hi - lo)))
+        .collect();
+    out
+}
+
+/// Margin on every derived range, as a fraction of its span.
+const SPREAD_MARGIN: f64 = 1e-3;
+
+/// The blocks of the plain bank `want` cut from `have`, those of a plain
+/// bank whose filters include `want`'s in a row (a filter computes the same
+/// values whatever bank it is in): those filters' columns, without the
+/// blocks that `want`'s longer warm-up (a slower fastest filter) leaves
+/// out. `None` when `have` does not hold `want`'s filters or its blocks do
+/// not say when they started.
+fn slice_plain(have: &LagBank, blocks: &Blocks, want: &LagBank) -> Option<Blocks> {
+    let (h, w) = (have.filter_count(), want.filter_count());
+    let bits = |taus: &[f32]| taus.iter().map(|t| t.to_bits()).collect::<Vec<_>>();
+    let wanted = bits(&want.taus_s[..w]);
+    let first = (0..=h.checked_sub(w)?).find(|&f| bits(&have.taus_s[f..f + w]) == wanted)?;
+    if plain_bank(have) != Some(*have) || blocks.segment_s.len() != blocks.len() {
+        return None;
+    }
+    let warmup_s = FeatureConfig::lag_bank(*want).warmup_s();
+    let columns = |row: &[f64; MAX_INPUTS]| {
+        let mut out = [0.0; MAX_INPUTS];
+        out[0] = row[0];
+        out[1..=w].copy_from_slice(&row[1 + first..=first + w]);
+        out
+    };
+    let mut sample_range = vec![*blocks.sample_range.first()?];
+    sample_range.extend_from_slice(blocks.sample_range.get(1 + first..=first + w)?);
+    let mut out = Blocks {
+        dims: 1 + w,
+        sample_range,
+        ..Blocks::default()
+    };
+    for i in (0..blocks.len()).filter(|&i| blocks.segment_s[i] >= warmup_s) {
+        out.x.push(columns(&blocks.x[i]));
+        out.y.push(blocks.y[i]);
+        out.run.push(blocks.run[i]);
+        out.segment_s.push(blocks.segment_s[i]);
+        if let (Some(t), Some(n)) = (blocks.time_s.get(i), blocks.samples.get(i)) {
+            out.time_s.push(*t);
+            out.samples.push(*n);
+        }
+    }
+    out.usable_s = blocks.usable_s * out.len() as f64 / blocks.len().max(1) as f64;
+    Some(out)
 }
 
 /// Runs the trainer learns from: in memory ([`Run`]) or streamed from files
@@ -465,13 +630,25 @@ impl RunFiles {
         &self.paths
     }
 
-    fn cached(&self, key: &CacheKey) -> Option<Blocks> {
+    /// The blocks of `features` from the cache: computed for it, or cut from
+    /// a plain bank's that holds its filters ([`slice_plain`]).
+    fn cached(&self, features: &FeatureConfig, block_s: f64) -> Option<Blocks> {
+        let key = cache_key(features, block_s);
         let cache = self.cache.lock().ok()?;
-        cache.iter().find(|(k, _)| k == key).map(|(_, b)| b.clone())
+        if let Some((_, b)) = cache.iter().find(|(k, _)| *k == key) {
+            return Some(b.clone());
+        }
+        let FeatureSet::LagBank(want) = features.set else {
+            return None;
+        };
+        cache.iter().find_map(|(((set, _), block), b)| match set {
+            FeatureSet::LagBank(have) if *block == key.1 => slice_plain(have, b, &want),
+            _ => None,
+        })
     }
 
-    fn is_cached(&self, key: &CacheKey) -> bool {
-        self.cache.lock().is_ok_and(|cache| cache.iter().any(|(k, _)| k == key))
+    fn is_cached(&self, features: &FeatureConfig, block_s: f64) -> bool {
+        self.cached(features, block_s).is_some()
     }
 
     /// One pass over run `index`: blocks for each of `configs`.
@@ -580,19 +757,18 @@ impl RunSet for RunFiles {
     }
 
     fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
-        let key = cache_key(features, block_s);
-        if let Some(b) = self.cached(&key) {
+        if let Some(b) = self.cached(features, block_s) {
             return Ok(b);
         }
         self.prepare_filtered(std::slice::from_ref(features), block_s)?;
-        self.cached(&key)
+        self.cached(features, block_s)
             .ok_or_else(|| anyhow::anyhow!("block means were not cached"))
     }
 
     fn prepare_filtered(&self, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<()> {
         let wanted: Vec<FeatureConfig> = configs
             .iter()
-            .filter(|c| !self.is_cached(&cache_key(c, block_s)))
+            .filter(|c| !self.is_cached(c, block_s))
             .copied()
             .collect();
         if wanted.is_empty() {
@@ -699,6 +875,98 @@ mod tests {
         let streamed = RunFiles::new(std::slice::from_ref(&path));
         streamed.prepare(&[lagged], 1.0).unwrap();
         assert_eq!(streamed.block_means(&lagged, 1.0).unwrap().x, derived.x);
+    }
+
+    /// A shaped bank over `taus`: coil lags of minutes, a gain that drifts, a cubic static part.
+    fn shaped_bank(taus: &[f32]) -> LagBank {
+        let mut bank = LagBank::plain(taus, 25.0).unwrap();
+        for (k, a) in bank.coil_lag_min.iter_mut().take(taus.len()).enumerate() {
+            *a = [0.5, -2.0, 6.0, -20.0, 40.0][k % 5];
+        }
+        bank.gain_per_c = 3e-3;
+        bank.static_degree = 3;
+        (bank.coil_min_c, bank.coil_max_c) = (10.0, 40.0);
+        assert!(bank.is_valid());
+        bank
+    }
+
+    #[test]
+    fn the_default_fit_from_derived_blocks_matches_the_fit_on_per_sample_blocks() {
+        // A shaped bank's blocks come from the plain bank's (no second pass):
+        // the bank's inputs of the block means, against the block means of
+        // the per-sample inputs the firmware computes.
+        let dir = tempfile::tempdir().unwrap();
+        let path = simulated_run(&dir, 3.0, 7);
+        let run = Run::load(&path).unwrap();
+        let runs = std::slice::from_ref(&run);
+        let bank = shaped_bank(&[30.0, 120.0, 480.0, 1920.0, 7680.0]);
+        let shaped = FeatureConfig::lag_bank(bank);
+        assert_eq!(
+            block_source(&shaped),
+            FeatureConfig::lag_bank(LagBank::plain(&bank.taus_s[..5], 0.0).unwrap())
+        );
+        let direct = sample_block_means(runs, &shaped, 1.0);
+        let derived = runs.block_means(&shaped, 1.0).unwrap();
+        assert_eq!((derived.len(), derived.dims), (direct.len(), direct.dims));
+        assert_eq!(derived.y, direct.y);
+        // Each input within a millionth of its span (f32 inputs of 10 samples a block).
+        for i in 0..direct.dims {
+            let (lo, hi) = direct.block_range(i);
+            let worst = derived
+                .x
+                .iter()
+                .zip(&direct.x)
+                .map(|(d, e)| (d[i] - e[i]).abs())
+                .fold(0.0, f64::max);
+            assert!(worst <= 1e-5 * (hi - lo), "input {i}: {worst} of span {}", hi - lo);
+            // The clamping box holds every sample, and not much more.
+            let (got, truth) = (derived.sample_range[i], direct.sample_range[i]);
+            assert!(
+                got.0 <= truth.0 && got.1 >= truth.1,
+                "input {i}: {got:?} must hold {truth:?}"
+            );
+            let slack = (truth.0 - got.0) + (got.1 - truth.1);
+            assert!(
+                slack <= 0.01 * (truth.1 - truth.0),
+                "input {i}: {got:?} against {truth:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_stretch_of_a_cached_ladder_gives_the_blocks_of_its_own_pass() {
+        // The bank search's ladders are built in one pass; a chosen stretch of
+        // one (a slower first filter: a longer warm-up) is cut from it.
+        let dir = tempfile::tempdir().unwrap();
+        let path = simulated_run(&dir, 2.0, 9);
+        let ladder = FeatureConfig::lag_bank(LagBank::plain(&[15.0, 60.0, 240.0, 960.0, 3840.0], 0.0).unwrap());
+        let streamed = RunFiles::new(std::slice::from_ref(&path));
+        streamed.prepare(&[ladder], 1.0).unwrap();
+        let run = Run::load(&path).unwrap();
+        for taus in [
+            &[60.0, 240.0, 960.0][..],
+            &[15.0, 60.0][..],
+            &[240.0, 960.0, 3840.0][..],
+        ] {
+            let stretch = FeatureConfig::lag_bank(LagBank::plain(taus, 0.0).unwrap());
+            assert!(streamed.is_cached(&stretch, 1.0), "{taus:?}: cut, not read again");
+            let cut = streamed.block_means(&stretch, 1.0).unwrap();
+            let own = sample_block_means(std::slice::from_ref(&run), &stretch, 1.0);
+            assert_eq!(cut.len(), own.len(), "{taus:?}");
+            // Bit for bit, but for the block where the warm-up ends: the
+            // compensator sums its f32 time steps, and one sample may fall
+            // either side of the end.
+            let warmup_s = stretch.warmup_s();
+            for i in (0..own.len()).filter(|&i| (own.segment_s[i] - warmup_s).abs() >= 1.0) {
+                assert!(
+                    cut.x[i] == own.x[i] && cut.y[i] == own.y[i],
+                    "{taus:?}: block {i} differs"
+                );
+            }
+            assert_eq!(cut.sample_range[1..], own.sample_range[1..], "{taus:?}");
+        }
+        let elsewhere = FeatureConfig::lag_bank(LagBank::plain(&[60.0, 960.0], 0.0).unwrap());
+        assert!(!streamed.is_cached(&elsewhere, 1.0), "not a stretch: filters apart");
     }
 
     #[test]

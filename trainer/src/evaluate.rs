@@ -6,11 +6,14 @@ use std::path::Path;
 use anyhow::Context;
 use rbf_core::features::LOOP_THERMOMETER;
 use rbf_core::record::{self, Axis, Columns};
-use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, GyroSample, Model};
+use rbf_core::{
+    CompensatedSample, Compensator, CompensatorConfig, FeatureVector, Flags, GyroSample, MAX_INPUTS, Model,
+};
 use serde::Serialize;
 
 use crate::allan::{self, AllanDeviation};
 use crate::chunked::Batch;
+use crate::dataset::Blocks;
 use crate::diagnose::RunDiagnosis;
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
 use crate::output::{Existing, Output};
@@ -33,8 +36,8 @@ pub struct FlagCounts {
 }
 
 impl FlagCounts {
-    fn add(&mut self, flags: Flags) {
-        let count = |bit: Flags| usize::from(flags.contains(bit));
+    fn add(&mut self, flags: Flags, samples: usize) {
+        let count = |bit: Flags| if flags.contains(bit) { samples } else { 0 };
         self.input_clamped += count(Flags::INPUT_CLAMPED);
         self.temp_sensor_fault += count(Flags::TEMP_SENSOR_FAULT);
         self.no_valid_model += count(Flags::NO_VALID_MODEL);
@@ -52,6 +55,10 @@ pub struct RunEvaluation {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub axis: Option<&'static str>,
     /// Number of samples (= output rows).
+    /// What was scored: every sample (`samples`), or the block means a
+    /// fit computed (`block means`: see [`evaluate_blocks`]).
+    pub basis: &'static str,
+    /// Number of samples (= output rows; for block means, the samples behind them).
     pub samples: usize,
     /// What the rate was compared with: `ref_dph` or `run mean`.
     pub reference: &'static str,
@@ -126,6 +133,51 @@ pub fn evaluate_axis_reader(
     Ok((evaluation, diagnosis, compensated))
 }
 
+/// [`RunEvaluation::basis`] of a sample-by-sample evaluation.
+pub const SAMPLES: &str = "samples";
+/// [`RunEvaluation::basis`] of [`evaluate_blocks`].
+pub const BLOCK_MEANS: &str = "block means";
+
+/// Before/after accuracy of `model` on run number `run` of `blocks` (the
+/// block means a fit computed, `block_s` long, of `model`'s inputs), without
+/// reading the run again: how `trainer fit` scores its training runs. The
+/// model is evaluated at each block's mean inputs, which for 1-s blocks
+/// differs from the mean of its per-sample outputs far below the bias noise
+/// (`trainer eval` scores every sample); samples the fit left out (warming
+/// up, a thermometer fault) are not in the blocks, and a block counts as
+/// clamped with all its samples when its mean inputs are. `has_ref`: the
+/// targets are deviations from `ref_dph` (else from the run's mean).
+pub fn evaluate_blocks(
+    model: &Model,
+    blocks: &Blocks,
+    run: usize,
+    path: &Path,
+    block_s: f64,
+    has_ref: bool,
+) -> RunEvaluation {
+    let mut evaluator = Evaluator::new(path, block_s, has_ref);
+    evaluator.basis = BLOCK_MEANS;
+    let dims = blocks.dims.min(MAX_INPUTS);
+    for i in (0..blocks.len()).filter(|&i| blocks.run[i] == run) {
+        let mut x = [0.0f32; MAX_INPUTS];
+        for (x, v) in x.iter_mut().zip(&blocks.x[i][..dims]) {
+            *x = *v as f32;
+        }
+        let e = model.eval(&FeatureVector::from_values(&x[..dims]));
+        let flags = if e.clamped { Flags::INPUT_CLAMPED } else { Flags::NONE };
+        let (time_s, samples) = (blocks.time_s.get(i), blocks.samples.get(i));
+        let y = blocks.y[i];
+        evaluator.push_mean(
+            time_s.copied().unwrap_or(i as f64 * block_s),
+            y,
+            y - f64::from(e.bias_dph),
+            flags,
+            samples.map_or(1, |n| *n as usize),
+        );
+    }
+    evaluator.finish()
+}
+
 /// [`evaluate_file`] on an open reader; also returns what the rows showed
 /// ([`RunDiagnosis`]) and the number of compensated rows (no flag 4).
 pub fn evaluate_reader(model: &Model, reader: RunReader) -> anyhow::Result<(RunEvaluation, RunDiagnosis, usize)> {
@@ -196,6 +248,7 @@ pub fn require_evaluable(path: &Path, rows: usize, diagnosis: &RunDiagnosis) -> 
 /// bin means, flag counts and bounded Allan series ([`allan::Decimated`]).
 pub struct Evaluator {
     run: String,
+    basis: &'static str,
     nominal_period_s: f64,
     has_ref: bool,
     samples: usize,
@@ -217,6 +270,7 @@ impl Evaluator {
         };
         Evaluator {
             run: text::path(path),
+            basis: SAMPLES,
             nominal_period_s,
             has_ref,
             samples: 0,
@@ -229,8 +283,13 @@ impl Evaluator {
 
     /// Takes one sample at `time_s`: raw and compensated deviation from the reference, °/h.
     pub fn push(&mut self, time_s: f64, before_dph: f64, after_dph: f64, flags: Flags) {
-        self.samples += 1;
-        self.flagged.add(flags);
+        self.push_mean(time_s, before_dph, after_dph, flags, 1);
+    }
+
+    /// Takes the mean of `samples` samples starting at `time_s` (a block).
+    fn push_mean(&mut self, time_s: f64, before_dph: f64, after_dph: f64, flags: Flags, samples: usize) {
+        self.samples += samples;
+        self.flagged.add(flags, samples);
         for (k, v) in [before_dph, after_dph].into_iter().enumerate() {
             self.msd[k].push(time_s, v);
             self.clusters[k].push(time_s, v);
@@ -251,6 +310,7 @@ impl Evaluator {
         RunEvaluation {
             run: self.run,
             axis: None,
+            basis: self.basis,
             samples: self.samples,
             reference: if about_mean { "run mean" } else { "ref_dph" },
             msd_before_dph2: msd_before,
@@ -309,6 +369,12 @@ pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std
             e.cluster_std_before_dph,
             e.cluster_std_after_dph,
             e.cluster_std_improvement_pct
+        )?;
+    }
+    if rows.iter().any(|(_, e)| e.basis == BLOCK_MEANS) {
+        writeln!(
+            out,
+            "(train: scored on the fit's block means, warm-up left out; `trainer eval` scores every sample)"
         )?;
     }
     Ok(())
@@ -502,7 +568,7 @@ pub fn compensate_axes_reader(
                     };
                     let o = compensators[k].process(*model, &config, &sample);
                     let axis = &mut c[k];
-                    axis.flagged.add(o.flags);
+                    axis.flagged.add(o.flags, 1);
                     axis.compensated += usize::from(!o.flags.contains(Flags::NO_VALID_MODEL));
                     axis.diagnosis.push(batch.line(i), &row);
                     axis.rows += 1;
@@ -560,6 +626,73 @@ pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> an
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_fit_s_block_mean_scores_agree_with_scoring_every_sample() {
+        use crate::dataset::{RunFiles, RunSet};
+        // A 3-h, 1.5 °C/min run at 10 Hz; the default model fitted on it.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.csv");
+        let mut sim = crate::simulate::ChamberRun::ifog(1.5, 3);
+        sim.duration_s = Some(3.0 * 3600.0);
+        sim.sample_rate_hz = 10.0;
+        sim.write_csv(&mut std::fs::File::create(&path).unwrap()).unwrap();
+        let train = RunFiles::new(std::slice::from_ref(&path));
+        let opts = crate::fit::FitOptions {
+            progress: false,
+            ..crate::fit::FitOptions::default()
+        };
+        let model = crate::fit::fit(&train, &RunFiles::new(&[]), &opts).unwrap().model;
+        let blocks = train.block_means(model.features(), opts.block_s).unwrap();
+        let by_blocks = evaluate_blocks(&model, &blocks, 0, &path, opts.block_s, true);
+        // Every sample scored, but the warm-up the fit leaves out.
+        let run = Run::load(&path).unwrap();
+        let out = compensate_run(Some(&model), &run);
+        let mut evaluator = Evaluator::new(&path, run.nominal_period_s, true);
+        for (i, o) in out
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| !o.flags.contains(Flags::WARMING_UP))
+        {
+            let r = run.ref_dph.as_ref().unwrap()[i];
+            evaluator.push(
+                run.time_s[i],
+                run.rate_dph[i] - r,
+                f64::from(o.rate_comp_dph) - r,
+                o.flags,
+            );
+        }
+        let by_samples = evaluator.finish();
+        assert_eq!((by_blocks.basis, by_samples.basis), (BLOCK_MEANS, SAMPLES));
+        let close = |a: f64, b: f64, tolerance: f64, what: &str| {
+            assert!((a / b - 1.0).abs() <= tolerance, "{what}: blocks {a}, samples {b}");
+        };
+        close(
+            by_blocks.msd_before_dph2,
+            by_samples.msd_before_dph2,
+            0.01,
+            "MSD before",
+        );
+        close(by_blocks.msd_after_dph2, by_samples.msd_after_dph2, 0.02, "MSD after");
+        close(
+            by_blocks.cluster_std_before_dph,
+            by_samples.cluster_std_before_dph,
+            0.01,
+            "STD100 before",
+        );
+        close(
+            by_blocks.cluster_std_after_dph,
+            by_samples.cluster_std_after_dph,
+            0.02,
+            "STD100 after",
+        );
+        assert!(
+            by_blocks.samples.abs_diff(by_samples.samples) <= 20,
+            "{} samples against {}",
+            by_blocks.samples,
+            by_samples.samples
+        );
+    }
 
     #[test]
     fn compensated_rows_are_written_byte_for_byte_as_the_firmware_replay_writes_them() {

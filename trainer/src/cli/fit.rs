@@ -9,8 +9,8 @@ use rbf_core::features::Probe;
 use rbf_core::model::ModelBody;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::blobfile::encode_model;
-use trainer::dataset::RunFiles;
-use trainer::evaluate::{RunEvaluation, evaluate_file, print_table};
+use trainer::dataset::{RunFiles, RunSet};
+use trainer::evaluate::{RunEvaluation, evaluate_blocks, evaluate_file, print_table};
 use trainer::fit::{self, FitOptions, FitOutcome};
 use trainer::limits::MAX_FOLDS;
 use trainer::output::{self, Output};
@@ -278,8 +278,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     })?;
     let fit_s = started.elapsed().as_secs_f64();
-    // The cached block means are done with: freed before the evaluation pass.
+    // Training and validation runs are scored on the block means the fit
+    // computed, without reading them again; holdout runs, which the fit
+    // never read, sample by sample.
+    let mut evals: Vec<(&str, RunEvaluation)> = Vec::new();
+    for (role, runs) in [("train", &train), ("validate", &validate)] {
+        if runs.count() == 0 {
+            continue;
+        }
+        let blocks = runs.block_means(outcome.model.features(), opts.block_s)?;
+        for (i, path) in runs.paths().iter().enumerate() {
+            let has_ref = RunReader::open(path)?.columns().ref_dph.is_some();
+            evals.push((role, evaluate_blocks(&outcome.model, &blocks, i, path, opts.block_s, has_ref)));
+        }
+    }
     drop((train, validate));
+    for path in &a.holdout {
+        evals.push(("holdout", evaluate_file(&outcome.model, path)?));
+    }
     let blob = encode_model(&outcome.model)?;
 
     // Printed once everything is written.
@@ -292,12 +308,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     write_summary(&mut out, opts.method, &outcome, &how)?;
     writeln!(out, "fit took {fit_s:.1} s\n")?;
-    let roles = [("train", &a.runs), ("validate", &a.validate), ("holdout", &a.holdout)];
-    let evals: Vec<(&str, RunEvaluation)> = roles
-        .iter()
-        .flat_map(|(role, paths)| paths.iter().map(move |p| (*role, p)))
-        .map(|(role, p)| evaluate_file(&outcome.model, p).map(|e| (role, e)))
-        .collect::<anyhow::Result<_>>()?;
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
     if let Some(search) = &outcome.bank {

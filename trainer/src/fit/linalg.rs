@@ -117,23 +117,44 @@ impl GramStats {
     }
 }
 
-/// Averages consecutive groups of `rows_per_mean` rows of `a` and `y` (a
-/// trailing group with under half the rows is dropped): the design and target
-/// of cluster means, whose residual is the mean residual of each cluster.
-pub fn cluster_means(a: &DMatrix<f64>, y: &DVector<f64>, rows_per_mean: usize) -> (DMatrix<f64>, DVector<f64>) {
+/// The design ([`design`]) and target of cluster means: `rows` in
+/// consecutive groups of `rows_per_mean` (a trailing group with under half
+/// the rows is dropped), each group's design row and target averaged, so
+/// that the residual is the mean residual of each cluster. Built a row at a
+/// time: only the cluster means are held, whatever the number of rows.
+pub fn cluster_design(
+    z: &[FeatureRow],
+    y: &[f64],
+    rows: &[usize],
+    rows_per_mean: usize,
+    shape: InputShape,
+    centers: &[FeatureRow],
+    width: f64,
+) -> (DMatrix<f64>, DVector<f64>) {
     let size = rows_per_mean.max(1);
-    let starts: Vec<usize> = (0..a.nrows())
+    let starts: Vec<usize> = (0..rows.len())
         .step_by(size)
-        .filter(|&s| (a.nrows() - s) * 2 >= size)
+        .filter(|&s| (rows.len() - s) * 2 >= size)
         .collect();
-    let mut am = DMatrix::zeros(starts.len(), a.ncols());
+    let fixed = 1 + shape.dims;
+    let mut am = DMatrix::zeros(starts.len(), fixed + centers.len());
     let mut ym = DVector::zeros(starts.len());
     for (k, &s) in starts.iter().enumerate() {
-        let n = size.min(a.nrows() - s);
-        for c in 0..a.ncols() {
-            am[(k, c)] = a.view((s, c), (n, 1)).sum() / n as f64;
+        let group = &rows[s..(s + size).min(rows.len())];
+        for &r in group {
+            let zr = &z[r];
+            am[(k, 0)] += 1.0;
+            for c in 1..fixed {
+                am[(k, c)] += zr[c - 1];
+            }
+            for (j, centre) in centers.iter().enumerate() {
+                am[(k, fixed + j)] += gaussian(zr, centre, shape.kernel, width);
+            }
+            ym[k] += y[r];
         }
-        ym[k] = y.rows(s, n).sum() / n as f64;
+        let n = group.len() as f64;
+        am.row_mut(k).iter_mut().for_each(|v| *v /= n);
+        ym[k] /= n;
     }
     (am, ym)
 }

@@ -2,13 +2,13 @@
 //! choice of ΔT window, width, ridge strength and number of centres on
 //! validation data.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 
 use super::linalg::{
-    FeatureRow, GramStats, InputShape, Normaliser, cluster_means, design, farthest_points, pool_means, ridge_solve,
+    FeatureRow, GramStats, InputShape, Normaliser, cluster_design, design, farthest_points, pool_means, ridge_solve,
     thin,
 };
 use super::ols::forward_select;
@@ -442,10 +442,6 @@ fn accumulate_scores(
 ) {
     let dims = shape.dims;
     let k_max = table.first().map_or(0, Vec::len).saturating_sub(1);
-    let design_and_target = |rows: &[usize]| {
-        let a: DMatrix<f64> = design(z, rows, shape, centers, width);
-        (a, DVector::from_iterator(rows.len(), rows.iter().map(|&i| all.y[i])))
-    };
     let (pooled_z, pooled_y) = pool_means(z, &all.y, &split.train, MAX_SEARCH_TRAIN_ROWS);
     let pooled_rows: Vec<usize> = (0..pooled_y.len()).collect();
     let a = design(&pooled_z, &pooled_rows, shape, centers, width);
@@ -456,8 +452,7 @@ fn accumulate_scores(
         .groups
         .iter()
         .map(|g| {
-            let (a, y) = design_and_target(g);
-            let (am, ym) = cluster_means(&a, &y, score_rows);
+            let (am, ym) = cluster_design(z, &all.y, g, score_rows, shape, centers, width);
             GramStats::new(&am, &ym)
         })
         .filter(|g| g.n >= MIN_SCORE_CLUSTERS)

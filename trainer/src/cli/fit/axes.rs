@@ -8,8 +8,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 use rbf_core::record::Axis;
 use trainer::blobfile::encode_axis_models;
-use trainer::dataset::RunFiles;
-use trainer::evaluate::{RunEvaluation, evaluate_axis_file, print_table};
+use trainer::dataset::{RunFiles, RunSet};
+use trainer::evaluate::{RunEvaluation, evaluate_axis_file, evaluate_blocks, print_table};
 use trainer::fit::{self, FitOptions, FitOutcome};
 use trainer::output::Output;
 use trainer::run::RunReader;
@@ -45,27 +45,35 @@ pub(super) fn run(
     let started = std::time::Instant::now();
     let outcomes = fit_axes(a, opts, axes)?;
     let fit_s = started.elapsed().as_secs_f64();
-    let models: Vec<(Axis, &rbf_core::Model)> = axes.iter().copied().zip(outcomes.iter().map(|o| &o.model)).collect();
+    let models: Vec<(Axis, &rbf_core::Model)> = axes.iter().copied().zip(outcomes.iter().map(|o| &o.0.model)).collect();
     let blob = encode_axis_models(&models)?;
 
     let mut out: Vec<u8> = Vec::new();
-    for (axis, outcome) in axes.iter().zip(&outcomes) {
+    for (axis, (outcome, _)) in axes.iter().zip(&outcomes) {
         writeln!(out, "axis {}:", axis.name())?;
         write_summary(&mut out, opts.method, outcome, how)?;
     }
     writeln!(out, "fit took {fit_s:.1} s\n")?;
-    let roles = [("train", &a.runs), ("validate", &a.validate), ("holdout", &a.holdout)];
+    // Training and validation runs scored on each axis's block means (as the
+    // single-axis fit does), holdout runs sample by sample; a row per run and axis.
     let mut evals: Vec<(&str, RunEvaluation)> = Vec::new();
-    for (role, paths) in roles {
-        for path in paths.iter() {
-            for (&axis, outcome) in axes.iter().zip(&outcomes) {
-                evals.push((role, evaluate_axis_file(&outcome.model, path, Some(axis))?));
+    for (role, paths) in [("train", &a.runs), ("validate", &a.validate)] {
+        for p in 0..paths.len() {
+            for (_, scored) in &outcomes {
+                if let Some(e) = scored.iter().find(|(r, i, _)| *r == role && *i == p) {
+                    evals.push((role, e.2.clone()));
+                }
             }
+        }
+    }
+    for path in &a.holdout {
+        for (&axis, (outcome, _)) in axes.iter().zip(&outcomes) {
+            evals.push(("holdout", evaluate_axis_file(&outcome.model, path, Some(axis))?));
         }
     }
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
-    for (axis, outcome) in axes.iter().zip(&outcomes) {
+    for (axis, (outcome, _)) in axes.iter().zip(&outcomes) {
         if let Some(search) = &outcome.bank {
             writeln!(out, "\naxis {}:", axis.name())?;
             for line in search.coverage.lines() {
@@ -82,7 +90,7 @@ pub(super) fn run(
     )?;
     let json = serde_json::json!({
         "method": opts.method,
-        "axes": axes.iter().zip(&outcomes).map(|(axis, o)| serde_json::json!({
+        "axes": axes.iter().zip(&outcomes).map(|(axis, (o, _))| serde_json::json!({
             "axis": axis.name(),
             "choice": o.choice,
             "feature_sets": o.sets,
@@ -106,9 +114,13 @@ pub(super) fn run(
     Ok(())
 }
 
+/// What [`fit_axes`] gives per axis: the fit, and its training and
+/// validation runs scored on the fit's block means (role, run index, evaluation).
+type AxisFit = (FitOutcome, Vec<(&'static str, usize, RunEvaluation)>);
+
 /// The single-axis fit of each axis, on threads of their own (a fit's
 /// result does not depend on what runs beside it), in the order of `axes`.
-fn fit_axes(a: &Args, opts: &FitOptions, axes: &[Axis]) -> anyhow::Result<Vec<FitOutcome>> {
+fn fit_axes(a: &Args, opts: &FitOptions, axes: &[Axis]) -> anyhow::Result<Vec<AxisFit>> {
     // One progress bar per axis would interleave: none.
     let opts = FitOptions {
         progress: false,
@@ -119,10 +131,27 @@ fn fit_axes(a: &Args, opts: &FitOptions, axes: &[Axis]) -> anyhow::Result<Vec<Fi
         let handles: Vec<_> = axes
             .iter()
             .map(|&axis| {
-                scope.spawn(move || {
+                scope.spawn(move || -> anyhow::Result<AxisFit> {
                     let train = RunFiles::for_axis(&a.runs, Some(axis));
                     let validate = RunFiles::for_axis(&a.validate, Some(axis));
-                    fit::fit(&train, &validate, opts).with_context(|| format!("axis {}", axis.name()))
+                    let outcome =
+                        fit::fit(&train, &validate, opts).with_context(|| format!("axis {}", axis.name()))?;
+                    let mut scored = Vec::new();
+                    for (role, runs) in [("train", &train), ("validate", &validate)] {
+                        if runs.count() == 0 {
+                            continue;
+                        }
+                        let blocks = runs.block_means(outcome.model.features(), opts.block_s)?;
+                        for (i, path) in runs.paths().iter().enumerate() {
+                            let mut reader = RunReader::open(path)?;
+                            reader.select_axis(axis)?;
+                            let has_ref = reader.columns().ref_dph.is_some();
+                            let mut e = evaluate_blocks(&outcome.model, &blocks, i, path, opts.block_s, has_ref);
+                            e.axis = Some(axis.name());
+                            scored.push((role, i, e));
+                        }
+                    }
+                    Ok((outcome, scored))
                 })
             })
             .collect();
