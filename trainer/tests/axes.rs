@@ -128,6 +128,20 @@ fn a_three_axis_imu_is_fitted_compensated_and_evaluated_per_axis_as_well_as_each
 
     let gains = msd_gains(&model, &verify);
     assert_eq!(gains.len(), 3);
+    // Read once: standard input gives the same figures.
+    let o = common::trainer_with_stdin(
+        &["eval", "--model", model.to_str().unwrap(), "-", "--json", "-"],
+        &std::fs::read(&verify).unwrap(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let piped: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let piped: Vec<f64> = piped
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["msd_improvement_pct"].as_f64().unwrap())
+        .collect();
+    assert_eq!(piped, gains.iter().map(|g| g.1).collect::<Vec<_>>());
     let compensated = dir.path().join("random3-comp.csv");
     let o = compensate(&model, &verify, &compensated, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
