@@ -5,6 +5,7 @@
 //! - [`tmp117`]: loop-thermometer driver (I2C); [`frontend`]: rate front end (SPI, docs/frontend.md);
 //! - [`sensors`]: the traits the loop needs from them;
 //! - [`compensation`]: the per-sample loop (rbf-core compensation, one output frame per sample);
+//! - [`axes`]: the same loop for a multi-axis IMU (every axis read, one frame with all axes);
 //! - [`uart`]: the transmit queue an interrupt drains (frames whole or dropped and counted);
 //! - `replay` (feature `test-harness`): emulated devices and the recorded-run replayer of the QEMU board;
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
@@ -18,6 +19,7 @@
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
+pub mod axes;
 pub mod bench;
 pub mod compensation;
 #[cfg(any(test, feature = "test-harness"))]
@@ -39,6 +41,12 @@ pub mod board;
 
 use rbf_core::Model;
 use rbf_core::blob::{self, DecodeError};
+
+/// Centres each axis's model may have on a multi-axis board: the capacity
+/// `K` of its [`rbf_core::blob::axes::AxisModels`] (docs/firmware.md,
+/// "Three axes"). A blob with a larger axis is refused with
+/// [`DecodeError::ShapeOverCapacity`] and the board runs on without it.
+pub const AXIS_CENTERS: usize = 32;
 
 /// Length of one model flash slot (`MODEL_A`/`MODEL_B` in memory.x), bytes.
 pub const MODEL_SLOT_LEN: usize = 128 * 1024;
