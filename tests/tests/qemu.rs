@@ -125,7 +125,11 @@ fn qemu_replay_of_a_three_axis_run_is_byte_identical_to_trainer_compensate() {
     for (i, f) in decoded.iter().enumerate() {
         assert_eq!((f.seq as usize, f.axis_mask), (i, 0b111));
         for axis in &f.axes {
-            assert_eq!(axis.flags().contains(Flags::TEMP_SENSOR_FAULT), fixtures::axes_faulty(i), "row {i}");
+            assert_eq!(
+                axis.flags().contains(Flags::TEMP_SENSOR_FAULT),
+                fixtures::axes_faulty(i),
+                "row {i}"
+            );
         }
     }
 }
@@ -244,6 +248,9 @@ fn fault_campaign_on_the_target_loses_no_sample_and_never_panics() {
         "accepted 0",
         "booted invalid 0 retry failures 0",
         "expected replies 5 switched true",
+        "faults: axes: y thermometer failing: samples 20000 frames 20000",
+        "missing-flags 0 y-uncompensated",
+        "others-disturbed 0 temp-read-faults x 0 y",
     ] {
         assert!(report.contains(must), "`{must}` missing from:\n{report}");
     }

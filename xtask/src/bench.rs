@@ -40,6 +40,14 @@ pub fn bench_fw() -> anyhow::Result<()> {
     let Some(k32) = k32 else {
         bail!("no K=32 figure in the benchmark output:\n{}", result.log)
     };
+    // The three-axis line: `instructions_per_sample axes=3 K=32 D=3: N`.
+    let three_axes = lines.iter().any(|l| {
+        l.strip_prefix("instructions_per_sample axes=3 K=32 D=3: ")
+            .is_some_and(|n| n.parse::<u64>().is_ok())
+    });
+    if !three_axes {
+        bail!("no three-axis figure in the benchmark output:\n{}", result.log)
+    }
     println!(
         "firmware benchmark (QEMU {}, -icount shift=0, SysTick at 168 MHz; counts are instructions)",
         qemu::MACHINE
@@ -47,7 +55,8 @@ pub fn bench_fw() -> anyhow::Result<()> {
     println!(
         "per compensated sample: evaluation = rbf_core::Model::eval (clamping, normalisation, Gaussians, linear \
          terms; harness loop subtracted); whole step = rbf_core::Compensator::process (gap and fault logic, \
-         feature filters, evaluation, flags)"
+         feature filters, evaluation, flags); axes=3: the three axes' whole steps of one sample, each axis its own \
+         K=32 D=3 model decoded from one multi-axis blob into firmware::AXIS_CENTERS"
     );
     for line in lines.iter().filter(|l| !is_contract(l)) {
         println!("  {line}");
