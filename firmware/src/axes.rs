@@ -176,36 +176,10 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
         let mut out = [NO_AXIS; MAX_AXES];
         let mut rates_dph = [0.0f32; MAX_AXES];
         for axis in Axis::ALL {
-            if !self.has_axis(axis) {
-                continue;
+            if self.has_axis(axis) {
+                let i = axis.index();
+                (out[i], rates_dph[i]) = self.step_axis(axis, read_temps, dt_s);
             }
-            let i = axis.index();
-            let model = self.models.models().and_then(|m| m.get(axis));
-            if read_temps {
-                let wanted = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
-                let failed = self.thermometers.read_axis(axis, wanted, &mut self.latest_temps_c[i]);
-                self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
-                self.temp_read_faults_per_axis[i] = self.temp_read_faults_per_axis[i].wrapping_add(failed);
-            }
-            let (rate_dph, rate_ok) = match self.front_ends.read_axis_rate(axis) {
-                Ok(s) => (s.rate_dph, s.valid),
-                Err(_) => {
-                    self.stats.rate_read_faults = self.stats.rate_read_faults.wrapping_add(1);
-                    (f32::NAN, false)
-                }
-            };
-            let sample = GyroSample {
-                dt_s,
-                rate_dph,
-                temps_c: self.latest_temps_c[i],
-            };
-            let mut o = self.compensators[i].process_with(model, &self.config.compensator, &sample);
-            if !rate_ok {
-                o.flags |= Flags::RATE_INVALID;
-            }
-            o.flags |= self.pending_flags;
-            out[i] = o;
-            rates_dph[i] = rate_dph;
         }
         if self.emit(seq, &rates_dph, &out) {
             self.pending_flags = Flags::NONE;
@@ -214,6 +188,38 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
             self.pending_flags = Flags::OUTPUT_DROPPED;
         }
         out
+    }
+
+    /// One axis's part of a step: its thermometers (when due), its rate, its
+    /// compensator. Not inlined: the board image holds one copy, not one per axis.
+    #[inline(never)]
+    fn step_axis(&mut self, axis: Axis, read_temps: bool, dt_s: f32) -> (CompensatedSample, f32) {
+        let i = axis.index() % MAX_AXES;
+        let model = self.models.models().and_then(|m| m.get(axis));
+        if read_temps {
+            let wanted = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
+            let failed = self.thermometers.read_axis(axis, wanted, &mut self.latest_temps_c[i]);
+            self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
+            self.temp_read_faults_per_axis[i] = self.temp_read_faults_per_axis[i].wrapping_add(failed);
+        }
+        let (rate_dph, rate_ok) = match self.front_ends.read_axis_rate(axis) {
+            Ok(s) => (s.rate_dph, s.valid),
+            Err(_) => {
+                self.stats.rate_read_faults = self.stats.rate_read_faults.wrapping_add(1);
+                (f32::NAN, false)
+            }
+        };
+        let sample = GyroSample {
+            dt_s,
+            rate_dph,
+            temps_c: self.latest_temps_c[i],
+        };
+        let mut o = self.compensators[i].process_with(model, &self.config.compensator, &sample);
+        if !rate_ok {
+            o.flags |= Flags::RATE_INVALID;
+        }
+        o.flags |= self.pending_flags;
+        (o, rate_dph)
     }
 
     /// Frames and writes one [`AxesFrame`]; false when the output did not take it whole.
@@ -249,7 +255,7 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
     /// Changes the models in place between two samples (after a model
     /// update); every axis's feature filters start afresh and its
     /// thermometers are read on the next sample.
-    pub fn update_models(&mut self, change: impl FnOnce(&mut M)) {
+    pub fn update_model(&mut self, change: impl FnOnce(&mut M)) {
         change(&mut self.models);
         self.compensators = [Compensator::new(); MAX_AXES];
         self.temp_read_due = true;

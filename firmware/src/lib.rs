@@ -42,11 +42,14 @@ pub mod board;
 use rbf_core::Model;
 use rbf_core::blob::{self, DecodeError};
 
-/// Centres each axis's model may have on a multi-axis board: the capacity
-/// `K` of its [`rbf_core::blob::axes::AxisModels`] (docs/firmware.md,
-/// "Three axes"). A blob with a larger axis is refused with
-/// [`DecodeError::ShapeOverCapacity`] and the board runs on without it.
-pub const AXIS_CENTERS: usize = 32;
+/// Centres each axis's model may have on the three-axis board (feature
+/// `board-axes`): the capacity `K` of its
+/// [`rbf_core::blob::axes::AxisModels`], chosen so that three models, the
+/// update buffer and the stack stay within the board's 16 KiB of RAM
+/// (docs/firmware.md, "Three axes"). A blob with a larger axis is refused
+/// with [`DecodeError::ShapeOverCapacity`] (an update: reply status
+/// `Refused`, the running models stay; at boot: uncompensated, flag 4).
+pub const AXIS_CENTERS: usize = 16;
 
 /// Length of one model flash slot (`MODEL_A`/`MODEL_B` in memory.x), bytes.
 pub const MODEL_SLOT_LEN: usize = 128 * 1024;

@@ -135,8 +135,8 @@ pub fn axes_faulty(row: usize) -> bool {
 }
 
 /// A three-axis IMU as `trainer simulate --axes 3` writes it: fits each
-/// axis of a 1 °C/min chamber run with the default features (x: 32
-/// centres, y: 24, z: 16, so the axes differ in model and size), writes the multi-axis blob as `trainer fit` does
+/// axis of a 1 °C/min chamber run with the default features (asking for
+/// 32, 24 and 16 centres, so the axes differ in model; OLS keeps at most 16), writes the multi-axis blob as `trainer fit` does
 /// and the first [`AXES_ROWS`] rows of a 2 °C/min cycle run with a
 /// `temp_fault` column ([`axes_faulty`]) into `dir`; returns (blob path,
 /// slice path).

@@ -5,9 +5,10 @@
 //! the run through the real drivers on emulated buses ([`firmware::replay`])
 //! and writes `output.csv` (byte-identical to `trainer compensate`) and
 //! `frames.bin` (the UART frames). A multi-axis run (`rate_x_dph` …) takes
-//! a multi-axis blob (format 3) decoded with the board's per-axis capacity
-//! [`firmware::AXIS_CENTERS`] and goes through the multi-axis loop, one
-//! frame per row with every axis. Run it with `cargo xtask qemu-replay`.
+//! a multi-axis blob (format 3), decoded with the trainer's capacity
+//! ([`rbf_core::MAX_CENTERS`] per axis: the replay checks the loop, not the
+//! three-axis board's RAM), and goes through the multi-axis loop, one frame
+//! per row with every axis. Run it with `cargo xtask qemu-replay`.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
@@ -195,7 +196,7 @@ mod board {
     }
 
     /// The axis models of a multi-axis replay (decoded in place, as the board does).
-    static mut AXIS_MODELS: AxisModels<{ firmware::AXIS_CENTERS }> = AxisModels::EMPTY;
+    static mut AXIS_MODELS: AxisModels<{ rbf_core::MAX_CENTERS }> = AxisModels::EMPTY;
 
     #[entry]
     fn main() -> ! {
