@@ -2,7 +2,7 @@
 //! compensated sample for K = 8, 16, 32, 64 Gaussian centres at D = 3, for
 //! the multi-scale sets and for a lag bank of five filters (K = 32), and the
 //! whole step of a three-axis IMU (three K = 32, D = 3 models decoded from
-//! one multi-axis blob into an `AxisModels<32>`, one compensator per axis).
+//! one multi-axis blob, one compensator per axis).
 //!
 //! QEMU runs with `-icount shift=0` (one instruction = 1 ns of virtual time),
 //! so SysTick on the 168 MHz core clock counts 0.168 ticks per instruction:
@@ -50,12 +50,14 @@ mod board {
     }
 
     /// The three axes' models of the three-axis figure, each K = 32, D = 3
-    /// (different centres and weights per axis), through a multi-axis blob
-    /// into a capacity of 32 per axis, as a board holding them decodes them.
-    static mut AXES: AxisModels<32> = AxisModels::EMPTY;
+    /// (different centres and weights per axis), through a multi-axis blob,
+    /// decoded as a firmware decodes them. The capacity is the single-axis
+    /// figures' (64): one instantiation of the step, so the figures above
+    /// are those of the same code (the per-axis step does not depend on it).
+    static mut AXES: AxisModels = AxisModels::EMPTY;
 
     #[allow(unsafe_code)]
-    fn axis_models() -> &'static AxisModels<32> {
+    fn axis_models() -> &'static AxisModels {
         let mut all = AxisModels::<{ MAX_CENTERS }>::EMPTY;
         for (axis, seed) in Axis::ALL.into_iter().zip([0x2545_f491u32, 0x9E37_79B9, 0x1234_5678]) {
             all.insert(axis, model_seeded(32, Shape::Paper, 1.5, seed));
@@ -64,7 +66,7 @@ mod board {
         let n = encode_axes(&all, &mut blob).expect("three K = 32 models fit a blob");
         // SAFETY: the only reference to AXES, taken once.
         let axes = unsafe { &mut *core::ptr::addr_of_mut!(AXES) };
-        decode_axes_into(axes, &blob[..n]).expect("a capacity of 32 holds K = 32");
+        decode_axes_into(axes, &blob[..n]).expect("the blob decodes");
         axes
     }
 
