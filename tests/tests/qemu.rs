@@ -223,6 +223,26 @@ fn the_board_image_takes_an_update_and_a_bench_command_within_its_ram_budget() {
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn the_three_axis_board_takes_a_three_axis_update_within_the_boards_budgets() {
+    // The stm32f405 binary with board-axes (and board-qemu): three models of
+    // firmware::AXIS_CENTERS centres at boot, a three-axis install and a bench
+    // command over its UART, 10,000 samples; flash, static RAM and stack fit.
+    let run = xtask::board_stack::measure_axes().unwrap();
+    assert!(run.summary.contains("update Some(Installed)"), "{run:?}");
+    assert!(run.frames > 10_000, "one frame per sample and the replies: {run:?}");
+    let board = xtask::firmware::build("stm32f405", &["board-axes"]).unwrap();
+    let size = xtask::firmware::image_size(&board).unwrap();
+    assert!(
+        size.static_ram + run.stack_peak_bytes <= 16 * 1024,
+        "static RAM {} B + stack {} B over 16 KiB",
+        size.static_ram,
+        run.stack_peak_bytes
+    );
+    assert!(size.flash <= 64 * 1024 && size.largest_rodata.1 <= 4096, "{size:?}");
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn fault_campaign_on_the_target_loses_no_sample_and_never_panics() {
     let dir = TempDir::new().unwrap();
     let (model, _) = fixtures::model_and_faulty_slice(dir.path());
