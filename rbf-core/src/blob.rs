@@ -413,7 +413,15 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
 /// in `model` (the firmware's `static`, so that no 4 KiB model is moved by
 /// value); returns the bytes the blob occupied. On error `model` is
 /// [`Model::EMPTY`] and the reason is returned.
-pub fn decode_into<const K: usize>(model: &mut Model<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
+pub fn decode_into(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError> {
+    // Non-generic: the firmware's decoder is instantiated here, at full
+    // capacity, whatever other capacities the crate's users take.
+    decode_into_capacity(model, bytes)
+}
+
+/// [`decode_into`] for a model of any centre capacity `K`; a blob with
+/// more centres is refused ([`DecodeError::ShapeOverCapacity`]).
+pub fn decode_into_capacity<const K: usize>(model: &mut Model<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
     let result = decode_payload(model, bytes);
     if result.is_err() {
         *model = Model::EMPTY;

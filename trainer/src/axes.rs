@@ -10,7 +10,7 @@ use rbf_core::record::{Axis, Columns};
 
 use crate::blobfile::{ModelFile, read_model_file};
 use crate::evaluate::{
-    Compensation, RunEvaluation, compensate_axes_reader, evaluate_axis_reader, require_compensated, require_evaluable,
+    Compensation, RunEvaluation, compensate_axes_reader, evaluate_axes_reader, require_compensated, require_evaluable,
 };
 use crate::output::{self, Existing, Output};
 use crate::run::RunReader;
@@ -134,11 +134,11 @@ fn on_axis(e: anyhow::Error, axis: Option<Axis>) -> anyhow::Error {
     }
 }
 
-/// `trainer eval`: before/after accuracy of the model file on each run,
-/// per axis for a multi-axis run (each axis read in a pass of its own:
-/// such runs must be files, not standard input). A run where no row could
-/// be compensated is refused unless `allow_uncompensated`, as is one that
-/// cannot be evaluated ([`require_evaluable`]).
+/// `trainer eval`: before/after accuracy of the model file on each run (`-`:
+/// standard input), per axis for a multi-axis run, each run read once. A run
+/// where no row could be compensated is refused unless
+/// `allow_uncompensated`, as is one that cannot be evaluated
+/// ([`require_evaluable`]).
 pub fn evaluate_files(
     file: &ModelFile,
     model_path: &Path,
@@ -149,22 +149,12 @@ pub fn evaluate_files(
     let mut evaluations = Vec::new();
     for path in paths {
         let reader = RunReader::open(path)?;
-        let pairs: Vec<(Option<Axis>, &Model)> = models_for_run(file, model_path, &reader)?
-            .into_iter()
-            .map(|(a, m, _)| (a, m))
-            .collect();
-        if pairs.len() > 1 {
-            input::require_seekable([path.as_path()], "a multi-axis run is read once per axis")?;
-        }
-        let mut reader = Some(reader);
-        for (axis, model) in pairs {
-            let reader = match reader.take() {
-                Some(r) => r,
-                None => RunReader::open(path)?,
-            };
-            let (evaluation, diagnosis, compensated) = evaluate_axis_reader(model, reader, axis)?;
+        let pairs = models_for_run(file, model_path, &reader)?;
+        let axes: Vec<(&Model, Columns)> = pairs.iter().map(|(_, m, c)| (*m, *c)).collect();
+        let done = evaluate_axes_reader(&axes, reader)?;
+        for ((axis, model, _), (mut evaluation, diagnosis, compensated)) in pairs.iter().zip(done) {
             let mask = model.features().set.thermometer_mask();
-            require_evaluable(path, evaluation.samples, &diagnosis).map_err(|e| on_axis(e, axis))?;
+            require_evaluable(path, evaluation.samples, &diagnosis).map_err(|e| on_axis(e, *axis))?;
             require_compensated(
                 path,
                 evaluation.samples,
@@ -173,7 +163,8 @@ pub fn evaluate_files(
                 mask,
                 allow_uncompensated,
             )
-            .map_err(|e| on_axis(e, axis))?;
+            .map_err(|e| on_axis(e, *axis))?;
+            evaluation.axis = axis.map(Axis::name);
             evaluations.push(evaluation);
         }
     }

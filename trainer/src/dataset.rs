@@ -453,8 +453,9 @@ impl RunFiles {
     /// A reader of `path` on this set's axis.
     fn open(&self, path: &std::path::Path) -> Result<RunReader, crate::run::RunError> {
         let mut reader = RunReader::open(path)?;
-        if let Some(axis) = self.axis {
-            reader.select_axis(axis)?;
+        match self.axis {
+            Some(axis) => reader.select_axis(axis)?,
+            None => reader.require_single_axis()?,
         }
         Ok(reader)
     }

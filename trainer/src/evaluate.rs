@@ -14,7 +14,7 @@ use crate::chunked::Batch;
 use crate::diagnose::RunDiagnosis;
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
 use crate::output::{Existing, Output};
-use crate::run::{Run, RunReader, StreamedRun};
+use crate::run::{Run, RunReader};
 use crate::{decimal, text};
 
 /// How many samples carried each flag.
@@ -129,21 +129,95 @@ pub fn evaluate_axis_reader(
 /// [`evaluate_file`] on an open reader; also returns what the rows showed
 /// ([`RunDiagnosis`]) and the number of compensated rows (no flag 4).
 pub fn evaluate_reader(model: &Model, reader: RunReader) -> anyhow::Result<(RunEvaluation, RunDiagnosis, usize)> {
+    let columns = *reader.columns();
+    let mut axes = evaluate_axes_reader(&[(model, columns)], reader)?;
+    axes.pop().ok_or_else(|| anyhow::anyhow!("no axis was evaluated"))
+}
+
+/// [`evaluate_reader`] for one or more axes of a run read once, each given
+/// its model and its columns (the first the reader's own, the others from
+/// [`RunReader::axis_columns`]); per axis, in that order.
+pub fn evaluate_axes_reader(
+    axes: &[(&Model, Columns)],
+    reader: RunReader,
+) -> anyhow::Result<Vec<(RunEvaluation, RunDiagnosis, usize)>> {
+    for (model, columns) in axes {
+        reader.require_thermometers_of(columns, model.features().set.thermometer_mask())?;
+    }
     let path = reader.path().to_owned();
-    let run = StreamedRun::from_reader(reader, model.features().set.thermometer_mask())?;
-    let config = CompensatorConfig::for_nominal_period_s(run.nominal_period_s);
-    let mut compensator = Compensator::new();
-    let mut evaluator = Evaluator::new(&path, run.nominal_period_s, run.has_ref);
-    let mut diagnosis = RunDiagnosis::new(&path, run.nominal_period_s);
-    let mut compensated = 0usize;
-    run.for_each_line(|line, row, sample| {
-        let out = compensator.process(Some(model), &config, sample);
-        let r = row.ref_dph.unwrap_or(0.0);
-        evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
-        diagnosis.push(line, row);
-        compensated += usize::from(!out.flags.contains(Flags::NO_VALID_MODEL));
+    let period_s = reader.nominal_period_s();
+    let config = CompensatorConfig::for_nominal_period_s(period_s);
+    let mut state: Vec<(Compensator, Evaluator, RunDiagnosis, usize)> = axes
+        .iter()
+        .map(|(_, columns)| {
+            (
+                Compensator::new(),
+                Evaluator::new(&path, period_s, columns.ref_dph.is_some()),
+                RunDiagnosis::new(&path, period_s),
+                0,
+            )
+        })
+        .collect();
+    let parser = reader.row_parser();
+    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
+    let mut rows = Vec::with_capacity(axes.len());
+    let mut refused: Option<crate::run::RunError> = None;
+    reader.for_each_batch(|batch| {
+        for i in 0..batch.len() {
+            if refused.is_some() {
+                return;
+            }
+            if let Err(e) = rows_of_axes(&parser, &columns, &batch, i, &mut rows) {
+                refused = Some(e);
+                return;
+            }
+            for (((model, _), (compensator, evaluator, diagnosis, compensated)), (row, sample)) in
+                axes.iter().zip(&mut state).zip(&rows)
+            {
+                let out = compensator.process(Some(*model), &config, sample);
+                let r = row.ref_dph.unwrap_or(0.0);
+                evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
+                diagnosis.push(batch.line(i), row);
+                *compensated += usize::from(!out.flags.contains(Flags::NO_VALID_MODEL));
+            }
+        }
     })?;
-    Ok((evaluator.finish(), diagnosis, compensated))
+    if let Some(e) = refused {
+        return Err(e.into());
+    }
+    Ok(state
+        .into_iter()
+        .map(|(_, evaluator, diagnosis, compensated)| (evaluator.finish(), diagnosis, compensated))
+        .collect())
+}
+
+/// Row `i` of `batch` as each of `columns` reads it (the first: the batch's
+/// own columns, the row as parsed), with its gyro sample, into `out`; the
+/// others' samples take the first's time step. A refused field's error
+/// names the file, line and column.
+fn rows_of_axes(
+    parser: &crate::run::RowParser,
+    columns: &[Columns],
+    batch: &Batch,
+    i: usize,
+    out: &mut Vec<(rbf_core::record::Row, GyroSample)>,
+) -> Result<(), crate::run::RunError> {
+    out.clear();
+    let first = (batch.row(i), batch.sample(i));
+    out.push(first);
+    for c in columns.iter().skip(1) {
+        let text = std::str::from_utf8(batch.line_text(i)).unwrap_or("");
+        let row = parser.parse(c, batch.line(i), text)?;
+        let sample = crate::run::gyro_sample(None, row.time_s, row.rate_dph, &row.readings_c());
+        out.push((
+            row,
+            GyroSample {
+                dt_s: first.1.dt_s,
+                ..sample
+            },
+        ));
+    }
+    Ok(())
 }
 
 /// Refuses a run of `rows` rows where none could be compensated
@@ -453,6 +527,8 @@ pub fn compensate_axes_reader(
     record::write_compensated_header(&mut header, reader.header_line(), reader.columns())?;
     out.write_all(header.as_bytes()).map_err(io)?;
     let parser = reader.row_parser();
+    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
+    let mut rows = Vec::with_capacity(n);
     let mut refused: Option<crate::run::RunError> = None;
     // The rows are parsed on every core, compensated in order here, and
     // formatted and written on a thread of their own, a batch at a time.
@@ -475,36 +551,17 @@ pub fn compensate_axes_reader(
                 return;
             }
             let mut outputs = Vec::with_capacity(batch.len() * n);
-            'rows: for i in 0..batch.len() {
-                let first = (batch.row(i), batch.sample(i));
-                for (k, (model, columns)) in axes.iter().enumerate() {
-                    let (row, sample) = if k == 0 {
-                        first
-                    } else {
-                        let text = std::str::from_utf8(batch.line_text(i)).unwrap_or("");
-                        match parser.parse(columns, batch.line(i), text) {
-                            Ok(row) => {
-                                let sample = crate::run::gyro_sample(None, row.time_s, row.rate_dph, &row.readings_c());
-                                (
-                                    row,
-                                    GyroSample {
-                                        dt_s: first.1.dt_s,
-                                        ..sample
-                                    },
-                                )
-                            }
-                            Err(e) => {
-                                refused = Some(e);
-                                outputs.truncate(i * n);
-                                break 'rows;
-                            }
-                        }
-                    };
-                    let o = compensators[k].process(*model, &config, &sample);
+            for i in 0..batch.len() {
+                if let Err(e) = rows_of_axes(&parser, &columns, &batch, i, &mut rows) {
+                    refused = Some(e);
+                    break;
+                }
+                for (k, ((model, _), (row, sample))) in axes.iter().zip(&rows).enumerate() {
+                    let o = compensators[k].process(*model, &config, sample);
                     let axis = &mut c[k];
                     axis.flagged.add(o.flags);
                     axis.compensated += usize::from(!o.flags.contains(Flags::NO_VALID_MODEL));
-                    axis.diagnosis.push(batch.line(i), &row);
+                    axis.diagnosis.push(batch.line(i), row);
                     axis.rows += 1;
                     outputs.push(o);
                 }

@@ -67,6 +67,7 @@ pub fn row_block_means(paths: &[PathBuf], block_samples: usize) -> Result<MultiB
     let mut out = MultiBlocks::default();
     for (n, path) in paths.iter().enumerate() {
         let mut reader = RunReader::open(path)?;
+        reader.require_single_axis()?;
         let mask = reader.columns().thermometer_mask();
         let sensors: Vec<usize> = (0..THERMOMETERS.len()).filter(|k| mask & (1 << k) != 0).collect();
         let header_error = |message: String| RunError::Format {

@@ -22,6 +22,7 @@ use crate::evaluate::{Evaluator, RunEvaluation, require_compensated, require_eva
 use crate::output::{self, Existing, Output};
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, summary, text};
+use rbf_core::record::Axis;
 
 /// Plot size, pixels.
 const SIZE: (u32, u32) = (1000, 560);
@@ -915,6 +916,20 @@ pub fn write_report(
     existing: Existing,
     allow_uncompensated: bool,
 ) -> anyhow::Result<Vec<PathBuf>> {
+    write_axis_report(model, model_path, runs, dir, existing, allow_uncompensated, None)
+}
+
+/// [`write_report`] of `axis` of multi-axis runs (`None`: single-axis
+/// runs), read as the single-axis run of that axis.
+pub fn write_axis_report(
+    model: &Model,
+    model_path: &Path,
+    runs: &[PathBuf],
+    dir: &Path,
+    existing: Existing,
+    allow_uncompensated: bool,
+    axis: Option<Axis>,
+) -> anyhow::Result<Vec<PathBuf>> {
     input::check_stdin_once(runs.iter().map(|p| p.as_path()).chain([model_path]))?;
     let inputs: Vec<&Path> = runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
     let (stems, files) = check_report_targets(runs, dir, &inputs, existing)?;
@@ -924,7 +939,11 @@ pub fn write_report(
         .iter()
         .zip(&stems)
         .map(|(path, stem)| {
-            let reader = RunReader::open(path)?;
+            let mut reader = RunReader::open(path)?;
+            match axis {
+                Some(axis) => reader.select_axis(axis)?,
+                None => reader.require_single_axis()?,
+            }
             read_run(
                 model,
                 reader,

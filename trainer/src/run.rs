@@ -360,6 +360,24 @@ impl RunReader {
         })
     }
 
+    /// Fails on a multi-axis run, for commands that read one axis
+    /// (`rate_dph`): the message names the axes and the commands that read them.
+    pub fn require_single_axis(&self) -> Result<(), RunError> {
+        let axes = self.axes();
+        if axes.is_empty() {
+            return Ok(());
+        }
+        let names: Vec<&str> = axes.iter().map(|a| a.name()).collect();
+        Err(self.error_at(
+            self.header_line_no,
+            format!(
+                "a multi-axis run (axes {}): this reads single-axis runs (rate_dph); fit, compensate, \
+                 eval and inspect read each axis",
+                names.join(", ")
+            ),
+        ))
+    }
+
     /// Reads `axis` of a multi-axis run from here on, as a single-axis run
     /// (its rate as `rate_dph`, its loop thermometer as `temp_c`, its
     /// reference as `ref_dph`); the rows already read ahead are parsed again.
@@ -1227,6 +1245,16 @@ mod tests {
         let text = b"time_s,rate_x_dph,temp_c\n0,1,20\n0.1,2,20\n";
         let err = open_axis(text, Some(Axis::Y)).unwrap_err().to_string();
         assert!(err.starts_with("run.csv:1: header has no column rate_y_dph"), "{err}");
+        let err = open_axis(text, None)
+            .unwrap()
+            .require_single_axis()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("run.csv:1: a multi-axis run (axes x): this reads single-axis runs"),
+            "{err}"
+        );
+        assert!(open_axis(TEXT.as_bytes(), None).unwrap().require_single_axis().is_ok());
         let text = b"time_s,rate_x_dph,temp_c,rate_y_dph\n0,1,20,2\n0.1,2,20,oops\n";
         let err = open_axis(text, Some(Axis::Y)).unwrap_err().to_string();
         assert_eq!(err, "run.csv:3: column rate_y_dph (field 4): \"oops\" is not a number");

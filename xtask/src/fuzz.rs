@@ -173,6 +173,20 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
         let sealed: Vec<u8> = buf[6..12].iter().chain(&buf[HEADER_LEN..len - 4]).copied().collect();
         write("blob_decode", &format!("{name}.sealed"), &sealed)?;
     }
+    // A three-axis blob of three of them, raw and in the multi-axis sealed
+    // form (the axis mask, then the payload).
+    let mut axes = Box::new(rbf_core::blob::axes::AxisModels::EMPTY);
+    for (axis, (_, model)) in rbf_core::record::Axis::ALL
+        .into_iter()
+        .zip([&models[0], &models[1], &models[3]])
+    {
+        axes.insert(axis, model.clone());
+    }
+    let mut buf = vec![0u8; MAX_BLOB_LEN];
+    let len = rbf_core::blob::axes::encode_axes(&axes, &mut buf).map_err(|e| anyhow::anyhow!("{e}"))?;
+    write("blob_decode", "three-axis.bin", &buf[..len])?;
+    let sealed: Vec<u8> = [buf[6]].iter().chain(&buf[HEADER_LEN..len - 4]).copied().collect();
+    write("blob_decode", "three-axis.sealed", &sealed)?;
 
     // Output frames: a normal one, one with every flag and NaN temperature, a capture of three.
     let frames = [
@@ -253,5 +267,12 @@ mod tests {
         for name in ["multiscale.bin", "paper.bin", "cubic.bin"] {
             assert!(!matches!(decoded(name).features().set, FeatureSet::LagBank(_)));
         }
+        let three = std::fs::read(blobs.join("three-axis.bin")).unwrap();
+        let mut axes = Box::new(rbf_core::blob::axes::AxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
+        assert_eq!(
+            rbf_core::blob::axes::decode_axes_into(&mut axes, &three),
+            Ok(three.len())
+        );
+        assert_eq!(axes.axes().count(), 3);
     }
 }

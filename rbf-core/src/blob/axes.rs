@@ -180,6 +180,43 @@ pub fn decode_axes_into<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) 
     result
 }
 
+/// The format version of the blob in `bytes` (2: one model, 3: one per
+/// axis), if they start with the magic and a version.
+pub fn blob_version(bytes: &[u8]) -> Option<u16> {
+    match bytes.get(..6) {
+        Some([m0, m1, m2, m3, v0, v1]) if [*m0, *m1, *m2, *m3] == MAGIC => Some(u16::from_le_bytes([*v0, *v1])),
+        _ => None,
+    }
+}
+
+/// The length of the blob in `bytes` of either format by its header
+/// (header, payload and CRC; the CRC is not checked), for a store that
+/// copies or scans blobs.
+pub fn blob_len(bytes: &[u8]) -> Result<usize, DecodeError> {
+    match blob_version(bytes) {
+        Some(AXES_FORMAT_VERSION) => AxesHeader::parse(bytes).map(|h| h.blob_len()),
+        _ => super::Header::parse(bytes).map(|h| h.blob_len()),
+    }
+}
+
+/// Decodes a blob of either format into `axes`, in place: a multi-axis blob
+/// as [`decode_axes_into`], a single-axis (format 2) blob into axis x alone,
+/// so one `AxisModels<K>` (one capacity, one copy of the decoder and the
+/// evaluation in flash) serves both. Returns the bytes the blob occupied;
+/// on error `axes` is [`AxisModels::EMPTY`].
+pub fn decode_any_into<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
+    if blob_version(bytes) == Some(AXES_FORMAT_VERSION) {
+        return decode_axes_into(axes, bytes);
+    }
+    let [x, y, z] = &mut axes.models;
+    *y = Model::EMPTY;
+    *z = Model::EMPTY;
+    axes.mask = 0;
+    let len = super::decode_into_capacity(x, bytes)?;
+    axes.mask = 1 << Axis::X.index();
+    Ok(len)
+}
+
 fn decode_axes_payload<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
     let header = AxesHeader::parse(bytes)?;
     crc_status_at(bytes, HEADER_LEN + header.payload_len as usize)?;
@@ -375,6 +412,28 @@ mod tests {
             let _ = decode(&v);
             let _ = decode(&v[..state as usize % v.len()]);
         }
+    }
+
+    #[test]
+    fn either_format_decodes_into_one_axis_set_and_reports_its_length() {
+        let multi = encoded(&three_axes());
+        let mut single = [0u8; MAX_BLOB_LEN];
+        let model = rbf_model::<32>(12, 1.0);
+        let n = blob::encode(&model, &mut single).unwrap();
+        let single = &single[..n];
+        assert_eq!((blob_version(&multi), blob_version(single)), (Some(3), Some(2)));
+        assert_eq!(blob_version(&[0xFF; 8]), None);
+        assert_eq!((blob_len(&multi), blob_len(single)), (Ok(multi.len()), Ok(n)));
+        let mut axes = AxisModels::<32>::EMPTY;
+        assert_eq!(decode_any_into(&mut axes, single), Ok(n));
+        assert_eq!((axes.mask(), axes.get(Axis::X)), (0b001, Some(&model)));
+        let mut full = AxisModels::<{ MAX_CENTERS }>::EMPTY;
+        assert_eq!(decode_any_into(&mut full, &multi), Ok(multi.len()));
+        assert_eq!(full, three_axes());
+        let mut damaged = single.to_vec();
+        damaged[HEADER_LEN] ^= 1;
+        assert!(decode_any_into(&mut axes, &damaged).is_err());
+        assert_eq!(axes, AxisModels::EMPTY, "a refused blob leaves no model behind");
     }
 
     #[test]

@@ -18,7 +18,7 @@ use super::model_arg::ModelArg;
 /// compensation, with the improvement in %; then the overlapping Allan
 /// deviation (IEEE Std 952) before and after, with angle random walk [°/√h] and
 /// bias instability [°/h] read off it (--json has the whole curves). A
-/// multi-axis run gets a row per axis, with its axis's model.
+/// multi-axis run gets a row per axis, with its axis's model, in one pass.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  trainer eval --model model.bin check.csv field.csv --json eval.json")]
 pub struct Args {

@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use trainer::blobfile::read_model;
+use trainer::blobfile::read_model_file;
 use trainer::text;
 
 use super::common::{AllowUncompensated, ForceArg, stdout};
@@ -16,6 +16,7 @@ use super::model_arg::ModelArg;
 /// temperature with the model overlaid and the residual, and the overlapping Allan
 /// deviation before and after on log-log axes; the model's bias over T and a steady
 /// ramp ΔT. Plus report.json (every figure of `trainer eval --json`) and report.md.
+/// A multi-axis model on multi-axis runs: the same per axis, in DIR/axis-x, DIR/axis-y, DIR/axis-z.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  trainer report --model model.bin check.csv -o report/")]
 pub struct Args {
@@ -35,15 +36,38 @@ pub struct Args {
 
 /// Runs `trainer report`.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let (model, _) = read_model(&a.model.path)?;
-    let files = trainer::report::write_report(
-        &model,
-        &a.model.path,
-        &a.runs,
-        &a.output,
-        a.force.existing(),
-        a.uncompensated.allow_uncompensated,
-    )?;
-    writeln!(stdout(), "wrote {} files into {}", files.len(), text::path(&a.output))?;
+    let (file, _) = read_model_file(&a.model.path)?;
+    let axes = file.axes();
+    if axes.is_empty() {
+        let model = file.model(None).ok_or_else(|| anyhow::anyhow!("the model file holds no model"))?;
+        let files = trainer::report::write_report(
+            model,
+            &a.model.path,
+            &a.runs,
+            &a.output,
+            a.force.existing(),
+            a.uncompensated.allow_uncompensated,
+        )?;
+        writeln!(stdout(), "wrote {} files into {}", files.len(), text::path(&a.output))?;
+        return Ok(());
+    }
+    // A multi-axis model: a whole report per axis, in DIR/axis-<axis>.
+    for axis in axes {
+        let model = file
+            .model(Some(axis))
+            .ok_or_else(|| anyhow::anyhow!("axis {} has no model", axis.name()))?;
+        let dir = a.output.join(format!("axis-{}", axis.name()));
+        let files = trainer::report::write_axis_report(
+            model,
+            &a.model.path,
+            &a.runs,
+            &dir,
+            a.force.existing(),
+            a.uncompensated.allow_uncompensated,
+            Some(axis),
+        )
+        .map_err(|e| e.context(format!("axis {}", axis.name())))?;
+        writeln!(stdout(), "wrote {} files into {}", files.len(), text::path(&dir))?;
+    }
     Ok(())
 }

@@ -31,7 +31,8 @@ pub(super) fn run(
 ) -> anyhow::Result<()> {
     anyhow::ensure!(
         a.report.is_none(),
-        "--report writes single-axis reports; on multi-axis runs use trainer eval for the per-axis table"
+        "--report is for single-axis runs; after a multi-axis fit, trainer report --model MODEL.bin RUN.csv... -o DIR \
+         writes a report per axis"
     );
     let all_runs: Vec<&PathBuf> = a.runs.iter().chain(&a.validate).chain(&a.holdout).collect();
     for path in &all_runs {

@@ -1,0 +1,307 @@
+//! Three-axis IMU runs end to end through the CLI: `simulate --axes 3`, one
+//! `fit` for every axis, `eval`, `compensate` and `inspect` per axis, and
+//! each axis no worse than fitting it alone.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{compensate, stderr, stdout, trainer};
+use tempfile::TempDir;
+
+/// `trainer simulate --axes 3` of `profile` with `seed` into `dir/name`.
+fn simulate_imu(dir: &TempDir, name: &str, profile: &str, seed: &str) -> PathBuf {
+    let path = dir.path().join(name);
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        profile,
+        "--axes",
+        "3",
+        "--seed",
+        seed,
+        "-o",
+        path.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    path
+}
+
+/// The single-axis run of `axis` in the multi-axis run `run`: its metadata,
+/// then time_s, rate_dph, temp_c, ref_dph with the axis's fields as written.
+fn extract_axis(run: &Path, axis: &str, out: &Path) {
+    let text = std::fs::read_to_string(run).unwrap();
+    let mut lines = text.lines();
+    let mut single = String::new();
+    let header = loop {
+        let line = lines.next().unwrap();
+        if line.starts_with('#') {
+            single.push_str(line);
+            single.push('\n');
+        } else {
+            break line;
+        }
+    };
+    let names: Vec<&str> = header.split(',').collect();
+    let at = |name: String| names.iter().position(|n| *n == name).unwrap();
+    let wanted = [
+        at("time_s".into()),
+        at(format!("rate_{axis}_dph")),
+        at(format!("temp_{axis}_c")),
+        at(format!("ref_{axis}_dph")),
+    ];
+    single.push_str("time_s,rate_dph,temp_c,ref_dph\n");
+    for line in lines {
+        let fields: Vec<&str> = line.split(',').collect();
+        let row: Vec<&str> = wanted.iter().map(|&i| fields[i]).collect();
+        single.push_str(&row.join(","));
+        single.push('\n');
+    }
+    std::fs::write(out, single).unwrap();
+}
+
+/// `trainer fit TRAIN -o MODEL`.
+fn fit(train: &Path, model: &Path) -> String {
+    let o = trainer(&["fit", train.to_str().unwrap(), "-o", model.to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    stdout(&o)
+}
+
+/// MSD improvements (%) `trainer eval --json` gives for `run`, per row.
+fn msd_gains(model: &Path, run: &Path) -> Vec<(Option<String>, f64)> {
+    let o = trainer(&[
+        "eval",
+        "--model",
+        model.to_str().unwrap(),
+        run.to_str().unwrap(),
+        "--json",
+        "-",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    json.as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e["axis"].as_str().map(str::to_owned),
+                e["msd_improvement_pct"].as_f64().unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// The values of the columns `names` in the data rows of a compensated run.
+fn columns(path: &Path, names: &[String]) -> Vec<Vec<String>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let at: Vec<usize> = names
+        .iter()
+        .map(|n| header.iter().position(|h| h == n).unwrap())
+        .collect();
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            at.iter().map(|&i| f[i].to_owned()).collect()
+        })
+        .collect()
+}
+
+#[test]
+fn a_three_axis_imu_is_fitted_compensated_and_evaluated_per_axis_as_well_as_each_axis_alone() {
+    let dir = TempDir::new().unwrap();
+    let train = simulate_imu(&dir, "cycle3.csv", "cycle", "11");
+    let verify = simulate_imu(&dir, "random3.csv", "random", "12");
+    let model = dir.path().join("imu.bin");
+    let printed = fit(&train, &model);
+    for axis in ["x", "y", "z"] {
+        assert!(printed.contains(&format!("axis {axis}:\nmethod ")), "{printed}");
+        assert!(
+            printed
+                .lines()
+                .any(|l| l.starts_with("train") && l.contains("cycle3.csv") && l.contains(&format!(" {axis} "))),
+            "a table row per run and axis: {printed}"
+        );
+    }
+    assert!(printed.contains("axes x, y, z)"), "{printed}");
+
+    let gains = msd_gains(&model, &verify);
+    assert_eq!(gains.len(), 3);
+    // Read once: standard input gives the same figures.
+    let o = common::trainer_with_stdin(
+        &["eval", "--model", model.to_str().unwrap(), "-", "--json", "-"],
+        &std::fs::read(&verify).unwrap(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let piped: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let piped: Vec<f64> = piped
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["msd_improvement_pct"].as_f64().unwrap())
+        .collect();
+    assert_eq!(piped, gains.iter().map(|g| g.1).collect::<Vec<_>>());
+    let compensated = dir.path().join("random3-comp.csv");
+    let o = compensate(&model, &verify, &compensated, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (axis, gain) in &gains {
+        let axis = axis.as_deref().expect("each row names its axis");
+        assert!(
+            *gain >= 85.0,
+            "axis {axis}: MSD improvement {gain:.1} % on the random profile"
+        );
+        // The axis alone: extracted to single-axis runs, fitted, evaluated.
+        let train_alone = dir.path().join(format!("cycle-{axis}.csv"));
+        let verify_alone = dir.path().join(format!("random-{axis}.csv"));
+        extract_axis(&train, axis, &train_alone);
+        extract_axis(&verify, axis, &verify_alone);
+        let model_alone = dir.path().join(format!("{axis}.bin"));
+        fit(&train_alone, &model_alone);
+        let alone = msd_gains(&model_alone, &verify_alone);
+        assert_eq!(alone.len(), 1);
+        assert_eq!(alone[0].0, None);
+        assert!(
+            *gain >= alone[0].1 - 0.5,
+            "axis {axis}: {gain:.2} % in the IMU fit, {:.2} % alone",
+            alone[0].1
+        );
+        // The same model and the same compensation step: the IMU output's
+        // columns of this axis are the single-axis output's, digit for digit.
+        let out_alone = dir.path().join(format!("random-{axis}-comp.csv"));
+        let o = compensate(&model_alone, &verify_alone, &out_alone, &[]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let multi = columns(
+            &compensated,
+            &[
+                format!("bias_{axis}_dph"),
+                format!("rate_comp_{axis}_dph"),
+                format!("flags_{axis}"),
+            ],
+        );
+        let single = columns(&out_alone, &["bias_dph".into(), "rate_comp_dph".into(), "flags".into()]);
+        assert_eq!(multi.len(), single.len());
+        assert!(
+            multi == single,
+            "axis {axis}: compensated columns differ from the axis alone"
+        );
+        eprintln!(
+            "axis {axis}: MSD improvement {gain:.2} % (IMU fit), {:.2} % (alone)",
+            alone[0].1
+        );
+    }
+
+    let o = trainer(&["inspect", "--model", model.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let shown = stdout(&o);
+    assert!(
+        shown.contains("format version  3\n") && shown.contains("axis z\n"),
+        "{shown}"
+    );
+}
+
+#[test]
+fn models_and_runs_of_different_axes_are_refused_naming_both() {
+    let dir = TempDir::new().unwrap();
+    let imu = dir.path().join("imu.csv");
+    let o = trainer(&["simulate", "--axes", "2", "--hours", "3", "-o", imu.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let single_run = dir.path().join("single.csv");
+    extract_axis(&imu, "x", &single_run);
+    let single_model = dir.path().join("single.bin");
+    fit(&single_run, &single_model);
+    let imu_model = dir.path().join("imu.bin");
+    fit(&imu, &imu_model);
+    // A report per axis.
+    let report = dir.path().join("report");
+    let o = trainer(&[
+        "report",
+        "--model",
+        imu_model.to_str().unwrap(),
+        imu.to_str().unwrap(),
+        "-o",
+        report.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for axis in ["x", "y"] {
+        let md = std::fs::read_to_string(report.join(format!("axis-{axis}/report.md"))).unwrap();
+        assert!(md.contains("| imu |"), "{md}");
+    }
+    assert!(!report.join("axis-z").exists());
+    let out = dir.path().join("out.csv");
+    let o = compensate(&single_model, &imu, &out, &[]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("holds a model for one axis (rate_dph)") && stderr(&o).contains("has axes x, y"),
+        "{}",
+        stderr(&o)
+    );
+    let o = trainer(&[
+        "eval",
+        "--model",
+        imu_model.to_str().unwrap(),
+        single_run.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("holds a model for axes x, y"), "{}", stderr(&o));
+    assert!(!out.exists(), "nothing written");
+    // A fit's runs carry the same axes.
+    let o = trainer(&[
+        "fit",
+        imu.to_str().unwrap(),
+        single_run.to_str().unwrap(),
+        "-o",
+        dir.path().join("m.bin").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("the runs of one fit carry the same axes"),
+        "{}",
+        stderr(&o)
+    );
+    // A bad field of the second axis, deep in the run: named by file, line
+    // and column, and nothing written.
+    let text = std::fs::read_to_string(&imu).unwrap();
+    let header_line = text.lines().position(|l| !l.starts_with('#')).unwrap();
+    let bad_line = header_line + 5000;
+    let damaged: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == bad_line {
+                let mut f: Vec<&str> = l.split(',').collect();
+                f[4] = "1.2.3";
+                f.join(",")
+            } else {
+                l.to_owned()
+            }
+        })
+        .collect();
+    let damaged = common::write(&dir, "damaged.csv", (damaged.join("\n") + "\n").as_bytes());
+    let want = format!(
+        "damaged.csv:{}: column rate_y_dph (field 5): \"1.2.3\" is not a number",
+        bad_line + 1
+    );
+    let o = compensate(&imu_model, &damaged, &out, &[]);
+    assert!(!o.status.success() && stderr(&o).contains(&want), "{}", stderr(&o));
+    assert!(!out.exists(), "nothing written");
+    let o = trainer(&[
+        "eval",
+        "--model",
+        imu_model.to_str().unwrap(),
+        damaged.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success() && stderr(&o).contains(&want), "{}", stderr(&o));
+    // A run with rate_dph and a per-axis rate.
+    let mixed = common::write(
+        &dir,
+        "mixed.csv",
+        b"time_s,rate_dph,temp_c,rate_y_dph\n0,1,20,2\n1,1,20,2\n",
+    );
+    let o = compensate(&imu_model, &mixed, &out, &[]);
+    assert!(
+        stderr(&o).contains("mixed.csv:1: column rate_y_dph (field 4): a run has rate_dph"),
+        "{}",
+        stderr(&o)
+    );
+}
