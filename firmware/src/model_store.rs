@@ -32,15 +32,16 @@
 //! stack. [`ModelStore::open`], [`ModelStore::load`] and
 //! [`ModelStore::install`] return models by value for host tools and tests.
 //!
-//! A slot holds either blob format: a single-axis model (format 2, decoded
-//! into a [`Model`]) or an IMU's axis models (format 3, decoded into an
-//! [`AxisModels`]); the `_into` methods take whichever the firmware runs
-//! ([`StoredModel`]) and refuse the other format with its reason.
+//! A slot holds either blob format: a single-axis model (format 2) or an
+//! IMU's axis models (format 3). The `_into` methods decode into whichever
+//! the firmware runs ([`StoredModel`]): a single-axis firmware's [`Model`]
+//! refuses a format-3 blob with its reason; a multi-axis firmware's
+//! [`AxisModels`] takes both (a format-2 blob as axis x alone).
 
 use embedded_storage::nor_flash::NorFlash;
 use rbf_core::Model;
-use rbf_core::blob::axes::{AxesHeader, AxisModels, decode_axes_into};
-use rbf_core::blob::{self, DecodeError, HEADER_LEN, Header, MAX_BLOB_LEN};
+use rbf_core::blob::axes::{AxisModels, blob_len, decode_any_into};
+use rbf_core::blob::{self, DecodeError, HEADER_LEN, MAX_BLOB_LEN};
 
 /// What a slot's blob decodes into, in place: a single-axis [`Model`] or
 /// the [`AxisModels`] of a multi-axis IMU, each with its centre capacity `K`.
@@ -54,28 +55,20 @@ pub trait StoredModel {
 
 impl<const K: usize> StoredModel for Model<K> {
     fn decode_from(&mut self, bytes: &[u8]) -> Result<usize, DecodeError> {
-        blob::decode_into(self, bytes)
+        blob::decode_into_capacity(self, bytes)
     }
     fn clear(&mut self) {
         *self = Model::EMPTY;
     }
 }
 
+/// A multi-axis blob, or a single-axis one as axis x alone.
 impl<const K: usize> StoredModel for AxisModels<K> {
     fn decode_from(&mut self, bytes: &[u8]) -> Result<usize, DecodeError> {
-        decode_axes_into(self, bytes)
+        decode_any_into(self, bytes)
     }
     fn clear(&mut self) {
         *self = AxisModels::EMPTY;
-    }
-}
-
-/// Length of the blob whose header starts `header` (format 2 or 3), bytes.
-pub fn blob_len(header: &[u8]) -> Result<usize, DecodeError> {
-    match Header::parse(header) {
-        Ok(h) => Ok(h.blob_len()),
-        Err(DecodeError::MultiAxis) => AxesHeader::parse(header).map(|h| h.blob_len()),
-        Err(e) => Err(e),
     }
 }
 

@@ -143,8 +143,8 @@ pub fn execute<F: MappedFlash>(store: &mut ModelStore<F>, payload: &[u8]) -> (Up
 /// an install command `model` holds the model of the slot selected now,
 /// the new one ([`UpdateStatus::Installed`]) or the old one decoded afresh
 /// from its untouched slot; after any other command it is untouched. The
-/// running model may be a single-axis [`Model`] or an IMU's
-/// [`rbf_core::blob::axes::AxisModels`]: a blob of the other format is refused.
+/// running model may be a single-axis [`Model`] (a multi-axis blob is
+/// refused) or an IMU's [`rbf_core::blob::axes::AxisModels`] (either format).
 pub fn execute_into<F: MappedFlash, M: StoredModel>(
     store: &mut ModelStore<F>,
     payload: &[u8],

@@ -162,7 +162,7 @@ fn one_axis_thermometer_failing_flags_that_axis_while_the_others_keep_compensati
 }
 
 #[test]
-fn the_store_and_the_uart_update_carry_a_multi_axis_blob_and_refuse_what_the_board_cannot_hold() {
+fn the_store_and_the_uart_update_carry_either_blob_format_and_refuse_what_the_board_cannot_hold() {
     use firmware::update::{CMD_INSTALL_MODEL, UpdateStatus, execute_into};
     let (board_models, axes_blob) = axis_models();
     let (_, single_blob, _) = models();
@@ -180,14 +180,40 @@ fn the_store_and_the_uart_update_carry_a_multi_axis_blob_and_refuse_what_the_boa
     assert_eq!(*running, *board_models);
     assert_eq!(store.slot_states()[0], SlotState::Committed(1));
 
-    // A single-axis blob is refused by the multi-axis board, its model untouched.
+    // A single-axis blob runs on the multi-axis board as axis x alone.
     let mut payload = vec![CMD_INSTALL_MODEL];
     payload.extend_from_slice(&single_blob);
-    let before = store.into_flash();
+    let mut x_only = Box::new(AxisModels::<{ firmware::AXIS_CENTERS }>::EMPTY);
+    let mut single_only = ModelStore::open_with(store.into_flash(), EMULATED_LAYOUT, &mut *x_only);
+    assert_eq!(
+        execute_into(&mut single_only, &payload, &mut *x_only),
+        UpdateStatus::Installed
+    );
+    assert_eq!(single_only.slot_states()[1], SlotState::Committed(2));
+    assert_eq!(x_only.mask(), 0b001);
+    assert_eq!(
+        x_only.get(Axis::X),
+        board_models.get(Axis::X),
+        "the fitted model, as axis x"
+    );
+    // Back to the three-axis blob (the newest commit runs).
+    let mut payload = vec![CMD_INSTALL_MODEL];
+    payload.extend_from_slice(&axes_blob);
+    assert_eq!(
+        execute_into(&mut single_only, &payload, &mut *running),
+        UpdateStatus::Installed
+    );
+    assert_eq!(single_only.slot_states()[0], SlotState::Committed(3));
+    let before = single_only.into_flash();
     let mut store = ModelStore::open_with(before.clone(), EMULATED_LAYOUT, &mut *running);
     store.load_into(&mut *running).unwrap();
-    assert_eq!(execute_into(&mut store, &payload, &mut *running), UpdateStatus::Refused);
     assert_eq!(*running, *board_models);
+    // A single-axis firmware refuses the multi-axis blob with the reason.
+    let mut single_model: Model = Model::EMPTY;
+    assert_eq!(
+        execute_into(&mut store, &payload, &mut single_model),
+        UpdateStatus::Refused
+    );
 
     // An axis with more centres than the board holds: refused, flash untouched.
     let mut big = Box::new(AxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
@@ -199,10 +225,15 @@ fn the_store_and_the_uart_update_carry_a_multi_axis_blob_and_refuse_what_the_boa
         store.install_into(&buf[..n], &mut *small),
         Err(InstallError::Refused(blob::DecodeError::ShapeOverCapacity { .. }))
     ));
-    assert_eq!(store.into_flash().contents(), before.contents());
+    let after = store.into_flash();
+    assert_eq!(
+        after.contents(),
+        before.contents(),
+        "refused blobs leave the flash untouched"
+    );
 
     // Reboot: the multi-axis slot is found and loaded; a single-axis reader refuses it with the reason.
-    let mut store = ModelStore::open_with(before, EMULATED_LAYOUT, &mut *running);
+    let mut store = ModelStore::open_with(after, EMULATED_LAYOUT, &mut *running);
     store.load_into(&mut *running).unwrap();
     assert_eq!(*running, *board_models);
     assert_eq!(store.load(), Err(blob::DecodeError::MultiAxis));
