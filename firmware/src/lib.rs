@@ -12,7 +12,7 @@
 //! - `emulated_flash` (feature `test-harness`): NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
 //! - `fault_injection` (feature `test-harness`): buses that fail on a schedule and the fault campaign of the QEMU fault board;
 //! - [`fault`]: the fault record kept across a reset and the boot report frame;
-//! - [`bench`]: the board's `bench` command (DWT cycle counts of its sample steps);
+//! - [`bench`](mod@bench): the board's `bench` command (DWT cycle counts of its sample steps);
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
 //! The board binaries in `src/bin/` only wire peripherals to these.
