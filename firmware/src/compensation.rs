@@ -71,29 +71,35 @@ impl ModelHolder for Option<Model> {
 }
 
 /// A model decoded in place into storage that outlives the loop (the
-/// board's `static`): no model is ever moved by value.
+/// board's `static`): no model is ever moved by value. `M` is a
+/// single-axis [`Model`] or an IMU's [`rbf_core::blob::axes::AxisModels`].
 #[derive(Debug)]
-pub struct InPlaceModel<'m> {
-    storage: &'m mut Model,
+pub struct InPlaceModel<'m, M = Model> {
+    storage: &'m mut M,
     valid: bool,
 }
 
-impl<'m> InPlaceModel<'m> {
+impl<'m, M> InPlaceModel<'m, M> {
     /// The model in `storage`, usable when `valid` (a decoder said so).
-    pub fn new(storage: &'m mut Model, valid: bool) -> Self {
+    pub fn new(storage: &'m mut M, valid: bool) -> Self {
         InPlaceModel { storage, valid }
     }
 
     /// Lets `decode` rebuild the model in place; it says whether the
     /// storage then holds a usable model.
-    pub fn rebuild(&mut self, decode: impl FnOnce(&mut Model) -> bool) {
+    pub fn rebuild(&mut self, decode: impl FnOnce(&mut M) -> bool) {
         self.valid = decode(self.storage);
+    }
+
+    /// The model, if usable.
+    pub fn get(&self) -> Option<&M> {
+        self.valid.then_some(&*self.storage)
     }
 }
 
-impl ModelHolder for InPlaceModel<'_> {
+impl ModelHolder for InPlaceModel<'_, Model> {
     fn model(&self) -> Option<&Model> {
-        self.valid.then_some(&*self.storage)
+        self.get()
     }
 }
 

@@ -1,6 +1,8 @@
 //! Fault injection: the real drivers and loop on emulated buses that fail on a
 //! seeded schedule, a checker that decodes every output frame, and the
-//! model-store campaigns (bit flips, power cuts, UART commands).
+//! model-store campaigns (bit flips, power cuts, UART commands); for a
+//! multi-axis IMU, one axis's thermometer failing while the others run on
+//! ([`axis_thermometer_campaign`]).
 //!
 //! The QEMU fault board (`src/bin/qemu_faults.rs`) runs these on the target
 //! and prints `faults injected N, samples lost 0, panics 0`; host tests run
@@ -10,9 +12,12 @@ use core::cell::Cell;
 
 use embedded_hal::spi::{self, SpiDevice};
 use rbf_core::blob;
-use rbf_core::frame::{self, MAX_FRAME_LEN};
+use rbf_core::blob::axes::AxisModels;
+use rbf_core::frame::{self, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN};
+use rbf_core::record::{Axis, MAX_AXES};
 use rbf_core::{CompensatorConfig, Flags, Model};
 
+use crate::axes::AxesLoop;
 use crate::compensation::{CompensationLoop, LoopConfig};
 use crate::emulated_flash::{EmulatedFlash, PAGE};
 use crate::frontend::FrontEnd;
@@ -328,6 +333,180 @@ pub fn sensor_campaign(model: Option<Model>, samples: u32, seed: u32) -> SensorC
     report.samples_lost = samples.saturating_sub(checker.frames) + checker.bad_frames;
     report.missing_flags = checker.missing_flags;
     report.non_finite = checker.non_finite;
+    report
+}
+
+/// Decodes every multi-axis frame as it is written; keeps the last one.
+#[derive(Debug)]
+struct AxesFrameChecker {
+    buf: [u8; MAX_AXES_FRAME_LEN],
+    len: usize,
+    next_seq: u32,
+    frames: u32,
+    bad_frames: u32,
+    last: Option<frame::AxesFrame>,
+}
+
+impl embedded_io::ErrorType for AxesFrameChecker {
+    type Error = embedded_io::ErrorKind;
+}
+
+impl embedded_io::Write for AxesFrameChecker {
+    fn write(&mut self, data: &[u8]) -> Result<usize, Self::Error> {
+        for &b in data {
+            if let Some(slot) = self.buf.get_mut(self.len) {
+                *slot = b;
+                self.len += 1;
+            } else {
+                self.bad_frames += 1;
+                self.len = 0;
+            }
+            if b == 0 {
+                let bytes = self.buf.get_mut(..self.len).unwrap_or(&mut []);
+                self.len = 0;
+                match frame::decode_axes(bytes) {
+                    Ok(f) if f.seq == self.next_seq => {
+                        self.frames += 1;
+                        self.next_seq = f.seq.wrapping_add(1);
+                        self.last = Some(f);
+                    }
+                    _ => {
+                        self.bad_frames += 1;
+                        self.last = None;
+                    }
+                }
+            }
+        }
+        Ok(data.len())
+    }
+
+    fn flush(&mut self) -> Result<(), Self::Error> {
+        Ok(())
+    }
+}
+
+/// What the one-axis thermometer campaign found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AxisThermometerCampaign {
+    /// Samples stepped (each one frame with every axis).
+    pub samples: u32,
+    /// Frames decoded in sequence.
+    pub frames: u32,
+    /// Samples without a good frame.
+    pub samples_lost: u32,
+    /// Samples on which the failing axis's thermometer did not answer.
+    pub faulty_samples: u32,
+    /// Faulty samples whose frame lacks flag 2 on the failing axis (must be 0).
+    pub missing_flags: u32,
+    /// Samples on which the failing axis ran uncompensated (flag 4: an
+    /// outage past the hold).
+    pub failing_uncompensated: u32,
+    /// Frames in which a healthy axis carried flag 2 or flag 4, or any
+    /// axis a non-finite bias or compensated rate (must be 0).
+    pub healthy_disturbed: u32,
+    /// Thermometer read failures the loop counted, per axis (x first).
+    pub temp_read_faults_per_axis: [u32; MAX_AXES],
+}
+
+/// Runs `samples` samples of a three-axis IMU at 10 Hz through a TMP117
+/// and a front end per axis and the multi-axis loop with `models`; the
+/// thermometer of `failing` stops answering (I2C NACK) in bursts of 1–40
+/// samples and outages of 150 (past the 10-s hold), on a schedule seeded
+/// by `seed`. Checks every frame: flag 2 on the failing axis whenever its
+/// thermometer failed, the other axes compensating undisturbed.
+pub fn axis_thermometer_campaign<const K: usize>(
+    models: Option<&AxisModels<K>>,
+    failing: Axis,
+    samples: u32,
+    seed: u32,
+) -> AxisThermometerCampaign {
+    let current: [Cell<ReplaySample>; MAX_AXES] = Default::default();
+    let mut report = AxisThermometerCampaign {
+        samples,
+        ..AxisThermometerCampaign::default()
+    };
+    let [cx, cy, cz] = &current;
+    let mut thermometers = [cx, cy, cz].map(|c| Tmp117::new(EmulatedTmp117::new(c, 0), LOOP_SENSOR_ADDRESS));
+    let mut front_ends = [cx, cy, cz].map(|c| FrontEnd::new(EmulatedFrontEnd::new(c)));
+    for t in &mut thermometers {
+        if t.init().is_err() {
+            report.samples_lost = samples;
+            return report;
+        }
+    }
+    for f in &mut front_ends {
+        if f.init().is_err() {
+            report.samples_lost = samples;
+            return report;
+        }
+    }
+    let period_s = 0.1f32;
+    let config = LoopConfig {
+        compensator: CompensatorConfig::for_sample_rate(1.0 / period_s),
+        temp_read_every: 1,
+    };
+    let checker = AxesFrameChecker {
+        buf: [0; MAX_AXES_FRAME_LEN],
+        len: 0,
+        next_seq: 0,
+        frames: 0,
+        bad_frames: 0,
+        last: None,
+    };
+    let mut axes = AxesLoop::new(models, 0b111, config, thermometers, front_ends, checker);
+    let mut rng = Rng(seed | 1);
+    let mut left = 0u32;
+    for i in 0..samples {
+        let phase = f64::from(i) / f64::from(samples.max(1));
+        let temp_c = 20.0 + 25.0 * (1.0 - (2.0 * phase - 1.0).abs());
+        if left == 0 && i > 0 && rng.next().is_multiple_of(60) {
+            left = if rng.next().is_multiple_of(4) {
+                150
+            } else {
+                rng.between(1, 40)
+            };
+        }
+        let fails = left > 0;
+        left = left.saturating_sub(1);
+        for (axis, cell) in Axis::ALL.into_iter().zip(&current) {
+            // Each coil a little warmer than the last, each its own bias.
+            let coil_c = temp_c + 0.5 * axis.index() as f64;
+            let rate_dph = 15.0 + 0.02 * (coil_c - 20.0) * (1.0 + axis.index() as f64);
+            let reading = (!(fails && axis == failing)).then_some(coil_c);
+            cell.set(ReplaySample::with_loop(reading, rate_dph as f32));
+        }
+        if fails {
+            report.faulty_samples += 1;
+        }
+        axes.step(if i == 0 { 0.0 } else { period_s });
+        let Some(f) = axes.output_mut().last.take() else {
+            continue;
+        };
+        for (axis, out) in Axis::ALL.into_iter().zip(f.axes) {
+            let flags = out.flags();
+            let finite = out.bias_dph.is_finite() && out.rate_comp_dph.is_finite();
+            if axis == failing {
+                if fails && !flags.contains(Flags::TEMP_SENSOR_FAULT) {
+                    report.missing_flags += 1;
+                }
+                if flags.contains(Flags::NO_VALID_MODEL) {
+                    report.failing_uncompensated += 1;
+                }
+                if !finite {
+                    report.healthy_disturbed += 1;
+                }
+            } else if flags.contains(Flags::TEMP_SENSOR_FAULT)
+                || (models.is_some() && flags.contains(Flags::NO_VALID_MODEL))
+                || !finite
+            {
+                report.healthy_disturbed += 1;
+            }
+        }
+    }
+    report.temp_read_faults_per_axis = axes.temp_read_faults_per_axis();
+    let (_, _, checker) = axes.destroy();
+    report.frames = checker.frames;
+    report.samples_lost = samples.saturating_sub(checker.frames) + checker.bad_frames;
     report
 }
 

@@ -5,19 +5,21 @@
 //! - [`tmp117`]: loop-thermometer driver (I2C); [`frontend`]: rate front end (SPI, docs/frontend.md);
 //! - [`sensors`]: the traits the loop needs from them;
 //! - [`compensation`]: the per-sample loop (rbf-core compensation, one output frame per sample);
+//! - [`axes`]: the same loop for a multi-axis IMU (every axis read, one frame with all axes);
 //! - [`uart`]: the transmit queue an interrupt drains (frames whole or dropped and counted);
 //! - `replay` (feature `test-harness`): emulated devices and the recorded-run replayer of the QEMU board;
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
 //! - `emulated_flash` (feature `test-harness`): NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
 //! - `fault_injection` (feature `test-harness`): buses that fail on a schedule and the fault campaign of the QEMU fault board;
 //! - [`fault`]: the fault record kept across a reset and the boot report frame;
-//! - [`bench`]: the board's `bench` command (DWT cycle counts of its sample steps);
+//! - [`bench`](mod@bench): the board's `bench` command (DWT cycle counts of its sample steps);
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
 //! The board binaries in `src/bin/` only wire peripherals to these.
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
+pub mod axes;
 pub mod bench;
 pub mod compensation;
 #[cfg(any(test, feature = "test-harness"))]
@@ -39,6 +41,15 @@ pub mod board;
 
 use rbf_core::Model;
 use rbf_core::blob::{self, DecodeError};
+
+/// Centres each axis's model may have on the three-axis board (feature
+/// `board-axes`): the capacity `K` of its
+/// [`rbf_core::blob::axes::AxisModels`], chosen so that three models, the
+/// update buffer and the stack stay within the board's 16 KiB of RAM
+/// (docs/firmware.md, "Three axes"). A blob with a larger axis is refused
+/// with [`DecodeError::ShapeOverCapacity`] (an update: reply status
+/// `Refused`, the running models stay; at boot: uncompensated, flag 4).
+pub const AXIS_CENTERS: usize = 16;
 
 /// Length of one model flash slot (`MODEL_A`/`MODEL_B` in memory.x), bytes.
 pub const MODEL_SLOT_LEN: usize = 128 * 1024;

@@ -31,10 +31,46 @@
 //! `static`, and neither a 4 KiB blob buffer nor a 4 KiB model lands on its
 //! stack. [`ModelStore::open`], [`ModelStore::load`] and
 //! [`ModelStore::install`] return models by value for host tools and tests.
+//!
+//! A slot holds either blob format: a single-axis model (format 2) or an
+//! IMU's axis models (format 3). The `_into` methods decode into whichever
+//! the firmware runs ([`StoredModel`]): a single-axis firmware's [`Model`]
+//! refuses a format-3 blob with its reason; a multi-axis firmware's
+//! [`AxisModels`] takes both (a format-2 blob as axis x alone).
 
 use embedded_storage::nor_flash::NorFlash;
 use rbf_core::Model;
-use rbf_core::blob::{self, DecodeError, HEADER_LEN, Header, MAX_BLOB_LEN};
+use rbf_core::blob::axes::{AxisModels, blob_len, decode_any_into};
+use rbf_core::blob::{self, DecodeError, HEADER_LEN, MAX_BLOB_LEN};
+
+/// What a slot's blob decodes into, in place: a single-axis [`Model`] or
+/// the [`AxisModels`] of a multi-axis IMU, each with its centre capacity `K`.
+pub trait StoredModel {
+    /// Decodes and validates the blob at the start of `bytes` into `self`;
+    /// the bytes it occupies. On error `self` holds no usable model.
+    fn decode_from(&mut self, bytes: &[u8]) -> Result<usize, DecodeError>;
+    /// Leaves no model behind.
+    fn clear(&mut self);
+}
+
+impl<const K: usize> StoredModel for Model<K> {
+    fn decode_from(&mut self, bytes: &[u8]) -> Result<usize, DecodeError> {
+        blob::decode_into_capacity(self, bytes)
+    }
+    fn clear(&mut self) {
+        *self = Model::EMPTY;
+    }
+}
+
+/// A multi-axis blob, or a single-axis one as axis x alone.
+impl<const K: usize> StoredModel for AxisModels<K> {
+    fn decode_from(&mut self, bytes: &[u8]) -> Result<usize, DecodeError> {
+        decode_any_into(self, bytes)
+    }
+    fn clear(&mut self) {
+        *self = AxisModels::EMPTY;
+    }
+}
 
 /// A NOR flash whose contents can also be read in place, as the STM32's
 /// memory-mapped flash can: blobs are checked and decoded where they lie.
@@ -122,13 +158,13 @@ impl<F: MappedFlash> ModelStore<F> {
     /// Scans both slots and selects the one to run (see the module docs);
     /// host tools and tests (the scan decodes into a model on the stack).
     pub fn open(flash: F, layout: SlotLayout) -> Self {
-        let mut scratch = Model::EMPTY;
+        let mut scratch: Model = Model::EMPTY;
         Self::open_with(flash, layout, &mut scratch)
     }
 
     /// [`Self::open`] decoding each slot into `scratch` (left holding no
     /// particular model: [`Self::load_into`] it).
-    pub fn open_with(flash: F, layout: SlotLayout, scratch: &mut Model) -> Self {
+    pub fn open_with<M: StoredModel>(flash: F, layout: SlotLayout, scratch: &mut M) -> Self {
         let mut store = ModelStore {
             flash,
             layout,
@@ -140,7 +176,7 @@ impl<F: MappedFlash> ModelStore<F> {
         store
     }
 
-    fn rescan(&mut self, scratch: &mut Model) {
+    fn rescan<M: StoredModel>(&mut self, scratch: &mut M) {
         for slot in 0..2 {
             self.states[slot] = self.scan(slot, scratch);
         }
@@ -154,7 +190,7 @@ impl<F: MappedFlash> ModelStore<F> {
     fn blob(&self, slot: usize) -> Result<&[u8], DecodeError> {
         let start = self.layout.offsets[slot & 1];
         let header = self.flash.mapped(start, HEADER_LEN).ok_or(DecodeError::Malformed)?;
-        let len = Header::parse(header)?.blob_len();
+        let len = blob_len(header)?;
         let room = (self.layout.len as usize).saturating_sub(COMMIT_LEN);
         if len > MAX_BLOB_LEN || len > room {
             return Err(DecodeError::Truncated {
@@ -165,12 +201,12 @@ impl<F: MappedFlash> ModelStore<F> {
         self.flash.mapped(start, len).ok_or(DecodeError::Malformed)
     }
 
-    fn scan(&mut self, slot: usize, scratch: &mut Model) -> SlotState {
+    fn scan<M: StoredModel>(&mut self, slot: usize, scratch: &mut M) -> SlotState {
         let blob_bytes = match self.blob(slot) {
             Ok(bytes) => bytes,
             Err(e) => return SlotState::Invalid(e),
         };
-        if let Err(e) = blob::decode_into(scratch, blob_bytes) {
+        if let Err(e) = scratch.decode_from(blob_bytes) {
             return SlotState::Invalid(e);
         }
         let record = self
@@ -195,22 +231,22 @@ impl<F: MappedFlash> ModelStore<F> {
 
     /// Decodes the selected slot's model; the reason if there is none.
     pub fn load(&mut self) -> Result<Model, DecodeError> {
-        let mut model = Model::EMPTY;
+        let mut model: Model = Model::EMPTY;
         self.load_into(&mut model).map(|()| model)
     }
 
     /// [`Self::load`] in place: `model` holds the selected slot's model, or
-    /// [`Model::EMPTY`] and the reason.
-    pub fn load_into(&mut self, model: &mut Model) -> Result<(), DecodeError> {
+    /// none ([`StoredModel::clear`]) and the reason.
+    pub fn load_into<M: StoredModel>(&mut self, model: &mut M) -> Result<(), DecodeError> {
         let Some(slot) = self.active else {
-            *model = Model::EMPTY;
+            model.clear();
             self.loaded = false;
             return Err(self.states[0].invalid_reason());
         };
         let bytes = self.blob(slot);
-        let result = bytes.and_then(|b| blob::decode_into(model, b));
+        let result = bytes.and_then(|b| model.decode_from(b));
         if result.is_err() {
-            *model = Model::EMPTY;
+            model.clear();
         }
         self.loaded = result.is_ok();
         result.map(|_| ())
@@ -226,15 +262,19 @@ impl<F: MappedFlash> ModelStore<F> {
     /// the new model. On any error the running slot is untouched and still
     /// selected.
     pub fn install(&mut self, blob_bytes: &[u8]) -> Result<Model, InstallError<F::Error>> {
-        let mut model = Model::EMPTY;
+        let mut model: Model = Model::EMPTY;
         self.install_into(blob_bytes, &mut model).map(|()| model)
     }
 
     /// [`Self::install`] in place: on success `model` holds the new model;
     /// on any error the running slot is untouched and still selected, and
-    /// `model` holds its model again (decoded afresh from its slot:
-    /// [`Model::EMPTY`] if there is none).
-    pub fn install_into(&mut self, blob_bytes: &[u8], model: &mut Model) -> Result<(), InstallError<F::Error>> {
+    /// `model` holds its model again (decoded afresh from its slot: none if
+    /// there is none). A blob of the other format than `M` is refused.
+    pub fn install_into<M: StoredModel>(
+        &mut self,
+        blob_bytes: &[u8],
+        model: &mut M,
+    ) -> Result<(), InstallError<F::Error>> {
         let result = self.write_and_switch(blob_bytes, model);
         // The running model is rebuilt from its slot: the old one after an
         // error, the new one (now selected) after success.
@@ -247,8 +287,12 @@ impl<F: MappedFlash> ModelStore<F> {
 
     /// Checks `blob_bytes` (decoding it into `scratch`), writes it to the
     /// slot not running, verifies it and commits it.
-    fn write_and_switch(&mut self, blob_bytes: &[u8], scratch: &mut Model) -> Result<(), InstallError<F::Error>> {
-        let len = blob::decode_into(scratch, blob_bytes).map_err(InstallError::Refused)?;
+    fn write_and_switch<M: StoredModel>(
+        &mut self,
+        blob_bytes: &[u8],
+        scratch: &mut M,
+    ) -> Result<(), InstallError<F::Error>> {
+        let len = scratch.decode_from(blob_bytes).map_err(InstallError::Refused)?;
         let blob_bytes = blob_bytes.get(..len).ok_or(InstallError::Verify)?;
         let target = self.active.map_or(0, |a| 1 - (a & 1));
         let sequence = match self.active.map(|a| self.states[a & 1]) {

@@ -17,11 +17,13 @@ use core::cell::Cell;
 
 use embedded_hal::i2c::{self, I2c, NoAcknowledgeSource};
 use embedded_hal::spi::{self, SpiDevice};
+use rbf_core::blob::axes::AxisModels;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
-use rbf_core::record::{self, Columns, HeaderError, RowError};
+use rbf_core::record::{self, Axis, Columns, HeaderError, MAX_AXES, RowError};
 use rbf_core::sensor::tmp117_raw;
 use rbf_core::{CompensatorConfig, Model};
 
+use crate::axes::AxesLoop;
 use crate::compensation::{CompensationLoop, LoopConfig, LoopStats};
 use crate::frontend::{self, FrontEnd};
 use crate::tmp117::{self, Tmp117Array};
@@ -194,6 +196,11 @@ impl PeriodProbe {
         Ok(self.estimator.push_time(row.time_s))
     }
 
+    /// True once the header is read and names per-axis rates (`rate_x_dph` …).
+    pub fn is_multi_axis(&self) -> bool {
+        self.columns.as_ref().is_some_and(Columns::is_multi_axis)
+    }
+
     /// The nominal period, s.
     pub fn period_s(&mut self) -> f64 {
         self.estimator.period_s()
@@ -297,5 +304,147 @@ impl<'c, W: embedded_io::Write> Replayer<'c, W> {
     /// Health counters of the loop.
     pub fn stats(&self) -> LoopStats {
         self.compensation.stats()
+    }
+}
+
+/// One axis's emulated devices: its thermometer array and its front end,
+/// answering from the axis's cell.
+fn axis_devices(
+    current: &Cell<ReplaySample>,
+) -> Result<(ReplayThermometers<'_>, FrontEnd<EmulatedFrontEnd<'_>>), ReplayError> {
+    let mut thermometer = Tmp117Array::new(
+        EmulatedTmp117::new(current, 0),
+        EmulatedTmp117::new(current, tmp117::PER_BUS),
+        u8::MAX,
+    );
+    if thermometer.init() != 0 {
+        return Err(ReplayError::DeviceInit);
+    }
+    let mut front_end = FrontEnd::new(EmulatedFrontEnd::new(current));
+    front_end.init().map_err(|_| ReplayError::DeviceInit)?;
+    Ok((thermometer, front_end))
+}
+
+/// The multi-axis replay loop: per axis, eight TMP117s on two emulated
+/// buses and a front end, all answering from that axis's cell.
+pub type AxesReplayLoop<'c, 'm, W, const K: usize> = AxesLoop<
+    [ReplayThermometers<'c>; MAX_AXES],
+    [FrontEnd<EmulatedFrontEnd<'c>>; MAX_AXES],
+    W,
+    Option<&'m AxisModels<K>>,
+    K,
+>;
+
+/// Second pass over a multi-axis run (`rate_x_dph` …): every row through
+/// the drivers and [`AxesLoop`], the compensated run written as `trainer
+/// compensate` writes it (per axis present `bias_<axis>_dph`,
+/// `rate_comp_<axis>_dph`, `flags_<axis>`), one [`rbf_core::frame::AxesFrame`] per row.
+///
+/// Each axis's devices answer from the row as that axis reads it
+/// ([`Columns::for_axis`]): its rate, `temp_<axis>_c` (else `temp_c`) as
+/// its loop thermometer, the shared `temp_a` … `temp_h` as the others.
+pub struct AxesReplayer<'c, 'm, W, const K: usize> {
+    current: &'c [Cell<ReplaySample>; MAX_AXES],
+    compensation: AxesReplayLoop<'c, 'm, W, K>,
+    /// Per axis present, its columns.
+    axes: [Option<Columns>; MAX_AXES],
+    header_read: bool,
+    prev_time_s: Option<f64>,
+    line: u32,
+}
+
+impl<'c, 'm, W: embedded_io::Write, const K: usize> AxesReplayer<'c, 'm, W, K> {
+    /// A replayer over `models` for a run of nominal period `period_s`;
+    /// frames go to `frames`. The axes come from the run's header.
+    pub fn new(
+        models: Option<&'m AxisModels<K>>,
+        period_s: f64,
+        current: &'c [Cell<ReplaySample>; MAX_AXES],
+        frames: W,
+    ) -> Result<Self, ReplayError> {
+        let [cx, cy, cz] = current;
+        let (tx, fx) = axis_devices(cx)?;
+        let (ty, fy) = axis_devices(cy)?;
+        let (tz, fz) = axis_devices(cz)?;
+        let config = LoopConfig {
+            compensator: CompensatorConfig::for_nominal_period_s(period_s),
+            temp_read_every: 1,
+        };
+        Ok(AxesReplayer {
+            current,
+            compensation: AxesLoop::new(models, 0, config, [tx, ty, tz], [fx, fy, fz], frames),
+            axes: [None; MAX_AXES],
+            header_read: false,
+            prev_time_s: None,
+            line: 0,
+        })
+    }
+
+    /// Consumes one input line and writes what `trainer compensate` writes for it.
+    pub fn feed_line(&mut self, line: &str, out: &mut impl core::fmt::Write) -> Result<(), ReplayError> {
+        self.line += 1;
+        let text = clean(line, self.line);
+        if !self.header_read {
+            if record::is_comment_or_blank(text) {
+                writeln!(out, "{text}")?;
+                return Ok(());
+            }
+            let columns = Columns::from_header(text).map_err(ReplayError::Header)?;
+            let mut mask = 0u8;
+            for axis in columns.axes_present() {
+                self.axes[axis.index()] = columns.for_axis(axis);
+                mask |= 1 << axis.index();
+            }
+            if mask == 0 {
+                // A single-axis run: `rate_dph` serves as axis x.
+                self.axes[0] = Some(columns);
+                mask = 1;
+            }
+            self.header_read = true;
+            self.compensation.set_axis_mask(mask);
+            record::write_compensated_header(out, text, &columns)?;
+            return Ok(());
+        }
+        if record::is_comment_or_blank(text) {
+            return Ok(());
+        }
+        let mut time_s = None;
+        for axis in Axis::ALL {
+            let Some(columns) = &self.axes[axis.index()] else {
+                continue;
+            };
+            let row = columns.parse_row(text).map_err(|e| ReplayError::Row(self.line, e))?;
+            time_s.get_or_insert(row.time_s);
+            self.current[axis.index()].set(ReplaySample {
+                temps_c: row.readings_c(),
+                rate_dph: row.rate_dph as f32,
+            });
+        }
+        let time_s = time_s.ok_or(ReplayError::DeviceInit)?;
+        let dt_s = record::time_step_s(self.prev_time_s, time_s);
+        self.prev_time_s = Some(time_s);
+        let samples = self.compensation.step(dt_s);
+        let mut present = [samples[0]; MAX_AXES];
+        let mut n = 0;
+        for (axis, sample) in Axis::ALL.into_iter().zip(samples) {
+            if self.axes[axis.index()].is_some()
+                && let Some(slot) = present.get_mut(n)
+            {
+                *slot = sample;
+                n += 1;
+            }
+        }
+        record::write_compensated_axes_row(out, text, present.get(..n).unwrap_or(&[]))?;
+        Ok(())
+    }
+
+    /// Health counters of the loop.
+    pub fn stats(&self) -> LoopStats {
+        self.compensation.stats()
+    }
+
+    /// Thermometer reads that failed, per axis (x first).
+    pub fn temp_read_faults_per_axis(&self) -> [u32; MAX_AXES] {
+        self.compensation.temp_read_faults_per_axis()
     }
 }

@@ -13,7 +13,7 @@ use rbf_core::Model;
 use rbf_core::blob::MAX_BLOB_LEN;
 use rbf_core::frame::cobs_encode;
 
-use crate::model_store::{InstallError, MappedFlash, ModelStore};
+use crate::model_store::{InstallError, MappedFlash, ModelStore, StoredModel};
 
 /// Command: install the model blob that follows.
 pub const CMD_INSTALL_MODEL: u8 = 0x01;
@@ -134,7 +134,7 @@ pub fn cobs_decode_in_place(frame: &mut [u8]) -> Option<usize> {
 /// Carries out one command payload on `store`; the status and, when a model
 /// was installed, the model to switch the loop to (host tools and tests).
 pub fn execute<F: MappedFlash>(store: &mut ModelStore<F>, payload: &[u8]) -> (UpdateStatus, Option<Model>) {
-    let mut model = Model::EMPTY;
+    let mut model: Model = Model::EMPTY;
     let status = execute_into(store, payload, &mut model);
     (status, (status == UpdateStatus::Installed).then_some(model))
 }
@@ -142,8 +142,14 @@ pub fn execute<F: MappedFlash>(store: &mut ModelStore<F>, payload: &[u8]) -> (Up
 /// [`execute`] in place on the running model (the board's `static`): after
 /// an install command `model` holds the model of the slot selected now,
 /// the new one ([`UpdateStatus::Installed`]) or the old one decoded afresh
-/// from its untouched slot; after any other command it is untouched.
-pub fn execute_into<F: MappedFlash>(store: &mut ModelStore<F>, payload: &[u8], model: &mut Model) -> UpdateStatus {
+/// from its untouched slot; after any other command it is untouched. The
+/// running model may be a single-axis [`Model`] (a multi-axis blob is
+/// refused) or an IMU's [`rbf_core::blob::axes::AxisModels`] (either format).
+pub fn execute_into<F: MappedFlash, M: StoredModel>(
+    store: &mut ModelStore<F>,
+    payload: &[u8],
+    model: &mut M,
+) -> UpdateStatus {
     match payload.split_first() {
         Some((&CMD_INSTALL_MODEL, blob)) => match store.install_into(blob, model) {
             Ok(()) => UpdateStatus::Installed,

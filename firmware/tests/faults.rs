@@ -4,11 +4,14 @@
 use e2e_tests::fixtures::model_and_faulty_slice;
 use firmware::emulated_flash::EmulatedFlash;
 use firmware::fault_injection::{
-    EMULATED_LAYOUT, FaultKind, ModelFlash, bit_flip_campaign, command_campaign, power_cut_campaign, sensor_campaign,
+    EMULATED_LAYOUT, FaultKind, ModelFlash, axis_thermometer_campaign, bit_flip_campaign, command_campaign,
+    power_cut_campaign, sensor_campaign,
 };
-use firmware::model_store::{ModelStore, SlotState};
+use firmware::model_store::{InstallError, ModelStore, SlotState};
 use rbf_core::Model;
+use rbf_core::blob::axes::{AxisModels, decode_axes_into, encode_axes};
 use rbf_core::blob::{self, MAX_BLOB_LEN};
+use rbf_core::record::Axis;
 
 fn encode(model: &Model) -> Vec<u8> {
     let mut buf = vec![0u8; MAX_BLOB_LEN];
@@ -113,4 +116,151 @@ fn a_refused_blob_leaves_the_flash_untouched() {
     bad[30] ^= 0x80;
     assert!(store.install(&bad).is_err());
     assert_eq!(store.into_flash().contents(), before.contents());
+}
+
+/// Three axes as the multi-axis board holds them: x the fitted model, y the
+/// cubic, z the fitted model again; and their format-3 blob.
+fn axis_models() -> (Box<AxisModels<{ firmware::AXIS_CENTERS }>>, Vec<u8>) {
+    let (model, _, _) = models();
+    let mut all = Box::new(AxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
+    all.insert(Axis::X, model.clone());
+    all.insert(Axis::Y, e2e_tests::fixtures::cubic_model());
+    all.insert(Axis::Z, model);
+    let mut buf = vec![0u8; MAX_BLOB_LEN];
+    let n = encode_axes(&all, &mut buf).unwrap();
+    buf.truncate(n);
+    let mut board = Box::new(AxisModels::EMPTY);
+    decode_axes_into(&mut board, &buf).unwrap();
+    (board, buf)
+}
+
+#[test]
+fn one_axis_thermometer_failing_flags_that_axis_while_the_others_keep_compensating() {
+    let (models, _) = axis_models();
+    for (failing, seed) in [(Axis::Y, 0x1234_5678), (Axis::X, 0x0BAD_CAFE), (Axis::Z, 7)] {
+        let r = axis_thermometer_campaign(Some(&*models), failing, 20_000, seed);
+        assert_eq!((r.frames, r.samples_lost), (20_000, 0), "{failing:?}: {r:?}");
+        assert!(r.faulty_samples > 1_000, "{failing:?}: {r:?}");
+        assert_eq!(
+            r.missing_flags, 0,
+            "{failing:?}: every failed read flagged on its axis: {r:?}"
+        );
+        assert!(
+            r.failing_uncompensated > 0,
+            "{failing:?}: outages past the hold stop that axis: {r:?}"
+        );
+        assert_eq!(r.healthy_disturbed, 0, "{failing:?}: the other axes run on: {r:?}");
+        for axis in Axis::ALL {
+            let faults = r.temp_read_faults_per_axis[axis.index()];
+            if axis == failing {
+                assert_eq!(faults, r.faulty_samples, "{r:?}");
+            } else {
+                assert_eq!(faults, 0, "{axis:?}: {r:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn the_store_and_the_uart_update_carry_either_blob_format_and_refuse_what_the_board_cannot_hold() {
+    use firmware::update::{CMD_INSTALL_MODEL, UpdateStatus, execute_into};
+    let (board_models, axes_blob) = axis_models();
+    let (_, single_blob, _) = models();
+    let mut running = Box::new(AxisModels::<{ firmware::AXIS_CENTERS }>::EMPTY);
+    let mut store = ModelStore::open_with(ModelFlash::new(), EMULATED_LAYOUT, &mut *running);
+    assert_eq!(store.active_slot(), None);
+
+    // A format-3 blob through the UART command path: installed and running.
+    let mut payload = vec![CMD_INSTALL_MODEL];
+    payload.extend_from_slice(&axes_blob);
+    assert_eq!(
+        execute_into(&mut store, &payload, &mut *running),
+        UpdateStatus::Installed
+    );
+    assert_eq!(*running, *board_models);
+    assert_eq!(store.slot_states()[0], SlotState::Committed(1));
+
+    // A single-axis blob runs on the multi-axis board as axis x alone.
+    let mut payload = vec![CMD_INSTALL_MODEL];
+    payload.extend_from_slice(&single_blob);
+    let mut x_only = Box::new(AxisModels::<{ firmware::AXIS_CENTERS }>::EMPTY);
+    let mut single_only = ModelStore::open_with(store.into_flash(), EMULATED_LAYOUT, &mut *x_only);
+    assert_eq!(
+        execute_into(&mut single_only, &payload, &mut *x_only),
+        UpdateStatus::Installed
+    );
+    assert_eq!(single_only.slot_states()[1], SlotState::Committed(2));
+    assert_eq!(x_only.mask(), 0b001);
+    assert_eq!(
+        x_only.get(Axis::X),
+        board_models.get(Axis::X),
+        "the fitted model, as axis x"
+    );
+    // Back to the three-axis blob (the newest commit runs).
+    let mut payload = vec![CMD_INSTALL_MODEL];
+    payload.extend_from_slice(&axes_blob);
+    assert_eq!(
+        execute_into(&mut single_only, &payload, &mut *running),
+        UpdateStatus::Installed
+    );
+    assert_eq!(single_only.slot_states()[0], SlotState::Committed(3));
+    let before = single_only.into_flash();
+    let mut store = ModelStore::open_with(before.clone(), EMULATED_LAYOUT, &mut *running);
+    store.load_into(&mut *running).unwrap();
+    assert_eq!(*running, *board_models);
+    // A single-axis firmware refuses the multi-axis blob with the reason.
+    let mut single_model: Model = Model::EMPTY;
+    assert_eq!(
+        execute_into(&mut store, &payload, &mut single_model),
+        UpdateStatus::Refused
+    );
+
+    // An axis with more centres than the board holds: refused, flash untouched.
+    let mut big = Box::new(AxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
+    big.insert(Axis::X, wide_model(firmware::AXIS_CENTERS + 1));
+    let mut buf = vec![0u8; MAX_BLOB_LEN];
+    let n = encode_axes(&big, &mut buf).unwrap();
+    let mut small = Box::new(AxisModels::<{ firmware::AXIS_CENTERS }>::EMPTY);
+    assert!(matches!(
+        store.install_into(&buf[..n], &mut *small),
+        Err(InstallError::Refused(blob::DecodeError::ShapeOverCapacity { .. }))
+    ));
+    let after = store.into_flash();
+    assert_eq!(
+        after.contents(),
+        before.contents(),
+        "refused blobs leave the flash untouched"
+    );
+
+    // Reboot: the multi-axis slot is found and loaded; a single-axis reader refuses it with the reason.
+    let mut store = ModelStore::open_with(after, EMULATED_LAYOUT, &mut *running);
+    store.load_into(&mut *running).unwrap();
+    assert_eq!(*running, *board_models);
+    assert_eq!(store.load(), Err(blob::DecodeError::MultiAxis));
+}
+
+/// A valid RBF model over (T, ΔT, T×ΔT) with `centers` centres.
+fn wide_model(centers: usize) -> Model {
+    use rbf_core::model::{ModelBody, ModelInfo};
+    use rbf_core::rbf::{RbfNetwork, RbfParams};
+    use rbf_core::{FeatureConfig, FeatureSet};
+    let c: Vec<f32> = (0..centers * 3).map(|i| (i as f32 * 0.37).sin()).collect();
+    let net = RbfNetwork::new(&RbfParams {
+        offset: &[25.0, 0.0, 0.0],
+        scale: &[10.0, 0.5, 12.0],
+        kernel_inputs: 3,
+        centers: &c,
+        widths: &vec![1.0; centers],
+        weights: &vec![0.01; centers],
+        linear: &[0.0; 3],
+        constant: 0.0,
+    })
+    .unwrap();
+    Model::new(
+        FeatureConfig::single(FeatureSet::TempRateProduct, 60.0),
+        &[(10.0, 40.0), (-1.5, 1.5), (-60.0, 60.0)],
+        ModelBody::Rbf(net),
+        ModelInfo::default(),
+    )
+    .unwrap()
 }

@@ -100,3 +100,60 @@ fn replay_and_trainer_agree_on_the_period_when_metadata_repeats_or_is_bad() {
     }
     assert_eq!(out, std::fs::read_to_string(&expected_path).unwrap());
 }
+
+#[test]
+fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_every_axis() {
+    use firmware::replay::AxesReplayer;
+    use rbf_core::blob::axes::{AxisModels, decode_axes_into};
+    use trainer::output::Existing;
+
+    let dir = tempfile::TempDir::new().unwrap();
+    let (blob_path, slice) = common::axes_blob_and_slice(dir.path());
+    let expected_path = dir.path().join("expected.csv");
+    trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+    let expected = std::fs::read_to_string(&expected_path).unwrap();
+
+    // Replayed at the trainer's capacity; the fitted axes (OLS kept at most
+    // 16 centres of those asked for) also fit the three-axis board.
+    let blob = std::fs::read(&blob_path).unwrap();
+    let mut board = Box::new(AxisModels::<{ firmware::AXIS_CENTERS }>::EMPTY);
+    assert_eq!(decode_axes_into(&mut board, &blob), Ok(blob.len()));
+    let mut models = Box::new(AxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
+    decode_axes_into(&mut models, &blob).unwrap();
+    let input = std::fs::read_to_string(&slice).unwrap();
+    let period_s = replay::probe_period(input.lines()).unwrap();
+    let current: [Cell<ReplaySample>; 3] = Default::default();
+    let mut frames: Vec<u8> = Vec::new();
+    let mut out = String::new();
+    let mut replayer = AxesReplayer::new(Some(&*models), period_s, &current, &mut frames).unwrap();
+    for line in input.lines() {
+        replayer.feed_line(line, &mut out).unwrap();
+    }
+    let stats = replayer.stats();
+    assert_eq!(stats.samples as usize, common::AXES_ROWS);
+    assert_eq!(stats.output_errors, 0);
+    let differing = out.lines().zip(expected.lines()).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "rows differ from trainer compensate");
+    assert_eq!(out, expected, "replay output differs from trainer compensate");
+
+    // One frame per row carrying x, y and z, flags as in the CSV's flags_<axis>.
+    let rows: Vec<&str> = out.lines().filter(|l| !l.starts_with('#')).skip(1).collect();
+    let mut seq = 0u32;
+    for chunk in frames.split_mut(|&b| b == 0).filter(|c| !c.is_empty()) {
+        let f = frame::decode_axes(chunk).unwrap();
+        assert_eq!((f.seq, f.axis_mask), (seq, 0b111));
+        let fields: Vec<&str> = rows[seq as usize].split(',').collect();
+        for (i, axis) in f.axes.iter().enumerate() {
+            let csv_flags: u8 = fields[fields.len() - 7 + 3 * i].parse().unwrap();
+            let csv_bias: f32 = fields[fields.len() - 9 + 3 * i].parse().unwrap();
+            assert_eq!((axis.flags, axis.bias_dph), (csv_flags, csv_bias), "row {seq} axis {i}");
+            assert_eq!(
+                axis.flags().contains(Flags::TEMP_SENSOR_FAULT),
+                common::axes_faulty(seq as usize),
+                "row {seq} axis {i}"
+            );
+        }
+        seq += 1;
+    }
+    assert_eq!(seq as usize, common::AXES_ROWS);
+}

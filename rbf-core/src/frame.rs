@@ -1,6 +1,12 @@
 //! Firmware output frames: one per gyro sample, postcard-encoded and
 //! COBS-framed (0x00 ends every frame), so a receiver resynchronises after
 //! any byte loss at the next zero.
+//!
+//! Two frame kinds share the wire, told apart by their decoded length:
+//! a single-axis firmware sends [`OutputFrame`]s (18 … 22 payload bytes),
+//! a multi-axis one [`AxesFrame`]s ([`AXES_FRAME_PAYLOAD_MIN`] …
+//! [`AXES_FRAME_PAYLOAD_MAX`] bytes, led by [`AXES_FRAME_TAG`]); command
+//! replies have 2 (docs/firmware.md, "Output frames").
 
 use serde::{Deserialize, Serialize};
 
@@ -31,6 +37,73 @@ impl OutputFrame {
     pub fn flags(&self) -> Flags {
         Flags(self.flags)
     }
+}
+
+/// First payload byte of an [`AxesFrame`] (its frame format version).
+pub const AXES_FRAME_TAG: u8 = 0xA3;
+/// Shortest payload of an [`AxesFrame`] (tag, 1-byte sequence number,
+/// mask, three axes), bytes.
+pub const AXES_FRAME_PAYLOAD_MIN: usize = 3 + 3 * AXIS_OUTPUT_LEN;
+/// Longest payload of an [`AxesFrame`] (a 5-byte sequence number), bytes.
+pub const AXES_FRAME_PAYLOAD_MAX: usize = 7 + 3 * AXIS_OUTPUT_LEN;
+/// Largest encoded [`AxesFrame`] including COBS overhead and the 0x00 delimiter, bytes.
+pub const MAX_AXES_FRAME_LEN: usize = AXES_FRAME_PAYLOAD_MAX + 2;
+/// Payload bytes of one [`AxisOutput`]: four f32 and the flags byte.
+const AXIS_OUTPUT_LEN: usize = 17;
+
+/// One axis's part of an [`AxesFrame`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AxisOutput {
+    /// Raw gyro rate of the axis, °/h.
+    pub rate_dph: f32,
+    /// Bias estimate subtracted, °/h.
+    pub bias_dph: f32,
+    /// Compensated rate, °/h.
+    pub rate_comp_dph: f32,
+    /// The axis's loop temperature used, °C (NaN if none).
+    pub temp_c: f32,
+    /// The axis's status bits ([`Flags`]).
+    pub flags: u8,
+}
+
+impl AxisOutput {
+    /// The axis's flags.
+    pub fn flags(&self) -> Flags {
+        Flags(self.flags)
+    }
+}
+
+/// What a multi-axis firmware emits for every sample: every axis of the
+/// IMU in one frame, x, y, z (axes not in `axis_mask` are all zero).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AxesFrame {
+    /// [`AXES_FRAME_TAG`]: tells this frame from an [`OutputFrame`] and
+    /// versions its layout.
+    pub tag: u8,
+    /// Sample counter since boot (wraps at 2³²); a gap reveals lost frames.
+    pub seq: u32,
+    /// Axes present: bit 0 = x, bit 1 = y, bit 2 = z.
+    pub axis_mask: u8,
+    /// Per axis, x first.
+    pub axes: [AxisOutput; 3],
+}
+
+/// Encodes `frame` COBS-framed, 0x00-terminated, into `out`; returns the
+/// bytes used. Never panics, as [`encode`].
+pub fn encode_axes(frame: &AxesFrame, out: &mut [u8]) -> Result<usize, FrameError> {
+    let mut raw = [0u8; AXES_FRAME_PAYLOAD_MAX];
+    let raw = postcard::to_slice(frame, &mut raw).map_err(|_| FrameError::BufferTooSmall)?;
+    cobs_encode(raw, out).ok_or(FrameError::BufferTooSmall)
+}
+
+/// Decodes one multi-axis frame from its COBS bytes (with or without the
+/// 0x00), in place; a frame without [`AXES_FRAME_TAG`] is malformed.
+pub fn decode_axes(bytes: &mut [u8]) -> Result<AxesFrame, FrameError> {
+    let frame: AxesFrame = postcard::from_bytes_cobs(bytes).map_err(|_| FrameError::Malformed)?;
+    if frame.tag != AXES_FRAME_TAG {
+        return Err(FrameError::Malformed);
+    }
+    Ok(frame)
 }
 
 /// Why bytes are not a frame.
@@ -153,6 +226,60 @@ mod tests {
             let reference = postcard::to_slice_cobs(&frame, &mut theirs).unwrap();
             assert_eq!(&ours[..n], reference, "frame {frame:?}");
         }
+    }
+
+    #[test]
+    fn axes_frames_round_trip_within_their_bounds_and_never_pass_for_single_axis_frames() {
+        let axis = |i: u8| AxisOutput {
+            rate_dph: f32::from(i) * 1.5,
+            bias_dph: -0.25,
+            rate_comp_dph: f32::MAX,
+            temp_c: if i == 1 { f32::NAN } else { 25.0 },
+            flags: i,
+        };
+        for seq in [0u32, 127, 128, u32::MAX] {
+            let frame = AxesFrame {
+                tag: AXES_FRAME_TAG,
+                seq,
+                axis_mask: 0b111,
+                axes: [axis(0), axis(1), axis(2)],
+            };
+            let mut buf = [0u8; MAX_AXES_FRAME_LEN];
+            let n = encode_axes(&frame, &mut buf).unwrap();
+            assert_eq!(buf[n - 1], 0);
+            assert!(!buf[..n - 1].contains(&0));
+            let mut raw = [0u8; 64];
+            let payload = postcard::to_slice(&frame, &mut raw).unwrap().len();
+            assert!((AXES_FRAME_PAYLOAD_MIN..=AXES_FRAME_PAYLOAD_MAX).contains(&payload));
+            let back = decode_axes(&mut buf[..n]).unwrap();
+            assert_eq!((back.seq, back.axis_mask), (seq, 0b111));
+            assert!(back.axes[1].temp_c.is_nan());
+            assert_eq!(back.axes[2].flags(), Flags(2));
+        }
+        let single = OutputFrame {
+            seq: 7,
+            rate_dph: 1.0,
+            bias_dph: 2.0,
+            rate_comp_dph: -1.0,
+            temp_c: 20.0,
+            flags: 0,
+        };
+        // A single-axis frame is too short to pass for one, whatever its sequence number.
+        for seq in [7u32, 0xA3, 0xA3A3_A3A3] {
+            let mut buf = [0u8; MAX_FRAME_LEN];
+            let n = encode(&OutputFrame { seq, ..single }, &mut buf).unwrap();
+            assert_eq!(decode_axes(&mut buf[..n]), Err(FrameError::Malformed));
+        }
+        // A wrong tag is refused.
+        let mut frame_bytes = [0u8; MAX_AXES_FRAME_LEN];
+        let wrong = AxesFrame {
+            tag: 0x01,
+            seq: 1,
+            axis_mask: 1,
+            axes: [AxisOutput::default(); 3],
+        };
+        let n = encode_axes(&wrong, &mut frame_bytes).unwrap();
+        assert_eq!(decode_axes(&mut frame_bytes[..n]), Err(FrameError::Malformed));
     }
 
     #[test]

@@ -124,3 +124,69 @@ pub fn cubic_model() -> rbf_core::Model {
     )
     .expect("valid cubic model")
 }
+
+/// Data rows of the three-axis slice.
+pub const AXES_ROWS: usize = 15_000;
+
+/// True on the three-axis slice's rows with `temp_fault` = 1 (every
+/// axis's thermometers fail): a burst and an outage past the 10-s hold.
+pub fn axes_faulty(row: usize) -> bool {
+    (3000..3005).contains(&row) || (9000..9040).contains(&row)
+}
+
+/// A three-axis IMU as `trainer simulate --axes 3` writes it: fits each
+/// axis of a 1 °C/min chamber run with the default features (asking for
+/// 32, 24 and 16 centres, so the axes differ in model; OLS keeps at most 16), writes the multi-axis blob as `trainer fit` does
+/// and the first [`AXES_ROWS`] rows of a 2 °C/min cycle run with a
+/// `temp_fault` column ([`axes_faulty`]) into `dir`; returns (blob path,
+/// slice path).
+pub fn axes_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
+    use rbf_core::record::Axis;
+    use trainer::dataset::RunFiles;
+    use trainer::simulate::axes::write_axes_csv;
+
+    let mut chamber = ChamberRun::ifog(1.0, 61);
+    chamber.hold_s = 1800.0;
+    let mut train_csv = Vec::new();
+    write_axes_csv(&chamber, 3, false, &mut train_csv).expect("simulate three axes");
+    let train = dir.join("train_axes.csv");
+    std::fs::write(&train, &train_csv).expect("write training run");
+    let none: &[Run] = &[];
+    let options = [(Axis::X, 32, 60.0), (Axis::Y, 24, 60.0), (Axis::Z, 16, 15.0)];
+    let mut models = Vec::new();
+    for (axis, centers, rate_window_s) in options {
+        let opts = FitOptions {
+            centers: Some(centers),
+            rate_windows_s: vec![rate_window_s],
+            ..FitOptions::default()
+        };
+        let runs = RunFiles::for_axis(std::slice::from_ref(&train), Some(axis));
+        let model = fit::fit(&runs, none, &opts).expect("fit an axis").model;
+        models.push((axis, model));
+    }
+    let refs: Vec<(Axis, &rbf_core::Model)> = models.iter().map(|(a, m)| (*a, m)).collect();
+    let blob = trainer::blobfile::encode_axis_models(&refs).expect("encode the axes");
+    let blob_path = dir.join("axes.bin");
+    std::fs::write(&blob_path, blob).expect("write blob");
+
+    let mut verify_csv = Vec::new();
+    write_axes_csv(&ChamberRun::cycle(2.0, 62), 3, false, &mut verify_csv).expect("simulate three axes");
+    let verify = String::from_utf8(verify_csv).expect("UTF-8 run");
+    let mut text = String::new();
+    let mut data = 0;
+    for line in verify.lines() {
+        if line.starts_with('#') {
+            text.push_str(line);
+            text.push('\n');
+        } else if line.starts_with("time_s") {
+            text.push_str(&format!("{line},temp_fault\n"));
+        } else if data < AXES_ROWS {
+            text.push_str(&format!("{line},{}\n", u8::from(axes_faulty(data))));
+            data += 1;
+        }
+    }
+    assert_eq!(data, AXES_ROWS, "the verify run is shorter than the slice");
+    let slice = dir.join("slice_axes.csv");
+    std::fs::write(&slice, text).expect("write slice");
+    (blob_path, slice)
+}

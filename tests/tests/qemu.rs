@@ -96,6 +96,46 @@ fn qemu_replay_of_a_multi_point_run_reads_eight_tmp117s_and_matches_trainer_comp
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn qemu_replay_of_a_three_axis_run_is_byte_identical_to_trainer_compensate() {
+    let dir = TempDir::new().unwrap();
+    let (blob_path, slice) = fixtures::axes_blob_and_slice(dir.path());
+    let expected_path = dir.path().join("expected.csv");
+    trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+    let out = dir.path().join("qemu.csv");
+    let frames_path = dir.path().join("frames.bin");
+    let summary = xtask::replay::qemu_replay(&blob_path, &slice, &out, Some(&frames_path)).unwrap();
+    assert_eq!(summary.samples, fixtures::AXES_ROWS);
+    let (got, want) = (
+        std::fs::read_to_string(&out).unwrap(),
+        std::fs::read_to_string(&expected_path).unwrap(),
+    );
+    assert_eq!(got.lines().count(), want.lines().count());
+    let differing = got.lines().zip(want.lines()).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "rows of the QEMU replay differ from trainer compensate");
+    assert!(got == want, "QEMU replay output differs from trainer compensate");
+
+    // One frame per row with x, y and z; flag 2 on every axis exactly on the faulted rows.
+    let mut frames = std::fs::read(&frames_path).unwrap();
+    let decoded: Vec<_> = frames
+        .split_mut(|&b| b == 0)
+        .filter(|c| !c.is_empty())
+        .map(|c| frame::decode_axes(c).unwrap())
+        .collect();
+    assert_eq!(decoded.len(), fixtures::AXES_ROWS);
+    for (i, f) in decoded.iter().enumerate() {
+        assert_eq!((f.seq as usize, f.axis_mask), (i, 0b111));
+        for axis in &f.axes {
+            assert_eq!(
+                axis.flags().contains(Flags::TEMP_SENSOR_FAULT),
+                fixtures::axes_faulty(i),
+                "row {i}"
+            );
+        }
+    }
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn corrupt_model_slot_runs_uncompensated_with_flag_4_never_halts() {
     // The replay command refuses a corrupt blob up front (as trainer compensate
     // does), so place the corrupt bytes in flash directly and run the image.
@@ -183,6 +223,26 @@ fn the_board_image_takes_an_update_and_a_bench_command_within_its_ram_budget() {
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn the_three_axis_board_takes_a_three_axis_update_within_the_boards_budgets() {
+    // The stm32f405 binary with board-axes (and board-qemu): three models of
+    // firmware::AXIS_CENTERS centres at boot, a three-axis install and a bench
+    // command over its UART, 10,000 samples; flash, static RAM and stack fit.
+    let run = xtask::board_stack::measure_axes().unwrap();
+    assert!(run.summary.contains("update Some(Installed)"), "{run:?}");
+    assert!(run.frames > 10_000, "one frame per sample and the replies: {run:?}");
+    let board = xtask::firmware::build("stm32f405", &["board-axes"]).unwrap();
+    let size = xtask::firmware::image_size(&board).unwrap();
+    assert!(
+        size.static_ram + run.stack_peak_bytes <= 16 * 1024,
+        "static RAM {} B + stack {} B over 16 KiB",
+        size.static_ram,
+        run.stack_peak_bytes
+    );
+    assert!(size.flash <= 64 * 1024 && size.largest_rodata.1 <= 4096, "{size:?}");
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn fault_campaign_on_the_target_loses_no_sample_and_never_panics() {
     let dir = TempDir::new().unwrap();
     let (model, _) = fixtures::model_and_faulty_slice(dir.path());
@@ -208,6 +268,9 @@ fn fault_campaign_on_the_target_loses_no_sample_and_never_panics() {
         "accepted 0",
         "booted invalid 0 retry failures 0",
         "expected replies 5 switched true",
+        "faults: axes: y thermometer failing: samples 20000 frames 20000",
+        "missing-flags 0 y-uncompensated",
+        "others-disturbed 0 temp-read-faults x 0 y",
     ] {
         assert!(report.contains(must), "`{must}` missing from:\n{report}");
     }

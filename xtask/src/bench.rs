@@ -9,6 +9,8 @@ use crate::{firmware, qemu};
 
 /// Static RAM plus stack the board may use (issue budget: 16 KiB).
 const RAM_BUDGET_BYTES: u64 = 16 * 1024;
+/// Flash the board image may use (issue budget: 64 KiB).
+const FLASH_BUDGET_BYTES: u64 = 64 * 1024;
 
 /// Runs the benchmark image and prints its figures; the last line printed is
 /// `instructions_per_sample K=32 D=3: N`, N the model evaluation's count.
@@ -17,6 +19,11 @@ pub fn bench_fw() -> anyhow::Result<()> {
     // First: it builds the board binary with `board-qemu` to the path the
     // board image is built to next.
     let board_run = crate::board_stack::measure()?;
+    let axes_run = crate::board_stack::measure_axes()?;
+    // The three-axis board image, kept apart from the single-axis one built to the same path.
+    let axes_board_dir = tempfile::TempDir::new()?;
+    let axes_board = axes_board_dir.path().join("stm32f405-axes");
+    std::fs::copy(firmware::build("stm32f405", &["board-axes"])?, &axes_board)?;
     let bench = firmware::build("qemu-bench", &[])?;
     let replay = firmware::build("qemu-replay", &["test-harness"])?;
     let board = firmware::build("stm32f405", &["board-stm32f405"])?;
@@ -40,6 +47,14 @@ pub fn bench_fw() -> anyhow::Result<()> {
     let Some(k32) = k32 else {
         bail!("no K=32 figure in the benchmark output:\n{}", result.log)
     };
+    // The three-axis line: `instructions_per_sample axes=3 K=32 D=3: N`.
+    let three_axes = lines.iter().any(|l| {
+        l.strip_prefix("instructions_per_sample axes=3 K=32 D=3: ")
+            .is_some_and(|n| n.parse::<u64>().is_ok())
+    });
+    if !three_axes {
+        bail!("no three-axis figure in the benchmark output:\n{}", result.log)
+    }
     println!(
         "firmware benchmark (QEMU {}, -icount shift=0, SysTick at 168 MHz; counts are instructions)",
         qemu::MACHINE
@@ -47,7 +62,8 @@ pub fn bench_fw() -> anyhow::Result<()> {
     println!(
         "per compensated sample: evaluation = rbf_core::Model::eval (clamping, normalisation, Gaussians, linear \
          terms; harness loop subtracted); whole step = rbf_core::Compensator::process (gap and fault logic, \
-         feature filters, evaluation, flags)"
+         feature filters, evaluation, flags); axes=3: the three axes' whole steps of one sample, each axis its own \
+         K=32 D=3 model decoded from one multi-axis blob"
     );
     for line in lines.iter().filter(|l| !is_contract(l)) {
         println!("  {line}");
@@ -58,7 +74,7 @@ pub fn bench_fw() -> anyhow::Result<()> {
     println!("(the K=32 D=3 line repeats last, as the contract asks)");
     println!("images (release, {}):", firmware::TARGET);
     println!(
-        "  {:<12} {:>10} {:>15} {:>22}  what",
+        "  {:<13} {:>10} {:>15} {:>22}  what",
         "image", "flash [B]", "static RAM [B]", "largest rodata [B]"
     );
     let images = [
@@ -66,6 +82,11 @@ pub fn bench_fw() -> anyhow::Result<()> {
             "stm32f405",
             &board,
             "the gyro board (what is flashed); model blob in its own 128 KiB slot",
+        ),
+        (
+            "stm32f405-3ax",
+            &axes_board,
+            "the same board for a three-axis IMU (feature board-axes): three models of firmware::AXIS_CENTERS centres",
         ),
         (
             "qemu-replay",
@@ -77,7 +98,7 @@ pub fn bench_fw() -> anyhow::Result<()> {
     for (name, elf, what) in images {
         let size = firmware::image_size(elf)?;
         println!(
-            "  {name:<12} {:>10} {:>15} {:>22}  {what}",
+            "  {name:<13} {:>10} {:>15} {:>22}  {what}",
             size.flash, size.static_ram, size.largest_rodata.1
         );
         if !size.exp2_table_in_ram {
@@ -98,6 +119,23 @@ pub fn bench_fw() -> anyhow::Result<()> {
     println!(
         "  static RAM + board stack peak: {} B (budget {} B)",
         board_size.static_ram + board_run.stack_peak_bytes,
+        RAM_BUDGET_BYTES
+    );
+    let axes_size = firmware::image_size(&axes_board)?;
+    println!(
+        "stm32f405 three-axis board under QEMU (board-qemu + board-axes: three K={} models at boot, a three-axis \
+         update and a bench command over the UART ({} steps reported), {} frames received; {})",
+        firmware_lib::AXIS_CENTERS,
+        axes_run.bench_steps,
+        axes_run.frames,
+        axes_run.summary
+    );
+    println!("  board_axes_stack_peak_bytes {}", axes_run.stack_peak_bytes);
+    println!(
+        "  three-axis board: flash {} B (budget {} B), static RAM + stack peak: {} B (budget {} B)",
+        axes_size.flash,
+        FLASH_BUDGET_BYTES,
+        axes_size.static_ram + axes_run.stack_peak_bytes,
         RAM_BUDGET_BYTES
     );
     println!("{k32}");

@@ -14,9 +14,11 @@ use std::sync::atomic::{AtomicU8, AtomicU32, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
+use rbf_core::blob::axes::AxisModels;
 use rbf_core::lag_bank::LagBank;
 use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
+use rbf_core::record::Axis;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 
 use crate::replay::MODEL_SLOT_A;
@@ -44,16 +46,20 @@ pub struct BoardRun {
 /// A K = 32 network over `dims` inputs with Gaussians over the first
 /// `kernel` (values like a real fit's, shared width).
 fn network(dims: usize, kernel: usize, scale: &[f32]) -> anyhow::Result<RbfNetwork<64, 12>> {
-    const K: usize = 32;
-    let mut state = 0x2545_f491u32;
+    network_of(32, 0x2545_f491, dims, kernel, scale)
+}
+
+/// [`network`] with `k` centres and its values drawn from `seed`.
+fn network_of(k: usize, seed: u32, dims: usize, kernel: usize, scale: &[f32]) -> anyhow::Result<RbfNetwork<64, 12>> {
+    let mut state = seed;
     let mut next = || {
         state ^= state << 13;
         state ^= state >> 17;
         state ^= state << 5;
         (state >> 8) as f32 / (1 << 24) as f32 * 4.0 - 2.0
     };
-    let centers: Vec<f32> = (0..K * kernel).map(|_| next()).collect();
-    let weights: Vec<f32> = (0..K).map(|_| 0.05 * next()).collect();
+    let centers: Vec<f32> = (0..k * kernel).map(|_| next()).collect();
+    let weights: Vec<f32> = (0..k).map(|_| 0.05 * next()).collect();
     let mut offset = vec![0.0; dims];
     offset[0] = 25.0;
     RbfNetwork::new(&RbfParams {
@@ -61,7 +67,7 @@ fn network(dims: usize, kernel: usize, scale: &[f32]) -> anyhow::Result<RbfNetwo
         scale,
         kernel_inputs: kernel,
         centers: &centers,
-        widths: &[1.5; K],
+        widths: &vec![1.5; k],
         weights: &weights,
         linear: &vec![0.01; dims],
         constant: 0.05,
@@ -79,7 +85,12 @@ fn boot_model() -> anyhow::Result<Model> {
 
 /// The update: a lag bank of five filters, K = 32 over T̂.
 fn update_model() -> anyhow::Result<Model> {
-    let net = network(8, 1, &[10.0, 300.0, 8000.0, 0.5, 0.4, 0.3, 0.2, 0.1])?;
+    lag_bank_model(32, 0x2545_f491)
+}
+
+/// A lag bank of five filters with `k` centres over T̂, its values drawn from `seed`.
+fn lag_bank_model(k: usize, seed: u32) -> anyhow::Result<Model> {
+    let net = network_of(k, seed, 8, 1, &[10.0, 300.0, 8000.0, 0.5, 0.4, 0.3, 0.2, 0.1])?;
     let mut bank = LagBank::plain(&[30.0, 120.0, 480.0, 1920.0, 7680.0], 25.0).context("bank")?;
     bank.coil_lag_min[..5].copy_from_slice(&[-0.5, -2.0, -8.0, -30.0, -100.0]);
     bank.static_degree = 3;
@@ -97,15 +108,57 @@ fn encode(model: &Model) -> anyhow::Result<Vec<u8>> {
     Ok(blob)
 }
 
+/// The three-axis board's models at boot: per axis the paper's (T, ΔT,
+/// T×ΔT) with as many centres as the board holds
+/// ([`firmware_lib::AXIS_CENTERS`]), each axis its own values.
+fn boot_axes() -> anyhow::Result<Vec<u8>> {
+    let mut axes = Box::new(AxisModels::<64>::EMPTY);
+    for (axis, seed) in Axis::ALL.into_iter().zip([0x2545_f491, 0x9E37_79B9, 0x1234_5678]) {
+        let net = network_of(firmware_lib::AXIS_CENTERS, seed, 3, 3, &[10.0, 0.5, 12.0])?;
+        let features = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
+        let ranges = [(0.0, 50.0), (-3.0, 3.0), (-150.0, 150.0)];
+        let model = Model::new(features, &ranges, ModelBody::Rbf(net), ModelInfo::default())
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        axes.insert(axis, model);
+    }
+    encode_axes_blob(&axes)
+}
+
+/// The three-axis board's update: per axis a lag bank of five filters
+/// with [`firmware_lib::AXIS_CENTERS`] centres over T̂.
+fn update_axes() -> anyhow::Result<Vec<u8>> {
+    let mut axes = Box::new(AxisModels::<64>::EMPTY);
+    for (axis, seed) in Axis::ALL.into_iter().zip([0x0BAD_CAFE, 0x2545_f491, 7]) {
+        axes.insert(axis, lag_bank_model(firmware_lib::AXIS_CENTERS, seed)?);
+    }
+    encode_axes_blob(&axes)
+}
+
+fn encode_axes_blob(axes: &AxisModels<64>) -> anyhow::Result<Vec<u8>> {
+    let mut blob = vec![0u8; rbf_core::blob::MAX_BLOB_LEN];
+    let n = rbf_core::blob::axes::encode_axes(axes, &mut blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    blob.truncate(n);
+    Ok(blob)
+}
+
 /// Builds the `board-qemu` image and runs it as the module docs say.
 pub fn measure() -> anyhow::Result<BoardRun> {
-    let built = firmware::build("stm32f405", &["board-qemu"])?;
+    measure_image(&["board-qemu"], encode(&boot_model()?)?, encode(&update_model()?)?)
+}
+
+/// [`measure`] for the three-axis board (`board-axes`): a multi-axis blob
+/// at boot and a multi-axis update, one frame per sample with every axis.
+pub fn measure_axes() -> anyhow::Result<BoardRun> {
+    measure_image(&["board-qemu", "board-axes"], boot_axes()?, update_axes()?)
+}
+
+fn measure_image(features: &[&str], boot: Vec<u8>, update: Vec<u8>) -> anyhow::Result<BoardRun> {
+    let built = firmware::build("stm32f405", features)?;
     let dir = tempfile::TempDir::new()?;
     // The real board image is built to the same path: keep this one apart.
     let elf = dir.path().join("stm32f405-qemu");
     std::fs::copy(&built, &elf).context("copy the board-qemu image")?;
-    std::fs::write(dir.path().join("boot.bin"), encode(&boot_model()?)?)?;
-    let update = encode(&update_model()?)?;
+    std::fs::write(dir.path().join("boot.bin"), boot)?;
     let mut commands = vec![0u8; firmware_lib::update::MAX_COMMAND_FRAME_LEN];
     let n = firmware_lib::update::encode_install_command(&update, &mut commands).context("encode the command")?;
     commands.truncate(n);

@@ -116,6 +116,26 @@ pub fn ci() -> anyhow::Result<()> {
         "--bin",
         "stm32f405",
     ];
+    let axes_board = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "board-axes",
+        "--bin",
+        "stm32f405",
+    ];
+    let axes_qemu_board = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "board-qemu,board-axes",
+        "--bin",
+        "stm32f405",
+    ];
     let panic_check = [
         "--package",
         "firmware",
@@ -131,6 +151,8 @@ pub fn ci() -> anyhow::Result<()> {
         &stm32_board[..],
         &debug_board[..],
         &qemu_board[..],
+        &axes_board[..],
+        &axes_qemu_board[..],
         &panic_check[..],
     ] {
         run("cargo", &[&["clippy"][..], board, &["--", "-D", "warnings"]].concat())?;
@@ -146,7 +168,7 @@ pub fn ci() -> anyhow::Result<()> {
             "--no-default-features",
         ],
     )?;
-    for board in [&qemu_boards[..], &stm32_board[..], &debug_board[..]] {
+    for board in [&qemu_boards[..], &stm32_board[..], &debug_board[..], &axes_board[..]] {
         run("cargo", &[&["build", "--release"][..], board].concat())?;
     }
     crate::firmware::check_panic_free()?;

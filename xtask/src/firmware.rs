@@ -84,11 +84,19 @@ pub fn check_panic_free() -> anyhow::Result<()> {
     check_board_panics()
 }
 
-/// Builds the board image (what is flashed) and proves from its machine
-/// code that no panic is reachable after init ([`crate::panic_paths`]).
+/// Builds the board image (what is flashed), single-axis and three-axis
+/// (`board-axes`), and proves from their machine code that no panic is
+/// reachable after init ([`crate::panic_paths`]).
 pub fn check_board_panics() -> anyhow::Result<()> {
     eprintln!("\n==> board image: no panic reachable from its loop and interrupt handlers");
     let board = build("stm32f405", &["board-stm32f405"])?;
+    let reach = crate::panic_paths::check_board_image(&board)?;
+    eprintln!(
+        "    ok: {} functions reachable from run_forever, EXTI0, USART1 and HardFault; none panics",
+        reach.functions
+    );
+    eprintln!("\n==> three-axis board image (board-axes): no panic reachable from its loop and interrupt handlers");
+    let board = build("stm32f405", &["board-axes"])?;
     let reach = crate::panic_paths::check_board_image(&board)?;
     eprintln!(
         "    ok: {} functions reachable from run_forever, EXTI0, USART1 and HardFault; none panics",

@@ -4,7 +4,7 @@
 //! - [`firmware`]: cross builds of the board binaries;
 //! - [`qemu`]: running an image under `qemu-system-arm` with a hard deadline;
 //! - [`replay`]: `cargo xtask qemu-replay`;
-//! - [`bench`]: `cargo xtask bench-fw`; [`board_stack`]: its board stack measurement;
+//! - [`bench`](mod@bench): `cargo xtask bench-fw`; [`board_stack`]: its board stack measurement;
 //! - [`accuracy`]: `cargo xtask bench-accuracy`;
 //! - [`fuzz`]: `cargo xtask fuzz`;
 //! - [`faults`]: `cargo xtask qemu-faults`;

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use anyhow::{Context, bail};
-use trainer::blobfile::read_model;
+use trainer::blobfile::read_model_file;
 use trainer::run::Run;
 
 use crate::{firmware, qemu};
@@ -25,8 +25,9 @@ pub struct ReplaySummary {
 /// Replays `run` with `model` through the `qemu-replay` image; writes the
 /// compensated run to `output` and, if asked, the UART frames to `frames`.
 pub fn qemu_replay(model: &Path, run: &Path, output: &Path, frames: Option<&Path>) -> anyhow::Result<ReplaySummary> {
-    // Refuse what `trainer compensate` refuses, with its messages.
-    read_model(model)?;
+    // Refuse what `trainer compensate` refuses, with its messages: a
+    // single-axis blob (format 2) or a multi-axis one (format 3).
+    read_model_file(model)?;
     let rows = Run::load(run)?.len();
     let elf = firmware::build("qemu-replay", &["test-harness"])?;
     let dir = tempfile::TempDir::new().context("cannot create a working directory")?;

@@ -1,6 +1,8 @@
 //! Firmware benchmark board for QEMU (netduinoplus2): instructions per
 //! compensated sample for K = 8, 16, 32, 64 Gaussian centres at D = 3, for
-//! the multi-scale sets and for a lag bank of five filters (K = 32).
+//! the multi-scale sets and for a lag bank of five filters (K = 32), and the
+//! whole step of a three-axis IMU (three K = 32, D = 3 models decoded from
+//! one multi-axis blob, one compensator per axis).
 //!
 //! QEMU runs with `-icount shift=0` (one instruction = 1 ns of virtual time),
 //! so SysTick on the 168 MHz core clock counts 0.168 ticks per instruction:
@@ -14,9 +16,12 @@ mod board {
     use cortex_m::peripheral::syst::SystClkSource;
     use cortex_m_rt::entry;
     use cortex_m_semihosting::{debug, hprintln};
+    use rbf_core::blob::MAX_BLOB_LEN;
+    use rbf_core::blob::axes::{AxisModels, decode_axes_into, encode_axes};
     use rbf_core::lag_bank::LagBank;
     use rbf_core::model::{ModelBody, ModelInfo};
     use rbf_core::rbf::{RbfNetwork, RbfParams};
+    use rbf_core::record::{Axis, MAX_AXES};
     use rbf_core::{
         Compensator, CompensatorConfig, FeatureConfig, FeatureSet, FeatureVector, GyroSample, MAX_CENTERS, Model,
     };
@@ -41,8 +46,33 @@ mod board {
 
     /// A deterministic K-centre model of `shape` with values like a real fit's.
     fn model(k: usize, shape: Shape, width: f32) -> Model {
+        model_seeded(k, shape, width, 0x2545_f491)
+    }
+
+    /// The three axes' models of the three-axis figure, each K = 32, D = 3
+    /// (different centres and weights per axis), through a multi-axis blob,
+    /// decoded as a firmware decodes them. The capacity is the single-axis
+    /// figures' (64): one instantiation of the step, so the figures above
+    /// are those of the same code (the per-axis step does not depend on it).
+    static mut AXES: AxisModels = AxisModels::EMPTY;
+
+    #[allow(unsafe_code)]
+    fn axis_models() -> &'static AxisModels {
+        let mut all = AxisModels::<{ MAX_CENTERS }>::EMPTY;
+        for (axis, seed) in Axis::ALL.into_iter().zip([0x2545_f491u32, 0x9E37_79B9, 0x1234_5678]) {
+            all.insert(axis, model_seeded(32, Shape::Paper, 1.5, seed));
+        }
+        let mut blob = [0u8; MAX_BLOB_LEN];
+        let n = encode_axes(&all, &mut blob).expect("three K = 32 models fit a blob");
+        // SAFETY: the only reference to AXES, taken once.
+        let axes = unsafe { &mut *core::ptr::addr_of_mut!(AXES) };
+        decode_axes_into(axes, &blob[..n]).expect("the blob decodes");
+        axes
+    }
+
+    fn model_seeded(k: usize, shape: Shape, width: f32, seed: u32) -> Model {
         let (dims, kernel) = if shape == Shape::Paper { (D, D) } else { (8, 1) };
-        let mut state = 0x2545_f491u32;
+        let mut state = seed;
         let mut next = || {
             state ^= state << 13;
             state ^= state >> 17;
@@ -235,6 +265,22 @@ mod board {
                 hprintln!("instructions_per_sample K=32 D=3: {}", eval);
             }
         }
+        // Three axes: per sample each axis's compensator runs its own model
+        // on its own rate and coil temperature (the multi-axis loop's step).
+        let axes = axis_models();
+        let mut compensators = [Compensator::new(); MAX_AXES];
+        let mut temps_c = [20.0f32, 21.0, 22.0];
+        let start = SYST::get_current();
+        for _ in 0..SAMPLES {
+            for ((axis, compensator), temp_c) in Axis::ALL.into_iter().zip(&mut compensators).zip(&mut temps_c) {
+                *temp_c += 0.0001;
+                let sample = GyroSample::new(0.001, 12.5, Some(*temp_c));
+                let model = core::hint::black_box(axes).get(axis);
+                core::hint::black_box(compensator.process_with(model, &config, &sample));
+            }
+        }
+        let step = instructions_per_sample(start);
+        hprintln!("instructions_per_sample axes=3 K=32 D=3: {}", step);
         hprintln!("stack_peak_bytes {}", firmware::board::stack_peak_bytes());
         debug::exit(debug::EXIT_SUCCESS);
         loop {

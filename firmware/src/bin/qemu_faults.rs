@@ -14,8 +14,37 @@
 mod board {
     use cortex_m_rt::entry;
     use cortex_m_semihosting::{debug, hprintln};
-    use firmware::fault_injection::{bit_flip_campaign, command_campaign, power_cut_campaign, sensor_campaign};
-    use rbf_core::blob::{self, Header};
+    use firmware::fault_injection::{
+        axis_thermometer_campaign, bit_flip_campaign, command_campaign, power_cut_campaign, sensor_campaign,
+    };
+    use rbf_core::blob::axes::{AxisModels, decode_axes_into, encode_axes};
+    use rbf_core::blob::{self, Header, MAX_BLOB_LEN};
+    use rbf_core::record::Axis;
+
+    /// A three-axis IMU's models: x and z the running model, y the update
+    /// (built into a multi-axis blob, decoded with the board's capacity).
+    static mut ALL_AXES: AxisModels = AxisModels::EMPTY;
+    static mut BOARD_AXES: AxisModels<{ firmware::AXIS_CENTERS }> = AxisModels::EMPTY;
+    static mut AXES_BLOB: [u8; MAX_BLOB_LEN] = [0; MAX_BLOB_LEN];
+
+    #[allow(unsafe_code)]
+    fn board_axes(old: &[u8], new: &[u8]) -> Option<&'static AxisModels<{ firmware::AXIS_CENTERS }>> {
+        // SAFETY: the only references to these statics, taken once in main.
+        let (all, board, buf) = unsafe {
+            (
+                &mut *core::ptr::addr_of_mut!(ALL_AXES),
+                &mut *core::ptr::addr_of_mut!(BOARD_AXES),
+                &mut *core::ptr::addr_of_mut!(AXES_BLOB),
+            )
+        };
+        let (old, new) = (blob::decode(old).ok()?.model, blob::decode(new).ok()?.model);
+        all.insert(Axis::X, old.clone());
+        all.insert(Axis::Y, new);
+        all.insert(Axis::Z, old);
+        let n = encode_axes(all, buf).ok()?;
+        decode_axes_into(board, buf.get(..n)?).ok()?;
+        Some(board)
+    }
 
     /// Gyro samples of the sensor-fault campaign.
     const SAMPLES: u32 = 20_000;
@@ -88,11 +117,30 @@ mod board {
             commands.expected_replies,
             commands.switched
         );
-        let injected = sensors.faults() + flips_old + flips_new + update.resets + (commands.commands - 1);
+        let Some(axes_models) = board_axes(old, new) else {
+            hprintln!("faults: the slots' models do not make a three-axis blob the board holds");
+            finish(false)
+        };
+        let axes = axis_thermometer_campaign(Some(axes_models), Axis::Y, SAMPLES, SEED);
+        let [tx, ty, tz] = axes.temp_read_faults_per_axis;
+        hprintln!(
+            "faults: axes: y thermometer failing: samples {} frames {} faulty-samples {} missing-flags {} y-uncompensated {} others-disturbed {} temp-read-faults x {} y {} z {}",
+            axes.samples,
+            axes.frames,
+            axes.faulty_samples,
+            axes.missing_flags,
+            axes.failing_uncompensated,
+            axes.healthy_disturbed,
+            tx,
+            ty,
+            tz
+        );
+        let injected =
+            sensors.faults() + flips_old + flips_new + update.resets + (commands.commands - 1) + axes.faulty_samples;
         hprintln!(
             "faults injected {}, samples lost {}, panics 0, stack_peak_bytes {}",
             injected,
-            sensors.samples_lost,
+            sensors.samples_lost + axes.samples_lost,
             firmware::board::stack_peak_bytes()
         );
         let ok = sensors.samples_lost == 0
@@ -102,7 +150,14 @@ mod board {
             && update.booted_invalid == 0
             && update.retry_failures == 0
             && commands.expected_replies == commands.commands
-            && commands.switched;
+            && commands.switched
+            && axes.samples_lost == 0
+            && axes.missing_flags == 0
+            && axes.healthy_disturbed == 0
+            && axes.failing_uncompensated > 0
+            && tx == 0
+            && tz == 0
+            && ty == axes.faulty_samples;
         finish(ok)
     }
 }

@@ -4,7 +4,11 @@
 //! the model from flash slot MODEL_A (placed with `-device loader`), replays
 //! the run through the real drivers on emulated buses ([`firmware::replay`])
 //! and writes `output.csv` (byte-identical to `trainer compensate`) and
-//! `frames.bin` (the UART frames). Run it with `cargo xtask qemu-replay`.
+//! `frames.bin` (the UART frames). A multi-axis run (`rate_x_dph` …) takes
+//! a multi-axis blob (format 3), decoded with the trainer's capacity
+//! ([`rbf_core::MAX_CENTERS`] per axis: the replay checks the loop, not the
+//! three-axis board's RAM), and goes through the multi-axis loop, one frame
+//! per row with every axis. Run it with `cargo xtask qemu-replay`.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
@@ -15,7 +19,8 @@ mod board {
 
     use cortex_m_rt::entry;
     use cortex_m_semihosting::{debug, hprintln, nr, syscall};
-    use firmware::replay::{PeriodProbe, ReplaySample, Replayer};
+    use firmware::replay::{AxesReplayer, PeriodProbe, ReplaySample, Replayer};
+    use rbf_core::blob::axes::{AxisModels, decode_axes_into};
 
     /// Longest input line, bytes.
     const LINE_CAPACITY: usize = 1024;
@@ -190,17 +195,15 @@ mod board {
         }
     }
 
+    /// The axis models of a multi-axis replay (decoded in place, as the board does).
+    static mut AXIS_MODELS: AxisModels<{ rbf_core::MAX_CENTERS }> = AxisModels::EMPTY;
+
     #[entry]
     fn main() -> ! {
         firmware::board::paint_stack();
-        let model = firmware::load_model(firmware::board::model_slot_a());
-        if let Err(e) = &model {
-            hprintln!("replay: model slot refused ({}); output uncompensated with flag 4", e);
-        }
-        let model = model.ok();
 
-        // Pass 1: nominal period by the shared rule.
-        let period_s = {
+        // Pass 1: nominal period by the shared rule, and whether the run has axes.
+        let (period_s, multi_axis) = {
             let Some(mut lines) = HostLines::open("input.csv\0") else {
                 fail("cannot open input.csv")
             };
@@ -212,7 +215,7 @@ mod board {
                     _ => fail("input.csv: unreadable header or row"),
                 }
             }
-            probe.period_s()
+            (probe.period_s(), probe.is_multi_axis())
         };
 
         // Pass 2: replay through the drivers and the loop.
@@ -229,22 +232,54 @@ mod board {
             stream: output,
             buf: heapless::String::new(),
         };
-        let current = Cell::new(ReplaySample::default());
-        let Ok(mut replayer) = Replayer::new(model.as_ref(), period_s, &current, HostWriter(frames)) else {
-            fail("emulated devices did not initialise")
-        };
-        while let Some(line) = lines.next_line() {
-            let Ok(line) = line else {
-                fail("input.csv: a line is too long or not UTF-8")
+        let stats = if multi_axis {
+            // SAFETY: the only reference to AXIS_MODELS, taken once in main.
+            let models = unsafe { &mut *core::ptr::addr_of_mut!(AXIS_MODELS) };
+            let models = match decode_axes_into(models, firmware::board::model_slot_a()) {
+                Ok(_) => Some(&*models),
+                Err(e) => {
+                    hprintln!("replay: model slot refused ({}); output uncompensated with flag 4", e);
+                    None
+                }
             };
-            if replayer.feed_line(line, &mut out).is_err() {
-                fail("input.csv: malformed line or output refused");
+            let current: [Cell<ReplaySample>; 3] = Default::default();
+            let Ok(mut replayer) = AxesReplayer::new(models, period_s, &current, HostWriter(frames)) else {
+                fail("emulated devices did not initialise")
+            };
+            while let Some(line) = lines.next_line() {
+                let Ok(line) = line else {
+                    fail("input.csv: a line is too long or not UTF-8")
+                };
+                if replayer.feed_line(line, &mut out).is_err() {
+                    fail("input.csv: malformed line or output refused");
+                }
             }
-        }
+            let [x, y, z] = replayer.temp_read_faults_per_axis();
+            hprintln!("replay: temp_read_faults per axis x {} y {} z {}", x, y, z);
+            replayer.stats()
+        } else {
+            let model = firmware::load_model(firmware::board::model_slot_a());
+            if let Err(e) = &model {
+                hprintln!("replay: model slot refused ({}); output uncompensated with flag 4", e);
+            }
+            let model = model.ok();
+            let current = Cell::new(ReplaySample::default());
+            let Ok(mut replayer) = Replayer::new(model.as_ref(), period_s, &current, HostWriter(frames)) else {
+                fail("emulated devices did not initialise")
+            };
+            while let Some(line) = lines.next_line() {
+                let Ok(line) = line else {
+                    fail("input.csv: a line is too long or not UTF-8")
+                };
+                if replayer.feed_line(line, &mut out).is_err() {
+                    fail("input.csv: malformed line or output refused");
+                }
+            }
+            replayer.stats()
+        };
         if out.flush().is_err() {
             fail("cannot write output.csv");
         }
-        let stats = replayer.stats();
         hprintln!(
             "replay: samples {} temp_read_faults {} rate_read_faults {} output_errors {} stack_peak_bytes {}",
             stats.samples,

@@ -20,6 +20,13 @@
 //! sample. A panic or HardFault records its cause in RAM that survives the
 //! reset (firmware::fault) and resets; the next boot reports it.
 //!
+//! With the feature `board-axes` the same board serves a three-axis IMU:
+//! three front ends share SPI1 (chip selects PA4 x, PA3 y, PA2 z; the
+//! front ends sample together, data-ready from x on PB0), each coil's
+//! TMP117 sits on I2C1 (0x48 x, 0x49 y, 0x4A z), the model slots hold a
+//! multi-axis blob (format 3, [`firmware::AXIS_CENTERS`] centres per axis)
+//! and every sample goes out as one frame with all axes (firmware::axes).
+//!
 //! Flash with `cargo run --release -p firmware --features board-stm32f405
 //! --bin stm32f405 --target thumbv7em-none-eabihf` (probe-rs, see docs/firmware.md).
 #![cfg_attr(target_os = "none", no_std, no_main)]
@@ -36,19 +43,32 @@ mod board {
     use cortex_m_rt::{ExceptionFrame, entry, exception};
     #[cfg(feature = "board-debug")]
     use defmt_rtt as _;
+    #[cfg(not(feature = "board-axes"))]
     use embedded_hal_bus::spi::ExclusiveDevice;
+    #[cfg(feature = "board-axes")]
+    use embedded_hal_bus::util::AtomicCell;
+    #[cfg(feature = "board-axes")]
+    use firmware::axes::AxesLoop;
     use firmware::bench::{Bench, CMD_BENCH};
-    use firmware::compensation::{CompensationLoop, InPlaceModel, LoopConfig, write_frame};
+    #[cfg(not(feature = "board-axes"))]
+    use firmware::compensation::CompensationLoop;
+    use firmware::compensation::{InPlaceModel, LoopConfig, write_frame};
     use firmware::fault::{self, FaultReason, FaultRecord};
     use firmware::frontend::FrontEnd;
     use firmware::model_store::ModelStore;
     #[cfg(not(feature = "board-qemu"))]
     use firmware::model_store::SlotLayout;
-    use firmware::tmp117::{self, Tmp117};
+    #[cfg(any(feature = "board-qemu", not(feature = "board-axes")))]
+    use firmware::tmp117;
+    use firmware::tmp117::Tmp117;
     use firmware::uart::{self, FrameQueue};
     use firmware::update::{self, CommandReceiver, Received};
     use heapless::spsc::{Consumer, Producer, Queue};
-    use rbf_core::{CompensatorConfig, Flags, Model};
+    #[cfg(not(feature = "board-axes"))]
+    use rbf_core::Model;
+    #[cfg(feature = "board-axes")]
+    use rbf_core::blob::axes::AxisModels;
+    use rbf_core::{CompensatorConfig, Flags};
     #[cfg(not(feature = "board-qemu"))]
     use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
     use stm32f4xx_hal::gpio::{Edge, ExtiPin, Input, PB0};
@@ -107,7 +127,11 @@ mod board {
     }
 
     /// The running model, decoded in place (all bits zero: .bss, no flash).
+    #[cfg(not(feature = "board-axes"))]
     static mut MODEL: Model = Model::EMPTY;
+    /// The running axis models, decoded in place (all bits zero: .bss, no flash).
+    #[cfg(feature = "board-axes")]
+    static mut MODEL: AxisModels<{ firmware::AXIS_CENTERS }> = AxisModels::EMPTY;
     /// Command bytes collect here between samples (4 KiB: off the stack).
     static mut COMMANDS: CommandReceiver = CommandReceiver::new();
 
@@ -357,8 +381,16 @@ mod board {
         }
 
         /// The loop TMP117 of sample `seq`: a slow ramp (QEMU has no I2C).
+        #[cfg(not(feature = "board-axes"))]
         pub fn sample(seq: u32) -> ReplaySample {
             ReplaySample::with_loop(Some(20.0 + f64::from(seq % 100_000) * 1e-4), 0.0)
+        }
+
+        /// Axis `axis`'s coil TMP117 of sample `seq` (three-axis image): the
+        /// ramp, each coil half a degree warmer than the last.
+        #[cfg(feature = "board-axes")]
+        pub fn axis_sample(seq: u32, axis: usize) -> ReplaySample {
+            ReplaySample::with_loop(Some(20.0 + 0.5 * axis as f64 + f64::from(seq % 100_000) * 1e-4), 0.0)
         }
 
         /// An I2C bus with the loop TMP117 at its default address.
@@ -488,7 +520,29 @@ mod board {
             &mut rcc,
         );
         let core_hz = rcc.clocks.sysclk().raw();
+        #[cfg(not(feature = "board-axes"))]
         let Ok(spi_device) = ExclusiveDevice::new(spi, gpioa.pa4.into_push_pull_output(), CycleDelay { core_hz });
+        // Three front ends on one bus: a busy bus is an error the loop flags, never a wait or a panic.
+        #[cfg(feature = "board-axes")]
+        let spi_bus = AtomicCell::new(spi);
+        #[cfg(feature = "board-axes")]
+        let (Ok(spi_x), Ok(spi_y), Ok(spi_z)) = (
+            embedded_hal_bus::spi::AtomicDevice::new(
+                &spi_bus,
+                gpioa.pa4.into_push_pull_output().erase(),
+                CycleDelay { core_hz },
+            ),
+            embedded_hal_bus::spi::AtomicDevice::new(
+                &spi_bus,
+                gpioa.pa3.into_push_pull_output().erase(),
+                CycleDelay { core_hz },
+            ),
+            embedded_hal_bus::spi::AtomicDevice::new(
+                &spi_bus,
+                gpioa.pa2.into_push_pull_output().erase(),
+                CycleDelay { core_hz },
+            ),
+        );
         let Ok(serial) = dp.USART1.serial::<u8>((gpioa.pa9, gpioa.pa10), 921_600.bps(), &mut rcc) else {
             halt()
         };
@@ -559,21 +613,53 @@ mod board {
             boot_cause.is_some(),
             loaded
         );
-        // Sensor init failures are not fatal either: the loop's reads fail and flag them.
-        #[cfg(feature = "board-qemu")]
-        let loop_temp = core::cell::Cell::new(qemu::sample(0));
-        #[cfg(feature = "board-qemu")]
-        let i2c = qemu::thermometer_bus(&loop_temp);
-        let mut thermometer = Tmp117::new(i2c, tmp117::DEFAULT_ADDRESS);
-        let _ = thermometer.init();
-        let mut front_end = FrontEnd::new(spi_device);
-        let _ = front_end.init();
-
         let config = LoopConfig {
             compensator: CompensatorConfig::for_sample_rate(GYRO_RATE_HZ),
             temp_read_every: TEMP_READ_EVERY,
         };
-        let mut compensation = CompensationLoop::new(model, config, thermometer, front_end, output);
+        // Sensor init failures are not fatal either: the loop's reads fail and flag them.
+        #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
+        let loop_temp = core::cell::Cell::new(qemu::sample(0));
+        #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
+        let i2c = qemu::thermometer_bus(&loop_temp);
+        #[cfg(not(feature = "board-axes"))]
+        let mut compensation = {
+            let mut thermometer = Tmp117::new(i2c, tmp117::DEFAULT_ADDRESS);
+            let _ = thermometer.init();
+            let mut front_end = FrontEnd::new(spi_device);
+            let _ = front_end.init();
+            CompensationLoop::new(model, config, thermometer, front_end, output)
+        };
+        #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
+        let coil_temps = [0, 1, 2].map(|axis| core::cell::Cell::new(qemu::axis_sample(0, axis)));
+        #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
+        let coil_buses = [0, 1, 2].map(|axis| qemu::thermometer_bus(&coil_temps[axis]));
+        #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
+        let coil_addresses = [tmp117::DEFAULT_ADDRESS; 3];
+        // One TMP117 per coil on I2C1, each at its own address.
+        #[cfg(all(not(feature = "board-qemu"), feature = "board-axes"))]
+        let i2c_bus = AtomicCell::new(i2c);
+        #[cfg(all(not(feature = "board-qemu"), feature = "board-axes"))]
+        let coil_buses = [0, 1, 2].map(|_| embedded_hal_bus::i2c::AtomicDevice::new(&i2c_bus));
+        #[cfg(all(not(feature = "board-qemu"), feature = "board-axes"))]
+        let coil_addresses = [0x48, 0x49, 0x4A];
+        #[cfg(feature = "board-axes")]
+        let mut compensation = {
+            let [bx, by, bz] = coil_buses;
+            let mut thermometers = [
+                Tmp117::new(bx, coil_addresses[0]),
+                Tmp117::new(by, coil_addresses[1]),
+                Tmp117::new(bz, coil_addresses[2]),
+            ];
+            for t in &mut thermometers {
+                let _ = t.init();
+            }
+            let mut front_ends = [FrontEnd::new(spi_x), FrontEnd::new(spi_y), FrontEnd::new(spi_z)];
+            for f in &mut front_ends {
+                let _ = f.init();
+            }
+            AxesLoop::new(model, 0b111, config, thermometers, front_ends, output)
+        };
         if boot_cause.is_some() {
             compensation.flag_next_frame(Flags::FAULT_RESET);
         }
@@ -592,9 +678,11 @@ mod board {
         }
         #[cfg(feature = "board-qemu")]
         let mut run = qemu::Run::start(dp.TIM3, &mut core.NVIC, (timer_hz as f32 / GYRO_RATE_HZ) as u32);
-        // The closure below takes the emulated thermometer's reading by reference.
-        #[cfg(feature = "board-qemu")]
+        // The closure below takes the emulated thermometers' readings by reference.
+        #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
         let loop_temp = &loop_temp;
+        #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
+        let coil_temps = &coil_temps;
         run_forever(move || {
             // One step per data-ready edge, in order; the watchdog is fed by samples only.
             while let Some(stamp) = uart::dequeue(&mut stamp_consumer) {
@@ -615,8 +703,12 @@ mod board {
                     }
                 }
                 watchdog.feed();
-                #[cfg(feature = "board-qemu")]
+                #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
                 loop_temp.set(qemu::sample(seq));
+                #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
+                for (axis, cell) in coil_temps.iter().enumerate() {
+                    cell.set(qemu::axis_sample(seq, axis));
+                }
             }
             // Model-update commands between samples.
             while let Some(byte) = uart::dequeue(&mut in_consumer) {

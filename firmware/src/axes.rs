@@ -1,0 +1,288 @@
+//! The per-sample loop of a multi-axis IMU: one data-ready edge, every
+//! axis's rate and thermometers read over embedded-hal, one compensator per
+//! axis running that axis's model ([`AxisModels`], blob format 3), one
+//! [`AxesFrame`] out carrying all axes.
+//!
+//! Each axis goes through exactly the single-axis step
+//! ([`Compensator::process_with`]), so an axis's output is what the
+//! single-axis loop would give it; flags are per axis (one axis's failed
+//! thermometer flags that axis alone, the others keep compensating), while
+//! what concerns the frame (a dropped frame, missed samples, a fault reset)
+//! flags every axis. As in [`crate::compensation`], nothing here can panic
+//! on sensor data and nothing waits on the output.
+
+use embedded_io::Write;
+use rbf_core::blob::axes::AxisModels;
+use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
+use rbf_core::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN};
+use rbf_core::record::{Axis, MAX_AXES};
+use rbf_core::{CompensatedSample, Compensator, Flags, GyroSample};
+
+use crate::compensation::{InPlaceModel, LoopConfig, LoopStats, write_frame};
+use crate::sensors::{RateFrontEnd, RateSample, Readings, SensorFault, Thermometers};
+
+/// The thermometers of every axis: each axis's loop thermometer (its coil
+/// sensor) as `temp_c`, plus whatever shared thermometers its model reads.
+pub trait AxisThermometers {
+    /// Reads the thermometers of `wanted` (bit i = thermometer i) for
+    /// `axis` into `readings` (`None` where a read failed and for those not
+    /// wanted); returns how many wanted thermometers gave no reading.
+    fn read_axis(&mut self, axis: Axis, wanted: u8, readings: &mut Readings) -> u32;
+}
+
+/// One thermometer set per axis, x first.
+impl<T: Thermometers> AxisThermometers for [T; MAX_AXES] {
+    fn read_axis(&mut self, axis: Axis, wanted: u8, readings: &mut Readings) -> u32 {
+        match self.get_mut(axis.index()) {
+            Some(t) => t.read_wanted(wanted, readings),
+            None => {
+                *readings = [None; THERMOMETERS];
+                wanted.count_ones()
+            }
+        }
+    }
+}
+
+/// The rate front ends of every axis.
+pub trait AxisFrontEnds {
+    /// Reads `axis`'s sample that data-ready announced.
+    fn read_axis_rate(&mut self, axis: Axis) -> Result<RateSample, SensorFault>;
+}
+
+/// One front end per axis, x first.
+impl<R: RateFrontEnd> AxisFrontEnds for [R; MAX_AXES] {
+    fn read_axis_rate(&mut self, axis: Axis) -> Result<RateSample, SensorFault> {
+        self.get_mut(axis.index())
+            .map_or(Err(SensorFault::Bus), RateFrontEnd::read_rate)
+    }
+}
+
+/// Where the axes loop's models live: owned (host tools and tests) or
+/// decoded in place into the board's `static` ([`InPlaceModel`]).
+pub trait AxesHolder<const K: usize> {
+    /// The models to run, if a blob gave usable ones.
+    fn models(&self) -> Option<&AxisModels<K>>;
+}
+
+impl<const K: usize> AxesHolder<K> for Option<AxisModels<K>> {
+    fn models(&self) -> Option<&AxisModels<K>> {
+        self.as_ref()
+    }
+}
+
+impl<const K: usize> AxesHolder<K> for InPlaceModel<'_, AxisModels<K>> {
+    fn models(&self) -> Option<&AxisModels<K>> {
+        self.get()
+    }
+}
+
+impl<const K: usize> AxesHolder<K> for Option<&AxisModels<K>> {
+    fn models(&self) -> Option<&AxisModels<K>> {
+        *self
+    }
+}
+
+/// What one step of the axes loop produced, per axis (x first; an axis the
+/// IMU does not have: 0 bias, 0 rate, NaN temperature, flag 4).
+pub type AxesOutput = [CompensatedSample; MAX_AXES];
+
+const NO_AXIS: CompensatedSample = CompensatedSample {
+    bias_dph: 0.0,
+    rate_comp_dph: 0.0,
+    temp_c: f32::NAN,
+    flags: Flags::NO_VALID_MODEL,
+};
+
+/// The multi-axis loop over models of centre capacity `K`.
+pub struct AxesLoop<T, R, W, M, const K: usize> {
+    models: M,
+    config: LoopConfig,
+    /// The axes the IMU has (bit 0 = x).
+    axis_mask: u8,
+    thermometers: T,
+    front_ends: R,
+    output: W,
+    compensators: [Compensator; MAX_AXES],
+    latest_temps_c: [Readings; MAX_AXES],
+    temp_read_due: bool,
+    stats: LoopStats,
+    temp_read_faults_per_axis: [u32; MAX_AXES],
+    next_seq: u32,
+    pending_flags: Flags,
+}
+
+impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K: usize> AxesLoop<T, R, W, M, K> {
+    /// A loop over the axes of `axis_mask` (bit 0 = x; the IMU's wiring)
+    /// running `models` (none, or an axis without a model: that axis's
+    /// output is uncompensated, flag 4).
+    pub fn new(models: M, axis_mask: u8, config: LoopConfig, thermometers: T, front_ends: R, output: W) -> Self {
+        AxesLoop {
+            models,
+            config,
+            axis_mask: axis_mask & ((1 << MAX_AXES) - 1),
+            thermometers,
+            front_ends,
+            output,
+            compensators: [Compensator::new(); MAX_AXES],
+            latest_temps_c: [[None; THERMOMETERS]; MAX_AXES],
+            temp_read_due: true,
+            stats: LoopStats::default(),
+            temp_read_faults_per_axis: [0; MAX_AXES],
+            next_seq: 0,
+            pending_flags: Flags::NONE,
+        }
+    }
+
+    /// Marks the next frame (every axis) with `flags`.
+    pub fn flag_next_frame(&mut self, flags: Flags) {
+        self.pending_flags |= flags;
+    }
+
+    /// Sets the axes the IMU has (bit 0 = x) between two samples; the
+    /// compensators start afresh.
+    pub fn set_axis_mask(&mut self, axis_mask: u8) {
+        self.axis_mask = axis_mask & ((1 << MAX_AXES) - 1);
+        self.compensators = [Compensator::new(); MAX_AXES];
+        self.temp_read_due = true;
+    }
+
+    /// True when the IMU has `axis`.
+    pub fn has_axis(&self, axis: Axis) -> bool {
+        self.axis_mask & (1 << axis.index()) != 0
+    }
+
+    /// Processes the sample data-ready announced on every axis; `dt_s` is the
+    /// time since the previous one, s. Emits one frame and returns what it holds.
+    pub fn step(&mut self, dt_s: f32) -> AxesOutput {
+        self.step_at(self.next_seq, dt_s)
+    }
+
+    /// [`Self::step`] for data-ready edge number `seq`, as
+    /// [`crate::compensation::CompensationLoop::step_at`].
+    ///
+    /// Budget per axis: one front-end read, one read per thermometer its
+    /// model uses (every `temp_read_every` samples), one
+    /// [`Compensator::process_with`]; then one ≤ 59-byte write.
+    pub fn step_at(&mut self, seq: u32, dt_s: f32) -> AxesOutput {
+        let missed = seq.wrapping_sub(self.next_seq);
+        if missed != 0 && missed < u32::MAX / 2 {
+            self.stats.samples_missed = self.stats.samples_missed.wrapping_add(missed);
+            self.pending_flags |= Flags::SAMPLES_MISSED;
+        }
+        self.next_seq = seq.wrapping_add(1);
+        self.stats.samples = self.stats.samples.wrapping_add(1);
+        let read_temps = self.temp_read_due || seq.is_multiple_of(self.config.temp_read_every.max(1));
+        self.temp_read_due = false;
+        let mut out = [NO_AXIS; MAX_AXES];
+        let mut rates_dph = [0.0f32; MAX_AXES];
+        for axis in Axis::ALL {
+            if self.has_axis(axis) {
+                let i = axis.index();
+                (out[i], rates_dph[i]) = self.step_axis(axis, read_temps, dt_s);
+            }
+        }
+        if self.emit(seq, &rates_dph, &out) {
+            self.pending_flags = Flags::NONE;
+        } else {
+            self.stats.output_errors = self.stats.output_errors.wrapping_add(1);
+            self.pending_flags = Flags::OUTPUT_DROPPED;
+        }
+        out
+    }
+
+    /// One axis's part of a step: its thermometers (when due), its rate, its
+    /// compensator. Not inlined: the board image holds one copy, not one per axis.
+    #[inline(never)]
+    fn step_axis(&mut self, axis: Axis, read_temps: bool, dt_s: f32) -> (CompensatedSample, f32) {
+        let i = axis.index() % MAX_AXES;
+        let model = self.models.models().and_then(|m| m.get(axis));
+        if read_temps {
+            let wanted = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
+            let failed = self.thermometers.read_axis(axis, wanted, &mut self.latest_temps_c[i]);
+            self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
+            self.temp_read_faults_per_axis[i] = self.temp_read_faults_per_axis[i].wrapping_add(failed);
+        }
+        let (rate_dph, rate_ok) = match self.front_ends.read_axis_rate(axis) {
+            Ok(s) => (s.rate_dph, s.valid),
+            Err(_) => {
+                self.stats.rate_read_faults = self.stats.rate_read_faults.wrapping_add(1);
+                (f32::NAN, false)
+            }
+        };
+        let sample = GyroSample {
+            dt_s,
+            rate_dph,
+            temps_c: self.latest_temps_c[i],
+        };
+        let mut o = self.compensators[i].process_with(model, &self.config.compensator, &sample);
+        if !rate_ok {
+            o.flags |= Flags::RATE_INVALID;
+        }
+        o.flags |= self.pending_flags;
+        (o, rate_dph)
+    }
+
+    /// Frames and writes one [`AxesFrame`]; false when the output did not take it whole.
+    fn emit(&mut self, seq: u32, rates_dph: &[f32; MAX_AXES], out: &AxesOutput) -> bool {
+        let mut axes = [AxisOutput::default(); MAX_AXES];
+        for ((a, o), &rate_dph) in axes.iter_mut().zip(out).zip(rates_dph) {
+            *a = AxisOutput {
+                rate_dph,
+                bias_dph: o.bias_dph,
+                rate_comp_dph: o.rate_comp_dph,
+                temp_c: o.temp_c,
+                flags: o.flags.bits(),
+            };
+        }
+        for axis in Axis::ALL {
+            if !self.has_axis(axis) {
+                axes[axis.index()] = AxisOutput::default();
+            }
+        }
+        let frame = AxesFrame {
+            tag: AXES_FRAME_TAG,
+            seq,
+            axis_mask: self.axis_mask,
+            axes,
+        };
+        let mut buf = [0u8; MAX_AXES_FRAME_LEN];
+        frame::encode_axes(&frame, &mut buf)
+            .ok()
+            .and_then(|n| buf.get(..n))
+            .is_some_and(|bytes| write_frame(&mut self.output, bytes))
+    }
+
+    /// Changes the models in place between two samples (after a model
+    /// update); every axis's feature filters start afresh and its
+    /// thermometers are read on the next sample.
+    pub fn update_model(&mut self, change: impl FnOnce(&mut M)) {
+        change(&mut self.models);
+        self.compensators = [Compensator::new(); MAX_AXES];
+        self.temp_read_due = true;
+    }
+
+    /// The output (to interleave command replies between frames).
+    pub fn output_mut(&mut self) -> &mut W {
+        &mut self.output
+    }
+
+    /// The models in use.
+    pub fn models(&self) -> Option<&AxisModels<K>> {
+        self.models.models()
+    }
+
+    /// Health counters (thermometer faults summed over the axes).
+    pub fn stats(&self) -> LoopStats {
+        self.stats
+    }
+
+    /// Thermometer reads that failed, per axis (x first).
+    pub fn temp_read_faults_per_axis(&self) -> [u32; MAX_AXES] {
+        self.temp_read_faults_per_axis
+    }
+
+    /// Gives the sensors and output back.
+    pub fn destroy(self) -> (T, R, W) {
+        (self.thermometers, self.front_ends, self.output)
+    }
+}
