@@ -164,13 +164,9 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
     /// model uses (every `temp_read_every` samples), one
     /// [`Compensator::process_with`]; then one ≤ 59-byte write.
     pub fn step_at(&mut self, seq: u32, dt_s: f32) -> AxesOutput {
-        let missed = seq.wrapping_sub(self.next_seq);
-        if missed != 0 && missed < u32::MAX / 2 {
-            self.stats.samples_missed = self.stats.samples_missed.wrapping_add(missed);
+        if self.stats.count_sample(&mut self.next_seq, seq) {
             self.pending_flags |= Flags::SAMPLES_MISSED;
         }
-        self.next_seq = seq.wrapping_add(1);
-        self.stats.samples = self.stats.samples.wrapping_add(1);
         let read_temps = self.temp_read_due || seq.is_multiple_of(self.config.temp_read_every.max(1));
         self.temp_read_due = false;
         let mut out = [NO_AXIS; MAX_AXES];

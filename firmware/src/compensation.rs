@@ -57,6 +57,25 @@ pub struct LoopStats {
     pub samples_missed: u32,
 }
 
+impl LoopStats {
+    /// Counts the sample of data-ready edge `seq`, `next_seq` being the edge
+    /// expected; moves `next_seq` past it. Edges between are counted in
+    /// [`Self::samples_missed`]; returns true when there were any. A sequence
+    /// number behind the expected one (a wrap or a board bug) is no gap; only
+    /// a jump forward by less than half the range is.
+    #[inline(always)]
+    pub fn count_sample(&mut self, next_seq: &mut u32, seq: u32) -> bool {
+        let missed = seq.wrapping_sub(*next_seq);
+        *next_seq = seq.wrapping_add(1);
+        self.samples = self.samples.wrapping_add(1);
+        let gap = missed != 0 && missed < u32::MAX / 2;
+        if gap {
+            self.samples_missed = self.samples_missed.wrapping_add(missed);
+        }
+        gap
+    }
+}
+
 /// Where the loop's model lives: owned (`Option<Model>`, host tools and
 /// tests) or decoded in place into storage the board owns ([`InPlaceModel`]).
 pub trait ModelHolder {
@@ -160,15 +179,9 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write, M: ModelHolder> CompensationLoo
     /// sample and this one are counted in [`LoopStats::samples_missed`] and
     /// flagged ([`Flags::SAMPLES_MISSED`]); the frame carries `seq`.
     pub fn step_at(&mut self, seq: u32, dt_s: f32) -> CompensatedSample {
-        let missed = seq.wrapping_sub(self.next_seq);
-        // A sequence number behind the expected one (a wrap or a board bug)
-        // is no gap; only a jump forward by less than half the range is.
-        if missed != 0 && missed < u32::MAX / 2 {
-            self.stats.samples_missed = self.stats.samples_missed.wrapping_add(missed);
+        if self.stats.count_sample(&mut self.next_seq, seq) {
             self.pending_flags |= Flags::SAMPLES_MISSED;
         }
-        self.next_seq = seq.wrapping_add(1);
-        self.stats.samples = self.stats.samples.wrapping_add(1);
         if self.temp_read_due || seq.is_multiple_of(self.config.temp_read_every.max(1)) {
             self.temp_read_due = false;
             let wanted = self

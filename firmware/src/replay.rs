@@ -250,16 +250,7 @@ impl<'c, W: embedded_io::Write> Replayer<'c, W> {
         current: &'c Cell<ReplaySample>,
         frames: W,
     ) -> Result<Self, ReplayError> {
-        let mut thermometer = Tmp117Array::new(
-            EmulatedTmp117::new(current, 0),
-            EmulatedTmp117::new(current, tmp117::PER_BUS),
-            u8::MAX,
-        );
-        if thermometer.init() != 0 {
-            return Err(ReplayError::DeviceInit);
-        }
-        let mut front_end = FrontEnd::new(EmulatedFrontEnd::new(current));
-        front_end.init().map_err(|_| ReplayError::DeviceInit)?;
+        let (thermometer, front_end) = axis_devices(current)?;
         let config = LoopConfig {
             compensator: CompensatorConfig::for_nominal_period_s(period_s),
             temp_read_every: 1,
@@ -307,7 +298,7 @@ impl<'c, W: embedded_io::Write> Replayer<'c, W> {
     }
 }
 
-/// One axis's emulated devices: its thermometer array and its front end,
+/// One axis's (or a single-axis run's) emulated devices: its thermometer array and front end,
 /// answering from the axis's cell.
 fn axis_devices(
     current: &Cell<ReplaySample>,

@@ -111,15 +111,9 @@ impl Header {
 
     /// Parses and checks the header: magic, version, kind and shape.
     pub fn parse(bytes: &[u8]) -> Result<Header, DecodeError> {
-        let h = bytes.get(..HEADER_LEN).ok_or(DecodeError::Truncated {
-            needed: HEADER_LEN,
-            available: bytes.len(),
-        })?;
-        if h[0..4] != MAGIC {
-            return Err(DecodeError::BadMagic);
-        }
+        let (h, version) = header_bytes(bytes)?;
         let header = Header {
-            version: u16::from_le_bytes([h[4], h[5]]),
+            version,
             kind_code: h[6],
             inputs: h[7],
             centers: u16::from_le_bytes([h[8], h[9]]),
@@ -145,6 +139,19 @@ impl Header {
         }
         Ok(header)
     }
+}
+
+/// The first [`HEADER_LEN`] bytes of a blob of either format, checked to be
+/// there and to start with [`MAGIC`], and the format version they name.
+fn header_bytes(bytes: &[u8]) -> Result<(&[u8], u16), DecodeError> {
+    let h = bytes.get(..HEADER_LEN).ok_or(DecodeError::Truncated {
+        needed: HEADER_LEN,
+        available: bytes.len(),
+    })?;
+    if h[0..4] != MAGIC {
+        return Err(DecodeError::BadMagic);
+    }
+    Ok((h, u16::from_le_bytes([h[4], h[5]])))
 }
 
 /// Why bytes are not a usable model blob.

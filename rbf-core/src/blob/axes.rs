@@ -55,14 +55,7 @@ impl AxesHeader {
     /// Parses and checks a multi-axis header: magic, version, axis mask,
     /// reserved bytes and the length limit.
     pub fn parse(bytes: &[u8]) -> Result<AxesHeader, DecodeError> {
-        let h = bytes.get(..HEADER_LEN).ok_or(DecodeError::Truncated {
-            needed: HEADER_LEN,
-            available: bytes.len(),
-        })?;
-        if h[0..4] != MAGIC {
-            return Err(DecodeError::BadMagic);
-        }
-        let version = u16::from_le_bytes([h[4], h[5]]);
+        let (h, version) = super::header_bytes(bytes)?;
         if version != AXES_FORMAT_VERSION {
             return Err(DecodeError::UnsupportedVersion(version));
         }

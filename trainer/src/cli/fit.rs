@@ -317,23 +317,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     writeln!(out, "\nwrote {} ({} bytes)", text::path(&a.output), blob.len())?;
-    let json = serde_json::json!({
-        "method": opts.method,
-        "choice": outcome.choice,
-        "feature_sets": outcome.sets,
-        "lag_bank_search": outcome.bank,
-        "features": features_json(outcome.model.features()),
-        "svr": outcome.svr,
-        "fit_seconds": fit_s,
-        "blob_bytes": blob.len(),
-        "runs": evals.iter().map(|(role, e)| serde_json::json!({"role": role, "evaluation": e})).collect::<Vec<_>>(),
-    });
-    if let Some(mut output) = model_out {
-        output
-            .write_all(&blob)
-            .with_context(|| format!("{}: write failed", text::path(output.path())))?;
-        output.commit()?;
-    }
+    let mut json = outcome_json(&outcome);
+    json["method"] = serde_json::json!(opts.method);
+    json["fit_seconds"] = serde_json::json!(fit_s);
+    json["blob_bytes"] = serde_json::json!(blob.len());
+    json["runs"] = runs_json(&evals);
+    write_blob(model_out, &blob)?;
     let json_on_stdout = json_out.is_stdout();
     json_out.write(&json)?;
     if let Some(dir) = &a.report {
@@ -504,6 +493,36 @@ fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankS
         covered.push(format!("{name} {lo:.3} … {hi:.3}"));
     }
     writeln!(out, "training covered: {}", covered.join("; "))?;
+    Ok(())
+}
+
+/// What a fit chose, as `trainer fit --json` writes it (one axis).
+pub(super) fn outcome_json(o: &FitOutcome) -> serde_json::Value {
+    serde_json::json!({
+        "choice": o.choice,
+        "feature_sets": o.sets,
+        "lag_bank_search": o.bank,
+        "features": features_json(o.model.features()),
+        "svr": o.svr,
+    })
+}
+
+/// The table's evaluations, as `trainer fit --json` writes them.
+pub(super) fn runs_json(evals: &[(&str, RunEvaluation)]) -> serde_json::Value {
+    evals
+        .iter()
+        .map(|(role, e)| serde_json::json!({"role": role, "evaluation": e}))
+        .collect()
+}
+
+/// Writes `blob` into `model_out` (if any) and commits it.
+pub(super) fn write_blob(model_out: Option<Output>, blob: &[u8]) -> anyhow::Result<()> {
+    if let Some(mut output) = model_out {
+        output
+            .write_all(blob)
+            .with_context(|| format!("{}: write failed", text::path(output.path())))?;
+        output.commit()?;
+    }
     Ok(())
 }
 

@@ -16,7 +16,7 @@ use trainer::run::RunReader;
 use trainer::text;
 
 use super::super::common::{JsonSink, print_text};
-use super::{Args, FitHow, features_json, write_summary};
+use super::{Args, FitHow, outcome_json, runs_json, write_blob, write_summary};
 
 /// Fits every axis of `axes` on the runs of `a` with `opts`, writes the
 /// blob into `model_out` and the JSON report into `json_out`, and prints
@@ -90,24 +90,16 @@ pub(super) fn run(
     )?;
     let json = serde_json::json!({
         "method": opts.method,
-        "axes": axes.iter().zip(&outcomes).map(|(axis, (o, _))| serde_json::json!({
-            "axis": axis.name(),
-            "choice": o.choice,
-            "feature_sets": o.sets,
-            "lag_bank_search": o.bank,
-            "features": features_json(o.model.features()),
-            "svr": o.svr,
-        })).collect::<Vec<_>>(),
+        "axes": axes.iter().zip(&outcomes).map(|(axis, (o, _))| {
+            let mut axis_json = outcome_json(o);
+            axis_json["axis"] = serde_json::json!(axis.name());
+            axis_json
+        }).collect::<Vec<_>>(),
         "fit_seconds": fit_s,
         "blob_bytes": blob.len(),
-        "runs": evals.iter().map(|(role, e)| serde_json::json!({"role": role, "evaluation": e})).collect::<Vec<_>>(),
+        "runs": runs_json(&evals),
     });
-    if let Some(mut output) = model_out {
-        output
-            .write_all(&blob)
-            .with_context(|| format!("{}: write failed", text::path(output.path())))?;
-        output.commit()?;
-    }
+    write_blob(model_out, &blob)?;
     let json_on_stdout = json_out.is_stdout();
     json_out.write(&json)?;
     print_text(&out, json_on_stdout)?;
