@@ -200,17 +200,13 @@ fn benchmark_image_runs_and_reports_every_model_size() {
     );
 }
 
-#[test]
-#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
-fn the_board_image_takes_an_update_and_a_bench_command_within_its_ram_budget() {
-    // The stm32f405 binary itself (board-qemu: QEMU's missing pieces
-    // swapped): boot with a model, an install and a bench command over its
-    // UART (measure() refuses a run without the install or the bench
-    // report), 10,000 samples; its static RAM and painted stack fit 16 KiB.
-    let run = xtask::board_stack::measure().unwrap();
+/// A board run under QEMU (`run`) took its update and answered the bench
+/// command, one frame per sample; the board image built with `features`
+/// fits 64 KiB of flash, and its static RAM and the run's stack peak 16 KiB.
+fn board_within_budgets(run: &xtask::board_stack::BoardRun, features: &[&str]) {
     assert!(run.summary.contains("update Some(Installed)"), "{run:?}");
     assert!(run.frames > 10_000, "one frame per sample and the replies: {run:?}");
-    let board = xtask::firmware::build("stm32f405", &["board-stm32f405"]).unwrap();
+    let board = xtask::firmware::build("stm32f405", features).unwrap();
     let size = xtask::firmware::image_size(&board).unwrap();
     assert!(
         size.static_ram + run.stack_peak_bytes <= 16 * 1024,
@@ -223,22 +219,23 @@ fn the_board_image_takes_an_update_and_a_bench_command_within_its_ram_budget() {
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn the_board_image_takes_an_update_and_a_bench_command_within_its_ram_budget() {
+    // The stm32f405 binary itself (board-qemu: QEMU's missing pieces
+    // swapped): boot with a model, an install and a bench command over its
+    // UART (measure() refuses a run without the install or the bench
+    // report), 10,000 samples; its static RAM and painted stack fit 16 KiB.
+    let run = xtask::board_stack::measure().unwrap();
+    board_within_budgets(&run, &["board-stm32f405"]);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn the_three_axis_board_takes_a_three_axis_update_within_the_boards_budgets() {
     // The stm32f405 binary with board-axes (and board-qemu): three models of
     // firmware::AXIS_CENTERS centres at boot, a three-axis install and a bench
     // command over its UART, 10,000 samples; flash, static RAM and stack fit.
     let run = xtask::board_stack::measure_axes().unwrap();
-    assert!(run.summary.contains("update Some(Installed)"), "{run:?}");
-    assert!(run.frames > 10_000, "one frame per sample and the replies: {run:?}");
-    let board = xtask::firmware::build("stm32f405", &["board-axes"]).unwrap();
-    let size = xtask::firmware::image_size(&board).unwrap();
-    assert!(
-        size.static_ram + run.stack_peak_bytes <= 16 * 1024,
-        "static RAM {} B + stack {} B over 16 KiB",
-        size.static_ram,
-        run.stack_peak_bytes
-    );
-    assert!(size.flash <= 64 * 1024 && size.largest_rodata.1 <= 4096, "{size:?}");
+    board_within_budgets(&run, &["board-axes"]);
 }
 
 #[test]

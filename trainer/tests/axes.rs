@@ -6,7 +6,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{compensate, stderr, stdout, trainer};
+use common::{compensate, stderr, stdout, trainer, with_model};
 use tempfile::TempDir;
 
 /// `trainer simulate --axes 3` of `profile` with `seed` into `dir/name`.
@@ -214,14 +214,7 @@ fn models_and_runs_of_different_axes_are_refused_naming_both() {
     fit(&imu, &imu_model);
     // A report per axis.
     let report = dir.path().join("report");
-    let o = trainer(&[
-        "report",
-        "--model",
-        imu_model.to_str().unwrap(),
-        imu.to_str().unwrap(),
-        "-o",
-        report.to_str().unwrap(),
-    ]);
+    let o = with_model("report", &imu_model, &imu, &report, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     for axis in ["x", "y"] {
         let md = std::fs::read_to_string(report.join(format!("axis-{axis}/report.md"))).unwrap();

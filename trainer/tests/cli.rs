@@ -5,7 +5,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{compensate, fitted_model, shared_data, stderr, stdout, trainer, write};
+use common::{compensate, fitted_model, shared_data, stderr, stdout, trainer, with_model, write};
 use tempfile::TempDir;
 
 /// `trainer blocks RUN --block-s 60 -o OUT` with `args`, which must succeed; the CSV written.
@@ -638,14 +638,7 @@ fn report_writes_svg_and_png_plots_json_and_markdown() {
     let model = fitted_model(&dir);
     let run = dir.path().join("train.csv");
     let out = dir.path().join("report");
-    let o = trainer(&[
-        "report",
-        "--model",
-        model.to_str().unwrap(),
-        run.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = with_model("report", &model, &run, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     for stem in ["train_rate", "train_allan", "bias_surface"] {
         let png = std::fs::read(out.join(format!("{stem}.png"))).unwrap();

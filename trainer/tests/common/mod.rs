@@ -35,8 +35,13 @@ pub fn trainer_with_stdin(args: &[&str], input: &[u8]) -> Output {
 
 /// `trainer compensate --model MODEL RUN -o OUT` and `extra` options.
 pub fn compensate(model: &Path, run: &Path, out: &Path, extra: &[&str]) -> Output {
+    with_model("compensate", model, run, out, extra)
+}
+
+/// `trainer COMMAND --model MODEL RUN -o OUT` and `extra` options.
+pub fn with_model(command: &str, model: &Path, run: &Path, out: &Path, extra: &[&str]) -> Output {
     let args = [
-        "compensate",
+        command,
         "--model",
         model.to_str().unwrap(),
         run.to_str().unwrap(),
