@@ -198,13 +198,7 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
             self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
             self.temp_read_faults_per_axis[i] = self.temp_read_faults_per_axis[i].wrapping_add(failed);
         }
-        let (rate_dph, rate_ok) = match self.front_ends.read_axis_rate(axis) {
-            Ok(s) => (s.rate_dph, s.valid),
-            Err(_) => {
-                self.stats.rate_read_faults = self.stats.rate_read_faults.wrapping_add(1);
-                (f32::NAN, false)
-            }
-        };
+        let (rate_dph, rate_ok) = self.stats.rate_or_fault(self.front_ends.read_axis_rate(axis));
         let sample = GyroSample {
             dt_s,
             rate_dph,

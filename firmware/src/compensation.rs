@@ -11,7 +11,7 @@ use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::frame::{self, MAX_FRAME_LEN, OutputFrame};
 use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, GyroSample, Model};
 
-use crate::sensors::{RateFrontEnd, Readings, Thermometers};
+use crate::sensors::{RateFrontEnd, RateSample, Readings, SensorFault, Thermometers};
 
 /// Writes `bytes` to `output` without waiting and without panicking: as
 /// many `write` calls as make progress, then gives up. An output that takes
@@ -73,6 +73,20 @@ impl LoopStats {
             self.samples_missed = self.samples_missed.wrapping_add(missed);
         }
         gap
+    }
+
+    /// The rate, °/h, and whether the front end called it valid, from a
+    /// front-end read; a failed read counts in [`Self::rate_read_faults`]
+    /// and gives NaN, invalid.
+    #[inline(always)]
+    pub fn rate_or_fault(&mut self, read: Result<RateSample, SensorFault>) -> (f32, bool) {
+        match read {
+            Ok(s) => (s.rate_dph, s.valid),
+            Err(_) => {
+                self.rate_read_faults = self.rate_read_faults.wrapping_add(1);
+                (f32::NAN, false)
+            }
+        }
     }
 }
 
@@ -191,13 +205,7 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write, M: ModelHolder> CompensationLoo
             let failed = self.thermometer.read_wanted(wanted, &mut self.latest_temps_c);
             self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
         }
-        let (rate_dph, rate_ok) = match self.front_end.read_rate() {
-            Ok(s) => (s.rate_dph, s.valid),
-            Err(_) => {
-                self.stats.rate_read_faults = self.stats.rate_read_faults.wrapping_add(1);
-                (f32::NAN, false)
-            }
-        };
+        let (rate_dph, rate_ok) = self.stats.rate_or_fault(self.front_end.read_rate());
         let sample = GyroSample {
             dt_s,
             rate_dph,
