@@ -49,7 +49,7 @@ use rbf_core::blob::{self, DecodeError};
 /// (docs/firmware.md, "Three axes"). A blob with a larger axis is refused
 /// with [`DecodeError::ShapeOverCapacity`] (an update: reply status
 /// `Refused`, the running models stay; at boot: uncompensated, flag 4).
-pub const AXIS_CENTERS: usize = 16;
+pub const AXIS_CENTERS: usize = rbf_core::MAX_AXIS_CENTERS;
 
 /// Length of one model flash slot (`MODEL_A`/`MODEL_B` in memory.x), bytes.
 pub const MODEL_SLOT_LEN: usize = 128 * 1024;

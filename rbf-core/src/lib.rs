@@ -35,6 +35,12 @@ pub mod sensor;
 
 /// Most Gaussian centres a deployable model may hold (firmware RAM is sized for it).
 pub const MAX_CENTERS: usize = 64;
+/// Most Gaussian centres each axis's model of a multi-axis blob may hold:
+/// the capacity of the three-axis board's decoded models, sized so that
+/// three models, the update buffer and the stack fit its 16 KiB of RAM
+/// (docs/firmware.md, "Three axes"). `trainer fit` keeps multi-axis models
+/// within it; the board refuses a blob with a larger axis.
+pub const MAX_AXIS_CENTERS: usize = 16;
 /// Most model inputs (features) a deployable model may use.
 pub const MAX_INPUTS: usize = 12;
 /// Most inputs the Gaussians of a network may see (the rest enter linearly).

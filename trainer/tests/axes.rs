@@ -298,3 +298,40 @@ fn models_and_runs_of_different_axes_are_refused_naming_both() {
         stderr(&o)
     );
 }
+
+#[test]
+fn a_multi_axis_fit_keeps_every_axis_within_the_three_axis_firmware_s_centres() {
+    let dir = TempDir::new().unwrap();
+    let imu = dir.path().join("imu.csv");
+    let o = trainer(&["simulate", "--axes", "2", "--hours", "2", "-o", imu.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let model = dir.path().join("imu.bin");
+    let fit = |extra: &[&str]| {
+        let args = [
+            "fit",
+            "-q",
+            "--force",
+            imu.to_str().unwrap(),
+            "-o",
+            model.to_str().unwrap(),
+        ];
+        trainer(&[&args[..], extra].concat())
+    };
+    let o = fit(&["--centers", "17"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("at most 16 centres per axis"), "{}", stderr(&o));
+    assert!(!model.exists(), "nothing written");
+    // The limit itself is taken.
+    let o = fit(&["--centers", "16"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = trainer(&["inspect", "--model", model.to_str().unwrap(), "--format", "json"]);
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let text = json.to_string();
+    assert!(text.contains("\"centers\""), "{text}");
+    for axis in json["axes"].as_array().unwrap() {
+        assert!(
+            axis["centers"].as_u64().unwrap() <= rbf_core::MAX_AXIS_CENTERS as u64,
+            "{axis}"
+        );
+    }
+}

@@ -97,15 +97,16 @@ pub struct Args {
     /// extrapolation); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network.
     #[arg(long, value_enum, default_value_t = FeaturesArg::LagBank, hide_possible_values = true, help_heading = "Model")]
     features: FeaturesArg,
-    /// Use exactly K Gaussian centres (1–64).
+    /// Use exactly K Gaussian centres (1–64; 1–16 per axis on multi-axis runs).
     ///
     /// Fewer if OLS finds fewer independent ones; without it K ≤ --max-centers is chosen
     /// on validation.
     #[arg(long, value_name = "K", value_parser = centres_parser(), help_heading = "Model")]
     centers: Option<usize>,
-    /// Most centres tried (1–64).
+    /// Most centres tried (1–64; at most 16 per axis on multi-axis runs).
     ///
-    /// The firmware's evaluation cost grows with K.
+    /// The firmware's evaluation cost grows with K; the three-axis firmware holds 16
+    /// centres per axis.
     #[arg(long, value_name = "K", default_value_t = 32, value_parser = centres_parser(), help_heading = "Search")]
     max_centers: usize,
     /// ΔT filter time constants to choose from, s.

@@ -6,6 +6,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Context;
+use rbf_core::MAX_AXIS_CENTERS;
 use rbf_core::record::Axis;
 use trainer::blobfile::encode_axis_models;
 use trainer::dataset::{RunFiles, RunSet};
@@ -42,6 +43,18 @@ pub(super) fn run(
             reader.require_temp()?;
         }
     }
+    // Every axis within what a three-axis firmware holds per axis.
+    if let Some(k) = opts.centers {
+        anyhow::ensure!(
+            k <= MAX_AXIS_CENTERS,
+            "--centers {k}: a multi-axis model holds at most {MAX_AXIS_CENTERS} centres per axis (the three-axis \
+             firmware's capacity)"
+        );
+    }
+    let opts = &FitOptions {
+        max_centers: opts.max_centers.min(MAX_AXIS_CENTERS),
+        ..opts.clone()
+    };
     let started = std::time::Instant::now();
     let outcomes = fit_axes(a, opts, axes)?;
     let fit_s = started.elapsed().as_secs_f64();
