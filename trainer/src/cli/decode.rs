@@ -12,7 +12,8 @@ use super::common::{ForceArg, stdout};
 /// Decode firmware output frames (a UART capture) into CSV.
 ///
 /// Frames are postcard + COBS, each ended by 0x00. Writes
-/// seq, rate_dph [°/h], bias_dph [°/h], rate_comp_dph [°/h], temp_c [°C], flags.
+/// seq, rate_dph [°/h], bias_dph [°/h], rate_comp_dph [°/h], temp_c [°C], flags; a
+/// three-axis firmware's frames give those per axis (rate_x_dph … flags_x, then y, z).
 /// A damaged frame is skipped and reported (the seq gap shows where); a capture
 /// that starts mid-frame loses only that first partial frame.
 #[derive(clap::Args, Debug)]
