@@ -187,6 +187,19 @@ mod board {
         }
     }
 
+    /// Feeds every line of `lines` to `feed` (a replayer's `feed_line`, true
+    /// when it took the line); a line that cannot be read or is refused ends the run.
+    fn feed_lines(lines: &mut HostLines, mut feed: impl FnMut(&str) -> bool) {
+        while let Some(line) = lines.next_line() {
+            let Ok(line) = line else {
+                fail("input.csv: a line is too long or not UTF-8")
+            };
+            if !feed(line) {
+                fail("input.csv: malformed line or output refused");
+            }
+        }
+    }
+
     fn fail(message: &str) -> ! {
         hprintln!("replay: {}", message);
         debug::exit(debug::EXIT_FAILURE);
@@ -246,14 +259,7 @@ mod board {
             let Ok(mut replayer) = AxesReplayer::new(models, period_s, &current, HostWriter(frames)) else {
                 fail("emulated devices did not initialise")
             };
-            while let Some(line) = lines.next_line() {
-                let Ok(line) = line else {
-                    fail("input.csv: a line is too long or not UTF-8")
-                };
-                if replayer.feed_line(line, &mut out).is_err() {
-                    fail("input.csv: malformed line or output refused");
-                }
-            }
+            feed_lines(&mut lines, |line| replayer.feed_line(line, &mut out).is_ok());
             let [x, y, z] = replayer.temp_read_faults_per_axis();
             hprintln!("replay: temp_read_faults per axis x {} y {} z {}", x, y, z);
             replayer.stats()
@@ -267,14 +273,7 @@ mod board {
             let Ok(mut replayer) = Replayer::new(model.as_ref(), period_s, &current, HostWriter(frames)) else {
                 fail("emulated devices did not initialise")
             };
-            while let Some(line) = lines.next_line() {
-                let Ok(line) = line else {
-                    fail("input.csv: a line is too long or not UTF-8")
-                };
-                if replayer.feed_line(line, &mut out).is_err() {
-                    fail("input.csv: malformed line or output refused");
-                }
-            }
+            feed_lines(&mut lines, |line| replayer.feed_line(line, &mut out).is_ok());
             replayer.stats()
         };
         if out.flush().is_err() {
