@@ -5,6 +5,11 @@
 //! blocks (1 s by default) inside each segment. Samples whose features are
 //! still warming up or whose temperature is a held value are left out of the
 //! averages; blocks with under half their nominal samples are dropped.
+//!
+//! A streamed run keeps at most [`MAX_BLOCKS_PER_RUN`] blocks: past that,
+//! adjacent blocks of a segment are merged in pairs (sample-weighted means)
+//! and the run goes on in blocks twice as long, so the memory a fit holds
+//! does not grow with the run's length ([`Blocks::merge_pairs`]).
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -40,6 +45,10 @@ pub struct Blocks {
     pub time_s: Vec<f64>,
     /// Samples behind each block's means (filled as `segment_s`).
     pub samples: Vec<u32>,
+    /// How many times adjacent blocks were merged in pairs
+    /// ([`Blocks::merge_pairs`]): the blocks are 2^`doublings` times the
+    /// block length asked for ([`Blocks::length_s`]).
+    pub doublings: u32,
 }
 
 impl Blocks {
@@ -51,6 +60,79 @@ impl Blocks {
     /// True when there are no blocks.
     pub fn is_empty(&self) -> bool {
         self.y.is_empty()
+    }
+
+    /// Length of these blocks, s, when `block_s` was asked for: `block_s`
+    /// unless they were merged ([`Blocks::doublings`]).
+    pub fn length_s(&self, block_s: f64) -> f64 {
+        block_s * f64::from(1u32 << self.doublings.min(31))
+    }
+
+    /// Merges adjacent blocks in pairs, in place: blocks `block_s` ×
+    /// 2^`doublings` long become twice as long, on a grid that starts at
+    /// each segment's start (block k of a segment joins block k ± 1 into
+    /// block ⌊k/2⌋). Blocks of different runs or segments are never merged;
+    /// a block whose partner was dropped (too few usable samples) or lies
+    /// across a gap stays on its own. Features and targets are means
+    /// weighted by the samples behind them, so a merged block holds the
+    /// means of all its samples; `samples` adds up, and `time_s` and
+    /// `segment_s` give the merged block's start on the grid. Blocks made
+    /// without start times (`segment_s` empty) are merged by consecutive
+    /// pairs within a run. The per-sample ranges and usable time do not change.
+    pub fn merge_pairs(&mut self, block_s: f64) {
+        let n = self.len();
+        let timed = self.segment_s.len() == n && self.time_s.len() == n && self.samples.len() == n;
+        let length_s = self.length_s(block_s);
+        // Index of block i on the current grid, and its segment's start.
+        let index = |b: &Blocks, i: usize| (f64::from(b.segment_s[i]) / length_s).round() as u64;
+        let segment_start = |b: &Blocks, i: usize| b.time_s[i] - f64::from(b.segment_s[i]);
+        let mut kept = 0;
+        let mut i = 0;
+        while i < n {
+            let j = i + 1;
+            let pair = j < n
+                && self.run[j] == self.run[i]
+                && (!timed
+                    || (index(self, j) / 2 == index(self, i) / 2
+                        && index(self, j) > index(self, i)
+                        && (segment_start(self, j) - segment_start(self, i)).abs() < 0.5 * length_s));
+            let (wi, wj) = if timed {
+                (
+                    f64::from(self.samples[i]),
+                    if pair { f64::from(self.samples[j]) } else { 0.0 },
+                )
+            } else {
+                (1.0, if pair { 1.0 } else { 0.0 })
+            };
+            let total = wi + wj;
+            let (a, b) = (wi / total, wj / total);
+            let mut x = self.x[i];
+            if pair {
+                for (m, v) in x.iter_mut().zip(&self.x[j]) {
+                    *m = a * *m + b * v;
+                }
+            }
+            self.x[kept] = x;
+            self.y[kept] = if pair { a * self.y[i] + b * self.y[j] } else { self.y[i] };
+            self.run[kept] = self.run[i];
+            if timed {
+                let start_s = (index(self, i) / 2) as f64 * 2.0 * length_s;
+                self.time_s[kept] = segment_start(self, i) + start_s;
+                self.segment_s[kept] = start_s as f32;
+                self.samples[kept] = self.samples[i] + if pair { self.samples[j] } else { 0 };
+            }
+            kept += 1;
+            i = if pair { j + 1 } else { j };
+        }
+        self.x.truncate(kept);
+        self.y.truncate(kept);
+        self.run.truncate(kept);
+        if timed {
+            self.time_s.truncate(kept);
+            self.segment_s.truncate(kept);
+            self.samples.truncate(kept);
+        }
+        self.doublings += 1;
     }
 
     /// Feature `i` of block `row`.
@@ -82,7 +164,19 @@ impl Blocks {
         self
     }
 
-    fn append(&mut self, other: Blocks) {
+    /// Appends `other`'s blocks (`block_s` asked for); whichever of the
+    /// two holds shorter blocks is merged first ([`Blocks::merge_pairs`]),
+    /// so that all blocks keep one length.
+    fn append(&mut self, mut other: Blocks, block_s: f64) {
+        if self.is_empty() {
+            self.doublings = self.doublings.max(other.doublings);
+        }
+        while other.doublings < self.doublings {
+            other.merge_pairs(block_s);
+        }
+        while self.doublings < other.doublings {
+            self.merge_pairs(block_s);
+        }
         if self.x.is_empty() && self.sample_range.is_empty() {
             self.sample_range = other.sample_range.clone();
         } else {
@@ -151,7 +245,12 @@ pub struct BlockBuilder {
     converted: Vec<usize>,
     config: CompensatorConfig,
     block_index: BinIndex,
+    /// The block length asked for, s.
+    base_block_s: f64,
+    /// The length of the blocks being built now, s (doubled by each merge).
     block_s: f64,
+    /// Blocks held per configuration before they are merged in pairs.
+    max_blocks: usize,
     nominal_period_s: f64,
     min_count: usize,
     compensator: Compensator,
@@ -211,7 +310,9 @@ impl BlockBuilder {
             converted,
             config: CompensatorConfig::for_nominal_period_s(nominal_period_s),
             block_index: BinIndex::new(block_s),
+            base_block_s: block_s,
             block_s,
+            max_blocks: usize::MAX,
             nominal_period_s,
             min_count: ((0.5 * block_s / nominal_period_s).floor() as usize).max(1),
             compensator: Compensator::new(),
@@ -222,6 +323,25 @@ impl BlockBuilder {
             started: false,
             run_index,
         })
+    }
+
+    /// This builder holding at most `max_blocks` blocks per configuration
+    /// (at least 2): when a block closes with `max_blocks` held, they are
+    /// merged in pairs ([`Blocks::merge_pairs`]) and the run goes on in
+    /// blocks twice as long. Unbounded unless set.
+    pub fn with_max_blocks(mut self, max_blocks: usize) -> Self {
+        self.max_blocks = max_blocks.max(2);
+        self
+    }
+
+    /// Merges the blocks held in pairs and makes the blocks to come twice as long.
+    fn double_block_length(&mut self) {
+        for out in &mut self.outputs {
+            out.merge_pairs(self.base_block_s);
+        }
+        self.block_s *= 2.0;
+        self.block_index = BinIndex::new(self.block_s);
+        self.min_count = ((0.5 * self.block_s / self.nominal_period_s).floor() as usize).max(1);
     }
 
     fn flush(&mut self) {
@@ -258,12 +378,20 @@ impl BlockBuilder {
             self.segment_start_s = time_s;
         }
         self.started = true;
-        let block = (
+        let mut block = (
             self.segment_start_s.to_bits(),
             self.block_index.of(time_s - self.segment_start_s),
         );
         if self.current_block != Some(block) {
             self.flush();
+            let held = self.outputs.first().map_or(0, Blocks::len);
+            // Merged when the block to come starts a merged one (its index
+            // is even), so that it does not share a merged block's place on
+            // the grid; at twice the limit whatever the index.
+            if held >= self.max_blocks && (block.1 % 2 == 0 || held >= 2 * self.max_blocks) {
+                self.double_block_length();
+                block.1 = self.block_index.of(time_s - self.segment_start_s);
+            }
             self.current_block = Some(block);
         }
         let Some(head) = self.configs.first() else {
@@ -383,6 +511,7 @@ pub fn bank_blocks(plain: &Blocks, bank: &LagBank) -> Blocks {
         segment_s: plain.segment_s.clone(),
         time_s: plain.time_s.clone(),
         samples: plain.samples.clone(),
+        doublings: plain.doublings,
         ..Blocks::default()
     };
     out.x = plain.x.iter().map(|row| inputs(row[0], &row[1..=n])).collect();
@@ -472,6 +601,7 @@ fn slice_plain(have: &LagBank, blocks: &Blocks, want: &LagBank) -> Option<Blocks
     let mut out = Blocks {
         dims: 1 + w,
         sample_range,
+        doublings: blocks.doublings,
         ..Blocks::default()
     };
     for i in (0..blocks.len()).filter(|&i| blocks.segment_s[i] >= warmup_s) {
@@ -571,7 +701,7 @@ pub fn sample_block_means(runs: &[Run], features: &FeatureConfig, block_s: f64) 
         for (i, sample) in run.samples().enumerate() {
             builder.push(run.time_s[i], &sample, run.rate_dph[i] - reference.at(i));
         }
-        builder.finish(0.0).into_iter().for_each(|b| all.append(b));
+        builder.finish(0.0).into_iter().for_each(|b| all.append(b, block_s));
     }
     all
 }
@@ -584,8 +714,17 @@ pub struct RunFiles {
     paths: Vec<PathBuf>,
     /// The gyro axis read from multi-axis runs (`None`: single-axis runs).
     axis: Option<Axis>,
+    /// Blocks held per run and configuration ([`BlockBuilder::with_max_blocks`]).
+    max_blocks_per_run: usize,
     cache: Mutex<Vec<(CacheKey, Blocks)>>,
 }
+
+/// Blocks a streamed run keeps per configuration before merging them in
+/// pairs ([`Blocks::merge_pairs`]): 16384 (4.5 h of 1-s blocks), so runs of
+/// a few hours keep every 1-s block and longer ones end with between 8192
+/// and 16384 blocks of 2, 4, 8 … s: what a fit holds no longer grows with
+/// the run's length.
+pub const MAX_BLOCKS_PER_RUN: usize = 16_384;
 
 type CacheKey = (FeatureConfigKey, u64);
 type FeatureConfigKey = (FeatureSet, [u32; 3]);
@@ -611,8 +750,17 @@ impl RunFiles {
         RunFiles {
             paths: paths.to_vec(),
             axis,
+            max_blocks_per_run: MAX_BLOCKS_PER_RUN,
             cache: Mutex::new(Vec::new()),
         }
+    }
+
+    /// These runs keeping at most `max_blocks` blocks per run and
+    /// configuration (default [`MAX_BLOCKS_PER_RUN`]; `usize::MAX`: every
+    /// block as asked, memory growing with the run).
+    pub fn with_max_blocks_per_run(mut self, max_blocks: usize) -> Self {
+        self.max_blocks_per_run = max_blocks;
+        self
     }
 
     /// A reader of `path` on this set's axis.
@@ -664,6 +812,7 @@ impl RunFiles {
             .map(|members| {
                 let group: Vec<FeatureConfig> = members.iter().map(|&i| configs[i]).collect();
                 BlockBuilder::new(index, &group, period_s, block_s)
+                    .map(|b| b.with_max_blocks(self.max_blocks_per_run))
                     .ok_or_else(|| anyhow::anyhow!("feature configurations grouped wrongly"))
             })
             .collect::<anyhow::Result<Vec<_>>>()?;
@@ -783,7 +932,7 @@ impl RunSet for RunFiles {
             .collect();
         for index in 0..self.paths.len() {
             for (all, blocks) in merged.iter_mut().zip(self.pass(index, &wanted, block_s)?) {
-                all.append(blocks);
+                all.append(blocks, block_s);
             }
         }
         let mut cache = self.cache.lock().map_err(|_| anyhow::anyhow!("block cache poisoned"))?;
@@ -1011,5 +1160,195 @@ mod tests {
             crate::blobfile::encode_model(&from_files.model).unwrap(),
             crate::blobfile::encode_model(&in_memory.model).unwrap()
         );
+    }
+    /// Blocks of run `run` starting `segment_start_s` on the run's clock, at
+    /// grid indices `indices` (1-s blocks), with `samples` each; feature 0
+    /// and the target are `value(index)`.
+    fn push_segment(b: &mut Blocks, run: usize, segment_start_s: f64, indices: &[(u64, u32)]) {
+        for &(k, n) in indices {
+            let value = 10.0 * run as f64 + segment_start_s + k as f64 + f64::from(n) / 1000.0;
+            let mut x = [0.0; MAX_INPUTS];
+            x[0] = value;
+            x[1] = -value;
+            b.x.push(x);
+            b.y.push(2.0 * value);
+            b.run.push(run);
+            b.segment_s.push(k as f32);
+            b.time_s.push(segment_start_s + k as f64);
+            b.samples.push(n);
+        }
+    }
+
+    #[test]
+    fn merged_pairs_are_sample_weighted_means_within_a_segment_and_a_run() {
+        let mut b = Blocks {
+            dims: 2,
+            sample_range: vec![(0.0, 1.0); 2],
+            usable_s: 12.0,
+            ..Blocks::default()
+        };
+        // Run 0: block 3 dropped; a gap at 6.5 s starts a segment whose
+        // block 0 was dropped (its block 1 shares a grid cell with the first
+        // segment's block 0 by index, not by time); run 1 starts at 0 again.
+        push_segment(&mut b, 0, 0.0, &[(0, 100), (1, 60), (2, 100), (4, 80), (5, 100)]);
+        push_segment(&mut b, 0, 6.5, &[(1, 100), (2, 100)]);
+        push_segment(&mut b, 1, 0.0, &[(1, 100), (2, 100), (3, 90)]);
+        let before = b.clone();
+        b.merge_pairs(1.0);
+        assert_eq!((b.doublings, b.length_s(1.0), b.length_s(0.5)), (1, 2.0, 1.0));
+        // (first, second) blocks of `before` behind each merged block.
+        let expected: [(usize, Option<usize>); 7] = [
+            (0, Some(1)),
+            (2, None),
+            (3, Some(4)),
+            (5, None),
+            (6, None),
+            (7, None),
+            (8, Some(9)),
+        ];
+        assert_eq!(b.len(), expected.len());
+        for (m, &(i, j)) in expected.iter().enumerate() {
+            let (ni, nj) = (before.samples[i], j.map_or(0, |j| before.samples[j]));
+            let mean = |v: &dyn Fn(usize) -> f64| {
+                (f64::from(ni) * v(i) + j.map_or(0.0, |j| f64::from(nj) * v(j))) / f64::from(ni + nj)
+            };
+            let x0 = mean(&|k| before.x[k][0]);
+            assert!((b.x[m][0] - x0).abs() < 1e-12, "block {m}: {} against {x0}", b.x[m][0]);
+            assert!((b.x[m][1] + x0).abs() < 1e-12, "block {m}");
+            assert!((b.y[m] - mean(&|k| before.y[k])).abs() < 1e-12, "block {m}");
+            assert_eq!(b.samples[m], ni + nj, "block {m}");
+            assert_eq!(b.run[m], before.run[i], "block {m}");
+            // The merged block starts on the 2-s grid of its own segment.
+            let grid_s = (before.segment_s[i] / 2.0).floor() * 2.0;
+            assert_eq!(b.segment_s[m], grid_s, "block {m}");
+            let segment_start_s = before.time_s[i] - f64::from(before.segment_s[i]);
+            assert_eq!(b.time_s[m], segment_start_s + f64::from(grid_s), "block {m}");
+        }
+        assert_eq!((b.usable_s, &b.sample_range), (before.usable_s, &before.sample_range));
+        // A second merge: 4-s cells, still never across a run or a gap.
+        b.merge_pairs(1.0);
+        assert_eq!(b.segment_s, [0.0, 4.0, 0.0, 0.0]);
+        assert_eq!(b.run, [0, 0, 0, 1]);
+        assert_eq!(b.samples, [260, 180, 200, 290]);
+        assert_eq!(b.length_s(1.0), 4.0);
+    }
+
+    #[test]
+    fn appending_merges_the_shorter_blocks_to_the_longer_ones_length() {
+        let mut long = Blocks::default();
+        push_segment(&mut long, 0, 0.0, &[(0, 10), (1, 10), (2, 10), (3, 10)]);
+        long.merge_pairs(1.0);
+        let mut short = Blocks::default();
+        push_segment(&mut short, 1, 0.0, &[(0, 10), (1, 10), (2, 10), (3, 10)]);
+        let mut all = Blocks::default();
+        all.append(short.clone(), 1.0);
+        all.append(long, 1.0);
+        assert_eq!((all.doublings, all.len()), (1, 4));
+        assert_eq!(all.samples, [20, 20, 20, 20]);
+        assert_eq!(all.run, [1, 1, 0, 0]);
+    }
+
+    #[test]
+    fn a_streamed_run_past_the_block_limit_keeps_it_and_the_means_of_all_its_samples() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = simulated_run(&dir, 2.0, 13);
+        let bank = FeatureConfig::lag_bank(LagBank::plain(LADDER_S, 0.0).unwrap());
+        let every = RunFiles::new(std::slice::from_ref(&path)).with_max_blocks_per_run(usize::MAX);
+        let every = every.block_means(&bank, 1.0).unwrap();
+        assert!(every.len() > 10_000, "{} blocks", every.len());
+        let limit = 1000;
+        let bounded = RunFiles::new(std::slice::from_ref(&path)).with_max_blocks_per_run(limit);
+        let bounded = bounded.block_means(&bank, 1.0).unwrap();
+        // 3 h of 1-s blocks: merged four times, to 16-s blocks.
+        assert_eq!(bounded.doublings, 4);
+        assert!(
+            bounded.len() <= limit && bounded.len() > limit / 2,
+            "{} blocks",
+            bounded.len()
+        );
+        assert_eq!(bounded.length_s(1.0), 16.0);
+        assert_eq!(
+            (bounded.usable_s, &bounded.sample_range),
+            (every.usable_s, &every.sample_range)
+        );
+        // Each 16-s block against the 1-s blocks in its cell: the same
+        // samples (but where a cell's edge block has under half its samples)
+        // and then the same means.
+        let mut same = 0;
+        for m in 0..bounded.len() {
+            let start = bounded.time_s[m];
+            let cell: Vec<usize> = (0..every.len())
+                .filter(|&i| every.time_s[i] >= start - 1e-6 && every.time_s[i] < start + 16.0 - 1e-6)
+                .collect();
+            let n: u32 = cell.iter().map(|&i| every.samples[i]).sum();
+            assert!(
+                n.abs_diff(bounded.samples[m]) < 10,
+                "block {m}: {n} against {}",
+                bounded.samples[m]
+            );
+            if n != bounded.samples[m] {
+                continue;
+            }
+            same += 1;
+            let weighted = |v: &dyn Fn(usize) -> f64| {
+                cell.iter().map(|&i| f64::from(every.samples[i]) * v(i)).sum::<f64>() / f64::from(n)
+            };
+            for k in 0..bank.dims() {
+                let want = weighted(&|i| every.x[i][k]);
+                let tolerance = 1e-9 * (1.0 + want.abs());
+                assert!((bounded.x[m][k] - want).abs() < tolerance, "block {m} input {k}");
+            }
+            assert!((bounded.y[m] - weighted(&|i| every.y[i])).abs() < 1e-9, "block {m}");
+        }
+        assert!(same * 100 >= 98 * bounded.len(), "{same} of {} blocks", bounded.len());
+    }
+
+    /// The ladder the merge tests read.
+    const LADDER_S: &[f32] = &[15.0, 60.0, 240.0, 960.0];
+
+    #[test]
+    fn the_default_fit_on_merged_blocks_predicts_as_the_fit_on_every_block() {
+        // A 3-h run held in 1350 8-s blocks (as a 20-h run is at the default
+        // limit) against all its 10800 1-s blocks: the compensated cluster
+        // STD, scored on every sample of the training run and of a run with
+        // another ramp rate, within 5 % of each other (0.4 % and 0.5 % apart
+        // when this was written).
+        let dir = tempfile::tempdir().unwrap();
+        let train = simulated_run(&dir, 1.0, 17);
+        let held_dir = tempfile::tempdir().unwrap();
+        let held = simulated_run(&held_dir, 2.5, 19);
+        let opts = crate::fit::FitOptions {
+            progress: false,
+            ..crate::fit::FitOptions::default()
+        };
+        let none = RunFiles::new(&[]);
+        let fit = |max_blocks| {
+            let runs = RunFiles::new(std::slice::from_ref(&train)).with_max_blocks_per_run(max_blocks);
+            let model = crate::fit::fit(&runs, &none, &opts).unwrap().model;
+            let bank = FeatureConfig::lag_bank(
+                plain_bank(match &model.features().set {
+                    FeatureSet::LagBank(bank) => bank,
+                    set => panic!("{set:?}: the default is the lag bank"),
+                })
+                .unwrap(),
+            );
+            let doublings = runs.block_means(&bank, opts.block_s).unwrap().doublings;
+            (model, doublings)
+        };
+        let (every, d_every) = fit(usize::MAX);
+        let (merged, d_merged) = fit(2048);
+        assert_eq!((d_every, d_merged), (0, 3));
+        for path in [&train, &held] {
+            let score = |m: &rbf_core::Model| crate::evaluate::evaluate_file(m, path).unwrap();
+            let (a, b) = (score(&every), score(&merged));
+            let (std_every, std_merged) = (a.cluster_std_after_dph, b.cluster_std_after_dph);
+            assert!(
+                std_merged <= 1.05 * std_every && std_every <= 1.05 * std_merged,
+                "{}: cluster STD {std_merged} °/h merged against {std_every} °/h (raw {})",
+                path.display(),
+                a.cluster_std_before_dph
+            );
+            assert!(b.cluster_std_improvement_pct > 0.5 * a.cluster_std_improvement_pct);
+        }
     }
 }

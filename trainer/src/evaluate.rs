@@ -56,8 +56,9 @@ pub struct RunEvaluation {
     pub axis: Option<&'static str>,
     /// Number of samples (= output rows).
     /// What was scored: every sample (`samples`), or the block means a
-    /// fit computed (`block means`: see [`evaluate_blocks`]).
-    pub basis: &'static str,
+    /// fit computed (`block means`, or `8-s block means` when a long run's
+    /// blocks were merged: see [`evaluate_blocks`]).
+    pub basis: String,
     /// Number of samples (= output rows; for block means, the samples behind them).
     pub samples: usize,
     /// What the rate was compared with: `ref_dph` or `run mean`.
@@ -135,15 +136,30 @@ pub fn evaluate_axis_reader(
 
 /// [`RunEvaluation::basis`] of a sample-by-sample evaluation.
 pub const SAMPLES: &str = "samples";
-/// [`RunEvaluation::basis`] of [`evaluate_blocks`].
+/// [`RunEvaluation::basis`] of [`evaluate_blocks`] on blocks as the fit
+/// asked for them; merged blocks ([`Blocks::merge_pairs`]) say their length
+/// before it ([`block_basis`]).
 pub const BLOCK_MEANS: &str = "block means";
 
+/// [`RunEvaluation::basis`] of blocks `length_s` long merged `doublings`
+/// times: [`BLOCK_MEANS`], or e.g. `8-s block means` for merged blocks.
+pub fn block_basis(doublings: u32, length_s: f64) -> String {
+    if doublings == 0 {
+        BLOCK_MEANS.to_owned()
+    } else {
+        format!("{length_s}-s {BLOCK_MEANS}")
+    }
+}
+
 /// Before/after accuracy of `model` on run number `run` of `blocks` (the
-/// block means a fit computed, `block_s` long, of `model`'s inputs), without
-/// reading the run again: how `trainer fit` scores its training runs. The
-/// model is evaluated at each block's mean inputs, which for 1-s blocks
-/// differs from the mean of its per-sample outputs far below the bias noise
-/// (`trainer eval` scores every sample); samples the fit left out (warming
+/// block means a fit computed, `block_s` asked for, of `model`'s inputs),
+/// without reading the run again: how `trainer fit` scores its training
+/// runs. The model is evaluated at each block's mean inputs, which for 1-s
+/// blocks differs from the mean of its per-sample outputs far below the
+/// bias noise (`trainer eval` scores every sample). A long run's merged
+/// blocks ([`Blocks::merge_pairs`]) are scored as they are, e.g. as 8-s
+/// means (the MSD then of 8-s means, not 1-s ones), and the basis says so
+/// ([`block_basis`]); samples the fit left out (warming
 /// up, a thermometer fault) are not in the blocks, and a block counts as
 /// clamped with all its samples when its mean inputs are. `has_ref`: the
 /// targets are deviations from `ref_dph` (else from the run's mean).
@@ -155,8 +171,9 @@ pub fn evaluate_blocks(
     block_s: f64,
     has_ref: bool,
 ) -> RunEvaluation {
-    let mut evaluator = Evaluator::new(path, block_s, has_ref);
-    evaluator.basis = BLOCK_MEANS;
+    let length_s = blocks.length_s(block_s);
+    let mut evaluator = Evaluator::new(path, length_s, has_ref);
+    evaluator.basis = block_basis(blocks.doublings, length_s);
     let dims = blocks.dims.min(MAX_INPUTS);
     for i in (0..blocks.len()).filter(|&i| blocks.run[i] == run) {
         let mut x = [0.0f32; MAX_INPUTS];
@@ -168,7 +185,7 @@ pub fn evaluate_blocks(
         let (time_s, samples) = (blocks.time_s.get(i), blocks.samples.get(i));
         let y = blocks.y[i];
         evaluator.push_mean(
-            time_s.copied().unwrap_or(i as f64 * block_s),
+            time_s.copied().unwrap_or(i as f64 * length_s),
             y,
             y - f64::from(e.bias_dph),
             flags,
@@ -322,7 +339,7 @@ pub fn require_evaluable(path: &Path, rows: usize, diagnosis: &RunDiagnosis) -> 
 /// bin means, flag counts and bounded Allan series ([`allan::Decimated`]).
 pub struct Evaluator {
     run: String,
-    basis: &'static str,
+    basis: String,
     nominal_period_s: f64,
     has_ref: bool,
     samples: usize,
@@ -344,7 +361,7 @@ impl Evaluator {
         };
         Evaluator {
             run: text::path(path),
-            basis: SAMPLES,
+            basis: SAMPLES.to_owned(),
             nominal_period_s,
             has_ref,
             samples: 0,
@@ -445,10 +462,11 @@ pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std
             e.cluster_std_improvement_pct
         )?;
     }
-    if rows.iter().any(|(_, e)| e.basis == BLOCK_MEANS) {
+    if let Some((_, e)) = rows.iter().find(|(_, e)| e.basis.ends_with(BLOCK_MEANS)) {
         writeln!(
             out,
-            "(train: scored on the fit's block means, warm-up left out; `trainer eval` scores every sample)"
+            "(train: scored on the fit's {}, warm-up left out; `trainer eval` scores every sample)",
+            e.basis
         )?;
     }
     Ok(())
@@ -720,7 +738,10 @@ mod tests {
             );
         }
         let by_samples = evaluator.finish();
-        assert_eq!((by_blocks.basis, by_samples.basis), (BLOCK_MEANS, SAMPLES));
+        assert_eq!(
+            (by_blocks.basis.as_str(), by_samples.basis.as_str()),
+            (BLOCK_MEANS, SAMPLES)
+        );
         let close = |a: f64, b: f64, tolerance: f64, what: &str| {
             assert!((a / b - 1.0).abs() <= tolerance, "{what}: blocks {a}, samples {b}");
         };

@@ -89,8 +89,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             trainer::fit::rbf::feature_config(set, a.dt_window_s, 1.0)
         }
     };
-    // Streamed: one pass per run, only block means held.
-    let blocks = RunFiles::new(&a.runs).block_means(&features, a.block_s)?;
+    // Streamed: one pass per run, every block as asked (never merged).
+    let blocks = RunFiles::new(&a.runs)
+        .with_max_blocks_per_run(usize::MAX)
+        .block_means(&features, a.block_s)?;
     let mut out = Output::open(target)?;
     write_csv(&mut out, features.set, &blocks)
         .with_context(|| format!("{}: write failed", text::path(&a.output)))?;

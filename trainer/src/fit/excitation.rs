@@ -75,7 +75,7 @@ pub fn check_excitation(blocks: &Blocks, set: FeatureSet, opts: &FitOptions) -> 
         missing.push(format!(
             "{} blocks of {} s is too few for {parameters} parameters",
             blocks.len(),
-            opts.block_s
+            blocks.length_s(opts.block_s)
         ));
     }
     if missing.is_empty() {

@@ -74,14 +74,22 @@ struct LadderData {
     /// Seconds of samples behind each mean, on average (10 s at 1 Hz and
     /// faster; more when a sample spans more than a block).
     mean_s: f64,
+    /// Nominal length of each mean, s: [`SEARCH_MEAN_S`] rounded to whole
+    /// blocks (the blocks of a long run are merged, [`Blocks::merge_pairs`]).
+    row_s: f64,
 }
 
 impl LadderData {
     /// 10-s means of the blocks of a plain ladder bank (inputs [T, ΔT_1 …]),
-    /// never across a run boundary or a gap in the blocks.
+    /// `block_s` asked for, never across a run boundary; blocks merged to
+    /// more than 10 s stay on their own ([`Blocks::length_s`]).
     fn from_blocks(blocks: &Blocks, filters: usize, block_s: f64) -> LadderData {
-        let per_mean = (SEARCH_MEAN_S / block_s).round().max(1.0) as usize;
-        let mut out = LadderData::default();
+        let length_s = blocks.length_s(block_s);
+        let per_mean = (SEARCH_MEAN_S / length_s).round().max(1.0) as usize;
+        let mut out = LadderData {
+            row_s: per_mean as f64 * length_s,
+            ..LadderData::default()
+        };
         let mut start = 0;
         while start < blocks.len() {
             let mut end = start + 1;
@@ -342,7 +350,7 @@ fn fit_structure(s: &Structure, t0: f64, data: &LadderData, rows: &[usize], star
 /// contiguous stretch), the mean residual of each run removed: what the
 /// cluster STD of an unseen history would see.
 fn score(s: &Structure, fits: &[(Fitted, Vec<usize>)], t0: f64, data: &LadderData) -> f64 {
-    let per_mean = (SCORE_MEAN_S / SEARCH_MEAN_S).round().max(1.0) as usize;
+    let per_mean = (SCORE_MEAN_S / data.row_s).round().max(1.0) as usize;
     let mut means: Vec<(usize, f64)> = Vec::new();
     for (fitted, held) in fits {
         let mut chunk: Vec<usize> = Vec::new();
@@ -464,7 +472,7 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     let t0 = (0.5 * (t_lo + t_hi) * 2.0).round() / 2.0;
     let folds: Vec<Folds> = ladders
         .iter()
-        .map(|(d, _)| thermal_folds(&d.temp_c, &d.run, SEARCH_MEAN_S, opts.folds))
+        .map(|(d, _)| thermal_folds(&d.temp_c, &d.run, d.row_s, opts.folds))
         .collect();
     let coverage = {
         let data = &ladders[0].0;
@@ -583,7 +591,10 @@ mod tests {
 
     /// Rows of a synthetic gyro whose bias is exactly the bank's structure.
     fn synthetic(s: &Structure, truth: &[f64], t0: f64) -> LadderData {
-        let mut data = LadderData::default();
+        let mut data = LadderData {
+            row_s: SEARCH_MEAN_S,
+            ..LadderData::default()
+        };
         let mut filters = [0.0f64; BANK_FILTERS];
         let taus = LADDERS_S[s.ladder];
         let mut temp = 20.0;

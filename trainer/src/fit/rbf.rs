@@ -198,7 +198,7 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         super::check_excitation(&train_blocks, set, opts)?;
         let (all, splits) = splits(&train_blocks, validate, features, opts, folds)?;
         let norm = Normaliser::fit(&train_blocks);
-        let score_rows = score_cluster_rows(&splits, opts.block_s);
+        let score_rows = score_cluster_rows(&splits, all.length_s(opts.block_s));
         let z: Vec<FeatureRow> = all.x.iter().map(|r| norm.apply(r)).collect();
         // Each split's candidate centres do not depend on the width: found
         // once per split, used by every width.
@@ -305,7 +305,9 @@ pub(crate) fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + 
     results.into_iter().flatten().collect()
 }
 
-/// The block set that scores are computed on, and the splits into it.
+/// The block set that scores are computed on, and the splits into it; the
+/// training and validation blocks at one length (the shorter ones merged,
+/// [`Blocks::merge_pairs`]).
 fn splits<V: RunSet + ?Sized>(
     train: &Blocks,
     validate: &V,
@@ -314,8 +316,14 @@ fn splits<V: RunSet + ?Sized>(
     folds: usize,
 ) -> anyhow::Result<(Blocks, Vec<Split>)> {
     if validate.count() > 0 {
-        let val = validate.block_means(features, opts.block_s)?;
+        let mut val = validate.block_means(features, opts.block_s)?;
         let mut all = train.clone();
+        while all.doublings < val.doublings {
+            all.merge_pairs(opts.block_s);
+        }
+        while val.doublings < all.doublings {
+            val.merge_pairs(opts.block_s);
+        }
         let offset = all.len();
         let runs_before = train.run.iter().max().map_or(0, |m| m + 1);
         all.x.extend(val.x.iter().copied());
@@ -341,7 +349,7 @@ fn splits<V: RunSet + ?Sized>(
     if matches!(features.set, FeatureSet::LagBank(_)) {
         // Whole thermal events (or whole runs) held out, as the bank's search does.
         let temps: Vec<f64> = train.x.iter().map(|r| r[0]).collect();
-        let f = super::events::thermal_folds(&temps, &train.run, opts.block_s, folds);
+        let f = super::events::thermal_folds(&temps, &train.run, train.length_s(opts.block_s), folds);
         let splits = (0..f.held_out.len())
             .map(|k| Split {
                 train: f.train_rows(k, train.len()),
@@ -378,8 +386,9 @@ fn splits<V: RunSet + ?Sized>(
     Ok((train.clone(), splits))
 }
 
-/// Blocks per validation cluster mean: 100 s (the cluster-STD window), shortened
-/// on short validation groups so that each still yields 10 cluster means.
+/// Blocks (`block_s` long) per validation cluster mean: 100 s (the
+/// cluster-STD window), shortened on short validation groups so that each
+/// still yields 10 cluster means.
 fn score_cluster_rows(splits: &[Split], block_s: f64) -> usize {
     let cluster = (crate::metrics::CLUSTER_S / block_s).round().max(1.0) as usize;
     let shortest = splits

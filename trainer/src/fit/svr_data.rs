@@ -46,7 +46,9 @@ impl SvrData {
         let folds = contiguous_folds(x.len(), FOLDS);
         // Scored on 100-s cluster means of the residual, as `rbf` is: at 1 s
         // white noise hides model errors ten times smaller than itself.
-        let per_cluster = (crate::metrics::CLUSTER_S / (block_s * group as f64)).round().max(1.0) as usize;
+        let per_cluster = (crate::metrics::CLUSTER_S / (blocks.length_s(block_s) * group as f64))
+            .round()
+            .max(1.0) as usize;
         Ok(SvrData {
             norm,
             x,

@@ -261,7 +261,7 @@ fn choose_inputs<T: RunSet + ?Sized>(
     train.prepare(&[temps_config], opts.block_s)?;
     let temps = train.block_means(&temps_config, opts.block_s)?;
     check_excitation(&temps, FeatureSet::Temp, opts)?;
-    let group = (CORRELATION_BLOCK_S / opts.block_s).round().max(1.0) as usize;
+    let group = (CORRELATION_BLOCK_S / temps.length_s(opts.block_s)).round().max(1.0) as usize;
     let table = gradients::correlations(&MultiBlocks::from_blocks(&temps, &sensors, group));
     let mut ranking = Vec::new();
     let (selected, probes) = match (&opts.inputs, opts.selection) {
