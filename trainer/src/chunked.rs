@@ -294,9 +294,10 @@ pub fn parse_chunk(columns: &Columns, text: Vec<u8>, first_line: usize) -> Batch
     // chunk, and one per line only when it fails.
     let all_utf8 = std::str::from_utf8(&text).is_ok();
     let mut batch = Batch::new(columns);
-    // Room for every row without a reallocation (a row is at least
-    // `count` numbers and separators, two bytes each).
-    let most_rows = text.len() / (2 * columns.count).max(1) + 1;
+    // Room for every line without a reallocation, and no more: capacity
+    // the rows never fill still ends up resident as the allocator reuses
+    // it at other offsets, so that a long run's resident memory would grow.
+    let most_rows = memchr::memchr_iter(b'\n', &text).count() + 1;
     batch.rows.reserve(most_rows);
     batch.temps.reserve(most_rows * batch.stride);
     let mut defect = None;

@@ -81,56 +81,41 @@ impl Blocks {
     /// pairs within a run. The per-sample ranges and usable time do not change.
     pub fn merge_pairs(&mut self, block_s: f64) {
         let n = self.len();
-        let timed = self.segment_s.len() == n && self.time_s.len() == n && self.samples.len() == n;
         let length_s = self.length_s(block_s);
-        // Index of block i on the current grid, and its segment's start.
-        let index = |b: &Blocks, i: usize| (f64::from(b.segment_s[i]) / length_s).round() as u64;
-        let segment_start = |b: &Blocks, i: usize| b.time_s[i] - f64::from(b.segment_s[i]);
-        let mut kept = 0;
-        let mut i = 0;
-        while i < n {
-            let j = i + 1;
-            let pair = j < n
-                && self.run[j] == self.run[i]
-                && (!timed
-                    || (index(self, j) / 2 == index(self, i) / 2
-                        && index(self, j) > index(self, i)
-                        && (segment_start(self, j) - segment_start(self, i)).abs() < 0.5 * length_s));
-            let (wi, wj) = if timed {
-                (
-                    f64::from(self.samples[i]),
-                    if pair { f64::from(self.samples[j]) } else { 0.0 },
-                )
-            } else {
-                (1.0, if pair { 1.0 } else { 0.0 })
-            };
-            let total = wi + wj;
-            let (a, b) = (wi / total, wj / total);
-            let mut x = self.x[i];
-            if pair {
-                for (m, v) in x.iter_mut().zip(&self.x[j]) {
+        let Blocks {
+            x,
+            y,
+            run,
+            segment_s,
+            time_s,
+            samples,
+            ..
+        } = self;
+        let runs = std::mem::take(run);
+        let mix = |kept: usize, i: usize, partner: Option<(usize, f64, f64)>| {
+            let (mut xi, mut yi) = (x[i], y[i]);
+            if let Some((j, a, b)) = partner {
+                for (m, v) in xi.iter_mut().zip(&x[j]) {
                     *m = a * *m + b * v;
                 }
+                yi = a * yi + b * y[j];
             }
-            self.x[kept] = x;
-            self.y[kept] = if pair { a * self.y[i] + b * self.y[j] } else { self.y[i] };
-            self.run[kept] = self.run[i];
-            if timed {
-                let start_s = (index(self, i) / 2) as f64 * 2.0 * length_s;
-                self.time_s[kept] = segment_start(self, i) + start_s;
-                self.segment_s[kept] = start_s as f32;
-                self.samples[kept] = self.samples[i] + if pair { self.samples[j] } else { 0 };
-            }
-            kept += 1;
-            i = if pair { j + 1 } else { j };
-        }
-        self.x.truncate(kept);
-        self.y.truncate(kept);
-        self.run.truncate(kept);
-        if timed {
-            self.time_s.truncate(kept);
-            self.segment_s.truncate(kept);
-            self.samples.truncate(kept);
+            x[kept] = xi;
+            y[kept] = yi;
+            run.push(runs[i]);
+        };
+        let kept = if segment_s.len() == n && time_s.len() == n && samples.len() == n {
+            let same_run = |i: usize, j: usize| runs[i] == runs[j];
+            merge_on_grid(&same_run, segment_s, time_s, samples, length_s, mix)
+        } else {
+            merge_consecutive(&runs, mix)
+        };
+        x.truncate(kept);
+        y.truncate(kept);
+        if segment_s.len() == n && time_s.len() == n && samples.len() == n {
+            segment_s.truncate(kept);
+            time_s.truncate(kept);
+            samples.truncate(kept);
         }
         self.doublings += 1;
     }
@@ -195,6 +180,135 @@ impl Blocks {
     }
 }
 
+/// One merge of [`Blocks::merge_pairs`] over `n = samples.len()` blocks
+/// `length_s` long: which pairs merge, from the blocks' runs
+/// (`same_run(i, j)`) and places on their segments' grids, their merged
+/// starts and samples written in place, and `mix(kept, i, partner)` to
+/// move block i's means to row `kept`, with `partner` = (j, weight of i,
+/// weight of j) merged in. Returns the number of blocks kept.
+fn merge_on_grid(
+    same_run: &dyn Fn(usize, usize) -> bool,
+    segment_s: &mut [f32],
+    time_s: &mut [f64],
+    samples: &mut [u32],
+    length_s: f64,
+    mut mix: impl FnMut(usize, usize, Option<(usize, f64, f64)>),
+) -> usize {
+    let n = samples.len();
+    // Index of block i on the current grid, and its segment's start.
+    let index = |segment_s: &[f32], i: usize| (f64::from(segment_s[i]) / length_s).round() as u64;
+    let segment_start = |segment_s: &[f32], time_s: &[f64], i: usize| time_s[i] - f64::from(segment_s[i]);
+    let mut kept = 0;
+    let mut i = 0;
+    while i < n {
+        let j = i + 1;
+        let (ki, start_i) = (index(segment_s, i), segment_start(segment_s, time_s, i));
+        let pair = j < n
+            && same_run(i, j)
+            && index(segment_s, j) / 2 == ki / 2
+            && index(segment_s, j) > ki
+            && (segment_start(segment_s, time_s, j) - start_i).abs() < 0.5 * length_s;
+        let (ni, nj) = (samples[i], if pair { samples[j] } else { 0 });
+        let total = f64::from(ni + nj);
+        mix(kept, i, pair.then(|| (j, f64::from(ni) / total, f64::from(nj) / total)));
+        let cell_s = (ki / 2) as f64 * 2.0 * length_s;
+        time_s[kept] = start_i + cell_s;
+        segment_s[kept] = cell_s as f32;
+        samples[kept] = ni + nj;
+        kept += 1;
+        i = if pair { j + 1 } else { j };
+    }
+    kept
+}
+
+/// [`merge_on_grid`] for blocks made without start times: consecutive
+/// pairs of one run (`runs`), weighted alike.
+fn merge_consecutive(runs: &[usize], mut mix: impl FnMut(usize, usize, Option<(usize, f64, f64)>)) -> usize {
+    let mut kept = 0;
+    let mut i = 0;
+    while i < runs.len() {
+        let pair = i + 1 < runs.len() && runs[i + 1] == runs[i];
+        mix(kept, i, pair.then_some((i + 1, 0.5, 0.5)));
+        kept += 1;
+        i += if pair { 2 } else { 1 };
+    }
+    kept
+}
+
+/// The blocks of one configuration while a [`BlockBuilder`] reads a run:
+/// the means stored `dims` to a block (a [`Blocks`] row has room for
+/// [`MAX_INPUTS`]), so that the most blocks a run holds cost the least memory.
+#[derive(Default)]
+struct Store {
+    dims: usize,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    segment_s: Vec<f32>,
+    time_s: Vec<f64>,
+    samples: Vec<u32>,
+}
+
+impl Store {
+    fn len(&self) -> usize {
+        self.y.len()
+    }
+
+    /// [`Blocks::merge_pairs`] of these blocks, `length_s` long.
+    fn merge_pairs(&mut self, length_s: f64) {
+        let dims = self.dims;
+        let Store {
+            x,
+            y,
+            segment_s,
+            time_s,
+            samples,
+            ..
+        } = self;
+        let kept = merge_on_grid(
+            &|_, _| true,
+            segment_s,
+            time_s,
+            samples,
+            length_s,
+            |kept, i, partner| {
+                for d in 0..dims {
+                    x[kept * dims + d] = match partner {
+                        Some((j, a, b)) => a * x[i * dims + d] + b * x[j * dims + d],
+                        None => x[i * dims + d],
+                    };
+                }
+                y[kept] = match partner {
+                    Some((j, a, b)) => a * y[i] + b * y[j],
+                    None => y[i],
+                };
+            },
+        );
+        x.truncate(kept * dims);
+        y.truncate(kept);
+        segment_s.truncate(kept);
+        time_s.truncate(kept);
+        samples.truncate(kept);
+    }
+
+    /// These blocks into `out` (run `run`), `target_offset_dph` subtracted from their targets.
+    fn into_blocks(self, out: &mut Blocks, run: usize, target_offset_dph: f64) {
+        out.x = self
+            .x
+            .chunks_exact(self.dims.max(1))
+            .map(|means| {
+                let mut row = [0.0; MAX_INPUTS];
+                row[..means.len()].copy_from_slice(means);
+                row
+            })
+            .collect();
+        out.y = self.y.into_iter().map(|y| y - target_offset_dph).collect();
+        out.run = vec![run; out.y.len()];
+        out.segment_s = self.segment_s;
+        out.time_s = self.time_s;
+        out.samples = self.samples;
+    }
+}
+
 /// Most configurations one [`BlockBuilder`] builds at once.
 pub const MAX_GROUP: usize = 2;
 /// Distinct inputs one builder accumulates: the union of its sets' inputs.
@@ -245,8 +359,6 @@ pub struct BlockBuilder {
     converted: Vec<usize>,
     config: CompensatorConfig,
     block_index: BinIndex,
-    /// The block length asked for, s.
-    base_block_s: f64,
     /// The length of the blocks being built now, s (doubled by each merge).
     block_s: f64,
     /// Blocks held per configuration before they are merged in pairs.
@@ -255,7 +367,10 @@ pub struct BlockBuilder {
     min_count: usize,
     compensator: Compensator,
     acc: Accumulator,
+    /// Per configuration: its ranges, usable time and merges so far.
     outputs: Vec<Blocks>,
+    /// Per configuration: its blocks so far.
+    stores: Vec<Store>,
     segment_start_s: f64,
     current_block: Option<(u64, u64)>,
     started: bool,
@@ -303,6 +418,13 @@ impl BlockBuilder {
                 ..Blocks::default()
             })
             .collect();
+        let stores = configs
+            .iter()
+            .map(|c| Store {
+                dims: c.dims(),
+                ..Store::default()
+            })
+            .collect();
         Some(BlockBuilder {
             configs: configs.to_vec(),
             slots,
@@ -310,7 +432,6 @@ impl BlockBuilder {
             converted,
             config: CompensatorConfig::for_nominal_period_s(nominal_period_s),
             block_index: BinIndex::new(block_s),
-            base_block_s: block_s,
             block_s,
             max_blocks: usize::MAX,
             nominal_period_s,
@@ -318,6 +439,7 @@ impl BlockBuilder {
             compensator: Compensator::new(),
             acc: Accumulator::default(),
             outputs,
+            stores,
             segment_start_s: 0.0,
             current_block: None,
             started: false,
@@ -326,8 +448,8 @@ impl BlockBuilder {
     }
 
     /// This builder holding at most `max_blocks` blocks per configuration
-    /// (at least 2): when a block closes with `max_blocks` held, they are
-    /// merged in pairs ([`Blocks::merge_pairs`]) and the run goes on in
+    /// (at least 2): before a block would pass that, they are merged in
+    /// pairs ([`Blocks::merge_pairs`]) and the run goes on in
     /// blocks twice as long. Unbounded unless set.
     pub fn with_max_blocks(mut self, max_blocks: usize) -> Self {
         self.max_blocks = max_blocks.max(2);
@@ -336,8 +458,9 @@ impl BlockBuilder {
 
     /// Merges the blocks held in pairs and makes the blocks to come twice as long.
     fn double_block_length(&mut self) {
-        for out in &mut self.outputs {
-            out.merge_pairs(self.base_block_s);
+        for (store, out) in self.stores.iter_mut().zip(&mut self.outputs) {
+            store.merge_pairs(self.block_s);
+            out.doublings += 1;
         }
         self.block_s *= 2.0;
         self.block_index = BinIndex::new(self.block_s);
@@ -352,22 +475,17 @@ impl BlockBuilder {
         });
         let keep = acc.count >= self.min_count;
         let n = acc.count as f64;
-        for (out, slot_of) in self.outputs.iter_mut().zip(&self.slot_of) {
+        for ((out, store), slot_of) in self.outputs.iter_mut().zip(&mut self.stores).zip(&self.slot_of) {
             // The range covers every usable sample, in blocks kept or not.
             for (r, &s) in out.sample_range.iter_mut().zip(slot_of) {
                 *r = (r.0.min(acc.min_x[s] as f64), r.1.max(acc.max_x[s] as f64));
             }
             if keep {
-                let mut mean = [0.0; MAX_INPUTS];
-                for (m, &s) in mean.iter_mut().zip(slot_of) {
-                    *m = acc.sum_x[s] / n;
-                }
-                out.x.push(mean);
-                out.y.push(acc.sum_y / n);
-                out.run.push(self.run_index);
-                out.segment_s.push(since_start_s as f32);
-                out.time_s.push(segment_start_s + since_start_s);
-                out.samples.push(acc.count as u32);
+                store.x.extend(slot_of.iter().map(|&s| acc.sum_x[s] / n));
+                store.y.push(acc.sum_y / n);
+                store.segment_s.push(since_start_s as f32);
+                store.time_s.push(segment_start_s + since_start_s);
+                store.samples.push(acc.count as u32);
             }
         }
     }
@@ -384,11 +502,12 @@ impl BlockBuilder {
         );
         if self.current_block != Some(block) {
             self.flush();
-            let held = self.outputs.first().map_or(0, Blocks::len);
-            // Merged when the block to come starts a merged one (its index
-            // is even), so that it does not share a merged block's place on
-            // the grid; at twice the limit whatever the index.
-            if held >= self.max_blocks && (block.1 % 2 == 0 || held >= 2 * self.max_blocks) {
+            let held = self.stores.first().map_or(0, Store::len);
+            // Merged before the block to come would pass the limit, and when
+            // it starts a merged one (its index is even, so that it does not
+            // share a merged block's place on the grid); at the limit
+            // whatever the index.
+            if held + 1 >= self.max_blocks && (block.1 % 2 == 0 || held >= self.max_blocks) {
                 self.double_block_length();
                 block.1 = self.block_index.of(time_s - self.segment_start_s);
             }
@@ -431,10 +550,8 @@ impl BlockBuilder {
     /// `ref_dph`, known only at the end).
     pub fn finish(mut self, target_offset_dph: f64) -> Vec<Blocks> {
         self.flush();
-        for out in &mut self.outputs {
-            for y in &mut out.y {
-                *y -= target_offset_dph;
-            }
+        for (out, store) in self.outputs.iter_mut().zip(self.stores.drain(..)) {
+            store.into_blocks(out, self.run_index, target_offset_dph);
         }
         self.outputs
     }
@@ -720,11 +837,11 @@ pub struct RunFiles {
 }
 
 /// Blocks a streamed run keeps per configuration before merging them in
-/// pairs ([`Blocks::merge_pairs`]): 16384 (4.5 h of 1-s blocks), so runs of
-/// a few hours keep every 1-s block and longer ones end with between 8192
-/// and 16384 blocks of 2, 4, 8 … s: what a fit holds no longer grows with
-/// the run's length.
-pub const MAX_BLOCKS_PER_RUN: usize = 16_384;
+/// pairs ([`Blocks::merge_pairs`]): 32768 (9.1 h of 1-s blocks), so runs of
+/// a working day keep every 1-s block and longer ones end with between
+/// 16384 and 32768 blocks of 2, 4, 8 … s: what a fit holds no longer grows
+/// with the run's length.
+pub const MAX_BLOCKS_PER_RUN: usize = 32_768;
 
 type CacheKey = (FeatureConfigKey, u64);
 type FeatureConfigKey = (FeatureSet, [u32; 3]);
@@ -1308,8 +1425,8 @@ mod tests {
 
     #[test]
     fn the_default_fit_on_merged_blocks_predicts_as_the_fit_on_every_block() {
-        // A 3-h run held in 1350 8-s blocks (as a 20-h run is at the default
-        // limit) against all its 10800 1-s blocks: the compensated cluster
+        // A 3-h run held in 1350 8-s blocks (coarser than the 4-s blocks a
+        // 20-h run ends with at the default limit) against all its 10800 1-s blocks: the compensated cluster
         // STD, scored on every sample of the training run and of a run with
         // another ramp rate, within 5 % of each other (0.4 % and 0.5 % apart
         // when this was written).
