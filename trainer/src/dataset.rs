@@ -449,8 +449,9 @@ impl BlockBuilder {
 
     /// This builder holding at most `max_blocks` blocks per configuration
     /// (at least 2): before a block would pass that, they are merged in
-    /// pairs ([`Blocks::merge_pairs`]) and the run goes on in
-    /// blocks twice as long. Unbounded unless set.
+    /// pairs ([`Blocks::merge_pairs`]) and the run goes on in blocks twice
+    /// as long; a run that was merged ends with at most `max_blocks / 2`.
+    /// Unbounded unless set.
     pub fn with_max_blocks(mut self, max_blocks: usize) -> Self {
         self.max_blocks = max_blocks.max(2);
         self
@@ -550,6 +551,13 @@ impl BlockBuilder {
     /// `ref_dph`, known only at the end).
     pub fn finish(mut self, target_offset_dph: f64) -> Vec<Blocks> {
         self.flush();
+        // A run that passed the limit ends with at most half of it: what the
+        // fit holds after the pass is then no more than a run of half the
+        // limit's length holds.
+        let merged = self.outputs.first().is_some_and(|o| o.doublings > 0);
+        while merged && self.stores.first().is_some_and(|s| s.len() > self.max_blocks / 2) {
+            self.double_block_length();
+        }
         for (out, store) in self.outputs.iter_mut().zip(self.stores.drain(..)) {
             store.into_blocks(out, self.run_index, target_offset_dph);
         }
@@ -764,6 +772,10 @@ pub trait RunSet {
     fn prepare_filtered(&self, _configs: &[FeatureConfig], _block_s: f64) -> anyhow::Result<()> {
         Ok(())
     }
+    /// Lets go of the blocks [`RunSet::prepare`] kept of `configs` (computed
+    /// from the samples, as [`block_source`] gives them): a later
+    /// [`RunSet::block_means`] of one reads the runs again.
+    fn release(&self, _configs: &[FeatureConfig], _block_s: f64) {}
     /// The thermometer columns every run has (bit i = `temp_a` … `temp_h`).
     fn thermometer_mask(&self) -> anyhow::Result<u8>;
 }
@@ -839,8 +851,8 @@ pub struct RunFiles {
 /// Blocks a streamed run keeps per configuration before merging them in
 /// pairs ([`Blocks::merge_pairs`]): 32768 (9.1 h of 1-s blocks), so runs of
 /// a working day keep every 1-s block and longer ones end with between
-/// 16384 and 32768 blocks of 2, 4, 8 … s: what a fit holds no longer grows
-/// with the run's length.
+/// 8192 and 16384 blocks of 2, 4, 8 … s ([`BlockBuilder::with_max_blocks`]):
+/// what a fit holds no longer grows with the run's length.
 pub const MAX_BLOCKS_PER_RUN: usize = 32_768;
 
 type CacheKey = (FeatureConfigKey, u64);
@@ -1029,6 +1041,13 @@ impl RunSet for RunFiles {
         self.prepare_filtered(std::slice::from_ref(features), block_s)?;
         self.cached(features, block_s)
             .ok_or_else(|| anyhow::anyhow!("block means were not cached"))
+    }
+
+    fn release(&self, configs: &[FeatureConfig], block_s: f64) {
+        if let Ok(mut cache) = self.cache.lock() {
+            let keys: Vec<CacheKey> = configs.iter().map(|c| cache_key(c, block_s)).collect();
+            cache.retain(|(k, _)| !keys.contains(k));
+        }
     }
 
     fn prepare_filtered(&self, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<()> {
@@ -1373,13 +1392,14 @@ mod tests {
         let every = RunFiles::new(std::slice::from_ref(&path)).with_max_blocks_per_run(usize::MAX);
         let every = every.block_means(&bank, 1.0).unwrap();
         assert!(every.len() > 10_000, "{} blocks", every.len());
-        let limit = 1000;
+        let limit = 2000;
         let bounded = RunFiles::new(std::slice::from_ref(&path)).with_max_blocks_per_run(limit);
         let bounded = bounded.block_means(&bank, 1.0).unwrap();
-        // 3 h of 1-s blocks: merged four times, to 16-s blocks.
+        // 3 h of 1-s blocks: merged three times while read (1350 8-s blocks),
+        // once more at the end (at most half the limit), to 16-s blocks.
         assert_eq!(bounded.doublings, 4);
         assert!(
-            bounded.len() <= limit && bounded.len() > limit / 2,
+            bounded.len() <= limit / 2 && bounded.len() > limit / 4,
             "{} blocks",
             bounded.len()
         );
@@ -1425,8 +1445,8 @@ mod tests {
 
     #[test]
     fn the_default_fit_on_merged_blocks_predicts_as_the_fit_on_every_block() {
-        // A 3-h run held in 1350 8-s blocks (coarser than the 4-s blocks a
-        // 20-h run ends with at the default limit) against all its 10800 1-s blocks: the compensated cluster
+        // A 3-h run held in 1350 8-s blocks (as a 20-h run ends at the
+        // default limit) against all its 10800 1-s blocks: the compensated cluster
         // STD, scored on every sample of the training run and of a run with
         // another ramp rate, within 5 % of each other (0.4 % and 0.5 % apart
         // when this was written).
@@ -1453,7 +1473,7 @@ mod tests {
             (model, doublings)
         };
         let (every, d_every) = fit(usize::MAX);
-        let (merged, d_merged) = fit(2048);
+        let (merged, d_merged) = fit(4096);
         assert_eq!((d_every, d_merged), (0, 3));
         for path in [&train, &held] {
             let score = |m: &rbf_core::Model| crate::evaluate::evaluate_file(m, path).unwrap();

@@ -540,6 +540,14 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             )
         })?;
     let s = structures[chosen];
+    // The chosen bank's blocks are cut from its ladder's; the other ladder's
+    // are not read again.
+    let unused: Vec<FeatureConfig> = (0..configs.len())
+        .filter(|&l| l != s.ladder)
+        .map(|l| configs[l])
+        .collect();
+    train.release(&unused, opts.block_s);
+    validate.release(&unused, opts.block_s);
     let fitted = results[chosen].0.as_ref().expect("chosen among fitted candidates");
     let bank = to_bank(&s, fitted, t0).ok_or_else(|| {
         anyhow::anyhow!("the identified lag bank is out of the firmware's range (coil lags over a day)")

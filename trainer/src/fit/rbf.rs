@@ -196,10 +196,11 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         let window = features.rate_window_s;
         let train_blocks = train.block_means(features, opts.block_s)?;
         super::check_excitation(&train_blocks, set, opts)?;
-        let (all, splits) = splits(&train_blocks, validate, features, opts, folds)?;
         let norm = Normaliser::fit(&train_blocks);
+        let (mut all, splits) = splits(train_blocks, validate, features, opts, folds)?;
         let score_rows = score_cluster_rows(&splits, all.length_s(opts.block_s));
-        let z: Vec<FeatureRow> = all.x.iter().map(|r| norm.apply(r)).collect();
+        // Normalised where they lie: the scores read only the rows' targets besides.
+        let z: Vec<FeatureRow> = std::mem::take(&mut all.x).into_iter().map(|r| norm.apply(&r)).collect();
         // Each split's candidate centres do not depend on the width: found
         // once per split, used by every width.
         let pools = parallel_map(&splits, |split| candidate_pool(&z, &split.train, shape));
@@ -260,7 +261,7 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
 
     let features = configs[choice.config];
     let blocks = train.block_means(&features, opts.block_s)?;
-    let model = final_model(&blocks, features, &choice, opts)?;
+    let model = final_model(blocks, features, &choice, opts)?;
     let used = match model.body() {
         rbf_core::model::ModelBody::Rbf(net) => net.centers_used(),
         rbf_core::model::ModelBody::Poly3(_) => 0,
@@ -309,7 +310,7 @@ pub(crate) fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + 
 /// training and validation blocks at one length (the shorter ones merged,
 /// [`Blocks::merge_pairs`]).
 fn splits<V: RunSet + ?Sized>(
-    train: &Blocks,
+    train: Blocks,
     validate: &V,
     features: &FeatureConfig,
     opts: &FitOptions,
@@ -317,7 +318,8 @@ fn splits<V: RunSet + ?Sized>(
 ) -> anyhow::Result<(Blocks, Vec<Split>)> {
     if validate.count() > 0 {
         let mut val = validate.block_means(features, opts.block_s)?;
-        let mut all = train.clone();
+        let runs_before = train.run.iter().max().map_or(0, |m| m + 1);
+        let mut all = train;
         while all.doublings < val.doublings {
             all.merge_pairs(opts.block_s);
         }
@@ -325,7 +327,6 @@ fn splits<V: RunSet + ?Sized>(
             val.merge_pairs(opts.block_s);
         }
         let offset = all.len();
-        let runs_before = train.run.iter().max().map_or(0, |m| m + 1);
         all.x.extend(val.x.iter().copied());
         all.y.extend(val.y.iter().copied());
         all.run.extend(val.run.iter().map(|r| r + runs_before));
@@ -359,7 +360,7 @@ fn splits<V: RunSet + ?Sized>(
                     .collect(),
             })
             .collect();
-        return Ok((train.clone(), splits));
+        return Ok((train, splits));
     }
     let runs = train.run.iter().max().map_or(0, |m| m + 1);
     let per_run: Vec<Vec<usize>> = (0..runs)
@@ -383,7 +384,7 @@ fn splits<V: RunSet + ?Sized>(
             }
         })
         .collect();
-    Ok((train.clone(), splits))
+    Ok((train, splits))
 }
 
 /// Blocks (`block_s` long) per validation cluster mean: 100 s (the
@@ -489,7 +490,7 @@ fn accumulate_scores(
 
 /// Fits the chosen configuration on all training blocks and assembles the model.
 pub(super) fn final_model(
-    blocks: &Blocks,
+    mut blocks: Blocks,
     features: FeatureConfig,
     choice: &RbfChoice,
     opts: &FitOptions,
@@ -499,8 +500,11 @@ pub(super) fn final_model(
         dims,
         kernel: kernel_inputs(features.set),
     };
-    let norm = Normaliser::fit(blocks);
-    let z: Vec<FeatureRow> = blocks.x.iter().map(|r| norm.apply(r)).collect();
+    let norm = Normaliser::fit(&blocks);
+    let z: Vec<FeatureRow> = std::mem::take(&mut blocks.x)
+        .into_iter()
+        .map(|r| norm.apply(&r))
+        .collect();
     let rows: Vec<usize> = (0..blocks.len()).collect();
     let pool = candidate_pool(&z, &rows, shape);
     let centers = select_centers(&z, &blocks.y, &rows, &pool, shape, choice.width, choice.centers);
@@ -525,7 +529,7 @@ pub(super) fn final_model(
         constant: w[0] as f32,
     };
     let net = RbfNetwork::new(&params).map_err(|e| anyhow::anyhow!("fitted network is not deployable: {e}"))?;
-    let ranges = super::deploy_ranges(blocks);
+    let ranges = super::deploy_ranges(&blocks);
     let info = ModelInfo {
         serial: super::serial(opts)?,
     };
