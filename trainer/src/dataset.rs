@@ -954,7 +954,11 @@ impl RunFiles {
             let mut feeds = Vec::new();
             let mut workers = Vec::new();
             for builder in &mut rest {
-                let (tx, rx) = std::sync::mpsc::sync_channel::<Arc<Batch>>(4);
+                // One batch waiting at most: a batch is parsed again only
+                // after the reader consumed it, but the other builders may
+                // still hold it, and a backlog of them here would be memory
+                // that grows the longer the run lets a slower builder lag.
+                let (tx, rx) = std::sync::mpsc::sync_channel::<Arc<Batch>>(1);
                 feeds.push(tx);
                 workers.push(scope.spawn(move || {
                     for batch in rx {
