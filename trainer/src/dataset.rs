@@ -508,7 +508,7 @@ impl BlockBuilder {
             // it starts a merged one (its index is even, so that it does not
             // share a merged block's place on the grid); at the limit
             // whatever the index.
-            if held + 1 >= self.max_blocks && (block.1 % 2 == 0 || held >= self.max_blocks) {
+            if held + 1 >= self.max_blocks && (block.1.is_multiple_of(2) || held >= self.max_blocks) {
                 self.double_block_length();
                 block.1 = self.block_index.of(time_s - self.segment_start_s);
             }
