@@ -454,6 +454,17 @@ impl BlockBuilder {
     /// Unbounded unless set.
     pub fn with_max_blocks(mut self, max_blocks: usize) -> Self {
         self.max_blocks = max_blocks.max(2);
+        if max_blocks <= MAX_BLOCKS_PER_RUN {
+            // Room for the most blocks from the start: the store never
+            // moves as it grows, and pages it never fills are never touched.
+            for store in &mut self.stores {
+                store.x.reserve_exact(max_blocks * store.dims);
+                store.y.reserve_exact(max_blocks);
+                store.segment_s.reserve_exact(max_blocks);
+                store.time_s.reserve_exact(max_blocks);
+                store.samples.reserve_exact(max_blocks);
+            }
+        }
         self
     }
 
