@@ -56,7 +56,9 @@ pub struct Args {
     /// test of generalisation.
     #[arg(long, value_name = "RUN.csv", help_heading = "Data")]
     holdout: Vec<PathBuf>,
-    /// Averaging block for training, s.
+    /// Averaging block for training, s; a run past 32768 blocks has them
+    /// merged in pairs into blocks twice as long, as often as it takes
+    /// (docs/methods.md, "Large runs").
     #[arg(long, value_name = "SECONDS", default_value_t = 1.0, help_heading = "Data")]
     block_s: f64,
     /// Model form (see --help).
