@@ -335,3 +335,69 @@ fn a_multi_axis_fit_keeps_every_axis_within_the_three_axis_firmware_s_centres() 
         );
     }
 }
+
+/// `trainer simulate --axes 3 --shared-thermometer` of `profile` with `seed` into `dir/name`.
+fn simulate_shared_imu(dir: &TempDir, name: &str, profile: &str, seed: &str) -> PathBuf {
+    let path = dir.path().join(name);
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        profile,
+        "--axes",
+        "3",
+        "--shared-thermometer",
+        "--seed",
+        seed,
+        "-o",
+        path.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    path
+}
+
+#[test]
+fn on_a_shared_thermometer_imu_one_basis_with_refitted_output_layers_compensates_each_axis_as_well_as_its_own_fit() {
+    use rbf_core::record::Axis;
+    use trainer::dataset::RunFiles;
+    use trainer::evaluate::evaluate_axis_file;
+    use trainer::fit::{self, FitOptions};
+    let dir = TempDir::new().unwrap();
+    let train = simulate_shared_imu(&dir, "cycle3.csv", "cycle", "11");
+    let verify = simulate_shared_imu(&dir, "random3.csv", "random", "12");
+    let opts = FitOptions {
+        max_centers: rbf_core::MAX_AXIS_CENTERS,
+        progress: false,
+        ..FitOptions::default()
+    };
+    let runs: Vec<RunFiles> = Axis::ALL
+        .into_iter()
+        .map(|axis| RunFiles::for_axis(std::slice::from_ref(&train), Some(axis)))
+        .collect();
+    let none = RunFiles::for_axis(&[], None);
+    let separate: Vec<fit::FitOutcome> = runs.iter().map(|r| fit::fit(r, &none, &opts).unwrap()).collect();
+    let gain = |model: &rbf_core::Model, axis: Axis| {
+        evaluate_axis_file(model, &verify, Some(axis))
+            .unwrap()
+            .msd_improvement_pct
+    };
+    // The structure the full search chose on axis x, every axis's layer refitted.
+    let basis = &separate[0];
+    let ridge = basis.choice.as_ref().unwrap().ridge;
+    let pairs: Vec<(Axis, &RunFiles)> = Axis::ALL.into_iter().zip(&runs).collect();
+    let shared = fit::joint::refit_layers(&basis.model, ridge, &pairs, opts.block_s).unwrap();
+    assert_eq!(shared.mask(), 0b111);
+    for (axis, alone) in Axis::ALL.into_iter().zip(&separate) {
+        let joint = gain(&shared.axis_model(axis).unwrap().unwrap(), axis);
+        let own = gain(&alone.model, axis);
+        eprintln!(
+            "axis {}: MSD improvement {joint:.2} % (joint), {own:.2} % (alone)",
+            axis.name()
+        );
+        assert!(joint >= 85.0, "axis {}: {joint:.2} %", axis.name());
+        assert!(
+            joint >= own - 0.5,
+            "axis {}: {joint:.2} % joint, {own:.2} % alone",
+            axis.name()
+        );
+    }
+}
