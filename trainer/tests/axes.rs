@@ -47,7 +47,10 @@ fn extract_axis(run: &Path, axis: &str, out: &Path) {
     let wanted = [
         at("time_s".into()),
         at(format!("rate_{axis}_dph")),
-        at(format!("temp_{axis}_c")),
+        names
+            .iter()
+            .position(|n| *n == format!("temp_{axis}_c"))
+            .unwrap_or_else(|| at("temp_c".into())),
         at(format!("ref_{axis}_dph")),
     ];
     single.push_str("time_s,rate_dph,temp_c,ref_dph\n");
@@ -356,48 +359,68 @@ fn simulate_shared_imu(dir: &TempDir, name: &str, profile: &str, seed: &str) -> 
 }
 
 #[test]
-fn on_a_shared_thermometer_imu_one_basis_with_refitted_output_layers_compensates_each_axis_as_well_as_its_own_fit() {
-    use rbf_core::record::Axis;
-    use trainer::dataset::RunFiles;
-    use trainer::evaluate::evaluate_axis_file;
-    use trainer::fit::{self, FitOptions};
+fn on_a_shared_thermometer_imu_the_fit_chooses_one_basis_for_every_axis_when_each_axis_keeps_its_accuracy() {
     let dir = TempDir::new().unwrap();
     let train = simulate_shared_imu(&dir, "cycle3.csv", "cycle", "11");
     let verify = simulate_shared_imu(&dir, "random3.csv", "random", "12");
-    let opts = FitOptions {
-        max_centers: rbf_core::MAX_AXIS_CENTERS,
-        progress: false,
-        ..FitOptions::default()
-    };
-    let runs: Vec<RunFiles> = Axis::ALL
-        .into_iter()
-        .map(|axis| RunFiles::for_axis(std::slice::from_ref(&train), Some(axis)))
-        .collect();
-    let none = RunFiles::for_axis(&[], None);
-    let separate: Vec<fit::FitOutcome> = runs.iter().map(|r| fit::fit(r, &none, &opts).unwrap()).collect();
-    let gain = |model: &rbf_core::Model, axis: Axis| {
-        evaluate_axis_file(model, &verify, Some(axis))
-            .unwrap()
-            .msd_improvement_pct
-    };
-    // The structure the full search chose on axis x, every axis's layer refitted.
-    let basis = &separate[0];
-    let ridge = basis.choice.as_ref().unwrap().ridge;
-    let pairs: Vec<(Axis, &RunFiles)> = Axis::ALL.into_iter().zip(&runs).collect();
-    let shared = fit::joint::refit_layers(&basis.model, ridge, &pairs, opts.block_s).unwrap();
-    assert_eq!(shared.mask(), 0b111);
-    for (axis, alone) in Axis::ALL.into_iter().zip(&separate) {
-        let joint = gain(&shared.axis_model(axis).unwrap().unwrap(), axis);
-        let own = gain(&alone.model, axis);
-        eprintln!(
-            "axis {}: MSD improvement {joint:.2} % (joint), {own:.2} % (alone)",
-            axis.name()
-        );
-        assert!(joint >= 85.0, "axis {}: {joint:.2} %", axis.name());
+    let model = dir.path().join("imu.bin");
+    let printed = fit(&train, &model);
+    assert!(
+        printed.contains("chose: the joint model (every axis within 0.5 points of its own fit"),
+        "{printed}"
+    );
+    for axis in ["x", "y", "z"] {
         assert!(
-            joint >= own - 0.5,
-            "axis {}: {joint:.2} % joint, {own:.2} % alone",
-            axis.name()
+            printed.contains(&format!("  axis {axis}: ")) && printed.contains("% own fit: within 0.5 points"),
+            "the choice per axis: {printed}"
         );
     }
+    let o = trainer(&["inspect", "--model", model.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("shared basis    yes"), "{}", stdout(&o));
+
+    let gains = msd_gains(&model, &verify);
+    assert_eq!(gains.len(), 3);
+    for (axis, gain) in &gains {
+        let axis = axis.as_deref().expect("each row names its axis");
+        // The axis alone: extracted to a single-axis run, fitted, evaluated.
+        let train_alone = dir.path().join(format!("cycle-{axis}.csv"));
+        let verify_alone = dir.path().join(format!("random-{axis}.csv"));
+        extract_axis(&train, axis, &train_alone);
+        extract_axis(&verify, axis, &verify_alone);
+        let model_alone = dir.path().join(format!("{axis}.bin"));
+        fit(&train_alone, &model_alone);
+        let alone = msd_gains(&model_alone, &verify_alone)[0].1;
+        eprintln!("axis {axis}: MSD improvement {gain:.2} % (joint), {alone:.2} % (alone)");
+        assert!(*gain >= 85.0, "axis {axis}: {gain:.2} %");
+        assert!(
+            *gain >= alone - 0.5,
+            "axis {axis}: {gain:.2} % joint, {alone:.2} % alone"
+        );
+    }
+    // Compensated with the shared step: every axis's columns, one row per input row.
+    let compensated = dir.path().join("random3-comp.csv");
+    let o = compensate(&model, &verify, &compensated, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let names: Vec<String> = ["x", "y", "z"].iter().map(|a| format!("bias_{a}_dph")).collect();
+    let biases = columns(&compensated, &names);
+    assert!(biases.len() > 1000);
+    assert!(
+        biases
+            .iter()
+            .all(|r| r.iter().all(|v| v.parse::<f32>().is_ok_and(f32::is_finite)))
+    );
+
+    // A run whose axes have their own thermometers is refused by this model, naming why.
+    let own = simulate_imu(&dir, "own.csv", "random", "13");
+    let o = trainer(&["eval", "--model", model.to_str().unwrap(), own.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("own thermometers"), "{}", stderr(&o));
+    // And fitting such runs keeps a model per axis, saying why.
+    let separate = dir.path().join("own.bin");
+    let printed = fit(&own, &separate);
+    assert!(
+        printed.contains("not tried") && printed.contains("chose: a model per axis"),
+        "{printed}"
+    );
 }
