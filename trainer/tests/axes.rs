@@ -411,6 +411,19 @@ fn on_a_shared_thermometer_imu_the_fit_chooses_one_basis_for_every_axis_when_eac
             .all(|r| r.iter().all(|v| v.parse::<f32>().is_ok_and(f32::is_finite)))
     );
 
+    // A report per axis.
+    let report = dir.path().join("report");
+    let o = trainer(&[
+        "report",
+        "--model",
+        model.to_str().unwrap(),
+        verify.to_str().unwrap(),
+        "-o",
+        report.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(report.join("axis-z").is_dir());
+
     // A run whose axes have their own thermometers is refused by this model, naming why.
     let own = simulate_imu(&dir, "own.csv", "random", "13");
     let o = trainer(&["eval", "--model", model.to_str().unwrap(), own.to_str().unwrap()]);
