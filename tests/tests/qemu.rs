@@ -182,6 +182,8 @@ fn benchmark_image_runs_and_reports_every_model_size() {
         "K=16 D=3:",
         "K=64 D=3:",
         "K=32 D=3:",
+        "axes=3 K=32 D=3:",
+        "axes=3 K=32 D=3 three separate models",
     ] {
         let line = run
             .log
