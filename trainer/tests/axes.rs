@@ -411,6 +411,21 @@ fn on_a_shared_thermometer_imu_the_fit_chooses_one_basis_for_every_axis_when_eac
             .all(|r| r.iter().all(|v| v.parse::<f32>().is_ok_and(f32::is_finite)))
     );
 
+    // --no-joint keeps a model per axis.
+    let per_axis = dir.path().join("per-axis.bin");
+    let o = trainer(&[
+        "fit",
+        train.to_str().unwrap(),
+        "-o",
+        per_axis.to_str().unwrap(),
+        "--no-joint",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("not tried: --no-joint"), "{}", stdout(&o));
+    let o = trainer(&["inspect", "--model", per_axis.to_str().unwrap()]);
+    assert!(!stdout(&o).contains("shared basis    yes"), "{}", stdout(&o));
+
     // A report per axis.
     let report = dir.path().join("report");
     let o = trainer(&[

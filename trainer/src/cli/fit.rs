@@ -56,6 +56,10 @@ pub struct Args {
     /// test of generalisation.
     #[arg(long, value_name = "RUN.csv", help_heading = "Data")]
     holdout: Vec<PathBuf>,
+    /// Multi-axis runs: keep a model per axis, never the joint model of one
+    /// shared basis (whose blob the three-axis board does not load yet).
+    #[arg(long, help_heading = "Model")]
+    no_joint: bool,
     /// Averaging block for training, s.
     #[arg(long, value_name = "SECONDS", default_value_t = 1.0, help_heading = "Data")]
     block_s: f64,

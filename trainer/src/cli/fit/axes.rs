@@ -184,6 +184,9 @@ fn try_joint(a: &Args, opts: &FitOptions, axes: &[Axis], outcomes: &[AxisFit]) -
     if axes.len() < 2 {
         return Ok(not_tried("one axis".to_owned()));
     }
+    if a.no_joint {
+        return Ok(not_tried("--no-joint".to_owned()));
+    }
     for path in a.runs.iter().chain(&a.validate).chain(&a.holdout) {
         let reader = RunReader::open(path)?;
         let first_temps = reader.axis_columns(first_axis)?.temps;
