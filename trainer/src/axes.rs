@@ -87,7 +87,7 @@ pub fn models_for_run<'m>(
 /// The axes of the run `reader` reads with their columns, x first, each
 /// of which the shared-basis `file` must have a layer for (refused naming
 /// both files, as [`models_for_run`]).
-fn shared_axes_for_run(
+pub fn shared_axes_for_run(
     file: &ModelFile,
     model_path: &Path,
     reader: &RunReader,

@@ -48,6 +48,30 @@ pub fn build(bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
     Ok(target_dir().join(TARGET).join("release").join(bin))
 }
 
+/// Builds the `trainer` CLI (release, host) into [`target_dir`] and
+/// returns its path: tests run inside `cargo test` call the real command
+/// without waiting on the outer cargo's lock.
+pub fn trainer_cli() -> anyhow::Result<PathBuf> {
+    let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+        .args([
+            "build",
+            "--quiet",
+            "--release",
+            "--package",
+            "trainer",
+            "--bin",
+            "trainer",
+        ])
+        .env("CARGO_TARGET_DIR", target_dir())
+        .current_dir(workspace_root())
+        .status()
+        .context("cannot start cargo")?;
+    if !status.success() {
+        bail!("building the trainer CLI failed");
+    }
+    Ok(target_dir().join("release").join("trainer"))
+}
+
 /// The symbol the panic handler of the `panic-free-check` build calls and
 /// nothing defines (firmware/src/board.rs).
 pub const PANIC_SYMBOL: &str = "hot_path_can_panic";
