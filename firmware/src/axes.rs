@@ -272,9 +272,8 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
             return;
         };
         let t = first.index() % MAX_AXES;
-        let models = self.models.shared();
         if read_temps {
-            let wanted = models.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
+            let wanted = (self.models.shared()).map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
             let failed = self.thermometers.read_axis(first, wanted, &mut self.latest_temps_c[t]);
             self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
             for axis in Axis::ALL {
@@ -288,11 +287,11 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
         for axis in Axis::ALL {
             if self.has_axis(axis) {
                 let i = axis.index() % MAX_AXES;
-                (rates_dph[i], rate_ok[i]) = self.stats.rate_or_fault(self.front_ends.read_axis_rate(axis));
+                (rates_dph[i], rate_ok[i]) = self.read_rate(axis);
             }
         }
         let all = self.compensators[0].process_shared(
-            models,
+            self.models.shared(),
             &self.config.compensator,
             dt_s,
             &self.latest_temps_c[t],
@@ -310,6 +309,13 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
                 *slot = o;
             }
         }
+    }
+
+    /// `axis`'s rate and whether it is valid (a failed read counted). Not
+    /// inlined: the shared-basis image holds one copy, not one per axis.
+    #[inline(never)]
+    fn read_rate(&mut self, axis: Axis) -> (f32, bool) {
+        self.stats.rate_or_fault(self.front_ends.read_axis_rate(axis))
     }
 
     /// Frames and writes one [`AxesFrame`]; false when the output did not take it whole.

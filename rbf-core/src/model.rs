@@ -384,9 +384,11 @@ impl<const K: usize> Model<K> {
         let ModelBody::Rbf(net) = &self.body else {
             return ([0.0; 3], false);
         };
+        // Two shapes of their own (the contract's three inputs, the lag
+        // bank's eight); fewer inputs go through the widest, whose inputs
+        // past `dims` are 0 with range [0, 0] and no linear term: the same
+        // sums and flag, less code in a board image.
         let (lin, clamped) = match self.features.dims() {
-            1 => self.layer_linear::<1>(net, raw, linear),
-            2 => self.layer_linear::<2>(net, raw, linear),
             3 => self.layer_linear::<3>(net, raw, linear),
             8 => self.layer_linear::<8>(net, raw, linear),
             _ => self.layer_linear::<MAX_INPUTS>(net, raw, linear),

@@ -326,6 +326,17 @@ fn the_three_axis_board_takes_a_three_axis_update_within_the_boards_budgets() {
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn the_shared_basis_board_takes_a_shared_basis_update_within_the_boards_budgets() {
+    // The stm32f405 binary with board-axes-shared (and board-qemu): a
+    // shared basis of firmware::SHARED_AXIS_CENTERS centres at boot, a
+    // shared-basis install and a bench command over its UART, 10,000
+    // samples; flash, static RAM and stack fit.
+    let run = xtask::board_stack::measure_axes_shared().unwrap();
+    board_within_budgets(&run, &["board-axes-shared"]);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn fault_campaign_on_the_target_loses_no_sample_and_never_panics() {
     let dir = TempDir::new().unwrap();
     let (model, _) = fixtures::model_and_faulty_slice(dir.path());

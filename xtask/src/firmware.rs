@@ -108,9 +108,10 @@ pub fn check_panic_free() -> anyhow::Result<()> {
     check_board_panics()
 }
 
-/// Builds the board image (what is flashed), single-axis and three-axis
-/// (`board-axes`), and proves from their machine code that no panic is
-/// reachable after init ([`crate::panic_paths`]).
+/// Builds the board image (what is flashed), single-axis, three-axis
+/// (`board-axes`) and shared-basis three-axis (`board-axes-shared`), and
+/// proves from their machine code that no panic is reachable after init
+/// ([`crate::panic_paths`]).
 pub fn check_board_panics() -> anyhow::Result<()> {
     eprintln!("\n==> board image: no panic reachable from its loop and interrupt handlers");
     let board = build("stm32f405", &["board-stm32f405"])?;
@@ -121,6 +122,15 @@ pub fn check_board_panics() -> anyhow::Result<()> {
     );
     eprintln!("\n==> three-axis board image (board-axes): no panic reachable from its loop and interrupt handlers");
     let board = build("stm32f405", &["board-axes"])?;
+    let reach = crate::panic_paths::check_board_image(&board)?;
+    eprintln!(
+        "    ok: {} functions reachable from run_forever, EXTI0, USART1 and HardFault; none panics",
+        reach.functions
+    );
+    eprintln!(
+        "\n==> shared-basis three-axis board image (board-axes-shared): no panic reachable from its loop and interrupt handlers"
+    );
+    let board = build("stm32f405", &["board-axes-shared"])?;
     let reach = crate::panic_paths::check_board_image(&board)?;
     eprintln!(
         "    ok: {} functions reachable from run_forever, EXTI0, USART1 and HardFault; none panics",
