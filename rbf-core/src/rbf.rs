@@ -691,13 +691,14 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
 
     /// Output weights W_j, °/h.
     pub fn weights(&self) -> &[f32] {
-        &self.weights[..self.centers_used]
+        // `centers_used` ≤ K always; `get` keeps a panic path out of the board's update.
+        self.weights.get(..self.centers_used).unwrap_or(&[])
     }
 
     /// Linear coefficients per normalised input, °/h (empty when the model has none).
     pub fn linear(&self) -> &[f32] {
         if self.has_linear {
-            &self.linear[..self.inputs_used]
+            self.linear.get(..self.inputs_used).unwrap_or(&[])
         } else {
             &[]
         }
