@@ -38,14 +38,25 @@ pub fn ensure_flip_link() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Builds board binary `bin` (release) and returns the ELF path.
+/// Builds board binary `bin` (release) and returns the ELF path: with
+/// `features`, a copy of its own (`bin+feature+…` beside it), because
+/// every feature set of one binary is built to the same path and tests
+/// build several of them at once.
 pub fn build(bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
+    static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
     ensure_flip_link()?;
+    let _building = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let status = build_command(bin, features).status().context("cannot start cargo")?;
     if !status.success() {
         bail!("building firmware binary {bin} for {TARGET} failed");
     }
-    Ok(target_dir().join(TARGET).join("release").join(bin))
+    let built = target_dir().join(TARGET).join("release").join(bin);
+    if features.is_empty() {
+        return Ok(built);
+    }
+    let kept = built.with_file_name(format!("{bin}+{}", features.join("+")));
+    std::fs::copy(&built, &kept).with_context(|| format!("{}: cannot copy", built.display()))?;
+    Ok(kept)
 }
 
 /// Builds the `trainer` CLI (release, host) into [`target_dir`] and

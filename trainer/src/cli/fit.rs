@@ -57,7 +57,8 @@ pub struct Args {
     #[arg(long, value_name = "RUN.csv", help_heading = "Data")]
     holdout: Vec<PathBuf>,
     /// Multi-axis runs: keep a model per axis, never the joint model of one
-    /// shared basis (whose blob the three-axis board does not load yet).
+    /// shared basis (for the per-axis three-axis firmware image, board-axes;
+    /// board-axes-shared takes the joint model's blob).
     #[arg(long, help_heading = "Model")]
     no_joint: bool,
     /// Averaging block for training, s.
