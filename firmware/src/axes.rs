@@ -1,21 +1,28 @@
 //! The per-sample loop of a multi-axis IMU: one data-ready edge, every
-//! axis's rate and thermometers read over embedded-hal, one compensator per
-//! axis running that axis's model ([`AxisModels`], blob format 3), one
-//! [`AxesFrame`] out carrying all axes.
+//! axis's rate and thermometers read over embedded-hal, one [`AxesFrame`]
+//! out carrying all axes.
 //!
-//! Each axis goes through exactly the single-axis step
-//! ([`Compensator::process_with`]), so an axis's output is what the
-//! single-axis loop would give it; flags are per axis (one axis's failed
-//! thermometer flags that axis alone, the others keep compensating), while
-//! what concerns the frame (a dropped frame, missed samples, a fault reset)
-//! flags every axis. As in [`crate::compensation`], nothing here can panic
-//! on sensor data and nothing waits on the output.
+//! With a model per axis ([`AxisModels`], blob format 3) each axis goes
+//! through exactly the single-axis step ([`Compensator::process_with`]),
+//! so an axis's output is what the single-axis loop would give it; flags
+//! are per axis (one axis's failed thermometer flags that axis alone, the
+//! others keep compensating). With a shared-basis model
+//! ([`SharedAxisModels`], format 3 with the shared-basis flag) one
+//! thermometer set serves every axis and one
+//! [`Compensator::process_shared`] steps them all, the step `trainer
+//! compensate` runs for such a blob; a failure of that thermometer is
+//! every axis's (flag 2 on each, flag 4 once the hold runs out), while a
+//! failed rate read still flags its axis alone. What concerns the frame
+//! (a dropped frame, missed samples, a fault reset) flags every axis. As
+//! in [`crate::compensation`], nothing here can panic on sensor data and
+//! nothing waits on the output.
 
 use embedded_io::Write;
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN};
 use rbf_core::record::{Axis, MAX_AXES};
+use rbf_core::shared::SharedAxisModels;
 use rbf_core::{CompensatedSample, Compensator, Flags, GyroSample};
 
 use crate::compensation::{InPlaceModel, LoopConfig, LoopStats, write_frame};
@@ -58,10 +65,25 @@ impl<R: RateFrontEnd> AxisFrontEnds for [R; MAX_AXES] {
 }
 
 /// Where the axes loop's models live: owned (host tools and tests) or
-/// decoded in place into the board's `static` ([`InPlaceModel`]).
+/// decoded in place into the board's `static` ([`InPlaceModel`]); a model
+/// per axis ([`AxisModels`]) or one shared basis for every axis
+/// ([`SharedAxisModels`]). An image holds the step of the kinds its
+/// holder can carry, no other.
 pub trait AxesHolder<const K: usize> {
-    /// The models to run, if a blob gave usable ones.
-    fn models(&self) -> Option<&AxisModels<K>>;
+    /// True when the holder carries a shared-basis model: the loop then
+    /// reads one thermometer set and steps every axis at once
+    /// ([`Compensator::process_shared`]).
+    const SHARED: bool = false;
+
+    /// The per-axis models to run, if a blob gave usable ones.
+    fn models(&self) -> Option<&AxisModels<K>> {
+        None
+    }
+
+    /// The shared-basis model to run, if a blob gave a usable one.
+    fn shared(&self) -> Option<&SharedAxisModels<K>> {
+        None
+    }
 }
 
 impl<const K: usize> AxesHolder<K> for Option<AxisModels<K>> {
@@ -78,6 +100,30 @@ impl<const K: usize> AxesHolder<K> for InPlaceModel<'_, AxisModels<K>> {
 
 impl<const K: usize> AxesHolder<K> for Option<&AxisModels<K>> {
     fn models(&self) -> Option<&AxisModels<K>> {
+        *self
+    }
+}
+
+impl<const K: usize> AxesHolder<K> for Option<SharedAxisModels<K>> {
+    const SHARED: bool = true;
+
+    fn shared(&self) -> Option<&SharedAxisModels<K>> {
+        self.as_ref()
+    }
+}
+
+impl<const K: usize> AxesHolder<K> for InPlaceModel<'_, SharedAxisModels<K>> {
+    const SHARED: bool = true;
+
+    fn shared(&self) -> Option<&SharedAxisModels<K>> {
+        self.get()
+    }
+}
+
+impl<const K: usize> AxesHolder<K> for Option<&SharedAxisModels<K>> {
+    const SHARED: bool = true;
+
+    fn shared(&self) -> Option<&SharedAxisModels<K>> {
         *self
     }
 }
@@ -171,10 +217,14 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
         self.temp_read_due = false;
         let mut out = [NO_AXIS; MAX_AXES];
         let mut rates_dph = [0.0f32; MAX_AXES];
-        for axis in Axis::ALL {
-            if self.has_axis(axis) {
-                let i = axis.index();
-                (out[i], rates_dph[i]) = self.step_axis(axis, read_temps, dt_s);
+        if M::SHARED {
+            self.step_shared(read_temps, dt_s, &mut out, &mut rates_dph);
+        } else {
+            for axis in Axis::ALL {
+                if self.has_axis(axis) {
+                    let i = axis.index();
+                    (out[i], rates_dph[i]) = self.step_axis(axis, read_temps, dt_s);
+                }
             }
         }
         if self.emit(seq, &rates_dph, &out) {
@@ -210,6 +260,62 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
         }
         o.flags |= self.pending_flags;
         (o, rate_dph)
+    }
+
+    /// Every axis's part of a step under a shared-basis model: the one
+    /// thermometer set (the first axis's; when due), every axis's rate, one
+    /// [`Compensator::process_shared`] (one kernel evaluation for all axes).
+    /// A failed thermometer read is every axis's: each gets flag 2 (flag 4
+    /// once the hold runs out), and each axis's fault counter counts it.
+    fn step_shared(&mut self, read_temps: bool, dt_s: f32, out: &mut AxesOutput, rates_dph: &mut [f32; MAX_AXES]) {
+        let Some(first) = Axis::ALL.into_iter().find(|&a| self.has_axis(a)) else {
+            return;
+        };
+        let t = first.index() % MAX_AXES;
+        if read_temps {
+            let wanted = (self.models.shared()).map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
+            let failed = self.thermometers.read_axis(first, wanted, &mut self.latest_temps_c[t]);
+            self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
+            for axis in Axis::ALL {
+                if self.has_axis(axis) {
+                    let i = axis.index() % MAX_AXES;
+                    self.temp_read_faults_per_axis[i] = self.temp_read_faults_per_axis[i].wrapping_add(failed);
+                }
+            }
+        }
+        let mut rate_ok = [true; MAX_AXES];
+        for axis in Axis::ALL {
+            if self.has_axis(axis) {
+                let i = axis.index() % MAX_AXES;
+                (rates_dph[i], rate_ok[i]) = self.read_rate(axis);
+            }
+        }
+        let all = self.compensators[0].process_shared(
+            self.models.shared(),
+            &self.config.compensator,
+            dt_s,
+            &self.latest_temps_c[t],
+            rates_dph,
+        );
+        for (i, (mut o, ok)) in all.into_iter().zip(rate_ok).enumerate() {
+            if self.axis_mask & (1 << i) == 0 {
+                continue;
+            }
+            if !ok {
+                o.flags |= Flags::RATE_INVALID;
+            }
+            o.flags |= self.pending_flags;
+            if let Some(slot) = out.get_mut(i) {
+                *slot = o;
+            }
+        }
+    }
+
+    /// `axis`'s rate and whether it is valid (a failed read counted). Not
+    /// inlined: the shared-basis image holds one copy, not one per axis.
+    #[inline(never)]
+    fn read_rate(&mut self, axis: Axis) -> (f32, bool) {
+        self.stats.rate_or_fault(self.front_ends.read_axis_rate(axis))
     }
 
     /// Frames and writes one [`AxesFrame`]; false when the output did not take it whole.
@@ -256,9 +362,14 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
         &mut self.output
     }
 
-    /// The models in use.
+    /// The per-axis models in use.
     pub fn models(&self) -> Option<&AxisModels<K>> {
         self.models.models()
+    }
+
+    /// The shared-basis model in use.
+    pub fn shared_models(&self) -> Option<&SharedAxisModels<K>> {
+        self.models.shared()
     }
 
     /// Health counters (thermometer faults summed over the axes).

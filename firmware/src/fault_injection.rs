@@ -12,12 +12,11 @@ use core::cell::Cell;
 
 use embedded_hal::spi::{self, SpiDevice};
 use rbf_core::blob;
-use rbf_core::blob::axes::AxisModels;
 use rbf_core::frame::{self, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN};
 use rbf_core::record::{Axis, MAX_AXES};
 use rbf_core::{CompensatorConfig, Flags, Model};
 
-use crate::axes::AxesLoop;
+use crate::axes::{AxesHolder, AxesLoop};
 use crate::compensation::{CompensationLoop, LoopConfig};
 use crate::emulated_flash::{EmulatedFlash, PAGE};
 use crate::frontend::FrontEnd;
@@ -396,7 +395,8 @@ pub struct AxisThermometerCampaign {
     pub samples_lost: u32,
     /// Samples on which the failing axis's thermometer did not answer.
     pub faulty_samples: u32,
-    /// Faulty samples whose frame lacks flag 2 on the failing axis (must be 0).
+    /// Faulty samples whose frame lacks flag 2 on a failing axis (must be 0;
+    /// under a shared-basis model every axis fails with x's thermometer).
     pub missing_flags: u32,
     /// Samples on which the failing axis ran uncompensated (flag 4: an
     /// outage past the hold).
@@ -413,9 +413,13 @@ pub struct AxisThermometerCampaign {
 /// thermometer of `failing` stops answering (I2C NACK) in bursts of 1–40
 /// samples and outages of 150 (past the 10-s hold), on a schedule seeded
 /// by `seed`. Checks every frame: flag 2 on the failing axis whenever its
-/// thermometer failed, the other axes compensating undisturbed.
-pub fn axis_thermometer_campaign<const K: usize>(
-    models: Option<&AxisModels<K>>,
+/// thermometer failed, the other axes compensating undisturbed. Under a
+/// shared-basis model (`M::SHARED`) the loop reads axis x's thermometer
+/// for every axis: when that one fails, every axis counts as failing (flag
+/// 2 on each, flag 4 past the hold); when y's or z's fails, which that
+/// model does not read, no axis may be disturbed.
+pub fn axis_thermometer_campaign<M: AxesHolder<K>, const K: usize>(
+    models: M,
     failing: Axis,
     samples: u32,
     seed: u32,
@@ -453,6 +457,10 @@ pub fn axis_thermometer_campaign<const K: usize>(
         bad_frames: 0,
         last: None,
     };
+    let has_models = models.models().is_some() || models.shared().is_some();
+    let affected = |axis: Axis| {
+        if M::SHARED { failing == Axis::X } else { axis == failing }
+    };
     let mut axes = AxesLoop::new(models, 0b111, config, thermometers, front_ends, checker);
     let mut rng = Rng(seed | 1);
     let mut left = 0u32;
@@ -485,7 +493,7 @@ pub fn axis_thermometer_campaign<const K: usize>(
         for (axis, out) in Axis::ALL.into_iter().zip(f.axes) {
             let flags = out.flags();
             let finite = out.bias_dph.is_finite() && out.rate_comp_dph.is_finite();
-            if axis == failing {
+            if affected(axis) {
                 if fails && !flags.contains(Flags::TEMP_SENSOR_FAULT) {
                     report.missing_flags += 1;
                 }
@@ -496,7 +504,7 @@ pub fn axis_thermometer_campaign<const K: usize>(
                     report.healthy_disturbed += 1;
                 }
             } else if flags.contains(Flags::TEMP_SENSOR_FAULT)
-                || (models.is_some() && flags.contains(Flags::NO_VALID_MODEL))
+                || (has_models && flags.contains(Flags::NO_VALID_MODEL))
                 || !finite
             {
                 report.healthy_disturbed += 1;

@@ -51,6 +51,15 @@ use rbf_core::blob::{self, DecodeError};
 /// `Refused`, the running models stay; at boot: uncompensated, flag 4).
 pub const AXIS_CENTERS: usize = rbf_core::MAX_AXIS_CENTERS;
 
+/// Centres the shared basis may have on the shared-basis three-axis board
+/// (feature `board-axes-shared`): the capacity `K` of its
+/// [`rbf_core::shared::SharedAxisModels`]. One basis with a weight per
+/// axis takes about a third of three models' RAM, so this image holds
+/// twice the per-axis board's centres within the same 16 KiB
+/// (docs/firmware.md, "Three axes"). A blob with a larger basis is refused
+/// with [`DecodeError::ShapeOverCapacity`], as on the per-axis board.
+pub const SHARED_AXIS_CENTERS: usize = 32;
+
 /// Length of one model flash slot (`MODEL_A`/`MODEL_B` in memory.x), bytes.
 pub const MODEL_SLOT_LEN: usize = 128 * 1024;
 

@@ -36,15 +36,20 @@
 //! IMU's axis models (format 3). The `_into` methods decode into whichever
 //! the firmware runs ([`StoredModel`]): a single-axis firmware's [`Model`]
 //! refuses a format-3 blob with its reason; a multi-axis firmware's
-//! [`AxisModels`] takes both (a format-2 blob as axis x alone).
+//! [`AxisModels`] takes both (a format-2 blob as axis x alone); a
+//! shared-basis firmware's [`SharedAxisModels`] takes a shared-basis blob
+//! alone.
 
 use embedded_storage::nor_flash::NorFlash;
 use rbf_core::Model;
 use rbf_core::blob::axes::{AxisModels, blob_len, decode_any_into};
+use rbf_core::blob::shared::decode_shared_into;
 use rbf_core::blob::{self, DecodeError, HEADER_LEN, MAX_BLOB_LEN};
+use rbf_core::shared::SharedAxisModels;
 
-/// What a slot's blob decodes into, in place: a single-axis [`Model`] or
-/// the [`AxisModels`] of a multi-axis IMU, each with its centre capacity `K`.
+/// What a slot's blob decodes into, in place: a single-axis [`Model`], the
+/// [`AxisModels`] of a multi-axis IMU or its [`SharedAxisModels`], each
+/// with its centre capacity `K`.
 pub trait StoredModel {
     /// Decodes and validates the blob at the start of `bytes` into `self`;
     /// the bytes it occupies. On error `self` holds no usable model.
@@ -69,6 +74,19 @@ impl<const K: usize> StoredModel for AxisModels<K> {
     }
     fn clear(&mut self) {
         *self = AxisModels::EMPTY;
+    }
+}
+
+/// A shared-basis blob (format 3 with the shared-basis flag) alone: a
+/// model per axis or a single-axis blob is refused with its reason
+/// ([`DecodeError::NotSharedBasis`]), as the per-axis reader refuses this
+/// one ([`DecodeError::SharedBasis`]).
+impl<const K: usize> StoredModel for SharedAxisModels<K> {
+    fn decode_from(&mut self, bytes: &[u8]) -> Result<usize, DecodeError> {
+        decode_shared_into(self, bytes)
+    }
+    fn clear(&mut self) {
+        *self = SharedAxisModels::EMPTY;
     }
 }
 

@@ -17,13 +17,12 @@ use core::cell::Cell;
 
 use embedded_hal::i2c::{self, I2c, NoAcknowledgeSource};
 use embedded_hal::spi::{self, SpiDevice};
-use rbf_core::blob::axes::AxisModels;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self, Axis, Columns, HeaderError, MAX_AXES, RowError};
 use rbf_core::sensor::tmp117_raw;
 use rbf_core::{CompensatorConfig, Model};
 
-use crate::axes::AxesLoop;
+use crate::axes::{AxesHolder, AxesLoop};
 use crate::compensation::{CompensationLoop, LoopConfig, LoopStats};
 use crate::frontend::{self, FrontEnd};
 use crate::tmp117::{self, Tmp117Array};
@@ -317,14 +316,10 @@ fn axis_devices(
 }
 
 /// The multi-axis replay loop: per axis, eight TMP117s on two emulated
-/// buses and a front end, all answering from that axis's cell.
-pub type AxesReplayLoop<'c, 'm, W, const K: usize> = AxesLoop<
-    [ReplayThermometers<'c>; MAX_AXES],
-    [FrontEnd<EmulatedFrontEnd<'c>>; MAX_AXES],
-    W,
-    Option<&'m AxisModels<K>>,
-    K,
->;
+/// buses and a front end, all answering from that axis's cell; `M` holds
+/// the models ([`AxesHolder`]: a model per axis, or a shared basis).
+pub type AxesReplayLoop<'c, W, M, const K: usize> =
+    AxesLoop<[ReplayThermometers<'c>; MAX_AXES], [FrontEnd<EmulatedFrontEnd<'c>>; MAX_AXES], W, M, K>;
 
 /// Second pass over a multi-axis run (`rate_x_dph` …): every row through
 /// the drivers and [`AxesLoop`], the compensated run written as `trainer
@@ -334,9 +329,13 @@ pub type AxesReplayLoop<'c, 'm, W, const K: usize> = AxesLoop<
 /// Each axis's devices answer from the row as that axis reads it
 /// ([`Columns::for_axis`]): its rate, `temp_<axis>_c` (else `temp_c`) as
 /// its loop thermometer, the shared `temp_a` … `temp_h` as the others.
-pub struct AxesReplayer<'c, 'm, W, const K: usize> {
+/// `M` is `Option<&AxisModels<K>>` (a model per axis) or
+/// `Option<&SharedAxisModels<K>>` (one basis for every axis, stepped by
+/// [`rbf_core::Compensator::process_shared`] on the first axis's
+/// thermometers, as `trainer compensate` steps it).
+pub struct AxesReplayer<'c, W, M, const K: usize> {
     current: &'c [Cell<ReplaySample>; MAX_AXES],
-    compensation: AxesReplayLoop<'c, 'm, W, K>,
+    compensation: AxesReplayLoop<'c, W, M, K>,
     /// Per axis present, its columns.
     axes: [Option<Columns>; MAX_AXES],
     header_read: bool,
@@ -344,11 +343,11 @@ pub struct AxesReplayer<'c, 'm, W, const K: usize> {
     line: u32,
 }
 
-impl<'c, 'm, W: embedded_io::Write, const K: usize> AxesReplayer<'c, 'm, W, K> {
+impl<'c, W: embedded_io::Write, M: AxesHolder<K>, const K: usize> AxesReplayer<'c, W, M, K> {
     /// A replayer over `models` for a run of nominal period `period_s`;
     /// frames go to `frames`. The axes come from the run's header.
     pub fn new(
-        models: Option<&'m AxisModels<K>>,
+        models: M,
         period_s: f64,
         current: &'c [Cell<ReplaySample>; MAX_AXES],
         frames: W,

@@ -264,3 +264,100 @@ fn wide_model(centers: usize) -> Model {
     )
     .unwrap()
 }
+
+/// The shared-basis model (16-centre basis, every axis) as the
+/// shared-basis board holds it, and its blob.
+fn shared_models() -> (
+    Box<rbf_core::shared::SharedAxisModels<{ firmware::SHARED_AXIS_CENTERS }>>,
+    Vec<u8>,
+) {
+    let dir = tempfile::TempDir::new().unwrap();
+    let (blob_path, _) = e2e_tests::fixtures::shared_blob_and_slice(dir.path());
+    let blob = std::fs::read(blob_path).unwrap();
+    let mut board = Box::new(rbf_core::shared::SharedAxisModels::EMPTY);
+    assert_eq!(
+        rbf_core::blob::shared::decode_shared_into(&mut *board, &blob),
+        Ok(blob.len())
+    );
+    (board, blob)
+}
+
+#[test]
+fn under_a_shared_basis_the_one_thermometer_failing_flags_every_axis_and_the_others_go_unread() {
+    let (models, _) = shared_models();
+    // x's thermometer is the one every axis reads: every axis fails with it.
+    let r = axis_thermometer_campaign(Some(&*models), Axis::X, 20_000, 0x1234_5678);
+    assert_eq!((r.frames, r.samples_lost), (20_000, 0), "{r:?}");
+    assert!(r.faulty_samples > 1_000, "{r:?}");
+    assert_eq!(r.missing_flags, 0, "every failed read flagged on every axis: {r:?}");
+    assert!(
+        r.failing_uncompensated > 0,
+        "outages past the hold stop every axis: {r:?}"
+    );
+    assert_eq!(r.healthy_disturbed, 0, "{r:?}");
+    assert_eq!(r.temp_read_faults_per_axis, [r.faulty_samples; 3], "{r:?}");
+    // y's or z's coil thermometer is not read by a shared-basis model: nothing changes.
+    for failing in [Axis::Y, Axis::Z] {
+        let r = axis_thermometer_campaign(Some(&*models), failing, 20_000, 7);
+        assert!(r.faulty_samples > 1_000, "{failing:?}: {r:?}");
+        assert_eq!((r.frames, r.samples_lost), (20_000, 0), "{failing:?}: {r:?}");
+        assert_eq!(r.healthy_disturbed, 0, "{failing:?}: {r:?}");
+        assert_eq!(r.temp_read_faults_per_axis, [0; 3], "{failing:?}: {r:?}");
+    }
+}
+
+#[test]
+fn the_store_and_the_uart_update_carry_a_shared_basis_blob_and_refuse_the_other_layouts() {
+    use firmware::update::{CMD_INSTALL_MODEL, UpdateStatus, execute_into};
+    use rbf_core::shared::SharedAxisModels;
+    let (board_models, shared_blob) = shared_models();
+    let (_, axes_blob) = axis_models();
+    let (_, single_blob, _) = models();
+    let mut running = Box::new(SharedAxisModels::<{ firmware::SHARED_AXIS_CENTERS }>::EMPTY);
+    let mut store = ModelStore::open_with(ModelFlash::new(), EMULATED_LAYOUT, &mut *running);
+    assert_eq!(store.active_slot(), None);
+
+    // The shared-basis blob through the UART command path: installed and running.
+    let mut payload = vec![CMD_INSTALL_MODEL];
+    payload.extend_from_slice(&shared_blob);
+    assert_eq!(
+        execute_into(&mut store, &payload, &mut *running),
+        UpdateStatus::Installed
+    );
+    assert_eq!(*running, *board_models);
+    assert_eq!(store.slot_states()[0], SlotState::Committed(1));
+    let before = store.into_flash();
+
+    // A model per axis or a single-axis blob: refused with the reason, flash untouched.
+    let mut store = ModelStore::open_with(before.clone(), EMULATED_LAYOUT, &mut *running);
+    for other in [&axes_blob, &single_blob] {
+        assert!(matches!(
+            store.install_into(other, &mut *running),
+            Err(InstallError::Refused(
+                blob::DecodeError::NotSharedBasis | blob::DecodeError::UnsupportedVersion(_)
+            ))
+        ));
+        let mut payload = vec![CMD_INSTALL_MODEL];
+        payload.extend_from_slice(other);
+        assert_eq!(execute_into(&mut store, &payload, &mut *running), UpdateStatus::Refused);
+        assert_eq!(*running, *board_models, "the running model stays");
+    }
+    // The per-axis board refuses the shared-basis blob with its reason.
+    let mut per_axis = Box::new(AxisModels::<{ firmware::AXIS_CENTERS }>::EMPTY);
+    assert!(matches!(
+        store.install_into(&shared_blob, &mut *per_axis),
+        Err(InstallError::Refused(blob::DecodeError::SharedBasis))
+    ));
+    let after = store.into_flash();
+    assert_eq!(
+        after.contents(),
+        before.contents(),
+        "refused blobs leave the flash untouched"
+    );
+
+    // Reboot: the shared-basis slot is found and loaded.
+    let mut fresh = Box::new(SharedAxisModels::<{ firmware::SHARED_AXIS_CENTERS }>::EMPTY);
+    let mut store = ModelStore::open_with(after, EMULATED_LAYOUT, &mut *fresh);
+    store.load_into(&mut *fresh).unwrap();
+    assert_eq!(*fresh, *board_models);
+}

@@ -157,3 +157,73 @@ fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_ev
     }
     assert_eq!(seq as usize, common::AXES_ROWS);
 }
+
+#[test]
+fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer_fault_flags_every_axis() {
+    use firmware::replay::AxesReplayer;
+    use rbf_core::blob::shared::{decode_shared_into, is_shared_basis};
+    use rbf_core::shared::SharedAxisModels;
+    use trainer::output::Existing;
+
+    let dir = tempfile::TempDir::new().unwrap();
+    let (blob_path, slice) = common::shared_blob_and_slice(dir.path());
+    let expected_path = dir.path().join("expected.csv");
+    trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+    let expected = std::fs::read_to_string(&expected_path).unwrap();
+
+    let blob = std::fs::read(&blob_path).unwrap();
+    assert!(is_shared_basis(&blob));
+    let mut models = Box::new(SharedAxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
+    assert_eq!(decode_shared_into(&mut models, &blob), Ok(blob.len()));
+    let input = std::fs::read_to_string(&slice).unwrap();
+    let period_s = replay::probe_period(input.lines()).unwrap();
+    let current: [Cell<ReplaySample>; 3] = Default::default();
+    let mut frames: Vec<u8> = Vec::new();
+    let mut out = String::new();
+    let mut replayer = AxesReplayer::new(Some(&*models), period_s, &current, &mut frames).unwrap();
+    for line in input.lines() {
+        replayer.feed_line(line, &mut out).unwrap();
+    }
+    let stats = replayer.stats();
+    assert_eq!(stats.samples as usize, common::AXES_ROWS);
+    assert_eq!(stats.output_errors, 0);
+    let faulty_rows = (0..common::AXES_ROWS).filter(|&r| common::axes_faulty(r)).count() as u32;
+    // One thermometer set read per sample; its failure is every axis's.
+    assert_eq!(stats.temp_read_faults, faulty_rows);
+    assert_eq!(replayer.temp_read_faults_per_axis(), [faulty_rows; 3]);
+    let differing = out.lines().zip(expected.lines()).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "rows differ from trainer compensate");
+    assert_eq!(out, expected, "replay output differs from trainer compensate");
+
+    // One frame per row carrying x, y and z; flag 2 on every axis while the
+    // one thermometer fails, flag 4 as well once its hold runs out, and
+    // compensated (no flag 4) otherwise.
+    let rows: Vec<&str> = out.lines().filter(|l| !l.starts_with('#')).skip(1).collect();
+    let mut seq = 0u32;
+    let mut held_out = 0;
+    for chunk in frames.split_mut(|&b| b == 0).filter(|c| !c.is_empty()) {
+        let f = frame::decode_axes(chunk).unwrap();
+        assert_eq!((f.seq, f.axis_mask), (seq, 0b111));
+        let fields: Vec<&str> = rows[seq as usize].split(',').collect();
+        let faulty = common::axes_faulty(seq as usize);
+        let first = f.axes[0].flags();
+        for (i, axis) in f.axes.iter().enumerate() {
+            let csv_flags: u8 = fields[fields.len() - 7 + 3 * i].parse().unwrap();
+            let csv_bias: f32 = fields[fields.len() - 9 + 3 * i].parse().unwrap();
+            assert_eq!((axis.flags, axis.bias_dph), (csv_flags, csv_bias), "row {seq} axis {i}");
+            assert_eq!(
+                axis.flags().contains(Flags::TEMP_SENSOR_FAULT),
+                faulty,
+                "row {seq} axis {i}"
+            );
+            assert_eq!(axis.flags(), first, "row {seq}: the axes' flags differ");
+            if !faulty {
+                assert!(!axis.flags().contains(Flags::NO_VALID_MODEL), "row {seq} axis {i}");
+            }
+        }
+        held_out += usize::from(first.contains(Flags::NO_VALID_MODEL));
+        seq += 1;
+    }
+    assert_eq!(seq as usize, common::AXES_ROWS);
+    assert!(held_out > 0, "the outage outlasts the hold: flag 4 on every axis");
+}

@@ -41,6 +41,7 @@ pub const CRC_LEN: usize = 4;
 pub const MAX_BLOB_LEN: usize = 4096;
 
 pub mod axes;
+pub mod shared;
 
 const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
@@ -194,6 +195,12 @@ pub enum DecodeError {
     MultiAxis,
     /// A multi-axis blob's axis mask is 0 or names an axis beyond z.
     BadAxisMask(u8),
+    /// A shared-basis blob ([`shared`]) where one model per axis is
+    /// expected: decode it with [`shared::decode_shared_into`].
+    SharedBasis,
+    /// A blob with one model per axis (or one model) where a shared-basis
+    /// blob is expected.
+    NotSharedBasis,
 }
 
 impl core::fmt::Display for DecodeError {
@@ -223,6 +230,11 @@ impl core::fmt::Display for DecodeError {
                 f.write_str("a multi-axis blob (one model per gyro axis) where a single-axis model is expected")
             }
             DecodeError::BadAxisMask(m) => write!(f, "axis mask {m:#04x} names no axis or one beyond z"),
+            DecodeError::SharedBasis => f.write_str(
+                "a shared-basis multi-axis blob (one basis, an output layer per axis) where one model per axis is \
+                 expected",
+            ),
+            DecodeError::NotSharedBasis => f.write_str("not a shared-basis multi-axis blob"),
         }
     }
 }

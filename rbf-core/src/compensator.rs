@@ -8,6 +8,8 @@
 use crate::features::{FeatureExtractor, FeatureVector, LOOP_THERMOMETER, THERMOMETERS};
 use crate::flags::Flags;
 use crate::model::Model;
+use crate::record::MAX_AXES;
+use crate::shared::SharedAxisModels;
 
 /// Loop settings that belong to the deployment, not to the model.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -300,32 +302,87 @@ impl Compensator {
             flags |= Flags::RATE_INVALID;
         }
         let temp_c = frame.features.map_or(f32::NAN, |f| f.temp_c());
-        let bias_dph = match (model, frame.features) {
+        let evaluation = match (model, frame.features) {
             (Some(model), Some(features)) => {
                 let evaluation = model.eval(&features);
-                if evaluation.clamped {
-                    flags |= Flags::INPUT_CLAMPED;
-                }
-                if evaluation.bias_dph.is_finite() {
-                    evaluation.bias_dph
-                } else {
-                    // Unreachable for a validated model (its output bound is
-                    // checked); kept so the output stays finite regardless.
-                    flags |= Flags::NO_VALID_MODEL;
-                    0.0
-                }
+                Some((evaluation.bias_dph, evaluation.clamped))
             }
-            _ => {
+            _ => None,
+        };
+        finish_sample(flags, sample.rate_dph, temp_c, evaluation)
+    }
+
+    /// The step of a shared-basis multi-axis model
+    /// ([`crate::shared::SharedAxisModels`]): the axes share one
+    /// thermometer set, so one compensator computes the features once, the
+    /// model evaluates every axis's bias from them, and each axis's rate
+    /// (x first, `rates_dph`) is checked and compensated as
+    /// [`Self::process_with`] does it. An axis without a layer, or every
+    /// axis when `models` is `None`, passes its rate through with flag 4.
+    pub fn process_shared<const K: usize>(
+        &mut self,
+        models: Option<&SharedAxisModels<K>>,
+        config: &CompensatorConfig,
+        dt_s: f32,
+        temps_c: &[Option<f32>; THERMOMETERS],
+        rates_dph: &[f32; MAX_AXES],
+    ) -> [CompensatedSample; MAX_AXES] {
+        const NO_FEATURES: crate::FeatureConfig = crate::FeatureConfig::single(crate::FeatureSet::Temp, 0.0);
+        let feature_config = models.map_or(&NO_FEATURES, |m| m.features());
+        let sample = GyroSample {
+            dt_s,
+            rate_dph: 0.0,
+            temps_c: *temps_c,
+        };
+        let frame = self.features(feature_config, config, &sample);
+        let temp_c = frame.features.map_or(f32::NAN, |f| f.temp_c());
+        let evaluation = match (models, frame.features) {
+            (Some(models), Some(features)) => Some((models.eval_axes(&features), models.mask())),
+            _ => None,
+        };
+        core::array::from_fn(|a| {
+            let mut flags = frame.flags;
+            let rate_dph = rates_dph.get(a).copied().unwrap_or(f32::NAN);
+            if !(rate_dph.is_finite() && rate_dph.abs() <= config.max_abs_rate_dph) {
+                flags |= Flags::RATE_INVALID;
+            }
+            let axis = evaluation.and_then(|(e, mask)| {
+                (mask & (1 << a) != 0).then(|| (e.bias_dph.get(a).copied().unwrap_or(f32::NAN), e.clamped))
+            });
+            finish_sample(flags, rate_dph, temp_c, axis)
+        })
+    }
+}
+
+/// The end of a step: the bias subtracted when the model gave one
+/// (`evaluation`: bias, °/h, and whether an input was clamped), else the
+/// rate passed through with flag 4.
+#[inline(always)]
+fn finish_sample(mut flags: Flags, rate_dph: f32, temp_c: f32, evaluation: Option<(f32, bool)>) -> CompensatedSample {
+    let bias_dph = match evaluation {
+        Some((bias_dph, clamped)) => {
+            if clamped {
+                flags |= Flags::INPUT_CLAMPED;
+            }
+            if bias_dph.is_finite() {
+                bias_dph
+            } else {
+                // Unreachable for a validated model (its output bound is
+                // checked); kept so the output stays finite regardless.
                 flags |= Flags::NO_VALID_MODEL;
                 0.0
             }
-        };
-        CompensatedSample {
-            bias_dph,
-            rate_comp_dph: sample.rate_dph - bias_dph,
-            temp_c,
-            flags,
         }
+        None => {
+            flags |= Flags::NO_VALID_MODEL;
+            0.0
+        }
+    };
+    CompensatedSample {
+        bias_dph,
+        rate_comp_dph: rate_dph - bias_dph,
+        temp_c,
+        flags,
     }
 }
 

@@ -13,6 +13,7 @@
 //! - [`compensator`]: the per-sample loop state (sensor-fault hold, gaps, flags).
 //! - [`blob`]: the model blob format (header, postcard payload, CRC-32) and its decoder.
 //! - [`frame`]: the firmware's per-sample output frames (postcard + COBS).
+//! - [`shared`]: shared-basis multi-axis models (one basis, an output layer per axis).
 //! - [`record`]: row parsing of recorded runs; [`sensor`]: TMP117 conversions.
 //!
 //! Sizes live in types ([`MAX_CENTERS`], [`MAX_INPUTS`]); values are runtime data.
@@ -32,6 +33,7 @@ pub mod poly;
 pub mod rbf;
 pub mod record;
 pub mod sensor;
+pub mod shared;
 
 /// Most Gaussian centres a deployable model may hold (firmware RAM is sized for it).
 pub const MAX_CENTERS: usize = 64;

@@ -359,6 +359,73 @@ impl<const K: usize> Model<K> {
         (value, outside_flag(outside))
     }
 
+    /// The linear box (min, max per input, input units): where linear terms
+    /// stop following an input.
+    pub(crate) fn linear_box(&self) -> (&[f32], &[f32]) {
+        let d = self.features.dims().min(MAX_INPUTS);
+        (&self.linear_min[..d], &self.linear_max[..d])
+    }
+
+    /// The evaluation of a shared basis ([`crate::shared`]): this model's
+    /// network is the basis (every weight 1, no linear terms), `weights`
+    /// hold each centre's three output-layer weights and `linear` each
+    /// layer's linear terms ([`RbfNetwork::linear_box_terms`]). The same
+    /// clamping and flag as [`Self::eval`]; the kernels once, then one
+    /// weighted sum and one linear sum per layer. A body that is not a
+    /// network gives three zeros.
+    #[inline(always)]
+    pub(crate) fn eval_layers(
+        &self,
+        features: &FeatureVector,
+        weights: &[[f32; 3]],
+        linear: &[([f32; MAX_INPUTS], f32); 3],
+    ) -> ([f32; 3], bool) {
+        let raw = features.values();
+        let ModelBody::Rbf(net) = &self.body else {
+            return ([0.0; 3], false);
+        };
+        // Two shapes of their own (the contract's three inputs, the lag
+        // bank's eight); fewer inputs go through the widest, whose inputs
+        // past `dims` are 0 with range [0, 0] and no linear term: the same
+        // sums and flag, less code in a board image.
+        let (lin, clamped) = match self.features.dims() {
+            3 => self.layer_linear::<3>(net, raw, linear),
+            8 => self.layer_linear::<8>(net, raw, linear),
+            _ => self.layer_linear::<MAX_INPUTS>(net, raw, linear),
+        };
+        let kernels = if net.table_ready() {
+            net.kernel_dots(raw, weights)
+        } else {
+            let mut x = [0.0f32; MAX_INPUTS];
+            for ((xi, v), (lo, hi)) in x.iter_mut().zip(raw).zip(self.input_min.iter().zip(&self.input_max)) {
+                *xi = clamp(*v, *lo, *hi);
+            }
+            net.kernel_dots(&x, weights)
+        };
+        ([lin[0] + kernels[0], lin[1] + kernels[1], lin[2] + kernels[2]], clamped)
+    }
+
+    /// The range test of [`Self::eval`] and the linear sums of
+    /// [`Self::eval_layers`] for `N` inputs.
+    #[inline(always)]
+    fn layer_linear<const N: usize>(
+        &self,
+        net: &RbfNetwork<K, MAX_INPUTS>,
+        raw: &[f32; MAX_INPUTS],
+        linear: &[([f32; MAX_INPUTS], f32); 3],
+    ) -> ([f32; 3], bool) {
+        let mut outside = 0.0f32;
+        for (v, (lo, hi)) in raw.iter().zip(self.input_min.iter().zip(&self.input_max)).take(N) {
+            outside += outside_measure(*v, *lo, *hi);
+        }
+        let sums = [
+            net.linear_sum_with::<N>(raw, &linear[0].0, linear[0].1),
+            net.linear_sum_with::<N>(raw, &linear[1].0, linear[1].1),
+            net.linear_sum_with::<N>(raw, &linear[2].0, linear[2].1),
+        ];
+        (sums, outside_flag(outside))
+    }
+
     /// The model's mathematical value at `features` in f64 with exact
     /// exponentials (same clamping as [`Self::eval`]): the reference the
     /// deployed evaluation is measured against (host tools and tests; the

@@ -218,6 +218,27 @@ fn exp2_sum<const M: usize, const ADD_Q: bool>(centres: &[[u64; 2]], q: [i32; TA
     sum
 }
 
+/// Σ_j w_j[a]·2^−v_j for the three layers `a`, over `centres` in order
+/// (the kernel of [`RbfNetwork::kernel_dots`]): one table exponential and
+/// three multiply-adds per centre.
+#[inline(always)]
+fn exp2_dots<const M: usize, const ADD_Q: bool>(
+    centres: &[[u64; 2]],
+    weights: &[[f32; 3]],
+    q: [i32; TABLE_MAX_INPUTS],
+    shared: i32,
+) -> [f32; 3] {
+    let table = &crate::fastmath::EXP2_OCTAVE_BITS;
+    let (mut x, mut y, mut z) = (0.0f32, 0.0f32, 0.0f32);
+    for (centre, &[wx, wy, wz]) in centres.iter().zip(weights) {
+        let g = exp2_term::<M, ADD_Q>(table, centre, q, shared);
+        x += wx * g;
+        y += wy * g;
+        z += wz * g;
+    }
+    [x, y, z]
+}
+
 /// 2^−v_j of one centre's packed coefficients.
 #[inline(always)]
 fn exp2_term<const M: usize, const ADD_Q: bool>(
@@ -670,13 +691,14 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
 
     /// Output weights W_j, °/h.
     pub fn weights(&self) -> &[f32] {
-        &self.weights[..self.centers_used]
+        // `centers_used` ≤ K always; `get` keeps a panic path out of the board's update.
+        self.weights.get(..self.centers_used).unwrap_or(&[])
     }
 
     /// Linear coefficients per normalised input, °/h (empty when the model has none).
     pub fn linear(&self) -> &[f32] {
         if self.has_linear {
-            &self.linear[..self.inputs_used]
+            self.linear.get(..self.inputs_used).unwrap_or(&[])
         } else {
             &[]
         }
@@ -791,6 +813,163 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             let factor = crate::fastmath::exp2_neg_q16(&crate::fastmath::EXP2_OCTAVE_BITS, shared) * self.weight_scale;
             sums * factor
         }
+    }
+
+    /// Σ_j w_j[a]·exp(−‖z − c_j‖²/2σ²) for each of the three output layers
+    /// `a` of a shared basis ([`crate::shared`]): the kernel values are
+    /// computed once per centre and weighted three times. On the table path
+    /// (only meaningful when [`Self::table_ready`] with every centre at
+    /// weight 1, which puts every centre in `exponent` in order with
+    /// E = 0) the kernels are 2^T · 2^−Q · 2^−v_j as in
+    /// [`Self::eval_table`]; otherwise the polynomial path's exponentials at
+    /// `x_kernel` clamped by the caller. Each layer's sum depends only on
+    /// its own weights: a layer evaluates to the same bits whichever other
+    /// layers are present.
+    #[inline(always)]
+    pub(crate) fn kernel_dots(&self, x_kernel: &[f32; MAX_INPUTS_ALL], weights: &[[f32; 3]]) -> [f32; 3] {
+        if !self.table {
+            return self.polynomial_kernel_dots(x_kernel, weights);
+        }
+        match self.kernel_inputs {
+            1 => self.table_kernel_dots::<1>(x_kernel, weights),
+            2 => self.table_kernel_dots::<2>(x_kernel, weights),
+            _ => self.table_kernel_dots::<3>(x_kernel, weights),
+        }
+    }
+
+    /// [`Self::kernel_dots`] on the table path over the first `M` kernel inputs.
+    #[inline(always)]
+    fn table_kernel_dots<const M: usize>(&self, x_kernel: &[f32; MAX_INPUTS_ALL], weights: &[[f32; 3]]) -> [f32; 3] {
+        let q: [i32; TABLE_MAX_INPUTS] =
+            core::array::from_fn(
+                |i| match (i < M, x_kernel.get(i), self.kernel_mid.get(i), self.kernel_gain.get(i)) {
+                    (true, Some(x), Some(mid), Some(gain)) => ((x - mid) * gain) as i32,
+                    _ => 0,
+                },
+            );
+        let mut shared = 0i32;
+        for (qi, h) in q.iter().zip(&self.shared_coeff).take(M) {
+            shared = shared.wrapping_add(mul_hi(*qi, mul_hi(*qi, *h)));
+        }
+        let centres = self.exponent.get(..self.positive.min(K)).unwrap_or(&[]);
+        let (sums, factor) = if self.q_in_sum {
+            (exp2_dots::<M, true>(centres, weights, q, shared), self.weight_scale)
+        } else {
+            let factor = crate::fastmath::exp2_neg_q16(&crate::fastmath::EXP2_OCTAVE_BITS, shared) * self.weight_scale;
+            (exp2_dots::<M, false>(centres, weights, q, 0), factor)
+        };
+        sums.map(|s| s * factor)
+    }
+
+    /// [`Self::kernel_dots`] on the polynomial path.
+    fn polynomial_kernel_dots(&self, x_kernel: &[f32; MAX_INPUTS_ALL], weights: &[[f32; 3]]) -> [f32; 3] {
+        let m = self.kernel_inputs.min(D);
+        let mut z = [0.0f32; D];
+        for (((zi, x), o), s) in z
+            .iter_mut()
+            .zip(x_kernel)
+            .zip(&self.offset)
+            .zip(&self.inv_scale)
+            .take(m)
+        {
+            *zi = (x - o) * s;
+        }
+        let z = z.get(..m).unwrap_or(&[]);
+        let mut sums = [0.0f32; 3];
+        for ((c, w), g) in self
+            .centers
+            .iter()
+            .zip(weights)
+            .zip(&self.neg_half_inv_var)
+            .take(self.centers_used.min(K))
+        {
+            let mut dist_sq = 0.0f32;
+            for (zi, ci) in z.iter().zip(c) {
+                let diff = zi - ci;
+                dist_sq += diff * diff;
+            }
+            let kernel = crate::fastmath::exp_neg(dist_sq * g);
+            for (s, wa) in sums.iter_mut().zip(w) {
+                *s += wa * kernel;
+            }
+        }
+        sums
+    }
+
+    /// The linear terms of an output layer with coefficients `linear` (per
+    /// normalised input, °/h; empty for none) and constant `constant`, °/h,
+    /// in the form [`Self::linear_sum_with`] evaluates: (b_i, c″) as
+    /// [`Self::fold_linear`] and [`Self::prepare_linear`] derive them for
+    /// the network's own terms, in the same f64 steps rounded at the same
+    /// places, over the linear boxes already prepared.
+    pub(crate) fn linear_box_terms(&self, linear: &[f32], constant: f32) -> ([f32; D], f32) {
+        let d = self.inputs_used.min(D);
+        let mut raw = [0.0f32; D];
+        let mut folded = f64::from(constant);
+        for (i, (r, a)) in raw.iter_mut().zip(linear).take(d).enumerate() {
+            let a = f64::from(*a) * f64::from(self.inv_scale[i]);
+            *r = a as f32;
+            folded -= a * f64::from(self.offset[i]);
+        }
+        let mut boxed = f64::from(folded as f32);
+        let mut coeff = [0.0f32; D];
+        for i in 0..d {
+            let a = f64::from(raw[i]);
+            let gain = self.linear_box_gain[i];
+            coeff[i] = if gain > 0.0 { (a / f64::from(gain)) as f32 } else { 0.0 };
+            boxed += a * f64::from(self.linear_box_mid[i]);
+        }
+        (coeff, boxed as f32)
+    }
+
+    /// [`Self::linear_sum_boxed`] with an output layer's own (b_i, c″)
+    /// ([`Self::linear_box_terms`]).
+    #[inline(always)]
+    pub(crate) fn linear_sum_with<const N: usize>(
+        &self,
+        raw: &[f32; MAX_INPUTS_ALL],
+        coeff: &[f32; D],
+        constant: f32,
+    ) -> f32 {
+        let mut y = constant;
+        for (((x, mid), gain), b) in raw
+            .iter()
+            .zip(&self.linear_box_mid)
+            .zip(&self.linear_box_gain)
+            .zip(coeff)
+            .take(N)
+        {
+            y += b * (((x - mid) * gain) as i32) as f32;
+        }
+        y
+    }
+
+    /// [`Self::output_bound`] of an output layer over this network's basis:
+    /// `linear` and `constant` in place of the network's, Σ|W_j| given.
+    pub(crate) fn layer_output_bound(
+        &self,
+        linear: &[f32],
+        constant: f32,
+        weight_abs_sum: f64,
+        linear_lo: &[f32],
+        linear_hi: &[f32],
+    ) -> f64 {
+        let d = self.inputs_used.min(D);
+        let mut bound = f64::from(constant).abs() + weight_abs_sum;
+        for i in 0..d {
+            let z = |x: Option<&f32>| {
+                ((f64::from(x.copied().unwrap_or(f32::NAN)) - f64::from(self.offset[i])) * f64::from(self.inv_scale[i]))
+                    .abs()
+            };
+            let m = z(linear_lo.get(i)).max(z(linear_hi.get(i)));
+            let m = if m <= 1e15 { m } else { f64::INFINITY };
+            let a = f64::from(linear.get(i).copied().unwrap_or(0.0)).abs();
+            if m.is_infinite() {
+                return f64::INFINITY;
+            }
+            bound += a * m;
+        }
+        bound
     }
 
     /// The linear terms at `raw` clamped to the box given to

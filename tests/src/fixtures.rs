@@ -168,9 +168,55 @@ pub fn axes_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
     let blob = trainer::blobfile::encode_axis_models(&refs).expect("encode the axes");
     let blob_path = dir.join("axes.bin");
     std::fs::write(&blob_path, blob).expect("write blob");
+    (blob_path, axes_slice(dir, false))
+}
+
+/// [`axes_blob_and_slice`] for an IMU whose three coils read one
+/// thermometer (`simulate --axes 3 --shared-thermometer`): axis x's fit
+/// (16 centres asked for) is the basis, every axis's output layer is
+/// refitted on it ([`fit::joint::refit_layers`], as `trainer fit` does),
+/// written as a shared-basis blob; the slice as there, with one
+/// thermometer. Returns (blob path, slice path).
+pub fn shared_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
+    use rbf_core::record::Axis;
+    use trainer::dataset::RunFiles;
+    use trainer::simulate::axes::write_axes_csv;
+
+    let mut chamber = ChamberRun::ifog(1.0, 61);
+    chamber.hold_s = 1800.0;
+    let mut train_csv = Vec::new();
+    write_axes_csv(&chamber, 3, true, &mut train_csv).expect("simulate three axes");
+    let train = dir.join("train_shared.csv");
+    std::fs::write(&train, &train_csv).expect("write training run");
+    let none: &[Run] = &[];
+    let opts = FitOptions {
+        centers: Some(16),
+        ..FitOptions::default()
+    };
+    let runs = RunFiles::for_axis(std::slice::from_ref(&train), Some(Axis::X));
+    let basis = fit::fit(&runs, none, &opts).expect("fit axis x");
+    let ridge = basis.choice.as_ref().expect("an RBF fit").ridge;
+    let trains: Vec<RunFiles> = Axis::ALL
+        .iter()
+        .map(|&axis| RunFiles::for_axis(std::slice::from_ref(&train), Some(axis)))
+        .collect();
+    let pairs: Vec<(Axis, &RunFiles)> = Axis::ALL.into_iter().zip(&trains).collect();
+    let shared = fit::joint::refit_layers(&basis.model, ridge, &pairs, opts.block_s).expect("joint fit");
+    assert!(shared.centers_used() > 1, "a basis of one centre tests little");
+    let blob = trainer::blobfile::encode_shared_models(&shared).expect("encode the shared basis");
+    let blob_path = dir.join("shared.bin");
+    std::fs::write(&blob_path, blob).expect("write blob");
+    (blob_path, axes_slice(dir, true))
+}
+
+/// The first [`AXES_ROWS`] rows of a three-axis 2 °C/min cycle run (one
+/// thermometer for every coil when `shared_thermometer`) with a
+/// `temp_fault` column ([`axes_faulty`]), written into `dir`; its path.
+fn axes_slice(dir: &Path, shared_thermometer: bool) -> PathBuf {
+    use trainer::simulate::axes::write_axes_csv;
 
     let mut verify_csv = Vec::new();
-    write_axes_csv(&ChamberRun::cycle(2.0, 62), 3, false, &mut verify_csv).expect("simulate three axes");
+    write_axes_csv(&ChamberRun::cycle(2.0, 62), 3, shared_thermometer, &mut verify_csv).expect("simulate three axes");
     let verify = String::from_utf8(verify_csv).expect("UTF-8 run");
     let mut text = String::new();
     let mut data = 0;
@@ -186,7 +232,11 @@ pub fn axes_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
         }
     }
     assert_eq!(data, AXES_ROWS, "the verify run is shorter than the slice");
-    let slice = dir.join("slice_axes.csv");
+    let slice = dir.join(if shared_thermometer {
+        "slice_shared.csv"
+    } else {
+        "slice_axes.csv"
+    });
     std::fs::write(&slice, text).expect("write slice");
-    (blob_path, slice)
+    slice
 }

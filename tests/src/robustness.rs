@@ -41,6 +41,54 @@ pub fn check_blob(data: &[u8]) {
     }
     if let Some(blob) = sealed_axes_blob(data) {
         check_axes_blob(&blob);
+        check_shared_blob(&blob);
+    }
+    check_shared_blob(data);
+    if let Some(blob) = sealed_shared_blob(data) {
+        check_shared_blob(&blob);
+    }
+}
+
+/// `data` as a shared-basis blob: its first byte the axis mask, the rest
+/// the payload, given magic, version 3, the shared-basis flag, length and a
+/// valid CRC.
+pub fn sealed_shared_blob(data: &[u8]) -> Option<Vec<u8>> {
+    let mut blob = sealed_axes_blob(data)?;
+    blob[7] = axes::SHARED_BASIS_FLAG;
+    let n = blob.len() - 4;
+    let crc = CRC32.checksum(&blob[..n]);
+    blob[n..].copy_from_slice(&crc.to_le_bytes());
+    Some(blob)
+}
+
+/// A decoded shared-basis blob re-encodes to models that decode the same,
+/// at the three-axis board's capacity too, and every axis gives a finite
+/// bias from one compensator.
+fn check_shared_blob(data: &[u8]) {
+    use rbf_core::blob::shared::{decode_shared_into, encode_shared};
+    use rbf_core::shared::SharedAxisModels;
+    let mut models = Box::new(SharedAxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
+    let Ok(len) = decode_shared_into(&mut models, data) else {
+        return;
+    };
+    assert!(len <= data.len());
+    let mut small = Box::new(SharedAxisModels::<{ rbf_core::MAX_AXIS_CENTERS }>::EMPTY);
+    let _ = decode_shared_into(&mut small, data);
+    let mut buf = [0u8; MAX_BLOB_LEN];
+    let len = encode_shared(&models, &mut buf).expect("a decoded blob encodes");
+    let mut again = Box::new(SharedAxisModels::EMPTY);
+    decode_shared_into(&mut again, &buf[..len]).expect("a re-encoded blob decodes");
+    assert_eq!(*again, *models);
+    let config = CompensatorConfig::for_sample_rate(1.0);
+    let mut compensator = Compensator::new();
+    for temp_c in [-1e30, f32::NAN, 25.0, 1e30].into_iter().map(Some).chain([None]) {
+        let mut temps = [None; rbf_core::features::THERMOMETERS];
+        temps[rbf_core::features::LOOP_THERMOMETER] = temp_c;
+        let out = compensator.process_shared(Some(&*models), &config, 1.0, &temps, &[1.0; 3]);
+        assert!(
+            out.iter()
+                .all(|o| o.bias_dph.is_finite() && o.rate_comp_dph.is_finite())
+        );
     }
 }
 

@@ -134,6 +134,90 @@ fn qemu_replay_of_a_three_axis_run_is_byte_identical_to_trainer_compensate() {
     }
 }
 
+/// Runs the `trainer` CLI at `trainer` with `args`; panics with its
+/// output when it fails.
+fn run_trainer(trainer: &Path, args: &[&str]) -> String {
+    let out = std::process::Command::new(trainer).args(args).output().unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "trainer {args:?} failed:\n{stdout}\n{stderr}");
+    format!("{stdout}{stderr}")
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn qemu_replay_of_a_shared_thermometer_run_with_the_joint_blob_trainer_fit_wrote_is_byte_identical() {
+    let dir = TempDir::new().unwrap();
+    let trainer = xtask::firmware::trainer_cli().unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
+    let (train, verify, blob, slice, host, qemu) = (
+        path("cycle.csv"),
+        path("random.csv"),
+        path("imu.bin"),
+        path("slice.csv"),
+        path("host.csv"),
+        path("qemu.csv"),
+    );
+    let simulate = |profile: &str, seed: &str, out: &str| {
+        run_trainer(
+            &trainer,
+            &[
+                "simulate",
+                "--profile",
+                profile,
+                "--axes",
+                "3",
+                "--shared-thermometer",
+                "--seed",
+                seed,
+                "-o",
+                out,
+            ],
+        )
+    };
+    simulate("cycle", "11", &train);
+    simulate("random", "12", &verify);
+    let summary = run_trainer(&trainer, &["fit", &train, "-o", &blob]);
+    let bytes = std::fs::read(&blob).unwrap();
+    assert!(
+        rbf_core::blob::shared::is_shared_basis(&bytes),
+        "trainer fit did not choose the joint model:\n{summary}"
+    );
+
+    // The first AXES_ROWS data rows of the random run.
+    let text = std::fs::read_to_string(&verify).unwrap();
+    let mut kept = String::new();
+    let mut data = 0;
+    let mut header = false;
+    for line in text.lines() {
+        if !header || line.starts_with('#') {
+            header |= !line.starts_with('#');
+        } else if data < fixtures::AXES_ROWS {
+            data += 1;
+        } else {
+            break;
+        }
+        kept.push_str(line);
+        kept.push('\n');
+    }
+    assert_eq!(data, fixtures::AXES_ROWS, "the random run is shorter than the slice");
+    std::fs::write(&slice, kept).unwrap();
+
+    run_trainer(&trainer, &["compensate", "--model", &blob, &slice, "-o", &host]);
+    let summary = xtask::replay::qemu_replay(Path::new(&blob), Path::new(&slice), Path::new(&qemu), None).unwrap();
+    assert_eq!(summary.samples, fixtures::AXES_ROWS);
+    let (got, want) = (
+        std::fs::read_to_string(&qemu).unwrap(),
+        std::fs::read_to_string(&host).unwrap(),
+    );
+    assert_eq!(got.lines().count(), want.lines().count());
+    let differing = got.lines().zip(want.lines()).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "rows of the QEMU replay differ from trainer compensate");
+    assert!(got == want, "QEMU replay output differs from trainer compensate");
+}
+
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn corrupt_model_slot_runs_uncompensated_with_flag_4_never_halts() {
@@ -182,6 +266,8 @@ fn benchmark_image_runs_and_reports_every_model_size() {
         "K=16 D=3:",
         "K=64 D=3:",
         "K=32 D=3:",
+        "axes=3 K=32 D=3:",
+        "axes=3 K=32 D=3 three separate models",
     ] {
         let line = run
             .log
@@ -236,6 +322,17 @@ fn the_three_axis_board_takes_a_three_axis_update_within_the_boards_budgets() {
     // command over its UART, 10,000 samples; flash, static RAM and stack fit.
     let run = xtask::board_stack::measure_axes().unwrap();
     board_within_budgets(&run, &["board-axes"]);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn the_shared_basis_board_takes_a_shared_basis_update_within_the_boards_budgets() {
+    // The stm32f405 binary with board-axes-shared (and board-qemu): a
+    // shared basis of firmware::SHARED_AXIS_CENTERS centres at boot, a
+    // shared-basis install and a bench command over its UART, 10,000
+    // samples; flash, static RAM and stack fit.
+    let run = xtask::board_stack::measure_axes_shared().unwrap();
+    board_within_budgets(&run, &["board-axes-shared"]);
 }
 
 #[test]

@@ -10,7 +10,8 @@ use rbf_core::record::{Axis, Columns};
 
 use crate::blobfile::{ModelFile, read_model_file};
 use crate::evaluate::{
-    Compensation, RunEvaluation, compensate_axes_reader, evaluate_axes_reader, require_compensated, require_evaluable,
+    Compensation, RunEvaluation, compensate_axes_reader, compensate_shared_reader, evaluate_axes_reader,
+    evaluate_shared_reader, require_compensated, require_evaluable,
 };
 use crate::output::{self, Existing, Output};
 use crate::run::RunReader;
@@ -83,6 +84,31 @@ pub fn models_for_run<'m>(
         .collect()
 }
 
+/// The axes of the run `reader` reads with their columns, x first, each
+/// of which the shared-basis `file` must have a layer for (refused naming
+/// both files, as [`models_for_run`]).
+pub fn shared_axes_for_run(
+    file: &ModelFile,
+    model_path: &Path,
+    reader: &RunReader,
+) -> anyhow::Result<Vec<(Axis, Columns)>> {
+    let run_axes = reader.axes();
+    let model_axes = file.axes();
+    if run_axes.is_empty() || run_axes.iter().any(|a| !model_axes.contains(a)) {
+        anyhow::bail!(
+            "{} holds a shared-basis model for {}, {} has {}: fit a model on runs like it",
+            text::path(model_path),
+            describe(&model_axes),
+            text::path(reader.path()),
+            describe(&run_axes)
+        );
+    }
+    run_axes
+        .iter()
+        .map(|&axis| Ok((axis, reader.axis_columns(axis)?)))
+        .collect()
+}
+
 /// `trainer compensate`: the run at `run` (`-`: standard input) compensated
 /// with the model file at `model_path` into `output`, every axis of a
 /// multi-axis run with its own model. Every check comes first (the output
@@ -101,6 +127,26 @@ pub fn compensate_command(
     let target = output::check_target(output, &[model_path, run], existing)?;
     let (file, _) = read_model_file(model_path)?;
     let reader = RunReader::open(run)?;
+    if let ModelFile::Shared(models) = &file {
+        let axes = shared_axes_for_run(&file, model_path, &reader)?;
+        let mut out = Output::open(target)?;
+        let done = compensate_shared_reader(models, &axes, reader, &mut out).map_err(|e| {
+            if e.is::<crate::run::RunError>() {
+                e
+            } else {
+                e.context(text::path(output))
+            }
+        })?;
+        let mask = models.features().set.thermometer_mask();
+        let mut result = Vec::with_capacity(done.len());
+        for ((axis, _), c) in axes.iter().zip(done) {
+            require_compensated(run, c.rows, c.compensated, &c.diagnosis, mask, allow_uncompensated)
+                .map_err(|e| on_axis(e, Some(*axis)))?;
+            result.push((Some(*axis), c));
+        }
+        out.commit()?;
+        return Ok(result);
+    }
     let pairs = models_for_run(&file, model_path, &reader)?;
     let axes: Vec<(Option<&Model>, Columns)> = pairs.iter().map(|(_, m, c)| (Some(*m), *c)).collect();
     for (_, model, columns) in &pairs {
@@ -149,6 +195,26 @@ pub fn evaluate_files(
     let mut evaluations = Vec::new();
     for path in paths {
         let reader = RunReader::open(path)?;
+        if let ModelFile::Shared(models) = file {
+            let axes = shared_axes_for_run(file, model_path, &reader)?;
+            let mask = models.features().set.thermometer_mask();
+            let done = evaluate_shared_reader(models, &axes, reader)?;
+            for ((axis, _), (mut evaluation, diagnosis, compensated)) in axes.iter().zip(done) {
+                require_evaluable(path, evaluation.samples, &diagnosis).map_err(|e| on_axis(e, Some(*axis)))?;
+                require_compensated(
+                    path,
+                    evaluation.samples,
+                    compensated,
+                    &diagnosis,
+                    mask,
+                    allow_uncompensated,
+                )
+                .map_err(|e| on_axis(e, Some(*axis)))?;
+                evaluation.axis = Some(axis.name());
+                evaluations.push(evaluation);
+            }
+            continue;
+        }
         let pairs = models_for_run(file, model_path, &reader)?;
         let axes: Vec<(&Model, Columns)> = pairs.iter().map(|(_, m, c)| (*m, *c)).collect();
         let done = evaluate_axes_reader(&axes, reader)?;

@@ -7,8 +7,9 @@ use std::path::Path;
 use anyhow::Context;
 use rbf_core::Model;
 use rbf_core::blob::axes::{self, AXES_FORMAT_VERSION, AxisModels};
-use rbf_core::blob::{self, MAX_BLOB_LEN};
+use rbf_core::blob::{self, MAX_BLOB_LEN, shared};
 use rbf_core::record::Axis;
+use rbf_core::shared::SharedAxisModels;
 
 use crate::input;
 use crate::output::{Existing, write_bytes_with};
@@ -76,6 +77,10 @@ pub enum ModelFile {
     Single(Box<Model>),
     /// A multi-axis blob (format 3): a model per axis, for runs with `rate_x_dph` ….
     Axes(Box<AxisModels>),
+    /// A shared-basis multi-axis blob (format 3, shared-basis flag): one
+    /// basis, an output layer per axis, for runs whose axes read one
+    /// thermometer.
+    Shared(Box<SharedAxisModels>),
 }
 
 impl ModelFile {
@@ -84,10 +89,13 @@ impl ModelFile {
         match self {
             ModelFile::Single(_) => Vec::new(),
             ModelFile::Axes(m) => m.axes().collect(),
+            ModelFile::Shared(m) => m.axes().collect(),
         }
     }
 
-    /// The model of `axis` (`None`: the single-axis model), if the file has it.
+    /// The model of `axis` (`None`: the single-axis model), if the file
+    /// has one model for it (a shared-basis file has none: see
+    /// [`SharedAxisModels::axis_model`]).
     pub fn model(&self, axis: Option<Axis>) -> Option<&Model> {
         match (self, axis) {
             (ModelFile::Single(m), None) => Some(m),
@@ -100,7 +108,11 @@ impl ModelFile {
 /// Decodes a blob of either format; with the bytes it occupied.
 fn decode_file(bytes: &[u8]) -> Result<(ModelFile, usize), blob::DecodeError> {
     let version = bytes.get(4..6).map(|v| u16::from_le_bytes([v[0], v[1]]));
-    if bytes.get(..4) == Some(&blob::MAGIC[..]) && version == Some(AXES_FORMAT_VERSION) {
+    if shared::is_shared_basis(bytes) {
+        let mut models = Box::new(SharedAxisModels::EMPTY);
+        let len = shared::decode_shared_into(&mut models, bytes)?;
+        Ok((ModelFile::Shared(models), len))
+    } else if bytes.get(..4) == Some(&blob::MAGIC[..]) && version == Some(AXES_FORMAT_VERSION) {
         let mut models = Box::new(AxisModels::EMPTY);
         let len = axes::decode_axes_into(&mut models, bytes)?;
         Ok((ModelFile::Axes(models), len))
@@ -148,6 +160,22 @@ pub fn encode_axis_models(models: &[(Axis, &Model)]) -> anyhow::Result<Vec<u8>> 
     let mut back = Box::new(AxisModels::EMPTY);
     axes::decode_axes_into(&mut back, &buf).context("the encoded multi-axis blob does not decode")?;
     anyhow::ensure!(back == set, "the encoded blob does not reproduce the axis models");
+    Ok(buf)
+}
+
+/// Encodes a shared-basis model into a blob, decoded again and compared
+/// (see [`encode_model`]).
+pub fn encode_shared_models(models: &SharedAxisModels) -> anyhow::Result<Vec<u8>> {
+    let mut buf = vec![0u8; MAX_BLOB_LEN];
+    let len = shared::encode_shared(models, &mut buf)
+        .map_err(|e| anyhow::anyhow!("the shared-basis model does not fit one {MAX_BLOB_LEN}-byte blob: {e}"))?;
+    buf.truncate(len);
+    let mut back = Box::new(SharedAxisModels::EMPTY);
+    shared::decode_shared_into(&mut back, &buf).context("the encoded shared-basis blob does not decode")?;
+    anyhow::ensure!(
+        *back == *models,
+        "the encoded blob does not reproduce the shared-basis model"
+    );
     Ok(buf)
 }
 

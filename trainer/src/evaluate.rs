@@ -6,6 +6,7 @@ use std::path::Path;
 use anyhow::Context;
 use rbf_core::features::LOOP_THERMOMETER;
 use rbf_core::record::{self, Axis, Columns};
+use rbf_core::shared::SharedAxisModels;
 use rbf_core::{
     CompensatedSample, Compensator, CompensatorConfig, FeatureVector, Flags, GyroSample, MAX_INPUTS, Model,
 };
@@ -171,6 +172,29 @@ pub fn evaluate_blocks(
     block_s: f64,
     has_ref: bool,
 ) -> RunEvaluation {
+    evaluate_blocks_with(
+        |f| {
+            let e = model.eval(f);
+            (e.bias_dph, e.clamped)
+        },
+        blocks,
+        run,
+        path,
+        block_s,
+        has_ref,
+    )
+}
+
+/// [`evaluate_blocks`] with the bias (°/h) and the clamping flag from
+/// `eval` (e.g. one axis of a shared-basis model).
+pub fn evaluate_blocks_with(
+    eval: impl Fn(&FeatureVector) -> (f32, bool),
+    blocks: &Blocks,
+    run: usize,
+    path: &Path,
+    block_s: f64,
+    has_ref: bool,
+) -> RunEvaluation {
     let length_s = blocks.length_s(block_s);
     let mut evaluator = Evaluator::new(path, length_s, has_ref);
     evaluator.basis = block_basis(blocks.doublings, length_s);
@@ -180,14 +204,14 @@ pub fn evaluate_blocks(
         for (x, v) in x.iter_mut().zip(&blocks.x[i][..dims]) {
             *x = *v as f32;
         }
-        let e = model.eval(&FeatureVector::from_values(&x[..dims]));
-        let flags = if e.clamped { Flags::INPUT_CLAMPED } else { Flags::NONE };
+        let (bias_dph, clamped) = eval(&FeatureVector::from_values(&x[..dims]));
+        let flags = if clamped { Flags::INPUT_CLAMPED } else { Flags::NONE };
         let (time_s, samples) = (blocks.time_s.get(i), blocks.samples.get(i));
         let y = blocks.y[i];
         evaluator.push_mean(
             time_s.copied().unwrap_or(i as f64 * length_s),
             y,
-            y - f64::from(e.bias_dph),
+            y - f64::from(bias_dph),
             flags,
             samples.map_or(1, |n| *n as usize),
         );
@@ -213,14 +237,110 @@ pub fn evaluate_axes_reader(
     for (model, columns) in axes {
         reader.require_thermometers_of(columns, model.features().set.thermometer_mask())?;
     }
+    let stepper = Stepper::PerAxis(axes.iter().map(|(m, _)| (Some(*m), Compensator::new())).collect());
+    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
+    evaluate_stepped(stepper, &columns, reader)
+}
+
+/// [`evaluate_axes_reader`] for a shared-basis model: `axes` the run's
+/// axes with their columns (x, y, z order), all read from one
+/// thermometer set ([`require_shared_thermometer`]), stepped together by
+/// [`Compensator::process_shared`].
+pub fn evaluate_shared_reader(
+    models: &SharedAxisModels,
+    axes: &[(Axis, Columns)],
+    reader: RunReader,
+) -> anyhow::Result<Vec<(RunEvaluation, RunDiagnosis, usize)>> {
+    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
+    require_shared_thermometer(&reader, &columns, models.features().set.thermometer_mask())?;
+    let stepper = Stepper::Shared {
+        models,
+        axes: axes.iter().map(|(a, _)| *a).collect(),
+        compensator: Compensator::new(),
+    };
+    evaluate_stepped(stepper, &columns, reader)
+}
+
+/// Refuses a shared-basis model on a run whose axes do not read one
+/// thermometer set (per-axis coil thermometers), and a run without the
+/// thermometers of `mask`.
+pub fn require_shared_thermometer(reader: &RunReader, columns: &[Columns], mask: u8) -> anyhow::Result<()> {
+    if let Some(first) = columns.first() {
+        reader.require_thermometers_of(first, mask)?;
+        if columns.iter().any(|c| c.temps != first.temps) {
+            anyhow::bail!(
+                "{}: its axes have their own thermometers (temp_x_c …); a shared-basis model reads one thermometer \
+                 for every axis (temp_c): fit a model on runs like it",
+                text::path(reader.path())
+            );
+        }
+    }
+    Ok(())
+}
+
+/// How the axes of a run are stepped: one compensator and model per axis,
+/// or one compensator for a shared-basis model of every axis.
+enum Stepper<'m> {
+    /// Per axis, in the order of the columns: its model (`None`:
+    /// uncompensated) and its compensator.
+    PerAxis(Vec<(Option<&'m Model>, Compensator)>),
+    /// One shared-basis model; the axis of each column set, in order.
+    Shared {
+        models: &'m SharedAxisModels,
+        axes: Vec<Axis>,
+        compensator: Compensator,
+    },
+}
+
+impl Stepper<'_> {
+    /// One row's step: per axis (in the columns' order) its output into `out`.
+    fn step(
+        &mut self,
+        config: &CompensatorConfig,
+        rows: &[(rbf_core::record::Row, GyroSample)],
+        out: &mut Vec<CompensatedSample>,
+    ) {
+        out.clear();
+        match self {
+            Stepper::PerAxis(axes) => {
+                for ((model, compensator), (_, sample)) in axes.iter_mut().zip(rows) {
+                    out.push(compensator.process(*model, config, sample));
+                }
+            }
+            Stepper::Shared {
+                models,
+                axes,
+                compensator,
+            } => {
+                let Some((_, first)) = rows.first() else {
+                    return;
+                };
+                let mut rates_dph = [0.0f32; rbf_core::record::MAX_AXES];
+                for (axis, (_, sample)) in axes.iter().zip(rows) {
+                    if let Some(r) = rates_dph.get_mut(axis.index()) {
+                        *r = sample.rate_dph;
+                    }
+                }
+                let all = compensator.process_shared(Some(*models), config, first.dt_s, &first.temps_c, &rates_dph);
+                out.extend(axes.iter().filter_map(|axis| all.get(axis.index()).copied()));
+            }
+        }
+    }
+}
+
+/// The evaluation loop of [`evaluate_axes_reader`] and [`evaluate_shared_reader`].
+fn evaluate_stepped(
+    mut stepper: Stepper<'_>,
+    columns: &[Columns],
+    reader: RunReader,
+) -> anyhow::Result<Vec<(RunEvaluation, RunDiagnosis, usize)>> {
     let path = reader.path().to_owned();
     let period_s = reader.nominal_period_s();
     let config = CompensatorConfig::for_nominal_period_s(period_s);
-    let mut state: Vec<(Compensator, Evaluator, RunDiagnosis, usize)> = axes
+    let mut state: Vec<(Evaluator, RunDiagnosis, usize)> = columns
         .iter()
-        .map(|(_, columns)| {
+        .map(|columns| {
             (
-                Compensator::new(),
                 Evaluator::new(&path, period_s, columns.ref_dph.is_some()),
                 RunDiagnosis::new(&path, period_s),
                 0,
@@ -228,22 +348,20 @@ pub fn evaluate_axes_reader(
         })
         .collect();
     let parser = reader.row_parser();
-    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
-    let mut rows = Vec::with_capacity(axes.len());
+    let mut rows = Vec::with_capacity(columns.len());
+    let mut outputs = Vec::with_capacity(columns.len());
     let mut refused: Option<crate::run::RunError> = None;
     reader.for_each_batch(|batch| {
         for i in 0..batch.len() {
             if refused.is_some() {
                 return;
             }
-            if let Err(e) = rows_of_axes(&parser, &columns, &batch, i, &mut rows) {
+            if let Err(e) = rows_of_axes(&parser, columns, &batch, i, &mut rows) {
                 refused = Some(e);
                 return;
             }
-            for (((model, _), (compensator, evaluator, diagnosis, compensated)), (row, sample)) in
-                axes.iter().zip(&mut state).zip(&rows)
-            {
-                let out = compensator.process(Some(*model), &config, sample);
+            stepper.step(&config, &rows, &mut outputs);
+            for (((evaluator, diagnosis, compensated), (row, _)), out) in state.iter_mut().zip(&rows).zip(&outputs) {
                 let r = row.ref_dph.unwrap_or(0.0);
                 evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
                 diagnosis.push(batch.line(i), row);
@@ -256,7 +374,7 @@ pub fn evaluate_axes_reader(
     }
     Ok(state
         .into_iter()
-        .map(|(_, evaluator, diagnosis, compensated)| (evaluator.finish(), diagnosis, compensated))
+        .map(|(evaluator, diagnosis, compensated)| (evaluator.finish(), diagnosis, compensated))
         .collect())
 }
 
@@ -592,9 +710,40 @@ pub fn compensate_axes_reader(
         let mask = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
         reader.require_thermometers_of(columns, mask)?;
     }
-    let n = axes.len();
+    let stepper = Stepper::PerAxis(axes.iter().map(|(m, _)| (*m, Compensator::new())).collect());
+    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
+    compensate_stepped(stepper, &columns, reader, out)
+}
+
+/// [`compensate_axes_reader`] for a shared-basis model: `axes` the run's
+/// axes with their columns (x, y, z order), all read from one thermometer
+/// set ([`require_shared_thermometer`]), stepped together by
+/// [`Compensator::process_shared`], the step the firmware runs.
+pub fn compensate_shared_reader(
+    models: &SharedAxisModels,
+    axes: &[(Axis, Columns)],
+    reader: RunReader,
+    out: &mut (impl Write + Send),
+) -> anyhow::Result<Vec<Compensation>> {
+    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
+    require_shared_thermometer(&reader, &columns, models.features().set.thermometer_mask())?;
+    let stepper = Stepper::Shared {
+        models,
+        axes: axes.iter().map(|(a, _)| *a).collect(),
+        compensator: Compensator::new(),
+    };
+    compensate_stepped(stepper, &columns, reader, out)
+}
+
+/// The compensation loop of [`compensate_axes_reader`] and [`compensate_shared_reader`].
+fn compensate_stepped(
+    mut stepper: Stepper<'_>,
+    columns: &[Columns],
+    reader: RunReader,
+    out: &mut (impl Write + Send),
+) -> anyhow::Result<Vec<Compensation>> {
+    let n = columns.len();
     let config = CompensatorConfig::for_nominal_period_s(reader.nominal_period_s());
-    let mut compensators: Vec<Compensator> = (0..n).map(|_| Compensator::new()).collect();
     let mut c: Vec<Compensation> = (0..n)
         .map(|_| Compensation {
             rows: 0,
@@ -611,8 +760,8 @@ pub fn compensate_axes_reader(
     record::write_compensated_header(&mut header, reader.header_line(), reader.columns())?;
     out.write_all(header.as_bytes()).map_err(io)?;
     let parser = reader.row_parser();
-    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
     let mut rows = Vec::with_capacity(n);
+    let mut step = Vec::with_capacity(n);
     let mut refused: Option<crate::run::RunError> = None;
     // The rows are parsed on every core, compensated in order here, and
     // formatted and written on a thread of their own, a batch at a time.
@@ -636,13 +785,12 @@ pub fn compensate_axes_reader(
             }
             let mut outputs = Vec::with_capacity(batch.len() * n);
             for i in 0..batch.len() {
-                if let Err(e) = rows_of_axes(&parser, &columns, &batch, i, &mut rows) {
+                if let Err(e) = rows_of_axes(&parser, columns, &batch, i, &mut rows) {
                     refused = Some(e);
                     break;
                 }
-                for (k, ((model, _), (row, sample))) in axes.iter().zip(&rows).enumerate() {
-                    let o = compensators[k].process(*model, &config, sample);
-                    let axis = &mut c[k];
+                stepper.step(&config, &rows, &mut step);
+                for ((axis, (row, _)), &o) in c.iter_mut().zip(&rows).zip(&step) {
                     axis.flagged.add(o.flags, 1);
                     axis.compensated += usize::from(!o.flags.contains(Flags::NO_VALID_MODEL));
                     axis.diagnosis.push(batch.line(i), row);

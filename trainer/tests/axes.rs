@@ -47,7 +47,10 @@ fn extract_axis(run: &Path, axis: &str, out: &Path) {
     let wanted = [
         at("time_s".into()),
         at(format!("rate_{axis}_dph")),
-        at(format!("temp_{axis}_c")),
+        names
+            .iter()
+            .position(|n| *n == format!("temp_{axis}_c"))
+            .unwrap_or_else(|| at("temp_c".into())),
         at(format!("ref_{axis}_dph")),
     ];
     single.push_str("time_s,rate_dph,temp_c,ref_dph\n");
@@ -334,4 +337,118 @@ fn a_multi_axis_fit_keeps_every_axis_within_the_three_axis_firmware_s_centres() 
             "{axis}"
         );
     }
+}
+
+/// `trainer simulate --axes 3 --shared-thermometer` of `profile` with `seed` into `dir/name`.
+fn simulate_shared_imu(dir: &TempDir, name: &str, profile: &str, seed: &str) -> PathBuf {
+    let path = dir.path().join(name);
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        profile,
+        "--axes",
+        "3",
+        "--shared-thermometer",
+        "--seed",
+        seed,
+        "-o",
+        path.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    path
+}
+
+#[test]
+fn on_a_shared_thermometer_imu_the_fit_chooses_one_basis_for_every_axis_when_each_axis_keeps_its_accuracy() {
+    let dir = TempDir::new().unwrap();
+    let train = simulate_shared_imu(&dir, "cycle3.csv", "cycle", "11");
+    let verify = simulate_shared_imu(&dir, "random3.csv", "random", "12");
+    let model = dir.path().join("imu.bin");
+    let printed = fit(&train, &model);
+    assert!(
+        printed.contains("chose: the joint model (every axis within 0.5 points of its own fit"),
+        "{printed}"
+    );
+    for axis in ["x", "y", "z"] {
+        assert!(
+            printed.contains(&format!("  axis {axis}: ")) && printed.contains("% own fit: within 0.5 points"),
+            "the choice per axis: {printed}"
+        );
+    }
+    let o = trainer(&["inspect", "--model", model.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("shared basis    yes"), "{}", stdout(&o));
+
+    let gains = msd_gains(&model, &verify);
+    assert_eq!(gains.len(), 3);
+    for (axis, gain) in &gains {
+        let axis = axis.as_deref().expect("each row names its axis");
+        // The axis alone: extracted to a single-axis run, fitted, evaluated.
+        let train_alone = dir.path().join(format!("cycle-{axis}.csv"));
+        let verify_alone = dir.path().join(format!("random-{axis}.csv"));
+        extract_axis(&train, axis, &train_alone);
+        extract_axis(&verify, axis, &verify_alone);
+        let model_alone = dir.path().join(format!("{axis}.bin"));
+        fit(&train_alone, &model_alone);
+        let alone = msd_gains(&model_alone, &verify_alone)[0].1;
+        eprintln!("axis {axis}: MSD improvement {gain:.2} % (joint), {alone:.2} % (alone)");
+        assert!(*gain >= 85.0, "axis {axis}: {gain:.2} %");
+        assert!(
+            *gain >= alone - 0.5,
+            "axis {axis}: {gain:.2} % joint, {alone:.2} % alone"
+        );
+    }
+    // Compensated with the shared step: every axis's columns, one row per input row.
+    let compensated = dir.path().join("random3-comp.csv");
+    let o = compensate(&model, &verify, &compensated, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let names: Vec<String> = ["x", "y", "z"].iter().map(|a| format!("bias_{a}_dph")).collect();
+    let biases = columns(&compensated, &names);
+    assert!(biases.len() > 1000);
+    assert!(
+        biases
+            .iter()
+            .all(|r| r.iter().all(|v| v.parse::<f32>().is_ok_and(f32::is_finite)))
+    );
+
+    // --no-joint keeps a model per axis.
+    let per_axis = dir.path().join("per-axis.bin");
+    let o = trainer(&[
+        "fit",
+        train.to_str().unwrap(),
+        "-o",
+        per_axis.to_str().unwrap(),
+        "--no-joint",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("not tried: --no-joint"), "{}", stdout(&o));
+    let o = trainer(&["inspect", "--model", per_axis.to_str().unwrap()]);
+    assert!(!stdout(&o).contains("shared basis    yes"), "{}", stdout(&o));
+
+    // A report per axis.
+    let report = dir.path().join("report");
+    let o = trainer(&[
+        "report",
+        "--model",
+        model.to_str().unwrap(),
+        verify.to_str().unwrap(),
+        "-o",
+        report.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(report.join("axis-z").is_dir());
+
+    // A run whose axes have their own thermometers is refused by this model, naming why.
+    let own = simulate_imu(&dir, "own.csv", "random", "13");
+    let o = trainer(&["eval", "--model", model.to_str().unwrap(), own.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("own thermometers"), "{}", stderr(&o));
+    // And fitting such runs keeps a model per axis, saying why.
+    let separate = dir.path().join("own.bin");
+    let printed = fit(&own, &separate);
+    assert!(
+        printed.contains("not tried") && printed.contains("chose: a model per axis"),
+        "{printed}"
+    );
 }

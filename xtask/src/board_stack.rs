@@ -19,6 +19,7 @@ use rbf_core::lag_bank::LagBank;
 use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
 use rbf_core::record::Axis;
+use rbf_core::shared::SharedAxisModels;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 
 use crate::replay::MODEL_SLOT_A;
@@ -51,14 +52,32 @@ fn network(dims: usize, kernel: usize, scale: &[f32]) -> anyhow::Result<RbfNetwo
 
 /// [`network`] with `k` centres and its values drawn from `seed`.
 fn network_of(k: usize, seed: u32, dims: usize, kernel: usize, scale: &[f32]) -> anyhow::Result<RbfNetwork<64, 12>> {
-    let mut state = seed;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 17;
-        state ^= state << 5;
-        (state >> 8) as f32 / (1 << 24) as f32 * 4.0 - 2.0
+    network_weighted(k, seed, seed, dims, kernel, scale)
+}
+
+/// [`network_of`] with its centres drawn from `seed`, its weights from
+/// `weight_seed` (networks of one basis with their own output layers).
+fn network_weighted(
+    k: usize,
+    seed: u32,
+    weight_seed: u32,
+    dims: usize,
+    kernel: usize,
+    scale: &[f32],
+) -> anyhow::Result<RbfNetwork<64, 12>> {
+    let draw = |mut state: u32| {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state >> 8) as f32 / (1 << 24) as f32 * 4.0 - 2.0
+        }
     };
+    let mut next = draw(seed);
     let centers: Vec<f32> = (0..k * kernel).map(|_| next()).collect();
+    if weight_seed != seed {
+        next = draw(weight_seed);
+    }
     let weights: Vec<f32> = (0..k).map(|_| 0.05 * next()).collect();
     let mut offset = vec![0.0; dims];
     offset[0] = 25.0;
@@ -90,7 +109,13 @@ fn update_model() -> anyhow::Result<Model> {
 
 /// A lag bank of five filters with `k` centres over T̂, its values drawn from `seed`.
 fn lag_bank_model(k: usize, seed: u32) -> anyhow::Result<Model> {
-    let net = network_of(k, seed, 8, 1, &[10.0, 300.0, 8000.0, 0.5, 0.4, 0.3, 0.2, 0.1])?;
+    lag_bank_weighted(k, seed, seed)
+}
+
+/// [`lag_bank_model`] with its weights drawn from `weight_seed`.
+fn lag_bank_weighted(k: usize, seed: u32, weight_seed: u32) -> anyhow::Result<Model> {
+    let scale = [10.0, 300.0, 8000.0, 0.5, 0.4, 0.3, 0.2, 0.1];
+    let net = network_weighted(k, seed, weight_seed, 8, 1, &scale)?;
     let mut bank = LagBank::plain(&[30.0, 120.0, 480.0, 1920.0, 7680.0], 25.0).context("bank")?;
     bank.coil_lag_min[..5].copy_from_slice(&[-0.5, -2.0, -8.0, -30.0, -100.0]);
     bank.static_degree = 3;
@@ -134,6 +159,33 @@ fn update_axes() -> anyhow::Result<Vec<u8>> {
     encode_axes_blob(&axes)
 }
 
+/// The shared-basis board's model at boot and its update: one basis of
+/// [`firmware_lib::SHARED_AXIS_CENTERS`] centres (the paper's (T, ΔT,
+/// T×ΔT) at boot, a lag bank of five filters over T̂ for the update) with
+/// each axis's own output layer.
+fn shared_axes(update: bool) -> anyhow::Result<Vec<u8>> {
+    let k = firmware_lib::SHARED_AXIS_CENTERS;
+    let mut models = Vec::new();
+    for weight_seed in [0x0BAD_CAFE, 0x9E37_79B9, 7] {
+        let model = if update {
+            lag_bank_weighted(k, 0x2545_f491, weight_seed)?
+        } else {
+            let net = network_weighted(k, 0x2545_f491, weight_seed, 3, 3, &[10.0, 0.5, 12.0])?;
+            let features = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
+            let ranges = [(0.0, 50.0), (-3.0, 3.0), (-150.0, 150.0)];
+            Model::new(features, &ranges, ModelBody::Rbf(net), ModelInfo::default())
+                .map_err(|e| anyhow::anyhow!("{e}"))?
+        };
+        models.push(model);
+    }
+    let pairs: Vec<(Axis, &Model)> = Axis::ALL.into_iter().zip(&models).collect();
+    let shared = SharedAxisModels::from_models(&pairs).map_err(|e| anyhow::anyhow!("shared basis: {e}"))?;
+    let mut blob = vec![0u8; rbf_core::blob::MAX_BLOB_LEN];
+    let n = rbf_core::blob::shared::encode_shared(&shared, &mut blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    blob.truncate(n);
+    Ok(blob)
+}
+
 fn encode_axes_blob(axes: &AxisModels<64>) -> anyhow::Result<Vec<u8>> {
     let mut blob = vec![0u8; rbf_core::blob::MAX_BLOB_LEN];
     let n = rbf_core::blob::axes::encode_axes(axes, &mut blob).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -150,6 +202,17 @@ pub fn measure() -> anyhow::Result<BoardRun> {
 /// at boot and a multi-axis update, one frame per sample with every axis.
 pub fn measure_axes() -> anyhow::Result<BoardRun> {
     measure_image(&["board-qemu", "board-axes"], boot_axes()?, update_axes()?)
+}
+
+/// [`measure`] for the shared-basis three-axis board
+/// (`board-axes-shared`): a shared-basis blob at boot and a shared-basis
+/// update, one frame per sample with every axis.
+pub fn measure_axes_shared() -> anyhow::Result<BoardRun> {
+    measure_image(
+        &["board-qemu", "board-axes-shared"],
+        shared_axes(false)?,
+        shared_axes(true)?,
+    )
 }
 
 fn measure_image(features: &[&str], boot: Vec<u8>, update: Vec<u8>) -> anyhow::Result<BoardRun> {

@@ -136,6 +136,26 @@ pub fn ci() -> anyhow::Result<()> {
         "--bin",
         "stm32f405",
     ];
+    let shared_board = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "board-axes-shared",
+        "--bin",
+        "stm32f405",
+    ];
+    let shared_qemu_board = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "board-qemu,board-axes-shared",
+        "--bin",
+        "stm32f405",
+    ];
     let panic_check = [
         "--package",
         "firmware",
@@ -153,6 +173,8 @@ pub fn ci() -> anyhow::Result<()> {
         &qemu_board[..],
         &axes_board[..],
         &axes_qemu_board[..],
+        &shared_board[..],
+        &shared_qemu_board[..],
         &panic_check[..],
     ] {
         run("cargo", &[&["clippy"][..], board, &["--", "-D", "warnings"]].concat())?;
@@ -168,7 +190,13 @@ pub fn ci() -> anyhow::Result<()> {
             "--no-default-features",
         ],
     )?;
-    for board in [&qemu_boards[..], &stm32_board[..], &debug_board[..], &axes_board[..]] {
+    for board in [
+        &qemu_boards[..],
+        &stm32_board[..],
+        &debug_board[..],
+        &axes_board[..],
+        &shared_board[..],
+    ] {
         run("cargo", &[&["build", "--release"][..], board].concat())?;
     }
     crate::firmware::check_panic_free()?;

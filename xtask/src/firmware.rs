@@ -38,14 +38,49 @@ pub fn ensure_flip_link() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Builds board binary `bin` (release) and returns the ELF path.
+/// Builds board binary `bin` (release) and returns the ELF path: with
+/// `features`, a copy of its own (`bin+feature+…` beside it), because
+/// every feature set of one binary is built to the same path and tests
+/// build several of them at once.
 pub fn build(bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
+    static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
     ensure_flip_link()?;
+    let _building = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let status = build_command(bin, features).status().context("cannot start cargo")?;
     if !status.success() {
         bail!("building firmware binary {bin} for {TARGET} failed");
     }
-    Ok(target_dir().join(TARGET).join("release").join(bin))
+    let built = target_dir().join(TARGET).join("release").join(bin);
+    if features.is_empty() {
+        return Ok(built);
+    }
+    let kept = built.with_file_name(format!("{bin}+{}", features.join("+")));
+    std::fs::copy(&built, &kept).with_context(|| format!("{}: cannot copy", built.display()))?;
+    Ok(kept)
+}
+
+/// Builds the `trainer` CLI (release, host) into [`target_dir`] and
+/// returns its path: tests run inside `cargo test` call the real command
+/// without waiting on the outer cargo's lock.
+pub fn trainer_cli() -> anyhow::Result<PathBuf> {
+    let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+        .args([
+            "build",
+            "--quiet",
+            "--release",
+            "--package",
+            "trainer",
+            "--bin",
+            "trainer",
+        ])
+        .env("CARGO_TARGET_DIR", target_dir())
+        .current_dir(workspace_root())
+        .status()
+        .context("cannot start cargo")?;
+    if !status.success() {
+        bail!("building the trainer CLI failed");
+    }
+    Ok(target_dir().join("release").join("trainer"))
 }
 
 /// The symbol the panic handler of the `panic-free-check` build calls and
@@ -84,9 +119,10 @@ pub fn check_panic_free() -> anyhow::Result<()> {
     check_board_panics()
 }
 
-/// Builds the board image (what is flashed), single-axis and three-axis
-/// (`board-axes`), and proves from their machine code that no panic is
-/// reachable after init ([`crate::panic_paths`]).
+/// Builds the board image (what is flashed), single-axis, three-axis
+/// (`board-axes`) and shared-basis three-axis (`board-axes-shared`), and
+/// proves from their machine code that no panic is reachable after init
+/// ([`crate::panic_paths`]).
 pub fn check_board_panics() -> anyhow::Result<()> {
     eprintln!("\n==> board image: no panic reachable from its loop and interrupt handlers");
     let board = build("stm32f405", &["board-stm32f405"])?;
@@ -97,6 +133,15 @@ pub fn check_board_panics() -> anyhow::Result<()> {
     );
     eprintln!("\n==> three-axis board image (board-axes): no panic reachable from its loop and interrupt handlers");
     let board = build("stm32f405", &["board-axes"])?;
+    let reach = crate::panic_paths::check_board_image(&board)?;
+    eprintln!(
+        "    ok: {} functions reachable from run_forever, EXTI0, USART1 and HardFault; none panics",
+        reach.functions
+    );
+    eprintln!(
+        "\n==> shared-basis three-axis board image (board-axes-shared): no panic reachable from its loop and interrupt handlers"
+    );
+    let board = build("stm32f405", &["board-axes-shared"])?;
     let reach = crate::panic_paths::check_board_image(&board)?;
     eprintln!(
         "    ok: {} functions reachable from run_forever, EXTI0, USART1 and HardFault; none panics",

@@ -5,8 +5,11 @@ use std::path::Path;
 use std::time::Duration;
 
 use anyhow::{Context, bail};
-use trainer::blobfile::read_model_file;
+use trainer::axes::shared_axes_for_run;
+use trainer::blobfile::{ModelFile, read_model_file};
+use trainer::evaluate::require_shared_thermometer;
 use trainer::run::Run;
+use trainer::run::RunReader;
 
 use crate::{firmware, qemu};
 
@@ -26,8 +29,16 @@ pub struct ReplaySummary {
 /// compensated run to `output` and, if asked, the UART frames to `frames`.
 pub fn qemu_replay(model: &Path, run: &Path, output: &Path, frames: Option<&Path>) -> anyhow::Result<ReplaySummary> {
     // Refuse what `trainer compensate` refuses, with its messages: a
-    // single-axis blob (format 2) or a multi-axis one (format 3).
-    read_model_file(model)?;
+    // single-axis blob (format 2) or a multi-axis one (format 3); a
+    // shared-basis one on a run that lacks its axes or gives each axis
+    // its own thermometer.
+    let (file, _) = read_model_file(model)?;
+    if let ModelFile::Shared(models) = &file {
+        let reader = RunReader::open(run)?;
+        let axes = shared_axes_for_run(&file, model, &reader)?;
+        let columns: Vec<_> = axes.iter().map(|(_, c)| *c).collect();
+        require_shared_thermometer(&reader, &columns, models.features().set.thermometer_mask())?;
+    }
     let rows = Run::load(run)?.len();
     let elf = firmware::build("qemu-replay", &["test-harness"])?;
     let dir = tempfile::TempDir::new().context("cannot create a working directory")?;

@@ -1,8 +1,10 @@
 //! Firmware benchmark board for QEMU (netduinoplus2): instructions per
 //! compensated sample for K = 8, 16, 32, 64 Gaussian centres at D = 3, for
 //! the multi-scale sets and for a lag bank of five filters (K = 32), and the
-//! whole step of a three-axis IMU (three K = 32, D = 3 models decoded from
-//! one multi-axis blob, one compensator per axis).
+//! whole step of a three-axis IMU: three axes sharing one K = 32, D = 3
+//! basis (one compensator, the kernels once, three output layers; decoded
+//! from a shared-basis blob), and beside it three separate K = 32, D = 3
+//! models (one multi-axis blob, one compensator per axis).
 //!
 //! QEMU runs with `-icount shift=0` (one instruction = 1 ns of virtual time),
 //! so SysTick on the 168 MHz core clock counts 0.168 ticks per instruction:
@@ -18,10 +20,13 @@ mod board {
     use cortex_m_semihosting::{debug, hprintln};
     use rbf_core::blob::MAX_BLOB_LEN;
     use rbf_core::blob::axes::{AxisModels, decode_axes_into, encode_axes};
+    use rbf_core::blob::shared::{decode_shared_into, encode_shared};
+    use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
     use rbf_core::lag_bank::LagBank;
     use rbf_core::model::{ModelBody, ModelInfo};
     use rbf_core::rbf::{RbfNetwork, RbfParams};
     use rbf_core::record::{Axis, MAX_AXES};
+    use rbf_core::shared::{OutputLayer, SharedAxisModels};
     use rbf_core::{
         Compensator, CompensatorConfig, FeatureConfig, FeatureSet, FeatureVector, GyroSample, MAX_CENTERS, Model,
     };
@@ -68,6 +73,42 @@ mod board {
         let axes = unsafe { &mut *core::ptr::addr_of_mut!(AXES) };
         decode_axes_into(axes, &blob[..n]).expect("the blob decodes");
         axes
+    }
+
+    /// The shared-basis three-axis model of the three-axis figure: the
+    /// basis of the first separate model (K = 32, D = 3), its layer on x and
+    /// layers of other weights and linear terms on y and z, through a
+    /// shared-basis blob decoded as a firmware decodes it.
+    static mut SHARED: SharedAxisModels = SharedAxisModels::EMPTY;
+
+    #[allow(unsafe_code)]
+    fn shared_models() -> &'static SharedAxisModels {
+        let x = model_seeded(32, Shape::Paper, 1.5, 0x2545_f491);
+        let mut all = SharedAxisModels::from_models(&[(Axis::X, &x)]).expect("one basis");
+        for (axis, seed) in [(Axis::Y, 0x9E37_79B9u32), (Axis::Z, 0x1234_5678)] {
+            let mut state = seed;
+            let mut next = || {
+                state ^= state << 13;
+                state ^= state >> 17;
+                state ^= state << 5;
+                (state >> 8) as f32 / (1 << 24) as f32 * 4.0 - 2.0
+            };
+            let mut weights = [0.0f32; 32];
+            weights.iter_mut().for_each(|w| *w = 0.05 * next());
+            let linear = [0.01 * next(), 0.2 * next(), 0.1 * next()];
+            let layer = OutputLayer {
+                weights: &weights,
+                linear: &linear,
+                constant: 0.05 * next(),
+            };
+            all.assign_layer(axis, &layer).expect("a bounded layer");
+        }
+        let mut blob = [0u8; MAX_BLOB_LEN];
+        let n = encode_shared(&all, &mut blob).expect("a shared-basis blob fits");
+        // SAFETY: the only reference to SHARED, taken once.
+        let shared = unsafe { &mut *core::ptr::addr_of_mut!(SHARED) };
+        decode_shared_into(shared, &blob[..n]).expect("the blob decodes");
+        shared
     }
 
     fn model_seeded(k: usize, shape: Shape, width: f32, seed: u32) -> Model {
@@ -279,7 +320,52 @@ mod board {
                 core::hint::black_box(compensator.process_with(model, &config, &sample));
             }
         }
+        let separate = instructions_per_sample(start);
+        hprintln!(
+            "instructions_per_sample axes=3 K=32 D=3 three separate models (a basis per axis, three evaluations): {}",
+            separate
+        );
+        // Three axes sharing one basis: one compensator (one thermometer,
+        // one feature computation), the kernels once, three output layers.
+        let shared = shared_models();
+        let eval = {
+            let inputs = |i: u32| {
+                let t = i as f32;
+                FeatureVector::from_values(&[20.0 + 0.01 * t, 0.5 - 0.0005 * t, 10.0 + 0.003 * t])
+            };
+            let start = SYST::get_current();
+            for i in 0..SAMPLES {
+                core::hint::black_box(&inputs(core::hint::black_box(i)));
+            }
+            let harness = instructions_per_sample(start);
+            let start = SYST::get_current();
+            for i in 0..SAMPLES {
+                let features = inputs(core::hint::black_box(i));
+                core::hint::black_box(core::hint::black_box(shared).eval_axes(core::hint::black_box(&features)));
+            }
+            instructions_per_sample(start).saturating_sub(harness)
+        };
+        let mut compensator = Compensator::new();
+        let mut temp_c = 20.0f32;
+        let rates_dph = [12.5f32, -3.0, 7.25];
+        let start = SYST::get_current();
+        for _ in 0..SAMPLES {
+            temp_c += 0.0001;
+            let mut temps_c = [None; THERMOMETERS];
+            temps_c[LOOP_THERMOMETER] = Some(temp_c);
+            core::hint::black_box(compensator.process_shared(
+                Some(core::hint::black_box(shared)),
+                &config,
+                0.001,
+                &temps_c,
+                &rates_dph,
+            ));
+        }
         let step = instructions_per_sample(start);
+        hprintln!(
+            "instructions_per_sample axes=3 K=32 D=3 shared basis: evaluation {} (kernels once, three output layers)",
+            eval
+        );
         hprintln!("instructions_per_sample axes=3 K=32 D=3: {}", step);
         hprintln!("stack_peak_bytes {}", firmware::board::stack_peak_bytes());
         debug::exit(debug::EXIT_SUCCESS);

@@ -5,7 +5,8 @@
 //! the run through the real drivers on emulated buses ([`firmware::replay`])
 //! and writes `output.csv` (byte-identical to `trainer compensate`) and
 //! `frames.bin` (the UART frames). A multi-axis run (`rate_x_dph` …) takes
-//! a multi-axis blob (format 3), decoded with the trainer's capacity
+//! a multi-axis blob (format 3, a model per axis or one shared basis for
+//! every axis), decoded with the trainer's capacity
 //! ([`rbf_core::MAX_CENTERS`] per axis: the replay checks the loop, not the
 //! three-axis board's RAM), and goes through the multi-axis loop, one frame
 //! per row with every axis. Run it with `cargo xtask qemu-replay`.
@@ -19,8 +20,11 @@ mod board {
 
     use cortex_m_rt::entry;
     use cortex_m_semihosting::{debug, hprintln, nr, syscall};
+    use firmware::replay::ReplayError;
     use firmware::replay::{AxesReplayer, PeriodProbe, ReplaySample, Replayer};
     use rbf_core::blob::axes::{AxisModels, decode_axes_into};
+    use rbf_core::blob::shared::{decode_shared_into, is_shared_basis};
+    use rbf_core::shared::SharedAxisModels;
 
     /// Longest input line, bytes.
     const LINE_CAPACITY: usize = 1024;
@@ -210,6 +214,24 @@ mod board {
 
     /// The axis models of a multi-axis replay (decoded in place, as the board does).
     static mut AXIS_MODELS: AxisModels<{ rbf_core::MAX_CENTERS }> = AxisModels::EMPTY;
+    /// The shared-basis model of a multi-axis replay whose blob has one.
+    static mut SHARED_MODELS: SharedAxisModels<{ rbf_core::MAX_CENTERS }> = SharedAxisModels::EMPTY;
+
+    /// Replays every line through `replayer`; prints the per-axis
+    /// thermometer faults and returns the loop's counters.
+    fn replay_axes<M: firmware::axes::AxesHolder<{ rbf_core::MAX_CENTERS }>>(
+        lines: &mut HostLines,
+        out: &mut CsvOut,
+        replayer: Result<AxesReplayer<'_, HostWriter, M, { rbf_core::MAX_CENTERS }>, ReplayError>,
+    ) -> firmware::compensation::LoopStats {
+        let Ok(mut replayer) = replayer else {
+            fail("emulated devices did not initialise")
+        };
+        feed_lines(lines, |line| replayer.feed_line(line, out).is_ok());
+        let [x, y, z] = replayer.temp_read_faults_per_axis();
+        hprintln!("replay: temp_read_faults per axis x {} y {} z {}", x, y, z);
+        replayer.stats()
+    }
 
     #[entry]
     fn main() -> ! {
@@ -245,26 +267,37 @@ mod board {
             stream: output,
             buf: heapless::String::new(),
         };
-        let stats = if multi_axis {
+        let slot = firmware::board::model_slot_a();
+        let current: [Cell<ReplaySample>; 3] = Default::default();
+        let stats = if multi_axis && is_shared_basis(slot) {
+            // SAFETY: the only reference to SHARED_MODELS, taken once in main.
+            let models = unsafe { &mut *core::ptr::addr_of_mut!(SHARED_MODELS) };
+            let models = match decode_shared_into(models, slot) {
+                Ok(_) => {
+                    hprintln!("replay: shared-basis model");
+                    Some(&*models)
+                }
+                Err(e) => {
+                    hprintln!("replay: model slot refused ({}); output uncompensated with flag 4", e);
+                    None
+                }
+            };
+            let replayer = AxesReplayer::new(models, period_s, &current, HostWriter(frames));
+            replay_axes(&mut lines, &mut out, replayer)
+        } else if multi_axis {
             // SAFETY: the only reference to AXIS_MODELS, taken once in main.
             let models = unsafe { &mut *core::ptr::addr_of_mut!(AXIS_MODELS) };
-            let models = match decode_axes_into(models, firmware::board::model_slot_a()) {
+            let models = match decode_axes_into(models, slot) {
                 Ok(_) => Some(&*models),
                 Err(e) => {
                     hprintln!("replay: model slot refused ({}); output uncompensated with flag 4", e);
                     None
                 }
             };
-            let current: [Cell<ReplaySample>; 3] = Default::default();
-            let Ok(mut replayer) = AxesReplayer::new(models, period_s, &current, HostWriter(frames)) else {
-                fail("emulated devices did not initialise")
-            };
-            feed_lines(&mut lines, |line| replayer.feed_line(line, &mut out).is_ok());
-            let [x, y, z] = replayer.temp_read_faults_per_axis();
-            hprintln!("replay: temp_read_faults per axis x {} y {} z {}", x, y, z);
-            replayer.stats()
+            let replayer = AxesReplayer::new(models, period_s, &current, HostWriter(frames));
+            replay_axes(&mut lines, &mut out, replayer)
         } else {
-            let model = firmware::load_model(firmware::board::model_slot_a());
+            let model = firmware::load_model(slot);
             if let Err(e) = &model {
                 hprintln!("replay: model slot refused ({}); output uncompensated with flag 4", e);
             }

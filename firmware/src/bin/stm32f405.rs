@@ -26,6 +26,10 @@
 //! TMP117 sits on I2C1 (0x48 x, 0x49 y, 0x4A z), the model slots hold a
 //! multi-axis blob (format 3, [`firmware::AXIS_CENTERS`] centres per axis)
 //! and every sample goes out as one frame with all axes (firmware::axes).
+//! With `board-axes-shared` as well, the same three-axis board holds a
+//! shared-basis blob instead (one basis of up to
+//! [`firmware::SHARED_AXIS_CENTERS`] centres, a layer per axis, evaluated
+//! once per sample); every axis then reads the x coil's TMP117.
 //!
 //! Flash with `cargo run --release -p firmware --features board-stm32f405
 //! --bin stm32f405 --target thumbv7em-none-eabihf` (probe-rs, see docs/firmware.md).
@@ -66,8 +70,10 @@ mod board {
     use heapless::spsc::{Consumer, Producer, Queue};
     #[cfg(not(feature = "board-axes"))]
     use rbf_core::Model;
-    #[cfg(feature = "board-axes")]
+    #[cfg(all(feature = "board-axes", not(feature = "board-axes-shared")))]
     use rbf_core::blob::axes::AxisModels;
+    #[cfg(feature = "board-axes-shared")]
+    use rbf_core::shared::SharedAxisModels;
     use rbf_core::{CompensatorConfig, Flags};
     #[cfg(not(feature = "board-qemu"))]
     use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
@@ -130,8 +136,11 @@ mod board {
     #[cfg(not(feature = "board-axes"))]
     static mut MODEL: Model = Model::EMPTY;
     /// The running axis models, decoded in place (all bits zero: .bss, no flash).
-    #[cfg(feature = "board-axes")]
+    #[cfg(all(feature = "board-axes", not(feature = "board-axes-shared")))]
     static mut MODEL: AxisModels<{ firmware::AXIS_CENTERS }> = AxisModels::EMPTY;
+    /// The running shared-basis model of every axis, decoded in place.
+    #[cfg(feature = "board-axes-shared")]
+    static mut MODEL: SharedAxisModels<{ firmware::SHARED_AXIS_CENTERS }> = SharedAxisModels::EMPTY;
     /// Command bytes collect here between samples (4 KiB: off the stack).
     static mut COMMANDS: CommandReceiver = CommandReceiver::new();
 

@@ -44,7 +44,14 @@ pub struct AxesHeader {
     pub axis_mask: u8,
     /// Payload length, bytes.
     pub payload_len: u32,
+    /// The axes share one basis ([`super::shared`]): header byte 7 is
+    /// [`SHARED_BASIS_FLAG`] (else 0).
+    pub shared_basis: bool,
 }
+
+/// Header byte 7 of a format-3 blob whose axes share one basis
+/// ([`super::shared`]); 0 for one model per axis.
+pub const SHARED_BASIS_FLAG: u8 = 1;
 
 impl AxesHeader {
     /// Total blob length (header + payload + CRC), bytes.
@@ -63,12 +70,13 @@ impl AxesHeader {
         if axis_mask == 0 || axis_mask >> MAX_AXES != 0 {
             return Err(DecodeError::BadAxisMask(axis_mask));
         }
-        if h[7..12].iter().any(|&b| b != 0) {
+        if h[8..12].iter().any(|&b| b != 0) || !matches!(h[7], 0 | SHARED_BASIS_FLAG) {
             return Err(DecodeError::Malformed);
         }
         let header = AxesHeader {
             axis_mask,
             payload_len: u32::from_le_bytes([h[12], h[13], h[14], h[15]]),
+            shared_basis: h[7] == SHARED_BASIS_FLAG,
         };
         if header.blob_len() > MAX_BLOB_LEN {
             return Err(DecodeError::Malformed);
@@ -212,6 +220,9 @@ pub fn decode_any_into<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -
 
 fn decode_axes_payload<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
     let header = AxesHeader::parse(bytes)?;
+    if header.shared_basis {
+        return Err(DecodeError::SharedBasis);
+    }
     crc_status_at(bytes, HEADER_LEN + header.payload_len as usize)?;
     let mut rest = bytes
         .get(HEADER_LEN..HEADER_LEN + header.payload_len as usize)

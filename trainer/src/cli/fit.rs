@@ -56,6 +56,11 @@ pub struct Args {
     /// test of generalisation.
     #[arg(long, value_name = "RUN.csv", help_heading = "Data")]
     holdout: Vec<PathBuf>,
+    /// Multi-axis runs: keep a model per axis, never the joint model of one
+    /// shared basis (for the per-axis three-axis firmware image, board-axes;
+    /// board-axes-shared takes the joint model's blob).
+    #[arg(long, help_heading = "Model")]
+    no_joint: bool,
     /// Averaging block for training, s; a run past 32768 blocks has them
     /// merged in pairs into blocks twice as long, as often as it takes
     /// (docs/methods.md, "Large runs").

@@ -156,7 +156,19 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
     let refused = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: model refused: {e}", text::path(path));
     let header = AxesHeader::parse(bytes).map_err(|e| refused(&e))?;
     let mut models = Box::new(AxisModels::EMPTY);
-    let decoded = decode_axes_into(&mut models, bytes);
+    // A shared-basis blob shows each axis as the model of the basis and its layer.
+    let decoded = if header.shared_basis {
+        let mut shared = Box::new(rbf_core::shared::SharedAxisModels::EMPTY);
+        let decoded = rbf_core::blob::shared::decode_shared_into(&mut shared, bytes);
+        for axis in shared.axes() {
+            if let Some(Ok(model)) = shared.axis_model(axis) {
+                models.insert(axis, model);
+            }
+        }
+        decoded
+    } else {
+        decode_axes_into(&mut models, bytes)
+    };
     let problem = match &decoded {
         Ok(_) => file_problem(bytes),
         Err(e) => Some(e.to_string()),
@@ -186,6 +198,7 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
         "blob_bytes": header.blob_len(),
         "format_version": AXES_FORMAT_VERSION,
         "axis_mask": header.axis_mask,
+        "shared_basis": header.shared_basis,
         "crc": crc,
         "valid": problem.is_none(),
         "error": problem,
@@ -199,6 +212,12 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
                 .lines()
                 .filter(|l| !l.starts_with("kind") && !l.starts_with("shape"))
                 .fold(String::new(), |t, l| t + l + "\n");
+            if header.shared_basis {
+                text.push_str(
+                    "shared basis    yes: one thermometer, features, normalisation, centres and width; per axis \
+                     weights, linear terms, constant\n",
+                );
+            }
             for (axis, v) in models.axes().zip(info["axes"].as_array().into_iter().flatten()) {
                 let _ = writeln!(text, "axis {}", axis.name());
                 for line in summary(v, models.get(axis)).lines() {

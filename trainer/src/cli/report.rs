@@ -53,8 +53,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     // A multi-axis model: a whole report per axis, in DIR/axis-<axis>.
     for axis in axes {
-        let model = file
-            .model(Some(axis))
+        // A shared-basis file: the axis's model is the basis with its layer
+        // (within the table exponential's error of the shared step).
+        let owned = match &file {
+            trainer::blobfile::ModelFile::Shared(shared) => Some(
+                shared
+                    .axis_model(axis)
+                    .ok_or_else(|| anyhow::anyhow!("axis {} has no layer", axis.name()))?
+                    .map_err(|e| anyhow::anyhow!("axis {}: {e}", axis.name()))?,
+            ),
+            _ => None,
+        };
+        let model = owned
+            .as_ref()
+            .or_else(|| file.model(Some(axis)))
             .ok_or_else(|| anyhow::anyhow!("axis {} has no model", axis.name()))?;
         let dir = a.output.join(format!("axis-{}", axis.name()));
         let files = trainer::report::write_axis_report(

@@ -5,6 +5,7 @@ pub mod coverage;
 pub mod events;
 pub mod excitation;
 pub(crate) mod folds;
+pub mod joint;
 pub mod lag_bank;
 pub mod linalg;
 pub mod ols;
