@@ -152,42 +152,15 @@ impl<const K: usize> SharedAxisModels<K> {
     /// Sets the basis from `model`'s (its network with every weight 1, no
     /// linear terms, constant 0) and removes every layer.
     fn assign_basis_of(&mut self, model: &Model<K>) -> Result<(), ModelError> {
-        let ModelBody::Rbf(net) = model.body() else {
-            return Err(ModelError::ShapeMismatch);
-        };
-        let dims = model.features().dims();
-        let mut ranges = [(0.0f32, 0.0f32); MAX_INPUTS];
-        for (i, r) in ranges.iter_mut().enumerate().take(dims) {
-            *r = model.input_range(i).unwrap_or((0.0, 0.0));
-        }
         *self = Self::EMPTY;
-        let result = self.basis.assign_rbf_in_place(
-            *model.features(),
-            ranges.get(..dims).unwrap_or(&[]),
-            model.info().clone(),
-            |storage: RbfStorage<'_>| {
-                let k = net.centers_used();
-                let m = net.kernel_inputs();
-                let copy = |dst: &mut [f32], src: &[f32]| dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
-                copy(storage.offset, net.offset());
-                copy(storage.scale, net.scale());
-                copy(storage.widths, net.widths());
-                storage.weights.iter_mut().take(k).for_each(|w| *w = 1.0);
-                for (j, row) in storage.centers.iter_mut().enumerate().take(k) {
-                    copy(row, net.center(j));
-                }
-                Ok::<_, ModelError>(RbfShape {
-                    offsets: dims,
-                    scales: dims,
-                    kernel_inputs: m,
-                    center_values: k * m,
-                    widths: k,
-                    weights: k,
-                    linear: 0,
-                    constant: 0.0,
-                })
-            },
-        );
+        let result = copy_network(
+            model,
+            &mut self.basis,
+            |w| w.iter_mut().for_each(|w| *w = 1.0),
+            &[],
+            0.0,
+        )
+        .unwrap_or(Err(ModelError::ShapeMismatch));
         if result.is_err() {
             *self = Self::EMPTY;
         }
@@ -324,44 +297,67 @@ impl<const K: usize> SharedAxisModels<K> {
         if !self.has(axis) {
             return None;
         }
-        let ModelBody::Rbf(net) = self.basis.body() else {
-            return None;
-        };
-        let dims = self.basis.features().dims();
-        let mut ranges = [(0.0f32, 0.0f32); MAX_INPUTS];
-        for (i, r) in ranges.iter_mut().enumerate().take(dims) {
-            *r = self.basis.input_range(i).unwrap_or((0.0, 0.0));
-        }
         let (linear, constant) = self.linear_and_constant(axis);
         let mut model = Model::EMPTY;
-        let result = model.assign_rbf_in_place(
-            *self.basis.features(),
-            ranges.get(..dims).unwrap_or(&[]),
-            self.basis.info().clone(),
-            |storage: RbfStorage<'_>| {
-                let k = net.centers_used();
-                let m = net.kernel_inputs();
-                let copy = |dst: &mut [f32], src: &[f32]| dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
-                copy(storage.offset, net.offset());
-                copy(storage.scale, net.scale());
-                copy(storage.widths, net.widths());
-                copy(storage.linear, linear);
-                self.weights_into(axis, storage.weights);
-                for (j, row) in storage.centers.iter_mut().enumerate().take(k) {
-                    copy(row, net.center(j));
-                }
-                Ok::<_, ModelError>(RbfShape {
-                    offsets: dims,
-                    scales: dims,
-                    kernel_inputs: m,
-                    center_values: k * m,
-                    widths: k,
-                    weights: k,
-                    linear: linear.len(),
-                    constant,
-                })
+        let result = copy_network(
+            &self.basis,
+            &mut model,
+            |w| {
+                self.weights_into(axis, w);
             },
-        );
+            linear,
+            constant,
+        )?;
         Some(result.map(|()| model))
     }
+}
+
+/// Makes `target` the Gaussian network of `source` (features, input ranges,
+/// information, centres, widths, normalisation) with the output layer
+/// `weights` fills (one weight per centre in use), the linear terms `linear`
+/// and the constant `constant`; `None` when `source` is no network.
+fn copy_network<const K: usize>(
+    source: &Model<K>,
+    target: &mut Model<K>,
+    weights: impl FnOnce(&mut [f32]),
+    linear: &[f32],
+    constant: f32,
+) -> Option<Result<(), ModelError>> {
+    let ModelBody::Rbf(net) = source.body() else {
+        return None;
+    };
+    let dims = source.features().dims();
+    let mut ranges = [(0.0f32, 0.0f32); MAX_INPUTS];
+    for (i, r) in ranges.iter_mut().enumerate().take(dims) {
+        *r = source.input_range(i).unwrap_or((0.0, 0.0));
+    }
+    Some(target.assign_rbf_in_place(
+        *source.features(),
+        ranges.get(..dims).unwrap_or(&[]),
+        source.info().clone(),
+        |storage: RbfStorage<'_>| {
+            let k = net.centers_used();
+            let m = net.kernel_inputs();
+            let copy = |dst: &mut [f32], src: &[f32]| dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+            copy(storage.offset, net.offset());
+            copy(storage.scale, net.scale());
+            copy(storage.widths, net.widths());
+            copy(storage.linear, linear);
+            let n = k.min(storage.weights.len());
+            weights(storage.weights.get_mut(..n).unwrap_or(&mut []));
+            for (j, row) in storage.centers.iter_mut().enumerate().take(k) {
+                copy(row, net.center(j));
+            }
+            Ok::<_, ModelError>(RbfShape {
+                offsets: dims,
+                scales: dims,
+                kernel_inputs: m,
+                center_values: k * m,
+                widths: k,
+                weights: k,
+                linear: linear.len(),
+                constant,
+            })
+        },
+    ))
 }
