@@ -59,28 +59,23 @@ pub fn build(bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
     Ok(kept)
 }
 
-/// Builds the `trainer` CLI (release, host) into [`target_dir`] and
-/// returns its path: tests run inside `cargo test` call the real command
-/// without waiting on the outer cargo's lock.
+/// Builds the `trainer` CLI (host, the dev profile: optimised, as the
+/// workspace's tests build it) in the workspace's own target directory and
+/// returns its path. Inside `cargo test` (which holds no build lock while
+/// tests run) it is the binary `cargo test --workspace` already built, so
+/// the call costs a no-op build rather than a second release build of the
+/// trainer and its dependencies.
 pub fn trainer_cli() -> anyhow::Result<PathBuf> {
     let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
-        .args([
-            "build",
-            "--quiet",
-            "--release",
-            "--package",
-            "trainer",
-            "--bin",
-            "trainer",
-        ])
-        .env("CARGO_TARGET_DIR", target_dir())
+        .args(["build", "--quiet", "--package", "trainer", "--bin", "trainer"])
+        .env("CARGO_TARGET_DIR", workspace_root().join("target"))
         .current_dir(workspace_root())
         .status()
         .context("cannot start cargo")?;
     if !status.success() {
         bail!("building the trainer CLI failed");
     }
-    Ok(target_dir().join("release").join("trainer"))
+    Ok(workspace_root().join("target").join("debug").join("trainer"))
 }
 
 /// The symbol the panic handler of the `panic-free-check` build calls and
