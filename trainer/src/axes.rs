@@ -3,6 +3,7 @@
 //! `eval` of every axis. Each axis goes through the single-axis code
 //! ([`crate::evaluate`]) with its own columns and model.
 
+use crate::diagnose::RunDiagnosis;
 use std::path::{Path, PathBuf};
 
 use rbf_core::Model;
@@ -180,6 +181,31 @@ fn on_axis(e: anyhow::Error, axis: Option<Axis>) -> anyhow::Error {
     }
 }
 
+/// One axis's evaluation of run `path` as `trainer eval` reports it: refused
+/// (naming the axis) when it cannot be evaluated or, unless
+/// `allow_uncompensated`, when no row was compensated (`mask`: the
+/// thermometers the model reads); labelled with its axis.
+fn accept_evaluation(
+    path: &Path,
+    axis: Option<Axis>,
+    mask: u8,
+    (mut evaluation, diagnosis, compensated): (RunEvaluation, RunDiagnosis, usize),
+    allow_uncompensated: bool,
+) -> anyhow::Result<RunEvaluation> {
+    require_evaluable(path, evaluation.samples, &diagnosis).map_err(|e| on_axis(e, axis))?;
+    require_compensated(
+        path,
+        evaluation.samples,
+        compensated,
+        &diagnosis,
+        mask,
+        allow_uncompensated,
+    )
+    .map_err(|e| on_axis(e, axis))?;
+    evaluation.axis = axis.map(Axis::name);
+    Ok(evaluation)
+}
+
 /// `trainer eval`: before/after accuracy of the model file on each run (`-`:
 /// standard input), per axis for a multi-axis run, each run read once. A run
 /// where no row could be compensated is refused unless
@@ -199,39 +225,17 @@ pub fn evaluate_files(
             let axes = shared_axes_for_run(file, model_path, &reader)?;
             let mask = models.features().set.thermometer_mask();
             let done = evaluate_shared_reader(models, &axes, reader)?;
-            for ((axis, _), (mut evaluation, diagnosis, compensated)) in axes.iter().zip(done) {
-                require_evaluable(path, evaluation.samples, &diagnosis).map_err(|e| on_axis(e, Some(*axis)))?;
-                require_compensated(
-                    path,
-                    evaluation.samples,
-                    compensated,
-                    &diagnosis,
-                    mask,
-                    allow_uncompensated,
-                )
-                .map_err(|e| on_axis(e, Some(*axis)))?;
-                evaluation.axis = Some(axis.name());
-                evaluations.push(evaluation);
+            for ((axis, _), done) in axes.iter().zip(done) {
+                evaluations.push(accept_evaluation(path, Some(*axis), mask, done, allow_uncompensated)?);
             }
             continue;
         }
         let pairs = models_for_run(file, model_path, &reader)?;
         let axes: Vec<(&Model, Columns)> = pairs.iter().map(|(_, m, c)| (*m, *c)).collect();
         let done = evaluate_axes_reader(&axes, reader)?;
-        for ((axis, model, _), (mut evaluation, diagnosis, compensated)) in pairs.iter().zip(done) {
+        for ((axis, model, _), done) in pairs.iter().zip(done) {
             let mask = model.features().set.thermometer_mask();
-            require_evaluable(path, evaluation.samples, &diagnosis).map_err(|e| on_axis(e, *axis))?;
-            require_compensated(
-                path,
-                evaluation.samples,
-                compensated,
-                &diagnosis,
-                mask,
-                allow_uncompensated,
-            )
-            .map_err(|e| on_axis(e, *axis))?;
-            evaluation.axis = axis.map(Axis::name);
-            evaluations.push(evaluation);
+            evaluations.push(accept_evaluation(path, *axis, mask, done, allow_uncompensated)?);
         }
     }
     Ok(evaluations)
