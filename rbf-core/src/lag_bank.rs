@@ -17,7 +17,8 @@
 //! inputs = [T̂, u², u³ (up to `static_degree`), g·ΔT_1, …, g·ΔT_K]
 //! ```
 //!
-//! Beyond the range of T̂ the training runs covered, the powers continue
+//! Beyond the bank's range of T̂ (the range the training runs covered,
+//! widened where the trainer's edge test trusts the cubic), the powers continue
 //! along their tangent at the range's edge (u_c the clamped u: u² becomes
 //! u_c² + 2u_c(u − u_c), u³ becomes u_c³ + 3u_c²(u − u_c)), so the static
 //! curve extrapolates as a straight line with its edge slope: a cubic left
@@ -63,8 +64,10 @@ pub struct LagBank {
     pub gain_per_c2: f32,
     /// Powers of (T̂ − T₀) among the inputs: 1 (T̂ alone) ..= [`MAX_STATIC_DEGREE`].
     pub static_degree: u8,
-    /// The range of T̂ the training runs covered, °C: the powers continue
-    /// along their tangent beyond it.
+    /// The range of T̂ the static cubic is followed over, °C: the range the
+    /// training runs covered, widened at an end where the trainer's edge test
+    /// trusted the cubic past it; the powers continue along their tangent
+    /// beyond it. (Flag 1 is the model's: T̂ outside its training range.)
     pub coil_min_c: f32,
     /// Upper end of that range, °C.
     pub coil_max_c: f32,

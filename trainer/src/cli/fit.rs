@@ -85,11 +85,12 @@ pub struct Args {
     ///
     /// lag-bank (default) = the thermal lag bank: the mean coil temperature
     /// T̂ = T + Σ a_k·ΔT_k and the loop temperature's rates ΔT_k through 4–6 derivative
-    /// filters from 15 s to 4 h, times a Shupe gain linear in T; a cubic in T̂ (extrapolated
-    /// along its tangent past the covered range) and the rates linear; filter set, coil lags
-    /// a_k and gain identified from the runs and chosen by how well they predict held-out
-    /// thermal events (or whole runs, or --validate runs); Gaussians over T̂ only where that
-    /// validation wants them. It holds on temperature histories unlike the chamber's (cold
+    /// filters from 15 s to 4 h, times a Shupe gain linear in T; a cubic in T̂ and the rates
+    /// linear; filter set, coil lags a_k and gain identified from the runs and chosen by how
+    /// well they predict held-out thermal events (or whole runs, or --validate runs); past the
+    /// covered range of T̂ the cubic continues along its tangent, or itself for one band where
+    /// an edge test on the outer 30 % of the range trusts it; Gaussians over T̂ only with
+    /// --centers K (they bend the curve near the range's ends and extrapolate worse). It holds on temperature histories unlike the chamber's (cold
     /// starts, ambient steps, fast swings). multiscale = T, ΔT over three time scales (τ, 16τ,
     /// 256τ), T×ΔT₁, T×ΔT₂, T×ΔT₃ and T²×ΔT₂, Gaussians over T and the ΔT terms linear (the
     /// mean coil temperature lags the sensor in proportion to the rate: first-order terms of
@@ -368,7 +369,7 @@ pub fn write_summary(
     if let Some(c) = &outcome.choice {
         writeln!(
             out,
-            "chosen on {}: {}width σ {} (normalised), ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
+            "chosen on {}: {}{}ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
             if how.with_validate_runs {
                 "--validate runs".into()
             } else if let Some(search) = &outcome.bank {
@@ -382,7 +383,12 @@ pub fn write_summary(
             } else {
                 format!("ΔT window {} s, ", c.rate_window_s)
             },
-            c.width,
+            // No Gaussians (the lag bank's default): no width to speak of.
+            if c.centers == 0 {
+                String::new()
+            } else {
+                format!("width σ {} (normalised), ", c.width)
+            },
             c.ridge,
             c.centers,
             c.validation_rms_dph
@@ -501,6 +507,32 @@ fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankS
         covered.push(format!("{name} {lo:.3} … {hi:.3}"));
     }
     writeln!(out, "training covered: {}", covered.join("; "))?;
+    let x = &search.extrapolation;
+    let end = |name: &str, e: &fit::lag_bank::EdgeTest| {
+        if e.tangent_rms_dph.is_nan() {
+            format!("{name}: too few means to test, tangent")
+        } else {
+            format!(
+                "{name}: tangent {:.2e} / cubic {:.2e} °/h → {}",
+                e.tangent_rms_dph,
+                e.cubic_rms_dph,
+                if e.reach_c > 0.0 {
+                    format!("cubic for {:.1} °C", e.reach_c)
+                } else {
+                    "tangent".to_owned()
+                }
+            )
+        }
+    };
+    writeln!(
+        out,
+        "extrapolation of the static cubic past T̂ {:.1} … {:.1} °C (edge test, outer {:.1} °C held out): {}; {}",
+        x.covered_c.0,
+        x.covered_c.1,
+        x.band_c,
+        end("below", &x.lower),
+        end("above", &x.upper)
+    )?;
     Ok(())
 }
 

@@ -60,6 +60,12 @@ const START_LAGS_MIN: [f64; 3] = [-0.1, -5.0, -20.0];
 const LAG_PRIOR_DPH: f64 = 1e-3;
 /// Levenberg–Marquardt iterations at most.
 const MAX_ITERATIONS: usize = 200;
+/// Width of the band of T̂ the edge test ([`edge_test`]) holds out at each end
+/// of the covered range, as a share of that range.
+const EDGE_BAND_SHARE: f64 = 0.3;
+/// The cubic is continued past an edge only where it predicts the held-out
+/// band with at most this share of the tangent's RMS residual.
+const EDGE_CUBIC_MAX_RATIO: f64 = 0.8;
 
 /// The training data the search sees: 10-s means of the loop temperature,
 /// every ladder filter's rate and the bias target.
@@ -417,6 +423,36 @@ pub struct BankSearch {
     pub events: usize,
     /// What the training runs covered of what the bank needs.
     pub coverage: Coverage,
+    /// How far past each end of the covered range of T̂ the static cubic is
+    /// followed before it continues along its tangent.
+    pub extrapolation: Extrapolation,
+}
+
+/// The edge test's verdict at both ends of the covered range of T̂.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Extrapolation {
+    /// The range of T̂ the training runs covered, °C.
+    pub covered_c: (f64, f64),
+    /// Width of the band held out at each end, °C.
+    pub band_c: f64,
+    /// Below the covered range.
+    pub lower: EdgeTest,
+    /// Above it.
+    pub upper: EdgeTest,
+}
+
+/// One end's edge test: the band beyond that end held out, the structure
+/// refitted on the rest, the band predicted both ways.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct EdgeTest {
+    /// RMS residual on the band with the cubic's tangent past the refit's edge, °/h
+    /// (NaN: too few rows on either side to test).
+    pub tangent_rms_dph: f64,
+    /// RMS residual on the band with the cubic itself, °/h.
+    pub cubic_rms_dph: f64,
+    /// How far past the covered range the deployed cubic is followed, °C
+    /// (the band's width where the cubic won, else 0).
+    pub reach_c: f64,
 }
 
 impl BankSearch {
@@ -548,8 +584,13 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         .collect();
     train.release(&unused, opts.block_s);
     validate.release(&unused, opts.block_s);
-    let fitted = results[chosen].0.as_ref().expect("chosen among fitted candidates");
-    let bank = to_bank(&s, fitted, t0).ok_or_else(|| {
+    let mut fitted = results[chosen].0.clone().expect("chosen among fitted candidates");
+    let extrapolation = edge_test(&s, &fitted, t0, &ladders[s.ladder].0);
+    fitted.range = (
+        fitted.range.0 - extrapolation.lower.reach_c,
+        fitted.range.1 + extrapolation.upper.reach_c,
+    );
+    let bank = to_bank(&s, &fitted, t0).ok_or_else(|| {
         anyhow::anyhow!("the identified lag bank is out of the firmware's range (coil lags over a day)")
     })?;
     let (fold_kind, fold_count) = if validate.count() > 0 {
@@ -573,8 +614,71 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             fold_count,
             events: folds[s.ladder].events,
             coverage,
+            extrapolation,
         },
     ))
+}
+
+/// The edge test: how far past the covered range of T̂ the static cubic is
+/// trusted. At each end, the outer [`EDGE_BAND_SHARE`] of the range is held
+/// out, the structure refitted on the rest (from the full fit), and the band
+/// predicted twice: with the cubic continuing along its tangent past the
+/// refit's edge (the deployed default) and with the cubic itself. Where the
+/// cubic predicts the band with at most [`EDGE_CUBIC_MAX_RATIO`] of the
+/// tangent's residual, the deployed cubic is followed one band's width past
+/// that end. A chamber run that never soaks the coil at its extremes (short
+/// holds, a slow coil) leaves in-use temperatures 10–20 °C outside the range;
+/// whether the cubic holds there differs from gyro to gyro, and this is the
+/// part of the training data that can tell.
+fn edge_test(s: &Structure, full: &Fitted, t0: f64, data: &LadderData) -> Extrapolation {
+    let (lo, hi) = full.range;
+    let band = EDGE_BAND_SHARE * (hi - lo);
+    let t_hat: Vec<f64> = (0..data.len())
+        .map(|i| coil_temp(s, &full.p, data.temp_c[i], &data.rates[i]))
+        .collect();
+    let end = |upper: bool| -> EdgeTest {
+        let inside = |t: f64| if upper { t <= hi - band } else { t >= lo + band };
+        let (rows, held): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| inside(t_hat[i]));
+        let untested = EdgeTest {
+            tangent_rms_dph: f64::NAN,
+            cubic_rms_dph: f64::NAN,
+            reach_c: 0.0,
+        };
+        // A band of under ten 10-s means is no evidence either way.
+        if held.len() < 10 || rows.len() < s.params() * 4 {
+            return untested;
+        }
+        let (p, cost) = levenberg_marquardt(s, full.p.clone(), t0, data, &rows);
+        if !cost.is_finite() {
+            return untested;
+        }
+        let refit = Fitted::new(s, p, data, &rows);
+        let rms = |range: CoilRange| {
+            let sse: f64 = held
+                .iter()
+                .map(|&i| {
+                    (data.y[i] - predict_row(s, &refit.p, t0, range, data.temp_c[i], &data.rates[i], None)).powi(2)
+                })
+                .sum();
+            (sse / held.len() as f64).sqrt()
+        };
+        let (tangent, cubic) = (rms(refit.range), rms(UNLIMITED));
+        EdgeTest {
+            tangent_rms_dph: tangent,
+            cubic_rms_dph: cubic,
+            reach_c: if cubic <= EDGE_CUBIC_MAX_RATIO * tangent {
+                band
+            } else {
+                0.0
+            },
+        }
+    };
+    Extrapolation {
+        covered_c: (lo, hi),
+        band_c: band,
+        lower: end(false),
+        upper: end(true),
+    }
 }
 
 /// The deployable bank of a fitted structure: time constants, coil lags and
@@ -598,7 +702,9 @@ mod tests {
     use super::*;
 
     /// Rows of a synthetic gyro whose bias is exactly the bank's structure.
-    fn synthetic(s: &Structure, truth: &[f64], t0: f64) -> LadderData {
+    /// Past `static_range` the truth's static cubic continues along its
+    /// tangent (as a deployed bank past its covered range).
+    fn synthetic(s: &Structure, truth: &[f64], t0: f64, static_range: CoilRange) -> LadderData {
         let mut data = LadderData {
             row_s: SEARCH_MEAN_S,
             ..LadderData::default()
@@ -622,7 +728,7 @@ mod tests {
                 filters[k] += 10.0 * r;
                 rates[k] = r * 60.0;
             }
-            data.y.push(predict_row(s, truth, t0, UNLIMITED, temp, &rates, None));
+            data.y.push(predict_row(s, truth, t0, static_range, temp, &rates, None));
             data.temp_c.push(temp);
             data.rates.push(rates);
             data.run.push(0);
@@ -643,7 +749,7 @@ mod tests {
         let truth = [
             0.1, 0.05, 0.02, -0.01, 0.2, 0.1, -0.05, 0.02, -0.25, -1.0, -4.0, -10.0, 0.3,
         ];
-        let data = synthetic(&s, &truth, 20.0);
+        let data = synthetic(&s, &truth, 20.0, UNLIMITED);
         let rows: Vec<usize> = (0..data.len()).collect();
         let fitted = fit_structure(&s, 20.0, &data, &rows, &START_LAGS_MIN).unwrap();
         let bias_rms = (data.y.iter().map(|y| y * y).sum::<f64>() / data.len() as f64).sqrt();
@@ -661,6 +767,44 @@ mod tests {
             "slowest lag {} min",
             fitted.p[11]
         );
+    }
+
+    #[test]
+    #[allow(
+        clippy::float_cmp,
+        reason = "the reach is the band's width itself or exactly 0: exactness is what this test guards"
+    )]
+    fn the_edge_test_follows_the_cubic_only_where_the_held_out_band_does() {
+        let s = Structure {
+            ladder: 1,
+            first: 0,
+            filters: 4,
+            gain_degree: 1,
+        };
+        // A strongly curved static part (c₂, c₃ in units of 30 °C) on the
+        // synthetic triangle wave, 20 … 320 °C.
+        let truth = [
+            0.1, 0.5, 0.3, 0.05, 0.2, 0.1, -0.05, 0.02, -0.25, -1.0, -4.0, -10.0, 0.3,
+        ];
+        let rows = |data: &LadderData| (0..data.len()).collect::<Vec<_>>();
+        // A true cubic everywhere: both held-out bands are the cubic's, so
+        // it is followed one band past both ends.
+        let cubic = synthetic(&s, &truth, 150.0, UNLIMITED);
+        let full = fit_structure(&s, 150.0, &cubic, &rows(&cubic), &START_LAGS_MIN).unwrap();
+        let x = edge_test(&s, &full, 150.0, &cubic);
+        assert!((x.band_c - 0.3 * (x.covered_c.1 - x.covered_c.0)).abs() < 1e-9);
+        for end in [&x.lower, &x.upper] {
+            assert!(end.cubic_rms_dph < 0.1 * end.tangent_rms_dph, "{x:?}");
+            assert_eq!(end.reach_c, x.band_c, "{x:?}");
+        }
+        // A curve that straightens out in the upper band: the cubic would
+        // overshoot there, so the upper end keeps the tangent.
+        let edge = (f64::NEG_INFINITY, x.covered_c.1 - x.band_c);
+        let straightening = synthetic(&s, &truth, 150.0, edge);
+        let full = fit_structure(&s, 150.0, &straightening, &rows(&straightening), &START_LAGS_MIN).unwrap();
+        let x = edge_test(&s, &full, 150.0, &straightening);
+        assert!(x.upper.tangent_rms_dph < x.upper.cubic_rms_dph, "{x:?}");
+        assert_eq!(x.upper.reach_c, 0.0, "{x:?}");
     }
 
     #[test]
