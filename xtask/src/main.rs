@@ -71,6 +71,10 @@ enum Cmd {
         /// In-use section on two plants (the documented gyro and unit 1).
         #[arg(long)]
         quick: bool,
+        /// In-use section: also units 3 … N of `trainer simulate --unit`
+        /// (plants the default was not developed on; about 15 s each).
+        #[arg(long, value_name = "N", default_value_t = 0)]
+        units: u64,
         /// Write the in-use section's results as JSON (`-`: stdout).
         #[arg(long, value_name = "FILE")]
         json: Option<PathBuf>,
@@ -144,6 +148,7 @@ fn main() -> anyhow::Result<()> {
             params,
             in_use,
             quick,
+            units,
             json,
             trainer,
             fit_args,
@@ -153,6 +158,7 @@ fn main() -> anyhow::Result<()> {
             in_use_only: in_use,
             in_use: xtask::accuracy::in_use::InUseOptions {
                 quick,
+                units,
                 trainer: trainer.map(std::path::absolute).transpose()?,
                 fit_args: fit_args
                     .iter()

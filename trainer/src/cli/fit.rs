@@ -90,9 +90,9 @@ pub struct Args {
     /// well they predict held-out thermal events (or whole runs, or --validate runs); past the
     /// covered range of T̂ the cubic continues along its tangent, or itself for one band where
     /// an edge test on the outer 30 % of the range trusts it; Gaussians over T̂ only with
-    /// --centers K (they bend the curve near the range's ends and extrapolate worse). It holds on temperature histories unlike the chamber's (cold
-    /// starts, ambient steps, fast swings). multiscale = T, ΔT over three time scales (τ, 16τ,
-    /// 256τ), T×ΔT₁, T×ΔT₂, T×ΔT₃ and T²×ΔT₂, Gaussians over T and the ΔT terms linear (the
+    /// --centers K (they bend the curve near the range's ends and extrapolate worse). It
+    /// holds on temperature histories unlike the chamber's (cold starts, ambient steps, fast
+    /// swings). multiscale = T, ΔT over three time scales (τ, 16τ, 256τ), T×ΔT₁, T×ΔT₂, T×ΔT₃ and T²×ΔT₂, Gaussians over T and the ΔT terms linear (the
     /// mean coil temperature lags the sensor in proportion to the rate: first-order terms of
     /// that lag); multiscale-second-order = the same with the second-order term ΔT₃² in place
     /// of T×ΔT₁; multiscale-validated = both fitted from one pass over the data, the
@@ -108,7 +108,7 @@ pub struct Args {
     /// Use exactly K Gaussian centres (1–64; 1–16 per axis on multi-axis runs).
     ///
     /// Fewer if OLS finds fewer independent ones; without it K ≤ --max-centers is chosen
-    /// on validation.
+    /// on validation, except for the lag bank, which has none unless asked.
     #[arg(long, value_name = "K", value_parser = centres_parser(), help_heading = "Model")]
     centers: Option<usize>,
     /// Most centres tried (1–64; at most 16 per axis on multi-axis runs).

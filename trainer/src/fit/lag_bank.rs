@@ -736,14 +736,17 @@ mod tests {
         data
     }
 
+    /// The 30 s … 1920 s filters of the second ladder with a linear gain.
+    const FOUR_FILTERS: Structure = Structure {
+        ladder: 1,
+        first: 0,
+        filters: 4,
+        gain_degree: 1,
+    };
+
     #[test]
     fn the_joint_fit_recovers_a_structure_from_noise_free_data() {
-        let s = Structure {
-            ladder: 1,
-            first: 0,
-            filters: 4,
-            gain_degree: 1,
-        };
+        let s = FOUR_FILTERS;
         // c, s (°/h per °C/min), a (min), g₁; coil lags of a physical size
         // (|a_k| below one filter time constant), which the lag prior leaves alone.
         let truth = [
@@ -775,12 +778,7 @@ mod tests {
         reason = "the reach is the band's width itself or exactly 0: exactness is what this test guards"
     )]
     fn the_edge_test_follows_the_cubic_only_where_the_held_out_band_does() {
-        let s = Structure {
-            ladder: 1,
-            first: 0,
-            filters: 4,
-            gain_degree: 1,
-        };
+        let s = FOUR_FILTERS;
         // A strongly curved static part (c₂, c₃ in units of 30 °C) on the
         // synthetic triangle wave, 20 … 320 °C.
         let truth = [

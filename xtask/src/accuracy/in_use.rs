@@ -27,6 +27,9 @@ use crate::workspace_root;
 pub struct InUseOptions {
     /// Two plants (the documented gyro and unit 1) instead of four.
     pub quick: bool,
+    /// Also `trainer simulate --unit 3` … `--unit N` (0: none): plants the
+    /// default was not developed on.
+    pub units: u64,
     /// The trainer whose `fit` and `compensate` are judged; `None`: this
     /// workspace's release build. The simulator is always this workspace's.
     pub trainer: Option<PathBuf>,
@@ -42,6 +45,26 @@ struct Plant {
     name: &'static str,
     args: &'static [&'static str],
     quick: bool,
+}
+
+/// A plant of this bench: label and `trainer simulate` options.
+struct PlantSpec {
+    name: String,
+    args: Vec<String>,
+}
+
+/// The plants `opts` asks for: [`PLANTS`] (the first two with `--quick`), then
+/// units 3 … `opts.units`.
+fn plants(opts: &InUseOptions) -> Vec<PlantSpec> {
+    let named = PLANTS.iter().filter(|p| p.quick || !opts.quick).map(|p| PlantSpec {
+        name: p.name.to_owned(),
+        args: p.args.iter().map(|a| (*a).to_owned()).collect(),
+    });
+    let units = (3..=opts.units).map(|u| PlantSpec {
+        name: format!("unit {u}"),
+        args: vec!["--unit".into(), u.to_string()],
+    });
+    named.chain(units).collect()
 }
 
 const PLANTS: [Plant; 4] = [
@@ -208,10 +231,8 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
     );
     let mut plants_json = Vec::new();
     let mut summary = Vec::new();
-    for (p, plant) in PLANTS.iter().enumerate() {
-        if opts.quick && !plant.quick {
-            continue;
-        }
+    let plants = plants(opts);
+    for (p, plant) in plants.iter().enumerate() {
         let tag = format!("p{p}");
         let simulate = |spec: &RunSpec, name: &str, noise_only: bool| -> anyhow::Result<PathBuf> {
             let file = dir.join(format!("{tag}_{name}.csv"));
@@ -219,11 +240,12 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             let mut args = vec!["simulate", "--rate-hz", "1", "--seed", &seed, "-o", path(&file)];
             args.extend(spec.args.iter().map(String::as_str));
             let params;
-            if let [flag @ "--params", file] = plant.args {
-                params = workspace_root().join(file);
-                args.extend([*flag, path(&params)]);
-            } else {
-                args.extend(plant.args);
+            match plant.args.as_slice() {
+                [flag, file] if flag == "--params" => {
+                    params = workspace_root().join(file);
+                    args.extend([flag.as_str(), path(&params)]);
+                }
+                other => args.extend(other.iter().map(String::as_str)),
             }
             if noise_only {
                 args.push("--noise-only");
@@ -251,7 +273,7 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             .map(|n| Ok(residual_std(&read_columns(n, &["time_s", "rate_dph", "ref_dph"])?)))
             .collect::<anyhow::Result<_>>()?;
         let mut training_json = Vec::new();
-        match plant.args {
+        match plant.args.as_slice() {
             [] => println!("\nplant: {} (trainer simulate's defaults)", plant.name),
             args => println!("\nplant: {} (trainer simulate {})", plant.name, args.join(" ")),
         }
@@ -275,7 +297,7 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
                     .collect();
                 let (mean, worst) = mean_and_worst(&pct);
                 summary.push((
-                    plant.name,
+                    plant.name.as_str(),
                     s,
                     scores.model.clone(),
                     mean,
@@ -314,7 +336,14 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
         );
         let (mean, worst) = mean_and_worst(&ceiling_pct);
         println!(" {mean:>7.1} {worst:>7.1}");
-        summary.push((plant.name, training.len(), "noise ceiling".into(), mean, worst, false));
+        summary.push((
+            plant.name.as_str(),
+            training.len(),
+            "noise ceiling".into(),
+            mean,
+            worst,
+            false,
+        ));
         plants_json.push(json!({
             "plant": plant.name,
             "simulate_args": plant.args,
