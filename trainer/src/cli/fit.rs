@@ -575,12 +575,15 @@ pub(super) fn describe(model: &Model) -> String {
     let windows = &taus[..filters];
     match model.body() {
         ModelBody::Rbf(net) => format!(
-            "Gaussian RBF, {} over ({}), {}, ΔT windows {windows:?} s",
+            "Gaussian RBF, {}, {}, ΔT windows {windows:?} s",
             match net.centers_used() {
-                1 => "1 centre".to_owned(),
-                n => format!("{n} centres"),
+                0 => "no centres".to_owned(),
+                n => format!(
+                    "{n} {} over ({})",
+                    if n == 1 { "centre" } else { "centres" },
+                    all_names[..net.kernel_inputs().min(all_names.len())].join(", ")
+                ),
             },
-            all_names[..net.kernel_inputs().min(all_names.len())].join(", "),
             if net.linear().is_empty() {
                 "no linear terms".to_owned()
             } else {
