@@ -179,7 +179,7 @@ fn qemu_replay_of_a_shared_thermometer_run_with_the_joint_blob_trainer_fit_wrote
     };
     simulate("cycle", "11", &train);
     simulate("random", "12", &verify);
-    let summary = run_trainer(&trainer, &["fit", &train, "-o", &blob]);
+    let summary = run_trainer(&trainer, &["fit", &train, "-o", &blob, "--joint"]);
     let bytes = std::fs::read(&blob).unwrap();
     assert!(
         rbf_core::blob::shared::is_shared_basis(&bytes),

@@ -61,6 +61,11 @@ pub struct Args {
     /// board-axes-shared takes the joint model's blob).
     #[arg(long, help_heading = "Model")]
     no_joint: bool,
+    /// Multi-axis runs whose axes read one thermometer: write the joint model
+    /// of one shared basis even where an axis loses accuracy with it (the
+    /// firmware then evaluates one basis for every axis, board-axes-shared).
+    #[arg(long, help_heading = "Model", conflicts_with = "no_joint")]
+    joint: bool,
     /// Averaging block for training, s; a run past 32768 blocks has them
     /// merged in pairs into blocks twice as long, as often as it takes
     /// (docs/methods.md, "Large runs").
