@@ -56,14 +56,17 @@ pub struct Args {
     /// test of generalisation.
     #[arg(long, value_name = "RUN.csv", help_heading = "Data")]
     holdout: Vec<PathBuf>,
-    /// Multi-axis runs: keep a model per axis, never the joint model of one
-    /// shared basis (for the per-axis three-axis firmware image, board-axes;
-    /// board-axes-shared takes the joint model's blob).
+    /// Multi-axis runs: a model per axis, never one shared basis.
+    ///
+    /// For the per-axis three-axis firmware image, board-axes;
+    /// board-axes-shared takes the joint model's blob.
     #[arg(long, help_heading = "Model")]
     no_joint: bool,
-    /// Multi-axis runs whose axes read one thermometer: write the joint model
-    /// of one shared basis even where an axis loses accuracy with it (the
-    /// firmware then evaluates one basis for every axis, board-axes-shared).
+    /// Multi-axis runs on one thermometer: one shared basis, whatever it costs.
+    ///
+    /// Writes the joint model even where an axis loses more than 0.5 points
+    /// (100-s cluster STD) with it against its own fit; the firmware then
+    /// evaluates one basis for every axis (board-axes-shared).
     #[arg(long, help_heading = "Model", conflicts_with = "no_joint")]
     joint: bool,
     /// Averaging block for training, s; a run past 32768 blocks has them
