@@ -38,9 +38,11 @@ pub fn form(model: &Model) -> String {
             let names: Vec<String> = model.features().set.names().map(|n| n.to_string()).collect();
             let kernel = &names[..net.kernel_inputs().min(names.len())];
             format!(
-                "Gaussian RBF, {} over {}{}",
-                count(net.centers_used() as u64, "centre", "centres"),
-                kernel.join(", "),
+                "Gaussian RBF, {}{}",
+                match net.centers_used() {
+                    0 => "no centres".to_owned(),
+                    n => format!("{} over {}", count(n as u64, "centre", "centres"), kernel.join(", ")),
+                },
                 match net.linear().len() {
                     0 => String::new(),
                     n => format!("; {}", count(n as u64, "linear term", "linear terms")),
