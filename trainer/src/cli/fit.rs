@@ -100,9 +100,10 @@ pub struct Args {
     /// an edge test on the outer 30 % of the range trusts it; Gaussians over T̂ only with
     /// --centers K (they bend the curve near the range's ends and extrapolate worse). It
     /// holds on temperature histories unlike the chamber's (cold starts, ambient steps, fast
-    /// swings). multiscale = T, ΔT over three time scales (τ, 16τ, 256τ), T×ΔT₁, T×ΔT₂, T×ΔT₃ and T²×ΔT₂, Gaussians over T and the ΔT terms linear (the
-    /// mean coil temperature lags the sensor in proportion to the rate: first-order terms of
-    /// that lag); multiscale-second-order = the same with the second-order term ΔT₃² in place
+    /// swings). multiscale = T, ΔT over three time scales (τ, 16τ, 256τ), T×ΔT₁, T×ΔT₂,
+    /// T×ΔT₃ and T²×ΔT₂, Gaussians over T and the ΔT terms linear (the mean coil temperature
+    /// lags the sensor in proportion to the rate: first-order terms of that lag);
+    /// multiscale-second-order = the same with the second-order term ΔT₃² in place
     /// of T×ΔT₁; multiscale-validated = both fitted from one pass over the data, the
     /// second-order set also in its lagged forms (Gaussians over the mean coil temperature
     /// estimate T − L·ΔT₃, coil lag L of 10, 20, 40 or 80 min, at the second-order set's

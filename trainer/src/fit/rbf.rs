@@ -104,7 +104,8 @@ pub fn kernel_inputs(set: FeatureSet) -> usize {
 /// range's ends, and the cubic left beside them extrapolates worse: trained
 /// on the designed run, the documented gyro's in-use worst case fell from
 /// 92.2 to 84.5 % with them, and no bench gyro trained on a cycle gained
-/// more than 0.3 points (docs/methods.md).
+/// more than 0.3 points (`cargo xtask bench-accuracy --in-use --units 16`,
+/// docs/methods.md).
 fn default_max_centers(set: FeatureSet, opts: &FitOptions) -> usize {
     match set {
         FeatureSet::LagBank(_) => 0,

@@ -171,9 +171,10 @@ struct JointTrial {
 /// improvement is within [`JOINT_TOLERANCE_POINTS`] of its own fit's, or
 /// when `--joint` asks for it. (MSD, dominated by white noise, hid a basis
 /// that misfits an axis's thermal structure: 99.6 % joint and own on the
-/// y axis of a simulated IMU whose STD100 was 97.2 % joint, 98.4 % own.) Runs whose axes
-/// have their own thermometers keep the per-axis models (a shared basis
-/// reads one thermometer), as do fits that are not Gaussian RBF networks.
+/// y axis of a simulated IMU whose STD100 was 97.2 % joint, 98.4 % own.)
+/// Runs whose axes have their own thermometers keep the per-axis models (a
+/// shared basis reads one thermometer), as do fits that are not Gaussian RBF
+/// networks.
 fn try_joint(a: &Args, opts: &FitOptions, axes: &[Axis], outcomes: &[AxisFit]) -> anyhow::Result<JointTrial> {
     let not_tried = |why: String| JointTrial {
         chosen: None,
