@@ -11,18 +11,23 @@ use tempfile::TempDir;
 
 /// `trainer simulate --axes 3` of `profile` with `seed` into `dir/name`.
 fn simulate_imu(dir: &TempDir, name: &str, profile: &str, seed: &str) -> PathBuf {
+    simulate_axes(dir, name, &["--profile", profile, "--seed", seed])
+}
+
+/// `trainer simulate --axes 3 --shared-thermometer` of `profile` with `seed` into `dir/name`.
+fn simulate_shared_imu(dir: &TempDir, name: &str, profile: &str, seed: &str) -> PathBuf {
+    simulate_axes(
+        dir,
+        name,
+        &["--profile", profile, "--seed", seed, "--shared-thermometer"],
+    )
+}
+
+/// `trainer simulate --axes 3` with `args` into `dir/name`, which must succeed.
+fn simulate_axes(dir: &TempDir, name: &str, args: &[&str]) -> PathBuf {
     let path = dir.path().join(name);
-    let o = trainer(&[
-        "simulate",
-        "--profile",
-        profile,
-        "--axes",
-        "3",
-        "--seed",
-        seed,
-        "-o",
-        path.to_str().unwrap(),
-    ]);
+    let fixed = ["simulate", "--axes", "3", "-o", path.to_str().unwrap()];
+    let o = trainer(&[&fixed[..], args].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     path
 }
@@ -343,25 +348,6 @@ fn a_multi_axis_fit_keeps_every_axis_within_the_three_axis_firmware_s_centres() 
             "{axis}"
         );
     }
-}
-
-/// `trainer simulate --axes 3 --shared-thermometer` of `profile` with `seed` into `dir/name`.
-fn simulate_shared_imu(dir: &TempDir, name: &str, profile: &str, seed: &str) -> PathBuf {
-    let path = dir.path().join(name);
-    let o = trainer(&[
-        "simulate",
-        "--profile",
-        profile,
-        "--axes",
-        "3",
-        "--shared-thermometer",
-        "--seed",
-        seed,
-        "-o",
-        path.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    path
 }
 
 #[test]

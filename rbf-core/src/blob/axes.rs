@@ -257,6 +257,7 @@ fn decode_axes_payload<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::blob::damage::{assert_every_bit_flip_refused, garbage_never_panics, reseal};
     use crate::blob::{self, decode};
     use crate::features::{FeatureConfig, FeatureSet};
     use crate::model::ModelInfo;
@@ -312,12 +313,6 @@ mod tests {
         let mut buf = [0u8; MAX_BLOB_LEN];
         let n = encode_axes(axes, &mut buf).unwrap();
         buf[..n].to_vec()
-    }
-
-    fn reseal(blob: &mut [u8]) {
-        let n = blob.len() - CRC_LEN;
-        let crc = super::super::CRC32.checksum(&blob[..n]);
-        blob[n..].copy_from_slice(&crc.to_le_bytes());
     }
 
     #[test]
@@ -393,29 +388,8 @@ mod tests {
         let mut v = good.clone();
         v[12..16].copy_from_slice(&(MAX_BLOB_LEN as u32).to_le_bytes());
         assert_eq!(decode(&v), Err(DecodeError::Malformed));
-        // Every single-bit flip is refused.
-        for byte in 0..good.len() {
-            for bit in 0..8 {
-                let mut v = good.clone();
-                v[byte] ^= 1 << bit;
-                assert!(decode(&v).is_err(), "flip of bit {bit} in byte {byte} accepted");
-            }
-        }
-        // Resealed garbage: refused or decoded, never a panic.
-        let mut state = 0x2545_f491u32;
-        for _ in 0..5_000 {
-            let mut v = good.clone();
-            for _ in 0..3 {
-                state ^= state << 13;
-                state ^= state >> 17;
-                state ^= state << 5;
-                let i = state as usize % v.len();
-                v[i] = (state >> 24) as u8;
-            }
-            reseal(&mut v);
-            let _ = decode(&v);
-            let _ = decode(&v[..state as usize % v.len()]);
-        }
+        assert_every_bit_flip_refused(&good, &mut decode);
+        garbage_never_panics(&good, 0x2545_f491, 5_000, 3, &mut decode);
     }
 
     #[test]
