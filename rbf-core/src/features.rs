@@ -54,7 +54,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::MAX_INPUTS;
-pub use crate::lag_bank::{BANK_FILTERS, BankInput, LagBank};
+pub use crate::lag_bank::{BANK_FILTERS, BankInput, GainOf, LagBank};
 
 /// Derivative filters the extractor runs at most: a lag bank's
 /// ([`BANK_FILTERS`]), more than the multi-scale sets' [`WINDOWS`].
@@ -197,6 +197,11 @@ impl Probes {
 
 /// Which inputs a model takes, in this order.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+// An explicit tag: without it the compiler keeps the variant in a spare
+// value of the lag bank's `gain_of` (a niche), so every match on the set
+// decodes it and an empty model is no longer all zero bytes (4 KiB of
+// flash for its constant, 70 instructions per sample on the board).
+#[repr(u8)]
 pub enum FeatureSet {
     /// (T): the loop temperature alone, for the cubic-in-T baseline.
     Temp,

@@ -13,9 +13,17 @@
 //! ```text
 //! T̂      = T + Σ_k a_k·ΔT_k                     the mean coil temperature, °C (a_k in minutes)
 //! u      = T̂ − T₀                                (T₀: the training range's middle)
-//! g(T)   = 1 + g₁·(T − T₀) + g₂·(T − T₀)²        the Shupe gain's temperature dependence
+//! g      = 1 + g₁·(T̂ − T₀) + g₂·(T̂ − T₀)²       the Shupe gain's temperature dependence
 //! inputs = [T̂, u², u³ (up to `static_degree`), g·ΔT_1, …, g·ΔT_K]
 //! ```
+//!
+//! The gain is a polynomial in the coil's temperature T̂ ([`GainOf::Coil`]):
+//! the Shupe and stress coefficients are properties of the fiber and its
+//! potting, which sit at the coil's temperature, not the sensor's. Banks
+//! written before this choice existed evaluate the gain at the loop
+//! temperature T ([`GainOf::Loop`]) and still do, bit for bit; the two differ
+//! by the coil lag times the rate, which a chamber ramp at one rate cannot
+//! tell from the static slope but a fast in-use swing shows (docs/methods.md).
 //!
 //! Beyond the bank's range of T̂ (the range the training runs covered,
 //! widened where the trainer's edge test trusts the cubic), the powers continue
@@ -46,8 +54,20 @@ const MAX_COIL_LAG_MIN: f32 = 1440.0;
 /// Largest |temperature| a bank's reference and range may name, °C.
 const MAX_TEMP_C: f32 = 1000.0;
 
+/// The temperature the Shupe gain g is a polynomial in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GainOf {
+    /// The loop sensor's temperature T: the form of banks written before
+    /// [`GainOf::Coil`] (their blobs name no gain temperature).
+    #[default]
+    Loop,
+    /// The estimated mean coil temperature T̂: the fiber's own temperature.
+    Coil,
+}
+
 /// The configuration of a lag bank, stored in the model blob.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(from = "WireLagBank", into = "WireLagBank")]
 pub struct LagBank {
     /// Filter time constants τ_k, s, fastest first (the first `filters` are used;
     /// the others are 0, so a decoded bank equals itself and re-encodes to the same bytes).
@@ -71,6 +91,69 @@ pub struct LagBank {
     pub coil_min_c: f32,
     /// Upper end of that range, °C.
     pub coil_max_c: f32,
+    /// The temperature the gain is a polynomial in. The blob carries it in
+    /// the top bit of the static degree's byte ([`COIL_GAIN_BIT`]), so a bank
+    /// written before it (degree 1 … 3) decodes as [`GainOf::Loop`].
+    pub gain_of: GainOf,
+}
+
+/// The bit of the encoded static degree that marks a gain of T̂.
+pub const COIL_GAIN_BIT: u8 = 0x80;
+
+/// [`LagBank`] as the blob encodes it: the same fields in the same order,
+/// the gain's temperature folded into the static degree's byte.
+#[derive(Clone, Copy, Serialize, Deserialize)]
+struct WireLagBank {
+    taus_s: [f32; BANK_FILTERS],
+    filters: u8,
+    coil_lag_min: [f32; BANK_FILTERS],
+    ref_c: f32,
+    gain_per_c: f32,
+    gain_per_c2: f32,
+    degree_and_gain: u8,
+    coil_min_c: f32,
+    coil_max_c: f32,
+}
+
+impl From<LagBank> for WireLagBank {
+    fn from(b: LagBank) -> Self {
+        let gain = match b.gain_of {
+            GainOf::Loop => 0,
+            GainOf::Coil => COIL_GAIN_BIT,
+        };
+        WireLagBank {
+            taus_s: b.taus_s,
+            filters: b.filters,
+            coil_lag_min: b.coil_lag_min,
+            ref_c: b.ref_c,
+            gain_per_c: b.gain_per_c,
+            gain_per_c2: b.gain_per_c2,
+            degree_and_gain: b.static_degree | gain,
+            coil_min_c: b.coil_min_c,
+            coil_max_c: b.coil_max_c,
+        }
+    }
+}
+
+impl From<WireLagBank> for LagBank {
+    fn from(w: WireLagBank) -> Self {
+        LagBank {
+            taus_s: w.taus_s,
+            filters: w.filters,
+            coil_lag_min: w.coil_lag_min,
+            ref_c: w.ref_c,
+            gain_per_c: w.gain_per_c,
+            gain_per_c2: w.gain_per_c2,
+            static_degree: w.degree_and_gain & !COIL_GAIN_BIT,
+            coil_min_c: w.coil_min_c,
+            coil_max_c: w.coil_max_c,
+            gain_of: if w.degree_and_gain & COIL_GAIN_BIT == 0 {
+                GainOf::Loop
+            } else {
+                GainOf::Coil
+            },
+        }
+    }
 }
 
 impl LagBank {
@@ -90,6 +173,7 @@ impl LagBank {
             static_degree: 1,
             coil_min_c: -MAX_TEMP_C,
             coil_max_c: MAX_TEMP_C,
+            gain_of: GainOf::Loop,
         };
         bank.is_valid().then_some(bank)
     }
@@ -160,6 +244,23 @@ impl LagBank {
         t_hat
     }
 
+    /// The temperature the gain is evaluated at, °C: the loop temperature or
+    /// the coil's, per [`Self::gain_of`].
+    #[inline(always)]
+    pub fn gain_temp_c(&self, temp_c: f32, coil_temp_c: f32) -> f32 {
+        match self.gain_of {
+            GainOf::Loop => temp_c,
+            GainOf::Coil => coil_temp_c,
+        }
+    }
+
+    /// The Shupe gain g at the gain temperature `gain_temp_c`, °C ([`Self::gain_temp_c`]).
+    #[inline(always)]
+    pub fn gain(&self, gain_temp_c: f32) -> f32 {
+        let dt = gain_temp_c - self.ref_c;
+        1.0 + dt * (self.gain_per_c + dt * self.gain_per_c2)
+    }
+
     /// The model inputs from the loop temperature, °C, and the filters' rates,
     /// °C/min (filters past [`Self::filter_count`] are ignored).
     #[inline(always)]
@@ -175,8 +276,7 @@ impl LagBank {
         let beyond = u - uc;
         let powers = [t_hat, uc * (uc + 2.0 * beyond), uc * uc * (uc + 3.0 * beyond)];
         let s = self.static_inputs();
-        let dt = temp_c - self.ref_c;
-        let gain = 1.0 + dt * (self.gain_per_c + dt * self.gain_per_c2);
+        let gain = self.gain(self.gain_temp_c(temp_c, t_hat));
         for (o, p) in out.iter_mut().zip(powers.iter().take(s)) {
             *o = *p;
         }
@@ -209,7 +309,7 @@ pub enum BankInput {
         /// 1, 2 or 3.
         power: u8,
     },
-    /// g(T)·ΔT_k of filter `filter` (time constant `tau_s`, s).
+    /// g·ΔT_k of filter `filter` (time constant `tau_s`, s), g the gain ([`LagBank::gain`]).
     Rate {
         /// Index of the filter, fastest first.
         filter: u8,
@@ -258,6 +358,56 @@ mod tests {
         // T̂ = 24 − 2·0.5 − 8·0.25 = 21; u = 1; g = 1 + 4/16 = 1.25.
         assert_eq!(out, [21.0, 1.0, 1.0, 0.625, 0.3125]);
         assert_eq!(b.dims(), 5);
+    }
+
+    #[test]
+    fn a_coil_gain_is_evaluated_at_the_coil_temperature() {
+        let b = LagBank {
+            gain_of: GainOf::Coil,
+            ..bank()
+        };
+        let mut rates = [0.0; BANK_FILTERS];
+        rates[..2].copy_from_slice(&[0.5, 0.25]);
+        let mut out = [0.0; 5];
+        b.inputs(24.0, &rates, &mut out);
+        // T̂ = 21 (as above); g = 1 + 1/16 at T̂, not 1 + 4/16 at T.
+        assert_eq!(out, [21.0, 1.0, 1.0, 0.53125, 0.265625]);
+        // At rest T̂ = T: both forms agree.
+        let rest = [0.0; BANK_FILTERS];
+        let (mut coil, mut loop_) = ([0.0; 5], [0.0; 5]);
+        b.inputs(30.0, &rest, &mut coil);
+        bank().inputs(30.0, &rest, &mut loop_);
+        assert_eq!(coil, loop_);
+    }
+
+    #[test]
+    fn the_gain_s_temperature_rides_in_the_static_degree_s_byte_and_older_banks_keep_the_loop_gain() {
+        let loop_bank = bank();
+        let coil_bank = LagBank {
+            gain_of: GainOf::Coil,
+            ..loop_bank
+        };
+        let encode = |b: LagBank| {
+            let mut buf = [0u8; 256];
+            postcard::to_slice(&b, &mut buf).unwrap().to_vec()
+        };
+        let (loop_bytes, coil_bytes) = (encode(loop_bank), encode(coil_bank));
+        // The encodings differ in one byte, the static degree's, which
+        // carries the coil gain in its top bit: a bank written before the
+        // coil gain (degree 1 … 3 alone) reads as a gain of T.
+        assert_eq!(loop_bytes.len(), coil_bytes.len());
+        let differ: Vec<usize> = (0..loop_bytes.len())
+            .filter(|&i| loop_bytes[i] != coil_bytes[i])
+            .collect();
+        assert_eq!(differ.len(), 1);
+        assert_eq!((loop_bytes[differ[0]], coil_bytes[differ[0]]), (3, 3 | COIL_GAIN_BIT));
+        for (b, bytes) in [(loop_bank, &loop_bytes), (coil_bank, &coil_bytes)] {
+            assert_eq!(postcard::from_bytes::<LagBank>(bytes).unwrap(), b);
+        }
+        // The flag beside a degree out of range is still refused as a degree.
+        let mut bad = coil_bytes.clone();
+        bad[differ[0]] = 4 | COIL_GAIN_BIT;
+        assert!(!postcard::from_bytes::<LagBank>(&bad).unwrap().is_valid());
     }
 
     #[test]

@@ -241,7 +241,9 @@ fn svr_pso_on_multi_point_runs_selects_by_correlation_or_validation_and_generali
 
     // The default: the subset of thermometers that validates best on the
     // training run's folds. Beyond the training ramp rate it reaches 90 % and
-    // beats the best single-point model (the loop sensor, multiscale rbf).
+    // beats the RBF network on the loop sensor's multi-scale inputs, the
+    // paper's claim. (The default lag bank, a thermal model of the coil, beats
+    // both on this plant: 98.0 % against 97.3 % when this was written.)
     let validated = FitOptions {
         method: Method::SvrPso,
         ..FitOptions::default()
@@ -255,9 +257,11 @@ fn svr_pso_on_multi_point_runs_selects_by_correlation_or_validation_and_generali
         "the chosen thermometers {chosen:?} are among the best subsets"
     );
     assert_improves(&outcome.model, &verify, 90.0, "svr-pso, validated thermometers");
-    let single_point = fit::fit(std::slice::from_ref(&train), &[], &FitOptions::default())
-        .unwrap()
-        .model;
+    let multiscale = FitOptions {
+        features: trainer::fit::RbfFeatures::Multiscale,
+        ..FitOptions::default()
+    };
+    let single_point = fit::fit(std::slice::from_ref(&train), &[], &multiscale).unwrap().model;
     let improvement = |m: &rbf_core::Model| evaluate_run(m, &verify[0]).cluster_std_improvement_pct;
     assert!(
         improvement(&outcome.model) > improvement(&single_point),

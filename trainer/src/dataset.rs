@@ -14,7 +14,7 @@
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
-use rbf_core::lag_bank::{BANK_FILTERS, LagBank};
+use rbf_core::lag_bank::{BANK_FILTERS, GainOf, LagBank};
 use rbf_core::record::Axis;
 use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, FeatureSet, Flags, GyroSample, MAX_INPUTS};
 
@@ -621,7 +621,7 @@ fn derive_blocks(blocks: Blocks, features: &FeatureConfig) -> Blocks {
 /// filters, without another pass over the samples: each block's inputs are
 /// `bank`'s inputs ([`LagBank::inputs`], the firmware's code) at the block's
 /// mean temperature and mean rates. The bank's inputs are smooth in those
-/// (powers of T̂ and a gain of T times the rates), and within a 1-s block
+/// (powers of T̂ and a gain of T̂ or T times the rates), and within a 1-s block
 /// the temperature moves by hundredths of a degree, so the mean of the
 /// inputs and the inputs of the means differ far below the bias noise
 /// (`the_default_fit_from_derived_blocks_matches_the_fit_on_per_sample_blocks`
@@ -670,18 +670,24 @@ pub fn bank_blocks(plain: &Blocks, bank: &LagBank) -> Blocks {
         (lo - beyond[0].0 - lag, hi + beyond[0].1 + lag)
     };
     // The gain's largest size, and its largest change within a block, over
-    // the temperatures the samples reached.
-    let (temp_lo, temp_hi) = plain
-        .sample_range
-        .first()
-        .copied()
-        .unwrap_or_else(|| plain.block_range(0));
-    let ones = [1.0; BANK_FILTERS];
-    let gain_at = |t: f64| inputs(t, &ones[..n])[statics];
-    let gain = gain_at(temp_lo).abs().max(gain_at(temp_hi).abs());
-    let gain_change = [temp_lo, temp_hi]
+    // the temperatures the samples reached: the loop's, or the coil's for a
+    // gain of T̂ (whose samples also move with the lags).
+    let ((gain_lo, gain_hi), (below, above)) = match bank.gain_of {
+        GainOf::Loop => (
+            plain
+                .sample_range
+                .first()
+                .copied()
+                .unwrap_or_else(|| plain.block_range(0)),
+            beyond[0],
+        ),
+        GainOf::Coil => (coil, (beyond[0].0 + lag, beyond[0].1 + lag)),
+    };
+    let gain_at = |t: f64| f64::from(bank.gain(t as f32));
+    let gain = gain_at(gain_lo).abs().max(gain_at(gain_hi).abs());
+    let gain_change = [gain_lo, gain_hi]
         .iter()
-        .flat_map(|&t| [beyond[0].1, -beyond[0].0].map(|d| (gain_at(t + d) - gain_at(t)).abs()))
+        .flat_map(|&t| [above, -below].map(|d| (gain_at(t + d) - gain_at(t)).abs()))
         .fold(0.0, f64::max);
     out.sample_range = (0..out.dims)
         .map(|i| {

@@ -492,14 +492,18 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     // per filter; the filters' time constants rise from seconds to hours and
     // are the ΔT windows the firmware runs.
     assert_eq!(v["features"]["set"], "LagBank");
+    assert_eq!(
+        v["features"]["lag_bank"]["gain_of"], "T̂",
+        "the Shupe gain is of the coil's temperature"
+    );
     let taus: Vec<f64> = v["features"]["lag_bank"]["taus_s"]
         .as_array()
         .unwrap()
         .iter()
         .map(|t| t.as_f64().unwrap())
         .collect();
-    assert!((4..=6).contains(&taus.len()), "{taus:?}");
-    assert!(taus.windows(2).all(|w| w[1] > w[0]) && taus[0] >= 15.0 && taus[taus.len() - 1] <= 15360.0);
+    assert!((4..=5).contains(&taus.len()), "{taus:?}");
+    assert!(taus.windows(2).all(|w| w[1] > w[0]) && taus[0] >= 15.0 && taus[taus.len() - 1] <= 7680.0);
     assert_eq!(v["inputs"].as_u64().unwrap() as usize, 3 + taus.len());
     assert_eq!(v["features"]["windows_s"], v["features"]["lag_bank"]["taus_s"]);
     assert_eq!(v["features"]["inputs"][0], "T̂ [°C]");
@@ -509,7 +513,7 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     );
     // The first range is that of the mean coil temperature T̂ over the
     // training run's used samples, a lagged (or led) copy of the loop
-    // temperature: near its range, most of its span. The bank follows its
+    // temperature: within a few degrees of its range. The bank follows its
     // cubic over that range (from 10-s means, the ranges from samples) and,
     // where the edge test trusts the cubic, up to one held-out band (0.3 of
     // the range) past an end.
@@ -538,7 +542,9 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
         (t_min - lo).abs() < 5.0 && (t_max - hi).abs() < 5.0,
         "{t_range} vs loop {lo} … {hi}"
     );
-    assert!(t_max - t_min > 0.8 * (hi - lo), "{t_range} vs loop {lo} … {hi}");
+    // 30-min holds do not settle a coil that lags its sensor by half an hour
+    // (this run's identified lags add up to 35 min): T̂ spans 60 % of the loop's range.
+    assert!(t_max - t_min > 0.5 * (hi - lo), "{t_range} vs loop {lo} … {hi}");
     let text = stdout(&trainer(&["inspect", model.to_str().unwrap()]));
     assert!(text.contains("CRC-32          ok"), "{text}");
 }

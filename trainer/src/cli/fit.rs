@@ -7,6 +7,7 @@ use anyhow::Context;
 use clap::builder::RangedU64ValueParser;
 use rbf_core::features::Probe;
 use rbf_core::model::ModelBody;
+use rbf_core::lag_bank::GainOf;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::blobfile::encode_model;
 use trainer::dataset::{RunFiles, RunSet};
@@ -92,8 +93,8 @@ pub struct Args {
     /// Inputs of --method rbf (see --help).
     ///
     /// lag-bank (default) = the thermal lag bank: the mean coil temperature
-    /// T̂ = T + Σ a_k·ΔT_k and the loop temperature's rates ΔT_k through 4–6 derivative
-    /// filters from 15 s to 4 h, times a Shupe gain linear in T; a cubic in T̂ and the rates
+    /// T̂ = T + Σ a_k·ΔT_k and the loop temperature's rates ΔT_k through 4–5 derivative
+    /// filters from 15 s to 2 h, times a Shupe gain linear in T̂; a cubic in T̂ and the rates
     /// linear; filter set, coil lags a_k and gain identified from the runs and chosen by how
     /// well they predict held-out thermal events (or whole runs, or --validate runs); past the
     /// covered range of T̂ the cubic continues along its tangent, or itself for one band where
@@ -468,6 +469,14 @@ pub fn write_summary(
     Ok(())
 }
 
+/// The temperature a bank's gain is of, as the fit report writes it: `T̂` or `T`.
+fn gain_symbol(of: GainOf) -> &'static str {
+    match of {
+        GainOf::Coil => "T̂",
+        GainOf::Loop => "T",
+    }
+}
+
 /// The lag bank a fit identified, how it was chosen, and what the training runs covered.
 fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankSearch) -> anyhow::Result<()> {
     let FeatureSet::LagBank(bank) = model.features().set else {
@@ -476,13 +485,14 @@ fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankS
     let list = |v: &[f32], digits: usize| v.iter().map(|x| format!("{x:.digits$}")).collect::<Vec<_>>().join(", ");
     writeln!(
         out,
-        "lag bank: τ [{}] s; coil lags a [{}] min (T̂ = T + Σ a·ΔT); Shupe gain g = 1 {:+.3e}·(T − {}) {:+.3e}·(T − {})²",
+        "lag bank: τ [{}] s; coil lags a [{}] min (T̂ = T + Σ a·ΔT); Shupe gain g = 1 {:+.3e}·({of} − {}) {:+.3e}·({of} − {})²",
         list(bank.taus(), 0),
         list(bank.coil_lags(), 2),
         bank.gain_per_c,
         bank.ref_c,
         bank.gain_per_c2,
-        bank.ref_c
+        bank.ref_c,
+        of = gain_symbol(bank.gain_of),
     )?;
     let how = match search.folds {
         fit::events::FoldKind::Runs => format!("leave-one-run-out ({} folds)", search.fold_count),
@@ -626,6 +636,7 @@ pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
                 "ref_c": b.ref_c,
                 "gain_per_c": b.gain_per_c,
                 "gain_per_c2": b.gain_per_c2,
+                "gain_of": gain_symbol(b.gain_of),
                 "static_degree": b.static_degree,
                 "coil_range_c": [b.coil_min_c, b.coil_max_c],
             })),

@@ -7,7 +7,7 @@ use rbf_core::model::SERIAL_CAPACITY;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum RbfFeatures {
     /// The default: the thermal lag bank (`FeatureSet::LagBank`): the mean
-    /// coil temperature T̂ and the loop temperature's rates through up to six
+    /// coil temperature T̂ and the loop temperature's rates through up to five
     /// derivative filters from seconds to hours, their time constants, coil
     /// lags and Shupe gain identified from the runs ([`lag_bank`](super::lag_bank)) and chosen
     /// on held-out thermal events; Gaussians and a cubic over T̂, the rates
