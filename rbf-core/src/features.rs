@@ -199,8 +199,9 @@ impl Probes {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 // An explicit tag: without it the compiler keeps the variant in a spare
 // value of the lag bank's `gain_of` (a niche), so every match on the set
-// decodes it and an empty model is no longer all zero bytes (4 KiB of
-// flash for its constant, 70 instructions per sample on the board).
+// decodes it and an empty model is no longer all zero bytes (10 KiB of
+// flash, a 4.6 KiB constant among it, and 70 instructions per sample on
+// the board, as docs/decisions.md records).
 #[repr(u8)]
 pub enum FeatureSet {
     /// (T): the loop temperature alone, for the cubic-in-T baseline.
