@@ -352,9 +352,20 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
     /// update); every axis's feature filters start afresh and its
     /// thermometers are read on the next sample.
     pub fn update_model(&mut self, change: impl FnOnce(&mut M)) {
-        change(&mut self.models);
-        self.compensators = [Compensator::new(); MAX_AXES];
-        self.temp_read_due = true;
+        self.update_model_if(|m| {
+            change(m);
+            true
+        });
+    }
+
+    /// Lets `command` act on the models between two samples; the filters
+    /// start afresh only when it says a model was installed.
+    pub fn update_model_if(&mut self, command: impl FnOnce(&mut M) -> bool) {
+        if command(&mut self.models) {
+            self.compensators = [Compensator::new(); MAX_AXES];
+            self.temp_read_due = true;
+            self.stats.filter_restarts = self.stats.filter_restarts.wrapping_add(1);
+        }
     }
 
     /// The output (to interleave command replies between frames).

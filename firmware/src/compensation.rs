@@ -55,6 +55,8 @@ pub struct LoopStats {
     /// Data-ready edges that passed without a processed sample (see
     /// [`CompensationLoop::step_at`]).
     pub samples_missed: u32,
+    /// Times the compensation filters restarted for a new model.
+    pub filter_restarts: u32,
 }
 
 impl LoopStats {
@@ -255,9 +257,21 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write, M: ModelHolder> CompensationLoo
     /// its `static` model through [`InPlaceModel::rebuild`]); the feature
     /// filters start afresh as after [`Self::replace_model`].
     pub fn update_model(&mut self, change: impl FnOnce(&mut M)) {
-        change(&mut self.model);
-        self.compensator = Compensator::new();
-        self.temp_read_due = true;
+        self.update_model_if(|m| {
+            change(m);
+            true
+        });
+    }
+
+    /// Lets `command` act on the model between two samples; the feature
+    /// filters start afresh only when it says a model was installed (an
+    /// unknown command, a refused blob or line noise changes nothing).
+    pub fn update_model_if(&mut self, command: impl FnOnce(&mut M) -> bool) {
+        if command(&mut self.model) {
+            self.compensator = Compensator::new();
+            self.temp_read_due = true;
+            self.stats.filter_restarts = self.stats.filter_restarts.wrapping_add(1);
+        }
     }
 
     /// The output (to interleave command replies between frames).

@@ -26,6 +26,11 @@ pub const STATUS_VALID: u16 = 1 << 0;
 pub const STATUS_OVER_RANGE: u16 = 1 << 1;
 /// STATUS: the closed loop lost lock.
 pub const STATUS_LOOP_UNLOCKED: u16 = 1 << 2;
+/// STATUS bits 8–15: the front end's sample counter (one step per sample).
+pub const STATUS_COUNTER_SHIFT: u32 = 8;
+/// Consecutive failed sample reads after which the front end is taken for
+/// reset and initialised afresh (its scale factor read again).
+pub const REINIT_AFTER_FAULTS: u8 = 16;
 
 const CRC8: crc::Crc<u8> = crc::Crc::<u8>::new(&crc::CRC_8_SMBUS);
 
@@ -49,19 +54,52 @@ pub enum Error<E> {
     BadScaleFactor,
     /// A sample failed its CRC.
     Crc,
+    /// The front end has not answered [`FrontEnd::init`] yet: no scale factor.
+    NotReady,
+    /// SAMPLE's counter has not moved since the last read: no new sample.
+    Stale,
 }
 
 /// The front end on an SPI device it owns.
+///
+/// There is no default scale factor: until the front end has answered
+/// [`FrontEnd::init`] every read fails ([`Error::NotReady`]; through
+/// [`RateFrontEnd::read_rate`], which retries the init on each sample, a
+/// flagged frame). [`REINIT_AFTER_FAULTS`] failed reads in a row (a front
+/// end that reset or lost power) make it initialise afresh.
 #[derive(Debug)]
 pub struct FrontEnd<SPI> {
     spi: SPI,
-    scale_dph: f32,
+    /// °/h per rate unit, once the front end answered.
+    scale_dph: Option<f32>,
+    /// STATUS's sample counter of the last sample read.
+    last_counter: Option<u8>,
+    /// Failed reads since the last good one.
+    faults_in_row: u8,
+    /// Times the front end was (re)initialised successfully.
+    inits: u32,
 }
 
 impl<SPI: SpiDevice> FrontEnd<SPI> {
-    /// A driver with scale factor 1 until [`FrontEnd::init`] reads it.
+    /// A driver without a scale factor (not ready) until [`FrontEnd::init`] reads one.
     pub fn new(spi: SPI) -> Self {
-        FrontEnd { spi, scale_dph: 1.0 }
+        FrontEnd {
+            spi,
+            scale_dph: None,
+            last_counter: None,
+            faults_in_row: 0,
+            inits: 0,
+        }
+    }
+
+    /// Whether the front end answered its init (a scale factor is known).
+    pub fn is_ready(&self) -> bool {
+        self.scale_dph.is_some()
+    }
+
+    /// Successful initialisations so far (more than one: the front end was re-initialised).
+    pub fn inits(&self) -> u32 {
+        self.inits
     }
 
     fn read<const N: usize>(&mut self, register: u8) -> Result<[u8; N], Error<SPI::Error>> {
@@ -82,21 +120,32 @@ impl<SPI: SpiDevice> FrontEnd<SPI> {
         if !(scale.is_finite() && scale > 0.0) {
             return Err(Error::BadScaleFactor);
         }
-        self.scale_dph = scale;
+        self.scale_dph = Some(scale);
+        self.last_counter = None;
+        self.faults_in_row = 0;
+        self.inits = self.inits.wrapping_add(1);
         Ok(())
     }
 
-    /// Reads the current sample: rate in °/h and whether the front end vouches for it.
+    /// Reads the current sample: rate in °/h and whether the front end
+    /// vouches for it. A sample whose counter (STATUS bits 8–15) equals the
+    /// last one read is no new sample ([`Error::Stale`]): a glitch on
+    /// data-ready, or a read before the front end had converted.
     pub fn read_sample(&mut self) -> Result<RateSample, Error<SPI::Error>> {
+        let scale_dph = self.scale_dph.ok_or(Error::NotReady)?;
         let b = self.read::<SAMPLE_LEN>(REG_SAMPLE)?;
         if CRC8.checksum(&b[0..6]) != b[6] {
             return Err(Error::Crc);
         }
         let status = u16::from_be_bytes([b[0], b[1]]);
+        let counter = (status >> STATUS_COUNTER_SHIFT) as u8;
+        if self.last_counter.replace(counter) == Some(counter) {
+            return Err(Error::Stale);
+        }
         let word = f32::from_bits(u32::from_be_bytes([b[2], b[3], b[4], b[5]]));
         let valid = status & STATUS_VALID != 0 && status & (STATUS_OVER_RANGE | STATUS_LOOP_UNLOCKED) == 0;
         Ok(RateSample {
-            rate_dph: word * self.scale_dph,
+            rate_dph: word * scale_dph,
             valid,
         })
     }
@@ -107,11 +156,32 @@ impl<SPI: SpiDevice> FrontEnd<SPI> {
     }
 }
 
+/// The SAMPLE register bytes of the front end's sample number `counter`
+/// (STATUS bits 8–15; the front end's side, emulations and tests).
+pub fn encode_counted_sample(status: u16, counter: u8, rate_word: f32) -> [u8; SAMPLE_LEN] {
+    encode_sample(status | (u16::from(counter) << STATUS_COUNTER_SHIFT), rate_word)
+}
+
 impl<SPI: SpiDevice> RateFrontEnd for FrontEnd<SPI> {
+    /// Initialises the front end first while it has not answered (one try
+    /// per sample: a front end that boots after the MCU is picked up as
+    /// soon as it answers), then reads the sample.
     fn read_rate(&mut self) -> Result<RateSample, SensorFault> {
-        self.read_sample().map_err(|e| match e {
+        if self.faults_in_row >= REINIT_AFTER_FAULTS {
+            self.scale_dph = None;
+        }
+        if self.scale_dph.is_none() && self.init().is_err() {
+            return Err(SensorFault::NotReady);
+        }
+        let read = self.read_sample();
+        self.faults_in_row = match read {
+            Ok(_) => 0,
+            Err(_) => self.faults_in_row.saturating_add(1),
+        };
+        read.map_err(|e| match e {
             Error::Crc => SensorFault::Integrity,
-            Error::WrongDevice(_) | Error::BadScaleFactor => SensorFault::WrongDevice,
+            Error::WrongDevice(_) | Error::BadScaleFactor | Error::NotReady => SensorFault::NotReady,
+            Error::Stale => SensorFault::Stale,
             Error::Spi(_) => SensorFault::Bus,
         })
     }
@@ -137,8 +207,11 @@ mod tests {
     fn init_reads_identity_and_scale_then_samples_scale_the_rate_word() {
         let mut script = read(REG_WHO_AM_I, &[0xF0, 0x6A]);
         script.extend(read(REG_SCALE_FACTOR, &2.0f32.to_bits().to_be_bytes()));
-        script.extend(read(REG_SAMPLE, &encode_sample(STATUS_VALID, 10.25)));
-        script.extend(read(REG_SAMPLE, &encode_sample(STATUS_VALID | STATUS_OVER_RANGE, 1e7)));
+        script.extend(read(REG_SAMPLE, &encode_counted_sample(STATUS_VALID, 1, 10.25)));
+        script.extend(read(
+            REG_SAMPLE,
+            &encode_counted_sample(STATUS_VALID | STATUS_OVER_RANGE, 2, 1e7),
+        ));
         let mut fe = FrontEnd::new(Mock::new(&script));
         fe.init().unwrap();
         assert_eq!(
@@ -184,13 +257,49 @@ mod tests {
         }
     }
 
+    fn init_script(scale: f32) -> Vec<Transaction<u8>> {
+        let mut script = read(REG_WHO_AM_I, &[0xF0, 0x6A]);
+        script.extend(read(REG_SCALE_FACTOR, &scale.to_bits().to_be_bytes()));
+        script
+    }
+
     #[test]
     fn corrupted_samples_and_bus_errors_are_faults() {
         let mut corrupted = encode_sample(STATUS_VALID, 1.0);
         corrupted[3] ^= 0x01;
-        let mut fe = FrontEnd::new(Mock::new(&read(REG_SAMPLE, &corrupted)));
+        let mut script = init_script(1.0);
+        script.extend(read(REG_SAMPLE, &corrupted));
+        let mut fe = FrontEnd::new(Mock::new(&script));
         assert_eq!(fe.read_rate(), Err(SensorFault::Integrity));
         fe.destroy().done();
-        assert_eq!(FrontEnd::new(FailingSpi).read_rate(), Err(SensorFault::Bus));
+        assert_eq!(FrontEnd::new(FailingSpi).read_rate(), Err(SensorFault::NotReady));
+    }
+
+    #[test]
+    fn a_front_end_that_boots_late_gives_no_rate_until_it_answers_then_its_own_scale() {
+        // First sample: WHO_AM_I reads 0xFFFF (electronics not up): no
+        // SAMPLE read at all, never a rate at scale 1. Second: it answers.
+        let mut script = read(REG_WHO_AM_I, &[0xFF, 0xFF]);
+        script.extend(init_script(4.0));
+        script.extend(read(REG_SAMPLE, &encode_counted_sample(STATUS_VALID, 7, 2.5)));
+        let mut fe = FrontEnd::new(Mock::new(&script));
+        assert_eq!(fe.read_rate(), Err(SensorFault::NotReady));
+        assert!(!fe.is_ready());
+        assert_eq!(fe.read_rate().map(|s| s.rate_dph), Ok(10.0));
+        assert_eq!(fe.inits(), 1);
+        fe.destroy().done();
+    }
+
+    #[test]
+    fn a_sample_whose_counter_did_not_move_is_stale_not_a_new_sample() {
+        let mut script = init_script(1.0);
+        script.extend(read(REG_SAMPLE, &encode_counted_sample(STATUS_VALID, 255, 1.0)));
+        script.extend(read(REG_SAMPLE, &encode_counted_sample(STATUS_VALID, 255, 1.0)));
+        script.extend(read(REG_SAMPLE, &encode_counted_sample(STATUS_VALID, 0, 3.0)));
+        let mut fe = FrontEnd::new(Mock::new(&script));
+        assert!(fe.read_rate().is_ok());
+        assert_eq!(fe.read_rate(), Err(SensorFault::Stale));
+        assert_eq!(fe.read_rate().map(|s| s.rate_dph), Ok(3.0), "the counter wraps");
+        fe.destroy().done();
     }
 }

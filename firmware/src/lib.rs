@@ -11,7 +11,10 @@
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
 //! - `emulated_flash` (feature `test-harness`): NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
 //! - `fault_injection` (feature `test-harness`): buses that fail on a schedule and the fault campaign of the QEMU fault board;
-//! - [`fault`]: the fault record kept across a reset and the boot report frame;
+//! - [`fault`]: the fault record kept across a reset and the boot report frame; [`health`]: the health report;
+//! - the board's peripherals, bounded and host-tested (`cargo xtask board-faults`): [`clock`] (deadlines),
+//!   [`i2c_master`] (I2C with timeouts and bus recovery), [`flash_ctl`] (the flash controller),
+//!   [`watchdog`] (IWDG periods), [`pacing`] (data-ready stamps to sample steps);
 //! - [`bench`](mod@bench): the board's `bench` command (DWT cycle counts of its sample steps);
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
@@ -21,20 +24,26 @@
 
 pub mod axes;
 pub mod bench;
+pub mod clock;
 pub mod compensation;
 #[cfg(any(test, feature = "test-harness"))]
 pub mod emulated_flash;
 pub mod fault;
 #[cfg(any(test, feature = "test-harness"))]
 pub mod fault_injection;
+pub mod flash_ctl;
 pub mod frontend;
+pub mod health;
+pub mod i2c_master;
 pub mod model_store;
+pub mod pacing;
 #[cfg(any(test, feature = "test-harness"))]
 pub mod replay;
 pub mod sensors;
 pub mod tmp117;
 pub mod uart;
 pub mod update;
+pub mod watchdog;
 
 #[cfg(target_os = "none")]
 pub mod board;

@@ -354,6 +354,26 @@ impl<F: MappedFlash> ModelStore<F> {
         Ok(())
     }
 
+    /// The running model's identity: its blob's CRC-32 and its commit
+    /// sequence number (0 for a blob without a record); zeros when none runs.
+    pub fn identity(&self) -> crate::health::ModelIdentity {
+        let Some(slot) = self.active.filter(|_| self.loaded) else {
+            return crate::health::ModelIdentity::default();
+        };
+        crate::health::ModelIdentity {
+            blob_crc32: self.blob(slot).map_or(0, |b| CRC32.checksum(b)),
+            sequence: match self.states[slot & 1] {
+                SlotState::Committed(sequence) => sequence,
+                _ => 0,
+            },
+        }
+    }
+
+    /// The flash device (its error counters, for the health report).
+    pub fn flash(&self) -> &F {
+        &self.flash
+    }
+
     /// Gives the flash device back.
     pub fn into_flash(self) -> F {
         self.flash

@@ -96,16 +96,18 @@ impl I2c for EmulatedTmp117<'_> {
     }
 }
 
-/// The IFOG front end answering from the current replay row (scale factor 1).
+/// The IFOG front end answering from the current replay row (scale factor
+/// 1); each SAMPLE read is a new sample (its counter advances).
 #[derive(Debug)]
 pub struct EmulatedFrontEnd<'c> {
     current: &'c Cell<ReplaySample>,
+    counter: u8,
 }
 
 impl<'c> EmulatedFrontEnd<'c> {
     /// A front end reading `current`.
     pub fn new(current: &'c Cell<ReplaySample>) -> Self {
-        EmulatedFrontEnd { current }
+        EmulatedFrontEnd { current, counter: 0 }
     }
 }
 
@@ -130,7 +132,9 @@ impl SpiDevice for EmulatedFrontEnd<'_> {
                 4
             }
             frontend::REG_SAMPLE => {
-                reply = frontend::encode_sample(frontend::STATUS_VALID, self.current.get().rate_dph);
+                self.counter = self.counter.wrapping_add(1);
+                reply =
+                    frontend::encode_counted_sample(frontend::STATUS_VALID, self.counter, self.current.get().rate_dph);
                 frontend::SAMPLE_LEN
             }
             _ => return Err(spi::ErrorKind::Other),

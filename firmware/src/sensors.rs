@@ -12,6 +12,12 @@ pub enum SensorFault {
     Integrity,
     /// The device answered with an unexpected identity.
     WrongDevice,
+    /// The device has not answered its initialisation yet (it is retried).
+    NotReady,
+    /// The device had no new sample (its sample counter did not move).
+    Stale,
+    /// A wait on the bus ran out of time; the bus was recovered.
+    Timeout,
 }
 
 /// A loop thermometer: one temperature in °C per successful read.

@@ -39,17 +39,44 @@ pub enum Error<E> {
     WrongDevice(u16),
 }
 
+/// TEMP_RESULT's power-on value (−256 °C): no conversion has finished yet.
+pub const RESULT_NOT_CONVERTED: i16 = i16::MIN;
+
 /// A TMP117 on an I2C bus it owns (give it back with [`Tmp117::destroy`]).
+///
+/// Until it has answered [`Tmp117::init`], each
+/// [`Thermometer::read_temp_c`] tries the init again first (a sensor that
+/// powers up late, or a bus that was stuck, is picked up when it answers);
+/// the reads fail meanwhile and the loop flags them.
 #[derive(Debug)]
 pub struct Tmp117<I2C> {
     i2c: I2C,
     address: u8,
+    ready: bool,
 }
 
 impl<I2C: I2c> Tmp117<I2C> {
     /// A driver for the TMP117 at `address`; no bus traffic yet.
     pub fn new(i2c: I2C, address: u8) -> Self {
-        Tmp117 { i2c, address }
+        Tmp117 {
+            i2c,
+            address,
+            ready: false,
+        }
+    }
+
+    /// A driver for a TMP117 already initialised (the array keeps that state itself).
+    fn started(i2c: I2C, address: u8) -> Self {
+        Tmp117 {
+            i2c,
+            address,
+            ready: true,
+        }
+    }
+
+    /// Whether the sensor answered its init.
+    pub fn is_ready(&self) -> bool {
+        self.ready
     }
 
     fn read_register(&mut self, register: u8) -> Result<u16, Error<I2C::Error>> {
@@ -69,7 +96,9 @@ impl<I2C: I2c> Tmp117<I2C> {
         let [hi, lo] = CONFIG_CONTINUOUS_AVG8.to_be_bytes();
         self.i2c
             .write(self.address, &[REG_CONFIGURATION, hi, lo])
-            .map_err(Error::I2c)
+            .map_err(Error::I2c)?;
+        self.ready = true;
+        Ok(())
     }
 
     /// The latest conversion result, raw register value.
@@ -85,10 +114,20 @@ impl<I2C: I2c> Tmp117<I2C> {
 
 impl<I2C: I2c> Thermometer for Tmp117<I2C> {
     fn read_temp_c(&mut self) -> Result<f32, SensorFault> {
-        self.read_raw().map(tmp117_celsius).map_err(|e| match e {
+        let fault = |e: Error<I2C::Error>| match e {
             Error::I2c(_) => SensorFault::Bus,
             Error::WrongDevice(_) => SensorFault::WrongDevice,
-        })
+        };
+        if !self.ready {
+            self.init().map_err(|e| match e {
+                Error::I2c(_) => SensorFault::NotReady,
+                other => fault(other),
+            })?;
+        }
+        match self.read_raw().map_err(fault)? {
+            RESULT_NOT_CONVERTED => Err(SensorFault::NotReady),
+            raw => Ok(tmp117_celsius(raw)),
+        }
     }
 }
 
@@ -106,13 +145,20 @@ pub struct Tmp117Array<B1, B2> {
     bus1: B1,
     bus2: B2,
     fitted: u8,
+    /// Thermometers mounted but not yet answering: their init is retried when they are wanted.
+    pending: u8,
 }
 
 impl<B1: I2c, B2: I2c> Tmp117Array<B1, B2> {
     /// The array over two buses with the thermometers of `fitted` (bit i =
     /// thermometer i) mounted; no bus traffic yet.
     pub fn new(bus1: B1, bus2: B2, fitted: u8) -> Self {
-        Tmp117Array { bus1, bus2, fitted }
+        Tmp117Array {
+            bus1,
+            bus2,
+            fitted,
+            pending: 0,
+        }
     }
 
     /// Checks each fitted sensor's identity and starts its conversions.
@@ -127,6 +173,7 @@ impl<B1: I2c, B2: I2c> Tmp117Array<B1, B2> {
             }
         }
         self.fitted &= !failed;
+        self.pending = failed;
         failed
     }
 
@@ -144,8 +191,8 @@ impl<B1: I2c, B2: I2c> Tmp117Array<B1, B2> {
     ) -> Option<R> {
         let &address = ADDRESSES.get(i % PER_BUS)?;
         match i / PER_BUS {
-            0 => Some(on1(&mut Tmp117::new(&mut self.bus1, address))),
-            1 => Some(on2(&mut Tmp117::new(&mut self.bus2, address))),
+            0 => Some(on1(&mut Tmp117::started(&mut self.bus1, address))),
+            1 => Some(on2(&mut Tmp117::started(&mut self.bus2, address))),
             _ => None,
         }
     }
@@ -164,6 +211,12 @@ impl<B1: I2c, B2: I2c> crate::sensors::Thermometers for Tmp117Array<B1, B2> {
             *reading = None;
             if wanted & bit == 0 {
                 continue;
+            }
+            // A mounted thermometer that has not answered yet: try its init again.
+            if self.pending & bit != 0 && self.with_sensor(i, |t| t.init().is_ok(), |t| t.init().is_ok()) == Some(true)
+            {
+                self.pending &= !bit;
+                self.fitted |= bit;
             }
             if self.fitted & bit != 0 {
                 *reading = self
@@ -211,10 +264,32 @@ mod tests {
                 embedded_hal::i2c::NoAcknowledgeSource::Address,
             )),
         ];
-        let mut tmp = Tmp117::new(Mock::new(&expectations), 0x48);
+        let mut tmp = Tmp117::started(Mock::new(&expectations), 0x48);
         assert_eq!(tmp.read_temp_c(), Ok(25.0));
         assert_eq!(tmp.read_temp_c(), Ok(-0.007_812_5));
         assert_eq!(tmp.read_temp_c(), Err(SensorFault::Bus));
+        tmp.destroy().done();
+    }
+
+    #[test]
+    fn a_late_sensor_is_initialised_when_it_answers_and_its_power_on_value_is_no_reading() {
+        let nack = ErrorKind::NoAcknowledge(embedded_hal::i2c::NoAcknowledgeSource::Address);
+        let expectations = [
+            Transaction::write_read(0x48, vec![REG_DEVICE_ID], vec![0, 0]).with_error(nack),
+            Transaction::write_read(0x48, vec![REG_DEVICE_ID], vec![0x01, 0x17]),
+            Transaction::write(0x48, vec![REG_CONFIGURATION, 0x00, 0x20]),
+            Transaction::write_read(0x48, vec![REG_TEMP_RESULT], vec![0x80, 0x00]),
+            Transaction::write_read(0x48, vec![REG_TEMP_RESULT], vec![0x0C, 0x80]),
+        ];
+        let mut tmp = Tmp117::new(Mock::new(&expectations), 0x48);
+        assert_eq!(tmp.read_temp_c(), Err(SensorFault::NotReady), "not answering yet");
+        assert_eq!(
+            tmp.read_temp_c(),
+            Err(SensorFault::NotReady),
+            "−256 °C: not converted yet"
+        );
+        assert!(tmp.is_ready());
+        assert_eq!(tmp.read_temp_c(), Ok(25.0));
         tmp.destroy().done();
     }
 
@@ -239,6 +314,8 @@ mod tests {
             start(0x48),
             Transaction::write_read(0x4B, vec![REG_DEVICE_ID], vec![0x02, 0x75]),
             Transaction::write_read(0x48, vec![REG_TEMP_RESULT], vec![0x0D, 0x00]),
+            // temp_h's init is tried again when it is wanted.
+            Transaction::write_read(0x4B, vec![REG_DEVICE_ID], vec![0x02, 0x75]),
         ];
         let mut array = Tmp117Array::new(Mock::new(&bus1), Mock::new(&bus2), 0b1001_0101);
         assert_eq!(array.init(), 0b1000_0000, "temp_h is not a TMP117");

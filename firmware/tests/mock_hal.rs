@@ -27,6 +27,26 @@ fn spi_read(register: u8, reply: Vec<u8>) -> [SpiTransaction<u8>; 4] {
     ]
 }
 
+/// The front end's init traffic (identity, scale factor 1), which the
+/// driver sends before its first sample read.
+fn spi_init() -> Vec<SpiTransaction<u8>> {
+    let mut script = spi_read(frontend::REG_WHO_AM_I, frontend::WHO_AM_I.to_be_bytes().to_vec()).to_vec();
+    script.extend(spi_read(
+        frontend::REG_SCALE_FACTOR,
+        1.0f32.to_bits().to_be_bytes().to_vec(),
+    ));
+    script
+}
+
+/// The TMP117's init traffic (identity, continuous conversion), which the
+/// driver sends before its first temperature read.
+fn i2c_init() -> Vec<I2cTransaction> {
+    vec![
+        I2cTransaction::write_read(ADDRESS, vec![tmp117::REG_DEVICE_ID], vec![0x01, 0x17]),
+        I2cTransaction::write(ADDRESS, vec![tmp117::REG_CONFIGURATION, 0x00, 0x20]),
+    ]
+}
+
 #[test]
 fn recorded_run_through_the_mock_hal_gives_the_trainers_numbers() {
     let dir = tempfile::TempDir::new().unwrap();
@@ -34,8 +54,8 @@ fn recorded_run_through_the_mock_hal_gives_the_trainers_numbers() {
     let run = Run::load(&slice).unwrap();
     let expected = compensate_run(Some(&model), &run);
 
-    let mut i2c_script = Vec::new();
-    let mut spi_script = Vec::new();
+    let mut i2c_script = i2c_init();
+    let mut spi_script = spi_init();
     for i in 0..run.len() {
         let temp = I2cTransaction::write_read(ADDRESS, vec![tmp117::REG_TEMP_RESULT], vec![0, 0]);
         i2c_script.push(match run.temp_c[i] {
@@ -46,7 +66,7 @@ fn recorded_run_through_the_mock_hal_gives_the_trainers_numbers() {
             ),
             None => temp.with_error(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address)),
         });
-        let word = frontend::encode_sample(frontend::STATUS_VALID, run.rate_dph[i] as f32);
+        let word = frontend::encode_counted_sample(frontend::STATUS_VALID, i as u8, run.rate_dph[i] as f32);
         spi_script.extend(spi_read(frontend::REG_SAMPLE, word.to_vec()));
     }
     let config = LoopConfig {
@@ -88,8 +108,8 @@ fn recorded_run_through_the_mock_hal_gives_the_trainers_numbers() {
 fn decimated_temperature_reads_and_front_end_faults_still_emit_every_frame() {
     // Thermometer read every 4th sample; the front end sends a corrupt sample
     // (CRC), an over-range one and a NaN word: all flagged 16, none dropped.
-    let mut i2c_script = Vec::new();
-    let mut spi_script = Vec::new();
+    let mut i2c_script = i2c_init();
+    let mut spi_script = spi_init();
     let words: [(u16, f32, bool); 8] = [
         (frontend::STATUS_VALID, 10.0, true),
         (frontend::STATUS_VALID, 11.0, true),
@@ -108,7 +128,7 @@ fn decimated_temperature_reads_and_front_end_faults_still_emit_every_frame() {
                 vec![0x0C, 0x80],
             ));
         }
-        let mut bytes = frontend::encode_sample(status, word).to_vec();
+        let mut bytes = frontend::encode_counted_sample(status, i as u8, word).to_vec();
         if !crc_ok {
             bytes[6] ^= 0xFF;
         }
@@ -176,19 +196,19 @@ fn loop_over<W: embedded_io::Write>(
     samples: usize,
     output: W,
 ) -> CompensationLoop<Tmp117<I2cMock>, FrontEnd<SpiMock<u8>>, W> {
-    let i2c = [I2cTransaction::write_read(
+    let mut i2c = i2c_init();
+    i2c.push(I2cTransaction::write_read(
         ADDRESS,
         vec![tmp117::REG_TEMP_RESULT],
         vec![0x0C, 0x80],
-    )];
-    let spi: Vec<_> = (0..samples)
-        .flat_map(|_| {
-            spi_read(
-                frontend::REG_SAMPLE,
-                frontend::encode_sample(frontend::STATUS_VALID, 1.0).to_vec(),
-            )
-        })
-        .collect();
+    ));
+    let mut spi = spi_init();
+    spi.extend((0..samples).flat_map(|i| {
+        spi_read(
+            frontend::REG_SAMPLE,
+            frontend::encode_counted_sample(frontend::STATUS_VALID, i as u8, 1.0).to_vec(),
+        )
+    }));
     let config = LoopConfig {
         compensator: CompensatorConfig::for_sample_rate(1.0),
         temp_read_every: 100,

@@ -1,0 +1,273 @@
+//! The health report: why the board last reset, what its peripherals have
+//! been through since, and which model it runs.
+//!
+//! Sent after every reset (after the boot report of a fault or watchdog
+//! reset, before the first output frame) and in answer to
+//! [`CMD_HEALTH`] over the command channel:
+//! `COBS(payload) 0x00`, payload [`HEALTH_REPORT_LEN`] bytes, integers
+//! little-endian (docs/firmware.md, "Health report"):
+//!
+//! | offset | bytes | field |
+//! |---|---|---|
+//! | 0 | 1 | tag [`HEALTH_REPORT_TAG`] (0xFC) |
+//! | 1 | 1 | format version ([`HEALTH_REPORT_VERSION`]) |
+//! | 2 | 1 | reset cause ([`ResetCause`]) |
+//! | 3 | 1 | RCC_CSR bits 24–31 at boot |
+//! | 4 | 4 | fault PC (panic, HardFault; else 0) |
+//! | 8 | 4 | fault LR |
+//! | 12 | 4 × 12 | [`HealthCounters`] in field order |
+//! | 60 | 4 | running model's blob CRC-32 (0: none) |
+//! | 64 | 4 | running model's commit sequence number (its serial; 0: none or uncommitted) |
+//!
+//! A receiver tells it from the other frames on the UART by its length
+//! (68; replies 2, boot report 11, single-axis output frames 18–22,
+//! three-axis 54–58) and its tag.
+
+use rbf_core::frame::cobs_encode;
+
+use crate::fault::{FaultReason, FaultRecord};
+
+/// Command: send the health report.
+pub const CMD_HEALTH: u8 = 0x03;
+/// First payload byte of a health report.
+pub const HEALTH_REPORT_TAG: u8 = 0xFC;
+/// The report layout's version.
+pub const HEALTH_REPORT_VERSION: u8 = 1;
+/// Payload bytes of a health report.
+pub const HEALTH_REPORT_LEN: usize = 68;
+/// Bytes of a COBS-framed health report with its terminator, at most.
+pub const HEALTH_FRAME_LEN: usize = HEALTH_REPORT_LEN + 2;
+
+/// Why the board last reset (from the fault record and RCC_CSR).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum ResetCause {
+    /// Power-on (or a brown-out reset at power-on).
+    PowerOn = 0,
+    /// The NRST pin (a debugger, a button).
+    Pin = 1,
+    /// Brown-out without power-on.
+    BrownOut = 2,
+    /// A software reset (SYSRESETREQ) without a fault record.
+    Software = 3,
+    /// The independent watchdog.
+    Watchdog = 4,
+    /// A panic (PC and LR in the report).
+    Panic = 5,
+    /// A HardFault (PC and LR in the report).
+    HardFault = 6,
+    /// Low-power management or the window watchdog.
+    Other = 7,
+}
+
+/// RCC_CSR bit: low-power reset.
+const CSR_LPWRRSTF: u32 = 1 << 31;
+/// RCC_CSR bit: window watchdog reset.
+const CSR_WWDGRSTF: u32 = 1 << 30;
+/// RCC_CSR bit: independent watchdog reset.
+const CSR_IWDGRSTF: u32 = 1 << 29;
+/// RCC_CSR bit: software reset.
+const CSR_SFTRSTF: u32 = 1 << 28;
+/// RCC_CSR bit: power-on/power-down reset.
+const CSR_PORRSTF: u32 = 1 << 27;
+/// RCC_CSR bit: NRST pin reset (also set by every internal reset).
+const CSR_PINRSTF: u32 = 1 << 26;
+/// RCC_CSR bit: brown-out reset.
+const CSR_BORRSTF: u32 = 1 << 25;
+
+impl ResetCause {
+    /// The cause of the last reset from the fault record (if one survived)
+    /// and RCC_CSR; the most specific one wins (every internal reset also
+    /// sets PINRSTF, a power-on also BORRSTF).
+    pub fn from_boot(record: Option<FaultRecord>, rcc_csr: u32) -> ResetCause {
+        match record.map(|r| r.reason) {
+            Some(FaultReason::Panic) => return ResetCause::Panic,
+            Some(FaultReason::HardFault) => return ResetCause::HardFault,
+            _ => {}
+        }
+        if rcc_csr & CSR_IWDGRSTF != 0 {
+            ResetCause::Watchdog
+        } else if rcc_csr & (CSR_WWDGRSTF | CSR_LPWRRSTF) != 0 {
+            ResetCause::Other
+        } else if rcc_csr & CSR_SFTRSTF != 0 {
+            ResetCause::Software
+        } else if rcc_csr & CSR_PORRSTF != 0 {
+            ResetCause::PowerOn
+        } else if rcc_csr & CSR_BORRSTF != 0 {
+            ResetCause::BrownOut
+        } else if rcc_csr & CSR_PINRSTF != 0 {
+            ResetCause::Pin
+        } else {
+            ResetCause::Other
+        }
+    }
+}
+
+/// Counters since the last reset (each wraps at 2^32).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HealthCounters {
+    /// Samples processed (frames emitted or attempted).
+    pub samples: u32,
+    /// Data-ready edges without a processed sample (flag 32).
+    pub samples_missed: u32,
+    /// Front-end reads that gave no sample (bus, CRC, not ready, stale).
+    pub rate_read_faults: u32,
+    /// Thermometer reads that gave no reading.
+    pub temp_read_faults: u32,
+    /// I2C transactions that ran out of time.
+    pub sensor_timeouts: u32,
+    /// I2C bus recoveries (nine clocks, STOP, peripheral reset), the one at boot included.
+    pub bus_recoveries: u32,
+    /// Front-end initialisations (more than one: it was re-initialised).
+    pub front_end_inits: u32,
+    /// Data-ready edges rejected as glitches.
+    pub data_ready_glitches: u32,
+    /// Steps synthesised while data-ready was silent.
+    pub synthetic_steps: u32,
+    /// Data-ready stamps lost to a full queue, plus command bytes lost (UART overrun or full queue).
+    pub overruns: u32,
+    /// Output frames dropped (the transmit queue was full).
+    pub output_dropped: u32,
+    /// Flash operations (erase, program) that failed.
+    pub flash_errors: u32,
+}
+
+impl HealthCounters {
+    fn words(&self) -> [u32; 12] {
+        [
+            self.samples,
+            self.samples_missed,
+            self.rate_read_faults,
+            self.temp_read_faults,
+            self.sensor_timeouts,
+            self.bus_recoveries,
+            self.front_end_inits,
+            self.data_ready_glitches,
+            self.synthetic_steps,
+            self.overruns,
+            self.output_dropped,
+            self.flash_errors,
+        ]
+    }
+}
+
+/// Which model runs: its blob's CRC-32 and its commit sequence number.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ModelIdentity {
+    /// CRC-32 (ISO-HDLC) of the running blob; 0 when none runs.
+    pub blob_crc32: u32,
+    /// The slot's commit sequence number; 0 when uncommitted or none.
+    pub sequence: u32,
+}
+
+/// Everything the report carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HealthReport {
+    /// Why the board last reset.
+    pub reset_cause: ResetCause,
+    /// RCC_CSR bits 24–31 at boot.
+    pub reset_flags: u8,
+    /// PC and LR of the fault that caused the reset (0 if none).
+    pub fault_pc: u32,
+    /// See `fault_pc`.
+    pub fault_lr: u32,
+    /// Counters since the reset.
+    pub counters: HealthCounters,
+    /// The running model.
+    pub model: ModelIdentity,
+}
+
+impl HealthReport {
+    /// The payload bytes (module docs).
+    pub fn to_bytes(&self) -> [u8; HEALTH_REPORT_LEN] {
+        let mut p = [0u8; HEALTH_REPORT_LEN];
+        let mut words = [0u32; 16];
+        words[0] = u32::from_le_bytes([
+            HEALTH_REPORT_TAG,
+            HEALTH_REPORT_VERSION,
+            self.reset_cause as u8,
+            self.reset_flags,
+        ]);
+        words[1] = self.fault_pc;
+        words[2] = self.fault_lr;
+        for (d, s) in words[3..15].iter_mut().zip(self.counters.words()) {
+            *d = s;
+        }
+        words[15] = self.model.blob_crc32;
+        for (chunk, w) in p.chunks_exact_mut(4).zip(words.iter().chain(&[self.model.sequence])) {
+            chunk.copy_from_slice(&w.to_le_bytes());
+        }
+        p
+    }
+
+    /// The COBS-framed report into `out`; the bytes used.
+    pub fn encode(&self, out: &mut [u8]) -> Option<usize> {
+        cobs_encode(&self.to_bytes(), out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_reset_cause_prefers_the_fault_record_then_the_most_specific_flag() {
+        let hard = FaultRecord {
+            reason: FaultReason::HardFault,
+            pc: 1,
+            lr: 2,
+        };
+        assert_eq!(ResetCause::from_boot(Some(hard), CSR_PINRSTF), ResetCause::HardFault);
+        assert_eq!(
+            ResetCause::from_boot(None, CSR_IWDGRSTF | CSR_PINRSTF),
+            ResetCause::Watchdog
+        );
+        assert_eq!(
+            ResetCause::from_boot(None, CSR_PORRSTF | CSR_BORRSTF | CSR_PINRSTF),
+            ResetCause::PowerOn
+        );
+        assert_eq!(
+            ResetCause::from_boot(None, CSR_BORRSTF | CSR_PINRSTF),
+            ResetCause::BrownOut
+        );
+        assert_eq!(
+            ResetCause::from_boot(None, CSR_SFTRSTF | CSR_PINRSTF),
+            ResetCause::Software
+        );
+        assert_eq!(ResetCause::from_boot(None, CSR_PINRSTF), ResetCause::Pin);
+    }
+
+    #[test]
+    fn the_report_lays_out_its_fields_as_documented_and_frames_to_68_bytes() {
+        let report = HealthReport {
+            reset_cause: ResetCause::Watchdog,
+            reset_flags: 0x24,
+            fault_pc: 0x0800_1234,
+            fault_lr: 0,
+            counters: HealthCounters {
+                samples_missed: 7,
+                flash_errors: 1,
+                ..HealthCounters::default()
+            },
+            model: ModelIdentity {
+                blob_crc32: 0xDEAD_BEEF,
+                sequence: 3,
+            },
+        };
+        let p = report.to_bytes();
+        assert_eq!(&p[..4], &[0xFC, 1, 4, 0x24]);
+        assert_eq!(u32::from_le_bytes(p[4..8].try_into().unwrap()), 0x0800_1234);
+        assert_eq!(u32::from_le_bytes(p[16..20].try_into().unwrap()), 7, "samples_missed");
+        assert_eq!(u32::from_le_bytes(p[56..60].try_into().unwrap()), 1, "flash_errors");
+        assert_eq!(u32::from_le_bytes(p[60..64].try_into().unwrap()), 0xDEAD_BEEF);
+        assert_eq!(u32::from_le_bytes(p[64..68].try_into().unwrap()), 3);
+        let mut out = [0u8; HEALTH_FRAME_LEN];
+        let n = report.encode(&mut out).unwrap();
+        let mut frame = out[..n].to_vec();
+        assert_eq!(
+            crate::update::cobs_decode_in_place(&mut frame[..n - 1]),
+            Some(HEALTH_REPORT_LEN)
+        );
+        assert_eq!(&frame[..HEALTH_REPORT_LEN], &p[..]);
+    }
+}
