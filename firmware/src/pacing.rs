@@ -38,7 +38,8 @@ pub struct Tick {
 pub struct PacerCounters {
     /// Edges rejected as glitches (closer than half a period to the last).
     pub glitches: u32,
-    /// Queued edges passed over for a newer one.
+    /// Edges passed over for a newer sample: queued behind a newer edge, or
+    /// a period or more before the step (lost to a full queue).
     pub backlog: u32,
     /// Steps synthesised while data-ready was silent.
     pub synthetic: u32,
@@ -76,6 +77,32 @@ impl Pacer {
         self.period_ticks as f32 / self.ticks_per_s
     }
 
+    /// A step for an edge a period or more before `now_ticks` (its stamp
+    /// waited in a queue that then overflowed, or data-ready stayed high
+    /// with no further edge) would read a newer sample than its edge's:
+    /// the step is moved to the newest whole period before now, the edges
+    /// between counted as missed by the loop.
+    fn catch_up(&mut self, tick: Tick, now_ticks: u32) -> Tick {
+        let Some((seq, stamp)) = self.last else {
+            return tick;
+        };
+        let behind = now_ticks.wrapping_sub(stamp);
+        if behind >= u32::MAX / 2 || behind < self.period_ticks {
+            return tick;
+        }
+        let periods = behind / self.period_ticks;
+        self.last = Some((
+            seq.wrapping_add(periods),
+            stamp.wrapping_add(periods.wrapping_mul(self.period_ticks)),
+        ));
+        self.counters.backlog = self.counters.backlog.wrapping_add(periods);
+        Tick {
+            seq: seq.wrapping_add(periods),
+            dt_s: tick.dt_s + (periods.wrapping_mul(self.period_ticks)) as f32 / self.ticks_per_s,
+            synthetic: false,
+        }
+    }
+
     /// Takes the stamps queued since the last call, oldest first, and the
     /// time now; the step to run, if any (see the module docs).
     pub fn take(&mut self, stamps: impl IntoIterator<Item = u32>, now_ticks: u32) -> Option<Tick> {
@@ -110,8 +137,8 @@ impl Pacer {
             newest = Some(Tick { dt_s, ..tick });
             self.last = Some((tick.seq, stamp));
         }
-        if newest.is_some() {
-            return newest;
+        if let Some(tick) = newest {
+            return Some(self.catch_up(tick, now_ticks));
         }
         // Silence: a step at the nominal period after the last one.
         let (seq, since) = match self.last {
@@ -188,10 +215,23 @@ mod tests {
     fn a_backlog_gives_one_step_for_the_newest_edge_the_others_missed() {
         let mut p = pacer();
         p.take([0], 0);
-        let t = p.take((1..=15).map(|i| i * 1000), 15_000).unwrap();
+        let t = p.take((1..=15).map(|i| i * 1000), 15_400).unwrap();
         assert_eq!(t.seq, 15, "edges 1..14 are missed samples, counted by the gap");
         assert!((t.dt_s - 0.015).abs() < 1e-6);
         assert_eq!(p.counters().backlog, 14);
+    }
+
+    #[test]
+    fn an_edge_stamped_long_before_the_step_is_moved_to_the_sample_read_now() {
+        // The queue kept edges 1..15; edges up to 200 were lost to it, or a
+        // level-triggered line gave none: SAMPLE holds sample 200 now.
+        let mut p = pacer();
+        p.take([0], 0);
+        let t = p.take((1..=15).map(|i| i * 1000), 200_300).unwrap();
+        assert_eq!(t.seq, 200);
+        assert!((t.dt_s - 0.2).abs() < 1e-6);
+        assert_eq!(p.counters().backlog, 14 + 185);
+        assert_eq!(p.take([201_000], 201_000).map(|t| t.seq), Some(201));
     }
 
     #[test]

@@ -13,6 +13,7 @@ use rbf_core::Model;
 use rbf_core::blob::MAX_BLOB_LEN;
 use rbf_core::frame::cobs_encode;
 
+use crate::compensation::InPlaceModel;
 use crate::model_store::{InstallError, MappedFlash, ModelStore, StoredModel};
 
 /// Command: install the model blob that follows.
@@ -158,6 +159,24 @@ pub fn execute_into<F: MappedFlash, M: StoredModel>(
         },
         _ => UpdateStatus::UnknownCommand,
     }
+}
+
+/// The board's command step on the running model held in place: runs
+/// `payload` on `store` and rebuilds `model` from the slot selected after
+/// it; the status. Pass it to the loop's `update_model_if` as
+/// `|m| run_in_place(store, payload, m) == UpdateStatus::Installed`, so
+/// that the filters restart only for a model actually installed.
+pub fn run_in_place<F: MappedFlash, M: StoredModel>(
+    store: &mut ModelStore<F>,
+    payload: &[u8],
+    model: &mut InPlaceModel<'_, M>,
+) -> UpdateStatus {
+    let mut status = UpdateStatus::UnknownCommand;
+    model.rebuild(|m| {
+        status = execute_into(store, payload, m);
+        store.model_loaded()
+    });
+    status
 }
 
 /// Encodes the reply to `command` into `out`; the bytes used.

@@ -200,6 +200,7 @@ pub fn ci() -> anyhow::Result<()> {
         run("cargo", &[&["build", "--release"][..], board].concat())?;
     }
     crate::firmware::check_panic_free()?;
+    crate::board_faults::board_faults()?;
     let (mut passed, mut failed) = run_tests(&["test", "--workspace"])?;
     // The tests that need QEMU, the cross build or PyPI (ignored in a plain `cargo test`).
     let (p, f) = run_tests(&["test", "--package", "e2e-tests", "--", "--ignored"])?;

@@ -14,6 +14,7 @@
 
 pub mod accuracy;
 pub mod bench;
+pub mod board_faults;
 pub mod board_stack;
 pub mod ci;
 pub mod faults;

@@ -49,6 +49,12 @@ enum Cmd {
     /// no panic is reachable from its loop and interrupt handlers (part of
     /// `ci`; docs/panic-free.md).
     CheckBoardPanics,
+    /// Run the stm32f405 board's own driver and loop code on the host against
+    /// simulated peripherals that fail (stuck SDA, NACK storm, late sensors,
+    /// data-ready faults, a 4-s flash erase at 47 kHz LSI, flash errors, RX
+    /// noise, a loop stall): one line per scenario, then `board faults: N
+    /// scenarios, M failed`; fails when any scenario fails (part of `ci`).
+    BoardFaults,
     /// Accuracy against the peers: on simulated chamber runs of both protocols
     /// (trained on one 1 °C/min run, verified at other ramp rates and on a random
     /// profile) compare no compensation, poly3, rbf2, the IFOG paper's rbf, the
@@ -144,6 +150,7 @@ fn main() -> anyhow::Result<()> {
         }
         Cmd::BenchFw => xtask::bench::bench_fw(),
         Cmd::CheckBoardPanics => xtask::firmware::check_board_panics(),
+        Cmd::BoardFaults => xtask::board_faults::board_faults(),
         Cmd::BenchAccuracy {
             params,
             in_use,
