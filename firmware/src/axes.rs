@@ -397,4 +397,9 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: AxesHolder<K>, const K:
     pub fn destroy(self) -> (T, R, W) {
         (self.thermometers, self.front_ends, self.output)
     }
+
+    /// The thermometers and the front ends (their drivers' counters).
+    pub fn sensors(&self) -> (&T, &R) {
+        (&self.thermometers, &self.front_ends)
+    }
 }

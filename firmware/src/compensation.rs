@@ -289,6 +289,11 @@ impl<T: Thermometers, R: RateFrontEnd, W: Write, M: ModelHolder> CompensationLoo
         self.stats
     }
 
+    /// The thermometers and the front end (their drivers' counters).
+    pub fn sensors(&self) -> (&T, &R) {
+        (&self.thermometer, &self.front_end)
+    }
+
     /// Gives the sensors and output back.
     pub fn destroy(self) -> (T, R, W) {
         (self.thermometer, self.front_end, self.output)

@@ -43,6 +43,20 @@ pub fn encode_sample(status: u16, rate_word: f32) -> [u8; SAMPLE_LEN] {
     b
 }
 
+/// The SPI clock to ask for at a peripheral clock of `pclk_hz` so that the
+/// front end sees at most `max_hz`: `pclk_hz / d`, with `d` the smallest
+/// of the STM32 SPI dividers (2, 4, … 256) that keeps within `max_hz`. A
+/// request of exactly `pclk_hz / d` is one the stm32f4xx-hal rounds to `d`
+/// itself (its table maps 6 … 11 to ÷8, so 84 MHz / 8 MHz would give
+/// 10.5 MHz); a clock too fast for ÷256 gives `pclk_hz / 256`.
+pub const fn spi_clock_hz(pclk_hz: u32, max_hz: u32) -> u32 {
+    let mut divider = 2;
+    while divider < 256 && pclk_hz / divider > max_hz {
+        divider *= 2;
+    }
+    pclk_hz / divider
+}
+
 /// Driver errors.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Error<E> {
@@ -254,6 +268,28 @@ mod tests {
     impl SpiDevice for FailingSpi {
         fn transaction(&mut self, _: &mut [Operation<'_, u8>]) -> Result<(), ErrorKind> {
             Err(ErrorKind::Overrun)
+        }
+    }
+
+    #[test]
+    fn the_spi_clock_stays_within_the_front_ends_10_mhz_through_the_hals_rounding() {
+        // stm32f4xx-hal 0.23 (spi.rs): the divider code from pclk / request.
+        let hal_divider = |pclk: u32, request: u32| match pclk / request {
+            0..=2 => 2,
+            3..=5 => 4,
+            6..=11 => 8,
+            12..=23 => 16,
+            24..=47 => 32,
+            48..=95 => 64,
+            96..=191 => 128,
+            _ => 256,
+        };
+        assert_eq!(spi_clock_hz(84_000_000, 10_000_000), 5_250_000);
+        assert_eq!(hal_divider(84_000_000, 8_000_000), 8, "the old request: 10.5 MHz");
+        for pclk in [16_000_000, 42_000_000, 84_000_000, 90_000_000] {
+            let request = spi_clock_hz(pclk, 10_000_000);
+            let actual = pclk / hal_divider(pclk, request);
+            assert!(actual <= 10_000_000 && actual == request, "{pclk}: {actual}");
         }
     }
 

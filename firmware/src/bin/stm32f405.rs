@@ -2,9 +2,11 @@
 //!
 //! - TMP117 on I2C1 (PB6 SCL, PB7 SDA, 400 kHz), address 0x48;
 //! - IFOG front end on SPI1 (PA5 SCK, PA6 MISO, PA7 MOSI, PA4 CS, mode 3,
-//!   8 MHz) with data-ready on PB0 (EXTI0, rising edge), 1 kHz;
-//! - output frames on USART1 TX (PA9, 921 600 Bd, 8N1); model-update
-//!   commands on USART1 RX (PA10), replies on TX (firmware::update);
+//!   at most 10 MHz: 84 MHz / 16) with data-ready on PB0 (EXTI0, rising
+//!   edge), 1 kHz;
+//! - output frames on USART1 TX (PA9, 921 600 Bd, 8N1); model-update,
+//!   bench and health commands on USART1 RX (PA10, pulled up), replies on
+//!   TX (firmware::update, firmware::health);
 //! - the model in flash slot MODEL_A (0x080C_0000) or MODEL_B (0x080E_0000),
 //!   whichever holds the newest committed blob (firmware::model_store).
 //!
@@ -13,12 +15,18 @@
 //! the stamp; the main loop takes stamps from the queue, derives dt and the
 //! edge number from them (edges lost while the CPU stalled, as during a
 //! flash erase, count and are flagged) and runs one compensation step per
-//! stamp. USART1's interrupt moves bytes between the UART and two queues:
-//! frames out (firmware::uart::FrameQueue, whole or dropped and flagged) and
-//! command bytes in (overruns counted). The independent watchdog (3 s,
-//! longer than the 2 s worst-case sector erase) is fed once per processed
-//! sample. A panic or HardFault records its cause in RAM that survives the
-//! reset (firmware::fault) and resets; the next boot reports it.
+//! stamp (firmware::pacing: glitches rejected, a backlog counted as missed,
+//! steps synthesised when data-ready falls silent; SysTick wakes the loop
+//! every millisecond to notice). USART1's interrupt moves bytes between the
+//! UART and two queues: frames out (firmware::uart::FrameQueue, whole or
+//! dropped and flagged) and command bytes in (overruns counted). The
+//! independent watchdog starts before the clock tree (firmware::watchdog:
+//! ≥ 2 s at the fastest LSI, ≥ 4.5 s around a model install) and is fed
+//! once per step. Every wait on I2C, the flash controller and the clock
+//! setup is bounded (firmware::i2c_master, firmware::flash_ctl, hw.rs). A
+//! panic or HardFault records its cause in RAM that survives the reset
+//! (firmware::fault) and resets; the next boot reports it, and every boot
+//! sends the health report (firmware::health).
 //!
 //! With the feature `board-axes` the same board serves a three-axis IMU:
 //! three front ends share SPI1 (chip selects PA4 x, PA3 y, PA2 z; the
@@ -39,6 +47,8 @@
 mod board {
     #![allow(unsafe_code)]
 
+    mod hw;
+
     use core::cell::RefCell;
     use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -56,17 +66,24 @@ mod board {
     use firmware::bench::{Bench, CMD_BENCH};
     #[cfg(not(feature = "board-axes"))]
     use firmware::compensation::CompensationLoop;
-    use firmware::compensation::{InPlaceModel, LoopConfig, write_frame};
+    use firmware::compensation::{InPlaceModel, LoopConfig, LoopStats, write_frame};
     use firmware::fault::{self, FaultReason, FaultRecord};
-    use firmware::frontend::FrontEnd;
+    #[cfg(not(feature = "board-qemu"))]
+    use firmware::flash_ctl::ControllerFlash;
+    use firmware::frontend::{self, FrontEnd};
+    use firmware::health::{CMD_HEALTH, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause};
+    #[cfg(not(feature = "board-qemu"))]
+    use firmware::i2c_master::BoundedI2c;
     use firmware::model_store::ModelStore;
     #[cfg(not(feature = "board-qemu"))]
     use firmware::model_store::SlotLayout;
+    use firmware::pacing::{self, Pacer, PacerCounters};
     #[cfg(any(feature = "board-qemu", not(feature = "board-axes")))]
     use firmware::tmp117;
     use firmware::tmp117::Tmp117;
     use firmware::uart::{self, FrameQueue};
-    use firmware::update::{self, CommandReceiver, Received};
+    use firmware::update::{self, CommandReceiver, Received, UpdateStatus};
+    use firmware::watchdog::{self, Watchdog};
     use heapless::spsc::{Consumer, Producer, Queue};
     #[cfg(not(feature = "board-axes"))]
     use rbf_core::Model;
@@ -75,11 +92,7 @@ mod board {
     #[cfg(feature = "board-axes-shared")]
     use rbf_core::shared::SharedAxisModels;
     use rbf_core::{CompensatorConfig, Flags};
-    #[cfg(not(feature = "board-qemu"))]
-    use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
     use stm32f4xx_hal::gpio::{Edge, ExtiPin, Input, PB0};
-    #[cfg(not(feature = "board-qemu"))]
-    use stm32f4xx_hal::i2c::{self, I2c};
     use stm32f4xx_hal::pac::{self, interrupt};
     use stm32f4xx_hal::prelude::*;
     #[cfg(not(feature = "board-qemu"))]
@@ -87,7 +100,6 @@ mod board {
     use stm32f4xx_hal::rcc::{Enable, Reset};
     use stm32f4xx_hal::serial::{Rx, RxListen, Tx, TxListen};
     use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
-    use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
     /// Logs over RTT in the debug image (`board-debug`); nothing otherwise.
     macro_rules! log {
@@ -107,8 +119,8 @@ mod board {
         offsets: [0x000C_0000, 0x000E_0000],
         len: firmware::MODEL_SLOT_LEN as u32,
     };
-    /// Watchdog period, ms: above the worst-case 128 KiB sector erase (2 s at x32).
-    const WATCHDOG_MS: u32 = 3000;
+    /// The front end's fastest SPI clock, Hz (docs/frontend.md).
+    const SPI_MAX_HZ: u32 = 10_000_000;
     /// Bytes of the transmit queue: 24 output frames (≤ 21 B each at 1 kHz
     /// take 0.23 ms of the 1 ms at 921 600 Bd), or a reply and a burst.
     const TX_QUEUE: usize = 512;
@@ -144,60 +156,6 @@ mod board {
     /// Command bytes collect here between samples (4 KiB: off the stack).
     static mut COMMANDS: CommandReceiver = CommandReceiver::new();
 
-    /// The chip's flash as the model store's device (not in the QEMU image).
-    #[cfg(not(feature = "board-qemu"))]
-    mod board_flash {
-        use firmware::model_store::MappedFlash;
-        use stm32f4xx_hal::flash::UnlockedFlash;
-
-        /// The model slots in the chip's flash: erased and programmed through
-        /// the HAL, read in place (the flash is memory-mapped).
-        ///
-        /// The flash controller is unlocked once, at init: the HAL's unlock
-        /// asserts that the keys took, which would put a panic on the update
-        /// path. Unlocked, a stray write still programs nothing (it needs the
-        /// PG bit, and an erase needs SER and STRT).
-        pub struct BoardFlash(pub UnlockedFlash<'static>);
-
-        impl embedded_storage::nor_flash::ErrorType for BoardFlash {
-            type Error = stm32f4xx_hal::flash::Error;
-        }
-
-        impl embedded_storage::nor_flash::ReadNorFlash for BoardFlash {
-            const READ_SIZE: usize = 1;
-            fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-                embedded_storage::nor_flash::ReadNorFlash::read(&mut self.0, offset, bytes)
-            }
-            fn capacity(&self) -> usize {
-                embedded_storage::nor_flash::ReadNorFlash::capacity(&self.0)
-            }
-        }
-
-        impl embedded_storage::nor_flash::NorFlash for BoardFlash {
-            const WRITE_SIZE: usize = 1;
-            const ERASE_SIZE: usize = 128 * 1024;
-            fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-                embedded_storage::nor_flash::NorFlash::erase(&mut self.0, from, to)
-            }
-            fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-                embedded_storage::nor_flash::NorFlash::write(&mut self.0, offset, bytes)
-            }
-        }
-
-        impl MappedFlash for BoardFlash {
-            fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
-                // Only the model slots are read (the linker's MODEL_A and MODEL_B).
-                let slots = [firmware::board::model_slot_a(), firmware::board::model_slot_b()];
-                super::MODEL_SLOTS.offsets.iter().zip(slots).find_map(|(start, slot)| {
-                    let from = offset.checked_sub(*start)? as usize;
-                    slot.get(from..from.checked_add(len)?)
-                })
-            }
-        }
-    }
-    #[cfg(not(feature = "board-qemu"))]
-    use board_flash::BoardFlash;
-
     static UART: Mutex<RefCell<Option<UartIsr>>> = Mutex::new(RefCell::new(None));
     static DATA_READY: Mutex<RefCell<Option<DataReadyIsr>>> = Mutex::new(RefCell::new(None));
     /// Command bytes lost: the UART overran or the receive queue was full.
@@ -214,6 +172,11 @@ mod board {
         });
         cortex_m::peripheral::SCB::sys_reset()
     }
+
+    /// Wakes the main loop every millisecond, so that a silent data-ready
+    /// line is noticed (firmware::pacing synthesises the steps).
+    #[exception]
+    fn SysTick() {}
 
     #[interrupt]
     fn USART1() {
@@ -321,30 +284,6 @@ mod board {
         });
         #[cfg(feature = "board-qemu")]
         cortex_m::peripheral::NVIC::pend(pac::Interrupt::USART1);
-    }
-
-    /// Turns data-ready stamps (timer ticks) into edge numbers and time steps.
-    struct EdgeClock {
-        ticks_per_s: f32,
-        period_ticks: u32,
-        last: Option<(u32, u32)>,
-    }
-
-    impl EdgeClock {
-        /// The edge number and dt (s) of the stamp; the first edge is 0 with the nominal dt.
-        fn edge(&mut self, stamp: u32) -> (u32, f32) {
-            let (seq, dt_s) = match self.last {
-                None => (0, self.period_ticks as f32 / self.ticks_per_s),
-                Some((seq, last)) => {
-                    let ticks = stamp.wrapping_sub(last);
-                    // Whole periods since the last edge, at least one.
-                    let periods = (ticks.saturating_add(self.period_ticks / 2) / self.period_ticks.max(1)).max(1);
-                    (seq.wrapping_add(periods), ticks as f32 / self.ticks_per_s)
-                }
-            };
-            self.last = Some((seq, stamp));
-            (seq, dt_s)
-        }
     }
 
     /// The pieces of the board that QEMU's netduinoplus2 lacks, swapped for
@@ -475,48 +414,128 @@ mod board {
         }
     }
 
+    /// What the boot found out about the last reset.
+    #[derive(Clone, Copy)]
+    struct Boot {
+        cause: ResetCause,
+        flags: u8,
+        fault: Option<FaultRecord>,
+    }
+
+    /// Sends the health report: `boot`, then the counters of the loop
+    /// `$c`, the model store `$store` and the pacer `$pacer`.
+    macro_rules! send_health {
+        ($boot:expr, $c:expr, $store:expr, $pacer:expr) => {{
+            #[cfg(not(feature = "board-axes"))]
+            let inits = $c.sensors().1.inits();
+            #[cfg(feature = "board-axes")]
+            let inits = $c.sensors().1.iter().map(FrontEnd::inits).sum::<u32>();
+            #[cfg(not(feature = "board-qemu"))]
+            let flash_errors = $store.flash().errors();
+            #[cfg(feature = "board-qemu")]
+            let flash_errors = 0;
+            let report = HealthReport {
+                reset_cause: $boot.cause,
+                reset_flags: $boot.flags,
+                fault_pc: $boot.fault.map_or(0, |r| r.pc),
+                fault_lr: $boot.fault.map_or(0, |r| r.lr),
+                counters: health_counters(&$c.stats(), &$pacer.counters(), inits, flash_errors),
+                model: $store.identity(),
+            };
+            let mut frame = [0u8; HEALTH_FRAME_LEN];
+            if let Some(n) = report.encode(&mut frame) {
+                write_frame($c.output_mut(), frame.get(..n).unwrap_or(&[]));
+            }
+        }};
+    }
+
+    /// The counters of the health report, gathered from their owners.
+    fn health_counters(
+        stats: &LoopStats,
+        pacer: &PacerCounters,
+        front_end_inits: u32,
+        flash_errors: u32,
+    ) -> HealthCounters {
+        let recoveries = hw::I2C_RECOVERIES.load(Ordering::Relaxed);
+        HealthCounters {
+            samples: stats.samples,
+            samples_missed: stats.samples_missed,
+            rate_read_faults: stats.rate_read_faults,
+            temp_read_faults: stats.temp_read_faults,
+            // Every recovery after the one at boot ends a timed-out transaction.
+            sensor_timeouts: recoveries.saturating_sub(1),
+            bus_recoveries: recoveries,
+            front_end_inits,
+            data_ready_glitches: pacer.glitches,
+            synthetic_steps: pacer.synthetic,
+            overruns: RX_OVERRUNS
+                .load(Ordering::Relaxed)
+                .wrapping_add(STAMP_OVERRUNS.load(Ordering::Relaxed)),
+            output_dropped: stats.output_errors,
+            flash_errors,
+        }
+    }
+
     #[entry]
     fn main() -> ! {
         let Some(mut dp) = pac::Peripherals::take() else { halt() };
         let Some(mut core) = cortex_m::Peripherals::take() else {
             halt()
         };
-        let reset_flags = (dp.RCC.csr().read().bits() >> 24) as u8;
+        // The watchdog first: a dead crystal or a stuck setup wait must not hang the board.
+        let _ = hw::Iwdg::start(watchdog::running_setting());
+        let mut watchdog = hw::Iwdg;
+        let rcc_csr = dp.RCC.csr().read().bits();
+        let reset_flags = (rcc_csr >> 24) as u8;
         let watchdog_reset = dp.RCC.csr().read().wdgrstf().bit_is_set();
         dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
-        let boot_cause = fault::boot_cause(firmware::board::take_fault(), watchdog_reset);
+        let fault_record = firmware::board::take_fault();
+        let reset_cause = ResetCause::from_boot(fault_record, rcc_csr);
+        let boot_cause = fault::boot_cause(fault_record, watchdog_reset);
 
         #[cfg(feature = "board-qemu")]
         firmware::board::paint_stack();
+        // The crystal, waited for with a bound; without it the HSI clocks the PLL.
         #[cfg(not(feature = "board-qemu"))]
-        let mut rcc = dp.RCC.freeze(Config::hse(8.MHz()).sysclk(168.MHz()));
+        let source = if hw::start_hse() {
+            Config::hse(8.MHz())
+        } else {
+            Config::hsi()
+        };
+        #[cfg(not(feature = "board-qemu"))]
+        let mut rcc = dp.RCC.freeze(source.sysclk(168.MHz()));
         // QEMU has no clock controller (the HSE never reports ready): the reset clocks.
         #[cfg(feature = "board-qemu")]
         let mut rcc = dp.RCC.constrain();
         // The cycle counter the `bench` command reads (firmware::bench).
         core.DCB.enable_trace();
         core.DWT.enable_cycle_counter();
-        let mut watchdog = IndependentWatchdog::new(dp.IWDG);
-        watchdog.start(WATCHDOG_MS.millis());
 
         let gpioa = dp.GPIOA.split(&mut rcc);
         let gpiob = dp.GPIOB.split(&mut rcc);
         let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
 
-        // TIM2 free-running over 32 bits at the timer clock: the data-ready timestamps.
+        // TIM2 free-running over 32 bits at the timer clock: the data-ready
+        // timestamps and the clock of every bounded wait.
         let timer_hz = rcc.clocks.timclk1().raw();
         pac::TIM2::enable(&mut rcc);
         pac::TIM2::reset(&mut rcc);
         dp.TIM2.arr().write(|w| unsafe { w.bits(u32::MAX) });
         dp.TIM2.cr1().modify(|_, w| w.cen().set_bit());
-
         #[cfg(not(feature = "board-qemu"))]
-        let i2c = I2c::new(
-            dp.I2C1,
-            (gpiob.pb6, gpiob.pb7),
-            i2c::Mode::fast(400.kHz(), i2c::DutyCycle::Ratio2to1),
-            &mut rcc,
-        );
+        let tim2 = hw::Tim2Clock {
+            ticks_per_us: (timer_hz / 1_000_000).max(1),
+        };
+
+        // I2C1 through the bounded master: the bus is recovered before first use.
+        #[cfg(not(feature = "board-qemu"))]
+        let i2c = {
+            let _scl = gpiob.pb6.into_alternate_open_drain::<4>();
+            let _sda = gpiob.pb7.into_alternate_open_drain::<4>();
+            pac::I2C1::enable(&mut rcc);
+            let pclk1_mhz = (rcc.clocks.pclk1().raw() / 1_000_000) as u16;
+            BoundedI2c::new(hw::I2c1Regs { pclk1_mhz }, tim2)
+        };
         let mode = Mode {
             polarity: Polarity::IdleHigh,
             phase: Phase::CaptureOnSecondTransition,
@@ -525,7 +544,7 @@ mod board {
             dp.SPI1,
             (Some(gpioa.pa5), Some(gpioa.pa6), Some(gpioa.pa7)),
             mode,
-            8.MHz(),
+            frontend::spi_clock_hz(rcc.clocks.pclk2().raw(), SPI_MAX_HZ).Hz(),
             &mut rcc,
         );
         let core_hz = rcc.clocks.sysclk().raw();
@@ -552,17 +571,15 @@ mod board {
                 CycleDelay { core_hz },
             ),
         );
-        let Ok(serial) = dp.USART1.serial::<u8>((gpioa.pa9, gpioa.pa10), 921_600.bps(), &mut rcc) else {
+        // RX pulled up: an unconnected or floating line reads idle, not noise.
+        let rx_pin = gpioa.pa10.internal_pull_up(true);
+        let Ok(serial) = dp.USART1.serial::<u8>((gpioa.pa9, rx_pin), 921_600.bps(), &mut rcc) else {
             halt()
         };
         let (tx, mut rx) = serial.split();
         rx.listen();
         #[cfg(not(feature = "board-qemu"))]
-        let Some(locked_flash) = cortex_m::singleton!(: LockedFlash = LockedFlash::new(dp.FLASH)) else {
-            halt()
-        };
-        #[cfg(not(feature = "board-qemu"))]
-        let flash = BoardFlash(locked_flash.unlocked());
+        let flash = ControllerFlash::new(hw::FlashRegs, tim2, hw::Iwdg);
         #[cfg(feature = "board-qemu")]
         let flash = qemu::model_flash();
 
@@ -626,7 +643,8 @@ mod board {
             compensator: CompensatorConfig::for_sample_rate(GYRO_RATE_HZ),
             temp_read_every: TEMP_READ_EVERY,
         };
-        // Sensor init failures are not fatal either: the loop's reads fail and flag them.
+        // Sensor init failures are not fatal either: the drivers retry on
+        // each read until the sensors answer, and the frames are flagged meanwhile.
         #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
         let loop_temp = core::cell::Cell::new(qemu::sample(0));
         #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
@@ -672,18 +690,43 @@ mod board {
         if boot_cause.is_some() {
             compensation.flag_next_frame(Flags::FAULT_RESET);
         }
-        let mut bench = Bench::default();
-        let mut clock = EdgeClock {
-            ticks_per_s: timer_hz as f32,
-            period_ticks: (timer_hz as f32 / GYRO_RATE_HZ) as u32,
-            last: None,
+        let mut pacer = Pacer::new(timer_hz, (timer_hz as f32 / GYRO_RATE_HZ) as u32, hw::Tim2Clock::now());
+        let boot = Boot {
+            cause: reset_cause,
+            flags: reset_flags,
+            fault: fault_record,
         };
+        // The health report after every reset, before the first output frame.
+        send_health!(boot, compensation, store, pacer);
+        let mut bench = Bench::default();
+        // SysTick wakes the loop every millisecond (a silent data-ready line is noticed).
+        core.SYST
+            .set_clock_source(cortex_m::peripheral::syst::SystClkSource::Core);
+        core.SYST
+            .set_reload((core_hz / 1000).saturating_sub(1).min(0x00FF_FFFF));
+        core.SYST.clear_current();
+        core.SYST.enable_interrupt();
+        core.SYST.enable_counter();
         // SAFETY: the handlers' state is in place; enabling their interrupts is all that is left.
         unsafe {
             core.NVIC.set_priority(pac::Interrupt::EXTI0, 0x40);
             core.NVIC.set_priority(pac::Interrupt::USART1, 0x80);
             cortex_m::peripheral::NVIC::unmask(pac::Interrupt::EXTI0);
             cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
+        }
+        // A data-ready line already high (the front end kept its sample over
+        // an MCU-only reset) gives no rising edge: take it as one.
+        let data_ready_high = cortex_m::interrupt::free(|cs| {
+            DATA_READY
+                .borrow(cs)
+                .try_borrow()
+                .ok()
+                .as_deref()
+                .and_then(Option::as_ref)
+                .is_some_and(|d| d.pin.is_high())
+        });
+        if data_ready_high {
+            cortex_m::peripheral::NVIC::pend(pac::Interrupt::EXTI0);
         }
         #[cfg(feature = "board-qemu")]
         let mut run = qemu::Run::start(dp.TIM3, &mut core.NVIC, (timer_hz as f32 / GYRO_RATE_HZ) as u32);
@@ -693,33 +736,38 @@ mod board {
         #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
         let coil_temps = &coil_temps;
         run_forever(move || {
-            // One step per data-ready edge, in order; the watchdog is fed by samples only.
-            while let Some(stamp) = uart::dequeue(&mut stamp_consumer) {
-                let (seq, dt_s) = clock.edge(stamp);
-                let started = DWT::cycle_count();
-                compensation.step_at(seq, dt_s);
-                if let Some(stats) = bench.record(DWT::cycle_count().wrapping_sub(started)) {
-                    log!(
-                        "bench: {=u32} steps, cycles min {=u32} mean {=u32} max {=u32}",
-                        stats.steps,
-                        stats.min,
-                        stats.mean(),
-                        stats.max
-                    );
-                    let mut report = [0u8; 24];
-                    if let Some(n) = stats.encode_report(&mut report) {
-                        write_frame(compensation.output_mut(), report.get(..n).unwrap_or(&[]));
+            // One step per pass for the newest data-ready edge (or the
+            // silence); the watchdog is fed by steps only.
+            pacing::serve_samples(
+                &mut pacer,
+                || uart::dequeue(&mut stamp_consumer),
+                hw::Tim2Clock::now(),
+                &mut watchdog,
+                |tick| {
+                    let started = DWT::cycle_count();
+                    compensation.step_at(tick.seq, tick.dt_s);
+                    if let Some(stats) = bench.record(DWT::cycle_count().wrapping_sub(started)) {
+                        log!(
+                            "bench: {=u32} steps, cycles min {=u32} mean {=u32} max {=u32}",
+                            stats.steps,
+                            stats.min,
+                            stats.mean(),
+                            stats.max
+                        );
+                        let mut report = [0u8; 24];
+                        if let Some(n) = stats.encode_report(&mut report) {
+                            write_frame(compensation.output_mut(), report.get(..n).unwrap_or(&[]));
+                        }
                     }
-                }
-                watchdog.feed();
-                #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
-                loop_temp.set(qemu::sample(seq));
-                #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
-                for (axis, cell) in coil_temps.iter().enumerate() {
-                    cell.set(qemu::axis_sample(seq, axis));
-                }
-            }
-            // Model-update commands between samples.
+                    #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
+                    loop_temp.set(qemu::sample(tick.seq));
+                    #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
+                    for (axis, cell) in coil_temps.iter().enumerate() {
+                        cell.set(qemu::axis_sample(tick.seq, axis));
+                    }
+                },
+            );
+            // Commands between samples.
             while let Some(byte) = uart::dequeue(&mut in_consumer) {
                 let (command, status) = match commands.push(byte) {
                     None => continue,
@@ -729,15 +777,18 @@ mod board {
                         bench.start();
                         continue;
                     }
+                    Some(Received::Command(&[CMD_HEALTH])) => {
+                        send_health!(boot, compensation, store, pacer);
+                        continue;
+                    }
                     Some(Received::Command(payload)) => {
-                        // The erase stalls the CPU for up to 2 s: feed the watchdog first.
+                        // The flash driver runs the watchdog at its install period around the erase.
                         watchdog.feed();
-                        let mut status = update::UpdateStatus::UnknownCommand;
-                        compensation.update_model(|model| {
-                            model.rebuild(|m| {
-                                status = update::execute_into(&mut store, payload, m);
-                                store.model_loaded()
-                            })
+                        let mut status = UpdateStatus::UnknownCommand;
+                        // The filters restart only for a model actually installed.
+                        compensation.update_model_if(|model| {
+                            status = update::run_in_place(&mut store, payload, model);
+                            status == UpdateStatus::Installed
                         });
                         watchdog.feed();
                         log!(
@@ -761,7 +812,8 @@ mod board {
             // with interrupts masked, an edge or byte that arrives now stays
             // pending and ends the WFI at once (unmasked, its handler could
             // run between the check and the WFI, and the stamp would wait a
-            // whole sample period for the next wake-up).
+            // whole sample period for the next wake-up). SysTick ends it
+            // within a millisecond in any case.
             cortex_m::interrupt::free(|_| {
                 if !stamp_consumer.ready() && !in_consumer.ready() {
                     cortex_m::asm::wfi();

@@ -1,0 +1,269 @@
+//! The board's register-level pieces behind the library's small traits:
+//! TIM2 as the [`Clock`] of every bounded wait, the IWDG as the
+//! [`Watchdog`], I2C1 on PB6/PB7 as [`I2cRegisters`], the flash controller
+//! as [`FlashRegisters`], and the bounded HSE start. What runs on these is
+//! library code (`cargo xtask board-faults` runs it against simulations).
+
+use core::sync::atomic::AtomicU32;
+#[cfg(not(feature = "board-qemu"))]
+use core::sync::atomic::Ordering;
+
+use firmware::clock::Clock;
+#[cfg(not(feature = "board-qemu"))]
+use firmware::flash_ctl::FlashRegisters;
+#[cfg(not(feature = "board-qemu"))]
+use firmware::i2c_master::I2cRegisters;
+use firmware::watchdog::{IwdgSetting, Watchdog};
+use stm32f4xx_hal::pac;
+
+/// I2C1 bus recoveries (each ends in a peripheral reset): the one at boot,
+/// then one after every transaction that ran out of time.
+pub static I2C_RECOVERIES: AtomicU32 = AtomicU32::new(0);
+
+/// TIM2, free-running over 32 bits at the timer clock.
+#[derive(Clone, Copy, Debug)]
+pub struct Tim2Clock {
+    /// Timer ticks per µs.
+    pub ticks_per_us: u32,
+}
+
+impl Tim2Clock {
+    /// TIM2's counter now.
+    pub fn now() -> u32 {
+        // SAFETY: a read of TIM2's free-running counter, which only the
+        // board's setup writes (before anything reads it).
+        unsafe { (*pac::TIM2::ptr()).cnt().read().bits() }
+    }
+}
+
+impl Clock for Tim2Clock {
+    fn now_ticks(&mut self) -> u32 {
+        Tim2Clock::now()
+    }
+    fn ticks_per_us(&self) -> u32 {
+        self.ticks_per_us
+    }
+}
+
+/// Register polls a setup wait may take before it gives up (before the
+/// clock tree and TIM2 run there is no timer: a count of polls bounds it).
+const SETUP_POLLS: u32 = 200_000;
+
+/// Polls `done` at most [`SETUP_POLLS`] times; whether it came true.
+fn poll(mut done: impl FnMut() -> bool) -> bool {
+    (0..SETUP_POLLS).any(|_| done())
+}
+
+/// The independent watchdog (RM0090 §21): keys 0xCCCC start, 0x5555
+/// unlock PR/RLR, 0xAAAA reload.
+#[derive(Clone, Copy, Debug)]
+pub struct Iwdg;
+
+impl Iwdg {
+    /// Starts the watchdog at `setting`, frozen while a debugger halts the
+    /// core; false if the period did not take (it then runs at its reset
+    /// period, the longest).
+    pub fn start(setting: IwdgSetting) -> bool {
+        // SAFETY: DBGMCU_APB1_FZ bit 12 (DBG_IWDG_STOP) only affects debug halts.
+        unsafe {
+            (*pac::DBGMCU::ptr())
+                .apb1_fz()
+                .modify(|r, w| w.bits(r.bits() | (1 << 12)))
+        };
+        // SAFETY: the key register takes only these keys.
+        unsafe { (*pac::IWDG::ptr()).kr().write(|w| w.bits(0xCCCC)) };
+        Iwdg.set_period(setting)
+    }
+}
+
+impl Watchdog for Iwdg {
+    fn feed(&mut self) {
+        // SAFETY: the reload key.
+        unsafe { (*pac::IWDG::ptr()).kr().write(|w| w.bits(0xAAAA)) };
+    }
+
+    fn set_period(&mut self, setting: IwdgSetting) -> bool {
+        // SAFETY: IWDG accesses as RM0090 §21.3 describes; PR and RLR
+        // take new values only while SR shows no update in progress.
+        let iwdg = unsafe { &*pac::IWDG::ptr() };
+        let idle = || iwdg.sr().read().bits() & 0b11 == 0;
+        if !poll(idle) {
+            self.feed();
+            return false;
+        }
+        unsafe {
+            iwdg.kr().write(|w| w.bits(0x5555));
+            iwdg.pr().write(|w| w.bits(u16::from(setting.prescaler_code & 0b111)));
+            iwdg.rlr().write(|w| w.bits(setting.reload & 0xFFF));
+        }
+        let taken = poll(idle);
+        self.feed();
+        taken
+    }
+}
+
+/// Starts the 8 MHz crystal; false when it is not ready within the bound
+/// (a dead crystal: the board then runs on the HSI).
+#[cfg(not(feature = "board-qemu"))]
+pub fn start_hse() -> bool {
+    // SAFETY: RCC_CR.HSEON; nothing else runs yet.
+    let rcc = unsafe { &*pac::RCC::ptr() };
+    rcc.cr().modify(|_, w| w.hseon().set_bit());
+    let ready = poll(|| rcc.cr().read().hserdy().bit_is_set());
+    if !ready {
+        rcc.cr().modify(|_, w| w.hseon().clear_bit());
+    }
+    ready
+}
+
+/// I2C1 (RM0090 §27) with SCL on PB6 and SDA on PB7 (AF4, open drain).
+#[cfg(not(feature = "board-qemu"))]
+#[derive(Debug)]
+pub struct I2c1Regs {
+    /// APB1 clock, MHz (2 … 42).
+    pub pclk1_mhz: u16,
+}
+
+#[cfg(not(feature = "board-qemu"))]
+impl I2c1Regs {
+    fn i2c() -> &'static pac::i2c1::RegisterBlock {
+        // SAFETY: I2C1 is owned by this driver alone (the HAL's I2C is not built).
+        unsafe { &*pac::I2C1::ptr() }
+    }
+    fn gpiob() -> &'static pac::gpioa::RegisterBlock {
+        // SAFETY: only PB6/PB7's bits are touched, with read-modify-writes
+        // from the main loop (no handler touches GPIOB's mode registers).
+        unsafe { &*pac::GPIOB::ptr().cast::<pac::gpioa::RegisterBlock>() }
+    }
+}
+
+#[cfg(not(feature = "board-qemu"))]
+impl I2cRegisters for I2c1Regs {
+    fn sr1(&mut self) -> u16 {
+        Self::i2c().sr1().read().bits()
+    }
+    fn sr2(&mut self) -> u16 {
+        Self::i2c().sr2().read().bits()
+    }
+    fn cr1(&mut self) -> u16 {
+        Self::i2c().cr1().read().bits()
+    }
+    fn set_cr1(&mut self, value: u16) {
+        // SAFETY: CR1's bits as RM0090 §27.6.1 defines them.
+        Self::i2c().cr1().write(|w| unsafe { w.bits(value) });
+    }
+    fn clear_sr1(&mut self, bits: u16) {
+        // SAFETY: SR1's flags clear on a written 0 (rc_w0); ones leave the others.
+        Self::i2c().sr1().write(|w| unsafe { w.bits(!bits) });
+    }
+    fn write_dr(&mut self, byte: u8) {
+        // SAFETY: a data byte.
+        Self::i2c().dr().write(|w| unsafe { w.bits(u16::from(byte)) });
+    }
+    fn read_dr(&mut self) -> u8 {
+        Self::i2c().dr().read().bits() as u8
+    }
+    fn reset(&mut self) {
+        // SAFETY: RCC's I2C1 reset bit, pulsed; then I2C1's own registers.
+        let rcc = unsafe { &*pac::RCC::ptr() };
+        rcc.apb1rstr().modify(|_, w| w.i2c1rst().set_bit());
+        rcc.apb1rstr().modify(|_, w| w.i2c1rst().clear_bit());
+        let i2c = Self::i2c();
+        let mhz = self.pclk1_mhz.clamp(2, 42);
+        // Fast mode, 400 kHz, duty 2:1 (CCR = f / (3 · 400 kHz)), rise time 300 ns.
+        let ccr = (u32::from(mhz) * 1_000_000 / (3 * 400_000)).max(1) as u16;
+        unsafe {
+            i2c.cr2().write(|w| w.bits(mhz));
+            i2c.trise().write(|w| w.bits(mhz * 300 / 1000 + 1));
+            i2c.ccr().write(|w| w.bits((1 << 15) | (ccr & 0xFFF)));
+            i2c.cr1().write(|w| w.bits(firmware::i2c_master::CR1_PE));
+        }
+        I2C_RECOVERIES.fetch_add(1, Ordering::Relaxed);
+    }
+    fn lines_as_gpio(&mut self, gpio: bool) {
+        // MODER of PB6 and PB7: 01 output (open drain, as OTYPER already
+        // says), 10 alternate function.
+        let mode = if gpio { 0b01 } else { 0b10 };
+        let gpiob = Self::gpiob();
+        gpiob
+            .moder()
+            .modify(|r, w| unsafe { w.bits((r.bits() & !(0b1111 << 12)) | (mode << 12) | (mode << 14)) });
+    }
+    fn set_scl(&mut self, high: bool) {
+        let bit = if high { 1 << 6 } else { 1 << (6 + 16) };
+        // SAFETY: BSRR sets or resets PB6 alone.
+        Self::gpiob().bsrr().write(|w| unsafe { w.bits(bit) });
+    }
+    fn set_sda(&mut self, high: bool) {
+        let bit = if high { 1 << 7 } else { 1 << (7 + 16) };
+        // SAFETY: BSRR sets or resets PB7 alone.
+        Self::gpiob().bsrr().write(|w| unsafe { w.bits(bit) });
+    }
+    fn sda_is_high(&mut self) -> bool {
+        Self::gpiob().idr().read().bits() & (1 << 7) != 0
+    }
+}
+
+/// The flash controller (RM0090 §3.9) and the model slots, memory-mapped.
+#[cfg(not(feature = "board-qemu"))]
+#[derive(Debug)]
+pub struct FlashRegs;
+
+#[cfg(not(feature = "board-qemu"))]
+impl FlashRegs {
+    fn flash() -> &'static pac::flash::RegisterBlock {
+        // SAFETY: the flash controller is owned by this driver alone.
+        unsafe { &*pac::FLASH::ptr() }
+    }
+}
+
+#[cfg(not(feature = "board-qemu"))]
+impl FlashRegisters for FlashRegs {
+    fn sr(&mut self) -> u32 {
+        Self::flash().sr().read().bits()
+    }
+    fn clear_sr(&mut self, bits: u32) {
+        // SAFETY: SR's flags clear on a written 1 (rc_w1).
+        Self::flash().sr().write(|w| unsafe { w.bits(bits) });
+    }
+    fn cr(&mut self) -> u32 {
+        Self::flash().cr().read().bits()
+    }
+    fn set_cr(&mut self, value: u32) {
+        // SAFETY: CR's bits as RM0090 §3.9.7 defines them.
+        Self::flash().cr().write(|w| unsafe { w.bits(value) });
+    }
+    fn write_key(&mut self, key: u32) {
+        // SAFETY: KEYR takes the unlock keys.
+        Self::flash().keyr().write(|w| unsafe { w.bits(key) });
+    }
+    fn write_word(&mut self, offset: u32, word: u32) {
+        // Only words inside the model slots are ever programmed.
+        let in_slot = super::MODEL_SLOTS
+            .offsets
+            .iter()
+            .any(|&start| offset >= start && offset + 4 <= start + super::MODEL_SLOTS.len);
+        if in_slot {
+            let address = 0x0800_0000u32 + offset;
+            // SAFETY: an aligned word inside a model slot, with PG set (the
+            // driver's sequence); the controller flags anything else.
+            unsafe { core::ptr::write_volatile(address as *mut u32, word) };
+        }
+    }
+    fn flush_caches(&mut self) {
+        // RM0090 §3.5.2: caches off, reset, on again.
+        let acr = Self::flash().acr();
+        acr.modify(|_, w| w.dcen().clear_bit().icen().clear_bit());
+        acr.modify(|_, w| w.dcrst().set_bit().icrst().set_bit());
+        acr.modify(|_, w| w.dcrst().clear_bit().icrst().clear_bit());
+        acr.modify(|_, w| w.dcen().set_bit().icen().set_bit());
+    }
+    fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
+        // Only the model slots are read (the linker's MODEL_A and MODEL_B).
+        let slots = [firmware::board::model_slot_a(), firmware::board::model_slot_b()];
+        super::MODEL_SLOTS.offsets.iter().zip(slots).find_map(|(start, slot)| {
+            let from = offset.checked_sub(*start)? as usize;
+            slot.get(from..from.checked_add(len)?)
+        })
+    }
+}
