@@ -90,7 +90,7 @@ impl Pacer {
         if behind >= u32::MAX / 2 || behind < self.period_ticks {
             return tick;
         }
-        let periods = behind / self.period_ticks;
+        let periods = behind / self.period_ticks.max(1);
         self.last = Some((
             seq.wrapping_add(periods),
             stamp.wrapping_add(periods.wrapping_mul(self.period_ticks)),
@@ -121,7 +121,7 @@ impl Pacer {
                         continue;
                     }
                     // Whole periods since the last accepted edge: ≥ 1 here.
-                    let periods = ticks.saturating_add(self.period_ticks / 2) / self.period_ticks;
+                    let periods = ticks.saturating_add(self.period_ticks / 2) / self.period_ticks.max(1);
                     Tick {
                         seq: seq.wrapping_add(periods),
                         dt_s: ticks as f32 / self.ticks_per_s,
@@ -150,7 +150,7 @@ impl Pacer {
             return None;
         }
         // Long silences (a stall) jump to now: the periods between are missed samples.
-        let periods = (silent_ticks / self.period_ticks).saturating_sub(1).max(1);
+        let periods = (silent_ticks / self.period_ticks.max(1)).saturating_sub(1).max(1);
         let (seq, stamp) = match self.last {
             None => (0, now_ticks),
             Some(_) => (

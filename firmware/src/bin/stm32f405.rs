@@ -602,16 +602,21 @@ mod board {
         data_ready.trigger_on_edge(&mut dp.EXTI, Edge::Rising);
         data_ready.enable_interrupt(&mut dp.EXTI);
         cortex_m::interrupt::free(|cs| {
-            UART.borrow(cs).replace(Some(UartIsr {
-                tx,
-                rx,
-                outgoing,
-                incoming,
-            }));
-            DATA_READY.borrow(cs).replace(Some(DataReadyIsr {
-                pin: data_ready,
-                stamps,
-            }));
+            // `try_borrow_mut`: nothing else holds the cells yet, and no panic path is linked.
+            if let Ok(mut uart) = UART.borrow(cs).try_borrow_mut() {
+                *uart = Some(UartIsr {
+                    tx,
+                    rx,
+                    outgoing,
+                    incoming,
+                });
+            }
+            if let Ok(mut d) = DATA_READY.borrow(cs).try_borrow_mut() {
+                *d = Some(DataReadyIsr {
+                    pin: data_ready,
+                    stamps,
+                });
+            }
         });
 
         // The boot report goes out first (a fault or watchdog reset before this boot).
