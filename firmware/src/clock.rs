@@ -44,6 +44,7 @@ impl Deadline {
 }
 
 /// Busy-waits `us` µs on `clock` (bounded by construction).
+#[inline(never)]
 pub fn delay_us<C: Clock>(clock: &mut C, us: u32) {
     let deadline = Deadline::after_us(clock, us);
     while !deadline.expired(clock) {}

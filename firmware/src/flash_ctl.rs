@@ -192,6 +192,7 @@ impl<R: FlashRegisters, C: Clock, W: Watchdog> ControllerFlash<R, C, W> {
         result
     }
 
+    #[inline(never)]
     fn erase_sector(&mut self, sector: u8) -> Result<(), FlashError> {
         self.begin()?;
         let cr = CR_PSIZE_X32 | CR_SER | (u32::from(sector) << CR_SNB_SHIFT);
@@ -204,6 +205,7 @@ impl<R: FlashRegisters, C: Clock, W: Watchdog> ControllerFlash<R, C, W> {
         self.check()
     }
 
+    #[inline(never)]
     fn program(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
         self.begin()?;
         self.regs.set_cr(CR_PSIZE_X32 | CR_PG);

@@ -50,11 +50,16 @@ pub fn encode_sample(status: u16, rate_word: f32) -> [u8; SAMPLE_LEN] {
 /// itself (its table maps 6 … 11 to ÷8, so 84 MHz / 8 MHz would give
 /// 10.5 MHz); a clock too fast for ÷256 gives `pclk_hz / 256`.
 pub const fn spi_clock_hz(pclk_hz: u32, max_hz: u32) -> u32 {
+    pclk_hz / spi_divider(pclk_hz, max_hz)
+}
+
+/// The smallest STM32 SPI divider (2, 4, … 256) that keeps `pclk_hz` within `max_hz`.
+pub const fn spi_divider(pclk_hz: u32, max_hz: u32) -> u32 {
     let mut divider = 2;
     while divider < 256 && pclk_hz / divider > max_hz {
         divider *= 2;
     }
-    pclk_hz / divider
+    divider
 }
 
 /// Driver errors.
@@ -125,6 +130,7 @@ impl<SPI: SpiDevice> FrontEnd<SPI> {
     }
 
     /// Checks identity and reads the scale factor.
+    #[inline(never)]
     pub fn init(&mut self) -> Result<(), Error<SPI::Error>> {
         let id = u16::from_be_bytes(self.read::<2>(REG_WHO_AM_I)?);
         if id != WHO_AM_I {

@@ -16,11 +16,12 @@
 //! | 4 | 4 | fault PC (panic, HardFault; else 0) |
 //! | 8 | 4 | fault LR |
 //! | 12 | 4 × 12 | [`HealthCounters`] in field order |
-//! | 60 | 4 | running model's blob CRC-32 (0: none) |
+//! | 60 | 4 | running model's blob CRC-32, its trailer (0: none) |
 //! | 64 | 4 | running model's commit sequence number (its serial; 0: none or uncommitted) |
+//! | 68 | 4 | board flags: bit 0 the crystal did not start (the clocks run from the HSI) |
 //!
 //! A receiver tells it from the other frames on the UART by its length
-//! (68; replies 2, boot report 11, single-axis output frames 18–22,
+//! (72; replies 2, boot report 11, single-axis output frames 18–22,
 //! three-axis 54–58) and its tag.
 
 use rbf_core::frame::cobs_encode;
@@ -34,7 +35,7 @@ pub const HEALTH_REPORT_TAG: u8 = 0xFC;
 /// The report layout's version.
 pub const HEALTH_REPORT_VERSION: u8 = 1;
 /// Payload bytes of a health report.
-pub const HEALTH_REPORT_LEN: usize = 68;
+pub const HEALTH_REPORT_LEN: usize = 72;
 /// Bytes of a COBS-framed health report with its terminator, at most.
 pub const HEALTH_FRAME_LEN: usize = HEALTH_REPORT_LEN + 2;
 
@@ -154,7 +155,7 @@ impl HealthCounters {
 /// Which model runs: its blob's CRC-32 and its commit sequence number.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ModelIdentity {
-    /// CRC-32 (ISO-HDLC) of the running blob; 0 when none runs.
+    /// The running blob's CRC-32 trailer (ISO-HDLC over its header and payload); 0 when none runs.
     pub blob_crc32: u32,
     /// The slot's commit sequence number; 0 when uncommitted or none.
     pub sequence: u32,
@@ -175,7 +176,12 @@ pub struct HealthReport {
     pub counters: HealthCounters,
     /// The running model.
     pub model: ModelIdentity,
+    /// Board flags ([`BOARD_ON_HSI`]).
+    pub board_flags: u32,
 }
+
+/// Board flag: the crystal did not start; the clocks run from the internal RC oscillator.
+pub const BOARD_ON_HSI: u32 = 1 << 0;
 
 impl HealthReport {
     /// The payload bytes (module docs).
@@ -194,13 +200,15 @@ impl HealthReport {
             *d = s;
         }
         words[15] = self.model.blob_crc32;
-        for (chunk, w) in p.chunks_exact_mut(4).zip(words.iter().chain(&[self.model.sequence])) {
+        let tail = [self.model.sequence, self.board_flags];
+        for (chunk, w) in p.chunks_exact_mut(4).zip(words.iter().chain(&tail)) {
             chunk.copy_from_slice(&w.to_le_bytes());
         }
         p
     }
 
     /// The COBS-framed report into `out`; the bytes used.
+    #[inline(never)]
     pub fn encode(&self, out: &mut [u8]) -> Option<usize> {
         cobs_encode(&self.to_bytes(), out)
     }
@@ -238,7 +246,7 @@ mod tests {
     }
 
     #[test]
-    fn the_report_lays_out_its_fields_as_documented_and_frames_to_68_bytes() {
+    fn the_report_lays_out_its_fields_as_documented_and_frames_to_72_bytes() {
         let report = HealthReport {
             reset_cause: ResetCause::Watchdog,
             reset_flags: 0x24,
@@ -253,6 +261,7 @@ mod tests {
                 blob_crc32: 0xDEAD_BEEF,
                 sequence: 3,
             },
+            board_flags: BOARD_ON_HSI,
         };
         let p = report.to_bytes();
         assert_eq!(&p[..4], &[0xFC, 1, 4, 0x24]);
@@ -261,6 +270,7 @@ mod tests {
         assert_eq!(u32::from_le_bytes(p[56..60].try_into().unwrap()), 1, "flash_errors");
         assert_eq!(u32::from_le_bytes(p[60..64].try_into().unwrap()), 0xDEAD_BEEF);
         assert_eq!(u32::from_le_bytes(p[64..68].try_into().unwrap()), 3);
+        assert_eq!(u32::from_le_bytes(p[68..72].try_into().unwrap()), 1);
         let mut out = [0u8; HEALTH_FRAME_LEN];
         let n = report.encode(&mut out).unwrap();
         let mut frame = out[..n].to_vec();

@@ -354,14 +354,17 @@ impl<F: MappedFlash> ModelStore<F> {
         Ok(())
     }
 
-    /// The running model's identity: its blob's CRC-32 and its commit
+    /// The running model's identity: its blob's CRC-32 (the blob's trailer) and its commit
     /// sequence number (0 for a blob without a record); zeros when none runs.
     pub fn identity(&self) -> crate::health::ModelIdentity {
         let Some(slot) = self.active.filter(|_| self.loaded) else {
             return crate::health::ModelIdentity::default();
         };
+        // The blob's own trailer: the CRC-32 over its header and payload,
+        // checked when it was loaded.
+        let trailer = self.blob(slot).ok().and_then(|b| b.last_chunk::<4>().copied());
         crate::health::ModelIdentity {
-            blob_crc32: self.blob(slot).map_or(0, |b| CRC32.checksum(b)),
+            blob_crc32: trailer.map_or(0, u32::from_le_bytes),
             sequence: match self.states[slot & 1] {
                 SlotState::Committed(sequence) => sequence,
                 _ => 0,

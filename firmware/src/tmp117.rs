@@ -88,6 +88,7 @@ impl<I2C: I2c> Tmp117<I2C> {
     }
 
     /// Checks the device ID and starts continuous conversion.
+    #[inline(never)]
     pub fn init(&mut self) -> Result<(), Error<I2C::Error>> {
         let id = self.read_register(REG_DEVICE_ID)? & 0x0FFF;
         if id != DEVICE_ID {

@@ -1,10 +1,10 @@
-//! Proves from the flashed board image itself that nothing it runs after
-//! init can panic: in the call graph of its machine code (every direct
-//! branch between functions, from `llvm-objdump`), the panic machinery
-//! (`core::panicking::panic_fmt`, the panic handler) must be unreachable from
-//! the board's loop (`run_forever`) and its interrupt and fault handlers.
-//! Init code (clock setup, HAL constructors) may keep its asserts: a failure
-//! there records the cause and resets (docs/firmware.md).
+//! Proves from the flashed board image itself that it cannot panic: no
+//! direct branch anywhere in its machine code (from `llvm-objdump`) goes to
+//! the panic machinery (`core::panicking::panic_fmt`, the panic handler),
+//! init included (the clock setup, the HAL constructors); and, in the call
+//! graph of every direct branch between functions, none is reachable from
+//! the board's loop (`run_forever`) and its interrupt and fault handlers,
+//! nor does an indirect branch there hide one.
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::Path;
@@ -14,7 +14,7 @@ use anyhow::{Context, bail};
 
 /// Functions the board runs after init: its loop and its handlers. Each
 /// must be in the image (a check over nothing would pass).
-const ROOTS: [&str; 4] = ["run_forever", "EXTI0", "USART1", "HardFault"];
+const ROOTS: [&str; 5] = ["run_forever", "EXTI0", "USART1", "HardFault", "SysTick"];
 
 /// Every panic goes through these (mangled names contain them).
 const PANIC_ENTRIES: [&str; 3] = ["panic_fmt", "panic_nounwind", "rust_begin_unwind"];
@@ -56,7 +56,9 @@ fn check_disassembly(functions: &[Function], disassembly: &str) -> anyhow::Resul
         let f = &functions[i];
         (addr < f.start + f.size).then_some(i)
     };
+    let is_panic = |f: usize| PANIC_ENTRIES.iter().any(|p| functions[f].name.contains(p));
     let mut edges: BTreeMap<usize, BTreeSet<usize>> = BTreeMap::new();
+    let mut panic_sites: Vec<String> = Vec::new();
     let mut indirect: BTreeMap<usize, Vec<String>> = BTreeMap::new();
     for line in disassembly.lines() {
         let Some((addr, mnemonic, operands)) = parse_instruction(line) else {
@@ -74,6 +76,9 @@ fn check_disassembly(functions: &[Function], disassembly: &str) -> anyhow::Resul
                 .find_map(|w| u64::from_str_radix(w.strip_prefix("0x")?, 16).ok());
             if let Some(to) = target.and_then(owner).filter(|to| *to != from) {
                 edges.entry(from).or_default().insert(to);
+                if is_panic(to) && !is_panic(from) {
+                    panic_sites.push(format!("{addr:#x} in {}", functions[from].name));
+                }
             }
         }
     }
@@ -110,6 +115,14 @@ fn check_disassembly(functions: &[Function], disassembly: &str) -> anyhow::Resul
         bail!(
             "a panic is reachable after init in the board image (docs/panic-free.md):\n  {}",
             chain.join("\n  called from ")
+        );
+    }
+    // Then anywhere else: init too.
+    if !panic_sites.is_empty() {
+        bail!(
+            "{} panic call sites in the board image (docs/panic-free.md):\n  {}",
+            panic_sites.len(),
+            panic_sites.join("\n  ")
         );
     }
     // Indirect branches (`blx rN`, `bx rN`): the graph cannot follow them.
@@ -208,6 +221,7 @@ mod tests {
             f(0x100, 0x10, "EXTI0"),
             f(0x110, 0x10, "USART1"),
             f(0x120, 0x10, "HardFault"),
+            f(0x130, 0x10, "SysTick"),
             f(0x200, 0x20, "_ZN9stm32f4055board11run_forever17h0E"),
             f(0x300, 0x10, "_ZN4step17h1E"),
             f(0x400, 0x10, "_ZN4init17h2E"),
@@ -226,10 +240,17 @@ mod tests {
     }
 
     #[test]
-    fn a_panic_only_in_init_passes() {
+    fn a_panic_call_site_in_init_fails_too() {
         let asm = "  200:  bl  0x300 <step>\n  402:  bl  0x500 <panic_fmt>\n  104:  b.w 0x300 <step>\n";
+        let err = check_disassembly(&image(), asm).unwrap_err().to_string();
+        assert!(err.contains("1 panic call sites") && err.contains("4init"), "{err}");
+    }
+
+    #[test]
+    fn an_image_without_panic_call_sites_passes() {
+        let asm = "  200:  bl  0x300 <step>\n  402:  bl  0x300 <step>\n  104:  b.w 0x300 <step>\n";
         let reach = check_disassembly(&image(), asm).unwrap();
-        assert_eq!(reach.functions, 5, "four roots and step");
+        assert_eq!(reach.functions, 6, "five roots and step");
     }
 
     #[test]

@@ -71,7 +71,7 @@ mod board {
     #[cfg(not(feature = "board-qemu"))]
     use firmware::flash_ctl::ControllerFlash;
     use firmware::frontend::{self, FrontEnd};
-    use firmware::health::{CMD_HEALTH, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause};
+    use firmware::health::{BOARD_ON_HSI, CMD_HEALTH, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause};
     #[cfg(not(feature = "board-qemu"))]
     use firmware::i2c_master::BoundedI2c;
     use firmware::model_store::ModelStore;
@@ -95,8 +95,6 @@ mod board {
     use stm32f4xx_hal::gpio::{Edge, ExtiPin, Input, PB0};
     use stm32f4xx_hal::pac::{self, interrupt};
     use stm32f4xx_hal::prelude::*;
-    #[cfg(not(feature = "board-qemu"))]
-    use stm32f4xx_hal::rcc::Config;
     use stm32f4xx_hal::rcc::{Enable, Reset};
     use stm32f4xx_hal::serial::{Rx, RxListen, Tx, TxListen};
     use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
@@ -247,8 +245,9 @@ mod board {
 
     impl embedded_hal::delay::DelayNs for CycleDelay {
         fn delay_ns(&mut self, ns: u32) {
-            let cycles = u64::from(ns) * u64::from(self.core_hz) / 1_000_000_000;
-            cortex_m::asm::delay(u32::try_from(cycles).unwrap_or(u32::MAX));
+            // Rounded up to whole µs: 32-bit arithmetic (a 64-bit division costs 864 B of flash).
+            let cycles = (ns / 1000 + 1).saturating_mul(self.core_hz / 1_000_000);
+            cortex_m::asm::delay(cycles);
         }
     }
 
@@ -420,6 +419,7 @@ mod board {
         cause: ResetCause,
         flags: u8,
         fault: Option<FaultRecord>,
+        on_crystal: bool,
     }
 
     /// Sends the health report: `boot`, then the counters of the loop
@@ -441,6 +441,7 @@ mod board {
                 fault_lr: $boot.fault.map_or(0, |r| r.lr),
                 counters: health_counters(&$c.stats(), &$pacer.counters(), inits, flash_errors),
                 model: $store.identity(),
+                board_flags: if $boot.on_crystal { 0 } else { BOARD_ON_HSI },
             };
             let mut frame = [0u8; HEALTH_FRAME_LEN];
             if let Some(n) = report.encode(&mut frame) {
@@ -495,17 +496,15 @@ mod board {
 
         #[cfg(feature = "board-qemu")]
         firmware::board::paint_stack();
-        // The crystal, waited for with a bound; without it the HSI clocks the PLL.
+        // The board's own clock setup, every wait bounded (a dead crystal: the HSI).
         #[cfg(not(feature = "board-qemu"))]
-        let source = if hw::start_hse() {
-            Config::hse(8.MHz())
-        } else {
-            Config::hsi()
-        };
-        #[cfg(not(feature = "board-qemu"))]
-        let mut rcc = dp.RCC.freeze(source.sysclk(168.MHz()));
+        let clocks = hw::setup_clocks();
         // QEMU has no clock controller (the HSE never reports ready): the reset clocks.
         #[cfg(feature = "board-qemu")]
+        let clocks = hw::HSI_TREE;
+        // The HAL's RCC only enables and resets peripherals here: it
+        // believes in the reset clocks, so the SPI divider and the UART's
+        // baud rate are set again below from `clocks`.
         let mut rcc = dp.RCC.constrain();
         // The cycle counter the `bench` command reads (firmware::bench).
         core.DCB.enable_trace();
@@ -517,7 +516,7 @@ mod board {
 
         // TIM2 free-running over 32 bits at the timer clock: the data-ready
         // timestamps and the clock of every bounded wait.
-        let timer_hz = rcc.clocks.timclk1().raw();
+        let timer_hz = clocks.timclk1_hz;
         pac::TIM2::enable(&mut rcc);
         pac::TIM2::reset(&mut rcc);
         dp.TIM2.arr().write(|w| unsafe { w.bits(u32::MAX) });
@@ -533,7 +532,7 @@ mod board {
             let _scl = gpiob.pb6.into_alternate_open_drain::<4>();
             let _sda = gpiob.pb7.into_alternate_open_drain::<4>();
             pac::I2C1::enable(&mut rcc);
-            let pclk1_mhz = (rcc.clocks.pclk1().raw() / 1_000_000) as u16;
+            let pclk1_mhz = (clocks.pclk1_hz / 1_000_000) as u16;
             BoundedI2c::new(hw::I2c1Regs { pclk1_mhz }, tim2)
         };
         let mode = Mode {
@@ -547,7 +546,8 @@ mod board {
             frontend::spi_clock_hz(rcc.clocks.pclk2().raw(), SPI_MAX_HZ).Hz(),
             &mut rcc,
         );
-        let core_hz = rcc.clocks.sysclk().raw();
+        hw::set_spi1_divider(&clocks, SPI_MAX_HZ);
+        let core_hz = clocks.sysclk_hz;
         #[cfg(not(feature = "board-axes"))]
         let Ok(spi_device) = ExclusiveDevice::new(spi, gpioa.pa4.into_push_pull_output(), CycleDelay { core_hz });
         // Three front ends on one bus: a busy bus is an error the loop flags, never a wait or a panic.
@@ -576,6 +576,7 @@ mod board {
         let Ok(serial) = dp.USART1.serial::<u8>((gpioa.pa9, rx_pin), 921_600.bps(), &mut rcc) else {
             halt()
         };
+        hw::set_usart1_baud(&clocks, 921_600);
         let (tx, mut rx) = serial.split();
         rx.listen();
         #[cfg(not(feature = "board-qemu"))]
@@ -700,6 +701,7 @@ mod board {
             cause: reset_cause,
             flags: reset_flags,
             fault: fault_record,
+            on_crystal: clocks.on_crystal,
         };
         // The health report after every reset, before the first output frame.
         send_health!(boot, compensation, store, pacer);

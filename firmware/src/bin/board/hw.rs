@@ -82,6 +82,7 @@ impl Watchdog for Iwdg {
         unsafe { (*pac::IWDG::ptr()).kr().write(|w| w.bits(0xAAAA)) };
     }
 
+    #[inline(never)]
     fn set_period(&mut self, setting: IwdgSetting) -> bool {
         // SAFETY: IWDG accesses as RM0090 §21.3 describes; PR and RLR
         // take new values only while SR shows no update in progress.
@@ -102,18 +103,110 @@ impl Watchdog for Iwdg {
     }
 }
 
-/// Starts the 8 MHz crystal; false when it is not ready within the bound
-/// (a dead crystal: the board then runs on the HSI).
+/// The frequencies the board runs at, Hz.
+#[derive(Clone, Copy, Debug)]
+pub struct ClockTree {
+    /// Core (SYSCLK = HCLK).
+    pub sysclk_hz: u32,
+    /// APB1 (I2C1).
+    #[cfg_attr(feature = "board-qemu", allow(dead_code, reason = "the QEMU image has no I2C1"))]
+    pub pclk1_hz: u32,
+    /// APB2 (SPI1, USART1).
+    pub pclk2_hz: u32,
+    /// APB1 timers (TIM2).
+    pub timclk1_hz: u32,
+    /// The PLL runs from the crystal (false: from the HSI, a dead crystal).
+    pub on_crystal: bool,
+}
+
+/// After reset the chip runs on the 16 MHz HSI, every bus undivided.
+pub const HSI_TREE: ClockTree = ClockTree {
+    sysclk_hz: 16_000_000,
+    pclk1_hz: 16_000_000,
+    pclk2_hz: 16_000_000,
+    timclk1_hz: 16_000_000,
+    on_crystal: false,
+};
+
+/// Sets the clock tree up with every wait bounded (RM0090 §6.3; the
+/// stm32f4xx-hal's `freeze` waits without a limit and asserts): the 8 MHz
+/// crystal if it starts, else the HSI, into the PLL (VCO input 1 MHz,
+/// ×336, ÷2: 168 MHz; ÷7: 48 MHz), five flash wait states with the
+/// prefetch and caches on, APB1 ÷4 (42 MHz, timers 84 MHz), APB2 ÷2
+/// (84 MHz). A PLL that does not lock leaves the chip on the HSI
+/// ([`HSI_TREE`]).
 #[cfg(not(feature = "board-qemu"))]
-pub fn start_hse() -> bool {
-    // SAFETY: RCC_CR.HSEON; nothing else runs yet.
+pub fn setup_clocks() -> ClockTree {
+    // SAFETY: RCC and FLASH's ACR, configured once from `main` before any
+    // peripheral runs; values as RM0090 §6.3 and §3.5.1 define them.
     let rcc = unsafe { &*pac::RCC::ptr() };
+    let flash = unsafe { &*pac::FLASH::ptr() };
     rcc.cr().modify(|_, w| w.hseon().set_bit());
-    let ready = poll(|| rcc.cr().read().hserdy().bit_is_set());
-    if !ready {
+    let on_crystal = poll(|| rcc.cr().read().hserdy().bit_is_set());
+    if !on_crystal {
         rcc.cr().modify(|_, w| w.hseon().clear_bit());
     }
-    ready
+    let (m, source) = if on_crystal { (8, 1) } else { (16, 0) };
+    // PLLM [5:0], PLLN [14:6], PLLP [17:16] (00: ÷2), PLLSRC [22], PLLQ [27:24].
+    let fields = m | (336 << 6) | (source << 22) | (7 << 24);
+    rcc.pllcfgr()
+        .modify(|r, w| unsafe { w.bits((r.bits() & !0x0F43_7FFF) | fields) });
+    rcc.cr().modify(|_, w| w.pllon().set_bit());
+    if !poll(|| rcc.cr().read().pllrdy().bit_is_set()) {
+        rcc.cr().modify(|_, w| w.pllon().clear_bit());
+        return HSI_TREE;
+    }
+    // Five wait states for 168 MHz at 2.7–3.6 V, before the switch.
+    flash
+        .acr()
+        .modify(|r, w| unsafe { w.bits((r.bits() & !0xF) | 5 | (1 << 8) | (1 << 9) | (1 << 10)) });
+    if flash.acr().read().bits() & 0xF != 5 {
+        return HSI_TREE;
+    }
+    // HPRE [7:4] ÷1, PPRE1 [12:10] ÷4, PPRE2 [15:13] ÷2, SW [1:0] PLL.
+    rcc.cfgr()
+        .modify(|r, w| unsafe { w.bits((r.bits() & !0xFCF3) | (0b101 << 10) | (0b100 << 13) | 0b10) });
+    if !poll(|| rcc.cfgr().read().bits() & 0b1100 == 0b1000) {
+        // Still on the HSI with APB1 ÷4 and APB2 ÷2.
+        return ClockTree {
+            pclk1_hz: 4_000_000,
+            pclk2_hz: 8_000_000,
+            timclk1_hz: 8_000_000,
+            ..HSI_TREE
+        };
+    }
+    ClockTree {
+        sysclk_hz: 168_000_000,
+        pclk1_hz: 42_000_000,
+        pclk2_hz: 84_000_000,
+        timclk1_hz: 84_000_000,
+        on_crystal,
+    }
+}
+
+/// Sets SPI1's clock divider for `tree` (the HAL computed one for the
+/// reset clocks it believes in): at most the front end's `max_hz`.
+pub fn set_spi1_divider(tree: &ClockTree, max_hz: u32) {
+    let divider = firmware::frontend::spi_divider(tree.pclk2_hz, max_hz);
+    // BR [5:3]: ÷2^(BR+1).
+    let code = (divider.trailing_zeros().saturating_sub(1) & 0b111) as u16;
+    // SAFETY: SPI1's CR1, disabled (SPE, bit 6) while BR changes.
+    let spi = unsafe { &*pac::SPI1::ptr() };
+    spi.cr1().modify(|r, w| unsafe { w.bits(r.bits() & !(1 << 6)) });
+    spi.cr1()
+        .modify(|r, w| unsafe { w.bits((r.bits() & !(0b111 << 3)) | (code << 3) | (1 << 6)) });
+}
+
+/// Sets USART1's baud rate for `tree` (16× oversampling): BRR = pclk2 / baud, rounded.
+pub fn set_usart1_baud(tree: &ClockTree, baud: u32) {
+    let brr = (tree.pclk2_hz + baud / 2) / baud.max(1);
+    // SAFETY: USART1's CR1 (UE bit 13, OVER8 bit 15) and BRR, the UART disabled while BRR changes.
+    let usart = unsafe { &*pac::USART1::ptr() };
+    usart
+        .cr1()
+        .modify(|r, w| unsafe { w.bits(r.bits() & !((1 << 13) | (1 << 15))) });
+    usart.brr().write(|w| unsafe { w.bits((brr & 0xFFFF) as u16) });
+    usart.cr1().modify(|r, w| unsafe { w.bits(r.bits() | (1 << 13)) });
 }
 
 /// I2C1 (RM0090 §27) with SCL on PB6 and SDA on PB7 (AF4, open drain).
@@ -163,6 +256,7 @@ impl I2cRegisters for I2c1Regs {
     fn read_dr(&mut self) -> u8 {
         Self::i2c().dr().read().bits() as u8
     }
+    #[inline(never)]
     fn reset(&mut self) {
         // SAFETY: RCC's I2C1 reset bit, pulsed; then I2C1's own registers.
         let rcc = unsafe { &*pac::RCC::ptr() };
