@@ -390,7 +390,7 @@ impl FlashRegisters for FlashSim {
             self.erases.push(value & (0b11 << 8));
             if let Some(start) = [10u32, 11].iter().position(|&s| s == sector) {
                 let from = start * 0x2_0000;
-                self.mem[from as usize..from as usize + 0x2_0000].fill(0xFF);
+                self.mem[from..from + 0x2_0000].fill(0xFF);
             }
             // The CPU stalls for the whole erase, interrupts and feeds included.
             self.clock.advance_us(self.erase_us);
