@@ -155,7 +155,12 @@ fn check_sequence(frames: &[OutputFrame], stats: &LoopStats) -> Result<(), Strin
     let mut missed = 0u32;
     for pair in frames.windows(2) {
         let gap = pair[1].seq.wrapping_sub(pair[0].seq);
-        ensure!((1..1 << 20).contains(&gap), "seq {} follows {}", pair[1].seq, pair[0].seq);
+        ensure!(
+            (1..1 << 20).contains(&gap),
+            "seq {} follows {}",
+            pair[1].seq,
+            pair[0].seq
+        );
         if gap > 1 {
             ensure!(
                 pair[1].flags & Flags::SAMPLES_MISSED.bits() != 0,
@@ -641,7 +646,11 @@ fn rx_noise() -> Verdict {
             state ^= state >> 17;
             state ^= state << 5;
             // Noise: mostly non-zero bytes, a frame end now and then.
-            let byte = if state.is_multiple_of(23) { 0 } else { (state >> 8) as u8 };
+            let byte = if state.is_multiple_of(23) {
+                0
+            } else {
+                (state >> 8) as u8
+            };
             match receiver.push(byte) {
                 None => {}
                 Some(Received::Rejected(_)) => replies += 1,
