@@ -146,9 +146,10 @@ impl<R: I2cRegisters, C: Clock> BoundedI2c<R, C> {
     /// Nine SCL clocks (fewer once SDA is released), a STOP, a peripheral reset.
     pub fn recover(&mut self) {
         let half = RECOVERY_HALF_PERIOD_US;
-        self.regs.lines_as_gpio(true);
+        // Output latches high before the pins become outputs: no glitch on the lines.
         self.regs.set_sda(true);
         self.regs.set_scl(true);
+        self.regs.lines_as_gpio(true);
         delay_us(&mut self.clock, half);
         for _ in 0..9 {
             if self.regs.sda_is_high() {
