@@ -458,6 +458,8 @@ pub struct FrontEndSim {
     pub period_us: u64,
     /// The scale factor it reports, °/h per unit.
     pub scale_dph: f32,
+    /// Until then SCALE_FACTOR reads 0 (calibration not loaded) while the rest answers, µs.
+    pub scale_from_us: u64,
     /// The rate word of sample `n` is `n as f32`.
     pub counter: u8,
     /// Samples taken so far.
@@ -487,6 +489,7 @@ impl FrontEndSim {
             boot_at_us,
             period_us: 1000,
             scale_dph: 2.0,
+            scale_from_us: 0,
             counter: 0,
             samples: 0,
             level_high: false,
@@ -570,7 +573,14 @@ impl SpiDevice for FakeSpi {
         let mut reply = [0u8; frontend::SAMPLE_LEN];
         match *command & !frontend::READ {
             frontend::REG_WHO_AM_I => reply[..2].copy_from_slice(&frontend::WHO_AM_I.to_be_bytes()),
-            frontend::REG_SCALE_FACTOR => reply[..4].copy_from_slice(&s.scale_dph.to_bits().to_be_bytes()),
+            frontend::REG_SCALE_FACTOR => {
+                let scale = if s.clock.now_us() < s.scale_from_us {
+                    0.0
+                } else {
+                    s.scale_dph
+                };
+                reply[..4].copy_from_slice(&scale.to_bits().to_be_bytes());
+            }
             frontend::REG_SAMPLE => {
                 let counter = s.counter;
                 reply =
