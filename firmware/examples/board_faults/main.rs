@@ -389,6 +389,49 @@ fn front_end_boots_late() -> Verdict {
     ))
 }
 
+fn front_end_resets() -> Verdict {
+    let (clock, i2c, fe) = setup(0);
+    let mut board = Board::boot(&clock, &i2c, &fe);
+    board.run_until(1_000_000);
+    {
+        // Its supply dips: 50 ms unpowered (MISO floats high), then it
+        // boots again with another scale factor and its counter from 0.
+        let mut f = fe.borrow_mut();
+        f.boot_at_us = 1_050_000;
+        f.scale_dph = 4.0;
+        f.counter = 0;
+    }
+    board.run_until(2_000_000);
+    let frames = board.frames();
+    check_sequence(&frames, &board.stats())?;
+    let (_, inits, dog) = board.finish();
+    ensure!(dog.check().expired_at_us.is_none(), "the watchdog reset the chip");
+    ensure!(inits == 2, "front end initialised {inits} times, expected 2");
+    let dark: Vec<_> = frames.iter().filter(|f| (1001..1045).contains(&f.seq)).collect();
+    let unflagged = dark.iter().find(|f| !flagged(f, Flags::RATE_INVALID));
+    ensure!(
+        unflagged.is_none(),
+        "a frame without a front end went out unflagged: {unflagged:?}"
+    );
+    let after: Vec<_> = frames.iter().filter(|f| f.seq >= 1100).collect();
+    ensure!(!after.is_empty(), "no frames after the reset");
+    for pair in after.windows(2) {
+        let step = (pair[1].rate_dph - pair[0].rate_dph).rem_euclid(1024.0);
+        ensure!(
+            (step - 4.0).abs() < 1e-3,
+            "rates {} then {}: not the new scale factor 4",
+            pair[0].rate_dph,
+            pair[1].rate_dph
+        );
+    }
+    Ok(format!(
+        "front end unpowered for 50 ms at 1 s: {} frames flagged 16 meanwhile, re-initialised after {} failed reads (2 inits), its new scale 4 on {} frames",
+        dark.len(),
+        firmware::frontend::REINIT_AFTER_FAULTS,
+        after.len()
+    ))
+}
+
 fn loop_stall() -> Verdict {
     let mut lines = Vec::new();
     // Both kinds of data-ready line: held high until SAMPLE is read, and pulsed.
@@ -698,13 +741,14 @@ fn rx_noise() -> Verdict {
 }
 
 fn main() -> ExitCode {
-    let scenarios: [Scenario; 11] = [
+    let scenarios: [Scenario; 12] = [
         ("stuck SDA at boot", stuck_sda_at_boot),
         ("stuck bus at run time", stuck_bus_at_run_time),
         ("NACK storm", nack_storm),
         ("TMP117 answers late", late_thermometer),
         ("data-ready stuck high at boot", data_ready_stuck_high_at_boot),
         ("front end boots 2 s late", front_end_boots_late),
+        ("front end resets", front_end_resets),
         ("200-ms loop stall", loop_stall),
         ("glitch on data-ready", data_ready_glitch),
         ("4-s erase at 47 kHz LSI", slow_erase_at_fast_lsi),
