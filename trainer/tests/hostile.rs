@@ -152,7 +152,8 @@ fn report_checks_every_file_it_would_write_before_reading_a_run() {
     };
     let run_args = |a: Vec<String>| trainer(&a.iter().map(String::as_str).collect::<Vec<_>>());
     let o = run_args(args(&[]));
-    refused(&o, "report.md: exists; pass --force to overwrite it");
+    // The directory is replaced as a whole: a report's own files need --force.
+    refused(&o, "report: exists; pass --force to overwrite it");
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1, "nothing written");
     let o = run_args(args(&["--force"]));
     assert!(o.status.success(), "{}", stderr(&o));

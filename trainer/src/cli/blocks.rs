@@ -8,10 +8,10 @@ use rbf_core::FeatureSet;
 use trainer::blobfile::read_model;
 use trainer::dataset::{Blocks, RunFiles, RunSet};
 use trainer::fit::Method;
-use trainer::output::{self, Output};
+use trainer::output::{self, Output, Transaction};
 use trainer::{input, text};
 
-use super::common::{ForceArg, input_names, stdout};
+use super::common::{ForceArg, input_names, print_and_commit};
 use super::values::FeaturesArg;
 
 /// Write the training data a fit sees: block means of the features and the bias target.
@@ -96,9 +96,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut out = Output::open(target)?;
     write_csv(&mut out, features.set, &blocks)
         .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
-    out.commit()?;
-    writeln!(stdout(), "wrote {} ({} blocks)", text::path(&a.output), blocks.len())?;
-    Ok(())
+    let printed = format!("wrote {} ({} blocks)\n", text::path(&a.output), blocks.len());
+    print_and_commit(printed.as_bytes(), false, Transaction::of(out))
 }
 
 /// The blocks CSV: a `# features` comment naming the inputs, then

@@ -1,12 +1,12 @@
 //! `trainer compensate`: apply a model to a run exactly as the firmware does.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use trainer::axes::{self, compensate_command};
 use trainer::text;
 
-use super::common::{AllowUncompensated, ForceArg, stdout};
+use super::common::{AllowUncompensated, ForceArg, print_and_commit};
+use trainer::output::Transaction;
 use super::model_arg::ModelArg;
 
 /// Compensate a run with a model, exactly as the firmware does.
@@ -36,7 +36,7 @@ pub struct Args {
 
 /// Runs `trainer compensate`.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let c = compensate_command(
+    let (c, out) = compensate_command(
         &a.model.path,
         &a.run,
         &a.output,
@@ -61,10 +61,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     } else {
         format!(", axes {}", axes::names(&axes))
     };
-    writeln!(
-        stdout(),
-        "wrote {} ({rows} rows{what}; flagged: {flagged})",
-        text::path(&a.output)
-    )?;
-    Ok(())
+    let printed = format!("wrote {} ({rows} rows{what}; flagged: {flagged})\n", text::path(&a.output));
+    print_and_commit(printed.as_bytes(), false, Transaction::of(out))
 }

@@ -1,15 +1,14 @@
 //! `trainer simulate`: write a simulated IFOG run.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use trainer::limits::MAX_PARAMS_BYTES;
-use trainer::output::{self, Output};
+use trainer::output::{self, Output, Transaction};
 use trainer::simulate::{ChamberRun, ParamsError, Profile, SimParams};
 use trainer::{input, text};
 
-use super::common::{ForceArg, stdout};
+use super::common::{ForceArg, print_and_commit};
 use super::values::ProfileArg;
 
 /// Write a simulated IFOG run, in a thermal chamber or in use (recorded-run CSV with ref_dph).
@@ -190,9 +189,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None => run.write_csv(&mut out),
     }
     .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
-    out.commit()?;
-    writeln!(stdout(), "wrote {}", text::path(&a.output))?;
-    Ok(())
+    let printed = format!("wrote {}\n", text::path(&a.output));
+    print_and_commit(printed.as_bytes(), false, Transaction::of(out))
 }
 
 /// The simulator's parameters `base` with a JSON file's fields over them:
