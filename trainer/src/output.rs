@@ -120,8 +120,11 @@ fn check_existing(path: &Path, meta: &Metadata, existing: Existing) -> anyhow::R
 /// the module documentation for what is refused.
 pub fn check_target(path: &Path, inputs: &[&Path], existing: Existing) -> anyhow::Result<Target> {
     let shown = text::path(path);
+    anyhow::ensure!(
+        !input::is_stdin(path),
+        "- (standard output) cannot take this output; name a file (only --json takes -)"
+    );
     path.file_name()
-        .filter(|_| !input::is_stdin(path))
         .with_context(|| format!("{shown}: not a file name to write"))?;
     let dir = match path.parent().filter(|p| !p.as_os_str().is_empty()) {
         Some(dir) => dir.to_owned(),

@@ -17,7 +17,7 @@ use plotters::prelude::*;
 use rbf_core::{FeatureSet, FeatureVector, Model};
 
 use crate::diagnose::RunDiagnosis;
-use crate::evaluate::{Evaluator, RunEvaluation, require_compensated, require_evaluable};
+use crate::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
 use crate::output::{self, DirTarget, Existing, StagedDir};
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, summary, text};
@@ -745,12 +745,13 @@ fn read_run(
 ) -> anyhow::Result<RunPlots> {
     let path = reader.path().to_owned();
     let mask = model.features().set.thermometer_mask();
+    let named = RunDiagnosis::new(&path, 1.0).named_by(reader.header_line(), reader.columns());
     let run = StreamedRun::from_reader(reader, mask)?;
     let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
     let config = rbf_core::CompensatorConfig::for_nominal_period_s(period_s);
     let (mut compensator, mut features) = (rbf_core::Compensator::new(), rbf_core::Compensator::new());
     let mut evaluator = Evaluator::new(&path, period_s, has_ref);
-    let mut diagnosis = RunDiagnosis::new(&path, period_s);
+    let mut diagnosis = RunDiagnosis::new(&path, period_s).named_like(&named);
     let (mut raw, mut comp, mut temp, mut bias) = (
         BlockMeans::new(PLOT_MEAN_S),
         BlockMeans::new(PLOT_MEAN_S),
@@ -974,15 +975,15 @@ pub fn write_report(
         both(&format!("{stem}_allan"), render(&allan))?;
         let e = &p.evaluation;
         md.push_str(&format!(
-            "| {} | {:.4} | {:.4} | {:.1} % | {:.1} % | {:.2e} | {:.2e} → {:.2e} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} → {} | {} |\n",
             text::escape_controls(stem),
-            e.cluster_std_before_dph,
-            e.cluster_std_after_dph,
-            e.cluster_std_improvement_pct,
-            e.msd_improvement_pct,
-            e.allan_after.arw_deg_per_sqrt_h,
-            e.allan_before.bias_instability_dph,
-            e.allan_after.bias_instability_dph,
+            figure(e.cluster_std_before_dph, |v| format!("{v:.4}")),
+            figure(e.cluster_std_after_dph, |v| format!("{v:.4}")),
+            figure(e.cluster_std_improvement_pct, |v| format!("{v:.1} %")),
+            figure(e.msd_improvement_pct, |v| format!("{v:.1} %")),
+            figure(e.allan_after.arw_deg_per_sqrt_h, |v| format!("{v:.2e}")),
+            figure(e.allan_before.bias_instability_dph, |v| format!("{v:.2e}")),
+            figure(e.allan_after.bias_instability_dph, |v| format!("{v:.2e}")),
             clamped_cell(e.flagged.input_clamped, e.samples)
         ));
     }

@@ -124,6 +124,17 @@ fn read_line_bounded(source: &mut (dyn BufRead + Send), buf: &mut Vec<u8>) -> st
     Ok(Bounded::Line)
 }
 
+/// True when `line` (without its `\n`) holds a carriage return before its
+/// end: the file's lines end in CR alone.
+fn has_inner_cr(line: &[u8]) -> bool {
+    let body = line.strip_suffix(b"\r").unwrap_or(line);
+    memchr::memchr(b'\r', body).is_some()
+}
+
+/// The message for a file whose lines end in CR alone.
+const CR_ONLY: &str = "the file uses CR-only line endings (a carriage return, \\r, ends its lines, as on classic Mac OS); \
+     recorded runs end lines with \\n or \\r\\n: convert it, e.g. tr '\\r' '\\n' < in.csv > out.csv";
+
 /// The message for a line past [`MAX_LINE_BYTES`].
 fn too_long() -> String {
     format!(
@@ -159,7 +170,13 @@ impl RunReader {
         };
         let header_line = loop {
             line_no += 1;
-            match read_line_bounded(source.as_mut(), &mut buf).map_err(|e| io_or_utf8(path, line_no, e))? {
+            let read = read_line_bounded(source.as_mut(), &mut buf).map_err(|e| io_or_utf8(path, line_no, e))?;
+            // A file with CR-only line ends reads as one line: it would
+            // otherwise be "no header", "too long" or thousands of columns.
+            if has_inner_cr(&buf) {
+                return Err(format_error(line_no, CR_ONLY.into()));
+            }
+            match read {
                 Bounded::End => {
                     return Err(format_error(line_no, "no header line: the file has no columns".into()));
                 }

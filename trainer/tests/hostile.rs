@@ -212,7 +212,7 @@ fn a_stopped_command_leaves_neither_its_output_nor_a_temporary_file() {
             .args([
                 "simulate",
                 "--hours",
-                "1000",
+                "100",
                 "--rate-hz",
                 "100",
                 "-o",

@@ -11,7 +11,9 @@ use super::model_arg::ModelArg;
 
 /// Compensate a run with a model, exactly as the firmware does.
 ///
-/// Writes the input lines unchanged followed by bias_dph [°/h], rate_comp_dph
+/// Writes the input's metadata lines, header and data rows unchanged (`#`
+/// lines between data rows are not part of the format and are dropped, as the
+/// firmware replay drops them), each row followed by bias_dph [°/h], rate_comp_dph
 /// [°/h] and flags (1 clamped · 2 temperature-sensor fault · 4 no valid model ·
 /// 8 warming up · 16 rate invalid); one output row per input row. Rows with
 /// temp_fault = 1 are treated as a sensor that does not answer. A multi-axis

@@ -199,6 +199,30 @@ fn parse_probe(text: &str) -> Result<Probe, String> {
     }
 }
 
+/// Refuses an input named twice in `--inputs`, a gradient in either order
+/// included (`temp_a-temp_b` and `temp_b-temp_a` carry the same information).
+fn check_distinct_inputs(inputs: &[Probe]) -> anyhow::Result<()> {
+    let key = |p: &Probe| match *p {
+        Probe::Temp(i) => (i, i),
+        Probe::Gradient(i, j) => (i.min(j), i.max(j)),
+    };
+    let name = |i: u8| rbf_core::record::column::THERMOMETERS.get(usize::from(i)).copied().unwrap_or("?");
+    for (k, p) in inputs.iter().enumerate() {
+        if let Some(q) = inputs[..k].iter().find(|q| key(q) == key(p)) {
+            let show = |p: &Probe| match *p {
+                Probe::Temp(i) => name(i).to_owned(),
+                Probe::Gradient(i, j) => format!("{}-{}", name(i), name(j)),
+            };
+            anyhow::bail!(
+                "--inputs names {} and {}: the same input twice; name each temperature or gradient once",
+                show(q),
+                show(p)
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Runs `trainer fit`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     // A fit reads its runs several times: files only. Outputs are checked
@@ -212,6 +236,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(|p| p.as_path())
         .collect();
     input::require_seekable(all_runs.iter().copied(), "`trainer fit` reads its runs several times")?;
+    check_distinct_inputs(a.inputs.as_deref().unwrap_or_default())?;
     let existing = a.force.existing();
     let json_file = a.json.json.as_deref().filter(|p| !input::is_stdin(p));
     let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(json_file).collect();
@@ -228,10 +253,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for path in &all_runs {
         RunReader::open(path)?.require_temp()?;
     }
-    anyhow::ensure!(
-        a.block_s.is_finite() && a.block_s > 0.0,
-        "--block-s must be a positive number of seconds"
-    );
+    trainer::limits::check_block_s(a.block_s)?;
     if let Some(s) = &a.serial {
         anyhow::ensure!(
             s.len() <= rbf_core::model::SERIAL_CAPACITY,
@@ -285,7 +307,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let started = std::time::Instant::now();
     let outcome = fit::fit(&train, &validate, &opts).map_err(|e| {
-        if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
+        // A validation run too short to score blames itself, not the training runs.
+        let short = diagnose::short_runs(&a.validate, "--validate", fit::excitation::MIN_USABLE_S);
+        if !short.is_empty() {
+            anyhow::anyhow!("{}", short.join("; "))
+        } else if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
             let mask =
                 opts.method.feature_set(opts.features).thermometer_mask() | (1 << rbf_core::features::LOOP_THERMOMETER);
             diagnose::with_causes(e, &a.runs, mask)
