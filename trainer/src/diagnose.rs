@@ -41,6 +41,10 @@ impl Spread {
     }
 }
 
+/// A run spanning less than this, s, is named as too short when nothing of
+/// it was usable (ten minutes: the least a fit takes).
+const SHORT_SPAN_S: f64 = 600.0;
+
 /// Facts gathered row by row for [`RunDiagnosis::causes`]; a few numbers per
 /// column, whatever the run's length.
 #[derive(Clone, Debug)]
@@ -49,6 +53,7 @@ pub struct RunDiagnosis {
     nominal_period_s: f64,
     plausible_c: (f64, f64),
     rows: usize,
+    first_time_s: Option<f64>,
     prev_time_s: Option<f64>,
     gaps: usize,
     temp_fault_rows: usize,
@@ -73,6 +78,7 @@ impl RunDiagnosis {
                 f64::from(config.max_plausible_temp_c),
             ),
             rows: 0,
+            first_time_s: None,
             prev_time_s: None,
             gaps: 0,
             temp_fault_rows: 0,
@@ -120,6 +126,7 @@ impl RunDiagnosis {
             self.gaps += 1;
         }
         self.prev_time_s = Some(row.time_s);
+        self.first_time_s.get_or_insert(row.time_s);
         self.temp_fault_rows += usize::from(row.temp_fault);
         let (lo, hi) = self.plausible_c;
         for (spread, t) in self.temps.iter_mut().zip(row.temps_c) {
@@ -196,6 +203,18 @@ impl RunDiagnosis {
         }
         if self.target_is_constant() {
             causes.push(format!("{name}: {}", self.constant_target()));
+        }
+        let span_s = self
+            .prev_time_s
+            .zip(self.first_time_s)
+            .map_or(0.0, |(last, first)| last - first);
+        if self.rows > 1 && span_s < SHORT_SPAN_S {
+            causes.push(format!(
+                "{name}: its {} rows span only {} s ({} Hz), too short for the features to warm up: is time_s in seconds (not hours or minutes)?",
+                self.rows,
+                sig(span_s),
+                sig(1.0 / self.nominal_period_s)
+            ));
         }
         causes
     }

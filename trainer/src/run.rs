@@ -307,6 +307,9 @@ impl RunReader {
         for &(line, hz) in metadata_rates {
             sampling::check_agreement(hz, median, count, lines).map_err(|m| self.error_at(line, m))?;
         }
+        if metadata_rates.is_empty() {
+            sampling::check_unstated_period(median, count, lines).map_err(|m| self.error_at(lines.0, m))?;
+        }
         let source = if metadata_rates.is_empty() {
             PeriodSource::Median
         } else {

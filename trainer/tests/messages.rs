@@ -301,3 +301,64 @@ fn simulate_refuses_what_it_would_not_finish_or_the_reader_would_refuse() {
     );
     assert!(!out.exists());
 }
+
+/// The shipped 1-Hz example with `time_s` multiplied by `factor` and no
+/// `# sample_rate_hz` line, as `name` in `dir`.
+fn retimed(dir: &TempDir, name: &str, factor: f64) -> PathBuf {
+    let text = std::fs::read_to_string(shared_data("ifog_train_1cpm.csv")).unwrap();
+    let mut out = String::new();
+    let mut header = false;
+    for line in text.lines() {
+        if line.starts_with('#') {
+            if !line.contains("sample_rate_hz") {
+                out.push_str(line);
+                out.push('\n');
+            }
+            continue;
+        }
+        if !header {
+            header = true;
+            out.push_str(line);
+        } else {
+            let (t, rest) = line.split_once(',').unwrap();
+            out.push_str(&format!("{},{rest}", t.parse::<f64>().unwrap() * factor));
+        }
+        out.push('\n');
+    }
+    write(dir, name, out.as_bytes())
+}
+
+#[test]
+fn a_time_column_in_milliseconds_or_hours_is_suspected_by_name() {
+    let dir = TempDir::new().unwrap();
+    let (model, _) = example_model(&dir);
+    let out = dir.path().join("out.csv");
+    let ms = retimed(&dir, "ms.csv", 1000.0);
+    for o in [
+        trainer(&[
+            "compensate",
+            "--model",
+            model.to_str().unwrap(),
+            ms.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]),
+        trainer(&["eval", "--model", model.to_str().unwrap(), ms.to_str().unwrap()]),
+        trainer(&["fit", "-q", ms.to_str().unwrap(), "-o", out.to_str().unwrap()]),
+    ] {
+        refused(
+            &o,
+            &["ms.csv:", "column time_s steps by 1000 s", "is time_s in milliseconds?"],
+        );
+    }
+    let hours = retimed(&dir, "hours.csv", 1.0 / 3600.0);
+    let o = trainer(&["fit", "-q", hours.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    refused(
+        &o,
+        &[
+            "hours.csv: its 28800 rows span only 8 s",
+            "is time_s in seconds (not hours or minutes)?",
+        ],
+    );
+    assert!(!out.exists());
+}
