@@ -537,7 +537,14 @@ impl RunReader {
                     self.source.consume(end + 1);
                     outcome
                 }
-                Some(_) => return Err(self.error_at(self.line_no, too_long())),
+                Some(_) => {
+                    let message = if has_inner_cr(buf.get(..MAX_LINE_BYTES).unwrap_or(buf)) {
+                        CR_ONLY.into()
+                    } else {
+                        too_long()
+                    };
+                    return Err(self.error_at(self.line_no, message));
+                }
                 None => {
                     // The line runs past the buffer or ends the file without
                     // a line end: the copying path.
@@ -550,6 +557,7 @@ impl RunReader {
                             self.line_bytes = bytes;
                             return Ok(None);
                         }
+                        Ok(_) if has_inner_cr(&bytes) => Err(self.error_at(self.line_no, CR_ONLY.into())),
                         Ok(Bounded::TooLong) => Err(self.error_at(self.line_no, too_long())),
                         Ok(Bounded::Line) => Ok(classify(&self.columns, &bytes, &mut self.line, keep_text)),
                         Err(e) => Err(e),
@@ -562,6 +570,9 @@ impl RunReader {
                 Line::Skip => continue,
                 Line::NotUtf8 => {
                     return Err(self.error_at(self.line_no, "line is not valid UTF-8 text".into()));
+                }
+                Line::Refused(_) if has_inner_cr(self.line.as_bytes()) => {
+                    return Err(self.error_at(self.line_no, CR_ONLY.into()));
                 }
                 Line::Refused(e) => return Err(self.row_error(e)),
                 Line::Row(row) => row,

@@ -65,7 +65,13 @@ fn cr_only_line_endings_are_named_whatever_the_file_size() {
     let (model, _) = example_model(&dir);
     for rows in [3, 2000] {
         let cr = example_rows(rows).replace('\n', "\r");
-        for text in [cr.clone(), format!("# sample_rate_hz: 0.2\r{cr}")] {
+        // Also a header ended by \n over rows ended by \r alone.
+        let (header, rows_cr) = cr.split_once('\r').unwrap();
+        for text in [
+            cr.clone(),
+            format!("# sample_rate_hz: 0.2\r{cr}"),
+            format!("{header}\n{rows_cr}"),
+        ] {
             let run = write(&dir, "cr.csv", text.as_bytes());
             let out = dir.path().join("out.csv");
             let o = trainer(&[
@@ -76,7 +82,7 @@ fn cr_only_line_endings_are_named_whatever_the_file_size() {
                 "-o",
                 out.to_str().unwrap(),
             ]);
-            refused(&o, &["cr.csv:1:", "CR-only line endings"]);
+            refused(&o, &["cr.csv:", "CR-only line endings"]);
             assert!(!out.exists());
         }
     }
