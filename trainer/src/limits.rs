@@ -33,6 +33,10 @@ pub const MAX_SIM_OUTPUT_BYTES: u64 = 4 << 30;
 /// Bytes a simulated field takes with its comma, at most (`-12.3456789,`).
 pub const SIM_BYTES_PER_FIELD: u64 = 12;
 
+/// Largest `trainer simulate --chamber-profile` file, bytes (a set point a
+/// second for 1000 h fits).
+pub const MAX_PROFILE_BYTES: u64 = 128 << 20;
+
 /// Largest `trainer simulate --params` file, bytes.
 pub const MAX_PARAMS_BYTES: u64 = 1 << 20;
 

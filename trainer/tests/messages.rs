@@ -300,6 +300,10 @@ fn simulate_refuses_what_it_would_not_finish_or_the_reader_would_refuse() {
         &o(&["--chamber-profile", far.to_str().unwrap()]),
         &["far.csv: the run would last", "at most 1000 h"],
     );
+    refused(
+        &o(&["--chamber-profile", "/dev/zero"]),
+        &["/dev/zero: more than 134217728 bytes; a chamber profile is at most 128 MiB (the limit)"],
+    );
     let one = write(&dir, "one.csv", b"time_s,chamber_c\n0,20\n");
     refused(
         &o(&["--chamber-profile", one.to_str().unwrap()]),
