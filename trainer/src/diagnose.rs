@@ -208,7 +208,8 @@ impl RunDiagnosis {
             .prev_time_s
             .zip(self.first_time_s)
             .map_or(0.0, |(last, first)| last - first);
-        if self.rows > 1 && span_s < SHORT_SPAN_S {
+        // The explanation of last resort: a run too short for anything else to show.
+        if causes.is_empty() && self.rows > 1 && span_s < SHORT_SPAN_S {
             causes.push(format!(
                 "{name}: its {} rows span only {} s ({} Hz), too short for the features to warm up: is time_s in seconds (not hours or minutes)?",
                 self.rows,
@@ -316,8 +317,24 @@ mod tests {
         assert!(hot[0].contains("not a temperature in °C"), "{hot:?}");
         let cold = diagnose((0..10).map(|i| row(i as f64, i as f64, -273.15)));
         assert!(cold[0].contains("read -273.1 … -273.1 °C"), "{cold:?}");
-        let fine = diagnose((0..10).map(|i| row(i as f64, i as f64, 25.0)));
+        let fine = diagnose((0..700).map(|i| row(i as f64, i as f64, 25.0)));
         assert!(fine.is_empty(), "{fine:?}");
+    }
+
+    #[test]
+    fn a_run_too_short_to_warm_up_is_named_when_nothing_else_explains_it() {
+        // A 1-Hz run with time_s in hours: 700 rows in 0.19 s.
+        let mut d = RunDiagnosis::new(Path::new("run.csv"), 1.0 / 3600.0);
+        for i in 0..700 {
+            d.push(i + 3, &row(i as f64 / 3600.0, i as f64, 25.0));
+        }
+        let causes = d.causes(0xFF);
+        assert_eq!(causes.len(), 1, "{causes:?}");
+        assert!(
+            causes[0].contains("run.csv: its 700 rows span only 0.1942 s (3600 Hz)")
+                && causes[0].contains("is time_s in seconds"),
+            "{causes:?}"
+        );
     }
 
     #[test]

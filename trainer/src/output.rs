@@ -1,24 +1,29 @@
 //! Writing output files so that nothing is destroyed that should not be and
-//! nothing is left half-written (docs/reliability.md, "Outputs").
+//! nothing is left half-written: every command is one transaction
+//! (docs/reliability.md, "Outputs").
 //!
-//! Every command that writes goes through [`Output`]:
-//! - **checked before the work starts** ([`check_target`]): the target must
-//!   be a regular file or not exist yet (a symbolic link, a device, a FIFO or
-//!   a directory is never replaced), must not be one of the command's inputs
+//! Every command that writes goes through this module:
+//! - **checked before the work starts** ([`check_target`] for a file,
+//!   [`check_dir_target`] for a report directory): a file target must be a
+//!   regular file or not exist yet (a symbolic link, a device, a FIFO or a
+//!   directory is never replaced), must not be one of the command's inputs
 //!   or model (same device and inode) nor another of its outputs, and an
 //!   existing file is replaced only with `--force` ([`Existing::Replace`])
-//!   and only when it is writable;
-//! - **written beside the target** into a temporary file created exclusively
-//!   (`O_EXCL`) under an unpredictable name (the `tempfile` crate), with the
-//!   mode of the file it replaces (a new file: 0666 less the umask);
-//! - **committed** by [`Output::commit`]: flushed, synced, renamed over the
-//!   target (or hard-linked, when replacing is not allowed, so a file that
-//!   appeared meanwhile is not overwritten either) and the directory synced;
-//! - **removed** when the command fails (the [`Output`] is dropped), panics,
-//!   or is stopped by SIGINT, SIGTERM or SIGHUP (a handler thread deletes
-//!   every temporary file not yet committed, then lets the signal end the
-//!   process). Only SIGKILL and a power cut can leave one behind: hidden,
-//!   named `.TARGET.` plus six random characters.
+//!   and only when it is writable; nothing the command reads or writes may
+//!   lie inside a directory it replaces;
+//! - **staged beside the target**: a file ([`Output`]) in a temporary file
+//!   created exclusively (`O_EXCL`) under an unpredictable name (the
+//!   `tempfile` crate), with the mode of the file it replaces (a new file:
+//!   0666 less the umask); a directory ([`StagedDir`]) in a hidden directory;
+//! - **committed together** by [`Transaction::commit`] once the command has
+//!   printed what it says: flushed and synced, checked again, renamed into
+//!   place (hard-linked when replacing is not allowed; a directory
+//!   exchanged), undone as a whole if one step fails, the directories synced;
+//! - **removed** when the command fails (dropped), panics, or is stopped by
+//!   a terminating signal (`cleanup`: a handler thread removes every staged
+//!   path, then lets the signal end the process). Only SIGKILL, a power cut
+//!   or the process aborting itself can leave one behind: hidden, named
+//!   `.TARGET.` plus six random characters.
 
 use std::fs::{Metadata, Permissions};
 use std::io::{BufWriter, Write};
