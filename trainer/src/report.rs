@@ -829,16 +829,23 @@ fn run_stem(path: &Path) -> String {
 /// Whether `rel` (a path relative to a report directory) names a file a
 /// report writes: a plot (`.svg`, `.png`), `report.json`, `report.md`,
 /// `fit.txt`, at the top or in a multi-axis report's `axis-x`, `axis-y`,
-/// `axis-z`. A directory holding anything else is never replaced.
+/// `axis-z` (those directories themselves included). A directory holding
+/// anything else is never replaced.
 pub fn report_may_hold(rel: &Path) -> bool {
     let parts: Vec<&std::ffi::OsStr> = rel.iter().collect();
+    let axis_dir = |p: &std::ffi::OsStr| ["axis-x", "axis-y", "axis-z"].iter().any(|a| p == *a);
+    if let [only] = parts[..]
+        && axis_dir(only)
+    {
+        return true;
+    }
     let (dirs, name) = match parts.split_last() {
         Some((name, dirs)) => (dirs, name.to_string_lossy()),
         None => return false,
     };
     let in_place = match dirs {
         [] => true,
-        [axis] => ["axis-x", "axis-y", "axis-z"].iter().any(|a| axis == a),
+        [axis] => axis_dir(axis),
         _ => false,
     };
     in_place
@@ -1015,6 +1022,16 @@ pub fn write_report(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_report_directory_may_hold_only_what_a_report_writes() {
+        for ok in ["report.md", "fit.txt", "run_rate.svg", "axis-y", "axis-y/run_allan.png"] {
+            assert!(report_may_hold(Path::new(ok)), "{ok}");
+        }
+        for not in ["notes.txt", "run.csv", "keep", "axis-y/sub/x.svg", "other/report.md"] {
+            assert!(!report_may_hold(Path::new(not)), "{not}");
+        }
+    }
 
     #[test]
     fn the_default_models_surface_spans_its_fastest_rate_input_not_a_power_of_temperature() {

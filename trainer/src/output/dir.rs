@@ -43,8 +43,8 @@ fn absolute(path: &Path) -> Option<PathBuf> {
 /// directory at `path`, a mount point, an input or another output of the
 /// command (`inputs`, `outputs`) inside it, and an existing directory that
 /// is not empty unless `existing` allows replacing it, and then only when
-/// every entry in it is one `may_hold` accepts (given its path relative to
-/// the directory): the directory is replaced as a whole, so nothing else
+/// every entry in it, file or directory, is one `may_hold` accepts (given
+/// its path relative to the directory): the directory is replaced as a whole, so nothing else
 /// may be lost with it.
 pub fn check_dir_target(
     path: &Path,
@@ -104,7 +104,7 @@ pub fn check_dir_target(
                 if existing == Existing::Refuse {
                     return Err(OutputExists { shown }.into());
                 }
-                if let Some((entry, _)) = entries.iter().find(|(rel, is_dir)| !*is_dir && !may_hold(rel)) {
+                if let Some((entry, _)) = entries.iter().find(|(rel, _)| !may_hold(rel)) {
                     anyhow::bail!(
                         "{shown}: holds {}, which this command does not write; the directory is replaced as a whole, so it is not replaced (name another directory or move that file)",
                         text::path(entry)
