@@ -210,10 +210,24 @@ pub(crate) fn hidden_prefix(target: &Path) -> std::ffi::OsString {
 /// The most bytes of a target's name that its hidden names repeat.
 const MAX_HIDDEN_STEM: usize = 200;
 
+/// A temporary file written through its `File`: its errors carry no
+/// temporary path (`tempfile` adds one), the message names the target.
+struct Staged(NamedTempFile);
+
+impl Write for Staged {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.as_file_mut().write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.as_file_mut().flush()
+    }
+}
+
 /// Where an [`Output`] stands.
 enum State {
     /// Content is being written to the temporary file.
-    Writing(BufWriter<NamedTempFile>),
+    Writing(BufWriter<Staged>),
     /// Flushed and synced, waiting for the commit.
     Ready(NamedTempFile),
     /// Committed (or its temporary file removed).
@@ -253,7 +267,7 @@ impl Output {
         drop(staged);
         Ok(Output {
             target,
-            state: State::Writing(BufWriter::with_capacity(1 << 16, file)),
+            state: State::Writing(BufWriter::with_capacity(1 << 16, Staged(file))),
         })
     }
 
@@ -276,7 +290,7 @@ impl Output {
         match std::mem::replace(&mut self.state, State::Done) {
             State::Writing(writer) => {
                 let temp = match writer.into_inner() {
-                    Ok(temp) => temp,
+                    Ok(Staged(temp)) => temp,
                     Err(e) => {
                         let (error, writer) = e.into_parts();
                         self.state = State::Writing(writer);
@@ -381,7 +395,7 @@ impl Write for Output {
 impl Drop for Output {
     fn drop(&mut self) {
         let temp = match std::mem::replace(&mut self.state, State::Done) {
-            State::Writing(writer) => writer.into_parts().0,
+            State::Writing(writer) => writer.into_parts().0.0,
             State::Ready(temp) => temp,
             State::Done => return,
         };

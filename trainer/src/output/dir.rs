@@ -67,7 +67,11 @@ pub fn check_dir_target(
         Ok(_) => anyhow::bail!("{shown}: {} is not a directory", text::path(&parent)),
         Err(e) => anyhow::bail!("{shown}: directory {}: {e}", text::path(&parent)),
     };
-    let target = parent.join(name);
+    // The name as given, without a trailing `/` or `/.` (which rename refuses).
+    let target = match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        Some(_) => parent.join(name),
+        None => PathBuf::from(name),
+    };
     let here = absolute(&target).with_context(|| format!("{shown}: cannot resolve"))?;
     for (other, role) in inputs
         .iter()
