@@ -118,6 +118,11 @@ fn a_fit_stopped_by_a_file_size_limit_leaves_every_old_output_and_says_why() {
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("File too large"), "{}", stderr(&o));
     assert!(stderr(&o).contains("rep/"), "the file is named: {}", stderr(&o));
+    assert!(
+        !stderr(&o).contains("at path"),
+        "not its hidden temporary file: {}",
+        stderr(&o)
+    );
     assert_eq!(tree(dir.path()), before, "every old output as it was, nothing beside");
 }
 
