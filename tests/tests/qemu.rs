@@ -100,7 +100,9 @@ fn qemu_replay_of_a_three_axis_run_is_byte_identical_to_trainer_compensate() {
     let dir = TempDir::new().unwrap();
     let (blob_path, slice) = fixtures::axes_blob_and_slice(dir.path());
     let expected_path = dir.path().join("expected.csv");
-    trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+    let (_, expected) =
+        trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+    expected.commit().unwrap();
     let out = dir.path().join("qemu.csv");
     let frames_path = dir.path().join("frames.bin");
     let summary = xtask::replay::qemu_replay(&blob_path, &slice, &out, Some(&frames_path)).unwrap();

@@ -110,20 +110,24 @@ pub fn shared_axes_for_run(
         .collect()
 }
 
+/// What compensating a run did, per axis (`None`: a single-axis run).
+pub type AxisCompensations = Vec<(Option<Axis>, Compensation)>;
+
 /// `trainer compensate`: the run at `run` (`-`: standard input) compensated
 /// with the model file at `model_path` into `output`, every axis of a
 /// multi-axis run with its own model. Every check comes first (the output
 /// target against the inputs and `existing`, the model, the run's header);
 /// the output appears only when the whole run is written, and not at all
 /// when an axis had no row compensated, unless `allow_uncompensated`.
-/// Returns what each axis's compensation did.
+/// Returns what each axis's compensation did and the output, written but
+/// not yet committed (the caller prints, then commits).
 pub fn compensate_command(
     model_path: &Path,
     run: &Path,
     output: &Path,
     existing: Existing,
     allow_uncompensated: bool,
-) -> anyhow::Result<Vec<(Option<Axis>, Compensation)>> {
+) -> anyhow::Result<(AxisCompensations, Output)> {
     input::check_stdin_once([model_path, run])?;
     let target = output::check_target(output, &[model_path, run], existing)?;
     let (file, _) = read_model_file(model_path)?;
@@ -145,8 +149,7 @@ pub fn compensate_command(
                 .map_err(|e| on_axis(e, Some(*axis)))?;
             result.push((Some(*axis), c));
         }
-        out.commit()?;
-        return Ok(result);
+        return Ok((result, out));
     }
     let pairs = models_for_run(&file, model_path, &reader)?;
     let axes: Vec<(Option<&Model>, Columns)> = pairs.iter().map(|(_, m, c)| (Some(*m), *c)).collect();
@@ -169,8 +172,7 @@ pub fn compensate_command(
             .map_err(|e| on_axis(e, *axis))?;
         result.push((*axis, c));
     }
-    out.commit()?;
-    Ok(result)
+    Ok((result, out))
 }
 
 /// `e` with the axis named, where there is one.

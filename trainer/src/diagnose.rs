@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use rbf_core::CompensatorConfig;
 use rbf_core::features::THERMOMETERS;
-use rbf_core::record::{Row, column};
+use rbf_core::record::{self as record, Columns, Row, column};
 
 use crate::run::{RunError, RunReader};
 use crate::sampling::sig;
@@ -41,6 +41,10 @@ impl Spread {
     }
 }
 
+/// A run spanning less than this, s, is named as too short when nothing of
+/// it was usable (ten minutes: the least a fit takes).
+const SHORT_SPAN_S: f64 = 600.0;
+
 /// Facts gathered row by row for [`RunDiagnosis::causes`]; a few numbers per
 /// column, whatever the run's length.
 #[derive(Clone, Debug)]
@@ -49,11 +53,17 @@ pub struct RunDiagnosis {
     nominal_period_s: f64,
     plausible_c: (f64, f64),
     rows: usize,
+    first_time_s: Option<f64>,
     prev_time_s: Option<f64>,
     gaps: usize,
     temp_fault_rows: usize,
     temps: [Spread; THERMOMETERS],
     target_dph: Spread,
+    /// The header's names of the rate, reference and thermometer columns
+    /// read (a multi-axis run's axis: `rate_y_dph`, `ref_y_dph`, `temp_y_c`).
+    rate_name: String,
+    ref_name: String,
+    temp_names: [String; THERMOMETERS],
 }
 
 impl RunDiagnosis {
@@ -68,12 +78,43 @@ impl RunDiagnosis {
                 f64::from(config.max_plausible_temp_c),
             ),
             rows: 0,
+            first_time_s: None,
             prev_time_s: None,
             gaps: 0,
             temp_fault_rows: 0,
             temps: [Spread::EMPTY; THERMOMETERS],
             target_dph: Spread::EMPTY,
+            rate_name: column::RATE_DPH.to_owned(),
+            ref_name: column::REF_DPH.to_owned(),
+            temp_names: column::THERMOMETERS.map(str::to_owned),
         }
+    }
+
+    /// Names the columns in messages as `other` does ([`RunDiagnosis::named_by`]).
+    pub fn named_like(mut self, other: &RunDiagnosis) -> Self {
+        self.rate_name.clone_from(&other.rate_name);
+        self.ref_name.clone_from(&other.ref_name);
+        self.temp_names.clone_from(&other.temp_names);
+        self
+    }
+
+    /// Names the columns in messages as the header `header_line` does for
+    /// `columns` (the columns of one axis of a multi-axis run, say).
+    pub fn named_by(mut self, header_line: &str, columns: &Columns) -> Self {
+        let names: Vec<&str> = header_line.split(',').map(record::trim_field).collect();
+        let name = |i: usize| names.get(i).map(|n| text::escape_controls(n).into_owned());
+        if let Some(n) = name(columns.rate_dph) {
+            self.rate_name = n;
+        }
+        if let Some(n) = columns.ref_dph.and_then(name) {
+            self.ref_name = n;
+        }
+        for (slot, index) in self.temp_names.iter_mut().zip(columns.temps) {
+            if let Some(n) = index.and_then(name) {
+                *slot = n;
+            }
+        }
+        self
     }
 
     /// Takes the row at `line`.
@@ -85,6 +126,7 @@ impl RunDiagnosis {
             self.gaps += 1;
         }
         self.prev_time_s = Some(row.time_s);
+        self.first_time_s.get_or_insert(row.time_s);
         self.temp_fault_rows += usize::from(row.temp_fault);
         let (lo, hi) = self.plausible_c;
         for (spread, t) in self.temps.iter_mut().zip(row.temps_c) {
@@ -110,9 +152,11 @@ impl RunDiagnosis {
     /// The message for a target that never varies.
     pub fn constant_target(&self) -> String {
         format!(
-            "rate_dph − ref_dph is {} °/h on every one of its {} rows: no gyro signal to compensate or fit (is rate_dph the gyro output?)",
+            "{rate} − {} is {} °/h on every one of its {} rows: no gyro signal to compensate or fit (is {rate} the gyro output?)",
+            self.ref_name,
             sig(self.target_dph.min),
-            self.rows
+            self.rows,
+            rate = self.rate_name
         )
     }
 
@@ -136,7 +180,7 @@ impl RunDiagnosis {
             };
             causes.push(format!(
                 "{name}: {}: {} of {} readings lie outside {lo} … {hi} °C, the range a loop thermometer can read (first at line {}; read {} … {} °C){hint}; such readings count as sensor faults",
-                column::THERMOMETERS[i],
+                self.temp_names[i],
                 spread.implausible,
                 spread.count,
                 spread.first_implausible_line,
@@ -159,6 +203,19 @@ impl RunDiagnosis {
         }
         if self.target_is_constant() {
             causes.push(format!("{name}: {}", self.constant_target()));
+        }
+        let span_s = self
+            .prev_time_s
+            .zip(self.first_time_s)
+            .map_or(0.0, |(last, first)| last - first);
+        // The explanation of last resort: a run too short for anything else to show.
+        if causes.is_empty() && self.rows > 1 && span_s < SHORT_SPAN_S {
+            causes.push(format!(
+                "{name}: its {} rows span only {} s ({} Hz), too short for the features to warm up: is time_s in seconds (not hours or minutes)?",
+                self.rows,
+                sig(span_s),
+                sig(1.0 / self.nominal_period_s)
+            ));
         }
         causes
     }
@@ -191,6 +248,34 @@ pub fn with_causes(error: anyhow::Error, paths: &[PathBuf], mask: u8) -> anyhow:
         let stop = if error.ends_with('.') { "" } else { "." };
         anyhow::anyhow!("{error}{stop} Why: {}", causes.join("; "))
     }
+}
+
+/// For each run at `paths` that spans less than `min_span_s` seconds, a
+/// sentence naming it (`role`: how the command uses it, e.g. "--validate"),
+/// its span and its rows: a run too short to validate is named, rather than
+/// the training runs blamed. Runs that cannot be read add nothing.
+pub fn short_runs(paths: &[PathBuf], role: &str, min_span_s: f64) -> Vec<String> {
+    let mut found = Vec::new();
+    for path in paths {
+        let Ok(mut reader) = RunReader::open(path) else {
+            continue;
+        };
+        let (mut first, mut last, mut rows) = (None, 0.0, 0usize);
+        while let Ok(Some((_, row))) = reader.next_parsed() {
+            first.get_or_insert(row.time_s);
+            last = row.time_s;
+            rows += 1;
+        }
+        let span_s = first.map_or(0.0, |f| last - f);
+        if span_s < min_span_s {
+            found.push(format!(
+                "{}: the {role} run spans only {} s ({rows} rows); a run needs at least {min_span_s} s",
+                text::path(path),
+                sig(span_s)
+            ));
+        }
+    }
+    found
 }
 
 #[cfg(test)]
@@ -232,8 +317,24 @@ mod tests {
         assert!(hot[0].contains("not a temperature in °C"), "{hot:?}");
         let cold = diagnose((0..10).map(|i| row(i as f64, i as f64, -273.15)));
         assert!(cold[0].contains("read -273.1 … -273.1 °C"), "{cold:?}");
-        let fine = diagnose((0..10).map(|i| row(i as f64, i as f64, 25.0)));
+        let fine = diagnose((0..700).map(|i| row(i as f64, i as f64, 25.0)));
         assert!(fine.is_empty(), "{fine:?}");
+    }
+
+    #[test]
+    fn a_run_too_short_to_warm_up_is_named_when_nothing_else_explains_it() {
+        // A 1-Hz run with time_s in hours: 700 rows in 0.19 s.
+        let mut d = RunDiagnosis::new(Path::new("run.csv"), 1.0 / 3600.0);
+        for i in 0..700 {
+            d.push(i + 3, &row(i as f64 / 3600.0, i as f64, 25.0));
+        }
+        let causes = d.causes(0xFF);
+        assert_eq!(causes.len(), 1, "{causes:?}");
+        assert!(
+            causes[0].contains("run.csv: its 700 rows span only 0.1942 s (3600 Hz)")
+                && causes[0].contains("is time_s in seconds"),
+            "{causes:?}"
+        );
     }
 
     #[test]

@@ -185,6 +185,25 @@ pub fn evaluate_blocks(
     )
 }
 
+/// How far apart run `run`'s blocks of `length_s` seconds start, s: the
+/// median step of their start times, never less than `length_s`. Blocks
+/// shorter than the sample period hold one sample each and come one sample
+/// period apart (a 0.2-Hz run in 1-s blocks: one block every 5 s); the
+/// 100-s clusters then expect as many blocks as there are, not one a second.
+fn block_spacing_s(blocks: &Blocks, run: usize, length_s: f64) -> f64 {
+    let starts: Vec<f64> = (0..blocks.len().min(blocks.time_s.len()))
+        .filter(|&i| blocks.run[i] == run)
+        .map(|i| blocks.time_s[i])
+        .collect();
+    let mut steps: Vec<f64> = starts.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+    if steps.is_empty() {
+        return length_s;
+    }
+    let middle = steps.len() / 2;
+    let (_, median, _) = steps.select_nth_unstable_by(middle, f64::total_cmp);
+    median.max(length_s)
+}
+
 /// [`evaluate_blocks`] with the bias (°/h) and the clamping flag from
 /// `eval` (e.g. one axis of a shared-basis model).
 pub fn evaluate_blocks_with(
@@ -196,7 +215,7 @@ pub fn evaluate_blocks_with(
     has_ref: bool,
 ) -> RunEvaluation {
     let length_s = blocks.length_s(block_s);
-    let mut evaluator = Evaluator::new(path, length_s, has_ref);
+    let mut evaluator = Evaluator::new(path, block_spacing_s(blocks, run, length_s), has_ref);
     evaluator.basis = block_basis(blocks.doublings, length_s);
     let dims = blocks.dims.min(MAX_INPUTS);
     for i in (0..blocks.len()).filter(|&i| blocks.run[i] == run) {
@@ -342,7 +361,7 @@ fn evaluate_stepped(
         .map(|columns| {
             (
                 Evaluator::new(&path, period_s, columns.ref_dph.is_some()),
-                RunDiagnosis::new(&path, period_s),
+                RunDiagnosis::new(&path, period_s).named_by(reader.header_line(), columns),
                 0,
             )
         })
@@ -568,16 +587,32 @@ pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std
     for (role, e) in rows {
         writeln!(
             out,
-            "{:<10} {:<28}{} {:>11.4e} {:>11.4e} {:>7.1}  {:>11.4e} {:>11.4e} {:>7.1}",
+            "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7}",
             role,
             table_name(&e.run),
             axis_cell(rows, e.axis),
+            figure(e.msd_before_dph2, |v| format!("{v:.4e}")),
+            figure(e.msd_after_dph2, |v| format!("{v:.4e}")),
+            figure(e.msd_improvement_pct, |v| format!("{v:.1}")),
+            figure(e.cluster_std_before_dph, |v| format!("{v:.4e}")),
+            figure(e.cluster_std_after_dph, |v| format!("{v:.4e}")),
+            figure(e.cluster_std_improvement_pct, |v| format!("{v:.1}"))
+        )?;
+    }
+    let short = |e: &RunEvaluation| {
+        [
             e.msd_before_dph2,
             e.msd_after_dph2,
-            e.msd_improvement_pct,
             e.cluster_std_before_dph,
             e.cluster_std_after_dph,
-            e.cluster_std_improvement_pct
+        ]
+        .iter()
+        .any(|v| !v.is_finite())
+    };
+    if rows.iter().any(|(_, e)| short(e)) {
+        writeln!(
+            out,
+            "(—: not enough data for the figure: STD100 needs two 100-s clusters at least half full, a gain both figures)"
         )?;
     }
     if let Some((_, e)) = rows.iter().find(|(_, e)| e.basis.ends_with(BLOCK_MEANS)) {
@@ -628,18 +663,30 @@ pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) 
     for (role, e) in rows {
         writeln!(
             out,
-            "{:<10} {:<28}{} {:>11.3e} {:>11.3e}  {:>11.3e} {:>11.3e} {:>9.0}",
+            "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>9}",
             role,
             table_name(&e.run),
             axis_cell(rows, e.axis),
-            e.allan_before.arw_deg_per_sqrt_h,
-            e.allan_after.arw_deg_per_sqrt_h,
-            e.allan_before.bias_instability_dph,
-            e.allan_after.bias_instability_dph,
-            e.allan_after.floor_tau_s
+            figure(e.allan_before.arw_deg_per_sqrt_h, |v| format!("{v:.3e}")),
+            figure(e.allan_after.arw_deg_per_sqrt_h, |v| format!("{v:.3e}")),
+            figure(e.allan_before.bias_instability_dph, |v| format!("{v:.3e}")),
+            figure(e.allan_after.bias_instability_dph, |v| format!("{v:.3e}")),
+            figure(e.allan_after.floor_tau_s, |v| format!("{v:.0}"))
         )?;
     }
+    if rows
+        .iter()
+        .any(|(_, e)| !e.allan_after.bias_instability_dph.is_finite())
+    {
+        writeln!(out, "(—: the run is too short for an Allan deviation)")?;
+    }
     Ok(())
+}
+
+/// A table cell: `v` as `show` writes it, or "—" when there is no figure
+/// (NaN or ±∞: too few samples or clusters), never "NaN".
+pub(crate) fn figure(v: f64, show: impl Fn(f64) -> String) -> String {
+    if v.is_finite() { show(v) } else { "—".to_owned() }
 }
 
 /// A run's file name, shortened from the left to fit the table's column.
@@ -744,12 +791,14 @@ fn compensate_stepped(
 ) -> anyhow::Result<Vec<Compensation>> {
     let n = columns.len();
     let config = CompensatorConfig::for_nominal_period_s(reader.nominal_period_s());
-    let mut c: Vec<Compensation> = (0..n)
-        .map(|_| Compensation {
+    let mut c: Vec<Compensation> = columns
+        .iter()
+        .map(|columns| Compensation {
             rows: 0,
             flagged: FlagCounts::default(),
             compensated: 0,
-            diagnosis: RunDiagnosis::new(reader.path(), reader.nominal_period_s()),
+            diagnosis: RunDiagnosis::new(reader.path(), reader.nominal_period_s())
+                .named_by(reader.header_line(), columns),
         })
         .collect();
     let io = |e: std::io::Error| anyhow::Error::new(e).context("write failed");

@@ -53,6 +53,12 @@ pub fn check_stdin_once<'a>(paths: impl IntoIterator<Item = &'a Path>) -> anyhow
 /// passes (`command` names the command and why, for the message).
 pub fn require_seekable<'a>(paths: impl IntoIterator<Item = &'a Path>, command: &str) -> anyhow::Result<()> {
     for path in paths {
+        if !is_stdin(path) && std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
+            anyhow::bail!(
+                "{}: is a directory, not a recorded run; name the run files in it",
+                text::path(path)
+            );
+        }
         let regular = !is_stdin(path) && std::fs::metadata(path).is_ok_and(|m| m.is_file());
         let exists = is_stdin(path) || std::fs::metadata(path).is_ok();
         if exists && !regular {

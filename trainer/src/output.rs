@@ -1,36 +1,48 @@
 //! Writing output files so that nothing is destroyed that should not be and
-//! nothing is left half-written (docs/reliability.md, "Outputs").
+//! nothing is left half-written: every command is one transaction
+//! (docs/reliability.md, "Outputs").
 //!
-//! Every command that writes goes through [`Output`]:
-//! - **checked before the work starts** ([`check_target`]): the target must
-//!   be a regular file or not exist yet (a symbolic link, a device, a FIFO or
-//!   a directory is never replaced), must not be one of the command's inputs
+//! Every command that writes goes through this module:
+//! - **checked before the work starts** ([`check_target`] for a file,
+//!   [`check_dir_target`] for a report directory): a file target must be a
+//!   regular file or not exist yet (a symbolic link, a device, a FIFO or a
+//!   directory is never replaced), must not be one of the command's inputs
 //!   or model (same device and inode) nor another of its outputs, and an
 //!   existing file is replaced only with `--force` ([`Existing::Replace`])
-//!   and only when it is writable;
-//! - **written beside the target** into a temporary file created exclusively
-//!   (`O_EXCL`) under an unpredictable name (the `tempfile` crate), with the
-//!   mode of the file it replaces (a new file: 0666 less the umask);
-//! - **committed** by [`Output::commit`]: flushed, synced, renamed over the
-//!   target (or hard-linked, when replacing is not allowed, so a file that
-//!   appeared meanwhile is not overwritten either) and the directory synced;
-//! - **removed** when the command fails (the [`Output`] is dropped), panics,
-//!   or is stopped by SIGINT, SIGTERM or SIGHUP (a handler thread deletes
-//!   every temporary file not yet committed, then lets the signal end the
-//!   process). Only SIGKILL and a power cut can leave one behind: hidden,
-//!   named `.TARGET.` plus six random characters.
+//!   and only when it is writable; nothing the command reads or writes may
+//!   lie inside a directory it replaces;
+//! - **staged beside the target**: a file ([`Output`]) in a temporary file
+//!   created exclusively (`O_EXCL`) under an unpredictable name (the
+//!   `tempfile` crate), with the mode of the file it replaces (a new file:
+//!   0666 less the umask); a directory ([`StagedDir`]) in a hidden directory;
+//! - **committed together** by [`Transaction::commit`] once the command has
+//!   printed what it says: flushed and synced, checked again, renamed into
+//!   place (hard-linked when replacing is not allowed; a directory
+//!   exchanged), undone as a whole if one step fails, the directories synced;
+//! - **removed** when the command fails (dropped), panics, or is stopped by
+//!   a terminating signal (`cleanup`: a handler thread removes every staged
+//!   path, then lets the signal end the process). Only SIGKILL, a power cut
+//!   or the process aborting itself can leave one behind: hidden, named
+//!   `.TARGET.` plus six random characters.
 
-use std::fs::{File, Metadata, Permissions};
+use std::fs::{Metadata, Permissions};
 use std::io::{BufWriter, Write};
 use std::os::unix::fs::{FileTypeExt, MetadataExt, PermissionsExt};
 use std::path::{Path, PathBuf};
-use std::sync::{Mutex, MutexGuard, Once};
 
 use anyhow::Context;
 use tempfile::NamedTempFile;
 
 use crate::input;
 use crate::text;
+
+mod cleanup;
+mod dir;
+mod transaction;
+
+pub use dir::{DirTarget, StagedDir, check_dir_target};
+pub(crate) use transaction::Installed;
+pub use transaction::Transaction;
 
 /// What to do when the target file already exists.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -113,8 +125,11 @@ fn check_existing(path: &Path, meta: &Metadata, existing: Existing) -> anyhow::R
 /// the module documentation for what is refused.
 pub fn check_target(path: &Path, inputs: &[&Path], existing: Existing) -> anyhow::Result<Target> {
     let shown = text::path(path);
+    anyhow::ensure!(
+        !input::is_stdin(path),
+        "- (standard output) cannot take this output; name a file (only --json takes -)"
+    );
     path.file_name()
-        .filter(|_| !input::is_stdin(path))
         .with_context(|| format!("{shown}: not a file name to write"))?;
     let dir = match path.parent().filter(|p| !p.as_os_str().is_empty()) {
         Some(dir) => dir.to_owned(),
@@ -178,59 +193,53 @@ fn same_place(a: &Path, b: &Path) -> bool {
     a.file_name() == b.file_name() && dir(a).is_some() && dir(a) == dir(b)
 }
 
-/// Prepares `dir` as an output directory: an existing directory, or one
-/// created now (`report -o DIR`).
-pub fn prepare_dir(dir: &Path) -> anyhow::Result<()> {
-    match std::fs::metadata(dir) {
-        Ok(m) if m.is_dir() => Ok(()),
-        Ok(m) => anyhow::bail!("{}: is {}, not a directory", text::path(dir), kind(&m)),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", text::path(dir)))
-        }
-        Err(e) => anyhow::bail!("{}: {e}", text::path(dir)),
+/// The prefix of a hidden name beside `target`: `.NAME.`, to which the
+/// `tempfile` crate adds six random characters and creates the file
+/// exclusively. A long NAME is cut so that the whole stays within 255
+/// bytes, the longest file name Linux file systems take.
+pub(crate) fn hidden_prefix(target: &Path) -> std::ffi::OsString {
+    use std::os::unix::ffi::{OsStrExt, OsStringExt};
+    let name = target.file_name().unwrap_or_default().as_bytes();
+    // 1 + 200 + 1 + 6 random characters: room to spare under 255.
+    let mut prefix = b".".to_vec();
+    prefix.extend_from_slice(&name[..name.len().min(MAX_HIDDEN_STEM)]);
+    prefix.push(b'.');
+    std::ffi::OsString::from_vec(prefix)
+}
+
+/// The most bytes of a target's name that its hidden names repeat.
+const MAX_HIDDEN_STEM: usize = 200;
+
+/// A temporary file written through its `File`: its errors carry no
+/// temporary path (`tempfile` adds one), the message names the target.
+struct Staged(NamedTempFile);
+
+impl Write for Staged {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.as_file_mut().write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.as_file_mut().flush()
     }
 }
 
-/// Temporary files not yet committed: what a stopping signal removes.
-static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
-
-fn pending() -> MutexGuard<'static, Vec<PathBuf>> {
-    PENDING.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+/// Where an [`Output`] stands.
+enum State {
+    /// Content is being written to the temporary file.
+    Writing(BufWriter<Staged>),
+    /// Flushed and synced, waiting for the commit.
+    Ready(NamedTempFile),
+    /// Committed (or its temporary file removed).
+    Done,
 }
 
-/// Starts, once per process, the thread that removes the pending temporary
-/// files on SIGINT, SIGTERM or SIGHUP and then ends the process as the
-/// signal would have.
-fn install_signal_cleanup() {
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
-        let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
-            return;
-        };
-        let spawned = std::thread::Builder::new()
-            .name("output-cleanup".into())
-            .spawn(move || {
-                if let Some(signal) = signals.forever().next() {
-                    // The lock is never released: a commit in progress
-                    // finishes first, none starts after.
-                    let files = pending();
-                    for file in files.iter() {
-                        let _ = std::fs::remove_file(file);
-                    }
-                    let _ = signal_hook::low_level::emulate_default_handler(signal);
-                    std::process::exit(128 + signal);
-                }
-            });
-        drop(spawned);
-    });
-}
-
-/// An output being written: a temporary file beside its target until
-/// [`Output::commit`]; dropped uncommitted, it is removed.
+/// An output being written: a temporary file beside its target until it is
+/// committed ([`Output::commit`], or with others by a [`Transaction`]);
+/// dropped uncommitted, it is removed.
 pub struct Output {
     target: Target,
-    file: Option<BufWriter<NamedTempFile>>,
+    state: State,
 }
 
 impl std::fmt::Debug for Output {
@@ -247,19 +256,18 @@ impl Output {
 
     /// Creates the temporary file of a checked target.
     pub fn open(target: Target) -> anyhow::Result<Output> {
-        install_signal_cleanup();
-        let name = target.path.file_name().unwrap_or_default().to_string_lossy();
-        let mut files = pending();
+        cleanup::install();
+        let mut staged = cleanup::pending();
         let file = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
+            .prefix(&hidden_prefix(&target.path))
             .permissions(Permissions::from_mode(0o666))
             .tempfile_in(&target.dir)
             .with_context(|| format!("{}: cannot create a file in its directory", text::path(&target.path)))?;
-        files.push(file.path().to_owned());
-        drop(files);
+        staged.add(file.path(), false);
+        drop(staged);
         Ok(Output {
             target,
-            file: Some(BufWriter::with_capacity(1 << 16, file)),
+            state: State::Writing(BufWriter::with_capacity(1 << 16, Staged(file))),
         })
     }
 
@@ -269,89 +277,132 @@ impl Output {
     }
 
     /// Makes the written content the target: flush, sync, rename over the
-    /// target (keeping the replaced file's mode), sync the directory.
-    pub fn commit(mut self) -> anyhow::Result<()> {
-        let shown = text::path(&self.target.path);
-        let Some(writer) = self.file.take() else {
-            anyhow::bail!("{shown}: already committed");
-        };
-        let temp = writer
-            .into_inner()
-            .map_err(|e| e.into_error())
-            .with_context(|| format!("{shown}: write failed"))?;
-        temp.as_file()
-            .sync_all()
-            .with_context(|| format!("{shown}: sync failed"))?;
-        let temp_path = temp.path().to_owned();
-        let mut files = pending();
-        let result = self.rename_into_place(temp);
-        files.retain(|p| p != &temp_path);
-        drop(files);
-        result?;
-        // The rename is durable once the directory is.
-        File::open(&self.target.dir)
-            .and_then(|d| d.sync_all())
-            .with_context(|| format!("{shown}: directory sync failed"))
+    /// target (keeping the replaced file's mode), sync the directory. The
+    /// [`Transaction`] of this one output.
+    pub fn commit(self) -> anyhow::Result<()> {
+        Transaction::of(self).commit()
     }
 
-    fn rename_into_place(&self, temp: NamedTempFile) -> anyhow::Result<()> {
-        let path = &self.target.path;
-        let shown = text::path(path);
-        // Checked again: the target may have changed during the work.
-        match std::fs::symlink_metadata(path) {
-            Ok(meta) => {
-                check_existing(path, &meta, self.target.existing)?;
-                temp.as_file()
-                    .set_permissions(Permissions::from_mode(meta.mode() & 0o7777))
-                    .with_context(|| format!("{shown}: cannot keep the replaced file's mode"))?;
+    /// Flushes and syncs the content: every write error (a full disk, a
+    /// file-size limit) shows here, before any output is committed.
+    pub(crate) fn finish(&mut self) -> anyhow::Result<()> {
+        let shown = text::path(&self.target.path);
+        match std::mem::replace(&mut self.state, State::Done) {
+            State::Writing(writer) => {
+                let temp = match writer.into_inner() {
+                    Ok(Staged(temp)) => temp,
+                    Err(e) => {
+                        let (error, writer) = e.into_parts();
+                        self.state = State::Writing(writer);
+                        return Err(error).with_context(|| format!("{shown}: write failed"));
+                    }
+                };
+                let synced = temp.as_file().sync_all();
+                self.state = State::Ready(temp);
+                synced.with_context(|| format!("{shown}: sync failed"))
             }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => anyhow::bail!("{shown}: {e}"),
+            State::Ready(temp) => {
+                self.state = State::Ready(temp);
+                Ok(())
+            }
+            State::Done => anyhow::bail!("{shown}: already committed"),
         }
+    }
+
+    /// Checks the target again just before the commit: it may have become a
+    /// link, a directory or (without replacing) a file during the work.
+    pub(crate) fn check_again(&self) -> anyhow::Result<()> {
+        match std::fs::symlink_metadata(&self.target.path) {
+            Ok(meta) => check_existing(&self.target.path, &meta, self.target.existing),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+            Err(e) => anyhow::bail!("{}: {e}", text::path(&self.target.path)),
+        }
+    }
+
+    /// Renames the finished content over the target (a hard link without
+    /// replacing, so a file that appeared meanwhile is not overwritten);
+    /// returns how to undo it. Called by [`Transaction::commit`] with the
+    /// registry of staged paths locked.
+    pub(crate) fn install(&mut self, staged: &mut cleanup::Pending) -> anyhow::Result<Installed> {
+        let path = self.target.path.clone();
+        let shown = text::path(&path);
+        let State::Ready(temp) = std::mem::replace(&mut self.state, State::Done) else {
+            anyhow::bail!("{shown}: not finished");
+        };
+        let temp_path = temp.path().to_owned();
+        let mut backup = None;
+        if let Ok(meta) = std::fs::symlink_metadata(&path) {
+            if let Err(e) = temp
+                .as_file()
+                .set_permissions(Permissions::from_mode(meta.mode() & 0o7777))
+            {
+                self.state = State::Ready(temp);
+                return Err(e).with_context(|| format!("{shown}: cannot keep the replaced file's mode"));
+            }
+            // A second name of the old content, to put it back if a later
+            // output of the transaction fails. A file system without hard
+            // links gets no way back.
+            backup = tempfile::Builder::new()
+                .prefix(&hidden_prefix(&path))
+                .make_in(&self.target.dir, |p| std::fs::hard_link(&path, p))
+                .ok();
+        }
+        let created = backup.is_none() && std::fs::symlink_metadata(&path).is_err();
         let persisted = match self.target.existing {
-            Existing::Replace => temp.persist(path),
-            Existing::Refuse => temp.persist_noclobber(path),
+            Existing::Replace => temp.persist(&path),
+            Existing::Refuse => temp.persist_noclobber(&path),
         };
         match persisted {
-            Ok(_) => Ok(()),
-            Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => Err(OutputExists { shown }.into()),
-            Err(e) => Err(e.error).with_context(|| format!("{shown}: cannot create")),
+            Ok(_) => {
+                staged.remove(&temp_path);
+                Ok(Installed::File { path, backup, created })
+            }
+            Err(e) => {
+                self.state = State::Ready(e.file);
+                if e.error.kind() == std::io::ErrorKind::AlreadyExists {
+                    Err(OutputExists { shown }.into())
+                } else {
+                    Err(e.error).with_context(|| format!("{shown}: cannot create"))
+                }
+            }
         }
     }
 }
 
 impl Write for Output {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        match &mut self.file {
-            Some(w) => w.write(buf),
-            None => Err(std::io::Error::other("output already committed")),
+        match &mut self.state {
+            State::Writing(w) => w.write(buf),
+            _ => Err(std::io::Error::other("output already finished")),
         }
     }
 
     fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
-        match &mut self.file {
-            Some(w) => w.write_all(buf),
-            None => Err(std::io::Error::other("output already committed")),
+        match &mut self.state {
+            State::Writing(w) => w.write_all(buf),
+            _ => Err(std::io::Error::other("output already finished")),
         }
     }
 
     fn flush(&mut self) -> std::io::Result<()> {
-        match &mut self.file {
-            Some(w) => w.flush(),
-            None => Ok(()),
+        match &mut self.state {
+            State::Writing(w) => w.flush(),
+            _ => Ok(()),
         }
     }
 }
 
 impl Drop for Output {
     fn drop(&mut self) {
-        if let Some(writer) = self.file.take() {
-            let mut files = pending();
-            let (temp, _) = writer.into_parts();
-            let temp_path = temp.path().to_owned();
-            let _ = temp.close();
-            files.retain(|p| p != &temp_path);
-        }
+        let temp = match std::mem::replace(&mut self.state, State::Done) {
+            State::Writing(writer) => writer.into_parts().0.0,
+            State::Ready(temp) => temp,
+            State::Done => return,
+        };
+        let mut staged = cleanup::pending();
+        let temp_path = temp.path().to_owned();
+        let _ = temp.close();
+        staged.remove(&temp_path);
     }
 }
 

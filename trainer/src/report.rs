@@ -9,7 +9,6 @@
 //! colour bar. Plus report.json and report.md (the model, and per run its
 //! figures and how many samples were clamped).
 
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -18,8 +17,8 @@ use plotters::prelude::*;
 use rbf_core::{FeatureSet, FeatureVector, Model};
 
 use crate::diagnose::RunDiagnosis;
-use crate::evaluate::{Evaluator, RunEvaluation, require_compensated, require_evaluable};
-use crate::output::{self, Existing, Output};
+use crate::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
+use crate::output::{self, DirTarget, Existing, StagedDir};
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, summary, text};
 use rbf_core::record::Axis;
@@ -746,12 +745,13 @@ fn read_run(
 ) -> anyhow::Result<RunPlots> {
     let path = reader.path().to_owned();
     let mask = model.features().set.thermometer_mask();
+    let named = RunDiagnosis::new(&path, 1.0).named_by(reader.header_line(), reader.columns());
     let run = StreamedRun::from_reader(reader, mask)?;
     let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
     let config = rbf_core::CompensatorConfig::for_nominal_period_s(period_s);
     let (mut compensator, mut features) = (rbf_core::Compensator::new(), rbf_core::Compensator::new());
     let mut evaluator = Evaluator::new(&path, period_s, has_ref);
-    let mut diagnosis = RunDiagnosis::new(&path, period_s);
+    let mut diagnosis = RunDiagnosis::new(&path, period_s).named_like(&named);
     let (mut raw, mut comp, mut temp, mut bias) = (
         BlockMeans::new(PLOT_MEAN_S),
         BlockMeans::new(PLOT_MEAN_S),
@@ -826,30 +826,47 @@ fn run_stem(path: &Path) -> String {
         .map_or("run".into(), |s| s.to_string_lossy().into_owned())
 }
 
-/// The files `trainer report` writes into `dir` for runs named `stems`.
-pub fn report_files(dir: &Path, stems: &[String]) -> Vec<PathBuf> {
-    let mut files = Vec::new();
-    for stem in stems {
-        for plot in ["rate", "bias_vs_temp", "allan"] {
-            for ext in ["svg", "png"] {
-                files.push(dir.join(format!("{stem}_{plot}.{ext}")));
-            }
-        }
+/// Whether `rel` (a path relative to a report directory) names a file a
+/// report writes: a plot (`.svg`, `.png`), `report.json`, `report.md`,
+/// `fit.txt`, at the top or in a multi-axis report's `axis-x`, `axis-y`,
+/// `axis-z` (those directories themselves included). A directory holding
+/// anything else is never replaced.
+pub fn report_may_hold(rel: &Path) -> bool {
+    let parts: Vec<&std::ffi::OsStr> = rel.iter().collect();
+    let axis_dir = |p: &std::ffi::OsStr| ["axis-x", "axis-y", "axis-z"].iter().any(|a| p == *a);
+    if let [only] = parts[..]
+        && axis_dir(only)
+    {
+        return true;
     }
-    files.extend(["bias_surface.svg", "bias_surface.png", "report.json", "report.md"].map(|f| dir.join(f)));
-    files
+    let (dirs, name) = match parts.split_last() {
+        Some((name, dirs)) => (dirs, name.to_string_lossy()),
+        None => return false,
+    };
+    let in_place = match dirs {
+        [] => true,
+        [axis] => axis_dir(axis),
+        _ => false,
+    };
+    in_place
+        && (name.ends_with(".svg")
+            || name.ends_with(".png")
+            || ["report.json", "report.md", "fit.txt"].contains(&name.as_ref()))
 }
 
 /// Checks, before any work, that a report on `runs` can be written into
-/// `dir`: the runs' plot names differ, and no file of the report would
-/// replace one of `inputs` or (unless `existing` allows) an existing file.
-/// Returns the runs' plot names and the report's files.
+/// `dir` ([`output::check_dir_target`]: the directory is replaced as a
+/// whole, so none of `inputs` or `outputs` may lie in it, and an existing
+/// one that is not empty only with [`Existing::Replace`] and when it holds
+/// nothing but a report's files) and that the runs' plot names differ.
+/// Returns the runs' plot names and the checked directory.
 pub fn check_report_targets(
     runs: &[PathBuf],
     dir: &Path,
     inputs: &[&Path],
+    outputs: &[&Path],
     existing: Existing,
-) -> anyhow::Result<(Vec<String>, Vec<PathBuf>)> {
+) -> anyhow::Result<(Vec<String>, DirTarget)> {
     let stems: Vec<String> = runs.iter().map(|p| run_stem(p)).collect();
     for (i, stem) in stems.iter().enumerate() {
         if stems[..i].contains(stem) {
@@ -859,13 +876,8 @@ pub fn check_report_targets(
             );
         }
     }
-    let files = report_files(dir, &stems);
-    if std::fs::symlink_metadata(dir).is_ok() {
-        output::prepare_dir(dir)?;
-        let targets: Vec<&Path> = files.iter().map(|f| f.as_path()).collect();
-        output::check_targets(&targets, inputs, existing)?;
-    }
-    Ok((stems, files))
+    let target = output::check_dir_target(dir, inputs, outputs, existing, &report_may_hold)?;
+    Ok((stems, target))
 }
 
 /// The model section of report.md: its file, kind, form, centres and every
@@ -899,40 +911,26 @@ fn clamped_cell(n: usize, samples: usize) -> String {
     format!("{n} ({:.1} %)", 100.0 * n as f64 / samples as f64)
 }
 
-/// Writes the report for `model` (read from `model_path`) on the runs at
-/// `runs` (`-`: standard input) into `dir`; returns the files written.
+/// Writes the report of `model` (read from `model_path`) on the runs at
+/// `runs` (`-`: standard input) into the staged directory `out`, in its
+/// subdirectory `sub` (empty: at the top); returns how many files it wrote.
+/// `axis` picks that axis of multi-axis runs (`None`: single-axis runs).
 ///
-/// Every target is checked first ([`output::check_targets`]: an existing
-/// file is replaced only with [`Existing::Replace`]); every run is then read
-/// once, streaming (memory: 10-s means and a bounded trajectory, whatever
-/// the run's length); only then are the files written, each through an
-/// [`Output`]. A run where no row could be compensated is refused unless
-/// `allow_uncompensated`.
+/// Every run is read once, streaming (memory: 10-s means and a bounded
+/// trajectory, whatever the run's length), before any file is written.
+/// Nothing is visible until `out`'s [`output::Transaction`] commits. A run
+/// where no row could be compensated is refused unless `allow_uncompensated`.
 pub fn write_report(
     model: &Model,
     model_path: &Path,
     runs: &[PathBuf],
-    dir: &Path,
-    existing: Existing,
-    allow_uncompensated: bool,
-) -> anyhow::Result<Vec<PathBuf>> {
-    write_axis_report(model, model_path, runs, dir, existing, allow_uncompensated, None)
-}
-
-/// [`write_report`] of `axis` of multi-axis runs (`None`: single-axis
-/// runs), read as the single-axis run of that axis.
-pub fn write_axis_report(
-    model: &Model,
-    model_path: &Path,
-    runs: &[PathBuf],
-    dir: &Path,
-    existing: Existing,
+    out: &StagedDir,
+    sub: &Path,
     allow_uncompensated: bool,
     axis: Option<Axis>,
-) -> anyhow::Result<Vec<PathBuf>> {
+) -> anyhow::Result<usize> {
     input::check_stdin_once(runs.iter().map(|p| p.as_path()).chain([model_path]))?;
-    let inputs: Vec<&Path> = runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
-    let (stems, files) = check_report_targets(runs, dir, &inputs, existing)?;
+    let stems: Vec<String> = runs.iter().map(|p| run_stem(p)).collect();
     let mut trajectory = Trajectory::new();
     let mut first_index = 0;
     let plots = runs
@@ -955,17 +953,16 @@ pub fn write_axis_report(
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
 
-    output::prepare_dir(dir)?;
-    let write = |path: &Path, bytes: &[u8]| -> anyhow::Result<()> {
-        let mut out = Output::create(path, &inputs, existing)?;
-        out.write_all(bytes)
-            .with_context(|| format!("{}: write failed", text::path(path)))?;
-        out.commit()
+    let written = std::cell::Cell::new(0);
+    let write = |name: &str, bytes: &[u8]| -> anyhow::Result<()> {
+        out.write(&sub.join(name), bytes)?;
+        written.set(written.get() + 1);
+        Ok(())
     };
     let both = |stem: &str, drawn: anyhow::Result<(String, Vec<u8>)>| -> anyhow::Result<()> {
-        let (svg, png) = drawn.with_context(|| format!("{}: plot {stem}", text::path(dir)))?;
-        write(&dir.join(format!("{stem}.svg")), svg.as_bytes())?;
-        write(&dir.join(format!("{stem}.png")), &png)
+        let (svg, png) = drawn.with_context(|| format!("{}: plot {stem}", text::path(&out.target().join(sub))))?;
+        write(&format!("{stem}.svg"), svg.as_bytes())?;
+        write(&format!("{stem}.png"), &png)
     };
     let mut md = String::from("# Compensation report\n\n");
     md.push_str(&model_markdown(model, model_path));
@@ -985,15 +982,15 @@ pub fn write_axis_report(
         both(&format!("{stem}_allan"), render(&allan))?;
         let e = &p.evaluation;
         md.push_str(&format!(
-            "| {} | {:.4} | {:.4} | {:.1} % | {:.1} % | {:.2e} | {:.2e} → {:.2e} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} → {} | {} |\n",
             text::escape_controls(stem),
-            e.cluster_std_before_dph,
-            e.cluster_std_after_dph,
-            e.cluster_std_improvement_pct,
-            e.msd_improvement_pct,
-            e.allan_after.arw_deg_per_sqrt_h,
-            e.allan_before.bias_instability_dph,
-            e.allan_after.bias_instability_dph,
+            figure(e.cluster_std_before_dph, |v| format!("{v:.4}")),
+            figure(e.cluster_std_after_dph, |v| format!("{v:.4}")),
+            figure(e.cluster_std_improvement_pct, |v| format!("{v:.1} %")),
+            figure(e.msd_improvement_pct, |v| format!("{v:.1} %")),
+            figure(e.allan_after.arw_deg_per_sqrt_h, |v| format!("{v:.2e}")),
+            figure(e.allan_before.bias_instability_dph, |v| format!("{v:.2e}")),
+            figure(e.allan_after.bias_instability_dph, |v| format!("{v:.2e}")),
             clamped_cell(e.flagged.input_clamped, e.samples)
         ));
     }
@@ -1017,14 +1014,24 @@ pub fn write_axis_report(
     let evaluations: Vec<&RunEvaluation> = plots.iter().map(|p| &p.evaluation).collect();
     let json =
         serde_json::to_string_pretty(&serde_json::json!({"model": text::path(model_path), "runs": evaluations}))?;
-    write(&dir.join("report.json"), json.as_bytes())?;
-    write(&dir.join("report.md"), md.as_bytes())?;
-    Ok(files)
+    write("report.json", json.as_bytes())?;
+    write("report.md", md.as_bytes())?;
+    Ok(written.get())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_report_directory_may_hold_only_what_a_report_writes() {
+        for ok in ["report.md", "fit.txt", "run_rate.svg", "axis-y", "axis-y/run_allan.png"] {
+            assert!(report_may_hold(Path::new(ok)), "{ok}");
+        }
+        for not in ["notes.txt", "run.csv", "keep", "axis-y/sub/x.svg", "other/report.md"] {
+            assert!(!report_may_hold(Path::new(not)), "{not}");
+        }
+    }
 
     #[test]
     fn the_default_models_surface_spans_its_fastest_rate_input_not_a_power_of_temperature() {

@@ -124,6 +124,17 @@ fn read_line_bounded(source: &mut (dyn BufRead + Send), buf: &mut Vec<u8>) -> st
     Ok(Bounded::Line)
 }
 
+/// True when `line` (without its `\n`) holds a carriage return before its
+/// end: the file's lines end in CR alone.
+fn has_inner_cr(line: &[u8]) -> bool {
+    let body = line.strip_suffix(b"\r").unwrap_or(line);
+    memchr::memchr(b'\r', body).is_some()
+}
+
+/// The message for a file whose lines end in CR alone.
+const CR_ONLY: &str = "the file uses CR-only line endings (a carriage return, \\r, ends its lines, as on classic Mac OS); \
+     recorded runs end lines with \\n or \\r\\n: convert it, e.g. tr '\\r' '\\n' < in.csv > out.csv";
+
 /// The message for a line past [`MAX_LINE_BYTES`].
 fn too_long() -> String {
     format!(
@@ -159,7 +170,13 @@ impl RunReader {
         };
         let header_line = loop {
             line_no += 1;
-            match read_line_bounded(source.as_mut(), &mut buf).map_err(|e| io_or_utf8(path, line_no, e))? {
+            let read = read_line_bounded(source.as_mut(), &mut buf).map_err(|e| io_or_utf8(path, line_no, e))?;
+            // A file with CR-only line ends reads as one line: it would
+            // otherwise be "no header", "too long" or thousands of columns.
+            if has_inner_cr(&buf) {
+                return Err(format_error(line_no, CR_ONLY.into()));
+            }
+            match read {
                 Bounded::End => {
                     return Err(format_error(line_no, "no header line: the file has no columns".into()));
                 }
@@ -289,6 +306,9 @@ impl RunReader {
         );
         for &(line, hz) in metadata_rates {
             sampling::check_agreement(hz, median, count, lines).map_err(|m| self.error_at(line, m))?;
+        }
+        if metadata_rates.is_empty() {
+            sampling::check_unstated_period(median, count, lines).map_err(|m| self.error_at(lines.0, m))?;
         }
         let source = if metadata_rates.is_empty() {
             PeriodSource::Median
@@ -517,7 +537,14 @@ impl RunReader {
                     self.source.consume(end + 1);
                     outcome
                 }
-                Some(_) => return Err(self.error_at(self.line_no, too_long())),
+                Some(_) => {
+                    let message = if has_inner_cr(buf.get(..MAX_LINE_BYTES).unwrap_or(buf)) {
+                        CR_ONLY.into()
+                    } else {
+                        too_long()
+                    };
+                    return Err(self.error_at(self.line_no, message));
+                }
                 None => {
                     // The line runs past the buffer or ends the file without
                     // a line end: the copying path.
@@ -530,6 +557,7 @@ impl RunReader {
                             self.line_bytes = bytes;
                             return Ok(None);
                         }
+                        Ok(_) if has_inner_cr(&bytes) => Err(self.error_at(self.line_no, CR_ONLY.into())),
                         Ok(Bounded::TooLong) => Err(self.error_at(self.line_no, too_long())),
                         Ok(Bounded::Line) => Ok(classify(&self.columns, &bytes, &mut self.line, keep_text)),
                         Err(e) => Err(e),
@@ -542,6 +570,9 @@ impl RunReader {
                 Line::Skip => continue,
                 Line::NotUtf8 => {
                     return Err(self.error_at(self.line_no, "line is not valid UTF-8 text".into()));
+                }
+                Line::Refused(_) if has_inner_cr(self.line.as_bytes()) => {
+                    return Err(self.error_at(self.line_no, CR_ONLY.into()));
                 }
                 Line::Refused(e) => return Err(self.row_error(e)),
                 Line::Row(row) => row,

@@ -68,6 +68,30 @@ pub fn check_agreement(
     ))
 }
 
+/// Longest sample period a run may have without a `# sample_rate_hz` line
+/// stating it, s: a gyro logged slower than once a minute is far more
+/// likely a time column in milliseconds.
+pub const MAX_UNSTATED_PERIOD_S: f64 = 60.0;
+
+/// Refuses a time column whose median step (`median_step_s`, of rows
+/// `first_line` … `last_line`) is longer than [`MAX_UNSTATED_PERIOD_S`]
+/// when no metadata states that rate: the usual cause is time in
+/// milliseconds.
+pub fn check_unstated_period(
+    median_step_s: f64,
+    steps: usize,
+    (first_line, last_line): (usize, usize),
+) -> Result<(), String> {
+    if steps == 0 || median_step_s <= MAX_UNSTATED_PERIOD_S {
+        return Ok(());
+    }
+    Err(format!(
+        "column time_s steps by {} s (the median of the {steps} steps of lines {first_line}–{last_line}), one sample every {} min, slower than a gyro is logged: is time_s in milliseconds? Give it in seconds, or state so slow a rate with a `# sample_rate_hz` line",
+        sig(median_step_s),
+        sig(median_step_s / 60.0)
+    ))
+}
+
 /// Where the nominal period came from, for messages.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PeriodSource {

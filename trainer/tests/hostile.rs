@@ -152,7 +152,8 @@ fn report_checks_every_file_it_would_write_before_reading_a_run() {
     };
     let run_args = |a: Vec<String>| trainer(&a.iter().map(String::as_str).collect::<Vec<_>>());
     let o = run_args(args(&[]));
-    refused(&o, "report.md: exists; pass --force to overwrite it");
+    // The directory is replaced as a whole: a report's own files need --force.
+    refused(&o, "report: exists; pass --force to overwrite it");
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1, "nothing written");
     let o = run_args(args(&["--force"]));
     assert!(o.status.success(), "{}", stderr(&o));
@@ -211,7 +212,7 @@ fn a_stopped_command_leaves_neither_its_output_nor_a_temporary_file() {
             .args([
                 "simulate",
                 "--hours",
-                "1000",
+                "100",
                 "--rate-hz",
                 "100",
                 "-o",

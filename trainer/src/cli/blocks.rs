@@ -8,10 +8,11 @@ use rbf_core::FeatureSet;
 use trainer::blobfile::read_model;
 use trainer::dataset::{Blocks, RunFiles, RunSet};
 use trainer::fit::Method;
-use trainer::output::{self, Output};
+use trainer::limits::{MAX_BLOCKS_WRITTEN, check_block_s};
+use trainer::output::{self, Output, Transaction};
 use trainer::{input, text};
 
-use super::common::{ForceArg, input_names, stdout};
+use super::common::{ForceArg, input_names, print_and_commit};
 use super::values::FeaturesArg;
 
 /// Write the training data a fit sees: block means of the features and the bias target.
@@ -65,10 +66,7 @@ pub struct Args {
 
 /// Runs `trainer blocks`.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        a.block_s.is_finite() && a.block_s > 0.0,
-        "--block-s must be a positive number of seconds"
-    );
+    check_block_s(a.block_s)?;
     anyhow::ensure!(
         a.dt_window_s.is_finite() && (0.0..=86_400.0).contains(&a.dt_window_s),
         "--dt-window-s must be 0 … 86400 s"
@@ -89,16 +87,23 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             trainer::fit::rbf::feature_config(set, a.dt_window_s, 1.0)
         }
     };
-    // Streamed: one pass per run, every block as asked (never merged).
+    // Streamed: one pass per run, every block as asked; memory bounded by
+    // MAX_BLOCKS_WRITTEN blocks per run (past it the builder merges them in
+    // pairs, which is refused here: the blocks would not be those asked for).
     let blocks = RunFiles::new(&a.runs)
-        .with_max_blocks_per_run(usize::MAX)
+        .with_max_blocks_per_run(MAX_BLOCKS_WRITTEN)
         .block_means(&features, a.block_s)?;
+    anyhow::ensure!(
+        blocks.doublings == 0,
+        "a run holds more than {MAX_BLOCKS_WRITTEN} blocks of {} s; at most {MAX_BLOCKS_WRITTEN} per run are written (the limit): use --block-s {} or longer",
+        a.block_s,
+        blocks.length_s(a.block_s)
+    );
     let mut out = Output::open(target)?;
     write_csv(&mut out, features.set, &blocks)
         .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
-    out.commit()?;
-    writeln!(stdout(), "wrote {} ({} blocks)", text::path(&a.output), blocks.len())?;
-    Ok(())
+    let printed = format!("wrote {} ({} blocks)\n", text::path(&a.output), blocks.len());
+    print_and_commit(printed.as_bytes(), false, Transaction::of(out))
 }
 
 /// The blocks CSV: a `# features` comment naming the inputs, then

@@ -7,7 +7,7 @@ use anyhow::Context;
 use clap::Args;
 use clap::builder::RangedU64ValueParser;
 use trainer::gradients::Selection;
-use trainer::output::{Existing, Output};
+use trainer::output::{Existing, Output, Transaction};
 use trainer::text::{self, SafeWriter};
 
 /// Standard output, control characters from outside escaped on the way.
@@ -101,29 +101,50 @@ impl JsonSink {
         matches!(self, JsonSink::Stdout)
     }
 
-    /// Writes `value` pretty-printed and commits it.
-    pub fn write(self, value: &serde_json::Value) -> anyhow::Result<()> {
+    /// Writes `value` pretty-printed: to standard output now (flushed, so
+    /// a closed pipe fails the command here), or into its file, staged in
+    /// `transaction` with the command's other outputs.
+    pub fn write(self, value: &serde_json::Value, transaction: &mut Transaction) -> anyhow::Result<()> {
         let json = serde_json::to_string_pretty(value)?;
         match self {
             JsonSink::None => Ok(()),
-            JsonSink::Stdout => Ok(writeln!(stdout(), "{json}")?),
+            JsonSink::Stdout => {
+                let mut out = stdout();
+                writeln!(out, "{json}")?;
+                Ok(out.flush()?)
+            }
             JsonSink::File(mut out) => {
                 out.write_all(json.as_bytes())
                     .with_context(|| format!("{}: write failed", text::path(out.path())))?;
-                out.commit()
+                transaction.add(out);
+                Ok(())
             }
         }
     }
 }
 
 /// Writes the human-readable `text` where it belongs: standard output, or
-/// standard error when the JSON took standard output.
+/// standard error when the JSON took standard output; flushed.
 pub fn print_text(text: &[u8], json_on_stdout: bool) -> std::io::Result<()> {
     if json_on_stdout {
-        stderr().write_all(text)
+        let mut err = stderr();
+        err.write_all(text)?;
+        err.flush()
     } else {
-        stdout().write_all(text)
+        let mut out = stdout();
+        out.write_all(text)?;
+        out.flush()
     }
+}
+
+/// How every command that writes files ends: `text` printed ([`print_text`]),
+/// then every output staged in `transaction` committed together. A print
+/// that fails (a closed pipe, a full disk behind a redirection) fails the
+/// command before anything is committed; `text` may say "wrote": a commit
+/// that fails after it makes the command exit 1 with the cause.
+pub fn print_and_commit(text: &[u8], json_on_stdout: bool, transaction: Transaction) -> anyhow::Result<()> {
+    print_text(text, json_on_stdout).context("standard output: write failed; nothing written")?;
+    transaction.commit()
 }
 
 /// How multi-point inputs are selected from their correlations with the bias.

@@ -1,17 +1,19 @@
 //! `trainer compensate`: apply a model to a run exactly as the firmware does.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use trainer::axes::{self, compensate_command};
 use trainer::text;
 
-use super::common::{AllowUncompensated, ForceArg, stdout};
+use super::common::{AllowUncompensated, ForceArg, print_and_commit};
+use trainer::output::Transaction;
 use super::model_arg::ModelArg;
 
 /// Compensate a run with a model, exactly as the firmware does.
 ///
-/// Writes the input lines unchanged followed by bias_dph [°/h], rate_comp_dph
+/// Writes the input's metadata lines, header and data rows unchanged (`#`
+/// lines between data rows are not part of the format and are dropped, as the
+/// firmware replay drops them), each row followed by bias_dph [°/h], rate_comp_dph
 /// [°/h] and flags (1 clamped · 2 temperature-sensor fault · 4 no valid model ·
 /// 8 warming up · 16 rate invalid); one output row per input row. Rows with
 /// temp_fault = 1 are treated as a sensor that does not answer. A multi-axis
@@ -36,7 +38,7 @@ pub struct Args {
 
 /// Runs `trainer compensate`.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let c = compensate_command(
+    let (c, out) = compensate_command(
         &a.model.path,
         &a.run,
         &a.output,
@@ -61,10 +63,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     } else {
         format!(", axes {}", axes::names(&axes))
     };
-    writeln!(
-        stdout(),
-        "wrote {} ({rows} rows{what}; flagged: {flagged})",
-        text::path(&a.output)
-    )?;
-    Ok(())
+    let printed = format!("wrote {} ({rows} rows{what}; flagged: {flagged})\n", text::path(&a.output));
+    print_and_commit(printed.as_bytes(), false, Transaction::of(out))
 }

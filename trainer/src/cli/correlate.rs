@@ -8,7 +8,8 @@ use trainer::input;
 use trainer::limits::MAX_BLOCK_SAMPLES;
 use trainer::output::Existing;
 
-use super::common::{JsonArg, PAPER_THRESHOLD, SelectArgs, describe_selection, print_text, rule_name};
+use super::common::{JsonArg, PAPER_THRESHOLD, SelectArgs, describe_selection, print_and_commit, rule_name};
+use trainer::output::Transaction;
 
 /// Which temperatures and gradients explain the bias: the RLG paper's input selection.
 ///
@@ -54,8 +55,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let selected = select(&table, selection);
     let names: Vec<String> = selected.iter().map(|&c| candidate_name(&table, c)).collect();
     let json_on_stdout = json_out.is_stdout();
-    json_out.write(&serde_json::json!({ "table": table, "selected": selected, "selected_names": names }))?;
+    let mut transaction = Transaction::new();
+    json_out.write(
+        &serde_json::json!({ "table": table, "selected": selected, "selected_names": names }),
+        &mut transaction,
+    )?;
     let text = describe_selection(&table, &selected, &rule_name(selection));
-    print_text(text.as_bytes(), json_on_stdout)?;
-    Ok(())
+    print_and_commit(text.as_bytes(), json_on_stdout, transaction)
 }

@@ -1,13 +1,12 @@
 //! `trainer decode`: firmware output frames (a UART capture) to CSV.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Context;
-use trainer::output::{self, Output};
+use trainer::output::{self, Output, Transaction};
 use trainer::{input, text};
 
-use super::common::{ForceArg, stdout};
+use super::common::{ForceArg, print_and_commit};
 
 /// Decode firmware output frames (a UART capture) into CSV.
 ///
@@ -35,8 +34,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let capture = input::open(&a.frames).with_context(|| format!("{}: cannot read", text::path(&a.frames)))?;
     let mut out = Output::open(target)?;
     let decoded = trainer::frames::decode_capture(capture, &mut out).with_context(|| text::path(&a.frames))?;
-    out.commit()?;
-    writeln!(stdout(), "wrote {} ({} frames)", text::path(&a.output), decoded.frames)?;
     if decoded.damaged > 0 {
         eprintln!(
             "warning: {}: {} damaged frame(s) skipped, at byte offsets {:?}",
@@ -45,5 +42,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             decoded.damaged_at
         );
     }
-    Ok(())
+    let printed = format!("wrote {} ({} frames)\n", text::path(&a.output), decoded.frames);
+    print_and_commit(printed.as_bytes(), false, Transaction::of(out))
 }

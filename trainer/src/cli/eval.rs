@@ -8,7 +8,8 @@ use trainer::blobfile::read_model_file;
 use trainer::evaluate::{RunEvaluation, print_allan_table, print_table};
 use trainer::input;
 
-use super::common::{AllowUncompensated, ForceArg, JsonArg, print_text};
+use super::common::{AllowUncompensated, ForceArg, JsonArg, print_and_commit};
+use trainer::output::Transaction;
 use super::model_arg::ModelArg;
 
 /// Before/after accuracy of a model on runs.
@@ -44,11 +45,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let (model, _) = read_model_file(model_path)?;
     let evals = evaluate_files(&model, model_path, &a.runs, a.uncompensated.allow_uncompensated)?;
     let json_on_stdout = json_out.is_stdout();
-    json_out.write(&serde_json::to_value(&evals)?)?;
+    let mut transaction = Transaction::new();
+    json_out.write(&serde_json::to_value(&evals)?, &mut transaction)?;
     let mut text = Vec::new();
     write_tables(&mut text, &evals)?;
-    print_text(&text, json_on_stdout)?;
-    Ok(())
+    print_and_commit(&text, json_on_stdout, transaction)
 }
 
 /// The accuracy and Allan tables `trainer eval` prints.

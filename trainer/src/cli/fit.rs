@@ -14,13 +14,13 @@ use trainer::dataset::{RunFiles, RunSet};
 use trainer::evaluate::{RunEvaluation, evaluate_blocks, evaluate_file, print_table};
 use trainer::fit::{self, FitOptions, FitOutcome};
 use trainer::limits::MAX_FOLDS;
-use trainer::output::{self, Output};
+use trainer::output::{self, Output, StagedDir, Transaction};
 use trainer::run::RunReader;
 use trainer::text;
 use trainer::{diagnose, input};
 
 use super::common::{
-    ForceArg, JsonArg, JsonSink, SelectArgs, describe_selection, input_names, print_text, rule_name,
+    ForceArg, JsonArg, JsonSink, SelectArgs, describe_selection, input_names, print_and_commit, rule_name,
 };
 use super::values::{FeaturesArg, MethodArg};
 
@@ -199,6 +199,30 @@ fn parse_probe(text: &str) -> Result<Probe, String> {
     }
 }
 
+/// Refuses an input named twice in `--inputs`, a gradient in either order
+/// included (`temp_a-temp_b` and `temp_b-temp_a` carry the same information).
+fn check_distinct_inputs(inputs: &[Probe]) -> anyhow::Result<()> {
+    let key = |p: &Probe| match *p {
+        Probe::Temp(i) => (i, i),
+        Probe::Gradient(i, j) => (i.min(j), i.max(j)),
+    };
+    let name = |i: u8| rbf_core::record::column::THERMOMETERS.get(usize::from(i)).copied().unwrap_or("?");
+    for (k, p) in inputs.iter().enumerate() {
+        if let Some(q) = inputs[..k].iter().find(|q| key(q) == key(p)) {
+            let show = |p: &Probe| match *p {
+                Probe::Temp(i) => name(i).to_owned(),
+                Probe::Gradient(i, j) => format!("{}-{}", name(i), name(j)),
+            };
+            anyhow::bail!(
+                "--inputs names {} and {}: the same input twice; name each temperature or gradient once",
+                show(q),
+                show(p)
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Runs `trainer fit`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     // A fit reads its runs several times: files only. Outputs are checked
@@ -212,29 +236,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(|p| p.as_path())
         .collect();
     input::require_seekable(all_runs.iter().copied(), "`trainer fit` reads its runs several times")?;
+    check_distinct_inputs(a.inputs.as_deref().unwrap_or_default())?;
     let existing = a.force.existing();
     let json_file = a.json.json.as_deref().filter(|p| !input::is_stdin(p));
     let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(json_file).collect();
     let mut targets = output::check_targets(&outputs, &all_runs, existing)?.into_iter();
-    let report_inputs: Vec<&Path> = all_runs.iter().copied().chain([a.output.as_path()]).collect();
     let report_runs: Vec<PathBuf> = all_runs.iter().map(|p| p.to_path_buf()).collect();
-    if let Some(dir) = &a.report {
-        let fit_txt = dir.join(FIT_TEXT);
-        trainer::report::check_report_targets(&report_runs, dir, &report_inputs, existing)?;
-        if std::fs::symlink_metadata(dir).is_ok() {
-            output::check_target(&fit_txt, &report_inputs, existing)?;
-        }
-    }
+    // The report directory is replaced as a whole: no other output may lie in it.
+    let report_target = match &a.report {
+        Some(dir) => Some(trainer::report::check_report_targets(&report_runs, dir, &all_runs, &outputs, existing)?.1),
+        None => None,
+    };
     // Runs are streamed (memory stays flat whatever their length); their
     // headers and first rows are checked now, so a bad file is reported
     // before any work (a multi-axis run's other axes: by `axes::run`).
     for path in &all_runs {
         RunReader::open(path)?.require_temp()?;
     }
-    anyhow::ensure!(
-        a.block_s.is_finite() && a.block_s > 0.0,
-        "--block-s must be a positive number of seconds"
-    );
+    trainer::limits::check_block_s(a.block_s)?;
     if let Some(s) = &a.serial {
         anyhow::ensure!(
             s.len() <= rbf_core::model::SERIAL_CAPACITY,
@@ -288,7 +307,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let started = std::time::Instant::now();
     let outcome = fit::fit(&train, &validate, &opts).map_err(|e| {
-        if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
+        // A validation run too short to score blames itself, not the training runs.
+        let short = diagnose::short_runs(&a.validate, "--validate", fit::excitation::MIN_USABLE_S);
+        if !short.is_empty() {
+            anyhow::anyhow!("{}", short.join("; "))
+        } else if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
             let mask =
                 opts.method.feature_set(opts.features).thermometer_mask() | (1 << rbf_core::features::LOOP_THERMOMETER);
             diagnose::with_causes(e, &a.runs, mask)
@@ -341,16 +364,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     json["fit_seconds"] = serde_json::json!(fit_s);
     json["blob_bytes"] = serde_json::json!(blob.len());
     json["runs"] = runs_json(&evals);
-    write_blob(model_out, &blob)?;
-    let json_on_stdout = json_out.is_stdout();
-    json_out.write(&json)?;
-    if let Some(dir) = &a.report {
-        let files = trainer::report::write_report(&outcome.model, &a.output, &report_runs, dir, existing, true)?;
-        output::write_bytes_with(&dir.join(FIT_TEXT), &report_inputs, existing, &out)?;
-        writeln!(out, "wrote {} files into {}", files.len() + 1, text::path(dir))?;
+    // Every output staged, then printed, then committed together.
+    let mut transaction = Transaction::new();
+    if let Some(target) = report_target {
+        let staged = StagedDir::create(target)?;
+        let files =
+            trainer::report::write_report(&outcome.model, &a.output, &report_runs, &staged, Path::new(""), true, None)?;
+        staged.write(Path::new(FIT_TEXT), &out)?;
+        writeln!(out, "wrote {} files into {}", files + 1, text::path(staged.target()))?;
+        transaction.add_dir(staged);
     }
-    print_text(&out, json_on_stdout)?;
-    Ok(())
+    write_blob(model_out, &blob, &mut transaction)?;
+    let json_on_stdout = json_out.is_stdout();
+    json_out.write(&json, &mut transaction)?;
+    print_and_commit(&out, json_on_stdout, transaction)
 }
 
 /// The file in `--report DIR` that holds what `fit` prints.
@@ -574,13 +601,13 @@ pub(super) fn runs_json(evals: &[(&str, RunEvaluation)]) -> serde_json::Value {
         .collect()
 }
 
-/// Writes `blob` into `model_out` (if any) and commits it.
-pub(super) fn write_blob(model_out: Option<Output>, blob: &[u8]) -> anyhow::Result<()> {
+/// Writes `blob` into `model_out` (if any), staged in `transaction`.
+pub(super) fn write_blob(model_out: Option<Output>, blob: &[u8], transaction: &mut Transaction) -> anyhow::Result<()> {
     if let Some(mut output) = model_out {
         output
             .write_all(blob)
             .with_context(|| format!("{}: write failed", text::path(output.path())))?;
-        output.commit()?;
+        transaction.add(output);
     }
     Ok(())
 }

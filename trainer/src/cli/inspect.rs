@@ -1,7 +1,6 @@
 //! `trainer inspect`: what a model blob holds and whether it is intact.
 
 use std::fmt::Write as _;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use rbf_core::blob::axes::{AXES_FORMAT_VERSION, AxesHeader, AxisModels, decode_axes_into};
@@ -12,7 +11,8 @@ use trainer::output::Existing;
 use trainer::summary::{count, form, sig};
 use trainer::text;
 
-use super::common::{JsonArg, print_text, stdout};
+use super::common::{JsonArg, print_and_commit};
+use trainer::output::Transaction;
 use super::fit::features_json;
 use super::toml;
 
@@ -75,17 +75,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         info["error"] = serde_json::json!(problem);
     }
     let json_on_stdout = json_out.is_stdout();
-    json_out.write(&info)?;
+    let mut transaction = Transaction::new();
+    json_out.write(&info, &mut transaction)?;
     let printed = match a.format {
         Format::Text => summary(&info, decoded.as_ref().ok().map(|d| &d.model)),
         Format::Toml => toml::to_toml(&info),
         Format::Json => format!("{}\n", serde_json::to_string_pretty(&info)?),
     };
-    if json_on_stdout && a.format == Format::Text {
-        print_text(printed.as_bytes(), true)?;
-    } else {
-        stdout().write_all(printed.as_bytes())?;
-    }
+    print_and_commit(printed.as_bytes(), json_on_stdout && a.format == Format::Text, transaction)?;
     match (decoded, problem) {
         (Ok(_), None) => Ok(()),
         (Ok(_), Some(problem)) => Err(anyhow::anyhow!("{}: model refused: {problem}", text::path(&path))),
@@ -205,7 +202,8 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
         "axes": axis_json,
     });
     let json_on_stdout = json_out.is_stdout();
-    json_out.write(&info)?;
+    let mut transaction = Transaction::new();
+    json_out.write(&info, &mut transaction)?;
     let printed = match format {
         Format::Text => {
             let mut text = summary(&info, None)
@@ -231,11 +229,7 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
         Format::Toml => toml::to_toml(&info),
         Format::Json => format!("{}\n", serde_json::to_string_pretty(&info)?),
     };
-    if json_on_stdout && format == Format::Text {
-        print_text(printed.as_bytes(), true)?;
-    } else {
-        stdout().write_all(printed.as_bytes())?;
-    }
+    print_and_commit(printed.as_bytes(), json_on_stdout && format == Format::Text, transaction)?;
     match problem {
         None => Ok(()),
         Some(problem) => Err(refused(&problem)),

@@ -5,10 +5,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::builder::RangedU64ValueParser;
-use trainer::output::{self, Output};
+use trainer::output::{self, Output, Transaction};
 use trainer::text;
 
-use super::common::{ForceArg, stdout};
+use super::common::{ForceArg, print_and_commit};
 
 /// Design the chamber run to calibrate on: a profile the default model can be identified from.
 ///
@@ -97,14 +97,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         PlanFormat::Segments => plan.segments_csv(),
     };
     let plot = plot_format.map(|f| trainer::plan::plot(&plan, f)).transpose()?;
+    let mut transaction = Transaction::new();
     for bytes in std::iter::once(text_out.into_bytes()).chain(plot) {
         let Some(target) = targets.next() else { break };
         let mut out = Output::open(target)?;
         out.write_all(&bytes)
             .with_context(|| format!("{}: write failed", text::path(out.path())))?;
-        out.commit()?;
+        transaction.add(out);
     }
-    let mut out = stdout();
+    let mut out = Vec::new();
     writeln!(
         out,
         "wrote {} ({} segments, {:.2} h, D-criterion {:.4}, best of {} candidates; median {:.4})",
@@ -118,5 +119,5 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(p) = &a.plot {
         writeln!(out, "wrote {}", text::path(p))?;
     }
-    Ok(())
+    print_and_commit(&out, false, transaction)
 }

@@ -1,12 +1,13 @@
 //! `trainer report`: plots and a written summary of a model on runs.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use trainer::blobfile::read_model_file;
-use trainer::text;
+use trainer::output::{StagedDir, Transaction};
+use trainer::{input, text};
 
-use super::common::{AllowUncompensated, ForceArg, stdout};
+use super::common::{AllowUncompensated, ForceArg, print_and_commit};
 use super::model_arg::ModelArg;
 
 /// Plots and a written summary of a model on runs, for people who would rather look.
@@ -25,7 +26,11 @@ pub struct Args {
     /// Runs to report on (- reads standard input).
     #[arg(required = true, value_name = "RUN.csv", help_heading = "Data")]
     runs: Vec<PathBuf>,
-    /// Directory to write into (created if missing).
+    /// Directory to write (replaced as a whole; see --help).
+    ///
+    /// Written beside DIR and renamed into place when complete: DIR holds the whole old
+    /// report or the whole new one. An existing DIR that is not empty is replaced only
+    /// with --force, and only when it holds nothing but a report's files.
     #[arg(short, long, value_name = "DIR", help_heading = "Output")]
     output: PathBuf,
     #[command(flatten)]
@@ -36,20 +41,20 @@ pub struct Args {
 
 /// Runs `trainer report`.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let (file, _) = read_model_file(&a.model.path)?;
+    let model_path = a.model.path.as_path();
+    let inputs: Vec<&Path> = a.runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
+    input::check_stdin_once(inputs.iter().copied())?;
+    let (_, target) = trainer::report::check_report_targets(&a.runs, &a.output, &inputs, &[], a.force.existing())?;
+    let (file, _) = read_model_file(model_path)?;
+    // Written into a hidden directory beside DIR, which replaces DIR as a whole at the end.
+    let staged = StagedDir::create(target)?;
+    let allow = a.uncompensated.allow_uncompensated;
+    let mut printed = Vec::new();
     let axes = file.axes();
     if axes.is_empty() {
         let model = file.model(None).ok_or_else(|| anyhow::anyhow!("the model file holds no model"))?;
-        let files = trainer::report::write_report(
-            model,
-            &a.model.path,
-            &a.runs,
-            &a.output,
-            a.force.existing(),
-            a.uncompensated.allow_uncompensated,
-        )?;
-        writeln!(stdout(), "wrote {} files into {}", files.len(), text::path(&a.output))?;
-        return Ok(());
+        let files = trainer::report::write_report(model, model_path, &a.runs, &staged, Path::new(""), allow, None)?;
+        writeln!(printed, "wrote {files} files into {}", text::path(&a.output))?;
     }
     // A multi-axis model: a whole report per axis, in DIR/axis-<axis>.
     for axis in axes {
@@ -68,18 +73,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .as_ref()
             .or_else(|| file.model(Some(axis)))
             .ok_or_else(|| anyhow::anyhow!("axis {} has no model", axis.name()))?;
-        let dir = a.output.join(format!("axis-{}", axis.name()));
-        let files = trainer::report::write_axis_report(
-            model,
-            &a.model.path,
-            &a.runs,
-            &dir,
-            a.force.existing(),
-            a.uncompensated.allow_uncompensated,
-            Some(axis),
-        )
-        .map_err(|e| e.context(format!("axis {}", axis.name())))?;
-        writeln!(stdout(), "wrote {} files into {}", files.len(), text::path(&dir))?;
+        let sub = PathBuf::from(format!("axis-{}", axis.name()));
+        let files = trainer::report::write_report(model, model_path, &a.runs, &staged, &sub, allow, Some(axis))
+            .map_err(|e| e.context(format!("axis {}", axis.name())))?;
+        writeln!(printed, "wrote {files} files into {}", text::path(&a.output.join(&sub)))?;
     }
-    Ok(())
+    let mut transaction = Transaction::new();
+    transaction.add_dir(staged);
+    print_and_commit(&printed, false, transaction)
 }

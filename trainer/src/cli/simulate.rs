@@ -1,15 +1,16 @@
 //! `trainer simulate`: write a simulated IFOG run.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use trainer::limits::MAX_PARAMS_BYTES;
-use trainer::output::{self, Output};
+use trainer::limits::{
+    MAX_PARAMS_BYTES, MAX_SIM_HOURS, MAX_SIM_OUTPUT_BYTES, MIN_RUN_ROWS, MIN_SAMPLE_RATE_HZ, SIM_BYTES_PER_FIELD,
+};
+use trainer::output::{self, Output, Transaction};
 use trainer::simulate::{ChamberRun, ParamsError, Profile, SimParams};
 use trainer::{input, text};
 
-use super::common::{ForceArg, stdout};
+use super::common::{ForceArg, print_and_commit};
 use super::values::ProfileArg;
 
 /// Write a simulated IFOG run, in a thermal chamber or in use (recorded-run CSV with ref_dph).
@@ -118,12 +119,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(ramp) = a.ramp_c_per_min {
         anyhow::ensure!(
             ramp.is_finite() && ramp > 0.0 && ramp <= 20.0,
-            "--ramp-c-per-min must be 0 … 20 °C/min"
+            "--ramp-c-per-min {ramp}: must be more than 0 and at most 20 °C/min"
         );
     }
     anyhow::ensure!(
-        a.sample_rate_hz.is_finite() && a.sample_rate_hz > 0.0 && a.sample_rate_hz <= 10_000.0,
-        "--sample-rate-hz must be 0 … 10000 Hz"
+        a.sample_rate_hz.is_finite() && (MIN_SAMPLE_RATE_HZ..=MAX_SIM_RATE_HZ).contains(&a.sample_rate_hz),
+        "--sample-rate-hz {}: must be {MIN_SAMPLE_RATE_HZ} … {MAX_SIM_RATE_HZ} Hz (the lowest rate a recorded run may have, the fastest simulated)",
+        a.sample_rate_hz
     );
     anyhow::ensure!(
         a.hold_min.is_finite() && (1.0..=1440.0).contains(&a.hold_min),
@@ -144,7 +146,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         "--ramp-range-c-per-min must lie within 0.01 … 20 °C/min, slowest first"
     );
     if let Some(h) = a.hours {
-        anyhow::ensure!(h.is_finite() && h > 0.0 && h <= 1000.0, "--hours must be 0 … 1000");
+        anyhow::ensure!(
+            h.is_finite() && h > 0.0 && h <= MAX_SIM_HOURS,
+            "--hours {h}: must be more than 0 and at most {MAX_SIM_HOURS} h"
+        );
     }
     let inputs: Vec<&Path> = a
         .params
@@ -184,14 +189,49 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     run.params
         .check()
         .map_err(|reason| anyhow::anyhow!("cannot simulate these parameters: {reason}"))?;
+    check_extent(&run, a.axes, a.chamber_profile.as_deref())?;
     let mut out = Output::open(target)?;
     match a.axes {
         Some(axes) => trainer::simulate::axes::write_axes_csv(&run, axes, a.shared_thermometer, &mut out),
         None => run.write_csv(&mut out),
     }
     .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
-    out.commit()?;
-    writeln!(stdout(), "wrote {}", text::path(&a.output))?;
+    let printed = format!("wrote {}\n", text::path(&a.output));
+    print_and_commit(printed.as_bytes(), false, Transaction::of(out))
+}
+
+/// Fastest sample rate `trainer simulate` writes, Hz.
+const MAX_SIM_RATE_HZ: f64 = 10_000.0;
+
+/// Refuses, before anything is written, a run past the simulator's limits
+/// (whatever set its length: --hours, the profile, a --chamber-profile) or
+/// one the recorded-run reader would refuse for too few rows.
+/// `chamber_profile`: the file that set the schedule, named in the messages.
+fn check_extent(run: &ChamberRun, axes: Option<usize>, chamber_profile: Option<&Path>) -> anyhow::Result<()> {
+    let (duration_s, rows) = run.extent();
+    let from = chamber_profile.map_or(String::new(), |p| format!("{}: ", text::path(p)));
+    anyhow::ensure!(
+        duration_s.is_finite() && duration_s <= MAX_SIM_HOURS * 3600.0,
+        "{from}the run would last {:.1} h; at most {MAX_SIM_HOURS} h are simulated (the limit): cut it with --hours or a shorter profile",
+        duration_s / 3600.0
+    );
+    anyhow::ensure!(
+        rows >= MIN_RUN_ROWS,
+        "{from}the run would hold {rows} samples ({duration_s:.3e} s at {} Hz); a recorded run needs at least {MIN_RUN_ROWS}: lengthen it (--hours) or raise --sample-rate-hz",
+        run.sample_rate_hz
+    );
+    let columns: u64 = match (axes, run.multi) {
+        (Some(n), _) => 1 + 3 * n as u64,
+        (None, true) => 3 + 8,
+        (None, false) => 4,
+    };
+    let estimate = rows.saturating_mul(columns * SIM_BYTES_PER_FIELD);
+    anyhow::ensure!(
+        estimate <= MAX_SIM_OUTPUT_BYTES,
+        "the run would take about {:.1} GB ({rows} rows of {columns} columns); at most {} are written (the limit): shorten --hours or lower --sample-rate-hz",
+        estimate as f64 / 1e9,
+        trainer::limits::bytes(MAX_SIM_OUTPUT_BYTES)
+    );
     Ok(())
 }
 

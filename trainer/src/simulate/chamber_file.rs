@@ -36,12 +36,25 @@ pub enum ChamberProfileError {
     },
 }
 
-/// Reads the chamber profile in `path`.
+/// Reads the chamber profile in `path`, refused past
+/// [`crate::limits::MAX_PROFILE_BYTES`] without reading further.
 pub fn read_chamber_profile(path: &Path) -> Result<Schedule, ChamberProfileError> {
-    let text = std::fs::read_to_string(path).map_err(|error| ChamberProfileError::Io {
+    use std::io::Read;
+    let limit = crate::limits::MAX_PROFILE_BYTES;
+    let io = |error| ChamberProfileError::Io {
         path: path.to_owned(),
         error,
-    })?;
+    };
+    let mut text = String::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(limit + 1).read_to_string(&mut text))
+        .map_err(io)?;
+    if text.len() as u64 > limit {
+        return Err(io(std::io::Error::other(format!(
+            "more than {limit} bytes; a chamber profile is at most {} (the limit)",
+            crate::limits::bytes(limit)
+        ))));
+    }
     parse_chamber_profile(path, &text)
 }
 

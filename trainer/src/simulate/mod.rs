@@ -222,6 +222,14 @@ impl ChamberRun {
         }
     }
 
+    /// The run's length, s, and its number of samples (rows), as
+    /// [`ChamberRun::write_csv`] will make them.
+    pub fn extent(&self) -> (f64, u64) {
+        let mut rng = Pcg64::seed_from_u64(self.seed);
+        let (_, duration_s, _) = self.setup(&mut rng);
+        (duration_s, (duration_s * self.sample_rate_hz).floor() as u64)
+    }
+
     /// Streams the run as recorded-run CSV.
     pub fn write_csv(&self, out: &mut impl Write) -> std::io::Result<()> {
         let mut rng = Pcg64::seed_from_u64(self.seed);

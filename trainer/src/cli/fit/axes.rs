@@ -16,11 +16,11 @@ use trainer::evaluate::{
     RunEvaluation, evaluate_axis_file, evaluate_blocks, evaluate_blocks_with, evaluate_shared_reader, print_table,
 };
 use trainer::fit::{self, FitOptions, FitOutcome};
-use trainer::output::Output;
+use trainer::output::{Output, Transaction};
 use trainer::run::RunReader;
 use trainer::text;
 
-use super::super::common::{JsonSink, print_text};
+use super::super::common::{JsonSink, print_and_commit};
 use super::{Args, FitHow, outcome_json, runs_json, write_blob, write_summary};
 
 /// Fits every axis of `axes` on the runs of `a` with `opts`, writes the
@@ -139,10 +139,11 @@ pub(super) fn run(
         "blob_bytes": blob.len(),
         "runs": runs_json(&evals),
     });
-    write_blob(model_out, &blob)?;
+    let mut transaction = Transaction::new();
+    write_blob(model_out, &blob, &mut transaction)?;
     let json_on_stdout = json_out.is_stdout();
-    json_out.write(&json)?;
-    print_text(&out, json_on_stdout)?;
+    json_out.write(&json, &mut transaction)?;
+    print_and_commit(&out, json_on_stdout, transaction)?;
     Ok(())
 }
 
