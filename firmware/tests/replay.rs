@@ -110,7 +110,9 @@ fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_ev
     let dir = tempfile::TempDir::new().unwrap();
     let (blob_path, slice) = common::axes_blob_and_slice(dir.path());
     let expected_path = dir.path().join("expected.csv");
-    trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+    let (_, expected) =
+        trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+    expected.commit().unwrap();
     let expected = std::fs::read_to_string(&expected_path).unwrap();
 
     // Replayed at the trainer's capacity; the fitted axes (OLS kept at most
@@ -168,7 +170,9 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
     let dir = tempfile::TempDir::new().unwrap();
     let (blob_path, slice) = common::shared_blob_and_slice(dir.path());
     let expected_path = dir.path().join("expected.csv");
-    trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+    let (_, expected) =
+        trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+    expected.commit().unwrap();
     let expected = std::fs::read_to_string(&expected_path).unwrap();
 
     let blob = std::fs::read(&blob_path).unwrap();
