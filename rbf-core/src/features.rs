@@ -55,10 +55,13 @@ use serde::{Deserialize, Serialize};
 
 use crate::MAX_INPUTS;
 pub use crate::lag_bank::{BANK_FILTERS, BankInput, GainOf, LagBank};
+pub use crate::response_bank::{RESPONSE_FILTERS, ResponseBank, ResponseInput};
 
-/// Derivative filters the extractor runs at most: a lag bank's
-/// ([`BANK_FILTERS`]), more than the multi-scale sets' [`WINDOWS`].
-const FILTERS: usize = BANK_FILTERS;
+/// Derivative filters the extractor runs at most: a response bank's
+/// ([`RESPONSE_FILTERS`]), more than a lag bank's ([`BANK_FILTERS`]) and the
+/// multi-scale sets' [`WINDOWS`].
+const FILTERS: usize = RESPONSE_FILTERS;
+const _: () = assert!(BANK_FILTERS <= FILTERS && WINDOWS <= FILTERS);
 /// Most inputs of a multi-point model (the RLG method's thermometer selection);
 /// its blob encoding holds exactly this many probe slots.
 pub const MAX_PROBES: usize = 8;
@@ -203,6 +206,10 @@ impl Probes {
 // flash, a 4.6 KiB constant among it, and 70 instructions per sample on
 // the board, as docs/decisions.md records).
 #[repr(u8)]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "no_std without alloc: nothing to box into; the set lives in the model, which lives in RAM"
+)]
 pub enum FeatureSet {
     /// (T): the loop temperature alone, for the cubic-in-T baseline.
     Temp,
@@ -236,6 +243,11 @@ pub enum FeatureSet {
     /// [`BANK_FILTERS`] derivative filters whose time constants and weights
     /// the trainer identifies. Declared last for the same reason.
     LagBank(LagBank),
+    /// The thermal response bank ([`crate::response_bank`]): powers of the
+    /// mean coil temperature about T₀ and three free mixtures of the rates of
+    /// [`RESPONSE_FILTERS`] derivative filters, two with gains of T̂.
+    /// Declared last for the same reason.
+    ResponseBank(ResponseBank),
 }
 
 impl FeatureSet {
@@ -248,6 +260,7 @@ impl FeatureSet {
             FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => 8,
             FeatureSet::MultiPoint(probes) => probes.len(),
             FeatureSet::LagBank(bank) => bank.dims(),
+            FeatureSet::ResponseBank(bank) => bank.dims(),
         }
     }
 
@@ -258,6 +271,7 @@ impl FeatureSet {
             FeatureSet::TempRate | FeatureSet::TempRateProduct => 1,
             FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => WINDOWS,
             FeatureSet::LagBank(bank) => bank.filter_count(),
+            FeatureSet::ResponseBank(bank) => bank.filter_count(),
         }
     }
 
@@ -296,6 +310,7 @@ impl FeatureSet {
         match self {
             FeatureSet::MultiPoint(probes) => probes.as_slice().get(i).copied().map(InputName::Probe),
             FeatureSet::LagBank(bank) => bank.input(i).map(InputName::Bank),
+            FeatureSet::ResponseBank(bank) => bank.input(i).map(InputName::Response),
             _ => self.fixed_names().get(i).copied().map(InputName::Fixed),
         }
     }
@@ -323,7 +338,7 @@ impl FeatureSet {
             ],
             FeatureSet::MultiScaleSecondOrder => &SECOND_ORDER_NAMES,
             FeatureSet::MultiScaleLagged { .. } => &LAGGED_NAMES,
-            FeatureSet::MultiPoint(_) | FeatureSet::LagBank(_) => &[],
+            FeatureSet::MultiPoint(_) | FeatureSet::LagBank(_) | FeatureSet::ResponseBank(_) => &[],
         }
     }
 }
@@ -357,6 +372,8 @@ pub enum InputName {
     Probe(Probe),
     /// A lag-bank input, e.g. `g·ΔT(τ 240 s) [°C/min]`.
     Bank(BankInput),
+    /// A response-bank input, e.g. `û_c·R₁ [°/h]`.
+    Response(ResponseInput),
 }
 
 impl core::fmt::Display for InputName {
@@ -365,6 +382,7 @@ impl core::fmt::Display for InputName {
             InputName::Fixed(name) => f.write_str(name),
             InputName::Probe(probe) => probe.fmt(f),
             InputName::Bank(input) => input.fmt(f),
+            InputName::Response(input) => input.fmt(f),
         }
     }
 }
@@ -417,13 +435,28 @@ impl FeatureConfig {
         }
     }
 
+    /// A response bank's configuration: its filters, with the fastest as
+    /// `rate_window_s` (which sets the warm-up).
+    pub fn response_bank(bank: ResponseBank) -> Self {
+        FeatureConfig {
+            set: FeatureSet::ResponseBank(bank),
+            rate_window_s: bank.taus_s[0],
+            slow_windows_s: [0.0; WINDOWS - 1],
+        }
+    }
+
     /// The time constants of every derivative filter the set runs, s, and
-    /// their number: a lag bank's filters, else the ΔT windows.
+    /// their number: a bank's filters, else the ΔT windows.
     #[inline(always)]
     pub fn filter_taus_s(&self) -> ([f32; FILTERS], usize) {
         let mut taus = [0.0; FILTERS];
         match self.set {
-            FeatureSet::LagBank(bank) => taus = bank.taus_s,
+            FeatureSet::LagBank(bank) => {
+                for (t, b) in taus.iter_mut().zip(bank.taus_s) {
+                    *t = b;
+                }
+            }
+            FeatureSet::ResponseBank(bank) => taus = bank.taus_s,
             _ => taus[..WINDOWS].copy_from_slice(&self.windows_s()),
         }
         (taus, self.set.windows().min(FILTERS))
@@ -440,12 +473,15 @@ impl FeatureConfig {
     }
 
     /// True when the configuration is usable (finite windows within 0 ..= 1 day;
-    /// multi-point inputs that name existing thermometers; a valid lag bank
-    /// whose fastest filter is `rate_window_s`).
+    /// multi-point inputs that name existing thermometers; a valid lag or
+    /// response bank whose fastest filter is `rate_window_s`).
     pub fn is_valid(&self) -> bool {
         let set_ok = match self.set {
             FeatureSet::MultiPoint(probes) => probes.is_valid(),
             FeatureSet::LagBank(bank) => bank.is_valid() && bank.taus_s[0].to_bits() == self.rate_window_s.to_bits(),
+            FeatureSet::ResponseBank(bank) => {
+                bank.is_valid() && bank.taus_s[0].to_bits() == self.rate_window_s.to_bits()
+            }
             _ => true,
         };
         set_ok
@@ -676,7 +712,12 @@ fn assemble(set: FeatureSet, rate_c_per_min: [f32; FILTERS], temps_c: &[f32; THE
                 *v = p.value(temps_c);
             }
         }
-        FeatureSet::LagBank(bank) => bank.inputs(temp_c, &rate_c_per_min, &mut values),
+        FeatureSet::LagBank(bank) => {
+            if let Some(rates) = rate_c_per_min.first_chunk::<BANK_FILTERS>() {
+                bank.inputs(temp_c, rates, &mut values);
+            }
+        }
+        FeatureSet::ResponseBank(bank) => bank.inputs(temp_c, &rate_c_per_min, &mut values),
     }
     values
 }
@@ -893,6 +934,37 @@ mod tests {
         );
         let v = FeatureExtractor::new().update(&configs[0], 1.0, &loop_reading(20.0));
         assert_eq!(v.to_multiscale_set(sets[0], FeatureSet::Temp), None);
+    }
+
+    #[test]
+    fn a_response_bank_runs_all_sixteen_filters_and_warms_up_over_three_of_its_fastest() {
+        let taus: Vec<f32> = (1..=16).map(|k| 4.0 * k as f32).collect();
+        let mut bank = ResponseBank::new(&taus, 10.0, 0.0, 100.0, 1).unwrap();
+        bank.weights[1] = [1.0 / 16.0; RESPONSE_FILTERS];
+        bank.weights[2][15] = 1.0;
+        let cfg = FeatureConfig::response_bank(bank);
+        assert!(cfg.is_valid());
+        assert_eq!(cfg.warmup_s(), 12.0);
+        let mut fx = FeatureExtractor::new();
+        let mut settled_at = None;
+        let mut last = fx.update(&cfg, 1.0, &loop_reading(10.0));
+        for i in 1..=3_000 {
+            last = fx.update(&cfg, 1.0, &loop_reading(10.0 + 1.5 * i as f32 / 60.0));
+            if !last.warming_up && settled_at.is_none() {
+                settled_at = Some(i);
+            }
+        }
+        assert_eq!(settled_at, Some(12));
+        // Every filter reads the ramp: R₀ is their mean, R₁ the slowest's times û.
+        let [u, r0, r1] = [0, 1, 2].map(|i| last.as_slice()[i]);
+        assert_eq!(last.as_slice().len(), 4);
+        assert!((r0 - 1.5).abs() < 1e-3, "R₀ = {r0}");
+        assert!((r1 - 1.5 * u).abs() < 1e-3 * u, "û_c·R₁ = {r1}, û = {u}");
+        assert!((u - 75.0).abs() < 1e-3, "û = {u}");
+        assert_eq!(cfg.set.names().count(), 4);
+        let mut wrong = cfg;
+        wrong.rate_window_s = 5.0;
+        assert!(!wrong.is_valid(), "the fastest filter must be the warm-up window");
     }
 
     #[test]
