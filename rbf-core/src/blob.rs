@@ -782,13 +782,13 @@ mod tests {
             }
         }
         let net = RbfNetwork::new(&RbfParams {
-            offset: &[0.0; 7],
-            scale: &[1.0; 7],
+            offset: &[0.0; 9],
+            scale: &[1.0; 9],
             kernel_inputs: 1,
             centers: &[],
             widths: &[],
             weights: &[],
-            linear: &[0.25, -0.0625, 0.001, -0.000_01, 1.0, 1.0, 1.0],
+            linear: &[0.25, -0.0625, 0.001, -0.000_01, 1.0, 1.0, 1.0, 1.0, 1.0],
             constant: -0.5,
         })
         .unwrap();
@@ -800,6 +800,8 @@ mod tests {
             (-3.0, 3.0),
             (-50.0, 50.0),
             (-900.0, 900.0),
+            (-5.0, 5.0),
+            (-7.0, 7.0),
         ];
         Model::new(
             FeatureConfig::response_bank(bank),

@@ -55,7 +55,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::MAX_INPUTS;
 pub use crate::lag_bank::{BANK_FILTERS, BankInput, GainOf, LagBank};
-pub use crate::response_bank::{RESPONSE_FILTERS, ResponseBank, ResponseInput};
+pub use crate::response_bank::{POWER_RESPONSES, RESPONSE_FILTERS, ResponseBank, ResponseInput};
 
 /// Derivative filters the extractor runs at most: a response bank's
 /// ([`RESPONSE_FILTERS`]), more than a lag bank's ([`BANK_FILTERS`]) and the
@@ -548,7 +548,11 @@ impl FeatureVector {
             return None;
         }
         Some(FeatureVector {
-            values: assemble(set, [rate_c_per_min; FILTERS], &loop_reading(temp_c)),
+            values: assemble(
+                set,
+                &FilterChannels::settled(set, temp_c, rate_c_per_min),
+                &loop_reading(temp_c),
+            ),
             reference_temp_c: temp_c,
             len: set.dims() as u8,
             warming_up: false,
@@ -571,7 +575,14 @@ impl FeatureVector {
         let mut rates = [0.0; FILTERS];
         rates[..WINDOWS].copy_from_slice(&[fast, slow, slowest]);
         Some(FeatureVector {
-            values: assemble(to, rates, &loop_reading(self.reference_temp_c)),
+            values: assemble(
+                to,
+                &FilterChannels {
+                    rate_c_per_min: rates,
+                    ..FilterChannels::default()
+                },
+                &loop_reading(self.reference_temp_c),
+            ),
             len: to.dims() as u8,
             ..*self
         })
@@ -585,6 +596,8 @@ impl FeatureVector {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct FeatureExtractor {
     smoothed_c: [f32; FILTERS],
+    /// The filters' state for a response bank's powers of T.
+    power_smoothed: [[f32; FILTERS]; POWER_RESPONSES],
     since_restart_s: f32,
     started: bool,
 }
@@ -594,6 +607,7 @@ impl FeatureExtractor {
     pub const fn new() -> Self {
         FeatureExtractor {
             smoothed_c: [0.0; FILTERS],
+            power_smoothed: [[0.0; FILTERS]; POWER_RESPONSES],
             since_restart_s: 0.0,
             started: false,
         }
@@ -613,13 +627,43 @@ impl FeatureExtractor {
     /// ([`FeatureSet::thermometer_mask`]) must be finite (the compensator
     /// guarantees it by holding the last good values), the others are ignored.
     pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temps_c: &[f32; THERMOMETERS]) -> FeatureVector {
+        self.step(config, dt_s, temps_c).0
+    }
+
+    /// [`Self::update`], with the filters' outputs the inputs were made of:
+    /// what the trainer identifies a response bank's weights from, computed
+    /// by the very arithmetic the firmware runs.
+    pub fn update_with_channels(
+        &mut self,
+        config: &FeatureConfig,
+        dt_s: f32,
+        temps_c: &[f32; THERMOMETERS],
+    ) -> (FeatureVector, FilterChannels) {
+        self.step(config, dt_s, temps_c)
+    }
+
+    #[inline(always)]
+    fn step(
+        &mut self,
+        config: &FeatureConfig,
+        dt_s: f32,
+        temps_c: &[f32; THERMOMETERS],
+    ) -> (FeatureVector, FilterChannels) {
         let temp_c = temps_c[LOOP_THERMOMETER];
         let (taus, windows) = config.filter_taus_s();
-        let mut rate_c_per_min = [0.0f32; FILTERS];
+        let mut channels = FilterChannels::default();
+        // The powers of T a response bank also filters (none for the other sets).
+        let powers = match config.set {
+            FeatureSet::ResponseBank(bank) => Some(bank.loop_powers(temp_c)),
+            _ => None,
+        };
         if !(self.started && dt_s.is_finite() && dt_s > 0.0) {
             self.started = true;
             self.since_restart_s = 0.0;
             self.smoothed_c = [temp_c; FILTERS];
+            if let Some(p) = powers {
+                self.power_smoothed = p.map(|v| [v; FILTERS]);
+            }
         } else {
             for w in 0..windows.min(FILTERS) {
                 let tau_s = taus[w];
@@ -630,23 +674,65 @@ impl FeatureExtractor {
                 } else {
                     self.smoothed_c[w] + dt_s * rate
                 };
-                rate_c_per_min[w] = rate * SECONDS_PER_MINUTE;
+                channels.rate_c_per_min[w] = rate * SECONDS_PER_MINUTE;
+            }
+            if let Some(p) = powers {
+                for ((smoothed, rates), value) in self.power_smoothed.iter_mut().zip(&mut channels.power_rates).zip(p) {
+                    for ((s, r), tau_s) in smoothed.iter_mut().zip(rates.iter_mut()).zip(taus).take(windows) {
+                        let rate = (value - *s) / (tau_s + dt_s);
+                        *s += dt_s * rate;
+                        *r = rate * SECONDS_PER_MINUTE;
+                    }
+                }
             }
             self.since_restart_s += dt_s;
         }
         let warming_up = self.since_restart_s == 0.0 || self.since_restart_s < config.warmup_s();
 
-        let values = assemble(config.set, rate_c_per_min, temps_c);
+        let values = assemble(config.set, &channels, temps_c);
         let reference_temp_c = temps_c
             .get(config.set.reference_thermometer())
             .copied()
             .unwrap_or(f32::NAN);
-        FeatureVector {
-            values,
-            reference_temp_c,
-            len: config.dims() as u8,
-            warming_up,
+        (
+            FeatureVector {
+                values,
+                reference_temp_c,
+                len: config.dims() as u8,
+                warming_up,
+            },
+            channels,
+        )
+    }
+}
+
+/// The outputs of the derivative filters for one sample: the loop
+/// temperature's rates and, for a response bank, the rates of its powers.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FilterChannels {
+    /// ΔT_k, °C/min (0 for filters the set does not run).
+    pub rate_c_per_min: [f32; FILTERS],
+    /// ΔP_q,k of the powers (T − T₀)², (T − T₀)³ ([`ResponseBank::loop_powers`]), °C^q/min.
+    pub power_rates: [[f32; FILTERS]; POWER_RESPONSES],
+}
+
+impl FilterChannels {
+    /// Every filter of `set` reading a steady ramp of `rate_c_per_min` at
+    /// loop temperature `temp_c`: the powers' rates are their derivatives,
+    /// q·(T − T₀)^(q−1)·rate inside the covered range (their tangent's slope beyond).
+    fn settled(set: FeatureSet, temp_c: f32, rate_c_per_min: f32) -> Self {
+        let mut channels = FilterChannels {
+            rate_c_per_min: [rate_c_per_min; FILTERS],
+            ..FilterChannels::default()
+        };
+        if let FeatureSet::ResponseBank(bank) = set {
+            let uc = crate::model::clamp(temp_c, bank.coil_min_c, bank.coil_max_c) - bank.ref_c;
+            channels.power_rates = [
+                [2.0 * uc * rate_c_per_min; FILTERS],
+                [3.0 * uc * uc * rate_c_per_min; FILTERS],
+            ];
         }
+        channels
     }
 }
 
@@ -661,7 +747,8 @@ fn padded(v: [f32; 8]) -> [f32; MAX_INPUTS] {
 /// for the multi-scale sets), and the thermometer readings, °C: the one place
 /// each set's inputs are defined.
 #[inline(always)]
-fn assemble(set: FeatureSet, rate_c_per_min: [f32; FILTERS], temps_c: &[f32; THERMOMETERS]) -> [f32; MAX_INPUTS] {
+fn assemble(set: FeatureSet, channels: &FilterChannels, temps_c: &[f32; THERMOMETERS]) -> [f32; MAX_INPUTS] {
+    let rate_c_per_min = channels.rate_c_per_min;
     let temp_c = temps_c[LOOP_THERMOMETER];
     let mut values = [0.0; MAX_INPUTS];
     values[0] = temp_c;
@@ -717,7 +804,7 @@ fn assemble(set: FeatureSet, rate_c_per_min: [f32; FILTERS], temps_c: &[f32; THE
                 bank.inputs(temp_c, rates, &mut values);
             }
         }
-        FeatureSet::ResponseBank(bank) => bank.inputs(temp_c, &rate_c_per_min, &mut values),
+        FeatureSet::ResponseBank(bank) => bank.inputs(temp_c, &rate_c_per_min, &channels.power_rates, &mut values),
     }
     values
 }
@@ -942,6 +1029,7 @@ mod tests {
         let mut bank = ResponseBank::new(&taus, 10.0, 0.0, 100.0, 1).unwrap();
         bank.weights[1] = [1.0 / 16.0; RESPONSE_FILTERS];
         bank.weights[2][15] = 1.0;
+        bank.weights[4][15] = 1.0;
         let cfg = FeatureConfig::response_bank(bank);
         assert!(cfg.is_valid());
         assert_eq!(cfg.warmup_s(), 12.0);
@@ -957,11 +1045,15 @@ mod tests {
         assert_eq!(settled_at, Some(12));
         // Every filter reads the ramp: R₀ is their mean, R₁ the slowest's times û.
         let [u, r0, r1] = [0, 1, 2].map(|i| last.as_slice()[i]);
-        assert_eq!(last.as_slice().len(), 4);
+        assert_eq!(last.as_slice().len(), 6);
         assert!((r0 - 1.5).abs() < 1e-3, "R₀ = {r0}");
         assert!((r1 - 1.5 * u).abs() < 1e-3 * u, "û_c·R₁ = {r1}, û = {u}");
         assert!((u - 75.0).abs() < 1e-3, "û = {u}");
-        assert_eq!(cfg.set.names().count(), 4);
+        // H₂: the square's rate, d(û²)/dt = 2û·1.5 °C/min, less its lag (τ 64 s at 1.5 °C/min).
+        let h2 = last.as_slice()[4];
+        assert!((h2 - 2.0 * (u - 1.5 * 64.0 / 60.0) * 1.5).abs() < 0.05, "H₂ = {h2}");
+        assert_eq!(last.as_slice()[5], 0.0, "row 5 is zero");
+        assert_eq!(cfg.set.names().count(), 6);
         let mut wrong = cfg;
         wrong.rate_window_s = 5.0;
         assert!(!wrong.is_valid(), "the fastest filter must be the warm-up window");

@@ -14,8 +14,17 @@
 //! T̂      = T + Σ_k a_k·ΔT_k                 mean coil temperature, °C (a_k = weights[0][k], minutes)
 //! û      = T̂ − T₀                           û_c: û clamped to [coil_min_c − T₀, coil_max_c − T₀]
 //! R_j    = Σ_k weights[j+1][k]·ΔT_k          j = 0, 1, 2
-//! inputs = [û, û², …, û^static_degree, R_0, û_c·R_1, û_c²·R_2]
+//! P_q    = (T − T₀)^q, q = 2, 3               (tangent beyond the covered range, as below)
+//! H_q    = Σ_k weights[q+2][k]·ΔP_q,k          ΔP_q,k: P_q through the same filters, per minute
+//! inputs = [û, û², …, û^static_degree, R_0, û_c·R_1, û_c²·R_2, H_2, H_3]
 //! ```
+//!
+//! The H_q are the bank's Hammerstein part: the square and cube of the loop
+//! temperature through the same filters. A Shupe coefficient that drifts with
+//! the temperature of each layer makes the bias the rate of a polynomial of a
+//! lagged temperature, which products of T with its rates (the R_j) follow
+//! only while the lag is short against the change; the filtered powers follow
+//! it at any lag (docs/methods.md).
 //!
 //! Past the covered range of T̂ each power continues along its tangent at
 //! the range's edge (`p(û_c) + p′(û_c)·(û − û_c)`), as the lag bank's do:
@@ -35,8 +44,13 @@ pub const RESPONSE_FILTERS: usize = 16;
 pub const MAX_RESPONSE_DEGREE: u8 = 4;
 /// Rate responses R_j a bank produces (weight rows 1 ..= 3).
 pub const RESPONSES: usize = 3;
+/// Filtered powers H_q of the loop temperature a bank produces (q = 2, 3;
+/// weight rows 4 and 5).
+pub const POWER_RESPONSES: usize = 2;
+/// Weight rows: the coil lags, the rate responses and the filtered powers.
+pub const WEIGHT_ROWS: usize = 1 + RESPONSES + POWER_RESPONSES;
 /// Most inputs a response bank gives: the static powers and the responses.
-pub const MAX_RESPONSE_INPUTS: usize = MAX_RESPONSE_DEGREE as usize + RESPONSES;
+pub const MAX_RESPONSE_INPUTS: usize = MAX_RESPONSE_DEGREE as usize + RESPONSES + POWER_RESPONSES;
 /// Longest filter time constant, s (one day), as for every ΔT window.
 const MAX_TAU_S: f32 = 86_400.0;
 /// Largest |temperature| a bank's reference and range may name, °C.
@@ -64,8 +78,9 @@ pub struct ResponseBank {
     /// Row 0: coil lags a_k, minutes (T̂ = T + Σ a_k·ΔT_k, ΔT_k in °C/min).
     /// Rows 1 ..= 3: the responses' weights, R_j = Σ weights[j+1][k]·ΔT_k in
     /// °/h (row 1 in °/h per °C/min, rows 2 and 3 per °C/min and per °C and
-    /// °C² of û_c). Unused filters' weights are 0.
-    pub weights: [[f32; RESPONSE_FILTERS]; 1 + RESPONSES],
+    /// °C² of û_c). Rows 4 and 5: the filtered powers' weights, H_q =
+    /// Σ weights[q+2][k]·ΔP_q,k in °/h (per °C^q/min). Unused filters' weights are 0.
+    pub weights: [[f32; RESPONSE_FILTERS]; WEIGHT_ROWS],
 }
 
 impl ResponseBank {
@@ -82,7 +97,7 @@ impl ResponseBank {
             coil_min_c,
             coil_max_c,
             static_degree,
-            weights: [[0.0; RESPONSE_FILTERS]; 1 + RESPONSES],
+            weights: [[0.0; RESPONSE_FILTERS]; WEIGHT_ROWS],
         };
         bank.is_valid().then_some(bank)
     }
@@ -103,9 +118,21 @@ impl ResponseBank {
         }) as usize
     }
 
-    /// Number of model inputs: the static powers, then the three responses.
+    /// Number of model inputs: the static powers, the three responses, the two filtered powers.
     pub const fn dims(&self) -> usize {
-        self.static_inputs() + RESPONSES
+        self.static_inputs() + RESPONSES + POWER_RESPONSES
+    }
+
+    /// The powers P_2, P_3 of the loop temperature about T₀ that the
+    /// filtered-power filters run on, °C² and °C³: (T − T₀)^q inside the
+    /// covered range, along its tangent at the range's edge beyond it.
+    #[inline(always)]
+    pub fn loop_powers(&self, temp_c: f32) -> [f32; POWER_RESPONSES] {
+        let u = temp_c - self.ref_c;
+        let uc = crate::model::clamp(temp_c, self.coil_min_c, self.coil_max_c) - self.ref_c;
+        let beyond = u - uc;
+        let uc2 = uc * uc;
+        [uc * (uc + 2.0 * beyond), uc2 * (uc + 3.0 * beyond)]
     }
 
     /// The time constants in use, s.
@@ -140,13 +167,32 @@ impl ResponseBank {
             && self.coil_min_c < self.coil_max_c
     }
 
-    /// The model inputs from the loop temperature `temp_c`, °C, and the
-    /// filters' rates, °C/min (filters past [`Self::filter_count`] are
-    /// ignored), written to the first [`Self::dims`] slots of `out`.
+    /// The model inputs from the loop temperature `temp_c`, °C, the
+    /// filters' rates, °C/min, and the rates of the powers
+    /// ([`Self::loop_powers`]) through the same filters, °C^q/min (filters
+    /// past [`Self::filter_count`] are ignored), written to the first
+    /// [`Self::dims`] slots of `out`.
     #[inline(always)]
-    pub fn inputs(&self, temp_c: f32, rates_c_per_min: &[f32; RESPONSE_FILTERS], out: &mut [f32]) {
+    pub fn inputs(
+        &self,
+        temp_c: f32,
+        rates_c_per_min: &[f32; RESPONSE_FILTERS],
+        power_rates: &[[f32; RESPONSE_FILTERS]; POWER_RESPONSES],
+        out: &mut [f32],
+    ) {
         // One pass over the filters for all four mixtures.
-        let [lag, w0, w1, w2] = &self.weights;
+        let [lag, w0, w1, w2, h2, h3] = &self.weights;
+        let (mut s2, mut s3) = (0.0f32, 0.0f32);
+        for (((r2, r3), a), b) in power_rates[0]
+            .iter()
+            .zip(&power_rates[1])
+            .zip(h2)
+            .zip(h3)
+            .take(self.filter_count())
+        {
+            s2 += a * r2;
+            s3 += b * r3;
+        }
         let (mut t_hat, mut r0, mut r1, mut r2) = (temp_c, 0.0f32, 0.0f32, 0.0f32);
         for ((((r, a), b0), b1), b2) in rates_c_per_min
             .iter()
@@ -172,7 +218,7 @@ impl ResponseBank {
             uc2 * (uc + 3.0 * beyond),
             uc2 * uc * (uc + 4.0 * beyond),
         ];
-        let responses = [r0, uc * r1, uc2 * r2];
+        let responses = [r0, uc * r1, uc2 * r2, s2, s3];
         let s = self.static_inputs();
         for (o, v) in out.iter_mut().zip(powers.iter().take(s).chain(&responses)) {
             *o = *v;
@@ -184,8 +230,12 @@ impl ResponseBank {
         let s = self.static_inputs();
         if i < s {
             Some(ResponseInput::Static { power: i as u8 + 1 })
-        } else if i < self.dims() {
+        } else if i < s + RESPONSES {
             Some(ResponseInput::Response { index: (i - s) as u8 })
+        } else if i < self.dims() {
+            Some(ResponseInput::FilteredPower {
+                power: (i - s - RESPONSES + 2) as u8,
+            })
         } else {
             None
         }
@@ -205,6 +255,11 @@ pub enum ResponseInput {
         /// j: 0, 1 or 2.
         index: u8,
     },
+    /// H_q: the power (T − T₀)^q through the bank's filters, mixed.
+    FilteredPower {
+        /// q: 2 or 3.
+        power: u8,
+    },
 }
 
 impl core::fmt::Display for ResponseInput {
@@ -218,6 +273,9 @@ impl core::fmt::Display for ResponseInput {
             ResponseInput::Response { index: 1 } => f.write_str("û_c·R₁ [°/h]"),
             ResponseInput::Response { index: 2 } => f.write_str("û_c²·R₂ [°/h]"),
             ResponseInput::Response { index } => write!(f, "R{index} [°/h]"),
+            ResponseInput::FilteredPower { power: 2 } => f.write_str("H₂: filtered (T − T₀)² [°/h]"),
+            ResponseInput::FilteredPower { power: 3 } => f.write_str("H₃: filtered (T − T₀)^3 [°/h]"),
+            ResponseInput::FilteredPower { power } => write!(f, "H{power}: filtered (T − T₀)^{power} [°/h]"),
         }
     }
 }
@@ -239,6 +297,37 @@ mod tests {
         b
     }
 
+    const NO_POWER_RATES: [[f32; RESPONSE_FILTERS]; POWER_RESPONSES] = [[0.0; RESPONSE_FILTERS]; POWER_RESPONSES];
+
+    #[test]
+    fn the_filtered_powers_mix_the_power_rates_with_rows_four_and_five() {
+        let mut b = bank();
+        b.weights[4][..3].copy_from_slice(&[1.0, 2.0, 0.0]);
+        b.weights[5][..3].copy_from_slice(&[0.0, 0.5, 4.0]);
+        let power_rates = [rates(&[1.0, 0.25, 8.0]), rates(&[2.0, 4.0, 0.125])];
+        let mut out = [0.0; MAX_RESPONSE_INPUTS];
+        b.inputs(25.0, &rates(&[]), &power_rates, &mut out);
+        // H₂ = 1·1 + 2·0.25 = 1.5 (the third filter's weight is 0); H₃ = 0.5·4 + 4·0.125 = 2.5.
+        assert_eq!(out[7..9], [1.5, 2.5]);
+        assert_eq!(
+            b.input(7).map(|i| i.to_string()).as_deref(),
+            Some("H₂: filtered (T − T₀)² [°/h]")
+        );
+    }
+
+    #[test]
+    fn the_filtered_powers_of_t_follow_their_tangent_past_the_covered_range() {
+        let b = bank();
+        // T₀ = 20, range 0 … 40: inside, the plain powers.
+        assert_eq!(b.loop_powers(25.0), [25.0, 125.0]);
+        // 4 °C past the top edge (u_c = 20): the tangents there.
+        assert_eq!(
+            b.loop_powers(44.0),
+            [400.0 + 2.0 * 20.0 * 4.0, 8000.0 + 3.0 * 400.0 * 4.0]
+        );
+        assert_eq!(b.loop_powers(-2.0), [400.0 + 80.0, -8000.0 - 2400.0]);
+    }
+
     fn rates(head: &[f32]) -> [f32; RESPONSE_FILTERS] {
         let mut r = [0.0; RESPONSE_FILTERS];
         r[..head.len()].copy_from_slice(head);
@@ -249,15 +338,15 @@ mod tests {
     fn inputs_are_the_coil_temperature_s_powers_and_the_three_responses() {
         let b = bank();
         let mut out = [9.0; MAX_RESPONSE_INPUTS + 1];
-        b.inputs(25.0, &rates(&[0.5, 0.25, 1.0]), &mut out);
+        b.inputs(25.0, &rates(&[0.5, 0.25, 1.0]), &NO_POWER_RATES, &mut out);
         // T̂ = 25 − 2·0.5 − 8·0.25 = 22, û = 2; R₀ = 0.5 + 0.125 + 0.25 = 0.875,
         // R₁ = 0.5, R₂ = 4.
-        assert_eq!(out, [2.0, 4.0, 8.0, 16.0, 0.875, 1.0, 16.0, 9.0]);
-        assert_eq!(b.dims(), 7);
+        assert_eq!(out, [2.0, 4.0, 8.0, 16.0, 0.875, 1.0, 16.0, 0.0, 0.0, 9.0]);
+        assert_eq!(b.dims(), 9);
         let quadratic = ResponseBank { static_degree: 2, ..b };
-        let mut out = [9.0; 6];
-        quadratic.inputs(25.0, &rates(&[0.5, 0.25, 1.0]), &mut out);
-        assert_eq!(out, [2.0, 4.0, 0.875, 1.0, 16.0, 9.0]);
+        let mut out = [9.0; 8];
+        quadratic.inputs(25.0, &rates(&[0.5, 0.25, 1.0]), &NO_POWER_RATES, &mut out);
+        assert_eq!(out, [2.0, 4.0, 0.875, 1.0, 16.0, 0.0, 0.0, 9.0]);
     }
 
     #[test]
@@ -269,7 +358,7 @@ mod tests {
         b.coil_max_c = 500.0;
         for (t, r) in [(23.456_79_f32, 0.1234_f32), (-7.3, -3.7), (61.0e-3, 1.0e-7)] {
             let mut out = [0.0; MAX_RESPONSE_INPUTS];
-            b.inputs(t, &rates(&[r, -r, 2.0 * r]), &mut out);
+            b.inputs(t, &rates(&[r, -r, 2.0 * r]), &NO_POWER_RATES, &mut out);
             assert_eq!(out[0].to_bits(), t.to_bits(), "T = {t}");
         }
     }
@@ -279,7 +368,7 @@ mod tests {
         let b = bank();
         let mut out = [0.0; MAX_RESPONSE_INPUTS];
         // T = T̂ = 44 °C, 4 °C past the edge at û_c = 20: the tangents at 20.
-        b.inputs(44.0, &rates(&[]), &mut out);
+        b.inputs(44.0, &rates(&[]), &NO_POWER_RATES, &mut out);
         assert_eq!(
             out[..4],
             [
@@ -290,13 +379,13 @@ mod tests {
             ]
         );
         // Below the range: the edge at û_c = −20.
-        b.inputs(-2.0, &rates(&[]), &mut out);
+        b.inputs(-2.0, &rates(&[]), &NO_POWER_RATES, &mut out);
         assert_eq!(out[..4], [-22.0, 400.0 + 80.0, -8000.0 - 2400.0, 160_000.0 + 64_000.0]);
         // The gains of R₁ and R₂ stop at the edge.
         let mut hot = b;
         hot.weights[0] = [0.0; RESPONSE_FILTERS];
-        hot.inputs(44.0, &rates(&[0.0, 1.0, 1.0]), &mut out);
-        assert_eq!(out[4..], [0.75, 40.0, 1600.0]);
+        hot.inputs(44.0, &rates(&[0.0, 1.0, 1.0]), &NO_POWER_RATES, &mut out);
+        assert_eq!(out[4..7], [0.75, 40.0, 1600.0]);
     }
 
     #[test]
@@ -339,9 +428,11 @@ mod tests {
                 "(T̂ − T₀)^4 [°C^4]",
                 "R₀ [°/h]",
                 "û_c·R₁ [°/h]",
-                "û_c²·R₂ [°/h]"
+                "û_c²·R₂ [°/h]",
+                "H₂: filtered (T − T₀)² [°/h]",
+                "H₃: filtered (T − T₀)^3 [°/h]"
             ]
         );
-        assert_eq!(b.input(7), None);
+        assert_eq!(b.input(9), None);
     }
 }
