@@ -112,7 +112,11 @@ pub struct Args {
     /// set, all of them again with the slowest window 1.25× longer (320τ: it should follow the
     /// coil's slowest radial mode), the best of these kept only when its validation RMS is
     /// below 0.9 × the first-order one (a term fitted at one ramp rate must earn its
-    /// extrapolation); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network.
+    /// extrapolation); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network;
+    /// response-bank = the thermal response bank: 16 derivative filters from 10 s to 11 h, a
+    /// static quartic in T̂ − T₀ (T₀ the middle of the covered range, tangent beyond it) and
+    /// three responses (R₀, (T̂ − T₀)·R₁, (T̂ − T₀)²·R₂) each a free mixture of the filters'
+    /// rates, fitted by one ridge regression on 10-s block means (no Gaussians, no validation).
     #[arg(long, value_enum, default_value_t = FeaturesArg::LagBank, hide_possible_values = true, help_heading = "Model")]
     features: FeaturesArg,
     /// Use exactly K Gaussian centres (1–64; 1–16 per axis on multi-axis runs).
@@ -588,6 +592,9 @@ pub(super) fn write_blob(model_out: Option<Output>, blob: &[u8]) -> anyhow::Resu
 /// One line naming a model's form, centres, inputs and ΔT windows.
 pub(super) fn describe(model: &Model) -> String {
     let f = model.features();
+    if let FeatureSet::ResponseBank(bank) = f.set {
+        return trainer::summary::response_bank(&bank);
+    }
     let all_names = input_names(f.set);
     let names = all_names.join(", ");
     let (taus, filters) = f.filter_taus_s();
@@ -620,6 +627,7 @@ pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
             FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
             FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
             FeatureSet::LagBank(_) => "LagBank".to_owned(),
+            FeatureSet::ResponseBank(_) => "ResponseBank".to_owned(),
             set => format!("{set:?}"),
         },
         "coil_lag_min": match f.set {
@@ -639,6 +647,16 @@ pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
                 "gain_of": gain_symbol(b.gain_of),
                 "static_degree": b.static_degree,
                 "coil_range_c": [b.coil_min_c, b.coil_max_c],
+            })),
+            _ => None,
+        },
+        "response_bank": match f.set {
+            FeatureSet::ResponseBank(b) => Some(serde_json::json!({
+                "taus_s": b.taus(),
+                "ref_c": b.ref_c,
+                "coil_range_c": [b.coil_min_c, b.coil_max_c],
+                "static_degree": b.static_degree,
+                "weights": b.weights.iter().map(|row| &row[..b.filter_count()]).collect::<Vec<_>>(),
             })),
             _ => None,
         },

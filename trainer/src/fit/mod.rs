@@ -13,6 +13,7 @@ pub mod options;
 pub mod poly;
 pub mod progress;
 pub mod rbf;
+pub mod response;
 pub(crate) mod scoring;
 pub(crate) mod svr_data;
 pub mod svr_pso;
@@ -190,6 +191,13 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 bank: None,
             })
         }
+        Method::Rbf if opts.features == RbfFeatures::ResponseBank => Ok(FitOutcome {
+            model: response::identify(train, opts)?,
+            choice: None,
+            sets: None,
+            svr: None,
+            bank: None,
+        }),
         Method::Rbf if opts.features == RbfFeatures::LagBank => {
             let (bank, search) = lag_bank::search(train, validate, opts, &progress)?;
             let config = rbf_core::FeatureConfig::lag_bank(bank);
