@@ -380,7 +380,19 @@ pub fn write_summary(
     how: &FitHow,
 ) -> anyhow::Result<()> {
     writeln!(out, "method {method:?}: {}", describe(&outcome.model))?;
-    if let Some(c) = &outcome.choice {
+    if let Some(s) = &outcome.structure {
+        writeln!(
+            out,
+            "structure: residual STD100 on the training runs {:.4e} °/h with the lag bank, {:.4e} °/h with the response bank (ratio {:.2}; the response bank is taken below {}): {}",
+            s.lag_bank_std100_dph,
+            s.response_bank_std100_dph,
+            s.response_bank_std100_dph / s.lag_bank_std100_dph,
+            fit::response::RESPONSE_BANK_MARGIN,
+            if s.response_bank { "response bank" } else { "lag bank" }
+        )?;
+    }
+    let response_chosen = outcome.structure.as_ref().is_some_and(|s| s.response_bank);
+    if let Some(c) = outcome.choice.as_ref().filter(|_| !response_chosen) {
         writeln!(
             out,
             "chosen on {}: {}{}ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
@@ -565,6 +577,7 @@ pub(super) fn outcome_json(o: &FitOutcome) -> serde_json::Value {
         "choice": o.choice,
         "feature_sets": o.sets,
         "lag_bank_search": o.bank,
+        "structure": o.structure,
         "features": features_json(o.model.features()),
         "svr": o.svr,
     })

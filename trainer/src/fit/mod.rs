@@ -118,6 +118,8 @@ pub struct FitOutcome {
     pub svr: Option<svr_pso::SvrChoice>,
     /// How the lag bank's structure was chosen (`--features lag-bank`).
     pub bank: Option<lag_bank::BankSearch>,
+    /// The default's choice between the lag bank and the response bank.
+    pub structure: Option<response::StructureChoice>,
 }
 
 /// Fits `opts.method` on `train`, validating on `validate` (or k-fold when empty).
@@ -142,6 +144,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             sets: None,
             svr: None,
             bank: None,
+            structure: None,
         }),
         Method::SvrPso => {
             if validate.count() > 0 {
@@ -156,6 +159,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 sets: None,
                 svr: Some(choice),
                 bank: None,
+                structure: None,
             })
         }
         Method::Rbf if opts.features == RbfFeatures::MultiscaleValidated => {
@@ -189,6 +193,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 choice: Some(choice),
                 svr: None,
                 bank: None,
+                structure: None,
             })
         }
         Method::Rbf if opts.features == RbfFeatures::ResponseBank => Ok(FitOutcome {
@@ -197,17 +202,36 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             sets: None,
             svr: None,
             bank: None,
+            structure: None,
         }),
         Method::Rbf if opts.features == RbfFeatures::LagBank => {
             let (bank, search) = lag_bank::search(train, validate, opts, &progress)?;
             let config = rbf_core::FeatureConfig::lag_bank(bank);
-            let (model, choice) = rbf::fit_configs(train, validate, &[config], opts, &rbf::WIDTHS, &progress)?;
+            let (lag_model, choice) = rbf::fit_configs(train, validate, &[config], opts, &rbf::WIDTHS, &progress)?;
+            // The default: the response bank where the lag bank cannot follow
+            // the training runs ([`response::StructureChoice`]).
+            let structure = match opts.centers {
+                Some(_) => None,
+                None => match response::identify(train, opts) {
+                    Ok(response_model) => {
+                        let c = response::StructureChoice::compare(train, &lag_model, &response_model, opts.block_s)?;
+                        Some((c, response_model))
+                    }
+                    Err(_) => None,
+                },
+            };
+            let (model, structure) = match structure {
+                Some((c, response_model)) if c.response_bank => (response_model, Some(c)),
+                Some((c, _)) => (lag_model, Some(c)),
+                None => (lag_model, None),
+            };
             Ok(FitOutcome {
                 model,
                 choice: Some(choice),
                 sets: None,
                 svr: None,
                 bank: Some(search),
+                structure,
             })
         }
         method => {
@@ -218,6 +242,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 sets: None,
                 svr: None,
                 bank: None,
+                structure: None,
             })
         }
     }
