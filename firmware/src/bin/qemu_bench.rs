@@ -26,7 +26,7 @@ mod board {
     use rbf_core::model::{ModelBody, ModelInfo};
     use rbf_core::rbf::{RbfNetwork, RbfParams};
     use rbf_core::record::{Axis, MAX_AXES};
-    use rbf_core::response_bank::{RESPONSE_FILTERS, ResponseBank};
+    use rbf_core::response_bank::ResponseBank;
     use rbf_core::shared::{OutputLayer, SharedAxisModels};
     use rbf_core::{
         Compensator, CompensatorConfig, FeatureConfig, FeatureSet, FeatureVector, GyroSample, MAX_CENTERS, Model,
@@ -184,30 +184,31 @@ mod board {
         Model::new(features, &ranges[..dims], ModelBody::Rbf(net), ModelInfo::default()).expect("valid synthetic model")
     }
 
-    /// A response-bank model as `trainer fit --features response-bank`
-    /// writes them: 16 filters (10 s … 11 h), a static quartic, no centres,
-    /// the linear layer [c₁ … c₄, 1, 1, 1], every weight row in use.
+    /// A response-bank model as `trainer fit` writes them: 12 filters
+    /// (10 s … 11 h), a static cubic, no centres, the linear layer
+    /// [c₁ … c₃, 1, 1, 1, 1, 1], every weight row but the coil lags in use.
     fn response_bank_model() -> Model {
-        let mut taus = [0.0f32; RESPONSE_FILTERS];
+        const USED: usize = 12;
+        let mut taus = [0.0f32; USED];
         let mut tau = 10.0f32;
         for t in &mut taus {
             *t = tau;
-            tau *= 1.737;
+            tau *= 2.124;
         }
-        let mut bank = ResponseBank::new(&taus, 25.0, -10.0, 60.0, 4).expect("valid bank");
-        for (j, row) in bank.weights.iter_mut().enumerate() {
-            for (k, w) in row.iter_mut().enumerate() {
+        let mut bank = ResponseBank::new(&taus, 25.0, -10.0, 60.0, 3).expect("valid bank");
+        for (j, row) in bank.weights.iter_mut().enumerate().skip(1) {
+            for (k, w) in row.iter_mut().take(USED).enumerate() {
                 *w = 0.01 * (j as f32 + 1.0) - 0.001 * k as f32;
             }
         }
         let net = RbfNetwork::new(&RbfParams {
-            offset: &[0.0; 7],
-            scale: &[1.0; 7],
+            offset: &[0.0; 8],
+            scale: &[1.0; 8],
             kernel_inputs: 1,
             centers: &[],
             widths: &[],
             weights: &[],
-            linear: &[0.01, -0.001, 1e-5, -1e-7, 1.0, 1.0, 1.0],
+            linear: &[0.01, -0.001, 1e-5, 1.0, 1.0, 1.0, 1.0, 1.0],
             constant: 0.05,
         })
         .expect("valid synthetic network");
@@ -215,10 +216,11 @@ mod board {
             (-35.0, 35.0),
             (0.0, 1225.0),
             (-42875.0, 42875.0),
-            (0.0, 1.5e6),
             (-3.0, 3.0),
             (-100.0, 100.0),
             (-3500.0, 3500.0),
+            (-300.0, 300.0),
+            (-9000.0, 9000.0),
         ];
         Model::new(
             FeatureConfig::response_bank(bank),
@@ -361,7 +363,7 @@ mod board {
         }
         // The response bank: 16 filters, 7 inputs, no centres.
         hprintln!(
-            "instructions_per_sample response-bank F=16: {}",
+            "instructions_per_sample response-bank F=12: {}",
             step_instructions(&response_bank_model(), &config)
         );
         // Three axes: per sample each axis's compensator runs its own model

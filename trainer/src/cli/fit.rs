@@ -390,6 +390,14 @@ pub fn write_summary(
             fit::response::RESPONSE_BANK_MARGIN,
             if s.response_bank { "response bank" } else { "lag bank" }
         )?;
+        if s.response_bank {
+            writeln!(
+                out,
+                "predicted RMS of 100-s means on unseen histories {:.4e} °/h ({}× the training residual)",
+                s.response_bank_forecast_dph(),
+                fit::response::IN_USE_FORECAST_FACTOR
+            )?;
+        }
     }
     let response_chosen = outcome.structure.as_ref().is_some_and(|s| s.response_bank);
     if let Some(c) = outcome.choice.as_ref().filter(|_| !response_chosen) {
@@ -578,6 +586,7 @@ pub(super) fn outcome_json(o: &FitOutcome) -> serde_json::Value {
         "feature_sets": o.sets,
         "lag_bank_search": o.bank,
         "structure": o.structure,
+        "predicted_in_use_std100_dph": o.predicted_in_use_std100_dph(),
         "features": features_json(o.model.features()),
         "svr": o.svr,
     })

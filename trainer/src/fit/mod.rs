@@ -122,6 +122,20 @@ pub struct FitOutcome {
     pub structure: Option<response::StructureChoice>,
 }
 
+impl FitOutcome {
+    /// The residual 100-s cluster STD the fit forecasts for in-use histories
+    /// unlike its training runs, °/h: the lag bank's from its held-out thermal
+    /// events, the response bank's from its training residual
+    /// ([`response::IN_USE_FORECAST_FACTOR`]); `None` for the other methods.
+    pub fn predicted_in_use_std100_dph(&self) -> Option<f64> {
+        match (&self.structure, &self.bank) {
+            (Some(s), _) if s.response_bank => Some(s.response_bank_forecast_dph()),
+            (_, Some(search)) => Some(search.predicted_rms_dph()).filter(|v| v.is_finite()),
+            _ => None,
+        }
+    }
+}
+
 /// Fits `opts.method` on `train`, validating on `validate` (or k-fold when empty).
 pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     train: &T,
@@ -213,9 +227,11 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             let structure = match opts.centers {
                 Some(_) => None,
                 None => match response::identify(train, opts) {
+                    // A comparison the runs are too short for keeps the lag bank.
                     Ok(response_model) => {
-                        let c = response::StructureChoice::compare(train, &lag_model, &response_model, opts.block_s)?;
-                        Some((c, response_model))
+                        response::StructureChoice::compare(train, &lag_model, &response_model, opts.block_s)
+                            .ok()
+                            .map(|c| (c, response_model))
                     }
                     Err(_) => None,
                 },

@@ -334,7 +334,21 @@ pub struct StructureChoice {
 /// below this share of the lag bank's.
 pub const RESPONSE_BANK_MARGIN: f64 = 0.6;
 
+/// The response bank's forecast of the residual 100-s cluster STD on in-use
+/// histories, as a multiple of its training residual's. Its many weights
+/// follow the training run to its noise; in-use histories then measured
+/// 1.5–2.3 times that on the gyros of other designs (docs/methods.md, "The
+/// forecast"); held-out events of a chamber run forecast 4–6 times too much
+/// (a planned run holds each level once: its held-out part is unlike the rest).
+pub const IN_USE_FORECAST_FACTOR: f64 = 2.0;
+
 impl StructureChoice {
+    /// The forecast residual 100-s cluster STD on in-use histories of the
+    /// response bank, °/h ([`IN_USE_FORECAST_FACTOR`]).
+    pub fn response_bank_forecast_dph(&self) -> f64 {
+        IN_USE_FORECAST_FACTOR * self.response_bank_std100_dph
+    }
+
     /// Compares `lag` and `response` on the training runs `train`.
     pub fn compare<T: RunSet + ?Sized>(train: &T, lag: &Model, response: &Model, block_s: f64) -> anyhow::Result<Self> {
         Ok(Self::from_residuals(
