@@ -665,16 +665,17 @@ impl FeatureExtractor {
                 self.power_smoothed = p.map(|v| [v; FILTERS]);
             }
         } else {
-            for w in 0..windows.min(FILTERS) {
-                let tau_s = taus[w];
-                let rate = (temp_c - self.smoothed_c[w]) / (tau_s + dt_s);
+            for ((smoothed, out), tau_s) in self
+                .smoothed_c
+                .iter_mut()
+                .zip(channels.rate_c_per_min.iter_mut())
+                .zip(taus)
+                .take(windows)
+            {
+                let rate = (temp_c - *smoothed) / (tau_s + dt_s);
                 // τ = 0 is exactly the one-sample difference: keep S = T bit for bit.
-                self.smoothed_c[w] = if tau_s == 0.0 {
-                    temp_c
-                } else {
-                    self.smoothed_c[w] + dt_s * rate
-                };
-                channels.rate_c_per_min[w] = rate * SECONDS_PER_MINUTE;
+                *smoothed = if tau_s == 0.0 { temp_c } else { *smoothed + dt_s * rate };
+                *out = rate * SECONDS_PER_MINUTE;
             }
             if let Some(p) = powers {
                 for ((smoothed, rates), value) in self.power_smoothed.iter_mut().zip(&mut channels.power_rates).zip(p) {

@@ -92,7 +92,9 @@ pub struct Args {
     method: MethodArg,
     /// Inputs of --method rbf (see --help).
     ///
-    /// lag-bank (default) = the thermal lag bank: the mean coil temperature
+    /// lag-bank (default) = the thermal lag bank, or the response bank below where the lag
+    /// bank's residual on the training runs is above 1/0.6 × the response bank's (a coil unlike
+    /// the one it encodes; `fit` prints both): the mean coil temperature
     /// T̂ = T + Σ a_k·ΔT_k and the loop temperature's rates ΔT_k through 4–5 derivative
     /// filters from 15 s to 2 h, times a Shupe gain linear in T̂; a cubic in T̂ and the rates
     /// linear; filter set, coil lags a_k and gain identified from the runs and chosen by how
@@ -113,10 +115,11 @@ pub struct Args {
     /// coil's slowest radial mode), the best of these kept only when its validation RMS is
     /// below 0.9 × the first-order one (a term fitted at one ramp rate must earn its
     /// extrapolation); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network;
-    /// response-bank = the thermal response bank: 16 derivative filters from 10 s to 11 h, a
-    /// static quartic in T̂ − T₀ (T₀ the middle of the covered range, tangent beyond it) and
-    /// three responses (R₀, (T̂ − T₀)·R₁, (T̂ − T₀)²·R₂) each a free mixture of the filters'
-    /// rates, fitted by one ridge regression on 10-s block means (no Gaussians, no validation).
+    /// response-bank = the thermal response bank alone: 12 derivative filters from 10 s to 11 h
+    /// on T, (T − T₀)² and (T − T₀)³, a static cubic in T − T₀ (T₀ the middle of the covered
+    /// range, tangent beyond it), five free mixtures of the filters' rates (R₀, (T − T₀)·R₁,
+    /// (T − T₀)²·R₂ and the filtered square and cube), fitted by one ridge regression on 10-s
+    /// block means (docs/methods.md).
     #[arg(long, value_enum, default_value_t = FeaturesArg::LagBank, hide_possible_values = true, help_heading = "Model")]
     features: FeaturesArg,
     /// Use exactly K Gaussian centres (1–64; 1–16 per axis on multi-axis runs).
