@@ -768,16 +768,16 @@ mod tests {
         assert_eq!(decode(&v), Err(DecodeError::Model(ModelError::NonFiniteParameter)));
     }
 
-    /// A response-bank model: 16 filters, a static quartic, no centres,
+    /// A response-bank model: 12 filters, a static quartic, no centres,
     /// the linear layer [c₁ … c₄, 1, 1, 1] (the trainer's form).
     fn response_bank_model() -> Model {
-        let taus: std::vec::Vec<f32> = (0..16)
+        let taus: std::vec::Vec<f32> = (0..12)
             .map(|k| 10.0 * 2.0f32.powi(k))
             .map(|t| t.min(86_400.0))
             .collect();
-        let mut bank = crate::response_bank::ResponseBank::new(&taus[..13], 22.5, -5.0, 50.0, 4).unwrap();
+        let mut bank = crate::response_bank::ResponseBank::new(&taus[..11], 22.5, -5.0, 50.0, 4).unwrap();
         for (j, row) in bank.weights.iter_mut().enumerate() {
-            for (k, w) in row.iter_mut().take(13).enumerate() {
+            for (k, w) in row.iter_mut().take(11).enumerate() {
                 *w = (j as f32 + 1.0) * 0.125 - k as f32 * 0.015_625;
             }
         }
@@ -821,13 +821,13 @@ mod tests {
         assert_eq!(encoded(&decoded.model), blob, "re-encodes to the same bytes");
         assert_every_bit_flip_refused(&blob, decode);
         garbage_never_panics(&blob, 0x0bad_cafe, 5_000, 4, decode);
-        // The set's tag (variant 8, after the lag bank's 7), then the 16 time
+        // The set's tag (variant 8, after the lag bank's 7), then the 12 time
         // constants, then the filter count.
         assert_eq!(blob[HEADER_LEN], 8);
-        let filters_at = HEADER_LEN + 1 + 16 * 4;
-        assert_eq!(blob[filters_at], 13);
+        let filters_at = HEADER_LEN + 1 + crate::response_bank::RESPONSE_FILTERS * 4;
+        assert_eq!(blob[filters_at], 11);
         // An invalid bank with a good CRC: refused for its parameters.
-        for (at, byte) in [(filters_at, 17), (filters_at, 0), (HEADER_LEN + 1 + 13 * 4 + 3, 0x3f)] {
+        for (at, byte) in [(filters_at, 13), (filters_at, 0), (HEADER_LEN + 1 + 11 * 4 + 3, 0x3f)] {
             let mut v = blob.clone();
             v[at] = byte;
             reseal(&mut v);

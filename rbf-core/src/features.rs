@@ -1025,12 +1025,12 @@ mod tests {
     }
 
     #[test]
-    fn a_response_bank_runs_all_sixteen_filters_and_warms_up_over_three_of_its_fastest() {
-        let taus: Vec<f32> = (1..=16).map(|k| 4.0 * k as f32).collect();
+    fn a_response_bank_runs_all_its_filters_and_warms_up_over_three_of_its_fastest() {
+        let taus: Vec<f32> = (1..=RESPONSE_FILTERS).map(|k| 4.0 * k as f32).collect();
         let mut bank = ResponseBank::new(&taus, 10.0, 0.0, 100.0, 1).unwrap();
-        bank.weights[1] = [1.0 / 16.0; RESPONSE_FILTERS];
-        bank.weights[2][15] = 1.0;
-        bank.weights[4][15] = 1.0;
+        bank.weights[1] = [1.0 / RESPONSE_FILTERS as f32; RESPONSE_FILTERS];
+        bank.weights[2][RESPONSE_FILTERS - 1] = 1.0;
+        bank.weights[4][RESPONSE_FILTERS - 1] = 1.0;
         let cfg = FeatureConfig::response_bank(bank);
         assert!(cfg.is_valid());
         assert_eq!(cfg.warmup_s(), 12.0);
@@ -1050,9 +1050,13 @@ mod tests {
         assert!((r0 - 1.5).abs() < 1e-3, "R₀ = {r0}");
         assert!((r1 - 1.5 * u).abs() < 1e-3 * u, "û_c·R₁ = {r1}, û = {u}");
         assert!((u - 75.0).abs() < 1e-3, "û = {u}");
-        // H₂: the square's rate, d(û²)/dt = 2û·1.5 °C/min, less its lag (τ 64 s at 1.5 °C/min).
+        // H₂: the square's rate, d(û²)/dt = 2û·1.5 °C/min, less its lag (the slowest τ at 1.5 °C/min).
         let h2 = last.as_slice()[4];
-        assert!((h2 - 2.0 * (u - 1.5 * 64.0 / 60.0) * 1.5).abs() < 0.05, "H₂ = {h2}");
+        let slowest_s = 4.0 * RESPONSE_FILTERS as f32;
+        assert!(
+            (h2 - 2.0 * (u - 1.5 * slowest_s / 60.0) * 1.5).abs() < 0.05,
+            "H₂ = {h2}"
+        );
         assert_eq!(last.as_slice()[5], 0.0, "row 5 is zero");
         assert_eq!(cfg.set.names().count(), 6);
         let mut wrong = cfg;

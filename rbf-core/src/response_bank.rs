@@ -1,4 +1,4 @@
-//! The thermal response bank: the loop temperature's history through sixteen
+//! The thermal response bank: the loop temperature's history through twelve
 //! derivative filters, mixed into a static curve of the mean coil
 //! temperature and three rate responses whose gains drift with it.
 //!
@@ -39,7 +39,7 @@
 use serde::{Deserialize, Serialize};
 
 /// Derivative filters a response bank holds.
-pub const RESPONSE_FILTERS: usize = 16;
+pub const RESPONSE_FILTERS: usize = 12;
 /// Highest power of û = T̂ − T₀ among a bank's inputs.
 pub const MAX_RESPONSE_DEGREE: u8 = 4;
 /// Rate responses R_j a bank produces (weight rows 1 ..= 3).

@@ -92,9 +92,9 @@ pub struct Args {
     method: MethodArg,
     /// Inputs of --method rbf (see --help).
     ///
-    /// lag-bank (default) = the thermal lag bank, or the response bank below where the lag
-    /// bank's residual on the training runs is above 1/0.6 × the response bank's (a coil unlike
-    /// the one it encodes; `fit` prints both): the mean coil temperature
+    /// Default: the thermal lag bank, or the response bank below where the lag bank's residual
+    /// on the training runs is above 1/0.6 × the response bank's (a coil unlike the one it
+    /// encodes; `fit` prints both). lag-bank = the thermal lag bank alone: the mean coil temperature
     /// T̂ = T + Σ a_k·ΔT_k and the loop temperature's rates ΔT_k through 4–5 derivative
     /// filters from 15 s to 2 h, times a Shupe gain linear in T̂; a cubic in T̂ and the rates
     /// linear; filter set, coil lags a_k and gain identified from the runs and chosen by how
@@ -120,8 +120,8 @@ pub struct Args {
     /// range, tangent beyond it), five free mixtures of the filters' rates (R₀, (T − T₀)·R₁,
     /// (T − T₀)²·R₂ and the filtered square and cube), fitted by one ridge regression on 10-s
     /// block means (docs/methods.md).
-    #[arg(long, value_enum, default_value_t = FeaturesArg::LagBank, hide_possible_values = true, help_heading = "Model")]
-    features: FeaturesArg,
+    #[arg(long, value_enum, hide_possible_values = true, help_heading = "Model")]
+    features: Option<FeaturesArg>,
     /// Use exactly K Gaussian centres (1–64; 1–16 per axis on multi-axis runs).
     ///
     /// Fewer if OLS finds fewer independent ones; without it K ≤ --max-centers is chosen
@@ -276,7 +276,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let validate = RunFiles::new(&a.validate);
     let mut opts = FitOptions {
         method: a.method.into(),
-        features: a.features.into(),
+        features: a.features.unwrap_or(FeaturesArg::LagBank).into(),
+        structure_choice: a.features.is_none(),
         block_s: a.block_s,
         centers: a.centers,
         max_centers: a.max_centers,

@@ -224,9 +224,9 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             let (lag_model, choice) = rbf::fit_configs(train, validate, &[config], opts, &rbf::WIDTHS, &progress)?;
             // The default: the response bank where the lag bank cannot follow
             // the training runs ([`response::StructureChoice`]).
-            let structure = match opts.centers {
-                Some(_) => None,
-                None => match response::identify(train, opts) {
+            let structure = match (opts.centers, opts.structure_choice) {
+                (Some(_), _) | (_, false) => None,
+                (None, true) => match response::identify(train, opts) {
                     // A comparison the runs are too short for keeps the lag bank.
                     Ok(response_model) => {
                         response::StructureChoice::compare(train, &lag_model, &response_model, opts.block_s)

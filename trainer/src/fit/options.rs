@@ -112,6 +112,9 @@ pub struct FitOptions {
     pub selection: Option<crate::gradients::Selection>,
     /// `svr-pso` on multi-point runs: these inputs instead of a selection.
     pub inputs: Option<Vec<rbf_core::features::Probe>>,
+    /// The default's choice: the response bank instead of the lag bank where
+    /// the lag bank misses its training runs (off when the lag bank is asked for).
+    pub structure_choice: bool,
 }
 
 impl Default for FitOptions {
@@ -128,6 +131,7 @@ impl Default for FitOptions {
             serial: None,
             progress: false,
             selection: None,
+            structure_choice: true,
             inputs: None,
         }
     }
