@@ -768,6 +768,134 @@ mod tests {
         assert_eq!(decode(&v), Err(DecodeError::Model(ModelError::NonFiniteParameter)));
     }
 
+    /// A response-bank model: 12 filters, a static quartic, no centres,
+    /// the linear layer [c₁ … c₄, 1, 1, 1] (the trainer's form).
+    fn response_bank_model() -> Model {
+        let taus: std::vec::Vec<f32> = (0..12)
+            .map(|k| 10.0 * 2.0f32.powi(k))
+            .map(|t| t.min(86_400.0))
+            .collect();
+        let mut bank = crate::response_bank::ResponseBank::new(&taus[..11], 22.5, -5.0, 50.0, 4).unwrap();
+        for (j, row) in bank.weights.iter_mut().enumerate() {
+            for (k, w) in row.iter_mut().take(11).enumerate() {
+                *w = (j as f32 + 1.0) * 0.125 - k as f32 * 0.015_625;
+            }
+        }
+        let net = RbfNetwork::new(&RbfParams {
+            offset: &[0.0; 9],
+            scale: &[1.0; 9],
+            kernel_inputs: 1,
+            centers: &[],
+            widths: &[],
+            weights: &[],
+            linear: &[0.25, -0.0625, 0.001, -0.000_01, 1.0, 1.0, 1.0, 1.0, 1.0],
+            constant: -0.5,
+        })
+        .unwrap();
+        let ranges = [
+            (-27.5, 27.5),
+            (0.0, 756.25),
+            (-20_796.875, 20_796.875),
+            (0.0, 571_914.06),
+            (-3.0, 3.0),
+            (-50.0, 50.0),
+            (-900.0, 900.0),
+            (-5.0, 5.0),
+            (-7.0, 7.0),
+        ];
+        Model::new(
+            FeatureConfig::response_bank(bank),
+            &ranges,
+            ModelBody::Rbf(net),
+            ModelInfo::default(),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn a_response_bank_model_round_trips_and_a_damaged_one_is_refused() {
+        let model = response_bank_model();
+        let blob = encoded(&model);
+        let decoded = decode(&blob).unwrap();
+        assert_eq!(decoded.model, model);
+        assert_eq!(encoded(&decoded.model), blob, "re-encodes to the same bytes");
+        assert_every_bit_flip_refused(&blob, decode);
+        garbage_never_panics(&blob, 0x0bad_cafe, 5_000, 4, decode);
+        // The set's tag (variant 8, after the lag bank's 7), then the 12 time
+        // constants, then the filter count.
+        assert_eq!(blob[HEADER_LEN], 8);
+        let filters_at = HEADER_LEN + 1 + crate::response_bank::RESPONSE_FILTERS * 4;
+        assert_eq!(blob[filters_at], 11);
+        // An invalid bank with a good CRC: refused for its parameters.
+        for (at, byte) in [(filters_at, 13), (filters_at, 0), (HEADER_LEN + 1 + 11 * 4 + 3, 0x3f)] {
+            let mut v = blob.clone();
+            v[at] = byte;
+            reseal(&mut v);
+            assert_eq!(
+                decode(&v).map(|_| ()),
+                Err(DecodeError::Model(ModelError::InvalidParameter)),
+                "byte {at} = {byte:#x}"
+            );
+        }
+    }
+
+    /// A lag-bank model as the default fit writes them.
+    fn lag_bank_model() -> Model {
+        use crate::lag_bank::{GainOf, LagBank};
+        let mut bank = LagBank::plain(&[30.0, 120.0, 480.0, 1920.0, 7680.0], 25.0).unwrap();
+        bank.coil_lag_min[..5].copy_from_slice(&[-1.5, -6.0, 2.25, -30.0, 0.5]);
+        bank.gain_per_c = 0.0125;
+        bank.gain_per_c2 = -0.000_25;
+        bank.static_degree = 3;
+        bank.coil_min_c = -10.0;
+        bank.coil_max_c = 60.0;
+        bank.gain_of = GainOf::Coil;
+        let net = RbfNetwork::new(&RbfParams {
+            offset: &[25.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            scale: &[10.0, 100.0, 1000.0, 1.0, 1.0, 1.0, 1.0, 1.0],
+            kernel_inputs: 1,
+            centers: &[0.5],
+            widths: &[0.75],
+            weights: &[0.0625],
+            linear: &[0.01, 0.002, -0.0005, 0.125, -0.25, 0.5, 0.75, -1.0],
+            constant: 0.375,
+        })
+        .unwrap();
+        let ranges = [
+            (-10.0, 60.0),
+            (0.0, 1225.0),
+            (-42875.0, 42875.0),
+            (-2.0, 2.0),
+            (-2.0, 2.0),
+            (-1.5, 1.5),
+            (-1.0, 1.0),
+            (-0.5, 0.5),
+        ];
+        Model::new(
+            FeatureConfig::lag_bank(bank),
+            &ranges,
+            ModelBody::Rbf(net),
+            ModelInfo::default(),
+        )
+        .unwrap()
+    }
+
+    /// [`lag_bank_model`] as the encoder wrote it before the response bank
+    /// existed (commit cc4a648).
+    const LAG_BANK_BLOB_HEX: &str = "49464f4702000108010000001f010000070000f0410000f0420000f0430000f0440000f045000000000000000000000000050000c0bf0000c0c0000010400000f0c10000003f0000000000000000000000000000c841cdcc4c3c6f1283b983000020c1000070420000f0410000000000000000000008000020c100000000007b27c7000000c0000000c00000c0bf000080bf000000bf080000704200209944007b274700000040000000400000c03f0000803f0000003f0001080000c8410000000000000000000000000000000000000000000000000000000008000020410000c84200007a440000803f0000803f0000803f0000803f0000803f010000003f010000403f010000803d080ad7233c6f12033b6f1203ba0000003e000080be0000003f0000403f000080bf0000c03e5f6473ec";
+
+    #[test]
+    fn a_lag_bank_blob_written_before_the_response_bank_decodes_and_re_encodes_unchanged() {
+        let hex = LAG_BANK_BLOB_HEX.as_bytes();
+        let golden: std::vec::Vec<u8> = hex
+            .chunks(2)
+            .map(|c| u8::from_str_radix(core::str::from_utf8(c).unwrap(), 16).unwrap())
+            .collect();
+        let decoded = decode(&golden).unwrap();
+        assert_eq!(decoded.model, lag_bank_model());
+        assert_eq!(encoded(&decoded.model), golden);
+    }
+
     #[test]
     fn every_single_bit_flip_is_refused() {
         assert_every_bit_flip_refused(&encoded(&rbf_model()), decode);

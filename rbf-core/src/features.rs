@@ -55,10 +55,13 @@ use serde::{Deserialize, Serialize};
 
 use crate::MAX_INPUTS;
 pub use crate::lag_bank::{BANK_FILTERS, BankInput, GainOf, LagBank};
+pub use crate::response_bank::{POWER_RESPONSES, RESPONSE_FILTERS, ResponseBank, ResponseInput};
 
-/// Derivative filters the extractor runs at most: a lag bank's
-/// ([`BANK_FILTERS`]), more than the multi-scale sets' [`WINDOWS`].
-const FILTERS: usize = BANK_FILTERS;
+/// Derivative filters the extractor runs at most: a response bank's
+/// ([`RESPONSE_FILTERS`]), more than a lag bank's ([`BANK_FILTERS`]) and the
+/// multi-scale sets' [`WINDOWS`].
+const FILTERS: usize = RESPONSE_FILTERS;
+const _: () = assert!(BANK_FILTERS <= FILTERS && WINDOWS <= FILTERS);
 /// Most inputs of a multi-point model (the RLG method's thermometer selection);
 /// its blob encoding holds exactly this many probe slots.
 pub const MAX_PROBES: usize = 8;
@@ -203,6 +206,10 @@ impl Probes {
 // flash, a 4.6 KiB constant among it, and 70 instructions per sample on
 // the board, as docs/decisions.md records).
 #[repr(u8)]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "no_std without alloc: nothing to box into; the set lives in the model, which lives in RAM"
+)]
 pub enum FeatureSet {
     /// (T): the loop temperature alone, for the cubic-in-T baseline.
     Temp,
@@ -236,6 +243,11 @@ pub enum FeatureSet {
     /// [`BANK_FILTERS`] derivative filters whose time constants and weights
     /// the trainer identifies. Declared last for the same reason.
     LagBank(LagBank),
+    /// The thermal response bank ([`crate::response_bank`]): powers of the
+    /// mean coil temperature about T₀ and three free mixtures of the rates of
+    /// [`RESPONSE_FILTERS`] derivative filters, two with gains of T̂.
+    /// Declared last for the same reason.
+    ResponseBank(ResponseBank),
 }
 
 impl FeatureSet {
@@ -248,6 +260,7 @@ impl FeatureSet {
             FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => 8,
             FeatureSet::MultiPoint(probes) => probes.len(),
             FeatureSet::LagBank(bank) => bank.dims(),
+            FeatureSet::ResponseBank(bank) => bank.dims(),
         }
     }
 
@@ -258,6 +271,7 @@ impl FeatureSet {
             FeatureSet::TempRate | FeatureSet::TempRateProduct => 1,
             FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => WINDOWS,
             FeatureSet::LagBank(bank) => bank.filter_count(),
+            FeatureSet::ResponseBank(bank) => bank.filter_count(),
         }
     }
 
@@ -296,6 +310,7 @@ impl FeatureSet {
         match self {
             FeatureSet::MultiPoint(probes) => probes.as_slice().get(i).copied().map(InputName::Probe),
             FeatureSet::LagBank(bank) => bank.input(i).map(InputName::Bank),
+            FeatureSet::ResponseBank(bank) => bank.input(i).map(InputName::Response),
             _ => self.fixed_names().get(i).copied().map(InputName::Fixed),
         }
     }
@@ -323,7 +338,7 @@ impl FeatureSet {
             ],
             FeatureSet::MultiScaleSecondOrder => &SECOND_ORDER_NAMES,
             FeatureSet::MultiScaleLagged { .. } => &LAGGED_NAMES,
-            FeatureSet::MultiPoint(_) | FeatureSet::LagBank(_) => &[],
+            FeatureSet::MultiPoint(_) | FeatureSet::LagBank(_) | FeatureSet::ResponseBank(_) => &[],
         }
     }
 }
@@ -357,6 +372,8 @@ pub enum InputName {
     Probe(Probe),
     /// A lag-bank input, e.g. `g·ΔT(τ 240 s) [°C/min]`.
     Bank(BankInput),
+    /// A response-bank input, e.g. `û_c·R₁ [°/h]`.
+    Response(ResponseInput),
 }
 
 impl core::fmt::Display for InputName {
@@ -365,6 +382,7 @@ impl core::fmt::Display for InputName {
             InputName::Fixed(name) => f.write_str(name),
             InputName::Probe(probe) => probe.fmt(f),
             InputName::Bank(input) => input.fmt(f),
+            InputName::Response(input) => input.fmt(f),
         }
     }
 }
@@ -417,13 +435,28 @@ impl FeatureConfig {
         }
     }
 
+    /// A response bank's configuration: its filters, with the fastest as
+    /// `rate_window_s` (which sets the warm-up).
+    pub fn response_bank(bank: ResponseBank) -> Self {
+        FeatureConfig {
+            set: FeatureSet::ResponseBank(bank),
+            rate_window_s: bank.taus_s[0],
+            slow_windows_s: [0.0; WINDOWS - 1],
+        }
+    }
+
     /// The time constants of every derivative filter the set runs, s, and
-    /// their number: a lag bank's filters, else the ΔT windows.
+    /// their number: a bank's filters, else the ΔT windows.
     #[inline(always)]
     pub fn filter_taus_s(&self) -> ([f32; FILTERS], usize) {
         let mut taus = [0.0; FILTERS];
         match self.set {
-            FeatureSet::LagBank(bank) => taus = bank.taus_s,
+            FeatureSet::LagBank(bank) => {
+                for (t, b) in taus.iter_mut().zip(bank.taus_s) {
+                    *t = b;
+                }
+            }
+            FeatureSet::ResponseBank(bank) => taus = bank.taus_s,
             _ => taus[..WINDOWS].copy_from_slice(&self.windows_s()),
         }
         (taus, self.set.windows().min(FILTERS))
@@ -440,12 +473,15 @@ impl FeatureConfig {
     }
 
     /// True when the configuration is usable (finite windows within 0 ..= 1 day;
-    /// multi-point inputs that name existing thermometers; a valid lag bank
-    /// whose fastest filter is `rate_window_s`).
+    /// multi-point inputs that name existing thermometers; a valid lag or
+    /// response bank whose fastest filter is `rate_window_s`).
     pub fn is_valid(&self) -> bool {
         let set_ok = match self.set {
             FeatureSet::MultiPoint(probes) => probes.is_valid(),
             FeatureSet::LagBank(bank) => bank.is_valid() && bank.taus_s[0].to_bits() == self.rate_window_s.to_bits(),
+            FeatureSet::ResponseBank(bank) => {
+                bank.is_valid() && bank.taus_s[0].to_bits() == self.rate_window_s.to_bits()
+            }
             _ => true,
         };
         set_ok
@@ -512,7 +548,11 @@ impl FeatureVector {
             return None;
         }
         Some(FeatureVector {
-            values: assemble(set, [rate_c_per_min; FILTERS], &loop_reading(temp_c)),
+            values: assemble(
+                set,
+                &FilterChannels::settled(set, temp_c, rate_c_per_min),
+                &loop_reading(temp_c),
+            ),
             reference_temp_c: temp_c,
             len: set.dims() as u8,
             warming_up: false,
@@ -535,7 +575,14 @@ impl FeatureVector {
         let mut rates = [0.0; FILTERS];
         rates[..WINDOWS].copy_from_slice(&[fast, slow, slowest]);
         Some(FeatureVector {
-            values: assemble(to, rates, &loop_reading(self.reference_temp_c)),
+            values: assemble(
+                to,
+                &FilterChannels {
+                    rate_c_per_min: rates,
+                    ..FilterChannels::default()
+                },
+                &loop_reading(self.reference_temp_c),
+            ),
             len: to.dims() as u8,
             ..*self
         })
@@ -549,6 +596,8 @@ impl FeatureVector {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct FeatureExtractor {
     smoothed_c: [f32; FILTERS],
+    /// The filters' state for a response bank's powers of T.
+    power_smoothed: [[f32; FILTERS]; POWER_RESPONSES],
     since_restart_s: f32,
     started: bool,
 }
@@ -558,6 +607,7 @@ impl FeatureExtractor {
     pub const fn new() -> Self {
         FeatureExtractor {
             smoothed_c: [0.0; FILTERS],
+            power_smoothed: [[0.0; FILTERS]; POWER_RESPONSES],
             since_restart_s: 0.0,
             started: false,
         }
@@ -577,40 +627,113 @@ impl FeatureExtractor {
     /// ([`FeatureSet::thermometer_mask`]) must be finite (the compensator
     /// guarantees it by holding the last good values), the others are ignored.
     pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temps_c: &[f32; THERMOMETERS]) -> FeatureVector {
+        self.step(config, dt_s, temps_c).0
+    }
+
+    /// [`Self::update`], with the filters' outputs the inputs were made of:
+    /// what the trainer identifies a response bank's weights from, computed
+    /// by the very arithmetic the firmware runs.
+    pub fn update_with_channels(
+        &mut self,
+        config: &FeatureConfig,
+        dt_s: f32,
+        temps_c: &[f32; THERMOMETERS],
+    ) -> (FeatureVector, FilterChannels) {
+        self.step(config, dt_s, temps_c)
+    }
+
+    #[inline(always)]
+    fn step(
+        &mut self,
+        config: &FeatureConfig,
+        dt_s: f32,
+        temps_c: &[f32; THERMOMETERS],
+    ) -> (FeatureVector, FilterChannels) {
         let temp_c = temps_c[LOOP_THERMOMETER];
         let (taus, windows) = config.filter_taus_s();
-        let mut rate_c_per_min = [0.0f32; FILTERS];
+        let mut channels = FilterChannels::default();
+        // The powers of T a response bank also filters (none for the other sets).
+        let powers = match config.set {
+            FeatureSet::ResponseBank(bank) => Some(bank.loop_powers(temp_c)),
+            _ => None,
+        };
         if !(self.started && dt_s.is_finite() && dt_s > 0.0) {
             self.started = true;
             self.since_restart_s = 0.0;
             self.smoothed_c = [temp_c; FILTERS];
+            if let Some(p) = powers {
+                self.power_smoothed = p.map(|v| [v; FILTERS]);
+            }
         } else {
-            for w in 0..windows.min(FILTERS) {
-                let tau_s = taus[w];
-                let rate = (temp_c - self.smoothed_c[w]) / (tau_s + dt_s);
+            for ((smoothed, out), tau_s) in self
+                .smoothed_c
+                .iter_mut()
+                .zip(channels.rate_c_per_min.iter_mut())
+                .zip(taus)
+                .take(windows)
+            {
+                let rate = (temp_c - *smoothed) / (tau_s + dt_s);
                 // τ = 0 is exactly the one-sample difference: keep S = T bit for bit.
-                self.smoothed_c[w] = if tau_s == 0.0 {
-                    temp_c
-                } else {
-                    self.smoothed_c[w] + dt_s * rate
-                };
-                rate_c_per_min[w] = rate * SECONDS_PER_MINUTE;
+                *smoothed = if tau_s == 0.0 { temp_c } else { *smoothed + dt_s * rate };
+                *out = rate * SECONDS_PER_MINUTE;
+            }
+            if let Some(p) = powers {
+                for ((smoothed, rates), value) in self.power_smoothed.iter_mut().zip(&mut channels.power_rates).zip(p) {
+                    for ((s, r), tau_s) in smoothed.iter_mut().zip(rates.iter_mut()).zip(taus).take(windows) {
+                        let rate = (value - *s) / (tau_s + dt_s);
+                        *s += dt_s * rate;
+                        *r = rate * SECONDS_PER_MINUTE;
+                    }
+                }
             }
             self.since_restart_s += dt_s;
         }
         let warming_up = self.since_restart_s == 0.0 || self.since_restart_s < config.warmup_s();
 
-        let values = assemble(config.set, rate_c_per_min, temps_c);
+        let values = assemble(config.set, &channels, temps_c);
         let reference_temp_c = temps_c
             .get(config.set.reference_thermometer())
             .copied()
             .unwrap_or(f32::NAN);
-        FeatureVector {
-            values,
-            reference_temp_c,
-            len: config.dims() as u8,
-            warming_up,
+        (
+            FeatureVector {
+                values,
+                reference_temp_c,
+                len: config.dims() as u8,
+                warming_up,
+            },
+            channels,
+        )
+    }
+}
+
+/// The outputs of the derivative filters for one sample: the loop
+/// temperature's rates and, for a response bank, the rates of its powers.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FilterChannels {
+    /// ΔT_k, °C/min (0 for filters the set does not run).
+    pub rate_c_per_min: [f32; FILTERS],
+    /// ΔP_q,k of the powers (T − T₀)², (T − T₀)³ ([`ResponseBank::loop_powers`]), °C^q/min.
+    pub power_rates: [[f32; FILTERS]; POWER_RESPONSES],
+}
+
+impl FilterChannels {
+    /// Every filter of `set` reading a steady ramp of `rate_c_per_min` at
+    /// loop temperature `temp_c`: the powers' rates are their derivatives,
+    /// q·(T − T₀)^(q−1)·rate inside the covered range (their tangent's slope beyond).
+    fn settled(set: FeatureSet, temp_c: f32, rate_c_per_min: f32) -> Self {
+        let mut channels = FilterChannels {
+            rate_c_per_min: [rate_c_per_min; FILTERS],
+            ..FilterChannels::default()
+        };
+        if let FeatureSet::ResponseBank(bank) = set {
+            let uc = crate::model::clamp(temp_c, bank.coil_min_c, bank.coil_max_c) - bank.ref_c;
+            channels.power_rates = [
+                [2.0 * uc * rate_c_per_min; FILTERS],
+                [3.0 * uc * uc * rate_c_per_min; FILTERS],
+            ];
         }
+        channels
     }
 }
 
@@ -625,7 +748,8 @@ fn padded(v: [f32; 8]) -> [f32; MAX_INPUTS] {
 /// for the multi-scale sets), and the thermometer readings, °C: the one place
 /// each set's inputs are defined.
 #[inline(always)]
-fn assemble(set: FeatureSet, rate_c_per_min: [f32; FILTERS], temps_c: &[f32; THERMOMETERS]) -> [f32; MAX_INPUTS] {
+fn assemble(set: FeatureSet, channels: &FilterChannels, temps_c: &[f32; THERMOMETERS]) -> [f32; MAX_INPUTS] {
+    let rate_c_per_min = channels.rate_c_per_min;
     let temp_c = temps_c[LOOP_THERMOMETER];
     let mut values = [0.0; MAX_INPUTS];
     values[0] = temp_c;
@@ -676,7 +800,12 @@ fn assemble(set: FeatureSet, rate_c_per_min: [f32; FILTERS], temps_c: &[f32; THE
                 *v = p.value(temps_c);
             }
         }
-        FeatureSet::LagBank(bank) => bank.inputs(temp_c, &rate_c_per_min, &mut values),
+        FeatureSet::LagBank(bank) => {
+            if let Some(rates) = rate_c_per_min.first_chunk::<BANK_FILTERS>() {
+                bank.inputs(temp_c, rates, &mut values);
+            }
+        }
+        FeatureSet::ResponseBank(bank) => bank.inputs(temp_c, &rate_c_per_min, &channels.power_rates, &mut values),
     }
     values
 }
@@ -893,6 +1022,46 @@ mod tests {
         );
         let v = FeatureExtractor::new().update(&configs[0], 1.0, &loop_reading(20.0));
         assert_eq!(v.to_multiscale_set(sets[0], FeatureSet::Temp), None);
+    }
+
+    #[test]
+    fn a_response_bank_runs_all_its_filters_and_warms_up_over_three_of_its_fastest() {
+        let taus: Vec<f32> = (1..=RESPONSE_FILTERS).map(|k| 4.0 * k as f32).collect();
+        let mut bank = ResponseBank::new(&taus, 10.0, 0.0, 100.0, 1).unwrap();
+        bank.weights[1] = [1.0 / RESPONSE_FILTERS as f32; RESPONSE_FILTERS];
+        bank.weights[2][RESPONSE_FILTERS - 1] = 1.0;
+        bank.weights[4][RESPONSE_FILTERS - 1] = 1.0;
+        let cfg = FeatureConfig::response_bank(bank);
+        assert!(cfg.is_valid());
+        assert_eq!(cfg.warmup_s(), 12.0);
+        let mut fx = FeatureExtractor::new();
+        let mut settled_at = None;
+        let mut last = fx.update(&cfg, 1.0, &loop_reading(10.0));
+        for i in 1..=3_000 {
+            last = fx.update(&cfg, 1.0, &loop_reading(10.0 + 1.5 * i as f32 / 60.0));
+            if !last.warming_up && settled_at.is_none() {
+                settled_at = Some(i);
+            }
+        }
+        assert_eq!(settled_at, Some(12));
+        // Every filter reads the ramp: R₀ is their mean, R₁ the slowest's times û.
+        let [u, r0, r1] = [0, 1, 2].map(|i| last.as_slice()[i]);
+        assert_eq!(last.as_slice().len(), 6);
+        assert!((r0 - 1.5).abs() < 1e-3, "R₀ = {r0}");
+        assert!((r1 - 1.5 * u).abs() < 1e-3 * u, "û_c·R₁ = {r1}, û = {u}");
+        assert!((u - 75.0).abs() < 1e-3, "û = {u}");
+        // H₂: the square's rate, d(û²)/dt = 2û·1.5 °C/min, less its lag (the slowest τ at 1.5 °C/min).
+        let h2 = last.as_slice()[4];
+        let slowest_s = 4.0 * RESPONSE_FILTERS as f32;
+        assert!(
+            (h2 - 2.0 * (u - 1.5 * slowest_s / 60.0) * 1.5).abs() < 0.05,
+            "H₂ = {h2}"
+        );
+        assert_eq!(last.as_slice()[5], 0.0, "row 5 is zero");
+        assert_eq!(cfg.set.names().count(), 6);
+        let mut wrong = cfg;
+        wrong.rate_window_s = 5.0;
+        assert!(!wrong.is_valid(), "the fastest filter must be the warm-up window");
     }
 
     #[test]

@@ -5,7 +5,8 @@
 //! on the calibration PC and on the gyro's Cortex-M4F.
 //!
 //! - [`features`]: streaming fiber-loop temperature features (T, ΔT, T×ΔT), ΔT in °C/min;
-//!   [`lag_bank`]: the thermal lag bank (mean coil temperature and coil rates).
+//!   [`lag_bank`]: the thermal lag bank (mean coil temperature and coil rates);
+//!   [`response_bank`]: the thermal response bank (a static quartic and three free rate responses).
 //! - [`rbf`]: a fixed-capacity Gaussian RBF network with input normalisation and clamping.
 //! - [`poly`]: the cubic-in-T baseline (the PX4 / ArduPilot form).
 //! - [`error`]: why parameters are not a usable model ([`ModelError`]).
@@ -32,6 +33,7 @@ pub mod model;
 pub mod poly;
 pub mod rbf;
 pub mod record;
+pub mod response_bank;
 pub mod sensor;
 pub mod shared;
 

@@ -795,6 +795,41 @@ pub trait RunSet {
     fn release(&self, _configs: &[FeatureConfig], _block_s: f64) {}
     /// The thermometer columns every run has (bit i = `temp_a` … `temp_h`).
     fn thermometer_mask(&self) -> anyhow::Result<u8>;
+    /// Hands every sample of every run, in order, to `visit`: for fits whose
+    /// sums do not fit in a feature vector (the response bank's filter
+    /// channels). Targets are `rate − ref_dph` (the rate itself without a
+    /// reference: such fits take an offset per run).
+    fn for_each_sample(&self, visit: &mut dyn FnMut(&SampleVisit)) -> anyhow::Result<()>;
+}
+
+/// One sample as [`RunSet::for_each_sample`] gives it.
+pub struct SampleVisit<'a> {
+    /// Index of the run.
+    pub run: usize,
+    /// The run's nominal sample period, s.
+    pub nominal_period_s: f64,
+    /// Sample time, s.
+    pub time_s: f64,
+    /// The sample as the firmware sees it.
+    pub sample: &'a GyroSample,
+    /// Bias target, °/h: rate − reference.
+    pub target_dph: f64,
+}
+
+/// [`RunSet::for_each_sample`] over runs in memory.
+fn visit_runs(runs: &[Run], visit: &mut dyn FnMut(&SampleVisit)) {
+    for (index, run) in runs.iter().enumerate() {
+        let reference = run.reference_dph();
+        for (i, sample) in run.samples().enumerate() {
+            visit(&SampleVisit {
+                run: index,
+                nominal_period_s: run.nominal_period_s,
+                time_s: run.time_s[i],
+                sample: &sample,
+                target_dph: run.rate_dph[i] - reference.at(i),
+            });
+        }
+    }
 }
 
 /// The thermometers all of `runs` have.
@@ -814,6 +849,11 @@ impl RunSet for [Run] {
     fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
         Ok(sample_block_means(self, features, block_s))
     }
+
+    fn for_each_sample(&self, visit: &mut dyn FnMut(&SampleVisit)) -> anyhow::Result<()> {
+        visit_runs(self, visit);
+        Ok(())
+    }
 }
 
 /// Arrays of runs (so that `&[]` reads as "no validation runs").
@@ -828,6 +868,11 @@ impl<const N: usize> RunSet for [Run; N] {
 
     fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
         Ok(sample_block_means(self, features, block_s))
+    }
+
+    fn for_each_sample(&self, visit: &mut dyn FnMut(&SampleVisit)) -> anyhow::Result<()> {
+        visit_runs(self, visit);
+        Ok(())
     }
 }
 
@@ -1062,6 +1107,30 @@ impl RunSet for RunFiles {
         self.prepare_filtered(std::slice::from_ref(features), block_s)?;
         self.cached(features, block_s)
             .ok_or_else(|| anyhow::anyhow!("block means were not cached"))
+    }
+
+    fn for_each_sample(&self, visit: &mut dyn FnMut(&SampleVisit)) -> anyhow::Result<()> {
+        for (index, path) in self.paths.iter().enumerate() {
+            let run = StreamedRun::from_reader(self.open(path)?, 0)?;
+            let period_s = run.nominal_period_s;
+            let rows = run.for_each_batch(|batch| {
+                for i in 0..batch.len() {
+                    visit(&SampleVisit {
+                        run: index,
+                        nominal_period_s: period_s,
+                        time_s: batch.time_s(i),
+                        sample: &batch.sample(i),
+                        target_dph: batch.rate_dph(i) - batch.ref_dph(i).unwrap_or(0.0),
+                    });
+                }
+            })?;
+            anyhow::ensure!(
+                rows >= 2,
+                "{}: run has {rows} data rows; at least 2 are needed",
+                path.display()
+            );
+        }
+        Ok(())
     }
 
     fn release(&self, configs: &[FeatureConfig], block_s: f64) {

@@ -299,6 +299,10 @@ pub fn require_shared_thermometer(reader: &RunReader, columns: &[Columns], mask:
 
 /// How the axes of a run are stepped: one compensator and model per axis,
 /// or one compensator for a shared-basis model of every axis.
+#[allow(
+    clippy::large_enum_variant,
+    reason = "one stepper per run, built once: the shared variant's compensator (its filter state) is not worth a box"
+)]
 enum Stepper<'m> {
     /// Per axis, in the order of the columns: its model (`None`:
     /// uncompensated) and its compensator.

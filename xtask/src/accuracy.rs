@@ -5,6 +5,7 @@
 //! on 8-thermometer runs (`trainer simulate --multi`); then [`in_use`]:
 //! trained on a chamber run, verified on in-use histories, over several plants.
 
+pub mod designs;
 pub mod in_use;
 
 use std::path::{Path, PathBuf};

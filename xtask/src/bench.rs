@@ -39,6 +39,8 @@ pub fn budget_for(features: &[&str]) -> Budget {
 }
 /// Instructions the whole three-axis step (shared basis, K = 32, D = 3) may take per sample (issue budget).
 const AXES_STEP_BUDGET_INSTRUCTIONS: u64 = 1800;
+/// Instructions the whole step of a response-bank model (12 filters, 8 inputs) may take per sample (issue budget).
+const RESPONSE_BANK_STEP_BUDGET_INSTRUCTIONS: u64 = 1200;
 
 /// Runs the benchmark image and prints its figures; the last line printed is
 /// `instructions_per_sample K=32 D=3: N`, N the model evaluation's count.
@@ -93,6 +95,20 @@ pub fn bench_fw() -> anyhow::Result<()> {
              {AXES_STEP_BUDGET_INSTRUCTIONS}:\n{}",
             result.log
         )
+    }
+    // The response bank's whole step, within its budget.
+    let response_bank = lines.iter().find_map(|l| {
+        l.strip_prefix("instructions_per_sample response-bank F=12: ")
+            .and_then(|n| n.parse::<u64>().ok())
+    });
+    match response_bank {
+        None => bail!("no response-bank figure in the benchmark output:\n{}", result.log),
+        Some(n) if n > RESPONSE_BANK_STEP_BUDGET_INSTRUCTIONS => bail!(
+            "the response bank's step takes {n} instructions per sample, over the budget of \
+             {RESPONSE_BANK_STEP_BUDGET_INSTRUCTIONS}:\n{}",
+            result.log
+        ),
+        Some(_) => {}
     }
     println!(
         "firmware benchmark (QEMU {}, -icount shift=0, SysTick at 168 MHz; counts are instructions)",

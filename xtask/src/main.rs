@@ -65,6 +65,17 @@ enum Cmd {
     /// set-point runs and two field histories, beside a lag-bank least-squares
     /// reference and each run's noise ceiling. Prints improvement %, residual
     /// 100-s STD, fit time.
+    /// The default fit on recorded gyros of other designs: each trained on its
+    /// planned run and its cycle, verified on its random and field histories
+    /// (100-s cluster STD against ref_dph), beside the fit's forecast.
+    BenchDesigns {
+        /// Directory of NAME_planned.csv, NAME_cycle.csv, NAME_random.csv, NAME_field.csv.
+        #[arg(long, value_name = "DIR", default_value = "../shared/data/other-designs")]
+        dir: PathBuf,
+        /// Judge this trainer instead of this workspace's release build.
+        #[arg(long, value_name = "PATH")]
+        trainer: Option<PathBuf>,
+    },
     BenchAccuracy {
         /// Simulate another gyro in the chamber protocols (`trainer simulate
         /// --params`), e.g. bench/accuracy/another-gyro.json: does the default
@@ -151,6 +162,16 @@ fn main() -> anyhow::Result<()> {
         Cmd::BenchFw => xtask::bench::bench_fw(),
         Cmd::CheckBoardPanics => xtask::firmware::check_board_panics(),
         Cmd::BoardFaults => xtask::board_faults::board_faults(),
+        Cmd::BenchDesigns { dir, trainer } => {
+            let trainer = match trainer {
+                Some(t) => std::path::absolute(t)?,
+                None => {
+                    xtask::run("cargo", &["build", "--release", "--quiet", "--package", "trainer"])?;
+                    xtask::workspace_root().join("target/release/trainer")
+                }
+            };
+            xtask::accuracy::designs::bench_designs(&dir, &trainer)
+        }
         Cmd::BenchAccuracy {
             params,
             in_use,

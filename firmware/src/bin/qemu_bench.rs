@@ -26,6 +26,7 @@ mod board {
     use rbf_core::model::{ModelBody, ModelInfo};
     use rbf_core::rbf::{RbfNetwork, RbfParams};
     use rbf_core::record::{Axis, MAX_AXES};
+    use rbf_core::response_bank::ResponseBank;
     use rbf_core::shared::{OutputLayer, SharedAxisModels};
     use rbf_core::{
         Compensator, CompensatorConfig, FeatureConfig, FeatureSet, FeatureVector, GyroSample, MAX_CENTERS, Model,
@@ -39,6 +40,10 @@ mod board {
 
     /// The shape of a benchmark model.
     #[derive(Clone, Copy, PartialEq)]
+    #[allow(
+        clippy::large_enum_variant,
+        reason = "a handful of shapes built once at start-up; the set is what the shape names"
+    )]
     enum Shape {
         /// The IFOG paper's (T, ΔT, T×ΔT) with Gaussians over all three inputs.
         Paper,
@@ -183,6 +188,68 @@ mod board {
         Model::new(features, &ranges[..dims], ModelBody::Rbf(net), ModelInfo::default()).expect("valid synthetic model")
     }
 
+    /// A response-bank model as `trainer fit` writes them: 12 filters
+    /// (10 s … 11 h), a static cubic, no centres, the linear layer
+    /// [c₁ … c₃, 1, 1, 1, 1, 1], every weight row but the coil lags in use.
+    fn response_bank_model() -> Model {
+        const USED: usize = 12;
+        let mut taus = [0.0f32; USED];
+        let mut tau = 10.0f32;
+        for t in &mut taus {
+            *t = tau;
+            tau *= 2.124;
+        }
+        let mut bank = ResponseBank::new(&taus, 25.0, -10.0, 60.0, 3).expect("valid bank");
+        for (j, row) in bank.weights.iter_mut().enumerate().skip(1) {
+            for (k, w) in row.iter_mut().take(USED).enumerate() {
+                *w = 0.01 * (j as f32 + 1.0) - 0.001 * k as f32;
+            }
+        }
+        let net = RbfNetwork::new(&RbfParams {
+            offset: &[0.0; 8],
+            scale: &[1.0; 8],
+            kernel_inputs: 1,
+            centers: &[],
+            widths: &[],
+            weights: &[],
+            linear: &[0.01, -0.001, 1e-5, 1.0, 1.0, 1.0, 1.0, 1.0],
+            constant: 0.05,
+        })
+        .expect("valid synthetic network");
+        let ranges = [
+            (-35.0, 35.0),
+            (0.0, 1225.0),
+            (-42875.0, 42875.0),
+            (-3.0, 3.0),
+            (-100.0, 100.0),
+            (-3500.0, 3500.0),
+            (-300.0, 300.0),
+            (-9000.0, 9000.0),
+        ];
+        Model::new(
+            FeatureConfig::response_bank(bank),
+            &ranges,
+            ModelBody::Rbf(net),
+            ModelInfo::default(),
+        )
+        .expect("valid synthetic model")
+    }
+
+    /// Instructions of the whole per-sample step (`Compensator::process`:
+    /// gap and fault logic, feature filters, evaluation, flags) of `model`
+    /// on a slow 1-kHz ramp.
+    fn step_instructions(model: &Model, config: &CompensatorConfig) -> u64 {
+        let mut compensator = Compensator::new();
+        let mut temp_c = 20.0f32;
+        let start = SYST::get_current();
+        for _ in 0..SAMPLES {
+            temp_c += 0.0001;
+            let sample = GyroSample::new(0.001, 12.5, Some(temp_c));
+            core::hint::black_box(compensator.process(Some(core::hint::black_box(model)), config, &sample));
+        }
+        instructions_per_sample(start)
+    }
+
     fn ticks_between(start: u32, end: u32) -> u32 {
         // SysTick counts down and wraps at 24 bits.
         start.wrapping_sub(end) & 0x00FF_FFFF
@@ -256,15 +323,7 @@ mod board {
                 instructions_per_sample(start).saturating_sub(harness)
             };
             // The whole step.
-            let mut compensator = Compensator::new();
-            let mut temp_c = 20.0f32;
-            let start = SYST::get_current();
-            for _ in 0..SAMPLES {
-                temp_c += 0.0001;
-                let sample = GyroSample::new(0.001, 12.5, Some(temp_c));
-                core::hint::black_box(compensator.process(Some(core::hint::black_box(&model)), &config, &sample));
-            }
-            let step = instructions_per_sample(start);
+            let step = step_instructions(&model, &config);
             if shape == Shape::LagBank {
                 hprintln!(
                     "instructions_per_sample lag-bank K={} F=5: {} whole step (the default features: 5 derivative filters, T̂ and its powers, 8 inputs, Gaussians over T̂), evaluation alone {}",
@@ -306,6 +365,11 @@ mod board {
                 hprintln!("instructions_per_sample K=32 D=3: {}", eval);
             }
         }
+        // The response bank: 16 filters, 7 inputs, no centres.
+        hprintln!(
+            "instructions_per_sample response-bank F=12: {}",
+            step_instructions(&response_bank_model(), &config)
+        );
         // Three axes: per sample each axis's compensator runs its own model
         // on its own rate and coil temperature (the multi-axis loop's step).
         let axes = axis_models();

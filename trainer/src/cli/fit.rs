@@ -92,7 +92,9 @@ pub struct Args {
     method: MethodArg,
     /// Inputs of --method rbf (see --help).
     ///
-    /// lag-bank (default) = the thermal lag bank: the mean coil temperature
+    /// Default: the thermal lag bank, or the response bank below where the lag bank's residual
+    /// on the training runs is above 1/0.6 × the response bank's (a coil unlike the one it
+    /// encodes; `fit` prints both). lag-bank = the thermal lag bank alone: the mean coil temperature
     /// T̂ = T + Σ a_k·ΔT_k and the loop temperature's rates ΔT_k through 4–5 derivative
     /// filters from 15 s to 2 h, times a Shupe gain linear in T̂; a cubic in T̂ and the rates
     /// linear; filter set, coil lags a_k and gain identified from the runs and chosen by how
@@ -112,9 +114,14 @@ pub struct Args {
     /// set, all of them again with the slowest window 1.25× longer (320τ: it should follow the
     /// coil's slowest radial mode), the best of these kept only when its validation RMS is
     /// below 0.9 × the first-order one (a term fitted at one ramp rate must earn its
-    /// extrapolation); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network.
-    #[arg(long, value_enum, default_value_t = FeaturesArg::LagBank, hide_possible_values = true, help_heading = "Model")]
-    features: FeaturesArg,
+    /// extrapolation); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network;
+    /// response-bank = the thermal response bank alone: 12 derivative filters from 10 s to 11 h
+    /// on T, (T − T₀)² and (T − T₀)³, a static cubic in T − T₀ (T₀ the middle of the covered
+    /// range, tangent beyond it), five free mixtures of the filters' rates (R₀, (T − T₀)·R₁,
+    /// (T − T₀)²·R₂ and the filtered square and cube), fitted by one ridge regression on 10-s
+    /// block means (docs/methods.md).
+    #[arg(long, value_enum, hide_possible_values = true, help_heading = "Model")]
+    features: Option<FeaturesArg>,
     /// Use exactly K Gaussian centres (1–64; 1–16 per axis on multi-axis runs).
     ///
     /// Fewer if OLS finds fewer independent ones; without it K ≤ --max-centers is chosen
@@ -269,7 +276,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let validate = RunFiles::new(&a.validate);
     let mut opts = FitOptions {
         method: a.method.into(),
-        features: a.features.into(),
+        features: a.features.unwrap_or(FeaturesArg::LagBank).into(),
+        structure_choice: a.features.is_none(),
         block_s: a.block_s,
         centers: a.centers,
         max_centers: a.max_centers,
@@ -403,7 +411,27 @@ pub fn write_summary(
     how: &FitHow,
 ) -> anyhow::Result<()> {
     writeln!(out, "method {method:?}: {}", describe(&outcome.model))?;
-    if let Some(c) = &outcome.choice {
+    if let Some(s) = &outcome.structure {
+        writeln!(
+            out,
+            "structure: residual STD100 on the training runs {:.4e} °/h with the lag bank, {:.4e} °/h with the response bank (ratio {:.2}; the response bank is taken below {}): {}",
+            s.lag_bank_std100_dph,
+            s.response_bank_std100_dph,
+            s.response_bank_std100_dph / s.lag_bank_std100_dph,
+            fit::response::RESPONSE_BANK_MARGIN,
+            if s.response_bank { "response bank" } else { "lag bank" }
+        )?;
+        if s.response_bank {
+            writeln!(
+                out,
+                "predicted RMS of 100-s means on unseen histories {:.4e} °/h ({}× the training residual)",
+                s.response_bank_forecast_dph(),
+                fit::response::IN_USE_FORECAST_FACTOR
+            )?;
+        }
+    }
+    let response_chosen = outcome.structure.as_ref().is_some_and(|s| s.response_bank);
+    if let Some(c) = outcome.choice.as_ref().filter(|_| !response_chosen) {
         writeln!(
             out,
             "chosen on {}: {}{}ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
@@ -588,6 +616,8 @@ pub(super) fn outcome_json(o: &FitOutcome) -> serde_json::Value {
         "choice": o.choice,
         "feature_sets": o.sets,
         "lag_bank_search": o.bank,
+        "structure": o.structure,
+        "predicted_in_use_std100_dph": o.predicted_in_use_std100_dph(),
         "features": features_json(o.model.features()),
         "svr": o.svr,
     })
@@ -615,6 +645,9 @@ pub(super) fn write_blob(model_out: Option<Output>, blob: &[u8], transaction: &m
 /// One line naming a model's form, centres, inputs and ΔT windows.
 pub(super) fn describe(model: &Model) -> String {
     let f = model.features();
+    if let FeatureSet::ResponseBank(bank) = f.set {
+        return trainer::summary::response_bank(&bank);
+    }
     let all_names = input_names(f.set);
     let names = all_names.join(", ");
     let (taus, filters) = f.filter_taus_s();
@@ -647,6 +680,7 @@ pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
             FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
             FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
             FeatureSet::LagBank(_) => "LagBank".to_owned(),
+            FeatureSet::ResponseBank(_) => "ResponseBank".to_owned(),
             set => format!("{set:?}"),
         },
         "coil_lag_min": match f.set {
@@ -666,6 +700,16 @@ pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
                 "gain_of": gain_symbol(b.gain_of),
                 "static_degree": b.static_degree,
                 "coil_range_c": [b.coil_min_c, b.coil_max_c],
+            })),
+            _ => None,
+        },
+        "response_bank": match f.set {
+            FeatureSet::ResponseBank(b) => Some(serde_json::json!({
+                "taus_s": b.taus(),
+                "ref_c": b.ref_c,
+                "coil_range_c": [b.coil_min_c, b.coil_max_c],
+                "static_degree": b.static_degree,
+                "weights": b.weights.iter().map(|row| &row[..b.filter_count()]).collect::<Vec<_>>(),
             })),
             _ => None,
         },

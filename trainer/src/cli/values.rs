@@ -42,6 +42,8 @@ pub enum FeaturesArg {
     MultiscaleValidated,
     /// (T, ΔT, T×ΔT) with Gaussians over all three: the IFOG paper's network.
     Paper,
+    /// The thermal response bank: a static quartic in T̂ and three rate responses of 16 filters.
+    ResponseBank,
 }
 
 impl From<FeaturesArg> for RbfFeatures {
@@ -52,6 +54,7 @@ impl From<FeaturesArg> for RbfFeatures {
             FeaturesArg::MultiscaleSecondOrder => RbfFeatures::MultiscaleSecondOrder,
             FeaturesArg::MultiscaleValidated => RbfFeatures::MultiscaleValidated,
             FeaturesArg::Paper => RbfFeatures::Paper,
+            FeaturesArg::ResponseBank => RbfFeatures::ResponseBank,
         }
     }
 }

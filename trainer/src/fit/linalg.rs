@@ -162,9 +162,14 @@ pub fn cluster_design(
 /// Ridge solution on the first `p` columns: (AᵀA + λ n I′) w = Aᵀy, with I′
 /// leaving the constant (column 0) unpenalised. `None` if the system is singular.
 pub fn ridge_solve(stats: &GramStats, p: usize, lambda: f64) -> Option<DVector<f64>> {
+    ridge_solve_from(stats, p, lambda, 1)
+}
+
+/// [`ridge_solve`] with the penalty on columns `first_penalised .. p` only.
+pub fn ridge_solve_from(stats: &GramStats, p: usize, lambda: f64, first_penalised: usize) -> Option<DVector<f64>> {
     let mut m = stats.gram.view((0, 0), (p, p)).clone_owned();
     let penalty = lambda * stats.n as f64;
-    for i in 1..p {
+    for i in first_penalised..p {
         m[(i, i)] += penalty;
     }
     let w = m.cholesky()?.solve(&stats.aty.rows(0, p).clone_owned());

@@ -13,6 +13,7 @@ pub mod options;
 pub mod poly;
 pub mod progress;
 pub mod rbf;
+pub mod response;
 pub(crate) mod scoring;
 pub(crate) mod svr_data;
 pub mod svr_pso;
@@ -117,6 +118,22 @@ pub struct FitOutcome {
     pub svr: Option<svr_pso::SvrChoice>,
     /// How the lag bank's structure was chosen (`--features lag-bank`).
     pub bank: Option<lag_bank::BankSearch>,
+    /// The default's choice between the lag bank and the response bank.
+    pub structure: Option<response::StructureChoice>,
+}
+
+impl FitOutcome {
+    /// The residual 100-s cluster STD the fit forecasts for in-use histories
+    /// unlike its training runs, °/h: the lag bank's from its held-out thermal
+    /// events, the response bank's from its training residual
+    /// ([`response::IN_USE_FORECAST_FACTOR`]); `None` for the other methods.
+    pub fn predicted_in_use_std100_dph(&self) -> Option<f64> {
+        match (&self.structure, &self.bank) {
+            (Some(s), _) if s.response_bank => Some(s.response_bank_forecast_dph()),
+            (_, Some(search)) => Some(search.predicted_rms_dph()).filter(|v| v.is_finite()),
+            _ => None,
+        }
+    }
 }
 
 /// Fits `opts.method` on `train`, validating on `validate` (or k-fold when empty).
@@ -141,6 +158,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             sets: None,
             svr: None,
             bank: None,
+            structure: None,
         }),
         Method::SvrPso => {
             if validate.count() > 0 {
@@ -155,6 +173,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 sets: None,
                 svr: Some(choice),
                 bank: None,
+                structure: None,
             })
         }
         Method::Rbf if opts.features == RbfFeatures::MultiscaleValidated => {
@@ -188,18 +207,47 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 choice: Some(choice),
                 svr: None,
                 bank: None,
+                structure: None,
             })
         }
+        Method::Rbf if opts.features == RbfFeatures::ResponseBank => Ok(FitOutcome {
+            model: response::identify(train, opts)?,
+            choice: None,
+            sets: None,
+            svr: None,
+            bank: None,
+            structure: None,
+        }),
         Method::Rbf if opts.features == RbfFeatures::LagBank => {
             let (bank, search) = lag_bank::search(train, validate, opts, &progress)?;
             let config = rbf_core::FeatureConfig::lag_bank(bank);
-            let (model, choice) = rbf::fit_configs(train, validate, &[config], opts, &rbf::WIDTHS, &progress)?;
+            let (lag_model, choice) = rbf::fit_configs(train, validate, &[config], opts, &rbf::WIDTHS, &progress)?;
+            // The default: the response bank where the lag bank cannot follow
+            // the training runs ([`response::StructureChoice`]).
+            let structure = match (opts.centers, opts.structure_choice) {
+                (Some(_), _) | (_, false) => None,
+                (None, true) => match response::identify(train, opts) {
+                    // A comparison the runs are too short for keeps the lag bank.
+                    Ok(response_model) => {
+                        response::StructureChoice::compare(train, &lag_model, &response_model, opts.block_s)
+                            .ok()
+                            .map(|c| (c, response_model))
+                    }
+                    Err(_) => None,
+                },
+            };
+            let (model, structure) = match structure {
+                Some((c, response_model)) if c.response_bank => (response_model, Some(c)),
+                Some((c, _)) => (lag_model, Some(c)),
+                None => (lag_model, None),
+            };
             Ok(FitOutcome {
                 model,
                 choice: Some(choice),
                 sets: None,
                 svr: None,
                 bank: Some(search),
+                structure,
             })
         }
         method => {
@@ -210,6 +258,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 sets: None,
                 svr: None,
                 bank: None,
+                structure: None,
             })
         }
     }

@@ -33,6 +33,10 @@ pub enum RbfFeatures {
     MultiscaleValidated,
     /// (T, ΔT, T×ΔT) with Gaussians over all three: the IFOG paper's network.
     Paper,
+    /// The thermal response bank (`FeatureSet::ResponseBank`): a static
+    /// quartic in T̂ about T₀ and three responses mixed from sixteen
+    /// derivative filters (10 s … 11 h), fitted by [`response`](super::response).
+    ResponseBank,
 }
 
 /// The model forms `trainer fit` can produce.
@@ -61,6 +65,11 @@ impl Method {
             Method::Rbf if features == RbfFeatures::LagBank => {
                 FeatureSet::LagBank(rbf_core::lag_bank::LagBank::plain(&[60.0], 25.0).unwrap_or_else(|| unreachable!()))
             }
+            // A placeholder: the bank is identified by the fit.
+            Method::Rbf if features == RbfFeatures::ResponseBank => FeatureSet::ResponseBank(
+                rbf_core::response_bank::ResponseBank::new(&[10.0], 25.0, -1000.0, 1000.0, 4)
+                    .unwrap_or_else(|| unreachable!()),
+            ),
             // The validated choice's second candidate; `fit` tries both.
             Method::Rbf => FeatureSet::MultiScaleSecondOrder,
             Method::Rbf2 => FeatureSet::TempRate,
@@ -103,6 +112,9 @@ pub struct FitOptions {
     pub selection: Option<crate::gradients::Selection>,
     /// `svr-pso` on multi-point runs: these inputs instead of a selection.
     pub inputs: Option<Vec<rbf_core::features::Probe>>,
+    /// The default's choice: the response bank instead of the lag bank where
+    /// the lag bank misses its training runs (off when the lag bank is asked for).
+    pub structure_choice: bool,
 }
 
 impl Default for FitOptions {
@@ -119,6 +131,7 @@ impl Default for FitOptions {
             serial: None,
             progress: false,
             selection: None,
+            structure_choice: true,
             inputs: None,
         }
     }

@@ -172,7 +172,7 @@ struct ModelScores {
 }
 
 /// The named columns of a CSV with `#` metadata lines, in the order asked.
-fn read_columns(file: &Path, names: &[&str]) -> anyhow::Result<Vec<Vec<f64>>> {
+pub(super) fn read_columns(file: &Path, names: &[&str]) -> anyhow::Result<Vec<Vec<f64>>> {
     let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();

@@ -1,0 +1,486 @@
+//! The thermal response bank's fit (`--features response-bank`): the bank's
+//! structure fixed from the training runs, its weights from one ridge
+//! regression on block means of the filters' outputs.
+//!
+//! - Filters: [`FILTERS`] time constants log-spaced from [`FASTEST_TAU_S`]
+//!   to [`SLOWEST_TAU_S`].
+//! - T₀: the middle of the loop temperature range the runs covered; the
+//!   covered range: that range; a static cubic; no coil lag (T̂ = T).
+//! - The blocks: [`BLOCK_S`] means of every channel the bank mixes (the
+//!   static powers, the rates ΔT_k, their products with û_c and û_c², the
+//!   rates of (T − T₀)² and (T − T₀)³), made sample by sample by rbf-core's
+//!   extractor ([`rbf_core::FeatureExtractor::update_with_channels`], the
+//!   firmware's arithmetic), samples still warming up left out.
+//! - The weights: [`solve_weights`], one ridge regression with an offset per
+//!   run, the columns standardised and the penalty on the dynamic ones.
+//! - The network: no centres, the linear layer [c₁ … c₃, 1, 1, 1, 1, 1] on
+//!   the bank's inputs and the constant c₀.
+//!
+//! Why these choices, and the measurements behind them: docs/methods.md
+//! ("The thermal response bank").
+
+use nalgebra::{DMatrix, DVector};
+use rbf_core::features::loop_reading;
+use rbf_core::model::{Model, ModelBody, ModelInfo};
+use rbf_core::rbf::{RbfNetwork, RbfParams};
+use rbf_core::response_bank::{POWER_RESPONSES, RESPONSE_FILTERS, RESPONSES, ResponseBank, WEIGHT_ROWS};
+use rbf_core::{CompensatorConfig, FeatureConfig, FeatureExtractor, FeatureSet};
+
+use super::FitOptions;
+use super::linalg::{GramStats, ridge_solve_from};
+use crate::dataset::{RunSet, SampleVisit};
+
+/// Filters the fitted bank runs.
+pub const FILTERS: usize = 12;
+/// The fastest filter's time constant, s.
+pub const FASTEST_TAU_S: f64 = 10.0;
+/// The slowest filter's time constant, s (11 h).
+pub const SLOWEST_TAU_S: f64 = 11.0 * 3600.0;
+/// Powers of T̂ − T₀ in the static part.
+pub const STATIC_DEGREE: u8 = 3;
+/// Length of the blocks the weights are fitted on, s.
+pub const BLOCK_S: f64 = 10.0;
+/// Ridge penalty λ (times the number of blocks) on the standardised dynamic columns.
+pub const RIDGE_LAMBDA: f64 = 3e-4;
+/// Mixtures of the filters the bank holds: the three rate responses and the two filtered powers.
+const MIXTURES: usize = RESPONSES + POWER_RESPONSES;
+/// Channels a block holds: the static powers, then each mixture's [`FILTERS`] channels.
+const CHANNELS: usize = STATIC_DEGREE as usize + MIXTURES * FILTERS;
+
+/// The filters' time constants, s: log-spaced from [`FASTEST_TAU_S`] to [`SLOWEST_TAU_S`].
+pub fn taus_s() -> [f32; FILTERS] {
+    let ratio = (SLOWEST_TAU_S / FASTEST_TAU_S).ln() / (FILTERS - 1) as f64;
+    std::array::from_fn(|k| (FASTEST_TAU_S * (ratio * k as f64).exp()) as f32)
+}
+
+/// Block means of the channels a response bank mixes, and their targets.
+#[derive(Clone, Debug, Default)]
+pub struct ChannelBlocks {
+    /// Per block, the [`CHANNELS`] channel means: û, û², û³, then per mixture
+    /// (R₀, û_c·R₁, û_c²·R₂, H₂, H₃) its filters' channels.
+    pub x: Vec<[f64; CHANNELS]>,
+    /// Mean bias target of each block, °/h.
+    pub y: Vec<f64>,
+    /// Run of each block.
+    pub run: Vec<usize>,
+    /// Number of runs.
+    pub runs: usize,
+    /// Per-sample range of each channel.
+    pub range: Vec<(f64, f64)>,
+}
+
+/// The static part and mixtures of a bank, as [`solve_weights`] gives them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Weights {
+    /// c₀, °/h: the runs' offsets, averaged by their blocks.
+    pub constant_dph: f64,
+    /// c₁ … c₃: °/h per °C^p of û = T̂ − T₀.
+    pub static_dph: [f64; STATIC_DEGREE as usize],
+    /// The bank's weight rows: coil lags (0), the three responses', the two filtered powers'.
+    pub bank: [[f32; RESPONSE_FILTERS]; WEIGHT_ROWS],
+}
+
+/// The bank and its deployable model for `train`.
+pub fn identify<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) -> anyhow::Result<Model> {
+    let (bank, blocks) = plain_bank_and_blocks(train)?;
+    fitted_model(bank, &blocks, opts)
+}
+
+/// The bank's structure for `train` (weights 0) and the block means of its channels.
+pub fn plain_bank_and_blocks<T: RunSet + ?Sized>(train: &T) -> anyhow::Result<(ResponseBank, ChannelBlocks)> {
+    let temp = FeatureConfig::single(FeatureSet::Temp, 0.0);
+    train.prepare(&[temp], BLOCK_S)?;
+    let (lo, hi) = train
+        .block_means(&temp, BLOCK_S)?
+        .sample_range
+        .first()
+        .copied()
+        .unwrap_or((f64::NAN, f64::NAN));
+    anyhow::ensure!(
+        lo.is_finite() && hi > lo,
+        "the training runs cover no temperature range ({lo} … {hi} °C)"
+    );
+    let ref_c = (0.5 * (lo + hi)) as f32;
+    let bank = ResponseBank::new(&taus_s(), ref_c, lo as f32, hi as f32, STATIC_DEGREE)
+        .ok_or_else(|| anyhow::anyhow!("no valid response bank over {lo} … {hi} °C"))?;
+    let blocks = channel_blocks(train, &bank)?;
+    anyhow::ensure!(
+        blocks.y.len() > 4 * (blocks.runs + CHANNELS),
+        "{} blocks of {BLOCK_S} s: too few to fit the response bank's {CHANNELS} weights",
+        blocks.y.len()
+    );
+    Ok((bank, blocks))
+}
+
+/// The fitted model of `bank` on `blocks`.
+pub fn fitted_model(mut bank: ResponseBank, blocks: &ChannelBlocks, opts: &FitOptions) -> anyhow::Result<Model> {
+    let w = solve_weights(blocks)?;
+    bank.weights = w.bank;
+    anyhow::ensure!(bank.is_valid(), "the fitted response bank is out of range");
+    model(bank, &w, blocks, opts)
+}
+
+/// One block being summed.
+struct BlockSum {
+    key: (usize, u64, u64),
+    x: [f64; CHANNELS],
+    y: f64,
+    count: usize,
+    min_count: usize,
+}
+
+/// Block means of `bank`'s channels over every run of `train`, sample by
+/// sample through rbf-core's extractor; a gap or a missing loop reading
+/// restarts the filters, as the compensator does.
+fn channel_blocks<T: RunSet + ?Sized>(train: &T, bank: &ResponseBank) -> anyhow::Result<ChannelBlocks> {
+    let config = FeatureConfig::response_bank(*bank);
+    let mut out = ChannelBlocks {
+        range: vec![(f64::INFINITY, f64::NEG_INFINITY); CHANNELS],
+        ..ChannelBlocks::default()
+    };
+    let mut extractor = FeatureExtractor::new();
+    let mut current: Option<BlockSum> = None;
+    let mut segment = (usize::MAX, 0u64, 0.0f64);
+    let statics = STATIC_DEGREE as usize;
+    let mut visit = |v: &SampleVisit| {
+        let gap = CompensatorConfig::for_nominal_period_s(v.nominal_period_s).is_gap(v.sample.dt_s);
+        let Some(temp_c) = v.sample.temps_c[rbf_core::features::LOOP_THERMOMETER] else {
+            extractor.restart();
+            return;
+        };
+        if v.run != segment.0 || gap {
+            extractor.restart();
+            segment = (v.run, segment.1 + 1, v.time_s);
+        }
+        let dt = if v.run == segment.0 && !gap { v.sample.dt_s } else { 0.0 };
+        let (features, channels) = extractor.update_with_channels(&config, dt, &loop_reading(temp_c));
+        if features.warming_up || !v.target_dph.is_finite() {
+            return;
+        }
+        let key = (v.run, segment.1, ((v.time_s - segment.2) / BLOCK_S).floor() as u64);
+        if current.as_ref().is_none_or(|b| b.key != key) {
+            if let Some(done) = current.take() {
+                out.push(done);
+            }
+            current = Some(BlockSum {
+                key,
+                x: [0.0; CHANNELS],
+                y: 0.0,
+                count: 0,
+                min_count: ((0.5 * BLOCK_S / v.nominal_period_s).floor() as usize).max(1),
+            });
+        }
+        let Some(block) = current.as_mut() else {
+            return;
+        };
+        let inputs = features.as_slice();
+        // û_c: the covered range holds every training sample (it is their range).
+        let u_c =
+            f64::from(temp_c).clamp(f64::from(bank.coil_min_c), f64::from(bank.coil_max_c)) - f64::from(bank.ref_c);
+        let mut values = [0.0f64; CHANNELS];
+        for (v, i) in values.iter_mut().zip(inputs).take(statics) {
+            *v = f64::from(*i);
+        }
+        for k in 0..FILTERS {
+            let r = f64::from(channels.rate_c_per_min[k]);
+            values[statics + k] = r;
+            values[statics + FILTERS + k] = u_c * r;
+            values[statics + 2 * FILTERS + k] = u_c * u_c * r;
+            values[statics + 3 * FILTERS + k] = f64::from(channels.power_rates[0][k]);
+            values[statics + 4 * FILTERS + k] = f64::from(channels.power_rates[1][k]);
+        }
+        for ((sum, range), v) in block.x.iter_mut().zip(&mut out.range).zip(values) {
+            *sum += v;
+            *range = (range.0.min(v), range.1.max(v));
+        }
+        block.y += v.target_dph;
+        block.count += 1;
+        out.runs = out.runs.max(v.run + 1);
+    };
+    train.for_each_sample(&mut visit)?;
+    if let Some(done) = current.take() {
+        out.push(done);
+    }
+    Ok(out)
+}
+
+impl ChannelBlocks {
+    /// Keeps `block` if it holds at least half its nominal samples.
+    fn push(&mut self, block: BlockSum) {
+        if block.count < block.min_count {
+            return;
+        }
+        let n = block.count as f64;
+        self.x.push(block.x.map(|v| v / n));
+        self.y.push(block.y / n);
+        self.run.push(block.key.0);
+    }
+}
+
+/// The weights by ridge regression of the block targets on an offset per
+/// run and the [`CHANNELS`] channels, the channels standardised, the
+/// penalty λ·n ([`RIDGE_LAMBDA`]) on the dynamic ones only.
+pub fn solve_weights(blocks: &ChannelBlocks) -> anyhow::Result<Weights> {
+    let statics = STATIC_DEGREE as usize;
+    let n = blocks.y.len();
+    let runs = blocks.runs.max(1);
+    let cols = runs + CHANNELS;
+    let mut a = DMatrix::<f64>::zeros(n, cols);
+    for (i, (x, &run)) in blocks.x.iter().zip(&blocks.run).enumerate() {
+        a[(i, run.min(runs - 1))] = 1.0;
+        for (c, v) in x.iter().enumerate() {
+            a[(i, runs + c)] = *v;
+        }
+    }
+    // Standardised channels: the penalty then weighs every dynamic column alike.
+    let mut mean = vec![0.0; cols];
+    let mut scale = vec![1.0; cols];
+    for c in runs..cols {
+        let col = a.column(c);
+        let m = col.mean();
+        let sd = (col.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n.max(1) as f64).sqrt();
+        mean[c] = m;
+        scale[c] = if sd > 0.0 { sd } else { 1.0 };
+        a.column_mut(c).iter_mut().for_each(|v| *v = (*v - m) / scale[c]);
+    }
+    let y = DVector::from_column_slice(&blocks.y);
+    let stats = GramStats::new(&a, &y);
+    let beta = ridge_solve_from(&stats, cols, RIDGE_LAMBDA, runs + statics)
+        .ok_or_else(|| anyhow::anyhow!("the response bank's regression is singular"))?;
+    let raw: Vec<f64> = (0..cols).map(|c| beta[c] / scale[c]).collect();
+    let shift: f64 = (runs..cols).map(|c| raw[c] * mean[c]).sum();
+    let mut blocks_of = vec![0usize; runs];
+    for &r in &blocks.run {
+        blocks_of[r.min(runs - 1)] += 1;
+    }
+    let constant_dph = (0..runs).map(|r| beta[r] * blocks_of[r] as f64).sum::<f64>() / n.max(1) as f64 - shift;
+    let mut bank = [[0.0f32; RESPONSE_FILTERS]; WEIGHT_ROWS];
+    for (m, row) in bank.iter_mut().skip(1).enumerate() {
+        for (k, w) in row.iter_mut().take(FILTERS).enumerate() {
+            *w = raw[runs + statics + m * FILTERS + k] as f32;
+        }
+    }
+    Ok(Weights {
+        constant_dph,
+        static_dph: std::array::from_fn(|p| raw[runs + p]),
+        bank,
+    })
+}
+
+/// The model of `bank` with the static coefficients and constant of `w`:
+/// a network of no centres whose linear layer takes the mixtures with
+/// weight 1; the training ranges those the runs' samples reached.
+fn model(bank: ResponseBank, w: &Weights, blocks: &ChannelBlocks, opts: &FitOptions) -> anyhow::Result<Model> {
+    let dims = bank.dims();
+    let statics = bank.static_inputs();
+    let mut linear: Vec<f32> = w.static_dph[..statics].iter().map(|&c| c as f32).collect();
+    linear.extend([1.0f32; MIXTURES]);
+    let net = RbfNetwork::new(&RbfParams {
+        offset: &vec![0.0; dims],
+        scale: &vec![1.0; dims],
+        kernel_inputs: 1,
+        centers: &[],
+        widths: &[],
+        weights: &[],
+        linear: &linear,
+        constant: w.constant_dph as f32,
+    })
+    .map_err(|e| anyhow::anyhow!("fitted network is not deployable: {e}"))?;
+    let ranges = input_ranges(&bank, blocks);
+    let info = ModelInfo {
+        serial: super::serial(opts)?,
+    };
+    Model::new(FeatureConfig::response_bank(bank), &ranges, ModelBody::Rbf(net), info)
+        .map_err(|e| anyhow::anyhow!("fitted model is not deployable: {e}"))
+}
+
+/// Training ranges of the bank's inputs: each static power over the values
+/// its samples took, each mixture over the interval sum of its weighted
+/// channels' per-sample ranges (no sample went beyond them).
+fn input_ranges(bank: &ResponseBank, blocks: &ChannelBlocks) -> Vec<(f32, f32)> {
+    let statics = STATIC_DEGREE as usize;
+    let mut ranges: Vec<(f64, f64)> = blocks.range.iter().take(statics).copied().collect();
+    for (m, row) in bank.weights.iter().skip(1).enumerate() {
+        let channel = &blocks.range[statics + m * FILTERS..statics + (m + 1) * FILTERS];
+        ranges.push(row.iter().zip(channel).fold((0.0, 0.0), |acc, (&w, &(lo, hi))| {
+            let (a, b) = (f64::from(w) * lo, f64::from(w) * hi);
+            (acc.0 + a.min(b), acc.1 + a.max(b))
+        }));
+    }
+    ranges.iter().map(|&(lo, hi)| (lo as f32, hi as f32)).collect()
+}
+
+/// The default's choice between the lag bank and the response bank.
+///
+/// The lag bank's grey box holds few parameters tied by physics, and where
+/// it represents a gyro it carries to in-use histories best; a coil unlike
+/// the one it encodes (several radial layers with their own Shupe residuals,
+/// a hub path, self-heating) it cannot follow even on its own training run.
+/// The free response bank then takes over, but only where the grey box
+/// misses the training run by a wide margin: its residual's 100-s cluster
+/// STD above 1/[`RESPONSE_BANK_MARGIN`] times the response bank's. Where
+/// both follow the run, the simpler structure is kept (docs/methods.md).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct StructureChoice {
+    /// The lag bank's residual 100-s cluster STD on the training runs, °/h.
+    pub lag_bank_std100_dph: f64,
+    /// The response bank's, °/h.
+    pub response_bank_std100_dph: f64,
+    /// The response bank was chosen.
+    pub response_bank: bool,
+}
+
+/// The response bank replaces the lag bank when its training residual is
+/// below this share of the lag bank's.
+pub const RESPONSE_BANK_MARGIN: f64 = 0.6;
+
+/// The response bank's forecast of the residual 100-s cluster STD on in-use
+/// histories, as a multiple of its training residual's. Its many weights
+/// follow the training run to its noise; in-use histories then measured
+/// 1.5–2.3 times that on the gyros of other designs (docs/methods.md, "The
+/// forecast"); held-out events of a chamber run forecast 4–6 times too much
+/// (a planned run holds each level once: its held-out part is unlike the rest).
+pub const IN_USE_FORECAST_FACTOR: f64 = 2.0;
+
+impl StructureChoice {
+    /// The forecast residual 100-s cluster STD on in-use histories of the
+    /// response bank, °/h ([`IN_USE_FORECAST_FACTOR`]).
+    pub fn response_bank_forecast_dph(&self) -> f64 {
+        IN_USE_FORECAST_FACTOR * self.response_bank_std100_dph
+    }
+
+    /// Compares `lag` and `response` on the training runs `train`.
+    pub fn compare<T: RunSet + ?Sized>(train: &T, lag: &Model, response: &Model, block_s: f64) -> anyhow::Result<Self> {
+        Ok(Self::from_residuals(
+            training_std100(train, lag, block_s)?,
+            training_std100(train, response, block_s)?,
+        ))
+    }
+
+    /// The choice from the two training residuals' 100-s cluster STDs, °/h.
+    pub fn from_residuals(lag_bank_std100_dph: f64, response_bank_std100_dph: f64) -> Self {
+        StructureChoice {
+            lag_bank_std100_dph,
+            response_bank_std100_dph,
+            response_bank: response_bank_std100_dph < RESPONSE_BANK_MARGIN * lag_bank_std100_dph,
+        }
+    }
+}
+
+/// The residual 100-s cluster STD of `model` on the block means of `train`
+/// (RMS over the runs), °/h. The models compared are linear in their inputs,
+/// so the block means of the inputs give the block means of the bias.
+fn training_std100<T: RunSet + ?Sized>(train: &T, model: &Model, block_s: f64) -> anyhow::Result<f64> {
+    let blocks = train.block_means(model.features(), block_s)?;
+    let dims = blocks.dims.min(rbf_core::MAX_INPUTS);
+    // A long run's blocks are merged: their length, not `block_s`, is the period.
+    let period_s = blocks.length_s(block_s);
+    let mut sum_sq = 0.0;
+    let mut runs = 0usize;
+    for run in 0..train.count() {
+        let rows: Vec<usize> = (0..blocks.len()).filter(|&i| blocks.run[i] == run).collect();
+        let time: Vec<f64> = rows
+            .iter()
+            .map(|&i| blocks.time_s.get(i).copied().unwrap_or(i as f64 * period_s))
+            .collect();
+        let residual: Vec<f64> = rows
+            .iter()
+            .map(|&i| {
+                let x: Vec<f32> = blocks.x[i][..dims].iter().map(|&v| v as f32).collect();
+                blocks.y[i] - f64::from(model.eval(&rbf_core::FeatureVector::from_values(&x)).bias_dph)
+            })
+            .collect();
+        let std = crate::metrics::cluster_std(&time, &residual, period_s);
+        if std.is_finite() {
+            sum_sq += std * std;
+            runs += 1;
+        }
+    }
+    anyhow::ensure!(runs > 0, "no training run is long enough for a 100-s cluster STD");
+    Ok((sum_sq / runs as f64).sqrt())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_filters_span_ten_seconds_to_eleven_hours_evenly_on_a_log_scale() {
+        let t = taus_s();
+        assert!(
+            (t[0] - 10.0).abs() < 1e-4 && (t[FILTERS - 1] - 39_600.0).abs() < 0.05,
+            "{t:?}"
+        );
+        let ratio = t[1] / t[0];
+        assert!(t.windows(2).all(|w| (w[1] / w[0] - ratio).abs() < 1e-4 * ratio));
+    }
+
+    #[test]
+    fn the_regression_recovers_a_static_cubic_a_filtered_power_and_an_offset_per_run() {
+        // Targets of the model's form plus noise, the channels independent of
+        // the temperature: the static part comes back closely (unpenalised),
+        // each run's offset is its own, the responses come back slightly
+        // shrunk by the ridge and the other weights stay small.
+        let mut state = 7u32;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            f64::from(state) / f64::from(u32::MAX) - 0.5
+        };
+        let statics = STATIC_DEGREE as usize;
+        let mut blocks = ChannelBlocks {
+            runs: 2,
+            range: vec![(-1.0, 1.0); CHANNELS],
+            ..ChannelBlocks::default()
+        };
+        for i in 0..6000 {
+            let run = i / 3000;
+            let u = 30.0 * (i as f64 / 300.0).sin();
+            let mut x = [0.0; CHANNELS];
+            x[..statics].copy_from_slice(&[u, u * u, u * u * u]);
+            for v in x.iter_mut().skip(statics) {
+                *v = uniform();
+            }
+            let h2 = statics + 3 * FILTERS + 5;
+            let r0 = statics + 2;
+            let offset = [0.5, -0.25][run];
+            let y = offset + 0.02 * u - 0.001 * u * u + 2e-5 * u.powi(3) + 0.3 * x[r0] - 0.2 * x[h2] + 0.01 * uniform();
+            blocks.x.push(x);
+            blocks.y.push(y);
+            blocks.run.push(run);
+        }
+        let w = solve_weights(&blocks).unwrap();
+        for (c, e) in w.static_dph.iter().zip([0.02, -0.001, 2e-5]) {
+            assert!((c - e).abs() < 1e-6 + 1e-3 * e.abs(), "{:?}", w.static_dph);
+        }
+        assert!(
+            (w.constant_dph - 0.125).abs() < 2e-3,
+            "c₀ = {} (the runs' offsets averaged)",
+            w.constant_dph
+        );
+        assert!(w.bank[0].iter().all(|&a| a == 0.0), "no coil lag");
+        for (m, row) in w.bank.iter().enumerate().skip(1) {
+            for (k, &b) in row.iter().enumerate() {
+                let want = match (m, k) {
+                    (1, 2) => 0.3,
+                    (4, 5) => -0.2,
+                    _ => 0.0,
+                };
+                assert!((f64::from(b) - want).abs() < 0.01, "row {m} filter {k}: {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_response_bank_replaces_the_lag_bank_only_where_the_lag_bank_misses_its_run() {
+        let choice = StructureChoice::from_residuals;
+        assert!(choice(0.02, 0.006).response_bank, "the grey box misses its run by 3×");
+        assert!(
+            !choice(0.006, 0.0058).response_bank,
+            "both follow the run: the grey box stays"
+        );
+        assert!(!choice(0.01, 0.0061).response_bank, "a 1.6× gap is not wide enough");
+        assert!(!choice(0.006, 0.017).response_bank);
+    }
+}

@@ -1,0 +1,120 @@
+//! `cargo xtask bench-designs`: the default `trainer fit` on recorded gyros
+//! of other designs (a directory of `NAME_planned.csv`, `NAME_cycle.csv`,
+//! `NAME_random.csv`, `NAME_field.csv`, as ../shared/data/other-designs
+//! holds): each design trained on its planned run and on its cycle, verified
+//! on its two in-use histories by the 100-s cluster STD against `ref_dph`,
+//! beside the forecast the fit wrote (`predicted_in_use_std100_dph`).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use trainer::metrics::{cluster_std, improvement_pct};
+
+use super::in_use::read_columns;
+use super::{path, run_tool};
+
+/// The chamber runs a design is trained on, in print order.
+const TRAININGS: [&str; 2] = ["planned", "cycle"];
+/// The in-use histories a design is verified on.
+const IN_USE: [&str; 2] = ["random", "field"];
+
+/// Fits, compensates and scores every design in `dir` with `trainer`; prints
+/// one line per design and training run, then the means.
+pub fn bench_designs(dir: &Path, trainer: &Path) -> anyhow::Result<()> {
+    let mut designs: Vec<String> = std::fs::read_dir(dir)
+        .with_context(|| format!("cannot read {}", dir.display()))?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| e.file_name().to_str()?.strip_suffix("_planned.csv").map(str::to_owned))
+        .collect();
+    designs.sort();
+    anyhow::ensure!(!designs.is_empty(), "{}: no NAME_planned.csv", dir.display());
+    let work = tempfile::TempDir::new().context("cannot create a working directory")?;
+    println!(
+        "designs in {} (judged: {} fit, default model)",
+        dir.display(),
+        trainer.display()
+    );
+    println!(
+        "{:<10} {:<8} {:>9} {:>9} {:>9} {:>13} {:>13}  structure",
+        "design", "trained", "random %", "field %", "mean %", "forecast °/h", "measured °/h"
+    );
+    let mut means = [Vec::new(), Vec::new()];
+    for design in &designs {
+        let file = |kind: &str| dir.join(format!("{design}_{kind}.csv"));
+        for (t, training) in TRAININGS.iter().enumerate() {
+            let model = work.path().join(format!("{design}_{training}.bin"));
+            let json = work.path().join(format!("{design}_{training}.json"));
+            run_tool(
+                trainer,
+                &[
+                    "fit",
+                    "-q",
+                    path(&file(training)),
+                    "-o",
+                    path(&model),
+                    "--json",
+                    path(&json),
+                ],
+            )?;
+            let fit: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
+            let forecast = fit["predicted_in_use_std100_dph"].as_f64();
+            let structure = match fit["structure"]["response_bank"].as_bool() {
+                Some(true) => "response bank",
+                Some(false) => "lag bank",
+                None => "-",
+            };
+            let mut scores = Vec::new();
+            let mut residuals = Vec::new();
+            for history in IN_USE {
+                let out: PathBuf = work.path().join(format!("{design}_{training}_{history}.csv"));
+                run_tool(
+                    trainer,
+                    &[
+                        "compensate",
+                        "--model",
+                        path(&model),
+                        path(&file(history)),
+                        "-o",
+                        path(&out),
+                    ],
+                )?;
+                let c = read_columns(&out, &["time_s", "rate_dph", "ref_dph", "rate_comp_dph"])?;
+                let period_s = c[0].get(1).zip(c[0].first()).map_or(1.0, |(b, a)| b - a);
+                let before: Vec<f64> = c[1].iter().zip(&c[2]).map(|(r, q)| r - q).collect();
+                let after: Vec<f64> = c[3].iter().zip(&c[2]).map(|(r, q)| r - q).collect();
+                let (b, a) = (
+                    cluster_std(&c[0], &before, period_s),
+                    cluster_std(&c[0], &after, period_s),
+                );
+                scores.push(improvement_pct(b, a));
+                residuals.push(a);
+            }
+            let mean = scores.iter().sum::<f64>() / scores.len() as f64;
+            means[t].push(mean);
+            println!(
+                "{:<10} {:<8} {:>9.1} {:>9.1} {:>9.1} {:>13} {:>13}  {}",
+                design,
+                training,
+                scores[0],
+                scores[1],
+                mean,
+                forecast.map_or("-".into(), |f| format!("{f:.4}")),
+                residuals
+                    .iter()
+                    .map(|r| format!("{r:.4}"))
+                    .collect::<Vec<_>>()
+                    .join("/"),
+                structure
+            );
+        }
+    }
+    for (training, m) in TRAININGS.iter().zip(&means) {
+        let worst = m.iter().copied().fold(f64::INFINITY, f64::min);
+        println!(
+            "trained on the {training}: mean of the designs' means {:.1} %, worst design {:.1} %",
+            m.iter().sum::<f64>() / m.len() as f64,
+            worst
+        );
+    }
+    Ok(())
+}
