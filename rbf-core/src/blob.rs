@@ -821,13 +821,17 @@ mod tests {
         assert_eq!(encoded(&decoded.model), blob, "re-encodes to the same bytes");
         assert_every_bit_flip_refused(&blob, decode);
         garbage_never_panics(&blob, 0x0bad_cafe, 5_000, 4, decode);
-        // The set's tag (variant 8, after the lag bank's 7), then the 12 time
-        // constants, then the filter count.
+        // The set's tag (variant 8, after the lag bank's 7), then the filter
+        // count, the static degree, T₀ and the range, the 12 time constants.
         assert_eq!(blob[HEADER_LEN], 8);
-        let filters_at = HEADER_LEN + 1 + crate::response_bank::RESPONSE_FILTERS * 4;
-        assert_eq!(blob[filters_at], 11);
-        // An invalid bank with a good CRC: refused for its parameters.
-        for (at, byte) in [(filters_at, 13), (filters_at, 0), (HEADER_LEN + 1 + 11 * 4 + 3, 0x3f)] {
+        let filters_at = HEADER_LEN + 1;
+        assert_eq!(blob[filters_at..filters_at + 2], [11, 4]);
+        assert_eq!(blob[filters_at + 2..filters_at + 6], 22.5f32.to_le_bytes());
+        let taus_at = filters_at + 2 + 3 * 4;
+        assert_eq!(blob[taus_at..taus_at + 4], 10.0f32.to_le_bytes());
+        // An invalid bank with a good CRC: refused for its parameters (too
+        // many filters, none, an unused time constant not 0).
+        for (at, byte) in [(filters_at, 13), (filters_at, 0), (taus_at + 11 * 4 + 3, 0x3f)] {
             let mut v = blob.clone();
             v[at] = byte;
             reseal(&mut v);

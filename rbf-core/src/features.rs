@@ -55,13 +55,14 @@ use serde::{Deserialize, Serialize};
 
 use crate::MAX_INPUTS;
 pub use crate::lag_bank::{BANK_FILTERS, BankInput, GainOf, LagBank};
-pub use crate::response_bank::{POWER_RESPONSES, RESPONSE_FILTERS, ResponseBank, ResponseInput};
+use crate::response_bank::{BANK_SIGNALS, WEIGHT_ROWS};
+pub use crate::response_bank::{BankChannels, BankFilters, RESPONSE_FILTERS, ResponseBank, ResponseInput};
 
-/// Derivative filters the extractor runs at most: a response bank's
-/// ([`RESPONSE_FILTERS`]), more than a lag bank's ([`BANK_FILTERS`]) and the
-/// multi-scale sets' [`WINDOWS`].
-const FILTERS: usize = RESPONSE_FILTERS;
-const _: () = assert!(BANK_FILTERS <= FILTERS && WINDOWS <= FILTERS);
+/// Derivative filters of the loop temperature the extractor runs for every
+/// set but the response bank (which runs its own, [`BankFilters`]): a lag
+/// bank's ([`BANK_FILTERS`]), more than the multi-scale sets' [`WINDOWS`].
+const FILTERS: usize = BANK_FILTERS;
+const _: () = assert!(WINDOWS <= FILTERS);
 /// Most inputs of a multi-point model (the RLG method's thermometer selection);
 /// its blob encoding holds exactly this many probe slots.
 pub const MAX_PROBES: usize = 8;
@@ -252,7 +253,7 @@ pub enum FeatureSet {
 
 impl FeatureSet {
     /// Number of model inputs this set produces.
-    pub const fn dims(self) -> usize {
+    pub const fn dims(&self) -> usize {
         match self {
             FeatureSet::Temp => 1,
             FeatureSet::TempRate => 2,
@@ -265,7 +266,7 @@ impl FeatureSet {
     }
 
     /// Number of ΔT derivative filters the set uses.
-    pub const fn windows(self) -> usize {
+    pub const fn windows(&self) -> usize {
         match self {
             FeatureSet::Temp | FeatureSet::MultiPoint(_) => 0,
             FeatureSet::TempRate | FeatureSet::TempRateProduct => 1,
@@ -276,7 +277,7 @@ impl FeatureSet {
     }
 
     /// True for the sets over three ΔT time scales.
-    pub const fn is_multiscale(self) -> bool {
+    pub const fn is_multiscale(&self) -> bool {
         matches!(
             self,
             FeatureSet::MultiScale | FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. }
@@ -285,7 +286,7 @@ impl FeatureSet {
 
     /// The thermometers the inputs read, as a bit mask (bit i = thermometer i):
     /// the loop thermometer alone for the single-point sets.
-    pub fn thermometer_mask(self) -> u8 {
+    pub fn thermometer_mask(&self) -> u8 {
         match self {
             FeatureSet::MultiPoint(probes) => probes.thermometer_mask(),
             _ => 1 << LOOP_THERMOMETER,
@@ -295,7 +296,7 @@ impl FeatureSet {
     /// The thermometer whose reading a compensated sample reports as its
     /// temperature: the loop thermometer, or for a multi-point set the first
     /// thermometer its first input reads.
-    pub fn reference_thermometer(self) -> usize {
+    pub fn reference_thermometer(&self) -> usize {
         match self {
             FeatureSet::MultiPoint(probes) => match probes.as_slice().first() {
                 Some(Probe::Temp(i) | Probe::Gradient(i, _)) => *i as usize,
@@ -306,7 +307,7 @@ impl FeatureSet {
     }
 
     /// The name of input `i` with its unit, for reports (`None` past the last input).
-    pub fn name(self, i: usize) -> Option<InputName> {
+    pub fn name(&self, i: usize) -> Option<InputName> {
         match self {
             FeatureSet::MultiPoint(probes) => probes.as_slice().get(i).copied().map(InputName::Probe),
             FeatureSet::LagBank(bank) => bank.input(i).map(InputName::Bank),
@@ -321,7 +322,7 @@ impl FeatureSet {
     }
 
     /// Names of the single-point inputs with units.
-    const fn fixed_names(self) -> &'static [&'static str] {
+    const fn fixed_names(&self) -> &'static [&'static str] {
         match self {
             FeatureSet::Temp => &["T [°C]"],
             FeatureSet::TempRate => &["T [°C]", "ΔT [°C/min]"],
@@ -445,21 +446,16 @@ impl FeatureConfig {
         }
     }
 
-    /// The time constants of every derivative filter the set runs, s, and
-    /// their number: a bank's filters, else the ΔT windows.
-    #[inline(always)]
-    pub fn filter_taus_s(&self) -> ([f32; FILTERS], usize) {
-        let mut taus = [0.0; FILTERS];
-        match self.set {
-            FeatureSet::LagBank(bank) => {
-                for (t, b) in taus.iter_mut().zip(bank.taus_s) {
-                    *t = b;
-                }
-            }
-            FeatureSet::ResponseBank(bank) => taus = bank.taus_s,
-            _ => taus[..WINDOWS].copy_from_slice(&self.windows_s()),
-        }
-        (taus, self.set.windows().min(FILTERS))
+    /// The time constants of every derivative filter the set runs, s,
+    /// fastest first: a bank's filters, else the ΔT windows in use.
+    pub fn filter_taus_s(&self) -> heapless::Vec<f32, RESPONSE_FILTERS> {
+        let windows_s = self.windows_s();
+        let taus: &[f32] = match &self.set {
+            FeatureSet::LagBank(bank) => bank.taus(),
+            FeatureSet::ResponseBank(bank) => bank.taus(),
+            set => windows_s.get(..set.windows()).unwrap_or(&[]),
+        };
+        taus.iter().copied().collect()
     }
 
     /// Number of model inputs.
@@ -547,12 +543,16 @@ impl FeatureVector {
         if matches!(set, FeatureSet::MultiPoint(_)) {
             return None;
         }
+        let values = match &set {
+            FeatureSet::ResponseBank(bank) => {
+                let mut values = [0.0; MAX_INPUTS];
+                bank.settled_inputs(temp_c, rate_c_per_min, &mut values);
+                values
+            }
+            _ => assemble(&set, &[rate_c_per_min; FILTERS], &loop_reading(temp_c)),
+        };
         Some(FeatureVector {
-            values: assemble(
-                set,
-                &FilterChannels::settled(set, temp_c, rate_c_per_min),
-                &loop_reading(temp_c),
-            ),
+            values,
             reference_temp_c: temp_c,
             len: set.dims() as u8,
             warming_up: false,
@@ -575,14 +575,7 @@ impl FeatureVector {
         let mut rates = [0.0; FILTERS];
         rates[..WINDOWS].copy_from_slice(&[fast, slow, slowest]);
         Some(FeatureVector {
-            values: assemble(
-                to,
-                &FilterChannels {
-                    rate_c_per_min: rates,
-                    ..FilterChannels::default()
-                },
-                &loop_reading(self.reference_temp_c),
-            ),
+            values: assemble(&to, &rates, &loop_reading(self.reference_temp_c)),
             len: to.dims() as u8,
             ..*self
         })
@@ -596,8 +589,10 @@ impl FeatureVector {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct FeatureExtractor {
     smoothed_c: [f32; FILTERS],
-    /// The filters' state for a response bank's powers of T.
-    power_smoothed: [[f32; FILTERS]; POWER_RESPONSES],
+    /// A response bank's filters (its own: three signals, twelve filters).
+    bank: BankFilters,
+    /// A response bank's filter outputs of the last sample.
+    bank_channels: BankChannels,
     since_restart_s: f32,
     started: bool,
 }
@@ -607,7 +602,12 @@ impl FeatureExtractor {
     pub const fn new() -> Self {
         FeatureExtractor {
             smoothed_c: [0.0; FILTERS],
-            power_smoothed: [[0.0; FILTERS]; POWER_RESPONSES],
+            bank: BankFilters {
+                smoothed: [[0.0; RESPONSE_FILTERS]; BANK_SIGNALS],
+            },
+            bank_channels: BankChannels {
+                rates: [[0.0; RESPONSE_FILTERS]; BANK_SIGNALS],
+            },
             since_restart_s: 0.0,
             started: false,
         }
@@ -626,114 +626,81 @@ impl FeatureExtractor {
     /// (index [`LOOP_THERMOMETER`] is the fiber loop); those the set reads
     /// ([`FeatureSet::thermometer_mask`]) must be finite (the compensator
     /// guarantees it by holding the last good values), the others are ignored.
+    #[inline(always)]
     pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temps_c: &[f32; THERMOMETERS]) -> FeatureVector {
-        self.step(config, dt_s, temps_c).0
+        let temp_c = temps_c[LOOP_THERMOMETER];
+        let restart = !(self.started && dt_s.is_finite() && dt_s > 0.0);
+        if restart {
+            self.started = true;
+            self.since_restart_s = 0.0;
+        } else {
+            self.since_restart_s += dt_s;
+        }
+        let values = match &config.set {
+            // The response bank runs its own filters, read and mixed in one pass.
+            FeatureSet::ResponseBank(bank) => {
+                let mut values = [0.0; MAX_INPUTS];
+                if restart {
+                    self.bank = bank.start(temp_c);
+                    self.bank_channels = BankChannels::default();
+                    let (powers, uc) = bank.powers(temp_c);
+                    bank.inputs(powers, uc, [0.0; WEIGHT_ROWS], &mut values);
+                } else {
+                    bank.step(temp_c, dt_s, &mut self.bank, &mut self.bank_channels, &mut values);
+                }
+                values
+            }
+            set => {
+                // A lag bank's time constants are read where the model keeps
+                // them (no copy of the set per sample); the ΔT windows are three values.
+                let windows_s;
+                let taus: &[f32] = match set {
+                    FeatureSet::LagBank(bank) => bank.taus(),
+                    _ => {
+                        windows_s = config.windows_s();
+                        windows_s.get(..set.windows()).unwrap_or(&[])
+                    }
+                };
+                let mut rate_c_per_min = [0.0f32; FILTERS];
+                if restart {
+                    self.smoothed_c = [temp_c; FILTERS];
+                } else {
+                    for ((smoothed, out), &tau_s) in self.smoothed_c.iter_mut().zip(rate_c_per_min.iter_mut()).zip(taus)
+                    {
+                        let rate = (temp_c - *smoothed) / (tau_s + dt_s);
+                        // τ = 0 is exactly the one-sample difference: keep S = T bit for bit.
+                        *smoothed = if tau_s == 0.0 { temp_c } else { *smoothed + dt_s * rate };
+                        *out = rate * SECONDS_PER_MINUTE;
+                    }
+                }
+                assemble(set, &rate_c_per_min, temps_c)
+            }
+        };
+        let warming_up = self.since_restart_s == 0.0 || self.since_restart_s < config.warmup_s();
+        let reference_temp_c = temps_c
+            .get(config.set.reference_thermometer())
+            .copied()
+            .unwrap_or(f32::NAN);
+        FeatureVector {
+            values,
+            reference_temp_c,
+            len: config.dims() as u8,
+            warming_up,
+        }
     }
 
-    /// [`Self::update`], with the filters' outputs the inputs were made of:
-    /// what the trainer identifies a response bank's weights from, computed
-    /// by the very arithmetic the firmware runs.
+    /// [`Self::update`], with a response bank's filter outputs the inputs
+    /// were mixed from (zero for the other sets): what the trainer
+    /// identifies a response bank's weights from, computed by the very
+    /// arithmetic the firmware runs.
     pub fn update_with_channels(
         &mut self,
         config: &FeatureConfig,
         dt_s: f32,
         temps_c: &[f32; THERMOMETERS],
-    ) -> (FeatureVector, FilterChannels) {
-        self.step(config, dt_s, temps_c)
-    }
-
-    #[inline(always)]
-    fn step(
-        &mut self,
-        config: &FeatureConfig,
-        dt_s: f32,
-        temps_c: &[f32; THERMOMETERS],
-    ) -> (FeatureVector, FilterChannels) {
-        let temp_c = temps_c[LOOP_THERMOMETER];
-        let (taus, windows) = config.filter_taus_s();
-        let mut channels = FilterChannels::default();
-        // The powers of T a response bank also filters (none for the other sets).
-        let powers = match config.set {
-            FeatureSet::ResponseBank(bank) => Some(bank.loop_powers(temp_c)),
-            _ => None,
-        };
-        if !(self.started && dt_s.is_finite() && dt_s > 0.0) {
-            self.started = true;
-            self.since_restart_s = 0.0;
-            self.smoothed_c = [temp_c; FILTERS];
-            if let Some(p) = powers {
-                self.power_smoothed = p.map(|v| [v; FILTERS]);
-            }
-        } else {
-            for ((smoothed, out), tau_s) in self
-                .smoothed_c
-                .iter_mut()
-                .zip(channels.rate_c_per_min.iter_mut())
-                .zip(taus)
-                .take(windows)
-            {
-                let rate = (temp_c - *smoothed) / (tau_s + dt_s);
-                // τ = 0 is exactly the one-sample difference: keep S = T bit for bit.
-                *smoothed = if tau_s == 0.0 { temp_c } else { *smoothed + dt_s * rate };
-                *out = rate * SECONDS_PER_MINUTE;
-            }
-            if let Some(p) = powers {
-                for ((smoothed, rates), value) in self.power_smoothed.iter_mut().zip(&mut channels.power_rates).zip(p) {
-                    for ((s, r), tau_s) in smoothed.iter_mut().zip(rates.iter_mut()).zip(taus).take(windows) {
-                        let rate = (value - *s) / (tau_s + dt_s);
-                        *s += dt_s * rate;
-                        *r = rate * SECONDS_PER_MINUTE;
-                    }
-                }
-            }
-            self.since_restart_s += dt_s;
-        }
-        let warming_up = self.since_restart_s == 0.0 || self.since_restart_s < config.warmup_s();
-
-        let values = assemble(config.set, &channels, temps_c);
-        let reference_temp_c = temps_c
-            .get(config.set.reference_thermometer())
-            .copied()
-            .unwrap_or(f32::NAN);
-        (
-            FeatureVector {
-                values,
-                reference_temp_c,
-                len: config.dims() as u8,
-                warming_up,
-            },
-            channels,
-        )
-    }
-}
-
-/// The outputs of the derivative filters for one sample: the loop
-/// temperature's rates and, for a response bank, the rates of its powers.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct FilterChannels {
-    /// ΔT_k, °C/min (0 for filters the set does not run).
-    pub rate_c_per_min: [f32; FILTERS],
-    /// ΔP_q,k of the powers (T − T₀)², (T − T₀)³ ([`ResponseBank::loop_powers`]), °C^q/min.
-    pub power_rates: [[f32; FILTERS]; POWER_RESPONSES],
-}
-
-impl FilterChannels {
-    /// Every filter of `set` reading a steady ramp of `rate_c_per_min` at
-    /// loop temperature `temp_c`: the powers' rates are their derivatives,
-    /// q·(T − T₀)^(q−1)·rate inside the covered range (their tangent's slope beyond).
-    fn settled(set: FeatureSet, temp_c: f32, rate_c_per_min: f32) -> Self {
-        let mut channels = FilterChannels {
-            rate_c_per_min: [rate_c_per_min; FILTERS],
-            ..FilterChannels::default()
-        };
-        if let FeatureSet::ResponseBank(bank) = set {
-            let uc = crate::model::clamp(temp_c, bank.coil_min_c, bank.coil_max_c) - bank.ref_c;
-            channels.power_rates = [
-                [2.0 * uc * rate_c_per_min; FILTERS],
-                [3.0 * uc * uc * rate_c_per_min; FILTERS],
-            ];
-        }
-        channels
+    ) -> (FeatureVector, BankChannels) {
+        let features = self.update(config, dt_s, temps_c);
+        (features, self.bank_channels)
     }
 }
 
@@ -748,8 +715,7 @@ fn padded(v: [f32; 8]) -> [f32; MAX_INPUTS] {
 /// for the multi-scale sets), and the thermometer readings, °C: the one place
 /// each set's inputs are defined.
 #[inline(always)]
-fn assemble(set: FeatureSet, channels: &FilterChannels, temps_c: &[f32; THERMOMETERS]) -> [f32; MAX_INPUTS] {
-    let rate_c_per_min = channels.rate_c_per_min;
+fn assemble(set: &FeatureSet, rate_c_per_min: &[f32; FILTERS], temps_c: &[f32; THERMOMETERS]) -> [f32; MAX_INPUTS] {
     let temp_c = temps_c[LOOP_THERMOMETER];
     let mut values = [0.0; MAX_INPUTS];
     values[0] = temp_c;
@@ -762,7 +728,7 @@ fn assemble(set: FeatureSet, channels: &FilterChannels, temps_c: &[f32; THERMOME
         }
         FeatureSet::MultiScale => {
             // Built whole (not slot by slot): no partial stores read back as a vector.
-            let [fast, slow, slowest, ..] = rate_c_per_min;
+            let [fast, slow, slowest, ..] = *rate_c_per_min;
             values = padded([
                 temp_c,
                 fast,
@@ -778,9 +744,9 @@ fn assemble(set: FeatureSet, channels: &FilterChannels, temps_c: &[f32; THERMOME
             // Written out apart from the first-order arm on purpose: one arm for
             // both sets with a shared prefix cost the firmware's whole step about
             // 96 instructions more (`cargo xtask bench-fw`).
-            let [fast, slow, slowest, ..] = rate_c_per_min;
+            let [fast, slow, slowest, ..] = *rate_c_per_min;
             // The lagged set's first input: T̄ = T − L·ΔT₃, the mean coil temperature.
-            let first = match set {
+            let first = match *set {
                 FeatureSet::MultiScaleLagged { coil_lag_min } => temp_c - f32::from(coil_lag_min) * slowest,
                 _ => temp_c,
             };
@@ -800,12 +766,13 @@ fn assemble(set: FeatureSet, channels: &FilterChannels, temps_c: &[f32; THERMOME
                 *v = p.value(temps_c);
             }
         }
-        FeatureSet::LagBank(bank) => {
-            if let Some(rates) = rate_c_per_min.first_chunk::<BANK_FILTERS>() {
-                bank.inputs(temp_c, rates, &mut values);
-            }
+        FeatureSet::LagBank(bank) => bank.inputs(temp_c, rate_c_per_min, &mut values),
+        // A response bank runs its own filters ([`ResponseBank::step`]);
+        // from the loop temperature's rates alone: its inputs at rest.
+        FeatureSet::ResponseBank(bank) => {
+            let (powers, uc) = bank.powers(temp_c);
+            bank.inputs(powers, uc, [0.0; WEIGHT_ROWS], &mut values);
         }
-        FeatureSet::ResponseBank(bank) => bank.inputs(temp_c, &rate_c_per_min, &channels.power_rates, &mut values),
     }
     values
 }
@@ -1028,9 +995,9 @@ mod tests {
     fn a_response_bank_runs_all_its_filters_and_warms_up_over_three_of_its_fastest() {
         let taus: Vec<f32> = (1..=RESPONSE_FILTERS).map(|k| 4.0 * k as f32).collect();
         let mut bank = ResponseBank::new(&taus, 10.0, 0.0, 100.0, 1).unwrap();
-        bank.weights[1] = [1.0 / RESPONSE_FILTERS as f32; RESPONSE_FILTERS];
-        bank.weights[2][RESPONSE_FILTERS - 1] = 1.0;
-        bank.weights[4][RESPONSE_FILTERS - 1] = 1.0;
+        bank.weights[0] = [1.0 / RESPONSE_FILTERS as f32; RESPONSE_FILTERS];
+        bank.weights[1][RESPONSE_FILTERS - 1] = 1.0;
+        bank.weights[3][RESPONSE_FILTERS - 1] = 1.0;
         let cfg = FeatureConfig::response_bank(bank);
         assert!(cfg.is_valid());
         assert_eq!(cfg.warmup_s(), 12.0);
@@ -1044,20 +1011,20 @@ mod tests {
             }
         }
         assert_eq!(settled_at, Some(12));
-        // Every filter reads the ramp: R₀ is their mean, R₁ the slowest's times û.
+        // Every filter reads the ramp: R₀ is their mean, R₁ the slowest's times u.
         let [u, r0, r1] = [0, 1, 2].map(|i| last.as_slice()[i]);
         assert_eq!(last.as_slice().len(), 6);
         assert!((r0 - 1.5).abs() < 1e-3, "R₀ = {r0}");
-        assert!((r1 - 1.5 * u).abs() < 1e-3 * u, "û_c·R₁ = {r1}, û = {u}");
-        assert!((u - 75.0).abs() < 1e-3, "û = {u}");
-        // H₂: the square's rate, d(û²)/dt = 2û·1.5 °C/min, less its lag (the slowest τ at 1.5 °C/min).
+        assert!((r1 - 1.5 * u).abs() < 1e-3 * u, "u_c·R₁ = {r1}, u = {u}");
+        assert!((u - 75.0).abs() < 1e-3, "u = {u}");
+        // H₂: the square's rate, d(u²)/dt = 2u·1.5 °C/min, less its lag (the slowest τ at 1.5 °C/min).
         let h2 = last.as_slice()[4];
         let slowest_s = 4.0 * RESPONSE_FILTERS as f32;
         assert!(
             (h2 - 2.0 * (u - 1.5 * slowest_s / 60.0) * 1.5).abs() < 0.05,
             "H₂ = {h2}"
         );
-        assert_eq!(last.as_slice()[5], 0.0, "row 5 is zero");
+        assert_eq!(last.as_slice()[5], 0.0, "row 4 is zero");
         assert_eq!(cfg.set.names().count(), 6);
         let mut wrong = cfg;
         wrong.rate_window_s = 5.0;

@@ -206,7 +206,7 @@ impl<const K: usize> Model<K> {
         let body_dims = match &self.body {
             ModelBody::Rbf(net) => net.inputs_used(),
             ModelBody::Poly3(_) => {
-                if features.set != FeatureSet::Temp {
+                if !matches!(features.set, FeatureSet::Temp) {
                     return Err(ModelError::ShapeMismatch);
                 }
                 1

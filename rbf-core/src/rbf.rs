@@ -261,6 +261,29 @@ fn exp2_term<const M: usize, const ADD_Q: bool>(
     crate::fastmath::exp2_neg_q16(table, v)
 }
 
+/// The largest ⌈log₂ |w|⌉ over the nonzero `weights`, exactly, from their
+/// bits: the exponent, one more where the significand is not a power of
+/// two. `None` when every weight is 0 or one is ±∞ or NaN. Integer work in
+/// one rolled loop: `libm::log2` and `ceil` in f64 cost a board image
+/// almost a kilobyte of flash for this one use at model install.
+#[inline(never)]
+fn max_ceil_log2_abs(weights: &[f32]) -> Option<i32> {
+    let mut max = None;
+    for w in weights {
+        let bits = w.to_bits() & 0x7FFF_FFFF;
+        let (biased, significand) = ((bits >> 23) as i32, bits & 0x007F_FFFF);
+        let e = match biased {
+            _ if bits == 0 => continue,
+            0xFF => return None,
+            // Subnormal: |w| = significand · 2^−149.
+            0 => 31 - significand.leading_zeros() as i32 - 149 + i32::from(!significand.is_power_of_two()),
+            _ => biased - 127 + i32::from(significand != 0),
+        };
+        max = Some(max.map_or(e, |m: i32| m.max(e)));
+    }
+    max
+}
+
 /// 2^n for an integer-valued `n`, exactly `libm::exp2(n) as f32` (0 below
 /// 2^−149, +∞ above 2^127) built in the exponent bits: libm's exp2 would
 /// bring a 4 KiB table into the firmware for a power of two.
@@ -527,15 +550,13 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         let shared = widths
             .first()
             .is_some_and(|w0| widths.iter().all(|w| w.to_bits() == w0.to_bits()));
-        let max_log2_w = weights
-            .iter()
-            .filter(|w| **w != 0.0)
-            .map(|w| libm::log2(f64::from(*w).abs()))
-            .fold(f64::NEG_INFINITY, f64::max);
-        if !shared || m > TABLE_MAX_INPUTS || !max_log2_w.is_finite() {
+        let Some(e) = max_ceil_log2_abs(weights) else {
+            return;
+        };
+        if !shared || m > TABLE_MAX_INPUTS {
             return;
         }
-        let e = libm::ceil(max_log2_w);
+        let e = f64::from(e);
         let sigma = f64::from(widths.first().copied().unwrap_or(1.0));
         let s = core::f64::consts::LOG2_E / (2.0 * sigma * sigma);
         let (u_one, q_one) = (f64::from(1u32 << U_FRAC), f64::from(1u32 << 31));
@@ -723,6 +744,11 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
 
     /// The Gaussian sum of [`Self::eval`], °/h.
     fn polynomial_gaussians(&self, x_kernel: &[f32]) -> f32 {
+        let k = self.centers_used.min(K);
+        if k == 0 {
+            // A network of linear terms alone (a response bank's): nothing to normalise.
+            return 0.0;
+        }
         let m = self.kernel_inputs.min(D);
         let mut z = [0.0f32; D];
         for (((zi, x), o), s) in z
@@ -735,7 +761,6 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
             *zi = (x - o) * s;
         }
         let z = z.get(..m).unwrap_or(&[]);
-        let k = self.centers_used.min(K);
         let mut sum = 0.0f32;
         for ((c, w), g) in self
             .centers

@@ -44,7 +44,7 @@ pub fn response_bank(bank: &ResponseBank) -> String {
         }
     };
     format!(
-        "thermal response bank, {} filters {} … {}, static {} in T̂ about T₀ = {} °C",
+        "thermal response bank, {} filters {} … {}, static {} in T about T₀ = {} °C",
         taus.len(),
         taus.first().map_or_else(String::new, |&t| span(t)),
         taus.last().map_or_else(String::new, |&t| span(t)),

@@ -190,7 +190,7 @@ mod board {
 
     /// A response-bank model as `trainer fit` writes them: 12 filters
     /// (10 s … 11 h), a static cubic, no centres, the linear layer
-    /// [c₁ … c₃, 1, 1, 1, 1, 1], every weight row but the coil lags in use.
+    /// [c₁ … c₃, 1, 1, 1, 1, 1], every weight row in use.
     fn response_bank_model() -> Model {
         const USED: usize = 12;
         let mut taus = [0.0f32; USED];
@@ -200,7 +200,7 @@ mod board {
             tau *= 2.124;
         }
         let mut bank = ResponseBank::new(&taus, 25.0, -10.0, 60.0, 3).expect("valid bank");
-        for (j, row) in bank.weights.iter_mut().enumerate().skip(1) {
+        for (j, row) in bank.weights.iter_mut().enumerate() {
             for (k, w) in row.iter_mut().take(USED).enumerate() {
                 *w = 0.01 * (j as f32 + 1.0) - 0.001 * k as f32;
             }

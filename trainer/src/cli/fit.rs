@@ -650,8 +650,7 @@ pub(super) fn describe(model: &Model) -> String {
     }
     let all_names = input_names(f.set);
     let names = all_names.join(", ");
-    let (taus, filters) = f.filter_taus_s();
-    let windows = &taus[..filters];
+    let windows = f.filter_taus_s();
     match model.body() {
         ModelBody::Rbf(net) => format!(
             "Gaussian RBF, {}, {}, ΔT windows {windows:?} s",
@@ -689,7 +688,7 @@ pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
         },
         "inputs": input_names(f.set),
         "rate_window_s": f.rate_window_s,
-        "windows_s": &f.filter_taus_s().0[..f.filter_taus_s().1],
+        "windows_s": f.filter_taus_s().as_slice(),
         "lag_bank": match f.set {
             FeatureSet::LagBank(b) => Some(serde_json::json!({
                 "taus_s": b.taus(),
@@ -707,7 +706,7 @@ pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
             FeatureSet::ResponseBank(b) => Some(serde_json::json!({
                 "taus_s": b.taus(),
                 "ref_c": b.ref_c,
-                "coil_range_c": [b.coil_min_c, b.coil_max_c],
+                "temp_range_c": [b.range_min_c, b.range_max_c],
                 "static_degree": b.static_degree,
                 "weights": b.weights.iter().map(|row| &row[..b.filter_count()]).collect::<Vec<_>>(),
             })),

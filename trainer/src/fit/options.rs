@@ -34,8 +34,8 @@ pub enum RbfFeatures {
     /// (T, ΔT, T×ΔT) with Gaussians over all three: the IFOG paper's network.
     Paper,
     /// The thermal response bank (`FeatureSet::ResponseBank`): a static
-    /// quartic in T̂ about T₀ and three responses mixed from sixteen
-    /// derivative filters (10 s … 11 h), fitted by [`response`](super::response).
+    /// cubic in T about T₀ and five responses mixed from twelve derivative
+    /// filters (10 s … 11 h), fitted by [`response`](super::response).
     ResponseBank,
 }
 

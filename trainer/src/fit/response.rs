@@ -5,9 +5,9 @@
 //! - Filters: [`FILTERS`] time constants log-spaced from [`FASTEST_TAU_S`]
 //!   to [`SLOWEST_TAU_S`].
 //! - T₀: the middle of the loop temperature range the runs covered; the
-//!   covered range: that range; a static cubic; no coil lag (T̂ = T).
+//!   covered range: that range; a static cubic in T − T₀.
 //! - The blocks: [`BLOCK_S`] means of every channel the bank mixes (the
-//!   static powers, the rates ΔT_k, their products with û_c and û_c², the
+//!   static powers, the rates ΔT_k, their products with u_c and u_c², the
 //!   rates of (T − T₀)² and (T − T₀)³), made sample by sample by rbf-core's
 //!   extractor ([`rbf_core::FeatureExtractor::update_with_channels`], the
 //!   firmware's arithmetic), samples still warming up left out.
@@ -36,7 +36,7 @@ pub const FILTERS: usize = 12;
 pub const FASTEST_TAU_S: f64 = 10.0;
 /// The slowest filter's time constant, s (11 h).
 pub const SLOWEST_TAU_S: f64 = 11.0 * 3600.0;
-/// Powers of T̂ − T₀ in the static part.
+/// Powers of T − T₀ in the static part.
 pub const STATIC_DEGREE: u8 = 3;
 /// Length of the blocks the weights are fitted on, s.
 pub const BLOCK_S: f64 = 10.0;
@@ -56,8 +56,8 @@ pub fn taus_s() -> [f32; FILTERS] {
 /// Block means of the channels a response bank mixes, and their targets.
 #[derive(Clone, Debug, Default)]
 pub struct ChannelBlocks {
-    /// Per block, the [`CHANNELS`] channel means: û, û², û³, then per mixture
-    /// (R₀, û_c·R₁, û_c²·R₂, H₂, H₃) its filters' channels.
+    /// Per block, the [`CHANNELS`] channel means: u, u², u³, then per mixture
+    /// (R₀, u_c·R₁, u_c²·R₂, H₂, H₃) its filters' channels.
     pub x: Vec<[f64; CHANNELS]>,
     /// Mean bias target of each block, °/h.
     pub y: Vec<f64>,
@@ -74,9 +74,9 @@ pub struct ChannelBlocks {
 pub struct Weights {
     /// c₀, °/h: the runs' offsets, averaged by their blocks.
     pub constant_dph: f64,
-    /// c₁ … c₃: °/h per °C^p of û = T̂ − T₀.
+    /// c₁ … c₃: °/h per °C^p of u = T − T₀.
     pub static_dph: [f64; STATIC_DEGREE as usize],
-    /// The bank's weight rows: coil lags (0), the three responses', the two filtered powers'.
+    /// The bank's weight rows: the three responses', the two filtered powers'.
     pub bank: [[f32; RESPONSE_FILTERS]; WEIGHT_ROWS],
 }
 
@@ -174,20 +174,20 @@ fn channel_blocks<T: RunSet + ?Sized>(train: &T, bank: &ResponseBank) -> anyhow:
             return;
         };
         let inputs = features.as_slice();
-        // û_c: the covered range holds every training sample (it is their range).
+        // u_c: the covered range holds every training sample (it is their range).
         let u_c =
-            f64::from(temp_c).clamp(f64::from(bank.coil_min_c), f64::from(bank.coil_max_c)) - f64::from(bank.ref_c);
+            f64::from(temp_c).clamp(f64::from(bank.range_min_c), f64::from(bank.range_max_c)) - f64::from(bank.ref_c);
         let mut values = [0.0f64; CHANNELS];
         for (v, i) in values.iter_mut().zip(inputs).take(statics) {
             *v = f64::from(*i);
         }
         for k in 0..FILTERS {
-            let r = f64::from(channels.rate_c_per_min[k]);
+            let r = f64::from(channels.rates[0][k]);
             values[statics + k] = r;
             values[statics + FILTERS + k] = u_c * r;
             values[statics + 2 * FILTERS + k] = u_c * u_c * r;
-            values[statics + 3 * FILTERS + k] = f64::from(channels.power_rates[0][k]);
-            values[statics + 4 * FILTERS + k] = f64::from(channels.power_rates[1][k]);
+            values[statics + 3 * FILTERS + k] = f64::from(channels.rates[1][k]);
+            values[statics + 4 * FILTERS + k] = f64::from(channels.rates[2][k]);
         }
         for ((sum, range), v) in block.x.iter_mut().zip(&mut out.range).zip(values) {
             *sum += v;
@@ -255,7 +255,7 @@ pub fn solve_weights(blocks: &ChannelBlocks) -> anyhow::Result<Weights> {
     }
     let constant_dph = (0..runs).map(|r| beta[r] * blocks_of[r] as f64).sum::<f64>() / n.max(1) as f64 - shift;
     let mut bank = [[0.0f32; RESPONSE_FILTERS]; WEIGHT_ROWS];
-    for (m, row) in bank.iter_mut().skip(1).enumerate() {
+    for (m, row) in bank.iter_mut().enumerate() {
         for (k, w) in row.iter_mut().take(FILTERS).enumerate() {
             *w = raw[runs + statics + m * FILTERS + k] as f32;
         }
@@ -300,7 +300,7 @@ fn model(bank: ResponseBank, w: &Weights, blocks: &ChannelBlocks, opts: &FitOpti
 fn input_ranges(bank: &ResponseBank, blocks: &ChannelBlocks) -> Vec<(f32, f32)> {
     let statics = STATIC_DEGREE as usize;
     let mut ranges: Vec<(f64, f64)> = blocks.range.iter().take(statics).copied().collect();
-    for (m, row) in bank.weights.iter().skip(1).enumerate() {
+    for (m, row) in bank.weights.iter().enumerate() {
         let channel = &blocks.range[statics + m * FILTERS..statics + (m + 1) * FILTERS];
         ranges.push(row.iter().zip(channel).fold((0.0, 0.0), |acc, (&w, &(lo, hi))| {
             let (a, b) = (f64::from(w) * lo, f64::from(w) * hi);
@@ -459,12 +459,11 @@ mod tests {
             "c₀ = {} (the runs' offsets averaged)",
             w.constant_dph
         );
-        assert!(w.bank[0].iter().all(|&a| a == 0.0), "no coil lag");
-        for (m, row) in w.bank.iter().enumerate().skip(1) {
+        for (m, row) in w.bank.iter().enumerate() {
             for (k, &b) in row.iter().enumerate() {
                 let want = match (m, k) {
-                    (1, 2) => 0.3,
-                    (4, 5) => -0.2,
+                    (0, 2) => 0.3,
+                    (3, 5) => -0.2,
                     _ => 0.0,
                 };
                 assert!((f64::from(b) - want).abs() < 0.01, "row {m} filter {k}: {b}");
