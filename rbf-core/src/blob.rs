@@ -493,7 +493,7 @@ pub(crate) fn decode_section<const K: usize>(
     match ModelKind::from_code(header.kind_code) {
         Some(ModelKind::Rbf) => {
             let centers = usize::from(header.centers);
-            model.assign_rbf_in_place(common.features, ranges, info, |storage| {
+            model.assign_rbf_in_place(&common.features, ranges, info, |storage| {
                 read_rbf_in_place(rest, centers, storage)
             })?;
         }
@@ -503,7 +503,7 @@ pub(crate) fn decode_section<const K: usize>(
                 return Err(DecodeError::Malformed);
             }
             let poly = Poly3::new(w.ref_temp_c, w.coeffs)?;
-            model.assign(common.features, ranges, BodyParams::Poly3(poly), info)?;
+            model.assign(&common.features, ranges, BodyParams::Poly3(poly), info)?;
         }
         None => return Err(DecodeError::UnknownKind(header.kind_code)),
     }

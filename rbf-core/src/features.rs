@@ -591,8 +591,6 @@ pub struct FeatureExtractor {
     smoothed_c: [f32; FILTERS],
     /// A response bank's filters (its own: three signals, twelve filters).
     bank: BankFilters,
-    /// A response bank's filter outputs of the last sample.
-    bank_channels: BankChannels,
     since_restart_s: f32,
     started: bool,
 }
@@ -604,9 +602,6 @@ impl FeatureExtractor {
             smoothed_c: [0.0; FILTERS],
             bank: BankFilters {
                 smoothed: [[0.0; RESPONSE_FILTERS]; BANK_SIGNALS],
-            },
-            bank_channels: BankChannels {
-                rates: [[0.0; RESPONSE_FILTERS]; BANK_SIGNALS],
             },
             since_restart_s: 0.0,
             started: false,
@@ -628,6 +623,34 @@ impl FeatureExtractor {
     /// guarantees it by holding the last good values), the others are ignored.
     #[inline(always)]
     pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temps_c: &[f32; THERMOMETERS]) -> FeatureVector {
+        self.step(config, dt_s, temps_c, None)
+    }
+
+    /// [`Self::update`], with a response bank's filter outputs the inputs
+    /// were mixed from (zero for the other sets): what the trainer
+    /// identifies a response bank's weights from, computed by the very
+    /// arithmetic the firmware runs.
+    pub fn update_with_channels(
+        &mut self,
+        config: &FeatureConfig,
+        dt_s: f32,
+        temps_c: &[f32; THERMOMETERS],
+    ) -> (FeatureVector, BankChannels) {
+        let mut channels = BankChannels::default();
+        let features = self.step(config, dt_s, temps_c, Some(&mut channels));
+        (features, channels)
+    }
+
+    /// [`Self::update`], writing a response bank's filter outputs to
+    /// `channels` when given (the firmware passes none: no stores).
+    #[inline(always)]
+    fn step(
+        &mut self,
+        config: &FeatureConfig,
+        dt_s: f32,
+        temps_c: &[f32; THERMOMETERS],
+        channels: Option<&mut BankChannels>,
+    ) -> FeatureVector {
         let temp_c = temps_c[LOOP_THERMOMETER];
         let restart = !(self.started && dt_s.is_finite() && dt_s > 0.0);
         if restart {
@@ -642,11 +665,10 @@ impl FeatureExtractor {
                 let mut values = [0.0; MAX_INPUTS];
                 if restart {
                     self.bank = bank.start(temp_c);
-                    self.bank_channels = BankChannels::default();
                     let (powers, uc) = bank.powers(temp_c);
                     bank.inputs(powers, uc, [0.0; WEIGHT_ROWS], &mut values);
                 } else {
-                    bank.step(temp_c, dt_s, &mut self.bank, &mut self.bank_channels, &mut values);
+                    bank.step(temp_c, dt_s, &mut self.bank, channels, &mut values);
                 }
                 values
             }
@@ -687,20 +709,6 @@ impl FeatureExtractor {
             len: config.dims() as u8,
             warming_up,
         }
-    }
-
-    /// [`Self::update`], with a response bank's filter outputs the inputs
-    /// were mixed from (zero for the other sets): what the trainer
-    /// identifies a response bank's weights from, computed by the very
-    /// arithmetic the firmware runs.
-    pub fn update_with_channels(
-        &mut self,
-        config: &FeatureConfig,
-        dt_s: f32,
-        temps_c: &[f32; THERMOMETERS],
-    ) -> (FeatureVector, BankChannels) {
-        let features = self.update(config, dt_s, temps_c);
-        (features, self.bank_channels)
     }
 }
 

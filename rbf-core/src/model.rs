@@ -124,7 +124,7 @@ impl Model {
         info: ModelInfo,
     ) -> Result<Self, ModelError> {
         let mut model = Model { body, ..Self::EMPTY };
-        model.complete(features, input_range, info)?;
+        model.complete(&features, input_range, info)?;
         Ok(model)
     }
 }
@@ -148,7 +148,7 @@ impl<const K: usize> Model<K> {
     /// `self` is [`Self::EMPTY`].
     pub fn assign(
         &mut self,
-        features: FeatureConfig,
+        features: &FeatureConfig,
         input_range: &[(f32, f32)],
         body: BodyParams<'_>,
         info: ModelInfo,
@@ -167,7 +167,7 @@ impl<const K: usize> Model<K> {
     /// ([`RbfNetwork::init_in_place`]: the blob decoder stages nothing).
     pub fn assign_rbf_in_place<E: From<ModelError>>(
         &mut self,
-        features: FeatureConfig,
+        features: &FeatureConfig,
         input_range: &[(f32, f32)],
         info: ModelInfo,
         fill: impl FnOnce(RbfStorage<'_>) -> Result<RbfShape, E>,
@@ -179,7 +179,7 @@ impl<const K: usize> Model<K> {
     /// `self` is [`Self::EMPTY`].
     fn assign_with<E: From<ModelError>>(
         &mut self,
-        features: FeatureConfig,
+        features: &FeatureConfig,
         input_range: &[(f32, f32)],
         info: ModelInfo,
         build: impl FnOnce(&mut ModelBody<K>) -> Result<(), E>,
@@ -195,7 +195,7 @@ impl<const K: usize> Model<K> {
     /// sets the ranges and prepares the network's table path.
     fn complete(
         &mut self,
-        features: FeatureConfig,
+        features: &FeatureConfig,
         input_range: &[(f32, f32)],
         info: ModelInfo,
     ) -> Result<(), ModelError> {
@@ -257,7 +257,7 @@ impl<const K: usize> Model<K> {
         if bound_dph.is_nan() || bound_dph > MAX_ABS_BIAS_DPH {
             return Err(ModelError::OutputUnbounded);
         }
-        self.features = features;
+        self.features = *features;
         self.info = info;
         Ok(())
     }

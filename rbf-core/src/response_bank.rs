@@ -36,7 +36,7 @@
 //!
 //! Per sample the bank runs its filters and mixes them in one pass
 //! ([`ResponseBank::step`]): nothing of the bank is copied, and the filters'
-//! rates are kept ([`BankChannels`]) for the trainer, which identifies the
+//! rates are given ([`BankChannels`]) to the trainer, which identifies the
 //! weights from this very arithmetic.
 
 use serde::{Deserialize, Serialize};
@@ -250,8 +250,9 @@ impl ResponseBank {
 
     /// One sample of the loop temperature `temp_c`, °C, `dt_s` after the
     /// last (finite, > 0): runs every filter of every signal, writes their
-    /// rates to `channels` and the model inputs to the first [`Self::dims`]
-    /// slots of `out`. Filters past [`Self::filter_count`] have τ = 0 and
+    /// rates to `channels` when given (the trainer's identification; the
+    /// firmware passes none) and the model inputs to the first
+    /// [`Self::dims`] slots of `out`. Filters past [`Self::filter_count`] have τ = 0 and
     /// weights 0: they run (one loop of fixed length) and add nothing.
     #[inline(always)]
     pub fn step(
@@ -259,14 +260,13 @@ impl ResponseBank {
         temp_c: f32,
         dt_s: f32,
         filters: &mut BankFilters,
-        channels: &mut BankChannels,
+        mut channels: Option<&mut BankChannels>,
         out: &mut [f32],
     ) {
         let (powers, uc) = self.powers(temp_c);
         let signals = [temp_c, powers[1], powers[2]];
         let [w0, w1, w2, h2, h3] = &self.weights;
         let [s_t, s_p2, s_p3] = &mut filters.smoothed;
-        let [r_t, r_p2, r_p3] = &mut channels.rates;
         let mut sums = [0.0f32; WEIGHT_ROWS];
         for k in 0..RESPONSE_FILTERS {
             // One division per filter: its gain per second and per minute.
@@ -279,9 +279,9 @@ impl ResponseBank {
             s_p2[k] += step * d_p2;
             s_p3[k] += step * d_p3;
             let (rt, rp2, rp3) = (per_min * d_t, per_min * d_p2, per_min * d_p3);
-            r_t[k] = rt;
-            r_p2[k] = rp2;
-            r_p3[k] = rp3;
+            if let Some(c) = channels.as_deref_mut() {
+                [c.rates[0][k], c.rates[1][k], c.rates[2][k]] = [rt, rp2, rp3];
+            }
             sums[0] += w0[k] * rt;
             sums[1] += w1[k] * rt;
             sums[2] += w2[k] * rt;
@@ -481,11 +481,11 @@ mod tests {
         let mut filters = b.start(20.0);
         let mut channels = BankChannels::default();
         let mut out = [0.0; MAX_RESPONSE_INPUTS];
-        b.step(20.0, 1.0, &mut filters, &mut channels, &mut out);
+        b.step(20.0, 1.0, &mut filters, Some(&mut channels), &mut out);
         assert_eq!(channels, BankChannels::default(), "a steady signal has no rate");
         assert_eq!(out[4..], [0.0; WEIGHT_ROWS]);
         // A 1-°C step: each filter's rate is 60·1/(τ + dt) per minute and its state moves by dt/(τ + dt).
-        b.step(21.0, 1.0, &mut filters, &mut channels, &mut out);
+        b.step(21.0, 1.0, &mut filters, Some(&mut channels), &mut out);
         let expected: Vec<f32> = [10.0f32, 60.0, 600.0]
             .iter()
             .map(|tau| SECONDS_PER_MINUTE * (1.0 / (tau + 1.0)))
@@ -515,7 +515,7 @@ mod tests {
         let mut temp_c = 10.0;
         for _ in 0..20_000 {
             temp_c += rate_c_per_min / 60.0 * dt_s;
-            b.step(temp_c, dt_s, &mut filters, &mut channels, &mut out);
+            b.step(temp_c, dt_s, &mut filters, Some(&mut channels), &mut out);
         }
         let mut settled = [0.0; MAX_RESPONSE_INPUTS];
         b.settled_inputs(temp_c, rate_c_per_min, &mut settled);

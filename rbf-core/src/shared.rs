@@ -332,7 +332,7 @@ fn copy_network<const K: usize>(
         *r = source.input_range(i).unwrap_or((0.0, 0.0));
     }
     Some(target.assign_rbf_in_place(
-        *source.features(),
+        source.features(),
         ranges.get(..dims).unwrap_or(&[]),
         source.info().clone(),
         |storage: RbfStorage<'_>| {

@@ -284,7 +284,7 @@ mod tests {
         let ranges = [(10.0, 40.0), (-1.5, 1.5), (-60.0, 60.0)];
         model
             .assign(
-                features,
+                &features,
                 &ranges,
                 crate::model::BodyParams::Rbf(&params),
                 ModelInfo::default(),
@@ -297,7 +297,7 @@ mod tests {
         let mut model = Model::<K>::EMPTY;
         let body = crate::model::BodyParams::Poly3(Poly3::new(25.0, [0.1, 0.2, -0.3, 0.004]).unwrap());
         let f = FeatureConfig::single(FeatureSet::Temp, 0.0);
-        model.assign(f, &[(10.0, 40.0)], body, ModelInfo::default()).unwrap();
+        model.assign(&f, &[(10.0, 40.0)], body, ModelInfo::default()).unwrap();
         model
     }
 

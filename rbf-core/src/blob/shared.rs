@@ -200,7 +200,7 @@ mod tests {
         let features = FeatureConfig::single(FeatureSet::TempRateProduct, 60.0);
         let ranges = [(0.0, 50.0), (-3.0, 3.0), (-150.0, 150.0)];
         model
-            .assign(features, &ranges, BodyParams::Rbf(&params), ModelInfo::default())
+            .assign(&features, &ranges, BodyParams::Rbf(&params), ModelInfo::default())
             .unwrap();
         model
     }
