@@ -46,6 +46,24 @@ pub fn model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
     )
 }
 
+/// Fits a thermal response bank (`RbfFeatures::ResponseBank`: 12 filters,
+/// no centres) on a 1 °C/min run and writes a fault-injected slice of a
+/// 2 °C/min run into `dir`; returns (model, slice path).
+pub fn response_bank_model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
+    let mut chamber = ChamberRun::ifog(1.0, 61);
+    chamber.hold_s = 1800.0;
+    let train = recorded(dir, &chamber, "train_response.csv");
+    let opts = FitOptions {
+        features: fit::RbfFeatures::ResponseBank,
+        ..FitOptions::default()
+    };
+    let model = fit::fit(std::slice::from_ref(&train), &[], &opts).expect("fit").model;
+    (
+        model,
+        faulty_slice(dir, &ChamberRun::ifog(2.0, 62).to_csv(), "slice_response.csv"),
+    )
+}
+
 /// Fits a 16-centre network of the lagged second-order set
 /// (`FeatureSet::MultiScaleLagged`, coil lag 40 min: Gaussians over
 /// T − L·ΔT₃) on a 1 °C/min cycle run and writes a fault-injected slice of a

@@ -78,6 +78,19 @@ fn qemu_replay_of_a_lagged_multiscale_model_is_byte_identical_to_trainer_compens
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn qemu_replay_of_a_response_bank_model_is_byte_identical_to_trainer_compensate() {
+    let dir = TempDir::new().unwrap();
+    let (model, slice) = fixtures::response_bank_model_and_faulty_slice(dir.path());
+    let rbf_core::FeatureSet::ResponseBank(bank) = model.features().set else {
+        panic!("not a response bank: {:?}", model.features())
+    };
+    assert_eq!(bank.filter_count(), 12);
+    let (flagged, _) = replay_matches_host(dir.path(), &model, &slice, None);
+    assert_eq!(flagged.temp_sensor_fault, fixtures::FAULTY_ROWS as usize);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn qemu_replay_of_a_multi_point_run_reads_eight_tmp117s_and_matches_trainer_compensate() {
     let dir = TempDir::new().unwrap();
     let (model, slice) = fixtures::multipoint_model_and_faulty_slice(dir.path());

@@ -24,7 +24,7 @@ fn a_response_bank_fitted_on_one_simulated_run_improves_the_cluster_std_of_anoth
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
-        stdout(&o).contains("thermal response bank, 16 filters 10 s … 11 h, static quartic in T̂ about T₀ = "),
+        stdout(&o).contains("thermal response bank, 12 filters 10 s … 11 h, static cubic in T about T₀ = "),
         "{}",
         stdout(&o)
     );
@@ -33,8 +33,8 @@ fn a_response_bank_fitted_on_one_simulated_run_improves_the_cluster_std_of_anoth
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["features"]["set"], "ResponseBank");
-    assert_eq!(v["features"]["response_bank"]["taus_s"].as_array().unwrap().len(), 16);
-    assert_eq!(v["inputs"], 7);
+    assert_eq!(v["features"]["response_bank"]["taus_s"].as_array().unwrap().len(), 12);
+    assert_eq!(v["inputs"], 8, "a static cubic and five responses");
     assert_eq!(v["centers"], 0);
 
     let o = compensate(
