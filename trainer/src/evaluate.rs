@@ -638,7 +638,7 @@ fn axis_cell(rows: &[(&str, &RunEvaluation)], text: Option<&str>) -> String {
 pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std::io::Result<()> {
     writeln!(
         out,
-        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>9}",
+        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>7} {:>4}",
         "role",
         "run",
         axis_cell(rows, Some("axis")),
@@ -646,11 +646,12 @@ pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) 
         "ARW after",
         "BI before",
         "BI after",
-        "BI at τ"
+        "at τ",
+        "±"
     )?;
     writeln!(
         out,
-        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>9}",
+        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>7} {:>4}",
         "",
         "",
         axis_cell(rows, Some("")),
@@ -658,22 +659,26 @@ pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) 
         "[°/√h]",
         "[°/h]",
         "[°/h]",
-        "[s]"
+        "[s]",
+        "[%]"
     )?;
     for (role, e) in rows {
+        let after = &e.allan_after;
         writeln!(
             out,
-            "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>9}",
+            "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>7} {:>4}",
             role,
             table_name(&e.run),
             axis_cell(rows, e.axis),
             figure(e.allan_before.arw_deg_per_sqrt_h, |v| format!("{v:.3e}")),
-            figure(e.allan_after.arw_deg_per_sqrt_h, |v| format!("{v:.3e}")),
-            figure(e.allan_before.bias_instability_dph, |v| format!("{v:.3e}")),
-            figure(e.allan_after.bias_instability_dph, |v| format!("{v:.3e}")),
-            figure(e.allan_after.floor_tau_s, |v| format!("{v:.0}"))
+            figure(after.arw_deg_per_sqrt_h, |v| format!("{v:.3e}")),
+            e.allan_before.bias_instability_cell(),
+            after.bias_instability_cell(),
+            figure(after.floor_tau_s, |v| format!("{v:.0}")),
+            figure(after.floor_uncertainty_pct, |v| format!("{v:.0}"))
         )?;
     }
+    writeln!(out, "({}; at τ and ± of BI after)", allan::FLOOR_RULE)?;
     if rows
         .iter()
         .any(|(_, e)| !e.allan_after.bias_instability_dph.is_finite())

@@ -461,27 +461,13 @@ where
     Ok(())
 }
 
-/// Relative 1-σ uncertainty of an Allan deviation at cluster time `tau_s`
-/// from a run `duration_s` long: 1/√(2(T/τ − 1)), the approximation of
-/// IEEE Std 952 (Annex C) with T/τ independent clusters. Conservative for the
-/// overlapping estimator, whose equivalent degrees of freedom are more.
-/// Infinite when the run holds fewer than two clusters.
-pub fn allan_relative_error(tau_s: f64, duration_s: f64) -> f64 {
-    let clusters = duration_s / tau_s;
-    if clusters > 1.0 {
-        1.0 / (2.0 * (clusters - 1.0)).sqrt()
-    } else {
-        f64::INFINITY
-    }
-}
-
 /// The ±1-σ band (τ, lower, upper) of an Allan curve, per
-/// [`allan_relative_error`]; the lower edge kept above zero for log axes.
+/// [`crate::allan::relative_error`]; the lower edge kept above zero for log axes.
 fn allan_band(points: &[(f64, f64)], duration_s: f64) -> Vec<(f64, f64, f64)> {
     points
         .iter()
         .map(|&(t, d)| {
-            let e = allan_relative_error(t, duration_s).min(0.95);
+            let e = crate::allan::relative_error(t, duration_s).min(0.95);
             (t, d * (1.0 - e), d * (1.0 + e))
         })
         .collect()
@@ -565,7 +551,7 @@ where
             .label(format!("τ^−½: ARW {arw:.2e} °/√h"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], guide));
     }
-    let floor = a.bias_instability_dph * 0.664;
+    let floor = a.bias_instability_dph * crate::allan::FLICKER_FLOOR;
     if floor.is_finite() && floor > 0.0 {
         let orange = RGBColor(230, 140, 20);
         chart
@@ -575,10 +561,17 @@ where
                 3,
                 orange.into(),
             ))?
-            .label(format!(
-                "0.664·BI at τ {:.0} s: bias instability {:.2e} °/h",
-                a.floor_tau_s, a.bias_instability_dph
-            ))
+            .label(if a.floor_reached {
+                format!(
+                    "floor at τ {:.0} s (≤ T/10): bias instability {:.2e} °/h ±{:.0} %",
+                    a.floor_tau_s, a.bias_instability_dph, a.floor_uncertainty_pct
+                )
+            } else {
+                format!(
+                    "no floor by τ {:.0} s (T/10): bias instability ≤ {:.2e} °/h",
+                    a.confident_tau_max_s, a.bias_instability_dph
+                )
+            })
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], orange));
     }
     if let Some(&(t_last, d_last)) = after.last() {
@@ -973,8 +966,9 @@ pub fn write_report(
         both(&format!("{stem}_bias_vs_temp"), render(&p.bias_temp))?;
         let allan = AllanPlot {
             title: format!(
-                "{stem}: overlapping Allan deviation; bias instability {:.2e} → {:.2e} °/h",
-                p.evaluation.allan_before.bias_instability_dph, p.evaluation.allan_after.bias_instability_dph
+                "{stem}: overlapping Allan deviation; bias instability {} → {} °/h",
+                p.evaluation.allan_before.bias_instability_cell(),
+                p.evaluation.allan_after.bias_instability_cell()
             ),
             evaluation: &p.evaluation,
             duration_s: p.duration_s,
@@ -989,8 +983,8 @@ pub fn write_report(
             figure(e.cluster_std_improvement_pct, |v| format!("{v:.1} %")),
             figure(e.msd_improvement_pct, |v| format!("{v:.1} %")),
             figure(e.allan_after.arw_deg_per_sqrt_h, |v| format!("{v:.2e}")),
-            figure(e.allan_before.bias_instability_dph, |v| format!("{v:.2e}")),
-            figure(e.allan_after.bias_instability_dph, |v| format!("{v:.2e}")),
+            e.allan_before.bias_instability_cell(),
+            e.allan_after.bias_instability_cell(),
             clamped_cell(e.flagged.input_clamped, e.samples)
         ));
     }
@@ -998,6 +992,7 @@ pub fn write_report(
         "\nClamped samples: inputs outside the model's training range, held at its edge \
          (flag 1).\n",
     );
+    md.push_str(&format!("{}.\n", crate::allan::FLOOR_RULE));
     let surface = SurfacePlot {
         model,
         trajectory: trajectory.points.into_iter().map(|(_, p)| p).collect(),
@@ -1067,9 +1062,9 @@ mod tests {
     #[test]
     fn allan_bands_narrow_with_more_clusters() {
         // T/τ = 3: 1/√4; T/τ = 51: 1/√100.
-        assert!((allan_relative_error(10.0, 30.0) - 0.5).abs() < 1e-12);
-        assert!((allan_relative_error(1.0, 51.0) - 0.1).abs() < 1e-12);
-        assert!(allan_relative_error(10.0, 10.0).is_infinite());
+        assert!((crate::allan::relative_error(10.0, 30.0) - 0.5).abs() < 1e-12);
+        assert!((crate::allan::relative_error(1.0, 51.0) - 0.1).abs() < 1e-12);
+        assert!(crate::allan::relative_error(10.0, 10.0).is_infinite());
         let band = allan_band(&[(1.0, 2.0)], 51.0);
         assert!((band[0].1 - 1.8).abs() < 1e-12 && (band[0].2 - 2.2).abs() < 1e-12);
     }
