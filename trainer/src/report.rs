@@ -877,8 +877,15 @@ pub fn check_report_targets(
 /// input with its training range.
 fn model_markdown(model: &Model, model_path: &Path) -> String {
     let mut md = format!("## Model\n\n- file: `{}`\n", text::path(model_path));
-    md.push_str(&format!("- kind: {}\n", model.kind().name()));
-    md.push_str(&format!("- form: {}\n", summary::form(model)));
+    let description = crate::describe::describe(model);
+    md.push_str(&format!("- kind: {}\n", description.kind));
+    md.push_str(&format!("- form: {}\n", description.form));
+    if let Some(t0) = description.ref_temp_c {
+        md.push_str(&format!(
+            "- reference temperature T₀: {} °C\n",
+            summary::sig(f64::from(t0), 4)
+        ));
+    }
     md.push_str(&format!(
         "- centres: {}\n",
         summary::count(summary::centres(model) as u64, "centre", "centres")

@@ -31,28 +31,6 @@ pub fn sig(x: f64, digits: usize) -> String {
     }
 }
 
-/// The model's form in a few words: the regression and how the inputs enter it.
-pub fn form(model: &Model) -> String {
-    match model.body() {
-        ModelBody::Rbf(net) => {
-            let names: Vec<String> = model.features().set.names().map(|n| n.to_string()).collect();
-            let kernel = &names[..net.kernel_inputs().min(names.len())];
-            format!(
-                "Gaussian RBF, {}{}",
-                match net.centers_used() {
-                    0 => "no centres".to_owned(),
-                    n => format!("{} over {}", count(n as u64, "centre", "centres"), kernel.join(", ")),
-                },
-                match net.linear().len() {
-                    0 => String::new(),
-                    n => format!("; {}", count(n as u64, "linear term", "linear terms")),
-                }
-            )
-        }
-        ModelBody::Poly3(p) => format!("cubic in T about {} °C", sig(f64::from(p.ref_temp_c), 4)),
-    }
-}
-
 /// Centres the model uses (0 for a polynomial).
 pub fn centres(model: &Model) -> usize {
     match model.body() {

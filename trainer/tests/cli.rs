@@ -672,7 +672,7 @@ fn report_writes_svg_and_png_plots_json_and_markdown() {
     );
     // The model is listed, and every run says how many samples were clamped.
     assert!(
-        md.contains("## Model") && md.contains("- kind: gaussian-rbf") && md.contains("- form: Gaussian RBF, "),
+        md.contains("## Model") && md.contains("- kind: thermal lag bank") && md.contains("- form: linear in its "),
         "{md}"
     );
     assert!(md.contains("- centres: ") && md.contains("  - T̂ [°C]: "), "{md}");

@@ -6,8 +6,6 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::builder::RangedU64ValueParser;
 use rbf_core::features::Probe;
-use rbf_core::model::ModelBody;
-use rbf_core::lag_bank::GainOf;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::blobfile::encode_model;
 use trainer::dataset::{RunFiles, RunSet};
@@ -16,6 +14,7 @@ use trainer::fit::{self, FitOptions, FitOutcome};
 use trainer::limits::MAX_FOLDS;
 use trainer::output::{self, Output, StagedDir, Transaction};
 use trainer::run::RunReader;
+use trainer::describe::{gain_symbol, gain_text};
 use trainer::text;
 use trainer::{diagnose, input};
 
@@ -348,7 +347,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         named_inputs: opts.inputs.is_some(),
         selection: opts.selection,
     };
-    write_summary(&mut out, opts.method, &outcome, &how)?;
+    write_summary(&mut out, &outcome, &how)?;
     writeln!(out, "fit took {fit_s:.1} s\n")?;
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
@@ -398,11 +397,10 @@ pub struct FitHow {
 /// The fit's choices as `trainer fit` prints them above its accuracy table.
 pub fn write_summary(
     out: &mut impl Write,
-    method: fit::Method,
     outcome: &FitOutcome,
     how: &FitHow,
 ) -> anyhow::Result<()> {
-    writeln!(out, "method {method:?}: {}", describe(&outcome.model))?;
+    writeln!(out, "model: {}", describe(&outcome.model))?;
     if let Some(c) = &outcome.choice {
         writeln!(
             out,
@@ -496,14 +494,6 @@ pub fn write_summary(
     Ok(())
 }
 
-/// The temperature a bank's gain is of, as the fit report writes it: `T̂` or `T`.
-fn gain_symbol(of: GainOf) -> &'static str {
-    match of {
-        GainOf::Coil => "T̂",
-        GainOf::Loop => "T",
-    }
-}
-
 /// The lag bank a fit identified, how it was chosen, and what the training runs covered.
 fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankSearch) -> anyhow::Result<()> {
     let FeatureSet::LagBank(bank) = model.features().set else {
@@ -512,14 +502,11 @@ fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankS
     let list = |v: &[f32], digits: usize| v.iter().map(|x| format!("{x:.digits$}")).collect::<Vec<_>>().join(", ");
     writeln!(
         out,
-        "lag bank: τ [{}] s; coil lags a [{}] min (T̂ = T + Σ a·ΔT); Shupe gain g = 1 {:+.3e}·({of} − {}) {:+.3e}·({of} − {})²",
+        "lag bank: τ [{}] s; coil lags a [{}] min (T̂ = T + Σ a·ΔT); Shupe gain {}; T₀ {} °C",
         list(bank.taus(), 0),
         list(bank.coil_lags(), 2),
-        bank.gain_per_c,
-        bank.ref_c,
-        bank.gain_per_c2,
-        bank.ref_c,
-        of = gain_symbol(bank.gain_of),
+        gain_text(&bank),
+        trainer::summary::sig(f64::from(bank.ref_c), 4),
     )?;
     let how = match search.folds {
         fit::events::FoldKind::Runs => format!("leave-one-run-out ({} folds)", search.fold_count),
@@ -612,52 +599,40 @@ pub(super) fn write_blob(model_out: Option<Output>, blob: &[u8], transaction: &m
     Ok(())
 }
 
-/// One line naming a model's form, centres, inputs and ΔT windows.
+/// One line naming the model as it is ([`trainer::describe`]): kind, form,
+/// T₀, and the ΔT windows of a set that is not a lag bank (whose filters
+/// the bank's own line lists).
 pub(super) fn describe(model: &Model) -> String {
     let f = model.features();
-    let all_names = input_names(f.set);
-    let names = all_names.join(", ");
     let (taus, filters) = f.filter_taus_s();
-    let windows = &taus[..filters];
-    match model.body() {
-        ModelBody::Rbf(net) => format!(
-            "Gaussian RBF, {}, {}, ΔT windows {windows:?} s",
-            match net.centers_used() {
-                0 => "no centres".to_owned(),
-                n => format!(
-                    "{n} {} over ({})",
-                    if n == 1 { "centre" } else { "centres" },
-                    all_names[..net.kernel_inputs().min(all_names.len())].join(", ")
-                ),
-            },
-            if net.linear().is_empty() {
-                "no linear terms".to_owned()
-            } else {
-                format!("linear in ({names})")
-            }
-        ),
-        ModelBody::Poly3(p) => format!("cubic in T about {} °C", p.ref_temp_c),
+    let windows: Vec<String> = taus[..filters].iter().map(|t| trainer::summary::sig(f64::from(*t), 4)).collect();
+    let d = trainer::describe::describe(model);
+    match f.set {
+        FeatureSet::LagBank(_) => d.line(),
+        _ if windows.is_empty() => d.line(),
+        _ => format!("{}; ΔT windows {} s", d.line(), windows.join(", ")),
     }
 }
 
 /// A model's inputs as `trainer inspect --json` and `trainer fit --json` give them.
 pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
-    serde_json::json!({
+    let mut v = serde_json::json!({
         "set": match f.set {
             FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
             FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
             FeatureSet::LagBank(_) => "LagBank".to_owned(),
             set => format!("{set:?}"),
         },
-        "coil_lag_min": match f.set {
-            FeatureSet::MultiScaleLagged { coil_lag_min } => Some(coil_lag_min),
-            _ => None,
-        },
         "inputs": input_names(f.set),
         "rate_window_s": f.rate_window_s,
         "windows_s": &f.filter_taus_s().0[..f.filter_taus_s().1],
-        "lag_bank": match f.set {
-            FeatureSet::LagBank(b) => Some(serde_json::json!({
+        "warmup_s": f.warmup_s(),
+    });
+    // Only what the set has: no `null` beside another set's real value.
+    match f.set {
+        FeatureSet::MultiScaleLagged { coil_lag_min } => v["coil_lag_min"] = serde_json::json!(coil_lag_min),
+        FeatureSet::LagBank(b) => {
+            v["lag_bank"] = serde_json::json!({
                 "taus_s": b.taus(),
                 "coil_lag_min": b.coil_lags(),
                 "ref_c": b.ref_c,
@@ -666,11 +641,11 @@ pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
                 "gain_of": gain_symbol(b.gain_of),
                 "static_degree": b.static_degree,
                 "coil_range_c": [b.coil_min_c, b.coil_max_c],
-            })),
-            _ => None,
-        },
-        "warmup_s": f.warmup_s(),
-    })
+            })
+        }
+        _ => {}
+    }
+    v
 }
 
 #[cfg(test)]
