@@ -28,6 +28,7 @@ pub mod limits;
 pub mod metrics;
 pub mod output;
 pub mod plan;
+pub mod plausible;
 pub mod report;
 pub mod run;
 pub mod sampling;

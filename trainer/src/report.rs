@@ -734,7 +734,7 @@ fn read_run(
     stem: &str,
     trajectory: &mut Trajectory,
     first_index: &mut usize,
-    allow_uncompensated: bool,
+    accept: crate::axes::Acceptance,
 ) -> anyhow::Result<RunPlots> {
     let path = reader.path().to_owned();
     let mask = model.features().set.thermometer_mask();
@@ -778,7 +778,8 @@ fn read_run(
     })?;
     *first_index += rows;
     require_evaluable(&path, rows, &diagnosis)?;
-    require_compensated(&path, rows, compensated, &diagnosis, mask, allow_uncompensated)?;
+    require_compensated(&path, rows, compensated, &diagnosis, mask, accept.uncompensated)?;
+    crate::plausible::require_plausible(&diagnosis.implausible(), accept.implausible)?;
     // Without ref_dph the reference is the run's mean rate, known only now:
     // a block mean of (v − m) is the block mean of v, less m.
     let mean = if has_ref { 0.0 } else { rate_sum / rows.max(1) as f64 };
@@ -919,14 +920,15 @@ fn clamped_cell(n: usize, samples: usize) -> String {
 /// Every run is read once, streaming (memory: 10-s means and a bounded
 /// trajectory, whatever the run's length), before any file is written.
 /// Nothing is visible until `out`'s [`output::Transaction`] commits. A run
-/// where no row could be compensated is refused unless `allow_uncompensated`.
+/// where no row could be compensated, or that is implausible
+/// ([`crate::plausible`]), is refused unless `accept` says so.
 pub fn write_report(
     model: &Model,
     model_path: &Path,
     runs: &[PathBuf],
     out: &StagedDir,
     sub: &Path,
-    allow_uncompensated: bool,
+    accept: crate::axes::Acceptance,
     axis: Option<Axis>,
 ) -> anyhow::Result<usize> {
     input::check_stdin_once(runs.iter().map(|p| p.as_path()).chain([model_path]))?;
@@ -942,14 +944,7 @@ pub fn write_report(
                 Some(axis) => reader.select_axis(axis)?,
                 None => reader.require_single_axis()?,
             }
-            read_run(
-                model,
-                reader,
-                stem,
-                &mut trajectory,
-                &mut first_index,
-                allow_uncompensated,
-            )
+            read_run(model, reader, stem, &mut trajectory, &mut first_index, accept)
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
 

@@ -130,7 +130,7 @@ fn a_three_axis_imu_is_fitted_compensated_and_evaluated_per_axis_as_well_as_each
     let model = dir.path().join("imu.bin");
     let printed = fit(&train, &model);
     for axis in ["x", "y", "z"] {
-        assert!(printed.contains(&format!("axis {axis}:\nmethod ")), "{printed}");
+        assert!(printed.contains(&format!("axis {axis}:\nmodel: ")), "{printed}");
         assert!(
             printed
                 .lines()

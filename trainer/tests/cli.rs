@@ -154,7 +154,7 @@ fn original_bmi270_terminal_logs_get_a_clear_error() {
     let o = trainer(&["fit", "-q", original.to_str().unwrap(), "-o", model.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        stderr(&o).contains("BMI_270_hot_test.csv:1: header has no required column time_s"),
+        stderr(&o).contains("BMI_270_hot_test.csv:1: header has no required columns time_s and rate_dph"),
         "{}",
         stderr(&o)
     );

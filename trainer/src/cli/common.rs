@@ -29,6 +29,8 @@ pub fn flag_hint(e: &anyhow::Error) -> &'static str {
         ", even with --force"
     } else if root.is::<trainer::evaluate::NothingCompensated>() {
         ". Pass --allow-uncompensated to accept such a run"
+    } else if root.is::<trainer::plausible::Implausible>() {
+        ". Convert the run to the recorded-run format's units, or pass --allow-implausible if it is right"
     } else {
         ""
     }
@@ -61,6 +63,23 @@ pub struct AllowUncompensated {
     /// (temperatures out of range, sensor faults).
     #[arg(long, help_heading = "Data")]
     pub allow_uncompensated: bool,
+    /// Accept a run implausible as a gyro recording.
+    ///
+    /// By default a run is refused, naming the reason, when its loop temperature leaves
+    /// −60 … 100 °C (°F?) or changes faster than 30 °C/min by its time column (time_s
+    /// in hours?).
+    #[arg(long, help_heading = "Data")]
+    pub allow_implausible: bool,
+}
+
+impl AllowUncompensated {
+    /// The runs the command accepts that it would otherwise refuse.
+    pub fn acceptance(&self) -> trainer::axes::Acceptance {
+        trainer::axes::Acceptance {
+            uncompensated: self.allow_uncompensated,
+            implausible: self.allow_implausible,
+        }
+    }
 }
 
 /// `--json FILE`: the figures as JSON, `-` for standard output.

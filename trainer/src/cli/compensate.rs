@@ -43,7 +43,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         &a.run,
         &a.output,
         a.force.existing(),
-        a.uncompensated.allow_uncompensated,
+        a.uncompensated.acceptance(),
     )?;
     let rows = c.first().map_or(0, |(_, c)| c.rows);
     let flagged = match c.as_slice() {

@@ -9,12 +9,13 @@ use rbf_core::features::Probe;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::blobfile::encode_model;
 use trainer::dataset::{RunFiles, RunSet};
-use trainer::evaluate::{RunEvaluation, evaluate_blocks, evaluate_file, print_table};
+use trainer::evaluate::{RunEvaluation, evaluate_blocks, evaluate_reader, print_table};
 use trainer::fit::{self, FitOptions, FitOutcome};
 use trainer::limits::MAX_FOLDS;
 use trainer::output::{self, Output, StagedDir, Transaction};
 use trainer::run::RunReader;
 use trainer::describe::{gain_symbol, gain_text};
+use trainer::plausible;
 use trainer::text;
 use trainer::{diagnose, input};
 
@@ -171,6 +172,13 @@ pub struct Args {
     /// No progress bar.
     #[arg(short, long, help_heading = "Output")]
     quiet: bool,
+    /// Accept runs implausible as gyro recordings.
+    ///
+    /// By default the fit refuses, naming the reason, training runs whose loop
+    /// temperature leaves −60 … 100 °C (°F?), and holdouts whose loop temperature does
+    /// or changes faster than 30 °C/min by time_s (in hours?).
+    #[arg(long, help_heading = "Data")]
+    allow_implausible: bool,
 }
 
 /// Centre counts the firmware holds: 1 … [`rbf_core::MAX_CENTERS`].
@@ -252,6 +260,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for path in &all_runs {
         RunReader::open(path)?.require_temp()?;
     }
+    plausible::require_distinct_runs(&a.runs, &[("--validate", &a.validate), ("--holdout", &a.holdout)])?;
     trainer::limits::check_block_s(a.block_s)?;
     if let Some(s) = &a.serial {
         anyhow::ensure!(
@@ -319,6 +328,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     })?;
     let fit_s = started.elapsed().as_secs_f64();
+    if let Some((lo, hi)) = training_loop_range_c(&outcome) {
+        let finding = plausible::range_finding("the training runs' loop temperature", lo, hi);
+        plausible::require_plausible(finding.as_slice(), a.allow_implausible)?;
+    }
     // Training and validation runs are scored on the block means the fit
     // computed, without reading them again; holdout runs, which the fit
     // never read, sample by sample.
@@ -335,7 +348,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     drop((train, validate));
     for path in &a.holdout {
-        evals.push(("holdout", evaluate_file(&outcome.model, path)?));
+        let (evaluation, diagnosis, _) = evaluate_reader(&outcome.model, RunReader::open(path)?)?;
+        plausible::require_plausible(&diagnosis.implausible(), a.allow_implausible)?;
+        evals.push(("holdout", evaluation));
     }
     let blob = encode_model(&outcome.model)?;
 
@@ -368,7 +383,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(target) = report_target {
         let staged = StagedDir::create(target)?;
         let files =
-            trainer::report::write_report(&outcome.model, &a.output, &report_runs, &staged, Path::new(""), true, None)?;
+            {
+                // The fit has checked its runs; the report takes them as they are.
+                let accept = trainer::axes::Acceptance {
+                    uncompensated: true,
+                    implausible: true,
+                };
+                trainer::report::write_report(&outcome.model, &a.output, &report_runs, &staged, Path::new(""), accept, None)?
+            };
         staged.write(Path::new(FIT_TEXT), &out)?;
         writeln!(out, "wrote {} files into {}", files + 1, text::path(staged.target()))?;
         transaction.add_dir(staged);
@@ -611,6 +633,26 @@ pub(super) fn describe(model: &Model) -> String {
         FeatureSet::LagBank(_) => d.line(),
         _ if windows.is_empty() => d.line(),
         _ => format!("{}; ΔT windows {} s", d.line(), windows.join(", ")),
+    }
+}
+
+/// The loop temperature's range over the training runs, °C: the lag bank
+/// search's coverage (10-s means), or the model's first input's training
+/// range where that input is the loop temperature; `None` otherwise.
+fn training_loop_range_c(outcome: &FitOutcome) -> Option<(f64, f64)> {
+    if let Some(search) = &outcome.bank {
+        return Some(search.coverage.temp_range_c);
+    }
+    match outcome.model.features().set {
+        FeatureSet::Temp
+        | FeatureSet::TempRate
+        | FeatureSet::TempRateProduct
+        | FeatureSet::MultiScale
+        | FeatureSet::MultiScaleSecondOrder => {
+            let (lo, hi) = outcome.model.input_range(0)?;
+            Some((f64::from(lo), f64::from(hi)))
+        }
+        _ => None,
     }
 }
 

@@ -48,7 +48,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let (file, _) = read_model_file(model_path)?;
     // Written into a hidden directory beside DIR, which replaces DIR as a whole at the end.
     let staged = StagedDir::create(target)?;
-    let allow = a.uncompensated.allow_uncompensated;
+    let allow = a.uncompensated.acceptance();
     let mut printed = Vec::new();
     let axes = file.axes();
     if axes.is_empty() {
