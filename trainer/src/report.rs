@@ -119,6 +119,8 @@ fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 
 struct RatePlot {
     title: String,
+    /// What the rates are taken from: `ref_dph`, or each trace's own mean.
+    y_desc: &'static str,
     raw: Vec<(f64, f64)>,
     comp: Vec<(f64, f64)>,
     temp: Vec<(f64, f64)>,
@@ -430,11 +432,7 @@ where
         .right_y_label_area_size(60)
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?
         .set_secondary_coord(t_lo..t_hi, c_lo..c_hi);
-    chart
-        .configure_mesh()
-        .x_desc("time [h]")
-        .y_desc("rate − reference [°/h] (10-s means)")
-        .draw()?;
+    chart.configure_mesh().x_desc("time [h]").y_desc(p.y_desc).draw()?;
     chart
         .configure_secondary_axes()
         .y_desc("loop temperature [°C]")
@@ -637,10 +635,11 @@ where
     let (r_lo, r_hi) = surface_rate_range(model);
     let multi_point = matches!(set, FeatureSet::MultiPoint(_));
     let axis = |i: usize| set.name(i).map_or_else(String::new, |n| n.to_string());
-    let (x_desc, y_desc) = if multi_point {
-        (axis(0), axis(1))
-    } else {
-        ("loop temperature T [°C]".to_owned(), "ΔT [°C/min]".to_owned())
+    // The axes are the model's own inputs: T̂ for a lag bank, not the loop's T.
+    let (x_desc, y_desc) = match set {
+        FeatureSet::MultiPoint(_) => (axis(0), axis(1)),
+        FeatureSet::LagBank(bank) => ("mean coil temperature T̂ [°C]".to_owned(), axis(bank.static_inputs())),
+        _ => ("loop temperature T [°C]".to_owned(), "ΔT [°C/min]".to_owned()),
     };
     const N: usize = 60;
     let grid: Vec<(f32, f32, f32)> = (0..N * N)
@@ -751,7 +750,7 @@ fn read_run(
         BlockMeans::new(PLOT_MEAN_S),
         BlockMeans::new(PLOT_MEAN_S),
     );
-    let (mut rows, mut compensated, mut rate_sum) = (0usize, 0usize, 0.0f64);
+    let (mut rows, mut compensated, mut rate_sum, mut comp_sum) = (0usize, 0usize, 0.0f64, 0.0f64);
     run.for_each_line(|line, row, sample| {
         let out = compensator.process(Some(model), &config, sample);
         let r = row.ref_dph.unwrap_or(0.0);
@@ -759,6 +758,7 @@ fn read_run(
         diagnosis.push(line, row);
         compensated += usize::from(!out.flags.contains(rbf_core::Flags::NO_VALID_MODEL));
         rate_sum += row.rate_dph;
+        comp_sum += f64::from(out.rate_comp_dph);
         raw.push(row.time_s, row.rate_dph - r);
         comp.push(row.time_s, out.rate_comp_dph as f64 - r);
         bias.push(row.time_s, out.bias_dph as f64);
@@ -780,13 +780,19 @@ fn read_run(
     require_evaluable(&path, rows, &diagnosis)?;
     require_compensated(&path, rows, compensated, &diagnosis, mask, accept.uncompensated)?;
     crate::plausible::require_plausible(&diagnosis.implausible(), accept.implausible)?;
-    // Without ref_dph the reference is the run's mean rate, known only now:
-    // a block mean of (v − m) is the block mean of v, less m.
-    let mean = if has_ref { 0.0 } else { rate_sum / rows.max(1) as f64 };
-    let less_mean =
-        |blocks: BlockMeans| -> Vec<(f64, f64)> { blocks.finish().into_iter().map(|(t, v)| (t, v - mean)).collect() };
+    // Without ref_dph each trace is taken about its own mean (as the
+    // evaluation's figures are), known only now: a block mean of (v − m) is
+    // the block mean of v, less m.
+    let mean = |sum: f64| if has_ref { 0.0 } else { sum / rows.max(1) as f64 };
+    let less_mean = |blocks: BlockMeans, mean: f64| -> Vec<(f64, f64)> {
+        blocks.finish().into_iter().map(|(t, v)| (t, v - mean)).collect()
+    };
     let evaluation = evaluator.finish();
-    let (raw, comp, temp) = (less_mean(raw), less_mean(comp), temp.finish());
+    let (raw, comp, temp) = (
+        less_mean(raw, mean(rate_sum)),
+        less_mean(comp, mean(comp_sum)),
+        temp.finish(),
+    );
     let points = bias_points(&temp, &raw, &bias.finish(), &comp);
     Ok(RunPlots {
         stem: stem.to_owned(),
@@ -803,6 +809,11 @@ fn read_run(
                 "{stem}: rate before and after compensation; 100-s STD {:.3} → {:.3} °/h",
                 evaluation.cluster_std_before_dph, evaluation.cluster_std_after_dph
             ),
+            y_desc: if has_ref {
+                "rate − ref_dph [°/h] (10-s means)"
+            } else {
+                "rate − its run mean (no ref_dph) [°/h] (10-s means)"
+            },
             raw,
             comp,
             temp,

@@ -203,3 +203,36 @@ fn a_header_with_another_delimiter_names_it_and_every_missing_column() {
         "{e}"
     );
 }
+
+#[test]
+fn help_describes_the_default_the_command_uses() {
+    let fit = stdout(&trainer(&["fit", "--help"]));
+    let opening = fit[..fit.find("Usage:").unwrap()]
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
+    assert!(opening.contains("The default is the thermal lag bank"), "{opening}");
+    assert!(
+        !fit.contains("Features (T [°C], ΔT [°C/min], T×ΔT) are computed"),
+        "{fit}"
+    );
+    let blocks = stdout(&trainer(&["blocks", "--help"]));
+    assert!(!blocks.contains("multiscale-validated, the fit's default"), "{blocks}");
+    assert!(blocks.contains("lag-bank, the fit's default"), "{blocks}");
+    let dir = TempDir::new().unwrap();
+    let run = write(&dir, "r.csv", b"time_s,rate_dph,temp_c\n0,1,20\n1,1,20\n");
+    let o = trainer(&[
+        "blocks",
+        run.to_str().unwrap(),
+        "--features",
+        "lag-bank",
+        "-o",
+        dir.path().join("b.csv").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("pass the fitted model with --model"),
+        "{}",
+        stderr(&o)
+    );
+}

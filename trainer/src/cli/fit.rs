@@ -28,13 +28,19 @@ mod axes;
 
 /// Fit a bias model to recorded chamber runs and write the model blob.
 ///
-/// Features (T [°C], ΔT [°C/min], T×ΔT) are computed per sample by rbf-core, as
-/// the firmware does, then averaged over blocks together with the bias target
-/// `rate_dph − ref_dph` (or minus the run mean without ref_dph). The RBF
-/// methods choose centres by orthogonal least squares and ridge output weights;
-/// the ΔT window, Gaussian width, ridge strength and number of centres are
-/// chosen on the --validate runs, or by contiguous 5-fold validation over the
-/// training runs. Prints a before/after accuracy table, then writes the blob.
+/// The model's inputs are computed per sample by rbf-core, as the firmware
+/// does, then averaged over blocks together with the bias target
+/// `rate_dph − ref_dph` (or minus the run mean without ref_dph). The default
+/// is the thermal lag bank: the mean coil temperature T̂ and the loop
+/// temperature's rates through 4–5 derivative filters, its filters, coil lags
+/// and Shupe gain identified from the runs and chosen on held-out thermal
+/// events (or whole runs, or the --validate runs); a cubic in T̂ and the rates,
+/// linear, with ridge weights. The other RBF forms (--features paper: T, ΔT,
+/// T×ΔT; multiscale) choose Gaussian centres by orthogonal least squares, with
+/// the ΔT window, width, ridge strength and number of centres chosen on the
+/// --validate runs or by contiguous 5-fold validation. Prints the model as it
+/// is, a before/after accuracy table and what the training covered, then
+/// writes the blob.
 ///
 /// Runs with rate_x_dph, rate_y_dph, rate_z_dph (all runs the same axes):
 /// every axis is fitted as above on its own rate, thermometer and reference,
