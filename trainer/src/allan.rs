@@ -11,10 +11,14 @@
 //! σ(τ) among the cluster times whose estimate is confident, τ ≤ T/10 (T
 //! the run's length; there the 1-σ uncertainty of σ is at most 24 %,
 //! [`relative_error`]), divided by 0.664 (IEEE Std 952, flicker floor). The
-//! minimum is flat when the curve on at least one side of it (octave
-//! neighbours within the confident τ) changes no faster than τ^±¼; otherwise
-//! (a curve still falling at T/10, or a V) no floor was reached and the
-//! figure is an upper bound, the lowest confident σ / 0.664.
+//! floor is the lowest σ of the first flat stretch from short τ on: three
+//! or more octave points joined by slopes within τ^±¼ (white rate noise
+//! falls as τ^−½; a flicker floor is flat; the simulator's Gauss–Markov
+//! instability is a flat hump that falls again past its correlation time,
+//! so the stretch, not the curve's minimum, is its floor). Without one
+//! (white noise still dominant at T/10, or a V into rate random walk) no
+//! floor was reached: the figure is then the lowest confident σ / 0.664,
+//! above the floor that the falling curve has yet to reach.
 
 use serde::Serialize;
 
@@ -27,9 +31,9 @@ pub struct AllanDeviation {
     pub adev_dph: Vec<f64>,
     /// Angle random walk read on the τ^−½ slope, °/√h.
     pub arw_deg_per_sqrt_h: f64,
-    /// Bias instability, °/h: the flat minimum of the curve within the
-    /// confident τ / 0.664 when [`Self::floor_reached`]; else an upper bound,
-    /// the lowest confident σ / 0.664 (see the module docs).
+    /// Bias instability, °/h: the lowest σ of the first flat stretch within
+    /// the confident τ / 0.664 when [`Self::floor_reached`]; else an upper
+    /// bound, the lowest confident σ / 0.664 (see the module docs).
     pub bias_instability_dph: f64,
     /// τ of the floor (or of the lowest confident σ), s.
     pub floor_tau_s: f64,
@@ -48,7 +52,7 @@ pub const FLICKER_FLOOR: f64 = 0.664;
 /// uncertainty of at most 1/√18 ≈ 24 % ([`relative_error`]).
 pub const CONFIDENT_CLUSTERS: f64 = 10.0;
 
-/// Steepest log-log slope of a flat minimum, either side: white rate noise
+/// Steepest log-log slope within a flat stretch: white rate noise
 /// falls as τ^−½ and rate random walk rises as τ^+½; a flicker floor is flat.
 pub const FLAT_SLOPE: f64 = 0.25;
 
@@ -76,26 +80,47 @@ pub struct Floor {
 }
 
 /// The bias-instability reading of a curve σ(τ) from a run `duration_s`
-/// long (the module docs' rule): the lowest σ among τ ≤ T/10, and whether it
-/// is a flat floor. `None` when no τ is confident.
+/// long (the module docs' rule): the lowest σ of the first flat stretch
+/// among τ ≤ T/10 (reached), or else the lowest σ there (not reached).
+/// `None` when no τ is confident.
 pub fn read_floor(tau_s: &[f64], adev_dph: &[f64], duration_s: f64) -> Option<Floor> {
     let confident: Vec<usize> = (0..tau_s.len().min(adev_dph.len()))
         .filter(|&i| tau_s[i] * CONFIDENT_CLUSTERS <= duration_s && adev_dph[i].is_finite() && adev_dph[i] > 0.0)
         .collect();
-    let &index = confident
-        .iter()
-        .min_by(|&&a, &&b| adev_dph[a].total_cmp(&adev_dph[b]))?;
+    let lowest = |positions: &[usize]| {
+        positions
+            .iter()
+            .copied()
+            .min_by(|&a, &b| adev_dph[a].total_cmp(&adev_dph[b]))
+    };
     let slope = |a: usize, b: usize| (adev_dph[b] / adev_dph[a]).ln() / (tau_s[b] / tau_s[a]).ln();
-    let position = confident.iter().position(|&i| i == index).unwrap_or(0);
-    let before = position.checked_sub(1).map(|p| confident[p]);
-    let after = confident.get(position + 1).copied();
-    let flat_in = before.is_some_and(|b| slope(b, index) >= -FLAT_SLOPE);
-    let flat_out = after.is_some_and(|a| slope(index, a) <= FLAT_SLOPE);
-    // A flat stretch on one side at least; a minimum that ends the confident
-    // range still falling steeply is no floor, nor is a V.
-    let reached = confident.len() >= 3 && (flat_in || flat_out);
-    Some(Floor { index, reached })
+    // The first flat stretch from short τ on: neighbours joined by slopes
+    // within ±FLAT_SLOPE, at least FLAT_POINTS of them.
+    let mut stretch: Option<(usize, usize)> = None;
+    for p in 0..confident.len().saturating_sub(1) {
+        let flat = slope(confident[p], confident[p + 1]).abs() <= FLAT_SLOPE;
+        stretch = match (flat, stretch) {
+            (true, None) => Some((p, p + 1)),
+            (true, Some((first, _))) => Some((first, p + 1)),
+            (false, Some((first, last))) if last - first + 1 >= FLAT_POINTS => break,
+            (false, _) => None,
+        };
+    }
+    match stretch.filter(|(first, last)| last - first + 1 >= FLAT_POINTS) {
+        Some((first, last)) => Some(Floor {
+            index: lowest(&confident[first..=last])?,
+            reached: true,
+        }),
+        None => Some(Floor {
+            index: lowest(&confident)?,
+            reached: false,
+        }),
+    }
 }
+
+/// Fewest octave points of a flat stretch: two slopes, so that one
+/// estimate's scatter (up to 24 % at T/10) does not make a floor.
+pub const FLAT_POINTS: usize = 3;
 
 /// Overlapping Allan deviation of `rate_dph` sampled every `tau0_s` at cluster sizes `m`.
 pub fn oadev(rate_dph: &[f64], tau0_s: f64, m: &[usize]) -> Vec<f64> {
@@ -223,8 +248,8 @@ impl AllanDeviation {
 }
 
 /// The rule the bias-instability figures follow, for table footnotes.
-pub const FLOOR_RULE: &str = "BI: the flat minimum of σ(τ)/0.664 among τ ≤ T/10 (IEEE 952; ± its 1-σ uncertainty); \
-                              ≤: no flat minimum there, the lowest σ/0.664 bounds it";
+pub const FLOOR_RULE: &str = "BI: σ(τ)/0.664 at the first flat stretch of the Allan curve among τ ≤ T/10 (IEEE 952; \
+                              ± its 1-σ uncertainty); ≤: the curve still falls there, its lowest σ/0.664 bounds it";
 
 #[cfg(test)]
 mod tests {

@@ -29,6 +29,7 @@ pub mod metrics;
 pub mod output;
 pub mod plan;
 pub mod plausible;
+pub mod plot_axes;
 pub mod report;
 pub mod run;
 pub mod sampling;

@@ -19,6 +19,7 @@ use rbf_core::{FeatureSet, FeatureVector, Model};
 use crate::diagnose::RunDiagnosis;
 use crate::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
 use crate::output::{self, DirTarget, Existing, StagedDir};
+use crate::plot_axes::{tick_label, with_legend_room, with_legend_room_log};
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, summary, text};
 use rbf_core::record::Axis;
@@ -104,6 +105,12 @@ impl BlockMeans {
         }
         self.out
     }
+}
+
+/// The height of the plotting area of a chart on `area`, px: the area less
+/// the label areas and captions below and above it (`reserved_px`) and the margins.
+fn plot_height_px<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, reserved_px: u32) -> u32 {
+    area.dim_in_pixel().1.saturating_sub(reserved_px + 24).max(1)
 }
 
 fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
@@ -236,12 +243,18 @@ where
     let (top, bottom) = root.split_vertically((SIZE.1 as f64 * 0.58) as u32);
     let (t_lo, t_hi) = range(p.points.iter().map(|q| q.temp_c));
     let (y_lo, y_hi) = range(p.points.iter().flat_map(|q| [q.measured_dph, q.model_dph]));
+    let (y_lo, y_hi) = with_legend_room(y_lo, y_hi, 4, plot_height_px(&top, 30));
     let mut chart = ChartBuilder::on(&top)
         .margin(10)
         .x_label_area_size(30)
         .y_label_area_size(80)
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
-    chart.configure_mesh().y_desc("bias [°/h] (10-s means)").draw()?;
+    chart
+        .configure_mesh()
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
+        .y_desc("bias [°/h] (10-s means)")
+        .draw()?;
     for ramp in [Ramp::Steady, Ramp::Cooling, Ramp::Heating] {
         let colour = ramp.colour();
         chart
@@ -264,6 +277,7 @@ where
         .legend(|(x, y)| Circle::new((x + 10, y), 3, BLACK.filled()));
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
@@ -275,6 +289,8 @@ where
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
     residual
         .configure_mesh()
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
         .x_desc("loop temperature T [°C]")
         .y_desc("residual [°/h]")
         .draw()?;
@@ -422,8 +438,11 @@ where
 {
     root.fill(&WHITE)?;
     let (t_lo, t_hi) = range(p.raw.iter().map(|v| v.0 / 3600.0));
+    let plot_px = plot_height_px(&root, 40 + 30);
     let (y_lo, y_hi) = range(p.raw.iter().chain(&p.comp).map(|v| v.1));
+    let (y_lo, y_hi) = with_legend_room(y_lo, y_hi, 3, plot_px);
     let (c_lo, c_hi) = range(p.temp.iter().map(|v| v.1));
+    let (c_lo, c_hi) = with_legend_room(c_lo, c_hi, 3, plot_px);
     let mut chart = ChartBuilder::on(&root)
         .caption(&p.title, ("sans-serif", 22))
         .margin(12)
@@ -432,9 +451,16 @@ where
         .right_y_label_area_size(60)
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?
         .set_secondary_coord(t_lo..t_hi, c_lo..c_hi);
-    chart.configure_mesh().x_desc("time [h]").y_desc(p.y_desc).draw()?;
+    chart
+        .configure_mesh()
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
+        .x_desc("time [h]")
+        .y_desc(p.y_desc)
+        .draw()?;
     chart
         .configure_secondary_axes()
+        .y_label_formatter(&tick_label)
         .y_desc("loop temperature [°C]")
         .draw()?;
     let hours = |v: &Vec<(f64, f64)>| v.iter().map(|&(t, y)| (t / 3600.0, y)).collect::<Vec<_>>();
@@ -452,6 +478,7 @@ where
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(120, 120, 120)));
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
@@ -497,14 +524,18 @@ where
         bands.iter().flatten().map(|b| b.1).fold(d_lo, f64::min),
         bands.iter().flatten().map(|b| b.2).fold(d_hi, f64::max),
     );
+    // Two curves with their bands, and up to three read-off lines.
+    let (d_lo, d_hi) = with_legend_room_log(d_lo, d_hi, 7, plot_height_px(&root, 40 + 34));
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 22))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(80)
-        .build_cartesian_2d((t_lo..t_hi).log_scale(), (d_lo * 0.8..d_hi * 1.25).log_scale())?;
+        .build_cartesian_2d((t_lo..t_hi).log_scale(), (d_lo..d_hi).log_scale())?;
     chart
         .configure_mesh()
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
         .x_desc("cluster time τ [s]")
         .y_desc("Allan deviation [°/h]")
         .draw()?;
@@ -536,7 +567,7 @@ where
     // its last point (rate random walk or a residual ramp rises that way).
     let a = &e.allan_after;
     let guide = RGBColor(90, 90, 90);
-    let in_box = |d: f64| d.is_finite() && d >= d_lo * 0.8 && d <= d_hi * 1.25;
+    let in_box = |d: f64| d.is_finite() && d >= d_lo && d <= d_hi;
     let taus = |from: f64, to: f64| (0..=40).map(move |k| from * (to / from).powf(f64::from(k) / 40.0));
     if a.arw_deg_per_sqrt_h.is_finite() && a.arw_deg_per_sqrt_h > 0.0 {
         let arw = a.arw_deg_per_sqrt_h;
@@ -584,6 +615,7 @@ where
     }
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
@@ -731,6 +763,7 @@ fn read_run(
     model: &Model,
     reader: RunReader,
     stem: &str,
+    title: &str,
     trajectory: &mut Trajectory,
     first_index: &mut usize,
     accept: crate::axes::Acceptance,
@@ -799,14 +832,14 @@ fn read_run(
         duration_s: rows as f64 * period_s,
         bias_temp: BiasTempPlot {
             title: format!(
-                "{stem}: bias against loop temperature; 100-s STD {:.3} → {:.3} °/h",
+                "{title}: bias against loop temperature; 100-s STD {:.3} → {:.3} °/h",
                 evaluation.cluster_std_before_dph, evaluation.cluster_std_after_dph
             ),
             points,
         },
         rate: RatePlot {
             title: format!(
-                "{stem}: rate before and after compensation; 100-s STD {:.3} → {:.3} °/h",
+                "{title}: rate before and after compensation; 100-s STD {:.3} → {:.3} °/h",
                 evaluation.cluster_std_before_dph, evaluation.cluster_std_after_dph
             ),
             y_desc: if has_ref {
@@ -925,7 +958,8 @@ fn clamped_cell(n: usize, samples: usize) -> String {
 
 /// Writes the report of `model` (read from `model_path`) on the runs at
 /// `runs` (`-`: standard input) into the staged directory `out`, in its
-/// subdirectory `sub` (empty: at the top); returns how many files it wrote.
+/// subdirectory `sub` (empty: at the top); returns how many files it wrote
+/// and the runs' evaluations.
 /// `axis` picks that axis of multi-axis runs (`None`: single-axis runs).
 ///
 /// Every run is read once, streaming (memory: 10-s means and a bounded
@@ -941,9 +975,14 @@ pub fn write_report(
     sub: &Path,
     accept: crate::axes::Acceptance,
     axis: Option<Axis>,
-) -> anyhow::Result<usize> {
+) -> anyhow::Result<(usize, Vec<RunEvaluation>)> {
     input::check_stdin_once(runs.iter().map(|p| p.as_path()).chain([model_path]))?;
     let stems: Vec<String> = runs.iter().map(|p| run_stem(p)).collect();
+    // A multi-axis report's titles name the axis.
+    let titled = |stem: &str| match axis {
+        Some(a) => format!("{stem}, axis {}", a.name()),
+        None => stem.to_owned(),
+    };
     let mut trajectory = Trajectory::new();
     let mut first_index = 0;
     let plots = runs
@@ -955,7 +994,15 @@ pub fn write_report(
                 Some(axis) => reader.select_axis(axis)?,
                 None => reader.require_single_axis()?,
             }
-            read_run(model, reader, stem, &mut trajectory, &mut first_index, accept)
+            read_run(
+                model,
+                reader,
+                stem,
+                &titled(stem),
+                &mut trajectory,
+                &mut first_index,
+                accept,
+            )
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
 
@@ -970,7 +1017,10 @@ pub fn write_report(
         write(&format!("{stem}.svg"), svg.as_bytes())?;
         write(&format!("{stem}.png"), &png)
     };
-    let mut md = String::from("# Compensation report\n\n");
+    let mut md = match axis {
+        Some(a) => format!("# Compensation report, axis {}\n\n", a.name()),
+        None => String::from("# Compensation report\n\n"),
+    };
     md.push_str(&model_markdown(model, model_path));
     md.push_str("## Runs\n\n| run | 100-s STD before [°/h] | after [°/h] | improvement | MSD improvement | ARW after [°/√h] | BI before → after [°/h] | clamped samples |\n|---|---|---|---|---|---|---|---|\n");
     for p in &plots {
@@ -979,7 +1029,8 @@ pub fn write_report(
         both(&format!("{stem}_bias_vs_temp"), render(&p.bias_temp))?;
         let allan = AllanPlot {
             title: format!(
-                "{stem}: overlapping Allan deviation; bias instability {} → {} °/h",
+                "{}: overlapping Allan deviation; bias instability {} → {} °/h",
+                titled(stem),
                 p.evaluation.allan_before.bias_instability_cell(),
                 p.evaluation.allan_after.bias_instability_cell()
             ),
@@ -1024,7 +1075,45 @@ pub fn write_report(
         serde_json::to_string_pretty(&serde_json::json!({"model": text::path(model_path), "runs": evaluations}))?;
     write("report.json", json.as_bytes())?;
     write("report.md", md.as_bytes())?;
-    Ok(written.get())
+    Ok((written.get(), plots.into_iter().map(|p| p.evaluation).collect()))
+}
+
+/// The summary page of a multi-axis report (its top report.md): every run
+/// and axis side by side, with links to each axis's own report.
+pub fn axes_summary_markdown(model_path: &Path, axes: &[(Axis, Vec<RunEvaluation>)]) -> String {
+    let names: Vec<&str> = axes.iter().map(|(a, _)| a.name()).collect();
+    let mut md = format!(
+        "# Compensation report, axes {}\n\nModel: `{}`. Each axis in full: {}.\n\n",
+        names.join(", "),
+        text::path(model_path),
+        names
+            .iter()
+            .map(|n| format!("[axis {n}](axis-{n}/report.md)"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    md.push_str(
+        "| run | axis | 100-s STD before [°/h] | after [°/h] | improvement | BI after [°/h] | clamped |\n\
+         |---|---|---|---|---|---|---|\n",
+    );
+    let runs = axes.iter().map(|(_, e)| e.len()).max().unwrap_or(0);
+    for run in 0..runs {
+        for (axis, evaluations) in axes {
+            let Some(e) = evaluations.get(run) else { continue };
+            md.push_str(&format!(
+                "| {} | {} | {} | {} | {} | {} | {} |\n",
+                text::escape_controls(&run_stem(Path::new(&e.run))),
+                axis.name(),
+                figure(e.cluster_std_before_dph, |v| format!("{v:.4}")),
+                figure(e.cluster_std_after_dph, |v| format!("{v:.4}")),
+                figure(e.cluster_std_improvement_pct, |v| format!("{v:.1} %")),
+                e.allan_after.bias_instability_cell(),
+                clamped_cell(e.flagged.input_clamped, e.samples)
+            ));
+        }
+    }
+    md.push_str(&format!("\n{}.\n", crate::allan::FLOOR_RULE));
+    md
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{fitted_model, stderr, stdout, trainer, write};
+use common::{fitted_model, stderr, stdout, trainer, with_model, write};
 use tempfile::TempDir;
 
 #[test]
@@ -47,14 +47,7 @@ fn a_model_is_described_as_it_is_in_fit_inspect_and_report() {
     assert!(!features.contains_key("coil_lag_min"), "{features:?}");
     // report.md: the same kind and form.
     let out = dir.path().join("report");
-    let o = trainer(&[
-        "report",
-        "--model",
-        model.to_str().unwrap(),
-        run.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = with_model("report", &model, &run, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     let form = text.lines().find_map(|l| l.strip_prefix("model           ")).unwrap();
@@ -216,7 +209,10 @@ fn help_describes_the_default_the_command_uses() {
         !fit.contains("Features (T [°C], ΔT [°C/min], T×ΔT) are computed"),
         "{fit}"
     );
-    let blocks = stdout(&trainer(&["blocks", "--help"]));
+    let blocks = stdout(&trainer(&["blocks", "--help"]))
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
     assert!(!blocks.contains("multiscale-validated, the fit's default"), "{blocks}");
     assert!(blocks.contains("lag-bank, the fit's default"), "{blocks}");
     let dir = TempDir::new().unwrap();

@@ -396,6 +396,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     implausible: true,
                 };
                 trainer::report::write_report(&outcome.model, &a.output, &report_runs, &staged, Path::new(""), accept, None)?
+                    .0
             };
         staged.write(Path::new(FIT_TEXT), &out)?;
         writeln!(out, "wrote {} files into {}", files + 1, text::path(staged.target()))?;
