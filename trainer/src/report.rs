@@ -325,7 +325,8 @@ impl Figure for AllanPlot<'_> {
 
 struct SurfacePlot<'a> {
     model: &'a Model,
-    /// (T, ΔT₁, bias) along the reported runs, for multi-scale models.
+    /// (input 0, the fastest rate input, bias) along the reported runs, for
+    /// multi-scale models and lag banks.
     trajectory: Vec<(f32, f32, f32)>,
 }
 
@@ -334,8 +335,12 @@ impl Figure for SurfacePlot<'_> {
     where
         DB::ErrorType: 'static,
     {
-        if self.model.features().set.is_multiscale() {
-            draw_trajectory(root, &self.trajectory)
+        let set = self.model.features().set;
+        // Where the runs went, not a box whose corners (fast rates at the
+        // extremes of temperature) no run reached: there the model only extrapolates.
+        if set.is_multiscale() || matches!(set, FeatureSet::LagBank(_)) {
+            let axis = |i: usize| set.name(i).map_or_else(String::new, |n| n.to_string());
+            draw_trajectory(root, &self.trajectory, &axis(0), &axis(surface_rate_input(set)))
         } else {
             draw_surface(root, self.model)
         }
@@ -397,10 +402,16 @@ where
     Ok(plot)
 }
 
-/// Multi-scale models: a steady ramp (all ΔT windows equal) never occurs in a
-/// chamber run, so a (T, ΔT) surface would show extrapolation; plot the bias
-/// along the runs' own (T, ΔT₁) trajectory instead.
-fn draw_trajectory<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, points: &[(f32, f32, f32)]) -> DrawResult
+/// Multi-scale models and lag banks: a steady ramp (all ΔT windows equal)
+/// never occurs in a chamber run, and the corners of the inputs' box are
+/// never reached, so a surface would show extrapolation; plot the bias along
+/// the runs' own trajectory (`x_desc`, `y_desc`: its inputs) instead.
+fn draw_trajectory<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    points: &[(f32, f32, f32)],
+    x_desc: &str,
+    y_desc: &str,
+) -> DrawResult
 where
     DB::ErrorType: 'static,
 {
@@ -408,7 +419,7 @@ where
     let (t_lo, t_hi) = range(points.iter().map(|p| p.0 as f64));
     let (r_lo, r_hi) = range(points.iter().map(|p| p.1 as f64));
     let (b_lo, b_hi) = range(points.iter().map(|p| p.2 as f64));
-    let caption = "model bias along the runs' (T, ΔT₁) path".to_owned();
+    let caption = "model bias along the runs' path (where data lie)".to_owned();
     let plot = with_colour_bar(&root, b_lo, b_hi, "model bias [°/h]")?;
     let mut chart = ChartBuilder::on(&plot)
         .caption(caption, ("sans-serif", 22))
@@ -418,8 +429,10 @@ where
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
     chart
         .configure_mesh()
-        .x_desc("loop temperature T [°C]")
-        .y_desc("ΔT₁ [°C/min]")
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
+        .x_desc(x_desc)
+        .y_desc(y_desc)
         .draw()?;
     chart.draw_series(points.iter().map(|&(t, r, b)| {
         Circle::new(
@@ -641,15 +654,21 @@ fn steady_bias(model: &Model, t_c: f32, rate: f32) -> f32 {
     model.eval(&features).bias_dph
 }
 
-/// The bias surface's second axis, °C/min (multi-point: input 1's units): the
-/// training range of the fastest rate input (input 1 of the paper and
-/// multi-scale sets; the first after the static powers of T̂ in the lag bank).
-fn surface_rate_range(model: &Model) -> (f32, f32) {
-    let set = model.features().set;
-    let rate_input = match set {
+/// The input on the bias plot's second axis: the fastest rate (input 1 of
+/// the paper and multi-scale sets; the first after the static powers of T̂
+/// in the lag bank; a multi-point set's input 1).
+fn surface_rate_input(set: FeatureSet) -> usize {
+    match set {
         FeatureSet::LagBank(bank) => bank.static_inputs(),
         _ => 1,
-    };
+    }
+}
+
+/// The bias surface's second axis, °C/min (multi-point: input 1's units):
+/// the training range of [`surface_rate_input`].
+fn surface_rate_range(model: &Model) -> (f32, f32) {
+    let set = model.features().set;
+    let rate_input = surface_rate_input(set);
     if set.dims() <= rate_input {
         (-1.0, 1.0)
     } else {
@@ -667,11 +686,10 @@ where
     let (r_lo, r_hi) = surface_rate_range(model);
     let multi_point = matches!(set, FeatureSet::MultiPoint(_));
     let axis = |i: usize| set.name(i).map_or_else(String::new, |n| n.to_string());
-    // The axes are the model's own inputs: T̂ for a lag bank, not the loop's T.
-    let (x_desc, y_desc) = match set {
-        FeatureSet::MultiPoint(_) => (axis(0), axis(1)),
-        FeatureSet::LagBank(bank) => ("mean coil temperature T̂ [°C]".to_owned(), axis(bank.static_inputs())),
-        _ => ("loop temperature T [°C]".to_owned(), "ΔT [°C/min]".to_owned()),
+    let (x_desc, y_desc) = if multi_point {
+        (axis(0), axis(1))
+    } else {
+        ("loop temperature T [°C]".to_owned(), "ΔT [°C/min]".to_owned())
     };
     const N: usize = 60;
     let grid: Vec<(f32, f32, f32)> = (0..N * N)
@@ -770,6 +788,7 @@ fn read_run(
 ) -> anyhow::Result<RunPlots> {
     let path = reader.path().to_owned();
     let mask = model.features().set.thermometer_mask();
+    let rate_input = surface_rate_input(model.features().set);
     let named = RunDiagnosis::new(&path, 1.0).named_by(reader.header_line(), reader.columns());
     let run = StreamedRun::from_reader(reader, mask)?;
     let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
@@ -804,7 +823,7 @@ fn read_run(
             let v = f.as_slice();
             trajectory.push(
                 *first_index + rows,
-                (v[0], v.get(1).copied().unwrap_or(0.0), out.bias_dph),
+                (v[0], v.get(rate_input).copied().unwrap_or(0.0), out.bias_dph),
             );
         }
         rows += 1;

@@ -684,7 +684,11 @@ fn report_writes_svg_and_png_plots_json_and_markdown() {
     let allan = std::fs::read_to_string(out.join("train_allan.svg")).unwrap();
     assert!(allan.contains("<polygon") && allan.contains("IEEE 952"), "Allan bands");
     let surface = std::fs::read_to_string(out.join("bias_surface.svg")).unwrap();
-    assert!(surface.contains("fitted bias [°/h]"), "colour bar axis");
+    // The default model's bias is drawn where the runs went, over its own inputs.
+    assert!(
+        surface.contains("model bias [°/h]") && surface.contains("where data lie") && surface.contains("T̂ [°C]"),
+        "colour bar axis, the path, the lag bank's inputs"
+    );
 }
 
 #[test]
