@@ -340,7 +340,12 @@ impl Figure for SurfacePlot<'_> {
         // extremes of temperature) no run reached: there the model only extrapolates.
         if set.is_multiscale() || matches!(set, FeatureSet::LagBank(_)) {
             let axis = |i: usize| set.name(i).map_or_else(String::new, |n| n.to_string());
-            draw_trajectory(root, &self.trajectory, &axis(0), &axis(surface_rate_input(set)))
+            // In words too: a font without the combining hat draws T̂ as T.
+            let x_desc = match set {
+                FeatureSet::LagBank(_) => format!("mean coil temperature {}", axis(0)),
+                _ => axis(0),
+            };
+            draw_trajectory(root, &self.trajectory, &x_desc, &axis(surface_rate_input(set)))
         } else {
             draw_surface(root, self.model)
         }
@@ -388,7 +393,7 @@ where
         .y_desc(label)
         .label_style(("sans-serif", 13))
         .axis_desc_style(("sans-serif", 14))
-        .y_label_formatter(&|v| format!("{v:.3}"))
+        .y_label_formatter(&tick_label)
         .draw()?;
     const STEPS: usize = 100;
     let step = (hi - lo) / STEPS as f64;
