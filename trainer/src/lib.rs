@@ -30,6 +30,7 @@ pub mod output;
 pub mod plan;
 pub mod plausible;
 pub mod plot_axes;
+pub mod refusals;
 pub mod report;
 pub mod run;
 pub mod sampling;

@@ -34,19 +34,12 @@ pub fn qemu_replay(model: &Path, run: &Path, output: &Path, frames: Option<&Path
 }
 
 /// `e` with the `cargo xtask qemu-replay` flag that changes the outcome
-/// named, as `trainer compensate` names its own.
+/// named, as `trainer compensate` names its own ([`trainer::refusals`]).
 pub fn with_flag_hint(e: anyhow::Error) -> anyhow::Error {
-    let root = e.root_cause();
-    let hint = if root.is::<trainer::output::OutputExists>() {
-        "pass --force to overwrite it"
-    } else if root.is::<trainer::evaluate::NothingCompensated>() {
-        "pass --allow-uncompensated to accept such a run"
-    } else if root.is::<trainer::plausible::Implausible>() {
-        "convert the run to the recorded-run format's units, or pass --allow-implausible if it is right"
-    } else {
-        return e;
-    };
-    anyhow::anyhow!("{e:#}; {hint}")
+    match trainer::refusals::flag_hint(&e) {
+        "" => e,
+        hint => anyhow::anyhow!("{e:#}{hint}"),
+    }
 }
 
 /// [`qemu_replay`] as `cargo xtask qemu-replay` runs it: first everything

@@ -20,21 +20,7 @@ pub fn stderr() -> SafeWriter<std::io::StderrLock<'static>> {
     SafeWriter::new(std::io::stderr().lock())
 }
 
-/// What the command line adds to a library error: the flag that changes the outcome.
-pub fn flag_hint(e: &anyhow::Error) -> &'static str {
-    let root = e.root_cause();
-    if root.is::<trainer::output::OutputExists>() {
-        "; pass --force to overwrite it"
-    } else if root.is::<trainer::output::OutputReadOnly>() {
-        ", even with --force"
-    } else if root.is::<trainer::evaluate::NothingCompensated>() {
-        ". Pass --allow-uncompensated to accept such a run"
-    } else if root.is::<trainer::plausible::Implausible>() {
-        ". Convert the run to the recorded-run format's units, or pass --allow-implausible if it is right"
-    } else {
-        ""
-    }
-}
+pub use trainer::refusals::flag_hint;
 
 /// `--force`: whether an existing output may be replaced.
 #[derive(Args, Debug)]
