@@ -15,6 +15,7 @@ use crate::evaluate::{
     evaluate_shared_reader, require_compensated, require_evaluable,
 };
 use crate::output::{self, Existing, Output};
+use crate::plausible::require_plausible;
 use crate::run::RunReader;
 use crate::{input, text};
 
@@ -110,6 +111,25 @@ pub fn shared_axes_for_run(
         .collect()
 }
 
+/// Which runs a command accepts that it would otherwise refuse.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Acceptance {
+    /// A run where no row could be compensated (`--allow-uncompensated`).
+    pub uncompensated: bool,
+    /// A run implausible as a gyro recording ([`crate::plausible`], `--allow-implausible`).
+    pub implausible: bool,
+}
+
+impl From<bool> for Acceptance {
+    /// Accepts uncompensated runs or not; never implausible ones.
+    fn from(uncompensated: bool) -> Self {
+        Acceptance {
+            uncompensated,
+            implausible: false,
+        }
+    }
+}
+
 /// What compensating a run did, per axis (`None`: a single-axis run).
 pub type AxisCompensations = Vec<(Option<Axis>, Compensation)>;
 
@@ -118,7 +138,8 @@ pub type AxisCompensations = Vec<(Option<Axis>, Compensation)>;
 /// multi-axis run with its own model. Every check comes first (the output
 /// target against the inputs and `existing`, the model, the run's header);
 /// the output appears only when the whole run is written, and not at all
-/// when an axis had no row compensated, unless `allow_uncompensated`.
+/// when an axis had no row compensated or the run is implausible
+/// ([`crate::plausible`]), unless `accept` says so.
 /// Returns what each axis's compensation did and the output, written but
 /// not yet committed (the caller prints, then commits).
 pub fn compensate_command(
@@ -126,8 +147,9 @@ pub fn compensate_command(
     run: &Path,
     output: &Path,
     existing: Existing,
-    allow_uncompensated: bool,
+    accept: impl Into<Acceptance>,
 ) -> anyhow::Result<(AxisCompensations, Output)> {
+    let accept = accept.into();
     input::check_stdin_once([model_path, run])?;
     let target = output::check_target(output, &[model_path, run], existing)?;
     let (file, _) = read_model_file(model_path)?;
@@ -145,7 +167,7 @@ pub fn compensate_command(
         let mask = models.features().set.thermometer_mask();
         let mut result = Vec::with_capacity(done.len());
         for ((axis, _), c) in axes.iter().zip(done) {
-            require_compensated(run, c.rows, c.compensated, &c.diagnosis, mask, allow_uncompensated)
+            require_usable(run, c.rows, c.compensated, &c.diagnosis, mask, accept)
                 .map_err(|e| on_axis(e, Some(*axis)))?;
             result.push((Some(*axis), c));
         }
@@ -168,11 +190,23 @@ pub fn compensate_command(
     let mut result = Vec::with_capacity(done.len());
     for ((axis, model, _), c) in pairs.iter().zip(done) {
         let mask = model.features().set.thermometer_mask();
-        require_compensated(run, c.rows, c.compensated, &c.diagnosis, mask, allow_uncompensated)
-            .map_err(|e| on_axis(e, *axis))?;
+        require_usable(run, c.rows, c.compensated, &c.diagnosis, mask, accept).map_err(|e| on_axis(e, *axis))?;
         result.push((*axis, c));
     }
     Ok((result, out))
+}
+
+/// [`require_compensated`], then [`require_plausible`], as `accept` asks.
+fn require_usable(
+    run: &Path,
+    rows: usize,
+    compensated: usize,
+    diagnosis: &RunDiagnosis,
+    mask: u8,
+    accept: Acceptance,
+) -> anyhow::Result<()> {
+    require_compensated(run, rows, compensated, diagnosis, mask, accept.uncompensated)?;
+    require_plausible(&diagnosis.implausible(), accept.implausible)
 }
 
 /// `e` with the axis named, where there is one.
@@ -185,40 +219,33 @@ fn on_axis(e: anyhow::Error, axis: Option<Axis>) -> anyhow::Error {
 
 /// One axis's evaluation of run `path` as `trainer eval` reports it: refused
 /// (naming the axis) when it cannot be evaluated or, unless
-/// `allow_uncompensated`, when no row was compensated (`mask`: the
-/// thermometers the model reads); labelled with its axis.
+/// `accept`, when no row was compensated (`mask`: the thermometers the
+/// model reads) or the run is implausible; labelled with its axis.
 fn accept_evaluation(
     path: &Path,
     axis: Option<Axis>,
     mask: u8,
     (mut evaluation, diagnosis, compensated): (RunEvaluation, RunDiagnosis, usize),
-    allow_uncompensated: bool,
+    accept: Acceptance,
 ) -> anyhow::Result<RunEvaluation> {
     require_evaluable(path, evaluation.samples, &diagnosis).map_err(|e| on_axis(e, axis))?;
-    require_compensated(
-        path,
-        evaluation.samples,
-        compensated,
-        &diagnosis,
-        mask,
-        allow_uncompensated,
-    )
-    .map_err(|e| on_axis(e, axis))?;
+    require_usable(path, evaluation.samples, compensated, &diagnosis, mask, accept).map_err(|e| on_axis(e, axis))?;
     evaluation.axis = axis.map(Axis::name);
     Ok(evaluation)
 }
 
 /// `trainer eval`: before/after accuracy of the model file on each run (`-`:
 /// standard input), per axis for a multi-axis run, each run read once. A run
-/// where no row could be compensated is refused unless
-/// `allow_uncompensated`, as is one that cannot be evaluated
+/// where no row could be compensated or that is implausible is refused
+/// unless `accept` says so, as is one that cannot be evaluated
 /// ([`require_evaluable`]).
 pub fn evaluate_files(
     file: &ModelFile,
     model_path: &Path,
     paths: &[PathBuf],
-    allow_uncompensated: bool,
+    accept: impl Into<Acceptance>,
 ) -> anyhow::Result<Vec<RunEvaluation>> {
+    let accept = accept.into();
     input::check_stdin_once(paths.iter().map(|p| p.as_path()))?;
     let mut evaluations = Vec::new();
     for path in paths {
@@ -228,7 +255,7 @@ pub fn evaluate_files(
             let mask = models.features().set.thermometer_mask();
             let done = evaluate_shared_reader(models, &axes, reader)?;
             for ((axis, _), done) in axes.iter().zip(done) {
-                evaluations.push(accept_evaluation(path, Some(*axis), mask, done, allow_uncompensated)?);
+                evaluations.push(accept_evaluation(path, Some(*axis), mask, done, accept)?);
             }
             continue;
         }
@@ -237,7 +264,7 @@ pub fn evaluate_files(
         let done = evaluate_axes_reader(&axes, reader)?;
         for ((axis, model, _), done) in pairs.iter().zip(done) {
             let mask = model.features().set.thermometer_mask();
-            evaluations.push(accept_evaluation(path, *axis, mask, done, allow_uncompensated)?);
+            evaluations.push(accept_evaluation(path, *axis, mask, done, accept)?);
         }
     }
     Ok(evaluations)

@@ -708,8 +708,17 @@ pub fn bank_blocks(plain: &Blocks, bank: &LagBank) -> Blocks {
             }
         })
         // The inputs' spread within a block away from the extremes (noise
-        // through the gain) is not in those margins.
-        .map(|(lo, hi)| (lo - SPREAD_MARGIN * (hi - lo), hi + SPREAD_MARGIN * (hi - lo)))
+        // through the gain) is not in those margins; an even power of
+        // (T̂ − T₀) (input i is power i + 1) never goes below 0.
+        .enumerate()
+        .map(|(i, (lo, hi))| {
+            let lo = lo - SPREAD_MARGIN * (hi - lo);
+            let even_power = (1..statics).contains(&i) && i % 2 == 1;
+            (
+                if even_power { lo.max(0.0) } else { lo },
+                hi + SPREAD_MARGIN * (hi - lo),
+            )
+        })
         .collect();
     out
 }

@@ -7,9 +7,10 @@
 use std::path::{Path, PathBuf};
 
 use rbf_core::CompensatorConfig;
-use rbf_core::features::THERMOMETERS;
+use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self as record, Columns, Row, column};
 
+use crate::plausible::Plausibility;
 use crate::run::{RunError, RunReader};
 use crate::sampling::sig;
 use crate::text;
@@ -64,6 +65,7 @@ pub struct RunDiagnosis {
     rate_name: String,
     ref_name: String,
     temp_names: [String; THERMOMETERS],
+    plausibility: Plausibility,
 }
 
 impl RunDiagnosis {
@@ -87,6 +89,7 @@ impl RunDiagnosis {
             rate_name: column::RATE_DPH.to_owned(),
             ref_name: column::REF_DPH.to_owned(),
             temp_names: column::THERMOMETERS.map(str::to_owned),
+            plausibility: Plausibility::new(column::TEMP_C),
         }
     }
 
@@ -95,6 +98,7 @@ impl RunDiagnosis {
         self.rate_name.clone_from(&other.rate_name);
         self.ref_name.clone_from(&other.ref_name);
         self.temp_names.clone_from(&other.temp_names);
+        self.plausibility.set_temp_name(&self.temp_names[LOOP_THERMOMETER]);
         self
     }
 
@@ -114,6 +118,7 @@ impl RunDiagnosis {
                 *slot = n;
             }
         }
+        self.plausibility.set_temp_name(&self.temp_names[LOOP_THERMOMETER]);
         self
     }
 
@@ -141,6 +146,12 @@ impl RunDiagnosis {
             }
         }
         self.target_dph.push(row.rate_dph - row.ref_dph.unwrap_or(0.0));
+        self.plausibility.push(line, row.time_s, row.temps_c[LOOP_THERMOMETER]);
+    }
+
+    /// What is implausible about the run as a gyro recording ([`Plausibility::findings`]).
+    pub fn implausible(&self) -> Vec<String> {
+        self.plausibility.findings(&self.path)
     }
 
     /// True when the bias target (`rate_dph − ref_dph`) is the same on every

@@ -37,6 +37,28 @@ pub struct FlagCounts {
 }
 
 impl FlagCounts {
+    /// The counts in words, the flags that were set only:
+    /// `clamped (1) 120, warming up (8) 45`, or `none`.
+    pub fn summary(&self) -> String {
+        let counts = [
+            ("clamped (1)", self.input_clamped),
+            ("temperature sensor fault (2)", self.temp_sensor_fault),
+            ("no valid model (4)", self.no_valid_model),
+            ("warming up (8)", self.warming_up),
+            ("rate invalid (16)", self.rate_invalid),
+        ];
+        let set: Vec<String> = counts
+            .iter()
+            .filter(|(_, n)| *n > 0)
+            .map(|(name, n)| format!("{name} {n}"))
+            .collect();
+        if set.is_empty() {
+            "none".to_owned()
+        } else {
+            set.join(", ")
+        }
+    }
+
     fn add(&mut self, flags: Flags, samples: usize) {
         let count = |bit: Flags| if flags.contains(bit) { samples } else { 0 };
         self.input_clamped += count(Flags::INPUT_CLAMPED);
@@ -82,6 +104,20 @@ pub struct RunEvaluation {
     pub allan_before: AllanDeviation,
     /// Overlapping Allan deviation of rate − reference, compensated.
     pub allan_after: AllanDeviation,
+}
+
+/// [`RunEvaluation::reference`] of a run without `ref_dph`.
+pub const RUN_MEAN: &str = "run mean";
+
+impl RunEvaluation {
+    /// The share of samples clamped to the model's training range (flag 1), %; NaN without samples.
+    pub fn clamped_pct(&self) -> f64 {
+        if self.samples == 0 {
+            f64::NAN
+        } else {
+            100.0 * self.flagged.input_clamped as f64 / self.samples as f64
+        }
+    }
 }
 
 /// Compensates every sample of `run` (one output per input, always).
@@ -544,7 +580,7 @@ impl Evaluator {
             axis: None,
             basis: self.basis,
             samples: self.samples,
-            reference: if about_mean { "run mean" } else { "ref_dph" },
+            reference: if about_mean { RUN_MEAN } else { "ref_dph" },
             msd_before_dph2: msd_before,
             msd_after_dph2: msd_after,
             msd_improvement_pct: improvement_pct(msd_before, msd_after),
@@ -564,7 +600,7 @@ impl Evaluator {
 pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std::io::Result<()> {
     writeln!(
         out,
-        "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7}",
+        "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7} {:>8}",
         "role",
         "run",
         axis_cell(rows, Some("axis")),
@@ -573,11 +609,12 @@ pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std
         "gain",
         "STD100 bef",
         "STD100 aft",
-        "gain"
+        "gain",
+        "clamped"
     )?;
     writeln!(
         out,
-        "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7}",
+        "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7} {:>8}",
         "",
         "",
         axis_cell(rows, Some("")),
@@ -586,12 +623,13 @@ pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std
         "[%]",
         "[°/h]",
         "[°/h]",
+        "[%]",
         "[%]"
     )?;
     for (role, e) in rows {
         writeln!(
             out,
-            "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7}",
+            "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7} {:>8}",
             role,
             table_name(&e.run),
             axis_cell(rows, e.axis),
@@ -600,7 +638,23 @@ pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std
             figure(e.msd_improvement_pct, |v| format!("{v:.1}")),
             figure(e.cluster_std_before_dph, |v| format!("{v:.4e}")),
             figure(e.cluster_std_after_dph, |v| format!("{v:.4e}")),
-            figure(e.cluster_std_improvement_pct, |v| format!("{v:.1}"))
+            figure(e.cluster_std_improvement_pct, |v| format!("{v:.1}")),
+            figure(e.clamped_pct(), |v| format!("{v:.1}"))
+        )?;
+    }
+    if rows.iter().any(|(_, e)| e.clamped_pct() > 0.0) {
+        writeln!(
+            out,
+            "(clamped: samples whose inputs lay outside the model's training range, held at its edge (flag 1): \
+             there the model extrapolates)"
+        )?;
+    }
+    for (_, e) in rows.iter().filter(|(_, e)| e.reference == RUN_MEAN) {
+        writeln!(
+            out,
+            "({}{}: no ref_dph column; the reference is the run's mean rate, so a constant bias is not seen)",
+            table_name(&e.run),
+            e.axis.map_or(String::new(), |a| format!(" axis {a}"))
         )?;
     }
     let short = |e: &RunEvaluation| {
@@ -620,9 +674,17 @@ pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std
         )?;
     }
     if let Some((_, e)) = rows.iter().find(|(_, e)| e.basis.ends_with(BLOCK_MEANS)) {
+        let merged = if e.basis == BLOCK_MEANS {
+            String::new()
+        } else {
+            format!(
+                " (--block-s blocks merged in pairs: a run past {} blocks has them merged)",
+                crate::dataset::MAX_BLOCKS_PER_RUN
+            )
+        };
         writeln!(
             out,
-            "(train: scored on the fit's {}, warm-up left out; `trainer eval` scores every sample)",
+            "(train: scored on the fit's {}{merged}, warm-up left out; `trainer eval` scores every sample)",
             e.basis
         )?;
     }
@@ -642,7 +704,7 @@ fn axis_cell(rows: &[(&str, &RunEvaluation)], text: Option<&str>) -> String {
 pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std::io::Result<()> {
     writeln!(
         out,
-        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>9}",
+        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>7} {:>4}",
         "role",
         "run",
         axis_cell(rows, Some("axis")),
@@ -650,11 +712,12 @@ pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) 
         "ARW after",
         "BI before",
         "BI after",
-        "BI at τ"
+        "at τ",
+        "±"
     )?;
     writeln!(
         out,
-        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>9}",
+        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>7} {:>4}",
         "",
         "",
         axis_cell(rows, Some("")),
@@ -662,22 +725,26 @@ pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) 
         "[°/√h]",
         "[°/h]",
         "[°/h]",
-        "[s]"
+        "[s]",
+        "[%]"
     )?;
     for (role, e) in rows {
+        let after = &e.allan_after;
         writeln!(
             out,
-            "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>9}",
+            "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>7} {:>4}",
             role,
             table_name(&e.run),
             axis_cell(rows, e.axis),
             figure(e.allan_before.arw_deg_per_sqrt_h, |v| format!("{v:.3e}")),
-            figure(e.allan_after.arw_deg_per_sqrt_h, |v| format!("{v:.3e}")),
-            figure(e.allan_before.bias_instability_dph, |v| format!("{v:.3e}")),
-            figure(e.allan_after.bias_instability_dph, |v| format!("{v:.3e}")),
-            figure(e.allan_after.floor_tau_s, |v| format!("{v:.0}"))
+            figure(after.arw_deg_per_sqrt_h, |v| format!("{v:.3e}")),
+            e.allan_before.bias_instability_cell(),
+            after.bias_instability_cell(),
+            figure(after.floor_tau_s, |v| format!("{v:.0}")),
+            figure(after.floor_uncertainty_pct, |v| format!("{v:.0}"))
         )?;
     }
+    writeln!(out, "({}; at τ and ± of BI after)", allan::FLOOR_RULE)?;
     if rows
         .iter()
         .any(|(_, e)| !e.allan_after.bias_instability_dph.is_finite())
@@ -971,6 +1038,15 @@ mod tests {
             by_blocks.samples,
             by_samples.samples
         );
+    }
+
+    #[test]
+    fn flag_counts_read_as_words() {
+        let mut c = FlagCounts::default();
+        assert_eq!(c.summary(), "none");
+        c.add(Flags::INPUT_CLAMPED, 12);
+        c.add(Flags::WARMING_UP, 3);
+        assert_eq!(c.summary(), "clamped (1) 12, warming up (8) 3");
     }
 
     #[test]

@@ -550,7 +550,8 @@ where
     root.fill(&WHITE)?;
     let l = &plan.limits;
     let hours = (plan.duration_s() / 3600.0).max(1e-3);
-    let margin = 0.05 * (l.max_c - l.min_c);
+    let (c_lo, c_hi) =
+        crate::plot_axes::with_legend_room(l.min_c, l.max_c, 2, root.dim_in_pixel().1.saturating_sub(100));
     let mut chart = ChartBuilder::on(&root)
         .caption(
             format!(
@@ -562,9 +563,11 @@ where
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d(0.0..hours, (l.min_c - margin)..(l.max_c + margin))?;
+        .build_cartesian_2d(0.0..hours, c_lo..c_hi)?;
     chart
         .configure_mesh()
+        .x_label_formatter(&crate::plot_axes::tick_label)
+        .y_label_formatter(&crate::plot_axes::tick_label)
         .x_desc("time [h]")
         .y_desc("temperature [°C]")
         .draw()?;
@@ -585,6 +588,7 @@ where
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(30, 90, 200)));
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;

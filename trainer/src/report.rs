@@ -19,6 +19,7 @@ use rbf_core::{FeatureSet, FeatureVector, Model};
 use crate::diagnose::RunDiagnosis;
 use crate::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
 use crate::output::{self, DirTarget, Existing, StagedDir};
+use crate::plot_axes::{tick_label, with_legend_room, with_legend_room_log};
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, summary, text};
 use rbf_core::record::Axis;
@@ -106,6 +107,12 @@ impl BlockMeans {
     }
 }
 
+/// The height of the plotting area of a chart on `area`, px: the area less
+/// the label areas and captions below and above it (`reserved_px`) and the margins.
+fn plot_height_px<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, reserved_px: u32) -> u32 {
+    area.dim_in_pixel().1.saturating_sub(reserved_px + 24).max(1)
+}
+
 fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values
         .filter(|v| v.is_finite())
@@ -119,6 +126,8 @@ fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 
 struct RatePlot {
     title: String,
+    /// What the rates are taken from: `ref_dph`, or each trace's own mean.
+    y_desc: &'static str,
     raw: Vec<(f64, f64)>,
     comp: Vec<(f64, f64)>,
     temp: Vec<(f64, f64)>,
@@ -234,12 +243,18 @@ where
     let (top, bottom) = root.split_vertically((SIZE.1 as f64 * 0.58) as u32);
     let (t_lo, t_hi) = range(p.points.iter().map(|q| q.temp_c));
     let (y_lo, y_hi) = range(p.points.iter().flat_map(|q| [q.measured_dph, q.model_dph]));
+    let (y_lo, y_hi) = with_legend_room(y_lo, y_hi, 4, plot_height_px(&top, 30));
     let mut chart = ChartBuilder::on(&top)
         .margin(10)
         .x_label_area_size(30)
         .y_label_area_size(80)
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
-    chart.configure_mesh().y_desc("bias [°/h] (10-s means)").draw()?;
+    chart
+        .configure_mesh()
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
+        .y_desc("bias [°/h] (10-s means)")
+        .draw()?;
     for ramp in [Ramp::Steady, Ramp::Cooling, Ramp::Heating] {
         let colour = ramp.colour();
         chart
@@ -262,6 +277,7 @@ where
         .legend(|(x, y)| Circle::new((x + 10, y), 3, BLACK.filled()));
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
@@ -273,6 +289,8 @@ where
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
     residual
         .configure_mesh()
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
         .x_desc("loop temperature T [°C]")
         .y_desc("residual [°/h]")
         .draw()?;
@@ -307,7 +325,8 @@ impl Figure for AllanPlot<'_> {
 
 struct SurfacePlot<'a> {
     model: &'a Model,
-    /// (T, ΔT₁, bias) along the reported runs, for multi-scale models.
+    /// (input 0, the fastest rate input, bias) along the reported runs, for
+    /// multi-scale models and lag banks.
     trajectory: Vec<(f32, f32, f32)>,
 }
 
@@ -316,8 +335,17 @@ impl Figure for SurfacePlot<'_> {
     where
         DB::ErrorType: 'static,
     {
-        if self.model.features().set.is_multiscale() {
-            draw_trajectory(root, &self.trajectory)
+        let set = self.model.features().set;
+        // Where the runs went, not a box whose corners (fast rates at the
+        // extremes of temperature) no run reached: there the model only extrapolates.
+        if set.is_multiscale() || matches!(set, FeatureSet::LagBank(_)) {
+            let axis = |i: usize| set.name(i).map_or_else(String::new, |n| n.to_string());
+            // In words too: a font without the combining hat draws T̂ as T.
+            let x_desc = match set {
+                FeatureSet::LagBank(_) => format!("mean coil temperature {}", axis(0)),
+                _ => axis(0),
+            };
+            draw_trajectory(root, &self.trajectory, &x_desc, &axis(surface_rate_input(set)))
         } else {
             draw_surface(root, self.model)
         }
@@ -365,7 +393,7 @@ where
         .y_desc(label)
         .label_style(("sans-serif", 13))
         .axis_desc_style(("sans-serif", 14))
-        .y_label_formatter(&|v| format!("{v:.3}"))
+        .y_label_formatter(&tick_label)
         .draw()?;
     const STEPS: usize = 100;
     let step = (hi - lo) / STEPS as f64;
@@ -379,10 +407,16 @@ where
     Ok(plot)
 }
 
-/// Multi-scale models: a steady ramp (all ΔT windows equal) never occurs in a
-/// chamber run, so a (T, ΔT) surface would show extrapolation; plot the bias
-/// along the runs' own (T, ΔT₁) trajectory instead.
-fn draw_trajectory<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, points: &[(f32, f32, f32)]) -> DrawResult
+/// Multi-scale models and lag banks: a steady ramp (all ΔT windows equal)
+/// never occurs in a chamber run, and the corners of the inputs' box are
+/// never reached, so a surface would show extrapolation; plot the bias along
+/// the runs' own trajectory (`x_desc`, `y_desc`: its inputs) instead.
+fn draw_trajectory<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    points: &[(f32, f32, f32)],
+    x_desc: &str,
+    y_desc: &str,
+) -> DrawResult
 where
     DB::ErrorType: 'static,
 {
@@ -390,7 +424,7 @@ where
     let (t_lo, t_hi) = range(points.iter().map(|p| p.0 as f64));
     let (r_lo, r_hi) = range(points.iter().map(|p| p.1 as f64));
     let (b_lo, b_hi) = range(points.iter().map(|p| p.2 as f64));
-    let caption = "model bias along the runs' (T, ΔT₁) path".to_owned();
+    let caption = "model bias along the runs' path (where data lie)".to_owned();
     let plot = with_colour_bar(&root, b_lo, b_hi, "model bias [°/h]")?;
     let mut chart = ChartBuilder::on(&plot)
         .caption(caption, ("sans-serif", 22))
@@ -400,8 +434,10 @@ where
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
     chart
         .configure_mesh()
-        .x_desc("loop temperature T [°C]")
-        .y_desc("ΔT₁ [°C/min]")
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
+        .x_desc(x_desc)
+        .y_desc(y_desc)
         .draw()?;
     chart.draw_series(points.iter().map(|&(t, r, b)| {
         Circle::new(
@@ -420,8 +456,11 @@ where
 {
     root.fill(&WHITE)?;
     let (t_lo, t_hi) = range(p.raw.iter().map(|v| v.0 / 3600.0));
+    let plot_px = plot_height_px(&root, 40 + 30);
     let (y_lo, y_hi) = range(p.raw.iter().chain(&p.comp).map(|v| v.1));
+    let (y_lo, y_hi) = with_legend_room(y_lo, y_hi, 3, plot_px);
     let (c_lo, c_hi) = range(p.temp.iter().map(|v| v.1));
+    let (c_lo, c_hi) = with_legend_room(c_lo, c_hi, 3, plot_px);
     let mut chart = ChartBuilder::on(&root)
         .caption(&p.title, ("sans-serif", 22))
         .margin(12)
@@ -432,11 +471,14 @@ where
         .set_secondary_coord(t_lo..t_hi, c_lo..c_hi);
     chart
         .configure_mesh()
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
         .x_desc("time [h]")
-        .y_desc("rate − reference [°/h] (10-s means)")
+        .y_desc(p.y_desc)
         .draw()?;
     chart
         .configure_secondary_axes()
+        .y_label_formatter(&tick_label)
         .y_desc("loop temperature [°C]")
         .draw()?;
     let hours = |v: &Vec<(f64, f64)>| v.iter().map(|&(t, y)| (t / 3600.0, y)).collect::<Vec<_>>();
@@ -454,6 +496,7 @@ where
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(120, 120, 120)));
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
@@ -461,27 +504,13 @@ where
     Ok(())
 }
 
-/// Relative 1-σ uncertainty of an Allan deviation at cluster time `tau_s`
-/// from a run `duration_s` long: 1/√(2(T/τ − 1)), the approximation of
-/// IEEE Std 952 (Annex C) with T/τ independent clusters. Conservative for the
-/// overlapping estimator, whose equivalent degrees of freedom are more.
-/// Infinite when the run holds fewer than two clusters.
-pub fn allan_relative_error(tau_s: f64, duration_s: f64) -> f64 {
-    let clusters = duration_s / tau_s;
-    if clusters > 1.0 {
-        1.0 / (2.0 * (clusters - 1.0)).sqrt()
-    } else {
-        f64::INFINITY
-    }
-}
-
 /// The ±1-σ band (τ, lower, upper) of an Allan curve, per
-/// [`allan_relative_error`]; the lower edge kept above zero for log axes.
+/// [`crate::allan::relative_error`]; the lower edge kept above zero for log axes.
 fn allan_band(points: &[(f64, f64)], duration_s: f64) -> Vec<(f64, f64, f64)> {
     points
         .iter()
         .map(|&(t, d)| {
-            let e = allan_relative_error(t, duration_s).min(0.95);
+            let e = crate::allan::relative_error(t, duration_s).min(0.95);
             (t, d * (1.0 - e), d * (1.0 + e))
         })
         .collect()
@@ -513,14 +542,18 @@ where
         bands.iter().flatten().map(|b| b.1).fold(d_lo, f64::min),
         bands.iter().flatten().map(|b| b.2).fold(d_hi, f64::max),
     );
+    // Two curves with their bands, and up to three read-off lines.
+    let (d_lo, d_hi) = with_legend_room_log(d_lo, d_hi, 7, plot_height_px(&root, 40 + 34));
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 22))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(80)
-        .build_cartesian_2d((t_lo..t_hi).log_scale(), (d_lo * 0.8..d_hi * 1.25).log_scale())?;
+        .build_cartesian_2d((t_lo..t_hi).log_scale(), (d_lo..d_hi).log_scale())?;
     chart
         .configure_mesh()
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
         .x_desc("cluster time τ [s]")
         .y_desc("Allan deviation [°/h]")
         .draw()?;
@@ -552,7 +585,7 @@ where
     // its last point (rate random walk or a residual ramp rises that way).
     let a = &e.allan_after;
     let guide = RGBColor(90, 90, 90);
-    let in_box = |d: f64| d.is_finite() && d >= d_lo * 0.8 && d <= d_hi * 1.25;
+    let in_box = |d: f64| d.is_finite() && d >= d_lo && d <= d_hi;
     let taus = |from: f64, to: f64| (0..=40).map(move |k| from * (to / from).powf(f64::from(k) / 40.0));
     if a.arw_deg_per_sqrt_h.is_finite() && a.arw_deg_per_sqrt_h > 0.0 {
         let arw = a.arw_deg_per_sqrt_h;
@@ -565,7 +598,7 @@ where
             .label(format!("τ^−½: ARW {arw:.2e} °/√h"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], guide));
     }
-    let floor = a.bias_instability_dph * 0.664;
+    let floor = a.bias_instability_dph * crate::allan::FLICKER_FLOOR;
     if floor.is_finite() && floor > 0.0 {
         let orange = RGBColor(230, 140, 20);
         chart
@@ -575,10 +608,17 @@ where
                 3,
                 orange.into(),
             ))?
-            .label(format!(
-                "0.664·BI at τ {:.0} s: bias instability {:.2e} °/h",
-                a.floor_tau_s, a.bias_instability_dph
-            ))
+            .label(if a.floor_reached {
+                format!(
+                    "floor at τ {:.0} s (≤ T/10): bias instability {:.2e} °/h ±{:.0} %",
+                    a.floor_tau_s, a.bias_instability_dph, a.floor_uncertainty_pct
+                )
+            } else {
+                format!(
+                    "no floor by τ {:.0} s (T/10): bias instability ≤ {:.2e} °/h",
+                    a.confident_tau_max_s, a.bias_instability_dph
+                )
+            })
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], orange));
     }
     if let Some(&(t_last, d_last)) = after.last() {
@@ -593,6 +633,7 @@ where
     }
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
@@ -618,15 +659,21 @@ fn steady_bias(model: &Model, t_c: f32, rate: f32) -> f32 {
     model.eval(&features).bias_dph
 }
 
-/// The bias surface's second axis, °C/min (multi-point: input 1's units): the
-/// training range of the fastest rate input (input 1 of the paper and
-/// multi-scale sets; the first after the static powers of T̂ in the lag bank).
-fn surface_rate_range(model: &Model) -> (f32, f32) {
-    let set = model.features().set;
-    let rate_input = match set {
+/// The input on the bias plot's second axis: the fastest rate (input 1 of
+/// the paper and multi-scale sets; the first after the static powers of T̂
+/// in the lag bank; a multi-point set's input 1).
+fn surface_rate_input(set: FeatureSet) -> usize {
+    match set {
         FeatureSet::LagBank(bank) => bank.static_inputs(),
         _ => 1,
-    };
+    }
+}
+
+/// The bias surface's second axis, °C/min (multi-point: input 1's units):
+/// the training range of [`surface_rate_input`].
+fn surface_rate_range(model: &Model) -> (f32, f32) {
+    let set = model.features().set;
+    let rate_input = surface_rate_input(set);
     if set.dims() <= rate_input {
         (-1.0, 1.0)
     } else {
@@ -739,12 +786,14 @@ fn read_run(
     model: &Model,
     reader: RunReader,
     stem: &str,
+    title: &str,
     trajectory: &mut Trajectory,
     first_index: &mut usize,
-    allow_uncompensated: bool,
+    accept: crate::axes::Acceptance,
 ) -> anyhow::Result<RunPlots> {
     let path = reader.path().to_owned();
     let mask = model.features().set.thermometer_mask();
+    let rate_input = surface_rate_input(model.features().set);
     let named = RunDiagnosis::new(&path, 1.0).named_by(reader.header_line(), reader.columns());
     let run = StreamedRun::from_reader(reader, mask)?;
     let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
@@ -758,7 +807,7 @@ fn read_run(
         BlockMeans::new(PLOT_MEAN_S),
         BlockMeans::new(PLOT_MEAN_S),
     );
-    let (mut rows, mut compensated, mut rate_sum) = (0usize, 0usize, 0.0f64);
+    let (mut rows, mut compensated, mut rate_sum, mut comp_sum) = (0usize, 0usize, 0.0f64, 0.0f64);
     run.for_each_line(|line, row, sample| {
         let out = compensator.process(Some(model), &config, sample);
         let r = row.ref_dph.unwrap_or(0.0);
@@ -766,6 +815,7 @@ fn read_run(
         diagnosis.push(line, row);
         compensated += usize::from(!out.flags.contains(rbf_core::Flags::NO_VALID_MODEL));
         rate_sum += row.rate_dph;
+        comp_sum += f64::from(out.rate_comp_dph);
         raw.push(row.time_s, row.rate_dph - r);
         comp.push(row.time_s, out.rate_comp_dph as f64 - r);
         bias.push(row.time_s, out.bias_dph as f64);
@@ -778,37 +828,49 @@ fn read_run(
             let v = f.as_slice();
             trajectory.push(
                 *first_index + rows,
-                (v[0], v.get(1).copied().unwrap_or(0.0), out.bias_dph),
+                (v[0], v.get(rate_input).copied().unwrap_or(0.0), out.bias_dph),
             );
         }
         rows += 1;
     })?;
     *first_index += rows;
     require_evaluable(&path, rows, &diagnosis)?;
-    require_compensated(&path, rows, compensated, &diagnosis, mask, allow_uncompensated)?;
-    // Without ref_dph the reference is the run's mean rate, known only now:
-    // a block mean of (v − m) is the block mean of v, less m.
-    let mean = if has_ref { 0.0 } else { rate_sum / rows.max(1) as f64 };
-    let less_mean =
-        |blocks: BlockMeans| -> Vec<(f64, f64)> { blocks.finish().into_iter().map(|(t, v)| (t, v - mean)).collect() };
+    require_compensated(&path, rows, compensated, &diagnosis, mask, accept.uncompensated)?;
+    crate::plausible::require_plausible(&diagnosis.implausible(), accept.implausible)?;
+    // Without ref_dph each trace is taken about its own mean (as the
+    // evaluation's figures are), known only now: a block mean of (v − m) is
+    // the block mean of v, less m.
+    let mean = |sum: f64| if has_ref { 0.0 } else { sum / rows.max(1) as f64 };
+    let less_mean = |blocks: BlockMeans, mean: f64| -> Vec<(f64, f64)> {
+        blocks.finish().into_iter().map(|(t, v)| (t, v - mean)).collect()
+    };
     let evaluation = evaluator.finish();
-    let (raw, comp, temp) = (less_mean(raw), less_mean(comp), temp.finish());
+    let (raw, comp, temp) = (
+        less_mean(raw, mean(rate_sum)),
+        less_mean(comp, mean(comp_sum)),
+        temp.finish(),
+    );
     let points = bias_points(&temp, &raw, &bias.finish(), &comp);
     Ok(RunPlots {
         stem: stem.to_owned(),
         duration_s: rows as f64 * period_s,
         bias_temp: BiasTempPlot {
             title: format!(
-                "{stem}: bias against loop temperature; 100-s STD {:.3} → {:.3} °/h",
+                "{title}: bias against loop temperature; 100-s STD {:.3} → {:.3} °/h",
                 evaluation.cluster_std_before_dph, evaluation.cluster_std_after_dph
             ),
             points,
         },
         rate: RatePlot {
             title: format!(
-                "{stem}: rate before and after compensation; 100-s STD {:.3} → {:.3} °/h",
+                "{title}: rate before and after compensation; 100-s STD {:.3} → {:.3} °/h",
                 evaluation.cluster_std_before_dph, evaluation.cluster_std_after_dph
             ),
+            y_desc: if has_ref {
+                "rate − ref_dph [°/h] (10-s means)"
+            } else {
+                "rate − its run mean (no ref_dph) [°/h] (10-s means)"
+            },
             raw,
             comp,
             temp,
@@ -884,8 +946,15 @@ pub fn check_report_targets(
 /// input with its training range.
 fn model_markdown(model: &Model, model_path: &Path) -> String {
     let mut md = format!("## Model\n\n- file: `{}`\n", text::path(model_path));
-    md.push_str(&format!("- kind: {}\n", model.kind().name()));
-    md.push_str(&format!("- form: {}\n", summary::form(model)));
+    let description = crate::describe::describe(model);
+    md.push_str(&format!("- kind: {}\n", description.kind));
+    md.push_str(&format!("- form: {}\n", description.form));
+    if let Some(t0) = description.ref_temp_c {
+        md.push_str(&format!(
+            "- reference temperature T₀: {} °C\n",
+            summary::sig(f64::from(t0), 4)
+        ));
+    }
     md.push_str(&format!(
         "- centres: {}\n",
         summary::count(summary::centres(model) as u64, "centre", "centres")
@@ -913,24 +982,31 @@ fn clamped_cell(n: usize, samples: usize) -> String {
 
 /// Writes the report of `model` (read from `model_path`) on the runs at
 /// `runs` (`-`: standard input) into the staged directory `out`, in its
-/// subdirectory `sub` (empty: at the top); returns how many files it wrote.
+/// subdirectory `sub` (empty: at the top); returns how many files it wrote
+/// and the runs' evaluations.
 /// `axis` picks that axis of multi-axis runs (`None`: single-axis runs).
 ///
 /// Every run is read once, streaming (memory: 10-s means and a bounded
 /// trajectory, whatever the run's length), before any file is written.
 /// Nothing is visible until `out`'s [`output::Transaction`] commits. A run
-/// where no row could be compensated is refused unless `allow_uncompensated`.
+/// where no row could be compensated, or that is implausible
+/// ([`crate::plausible`]), is refused unless `accept` says so.
 pub fn write_report(
     model: &Model,
     model_path: &Path,
     runs: &[PathBuf],
     out: &StagedDir,
     sub: &Path,
-    allow_uncompensated: bool,
+    accept: crate::axes::Acceptance,
     axis: Option<Axis>,
-) -> anyhow::Result<usize> {
+) -> anyhow::Result<(usize, Vec<RunEvaluation>)> {
     input::check_stdin_once(runs.iter().map(|p| p.as_path()).chain([model_path]))?;
     let stems: Vec<String> = runs.iter().map(|p| run_stem(p)).collect();
+    // A multi-axis report's titles name the axis.
+    let titled = |stem: &str| match axis {
+        Some(a) => format!("{stem}, axis {}", a.name()),
+        None => stem.to_owned(),
+    };
     let mut trajectory = Trajectory::new();
     let mut first_index = 0;
     let plots = runs
@@ -946,9 +1022,10 @@ pub fn write_report(
                 model,
                 reader,
                 stem,
+                &titled(stem),
                 &mut trajectory,
                 &mut first_index,
-                allow_uncompensated,
+                accept,
             )
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
@@ -964,7 +1041,10 @@ pub fn write_report(
         write(&format!("{stem}.svg"), svg.as_bytes())?;
         write(&format!("{stem}.png"), &png)
     };
-    let mut md = String::from("# Compensation report\n\n");
+    let mut md = match axis {
+        Some(a) => format!("# Compensation report, axis {}\n\n", a.name()),
+        None => String::from("# Compensation report\n\n"),
+    };
     md.push_str(&model_markdown(model, model_path));
     md.push_str("## Runs\n\n| run | 100-s STD before [°/h] | after [°/h] | improvement | MSD improvement | ARW after [°/√h] | BI before → after [°/h] | clamped samples |\n|---|---|---|---|---|---|---|---|\n");
     for p in &plots {
@@ -973,8 +1053,10 @@ pub fn write_report(
         both(&format!("{stem}_bias_vs_temp"), render(&p.bias_temp))?;
         let allan = AllanPlot {
             title: format!(
-                "{stem}: overlapping Allan deviation; bias instability {:.2e} → {:.2e} °/h",
-                p.evaluation.allan_before.bias_instability_dph, p.evaluation.allan_after.bias_instability_dph
+                "{}: overlapping Allan deviation; bias instability {} → {} °/h",
+                titled(stem),
+                p.evaluation.allan_before.bias_instability_cell(),
+                p.evaluation.allan_after.bias_instability_cell()
             ),
             evaluation: &p.evaluation,
             duration_s: p.duration_s,
@@ -989,8 +1071,8 @@ pub fn write_report(
             figure(e.cluster_std_improvement_pct, |v| format!("{v:.1} %")),
             figure(e.msd_improvement_pct, |v| format!("{v:.1} %")),
             figure(e.allan_after.arw_deg_per_sqrt_h, |v| format!("{v:.2e}")),
-            figure(e.allan_before.bias_instability_dph, |v| format!("{v:.2e}")),
-            figure(e.allan_after.bias_instability_dph, |v| format!("{v:.2e}")),
+            e.allan_before.bias_instability_cell(),
+            e.allan_after.bias_instability_cell(),
             clamped_cell(e.flagged.input_clamped, e.samples)
         ));
     }
@@ -998,6 +1080,7 @@ pub fn write_report(
         "\nClamped samples: inputs outside the model's training range, held at its edge \
          (flag 1).\n",
     );
+    md.push_str(&format!("{}.\n", crate::allan::FLOOR_RULE));
     let surface = SurfacePlot {
         model,
         trajectory: trajectory.points.into_iter().map(|(_, p)| p).collect(),
@@ -1016,7 +1099,45 @@ pub fn write_report(
         serde_json::to_string_pretty(&serde_json::json!({"model": text::path(model_path), "runs": evaluations}))?;
     write("report.json", json.as_bytes())?;
     write("report.md", md.as_bytes())?;
-    Ok(written.get())
+    Ok((written.get(), plots.into_iter().map(|p| p.evaluation).collect()))
+}
+
+/// The summary page of a multi-axis report (its top report.md): every run
+/// and axis side by side, with links to each axis's own report.
+pub fn axes_summary_markdown(model_path: &Path, axes: &[(Axis, Vec<RunEvaluation>)]) -> String {
+    let names: Vec<&str> = axes.iter().map(|(a, _)| a.name()).collect();
+    let mut md = format!(
+        "# Compensation report, axes {}\n\nModel: `{}`. Each axis in full: {}.\n\n",
+        names.join(", "),
+        text::path(model_path),
+        names
+            .iter()
+            .map(|n| format!("[axis {n}](axis-{n}/report.md)"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    md.push_str(
+        "| run | axis | 100-s STD before [°/h] | after [°/h] | improvement | BI after [°/h] | clamped |\n\
+         |---|---|---|---|---|---|---|\n",
+    );
+    let runs = axes.iter().map(|(_, e)| e.len()).max().unwrap_or(0);
+    for run in 0..runs {
+        for (axis, evaluations) in axes {
+            let Some(e) = evaluations.get(run) else { continue };
+            md.push_str(&format!(
+                "| {} | {} | {} | {} | {} | {} | {} |\n",
+                text::escape_controls(&run_stem(Path::new(&e.run))),
+                axis.name(),
+                figure(e.cluster_std_before_dph, |v| format!("{v:.4}")),
+                figure(e.cluster_std_after_dph, |v| format!("{v:.4}")),
+                figure(e.cluster_std_improvement_pct, |v| format!("{v:.1} %")),
+                e.allan_after.bias_instability_cell(),
+                clamped_cell(e.flagged.input_clamped, e.samples)
+            ));
+        }
+    }
+    md.push_str(&format!("\n{}.\n", crate::allan::FLOOR_RULE));
+    md
 }
 
 #[cfg(test)]
@@ -1067,9 +1188,9 @@ mod tests {
     #[test]
     fn allan_bands_narrow_with_more_clusters() {
         // T/τ = 3: 1/√4; T/τ = 51: 1/√100.
-        assert!((allan_relative_error(10.0, 30.0) - 0.5).abs() < 1e-12);
-        assert!((allan_relative_error(1.0, 51.0) - 0.1).abs() < 1e-12);
-        assert!(allan_relative_error(10.0, 10.0).is_infinite());
+        assert!((crate::allan::relative_error(10.0, 30.0) - 0.5).abs() < 1e-12);
+        assert!((crate::allan::relative_error(1.0, 51.0) - 0.1).abs() < 1e-12);
+        assert!(crate::allan::relative_error(10.0, 10.0).is_infinite());
         let band = allan_band(&[(1.0, 2.0)], 51.0);
         assert!((band[0].1 - 1.8).abs() < 1e-12 && (band[0].2 - 2.2).abs() < 1e-12);
     }

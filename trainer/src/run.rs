@@ -226,10 +226,7 @@ impl RunReader {
             .map(|s| record::trim_field(s).to_owned())
             .collect();
         let columns = Columns::from_header(&header_line).map_err(|e| match e {
-            HeaderError::MissingColumn(name) => format_error(
-                line_no,
-                format!("header has no required column {name} (header: {})", short(&header_line)),
-            ),
+            HeaderError::MissingColumn(_) => format_error(line_no, missing_columns(&header_line, &column_names)),
             HeaderError::DuplicateColumn(i) => format_error(
                 line_no,
                 format!(
@@ -806,6 +803,41 @@ fn io_or_utf8(path: &Path, line: usize, e: std::io::Error) -> RunError {
 }
 
 /// `s` for a message: at most 60 characters, control characters escaped.
+/// The message for a header without a required column: every required
+/// column it lacks, and the delimiter it uses when that is not a comma.
+fn missing_columns(header_line: &str, names: &[String]) -> String {
+    use rbf_core::record::column;
+    let has = |name: &str| names.iter().any(|n| n == name);
+    let mut missing = Vec::new();
+    if !has(column::TIME_S) {
+        missing.push(column::TIME_S.to_owned());
+    }
+    if !has(column::RATE_DPH) && !column::AXIS_RATES_DPH.iter().any(|r| has(r)) {
+        missing.push(format!(
+            "{} (or {})",
+            column::RATE_DPH,
+            column::AXIS_RATES_DPH.join(", ")
+        ));
+    }
+    let list = match missing.len() {
+        1 => format!("column {}", missing[0]),
+        _ => format!("columns {}", missing.join(" and ")),
+    };
+    let delimiter = [(';', "';'"), ('\t', "a tab"), ('|', "'|'")]
+        .into_iter()
+        .find(|(c, _)| !header_line.contains(',') && header_line.contains(*c));
+    match delimiter {
+        Some((c, name)) => format!(
+            "header has no required {list}: its fields are separated by {name}, not by commas (header: {}); \
+             the recorded-run format is comma-separated: convert the file, e.g. tr '{}' ',' (with decimal commas, \
+             turn them into points first)",
+            short(header_line),
+            c.escape_default()
+        ),
+        None => format!("header has no required {list} (header: {})", short(header_line)),
+    }
+}
+
 fn short(s: &str) -> String {
     const MAX: usize = 60;
     let s = if s.chars().count() <= MAX {

@@ -1,9 +1,8 @@
 //! A model described in words and tidy numbers: what `trainer inspect`
 //! prints and what report.md lists about the model it evaluates.
 
+use rbf_core::Model;
 use rbf_core::model::ModelBody;
-use rbf_core::response_bank::ResponseBank;
-use rbf_core::{FeatureSet, Model};
 
 /// `n` and the noun, singular for one (`1 centre`, `12 centres`).
 pub fn count(n: u64, one: &str, many: &str) -> String {
@@ -29,54 +28,6 @@ pub fn sig(x: f64, digits: usize) -> String {
         s.trim_end_matches('0').trim_end_matches('.').to_owned()
     } else {
         s
-    }
-}
-
-/// A response bank in a few words: its filters and its static curve.
-pub fn response_bank(bank: &ResponseBank) -> String {
-    let taus = bank.taus();
-    let span = |s: f32| {
-        let s = f64::from(s);
-        if s >= 3600.0 {
-            format!("{} h", sig(s / 3600.0, 3))
-        } else {
-            format!("{} s", sig(s, 3))
-        }
-    };
-    format!(
-        "thermal response bank, {} filters {} … {}, static {} in T about T₀ = {} °C",
-        taus.len(),
-        taus.first().map_or_else(String::new, |&t| span(t)),
-        taus.last().map_or_else(String::new, |&t| span(t)),
-        ["linear", "quadratic", "cubic", "quartic"]
-            .get(bank.static_inputs().wrapping_sub(1))
-            .unwrap_or(&"curve"),
-        sig(f64::from(bank.ref_c), 4)
-    )
-}
-
-/// The model's form in a few words: the regression and how the inputs enter it.
-pub fn form(model: &Model) -> String {
-    if let FeatureSet::ResponseBank(bank) = model.features().set {
-        return response_bank(&bank);
-    }
-    match model.body() {
-        ModelBody::Rbf(net) => {
-            let names: Vec<String> = model.features().set.names().map(|n| n.to_string()).collect();
-            let kernel = &names[..net.kernel_inputs().min(names.len())];
-            format!(
-                "Gaussian RBF, {}{}",
-                match net.centers_used() {
-                    0 => "no centres".to_owned(),
-                    n => format!("{} over {}", count(n as u64, "centre", "centres"), kernel.join(", ")),
-                },
-                match net.linear().len() {
-                    0 => String::new(),
-                    n => format!("; {}", count(n as u64, "linear term", "linear terms")),
-                }
-            )
-        }
-        ModelBody::Poly3(p) => format!("cubic in T about {} °C", sig(f64::from(p.ref_temp_c), 4)),
     }
 }
 

@@ -130,7 +130,7 @@ fn a_three_axis_imu_is_fitted_compensated_and_evaluated_per_axis_as_well_as_each
     let model = dir.path().join("imu.bin");
     let printed = fit(&train, &model);
     for axis in ["x", "y", "z"] {
-        assert!(printed.contains(&format!("axis {axis}:\nmethod ")), "{printed}");
+        assert!(printed.contains(&format!("axis {axis}:\nmodel: ")), "{printed}");
         assert!(
             printed
                 .lines()
@@ -230,9 +230,26 @@ fn models_and_runs_of_different_axes_are_refused_naming_both() {
     let report = dir.path().join("report");
     let o = with_model("report", &imu_model, &imu, &report, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // A summary page puts the axes side by side; each axis's page and plots name the axis.
+    let summary = std::fs::read_to_string(report.join("report.md")).unwrap();
+    assert!(
+        summary.contains("# Compensation report, axes x, y")
+            && summary.contains("| imu | x |")
+            && summary.contains("| imu | y |")
+            && summary.contains("(axis-y/report.md)"),
+        "{summary}"
+    );
     for axis in ["x", "y"] {
         let md = std::fs::read_to_string(report.join(format!("axis-{axis}/report.md"))).unwrap();
-        assert!(md.contains("| imu |"), "{md}");
+        assert!(
+            md.contains("| imu |") && md.contains(&format!("# Compensation report, axis {axis}")),
+            "{md}"
+        );
+        let allan = std::fs::read_to_string(report.join(format!("axis-{axis}/imu_allan.svg"))).unwrap();
+        assert!(
+            allan.contains(&format!("imu, axis {axis}: overlapping Allan deviation")),
+            "axis {axis}"
+        );
     }
     assert!(!report.join("axis-z").exists());
     let out = dir.path().join("out.csv");

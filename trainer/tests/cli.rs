@@ -154,7 +154,7 @@ fn original_bmi270_terminal_logs_get_a_clear_error() {
     let o = trainer(&["fit", "-q", original.to_str().unwrap(), "-o", model.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        stderr(&o).contains("BMI_270_hot_test.csv:1: header has no required column time_s"),
+        stderr(&o).contains("BMI_270_hot_test.csv:1: header has no required columns time_s and rate_dph"),
         "{}",
         stderr(&o)
     );
@@ -672,7 +672,7 @@ fn report_writes_svg_and_png_plots_json_and_markdown() {
     );
     // The model is listed, and every run says how many samples were clamped.
     assert!(
-        md.contains("## Model") && md.contains("- kind: gaussian-rbf") && md.contains("- form: Gaussian RBF, "),
+        md.contains("## Model") && md.contains("- kind: thermal lag bank") && md.contains("- form: linear in its "),
         "{md}"
     );
     assert!(md.contains("- centres: ") && md.contains("  - T̂ [°C]: "), "{md}");
@@ -684,7 +684,11 @@ fn report_writes_svg_and_png_plots_json_and_markdown() {
     let allan = std::fs::read_to_string(out.join("train_allan.svg")).unwrap();
     assert!(allan.contains("<polygon") && allan.contains("IEEE 952"), "Allan bands");
     let surface = std::fs::read_to_string(out.join("bias_surface.svg")).unwrap();
-    assert!(surface.contains("fitted bias [°/h]"), "colour bar axis");
+    // The default model's bias is drawn where the runs went, over its own inputs.
+    assert!(
+        surface.contains("model bias [°/h]") && surface.contains("where data lie") && surface.contains("T̂ [°C]"),
+        "colour bar axis, the path, the lag bank's inputs"
+    );
 }
 
 #[test]

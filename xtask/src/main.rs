@@ -23,7 +23,8 @@ enum Cmd {
     /// Replay a recorded run through the real firmware image under QEMU
     /// (netduinoplus2 = STM32F405): the model goes into flash slot MODEL_A, the
     /// run is read and the output written over semihosting. The output is
-    /// byte-identical to `trainer compensate --model MODEL.bin RUN.csv -o OUT.csv`.
+    /// byte-identical to `trainer compensate --model MODEL.bin RUN.csv -o OUT.csv`,
+    /// and what compensate refuses, the replay refuses (it runs compensate's checks first).
     QemuReplay {
         /// Model blob written by `trainer fit`.
         #[arg(long, value_name = "MODEL.bin")]
@@ -37,6 +38,15 @@ enum Cmd {
         /// Also write the UART output frames (decode with `trainer decode`).
         #[arg(long, value_name = "FRAMES.bin")]
         frames: Option<PathBuf>,
+        /// Replace outputs that exist (as `trainer compensate --force`).
+        #[arg(long)]
+        force: bool,
+        /// Accept a run where no row could be compensated (as `trainer compensate`).
+        #[arg(long)]
+        allow_uncompensated: bool,
+        /// Accept a run implausible as a gyro recording (as `trainer compensate`).
+        #[arg(long)]
+        allow_implausible: bool,
     },
     /// Count instructions per compensated sample in QEMU (-icount shift=0,
     /// SysTick) for K = 8, 16, 32, 64 centres at D = 3, the multi-scale sets
@@ -148,9 +158,19 @@ fn main() -> anyhow::Result<()> {
             run,
             output,
             frames,
+            force,
+            allow_uncompensated,
+            allow_implausible,
         } => {
             xtask::qemu::ensure_installed()?;
-            let summary = xtask::replay::qemu_replay(&model, &run, &output, frames.as_deref())?;
+            let accept = trainer::axes::Acceptance {
+                uncompensated: allow_uncompensated,
+                implausible: allow_implausible,
+            };
+            let existing = trainer::output::Existing::from_force(force);
+            let summary =
+                xtask::replay::qemu_replay_checked(&model, &run, &output, frames.as_deref(), existing, accept)
+                    .map_err(xtask::replay::with_flag_hint)?;
             println!(
                 "wrote {} ({} rows); firmware: {}",
                 output.display(),

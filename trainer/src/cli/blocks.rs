@@ -34,9 +34,10 @@ pub struct Args {
     block_s: f64,
     /// Input set (without --model).
     ///
-    /// multiscale (default; the first-order set), multiscale-second-order (also for
-    /// multiscale-validated, the fit's default, which chooses between the two) or paper
-    /// (T, ΔT, T×ΔT).
+    /// multiscale (default here; the first-order set), multiscale-second-order (also
+    /// for multiscale-validated, which chooses between the two) or paper (T, ΔT, T×ΔT).
+    /// lag-bank, the fit's default, is identified from the runs by the fit: give a
+    /// fitted lag bank's inputs with --model MODEL.bin.
     #[arg(long, value_enum, default_value_t = FeaturesArg::Multiscale, hide_possible_values = true,
           help_heading = "Model")]
     features: FeaturesArg,
@@ -77,6 +78,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let features = match &a.model {
         Some(model) => *read_model(model)?.0.features(),
         None => {
+            anyhow::ensure!(
+                a.features != FeaturesArg::LagBank,
+                "--features lag-bank: a lag bank's filters, coil lags and gain are identified by `trainer fit`; \
+                 pass the fitted model with --model MODEL.bin for its inputs"
+            );
             let set = match (Method::Rbf.feature_set(a.features.into()), a.coil_lag_min) {
                 (set, None) => set,
                 (FeatureSet::MultiScaleSecondOrder, Some(coil_lag_min)) => {

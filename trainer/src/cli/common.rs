@@ -20,19 +20,7 @@ pub fn stderr() -> SafeWriter<std::io::StderrLock<'static>> {
     SafeWriter::new(std::io::stderr().lock())
 }
 
-/// What the command line adds to a library error: the flag that changes the outcome.
-pub fn flag_hint(e: &anyhow::Error) -> &'static str {
-    let root = e.root_cause();
-    if root.is::<trainer::output::OutputExists>() {
-        "; pass --force to overwrite it"
-    } else if root.is::<trainer::output::OutputReadOnly>() {
-        ", even with --force"
-    } else if root.is::<trainer::evaluate::NothingCompensated>() {
-        ". Pass --allow-uncompensated to accept such a run"
-    } else {
-        ""
-    }
-}
+pub use trainer::refusals::flag_hint;
 
 /// `--force`: whether an existing output may be replaced.
 #[derive(Args, Debug)]
@@ -61,6 +49,23 @@ pub struct AllowUncompensated {
     /// (temperatures out of range, sensor faults).
     #[arg(long, help_heading = "Data")]
     pub allow_uncompensated: bool,
+    /// Accept a run implausible as a gyro recording.
+    ///
+    /// By default a run is refused, naming the reason, when its loop temperature leaves
+    /// −60 … 100 °C (°F?) or changes faster than 30 °C/min by its time column (time_s
+    /// in hours?).
+    #[arg(long, help_heading = "Data")]
+    pub allow_implausible: bool,
+}
+
+impl AllowUncompensated {
+    /// The runs the command accepts that it would otherwise refuse.
+    pub fn acceptance(&self) -> trainer::axes::Acceptance {
+        trainer::axes::Acceptance {
+            uncompensated: self.allow_uncompensated,
+            implausible: self.allow_implausible,
+        }
+    }
 }
 
 /// `--json FILE`: the figures as JSON, `-` for standard output.

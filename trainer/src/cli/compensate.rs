@@ -43,19 +43,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         &a.run,
         &a.output,
         a.force.existing(),
-        a.uncompensated.allow_uncompensated,
+        a.uncompensated.acceptance(),
     )?;
     let rows = c.first().map_or(0, |(_, c)| c.rows);
     let flagged = match c.as_slice() {
-        [(None, single)] => serde_json::to_string(&single.flagged)?,
+        [(None, single)] => single.flagged.summary(),
         _ => c
             .iter()
-            .map(|(axis, c)| {
-                let name = axis.map_or("", |a| a.name());
-                Ok(format!("{name} {}", serde_json::to_string(&c.flagged)?))
-            })
-            .collect::<anyhow::Result<Vec<_>>>()?
-            .join(", "),
+            .map(|(axis, c)| format!("{} {}", axis.map_or("", |a| a.name()), c.flagged.summary()))
+            .collect::<Vec<_>>()
+            .join("; "),
     };
     let axes: Vec<_> = c.iter().filter_map(|(a, _)| *a).collect();
     let what = if axes.is_empty() {

@@ -43,7 +43,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     input::check_stdin_once(inputs.iter().copied())?;
     let json_out = a.json.sink(&inputs, a.force.existing())?;
     let (model, _) = read_model_file(model_path)?;
-    let evals = evaluate_files(&model, model_path, &a.runs, a.uncompensated.allow_uncompensated)?;
+    let evals = evaluate_files(&model, model_path, &a.runs, a.uncompensated.acceptance())?;
     let json_on_stdout = json_out.is_stdout();
     let mut transaction = Transaction::new();
     json_out.write(&serde_json::to_value(&evals)?, &mut transaction)?;

@@ -6,16 +6,16 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::builder::RangedU64ValueParser;
 use rbf_core::features::Probe;
-use rbf_core::model::ModelBody;
-use rbf_core::lag_bank::GainOf;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::blobfile::encode_model;
 use trainer::dataset::{RunFiles, RunSet};
-use trainer::evaluate::{RunEvaluation, evaluate_blocks, evaluate_file, print_table};
+use trainer::evaluate::{RunEvaluation, evaluate_blocks, evaluate_reader, print_table};
 use trainer::fit::{self, FitOptions, FitOutcome};
 use trainer::limits::MAX_FOLDS;
 use trainer::output::{self, Output, StagedDir, Transaction};
 use trainer::run::RunReader;
+use trainer::describe::{gain_symbol, gain_text};
+use trainer::plausible;
 use trainer::text;
 use trainer::{diagnose, input};
 
@@ -28,13 +28,19 @@ mod axes;
 
 /// Fit a bias model to recorded chamber runs and write the model blob.
 ///
-/// Features (T [°C], ΔT [°C/min], T×ΔT) are computed per sample by rbf-core, as
-/// the firmware does, then averaged over blocks together with the bias target
-/// `rate_dph − ref_dph` (or minus the run mean without ref_dph). The RBF
-/// methods choose centres by orthogonal least squares and ridge output weights;
-/// the ΔT window, Gaussian width, ridge strength and number of centres are
-/// chosen on the --validate runs, or by contiguous 5-fold validation over the
-/// training runs. Prints a before/after accuracy table, then writes the blob.
+/// The model's inputs are computed per sample by rbf-core, as the firmware
+/// does, then averaged over blocks together with the bias target
+/// `rate_dph − ref_dph` (or minus the run mean without ref_dph). The default
+/// is the thermal lag bank: the mean coil temperature T̂ and the loop
+/// temperature's rates through 4–5 derivative filters, its filters, coil lags
+/// and Shupe gain identified from the runs and chosen on held-out thermal
+/// events (or whole runs, or the --validate runs); a cubic in T̂ and the rates,
+/// linear, with ridge weights. The other RBF forms (--features paper: T, ΔT,
+/// T×ΔT; multiscale) choose Gaussian centres by orthogonal least squares, with
+/// the ΔT window, width, ridge strength and number of centres chosen on the
+/// --validate runs or by contiguous 5-fold validation. Prints the model as it
+/// is, a before/after accuracy table and what the training covered, then
+/// writes the blob.
 ///
 /// Runs with rate_x_dph, rate_y_dph, rate_z_dph (all runs the same axes):
 /// every axis is fitted as above on its own rate, thermometer and reference,
@@ -179,6 +185,13 @@ pub struct Args {
     /// No progress bar.
     #[arg(short, long, help_heading = "Output")]
     quiet: bool,
+    /// Accept runs implausible as gyro recordings.
+    ///
+    /// By default the fit refuses, naming the reason, training runs whose loop
+    /// temperature leaves −60 … 100 °C (°F?), and holdouts whose loop temperature does
+    /// or changes faster than 30 °C/min by time_s (in hours?).
+    #[arg(long, help_heading = "Data")]
+    allow_implausible: bool,
 }
 
 /// Centre counts the firmware holds: 1 … [`rbf_core::MAX_CENTERS`].
@@ -260,6 +273,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for path in &all_runs {
         RunReader::open(path)?.require_temp()?;
     }
+    plausible::require_distinct_runs(&a.runs, &[("--validate", &a.validate), ("--holdout", &a.holdout)])?;
     trainer::limits::check_block_s(a.block_s)?;
     if let Some(s) = &a.serial {
         anyhow::ensure!(
@@ -328,6 +342,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     })?;
     let fit_s = started.elapsed().as_secs_f64();
+    if let Some((lo, hi)) = training_loop_range_c(&outcome) {
+        let finding = plausible::range_finding("the training runs' loop temperature", lo, hi);
+        plausible::require_plausible(finding.as_slice(), a.allow_implausible)?;
+    }
     // Training and validation runs are scored on the block means the fit
     // computed, without reading them again; holdout runs, which the fit
     // never read, sample by sample.
@@ -344,7 +362,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     drop((train, validate));
     for path in &a.holdout {
-        evals.push(("holdout", evaluate_file(&outcome.model, path)?));
+        let (evaluation, diagnosis, _) = evaluate_reader(&outcome.model, RunReader::open(path)?)?;
+        plausible::require_plausible(&diagnosis.implausible(), a.allow_implausible)?;
+        evals.push(("holdout", evaluation));
     }
     let blob = encode_model(&outcome.model)?;
 
@@ -356,7 +376,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         named_inputs: opts.inputs.is_some(),
         selection: opts.selection,
     };
-    write_summary(&mut out, opts.method, &outcome, &how)?;
+    write_summary(&mut out, &outcome, &how)?;
     writeln!(out, "fit took {fit_s:.1} s\n")?;
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
@@ -377,7 +397,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(target) = report_target {
         let staged = StagedDir::create(target)?;
         let files =
-            trainer::report::write_report(&outcome.model, &a.output, &report_runs, &staged, Path::new(""), true, None)?;
+            {
+                // The fit has checked its runs; the report takes them as they are.
+                let accept = trainer::axes::Acceptance {
+                    uncompensated: true,
+                    implausible: true,
+                };
+                trainer::report::write_report(&outcome.model, &a.output, &report_runs, &staged, Path::new(""), accept, None)?
+                    .0
+            };
         staged.write(Path::new(FIT_TEXT), &out)?;
         writeln!(out, "wrote {} files into {}", files + 1, text::path(staged.target()))?;
         transaction.add_dir(staged);
@@ -406,11 +434,10 @@ pub struct FitHow {
 /// The fit's choices as `trainer fit` prints them above its accuracy table.
 pub fn write_summary(
     out: &mut impl Write,
-    method: fit::Method,
     outcome: &FitOutcome,
     how: &FitHow,
 ) -> anyhow::Result<()> {
-    writeln!(out, "method {method:?}: {}", describe(&outcome.model))?;
+    writeln!(out, "model: {}", describe(&outcome.model))?;
     if let Some(s) = &outcome.structure {
         writeln!(
             out,
@@ -524,14 +551,6 @@ pub fn write_summary(
     Ok(())
 }
 
-/// The temperature a bank's gain is of, as the fit report writes it: `T̂` or `T`.
-fn gain_symbol(of: GainOf) -> &'static str {
-    match of {
-        GainOf::Coil => "T̂",
-        GainOf::Loop => "T",
-    }
-}
-
 /// The lag bank a fit identified, how it was chosen, and what the training runs covered.
 fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankSearch) -> anyhow::Result<()> {
     let FeatureSet::LagBank(bank) = model.features().set else {
@@ -540,14 +559,11 @@ fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankS
     let list = |v: &[f32], digits: usize| v.iter().map(|x| format!("{x:.digits$}")).collect::<Vec<_>>().join(", ");
     writeln!(
         out,
-        "lag bank: τ [{}] s; coil lags a [{}] min (T̂ = T + Σ a·ΔT); Shupe gain g = 1 {:+.3e}·({of} − {}) {:+.3e}·({of} − {})²",
+        "lag bank: τ [{}] s; coil lags a [{}] min (T̂ = T + Σ a·ΔT); Shupe gain {}; T₀ {} °C",
         list(bank.taus(), 0),
         list(bank.coil_lags(), 2),
-        bank.gain_per_c,
-        bank.ref_c,
-        bank.gain_per_c2,
-        bank.ref_c,
-        of = gain_symbol(bank.gain_of),
+        gain_text(&bank),
+        trainer::summary::sig(f64::from(bank.ref_c), 4),
     )?;
     let how = match search.folds {
         fit::events::FoldKind::Runs => format!("leave-one-run-out ({} folds)", search.fold_count),
@@ -642,39 +658,49 @@ pub(super) fn write_blob(model_out: Option<Output>, blob: &[u8], transaction: &m
     Ok(())
 }
 
-/// One line naming a model's form, centres, inputs and ΔT windows.
+/// One line naming the model as it is ([`trainer::describe`]): kind, form,
+/// T₀, and the ΔT windows of a set that is not a lag bank (whose filters
+/// the bank's own line lists).
 pub(super) fn describe(model: &Model) -> String {
     let f = model.features();
-    if let FeatureSet::ResponseBank(bank) = f.set {
-        return trainer::summary::response_bank(&bank);
+    let windows: Vec<String> = f
+        .filter_taus_s()
+        .iter()
+        .map(|t| trainer::summary::sig(f64::from(*t), 4))
+        .collect();
+    let d = trainer::describe::describe(model);
+    match f.set {
+        FeatureSet::LagBank(_) | FeatureSet::ResponseBank(_) => d.line(),
+        _ if windows.is_empty() => d.line(),
+        _ => format!("{}; ΔT windows {} s", d.line(), windows.join(", ")),
     }
-    let all_names = input_names(f.set);
-    let names = all_names.join(", ");
-    let windows = f.filter_taus_s();
-    match model.body() {
-        ModelBody::Rbf(net) => format!(
-            "Gaussian RBF, {}, {}, ΔT windows {windows:?} s",
-            match net.centers_used() {
-                0 => "no centres".to_owned(),
-                n => format!(
-                    "{n} {} over ({})",
-                    if n == 1 { "centre" } else { "centres" },
-                    all_names[..net.kernel_inputs().min(all_names.len())].join(", ")
-                ),
-            },
-            if net.linear().is_empty() {
-                "no linear terms".to_owned()
-            } else {
-                format!("linear in ({names})")
-            }
-        ),
-        ModelBody::Poly3(p) => format!("cubic in T about {} °C", p.ref_temp_c),
+}
+
+/// The loop temperature's range over the training runs, °C: the lag bank
+/// search's coverage (10-s means), or the model's first input's training
+/// range where that input is the loop temperature; `None` otherwise.
+fn training_loop_range_c(outcome: &FitOutcome) -> Option<(f64, f64)> {
+    if let Some(search) = &outcome.bank {
+        return Some(search.coverage.temp_range_c);
+    }
+    match outcome.model.features().set {
+        FeatureSet::Temp
+        | FeatureSet::TempRate
+        | FeatureSet::TempRateProduct
+        | FeatureSet::MultiScale
+        | FeatureSet::MultiScaleSecondOrder => {
+            let (lo, hi) = outcome.model.input_range(0)?;
+            Some((f64::from(lo), f64::from(hi)))
+        }
+        // A response bank's range is the loop temperature's over its training runs.
+        FeatureSet::ResponseBank(b) => Some((f64::from(b.range_min_c), f64::from(b.range_max_c))),
+        _ => None,
     }
 }
 
 /// A model's inputs as `trainer inspect --json` and `trainer fit --json` give them.
 pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
-    serde_json::json!({
+    let mut v = serde_json::json!({
         "set": match f.set {
             FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
             FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
@@ -682,15 +708,16 @@ pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
             FeatureSet::ResponseBank(_) => "ResponseBank".to_owned(),
             set => format!("{set:?}"),
         },
-        "coil_lag_min": match f.set {
-            FeatureSet::MultiScaleLagged { coil_lag_min } => Some(coil_lag_min),
-            _ => None,
-        },
         "inputs": input_names(f.set),
         "rate_window_s": f.rate_window_s,
         "windows_s": f.filter_taus_s().as_slice(),
-        "lag_bank": match f.set {
-            FeatureSet::LagBank(b) => Some(serde_json::json!({
+        "warmup_s": f.warmup_s(),
+    });
+    // Only what the set has: no `null` beside another set's real value.
+    match f.set {
+        FeatureSet::MultiScaleLagged { coil_lag_min } => v["coil_lag_min"] = serde_json::json!(coil_lag_min),
+        FeatureSet::LagBank(b) => {
+            v["lag_bank"] = serde_json::json!({
                 "taus_s": b.taus(),
                 "coil_lag_min": b.coil_lags(),
                 "ref_c": b.ref_c,
@@ -699,21 +726,20 @@ pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
                 "gain_of": gain_symbol(b.gain_of),
                 "static_degree": b.static_degree,
                 "coil_range_c": [b.coil_min_c, b.coil_max_c],
-            })),
-            _ => None,
-        },
-        "response_bank": match f.set {
-            FeatureSet::ResponseBank(b) => Some(serde_json::json!({
+            })
+        }
+        FeatureSet::ResponseBank(b) => {
+            v["response_bank"] = serde_json::json!({
                 "taus_s": b.taus(),
                 "ref_c": b.ref_c,
                 "temp_range_c": [b.range_min_c, b.range_max_c],
                 "static_degree": b.static_degree,
                 "weights": b.weights.iter().map(|row| &row[..b.filter_count()]).collect::<Vec<_>>(),
-            })),
-            _ => None,
-        },
-        "warmup_s": f.warmup_s(),
-    })
+            })
+        }
+        _ => {}
+    }
+    v
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@ use rbf_core::blob::{self, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{file_problem, read_blob};
 use trainer::output::Existing;
-use trainer::summary::{count, form, sig};
+use trainer::summary::{count, sig};
 use trainer::text;
 
 use super::common::{JsonArg, print_and_commit};
@@ -78,7 +78,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut transaction = Transaction::new();
     json_out.write(&info, &mut transaction)?;
     let printed = match a.format {
-        Format::Text => summary(&info, decoded.as_ref().ok().map(|d| &d.model)),
+        Format::Text => summary(&info),
         Format::Toml => toml::to_toml(&info),
         Format::Json => format!("{}\n", serde_json::to_string_pretty(&info)?),
     };
@@ -129,6 +129,7 @@ fn add_model_json(v: &mut serde_json::Value, m: &rbf_core::Model) {
             })
             .collect();
         v["features"] = features_json(f);
+        v["description"] = serde_json::json!(trainer::describe::describe(m));
         v["training_ranges"] = serde_json::Value::Array(ranges);
         v["units"] = serde_json::json!({"bias": "deg/h", "temperature": "degC", "rate_of_change": "degC/min"});
         v["serial"] = serde_json::json!(m.info().serial.as_ref().map(|s| s.as_str()));
@@ -206,7 +207,7 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
     json_out.write(&info, &mut transaction)?;
     let printed = match format {
         Format::Text => {
-            let mut text = summary(&info, None)
+            let mut text = summary(&info)
                 .lines()
                 .filter(|l| !l.starts_with("kind") && !l.starts_with("shape"))
                 .fold(String::new(), |t, l| t + l + "\n");
@@ -218,7 +219,7 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
             }
             for (axis, v) in models.axes().zip(info["axes"].as_array().into_iter().flatten()) {
                 let _ = writeln!(text, "axis {}", axis.name());
-                for line in summary(v, models.get(axis)).lines() {
+                for line in summary(v).lines() {
                     if !["file", "format version", "CRC-32", "valid"].iter().any(|k| line.starts_with(k)) {
                         let _ = writeln!(text, "  {line}");
                     }
@@ -238,7 +239,7 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
 
 /// The summary `trainer inspect` prints: one labelled line per fact, numbers
 /// to the digits that matter, strings from the blob with control characters escaped.
-pub fn summary(v: &serde_json::Value, model: Option<&rbf_core::Model>) -> String {
+pub fn summary(v: &serde_json::Value) -> String {
     let mut out = String::new();
     let num = |k: &str| v[k].as_u64().unwrap_or(0);
     let string = |x: &serde_json::Value| x.as_str().map(|s| text::escape_controls(s).into_owned());
@@ -250,11 +251,12 @@ pub fn summary(v: &serde_json::Value, model: Option<&rbf_core::Model>) -> String
         num("blob_bytes")
     );
     let _ = writeln!(out, "format version  {}", num("format_version"));
-    let _ = writeln!(
-        out,
-        "kind            {}",
-        string(&v["kind"]).unwrap_or_else(|| "unknown".to_owned())
-    );
+    let description = &v["description"];
+    let stored = string(&v["kind"]).unwrap_or_else(|| "unknown".to_owned());
+    let _ = match string(&description["kind"]) {
+        Some(kind) => writeln!(out, "kind            {kind} (stored as {stored})"),
+        None => writeln!(out, "kind            {stored}"),
+    };
     let _ = writeln!(
         out,
         "shape           {}, {}",
@@ -262,8 +264,11 @@ pub fn summary(v: &serde_json::Value, model: Option<&rbf_core::Model>) -> String
         count(num("centers"), "centre", "centres")
     );
     let _ = writeln!(out, "CRC-32          {}", string(&v["crc"]).unwrap_or_default());
-    if let Some(model) = model {
-        let _ = writeln!(out, "model           {}", form(model));
+    if let Some(form) = string(&description["form"]) {
+        let _ = writeln!(out, "model           {form}");
+    }
+    if let Some(t0) = description["ref_temp_c"].as_f64() {
+        let _ = writeln!(out, "T₀              {} °C (reference temperature)", sig(t0, 4));
     }
     let f = &v["features"];
     if f.is_object() {
@@ -327,7 +332,7 @@ mod tests {
 
     #[test]
     fn the_summary_is_tidy() {
-        let s = summary(&info(), None);
+        let s = summary(&info());
         assert!(s.contains("shape           1 input, 1 centre\n"), "{s}");
         assert!(s.contains("ΔT windows      15, 240 s; warm-up 900 s\n"), "{s}");
         assert!(s.contains("  T [°C]                   -9.877 … 40.12\n"), "{s}");
@@ -343,7 +348,7 @@ mod tests {
         v["valid"] = serde_json::json!(false);
         v["error"] = serde_json::json!("14 bytes follow the blob's end");
         v["centers"] = serde_json::json!(12);
-        let s = summary(&v, None);
+        let s = summary(&v);
         assert!(s.contains("valid           no (14 bytes follow the blob's end)"), "{s}");
         assert!(s.contains("12 centres"), "{s}");
     }

@@ -48,16 +48,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let (file, _) = read_model_file(model_path)?;
     // Written into a hidden directory beside DIR, which replaces DIR as a whole at the end.
     let staged = StagedDir::create(target)?;
-    let allow = a.uncompensated.allow_uncompensated;
+    let allow = a.uncompensated.acceptance();
     let mut printed = Vec::new();
     let axes = file.axes();
     if axes.is_empty() {
         let model = file.model(None).ok_or_else(|| anyhow::anyhow!("the model file holds no model"))?;
-        let files = trainer::report::write_report(model, model_path, &a.runs, &staged, Path::new(""), allow, None)?;
+        let (files, _) = trainer::report::write_report(model, model_path, &a.runs, &staged, Path::new(""), allow, None)?;
         writeln!(printed, "wrote {files} files into {}", text::path(&a.output))?;
     }
     // A multi-axis model: a whole report per axis, in DIR/axis-<axis>.
-    for axis in axes {
+    let mut summary = Vec::new();
+    for axis in axes.iter().copied() {
         // A shared-basis file: the axis's model is the basis with its layer
         // (within the table exponential's error of the shared step).
         let owned = match &file {
@@ -74,9 +75,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .or_else(|| file.model(Some(axis)))
             .ok_or_else(|| anyhow::anyhow!("axis {} has no model", axis.name()))?;
         let sub = PathBuf::from(format!("axis-{}", axis.name()));
-        let files = trainer::report::write_report(model, model_path, &a.runs, &staged, &sub, allow, Some(axis))
-            .map_err(|e| e.context(format!("axis {}", axis.name())))?;
+        let (files, evaluations) =
+            trainer::report::write_report(model, model_path, &a.runs, &staged, &sub, allow, Some(axis))
+                .map_err(|e| e.context(format!("axis {}", axis.name())))?;
         writeln!(printed, "wrote {files} files into {}", text::path(&a.output.join(&sub)))?;
+        summary.push((axis, evaluations));
+    }
+    if !summary.is_empty() {
+        let md = trainer::report::axes_summary_markdown(model_path, &summary);
+        staged.write(Path::new("report.md"), md.as_bytes())?;
+        writeln!(printed, "wrote {}", text::path(&a.output.join("report.md")))?;
     }
     let mut transaction = Transaction::new();
     transaction.add_dir(staged);

@@ -75,11 +75,25 @@ pub fn parse_chamber_profile(path: &Path, text: &str) -> Result<Schedule, Chambe
         .next()
         .ok_or_else(|| fail(1, 1, "no header line (expected time_s,chamber_c)".into()))?;
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    // A segment table (`trainer plan --format segments`) is for the chamber
+    // controller; the simulator follows the set points of the default format.
+    let segments = ["segment", "target_c", "ramp_min", "hold_min"]
+        .iter()
+        .all(|c| names.contains(c));
     let position = |name: &str| {
-        names
-            .iter()
-            .position(|n| *n == name)
-            .ok_or_else(|| fail(header_line, 1, format!("no column {name} in the header \"{header}\"")))
+        names.iter().position(|n| *n == name).ok_or_else(|| {
+            let why = if segments {
+                ": this is a segment table (trainer plan --format segments), which a chamber controller takes; \
+                 --chamber-profile reads the set points: write them with trainer plan --format set-points"
+            } else {
+                ""
+            };
+            fail(
+                header_line,
+                1,
+                format!("no column {name} in the header \"{header}\"{why}"),
+            )
+        })
     };
     let (time_col, temp_col) = (position("time_s")?, position("chamber_c")?);
     let mut knots: Vec<(f64, f64)> = Vec::new();
@@ -161,6 +175,13 @@ mod tests {
         // Half-way up the ramp: exact in binary floating point.
         assert_eq!(schedule.air_c(1200.0).to_bits(), 10.0f64.to_bits());
         // Columns in any order, unknown ones ignored.
+        let segments = parse("segment,target_c,ramp_min,hold_min\n1,20,0,60\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            segments.contains("this is a segment table") && segments.contains("--format set-points"),
+            "{segments}"
+        );
         let swapped = parse("chamber_c,note,time_s\n25,a,0\n30,b,60\n").unwrap();
         assert_eq!(swapped.knots(), &[(0.0, 25.0), (60.0, 30.0)]);
     }

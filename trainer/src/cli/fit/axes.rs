@@ -72,7 +72,7 @@ pub(super) fn run(
     let mut out: Vec<u8> = Vec::new();
     for (axis, (outcome, _)) in axes.iter().zip(&outcomes) {
         writeln!(out, "axis {}:", axis.name())?;
-        write_summary(&mut out, opts.method, outcome, how)?;
+        write_summary(&mut out, outcome, how)?;
     }
     out.write_all(joint.summary.as_bytes())?;
     writeln!(out, "fit took {fit_s:.1} s\n")?;
