@@ -335,7 +335,11 @@ mod tests {
             Some(HEALTH_REPORT_LEN)
         );
         assert_eq!(&frame[..HEALTH_REPORT_LEN], &p[..]);
-        assert_eq!(HealthReport::from_bytes(&p), Some(report), "the host reads what the board sent");
+        assert_eq!(
+            HealthReport::from_bytes(&p),
+            Some(report),
+            "the host reads what the board sent"
+        );
         let mut wrong_tag = p;
         wrong_tag[0] = 0xFB;
         assert_eq!(HealthReport::from_bytes(&wrong_tag), None);

@@ -17,6 +17,7 @@ pub mod blobfile;
 pub mod chunked;
 pub mod dataset;
 pub mod decimal;
+pub mod device;
 pub mod diagnose;
 pub mod evaluate;
 pub mod fit;

@@ -151,7 +151,11 @@ pub fn serve(options: &BoardOptions) -> anyhow::Result<()> {
     drop(out);
     eprintln!(
         "qemu-board: the {} board runs under QEMU; Ctrl-C stops it",
-        if options.three_axes { "three-axis" } else { "single-axis" }
+        if options.three_axes {
+            "three-axis"
+        } else {
+            "single-axis"
+        }
     );
     while !stop.load(Ordering::Relaxed) {
         board.check_running()?;
