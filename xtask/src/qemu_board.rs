@@ -117,10 +117,32 @@ impl QemuBoard {
     }
 }
 
-impl Drop for QemuBoard {
-    fn drop(&mut self) {
+impl QemuBoard {
+    /// Stops QEMU: SIGTERM first, which `timeout` (when QEMU runs under
+    /// one) passes on to QEMU (a SIGKILL would end `timeout` alone and
+    /// leave QEMU running), then SIGKILL if it has not ended within 2 s.
+    pub fn stop(&mut self) {
+        if matches!(self.child.try_wait(), Ok(Some(_))) {
+            return;
+        }
+        let _ = std::process::Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        let deadline = Instant::now() + Duration::from_secs(2);
+        while Instant::now() < deadline {
+            if matches!(self.child.try_wait(), Ok(Some(_))) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
+    }
+}
+
+impl Drop for QemuBoard {
+    fn drop(&mut self) {
+        self.stop();
     }
 }
 

@@ -1,0 +1,308 @@
+//! `trainer device` against the board image under QEMU, through the
+//! pseudo-terminal of `cargo xtask qemu-board --pty` (the same library code):
+//! status → update → status → record, a blob refused before sending, a
+//! port that does not exist or does not answer, Ctrl-C and a unit that
+//! goes away during a recording.
+//!
+//! Ignored in a plain `cargo test` (they need qemu-system-arm and a cross
+//! build); `cargo xtask ci` runs them with `--ignored`. Every QEMU runs
+//! under `timeout` and is killed when its test ends.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use tempfile::TempDir;
+use xtask::qemu_board::{BoardOptions, QemuBoard};
+
+/// No QEMU outlives this, whatever happens to the test.
+const QEMU_LIMIT: Duration = Duration::from_secs(180);
+
+/// One board at a time: each QEMU runs in real time, and the machine's
+/// cores are shared (a starved board misses samples).
+static ONE_BOARD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// A single-axis board without a model, and the lock that keeps it the only one.
+fn board() -> (QemuBoard, std::sync::MutexGuard<'static, ()>) {
+    let lock = ONE_BOARD.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    xtask::qemu::ensure_installed().unwrap();
+    let board = QemuBoard::start(&BoardOptions {
+        three_axes: false,
+        model: None,
+        limit: Some(QEMU_LIMIT),
+    })
+    .unwrap();
+    (board, lock)
+}
+
+fn trainer() -> PathBuf {
+    xtask::firmware::trainer_cli().unwrap()
+}
+
+/// Runs the trainer; its output and how long it took.
+fn run(args: &[&str]) -> (Output, Duration) {
+    let started = Instant::now();
+    let out = Command::new(trainer())
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    (out, started.elapsed())
+}
+
+/// Runs the trainer, which must succeed; its standard output and error.
+fn ok(args: &[&str]) -> String {
+    let (out, _) = run(args);
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "trainer {args:?} failed:\n{text}");
+    text
+}
+
+/// Runs the trainer, which must fail; its standard error.
+fn fails(args: &[&str]) -> String {
+    let (out, _) = run(args);
+    assert!(!out.status.success(), "trainer {args:?} succeeded");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A model fitted now on the bundled 1 °C/min run.
+fn fitted_model(dir: &Path) -> PathBuf {
+    let model = dir.join("model.bin");
+    let train = e2e_tests::example("ifog_train_1cpm.csv");
+    ok(&["fit", train.to_str().unwrap(), "-o", model.to_str().unwrap()]);
+    model
+}
+
+/// The CRC-32 trailer of the blob at `path`, as the health report names it.
+fn crc_of(path: &Path) -> String {
+    let bytes = std::fs::read(path).unwrap();
+    format!("{:#010x}", u32::from_le_bytes(*bytes.last_chunk::<4>().unwrap()))
+}
+
+/// The samples counter of a `status` print.
+fn samples(status: &str) -> u64 {
+    status
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("samples "))
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no samples line in:\n{status}"))
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn status_update_status_record_through_the_board_s_pty() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(dir.path());
+    let (board, _one) = board();
+    let port = board.pty().to_str().unwrap().to_owned();
+
+    let before = ok(&["device", "status", "--port", &port]);
+    assert!(before.contains("single-axis"), "{before}");
+    assert!(
+        before.contains("none running (output uncompensated, flag 4)"),
+        "{before}"
+    );
+
+    let started = Instant::now();
+    let updated = ok(&["device", "update", "--port", &port, "--model", model.to_str().unwrap()]);
+    assert!(updated.contains("status 0: installed"), "{updated}");
+    eprintln!("device update took {:.2} s", started.elapsed().as_secs_f64());
+
+    let json = dir.path().join("health.json");
+    let after = ok(&["device", "status", "--port", &port, "--json", json.to_str().unwrap()]);
+    let crc = crc_of(&model);
+    assert!(
+        after.contains(&format!("blob CRC-32 {crc}, installed over the UART as commit 1")),
+        "{after}"
+    );
+    let health: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(health["model_sequence"], 1);
+    assert_eq!(format!("{:#010x}", health["model_blob_crc32"].as_u64().unwrap()), crc);
+
+    let recorded = dir.path().join("run.csv");
+    let started = Instant::now();
+    let said = ok(&[
+        "device",
+        "record",
+        "--port",
+        &port,
+        "--seconds",
+        "3",
+        "-o",
+        recorded.to_str().unwrap(),
+    ]);
+    let took = started.elapsed();
+    assert!(took < Duration::from_secs(8), "record --seconds 3 took {took:?}");
+    let text = std::fs::read_to_string(&recorded).unwrap();
+    assert!(text.contains(&format!("# model_blob_crc32: {crc}")), "{said}");
+    let header = text.lines().find(|l| !l.starts_with('#')).unwrap();
+    assert_eq!(header, "time_s,seq,rate_dph,bias_dph,rate_comp_dph,temp_c,flags");
+    // A recorded run the trainer reads; at 1 kHz for 3 s of real time
+    // (QEMU in real time on a shared machine: at least a third of it).
+    let run = trainer::run::Run::load(&recorded).unwrap();
+    assert!(run.time_s.len() > 1000, "{} rows; {said}", run.time_s.len());
+    eprintln!("recorded {} rows in {:.2} s", run.time_s.len(), took.as_secs_f64());
+    // The new model runs: no row flagged 4 (no valid model).
+    let flags_col = header.split(',').position(|c| c == "flags").unwrap();
+    let no_model = text
+        .lines()
+        .skip_while(|l| l.starts_with('#'))
+        .skip(1)
+        .filter(|l| l.split(',').nth(flags_col).unwrap().parse::<u8>().unwrap() & 4 != 0)
+        .count();
+    assert_eq!(no_model, 0, "rows flagged 4 with the new model installed");
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn a_blob_the_unit_would_refuse_is_refused_before_sending_and_the_unit_runs_on() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(dir.path());
+    let (axes_blob, _) = e2e_tests::fixtures::axes_blob_and_slice(dir.path());
+    let (board, _one) = board();
+    let port = board.pty().to_str().unwrap().to_owned();
+    ok(&["device", "update", "--port", &port, "--model", model.to_str().unwrap()]);
+    let before = ok(&["device", "status", "--port", &port]);
+
+    // One flipped bit: the CRC fails, as the firmware's check would find.
+    let mut bytes = std::fs::read(&model).unwrap();
+    bytes[40] ^= 0x01;
+    let corrupt = dir.path().join("corrupt.bin");
+    std::fs::write(&corrupt, &bytes).unwrap();
+    let err = fails(&[
+        "device",
+        "update",
+        "--port",
+        &port,
+        "--model",
+        corrupt.to_str().unwrap(),
+    ]);
+    assert!(
+        err.contains(&format!(
+            "{}: no unit would take this blob, nothing sent: CRC mismatch",
+            corrupt.display()
+        )) || err.contains("nothing sent: CRC"),
+        "{err}"
+    );
+    // A multi-axis blob: valid, but not for a single-axis unit.
+    let err = fails(&[
+        "device",
+        "update",
+        "--port",
+        &port,
+        "--model",
+        axes_blob.to_str().unwrap(),
+    ]);
+    assert!(
+        err.contains(&format!("{port}: blob refused, nothing sent: a single-axis unit")),
+        "{err}"
+    );
+
+    let after = ok(&["device", "status", "--port", &port]);
+    let crc = crc_of(&model);
+    for status in [&before, &after] {
+        assert!(
+            status.contains(&format!("blob CRC-32 {crc}, installed over the UART as commit 1")),
+            "{status}"
+        );
+    }
+    assert!(
+        samples(&after) > samples(&before),
+        "the unit kept sampling:\n{before}\n{after}"
+    );
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn a_dead_port_fails_within_seconds_naming_the_port() {
+    // No such port.
+    let (out, took) = run(&["device", "status", "--port", "/dev/no-such-gyro"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("/dev/no-such-gyro: no such port"), "{err}");
+    assert!(took < Duration::from_secs(5), "{took:?}");
+
+    // A port that exists and never answers: a board whose QEMU is gone
+    // leaves nothing; a pty nobody serves stays silent.
+    let (master, pts) = silent_pty();
+    let (out, took) = run(&["device", "status", "--port", &pts, "--timeout-s", "1"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains(&format!("{pts}: no health report within 1.0 s")), "{err}");
+    assert!(took < Duration::from_secs(5), "{took:?}");
+    drop(master);
+}
+
+/// A pseudo-terminal whose master end nobody reads: (master, slave path).
+fn silent_pty() -> (std::os::fd::OwnedFd, String) {
+    use rustix::pty::{OpenptFlags, grantpt, openpt, ptsname, unlockpt};
+    let master = openpt(OpenptFlags::RDWR | OpenptFlags::NOCTTY).unwrap();
+    grantpt(&master).unwrap();
+    unlockpt(&master).unwrap();
+    let name = ptsname(&master, Vec::new()).unwrap();
+    (master, name.to_str().unwrap().to_owned())
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn ctrl_c_or_a_unit_that_goes_away_leaves_a_complete_recorded_run() {
+    let dir = TempDir::new().unwrap();
+    let (mut board, _one) = board();
+    let port = board.pty().to_str().unwrap().to_owned();
+    let record = |out: &Path| {
+        Command::new(trainer())
+            .args(["device", "record", "--port", &port, "--timeout-s", "1", "-o"])
+            .arg(out)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let complete = |path: &Path| {
+        let text = std::fs::read_to_string(path).unwrap();
+        assert!(text.ends_with('\n'), "the last row is whole");
+        let run = trainer::run::Run::load(path).unwrap();
+        assert!(run.time_s.len() > 100, "{} rows", run.time_s.len());
+        run.time_s.len()
+    };
+
+    // Ctrl-C: the run so far, committed, exit 0.
+    let stopped = dir.path().join("stopped.csv");
+    let child = record(&stopped);
+    std::thread::sleep(Duration::from_secs(2));
+    rustix::process::kill_process(
+        rustix::process::Pid::from_raw(child.id() as i32).unwrap(),
+        rustix::process::Signal::INT,
+    )
+    .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    complete(&stopped);
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "staged files left: {leftovers:?}");
+
+    // The unit goes away: the rows before, committed, exit 1 naming the port.
+    let cut = dir.path().join("cut.csv");
+    let child = record(&cut);
+    std::thread::sleep(Duration::from_secs(2));
+    board.check_running().unwrap();
+    drop(board);
+    let started = Instant::now();
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(started.elapsed() < Duration::from_secs(5), "{:?}", started.elapsed());
+    assert!(err.contains(&port), "{err}");
+    assert!(err.contains("the rows before the failure are written"), "{err}");
+    complete(&cut);
+}
