@@ -684,10 +684,8 @@ mod board {
         let i2c = qemu::thermometer_bus(&loop_temp);
         // The serving image's front end answers from the same sample as the thermometer.
         #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
-        let spi_device = {
-            drop(spi_device);
-            firmware::replay::EmulatedFrontEnd::new(&loop_temp)
-        };
+        // (SPI1 itself stays configured and unused: QEMU has no front end on it.)
+        let (_spi1, spi_device) = (spi_device, firmware::replay::EmulatedFrontEnd::new(&loop_temp));
         #[cfg(not(feature = "board-axes"))]
         let mut compensation = {
             let mut thermometer = Tmp117::new(i2c, tmp117::DEFAULT_ADDRESS);
@@ -711,11 +709,10 @@ mod board {
         let coil_addresses = [0x48, 0x49, 0x4A];
         // The serving image's front ends answer from their coils' samples.
         #[cfg(all(feature = "board-qemu-serve", feature = "board-axes"))]
-        let (spi_x, spi_y, spi_z) = {
-            drop((spi_x, spi_y, spi_z));
-            let [x, y, z] = [0, 1, 2].map(|axis| firmware::replay::EmulatedFrontEnd::new(&coil_temps[axis]));
-            (x, y, z)
-        };
+        let (_spi1, [spi_x, spi_y, spi_z]) = (
+            (spi_x, spi_y, spi_z),
+            [0, 1, 2].map(|axis| firmware::replay::EmulatedFrontEnd::new(&coil_temps[axis])),
+        );
         #[cfg(feature = "board-axes")]
         let mut compensation = {
             let [bx, by, bz] = coil_buses;

@@ -54,8 +54,9 @@ pub struct CheckedBlob {
     pub suits: Suits,
 }
 
-/// Decodes `bytes` as the board whose running model is an `M` does; the blob's length.
-fn check_as<M: StoredModel>(mut model: Box<M>, bytes: &[u8]) -> Result<usize, DecodeError> {
+/// Decodes `bytes` as the board whose running model is an `M` does (into
+/// `model`, on the heap: the three kinds take up to 14 KiB); the blob's length.
+fn check_as<M: StoredModel>(model: &mut M, bytes: &[u8]) -> Result<usize, DecodeError> {
     model.decode_from(bytes)
 }
 
@@ -73,9 +74,9 @@ fn other_image(e: &DecodeError) -> bool {
 /// Checks `bytes` against every board image: the blob if some image takes
 /// it, else the reason the most fitting image gives.
 pub fn check_blob(bytes: &[u8]) -> Result<CheckedBlob, DecodeError> {
-    let single = check_as(Box::new(Model::<{ rbf_core::MAX_CENTERS }>::EMPTY), bytes);
-    let per_axis = check_as(Box::new(AxisModels::<AXIS_CENTERS>::EMPTY), bytes);
-    let shared = check_as(Box::new(SharedAxisModels::<SHARED_AXIS_CENTERS>::EMPTY), bytes);
+    let single = check_as(&mut *Box::new(Model::<{ rbf_core::MAX_CENTERS }>::EMPTY), bytes);
+    let per_axis = check_as(&mut *Box::new(AxisModels::<AXIS_CENTERS>::EMPTY), bytes);
+    let shared = check_as(&mut *Box::new(SharedAxisModels::<SHARED_AXIS_CENTERS>::EMPTY), bytes);
     let suits = Suits {
         single: single.is_ok(),
         per_axis: per_axis.is_ok(),
