@@ -29,6 +29,7 @@ fn board() -> (QemuBoard, std::sync::MutexGuard<'static, ()>) {
     let board = QemuBoard::start(&BoardOptions {
         three_axes: false,
         model: None,
+        run: None,
         limit: Some(QEMU_LIMIT),
     })
     .unwrap();
@@ -305,4 +306,86 @@ fn ctrl_c_or_a_unit_that_goes_away_leaves_a_complete_recorded_run() {
     assert!(err.contains(&port), "{err}");
     assert!(err.contains("the rows before the failure are written"), "{err}");
     complete(&cut);
+}
+
+/// The `column` of every data row of the CSV `text`, parsed.
+fn column<T: std::str::FromStr>(text: &str, column: &str) -> Vec<T> {
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let i = header.iter().position(|c| *c == column).unwrap();
+    lines
+        .map(|l| l.split(',').nth(i).unwrap().parse().ok().unwrap())
+        .collect()
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn a_recorded_run_replayed_through_the_board_comes_back_in_its_raw_columns() {
+    let dir = TempDir::new().unwrap();
+    // 3,000 rows of the bundled chamber run: the board takes one per sample.
+    let source_text: String = std::fs::read_to_string(e2e_tests::example("ifog_train_1cpm.csv"))
+        .unwrap()
+        .lines()
+        .take(3_010)
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let source = dir.path().join("source.csv");
+    std::fs::write(&source, &source_text).unwrap();
+    let _one = ONE_BOARD.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let board = QemuBoard::start(&BoardOptions {
+        three_axes: false,
+        model: None,
+        run: Some(source.clone()),
+        limit: Some(QEMU_LIMIT),
+    })
+    .unwrap();
+    let recorded = dir.path().join("recorded.csv");
+    let port = board.pty().to_str().unwrap();
+    ok(&[
+        "device",
+        "record",
+        "--port",
+        port,
+        "--seconds",
+        "2",
+        "-o",
+        recorded.to_str().unwrap(),
+    ]);
+    drop(board);
+
+    let rates: Vec<f32> = column::<f64>(&source_text, "rate_dph")
+        .iter()
+        .map(|&r| r as f32)
+        .collect();
+    let temps: Vec<f64> = column(&source_text, "temp_c");
+    let text = std::fs::read_to_string(&recorded).unwrap();
+    let (got_rates, got_temps): (Vec<f32>, Vec<f32>) = (column(&text, "rate_dph"), column(&text, "temp_c"));
+    assert!(got_rates.len() > 500, "{} rows", got_rates.len());
+    // Each row's raw rate is the source's next row's, bit for bit (the
+    // board steps through the run one row per sample, from its start
+    // again at its end); a frame lost on the way skips a row.
+    let n = rates.len();
+    let mut at = rates
+        .iter()
+        .position(|&r| r.to_bits() == got_rates[0].to_bits())
+        .unwrap();
+    let mut skipped = 0;
+    for (k, &rate) in got_rates.iter().enumerate().skip(1) {
+        let next = (1..=8)
+            .map(|step| (at + step) % n)
+            .find(|&j| rates[j].to_bits() == rate.to_bits())
+            .unwrap_or_else(|| panic!("row {k}: rate {rate} is not among the source rows after row {at}"));
+        skipped += (next + n - at - 1) % n;
+        at = next;
+        // The temperature is a source row's, read through the TMP117 (the
+        // source's values are whole 1/128 °C, which it carries exactly) on
+        // every 125th sample number (a missed one defers the read): one of
+        // the rows before.
+        let t = got_temps[k];
+        assert!(
+            (0..1000).any(|back| (temps[(at + n - back) % n] as f32).to_bits() == t.to_bits()),
+            "row {k}: temp_c {t} is none of the source's rows before row {at}"
+        );
+    }
+    assert!(skipped * 100 <= got_rates.len(), "{skipped} source rows skipped");
 }

@@ -40,7 +40,8 @@ enum Cmd {
     },
     /// Run the gyro board without hardware: the stm32f405 board image under
     /// QEMU with USART1 on a pseudo-terminal, at its 1-kHz sample rate, its
-    /// front ends and thermometers emulated (a built-in temperature ramp).
+    /// front ends and thermometers emulated (a built-in temperature ramp, or
+    /// the rows of --run RUN.csv).
     /// Prints `pty: PATH` on a line of its own and serves until stopped
     /// (Ctrl-C); `trainer device status|update|record --port PATH` talks to it.
     ///
@@ -54,6 +55,10 @@ enum Cmd {
         /// uncompensated, flag 4, until `trainer device update` installs one).
         #[arg(long, value_name = "MODEL.bin")]
         model: Option<PathBuf>,
+        /// A recorded run (single-axis) the emulated front end and thermometer
+        /// answer from, one row per sample, from its start again at its end.
+        #[arg(long, value_name = "RUN.csv")]
+        run: Option<PathBuf>,
         /// Put USART1 on a pseudo-terminal (the only way this command serves).
         #[arg(long, required = true)]
         pty: bool,
@@ -168,12 +173,18 @@ fn main() -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Cmd::QemuBoard { axes, model, pty: _ } => {
+        Cmd::QemuBoard {
+            axes,
+            model,
+            run,
+            pty: _,
+        } => {
             anyhow::ensure!(axes != 2, "--axes 2: the boards are single-axis (1) or three-axis (3)");
             xtask::qemu::ensure_installed()?;
             xtask::qemu_board::serve(&xtask::qemu_board::BoardOptions {
                 three_axes: axes == 3,
                 model,
+                run,
                 limit: None,
             })
         }

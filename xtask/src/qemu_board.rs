@@ -4,6 +4,8 @@
 //! `board-axes` for a three-axis IMU) runs under QEMU with USART1 on a
 //! pseudo-terminal, at its real sample rate (1 kHz, no `-icount`), until it
 //! is stopped: `trainer device` talks to the pty as to a USB serial adapter.
+//! The sensors answer from a built-in temperature ramp, or (single-axis)
+//! from a recorded run the image reads over semihosting (`run.csv`).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -28,6 +30,10 @@ pub struct BoardOptions {
     /// A model blob placed in flash slot A before boot (none: the board
     /// starts without a model, flag 4 on every frame).
     pub model: Option<PathBuf>,
+    /// A single-axis recorded run the emulated front end and thermometer
+    /// answer from, row after row (from its start again at its end);
+    /// `None`: the built-in temperature ramp.
+    pub run: Option<PathBuf>,
     /// QEMU is killed after this long whatever happens (tests); `None`: it
     /// runs until stopped.
     pub limit: Option<Duration>,
@@ -63,6 +69,16 @@ impl QemuBoard {
         let dir = tempfile::TempDir::new()?;
         let image = dir.path().join("stm32f405-serve");
         std::fs::copy(elf, &image).with_context(|| format!("{}: cannot copy", elf.display()))?;
+        if let Some(run) = &options.run {
+            anyhow::ensure!(
+                !options.three_axes,
+                "--run with --axes 3: not built yet (the three-axis image answers from its built-in ramp)"
+            );
+            // Checked here with the trainer's reader, so that the image reads a valid run.
+            trainer::run::Run::load(run)?;
+            std::fs::copy(run, dir.path().join("run.csv"))
+                .with_context(|| format!("{}: cannot read", run.display()))?;
+        }
         let mut extra = Vec::new();
         if let Some(model) = &options.model {
             std::fs::copy(model, dir.path().join("model.bin"))

@@ -348,6 +348,62 @@ mod board {
             ReplaySample::with_loop(Some(temp_c), builtin_rate_dph(temp_c, axis))
         }
 
+        /// The recorded run the serving image's sensors answer from
+        /// (`run.csv` in QEMU's directory: `cargo xtask qemu-board --run`),
+        /// one row per sample, from its start again after its end; without
+        /// the file, the built-in ramp ([`sample`]).
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        pub struct RunSource {
+            lines: Option<firmware::host_file::HostLines>,
+            columns: Option<rbf_core::record::Columns>,
+        }
+
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        impl RunSource {
+            /// The run in `run.csv`, if QEMU's directory holds one.
+            pub fn open() -> RunSource {
+                RunSource {
+                    lines: firmware::host_file::HostLines::open(RUN_FILE),
+                    columns: None,
+                }
+            }
+
+            /// What the sensors present for sample `seq`: the run's next
+            /// row (rows that do not parse are skipped), else the ramp's.
+            pub fn next(&mut self, seq: u32) -> ReplaySample {
+                let RunSource { lines, columns } = self;
+                // At most one pass to the end and one from the start again.
+                for _ in 0..2 {
+                    let Some(reader) = lines.as_mut() else { break };
+                    while let Some(line) = reader.next_line() {
+                        let Ok(text) = line else { continue };
+                        let text = text.strip_suffix('\r').unwrap_or(text);
+                        if rbf_core::record::is_comment_or_blank(text) {
+                            continue;
+                        }
+                        match columns {
+                            None => *columns = rbf_core::record::Columns::from_header(text).ok(),
+                            Some(c) => {
+                                if let Ok(row) = c.parse_row(text) {
+                                    return ReplaySample {
+                                        temps_c: row.readings_c(),
+                                        rate_dph: row.rate_dph as f32,
+                                    };
+                                }
+                            }
+                        }
+                    }
+                    *lines = firmware::host_file::HostLines::open(RUN_FILE);
+                    *columns = None;
+                }
+                sample(seq)
+            }
+        }
+
+        /// The run file of [`RunSource`], NUL-terminated for semihosting.
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        const RUN_FILE: &str = "run.csv\0";
+
         /// The built-in profile's rate, °/h: a constant per axis (an Earth-rate
         /// projection) plus a bias that follows the coil temperature.
         fn builtin_rate_dph(temp_c: f64, axis: usize) -> f32 {
@@ -678,7 +734,15 @@ mod board {
         };
         // Sensor init failures are not fatal either: the drivers retry on
         // each read until the sensors answer, and the frames are flagged meanwhile.
-        #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        let mut run_source = qemu::RunSource::open();
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        let loop_temp = core::cell::Cell::new(run_source.next(0));
+        #[cfg(all(
+            feature = "board-qemu",
+            not(feature = "board-qemu-serve"),
+            not(feature = "board-axes")
+        ))]
         let loop_temp = core::cell::Cell::new(qemu::sample(0));
         #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
         let i2c = qemu::thermometer_bus(&loop_temp);
@@ -803,7 +867,13 @@ mod board {
                             write_frame(compensation.output_mut(), report.get(..n).unwrap_or(&[]));
                         }
                     }
-                    #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
+                    #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+                    loop_temp.set(run_source.next(tick.seq));
+                    #[cfg(all(
+                        feature = "board-qemu",
+                        not(feature = "board-qemu-serve"),
+                        not(feature = "board-axes")
+                    ))]
                     loop_temp.set(qemu::sample(tick.seq));
                     #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
                     for (axis, cell) in coil_temps.iter().enumerate() {
