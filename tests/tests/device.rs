@@ -174,30 +174,17 @@ fn a_blob_the_unit_would_refuse_is_refused_before_sending_and_the_unit_runs_on()
     bytes[40] ^= 0x01;
     let corrupt = dir.path().join("corrupt.bin");
     std::fs::write(&corrupt, &bytes).unwrap();
-    let err = fails(&[
-        "device",
-        "update",
-        "--port",
-        &port,
-        "--model",
-        corrupt.to_str().unwrap(),
-    ]);
+    let update = |blob: &Path| fails(&["device", "update", "--port", &port, "--model", blob.to_str().unwrap()]);
+    let err = update(&corrupt);
     assert!(
         err.contains(&format!(
-            "{}: no unit would take this blob, nothing sent: CRC mismatch",
+            "{}: no unit would take this blob, nothing sent: CRC",
             corrupt.display()
-        )) || err.contains("nothing sent: CRC"),
+        )),
         "{err}"
     );
     // A multi-axis blob: valid, but not for a single-axis unit.
-    let err = fails(&[
-        "device",
-        "update",
-        "--port",
-        &port,
-        "--model",
-        axes_blob.to_str().unwrap(),
-    ]);
+    let err = update(&axes_blob);
     assert!(
         err.contains(&format!("{port}: blob refused, nothing sent: a single-axis unit")),
         "{err}"

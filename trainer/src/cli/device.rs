@@ -24,6 +24,10 @@ use super::model_arg::ModelArg;
 /// wait is bounded: a unit that does not answer fails the command with the
 /// port's name. The protocol is in docs/firmware.md.
 #[derive(clap::Args, Debug)]
+#[command(after_help = "Example (no hardware: `cargo xtask qemu-board --pty` prints the pty):\n  \
+                        trainer device status --port /dev/pts/3\n  \
+                        trainer device update --port /dev/pts/3 --model model.bin\n  \
+                        trainer device record --port /dev/pts/3 --seconds 20 -o run.csv")]
 pub struct Args {
     #[command(subcommand)]
     command: DeviceCommand,
