@@ -36,18 +36,52 @@ fn board() -> (QemuBoard, std::sync::MutexGuard<'static, ()>) {
     (board, lock)
 }
 
+/// The trainer CLI, built once (cargo's build lock would otherwise count
+/// in the timings of the tests that run beside each other).
 fn trainer() -> PathBuf {
-    xtask::firmware::trainer_cli().unwrap()
+    static TRAINER: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    TRAINER.get_or_init(|| xtask::firmware::trainer_cli().unwrap()).clone()
+}
+
+/// A trainer started in the background: killed if its test ends first (a
+/// failed assertion), so that it never holds a pty into the next test.
+struct Background(Option<std::process::Child>);
+
+impl Background {
+    fn spawn(command: &mut Command) -> Background {
+        Background(Some(
+            command
+                .stdin(Stdio::null())
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap(),
+        ))
+    }
+
+    fn id(&self) -> u32 {
+        self.0.as_ref().unwrap().id()
+    }
+
+    fn wait(mut self) -> Output {
+        self.0.take().unwrap().wait_with_output().unwrap()
+    }
+}
+
+impl Drop for Background {
+    fn drop(&mut self) {
+        if let Some(mut child) = self.0.take() {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
 }
 
 /// Runs the trainer; its output and how long it took.
 fn run(args: &[&str]) -> (Output, Duration) {
+    let trainer = trainer();
     let started = Instant::now();
-    let out = Command::new(trainer())
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .unwrap();
+    let out = Command::new(trainer).args(args).stdin(Stdio::null()).output().unwrap();
     (out, started.elapsed())
 }
 
@@ -175,6 +209,14 @@ fn a_blob_the_unit_would_refuse_is_refused_before_sending_and_the_unit_runs_on()
     let corrupt = dir.path().join("corrupt.bin");
     std::fs::write(&corrupt, &bytes).unwrap();
     let update = |blob: &Path| fails(&["device", "update", "--port", &port, "--model", blob.to_str().unwrap()]);
+    // Refused while a recording holds the port: checked before any port is opened.
+    let recorded = dir.path().join("during.csv");
+    let recording = Background::spawn(
+        Command::new(trainer())
+            .args(["device", "record", "--port", &port, "--seconds", "3", "-o"])
+            .arg(&recorded),
+    );
+    std::thread::sleep(Duration::from_secs(1));
     let err = update(&corrupt);
     assert!(
         err.contains(&format!(
@@ -183,7 +225,12 @@ fn a_blob_the_unit_would_refuse_is_refused_before_sending_and_the_unit_runs_on()
         )),
         "{err}"
     );
-    // A multi-axis blob: valid, but not for a single-axis unit.
+
+    let out = recording.wait();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows = trainer::run::Run::load(&recorded).unwrap().time_s.len();
+    assert!(rows > 1000, "the unit recorded on: {rows} rows in 3 s");
+    // A multi-axis blob: valid, but not for a single-axis unit (its frames say which).
     let err = update(&axes_blob);
     assert!(
         err.contains(&format!("{port}: blob refused, nothing sent: a single-axis unit")),
@@ -242,14 +289,11 @@ fn ctrl_c_or_a_unit_that_goes_away_leaves_a_complete_recorded_run() {
     let (mut board, _one) = board();
     let port = board.pty().to_str().unwrap().to_owned();
     let record = |out: &Path| {
-        Command::new(trainer())
-            .args(["device", "record", "--port", &port, "--timeout-s", "1", "-o"])
-            .arg(out)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap()
+        Background::spawn(
+            Command::new(trainer())
+                .args(["device", "record", "--port", &port, "--timeout-s", "1", "-o"])
+                .arg(out),
+        )
     };
     let complete = |path: &Path| {
         let text = std::fs::read_to_string(path).unwrap();
@@ -268,7 +312,7 @@ fn ctrl_c_or_a_unit_that_goes_away_leaves_a_complete_recorded_run() {
         rustix::process::Signal::INT,
     )
     .unwrap();
-    let out = child.wait_with_output().unwrap();
+    let out = child.wait();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     complete(&stopped);
@@ -286,7 +330,7 @@ fn ctrl_c_or_a_unit_that_goes_away_leaves_a_complete_recorded_run() {
     board.check_running().unwrap();
     drop(board);
     let started = Instant::now();
-    let out = child.wait_with_output().unwrap();
+    let out = child.wait();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{err}");
     assert!(started.elapsed() < Duration::from_secs(5), "{:?}", started.elapsed());
@@ -361,7 +405,13 @@ fn a_recorded_run_replayed_through_the_board_comes_back_in_its_raw_columns() {
         let next = (1..=8)
             .map(|step| (at + step) % n)
             .find(|&j| rates[j].to_bits() == rate.to_bits())
-            .unwrap_or_else(|| panic!("row {k}: rate {rate} is not among the source rows after row {at}"));
+            .unwrap_or_else(|| {
+                panic!(
+                    "row {k}: rate {rate} is not among the source rows after row {at} ({:?});\nrecorded:\n{}",
+                    &rates[at..(at + 9).min(n)],
+                    text.lines().take(12).collect::<Vec<_>>().join("\n")
+                )
+            });
         skipped += (next + n - at - 1) % n;
         at = next;
         // The temperature is a source row's, read through the TMP117 (the

@@ -182,8 +182,10 @@ pub fn install<P: Read + Write>(
                 command: CMD_INSTALL_MODEL,
                 status,
             }) => break status,
-            // The board sends its health report after every reset (and the
-            // boot report after a fault or watchdog reset).
+            // A late answer to a health command the status query repeated.
+            Some(Message::Health(report)) if report.counters.samples >= before.report.counters.samples => {}
+            // The board sends its health report after every reset (counters
+            // from 0 again), and the boot report after a fault or watchdog reset.
             Some(Message::Health(_) | Message::BootReport) => anyhow::bail!(
                 "{name}: the unit reset during the update; it runs the old model or the new one \
                  (a reset at any point leaves one of them): see `trainer device status --port {name}`"
@@ -216,6 +218,58 @@ pub fn install<P: Read + Write>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The framed health report of a unit with `samples` since its reset.
+    fn health(samples: u32) -> Vec<u8> {
+        let report = firmware::health::HealthReport {
+            reset_cause: firmware::health::ResetCause::PowerOn,
+            reset_flags: 0,
+            fault_pc: 0,
+            fault_lr: 0,
+            counters: firmware::health::HealthCounters {
+                samples,
+                ..Default::default()
+            },
+            model: Default::default(),
+            board_flags: 0,
+        };
+        let mut buf = [0u8; 80];
+        let n = report.encode(&mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    #[test]
+    fn a_unit_that_resets_during_the_install_is_told_from_a_late_answer() {
+        use super::super::link::tests::{FakePort, output_frame};
+        let blob = CheckedBlob {
+            bytes: vec![1, 2, 3, 4],
+            crc32: 0x0403_0201,
+            suits: Suits {
+                single: true,
+                per_axis: false,
+                shared: false,
+            },
+        };
+        let answer = |after_install: Vec<u8>| {
+            let mut input = [output_frame(1), health(100), output_frame(2)].concat();
+            input.extend(after_install);
+            Link::new(FakePort::answering(input), "/dev/fake")
+        };
+        // Counters from 0 again: a reset.
+        let mut link = answer([health(5), output_frame(3)].concat());
+        let err = install(&mut link, &blob, Duration::from_millis(300))
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("/dev/fake: the unit reset during the update"), "{err}");
+        // A second answer to the health command, counters on: no reset; then a refusal.
+        let mut reply = [0u8; 8];
+        let n = firmware::update::encode_reply(CMD_INSTALL_MODEL, UpdateStatus::Refused, &mut reply).unwrap();
+        let mut link = answer([health(150), reply[..n].to_vec()].concat());
+        let err = install(&mut link, &blob, Duration::from_millis(300))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("/dev/fake: status 4: the unit refused the blob"), "{err}");
+    }
 
     #[test]
     fn every_status_is_put_in_words() {

@@ -208,7 +208,7 @@ impl<P: Read + Write> Link<P> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use std::io::Cursor;
     use std::time::Duration;
 
@@ -221,6 +221,17 @@ mod tests {
         pub input: Cursor<Vec<u8>>,
         pub written: Vec<u8>,
         pub slice: usize,
+    }
+
+    impl FakePort {
+        /// A port that answers with `input`, whatever is sent.
+        pub(crate) fn answering(input: Vec<u8>) -> FakePort {
+            FakePort {
+                input: Cursor::new(input),
+                written: Vec::new(),
+                slice: 64,
+            }
+        }
     }
 
     impl Read for FakePort {
@@ -243,7 +254,8 @@ mod tests {
         }
     }
 
-    fn output_frame(seq: u32) -> Vec<u8> {
+    /// Output frame `seq`, COBS-framed with its 0x00.
+    pub(crate) fn output_frame(seq: u32) -> Vec<u8> {
         let f = OutputFrame {
             seq,
             rate_dph: 1.5,
