@@ -49,5 +49,4 @@ commands! {
     blocks => Blocks,
     correlate => Correlate,
     plan => Plan,
-    device => Device,
 }
