@@ -51,8 +51,8 @@ impl CycleStats {
         if high >= steps {
             return u32::MAX;
         }
-        // A u64 `/` would link the 64-bit division routine (about 0.9 KiB of
-        // board flash) for this one report.
+        // A u64 `/` would link the 64-bit division routine into the board
+        // image for this one report.
         if steps <= 0xFFFF {
             // Exact, by schoolbook division in 16-bit digits: each partial
             // dividend fits 32 bits because its remainder is below `steps`.

@@ -264,8 +264,8 @@ fn exp2_term<const M: usize, const ADD_Q: bool>(
 /// The largest ⌈log₂ |w|⌉ over the nonzero `weights`, exactly, from their
 /// bits: the exponent, one more where the significand is not a power of
 /// two. `None` when every weight is 0 or one is ±∞ or NaN. Integer work in
-/// one rolled loop: `libm::log2` and `ceil` in f64 cost a board image
-/// almost a kilobyte of flash for this one use at model install.
+/// one out-of-line loop: exact by construction, where a rounded f64 log2
+/// and `ceil` are exact only by care, and small in the board image.
 #[inline(never)]
 fn max_ceil_log2_abs(weights: &[f32]) -> Option<i32> {
     let mut max = None;

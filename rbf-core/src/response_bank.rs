@@ -152,7 +152,8 @@ impl<'de> Deserialize<'de> for ResponseBank {
                     weights: [[0.0; RESPONSE_FILTERS]; WEIGHT_ROWS],
                 };
                 // Read flat, in one loop kept rolled (its count hidden from
-                // the optimiser: unrolled it costs a board image a kilobyte).
+                // the optimiser): unrolled, the reads of every value would
+                // each take board flash.
                 let mut values = [0.0f32; ENCODED_FLOATS];
                 for v in values.iter_mut().take(core::hint::black_box(ENCODED_FLOATS)) {
                     *v = seq.next_element()?.ok_or_else(short)?;
