@@ -77,6 +77,21 @@ const CSR_PINRSTF: u32 = 1 << 26;
 const CSR_BORRSTF: u32 = 1 << 25;
 
 impl ResetCause {
+    /// The cause with wire value `value` (the report's byte 2).
+    pub fn from_u8(value: u8) -> Option<ResetCause> {
+        Some(match value {
+            0 => ResetCause::PowerOn,
+            1 => ResetCause::Pin,
+            2 => ResetCause::BrownOut,
+            3 => ResetCause::Software,
+            4 => ResetCause::Watchdog,
+            5 => ResetCause::Panic,
+            6 => ResetCause::HardFault,
+            7 => ResetCause::Other,
+            _ => return None,
+        })
+    }
+
     /// The cause of the last reset from the fault record (if one survived)
     /// and RCC_CSR; the most specific one wins (every internal reset also
     /// sets PINRSTF, a power-on also BORRSTF).
@@ -207,6 +222,47 @@ impl HealthReport {
         p
     }
 
+    /// The report in `payload` (a decoded frame, [`HEALTH_REPORT_LEN`]
+    /// bytes, tag and layout version checked); `None` for anything else.
+    /// The host side (`trainer device status`) reads reports with it.
+    pub fn from_bytes(payload: &[u8]) -> Option<HealthReport> {
+        let p: &[u8; HEALTH_REPORT_LEN] = payload.try_into().ok()?;
+        let [tag, version, cause, reset_flags] = *p.first_chunk::<4>()?;
+        if tag != HEALTH_REPORT_TAG || version != HEALTH_REPORT_VERSION {
+            return None;
+        }
+        let mut words = [0u32; HEALTH_REPORT_LEN / 4];
+        for (w, chunk) in words.iter_mut().zip(p.chunks_exact(4)) {
+            *w = u32::from_le_bytes(chunk.try_into().ok()?);
+        }
+        let c = &words[3..15];
+        Some(HealthReport {
+            reset_cause: ResetCause::from_u8(cause)?,
+            reset_flags,
+            fault_pc: words[1],
+            fault_lr: words[2],
+            counters: HealthCounters {
+                samples: c[0],
+                samples_missed: c[1],
+                rate_read_faults: c[2],
+                temp_read_faults: c[3],
+                sensor_timeouts: c[4],
+                bus_recoveries: c[5],
+                front_end_inits: c[6],
+                data_ready_glitches: c[7],
+                synthetic_steps: c[8],
+                overruns: c[9],
+                output_dropped: c[10],
+                flash_errors: c[11],
+            },
+            model: ModelIdentity {
+                blob_crc32: words[15],
+                sequence: words[16],
+            },
+            board_flags: words[17],
+        })
+    }
+
     /// The COBS-framed report into `out`; the bytes used.
     #[inline(never)]
     pub fn encode(&self, out: &mut [u8]) -> Option<usize> {
@@ -279,5 +335,17 @@ mod tests {
             Some(HEALTH_REPORT_LEN)
         );
         assert_eq!(&frame[..HEALTH_REPORT_LEN], &p[..]);
+        assert_eq!(
+            HealthReport::from_bytes(&p),
+            Some(report),
+            "the host reads what the board sent"
+        );
+        let mut wrong_tag = p;
+        wrong_tag[0] = 0xFB;
+        assert_eq!(HealthReport::from_bytes(&wrong_tag), None);
+        let mut wrong_cause = p;
+        wrong_cause[2] = 8;
+        assert_eq!(HealthReport::from_bytes(&wrong_cause), None);
+        assert_eq!(HealthReport::from_bytes(&p[..71]), None);
     }
 }

@@ -47,6 +47,8 @@ pub mod watchdog;
 
 #[cfg(target_os = "none")]
 pub mod board;
+#[cfg(all(target_os = "none", feature = "test-harness"))]
+pub mod host_file;
 
 use rbf_core::Model;
 use rbf_core::blob::{self, DecodeError};

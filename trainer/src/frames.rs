@@ -16,22 +16,26 @@ pub const CSV_HEADER: &str = "seq,rate_dph,bias_dph,rate_comp_dph,temp_c,flags";
 
 /// Which firmware's frames a capture holds (set by its first valid frame).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Kind {
+pub enum Kind {
     /// [`OutputFrame`]s.
     Single,
     /// [`AxesFrame`]s with this axis mask.
     Axes(u8),
 }
 
-/// One decoded frame of either kind.
-enum Frame {
+/// One decoded output frame of either kind.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Frame {
+    /// A single-axis firmware's frame.
     Single(OutputFrame),
+    /// A three-axis firmware's frame.
     Axes(AxesFrame),
 }
 
 impl Frame {
-    /// Decodes `chunk` (COBS bytes without the 0x00) as the frame its length allows.
-    fn decode(chunk: &mut [u8]) -> Option<Frame> {
+    /// Decodes `chunk` (COBS bytes without the 0x00, decoded in place) as
+    /// the frame its length allows; `None` when it is no output frame.
+    pub fn decode(chunk: &mut [u8]) -> Option<Frame> {
         if chunk.len() <= MAX_FRAME_LEN {
             frame::decode(chunk).ok().map(Frame::Single)
         } else if chunk.len() <= MAX_AXES_FRAME_LEN {
@@ -41,7 +45,8 @@ impl Frame {
         }
     }
 
-    fn kind(&self) -> Kind {
+    /// Which firmware sends frames like this one.
+    pub fn kind(&self) -> Kind {
         match self {
             Frame::Single(_) => Kind::Single,
             Frame::Axes(f) => Kind::Axes(f.axis_mask),
@@ -50,12 +55,13 @@ impl Frame {
 }
 
 /// The axes of `mask`, x first.
-fn axes_of(mask: u8) -> impl Iterator<Item = Axis> {
+pub fn axes_of(mask: u8) -> impl Iterator<Item = Axis> {
     Axis::ALL.into_iter().filter(move |a| mask & (1 << a.index()) != 0)
 }
 
-/// The CSV header of a capture of `kind`.
-fn header(kind: Kind) -> String {
+/// The CSV header of frames of `kind`: [`CSV_HEADER`], or `seq` and each
+/// axis's columns.
+pub fn header(kind: Kind) -> String {
     match kind {
         Kind::Single => CSV_HEADER.to_owned(),
         Kind::Axes(mask) => std::iter::once("seq".to_owned())
@@ -74,8 +80,8 @@ fn header(kind: Kind) -> String {
     }
 }
 
-/// Writes `frame` as a CSV row.
-fn write_row(out: &mut impl Write, frame: &Frame) -> std::io::Result<()> {
+/// Writes `frame` as a CSV row of [`header`]'s columns.
+pub fn write_row(out: &mut impl Write, frame: &Frame) -> std::io::Result<()> {
     match frame {
         Frame::Single(f) => writeln!(
             out,

@@ -18,6 +18,7 @@ pub mod chunked;
 pub mod dataset;
 pub mod decimal;
 pub mod describe;
+pub mod device;
 pub mod diagnose;
 pub mod evaluate;
 pub mod fit;

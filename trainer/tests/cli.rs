@@ -1149,9 +1149,66 @@ fn every_subcommand_shows_an_example_and_fit_short_help_fits_a_screen() {
             "{command} -h has no example:\n{help}"
         );
     }
+    for device in ["status", "update", "record"] {
+        let help = stdout(&trainer(&["device", device, "-h"]));
+        assert!(
+            help.contains(&format!("\n  trainer device {device} --port ")),
+            "device {device} -h has no example:\n{help}"
+        );
+    }
     let short = stdout(&trainer(&["fit", "-h"]));
     assert!(short.lines().count() <= 45, "{short}");
     for heading in ["Data:", "Model:", "Search:", "Output:", "Multi-point:"] {
         assert!(short.contains(heading), "fit -h lacks {heading}");
     }
+}
+
+#[test]
+fn device_commands_fail_at_once_naming_a_missing_port_or_model_and_change_no_file() {
+    let dir = TempDir::new().unwrap();
+    let run = dir.path().join("run.csv");
+    for args in [
+        &["device", "status", "--port", "/dev/no-such-gyro"][..],
+        &[
+            "device",
+            "record",
+            "--port",
+            "/dev/no-such-gyro",
+            "--seconds",
+            "1",
+            "-o",
+            run.to_str().unwrap(),
+        ][..],
+    ] {
+        let started = std::time::Instant::now();
+        let o = trainer(args);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains("/dev/no-such-gyro: no such port"), "{}", stderr(&o));
+        assert!(started.elapsed() < std::time::Duration::from_secs(5));
+    }
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "no file written or left"
+    );
+    // The blob is checked before the port is opened.
+    let blob = dir.path().join("model.bin");
+    std::fs::write(&blob, [0xFFu8; 64]).unwrap();
+    let o = trainer(&[
+        "device",
+        "update",
+        "--port",
+        "/dev/no-such-gyro",
+        "--model",
+        blob.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains(&format!(
+            "{}: no unit would take this blob, nothing sent",
+            blob.display()
+        )),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -156,6 +156,27 @@ pub fn ci() -> anyhow::Result<()> {
         "--bin",
         "stm32f405",
     ];
+    // The boards `cargo xtask qemu-board --pty` serves (tests/tests/device.rs).
+    let serve_board = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "board-qemu-serve",
+        "--bin",
+        "stm32f405",
+    ];
+    let axes_serve_board = [
+        "--package",
+        "firmware",
+        "--target",
+        TARGET,
+        "--features",
+        "board-qemu-serve,board-axes",
+        "--bin",
+        "stm32f405",
+    ];
     let panic_check = [
         "--package",
         "firmware",
@@ -175,6 +196,8 @@ pub fn ci() -> anyhow::Result<()> {
         &axes_qemu_board[..],
         &shared_board[..],
         &shared_qemu_board[..],
+        &serve_board[..],
+        &axes_serve_board[..],
         &panic_check[..],
     ] {
         run("cargo", &[&["clippy"][..], board, &["--", "-D", "warnings"]].concat())?;

@@ -4,6 +4,7 @@
 //! - [`firmware`]: cross builds of the board binaries;
 //! - [`qemu`]: running an image under `qemu-system-arm` with a hard deadline;
 //! - [`replay`]: `cargo xtask qemu-replay`;
+//! - [`qemu_board`]: `cargo xtask qemu-board --pty`, the board on a pseudo-terminal;
 //! - [`bench`](mod@bench): `cargo xtask bench-fw`; [`board_stack`]: its board stack measurement;
 //! - [`accuracy`]: `cargo xtask bench-accuracy`;
 //! - [`fuzz`]: `cargo xtask fuzz`;
@@ -23,6 +24,7 @@ pub mod fuzz;
 pub mod large_run;
 pub mod panic_paths;
 pub mod qemu;
+pub mod qemu_board;
 pub mod replay;
 
 use std::path::{Path, PathBuf};

@@ -48,6 +48,31 @@ enum Cmd {
         #[arg(long)]
         allow_implausible: bool,
     },
+    /// Run the gyro board without hardware: the stm32f405 board image under
+    /// QEMU with USART1 on a pseudo-terminal, at its 1-kHz sample rate, its
+    /// front ends and thermometers emulated (a built-in temperature ramp, or
+    /// the rows of --run RUN.csv).
+    /// Prints `pty: PATH` on a line of its own and serves until stopped
+    /// (Ctrl-C); `trainer device status|update|record --port PATH` talks to it.
+    ///
+    /// Example: cargo xtask qemu-board --pty
+    QemuBoard {
+        /// The three-axis IMU board (board-axes: one frame with x, y, z per sample).
+        #[arg(long, value_name = "N", default_value_t = 1,
+              value_parser = clap::value_parser!(u8).range(1..=3))]
+        axes: u8,
+        /// A model blob in flash slot A at boot (without one the board runs
+        /// uncompensated, flag 4, until `trainer device update` installs one).
+        #[arg(long, value_name = "MODEL.bin")]
+        model: Option<PathBuf>,
+        /// A recorded run (single-axis) the emulated front end and thermometer
+        /// answer from, one row per sample, from its start again at its end.
+        #[arg(long, value_name = "RUN.csv")]
+        run: Option<PathBuf>,
+        /// Put USART1 on a pseudo-terminal (the only way this command serves).
+        #[arg(long, required = true)]
+        pty: bool,
+    },
     /// Count instructions per compensated sample in QEMU (-icount shift=0,
     /// SysTick) for K = 8, 16, 32, 64 centres at D = 3, the multi-scale sets
     /// and a five-filter lag bank; run the stm32f405 board's own main loop
@@ -178,6 +203,21 @@ fn main() -> anyhow::Result<()> {
                 summary.report
             );
             Ok(())
+        }
+        Cmd::QemuBoard {
+            axes,
+            model,
+            run,
+            pty: _,
+        } => {
+            anyhow::ensure!(axes != 2, "--axes 2: the boards are single-axis (1) or three-axis (3)");
+            xtask::qemu::ensure_installed()?;
+            xtask::qemu_board::serve(&xtask::qemu_board::BoardOptions {
+                three_axes: axes == 3,
+                model,
+                run,
+                limit: None,
+            })
         }
         Cmd::BenchFw => xtask::bench::bench_fw(),
         Cmd::CheckBoardPanics => xtask::firmware::check_board_panics(),

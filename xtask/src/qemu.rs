@@ -70,8 +70,28 @@ pub fn run(elf: &Path, dir: &Path, extra: &[String], deadline: Duration) -> anyh
 /// `chardev:ID` with a `-chardev` among `extra`); its log goes to
 /// `dir/qemu.log`. [`wait`] for it.
 pub fn spawn(elf: &Path, dir: &Path, serial: &str, extra: &[String]) -> anyhow::Result<Child> {
+    spawn_limited(elf, dir, serial, extra, None)
+}
+
+/// [`spawn`], with QEMU killed by `timeout` (coreutils) after `limit` if it
+/// is given: a QEMU whose parent died without stopping it ends all the same.
+pub fn spawn_limited(
+    elf: &Path,
+    dir: &Path,
+    serial: &str,
+    extra: &[String],
+    limit: Option<Duration>,
+) -> anyhow::Result<Child> {
     let log = File::create(dir.join(LOG)).context("cannot create qemu.log")?;
-    Command::new(QEMU)
+    let mut command = match limit {
+        Some(limit) => {
+            let mut c = Command::new("timeout");
+            c.args(["--signal=KILL", &format!("{}s", limit.as_secs().max(1)), QEMU]);
+            c
+        }
+        None => Command::new(QEMU),
+    };
+    command
         .args(["-machine", MACHINE, "-nographic", "-monitor", "none", "-serial", serial])
         .args(["-semihosting-config", "enable=on,target=native"])
         .args(extra)
@@ -86,7 +106,7 @@ pub fn spawn(elf: &Path, dir: &Path, serial: &str, extra: &[String]) -> anyhow::
 }
 
 /// File in the run directory that holds QEMU's output.
-const LOG: &str = "qemu.log";
+pub const LOG: &str = "qemu.log";
 
 /// Waits for a [`spawn`]ed QEMU to end; kills it after `deadline`.
 pub fn wait(mut child: Child, dir: &Path, deadline: Duration) -> anyhow::Result<QemuRun> {

@@ -19,129 +19,13 @@ mod board {
     use core::cell::Cell;
 
     use cortex_m_rt::entry;
-    use cortex_m_semihosting::{debug, hprintln, nr, syscall};
+    use cortex_m_semihosting::{debug, hprintln};
+    use firmware::host_file::{HostFile, HostLines};
     use firmware::replay::ReplayError;
     use firmware::replay::{AxesReplayer, PeriodProbe, ReplaySample, Replayer};
     use rbf_core::blob::axes::{AxisModels, decode_axes_into};
     use rbf_core::blob::shared::{decode_shared_into, is_shared_basis};
     use rbf_core::shared::SharedAxisModels;
-
-    /// Longest input line, bytes.
-    const LINE_CAPACITY: usize = 1024;
-    /// Input read chunk, bytes.
-    const CHUNK: usize = 4096;
-
-    /// Reads a host file line by line over semihosting.
-    struct HostLines {
-        fd: usize,
-        chunk: [u8; CHUNK],
-        start: usize,
-        end: usize,
-        eof: bool,
-        line: heapless::Vec<u8, LINE_CAPACITY>,
-    }
-
-    /// Opens a host file; `path_nul` ends with a NUL byte.
-    fn host_open(path_nul: &str, mode: usize) -> Option<usize> {
-        // SAFETY: SYS_OPEN reads the NUL-terminated name and returns a handle or -1.
-        let fd = unsafe { syscall!(OPEN, path_nul.as_ptr(), mode, path_nul.len() - 1) };
-        (fd as isize != -1).then_some(fd)
-    }
-
-    fn host_close(fd: usize) {
-        // SAFETY: closes a handle we opened.
-        unsafe { syscall!(CLOSE, fd) };
-    }
-
-    /// A host file written over semihosting.
-    struct HostFile(usize);
-
-    impl HostFile {
-        fn create(path_nul: &str) -> Option<Self> {
-            host_open(path_nul, nr::open::W_TRUNC_BINARY).map(HostFile)
-        }
-
-        fn write_all(&mut self, mut buf: &[u8]) -> Result<(), ()> {
-            while !buf.is_empty() {
-                // SAFETY: SYS_WRITE reads buf.len() bytes from buf; returns the count NOT written.
-                let not_written = unsafe { syscall!(WRITE, self.0, buf.as_ptr(), buf.len()) };
-                if not_written >= buf.len() {
-                    return Err(());
-                }
-                buf = &buf[buf.len() - not_written..];
-            }
-            Ok(())
-        }
-    }
-
-    impl Drop for HostFile {
-        fn drop(&mut self) {
-            host_close(self.0);
-        }
-    }
-
-    impl HostLines {
-        fn open(path_nul: &str) -> Option<Self> {
-            host_open(path_nul, nr::open::R_BINARY).map(|fd| HostLines {
-                fd,
-                chunk: [0; CHUNK],
-                start: 0,
-                end: 0,
-                eof: false,
-                line: heapless::Vec::new(),
-            })
-        }
-
-        fn fill(&mut self) {
-            // SAFETY: SYS_READ writes at most CHUNK bytes into our buffer and returns the count NOT read.
-            let not_read = unsafe { syscall!(READ, self.fd, self.chunk.as_mut_ptr(), CHUNK) };
-            self.start = 0;
-            self.end = CHUNK.saturating_sub(not_read);
-            self.eof = self.end == 0;
-        }
-
-        /// The next line without its `\n`; `Err(())` for a line over capacity or non-UTF-8.
-        fn next_line(&mut self) -> Option<Result<&str, ()>> {
-            self.line.clear();
-            let mut overflow = false;
-            loop {
-                if self.start == self.end {
-                    if self.eof {
-                        break;
-                    }
-                    self.fill();
-                    if self.eof {
-                        break;
-                    }
-                }
-                let b = self.chunk[self.start];
-                self.start += 1;
-                if b == b'\n' {
-                    return Some(if overflow {
-                        Err(())
-                    } else {
-                        core::str::from_utf8(&self.line).map_err(|_| ())
-                    });
-                }
-                overflow |= self.line.push(b).is_err();
-            }
-            if self.line.is_empty() {
-                None
-            } else {
-                Some(if overflow {
-                    Err(())
-                } else {
-                    core::str::from_utf8(&self.line).map_err(|_| ())
-                })
-            }
-        }
-    }
-
-    impl Drop for HostLines {
-        fn drop(&mut self) {
-            host_close(self.fd);
-        }
-    }
 
     /// Semihosting file as an embedded-io writer (the UART of the real board).
     struct HostWriter(HostFile);

@@ -312,6 +312,10 @@ mod board {
         /// Slot A starts as the blob QEMU's loader placed in flash slot A.
         static mut FLASH: ModelFlash = ModelFlash::new();
 
+        /// The rate QEMU 7.2's STM32F2xx timers count at (their `clock-frequency`), Hz.
+        #[cfg(feature = "board-qemu-serve")]
+        pub const TIMER_HZ: u32 = 1_000_000_000;
+
         /// Where the slots lie in [`FLASH`].
         pub const SLOTS: SlotLayout = EMULATED_LAYOUT;
 
@@ -327,17 +331,83 @@ mod board {
             flash
         }
 
-        /// The loop TMP117 of sample `seq`: a slow ramp (QEMU has no I2C).
+        /// The loop TMP117 of sample `seq`: a slow ramp (QEMU has no I2C),
+        /// and the rate the emulated front end of the serving image
+        /// (`board-qemu-serve`) sends with it.
         #[cfg(not(feature = "board-axes"))]
         pub fn sample(seq: u32) -> ReplaySample {
-            ReplaySample::with_loop(Some(20.0 + f64::from(seq % 100_000) * 1e-4), 0.0)
+            let temp_c = 20.0 + f64::from(seq % 100_000) * 1e-4;
+            ReplaySample::with_loop(Some(temp_c), builtin_rate_dph(temp_c, 0))
         }
 
         /// Axis `axis`'s coil TMP117 of sample `seq` (three-axis image): the
-        /// ramp, each coil half a degree warmer than the last.
+        /// ramp, each coil half a degree warmer than the last; and its rate.
         #[cfg(feature = "board-axes")]
         pub fn axis_sample(seq: u32, axis: usize) -> ReplaySample {
-            ReplaySample::with_loop(Some(20.0 + 0.5 * axis as f64 + f64::from(seq % 100_000) * 1e-4), 0.0)
+            let temp_c = 20.0 + 0.5 * axis as f64 + f64::from(seq % 100_000) * 1e-4;
+            ReplaySample::with_loop(Some(temp_c), builtin_rate_dph(temp_c, axis))
+        }
+
+        /// The recorded run the serving image's sensors answer from
+        /// (`run.csv` in QEMU's directory: `cargo xtask qemu-board --run`),
+        /// one row per sample, from its start again after its end; without
+        /// the file, the built-in ramp ([`sample`]).
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        pub struct RunSource {
+            lines: Option<firmware::host_file::HostLines>,
+            columns: Option<rbf_core::record::Columns>,
+        }
+
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        impl RunSource {
+            /// The run in `run.csv`, if QEMU's directory holds one.
+            pub fn open() -> RunSource {
+                RunSource {
+                    lines: firmware::host_file::HostLines::open(RUN_FILE),
+                    columns: None,
+                }
+            }
+
+            /// What the sensors present for sample `seq`: the run's next
+            /// row (rows that do not parse are skipped), else the ramp's.
+            pub fn next(&mut self, seq: u32) -> ReplaySample {
+                let RunSource { lines, columns } = self;
+                // At most one pass to the end and one from the start again.
+                for _ in 0..2 {
+                    let Some(reader) = lines.as_mut() else { break };
+                    while let Some(line) = reader.next_line() {
+                        let Ok(text) = line else { continue };
+                        let text = text.strip_suffix('\r').unwrap_or(text);
+                        if rbf_core::record::is_comment_or_blank(text) {
+                            continue;
+                        }
+                        match columns {
+                            None => *columns = rbf_core::record::Columns::from_header(text).ok(),
+                            Some(c) => {
+                                if let Ok(row) = c.parse_row(text) {
+                                    return ReplaySample {
+                                        temps_c: row.readings_c(),
+                                        rate_dph: row.rate_dph as f32,
+                                    };
+                                }
+                            }
+                        }
+                    }
+                    *lines = firmware::host_file::HostLines::open(RUN_FILE);
+                    *columns = None;
+                }
+                sample(seq)
+            }
+        }
+
+        /// The run file of [`RunSource`], NUL-terminated for semihosting.
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        const RUN_FILE: &str = "run.csv\0";
+
+        /// The built-in profile's rate, °/h: a constant per axis (an Earth-rate
+        /// projection) plus a bias that follows the coil temperature.
+        fn builtin_rate_dph(temp_c: f64, axis: usize) -> f32 {
+            (10.0 - 5.0 * axis as f64 + 0.05 * (temp_c - 25.0)) as f32
         }
 
         /// An I2C bus with the loop TMP117 at its default address.
@@ -381,6 +451,10 @@ mod board {
             /// stack's high-water mark and exits (semihosting).
             pub fn check(&mut self, stats: &LoopStats) {
                 self.samples = stats.samples;
+                // The serving image runs until QEMU is stopped.
+                if cfg!(feature = "board-qemu-serve") {
+                    return;
+                }
                 let done = match self.updated {
                     Some((_, at)) => self.samples >= SAMPLES && self.samples - at >= SAMPLES_AFTER_UPDATE,
                     None => self.samples >= SAMPLES_WITHOUT_UPDATE,
@@ -516,7 +590,16 @@ mod board {
 
         // TIM2 free-running over 32 bits at the timer clock: the data-ready
         // timestamps and the clock of every bounded wait.
+        #[cfg(not(feature = "board-qemu-serve"))]
         let timer_hz = clocks.timclk1_hz;
+        // QEMU's timers count at 1 GHz of virtual time whatever the clock
+        // tree says; the serving image runs without -icount, where virtual
+        // time is the host's, so this makes its samples come at 1 kHz of real time.
+        #[cfg(feature = "board-qemu-serve")]
+        let timer_hz = {
+            let _ = clocks.timclk1_hz;
+            qemu::TIMER_HZ
+        };
         pac::TIM2::enable(&mut rcc);
         pac::TIM2::reset(&mut rcc);
         dp.TIM2.arr().write(|w| unsafe { w.bits(u32::MAX) });
@@ -651,10 +734,22 @@ mod board {
         };
         // Sensor init failures are not fatal either: the drivers retry on
         // each read until the sensors answer, and the frames are flagged meanwhile.
-        #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        let mut run_source = qemu::RunSource::open();
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        let loop_temp = core::cell::Cell::new(run_source.next(0));
+        #[cfg(all(
+            feature = "board-qemu",
+            not(feature = "board-qemu-serve"),
+            not(feature = "board-axes")
+        ))]
         let loop_temp = core::cell::Cell::new(qemu::sample(0));
         #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
         let i2c = qemu::thermometer_bus(&loop_temp);
+        // The serving image's front end answers from the same sample as the thermometer.
+        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        // (SPI1 itself stays configured and unused: QEMU has no front end on it.)
+        let (_spi1, spi_device) = (spi_device, firmware::replay::EmulatedFrontEnd::new(&loop_temp));
         #[cfg(not(feature = "board-axes"))]
         let mut compensation = {
             let mut thermometer = Tmp117::new(i2c, tmp117::DEFAULT_ADDRESS);
@@ -676,6 +771,12 @@ mod board {
         let coil_buses = [0, 1, 2].map(|_| embedded_hal_bus::i2c::AtomicDevice::new(&i2c_bus));
         #[cfg(all(not(feature = "board-qemu"), feature = "board-axes"))]
         let coil_addresses = [0x48, 0x49, 0x4A];
+        // The serving image's front ends answer from their coils' samples.
+        #[cfg(all(feature = "board-qemu-serve", feature = "board-axes"))]
+        let (_spi1, [spi_x, spi_y, spi_z]) = (
+            (spi_x, spi_y, spi_z),
+            [0, 1, 2].map(|axis| firmware::replay::EmulatedFrontEnd::new(&coil_temps[axis])),
+        );
         #[cfg(feature = "board-axes")]
         let mut compensation = {
             let [bx, by, bz] = coil_buses;
@@ -766,7 +867,13 @@ mod board {
                             write_frame(compensation.output_mut(), report.get(..n).unwrap_or(&[]));
                         }
                     }
-                    #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
+                    #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+                    loop_temp.set(run_source.next(tick.seq));
+                    #[cfg(all(
+                        feature = "board-qemu",
+                        not(feature = "board-qemu-serve"),
+                        not(feature = "board-axes")
+                    ))]
                     loop_temp.set(qemu::sample(tick.seq));
                     #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
                     for (axis, cell) in coil_temps.iter().enumerate() {

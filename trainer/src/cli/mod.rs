@@ -49,4 +49,5 @@ commands! {
     blocks => Blocks,
     correlate => Correlate,
     plan => Plan,
+    device => Device,
 }

@@ -4,6 +4,7 @@
 //! have.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard, Once};
 
 use signal_hook::consts::signal::{
@@ -17,6 +18,39 @@ use signal_hook::consts::signal::{
 pub const TERMINATING: [i32; 12] = [
     SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGXCPU, SIGTRAP, SIGABRT,
 ];
+
+/// Signals that, once [`stop_gracefully`] was called, end the command's
+/// work instead of the process (the first of them; a second one ends the
+/// process as before).
+const GRACEFUL_SIGNALS: [i32; 3] = [SIGINT, SIGTERM, SIGHUP];
+
+/// Whether a stopping signal ends the work rather than the process.
+static GRACEFUL: AtomicBool = AtomicBool::new(false);
+/// Set by the first of [`GRACEFUL_SIGNALS`] while [`GRACEFUL`] holds.
+static STOP_REQUESTED: AtomicBool = AtomicBool::new(false);
+
+/// A command that stops by itself when asked ([`stop_gracefully`]).
+#[derive(Debug)]
+pub struct GracefulStop(());
+
+impl GracefulStop {
+    /// Whether SIGINT, SIGTERM or SIGHUP asked the command to stop.
+    pub fn requested(&self) -> bool {
+        STOP_REQUESTED.load(Ordering::SeqCst)
+    }
+}
+
+/// Makes the first SIGINT, SIGTERM or SIGHUP (Ctrl-C, `kill`, a closed
+/// terminal) ask the command to stop instead of ending the process: the
+/// command sees [`GracefulStop::requested`], finishes its outputs and
+/// commits them (`trainer device record`, whose run must be a complete file
+/// at Ctrl-C). A second such signal, or any other terminating one, removes
+/// the staged outputs and ends the process as usual.
+pub fn stop_gracefully() -> GracefulStop {
+    GRACEFUL.store(true, Ordering::SeqCst);
+    install();
+    GracefulStop(())
+}
 
 /// A staged file or directory, removed unless committed.
 struct Staged {
@@ -68,7 +102,13 @@ pub(crate) fn install() {
         let spawned = std::thread::Builder::new()
             .name("output-cleanup".into())
             .spawn(move || {
-                if let Some(signal) = signals.forever().next() {
+                for signal in signals.forever() {
+                    if GRACEFUL.load(Ordering::SeqCst)
+                        && GRACEFUL_SIGNALS.contains(&signal)
+                        && !STOP_REQUESTED.swap(true, Ordering::SeqCst)
+                    {
+                        continue;
+                    }
                     // The lock is never released.
                     let staged = pending();
                     for s in staged.0.iter() {

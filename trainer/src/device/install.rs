@@ -1,0 +1,294 @@
+//! `trainer device update`: a model blob checked as the unit will check it,
+//! sent as the firmware's install command, its reply put in words, and the
+//! new model confirmed from the unit's health report.
+//!
+//! The checks are the firmware's own: `firmware::model_store::StoredModel`
+//! decodes the blob into the very types the board images run (a single-axis
+//! `Model`, the three-axis board's `AxisModels<AXIS_CENTERS>`, the
+//! shared-basis board's `SharedAxisModels<SHARED_AXIS_CENTERS>`). Before the
+//! port is opened the blob must suit one of the images; once the unit's
+//! frames have said which kind it is, it must suit that kind. The two
+//! three-axis images send the same frames, so for a three-axis unit a blob
+//! that suits either is sent and the unit's reply decides.
+
+use std::io::{Read, Write};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use firmware::model_store::StoredModel;
+use firmware::update::{CMD_INSTALL_MODEL, MAX_COMMAND_FRAME_LEN, UpdateStatus, encode_install_command};
+use firmware::{AXIS_CENTERS, SHARED_AXIS_CENTERS};
+use rbf_core::Model;
+use rbf_core::blob::axes::AxisModels;
+use rbf_core::blob::{DecodeError, MAX_BLOB_LEN};
+use rbf_core::shared::SharedAxisModels;
+
+use super::link::{Link, Message};
+use super::status::{self, UnitStatus};
+use crate::frames::Kind;
+use crate::text;
+
+/// How long the unit may take to answer an install: the worst-case 128-KiB
+/// sector erase (4 s) and the programming, with margin.
+pub const INSTALL_TIMEOUT: Duration = Duration::from_secs(15);
+
+/// Which board images take a blob.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Suits {
+    /// The single-axis board (`board-stm32f405`).
+    pub single: bool,
+    /// The three-axis board with a model per axis (`board-axes`).
+    pub per_axis: bool,
+    /// The shared-basis three-axis board (`board-axes-shared`).
+    pub shared: bool,
+}
+
+/// A blob read from its file and checked against every board image.
+#[derive(Clone, Debug)]
+pub struct CheckedBlob {
+    /// The blob's bytes (what the unit keeps: trailing bytes of the file dropped).
+    pub bytes: Vec<u8>,
+    /// Its CRC-32 trailer: what the unit's health report names the running model by.
+    pub crc32: u32,
+    /// The images that take it.
+    pub suits: Suits,
+}
+
+/// Decodes `bytes` as the board whose running model is an `M` does (into
+/// `model`, on the heap: the three kinds take up to 14 KiB); the blob's length.
+fn check_as<M: StoredModel>(model: &mut M, bytes: &[u8]) -> Result<usize, DecodeError> {
+    model.decode_from(bytes)
+}
+
+/// Whether `e` only says that the blob is for another image.
+fn other_image(e: &DecodeError) -> bool {
+    matches!(
+        e,
+        DecodeError::MultiAxis
+            | DecodeError::SharedBasis
+            | DecodeError::NotSharedBasis
+            | DecodeError::UnsupportedVersion(_)
+    )
+}
+
+/// Checks `bytes` against every board image: the blob if some image takes
+/// it, else the reason the most fitting image gives.
+pub fn check_blob(bytes: &[u8]) -> Result<CheckedBlob, DecodeError> {
+    let single = check_as(&mut *Box::new(Model::<{ rbf_core::MAX_CENTERS }>::EMPTY), bytes);
+    let per_axis = check_as(&mut *Box::new(AxisModels::<AXIS_CENTERS>::EMPTY), bytes);
+    let shared = check_as(&mut *Box::new(SharedAxisModels::<SHARED_AXIS_CENTERS>::EMPTY), bytes);
+    let suits = Suits {
+        single: single.is_ok(),
+        per_axis: per_axis.is_ok(),
+        shared: shared.is_ok(),
+    };
+    let len = match (single, per_axis, shared) {
+        (Ok(n), _, _) | (_, Ok(n), _) | (_, _, Ok(n)) => n,
+        (Err(a), Err(b), Err(c)) => {
+            return Err([a, b, c].into_iter().find(|e| !other_image(e)).unwrap_or(a));
+        }
+    };
+    let bytes = bytes.get(..len).ok_or(DecodeError::Malformed)?.to_vec();
+    let crc32 = bytes.last_chunk::<4>().map_or(0, |t| u32::from_le_bytes(*t));
+    Ok(CheckedBlob { bytes, crc32, suits })
+}
+
+/// Reads and checks the blob at `path` (`-`: standard input); errors name
+/// the file and say why no unit would take it.
+pub fn read_blob(path: &Path) -> anyhow::Result<CheckedBlob> {
+    let shown = text::path(path);
+    // A blob is at most MAX_BLOB_LEN bytes; a little more tells "too long" apart.
+    let limit = (MAX_BLOB_LEN * 2) as u64;
+    let mut bytes = Vec::new();
+    crate::input::open(path)
+        .and_then(|f| f.take(limit + 1).read_to_end(&mut bytes))
+        .map_err(|e| anyhow::anyhow!("{shown}: cannot read: {e}"))?;
+    anyhow::ensure!(
+        bytes.len() as u64 <= limit,
+        "{shown}: longer than {limit} bytes, not a model blob (at most {MAX_BLOB_LEN} bytes); nothing sent"
+    );
+    check_blob(&bytes).map_err(|e| anyhow::anyhow!("{shown}: no unit would take this blob, nothing sent: {e}"))
+}
+
+/// Whether a unit of `kind` takes `blob`; the reason when it does not.
+pub fn check_for_unit(blob: &CheckedBlob, kind: Kind) -> Result<(), String> {
+    match kind {
+        Kind::Single if blob.suits.single => Ok(()),
+        Kind::Single => {
+            Err("a single-axis unit takes a single-axis blob (format 2); this one is for a three-axis unit".into())
+        }
+        Kind::Axes(_) if blob.suits.per_axis || blob.suits.shared => Ok(()),
+        Kind::Axes(_) => Err(format!(
+            "a three-axis unit takes a blob with a model per axis of at most {AXIS_CENTERS} centres, or a shared basis \
+             of at most {SHARED_AXIS_CENTERS}; this one is neither"
+        )),
+    }
+}
+
+/// The install reply's status in words.
+pub fn status_words(status: u8) -> String {
+    let words = match status {
+        s if s == UpdateStatus::Installed as u8 => "installed: the new model runs",
+        s if s == UpdateStatus::UnknownCommand as u8 => "unknown command (firmware too old for model updates?)",
+        s if s == UpdateStatus::Malformed as u8 => {
+            "the command frame arrived damaged (line noise?); the old model runs on"
+        }
+        s if s == UpdateStatus::TooLong as u8 => "the command was longer than the unit's buffer; the old model runs on",
+        s if s == UpdateStatus::Refused as u8 => {
+            "the unit refused the blob (CRC, shape or parameters, or a blob for another image); the old model runs on"
+        }
+        s if s == UpdateStatus::FlashFailed as u8 => {
+            "writing or verifying the flash failed; the old model runs on (the health report counts flash errors)"
+        }
+        _ => "a status this trainer does not know",
+    };
+    format!("status {status}: {words}")
+}
+
+/// What an update did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Installed {
+    /// The unit before the update.
+    pub before: UnitStatus,
+    /// The unit after it (its health report names the new model).
+    pub after: UnitStatus,
+    /// How long the unit took to answer the install, s.
+    pub reply_s: f64,
+}
+
+/// Installs `blob` on the unit behind `link`: asks its status (which also
+/// says its kind), checks the blob for that kind, sends it, waits for the
+/// reply and confirms from a new health report that the blob runs.
+pub fn install<P: Read + Write>(
+    link: &mut Link<P>,
+    blob: &CheckedBlob,
+    timeout: Duration,
+) -> anyhow::Result<Installed> {
+    let name = link.name().to_owned();
+    let before = status::query(link, timeout)?;
+    let kind = before.kind.ok_or_else(|| {
+        anyhow::anyhow!("{name}: the unit sends no output frames, so its kind is unknown; nothing sent")
+    })?;
+    check_for_unit(blob, kind).map_err(|why| anyhow::anyhow!("{name}: blob refused, nothing sent: {why}"))?;
+    let mut command = vec![0u8; MAX_COMMAND_FRAME_LEN];
+    let n = encode_install_command(&blob.bytes, &mut command)
+        .ok_or_else(|| anyhow::anyhow!("{name}: blob too long for the install command"))?;
+    link.send_encoded(&command[..n])?;
+    let sent = Instant::now();
+    let deadline = sent + INSTALL_TIMEOUT;
+    let status = loop {
+        match link.next(deadline)? {
+            Some(Message::Reply {
+                command: CMD_INSTALL_MODEL,
+                status,
+            }) => break status,
+            // A late answer to a health command the status query repeated.
+            Some(Message::Health(report)) if report.counters.samples >= before.report.counters.samples => {}
+            // The board sends its health report after every reset (counters
+            // from 0 again), and the boot report after a fault or watchdog reset.
+            Some(Message::Health(_) | Message::BootReport) => anyhow::bail!(
+                "{name}: the unit reset during the update; it runs the old model or the new one \
+                 (a reset at any point leaves one of them): see `trainer device status --port {name}`"
+            ),
+            Some(_) => {}
+            None => anyhow::bail!(
+                "{name}: no answer to the install within {} s; the unit runs the old model or the new one: \
+                 see `trainer device status --port {name}`",
+                INSTALL_TIMEOUT.as_secs()
+            ),
+        }
+    };
+    let reply_s = sent.elapsed().as_secs_f64();
+    anyhow::ensure!(
+        status == UpdateStatus::Installed as u8,
+        "{name}: {}",
+        status_words(status)
+    );
+    let after = status::query(link, timeout)?;
+    anyhow::ensure!(
+        after.report.model.blob_crc32 == blob.crc32,
+        "{name}: the unit answered `installed` but its health report names another model (CRC-32 {:#010x}, \
+         expected {:#010x})",
+        after.report.model.blob_crc32,
+        blob.crc32
+    );
+    Ok(Installed { before, after, reply_s })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The framed health report of a unit with `samples` since its reset.
+    fn health(samples: u32) -> Vec<u8> {
+        let report = firmware::health::HealthReport {
+            reset_cause: firmware::health::ResetCause::PowerOn,
+            reset_flags: 0,
+            fault_pc: 0,
+            fault_lr: 0,
+            counters: firmware::health::HealthCounters {
+                samples,
+                ..Default::default()
+            },
+            model: Default::default(),
+            board_flags: 0,
+        };
+        let mut buf = [0u8; 80];
+        let n = report.encode(&mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    #[test]
+    fn a_unit_that_resets_during_the_install_is_told_from_a_late_answer() {
+        use super::super::link::tests::{FakePort, output_frame};
+        let blob = CheckedBlob {
+            bytes: vec![1, 2, 3, 4],
+            crc32: 0x0403_0201,
+            suits: Suits {
+                single: true,
+                per_axis: false,
+                shared: false,
+            },
+        };
+        let answer = |after_install: Vec<u8>| {
+            let mut input = [output_frame(1), health(100), output_frame(2)].concat();
+            input.extend(after_install);
+            Link::new(FakePort::answering(input), "/dev/fake")
+        };
+        // Counters from 0 again: a reset.
+        let mut link = answer([health(5), output_frame(3)].concat());
+        let err = install(&mut link, &blob, Duration::from_millis(300))
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("/dev/fake: the unit reset during the update"), "{err}");
+        // A second answer to the health command, counters on: no reset; then a refusal.
+        let mut reply = [0u8; 8];
+        let n = firmware::update::encode_reply(CMD_INSTALL_MODEL, UpdateStatus::Refused, &mut reply).unwrap();
+        let mut link = answer([health(150), reply[..n].to_vec()].concat());
+        let err = install(&mut link, &blob, Duration::from_millis(300))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("/dev/fake: status 4: the unit refused the blob"), "{err}");
+    }
+
+    #[test]
+    fn every_status_is_put_in_words() {
+        assert!(status_words(0).contains("installed"));
+        assert!(status_words(4).contains("refused the blob"));
+        assert!(status_words(5).contains("flash failed"));
+        assert!(status_words(9).contains("does not know"));
+    }
+
+    #[test]
+    fn a_blob_no_image_takes_is_refused_with_the_firmware_s_reason() {
+        assert_eq!(check_blob(&[0xFF; 64]).unwrap_err(), DecodeError::BadMagic);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("model.bin");
+        std::fs::write(&path, b"IFOGnot a blob").unwrap();
+        let err = read_blob(&path).unwrap_err().to_string();
+        assert!(
+            err.starts_with(&format!("{}: no unit would take this blob", path.display())),
+            "{err}"
+        );
+    }
+}

@@ -1,0 +1,24 @@
+//! Talking to a running unit over its UART (`trainer device`): the health
+//! report, a model update, a live recording of its output frames.
+//!
+//! The wire protocol is the firmware's own (docs/firmware.md, "Output and
+//! commands on USART1"): every message is `COBS(payload) 0x00`; the unit
+//! sends output frames, command replies, the boot report and the health
+//! report on one line, told apart by payload length and tag ([`link`]).
+//! The host frames its commands and checks model blobs with the firmware
+//! library's own code (`firmware::update`, `firmware::health`,
+//! `firmware::model_store`), and decodes output frames with rbf-core's, so
+//! both ends read every byte the same way.
+//!
+//! - [`port`]: opening a serial port, errors that name it;
+//! - [`link`]: messages in (resynchronised on the next delimiter after
+//!   garbage, which is counted), commands out, every wait bounded;
+//! - [`status`]: the health report and what it says in words;
+//! - [`install`]: a model update, checked before sending and confirmed after;
+//! - [`record`]: output frames to a recorded-run CSV as they come.
+
+pub mod install;
+pub mod link;
+pub mod port;
+pub mod record;
+pub mod status;

@@ -1,0 +1,245 @@
+//! `trainer device status`: the unit's health report (the firmware's health
+//! command, 0x03) and what kind of unit sends the frames, in words and JSON.
+
+use std::fmt::Write as _;
+use std::io::{Read, Write};
+use std::time::{Duration, Instant};
+
+use firmware::health::{BOARD_ON_HSI, CMD_HEALTH, HealthReport, ResetCause};
+
+use super::link::{Link, Message};
+use crate::frames::{Kind, axes_of};
+
+/// How often an unanswered health command is sent again (a duplicate only
+/// brings another report; QEMU's pty may take a second to connect).
+const RESEND_EVERY: Duration = Duration::from_secs(1);
+/// How long, after the report, to wait for an output frame that tells the unit's kind.
+const KIND_WAIT: Duration = Duration::from_millis(300);
+
+/// What the unit said about itself.
+#[derive(Clone, Debug, PartialEq)]
+pub struct UnitStatus {
+    /// Its health report.
+    pub report: HealthReport,
+    /// The kind of its output frames (`None`: none seen; the unit sends
+    /// one per sample, so its sampling has stopped).
+    pub kind: Option<Kind>,
+}
+
+/// Asks the unit for its health report and waits at most `timeout` for it.
+pub fn query<P: Read + Write>(link: &mut Link<P>, timeout: Duration) -> anyhow::Result<UnitStatus> {
+    let started = Instant::now();
+    let deadline = started + timeout;
+    let mut kind = None;
+    let mut sent = None::<Instant>;
+    let report = loop {
+        if sent.is_none_or(|at| at.elapsed() >= RESEND_EVERY) {
+            link.send(&[CMD_HEALTH])?;
+            sent = Some(Instant::now());
+        }
+        let slice_end = (Instant::now() + RESEND_EVERY / 4).min(deadline);
+        match link.next(slice_end)? {
+            Some(Message::Health(report)) => break report,
+            Some(Message::Output(frame)) => kind = Some(frame.kind()),
+            Some(_) => {}
+            None if Instant::now() >= deadline => {
+                let c = link.counters();
+                anyhow::bail!(
+                    "{}: no health report within {:.1} s ({} bytes, {} messages, {} damaged received): is the unit \
+                     powered, connected to this port and at this baud rate?",
+                    link.name(),
+                    timeout.as_secs_f64(),
+                    c.bytes,
+                    c.messages,
+                    c.damaged
+                );
+            }
+            None => {}
+        }
+    };
+    let kind_deadline = Instant::now() + KIND_WAIT;
+    while kind.is_none() {
+        match link.next(kind_deadline)? {
+            Some(Message::Output(frame)) => kind = Some(frame.kind()),
+            Some(_) => {}
+            None => break,
+        }
+    }
+    Ok(UnitStatus { report, kind })
+}
+
+/// The reset cause in words.
+pub fn reset_cause_words(cause: ResetCause) -> &'static str {
+    match cause {
+        ResetCause::PowerOn => "power-on",
+        ResetCause::Pin => "reset pin (a debugger or a button)",
+        ResetCause::BrownOut => "brown-out (the supply dipped)",
+        ResetCause::Software => "software reset",
+        ResetCause::Watchdog => "independent watchdog (the loop hung)",
+        ResetCause::Panic => "panic",
+        ResetCause::HardFault => "HardFault",
+        ResetCause::Other => "other (window watchdog or low-power reset)",
+    }
+}
+
+/// The unit's kind in words.
+pub fn kind_words(kind: Option<Kind>) -> String {
+    match kind {
+        None => "no output frames seen (its sampling has stopped?)".to_owned(),
+        Some(Kind::Single) => "single-axis (one output frame per sample)".to_owned(),
+        Some(Kind::Axes(mask)) => {
+            let axes: Vec<&str> = axes_of(mask).map(|a| a.name()).collect();
+            format!(
+                "three-axis IMU, axes {} (one frame with every axis per sample)",
+                axes.join(", ")
+            )
+        }
+    }
+}
+
+/// The running model in words.
+pub fn model_words(report: &HealthReport) -> String {
+    let m = report.model;
+    if m.blob_crc32 == 0 {
+        "none running (output uncompensated, flag 4)".to_owned()
+    } else if m.sequence == 0 {
+        format!(
+            "blob CRC-32 {:#010x}, flashed by a programmer (no commit record)",
+            m.blob_crc32
+        )
+    } else {
+        format!(
+            "blob CRC-32 {:#010x}, installed over the UART as commit {}",
+            m.blob_crc32, m.sequence
+        )
+    }
+}
+
+/// The counters' names as the report lists them, with their values.
+pub fn counters(report: &HealthReport) -> [(&'static str, u32); 12] {
+    let c = &report.counters;
+    [
+        ("samples", c.samples),
+        ("samples_missed", c.samples_missed),
+        ("rate_read_faults", c.rate_read_faults),
+        ("temp_read_faults", c.temp_read_faults),
+        ("sensor_timeouts", c.sensor_timeouts),
+        ("bus_recoveries", c.bus_recoveries),
+        ("front_end_inits", c.front_end_inits),
+        ("data_ready_glitches", c.data_ready_glitches),
+        ("synthetic_steps", c.synthetic_steps),
+        ("overruns", c.overruns),
+        ("output_dropped", c.output_dropped),
+        ("flash_errors", c.flash_errors),
+    ]
+}
+
+/// What `trainer device status` prints for `status` of the unit on `port`.
+pub fn describe(port: &str, status: &UnitStatus) -> String {
+    let r = &status.report;
+    let mut s = String::new();
+    let _ = writeln!(s, "unit on {port}: {}", kind_words(status.kind));
+    let _ = writeln!(
+        s,
+        "last reset:  {} (RCC_CSR flags {:#04x})",
+        reset_cause_words(r.reset_cause),
+        r.reset_flags
+    );
+    if matches!(r.reset_cause, ResetCause::Panic | ResetCause::HardFault) {
+        let _ = writeln!(s, "fault at:    PC {:#010x}, LR {:#010x}", r.fault_pc, r.fault_lr);
+    }
+    let _ = writeln!(s, "model:       {}", model_words(r));
+    let _ = writeln!(
+        s,
+        "clocks:      {}",
+        if r.board_flags & BOARD_ON_HSI != 0 {
+            "the crystal did not start: running on the internal 16 MHz RC oscillator (±1 %)"
+        } else {
+            "crystal"
+        }
+    );
+    let _ = writeln!(s, "since the reset:");
+    for (name, value) in counters(r) {
+        let _ = writeln!(s, "  {name:<20} {value}");
+    }
+    s
+}
+
+/// `status` as JSON (the fields of [`describe`], counters by name).
+pub fn to_json(port: &str, status: &UnitStatus) -> serde_json::Value {
+    let r = &status.report;
+    let counters: serde_json::Map<String, serde_json::Value> =
+        counters(r).iter().map(|&(n, v)| (n.to_owned(), v.into())).collect();
+    serde_json::json!({
+        "port": port,
+        "kind": match status.kind {
+            None => serde_json::Value::Null,
+            Some(Kind::Single) => "single-axis".into(),
+            Some(Kind::Axes(_)) => "three-axis".into(),
+        },
+        "axis_mask": match status.kind { Some(Kind::Axes(m)) => m.into(), _ => serde_json::Value::Null },
+        "reset_cause": reset_cause_words(r.reset_cause),
+        "reset_cause_code": r.reset_cause as u8,
+        "reset_flags": r.reset_flags,
+        "fault_pc": r.fault_pc,
+        "fault_lr": r.fault_lr,
+        "model_blob_crc32": r.model.blob_crc32,
+        "model_sequence": r.model.sequence,
+        "board_flags": r.board_flags,
+        "counters": counters,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firmware::health::{HealthCounters, ModelIdentity};
+
+    fn report(crc: u32, sequence: u32) -> HealthReport {
+        HealthReport {
+            reset_cause: ResetCause::HardFault,
+            reset_flags: 0x04,
+            fault_pc: 0x0800_1234,
+            fault_lr: 0x0800_0101,
+            counters: HealthCounters {
+                samples_missed: 7,
+                ..Default::default()
+            },
+            model: ModelIdentity {
+                blob_crc32: crc,
+                sequence,
+            },
+            board_flags: BOARD_ON_HSI,
+        }
+    }
+
+    #[test]
+    fn the_description_says_what_the_report_means() {
+        let status = UnitStatus {
+            report: report(0x1234_abcd, 3),
+            kind: Some(Kind::Axes(0b111)),
+        };
+        let text = describe("/dev/ttyUSB0", &status);
+        assert!(
+            text.contains("unit on /dev/ttyUSB0: three-axis IMU, axes x, y, z"),
+            "{text}"
+        );
+        assert!(text.contains("last reset:  HardFault"), "{text}");
+        assert!(text.contains("PC 0x08001234"), "{text}");
+        assert!(
+            text.contains("blob CRC-32 0x1234abcd, installed over the UART as commit 3"),
+            "{text}"
+        );
+        assert!(text.contains("internal 16 MHz RC"), "{text}");
+        assert!(text.contains("samples_missed       7"), "{text}");
+        let none = UnitStatus {
+            report: report(0, 0),
+            kind: None,
+        };
+        assert!(describe("p", &none).contains("none running (output uncompensated, flag 4)"));
+        let json = to_json("p", &status);
+        assert_eq!(json["model_blob_crc32"], 0x1234_abcd);
+        assert_eq!(json["counters"]["samples_missed"], 7);
+        assert_eq!(json["kind"], "three-axis");
+    }
+}
