@@ -97,6 +97,26 @@ impl GyroSample {
     pub const fn temp_c(&self) -> Option<f32> {
         self.temps_c[LOOP_THERMOMETER]
     }
+
+    /// The sample the compensator sees for a recorded row, as the firmware
+    /// receives it: the time step since the previous row (computed in f64,
+    /// rounded once to f32, on host and target alike; 0 for the first row),
+    /// the rate rounded to f32 (the front end's binary32 word), and every
+    /// thermometer at TMP117 resolution (1/128 °C, the finest the firmware
+    /// can see). A reading is `None` when the sensor failed or the run has
+    /// no such column.
+    pub fn from_recorded(
+        prev_time_s: Option<f64>,
+        time_s: f64,
+        rate_dph: f64,
+        temps_c: &[Option<f64>; THERMOMETERS],
+    ) -> Self {
+        GyroSample {
+            dt_s: crate::record::time_step_s(prev_time_s, time_s),
+            rate_dph: rate_dph as f32,
+            temps_c: temps_c.map(|t| t.map(crate::sensor::tmp117_quantise)),
+        }
+    }
 }
 
 /// One output sample: always produced, whatever the inputs were.

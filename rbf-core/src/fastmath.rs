@@ -1,4 +1,5 @@
-//! An all-`f32` exponential for the Gaussian basis.
+//! All-`f32` arithmetic that gives the same bits on host and target: the
+//! exponential of the Gaussian basis, and the clamp every input range uses.
 //!
 //! `libm::expf` follows musl and computes in `f64`, which is soft-float on a
 //! Cortex-M4F (single-precision FPU) and dominated a 32-centre evaluation
@@ -169,6 +170,15 @@ pub fn exp2_neg_q16(table: &[u32; EXP2_CELLS], u_q16: i32) -> f32 {
     let cell = (u_q16 >> SHIFT).clamp(0, EXP2_FIXED_MAX) as u32;
     let entry = table.get(octave_cell as usize).copied().unwrap_or(0);
     f32::from_bits(entry.wrapping_sub(cell << (23 - EXP2_FRAC_BITS)))
+}
+
+/// `v` limited to [lo, hi], NaN mapped to `lo`; never panics. Two compare
+/// and selects (f32::max/min are library calls on a Cortex-M4F, whose FPU has
+/// no VMAXNM).
+#[inline(always)]
+pub(crate) fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
+    let above = if v > lo { v } else { lo };
+    if above < hi { above } else { hi }
 }
 
 #[cfg(test)]

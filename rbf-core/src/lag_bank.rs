@@ -271,7 +271,7 @@ impl LagBank {
         // the model's compare-and-select clamp (f32::max/min are library
         // calls on a Cortex-M4F; f32::clamp would panic on a range upside
         // down, which the decoder refuses anyway).
-        let clamped = crate::model::clamp(t_hat, self.coil_min_c, self.coil_max_c);
+        let clamped = crate::fastmath::clamp(t_hat, self.coil_min_c, self.coil_max_c);
         let uc = clamped - self.ref_c;
         let beyond = u - uc;
         let powers = [t_hat, uc * (uc + 2.0 * beyond), uc * uc * (uc + 3.0 * beyond)];

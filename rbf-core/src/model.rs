@@ -2,6 +2,7 @@
 //! regression body (Gaussian RBF network or cubic baseline).
 
 pub use crate::error::{MAX_ABS_BIAS_DPH, ModelError};
+use crate::fastmath::clamp;
 use crate::features::{FeatureConfig, FeatureSet, FeatureVector};
 use crate::poly::Poly3;
 use crate::rbf::{RbfNetwork, RbfParams, RbfShape, RbfStorage};
@@ -470,15 +471,6 @@ fn outside_measure(v: f32, lo: f32, hi: f32) -> f32 {
 )]
 fn outside_flag(sum: f32) -> bool {
     !(sum <= 0.0)
-}
-
-/// `v` limited to [lo, hi], NaN mapped to `lo`; never panics. Two compare
-/// and selects (f32::max/min are library calls on a Cortex-M4F, whose FPU has
-/// no VMAXNM).
-#[inline(always)]
-pub(crate) fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
-    let above = if v > lo { v } else { lo };
-    if above < hi { above } else { hi }
 }
 
 #[cfg(test)]

@@ -217,7 +217,7 @@ impl ResponseBank {
     pub fn powers(&self, temp_c: f32) -> ([f32; MAX_RESPONSE_DEGREE as usize], f32) {
         let u = temp_c - self.ref_c;
         // Compare-and-select clamp, as the lag bank's (f32::clamp could panic).
-        let uc = crate::model::clamp(temp_c, self.range_min_c, self.range_max_c) - self.ref_c;
+        let uc = crate::fastmath::clamp(temp_c, self.range_min_c, self.range_max_c) - self.ref_c;
         let beyond = u - uc;
         let uc2 = uc * uc;
         (

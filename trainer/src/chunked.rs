@@ -62,7 +62,7 @@ pub struct Batch {
     temps: Vec<f64>,
     mask: u8,
     stride: usize,
-    /// Each row's gyro sample as the firmware receives it ([`crate::run::gyro_sample`]).
+    /// Each row's gyro sample as the firmware receives it ([`GyroSample::from_recorded`]).
     samples: Vec<GyroSample>,
     /// The first defect in the chunk, after the rows: its line, what it is,
     /// and where the line's text lies in `text`.
@@ -113,7 +113,7 @@ impl Batch {
         let mut prev = prev_time_s;
         for i in 0..self.rows.len() {
             let row = self.row(i);
-            self.samples.push(crate::run::gyro_sample(
+            self.samples.push(GyroSample::from_recorded(
                 prev,
                 row.time_s,
                 row.rate_dph,
@@ -134,7 +134,7 @@ impl Batch {
     }
 
     /// The gyro sample of row `i` as the firmware receives it
-    /// ([`crate::run::gyro_sample`], the time step from the row before).
+    /// ([`GyroSample::from_recorded`], the time step from the row before).
     pub fn sample(&self, i: usize) -> GyroSample {
         self.samples.get(i).copied().unwrap_or(GyroSample {
             dt_s: 0.0,

@@ -454,7 +454,7 @@ fn rows_of_axes(
     for c in columns.iter().skip(1) {
         let text = std::str::from_utf8(batch.line_text(i)).unwrap_or("");
         let row = parser.parse(c, batch.line(i), text)?;
-        let sample = crate::run::gyro_sample(None, row.time_s, row.rate_dph, &row.readings_c());
+        let sample = GyroSample::from_recorded(None, row.time_s, row.rate_dph, &row.readings_c());
         out.push((
             row,
             GyroSample {

@@ -949,7 +949,7 @@ impl Run {
                 Some(all) => *all,
                 None => loop_only(self.temp_c[i]),
             };
-            gyro_sample(prev, self.time_s[i], self.rate_dph[i], &readings)
+            GyroSample::from_recorded(prev, self.time_s[i], self.rate_dph[i], &readings)
         })
     }
 }
@@ -973,26 +973,6 @@ impl Reference<'_> {
     }
 }
 
-/// The sample the compensator sees for a row, as the firmware receives it:
-/// the time step since the previous row (computed in f64, rounded once to
-/// f32, on host and target alike; 0 for the first row), the rate rounded to
-/// f32 (the front end's binary32 word), and the loop temperature at TMP117
-/// resolution (1/128 °C, the finest the firmware can see), likewise every
-/// thermometer. A reading is `None` when the sensor failed (`temp_fault` = 1)
-/// or the run has no such column.
-pub fn gyro_sample(
-    prev_time_s: Option<f64>,
-    time_s: f64,
-    rate_dph: f64,
-    temps_c: &[Option<f64>; THERMOMETERS],
-) -> GyroSample {
-    GyroSample {
-        dt_s: record::time_step_s(prev_time_s, time_s),
-        rate_dph: rate_dph as f32,
-        temps_c: temps_c.map(|t| t.map(rbf_core::sensor::tmp117_quantise)),
-    }
-}
-
 /// Thermometer readings with only the loop temperature.
 fn loop_only(temp_c: Option<f64>) -> [Option<f64>; THERMOMETERS] {
     let mut readings = [None; THERMOMETERS];
@@ -1001,9 +981,9 @@ fn loop_only(temp_c: Option<f64>) -> [Option<f64>; THERMOMETERS] {
 }
 
 impl RawRow {
-    /// The gyro sample of this row (see [`gyro_sample`]).
+    /// The gyro sample of this row (see [`GyroSample::from_recorded`]).
     pub fn sample(&self, prev_time_s: Option<f64>) -> GyroSample {
-        gyro_sample(prev_time_s, self.row.time_s, self.row.rate_dph, &self.row.readings_c())
+        GyroSample::from_recorded(prev_time_s, self.row.time_s, self.row.rate_dph, &self.row.readings_c())
     }
 }
 
