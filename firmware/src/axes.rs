@@ -18,10 +18,10 @@
 //! nothing waits on the output.
 
 use embedded_io::Write;
+use rbf_core::axis::{Axis, MAX_AXES};
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN};
-use rbf_core::record::{Axis, MAX_AXES};
 use rbf_core::shared::SharedAxisModels;
 use rbf_core::{CompensatedSample, Compensator, Flags, GyroSample};
 

@@ -11,9 +11,9 @@
 use core::cell::Cell;
 
 use embedded_hal::spi::{self, SpiDevice};
+use rbf_core::axis::{Axis, MAX_AXES};
 use rbf_core::blob;
 use rbf_core::frame::{self, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN};
-use rbf_core::record::{Axis, MAX_AXES};
 use rbf_core::{CompensatorConfig, Flags, Model};
 
 use crate::axes::{AxesHolder, AxesLoop};

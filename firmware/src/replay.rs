@@ -17,8 +17,9 @@ use core::cell::Cell;
 
 use embedded_hal::i2c::{self, I2c, NoAcknowledgeSource};
 use embedded_hal::spi::{self, SpiDevice};
+use rbf_core::axis::{Axis, MAX_AXES};
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
-use rbf_core::record::{self, Axis, Columns, HeaderError, MAX_AXES, RowError};
+use rbf_core::record::{self, Columns, HeaderError, RowError};
 use rbf_core::sensor::tmp117_raw;
 use rbf_core::{CompensatorConfig, Model};
 
@@ -288,7 +289,7 @@ impl<'c, W: embedded_io::Write> Replayer<'c, W> {
             temps_c: row.readings_c(),
             rate_dph: row.rate_dph as f32,
         });
-        let dt_s = record::time_step_s(self.prev_time_s, row.time_s);
+        let dt_s = rbf_core::compensator::time_step_s(self.prev_time_s, row.time_s);
         self.prev_time_s = Some(row.time_s);
         let sample = self.compensation.step(dt_s);
         record::write_compensated_row(out, text, &sample)?;
@@ -415,7 +416,7 @@ impl<'c, W: embedded_io::Write, M: AxesHolder<K>, const K: usize> AxesReplayer<'
             });
         }
         let time_s = time_s.ok_or(ReplayError::DeviceInit)?;
-        let dt_s = record::time_step_s(self.prev_time_s, time_s);
+        let dt_s = rbf_core::compensator::time_step_s(self.prev_time_s, time_s);
         self.prev_time_s = Some(time_s);
         let samples = self.compensation.step(dt_s);
         let mut present = [samples[0]; MAX_AXES];

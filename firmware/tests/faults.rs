@@ -9,9 +9,9 @@ use firmware::fault_injection::{
 };
 use firmware::model_store::{InstallError, ModelStore, SlotState};
 use rbf_core::Model;
+use rbf_core::axis::Axis;
 use rbf_core::blob::axes::{AxisModels, decode_axes_into, encode_axes};
 use rbf_core::blob::{self, MAX_BLOB_LEN};
-use rbf_core::record::Axis;
 
 fn encode(model: &Model) -> Vec<u8> {
     let mut buf = vec![0u8; MAX_BLOB_LEN];

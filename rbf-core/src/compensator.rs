@@ -5,10 +5,10 @@
 //! update the features, evaluate the model and subtract. Every sample yields exactly one
 //! [`CompensatedSample`]; what went wrong is said in its [`Flags`].
 
+use crate::axis::MAX_AXES;
 use crate::features::{FeatureExtractor, FeatureVector, LOOP_THERMOMETER, THERMOMETERS};
 use crate::flags::Flags;
 use crate::model::Model;
-use crate::record::MAX_AXES;
 use crate::shared::SharedAxisModels;
 
 /// Loop settings that belong to the deployment, not to the model.
@@ -68,6 +68,12 @@ impl CompensatorConfig {
     }
 }
 
+/// The time step the compensator sees between two recorded sample times, s:
+/// the f64 difference rounded once to f32 (0 for the first row).
+pub fn time_step_s(prev_time_s: Option<f64>, time_s: f64) -> f32 {
+    prev_time_s.map_or(0.0, |p| (time_s - p) as f32)
+}
+
 /// One gyro sample as it arrives.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GyroSample {
@@ -112,7 +118,7 @@ impl GyroSample {
         temps_c: &[Option<f64>; THERMOMETERS],
     ) -> Self {
         GyroSample {
-            dt_s: crate::record::time_step_s(prev_time_s, time_s),
+            dt_s: time_step_s(prev_time_s, time_s),
             rate_dph: rate_dph as f32,
             temps_c: temps_c.map(|t| t.map(crate::sensor::tmp117_quantise)),
         }

@@ -15,12 +15,14 @@
 //! - [`blob`]: the model blob format (header, postcard payload, CRC-32) and its decoder.
 //! - [`frame`]: the firmware's per-sample output frames (postcard + COBS).
 //! - [`shared`]: shared-basis multi-axis models (one basis, an output layer per axis).
-//! - [`record`]: row parsing of recorded runs; [`sensor`]: TMP117 conversions.
+//! - [`record`]: row parsing of recorded runs; [`sensor`]: TMP117 conversions;
+//!   [`axis`]: the axes of a multi-axis IMU ([`axis::Axis`], [`axis::MAX_AXES`]).
 //!
 //! Sizes live in types ([`MAX_CENTERS`], [`MAX_INPUTS`]); values are runtime data.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![forbid(unsafe_code)]
 
+pub mod axis;
 pub mod blob;
 pub mod compensator;
 pub mod error;

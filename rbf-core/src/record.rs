@@ -23,66 +23,19 @@ pub mod column {
     pub const REF_DPH: &str = "ref_dph";
     /// Replay-only: 1 = the temperature sensor fails on this sample.
     pub const TEMP_FAULT: &str = "temp_fault";
-    /// Per-axis gyro outputs of a multi-axis run, °/h, in [`super::Axis`] order.
-    pub const AXIS_RATES_DPH: [&str; 3] = ["rate_x_dph", "rate_y_dph", "rate_z_dph"];
+    /// Per-axis gyro outputs of a multi-axis run, °/h, in [`crate::axis::Axis`] order.
+    pub const AXIS_RATES_DPH: [&str; 3] = [
+        crate::axis::Axis::X.rate_column(),
+        crate::axis::Axis::Y.rate_column(),
+        crate::axis::Axis::Z.rate_column(),
+    ];
     /// Per-axis fiber-loop thermometers, °C (absent: `temp_c` serves the axis).
     pub const AXIS_TEMPS_C: [&str; 3] = ["temp_x_c", "temp_y_c", "temp_z_c"];
     /// Per-axis known true rates, °/h.
     pub const AXIS_REFS_DPH: [&str; 3] = ["ref_x_dph", "ref_y_dph", "ref_z_dph"];
 }
 
-/// Most gyro axes a run or a model blob carries.
-pub const MAX_AXES: usize = 3;
-
-/// One sensitive axis of a multi-axis IMU.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub enum Axis {
-    /// The x axis.
-    X,
-    /// The y axis.
-    Y,
-    /// The z axis.
-    Z,
-}
-
-impl Axis {
-    /// Every axis, in column and blob order.
-    pub const ALL: [Axis; MAX_AXES] = [Axis::X, Axis::Y, Axis::Z];
-
-    /// 0 for x, 1 for y, 2 for z.
-    pub const fn index(self) -> usize {
-        self as usize
-    }
-
-    /// The axis of index 0, 1 or 2.
-    pub const fn from_index(index: usize) -> Option<Axis> {
-        match index {
-            0 => Some(Axis::X),
-            1 => Some(Axis::Y),
-            2 => Some(Axis::Z),
-            _ => None,
-        }
-    }
-
-    /// `x`, `y` or `z`: the letter in the column names.
-    pub const fn name(self) -> &'static str {
-        match self {
-            Axis::X => "x",
-            Axis::Y => "y",
-            Axis::Z => "z",
-        }
-    }
-
-    /// The axis named `x`, `y` or `z`.
-    pub fn from_name(name: &str) -> Option<Axis> {
-        Axis::ALL.into_iter().find(|a| a.name() == name)
-    }
-
-    /// The axis's rate column, e.g. `rate_x_dph`.
-    pub const fn rate_column(self) -> &'static str {
-        column::AXIS_RATES_DPH[self.index()]
-    }
-}
+pub use crate::axis::{Axis, MAX_AXES};
 
 /// Where one axis's columns sit in a multi-axis header.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -407,12 +360,6 @@ pub fn metadata_sample_rate_hz(line: &str) -> Option<f64> {
     metadata(line)
         .filter(|(k, _)| *k == "sample_rate_hz")
         .and_then(|(_, v)| v.parse().ok())
-}
-
-/// The time step the compensator sees between two recorded sample times, s:
-/// the f64 difference rounded once to f32 (0 for the first row).
-pub fn time_step_s(prev_time_s: Option<f64>, time_s: f64) -> f32 {
-    prev_time_s.map_or(0.0, |p| (time_s - p) as f32)
 }
 
 /// Names of the columns `compensate` appends, with their leading comma.

@@ -28,11 +28,11 @@
 //! `trainer simulate --axes 3 --shared-thermometer`). Blob layout: format 3
 //! with the shared-basis flag ([`crate::blob::shared`]).
 
+use crate::axis::{Axis, MAX_AXES};
 use crate::blob::DecodeError;
 use crate::features::{FeatureConfig, FeatureVector};
 use crate::model::{MAX_ABS_BIAS_DPH, Model, ModelBody, ModelError};
 use crate::rbf::{RbfShape, RbfStorage};
-use crate::record::{Axis, MAX_AXES};
 use crate::{MAX_CENTERS, MAX_INPUTS};
 
 /// One axis's output layer, as slices (host construction and encoding).

@@ -159,7 +159,7 @@ pub fn axes_faulty(row: usize) -> bool {
 /// `temp_fault` column ([`axes_faulty`]) into `dir`; returns (blob path,
 /// slice path).
 pub fn axes_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
-    use rbf_core::record::Axis;
+    use rbf_core::axis::Axis;
     use trainer::dataset::RunFiles;
     use trainer::simulate::axes::write_axes_csv;
 
@@ -196,7 +196,7 @@ pub fn axes_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
 /// written as a shared-basis blob; the slice as there, with one
 /// thermometer. Returns (blob path, slice path).
 pub fn shared_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
-    use rbf_core::record::Axis;
+    use rbf_core::axis::Axis;
     use trainer::dataset::RunFiles;
     use trainer::simulate::axes::write_axes_csv;
 

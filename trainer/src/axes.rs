@@ -7,7 +7,8 @@ use crate::diagnose::RunDiagnosis;
 use std::path::{Path, PathBuf};
 
 use rbf_core::Model;
-use rbf_core::record::{Axis, Columns};
+use rbf_core::axis::Axis;
+use rbf_core::record::Columns;
 
 use crate::blobfile::{ModelFile, read_model_file};
 use crate::evaluate::{

@@ -6,9 +6,9 @@ use std::path::Path;
 
 use anyhow::Context;
 use rbf_core::Model;
+use rbf_core::axis::Axis;
 use rbf_core::blob::axes::{self, AXES_FORMAT_VERSION, AxisModels};
 use rbf_core::blob::{self, MAX_BLOB_LEN, shared};
-use rbf_core::record::Axis;
 use rbf_core::shared::SharedAxisModels;
 
 use crate::input;

@@ -129,7 +129,7 @@ impl Batch {
         if self.samples.len() != self.rows.len() {
             self.make_samples(prev_time_s);
         } else if let (Some(sample), Some(first)) = (self.samples.first_mut(), self.rows.first()) {
-            sample.dt_s = record::time_step_s(prev_time_s, first.time_s);
+            sample.dt_s = rbf_core::compensator::time_step_s(prev_time_s, first.time_s);
         }
     }
 

@@ -14,8 +14,8 @@
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
+use rbf_core::axis::Axis;
 use rbf_core::lag_bank::{BANK_FILTERS, GainOf, LagBank};
-use rbf_core::record::Axis;
 use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, FeatureSet, Flags, GyroSample, MAX_INPUTS};
 
 use crate::chunked::Batch;

@@ -4,8 +4,9 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
+use rbf_core::axis::Axis;
 use rbf_core::features::LOOP_THERMOMETER;
-use rbf_core::record::{self, Axis, Columns};
+use rbf_core::record::{self, Columns};
 use rbf_core::shared::SharedAxisModels;
 use rbf_core::{
     CompensatedSample, Compensator, CompensatorConfig, FeatureVector, Flags, GyroSample, MAX_INPUTS, Model,
@@ -374,7 +375,7 @@ impl Stepper<'_> {
                 let Some((_, first)) = rows.first() else {
                     return;
                 };
-                let mut rates_dph = [0.0f32; rbf_core::record::MAX_AXES];
+                let mut rates_dph = [0.0f32; rbf_core::axis::MAX_AXES];
                 for (axis, (_, sample)) in axes.iter().zip(rows) {
                     if let Some(r) = rates_dph.get_mut(axis.index()) {
                         *r = sample.rate_dph;

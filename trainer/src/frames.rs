@@ -6,8 +6,8 @@
 
 use std::io::{BufRead, BufReader, Read, Write};
 
+use rbf_core::axis::Axis;
 use rbf_core::frame::{self, AxesFrame, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
-use rbf_core::record::Axis;
 
 use crate::limits::{MAX_FRAME_SEARCH_BYTES, bytes};
 

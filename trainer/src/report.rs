@@ -22,7 +22,7 @@ use crate::output::{self, DirTarget, Existing, StagedDir};
 use crate::plot_axes::{tick_label, with_legend_room, with_legend_room_log};
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, summary, text};
-use rbf_core::record::Axis;
+use rbf_core::axis::Axis;
 
 /// Plot size, pixels.
 const SIZE: (u32, u32) = (1000, 560);

@@ -16,8 +16,9 @@ use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
+use rbf_core::axis::Axis;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
-use rbf_core::record::{self, Axis, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row, RowErrorKind};
+use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row, RowErrorKind};
 use rbf_core::{CompensatorConfig, GyroSample};
 
 use crate::chunked::{self, Batch, Defect};

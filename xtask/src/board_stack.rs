@@ -14,11 +14,11 @@ use std::sync::atomic::{AtomicU8, AtomicU32, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
+use rbf_core::axis::Axis;
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::lag_bank::LagBank;
 use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
-use rbf_core::record::Axis;
 use rbf_core::shared::SharedAxisModels;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 

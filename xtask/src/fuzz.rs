@@ -176,7 +176,7 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
     // A three-axis blob of three of them, raw and in the multi-axis sealed
     // form (the axis mask, then the payload).
     let mut axes = Box::new(rbf_core::blob::axes::AxisModels::EMPTY);
-    for (axis, (_, model)) in rbf_core::record::Axis::ALL
+    for (axis, (_, model)) in rbf_core::axis::Axis::ALL
         .into_iter()
         .zip([&models[0], &models[1], &models[3]])
     {
@@ -191,11 +191,11 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
     // scaled copies of it on y and z; raw and in the sealed form.
     let paper = &models[2].1;
     let mut shared = Box::new(
-        rbf_core::shared::SharedAxisModels::from_models(&[(rbf_core::record::Axis::X, paper)])
+        rbf_core::shared::SharedAxisModels::from_models(&[(rbf_core::axis::Axis::X, paper)])
             .map_err(|e| anyhow::anyhow!("{e}"))?,
     );
     if let ModelBody::Rbf(net) = paper.body() {
-        for (axis, gain) in [(rbf_core::record::Axis::Y, -0.5f32), (rbf_core::record::Axis::Z, 0.25)] {
+        for (axis, gain) in [(rbf_core::axis::Axis::Y, -0.5f32), (rbf_core::axis::Axis::Z, 0.25)] {
             let weights: Vec<f32> = net.weights().iter().map(|w| w * gain).collect();
             let linear: Vec<f32> = net.linear().iter().map(|a| a * gain).collect();
             let layer = rbf_core::shared::OutputLayer {

@@ -8,6 +8,7 @@
 //! - [`bench`](mod@bench): `cargo xtask bench-fw`; [`board_stack`]: its board stack measurement;
 //! - [`accuracy`]: `cargo xtask bench-accuracy`;
 //! - [`fuzz`]: `cargo xtask fuzz`;
+//! - [`import_circles`]: `cargo xtask import-circles`;
 //! - [`faults`]: `cargo xtask qemu-faults`;
 //! - [`large_run`]: `cargo xtask bench-large-run`;
 //! - [`ci`]: `cargo xtask ci`, the whole test suite.
@@ -21,6 +22,7 @@ pub mod ci;
 pub mod faults;
 pub mod firmware;
 pub mod fuzz;
+pub mod import_circles;
 pub mod large_run;
 pub mod panic_paths;
 pub mod qemu;

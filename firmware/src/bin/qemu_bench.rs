@@ -18,6 +18,7 @@ mod board {
     use cortex_m::peripheral::syst::SystClkSource;
     use cortex_m_rt::entry;
     use cortex_m_semihosting::{debug, hprintln};
+    use rbf_core::axis::{Axis, MAX_AXES};
     use rbf_core::blob::MAX_BLOB_LEN;
     use rbf_core::blob::axes::{AxisModels, decode_axes_into, encode_axes};
     use rbf_core::blob::shared::{decode_shared_into, encode_shared};
@@ -25,7 +26,6 @@ mod board {
     use rbf_core::lag_bank::LagBank;
     use rbf_core::model::{ModelBody, ModelInfo};
     use rbf_core::rbf::{RbfNetwork, RbfParams};
-    use rbf_core::record::{Axis, MAX_AXES};
     use rbf_core::response_bank::ResponseBank;
     use rbf_core::shared::{OutputLayer, SharedAxisModels};
     use rbf_core::{

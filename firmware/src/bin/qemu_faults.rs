@@ -17,9 +17,9 @@ mod board {
     use firmware::fault_injection::{
         axis_thermometer_campaign, bit_flip_campaign, command_campaign, power_cut_campaign, sensor_campaign,
     };
+    use rbf_core::axis::Axis;
     use rbf_core::blob::axes::{AxisModels, decode_axes_into, encode_axes};
     use rbf_core::blob::{self, Header, MAX_BLOB_LEN};
-    use rbf_core::record::Axis;
 
     /// A three-axis IMU's models: x and z the running model, y the update
     /// (built into a multi-axis blob, decoded with the board's capacity).

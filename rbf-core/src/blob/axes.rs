@@ -29,8 +29,8 @@ use super::{
     encode_section, seal,
 };
 use crate::MAX_CENTERS;
+use crate::axis::{Axis, MAX_AXES};
 use crate::model::Model;
-use crate::record::{Axis, MAX_AXES};
 
 /// Format version of multi-axis blobs.
 pub const AXES_FORMAT_VERSION: u16 = 3;

@@ -30,7 +30,7 @@ use super::{
     CRC_LEN, DecodeError, EncodeError, HEADER_LEN, MAGIC, MAX_BLOB_LEN, SectionShape, crc_status_at, decode_section,
     encode_section, seal,
 };
-use crate::record::{Axis, MAX_AXES};
+use crate::axis::{Axis, MAX_AXES};
 use crate::shared::{OutputLayer, SharedAxisModels};
 use crate::{MAX_CENTERS, MAX_INPUTS};
 

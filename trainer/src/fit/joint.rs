@@ -7,8 +7,8 @@
 //! once for every axis (docs/blob-format.md, "Shared-basis blobs").
 
 use nalgebra::DVector;
+use rbf_core::axis::Axis;
 use rbf_core::model::ModelBody;
-use rbf_core::record::Axis;
 use rbf_core::shared::{OutputLayer, SharedAxisModels};
 use rbf_core::{MAX_INPUTS, Model};
 

@@ -229,7 +229,7 @@ impl StagedDir {
     /// Puts the staged directory at the target: exchanged with the directory
     /// there (which then sits at the staging name until the transaction
     /// settles), or renamed when there is none. With the registry locked.
-    pub(crate) fn install(&mut self, pending: &mut cleanup::Pending) -> anyhow::Result<super::Installed> {
+    pub(crate) fn install(&mut self, pending: &mut cleanup::Pending) -> anyhow::Result<InstalledDir> {
         let path = self.target.path.clone();
         let shown = text::path(&path);
         let staged = self
@@ -251,7 +251,38 @@ impl StagedDir {
         };
         self.staged = None;
         pending.remove(&staged);
-        Ok(super::Installed::Dir { path, staged, replaced })
+        Ok(InstalledDir { path, staged, replaced })
+    }
+}
+
+/// A directory [`StagedDir::install`] put in place, exchanged with what was
+/// at the target, if anything; and how to undo that.
+#[derive(Debug)]
+pub(crate) struct InstalledDir {
+    /// The target.
+    pub(crate) path: PathBuf,
+    /// The staging name: the replaced directory after the exchange.
+    staged: PathBuf,
+    /// True when a directory was replaced (it is now at `staged`).
+    replaced: bool,
+}
+
+impl InstalledDir {
+    /// Puts back what was at the target (best effort).
+    pub(crate) fn undo(self) {
+        if self.replaced {
+            let _ = exchange(&self.staged, &self.path);
+            let _ = std::fs::remove_dir_all(&self.staged);
+        } else {
+            let _ = std::fs::remove_dir_all(&self.path);
+        }
+    }
+
+    /// Removes the replaced directory, now that every output is in place.
+    pub(crate) fn settle(self) {
+        if self.replaced {
+            let _ = std::fs::remove_dir_all(self.staged);
+        }
     }
 }
 
@@ -268,7 +299,7 @@ impl Drop for StagedDir {
 /// Exchanges two directories of one parent: atomically where the kernel
 /// can (`renameat2` with `RENAME_EXCHANGE`), else by three renames through
 /// an empty hidden directory.
-pub(crate) fn exchange(a: &Path, b: &Path) -> std::io::Result<()> {
+fn exchange(a: &Path, b: &Path) -> std::io::Result<()> {
     use rustix::fs::{CWD, RenameFlags, renameat_with};
     match renameat_with(CWD, a, CWD, b, RenameFlags::EXCHANGE) {
         Ok(()) => return Ok(()),

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use tempfile::NamedTempFile;
 
-use super::dir::StagedDir;
+use super::dir::{InstalledDir, StagedDir};
 use super::{Output, cleanup};
 use crate::text;
 
@@ -37,14 +37,7 @@ pub(crate) enum Installed {
         created: bool,
     },
     /// A directory, exchanged with what was at the target, if anything.
-    Dir {
-        /// The target.
-        path: PathBuf,
-        /// The staging name: the replaced directory after the exchange.
-        staged: PathBuf,
-        /// True when a directory was replaced (it is now at `staged`).
-        replaced: bool,
-    },
+    Dir(InstalledDir),
 }
 
 impl Installed {
@@ -58,14 +51,7 @@ impl Installed {
                     let _ = std::fs::remove_file(&path);
                 }
             }
-            Installed::Dir { path, staged, replaced } => {
-                if replaced {
-                    let _ = super::dir::exchange(&staged, &path);
-                    let _ = std::fs::remove_dir_all(&staged);
-                } else {
-                    let _ = std::fs::remove_dir_all(&path);
-                }
-            }
+            Installed::Dir(dir) => dir.undo(),
         }
     }
 
@@ -73,18 +59,14 @@ impl Installed {
     fn settle(self) {
         match self {
             Installed::File { backup, .. } => drop(backup),
-            Installed::Dir { staged, replaced, .. } => {
-                if replaced {
-                    let _ = std::fs::remove_dir_all(staged);
-                }
-            }
+            Installed::Dir(dir) => dir.settle(),
         }
     }
 
     /// The target.
     fn path(&self) -> &Path {
         match self {
-            Installed::File { path, .. } | Installed::Dir { path, .. } => path,
+            Installed::File { path, .. } | Installed::Dir(InstalledDir { path, .. }) => path,
         }
     }
 }
@@ -170,7 +152,7 @@ impl Transaction {
             step(file.install(staged), &mut installed)?;
         }
         for dir in &mut self.dirs {
-            step(dir.install(staged), &mut installed)?;
+            step(dir.install(staged).map(Installed::Dir), &mut installed)?;
         }
         Ok(installed)
     }

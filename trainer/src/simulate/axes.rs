@@ -10,7 +10,7 @@ use std::io::Write;
 
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
-use rbf_core::record::Axis;
+use rbf_core::axis::Axis;
 
 use super::{ChamberRun, SimParams, gyro, plant};
 
