@@ -19,9 +19,10 @@
 //! | 60 | 4 | running model's blob CRC-32, its trailer (0: none) |
 //! | 64 | 4 | running model's commit sequence number (its serial; 0: none or uncommitted) |
 //! | 68 | 4 | board flags: bit 0 the crystal did not start (the clocks run from the HSI) |
+//! | 72 | 4 | firmware version ([`FirmwareVersion::word`]: major · 2¹⁶ + minor · 2⁸ + patch) |
 //!
 //! A receiver tells it from the other frames on the UART by its length
-//! (72; replies 2, boot report 11, single-axis output frames 18–22,
+//! (76; replies 2, boot report 11, single-axis output frames 18–22,
 //! three-axis 54–58) and its tag.
 
 use rbf_core::frame::cobs_encode;
@@ -33,9 +34,9 @@ pub const CMD_HEALTH: u8 = 0x03;
 /// First payload byte of a health report.
 pub const HEALTH_REPORT_TAG: u8 = 0xFC;
 /// The report layout's version.
-pub const HEALTH_REPORT_VERSION: u8 = 1;
+pub const HEALTH_REPORT_VERSION: u8 = 2;
 /// Payload bytes of a health report.
-pub const HEALTH_REPORT_LEN: usize = 72;
+pub const HEALTH_REPORT_LEN: usize = 76;
 /// Bytes of a COBS-framed health report with its terminator, at most.
 pub const HEALTH_FRAME_LEN: usize = HEALTH_REPORT_LEN + 2;
 
@@ -193,6 +194,69 @@ pub struct HealthReport {
     pub model: ModelIdentity,
     /// Board flags ([`BOARD_ON_HSI`]).
     pub board_flags: u32,
+    /// The firmware that sent the report.
+    pub firmware_version: FirmwareVersion,
+}
+
+/// A firmware release, as the workspace's `Cargo.toml` numbers it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FirmwareVersion {
+    /// Incompatible changes.
+    pub major: u8,
+    /// Added behaviour.
+    pub minor: u8,
+    /// Fixes.
+    pub patch: u8,
+}
+
+impl FirmwareVersion {
+    /// This build's version (the crate's `CARGO_PKG_VERSION_*`, parsed at
+    /// compile time; a part above 255 fails the build).
+    pub const CURRENT: FirmwareVersion = FirmwareVersion {
+        major: parse_u8(env!("CARGO_PKG_VERSION_MAJOR")),
+        minor: parse_u8(env!("CARGO_PKG_VERSION_MINOR")),
+        patch: parse_u8(env!("CARGO_PKG_VERSION_PATCH")),
+    };
+
+    /// The report's word: major · 2¹⁶ + minor · 2⁸ + patch.
+    pub const fn word(self) -> u32 {
+        (self.major as u32) << 16 | (self.minor as u32) << 8 | self.patch as u32
+    }
+
+    /// The version in a report's word; `None` when its top byte is set (no
+    /// firmware sends that).
+    pub const fn from_word(word: u32) -> Option<FirmwareVersion> {
+        if word >> 24 != 0 {
+            return None;
+        }
+        Some(FirmwareVersion {
+            major: (word >> 16) as u8,
+            minor: (word >> 8) as u8,
+            patch: word as u8,
+        })
+    }
+}
+
+impl core::fmt::Display for FirmwareVersion {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{}.{}.{}", self.major, self.minor, self.patch)
+    }
+}
+
+/// A decimal version part at compile time; the build fails on anything
+/// but 1–3 digits up to 255.
+const fn parse_u8(text: &str) -> u8 {
+    let bytes = text.as_bytes();
+    assert!(!bytes.is_empty() && bytes.len() <= 3, "version part of 1-3 digits");
+    let mut value: u32 = 0;
+    let mut i = 0;
+    while i < bytes.len() {
+        assert!(bytes[i].is_ascii_digit(), "version part must be decimal");
+        value = value * 10 + (bytes[i] - b'0') as u32;
+        i += 1;
+    }
+    assert!(value <= 255, "version part above 255");
+    value as u8
 }
 
 /// Board flag: the crystal did not start; the clocks run from the internal RC oscillator.
@@ -215,7 +279,7 @@ impl HealthReport {
             *d = s;
         }
         words[15] = self.model.blob_crc32;
-        let tail = [self.model.sequence, self.board_flags];
+        let tail = [self.model.sequence, self.board_flags, self.firmware_version.word()];
         for (chunk, w) in p.chunks_exact_mut(4).zip(words.iter().chain(&tail)) {
             chunk.copy_from_slice(&w.to_le_bytes());
         }
@@ -260,6 +324,7 @@ impl HealthReport {
                 sequence: words[16],
             },
             board_flags: words[17],
+            firmware_version: FirmwareVersion::from_word(words[18])?,
         })
     }
 
@@ -302,7 +367,7 @@ mod tests {
     }
 
     #[test]
-    fn the_report_lays_out_its_fields_as_documented_and_frames_to_72_bytes() {
+    fn the_report_lays_out_its_fields_as_documented_and_frames_to_76_bytes() {
         let report = HealthReport {
             reset_cause: ResetCause::Watchdog,
             reset_flags: 0x24,
@@ -318,15 +383,21 @@ mod tests {
                 sequence: 3,
             },
             board_flags: BOARD_ON_HSI,
+            firmware_version: FirmwareVersion {
+                major: 1,
+                minor: 2,
+                patch: 3,
+            },
         };
         let p = report.to_bytes();
-        assert_eq!(&p[..4], &[0xFC, 1, 4, 0x24]);
+        assert_eq!(&p[..4], &[0xFC, 2, 4, 0x24]);
         assert_eq!(u32::from_le_bytes(p[4..8].try_into().unwrap()), 0x0800_1234);
         assert_eq!(u32::from_le_bytes(p[16..20].try_into().unwrap()), 7, "samples_missed");
         assert_eq!(u32::from_le_bytes(p[56..60].try_into().unwrap()), 1, "flash_errors");
         assert_eq!(u32::from_le_bytes(p[60..64].try_into().unwrap()), 0xDEAD_BEEF);
         assert_eq!(u32::from_le_bytes(p[64..68].try_into().unwrap()), 3);
         assert_eq!(u32::from_le_bytes(p[68..72].try_into().unwrap()), 1);
+        assert_eq!(&p[72..76], &[3, 2, 1, 0], "firmware version 1.2.3");
         let mut out = [0u8; HEALTH_FRAME_LEN];
         let n = report.encode(&mut out).unwrap();
         let mut frame = out[..n].to_vec();
@@ -346,6 +417,18 @@ mod tests {
         let mut wrong_cause = p;
         wrong_cause[2] = 8;
         assert_eq!(HealthReport::from_bytes(&wrong_cause), None);
-        assert_eq!(HealthReport::from_bytes(&p[..71]), None);
+        assert_eq!(HealthReport::from_bytes(&p[..75]), None);
+        let mut older_layout = p;
+        older_layout[1] = 1;
+        assert_eq!(HealthReport::from_bytes(&older_layout), None, "layout 1 was 72 bytes");
+    }
+
+    #[test]
+    fn this_builds_version_is_the_workspaces_and_its_word_round_trips() {
+        let current = FirmwareVersion::CURRENT;
+        assert_eq!(current.to_string(), env!("CARGO_PKG_VERSION"));
+        assert_eq!(FirmwareVersion::from_word(current.word()), Some(current));
+        assert_eq!(FirmwareVersion::from_word(0x0102_0304), None, "top byte set");
+        assert_eq!(parse_u8("255"), 255);
     }
 }

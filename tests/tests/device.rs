@@ -349,22 +349,26 @@ fn column<T: std::str::FromStr>(text: &str, column: &str) -> Vec<T> {
         .collect()
 }
 
-#[test]
-#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
-fn a_recorded_run_replayed_through_the_board_comes_back_in_its_raw_columns() {
-    let dir = TempDir::new().unwrap();
-    // 3,000 rows of the bundled chamber run: the board takes one per sample.
-    let source_text: String = std::fs::read_to_string(e2e_tests::example("ifog_train_1cpm.csv"))
+/// 3,000 rows of the bundled chamber run (the board takes one per sample).
+fn bundled_rows() -> String {
+    std::fs::read_to_string(e2e_tests::example("ifog_train_1cpm.csv"))
         .unwrap()
         .lines()
         .take(3_010)
         .map(|l| format!("{l}\n"))
-        .collect();
+        .collect()
+}
+
+/// Records 2 s of the board serving `source_text` (three-axis image if
+/// `three_axes`) and checks that each axis's recorded raw columns are the
+/// source's (`rate`, `temp` column pairs of source and recording).
+fn replayed_run_comes_back(source_text: &str, three_axes: bool, columns: &[(&str, &str, &str, &str)]) {
+    let dir = TempDir::new().unwrap();
     let source = dir.path().join("source.csv");
-    std::fs::write(&source, &source_text).unwrap();
+    std::fs::write(&source, source_text).unwrap();
     let _one = ONE_BOARD.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let board = QemuBoard::start(&BoardOptions {
-        three_axes: false,
+        three_axes,
         model: None,
         run: Some(source.clone()),
         limit: Some(QEMU_LIMIT),
@@ -383,46 +387,92 @@ fn a_recorded_run_replayed_through_the_board_comes_back_in_its_raw_columns() {
         recorded.to_str().unwrap(),
     ]);
     drop(board);
-
-    let rates: Vec<f32> = column::<f64>(&source_text, "rate_dph")
-        .iter()
-        .map(|&r| r as f32)
-        .collect();
-    let temps: Vec<f64> = column(&source_text, "temp_c");
     let text = std::fs::read_to_string(&recorded).unwrap();
-    let (got_rates, got_temps): (Vec<f32>, Vec<f32>) = (column(&text, "rate_dph"), column(&text, "temp_c"));
-    assert!(got_rates.len() > 500, "{} rows", got_rates.len());
-    // Each row's raw rate is the source's next row's, bit for bit (the
-    // board steps through the run one row per sample, from its start
-    // again at its end); a frame lost on the way skips a row.
-    let n = rates.len();
-    let mut at = rates
-        .iter()
-        .position(|&r| r.to_bits() == got_rates[0].to_bits())
-        .unwrap();
-    let mut skipped = 0;
-    for (k, &rate) in got_rates.iter().enumerate().skip(1) {
-        let next = (1..=8)
-            .map(|step| (at + step) % n)
-            .find(|&j| rates[j].to_bits() == rate.to_bits())
-            .unwrap_or_else(|| {
-                panic!(
-                    "row {k}: rate {rate} is not among the source rows after row {at} ({:?});\nrecorded:\n{}",
-                    &rates[at..(at + 9).min(n)],
-                    text.lines().take(12).collect::<Vec<_>>().join("\n")
-                )
-            });
-        skipped += (next + n - at - 1) % n;
-        at = next;
-        // The temperature is a source row's, read through the TMP117 (the
-        // source's values are whole 1/128 °C, which it carries exactly) on
-        // every 125th sample number (a missed one defers the read): one of
-        // the rows before.
-        let t = got_temps[k];
-        assert!(
-            (0..1000).any(|back| (temps[(at + n - back) % n] as f32).to_bits() == t.to_bits()),
-            "row {k}: temp_c {t} is none of the source's rows before row {at}"
-        );
+    for &(rate_column, temp_column, got_rate_column, got_temp_column) in columns {
+        let rates: Vec<f32> = column::<f64>(source_text, rate_column)
+            .iter()
+            .map(|&r| r as f32)
+            .collect();
+        let temps: Vec<f64> = column(source_text, temp_column);
+        let (got_rates, got_temps): (Vec<f32>, Vec<f32>) =
+            (column(&text, got_rate_column), column(&text, got_temp_column));
+        assert!(got_rates.len() > 500, "{} rows", got_rates.len());
+        // Each row's raw rate is the source's next row's, bit for bit (the
+        // board steps through the run one row per sample, from its start
+        // again at its end); a frame lost on the way skips a row.
+        let n = rates.len();
+        let mut at = rates
+            .iter()
+            .position(|&r| r.to_bits() == got_rates[0].to_bits())
+            .unwrap();
+        let mut skipped = 0;
+        for (k, &rate) in got_rates.iter().enumerate().skip(1) {
+            let next = (1..=8)
+                .map(|step| (at + step) % n)
+                .find(|&j| rates[j].to_bits() == rate.to_bits())
+                .unwrap_or_else(|| {
+                    panic!(
+                        "{got_rate_column} row {k}: rate {rate} is not among the source rows after row {at} \
+                         ({:?});\nrecorded:\n{}",
+                        &rates[at..(at + 9).min(n)],
+                        text.lines().take(12).collect::<Vec<_>>().join("\n")
+                    )
+                });
+            skipped += (next + n - at - 1) % n;
+            at = next;
+            // The temperature is a source row's, read through the TMP117 (the
+            // source's values are whole 1/128 °C, which it carries exactly) on
+            // every 125th sample number (a missed one defers the read): one of
+            // the rows before.
+            let t = got_temps[k];
+            assert!(
+                (0..1000).any(|back| (temps[(at + n - back) % n] as f32).to_bits() == t.to_bits()),
+                "{got_temp_column} row {k}: {t} is none of the source's rows before row {at}"
+            );
+        }
+        assert!(skipped * 100 <= got_rates.len(), "{skipped} source rows skipped");
     }
-    assert!(skipped * 100 <= got_rates.len(), "{skipped} source rows skipped");
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn a_recorded_run_replayed_through_the_board_comes_back_in_its_raw_columns() {
+    replayed_run_comes_back(&bundled_rows(), false, &[("rate_dph", "temp_c", "rate_dph", "temp_c")]);
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn a_three_axis_run_replayed_through_the_three_axis_board_comes_back_axis_by_axis() {
+    // The bundled run as axis x; y and z its rates negated and offset, their
+    // coils 0.5 and 1 °C warmer (still whole 1/128 °C), so that an axis
+    // answering from another's columns shows.
+    let mut source_text = String::new();
+    for line in bundled_rows().lines() {
+        if line.starts_with('#') {
+            continue;
+        }
+        let cells: Vec<&str> = line.split(',').collect();
+        let (time, rate, temp) = (cells[0], cells[1], cells[2]);
+        if time == "time_s" {
+            source_text.push_str("time_s,rate_x_dph,temp_x_c,rate_y_dph,temp_y_c,rate_z_dph,temp_z_c\n");
+            continue;
+        }
+        let (r, t): (f64, f64) = (rate.parse().unwrap(), temp.parse().unwrap());
+        source_text.push_str(&format!(
+            "{time},{rate},{temp},{},{},{},{}\n",
+            -r,
+            t + 0.5,
+            r + 100.0,
+            t + 1.0
+        ));
+    }
+    replayed_run_comes_back(
+        &source_text,
+        true,
+        &[
+            ("rate_x_dph", "temp_x_c", "rate_x_dph", "temp_x_c"),
+            ("rate_y_dph", "temp_y_c", "rate_y_dph", "temp_y_c"),
+            ("rate_z_dph", "temp_z_c", "rate_z_dph", "temp_z_c"),
+        ],
+    );
 }

@@ -65,8 +65,9 @@ enum Cmd {
         /// uncompensated, flag 4, until `trainer device update` installs one).
         #[arg(long, value_name = "MODEL.bin")]
         model: Option<PathBuf>,
-        /// A recorded run (single-axis) the emulated front end and thermometer
-        /// answer from, one row per sample, from its start again at its end.
+        /// A recorded run the emulated front ends and thermometers answer
+        /// from, one row per sample, from its start again at its end
+        /// (three-axis with --axes 3: rate_x_dph, temp_x_c, …).
         #[arg(long, value_name = "RUN.csv")]
         run: Option<PathBuf>,
         /// Put USART1 on a pseudo-terminal (the only way this command serves).
@@ -80,6 +81,11 @@ enum Cmd {
     /// (`board_stack_peak_bytes N`); report flash/RAM of the images. The last
     /// line is `instructions_per_sample K=32 D=3: N`.
     BenchFw,
+    /// List the import circles among each crate's modules (rbf-core,
+    /// firmware, trainer, xtask): modules that import each other, directly
+    /// or round a loop, with the imports that tie them. Fails if there is
+    /// one; `cargo xtask ci` runs it.
+    ImportCircles,
     /// Build the stm32f405 board image and prove from its machine code that
     /// no panic is reachable from its loop and interrupt handlers (part of
     /// `ci`; docs/panic-free.md).
@@ -220,6 +226,7 @@ fn main() -> anyhow::Result<()> {
             })
         }
         Cmd::BenchFw => xtask::bench::bench_fw(),
+        Cmd::ImportCircles => xtask::import_circles::import_circles(),
         Cmd::CheckBoardPanics => xtask::firmware::check_board_panics(),
         Cmd::BoardFaults => xtask::board_faults::board_faults(),
         Cmd::BenchDesigns { dir, trainer } => {

@@ -30,9 +30,10 @@ pub struct BoardOptions {
     /// A model blob placed in flash slot A before boot (none: the board
     /// starts without a model, flag 4 on every frame).
     pub model: Option<PathBuf>,
-    /// A single-axis recorded run the emulated front end and thermometer
-    /// answer from, row after row (from its start again at its end);
-    /// `None`: the built-in temperature ramp.
+    /// A recorded run the emulated front ends and thermometers answer from,
+    /// row after row (from its start again at its end): single-axis for the
+    /// single-axis image, three-axis for the three-axis one; `None`: the
+    /// built-in temperature ramp.
     pub run: Option<PathBuf>,
     /// QEMU is killed after this long whatever happens (tests); `None`: it
     /// runs until stopped.
@@ -70,11 +71,21 @@ impl QemuBoard {
         let image = dir.path().join("stm32f405-serve");
         std::fs::copy(elf, &image).with_context(|| format!("{}: cannot copy", elf.display()))?;
         if let Some(run) = &options.run {
-            anyhow::ensure!(
-                !options.three_axes,
-                "--run with --axes 3: not built yet (the three-axis image answers from its built-in ramp)"
-            );
-            // Checked here with the trainer's reader, so that the image reads a valid run.
+            // Checked here with the trainer's reader, so that the image reads
+            // a valid run with the image's axes.
+            let run_axes = trainer::run::RunReader::open(run)?.axes();
+            match (options.three_axes, run_axes.is_empty()) {
+                (true, true) => anyhow::bail!(
+                    "{}: a single-axis run; the three-axis board (--axes 3) answers from a three-axis run \
+                     (rate_x_dph, temp_x_c, …)",
+                    run.display()
+                ),
+                (false, false) => anyhow::bail!(
+                    "{}: a three-axis run; give --axes 3 for the three-axis board",
+                    run.display()
+                ),
+                _ => {}
+            }
             trainer::run::Run::load(run)?;
             std::fs::copy(run, dir.path().join("run.csv"))
                 .with_context(|| format!("{}: cannot read", run.display()))?;

@@ -71,7 +71,9 @@ mod board {
     #[cfg(not(feature = "board-qemu"))]
     use firmware::flash_ctl::ControllerFlash;
     use firmware::frontend::{self, FrontEnd};
-    use firmware::health::{BOARD_ON_HSI, CMD_HEALTH, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause};
+    use firmware::health::{
+        BOARD_ON_HSI, CMD_HEALTH, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause,
+    };
     #[cfg(not(feature = "board-qemu"))]
     use firmware::i2c_master::BoundedI2c;
     use firmware::model_store::ModelStore;
@@ -331,18 +333,10 @@ mod board {
             flash
         }
 
-        /// The loop TMP117 of sample `seq`: a slow ramp (QEMU has no I2C),
-        /// and the rate the emulated front end of the serving image
+        /// Axis `axis`'s coil TMP117 of sample `seq`: a slow ramp (QEMU has
+        /// no I2C), each coil of a three-axis image half a degree warmer than
+        /// the last; and the rate the emulated front end of the serving image
         /// (`board-qemu-serve`) sends with it.
-        #[cfg(not(feature = "board-axes"))]
-        pub fn sample(seq: u32) -> ReplaySample {
-            let temp_c = 20.0 + f64::from(seq % 100_000) * 1e-4;
-            ReplaySample::with_loop(Some(temp_c), builtin_rate_dph(temp_c, 0))
-        }
-
-        /// Axis `axis`'s coil TMP117 of sample `seq` (three-axis image): the
-        /// ramp, each coil half a degree warmer than the last; and its rate.
-        #[cfg(feature = "board-axes")]
         pub fn axis_sample(seq: u32, axis: usize) -> ReplaySample {
             let temp_c = 20.0 + 0.5 * axis as f64 + f64::from(seq % 100_000) * 1e-4;
             ReplaySample::with_loop(Some(temp_c), builtin_rate_dph(temp_c, axis))
@@ -350,27 +344,44 @@ mod board {
 
         /// The recorded run the serving image's sensors answer from
         /// (`run.csv` in QEMU's directory: `cargo xtask qemu-board --run`),
-        /// one row per sample, from its start again after its end; without
-        /// the file, the built-in ramp ([`sample`]).
-        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
-        pub struct RunSource {
+        /// one row per sample, from its start again after its end, for each of
+        /// the image's `AXES` coils (a single-axis run's columns, or a
+        /// three-axis run's `rate_<axis>_dph` and `temp_<axis>_c`); without
+        /// the file, or for an axis the run lacks, the built-in ramp
+        /// ([`axis_sample`]).
+        #[cfg(feature = "board-qemu-serve")]
+        pub struct RunSource<const AXES: usize> {
             lines: Option<firmware::host_file::HostLines>,
-            columns: Option<rbf_core::record::Columns>,
+            columns: Option<[Option<rbf_core::record::Columns>; AXES]>,
         }
 
-        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
-        impl RunSource {
+        #[cfg(feature = "board-qemu-serve")]
+        impl<const AXES: usize> RunSource<AXES> {
             /// The run in `run.csv`, if QEMU's directory holds one.
-            pub fn open() -> RunSource {
+            pub fn open() -> Self {
                 RunSource {
                     lines: firmware::host_file::HostLines::open(RUN_FILE),
                     columns: None,
                 }
             }
 
+            /// Each axis's columns in a run with `header` (`None` if the
+            /// header does not parse).
+            fn columns(header: &str) -> Option<[Option<rbf_core::record::Columns>; AXES]> {
+                let columns = rbf_core::record::Columns::from_header(header).ok()?;
+                Some(core::array::from_fn(|axis| {
+                    if AXES == 1 {
+                        Some(columns)
+                    } else {
+                        rbf_core::axis::Axis::ALL.get(axis).and_then(|&a| columns.for_axis(a))
+                    }
+                }))
+            }
+
             /// What the sensors present for sample `seq`: the run's next
             /// row (rows that do not parse are skipped), else the ramp's.
-            pub fn next(&mut self, seq: u32) -> ReplaySample {
+            pub fn next(&mut self, seq: u32) -> [ReplaySample; AXES] {
+                let mut samples = core::array::from_fn(|axis| axis_sample(seq, axis));
                 let RunSource { lines, columns } = self;
                 // At most one pass to the end and one from the start again.
                 for _ in 0..2 {
@@ -381,27 +392,33 @@ mod board {
                         if rbf_core::record::is_comment_or_blank(text) {
                             continue;
                         }
-                        match columns {
-                            None => *columns = rbf_core::record::Columns::from_header(text).ok(),
-                            Some(c) => {
-                                if let Ok(row) = c.parse_row(text) {
-                                    return ReplaySample {
-                                        temps_c: row.readings_c(),
-                                        rate_dph: row.rate_dph as f32,
-                                    };
-                                }
+                        let Some(axes) = columns else {
+                            *columns = Self::columns(text);
+                            continue;
+                        };
+                        let mut parsed = false;
+                        for (sample, axis) in samples.iter_mut().zip(axes.iter()) {
+                            if let Some(row) = axis.as_ref().and_then(|c| c.parse_row(text).ok()) {
+                                *sample = ReplaySample {
+                                    temps_c: row.readings_c(),
+                                    rate_dph: row.rate_dph as f32,
+                                };
+                                parsed = true;
                             }
+                        }
+                        if parsed {
+                            return samples;
                         }
                     }
                     *lines = firmware::host_file::HostLines::open(RUN_FILE);
                     *columns = None;
                 }
-                sample(seq)
+                samples
             }
         }
 
         /// The run file of [`RunSource`], NUL-terminated for semihosting.
-        #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
+        #[cfg(feature = "board-qemu-serve")]
         const RUN_FILE: &str = "run.csv\0";
 
         /// The built-in profile's rate, °/h: a constant per axis (an Earth-rate
@@ -516,6 +533,7 @@ mod board {
                 counters: health_counters(&$c.stats(), &$pacer.counters(), inits, flash_errors),
                 model: $store.identity(),
                 board_flags: if $boot.on_crystal { 0 } else { BOARD_ON_HSI },
+                firmware_version: FirmwareVersion::CURRENT,
             };
             let mut frame = [0u8; HEALTH_FRAME_LEN];
             if let Some(n) = report.encode(&mut frame) {
@@ -735,15 +753,15 @@ mod board {
         // Sensor init failures are not fatal either: the drivers retry on
         // each read until the sensors answer, and the frames are flagged meanwhile.
         #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
-        let mut run_source = qemu::RunSource::open();
+        let mut run_source = qemu::RunSource::<1>::open();
         #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
-        let loop_temp = core::cell::Cell::new(run_source.next(0));
+        let loop_temp = core::cell::Cell::new(run_source.next(0)[0]);
         #[cfg(all(
             feature = "board-qemu",
             not(feature = "board-qemu-serve"),
             not(feature = "board-axes")
         ))]
-        let loop_temp = core::cell::Cell::new(qemu::sample(0));
+        let loop_temp = core::cell::Cell::new(qemu::axis_sample(0, 0));
         #[cfg(all(feature = "board-qemu", not(feature = "board-axes")))]
         let i2c = qemu::thermometer_bus(&loop_temp);
         // The serving image's front end answers from the same sample as the thermometer.
@@ -758,7 +776,11 @@ mod board {
             let _ = front_end.init();
             CompensationLoop::new(model, config, thermometer, front_end, output)
         };
-        #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
+        #[cfg(all(feature = "board-qemu-serve", feature = "board-axes"))]
+        let mut run_source = qemu::RunSource::<3>::open();
+        #[cfg(all(feature = "board-qemu-serve", feature = "board-axes"))]
+        let coil_temps = run_source.next(0).map(core::cell::Cell::new);
+        #[cfg(all(feature = "board-qemu", not(feature = "board-qemu-serve"), feature = "board-axes"))]
         let coil_temps = [0, 1, 2].map(|axis| core::cell::Cell::new(qemu::axis_sample(0, axis)));
         #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
         let coil_buses = [0, 1, 2].map(|axis| qemu::thermometer_bus(&coil_temps[axis]));
@@ -868,14 +890,18 @@ mod board {
                         }
                     }
                     #[cfg(all(feature = "board-qemu-serve", not(feature = "board-axes")))]
-                    loop_temp.set(run_source.next(tick.seq));
+                    loop_temp.set(run_source.next(tick.seq)[0]);
                     #[cfg(all(
                         feature = "board-qemu",
                         not(feature = "board-qemu-serve"),
                         not(feature = "board-axes")
                     ))]
-                    loop_temp.set(qemu::sample(tick.seq));
-                    #[cfg(all(feature = "board-qemu", feature = "board-axes"))]
+                    loop_temp.set(qemu::axis_sample(tick.seq, 0));
+                    #[cfg(all(feature = "board-qemu-serve", feature = "board-axes"))]
+                    for (cell, sample) in coil_temps.iter().zip(run_source.next(tick.seq)) {
+                        cell.set(sample);
+                    }
+                    #[cfg(all(feature = "board-qemu", not(feature = "board-qemu-serve"), feature = "board-axes"))]
                     for (axis, cell) in coil_temps.iter().enumerate() {
                         cell.set(qemu::axis_sample(tick.seq, axis));
                     }

@@ -232,6 +232,7 @@ mod tests {
             },
             model: Default::default(),
             board_flags: 0,
+            firmware_version: firmware::health::FirmwareVersion::CURRENT,
         };
         let mut buf = [0u8; 80];
         let n = report.encode(&mut buf).unwrap();

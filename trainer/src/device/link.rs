@@ -3,7 +3,7 @@
 //! In: output frames (single- or three-axis, rbf-core's decoders via
 //! [`crate::frames::Frame`]), command replies (2 bytes), the boot report of
 //! a fault or watchdog reset (11 bytes, tag 0xFB), the bench report (17
-//! bytes, tag 0x02) and the health report (72 bytes, tag 0xFC; the
+//! bytes, tag 0x02) and the health report (76 bytes, tag 0xFC; the
 //! firmware's own [`HealthReport::from_bytes`]). Anything else is damage:
 //! counted, and reading goes on at the next 0x00. Out: a command payload,
 //! COBS-framed by rbf-core's encoder. Every wait ends at a deadline.
@@ -313,6 +313,7 @@ pub(crate) mod tests {
                 sequence: 2,
             },
             board_flags: 0,
+            firmware_version: firmware::health::FirmwareVersion::CURRENT,
         };
         let mut buf = [0u8; 80];
         let n = report.encode(&mut buf).unwrap();

@@ -139,6 +139,7 @@ pub fn describe(port: &str, status: &UnitStatus) -> String {
     let r = &status.report;
     let mut s = String::new();
     let _ = writeln!(s, "unit on {port}: {}", kind_words(status.kind));
+    let _ = writeln!(s, "firmware:    {}", r.firmware_version);
     let _ = writeln!(
         s,
         "last reset:  {} (RCC_CSR flags {:#04x})",
@@ -172,6 +173,7 @@ pub fn to_json(port: &str, status: &UnitStatus) -> serde_json::Value {
         counters(r).iter().map(|&(n, v)| (n.to_owned(), v.into())).collect();
     serde_json::json!({
         "port": port,
+        "firmware_version": r.firmware_version.to_string(),
         "kind": match status.kind {
             None => serde_json::Value::Null,
             Some(Kind::Single) => "single-axis".into(),
@@ -210,6 +212,11 @@ mod tests {
                 sequence,
             },
             board_flags: BOARD_ON_HSI,
+            firmware_version: firmware::health::FirmwareVersion {
+                major: 0,
+                minor: 4,
+                patch: 1,
+            },
         }
     }
 
@@ -224,6 +231,7 @@ mod tests {
             text.contains("unit on /dev/ttyUSB0: three-axis IMU, axes x, y, z"),
             "{text}"
         );
+        assert!(text.contains("firmware:    0.4.1"), "{text}");
         assert!(text.contains("last reset:  HardFault"), "{text}");
         assert!(text.contains("PC 0x08001234"), "{text}");
         assert!(
@@ -241,5 +249,6 @@ mod tests {
         assert_eq!(json["model_blob_crc32"], 0x1234_abcd);
         assert_eq!(json["counters"]["samples_missed"], 7);
         assert_eq!(json["kind"], "three-axis");
+        assert_eq!(json["firmware_version"], "0.4.1");
     }
 }
