@@ -61,7 +61,7 @@ fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
     Ok((passed, failed))
 }
 
-/// fmt, clippy (host and firmware), the no_std check, firmware builds, host
+/// fmt, the import circles, clippy (host and firmware), the no_std check, firmware builds, host
 /// tests, the tests needing QEMU or PyPI, then a minute of fuzzing per
 /// target; ends with `N passed, N failed`.
 pub fn ci() -> anyhow::Result<()> {
@@ -71,6 +71,7 @@ pub fn ci() -> anyhow::Result<()> {
     qemu::ensure_installed()?;
     run("cargo", &["fmt", "--all", "--check"])?;
     run("cargo", &["fmt", "--manifest-path", "fuzz/Cargo.toml", "--check"])?;
+    crate::import_circles::import_circles()?;
     run(
         "cargo",
         &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],

@@ -15,7 +15,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Run the whole test suite as CI does: fmt check, clippy -D warnings (host
+    /// Run the whole test suite as CI does: fmt check, import circles, clippy -D warnings (host
     /// and firmware), the no_std check of rbf-core, the firmware builds, host
     /// tests and the QEMU tests. Installs the thumbv7em target, rustfmt, clippy
     /// and qemu-system-arm when missing.
