@@ -550,6 +550,7 @@ where
     root.fill(&WHITE)?;
     let l = &plan.limits;
     let hours = (plan.duration_s() / 3600.0).max(1e-3);
+    let (x_lo, x_hi) = crate::plot_axes::padded(0.0, hours);
     let (c_lo, c_hi) =
         crate::plot_axes::with_legend_room(l.min_c, l.max_c, 2, root.dim_in_pixel().1.saturating_sub(100));
     let mut chart = ChartBuilder::on(&root)
@@ -563,7 +564,7 @@ where
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d(0.0..hours, c_lo..c_hi)?;
+        .build_cartesian_2d(x_lo..x_hi, c_lo..c_hi)?;
     chart
         .configure_mesh()
         .x_label_formatter(&crate::plot_axes::tick_label)
