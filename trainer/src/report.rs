@@ -1419,6 +1419,36 @@ mod tests {
     }
 
     #[test]
+    fn a_box_models_surface_hatches_what_no_run_reached_with_ticks_written_as_numbers() {
+        use rbf_core::model::{ModelBody, ModelInfo};
+        use rbf_core::poly::Poly3;
+        let model = Model::new(
+            rbf_core::FeatureConfig::single(FeatureSet::Temp, 0.0),
+            &[(-40.0, 60.0)],
+            ModelBody::Poly3(Poly3::new(25.0, [0.5, -0.01, 1e-4, -2e-6]).unwrap()),
+            ModelInfo::default(),
+        )
+        .unwrap();
+        // The runs stayed below 0 °C.
+        let trajectory: Vec<(f32, f32, f32)> = (0..100).map(|k| (-40.0 + 0.4 * k as f32, 0.0, 0.0)).collect();
+        let (svg, _) = render(&SurfacePlot {
+            model: &model,
+            trajectory,
+        })
+        .unwrap();
+        let hatch = format!(
+            "stroke=\"#{:02X}{:02X}{:02X}\"",
+            OUTSIDE_TRAINING.0, OUTSIDE_TRAINING.1, OUTSIDE_TRAINING.2
+        );
+        assert!(svg.matches(&hatch).count() > 60, "the warm half is hatched");
+        let (texts, _) = svg_texts_and_circles(&svg);
+        assert!(texts.iter().any(|t| t.contains("hatched")), "{texts:?}");
+        for t in texts.iter().filter(|t| t.parse::<f64>().is_ok()) {
+            assert!(!t.ends_with(".0") && t != "-0", "tick label {t}");
+        }
+    }
+
+    #[test]
     fn the_lag_banks_bias_plot_marks_its_training_range_and_writes_t_hat_as_the_font_can() {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
         let run = crate::run::Run::load(&data).unwrap();
