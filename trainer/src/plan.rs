@@ -127,7 +127,7 @@ pub struct Segment {
     pub target_c: f64,
     /// Ramp duration, s (whole tenths of a minute; 0 for the first segment, the soak).
     pub ramp_s: f64,
-    /// Hold at the set point after the ramp, s (whole tenths of a minute, may be 0).
+    /// Hold at the set point after the ramp, s (whole minutes, may be 0).
     pub hold_s: f64,
 }
 
@@ -152,6 +152,12 @@ impl Plan {
     /// Set points (time s, temperature °C), time from 0 strictly increasing.
     pub fn knots(&self) -> Vec<(f64, f64)> {
         knots(&self.segments)
+    }
+
+    /// How long the gyro must soak unpowered at the first set point before
+    /// power-on, s ([`pre_soak_s`] on the documented gyro's plant).
+    pub fn pre_soak_s(&self) -> f64 {
+        pre_soak_s(&SimParams::default().plant, self.segments[0].target_c)
     }
 
     /// Length of the run, s.
@@ -182,6 +188,12 @@ impl Plan {
         let first = self.segments[0];
         let _ = writeln!(
             s,
+            "# pre_soak: before 0 s, the gyro unpowered at {} °C for at least {:.0} min (the nominal plant's every node within {PRE_SOAK_WITHIN_C} °C of the air after {ROOM_C} °C)",
+            first.target_c,
+            self.pre_soak_s() / 60.0
+        );
+        let _ = writeln!(
+            s,
             "# power_on: at 0 s, soaked at {} °C; held {:.0} min (cold start: the self-heating transient)",
             first.target_c,
             first.hold_s / 60.0
@@ -203,7 +215,11 @@ impl Plan {
     /// The segment table chamber controllers take: set point, ramp and hold minutes.
     pub fn segments_csv(&self) -> String {
         let mut s = self.metadata();
-        s.push_str("# segment 1 is the power-on soak: no ramp\n");
+        let _ = writeln!(
+            s,
+            "# segment 1 is the power-on soak: no ramp; before it, the pre-soak above (unpowered, {:.0} min)",
+            self.pre_soak_s() / 60.0
+        );
         s.push_str("segment,target_c,ramp_min,hold_min\n");
         for (i, g) in self.segments.iter().enumerate() {
             let _ = writeln!(
@@ -211,7 +227,7 @@ impl Plan {
                 "{},{},{},{}",
                 i + 1,
                 g.target_c,
-                minutes(g.ramp_s),
+                ramp_minutes(g.ramp_s),
                 minutes(g.hold_s)
             );
         }
@@ -219,10 +235,46 @@ impl Plan {
     }
 }
 
-/// A duration in minutes: every duration of a plan is a whole number of
-/// tenths of a minute, so one decimal is exact.
+/// A hold in minutes: every hold of a plan is a whole number of minutes.
 fn minutes(s: f64) -> String {
+    format!("{:.0}", s / 60.0)
+}
+
+/// A ramp in minutes: every ramp is a whole number of tenths of a minute,
+/// so one decimal is exact.
+fn ramp_minutes(s: f64) -> String {
     format!("{:.1}", s / 60.0)
+}
+
+/// Where the gyro waits before a plan, °C: the lab.
+const ROOM_C: f64 = 23.0;
+/// The pre-soak ends when every node of the plant is this close to the air, °C.
+const PRE_SOAK_WITHIN_C: f64 = 0.1;
+
+/// How long the unpowered gyro must soak at `start_c` after the lab
+/// ([`ROOM_C`]) before a plan's power-on, s, in whole minutes: until every
+/// node of `plant` (housing, electronics, coil layers, hub) lies within
+/// [`PRE_SOAK_WITHIN_C`] of the air, as the plan's first state assumes.
+pub fn pre_soak_s(plant: &PlantParams, start_c: f64) -> f64 {
+    let unpowered = PlantParams {
+        self_heating_c: 0.0,
+        ..plant.clone()
+    };
+    let mut node = Plant::soaked(&unpowered, ROOM_C);
+    let settled = |n: &Plant| {
+        [n.base_c, n.top_c, n.electronics_c]
+            .iter()
+            .chain(n.layers_c())
+            .chain(n.hub_c.as_ref())
+            .all(|c| (c - start_c).abs() <= PRE_SOAK_WITHIN_C)
+    };
+    let mut t_s = 0.0;
+    // Bounded: a day covers any plant `PlantParams::check` accepts many times over.
+    while !settled(&node) && t_s < 86_400.0 {
+        node.step(&unpowered, start_c, 1.0);
+        t_s += 1.0;
+    }
+    (t_s / MINUTE_S).ceil() * MINUTE_S
 }
 
 /// Set points of `segments`: the start, then each ramp's end and hold's end.
@@ -246,26 +298,35 @@ fn knots(segments: &[Segment]) -> Vec<(f64, f64)> {
 }
 
 /// Seconds a ramp of `delta_c` takes at no more than `rate` °C/min, in
-/// whole tenths of a minute (what segment tables hold): rounded up, a tenth
-/// more when exact, so no rounding of the written values can make a
-/// segment faster than the limit.
+/// whole tenths of a minute (whole minutes would slow a short swing at
+/// the full rate by up to half): rounded up, a tenth more when exact, so
+/// no rounding of the written values can make a segment faster than the limit.
 fn ramp_seconds(delta_c: f64, rate_c_per_min: f64) -> f64 {
     let s = delta_c.abs() / rate_c_per_min * 60.0;
     let up = (s / TENTH_MIN_S).ceil() * TENTH_MIN_S;
     if up - s < 1e-6 { up + TENTH_MIN_S } else { up }
 }
 
-/// Durations are whole multiples of this, s (a tenth of a minute).
+/// Ramps are whole multiples of this, s (a tenth of a minute).
 const TENTH_MIN_S: f64 = 6.0;
 
-/// `s` rounded to whole tenths of a minute.
-fn tenths(s: f64) -> f64 {
-    (s / TENTH_MIN_S).round().max(0.0) * TENTH_MIN_S
+/// Holds and soaks are whole multiples of this, s.
+const MINUTE_S: f64 = 60.0;
+
+/// `s` rounded down to whole minutes.
+fn floor_minutes(s: f64) -> f64 {
+    (s / MINUTE_S).floor().max(0.0) * MINUTE_S
 }
 
-/// A temperature on a 0.01-°C grid, kept within the limits.
+/// `s` rounded to whole minutes.
+fn whole_minutes(s: f64) -> f64 {
+    (s / MINUTE_S).round().max(0.0) * MINUTE_S
+}
+
+/// A temperature on a whole-degree grid (what a chamber operator types),
+/// kept within the limits.
 fn set_point(c: f64, l: &PlanLimits) -> f64 {
-    ((c * 100.0).round() / 100.0).clamp(l.min_c, l.max_c)
+    c.round().clamp(l.min_c, l.max_c)
 }
 
 /// Builds a segment list up to a time budget.
@@ -279,12 +340,12 @@ struct Builder<'a> {
 impl Builder<'_> {
     fn ramp_hold(&mut self, target_c: f64, rate: f64, hold_s: f64) {
         let target_c = set_point(target_c, self.limits);
-        if (target_c - self.now_c).abs() < 0.01 {
+        if (target_c - self.now_c).abs() < 0.5 {
             self.hold(hold_s);
             return;
         }
         let ramp_s = ramp_seconds(target_c - self.now_c, rate);
-        let hold_s = tenths(hold_s);
+        let hold_s = whole_minutes(hold_s);
         self.segments.push(Segment {
             target_c,
             ramp_s,
@@ -295,7 +356,7 @@ impl Builder<'_> {
     }
 
     fn hold(&mut self, hold_s: f64) {
-        let hold_s = tenths(hold_s);
+        let hold_s = whole_minutes(hold_s);
         if let Some(last) = self.segments.last_mut() {
             last.hold_s += hold_s;
         }
@@ -317,7 +378,7 @@ pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
         segments: vec![Segment {
             target_c: start,
             ramp_s: 0.0,
-            hold_s: tenths(rng.random_range(WARM_UP_S.0..=WARM_UP_S.1)),
+            hold_s: whole_minutes(rng.random_range(WARM_UP_S.0..=WARM_UP_S.1)),
         }],
         now_c: start,
         t_s: 0.0,
@@ -374,7 +435,7 @@ fn cut(mut segments: Vec<Segment>, end_s: f64) -> Vec<Segment> {
         if t + g.ramp_s > end_s {
             break;
         }
-        let hold_s = g.hold_s.min(end_s - t - g.ramp_s);
+        let hold_s = g.hold_s.min(floor_minutes(end_s - t - g.ramp_s));
         t += g.ramp_s + hold_s;
         keep.push(Segment { hold_s, ..g });
         if t >= end_s {
@@ -382,7 +443,7 @@ fn cut(mut segments: Vec<Segment>, end_s: f64) -> Vec<Segment> {
         }
     }
     if let Some(last) = keep.last_mut() {
-        last.hold_s += end_s - t;
+        last.hold_s += floor_minutes(end_s - t);
     }
     // A segment left with neither ramp nor hold adds no set point.
     let first = keep.first().copied();
@@ -550,6 +611,7 @@ where
     root.fill(&WHITE)?;
     let l = &plan.limits;
     let hours = (plan.duration_s() / 3600.0).max(1e-3);
+    let (x_lo, x_hi) = crate::plot_axes::padded(0.0, hours);
     let (c_lo, c_hi) =
         crate::plot_axes::with_legend_room(l.min_c, l.max_c, 2, root.dim_in_pixel().1.saturating_sub(100));
     let mut chart = ChartBuilder::on(&root)
@@ -563,7 +625,7 @@ where
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d(0.0..hours, c_lo..c_hi)?;
+        .build_cartesian_2d(x_lo..x_hi, c_lo..c_hi)?;
     chart
         .configure_mesh()
         .x_label_formatter(&crate::plot_axes::tick_label)
@@ -664,13 +726,38 @@ mod tests {
     }
 
     #[test]
+    fn segment_tables_hold_whole_degrees_and_whole_minutes_of_hold_after_a_stated_pre_soak() {
+        for seed in [1, 3, 7] {
+            let plan = design(&LIMITS, seed, 4).unwrap();
+            let table = plan.segments_csv();
+            for row in table.lines().filter(|l| !l.starts_with('#')).skip(1) {
+                let f: Vec<&str> = row.split(',').collect();
+                for v in [f[1], f[3]] {
+                    assert!(!v.contains('.'), "seed {seed}: {row}: not a whole number");
+                }
+            }
+            let pre = table
+                .lines()
+                .find(|l| l.starts_with("# pre_soak: "))
+                .expect("a pre-soak line");
+            assert!(pre.contains(" min "), "{pre}");
+        }
+        // The nominal plant, from the lab to -40 °C: hours, not minutes; a
+        // start at the lab's temperature needs none.
+        let plant = SimParams::default().plant;
+        let cold = pre_soak_s(&plant, -40.0);
+        assert!((3600.0..86_400.0).contains(&cold) && cold % 60.0 == 0.0, "{cold}");
+        assert!(pre_soak_s(&plant, ROOM_C) < 60.0 + 1e-9);
+    }
+
+    #[test]
     fn ramps_are_rounded_up_to_stay_under_the_limit() {
-        // Whole multiples of 6 s: exact in f64.
+        // Whole minutes: exact in f64.
         let secs = |delta: f64, rate: f64| ramp_seconds(delta, rate).to_bits();
         assert_eq!(secs(100.0, 5.0), 1206.0f64.to_bits());
         assert_eq!(secs(10.0, 3.0), 204.0f64.to_bits());
         assert_eq!(secs(7.0, 3.0), 144.0f64.to_bits());
-        assert_eq!(minutes(90.0), "1.5");
-        assert_eq!(minutes(3600.0), "60.0");
+        assert_eq!(ramp_minutes(90.0), "1.5");
+        assert_eq!(minutes(3600.0), "60");
     }
 }

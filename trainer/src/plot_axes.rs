@@ -2,6 +2,9 @@
 //! above the data for the legend, so that it never covers a trace, margins
 //! so that no trace touches the frame, and tick labels as an engineer
 //! writes numbers (`0`, `10000`, `0.25`; never `-0.0` or `10000.0`).
+//! Logarithmic axes get their ticks here too ([`log_ticks`]): plotters'
+//! own put a light line on the next decade (a doubled label there) and
+//! stack a hundred light lines per decade on a short axis.
 
 /// Height of one legend row, px (plotters' default legend font and spacing).
 const LEGEND_ROW_PX: f64 = 20.0;
@@ -30,6 +33,57 @@ pub fn with_legend_room(lo: f64, hi: f64, rows: usize, plot_px: u32) -> (f64, f6
 pub fn with_legend_room_log(lo: f64, hi: f64, rows: usize, plot_px: u32) -> (f64, f64) {
     let (l, h) = with_legend_room(lo.ln(), hi.ln(), rows, plot_px);
     (l.exp(), h.exp())
+}
+
+/// `lo` … `hi` widened by a margin on each side, so that no trace or marker
+/// touches the frame.
+pub fn padded(lo: f64, hi: f64) -> (f64, f64) {
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    (lo - MARGIN * span, hi + MARGIN * span)
+}
+
+/// [`padded`] on a logarithmic axis (`lo` > 0).
+pub fn padded_log(lo: f64, hi: f64) -> (f64, f64) {
+    let (l, h) = padded(lo.ln(), hi.ln());
+    (l.exp(), h.exp())
+}
+
+/// Fewest labelled ticks a logarithmic axis shows.
+const MIN_LOG_LABELS: usize = 3;
+
+/// Ticks of a logarithmic axis over `lo` … `hi` (0 < `lo` < `hi`): the
+/// labelled ones (decades; with 2 and 5 between them, or every digit, when
+/// fewer than three decades lie within the range) and the grid-only ones
+/// (the other digits 2 … 9 of each decade). Each value occurs once, so no
+/// label is written twice and no grid line drawn over another.
+pub fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
+    if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+        return (Vec::new(), Vec::new());
+    }
+    let (k_lo, k_hi) = (lo.log10().floor() as i32 - 1, hi.log10().ceil() as i32 + 1);
+    let within = |m: u32, k: i32| {
+        let v = f64::from(m) * 10f64.powi(k);
+        // A tick at an end that rounding put just outside still counts.
+        (v >= lo * (1.0 - 1e-9) && v <= hi * (1.0 + 1e-9)).then_some(v)
+    };
+    let over = |mantissas: &[u32]| -> Vec<f64> {
+        (k_lo..=k_hi)
+            .flat_map(|k| mantissas.iter().filter_map(move |&m| within(m, k)))
+            .collect()
+    };
+    let labelled: &[u32] = [&[1][..], &[1, 2, 5], &[1, 2, 3, 4, 5, 6, 7, 8, 9]]
+        .into_iter()
+        .find(|m| over(m).len() >= MIN_LOG_LABELS)
+        .unwrap_or(&[1, 2, 3, 4, 5, 6, 7, 8, 9]);
+    let grid: Vec<u32> = (2..=9).filter(|m| !labelled.contains(m)).collect();
+    (over(labelled), over(&grid))
+}
+
+/// Text as the plots' fonts can draw it: a letter with a combining hat
+/// (U+0302, T̂) is written `T^`, since the PNG's font draws the hat not at
+/// all and would leave T̂ reading as T.
+pub fn drawable(text: &str) -> String {
+    text.replace('\u{302}', "^")
 }
 
 /// A tick label: at most 4 significant digits, no trailing zeros, `0` for
@@ -63,6 +117,43 @@ mod tests {
             legend_bottom >= 6e-2 * (1.0 - 1e-12) && bottom < 1e-3,
             "{bottom} … {top}"
         );
+    }
+
+    #[test]
+    fn a_short_log_axis_is_labelled_below_its_first_decade_and_writes_each_tick_once() {
+        // 0.003 … 0.3: only 0.01 and 0.1 are decades.
+        let (labels, grid) = log_ticks(0.003, 0.3);
+        let text: Vec<String> = labels.iter().map(tick_label).collect();
+        assert_eq!(text, ["0.005", "0.01", "0.02", "0.05", "0.1", "0.2"]);
+        assert!(grid.iter().all(|g| labels.iter().all(|l| (g / l - 1.0).abs() > 1e-6)));
+        // Four decades: decades labelled, the digits between them grid only, one line each.
+        let (labels, grid) = log_ticks(0.1, 20000.0);
+        let text: Vec<String> = labels.iter().map(tick_label).collect();
+        assert_eq!(text, ["0.1", "1", "10", "100", "1000", "10000"]);
+        assert_eq!(grid.len(), 8 * 5 + 1, "{grid:?}");
+        // Less than a decade: every digit.
+        let (labels, _) = log_ticks(2.5, 9.5);
+        assert_eq!(
+            labels.iter().map(tick_label).collect::<Vec<_>>(),
+            ["3", "4", "5", "6", "7", "8", "9"]
+        );
+    }
+
+    #[test]
+    fn margins_keep_the_data_off_the_frame() {
+        let (lo, hi) = padded(0.0, 8.0);
+        assert!(lo < 0.0 && hi > 8.0 && lo > -1.0 && hi < 9.0, "{lo} … {hi}");
+        let (lo, hi) = padded_log(0.1, 10000.0);
+        assert!(lo < 0.1 && hi > 10000.0 && lo > 0.05 && hi < 20000.0, "{lo} … {hi}");
+    }
+
+    #[test]
+    fn a_hat_the_font_lacks_is_written_out() {
+        assert_eq!(
+            drawable("mean coil temperature T\u{302} [°C]"),
+            "mean coil temperature T^ [°C]"
+        );
+        assert_eq!(drawable("ΔT [°C/min]"), "ΔT [°C/min]");
     }
 
     #[test]

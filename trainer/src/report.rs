@@ -13,13 +13,14 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use plotters::coord::Shift;
+use plotters::coord::combinators::{LogCoord, WithKeyPoints};
 use plotters::prelude::*;
 use rbf_core::{FeatureSet, FeatureVector, Model};
 
 use crate::diagnose::RunDiagnosis;
 use crate::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
 use crate::output::{self, DirTarget, Existing, StagedDir};
-use crate::plot_axes::{tick_label, with_legend_room, with_legend_room_log};
+use crate::plot_axes::{drawable, log_ticks, padded, padded_log, tick_label, with_legend_room, with_legend_room_log};
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, summary, text};
 use rbf_core::axis::Axis;
@@ -242,6 +243,7 @@ where
     let root = root.titled(&p.title, ("sans-serif", 22))?;
     let (top, bottom) = root.split_vertically((SIZE.1 as f64 * 0.58) as u32);
     let (t_lo, t_hi) = range(p.points.iter().map(|q| q.temp_c));
+    let (t_lo, t_hi) = padded(t_lo, t_hi);
     let (y_lo, y_hi) = range(p.points.iter().flat_map(|q| [q.measured_dph, q.model_dph]));
     let (y_lo, y_hi) = with_legend_room(y_lo, y_hi, 4, plot_height_px(&top, 30));
     let mut chart = ChartBuilder::on(&top)
@@ -282,6 +284,7 @@ where
         .border_style(BLACK)
         .draw()?;
     let (r_lo, r_hi) = range(p.points.iter().map(|q| q.residual_dph));
+    let (r_lo, r_hi) = padded(r_lo, r_hi);
     let mut residual = ChartBuilder::on(&bottom)
         .margin(10)
         .x_label_area_size(40)
@@ -345,9 +348,20 @@ impl Figure for SurfacePlot<'_> {
                 FeatureSet::LagBank(_) => format!("mean coil temperature {}", axis(0)),
                 _ => axis(0),
             };
-            draw_trajectory(root, &self.trajectory, &x_desc, &axis(surface_rate_input(set)))
+            let (t, r) = (
+                self.model.input_range(0).unwrap_or((0.0, 0.0)),
+                surface_rate_range(self.model),
+            );
+            let training = ((f64::from(t.0), f64::from(t.1)), (f64::from(r.0), f64::from(r.1)));
+            draw_trajectory(
+                root,
+                &self.trajectory,
+                training,
+                &x_desc,
+                &axis(surface_rate_input(set)),
+            )
         } else {
-            draw_surface(root, self.model)
+            draw_surface(root, self.model, &self.trajectory)
         }
     }
 }
@@ -414,6 +428,7 @@ where
 fn draw_trajectory<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
     points: &[(f32, f32, f32)],
+    training: ((f64, f64), (f64, f64)),
     x_desc: &str,
     y_desc: &str,
 ) -> DrawResult
@@ -422,9 +437,28 @@ where
 {
     root.fill(&WHITE)?;
     let (t_lo, t_hi) = range(points.iter().map(|p| p.0 as f64));
+    let (t_lo, t_hi) = padded(t_lo, t_hi);
     let (r_lo, r_hi) = range(points.iter().map(|p| p.1 as f64));
-    let (b_lo, b_hi) = range(points.iter().map(|p| p.2 as f64));
-    let caption = "model bias along the runs' path (where data lie)".to_owned();
+    let (r_lo, r_hi) = padded(r_lo, r_hi);
+    let ((tt_lo, tt_hi), (tr_lo, tr_hi)) = training;
+    // Within the training range by a rounding's width (f32 inputs, f32 range).
+    let trained = |t: f64, r: f64| {
+        let slack = |lo: f64, hi: f64| 1e-4 * (hi - lo).abs().max(1e-3);
+        t >= tt_lo - slack(tt_lo, tt_hi)
+            && t <= tt_hi + slack(tt_lo, tt_hi)
+            && r >= tr_lo - slack(tr_lo, tr_hi)
+            && r <= tr_hi + slack(tr_lo, tr_hi)
+    };
+    let inside = |p: &&(f32, f32, f32)| trained(p.0 as f64, p.1 as f64);
+    // The colours span the bias where the model was trained, not where it is held at an edge.
+    let (b_lo, b_hi) = if points.iter().any(|p| inside(&p)) {
+        range(points.iter().filter(inside).map(|p| p.2 as f64))
+    } else {
+        range(points.iter().map(|p| p.2 as f64))
+    };
+    let (t_lo, t_hi) = (t_lo.min(tt_lo), t_hi.max(tt_hi));
+    let (r_lo, r_hi) = (r_lo.min(tr_lo), r_hi.max(tr_hi));
+    let caption = "model bias where the runs went; dashed: training range, grey: outside it".to_owned();
     let plot = with_colour_bar(&root, b_lo, b_hi, "model bias [°/h]")?;
     let mut chart = ChartBuilder::on(&plot)
         .caption(caption, ("sans-serif", 22))
@@ -436,16 +470,30 @@ where
         .configure_mesh()
         .x_label_formatter(&tick_label)
         .y_label_formatter(&tick_label)
-        .x_desc(x_desc)
-        .y_desc(y_desc)
+        .x_desc(drawable(x_desc))
+        .y_desc(drawable(y_desc))
         .draw()?;
     chart.draw_series(points.iter().map(|&(t, r, b)| {
-        Circle::new(
-            (t as f64, r as f64),
-            2,
-            colour((b as f64 - b_lo) / (b_hi - b_lo)).filled(),
-        )
+        let (t, r) = (t as f64, r as f64);
+        let style = if trained(t, r) {
+            colour((b as f64 - b_lo) / (b_hi - b_lo)).filled()
+        } else {
+            OUTSIDE_TRAINING.filled()
+        };
+        Circle::new((t, r), 2, style)
     }))?;
+    chart.draw_series(DashedLineSeries::new(
+        [
+            (tt_lo, tr_lo),
+            (tt_hi, tr_lo),
+            (tt_hi, tr_hi),
+            (tt_lo, tr_hi),
+            (tt_lo, tr_lo),
+        ],
+        6,
+        4,
+        BLACK.stroke_width(1),
+    ))?;
     root.present()?;
     Ok(())
 }
@@ -456,6 +504,7 @@ where
 {
     root.fill(&WHITE)?;
     let (t_lo, t_hi) = range(p.raw.iter().map(|v| v.0 / 3600.0));
+    let (t_lo, t_hi) = padded(t_lo, t_hi);
     let plot_px = plot_height_px(&root, 40 + 30);
     let (y_lo, y_hi) = range(p.raw.iter().chain(&p.comp).map(|v| v.1));
     let (y_lo, y_hi) = with_legend_room(y_lo, y_hi, 3, plot_px);
@@ -516,6 +565,14 @@ fn allan_band(points: &[(f64, f64)], duration_s: f64) -> Vec<(f64, f64, f64)> {
         .collect()
 }
 
+/// A logarithmic axis over `lo` … `hi` with the ticks of [`log_ticks`].
+fn log_axis(lo: f64, hi: f64) -> WithKeyPoints<LogCoord<f64>> {
+    let (labelled, grid) = log_ticks(lo, hi);
+    LogCoord::from((lo..hi).log_scale())
+        .with_key_points(labelled)
+        .with_light_points(grid)
+}
+
 fn draw_allan<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
     title: &str,
@@ -537,6 +594,7 @@ where
     let (before, after) = (pts(&e.allan_before), pts(&e.allan_after));
     let bands = [allan_band(&before, duration_s), allan_band(&after, duration_s)];
     let (t_lo, t_hi) = range(before.iter().map(|p| p.0));
+    let (t_lo, t_hi) = padded_log(t_lo, t_hi);
     let (d_lo, d_hi) = range(before.iter().chain(&after).map(|p| p.1));
     let (d_lo, d_hi) = (
         bands.iter().flatten().map(|b| b.1).fold(d_lo, f64::min),
@@ -549,7 +607,7 @@ where
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(80)
-        .build_cartesian_2d((t_lo..t_hi).log_scale(), (d_lo..d_hi).log_scale())?;
+        .build_cartesian_2d(log_axis(t_lo, t_hi), log_axis(d_lo, d_hi))?;
     chart
         .configure_mesh()
         .x_label_formatter(&tick_label)
@@ -681,7 +739,43 @@ fn surface_rate_range(model: &Model) -> (f32, f32) {
     }
 }
 
-fn draw_surface<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, model: &Model) -> DrawResult
+/// Grey of what lies outside the training data on the bias plots.
+const OUTSIDE_TRAINING: RGBColor = RGBColor(170, 170, 170);
+
+/// Which cells of an `n` × `n` grid over `t` × `r` some sample of `points`
+/// (input 0, rate input) lies in or next to, row-major from (t.0, r.0); with
+/// `uses_rate` false (a model without a rate input) only the T column counts.
+fn reached_cells(points: &[(f32, f32, f32)], t: (f32, f32), r: (f32, f32), n: usize, uses_rate: bool) -> Vec<bool> {
+    let cell = |v: f32, (lo, hi): (f32, f32)| {
+        let x = ((v - lo) / (hi - lo) * (n - 1) as f32).round();
+        (x >= -1.0 && x <= n as f32).then_some(x as i64)
+    };
+    let mut hit = vec![false; n * n];
+    for p in points {
+        let (Some(i), Some(j)) = (cell(p.0, t), if uses_rate { cell(p.1, r) } else { Some(0) }) else {
+            continue;
+        };
+        let rows: Vec<i64> = if uses_rate {
+            (j - 1..=j + 1).collect()
+        } else {
+            (0..n as i64).collect()
+        };
+        for jj in rows {
+            for ii in i - 1..=i + 1 {
+                if (0..n as i64).contains(&ii) && (0..n as i64).contains(&jj) {
+                    hit[jj as usize * n + ii as usize] = true;
+                }
+            }
+        }
+    }
+    hit
+}
+
+fn draw_surface<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    model: &Model,
+    trajectory: &[(f32, f32, f32)],
+) -> DrawResult
 where
     DB::ErrorType: 'static,
 {
@@ -704,13 +798,21 @@ where
             (t, r, steady_bias(model, t, r))
         })
         .collect();
-    let (b_lo, b_hi) = range(grid.iter().map(|g| g.2 as f64));
+    let uses_rate = set.dims() > surface_rate_input(set);
+    let reached = reached_cells(trajectory, (t_lo, t_hi), (r_lo, r_hi), N, uses_rate);
+    // The colours span the bias where the runs went; elsewhere in the box the
+    // model extrapolates between edges that no sample joined.
+    let (b_lo, b_hi) = if reached.contains(&true) {
+        range(grid.iter().zip(&reached).filter(|g| *g.1).map(|g| g.0.2 as f64))
+    } else {
+        range(grid.iter().map(|g| g.2 as f64))
+    };
     let over = if multi_point {
         "its first two inputs (others mid-range)"
     } else {
         "T and a steady-ramp ΔT"
     };
-    let caption = format!("fitted bias over {over}");
+    let caption = format!("fitted bias over {over}; hatched: no sample of these runs");
     let plot = with_colour_bar(&root, b_lo, b_hi, "fitted bias [°/h]")?;
     let mut chart = ChartBuilder::on(&plot)
         .caption(caption, ("sans-serif", 22))
@@ -720,18 +822,29 @@ where
         .build_cartesian_2d(t_lo as f64..t_hi as f64, r_lo as f64..r_hi as f64)?;
     chart
         .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(y_desc)
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
+        .x_desc(drawable(&x_desc))
+        .y_desc(drawable(&y_desc))
         .disable_mesh()
         .draw()?;
     let (dt, dr) = (
         (t_hi - t_lo) as f64 / (N - 1) as f64,
         (r_hi - r_lo) as f64 / (N - 1) as f64,
     );
-    chart.draw_series(grid.iter().map(|&(t, r, b)| {
+    chart.draw_series(grid.iter().zip(&reached).map(|(&(t, r, b), &reached)| {
         let (t, r) = (t as f64, r as f64);
-        let fill = colour((b as f64 - b_lo) / (b_hi - b_lo)).filled();
+        let c = colour((b as f64 - b_lo) / (b_hi - b_lo));
+        let fill = if reached { c.filled() } else { c.mix(0.25).filled() };
         Rectangle::new([(t - dt / 2.0, r - dr / 2.0), (t + dt / 2.0, r + dr / 2.0)], fill)
+    }))?;
+    // Hatching over the cells no sample reached: one diagonal per cell.
+    chart.draw_series(grid.iter().zip(&reached).filter(|g| !*g.1).map(|(&(t, r, _), _)| {
+        let (t, r) = (t as f64, r as f64);
+        PathElement::new(
+            [(t - dt / 2.0, r - dr / 2.0), (t + dt / 2.0, r + dr / 2.0)],
+            OUTSIDE_TRAINING.stroke_width(1),
+        )
     }))?;
     root.present()?;
     Ok(())
@@ -1199,6 +1312,176 @@ mod tests {
     fn clamped_samples_are_a_count_and_a_percentage() {
         assert_eq!(clamped_cell(11, 100), "11 (11.0 %)");
         assert_eq!(clamped_cell(0, 0), "0");
+    }
+
+    /// The text labels and the circles' centres (x, y) of an SVG that plotters drew.
+    fn svg_texts_and_circles(svg: &str) -> (Vec<String>, Vec<(f64, f64)>) {
+        let texts = svg
+            .split("<text")
+            .skip(1)
+            .filter_map(|t| Some(t.split_once('>')?.1.split_once("</text>")?.0.trim().to_owned()))
+            .collect();
+        let attr = |e: &str, name: &str| -> f64 {
+            let v = e
+                .split(&format!(" {name}=\""))
+                .nth(1)
+                .unwrap()
+                .split('"')
+                .next()
+                .unwrap();
+            v.parse().unwrap()
+        };
+        let circles = svg
+            .split("<circle")
+            .skip(1)
+            .map(|c| (attr(c, "cx"), attr(c, "cy")))
+            .collect();
+        (texts, circles)
+    }
+
+    /// An evaluation whose Allan curves run from `hi` down to `lo`, °/h, over 1 … 1000 s.
+    fn evaluation_with_allan(lo: f64, hi: f64) -> RunEvaluation {
+        let tau_s: Vec<f64> = (0..11).map(|k| 2f64.powi(k)).collect();
+        let curve = |top: f64| crate::allan::AllanDeviation {
+            adev_dph: tau_s.iter().map(|t| top * (lo / top).powf(t.log2() / 10.0)).collect(),
+            tau_s: tau_s.clone(),
+            arw_deg_per_sqrt_h: f64::NAN,
+            bias_instability_dph: f64::NAN,
+            floor_tau_s: f64::NAN,
+            floor_reached: false,
+            floor_uncertainty_pct: f64::NAN,
+            confident_tau_max_s: 1000.0,
+        };
+        RunEvaluation {
+            run: "r.csv".into(),
+            axis: None,
+            basis: "samples".into(),
+            samples: 10_000,
+            reference: "ref_dph",
+            msd_before_dph2: 1.0,
+            msd_after_dph2: 1.0,
+            msd_improvement_pct: 0.0,
+            cluster_std_before_dph: 1.0,
+            cluster_std_after_dph: 1.0,
+            cluster_std_improvement_pct: 0.0,
+            flagged: Default::default(),
+            allan_before: curve(hi),
+            allan_after: curve(hi * 0.9),
+        }
+    }
+
+    #[test]
+    fn a_short_allan_axis_is_labelled_below_its_first_decade_once_per_value_and_off_the_frame() {
+        // 0.003 … 0.05 °/h: the axis starts above 0.001.
+        let e = evaluation_with_allan(0.003, 0.05);
+        let plot = AllanPlot {
+            title: "r".into(),
+            evaluation: &e,
+            duration_s: 20_000.0,
+        };
+        let (svg, _) = render(&plot).unwrap();
+        let (texts, circles) = svg_texts_and_circles(&svg);
+        for label in ["0.005", "0.01", "0.02", "0.05"] {
+            assert!(texts.iter().any(|t| t == label), "no tick label {label}: {texts:?}");
+        }
+        let numbers: Vec<&String> = texts.iter().filter(|t| t.parse::<f64>().is_ok()).collect();
+        let mut unique = numbers.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(numbers.len(), unique.len(), "a tick label written twice: {numbers:?}");
+        // The markers at τ = 1 s and 1024 s stay off the frame (the plot's
+        // area starts after the 80-px label area and the 12-px margin).
+        let (x_min, x_max) = circles
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), c| (a.min(c.0), b.max(c.0)));
+        assert!(x_min > 12.0 + 80.0 + 10.0, "first marker on the frame: x {x_min}");
+        assert!(
+            x_max < f64::from(SIZE.0) - 12.0 - 10.0,
+            "last marker on the frame: x {x_max}"
+        );
+    }
+
+    #[test]
+    fn the_bias_surface_masks_what_no_run_reached_and_spends_its_colours_on_the_rest() {
+        // Samples only in the lower-left quarter of the box.
+        let path: Vec<(f32, f32, f32)> = (0..200)
+            .map(|k| (-40.0 + k as f32 * 0.2, -1.0 + k as f32 * 0.004, 0.0))
+            .collect();
+        let reached = reached_cells(&path, (-40.0, 60.0), (-1.0, 1.0), 60, true);
+        let share = reached.iter().filter(|r| **r).count() as f64 / reached.len() as f64;
+        assert!(share > 0.01 && share < 0.2, "{share}");
+        // The corner no sample reached is masked; where they went is not.
+        assert!(!reached[60 * 60 - 1] && reached[0]);
+        // A model without a rate input: a reached temperature counts at every rate.
+        let reached = reached_cells(&[(10.0, 0.0, 0.0)], (-40.0, 60.0), (-1.0, 1.0), 60, false);
+        let column = ((10.0 + 40.0) / 100.0 * 59.0f32).round() as usize;
+        assert!((0..60).all(|j| reached[j * 60 + column]));
+    }
+
+    #[test]
+    fn a_box_models_surface_hatches_what_no_run_reached_with_ticks_written_as_numbers() {
+        use rbf_core::model::{ModelBody, ModelInfo};
+        use rbf_core::poly::Poly3;
+        let model = Model::new(
+            rbf_core::FeatureConfig::single(FeatureSet::Temp, 0.0),
+            &[(-40.0, 60.0)],
+            ModelBody::Poly3(Poly3::new(25.0, [0.5, -0.01, 1e-4, -2e-6]).unwrap()),
+            ModelInfo::default(),
+        )
+        .unwrap();
+        // The runs stayed below 0 °C.
+        let trajectory: Vec<(f32, f32, f32)> = (0..100).map(|k| (-40.0 + 0.4 * k as f32, 0.0, 0.0)).collect();
+        let (svg, _) = render(&SurfacePlot {
+            model: &model,
+            trajectory,
+        })
+        .unwrap();
+        let hatch = format!(
+            "stroke=\"#{:02X}{:02X}{:02X}\"",
+            OUTSIDE_TRAINING.0, OUTSIDE_TRAINING.1, OUTSIDE_TRAINING.2
+        );
+        assert!(svg.matches(&hatch).count() > 60, "the warm half is hatched");
+        let (texts, _) = svg_texts_and_circles(&svg);
+        assert!(texts.iter().any(|t| t.contains("hatched")), "{texts:?}");
+        for t in texts.iter().filter(|t| t.parse::<f64>().is_ok()) {
+            assert!(!t.ends_with(".0") && t != "-0", "tick label {t}");
+        }
+    }
+
+    #[test]
+    fn the_lag_banks_bias_plot_marks_its_training_range_and_writes_t_hat_as_the_font_can() {
+        let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
+        let run = crate::run::Run::load(&data).unwrap();
+        let model = crate::fit::fit(std::slice::from_ref(&run), &[], &crate::fit::FitOptions::default())
+            .unwrap()
+            .model;
+        let (lo, hi) = model.input_range(0).unwrap();
+        // One sample beyond the training range: drawn grey, outside the dashed box.
+        let surface = SurfacePlot {
+            model: &model,
+            trajectory: vec![(lo, 0.0, 0.1), (hi, 0.0, 0.2), (hi + 20.0, 0.0, 9.0)],
+        };
+        let (svg, _) = render(&surface).unwrap();
+        assert!(!svg.contains('\u{302}'), "a combining hat the PNG font drops");
+        assert!(svg.contains("T^"), "T̂ written out");
+        assert!(
+            svg.contains("stroke-dasharray") || svg.matches("<polyline").count() > 10,
+            "training range drawn"
+        );
+        let grey = format!(
+            "fill=\"#{:02X}{:02X}{:02X}\"",
+            OUTSIDE_TRAINING.0, OUTSIDE_TRAINING.1, OUTSIDE_TRAINING.2
+        );
+        assert_eq!(svg.matches("<circle").count(), 3);
+        assert!(svg.contains(&grey), "the sample outside the training range is grey");
+        // The colour bar spans 0.1 … 0.2, not the extrapolated 9.
+        let (texts, _) = svg_texts_and_circles(&svg);
+        assert!(
+            !texts
+                .iter()
+                .any(|t| t.parse::<f64>().is_ok_and(|v| v > 1.0 && v < 10.0)),
+            "{texts:?}"
+        );
     }
 
     #[test]

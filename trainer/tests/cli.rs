@@ -686,8 +686,11 @@ fn report_writes_svg_and_png_plots_json_and_markdown() {
     let surface = std::fs::read_to_string(out.join("bias_surface.svg")).unwrap();
     // The default model's bias is drawn where the runs went, over its own inputs.
     assert!(
-        surface.contains("model bias [°/h]") && surface.contains("where data lie") && surface.contains("T̂ [°C]"),
-        "colour bar axis, the path, the lag bank's inputs"
+        surface.contains("model bias [°/h]")
+            && surface.contains("where the runs went")
+            && surface.contains("dashed: training range")
+            && surface.contains("T^ [°C]"),
+        "colour bar axis, the path and the training range, the lag bank's inputs (T̂ as the PNG font can draw it)"
     );
 }
 

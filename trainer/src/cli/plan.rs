@@ -116,6 +116,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         plan.candidates,
         plan.median_criterion
     )?;
+    writeln!(
+        out,
+        "before it: the gyro unpowered at {} °C for at least {:.0} min (pre-soak)",
+        plan.segments[0].target_c,
+        plan.pre_soak_s() / 60.0
+    )?;
     if let Some(p) = &a.plot {
         writeln!(out, "wrote {}", text::path(p))?;
     }
