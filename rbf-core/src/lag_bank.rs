@@ -323,8 +323,10 @@ impl core::fmt::Display for BankInput {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match *self {
             BankInput::CoilTemp { power: 1 } => f.write_str("T̂ [°C]"),
-            BankInput::CoilTemp { power: 2 } => f.write_str("(T̂ − T₀)² [°C²]"),
-            BankInput::CoilTemp { power } => write!(f, "(T̂ − T₀)^{power} [°C^{power}]"),
+            BankInput::CoilTemp { power } => {
+                let p = crate::poly::Superscript(power);
+                write!(f, "(T̂ − T₀){p} [°C{p}]")
+            }
             BankInput::Rate { tau_s, .. } => write!(f, "g·ΔT(τ {tau_s:.0} s) [°C/min]"),
         }
     }
@@ -473,7 +475,7 @@ mod tests {
             [
                 "T̂ [°C]",
                 "(T̂ − T₀)² [°C²]",
-                "(T̂ − T₀)^3 [°C^3]",
+                "(T̂ − T₀)³ [°C³]",
                 "g·ΔT(τ 60 s) [°C/min]",
                 "g·ΔT(τ 960 s) [°C/min]"
             ]

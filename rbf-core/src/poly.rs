@@ -6,6 +6,27 @@
 
 use crate::error::ModelError;
 
+/// An exponent written as superscript digits (`²`, `³`, `¹²`), nothing for
+/// 1: how model descriptions write the powers of their inputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Superscript(pub u8);
+
+impl core::fmt::Display for Superscript {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        const DIGITS: [char; 10] = ['⁰', '¹', '²', '³', '⁴', '⁵', '⁶', '⁷', '⁸', '⁹'];
+        if self.0 == 1 {
+            return Ok(());
+        }
+        let (hundreds, tens, ones) = (self.0 / 100, self.0 / 10 % 10, self.0 % 10);
+        for (digit, shown) in [(hundreds, hundreds > 0), (tens, self.0 >= 10), (ones, true)] {
+            if shown {
+                core::fmt::Write::write_char(f, DIGITS[usize::from(digit)])?;
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Cubic polynomial in loop temperature about a reference temperature.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Poly3 {
@@ -49,6 +70,12 @@ impl Poly3 {
 )]
 mod tests {
     use super::*;
+
+    #[test]
+    fn exponents_are_written_as_superscript_digits_and_one_as_nothing() {
+        let shown = [1, 2, 3, 4, 10, 255].map(|p| Superscript(p).to_string());
+        assert_eq!(shown, ["", "²", "³", "⁴", "¹⁰", "²⁵⁵"]);
+    }
 
     #[test]
     fn evaluates_about_the_reference_temperature() {

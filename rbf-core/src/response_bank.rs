@@ -409,15 +409,23 @@ impl core::fmt::Display for ResponseInput {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match *self {
             ResponseInput::Static { power: 1 } => f.write_str("T − T₀ [°C]"),
-            ResponseInput::Static { power: 2 } => f.write_str("(T − T₀)² [°C²]"),
-            ResponseInput::Static { power } => write!(f, "(T − T₀)^{power} [°C^{power}]"),
+            ResponseInput::Static { power } => {
+                let p = crate::poly::Superscript(power);
+                write!(f, "(T − T₀){p} [°C{p}]")
+            }
             ResponseInput::Response { index: 0 } => f.write_str("R₀ [°/h]"),
             ResponseInput::Response { index: 1 } => f.write_str("u_c·R₁ [°/h]"),
             ResponseInput::Response { index: 2 } => f.write_str("u_c²·R₂ [°/h]"),
             ResponseInput::Response { index } => write!(f, "R{index} [°/h]"),
             ResponseInput::FilteredPower { power: 2 } => f.write_str("H₂: filtered (T − T₀)² [°/h]"),
-            ResponseInput::FilteredPower { power: 3 } => f.write_str("H₃: filtered (T − T₀)^3 [°/h]"),
-            ResponseInput::FilteredPower { power } => write!(f, "H{power}: filtered (T − T₀)^{power} [°/h]"),
+            ResponseInput::FilteredPower { power: 3 } => f.write_str("H₃: filtered (T − T₀)³ [°/h]"),
+            ResponseInput::FilteredPower { power } => {
+                write!(
+                    f,
+                    "H{power}: filtered (T − T₀){} [°/h]",
+                    crate::poly::Superscript(power)
+                )
+            }
         }
     }
 }
@@ -570,13 +578,13 @@ mod tests {
             [
                 "T − T₀ [°C]",
                 "(T − T₀)² [°C²]",
-                "(T − T₀)^3 [°C^3]",
-                "(T − T₀)^4 [°C^4]",
+                "(T − T₀)³ [°C³]",
+                "(T − T₀)⁴ [°C⁴]",
                 "R₀ [°/h]",
                 "u_c·R₁ [°/h]",
                 "u_c²·R₂ [°/h]",
                 "H₂: filtered (T − T₀)² [°/h]",
-                "H₃: filtered (T − T₀)^3 [°/h]"
+                "H₃: filtered (T − T₀)³ [°/h]"
             ]
         );
         assert_eq!(b.input(9), None);
