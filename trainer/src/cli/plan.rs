@@ -16,7 +16,11 @@ use super::common::{ForceArg, print_and_commit};
 /// soak at the cold end whose self-heating transient is recorded, levels across the range,
 /// full-rate steps, bursts of swings, slow ramps, holds as long as the coil's slowest mode)
 /// and keeps the one of largest D-criterion: the log-determinant of the information matrix of
-/// the lag-bank regression on the documented gyro's plant (docs/plan.md). Writes the set
+/// the lag-bank regression on the documented gyro's plant (docs/plan.md). Every candidate soaks
+/// at both ends of the range until a loop 1.5× as slow as that plant's comes within 5 % of the
+/// range of the end, so the loop reaches the asked range; the plan prints the loop range it
+/// predicts on both plants, and refuses --hours too short for those soaks, saying how long they
+/// need. Writes the set
 /// points `trainer simulate --chamber-profile` reads (time_s,chamber_c, piecewise linear), or
 /// with --format segments the segment table a chamber controller takes. Same seed, same plan.
 #[derive(clap::Args, Debug)]
@@ -116,6 +120,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         plan.candidates,
         plan.median_criterion
     )?;
+    for line in plan.loop_range_lines() {
+        writeln!(out, "{line}")?;
+    }
     if let Some(p) = &a.plot {
         writeln!(out, "wrote {}", text::path(p))?;
     }
