@@ -124,7 +124,7 @@ impl PlanLimits {
         let shortest = self.shortest_hours();
         if self.hours < shortest {
             return Err(format!(
-                "--hours {}: too short for the loop to reach {} … {} °C; these limits need at least {:.2} h (a {:.0}-min power-on soak at {} °C, a ramp to {} °C at {} °C/min and a {:.0}-min soak there: what a loop {SLOW_PLANT_FACTOR}× slower than the nominal plant's needs to come within {:.1} °C of it)",
+                "--hours {}: too short for the loop to reach {} … {} °C; these limits need at least {:.2} h (a {:.0}-min power-on soak at {} °C, a ramp to {} °C at {} °C/min and a {:.0}-min soak there: what a loop {SLOW_PLANT_FACTOR}× slower than the nominal plant's needs to come within {:.1} °C of where it settles)",
                 self.hours,
                 self.min_c,
                 self.max_c,
@@ -216,7 +216,7 @@ impl Plan {
         let _ = writeln!(s, "# duration_h: {:.3}", self.duration_s() / 3600.0);
         let _ = writeln!(
             s,
-            "# end_soak_min: {:.1} (at each end of the range: a loop {SLOW_PLANT_FACTOR}× slower than nominal comes within {:.1} °C of it)",
+            "# end_soak_min: {:.1} (at each end of the range: a loop {SLOW_PLANT_FACTOR}× slower than nominal comes within {:.1} °C of where it settles)",
             self.end_soak_s / 60.0,
             self.limits.reach_c()
         );
@@ -635,8 +635,9 @@ pub fn slowed(plant: &PlantParams, factor: f64) -> PlantParams {
 /// The soak at an end of the range a plan holds, s (whole tenths of a
 /// minute): after a ramp across the whole range at the full rate, the time
 /// the loop of the nominal plant slowed [`SLOW_PLANT_FACTOR`] times takes
-/// to come and stay within [`PlanLimits::reach_c`] of that end, the longer
-/// of the two directions, and never shorter than a long hold.
+/// to come and stay within [`PlanLimits::reach_c`] of where it settles at
+/// that end, the longer of the two directions, and never shorter than a
+/// long hold.
 pub fn end_soak_s(limits: &PlanLimits) -> f64 {
     let slow = slowed(&SimParams::default().plant, SLOW_PLANT_FACTOR);
     let ramp_s = ramp_seconds(limits.max_c - limits.min_c, limits.max_rate_c_per_min);
@@ -657,9 +658,11 @@ pub fn end_soak_s(limits: &PlanLimits) -> f64 {
             },
         ];
         let temps = loop_temps(&segments, &slow);
+        // Where it settles: the set point plus what self-heating adds, which no plan removes.
+        let settled_c = temps.last().copied().unwrap_or(to_c);
         let last_out = temps
             .iter()
-            .rposition(|t| (t - to_c).abs() > limits.reach_c())
+            .rposition(|t| (t - settled_c).abs() > limits.reach_c())
             .map_or(0, |i| i + 1);
         (last_out as f64 - before_s - ramp_s).max(0.0)
     };

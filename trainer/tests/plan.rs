@@ -49,9 +49,9 @@ fn every_plan_keeps_its_limits_for_ordinary_and_odd_arguments() {
     for (i, limits) in [
         ["-40", "60", "5", "12"],
         ["-55", "150", "20", "30"],
-        ["-3.3", "7.7", "0.37", "4.5"],
+        ["-3.3", "7.7", "0.37", "6.5"],
         ["20", "85", "1", "14"],
-        ["-40", "60", "5", "3.95"],
+        ["-40", "60", "5", "6.5"],
     ]
     .into_iter()
     .enumerate()
@@ -119,9 +119,10 @@ fn bad_limits_are_refused_in_words_without_a_file() {
         (["-40", "60", "-2", "12"], "--max-rate-c-per-min -2: must be above 0"),
         (
             ["-40", "60", "5", "2"],
-            "--hours 2: too short; these limits need at least",
+            "--hours 2: too short for the loop to reach -40 … 60 °C; these limits need at least",
         ),
         (["-40", "60", "5", "-1"], "--hours -1: too short"),
+        (["-40", "60", "5", "3.95"], "a ramp to 60 °C at 5 °C/min and a"),
         (["-80", "60", "5", "12"], "set points must lie within -55 … 150 °C"),
         (["-40", "nan", "5", "12"], "--max-c NaN: not a finite number"),
     ] {
@@ -297,4 +298,162 @@ fn a_plan_runs_through_the_simulator_and_a_fit_reports_its_coverage() {
         assert!(report.contains(gap), "{gap}: {report}");
     }
     assert!(!report.contains("missing: nothing"), "{report}");
+}
+
+/// Lowest and highest `temp_c` of a recorded run, °C.
+fn loop_range_c(run: &Path) -> (f64, f64) {
+    let text = std::fs::read_to_string(run).unwrap();
+    let mut rows = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = rows.next().unwrap().split(',').collect();
+    let col = header.iter().position(|&c| c == "temp_c").unwrap();
+    rows.map(|l| l.split(',').nth(col).unwrap().parse::<f64>().unwrap())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| (lo.min(t), hi.max(t)))
+}
+
+/// The two ranges of `predicted loop range: A … B °C on the nominal plant, C … D °C with …`.
+fn predicted_ranges(printed: &str) -> [(f64, f64); 2] {
+    let line = printed
+        .lines()
+        .find_map(|l| l.strip_prefix("predicted loop range: "))
+        .unwrap_or_else(|| panic!("no predicted loop range in {printed}"));
+    let numbers: Vec<f64> = line.split([' ', ',']).filter_map(|w| w.parse().ok()).take(4).collect();
+    [(numbers[0], numbers[1]), (numbers[2], numbers[3])]
+}
+
+#[test]
+fn a_plan_reaches_the_asked_range_at_the_loop_as_it_predicts_on_a_slower_plant_too() {
+    // The default hours and candidates: what the issue's user ran.
+    let dir = TempDir::new().unwrap();
+    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed = stdout(&o);
+    assert!(!printed.contains("warning"), "{printed}");
+    let [nominal, slow] = predicted_ranges(&printed);
+    let p = dir.path().join("p.csv");
+    let (_, meta) = read_plan(&p);
+    assert!(meta.iter().any(|m| m.starts_with("# predicted_loop_c: ")), "{meta:?}");
+    // Every time constant of the documented gyro 1.5× (the plant the soaks are sized for).
+    let params = dir.path().join("slow.json");
+    std::fs::write(
+        &params,
+        r#"{"plant": {"tau_base_s": 1350, "tau_top_s": 2250, "tau_electronics_s": 900,
+            "tau_coil_outer_s": 750, "tau_coil_layer_s": 1050,
+            "thermometer_lags_s": [7.5, 7.5, 12, 30, 7.5, 22.5, 450, 45]}}"#,
+    )
+    .unwrap();
+    for (name, predicted, extra) in [
+        ("nominal", nominal, vec![]),
+        ("slow", slow, vec!["--params", params.to_str().unwrap()]),
+    ] {
+        let run = dir.path().join(format!("{name}.csv"));
+        let o = trainer(
+            &[
+                &[
+                    "simulate",
+                    "--chamber-profile",
+                    p.to_str().unwrap(),
+                    "-o",
+                    run.to_str().unwrap(),
+                ][..],
+                &extra,
+            ]
+            .concat(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let (lo, hi) = loop_range_c(&run);
+        // Within 5 % of the range (5 °C) of each end: what `trainer fit` counts as covered.
+        assert!(lo <= -35.0 && hi >= 55.0, "{name}: the loop read {lo} … {hi} °C");
+        // The prediction is the noise-free plant printed to 0.1 °C; the run adds
+        // thermometer noise (2 mK) and TMP117 steps (7.8 mK).
+        for (p, m) in [(predicted.0, lo), (predicted.1, hi)] {
+            assert!(
+                (p - m).abs() <= 0.1,
+                "{name}: predicted {predicted:?}, simulated {lo} … {hi}"
+            );
+        }
+    }
+    // The nominal loop settles at both ends, within 2 °C of them.
+    assert!(nominal.0 <= -38.0 && nominal.1 >= 58.0, "{nominal:?}");
+    // And a fit on the run, told the range of use, misses none of it.
+    let o = trainer(&[
+        "fit",
+        "-q",
+        dir.path().join("nominal.csv").to_str().unwrap(),
+        "--use-range-c",
+        "-40,60",
+        "-o",
+        dir.path().join("m.bin").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = stdout(&o);
+    assert!(!report.contains("range of use"), "{report}");
+    assert!(!report.contains("no settled end"), "{report}");
+}
+
+#[test]
+fn a_fit_on_a_short_hold_run_says_the_range_of_use_is_not_covered() {
+    // The designed run: 5-°C/min chamber ramps with short holds; the loop
+    // reads −20 … 40 °C and turns at its top still rising.
+    let dir = TempDir::new().unwrap();
+    let run = dir.path().join("designed.csv");
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        "designed",
+        "--rate-hz",
+        "0.2",
+        "-o",
+        run.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let fit = |extra: &[&str]| {
+        let model = dir.path().join("m.bin");
+        let o = trainer(
+            &[
+                &[
+                    "fit",
+                    "-q",
+                    "--force",
+                    run.to_str().unwrap(),
+                    "-o",
+                    model.to_str().unwrap(),
+                ][..],
+                extra,
+            ]
+            .concat(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        stdout(&o)
+    };
+    let report = fit(&[]);
+    assert!(!report.contains("missing: nothing"), "{report}");
+    assert!(
+        report.contains("missing: no settled end: the loop peaked at "),
+        "{report}"
+    );
+    let report = fit(&["--use-range-c", "-40,60", "--use-rate-c-per-min", "3"]);
+    assert!(!report.contains("missing: nothing"), "{report}");
+    assert!(
+        report.contains("missing: range of use -40 … 60 °C not covered: the runs' loop read -20.0 … "),
+        "{report}"
+    );
+    assert!(
+        report.contains("missing: rates of use up to ±3 °C/min not covered"),
+        "{report}"
+    );
+    // A range of use that is not one is refused before any work.
+    for bad in ["60,-40", "-40", "-40,60,80", "a,b"] {
+        let o = trainer(&[
+            "fit",
+            "-q",
+            run.to_str().unwrap(),
+            "--use-range-c",
+            bad,
+            "-o",
+            dir.path().join("x.bin").to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{bad}");
+        assert!(stderr(&o).contains("--use-range-c"), "{bad}: {}", stderr(&o));
+        assert!(!dir.path().join("x.bin").exists());
+    }
 }
