@@ -391,9 +391,9 @@ mod tests {
         assert_eq!(c.long_holds, 3);
     }
 
-    #[test]
-    fn a_planned_run_with_a_cold_start_and_fast_steps_misses_nothing() {
-        let c = coverage(
+    /// A planned run: a cold start, fast steps both ways, holds at −40 and 60 °C.
+    fn planned() -> Coverage {
+        coverage(
             -40.0,
             &[
                 (3600.0, 0.0),
@@ -409,7 +409,12 @@ mod tests {
                 (1800.0, 0.0),
             ],
             8,
-        );
+        )
+    }
+
+    #[test]
+    fn a_planned_run_with_a_cold_start_and_fast_steps_misses_nothing() {
+        let c = planned();
         assert_eq!(
             c.missing(&InUse::default()),
             Vec::<String>::new(),
@@ -494,23 +499,7 @@ mod tests {
 
     #[test]
     fn a_run_that_settles_at_the_range_of_use_misses_nothing_for_it() {
-        let c = coverage(
-            -40.0,
-            &[
-                (3600.0, 0.0),
-                (1200.0, 5.0),
-                (2400.0, 0.0),
-                (480.0, -5.0),
-                (4000.0, 0.0),
-                (960.0, -2.5),
-                (1800.0, 0.0),
-                (240.0, 5.0),
-                (1800.0, 0.0),
-                (480.0, 5.0),
-                (1800.0, 0.0),
-            ],
-            8,
-        );
+        let c = planned();
         let in_use = InUse {
             range_c: Some((-40.0, 60.0)),
             max_rate_c_per_min: Some(1.0),
