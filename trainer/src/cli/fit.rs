@@ -193,20 +193,21 @@ pub struct Args {
     /// or changes faster than 30 °C/min by time_s (in hours?).
     #[arg(long, help_heading = "Data")]
     allow_implausible: bool,
-    /// Loop-temperature range the model will be used over, °C, as MIN,MAX.
+    /// Loop-temperature range of use, °C (MIN,MAX).
     ///
-    /// The `missing:` lines then say when the training runs' loop did not come within 5 % of
+    /// The range the model will be used over. The `missing:` lines then say when the training runs' loop did not come within 5 % of
     /// the range of each end (the model extrapolates there), e.g. a chamber that went to
     /// −40 … 60 °C with holds too short for the loop to follow. Without it they judge the
     /// range the loop covered and say where it turned before it settled.
     #[arg(long = "use-range-c", value_name = "MIN,MAX", value_delimiter = ',', allow_hyphen_values = true,
-          help_heading = "Range of use")]
+          help_heading = "Data")]
     use_range_c: Option<Vec<f64>>,
     /// Fastest loop-temperature change in use, °C/min (either sign).
     ///
     /// The `missing:` lines then say when the runs' fastest filter (τ 15 s) never read it
-    /// both rising and falling: faster changes extrapolate the rate weights.
-    #[arg(long, value_name = "C_PER_MIN", help_heading = "Range of use")]
+    /// both rising and falling: faster changes extrapolate the rate weights. (Only in --help:
+    /// -h fits a screen.)
+    #[arg(long, value_name = "C_PER_MIN", help_heading = "Data", hide_short_help = true)]
     use_rate_c_per_min: Option<f64>,
 }
 
