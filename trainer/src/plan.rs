@@ -6,11 +6,14 @@
 //! self-heating transient is recorded, levels across the range, full-rate
 //! steps, bursts of swings, slow ramps, holds as long as the slowest coil
 //! mode) and the one whose lag-bank regression on a nominal plant has the
-//! largest D-criterion ([`d_criterion`]) is kept. Every candidate soaks at
-//! both ends of the range long enough for a loop [`SLOW_PLANT_FACTOR`] times
-//! slower than nominal to settle there ([`end_soak_s`]), so the run reaches
-//! the asked range at the loop on plants other than the nominal one.
-//! docs/plan.md argues the choice. Deterministic for a given seed.
+//! largest D-criterion ([`d_criterion`]) is kept. On request
+//! (`trainer plan --soak-ends`, [`candidate_soaking_ends`]) every candidate
+//! also soaks at both ends of the range long enough for a loop
+//! [`SLOW_PLANT_FACTOR`] times slower than nominal to settle there
+//! ([`end_soak_s`]), so the run reaches the asked range at the loop on plants
+//! other than the nominal one, at the cost of dynamic excitation. Either
+//! way the plan predicts the loop range on both plants. docs/plan.md argues
+//! the choice. Deterministic for a given seed.
 
 use std::fmt::Write as _;
 
@@ -74,10 +77,18 @@ pub struct PlanLimits {
 
 impl PlanLimits {
     /// The shortest run a plan within these limits needs, h: the power-on
-    /// soak at the cold end (the unit is soaked there before it), a
-    /// full-range ramp at the fastest rate and a soak at the hot end
-    /// ([`end_soak_s`]) long enough for the loop to reach it.
+    /// soak, a full-range ramp up and down at the fastest rate and a long
+    /// hold at each end.
     pub fn shortest_hours(&self) -> f64 {
+        let ramps_s = 2.0 * (self.max_c - self.min_c) / self.max_rate_c_per_min * 60.0;
+        (WARM_UP_S.0 + ramps_s + 2.0 * LONG_HOLD_S) / 3600.0
+    }
+
+    /// The shortest run a plan that soaks at the ends needs, h: the
+    /// power-on soak at the cold end (the unit is soaked there before it),
+    /// a full-range ramp at the fastest rate and a soak at the hot end
+    /// ([`end_soak_s`]) long enough for the loop to reach it.
+    pub fn shortest_hours_soaking_ends(&self) -> f64 {
         let ramp_s = ramp_seconds(self.max_c - self.min_c, self.max_rate_c_per_min);
         (WARM_UP_S.0 + ramp_s + end_soak_s(self)) / 3600.0
     }
@@ -124,7 +135,27 @@ impl PlanLimits {
         let shortest = self.shortest_hours();
         if self.hours < shortest {
             return Err(format!(
-                "--hours {}: too short for the loop to reach {} … {} °C; these limits need at least {:.2} h (a {:.0}-min power-on soak at {} °C, a ramp to {} °C at {} °C/min and a {:.0}-min soak there: what a loop {SLOW_PLANT_FACTOR}× slower than the nominal plant's needs to come within {:.1} °C of where it settles)",
+                "--hours {}: too short; these limits need at least {:.2} h (a {:.0}-min power-on soak, {:.0} … {:.0} °C up and down at {} °C/min, a {:.0}-min hold at each end)",
+                self.hours,
+                shortest,
+                WARM_UP_S.0 / 60.0,
+                self.min_c,
+                self.max_c,
+                self.max_rate_c_per_min,
+                LONG_HOLD_S / 60.0
+            ));
+        }
+        Ok(())
+    }
+
+    /// [`Self::check`], and refuses hours too short for the end soaks
+    /// (`--soak-ends`), saying how long they need.
+    pub fn check_soaking_ends(&self) -> Result<(), String> {
+        self.check()?;
+        let shortest = self.shortest_hours_soaking_ends();
+        if self.hours < shortest {
+            return Err(format!(
+                "--hours {} --soak-ends: too short for the loop to reach {} … {} °C; these limits need at least {:.2} h (a {:.0}-min power-on soak at {} °C, a ramp to {} °C at {} °C/min and a {:.0}-min soak there: what a loop {SLOW_PLANT_FACTOR}× slower than the nominal plant's needs to come within {:.1} °C of where it settles)",
                 self.hours,
                 self.min_c,
                 self.max_c,
@@ -171,8 +202,9 @@ pub struct Plan {
     pub loop_range_c: (f64, f64),
     /// The same on a plant [`SLOW_PLANT_FACTOR`] times slower than nominal, °C.
     pub slow_loop_range_c: (f64, f64),
-    /// Each end soak lasts at least this, s ([`end_soak_s`]).
-    pub end_soak_s: f64,
+    /// With `--soak-ends`, each end soak lasts at least this, s
+    /// ([`end_soak_s`]); `None` without (the plan as before the end soaks).
+    pub end_soak_s: Option<f64>,
 }
 
 impl Plan {
@@ -214,12 +246,14 @@ impl Plan {
             first.hold_s / 60.0
         );
         let _ = writeln!(s, "# duration_h: {:.3}", self.duration_s() / 3600.0);
-        let _ = writeln!(
-            s,
-            "# end_soak_min: {:.1} (at each end of the range: a loop {SLOW_PLANT_FACTOR}× slower than nominal comes within {:.1} °C of where it settles)",
-            self.end_soak_s / 60.0,
-            self.limits.reach_c()
-        );
+        if let Some(end_soak_s) = self.end_soak_s {
+            let _ = writeln!(
+                s,
+                "# end_soak_min: {:.1} (at each end of the range: a loop {SLOW_PLANT_FACTOR}× slower than nominal comes within {:.1} °C of where it settles)",
+                end_soak_s / 60.0,
+                self.limits.reach_c()
+            );
+        }
         let _ = writeln!(
             s,
             "# predicted_loop_c: {:.1},{:.1} (nominal plant; {:.1},{:.1} with every time constant {SLOW_PLANT_FACTOR}× nominal)",
@@ -235,29 +269,44 @@ impl Plan {
         loop_range_c.0 <= self.limits.min_c + reach_c && loop_range_c.1 >= self.limits.max_c - reach_c
     }
 
-    /// What the plan predicts at the loop, in a line or two: the range on the
-    /// nominal plant and on the slow one, and what falls short of the asked range.
+    /// What the plan predicts at the loop, in a line or more: the range on
+    /// the nominal plant and on the slow one, and a warning for each that
+    /// stays short of an end of the asked range by more than
+    /// [`PlanLimits::reach_c`], saying by how much and what closes the gap.
     pub fn loop_range_lines(&self) -> Vec<String> {
+        let (min_c, max_c) = (self.limits.min_c, self.limits.max_c);
         let (lo, hi) = self.loop_range_c;
         let (slo, shi) = self.slow_loop_range_c;
+        let soaks = match self.end_soak_s {
+            Some(s) => format!("soaks of {:.1} min or more at each end", s / 60.0),
+            None => "no end soaks: --soak-ends adds them".to_owned(),
+        };
         let mut out = vec![format!(
-            "predicted loop range: {lo:.1} … {hi:.1} °C on the nominal plant, {slo:.1} … {shi:.1} °C with every time constant {SLOW_PLANT_FACTOR}× nominal (asked {} … {} °C; soaks of {:.1} min or more at each end)",
-            self.limits.min_c,
-            self.limits.max_c,
-            self.end_soak_s / 60.0
+            "predicted loop range: {lo:.1} … {hi:.1} °C on the nominal plant, {slo:.1} … {shi:.1} °C with every time constant {SLOW_PLANT_FACTOR}× nominal (asked {min_c} … {max_c} °C; {soaks})"
         )];
         for (name, range) in [
             ("the nominal plant", self.loop_range_c),
             ("the slow plant", self.slow_loop_range_c),
         ] {
-            if !self.reaches(range) {
-                out.push(format!(
-                    "warning: on {name} the loop stays {:.1} … {:.1} °C, more than {:.1} °C inside the asked range: its self-heating or lags keep it from the ends in these hours",
-                    range.0,
-                    range.1,
-                    self.limits.reach_c()
-                ));
+            if self.reaches(range) {
+                continue;
             }
+            let short: Vec<String> = [(range.0 - min_c, min_c), (max_c - range.1, max_c)]
+                .into_iter()
+                .filter(|&(gap, _)| gap > self.limits.reach_c())
+                .map(|(gap, end)| format!("{gap:.1} °C short of {end} °C"))
+                .collect();
+            let remedy = match self.end_soak_s {
+                None => "--soak-ends closes the gap (more --hours may)",
+                Some(_) => "its self-heating or lags keep it from the ends; more --hours may close the gap",
+            };
+            out.push(format!(
+                "warning: on {name} the loop is predicted to reach only {:.1} … {:.1} °C, {} (more than the {:.1} °C a fit counts as reached): {remedy}",
+                range.0,
+                range.1,
+                short.join(" and "),
+                self.limits.reach_c()
+            ));
         }
         out
     }
@@ -350,6 +399,53 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
+    /// Draws one move of the design family with `rng` and appends it: a
+    /// burst of swings at the full rate about a centre near the current
+    /// level, legs alternating sides, or a move to another level, slow or
+    /// fast. With `end_soak_s` (`--soak-ends`), a move to an end of the
+    /// range holds there at least that long, for the loop to settle.
+    fn draw_move(&mut self, rng: &mut impl Rng, end_soak_s: Option<f64>) {
+        let l = self.limits;
+        let span = l.max_c - l.min_c;
+        let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
+        let r = l.max_rate_c_per_min;
+        let kind = rng.random_range(0..10u32);
+        let hold_s = match rng.random_range(0..10u32) {
+            0..=3 => rng.random_range(600.0..=1500.0),
+            4..=6 => rng.random_range(1500.0..=2700.0),
+            _ => rng.random_range(LONG_HOLD_S..=1.4 * LONG_HOLD_S),
+        };
+        if kind <= 1 {
+            let legs = rng.random_range(2..=4);
+            let reach = span * SWING_AMPLITUDE.1;
+            let centre = self.now_c.clamp(l.min_c + reach, l.max_c - reach);
+            let mut side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            for _ in 0..legs {
+                let amp = span * rng.random_range(SWING_AMPLITUDE.0..=SWING_AMPLITUDE.1);
+                self.ramp_hold(centre + side * amp, r, rng.random_range(0.0..=300.0));
+                side = -side;
+            }
+            self.ramp_hold(centre, r, hold_s);
+            return;
+        }
+        let target = loop {
+            let t = level(rng.random_range(0..LEVELS));
+            if (t - self.now_c).abs() >= MIN_MOVE * span {
+                break t;
+            }
+        };
+        let rate = match kind {
+            2..=5 => r,
+            6..=7 => r * rng.random_range(0.3..=0.7),
+            _ => r * rng.random_range(0.1..=0.3),
+        };
+        let hold_s = match end_soak_s {
+            Some(soak_s) if is_end(set_point(target, l), l) => hold_s.max(soak_s),
+            _ => hold_s,
+        };
+        self.ramp_hold(target, rate, hold_s);
+    }
+
     fn ramp_hold(&mut self, target_c: f64, rate: f64, hold_s: f64) {
         let target_c = set_point(target_c, self.limits);
         if (target_c - self.now_c).abs() < 0.01 {
@@ -374,6 +470,11 @@ impl Builder<'_> {
         }
         self.t_s += hold_s;
     }
+}
+
+/// Whether `c` is an end of the range (a set point rounds to 0.01 °C).
+fn is_end(c: f64, l: &PlanLimits) -> bool {
+    (c - l.min_c).abs() < 0.006 || (c - l.max_c).abs() < 0.006
 }
 
 /// The ends of the range still to visit from `now_c`, nearest first.
@@ -403,17 +504,43 @@ fn visits_s(l: &PlanLimits, now_c: f64, ends: &[f64], end_soak_s: f64) -> f64 {
     s
 }
 
-/// One candidate of the design family, drawn with `rng`, cut to the time
-/// budget, with a soak of at least `end_soak_s` at each end of the range
-/// (the power-on soak counts for the cold end when it starts there: the
-/// unit is soaked before it). A move is drawn only while the ends not yet
-/// visited still fit in the budget after it; then they are visited, nearest
-/// first, at the full rate.
-pub fn candidate(limits: &PlanLimits, end_soak_s: f64, rng: &mut impl Rng) -> Vec<Segment> {
+/// One candidate of the design family, drawn with `rng`, cut to the time budget.
+pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
     let l = limits;
     let span = l.max_c - l.min_c;
     let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
-    let is_end = |c: f64| (c - l.min_c).abs() < 0.006 || (c - l.max_c).abs() < 0.006;
+    let end_s = (l.hours * 3600.0 / TENTH_MIN_S).floor() * TENTH_MIN_S;
+    // Cold start: soaked in the lowest fifth of the range.
+    let start = set_point(level(rng.random_range(0..=2)), l);
+    let mut b = Builder {
+        limits: l,
+        segments: vec![Segment {
+            target_c: start,
+            ramp_s: 0.0,
+            hold_s: tenths(rng.random_range(WARM_UP_S.0..=WARM_UP_S.1)),
+        }],
+        now_c: start,
+        t_s: 0.0,
+    };
+    b.t_s = b.segments[0].hold_s;
+    while b.t_s < end_s {
+        b.draw_move(rng, None);
+    }
+    cut(b.segments, end_s)
+}
+
+/// One candidate of the design family, drawn with `rng`, cut to the time
+/// budget, with a soak of at least `end_soak_s` at each end of the range
+/// (`trainer plan --soak-ends`; without it, [`candidate`]). The power-on
+/// soak counts for the cold end when it starts there: the unit is soaked
+/// before it. A move is drawn only while the ends not yet
+/// visited still fit in the budget after it; then they are visited, nearest
+/// first, at the full rate.
+pub fn candidate_soaking_ends(limits: &PlanLimits, end_soak_s: f64, rng: &mut impl Rng) -> Vec<Segment> {
+    let l = limits;
+    let span = l.max_c - l.min_c;
+    let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
+    let is_end = |c: f64| is_end(c, l);
     let r = l.max_rate_c_per_min;
     let end_s = (l.hours * 3600.0 / TENTH_MIN_S).floor() * TENTH_MIN_S;
     // Cold start: soaked in the lowest fifth of the range; at its bottom
@@ -441,46 +568,7 @@ pub fn candidate(limits: &PlanLimits, end_soak_s: f64, rng: &mut impl Rng) -> Ve
     b.t_s = b.segments[0].hold_s;
     while b.t_s < end_s {
         let before = b.clone();
-        let kind = rng.random_range(0..10u32);
-        let hold_s = match rng.random_range(0..10u32) {
-            0..=3 => rng.random_range(600.0..=1500.0),
-            4..=6 => rng.random_range(1500.0..=2700.0),
-            _ => rng.random_range(LONG_HOLD_S..=1.4 * LONG_HOLD_S),
-        };
-        match kind {
-            // A burst of swings at the full rate about a centre near the
-            // current level, legs alternating sides.
-            0..=1 => {
-                let legs = rng.random_range(2..=4);
-                let reach = span * SWING_AMPLITUDE.1;
-                let centre = b.now_c.clamp(l.min_c + reach, l.max_c - reach);
-                let mut side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-                for _ in 0..legs {
-                    let amp = span * rng.random_range(SWING_AMPLITUDE.0..=SWING_AMPLITUDE.1);
-                    b.ramp_hold(centre + side * amp, r, rng.random_range(0.0..=300.0));
-                    side = -side;
-                }
-                b.ramp_hold(centre, r, hold_s);
-            }
-            // A move to another level, slow or fast; at an end of the
-            // range, a soak long enough for the loop to settle there.
-            _ => {
-                let target = loop {
-                    let t = level(rng.random_range(0..LEVELS));
-                    if (t - b.now_c).abs() >= MIN_MOVE * span {
-                        break t;
-                    }
-                };
-                let rate = match kind {
-                    2..=5 => r,
-                    6..=7 => r * rng.random_range(0.3..=0.7),
-                    _ => r * rng.random_range(0.1..=0.3),
-                };
-                let target = set_point(target, l);
-                let hold_s = if is_end(target) { hold_s.max(end_soak_s) } else { hold_s };
-                b.ramp_hold(target, rate, hold_s);
-            }
-        }
+        b.draw_move(rng, Some(end_soak_s));
         let at_end = is_end(b.now_c);
         let (low, high) = (
             low_left && !(at_end && b.now_c < l.min_c + 0.5 * span),
@@ -680,15 +768,25 @@ fn range_of(temps_c: &[f64]) -> (f64, f64) {
 }
 
 /// Designs a plan within `limits`: the best of `candidates` draws from
-/// `seed` by the D-criterion on the documented gyro's plant.
-pub fn design(limits: &PlanLimits, seed: u64, candidates: usize) -> Result<Plan, String> {
-    limits.check()?;
+/// `seed` by the D-criterion on the documented gyro's plant; with
+/// `soak_ends`, drawn by [`candidate_soaking_ends`], else by [`candidate`]
+/// (the draws are then the same as before end soaks existed).
+pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, soak_ends: bool) -> Result<Plan, String> {
+    let end_soak_s = if soak_ends {
+        limits.check_soaking_ends()?;
+        Some(end_soak_s(limits))
+    } else {
+        limits.check()?;
+        None
+    };
     let plant = SimParams::default().plant;
-    let end_soak_s = end_soak_s(limits);
     let indices: Vec<u64> = (0..candidates.max(1) as u64).collect();
     let scored = crate::fit::rbf::parallel_map(&indices, |&i| {
         let mut rng = Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(i));
-        let segments = candidate(limits, end_soak_s, &mut rng);
+        let segments = match end_soak_s {
+            Some(s) => candidate_soaking_ends(limits, s, &mut rng),
+            None => candidate(limits, &mut rng),
+        };
         let score = d_criterion(&loop_temps(&segments, &plant), limits);
         (segments, score)
     });
@@ -824,9 +922,14 @@ mod tests {
 
     #[test]
     fn candidates_keep_every_limit_and_end_within_the_budget() {
-        for seed in 0..40 {
+        let soak_s = end_soak_s(&LIMITS);
+        for (seed, soak_ends) in (0..40).flat_map(|seed| [(seed, false), (seed, true)]) {
             let mut rng = Pcg64::seed_from_u64(seed);
-            let segments = candidate(&LIMITS, end_soak_s(&LIMITS), &mut rng);
+            let segments = if soak_ends {
+                candidate_soaking_ends(&LIMITS, soak_s, &mut rng)
+            } else {
+                candidate(&LIMITS, &mut rng)
+            };
             let k = knots(&segments);
             assert_eq!(k[0].0.to_bits(), 0.0f64.to_bits(), "seed {seed}: starts at 0");
             assert!(k.last().unwrap().0 <= 12.0 * 3600.0, "seed {seed}: {:?}", k.last());
@@ -865,17 +968,22 @@ mod tests {
             },
         ];
         let slow = d_criterion(&loop_temps(&cycle, &plant), &LIMITS);
-        let plan = design(&LIMITS, 1, 8).unwrap();
+        let plan = design(&LIMITS, 1, 8, false).unwrap();
         assert!(plan.criterion > slow + 1.0, "plan {} vs cycle {slow}", plan.criterion);
         assert!(plan.criterion >= plan.median_criterion);
     }
 
     #[test]
     fn the_same_seed_gives_the_same_plan() {
-        let a = design(&LIMITS, 7, 6).unwrap();
-        let b = design(&LIMITS, 7, 6).unwrap();
-        assert_eq!(a.set_points_csv(), b.set_points_csv());
-        assert_ne!(a.set_points_csv(), design(&LIMITS, 8, 6).unwrap().set_points_csv());
+        for soak_ends in [false, true] {
+            let a = design(&LIMITS, 7, 6, soak_ends).unwrap();
+            let b = design(&LIMITS, 7, 6, soak_ends).unwrap();
+            assert_eq!(a.set_points_csv(), b.set_points_csv());
+            assert_ne!(
+                a.set_points_csv(),
+                design(&LIMITS, 8, 6, soak_ends).unwrap().set_points_csv()
+            );
+        }
     }
 
     #[test]

@@ -46,18 +46,27 @@ fn plan(dir: &TempDir, name: &str, limits: [&str; 4], extra: &[&str]) -> std::pr
 #[test]
 fn every_plan_keeps_its_limits_for_ordinary_and_odd_arguments() {
     let dir = TempDir::new().unwrap();
-    for (i, limits) in [
-        ["-40", "60", "5", "12"],
-        ["-55", "150", "20", "30"],
-        ["-3.3", "7.7", "0.37", "6.5"],
-        ["20", "85", "1", "14"],
-        ["-40", "60", "5", "6.5"],
+    for (i, (limits, soak_ends)) in [
+        (["-40", "60", "5", "12"], false),
+        (["-55", "150", "20", "30"], false),
+        (["-3.3", "7.7", "0.37", "4.5"], false),
+        (["20", "85", "1", "14"], false),
+        (["-40", "60", "5", "3.95"], false),
+        // With end soaks: the shortest hours they allow are longer.
+        (["-40", "60", "5", "12"], true),
+        (["-3.3", "7.7", "0.37", "6.5"], true),
+        (["-40", "60", "5", "6.5"], true),
     ]
     .into_iter()
     .enumerate()
     {
         let name = format!("plan{i}.csv");
-        let o = plan(&dir, &name, limits, &["--seed", &i.to_string(), "--candidates", "12"]);
+        let seed = i.to_string();
+        let mut extra = vec!["--seed", &seed, "--candidates", "12"];
+        if soak_ends {
+            extra.push("--soak-ends");
+        }
+        let o = plan(&dir, &name, limits, &extra);
         assert!(o.status.success(), "{limits:?}: {}", stderr(&o));
         assert!(stdout(&o).contains("D-criterion"), "{}", stdout(&o));
         let [lo, hi, rate, hours]: [f64; 4] = limits.map(|v| v.parse().unwrap());
@@ -97,6 +106,7 @@ fn every_plan_keeps_its_limits_for_ordinary_and_odd_arguments() {
             "# hours: ",
             "# criterion: D-optimal",
             "# criterion_value: ",
+            "# predicted_loop_c: ",
         ] {
             assert!(
                 meta.iter().any(|m| m.starts_with(key)),
@@ -109,24 +119,37 @@ fn every_plan_keeps_its_limits_for_ordinary_and_odd_arguments() {
 #[test]
 fn bad_limits_are_refused_in_words_without_a_file() {
     let dir = TempDir::new().unwrap();
-    for (limits, expected) in [
+    let soak: &[&str] = &["--soak-ends"];
+    for (limits, extra, expected) in [
         (
             ["60", "-40", "5", "12"],
+            &[][..],
             "--min-c 60 must lie at least 10 °C below --max-c -40",
         ),
-        (["20", "20", "5", "12"], "at least 10 °C below"),
-        (["-40", "60", "0", "12"], "--max-rate-c-per-min 0: must be above 0"),
-        (["-40", "60", "-2", "12"], "--max-rate-c-per-min -2: must be above 0"),
+        (["20", "20", "5", "12"], &[], "at least 10 °C below"),
+        (["-40", "60", "0", "12"], &[], "--max-rate-c-per-min 0: must be above 0"),
+        (
+            ["-40", "60", "-2", "12"],
+            &[],
+            "--max-rate-c-per-min -2: must be above 0",
+        ),
         (
             ["-40", "60", "5", "2"],
-            "--hours 2: too short for the loop to reach -40 … 60 °C; these limits need at least",
+            &[],
+            "--hours 2: too short; these limits need at least",
         ),
-        (["-40", "60", "5", "-1"], "--hours -1: too short"),
-        (["-40", "60", "5", "3.95"], "a ramp to 60 °C at 5 °C/min and a"),
-        (["-80", "60", "5", "12"], "set points must lie within -55 … 150 °C"),
-        (["-40", "nan", "5", "12"], "--max-c NaN: not a finite number"),
+        (["-40", "60", "5", "-1"], &[], "--hours -1: too short"),
+        (["-40", "60", "5", "-1"], soak, "--hours -1: too short"),
+        (
+            ["-40", "60", "5", "3.95"],
+            soak,
+            "--hours 3.95 --soak-ends: too short for the loop to reach -40 … 60 °C; these limits need at least",
+        ),
+        (["-40", "60", "5", "3.95"], soak, "a ramp to 60 °C at 5 °C/min and a"),
+        (["-80", "60", "5", "12"], &[], "set points must lie within -55 … 150 °C"),
+        (["-40", "nan", "5", "12"], soak, "--max-c NaN: not a finite number"),
     ] {
-        let o = plan(&dir, "bad.csv", limits, &[]);
+        let o = plan(&dir, "bad.csv", limits, extra);
         assert_eq!(o.status.code(), Some(1), "{limits:?}");
         let err = stderr(&o);
         assert!(err.contains(expected), "{limits:?}: {err}");
@@ -321,10 +344,10 @@ fn predicted_ranges(printed: &str) -> [(f64, f64); 2] {
 }
 
 #[test]
-fn a_plan_reaches_the_asked_range_at_the_loop_as_it_predicts_on_a_slower_plant_too() {
-    // The default hours and candidates: what the issue's user ran.
+fn a_plan_soaking_the_ends_reaches_the_asked_range_at_the_loop_as_it_predicts_on_a_slower_plant_too() {
+    // The default hours and candidates, what the issue's user ran, with end soaks.
     let dir = TempDir::new().unwrap();
-    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &[]);
+    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--soak-ends"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let printed = stdout(&o);
     assert!(!printed.contains("warning"), "{printed}");
@@ -456,4 +479,90 @@ fn a_fit_on_a_short_hold_run_says_the_range_of_use_is_not_covered() {
         assert!(stderr(&o).contains("--use-range-c"), "{bad}: {}", stderr(&o));
         assert!(!dir.path().join("x.bin").exists());
     }
+}
+
+/// The data lines (not `#`) of a plan file.
+fn data_lines(path: &Path) -> String {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| format!("{l}\n"))
+        .collect()
+}
+
+#[test]
+fn the_default_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_short() {
+    // Without --soak-ends the plan is what b8dee8a (before end soaks existed)
+    // wrote for the same arguments: these are its lines, segment for segment.
+    let dir = TempDir::new().unwrap();
+    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--format", "segments"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        data_lines(&dir.path().join("p.csv")),
+        "segment,target_c,ramp_min,hold_min
+1,-40,0.0,58.1
+2,60,46.7,80.7
+3,10,37.9,24.2
+4,60,10.1,44.9
+5,40,4.1,43.3
+6,10,6.1,23.9
+7,1.25,1.8,4.9
+8,18.8,3.6,2.4
+9,10,1.8,27.6
+10,40,6.1,66.3
+11,-40,16.1,36.8
+12,-2.74,7.5,3.4
+13,-33.07,6.1,1.3
+14,-3.92,5.9,2.3
+15,-33.42,6.0,2.3
+16,-20,2.7,40.3
+17,60,86.9,7.9
+"
+    );
+    let o = plan(
+        &dir,
+        "q.csv",
+        ["-3.3", "7.7", "0.37", "4.5"],
+        &["--seed", "2", "--candidates", "12"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        data_lines(&dir.path().join("q.csv")),
+        "time_s,chamber_c
+0,-2.2
+3438,-2.2
+5046,7.7
+6432,7.7
+8220,-3.3
+8976,-3.3
+15852,6.6
+16200,6.6
+"
+    );
+    // It turns back from 60 °C before the loop gets there, and says so: the
+    // predicted range on both plants, a warning for each naming the gap and the flag.
+    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed = stdout(&o);
+    let [nominal, slow] = predicted_ranges(&printed);
+    assert!(nominal.1 < 55.0 && slow.1 < nominal.1, "{printed}");
+    assert!(printed.contains("no end soaks: --soak-ends adds them"), "{printed}");
+    for (name, range) in [("the nominal plant", nominal), ("the slow plant", slow)] {
+        let warning = format!(
+            "warning: on {name} the loop is predicted to reach only {:.1} … {:.1} °C, {:.1} °C short of 60 °C (more than the 5.0 °C a fit counts as reached): --soak-ends closes the gap",
+            range.0,
+            range.1,
+            60.0 - range.1
+        );
+        assert!(printed.contains(&warning), "no {warning:?} in {printed}");
+    }
+    // The cold end is reached (the power-on soak starts there): no gap named there.
+    assert!(!printed.contains("short of -40"), "{printed}");
+    let (_, meta) = read_plan(&dir.path().join("p.csv"));
+    let written = format!("# predicted_loop_c: {:.1},{:.1} ", nominal.0, nominal.1);
+    assert!(
+        meta.iter().any(|m| m.starts_with(&written)),
+        "{written:?} not in {meta:?}"
+    );
+    assert!(!meta.iter().any(|m| m.starts_with("# end_soak_min")), "{meta:?}");
 }
