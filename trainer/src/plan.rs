@@ -6,8 +6,14 @@
 //! self-heating transient is recorded, levels across the range, full-rate
 //! steps, bursts of swings, slow ramps, holds as long as the slowest coil
 //! mode) and the one whose lag-bank regression on a nominal plant has the
-//! largest D-criterion ([`d_criterion`]) is kept. docs/plan.md argues the
-//! choice. Deterministic for a given seed.
+//! largest D-criterion ([`d_criterion`]) is kept. On request
+//! (`trainer plan --soak-ends`, [`candidate_soaking_ends`]) every candidate
+//! also soaks at both ends of the range long enough for a loop
+//! [`SLOW_PLANT_FACTOR`] times slower than nominal to settle there
+//! ([`end_soak_s`]), so the run reaches the asked range at the loop on plants
+//! other than the nominal one, at the cost of dynamic excitation. Either
+//! way the plan predicts the loop range on both plants. docs/plan.md argues
+//! the choice. Deterministic for a given seed.
 
 use std::fmt::Write as _;
 
@@ -42,6 +48,15 @@ const LEVELS: usize = 11;
 const MIN_MOVE: f64 = 0.2;
 /// Swing amplitude, fraction of the range.
 const SWING_AMPLITUDE: (f64, f64) = (0.08, 0.2);
+/// The end soaks are sized for a plant whose every time constant (housing,
+/// electronics, coil, hub, thermometers) is this many times the nominal
+/// plant's: a plan must serve designs slower than the one it is scored on.
+pub const SLOW_PLANT_FACTOR: f64 = 1.5;
+/// The loop reaches an end of the asked range when it comes within this
+/// share of the range of it: the share within which `trainer fit` counts a
+/// range of use as covered (the slow coil modes would need hours more to
+/// close the rest).
+pub const REACH_SHARE: f64 = crate::fit::coverage::USE_REACH_SHARE;
 /// Longest plan, h.
 pub const MAX_HOURS: f64 = 168.0;
 /// Candidates drawn unless `--candidates` says otherwise.
@@ -67,6 +82,20 @@ impl PlanLimits {
     pub fn shortest_hours(&self) -> f64 {
         let ramps_s = 2.0 * (self.max_c - self.min_c) / self.max_rate_c_per_min * 60.0;
         (WARM_UP_S.0 + ramps_s + 2.0 * LONG_HOLD_S) / 3600.0
+    }
+
+    /// The shortest run a plan that soaks at the ends needs, h: the
+    /// power-on soak at the cold end (the unit is soaked there before it),
+    /// a full-range ramp at the fastest rate and a soak at the hot end
+    /// ([`end_soak_s`]) long enough for the loop to reach it.
+    pub fn shortest_hours_soaking_ends(&self) -> f64 {
+        let ramp_s = ramp_seconds(self.max_c - self.min_c, self.max_rate_c_per_min);
+        (WARM_UP_S.0 + ramp_s + end_soak_s(self)) / 3600.0
+    }
+
+    /// How close to an end of the range the loop must come to reach it, °C.
+    pub fn reach_c(&self) -> f64 {
+        REACH_SHARE * (self.max_c - self.min_c)
     }
 
     /// Refuses limits no plan can meet, saying which and why.
@@ -118,6 +147,29 @@ impl PlanLimits {
         }
         Ok(())
     }
+
+    /// [`Self::check`], and refuses hours too short for the end soaks
+    /// (`--soak-ends`), saying how long they need.
+    pub fn check_soaking_ends(&self) -> Result<(), String> {
+        self.check()?;
+        let shortest = self.shortest_hours_soaking_ends();
+        if self.hours < shortest {
+            return Err(format!(
+                "--hours {} --soak-ends: too short for the loop to reach {} … {} °C; these limits need at least {:.2} h (a {:.0}-min power-on soak at {} °C, a ramp to {} °C at {} °C/min and a {:.0}-min soak there: what a loop {SLOW_PLANT_FACTOR}× slower than the nominal plant's needs to come within {:.1} °C of where it settles)",
+                self.hours,
+                self.min_c,
+                self.max_c,
+                shortest,
+                WARM_UP_S.0 / 60.0,
+                self.min_c,
+                self.max_c,
+                self.max_rate_c_per_min,
+                end_soak_s(self) / 60.0,
+                self.reach_c()
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// One step of a chamber program: ramp to `target_c` at `rate_c_per_min`, then hold.
@@ -146,6 +198,13 @@ pub struct Plan {
     pub candidates: usize,
     /// Seed of the draw.
     pub seed: u64,
+    /// Lowest and highest loop temperature the nominal plant reads under the plan, °C.
+    pub loop_range_c: (f64, f64),
+    /// The same on a plant [`SLOW_PLANT_FACTOR`] times slower than nominal, °C.
+    pub slow_loop_range_c: (f64, f64),
+    /// With `--soak-ends`, each end soak lasts at least this, s
+    /// ([`end_soak_s`]); `None` without (the plan as before the end soaks).
+    pub end_soak_s: Option<f64>,
 }
 
 impl Plan {
@@ -199,7 +258,69 @@ impl Plan {
             first.hold_s / 60.0
         );
         let _ = writeln!(s, "# duration_h: {:.3}", self.duration_s() / 3600.0);
+        if let Some(end_soak_s) = self.end_soak_s {
+            let _ = writeln!(
+                s,
+                "# end_soak_min: {:.1} (at each end of the range: a loop {SLOW_PLANT_FACTOR}× slower than nominal comes within {:.1} °C of where it settles)",
+                end_soak_s / 60.0,
+                self.limits.reach_c()
+            );
+        }
+        let _ = writeln!(
+            s,
+            "# predicted_loop_c: {:.1},{:.1} (nominal plant; {:.1},{:.1} with every time constant {SLOW_PLANT_FACTOR}× nominal)",
+            self.loop_range_c.0, self.loop_range_c.1, self.slow_loop_range_c.0, self.slow_loop_range_c.1
+        );
         s
+    }
+
+    /// Whether a loop of this range reaches both ends of the asked range
+    /// (within [`PlanLimits::reach_c`]).
+    pub fn reaches(&self, loop_range_c: (f64, f64)) -> bool {
+        let reach_c = self.limits.reach_c();
+        loop_range_c.0 <= self.limits.min_c + reach_c && loop_range_c.1 >= self.limits.max_c - reach_c
+    }
+
+    /// What the plan predicts at the loop, in a line or more: the range on
+    /// the nominal plant and on the slow one, and a warning for each that
+    /// stays short of an end of the asked range by more than
+    /// [`PlanLimits::reach_c`], saying by how much and what closes the gap.
+    pub fn loop_range_lines(&self) -> Vec<String> {
+        let (min_c, max_c) = (self.limits.min_c, self.limits.max_c);
+        let (lo, hi) = self.loop_range_c;
+        let (slo, shi) = self.slow_loop_range_c;
+        let soaks = match self.end_soak_s {
+            Some(s) => format!("soaks of {:.1} min or more at each end", s / 60.0),
+            None => "no end soaks: --soak-ends adds them".to_owned(),
+        };
+        let mut out = vec![format!(
+            "predicted loop range: {lo:.1} … {hi:.1} °C on the nominal plant, {slo:.1} … {shi:.1} °C with every time constant {SLOW_PLANT_FACTOR}× nominal (asked {min_c} … {max_c} °C; {soaks})"
+        )];
+        for (name, range) in [
+            ("the nominal plant", self.loop_range_c),
+            ("the slow plant", self.slow_loop_range_c),
+        ] {
+            if self.reaches(range) {
+                continue;
+            }
+            let short: Vec<String> = [(range.0 - min_c, min_c), (max_c - range.1, max_c)]
+                .into_iter()
+                .filter(|&(gap, _)| gap > self.limits.reach_c())
+                .map(|(gap, end)| format!("{gap:.1} °C short of {end} °C"))
+                .collect();
+            let remedy = match self.end_soak_s {
+                None => "--soak-ends closes the gap (more --hours may)",
+                Some(_) => "its self-heating or lags keep it from the ends; more --hours may close the gap",
+            };
+            out.push(format!(
+                "warning: on {name} the loop is predicted to reach only {:.1} … {:.1} °C, {} (more than the {:.1} °C a fit counts as reached): {remedy}",
+                range.0,
+                range.1,
+                short.join(" and "),
+                self.limits.reach_c()
+            ));
+        }
+        out
     }
 
     /// The set-point CSV `trainer simulate --chamber-profile` reads.
@@ -330,6 +451,7 @@ fn set_point(c: f64, l: &PlanLimits) -> f64 {
 }
 
 /// Builds a segment list up to a time budget.
+#[derive(Clone)]
 struct Builder<'a> {
     limits: &'a PlanLimits,
     segments: Vec<Segment>,
@@ -338,6 +460,53 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
+    /// Draws one move of the design family with `rng` and appends it: a
+    /// burst of swings at the full rate about a centre near the current
+    /// level, legs alternating sides, or a move to another level, slow or
+    /// fast. With `end_soak_s` (`--soak-ends`), a move to an end of the
+    /// range holds there at least that long, for the loop to settle.
+    fn draw_move(&mut self, rng: &mut impl Rng, end_soak_s: Option<f64>) {
+        let l = self.limits;
+        let span = l.max_c - l.min_c;
+        let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
+        let r = l.max_rate_c_per_min;
+        let kind = rng.random_range(0..10u32);
+        let hold_s = match rng.random_range(0..10u32) {
+            0..=3 => rng.random_range(600.0..=1500.0),
+            4..=6 => rng.random_range(1500.0..=2700.0),
+            _ => rng.random_range(LONG_HOLD_S..=1.4 * LONG_HOLD_S),
+        };
+        if kind <= 1 {
+            let legs = rng.random_range(2..=4);
+            let reach = span * SWING_AMPLITUDE.1;
+            let centre = self.now_c.clamp(l.min_c + reach, l.max_c - reach);
+            let mut side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            for _ in 0..legs {
+                let amp = span * rng.random_range(SWING_AMPLITUDE.0..=SWING_AMPLITUDE.1);
+                self.ramp_hold(centre + side * amp, r, rng.random_range(0.0..=300.0));
+                side = -side;
+            }
+            self.ramp_hold(centre, r, hold_s);
+            return;
+        }
+        let target = loop {
+            let t = level(rng.random_range(0..LEVELS));
+            if (t - self.now_c).abs() >= MIN_MOVE * span {
+                break t;
+            }
+        };
+        let rate = match kind {
+            2..=5 => r,
+            6..=7 => r * rng.random_range(0.3..=0.7),
+            _ => r * rng.random_range(0.1..=0.3),
+        };
+        let hold_s = match end_soak_s {
+            Some(soak_s) if is_end(set_point(target, l), l) => hold_s.max(soak_s),
+            _ => hold_s,
+        };
+        self.ramp_hold(target, rate, hold_s);
+    }
+
     fn ramp_hold(&mut self, target_c: f64, rate: f64, hold_s: f64) {
         let target_c = set_point(target_c, self.limits);
         if (target_c - self.now_c).abs() < 0.5 {
@@ -364,12 +533,43 @@ impl Builder<'_> {
     }
 }
 
+/// Whether `c` is an end of the range (a set point rounds to 0.01 °C).
+fn is_end(c: f64, l: &PlanLimits) -> bool {
+    (c - l.min_c).abs() < 0.006 || (c - l.max_c).abs() < 0.006
+}
+
+/// The ends of the range still to visit from `now_c`, nearest first.
+fn ends_left(l: &PlanLimits, now_c: f64, low_left: bool, high_left: bool) -> Vec<f64> {
+    let mut ends: Vec<f64> = [(l.min_c, low_left), (l.max_c, high_left)]
+        .into_iter()
+        .filter(|e| e.1)
+        .map(|e| e.0)
+        .collect();
+    ends.sort_by(|a, b| (a - now_c).abs().total_cmp(&(b - now_c).abs()));
+    ends
+}
+
+/// Seconds to visit `ends` from `now_c` in turn at the full rate with an
+/// `end_soak_s` soak at each.
+fn visits_s(l: &PlanLimits, now_c: f64, ends: &[f64], end_soak_s: f64) -> f64 {
+    let mut at = now_c;
+    let mut s = 0.0;
+    for &e in ends {
+        let target = set_point(e, l);
+        if (target - at).abs() >= 0.01 {
+            s += ramp_seconds(target - at, l.max_rate_c_per_min);
+        }
+        s += whole_minutes(end_soak_s);
+        at = target;
+    }
+    s
+}
+
 /// One candidate of the design family, drawn with `rng`, cut to the time budget.
 pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
     let l = limits;
     let span = l.max_c - l.min_c;
     let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
-    let r = l.max_rate_c_per_min;
     let end_s = (l.hours * 3600.0 / TENTH_MIN_S).floor() * TENTH_MIN_S;
     // Cold start: soaked in the lowest fifth of the range.
     let start = set_point(level(rng.random_range(0..=2)), l);
@@ -385,43 +585,69 @@ pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
     };
     b.t_s = b.segments[0].hold_s;
     while b.t_s < end_s {
-        let kind = rng.random_range(0..10u32);
-        let hold_s = match rng.random_range(0..10u32) {
-            0..=3 => rng.random_range(600.0..=1500.0),
-            4..=6 => rng.random_range(1500.0..=2700.0),
-            _ => rng.random_range(LONG_HOLD_S..=1.4 * LONG_HOLD_S),
-        };
-        match kind {
-            // A burst of swings at the full rate about a centre near the
-            // current level, legs alternating sides.
-            0..=1 => {
-                let legs = rng.random_range(2..=4);
-                let reach = span * SWING_AMPLITUDE.1;
-                let centre = b.now_c.clamp(l.min_c + reach, l.max_c - reach);
-                let mut side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-                for _ in 0..legs {
-                    let amp = span * rng.random_range(SWING_AMPLITUDE.0..=SWING_AMPLITUDE.1);
-                    b.ramp_hold(centre + side * amp, r, rng.random_range(0.0..=300.0));
-                    side = -side;
-                }
-                b.ramp_hold(centre, r, hold_s);
-            }
-            // A move to another level, slow or fast.
-            _ => {
-                let target = loop {
-                    let t = level(rng.random_range(0..LEVELS));
-                    if (t - b.now_c).abs() >= MIN_MOVE * span {
-                        break t;
-                    }
-                };
-                let rate = match kind {
-                    2..=5 => r,
-                    6..=7 => r * rng.random_range(0.3..=0.7),
-                    _ => r * rng.random_range(0.1..=0.3),
-                };
-                b.ramp_hold(target, rate, hold_s);
-            }
+        b.draw_move(rng, None);
+    }
+    cut(b.segments, end_s)
+}
+
+/// One candidate of the design family, drawn with `rng`, cut to the time
+/// budget, with a soak of at least `end_soak_s` at each end of the range
+/// (`trainer plan --soak-ends`; without it, [`candidate`]). The power-on
+/// soak counts for the cold end when it starts there: the unit is soaked
+/// before it. A move is drawn only while the ends not yet
+/// visited still fit in the budget after it; then they are visited, nearest
+/// first, at the full rate.
+pub fn candidate_soaking_ends(limits: &PlanLimits, end_soak_s: f64, rng: &mut impl Rng) -> Vec<Segment> {
+    let l = limits;
+    let span = l.max_c - l.min_c;
+    let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
+    let is_end = |c: f64| is_end(c, l);
+    let r = l.max_rate_c_per_min;
+    let end_s = (l.hours * 3600.0 / TENTH_MIN_S).floor() * TENTH_MIN_S;
+    // Cold start: soaked in the lowest fifth of the range; at its bottom
+    // when the budget has no room for a soak there later.
+    let drawn = set_point(level(rng.random_range(0..=2)), l);
+    let fits = |start: f64| {
+        let ends = ends_left(l, start, (start - l.min_c).abs() >= 0.006, true);
+        WARM_UP_S.0 + visits_s(l, start, &ends, end_soak_s) <= end_s
+    };
+    let start = if fits(drawn) { drawn } else { set_point(l.min_c, l) };
+    let mut low_left = (start - l.min_c).abs() >= 0.006;
+    let mut high_left = true;
+    let ends_need_s = visits_s(l, start, &ends_left(l, start, low_left, high_left), end_soak_s);
+    let warm_up_s =
+        whole_minutes(rng.random_range(WARM_UP_S.0..=WARM_UP_S.1)).min(floor_minutes(end_s - ends_need_s).max(0.0));
+    let mut b = Builder {
+        limits: l,
+        segments: vec![Segment {
+            target_c: start,
+            ramp_s: 0.0,
+            hold_s: warm_up_s,
+        }],
+        now_c: start,
+        t_s: 0.0,
+    };
+    b.t_s = b.segments[0].hold_s;
+    while b.t_s < end_s {
+        let before = b.clone();
+        b.draw_move(rng, Some(end_soak_s));
+        let at_end = is_end(b.now_c);
+        let (low, high) = (
+            low_left && !(at_end && b.now_c < l.min_c + 0.5 * span),
+            high_left && !(at_end && b.now_c > l.min_c + 0.5 * span),
+        );
+        let need_s = visits_s(l, b.now_c, &ends_left(l, b.now_c, low, high), end_soak_s);
+        let visited_now = (low, high) != (low_left, high_left);
+        if b.t_s + need_s > end_s && (need_s > 0.0 || visited_now) {
+            // This move leaves no room for the ends (or its own end soak
+            // runs past the budget): drop it and visit the ends instead.
+            b = before;
+            break;
         }
+        (low_left, high_left) = (low, high);
+    }
+    for e in ends_left(l, b.now_c, low_left, high_left) {
+        b.ramp_hold(e, r, end_soak_s);
     }
     cut(b.segments, end_s)
 }
@@ -452,8 +678,10 @@ fn cut(mut segments: Vec<Segment>, end_s: f64) -> Vec<Segment> {
     out
 }
 
-/// The loop sensor's reading on the noise-free nominal plant at 1 s, °C.
-pub fn nominal_loop_temps(segments: &[Segment], plant: &PlantParams) -> Vec<f64> {
+/// The loop sensor's reading on the noise-free `plant` at 1 s under the
+/// set points of `segments`, °C; the unit soaked at the first set point
+/// and switched on at 0 s.
+pub fn loop_temps(segments: &[Segment], plant: &PlantParams) -> Vec<f64> {
     let k = knots(segments);
     let end = k.last().map_or(0.0, |k| k.0) as usize;
     let start_c = k.first().map_or(20.0, |k| k.1);
@@ -531,16 +759,97 @@ pub fn d_criterion(temps_c: &[f64], limits: &PlanLimits) -> f64 {
     }
 }
 
+/// `plant` with every time constant (housing, electronics, coil, hub,
+/// thermometers) `factor` times as long.
+pub fn slowed(plant: &PlantParams, factor: f64) -> PlantParams {
+    let mut p = plant.clone();
+    for tau in [
+        &mut p.tau_base_s,
+        &mut p.tau_top_s,
+        &mut p.tau_electronics_s,
+        &mut p.tau_coil_outer_s,
+        &mut p.tau_coil_layer_s,
+    ] {
+        *tau *= factor;
+    }
+    if let Some(hub) = p.hub.as_mut() {
+        hub.tau_base_s *= factor;
+        hub.tau_coil_s *= factor;
+    }
+    for lag in &mut p.thermometer_lags_s {
+        *lag *= factor;
+    }
+    p
+}
+
+/// The soak at an end of the range a plan holds, s (whole tenths of a
+/// minute): after a ramp across the whole range at the full rate, the time
+/// the loop of the nominal plant slowed [`SLOW_PLANT_FACTOR`] times takes
+/// to come and stay within [`PlanLimits::reach_c`] of where it settles at
+/// that end, the longer of the two directions, and never shorter than a
+/// long hold.
+pub fn end_soak_s(limits: &PlanLimits) -> f64 {
+    let slow = slowed(&SimParams::default().plant, SLOW_PLANT_FACTOR);
+    let ramp_s = ramp_seconds(limits.max_c - limits.min_c, limits.max_rate_c_per_min);
+    // Powered long before the ramp, so the self-heating transient is over;
+    // held long after it, so the loop has settled by the end.
+    let (before_s, after_s) = (12.0 * 3600.0, 24.0 * 3600.0);
+    let settle_s = |from_c: f64, to_c: f64| {
+        let segments = [
+            Segment {
+                target_c: from_c,
+                ramp_s: 0.0,
+                hold_s: before_s,
+            },
+            Segment {
+                target_c: to_c,
+                ramp_s,
+                hold_s: after_s,
+            },
+        ];
+        let temps = loop_temps(&segments, &slow);
+        // Where it settles: the set point plus what self-heating adds, which no plan removes.
+        let settled_c = temps.last().copied().unwrap_or(to_c);
+        let last_out = temps
+            .iter()
+            .rposition(|t| (t - settled_c).abs() > limits.reach_c())
+            .map_or(0, |i| i + 1);
+        (last_out as f64 - before_s - ramp_s).max(0.0)
+    };
+    let s = settle_s(limits.min_c, limits.max_c)
+        .max(settle_s(limits.max_c, limits.min_c))
+        .max(LONG_HOLD_S);
+    (s / TENTH_MIN_S).ceil() * TENTH_MIN_S
+}
+
+/// Lowest and highest of `temps_c`, °C.
+fn range_of(temps_c: &[f64]) -> (f64, f64) {
+    temps_c.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+        (lo.min(t), hi.max(t))
+    })
+}
+
 /// Designs a plan within `limits`: the best of `candidates` draws from
-/// `seed` by the D-criterion on the documented gyro's plant.
-pub fn design(limits: &PlanLimits, seed: u64, candidates: usize) -> Result<Plan, String> {
-    limits.check()?;
+/// `seed` by the D-criterion on the documented gyro's plant; with
+/// `soak_ends`, drawn by [`candidate_soaking_ends`], else by [`candidate`]
+/// (the draws are then the same as before end soaks existed).
+pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, soak_ends: bool) -> Result<Plan, String> {
+    let end_soak_s = if soak_ends {
+        limits.check_soaking_ends()?;
+        Some(end_soak_s(limits))
+    } else {
+        limits.check()?;
+        None
+    };
     let plant = SimParams::default().plant;
     let indices: Vec<u64> = (0..candidates.max(1) as u64).collect();
     let scored = crate::fit::rbf::parallel_map(&indices, |&i| {
         let mut rng = Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(i));
-        let segments = candidate(limits, &mut rng);
-        let score = d_criterion(&nominal_loop_temps(&segments, &plant), limits);
+        let segments = match end_soak_s {
+            Some(s) => candidate_soaking_ends(limits, s, &mut rng),
+            None => candidate(limits, &mut rng),
+        };
+        let score = d_criterion(&loop_temps(&segments, &plant), limits);
         (segments, score)
     });
     let mut scores: Vec<f64> = scored.iter().map(|s| s.1).collect();
@@ -551,6 +860,8 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize) -> Result<Plan,
         .filter(|s| s.1.is_finite())
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .ok_or_else(|| "no candidate plan has an invertible information matrix".to_owned())?;
+    let loop_range_c = range_of(&loop_temps(&segments, &plant));
+    let slow_loop_range_c = range_of(&loop_temps(&segments, &slowed(&plant, SLOW_PLANT_FACTOR)));
     Ok(Plan {
         limits: *limits,
         segments,
@@ -558,6 +869,9 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize) -> Result<Plan,
         median_criterion,
         candidates: candidates.max(1),
         seed,
+        loop_range_c,
+        slow_loop_range_c,
+        end_soak_s,
     })
 }
 
@@ -575,7 +889,7 @@ const PLOT_SIZE: (u32, u32) = (1000, 480);
 
 /// The plan drawn: chamber set points and the nominal loop temperature over hours.
 pub fn plot(plan: &Plan, format: PlotFormat) -> anyhow::Result<Vec<u8>> {
-    let temps = nominal_loop_temps(&plan.segments, &SimParams::default().plant);
+    let temps = loop_temps(&plan.segments, &SimParams::default().plant);
     match format {
         PlotFormat::Svg => {
             let mut svg = String::new();
@@ -671,9 +985,14 @@ mod tests {
 
     #[test]
     fn candidates_keep_every_limit_and_end_within_the_budget() {
-        for seed in 0..40 {
+        let soak_s = end_soak_s(&LIMITS);
+        for (seed, soak_ends) in (0..40).flat_map(|seed| [(seed, false), (seed, true)]) {
             let mut rng = Pcg64::seed_from_u64(seed);
-            let segments = candidate(&LIMITS, &mut rng);
+            let segments = if soak_ends {
+                candidate_soaking_ends(&LIMITS, soak_s, &mut rng)
+            } else {
+                candidate(&LIMITS, &mut rng)
+            };
             let k = knots(&segments);
             assert_eq!(k[0].0.to_bits(), 0.0f64.to_bits(), "seed {seed}: starts at 0");
             assert!(k.last().unwrap().0 <= 12.0 * 3600.0, "seed {seed}: {:?}", k.last());
@@ -711,24 +1030,29 @@ mod tests {
                 hold_s: 10_000.0,
             },
         ];
-        let slow = d_criterion(&nominal_loop_temps(&cycle, &plant), &LIMITS);
-        let plan = design(&LIMITS, 1, 8).unwrap();
+        let slow = d_criterion(&loop_temps(&cycle, &plant), &LIMITS);
+        let plan = design(&LIMITS, 1, 8, false).unwrap();
         assert!(plan.criterion > slow + 1.0, "plan {} vs cycle {slow}", plan.criterion);
         assert!(plan.criterion >= plan.median_criterion);
     }
 
     #[test]
     fn the_same_seed_gives_the_same_plan() {
-        let a = design(&LIMITS, 7, 6).unwrap();
-        let b = design(&LIMITS, 7, 6).unwrap();
-        assert_eq!(a.set_points_csv(), b.set_points_csv());
-        assert_ne!(a.set_points_csv(), design(&LIMITS, 8, 6).unwrap().set_points_csv());
+        for soak_ends in [false, true] {
+            let a = design(&LIMITS, 7, 6, soak_ends).unwrap();
+            let b = design(&LIMITS, 7, 6, soak_ends).unwrap();
+            assert_eq!(a.set_points_csv(), b.set_points_csv());
+            assert_ne!(
+                a.set_points_csv(),
+                design(&LIMITS, 8, 6, soak_ends).unwrap().set_points_csv()
+            );
+        }
     }
 
     #[test]
     fn segment_tables_hold_whole_degrees_and_whole_minutes_of_hold_after_a_stated_pre_soak() {
-        for seed in [1, 3, 7] {
-            let plan = design(&LIMITS, seed, 4).unwrap();
+        for (seed, soak_ends) in [(1, false), (3, false), (7, true)] {
+            let plan = design(&LIMITS, seed, 4, soak_ends).unwrap();
             let table = plan.segments_csv();
             for row in table.lines().filter(|l| !l.starts_with('#')).skip(1) {
                 let f: Vec<&str> = row.split(',').collect();

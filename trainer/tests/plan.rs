@@ -46,18 +46,27 @@ fn plan(dir: &TempDir, name: &str, limits: [&str; 4], extra: &[&str]) -> std::pr
 #[test]
 fn every_plan_keeps_its_limits_for_ordinary_and_odd_arguments() {
     let dir = TempDir::new().unwrap();
-    for (i, limits) in [
-        ["-40", "60", "5", "12"],
-        ["-55", "150", "20", "30"],
-        ["-3.3", "7.7", "0.37", "4.5"],
-        ["20", "85", "1", "14"],
-        ["-40", "60", "5", "3.95"],
+    for (i, (limits, soak_ends)) in [
+        (["-40", "60", "5", "12"], false),
+        (["-55", "150", "20", "30"], false),
+        (["-3.3", "7.7", "0.37", "4.5"], false),
+        (["20", "85", "1", "14"], false),
+        (["-40", "60", "5", "3.95"], false),
+        // With end soaks: the shortest hours they allow are longer.
+        (["-40", "60", "5", "12"], true),
+        (["-3.3", "7.7", "0.37", "6.5"], true),
+        (["-40", "60", "5", "6.5"], true),
     ]
     .into_iter()
     .enumerate()
     {
         let name = format!("plan{i}.csv");
-        let o = plan(&dir, &name, limits, &["--seed", &i.to_string(), "--candidates", "12"]);
+        let seed = i.to_string();
+        let mut extra = vec!["--seed", &seed, "--candidates", "12"];
+        if soak_ends {
+            extra.push("--soak-ends");
+        }
+        let o = plan(&dir, &name, limits, &extra);
         assert!(o.status.success(), "{limits:?}: {}", stderr(&o));
         assert!(stdout(&o).contains("D-criterion"), "{}", stdout(&o));
         let [lo, hi, rate, hours]: [f64; 4] = limits.map(|v| v.parse().unwrap());
@@ -97,6 +106,7 @@ fn every_plan_keeps_its_limits_for_ordinary_and_odd_arguments() {
             "# hours: ",
             "# criterion: D-optimal",
             "# criterion_value: ",
+            "# predicted_loop_c: ",
         ] {
             assert!(
                 meta.iter().any(|m| m.starts_with(key)),
@@ -109,23 +119,37 @@ fn every_plan_keeps_its_limits_for_ordinary_and_odd_arguments() {
 #[test]
 fn bad_limits_are_refused_in_words_without_a_file() {
     let dir = TempDir::new().unwrap();
-    for (limits, expected) in [
+    let soak: &[&str] = &["--soak-ends"];
+    for (limits, extra, expected) in [
         (
             ["60", "-40", "5", "12"],
+            &[][..],
             "--min-c 60 must lie at least 10 °C below --max-c -40",
         ),
-        (["20", "20", "5", "12"], "at least 10 °C below"),
-        (["-40", "60", "0", "12"], "--max-rate-c-per-min 0: must be above 0"),
-        (["-40", "60", "-2", "12"], "--max-rate-c-per-min -2: must be above 0"),
+        (["20", "20", "5", "12"], &[], "at least 10 °C below"),
+        (["-40", "60", "0", "12"], &[], "--max-rate-c-per-min 0: must be above 0"),
+        (
+            ["-40", "60", "-2", "12"],
+            &[],
+            "--max-rate-c-per-min -2: must be above 0",
+        ),
         (
             ["-40", "60", "5", "2"],
+            &[],
             "--hours 2: too short; these limits need at least",
         ),
-        (["-40", "60", "5", "-1"], "--hours -1: too short"),
-        (["-80", "60", "5", "12"], "set points must lie within -55 … 150 °C"),
-        (["-40", "nan", "5", "12"], "--max-c NaN: not a finite number"),
+        (["-40", "60", "5", "-1"], &[], "--hours -1: too short"),
+        (["-40", "60", "5", "-1"], soak, "--hours -1: too short"),
+        (
+            ["-40", "60", "5", "3.95"],
+            soak,
+            "--hours 3.95 --soak-ends: too short for the loop to reach -40 … 60 °C; these limits need at least",
+        ),
+        (["-40", "60", "5", "3.95"], soak, "a ramp to 60 °C at 5 °C/min and a"),
+        (["-80", "60", "5", "12"], &[], "set points must lie within -55 … 150 °C"),
+        (["-40", "nan", "5", "12"], soak, "--max-c NaN: not a finite number"),
     ] {
-        let o = plan(&dir, "bad.csv", limits, &[]);
+        let o = plan(&dir, "bad.csv", limits, extra);
         assert_eq!(o.status.code(), Some(1), "{limits:?}");
         let err = stderr(&o);
         assert!(err.contains(expected), "{limits:?}: {err}");
@@ -297,4 +321,250 @@ fn a_plan_runs_through_the_simulator_and_a_fit_reports_its_coverage() {
         assert!(report.contains(gap), "{gap}: {report}");
     }
     assert!(!report.contains("missing: nothing"), "{report}");
+}
+
+/// Lowest and highest `temp_c` of a recorded run, °C.
+fn loop_range_c(run: &Path) -> (f64, f64) {
+    let text = std::fs::read_to_string(run).unwrap();
+    let mut rows = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = rows.next().unwrap().split(',').collect();
+    let col = header.iter().position(|&c| c == "temp_c").unwrap();
+    rows.map(|l| l.split(',').nth(col).unwrap().parse::<f64>().unwrap())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| (lo.min(t), hi.max(t)))
+}
+
+/// The two ranges of `predicted loop range: A … B °C on the nominal plant, C … D °C with …`.
+fn predicted_ranges(printed: &str) -> [(f64, f64); 2] {
+    let line = printed
+        .lines()
+        .find_map(|l| l.strip_prefix("predicted loop range: "))
+        .unwrap_or_else(|| panic!("no predicted loop range in {printed}"));
+    let numbers: Vec<f64> = line.split([' ', ',']).filter_map(|w| w.parse().ok()).take(4).collect();
+    [(numbers[0], numbers[1]), (numbers[2], numbers[3])]
+}
+
+#[test]
+fn a_plan_soaking_the_ends_reaches_the_asked_range_at_the_loop_as_it_predicts_on_a_slower_plant_too() {
+    // The default hours and candidates, what the issue's user ran, with end soaks.
+    let dir = TempDir::new().unwrap();
+    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--soak-ends"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed = stdout(&o);
+    assert!(!printed.contains("warning"), "{printed}");
+    let [nominal, slow] = predicted_ranges(&printed);
+    let p = dir.path().join("p.csv");
+    let (_, meta) = read_plan(&p);
+    assert!(meta.iter().any(|m| m.starts_with("# predicted_loop_c: ")), "{meta:?}");
+    // Every time constant of the documented gyro 1.5× (the plant the soaks are sized for).
+    let params = dir.path().join("slow.json");
+    std::fs::write(
+        &params,
+        r#"{"plant": {"tau_base_s": 1350, "tau_top_s": 2250, "tau_electronics_s": 900,
+            "tau_coil_outer_s": 750, "tau_coil_layer_s": 1050,
+            "thermometer_lags_s": [7.5, 7.5, 12, 30, 7.5, 22.5, 450, 45]}}"#,
+    )
+    .unwrap();
+    for (name, predicted, extra) in [
+        ("nominal", nominal, vec![]),
+        ("slow", slow, vec!["--params", params.to_str().unwrap()]),
+    ] {
+        let run = dir.path().join(format!("{name}.csv"));
+        let o = trainer(
+            &[
+                &[
+                    "simulate",
+                    "--chamber-profile",
+                    p.to_str().unwrap(),
+                    "-o",
+                    run.to_str().unwrap(),
+                ][..],
+                &extra,
+            ]
+            .concat(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let (lo, hi) = loop_range_c(&run);
+        // Within 5 % of the range (5 °C) of each end: what `trainer fit` counts as covered.
+        assert!(lo <= -35.0 && hi >= 55.0, "{name}: the loop read {lo} … {hi} °C");
+        // The prediction is the noise-free plant printed to 0.1 °C; the run adds
+        // thermometer noise (2 mK) and TMP117 steps (7.8 mK).
+        for (p, m) in [(predicted.0, lo), (predicted.1, hi)] {
+            assert!(
+                (p - m).abs() <= 0.1,
+                "{name}: predicted {predicted:?}, simulated {lo} … {hi}"
+            );
+        }
+    }
+    // The nominal loop settles at both ends, within 2 °C of them.
+    assert!(nominal.0 <= -38.0 && nominal.1 >= 58.0, "{nominal:?}");
+    // And a fit on the run, told the range of use, misses none of it.
+    let o = trainer(&[
+        "fit",
+        "-q",
+        dir.path().join("nominal.csv").to_str().unwrap(),
+        "--use-range-c",
+        "-40,60",
+        "-o",
+        dir.path().join("m.bin").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = stdout(&o);
+    assert!(!report.contains("range of use"), "{report}");
+    assert!(!report.contains("no settled end"), "{report}");
+}
+
+#[test]
+fn a_fit_on_a_short_hold_run_says_the_range_of_use_is_not_covered() {
+    // The designed run: 5-°C/min chamber ramps with short holds; the loop
+    // reads −20 … 40 °C and turns at its top still rising.
+    let dir = TempDir::new().unwrap();
+    let run = dir.path().join("designed.csv");
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        "designed",
+        "--rate-hz",
+        "0.2",
+        "-o",
+        run.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let fit = |extra: &[&str]| {
+        let model = dir.path().join("m.bin");
+        let o = trainer(
+            &[
+                &[
+                    "fit",
+                    "-q",
+                    "--force",
+                    run.to_str().unwrap(),
+                    "-o",
+                    model.to_str().unwrap(),
+                ][..],
+                extra,
+            ]
+            .concat(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        stdout(&o)
+    };
+    let report = fit(&[]);
+    assert!(!report.contains("missing: nothing"), "{report}");
+    assert!(
+        report.contains("missing: no settled end: the loop peaked at "),
+        "{report}"
+    );
+    let report = fit(&["--use-range-c", "-40,60", "--use-rate-c-per-min", "3"]);
+    assert!(!report.contains("missing: nothing"), "{report}");
+    assert!(
+        report.contains("missing: range of use -40 … 60 °C not covered: the runs' loop read -20.0 … "),
+        "{report}"
+    );
+    assert!(
+        report.contains("missing: rates of use up to ±3 °C/min not covered"),
+        "{report}"
+    );
+    // A range of use that is not one is refused before any work.
+    for bad in ["60,-40", "-40", "-40,60,80", "a,b"] {
+        let o = trainer(&[
+            "fit",
+            "-q",
+            run.to_str().unwrap(),
+            "--use-range-c",
+            bad,
+            "-o",
+            dir.path().join("x.bin").to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{bad}");
+        assert!(stderr(&o).contains("--use-range-c"), "{bad}: {}", stderr(&o));
+        assert!(!dir.path().join("x.bin").exists());
+    }
+}
+
+/// The data lines (not `#`) of a plan file.
+fn data_lines(path: &Path) -> String {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| format!("{l}\n"))
+        .collect()
+}
+
+#[test]
+fn the_default_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_short() {
+    // Without --soak-ends the plan is the one b8dee8a (before end soaks
+    // existed) drew for the same arguments, segment for segment, written
+    // with whole-degree set points and whole-minute holds as segment tables
+    // are since (issue 34).
+    let dir = TempDir::new().unwrap();
+    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--format", "segments"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        data_lines(&dir.path().join("p.csv")),
+        "segment,target_c,ramp_min,hold_min
+1,-40,0.0,58
+2,60,46.7,81
+3,10,37.9,24
+4,60,10.1,45
+5,40,4.1,43
+6,10,6.1,24
+7,1,1.9,5
+8,19,3.7,2
+9,10,1.9,28
+10,40,6.1,66
+11,-40,16.1,37
+12,-3,7.5,3
+13,-33,6.1,1
+14,-4,5.9,2
+15,-33,5.9,2
+16,-20,2.7,40
+17,60,86.9,9
+"
+    );
+    let o = plan(
+        &dir,
+        "q.csv",
+        ["-3.3", "7.7", "0.37", "4.5"],
+        &["--seed", "2", "--candidates", "12"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        data_lines(&dir.path().join("q.csv")),
+        "time_s,chamber_c
+0,-2
+3420,-2
+4998,7.7
+6378,7.7
+8118,-3
+8898,-3
+15846,7
+16146,7
+"
+    );
+    // It turns back from 60 °C before the loop gets there, and says so: the
+    // predicted range on both plants, a warning for each naming the gap and the flag.
+    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed = stdout(&o);
+    let [nominal, slow] = predicted_ranges(&printed);
+    assert!(nominal.1 < 55.0 && slow.1 < nominal.1, "{printed}");
+    assert!(printed.contains("no end soaks: --soak-ends adds them"), "{printed}");
+    for (name, range) in [("the nominal plant", nominal), ("the slow plant", slow)] {
+        let warning = format!(
+            "warning: on {name} the loop is predicted to reach only {:.1} … {:.1} °C, {:.1} °C short of 60 °C (more than the 5.0 °C a fit counts as reached): --soak-ends closes the gap",
+            range.0,
+            range.1,
+            60.0 - range.1
+        );
+        assert!(printed.contains(&warning), "no {warning:?} in {printed}");
+    }
+    // The cold end is reached (the power-on soak starts there): no gap named there.
+    assert!(!printed.contains("short of -40"), "{printed}");
+    let (_, meta) = read_plan(&dir.path().join("p.csv"));
+    let written = format!("# predicted_loop_c: {:.1},{:.1} ", nominal.0, nominal.1);
+    assert!(
+        meta.iter().any(|m| m.starts_with(&written)),
+        "{written:?} not in {meta:?}"
+    );
+    assert!(!meta.iter().any(|m| m.starts_with("# end_soak_min")), "{meta:?}");
 }

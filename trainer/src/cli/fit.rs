@@ -10,6 +10,7 @@ use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::blobfile::encode_model;
 use trainer::dataset::{RunFiles, RunSet};
 use trainer::evaluate::{RunEvaluation, evaluate_blocks, evaluate_reader, print_table};
+use trainer::fit::coverage::InUse;
 use trainer::fit::{self, FitOptions, FitOutcome};
 use trainer::limits::MAX_FOLDS;
 use trainer::output::{self, Output, StagedDir, Transaction};
@@ -192,6 +193,43 @@ pub struct Args {
     /// or changes faster than 30 °C/min by time_s (in hours?).
     #[arg(long, help_heading = "Data")]
     allow_implausible: bool,
+    /// Loop-temperature range of use, °C (MIN,MAX).
+    ///
+    /// The range the model will be used over. The `missing:` lines then say when the training runs' loop did not come within 5 % of
+    /// the range of each end (the model extrapolates there), e.g. a chamber that went to
+    /// −40 … 60 °C with holds too short for the loop to follow. Without it they judge the
+    /// range the loop covered and say where it turned before it settled.
+    #[arg(long = "use-range-c", value_name = "MIN,MAX", value_delimiter = ',', allow_hyphen_values = true,
+          help_heading = "Data")]
+    use_range_c: Option<Vec<f64>>,
+    /// Fastest loop-temperature change in use, °C/min (either sign).
+    ///
+    /// The `missing:` lines then say when the runs' fastest filter (τ 15 s) never read it
+    /// both rising and falling: faster changes extrapolate the rate weights. (Only in --help:
+    /// -h fits a screen.)
+    #[arg(long, value_name = "C_PER_MIN", help_heading = "Data", hide_short_help = true)]
+    use_rate_c_per_min: Option<f64>,
+}
+
+impl Args {
+    /// The range and rates of use given, checked.
+    pub fn in_use(&self) -> anyhow::Result<InUse> {
+        let range_c = match self.use_range_c.as_deref() {
+            None => None,
+            Some(&[lo, hi]) if lo.is_finite() && hi.is_finite() && lo < hi => Some((lo, hi)),
+            Some(v) => anyhow::bail!(
+                "--use-range-c {}: takes MIN,MAX in °C, MIN below MAX",
+                v.iter().map(f64::to_string).collect::<Vec<_>>().join(",")
+            ),
+        };
+        if let Some(r) = self.use_rate_c_per_min {
+            anyhow::ensure!(r.is_finite() && r > 0.0, "--use-rate-c-per-min {r}: must be above 0");
+        }
+        Ok(InUse {
+            range_c,
+            max_rate_c_per_min: self.use_rate_c_per_min,
+        })
+    }
 }
 
 /// Centre counts the firmware holds: 1 … [`rbf_core::MAX_CENTERS`].
@@ -256,6 +294,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(|p| p.as_path())
         .collect();
     input::require_seekable(all_runs.iter().copied(), "`trainer fit` reads its runs several times")?;
+    let in_use = a.in_use()?;
     check_distinct_inputs(a.inputs.as_deref().unwrap_or_default())?;
     let existing = a.force.existing();
     let json_file = a.json.json.as_deref().filter(|p| !input::is_stdin(p));
@@ -382,7 +421,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     print_table(&mut out, &rows)?;
     if let Some(search) = &outcome.bank {
         writeln!(out)?;
-        for line in search.coverage.lines() {
+        for line in search.coverage.lines(&in_use) {
             writeln!(out, "{line}")?;
         }
     }

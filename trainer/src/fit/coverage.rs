@@ -4,7 +4,10 @@
 //! (the rate weights and coil lags), holds long enough for the slowest
 //! filter (the slow lags apart from the static curve), thermal events to
 //! validate on, and a power-on in the cold (the self-heating transient).
-//! `trainer fit` prints it after its table and names what is missing.
+//! `trainer fit` prints it after its table and names what is missing, for
+//! the range and rates of use it is told ([`InUse`]) or, told none, for the
+//! range the loop covered, saying where the loop turned before it settled
+//! (the chamber went further than the loop followed).
 
 use serde::Serialize;
 
@@ -28,6 +31,23 @@ pub const FAST_C_PER_MIN: f64 = 1.0;
 const FEW_EVENTS: usize = 5;
 /// A power-on counts as cold in the lowest this share of the covered range.
 const COLD_SHARE: f64 = 0.25;
+
+/// The loop range of use counts as covered when the runs came within this
+/// share of its span of each end (a cubic static curve extrapolates safely
+/// that far; `trainer plan` soaks until the loop comes this close).
+pub const USE_REACH_SHARE: f64 = 0.05;
+
+/// Readings within this of the coldest or hottest one are its end, °C.
+const END_C: f64 = 1.0;
+
+/// What the model will be used over, as far as the engineer says.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct InUse {
+    /// Loop-temperature range of use (lowest, highest), °C.
+    pub range_c: Option<(f64, f64)>,
+    /// Fastest loop-temperature change in use, either sign, °C/min.
+    pub max_rate_c_per_min: Option<f64>,
+}
 
 /// One filter's covered rates.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -57,6 +77,11 @@ pub struct Coverage {
     pub events: usize,
     /// Loop temperature at the power-on of the coldest run that starts cold and holds, °C.
     pub cold_start_c: Option<f64>,
+    /// Slowest rate at the settling filter (≈ 960 s) within 1 °C of the
+    /// coldest and of the hottest reading, °C/min: far from 0, the loop
+    /// turned there before it settled, so the chamber went further than the
+    /// loop followed.
+    pub end_rates_c_per_min: (f64, f64),
 }
 
 impl Coverage {
@@ -74,6 +99,18 @@ impl Coverage {
     ) -> Coverage {
         let lo = temp_c.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = temp_c.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        // The slowest the loop was near each extreme: a loop that settled
+        // there was slow at some reading, one that turned was not.
+        let rate_at = |extreme: f64| {
+            temp_c
+                .iter()
+                .zip(rates)
+                .filter(|(t, _)| (**t - extreme).abs() <= END_C)
+                .map(|(_, r)| r[settle_filter])
+                .min_by(|a, b| a.abs().total_cmp(&b.abs()))
+                .unwrap_or(0.0)
+        };
+        let end_rates_c_per_min = (rate_at(lo), rate_at(hi));
         let rate_cov = taus_s
             .iter()
             .enumerate()
@@ -140,13 +177,59 @@ impl Coverage {
             long_holds,
             events,
             cold_start_c,
+            end_rates_c_per_min,
         }
     }
 
-    /// What the lag bank needs and these runs lack, in words an engineer acts on.
-    pub fn missing(&self) -> Vec<String> {
+    /// What the lag bank needs for `in_use` and these runs lack, in words an engineer acts on.
+    pub fn missing(&self, in_use: &InUse) -> Vec<String> {
         let mut out = Vec::new();
         let (lo, hi) = self.temp_range_c;
+        match in_use.range_c {
+            Some((use_lo, use_hi)) => {
+                let reach_c = USE_REACH_SHARE * (use_hi - use_lo);
+                let short: Vec<String> = [
+                    (lo > use_lo + reach_c).then(|| format!("below {lo:.1}")),
+                    (hi < use_hi - reach_c).then(|| format!("above {hi:.1}")),
+                ]
+                .into_iter()
+                .flatten()
+                .collect();
+                if !short.is_empty() {
+                    out.push(format!(
+                        "range of use {use_lo} … {use_hi} °C not covered: the runs' loop read {lo:.1} … {hi:.1} °C; {} °C the model extrapolates (flag 1); soak at each end of the range until the loop settles within {reach_c:.1} °C of it (`trainer plan` sizes the soaks)",
+                        short.join(" and ")
+                    ));
+                }
+            }
+            None => {
+                let (cold_rate, hot_rate) = self.end_rates_c_per_min;
+                let turned: Vec<String> = [
+                    (cold_rate < -SLOW_C_PER_MIN)
+                        .then(|| format!("bottomed at {lo:.1} °C still falling {:.1} °C/min", -cold_rate)),
+                    (hot_rate > SLOW_C_PER_MIN)
+                        .then(|| format!("peaked at {hi:.1} °C still rising {hot_rate:.1} °C/min")),
+                ]
+                .into_iter()
+                .flatten()
+                .collect();
+                if !turned.is_empty() {
+                    out.push(format!(
+                        "no settled end: the loop {} (τ 960 s): the chamber turned back before the loop followed it, so a range of use beyond is not covered; soak at the chamber's ends until the loop settles, and give the range of use (--use-range-c) to have it checked",
+                        turned.join(" and ")
+                    ));
+                }
+            }
+        }
+        if let (Some(use_rate), Some(fast)) = (in_use.max_rate_c_per_min, self.rates.first()) {
+            let reached = fast.max_c_per_min.min(-fast.min_c_per_min);
+            if reached < use_rate {
+                out.push(format!(
+                    "rates of use up to ±{use_rate} °C/min not covered: the loop's fastest fall/rise was {:.1}/{:+.1} °C/min (τ {:.0} s); faster changes extrapolate the rate weights; ramp and step both ways at the chamber's full rate",
+                    fast.min_c_per_min, fast.max_c_per_min, fast.tau_s
+                ));
+            }
+        }
         if !self.uncovered_c.is_empty() {
             out.push(format!(
                 "no level in {} °C: the static curve there is only read while the temperature moves; hold there for {:.0} min or more",
@@ -195,8 +278,8 @@ impl Coverage {
         out
     }
 
-    /// The coverage in a few lines, then what is missing.
-    pub fn lines(&self) -> Vec<String> {
+    /// The coverage in a few lines, then what is missing for `in_use`.
+    pub fn lines(&self, in_use: &InUse) -> Vec<String> {
         let rates: Vec<String> = self
             .rates
             .iter()
@@ -218,9 +301,17 @@ impl Coverage {
             ),
             format!("coverage: fastest fall/rise per filter [°C/min]: {}", rates.join(", ")),
         ];
-        let missing = self.missing();
+        let missing = self.missing(in_use);
         if missing.is_empty() {
-            out.push("missing: nothing the lag bank needs".to_owned());
+            out.push(match in_use.range_c {
+                Some((use_lo, use_hi)) => {
+                    format!("missing: nothing the lag bank needs for use over {use_lo} … {use_hi} °C")
+                }
+                None => format!(
+                    "missing: nothing the lag bank needs for use within {:.1} … {:.1} °C, the loop's range on these runs (--use-range-c checks the range of use)",
+                    self.temp_range_c.0, self.temp_range_c.1
+                ),
+            });
         } else {
             out.extend(missing.into_iter().map(|m| format!("missing: {m}")));
         }
@@ -291,7 +382,7 @@ mod tests {
             ],
             3,
         );
-        let missing = c.missing().join("\n");
+        let missing = c.missing(&InUse::default()).join("\n");
         assert!(missing.contains("no fast change"), "{missing}");
         assert!(missing.contains("no cold start"), "{missing}");
         assert!(missing.contains("only 3 thermal events"), "{missing}");
@@ -300,9 +391,9 @@ mod tests {
         assert_eq!(c.long_holds, 3);
     }
 
-    #[test]
-    fn a_planned_run_with_a_cold_start_and_fast_steps_misses_nothing() {
-        let c = coverage(
+    /// A planned run: a cold start, fast steps both ways, holds at −40 and 60 °C.
+    fn planned() -> Coverage {
+        coverage(
             -40.0,
             &[
                 (3600.0, 0.0),
@@ -318,9 +409,115 @@ mod tests {
                 (1800.0, 0.0),
             ],
             8,
+        )
+    }
+
+    #[test]
+    fn a_planned_run_with_a_cold_start_and_fast_steps_misses_nothing() {
+        let c = planned();
+        assert_eq!(
+            c.missing(&InUse::default()),
+            Vec::<String>::new(),
+            "{:?}",
+            c.lines(&InUse::default())
         );
-        assert_eq!(c.missing(), Vec::<String>::new(), "{:?}", c.lines());
         assert_eq!(c.cold_start_c, Some(-40.0));
-        assert!(c.lines().last().unwrap().contains("nothing the lag bank needs"));
+        assert!(
+            c.lines(&InUse::default())
+                .last()
+                .unwrap()
+                .contains("nothing the lag bank needs")
+        );
+    }
+
+    /// A designed run of 5-°C/min chamber ramps with short holds, as the
+    /// loop reads it: it turns at −20 and 37 °C while still moving, never
+    /// settling at the chamber's −40 … 60 °C.
+    fn short_holds() -> Coverage {
+        coverage(
+            10.0,
+            &[
+                (2400.0, 0.0),
+                (1500.0, -1.2),
+                (900.0, 1.4),
+                (1200.0, 0.0),
+                (1500.0, 1.2),
+                (600.0, 0.6),
+                (600.0, -1.0),
+                (1200.0, 0.0),
+                (600.0, 0.8),
+                (1200.0, 0.0),
+            ],
+            6,
+        )
+    }
+
+    #[test]
+    fn a_short_hold_run_is_told_its_loop_turned_before_the_chambers_ends() {
+        let c = short_holds();
+        let (lo, hi) = c.temp_range_c;
+        assert!(
+            (-21.0..=-19.0).contains(&lo) && (36.0..=38.0).contains(&hi),
+            "{lo} … {hi}"
+        );
+        let lines = c.lines(&InUse::default()).join("\n");
+        assert!(!lines.contains("missing: nothing"), "{lines}");
+        assert!(lines.contains("missing: no settled end: the loop bottomed at -20.0 °C still falling 1.2 °C/min and peaked at 37.0 °C still rising 0.6 °C/min"), "{lines}");
+        // Told the range of use, it names what the model extrapolates over.
+        let in_use = InUse {
+            range_c: Some((-40.0, 60.0)),
+            max_rate_c_per_min: None,
+        };
+        let lines = c.lines(&in_use).join("\n");
+        assert!(!lines.contains("missing: nothing"), "{lines}");
+        assert!(
+            lines.contains("missing: range of use -40 … 60 °C not covered: the runs' loop read -20.0 … 37.0 °C; below -20.0 and above 37.0 °C the model extrapolates"),
+            "{lines}"
+        );
+        // Within 5 % of the span of each end counts as covered.
+        let near = InUse {
+            range_c: Some((-23.0, 40.0)),
+            max_rate_c_per_min: None,
+        };
+        assert!(!c.lines(&near).join("\n").contains("range of use"));
+    }
+
+    #[test]
+    fn rates_of_use_faster_than_the_runs_are_named() {
+        let c = short_holds();
+        let in_use = |r: f64| InUse {
+            range_c: Some((-20.0, 37.0)),
+            max_rate_c_per_min: Some(r),
+        };
+        let lines = c.lines(&in_use(3.0)).join("\n");
+        assert!(
+            lines.contains("missing: rates of use up to ±3 °C/min not covered: the loop's fastest fall/rise was -1.2/+1.4 °C/min (τ 15 s)"),
+            "{lines}"
+        );
+        assert!(!c.lines(&in_use(1.0)).join("\n").contains("rates of use"));
+    }
+
+    #[test]
+    fn a_run_that_settles_at_the_range_of_use_misses_nothing_for_it() {
+        let c = planned();
+        let in_use = InUse {
+            range_c: Some((-40.0, 60.0)),
+            max_rate_c_per_min: Some(1.0),
+        };
+        assert_eq!(
+            c.lines(&in_use).last().map(String::as_str),
+            Some("missing: nothing the lag bank needs for use over -40 … 60 °C")
+        );
+        assert_eq!(c.end_rates_c_per_min, (0.0, 0.0));
+        // A wider range of use is not covered by it.
+        let wider = InUse {
+            range_c: Some((-55.0, 85.0)),
+            max_rate_c_per_min: None,
+        };
+        assert!(
+            c.lines(&wider)
+                .join("\n")
+                .contains("range of use -55 … 85 °C not covered")
+        );
     }
 }

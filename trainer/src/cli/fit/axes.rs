@@ -115,7 +115,7 @@ pub(super) fn run(
     for (axis, (outcome, _)) in axes.iter().zip(&outcomes) {
         if let Some(search) = &outcome.bank {
             writeln!(out, "\naxis {}:", axis.name())?;
-            for line in search.coverage.lines() {
+            for line in search.coverage.lines(&a.in_use()?) {
                 writeln!(out, "{line}")?;
             }
         }
