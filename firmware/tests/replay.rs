@@ -113,7 +113,13 @@ fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_ev
     let (_, expected) =
         trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
     expected.commit().unwrap();
+    // The replay library writes the run; the provenance lines before it are
+    // the host tools' (trainer compensate, cargo xtask qemu-replay).
+    let provenance = trainer::blobfile::provenance_lines(&blob_path, &std::fs::read(&blob_path).unwrap());
     let expected = std::fs::read_to_string(&expected_path).unwrap();
+    let expected = expected
+        .strip_prefix(&provenance)
+        .expect("compensate starts with the provenance lines");
 
     // Replayed at the trainer's capacity; the fitted axes (OLS kept at most
     // 16 centres of those asked for) also fit the three-axis board.
@@ -173,7 +179,13 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
     let (_, expected) =
         trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
     expected.commit().unwrap();
+    // The replay library writes the run; the provenance lines before it are
+    // the host tools' (trainer compensate, cargo xtask qemu-replay).
+    let provenance = trainer::blobfile::provenance_lines(&blob_path, &std::fs::read(&blob_path).unwrap());
     let expected = std::fs::read_to_string(&expected_path).unwrap();
+    let expected = expected
+        .strip_prefix(&provenance)
+        .expect("compensate starts with the provenance lines");
 
     let blob = std::fs::read(&blob_path).unwrap();
     assert!(is_shared_basis(&blob));

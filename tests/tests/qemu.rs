@@ -30,7 +30,11 @@ fn replay_matches_host(
     let out = dir.join("qemu.csv");
     let summary = xtask::replay::qemu_replay(&model_path, slice, &out, frames).unwrap();
     assert_eq!(summary.samples, fixtures::ROWS);
-    let (got, want) = (std::fs::read(&out).unwrap(), std::fs::read(&expected_path).unwrap());
+    // trainer compensate's output: the model's provenance lines, then the
+    // compensated run compensate_file writes.
+    let mut want = trainer::blobfile::provenance_lines(&model_path, &std::fs::read(&model_path).unwrap()).into_bytes();
+    want.extend(std::fs::read(&expected_path).unwrap());
+    let got = std::fs::read(&out).unwrap();
     assert!(got == want, "QEMU replay output differs from trainer compensate");
     (flagged, summary)
 }

@@ -4,7 +4,10 @@
 //! ([`crate::evaluate`]) with its own columns and model.
 
 use crate::diagnose::RunDiagnosis;
+use std::io::Write;
 use std::path::{Path, PathBuf};
+
+use anyhow::Context;
 
 use rbf_core::Model;
 use rbf_core::axis::Axis;
@@ -153,11 +156,14 @@ pub fn compensate_command(
     let accept = accept.into();
     input::check_stdin_once([model_path, run])?;
     let target = output::check_target(output, &[model_path, run], existing)?;
-    let (file, _) = read_model_file(model_path)?;
+    let (file, blob) = read_model_file(model_path)?;
+    let provenance = crate::blobfile::provenance_lines(model_path, &blob);
     let reader = RunReader::open(run)?;
     if let ModelFile::Shared(models) = &file {
         let axes = shared_axes_for_run(&file, model_path, &reader)?;
         let mut out = Output::open(target)?;
+        out.write_all(provenance.as_bytes())
+            .with_context(|| format!("{}: cannot write", text::path(output)))?;
         let done = compensate_shared_reader(models, &axes, reader, &mut out).map_err(|e| {
             if e.is::<crate::run::RunError>() {
                 e
@@ -180,6 +186,8 @@ pub fn compensate_command(
         reader.require_thermometers_of(columns, model.features().set.thermometer_mask())?;
     }
     let mut out = Output::open(target)?;
+    out.write_all(provenance.as_bytes())
+        .with_context(|| format!("{}: cannot write", text::path(output)))?;
     // Errors of the run name it and the line; write errors name the output.
     let done = compensate_axes_reader(&axes, reader, &mut out).map_err(|e| {
         if e.is::<crate::run::RunError>() {

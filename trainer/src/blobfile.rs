@@ -122,6 +122,30 @@ fn decode_file(bytes: &[u8]) -> Result<(ModelFile, usize), blob::DecodeError> {
     }
 }
 
+/// A blob's CRC-32, its trailer (ISO-HDLC over header and payload): what a
+/// unit's health report names as its running model (0 for a blob too short
+/// to have one).
+pub fn blob_crc32(blob: &[u8]) -> u32 {
+    blob.last_chunk::<4>().map_or(0, |t| u32::from_le_bytes(*t))
+}
+
+/// The metadata lines a compensated run carries about the model that
+/// compensated it: `# model: FILE` (the file's name, or standard input)
+/// and `# model_blob_crc32: 0x…` (as `trainer device status` and a
+/// recording name the model a unit runs). `trainer compensate` and
+/// `cargo xtask qemu-replay` write them first.
+pub fn provenance_lines(model_path: &Path, blob: &[u8]) -> String {
+    let name = if model_path == Path::new("-") {
+        "standard input".to_owned()
+    } else {
+        model_path.file_name().map_or_else(
+            || model_path.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        )
+    };
+    format!("# model: {name}\n# model_blob_crc32: {:#010x}\n", blob_crc32(blob))
+}
+
 /// Reads and validates a model file of either format, refusing a corrupt one with the reason.
 pub fn read_model_file(path: &Path) -> anyhow::Result<(ModelFile, Vec<u8>)> {
     let bytes = read_blob(path)?;

@@ -1101,6 +1101,40 @@ fn fit_with_report_writes_the_model_the_table_and_the_bias_against_temperature()
 }
 
 #[test]
+fn a_compensated_run_names_the_model_that_compensated_it_and_reads_as_a_run() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let (m, run, out) = (
+        model.to_str().unwrap(),
+        dir.path().join("train.csv"),
+        dir.path().join("out.csv"),
+    );
+    let o = trainer(&[
+        "compensate",
+        "--model",
+        m,
+        run.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The file's name and the blob's CRC-32 trailer (what `trainer device
+    // status` names as a unit's running model), before the run's own lines.
+    let blob = std::fs::read(&model).unwrap();
+    let crc = u32::from_le_bytes(blob[blob.len() - 4..].try_into().unwrap());
+    let name = model.file_name().unwrap().to_str().unwrap();
+    let text = std::fs::read_to_string(&out).unwrap();
+    let head: String = text.lines().take(3).collect::<Vec<_>>().join("\n");
+    assert!(
+        text.starts_with(&format!("# model: {name}\n# model_blob_crc32: {crc:#010x}\n")),
+        "{head}"
+    );
+    // Still a recorded run: eval reads it.
+    let o = trainer(&["eval", "--model", m, out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
 fn inspect_and_eval_take_model_and_json_file_with_dash_for_stdout() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);

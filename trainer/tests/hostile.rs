@@ -479,7 +479,8 @@ fn rates_beyond_any_gyro_and_a_rate_that_never_varies_are_refused() {
         &trainer(&["eval", "--model", m, r]),
         "rate_dph − ref_dph is 0 °/h on every one of its 12600 rows",
     );
-    // A header alone: nothing to evaluate; compensating it gives the header alone.
+    // A header alone: nothing to evaluate; compensating it gives the model's
+    // provenance lines and the header alone.
     let empty = write(&dir, "empty.csv", b"time_s,rate_dph,temp_c\n");
     refused(
         &trainer(&["eval", "--model", m, empty.to_str().unwrap()]),
@@ -488,9 +489,13 @@ fn rates_beyond_any_gyro_and_a_rate_that_never_varies_are_refused() {
     let out = dir.path().join("empty_out.csv");
     let o = compensate(&model, &empty, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rest: Vec<&str> = text.lines().filter(|l| !l.starts_with("# model")).collect();
+    assert_eq!(rest, ["time_s,rate_dph,temp_c,bias_dph,rate_comp_dph,flags"], "{text}");
     assert_eq!(
-        std::fs::read_to_string(&out).unwrap(),
-        "time_s,rate_dph,temp_c,bias_dph,rate_comp_dph,flags\n"
+        text.lines().take_while(|l| l.starts_with("# model")).count(),
+        2,
+        "{text}"
     );
 }
 

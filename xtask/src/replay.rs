@@ -88,10 +88,17 @@ pub fn qemu_replay_checked(
     }
     let mut transaction = Transaction::new();
     let written = [Some((output, "output.csv")), frames.map(|f| (f, "frames.bin"))];
+    // The compensated run starts with the model's provenance lines, as
+    // trainer compensate's does; the firmware writes the rest.
+    let provenance = trainer::blobfile::provenance_lines(model, &std::fs::read(dir.path().join("model.bin"))?);
     for (target, produced) in written.into_iter().flatten() {
         let bytes =
             std::fs::read(dir.path().join(produced)).with_context(|| format!("the replay wrote no {produced}"))?;
         let mut out = Output::create(target, &inputs, existing)?;
+        if produced == "output.csv" {
+            out.write_all(provenance.as_bytes())
+                .with_context(|| format!("{}: cannot write", target.display()))?;
+        }
         out.write_all(&bytes)
             .with_context(|| format!("{}: cannot write", target.display()))?;
         transaction.add(out);

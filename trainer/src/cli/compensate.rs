@@ -11,7 +11,9 @@ use super::model_arg::ModelArg;
 
 /// Compensate a run with a model, exactly as the firmware does.
 ///
-/// Writes the input's metadata lines, header and data rows unchanged (`#`
+/// Writes `# model: FILE` and `# model_blob_crc32: 0x…` first (the model
+/// that compensated the run, named as `trainer device status` names a unit's
+/// running model), then the input's metadata lines, header and data rows unchanged (`#`
 /// lines between data rows are not part of the format and are dropped, as the
 /// firmware replay drops them), each row followed by bias_dph [°/h], rate_comp_dph
 /// [°/h] and flags (1 clamped · 2 temperature-sensor fault · 4 no valid model ·

@@ -89,7 +89,7 @@ pub fn check_blob(bytes: &[u8]) -> Result<CheckedBlob, DecodeError> {
         }
     };
     let bytes = bytes.get(..len).ok_or(DecodeError::Malformed)?.to_vec();
-    let crc32 = bytes.last_chunk::<4>().map_or(0, |t| u32::from_le_bytes(*t));
+    let crc32 = crate::blobfile::blob_crc32(&bytes);
     Ok(CheckedBlob { bytes, crc32, suits })
 }
 
