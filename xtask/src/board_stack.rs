@@ -27,6 +27,14 @@ use crate::{firmware, qemu};
 
 /// Output frames the host waits for before it sends the update (boot is over).
 const FRAMES_BEFORE_UPDATE: usize = 200;
+
+/// Command bytes sent per output frame the board has sent: what a 160-kbaud
+/// line gives a board sampling at 1 kHz. QEMU's socket delivers as fast as
+/// the host runs, which a loaded host makes many times faster than the
+/// guest drains its 256-byte receive queue between samples (bytes lost, the
+/// install refused or malformed); paced by the guest's own frames, the
+/// queue sees what a real line gives it, however loaded the host.
+const COMMAND_BYTES_PER_FRAME: usize = 16;
 /// No reply status seen yet.
 const NO_REPLY: u8 = u8::MAX;
 
@@ -265,7 +273,15 @@ fn run(elf: &Path, dir: &Path, command: &[u8]) -> anyhow::Result<BoardRun> {
     while frames.load(Ordering::Relaxed) < FRAMES_BEFORE_UPDATE && started.elapsed() < Duration::from_secs(60) {
         std::thread::sleep(Duration::from_millis(5));
     }
-    uart.write_all(command).context("send the install command")?;
+    // Paced by the guest's own frames (see COMMAND_BYTES_PER_FRAME).
+    for chunk in command.chunks(COMMAND_BYTES_PER_FRAME) {
+        let seen = frames.load(Ordering::Relaxed);
+        uart.write_all(chunk).context("send the install command")?;
+        let sent = Instant::now();
+        while frames.load(Ordering::Relaxed) == seen && sent.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
     let result = qemu::wait(child, dir, Duration::from_secs(300))?;
     drop(uart);
     let _ = reader.join();
