@@ -79,7 +79,8 @@ pub fn find(root: &Path, krate: &str) -> anyhow::Result<Vec<Circle>> {
     let mut circles = Vec::new();
     for crate_root in roots {
         let modules = tree(&crate_root)?;
-        for component in strongly_connected(&imports(&modules)) {
+        let edges = imports(&modules);
+        for component in strongly_connected(&edges) {
             let name = |i: usize| {
                 modules[i]
                     .file
@@ -88,7 +89,6 @@ pub fn find(root: &Path, krate: &str) -> anyhow::Result<Vec<Circle>> {
                     .display()
                     .to_string()
             };
-            let edges = imports(&modules);
             let mut ties: Vec<(String, String)> = component
                 .iter()
                 .flat_map(|&from| {
