@@ -9,7 +9,7 @@ use crate::firmware::TARGET;
 use crate::{output, qemu, run, workspace_root};
 
 /// Seconds CI fuzzes each target.
-const CI_FUZZ_SECONDS: u32 = 60;
+const CI_FUZZ_SECONDS: u32 = 20;
 
 /// Installs the cross target and the rustup components CI needs, if missing.
 fn ensure_toolchain() -> anyhow::Result<()> {
@@ -77,7 +77,7 @@ fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
 }
 
 /// fmt, the import circles, clippy (host and firmware), the no_std check, firmware builds, host
-/// tests, the tests needing QEMU or PyPI, then a minute of fuzzing per
+/// tests, the tests needing QEMU or PyPI, then 20 s of fuzzing per
 /// target; ends with `N passed, N failed`.
 pub fn ci() -> anyhow::Result<()> {
     if std::env::var_os("CARGO_INCREMENTAL").is_none_or(|v| v != "0") {
@@ -261,7 +261,7 @@ pub fn ci() -> anyhow::Result<()> {
         "--ignored",
     ])?;
     (passed, failed) = (passed + p, failed + f);
-    // Each fuzz target for a minute; a finding fails CI (and becomes a regression file).
+    // Each fuzz target for 20 s (longer runs: `cargo xtask fuzz --seconds N`); a finding fails CI (and becomes a regression file).
     crate::fuzz::fuzz(CI_FUZZ_SECONDS)?;
     eprintln!("\nci: all steps passed in {:.0} s", started.elapsed().as_secs_f64());
     println!("{passed} passed, {failed} failed");
