@@ -169,7 +169,8 @@ fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_ev
 #[test]
 fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer_fault_flags_every_axis() {
     use firmware::replay::AxesReplayer;
-    use rbf_core::blob::shared::{decode_shared_into, is_shared_basis};
+    use rbf_core::blob::shared::decode_shared_into;
+    use rbf_core::blob::{BlobKind, blob_kind};
     use rbf_core::shared::SharedAxisModels;
     use trainer::output::Existing;
 
@@ -188,7 +189,7 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
         .expect("compensate starts with the provenance lines");
 
     let blob = std::fs::read(&blob_path).unwrap();
-    assert!(is_shared_basis(&blob));
+    assert_eq!(blob_kind(&blob), Ok(BlobKind::SharedBasis));
     let mut models = Box::new(SharedAxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
     assert_eq!(decode_shared_into(&mut models, &blob), Ok(blob.len()));
     let input = std::fs::read_to_string(&slice).unwrap();

@@ -157,6 +157,35 @@ fn header_bytes(bytes: &[u8]) -> Result<(&[u8], u16), DecodeError> {
     Ok((h, u16::from_le_bytes([h[4], h[5]])))
 }
 
+/// What a blob holds, by its header: the one place a reader recognises a blob's kind
+/// (the firmware's model store, the trainer's model files and `trainer inspect` ask here,
+/// then call that kind's decoder).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BlobKind {
+    /// Format 2: one model ([`decode`], [`decode_into`]).
+    SingleAxis,
+    /// Format 3: one model per axis in the mask ([`axes::decode_axes_into`]).
+    PerAxis,
+    /// Format 3 with the shared-basis flag: the axes share centres and widths
+    /// ([`shared::decode_shared_into`]).
+    SharedBasis,
+}
+
+/// The kind of the blob in `bytes`, from its header alone (the CRC and the payload are the
+/// decoder's to check); the header's defect otherwise: too short, no magic, an unknown
+/// version, or a multi-axis header that does not parse.
+pub fn blob_kind(bytes: &[u8]) -> Result<BlobKind, DecodeError> {
+    match header_bytes(bytes)?.1 {
+        axes::AXES_FORMAT_VERSION => Ok(if axes::AxesHeader::parse(bytes)?.shared_basis {
+            BlobKind::SharedBasis
+        } else {
+            BlobKind::PerAxis
+        }),
+        FORMAT_VERSION => Ok(BlobKind::SingleAxis),
+        version => Err(DecodeError::UnsupportedVersion(version)),
+    }
+}
+
 /// Why bytes are not a usable model blob.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]

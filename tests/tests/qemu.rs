@@ -201,7 +201,7 @@ fn qemu_replay_of_a_shared_thermometer_run_with_the_joint_blob_trainer_fit_wrote
     let summary = run_trainer(&trainer, &["fit", &train, "-o", &blob, "--joint"]);
     let bytes = std::fs::read(&blob).unwrap();
     assert!(
-        rbf_core::blob::shared::is_shared_basis(&bytes),
+        rbf_core::blob::blob_kind(&bytes) == Ok(rbf_core::blob::BlobKind::SharedBasis),
         "trainer fit did not choose the joint model:\n{summary}"
     );
 

@@ -7,8 +7,8 @@ use std::path::Path;
 use anyhow::Context;
 use rbf_core::Model;
 use rbf_core::axis::Axis;
-use rbf_core::blob::axes::{self, AXES_FORMAT_VERSION, AxisModels};
-use rbf_core::blob::{self, MAX_BLOB_LEN, shared};
+use rbf_core::blob::axes::{self, AxisModels};
+use rbf_core::blob::{self, BlobKind, MAX_BLOB_LEN, shared};
 use rbf_core::shared::SharedAxisModels;
 
 use crate::input;
@@ -107,18 +107,21 @@ impl ModelFile {
 
 /// Decodes a blob of either format; with the bytes it occupied.
 fn decode_file(bytes: &[u8]) -> Result<(ModelFile, usize), blob::DecodeError> {
-    let version = bytes.get(4..6).map(|v| u16::from_le_bytes([v[0], v[1]]));
-    if shared::is_shared_basis(bytes) {
-        let mut models = Box::new(SharedAxisModels::EMPTY);
-        let len = shared::decode_shared_into(&mut models, bytes)?;
-        Ok((ModelFile::Shared(models), len))
-    } else if bytes.get(..4) == Some(&blob::MAGIC[..]) && version == Some(AXES_FORMAT_VERSION) {
-        let mut models = Box::new(AxisModels::EMPTY);
-        let len = axes::decode_axes_into(&mut models, bytes)?;
-        Ok((ModelFile::Axes(models), len))
-    } else {
-        let decoded = blob::decode(bytes)?;
-        Ok((ModelFile::Single(Box::new(decoded.model)), decoded.len))
+    match blob::blob_kind(bytes)? {
+        BlobKind::SharedBasis => {
+            let mut models = Box::new(SharedAxisModels::EMPTY);
+            let len = shared::decode_shared_into(&mut models, bytes)?;
+            Ok((ModelFile::Shared(models), len))
+        }
+        BlobKind::PerAxis => {
+            let mut models = Box::new(AxisModels::EMPTY);
+            let len = axes::decode_axes_into(&mut models, bytes)?;
+            Ok((ModelFile::Axes(models), len))
+        }
+        BlobKind::SingleAxis => {
+            let decoded = blob::decode(bytes)?;
+            Ok((ModelFile::Single(Box::new(decoded.model)), decoded.len))
+        }
     }
 }
 

@@ -24,7 +24,8 @@ mod board {
     use firmware::replay::ReplayError;
     use firmware::replay::{AxesReplayer, PeriodProbe, ReplaySample, Replayer};
     use rbf_core::blob::axes::{AxisModels, decode_axes_into};
-    use rbf_core::blob::shared::{decode_shared_into, is_shared_basis};
+    use rbf_core::blob::shared::decode_shared_into;
+    use rbf_core::blob::{BlobKind, blob_kind};
     use rbf_core::shared::SharedAxisModels;
 
     /// Semihosting file as an embedded-io writer (the UART of the real board).
@@ -153,7 +154,7 @@ mod board {
         };
         let slot = firmware::board::model_slot_a();
         let current: [Cell<ReplaySample>; 3] = Default::default();
-        let stats = if multi_axis && is_shared_basis(slot) {
+        let stats = if multi_axis && blob_kind(slot) == Ok(BlobKind::SharedBasis) {
             // SAFETY: the only reference to SHARED_MODELS, taken once in main.
             let models = unsafe { &mut *core::ptr::addr_of_mut!(SHARED_MODELS) };
             let models = match decode_shared_into(models, slot) {

@@ -25,8 +25,8 @@
 //! smallest `K` its blobs need. [`decode_axes_into`] builds them in place.
 
 use super::{
-    CRC_LEN, DecodeError, EncodeError, HEADER_LEN, MAGIC, MAX_BLOB_LEN, SectionShape, crc_status_at, decode_section,
-    encode_section, seal,
+    BlobKind, CRC_LEN, DecodeError, EncodeError, HEADER_LEN, MAGIC, MAX_BLOB_LEN, SectionShape, crc_status_at,
+    decode_section, encode_section, seal,
 };
 use crate::MAX_CENTERS;
 use crate::axis::{Axis, MAX_AXES};
@@ -181,33 +181,28 @@ pub fn decode_axes_into<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) 
     result
 }
 
-/// The format version of the blob in `bytes` (2: one model, 3: one per
-/// axis), if they start with the magic and a version.
-pub fn blob_version(bytes: &[u8]) -> Option<u16> {
-    match bytes.get(..6) {
-        Some([m0, m1, m2, m3, v0, v1]) if [*m0, *m1, *m2, *m3] == MAGIC => Some(u16::from_le_bytes([*v0, *v1])),
-        _ => None,
-    }
-}
-
-/// The length of the blob in `bytes` of either format by its header
-/// (header, payload and CRC; the CRC is not checked), for a store that
-/// copies or scans blobs.
+/// The length of the blob in `bytes` of any kind by its header (header, payload and CRC;
+/// the CRC is not checked), for a store that copies or scans blobs.
 pub fn blob_len(bytes: &[u8]) -> Result<usize, DecodeError> {
-    match blob_version(bytes) {
-        Some(AXES_FORMAT_VERSION) => AxesHeader::parse(bytes).map(|h| h.blob_len()),
-        _ => super::Header::parse(bytes).map(|h| h.blob_len()),
+    match super::blob_kind(bytes)? {
+        BlobKind::PerAxis | BlobKind::SharedBasis => AxesHeader::parse(bytes).map(|h| h.blob_len()),
+        BlobKind::SingleAxis => super::Header::parse(bytes).map(|h| h.blob_len()),
     }
 }
 
-/// Decodes a blob of either format into `axes`, in place: a multi-axis blob
+/// Decodes a blob of either per-axis kind into `axes`, in place: a multi-axis blob
 /// as [`decode_axes_into`], a single-axis (format 2) blob into axis x alone,
 /// so one `AxisModels<K>` (one capacity, one copy of the decoder and the
 /// evaluation in flash) serves both. Returns the bytes the blob occupied;
 /// on error `axes` is [`AxisModels::EMPTY`].
 pub fn decode_any_into<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
-    if blob_version(bytes) == Some(AXES_FORMAT_VERSION) {
-        return decode_axes_into(axes, bytes);
+    match super::blob_kind(bytes) {
+        Ok(BlobKind::SingleAxis) => {}
+        Ok(BlobKind::PerAxis | BlobKind::SharedBasis) => return decode_axes_into(axes, bytes),
+        Err(e) => {
+            *axes = AxisModels::EMPTY;
+            return Err(e);
+        }
     }
     let [x, y, z] = &mut axes.models;
     *y = Model::EMPTY;
@@ -399,8 +394,14 @@ mod tests {
         let model = rbf_model::<32>(12, 1.0);
         let n = blob::encode(&model, &mut single).unwrap();
         let single = &single[..n];
-        assert_eq!((blob_version(&multi), blob_version(single)), (Some(3), Some(2)));
-        assert_eq!(blob_version(&[0xFF; 8]), None);
+        assert_eq!(
+            (blob::blob_kind(&multi), blob::blob_kind(single)),
+            (Ok(BlobKind::PerAxis), Ok(BlobKind::SingleAxis))
+        );
+        assert_eq!(blob::blob_kind(&[0xFF; 16]), Err(DecodeError::BadMagic));
+        let mut future = single.to_vec();
+        future[4] = 9;
+        assert_eq!(blob::blob_kind(&future), Err(DecodeError::UnsupportedVersion(9)));
         assert_eq!((blob_len(&multi), blob_len(single)), (Ok(multi.len()), Ok(n)));
         let mut axes = AxisModels::<32>::EMPTY;
         assert_eq!(decode_any_into(&mut axes, single), Ok(n));

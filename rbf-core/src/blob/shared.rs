@@ -105,12 +105,6 @@ pub fn decode_shared_into<const K: usize>(
     result
 }
 
-/// True when `bytes` start with the header of a shared-basis blob (nothing
-/// else is checked): which decoder a reader of either kind calls.
-pub fn is_shared_basis(bytes: &[u8]) -> bool {
-    AxesHeader::parse(bytes).is_ok_and(|h| h.shared_basis)
-}
-
 fn decode_shared_payload<const K: usize>(models: &mut SharedAxisModels<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
     let header = AxesHeader::parse(bytes)?;
     if !header.shared_basis {
@@ -317,7 +311,7 @@ mod tests {
             let (models, _) = shared(width);
             let blob = encoded(&models);
             assert!(blob.len() <= MAX_BLOB_LEN, "{} B", blob.len());
-            assert!(is_shared_basis(&blob));
+            assert_eq!(crate::blob::blob_kind(&blob), Ok(crate::blob::BlobKind::SharedBasis));
             let mut back = SharedAxisModels::<64>::EMPTY;
             assert_eq!(decode_shared_into(&mut back, &blob), Ok(blob.len()));
             assert_eq!(back, models);
@@ -391,7 +385,13 @@ mod tests {
         let n3 = encode_axes(&axes, &mut v3).unwrap();
         assert_eq!(decode_axes_into(&mut per_axis, &v3[..n3]), Ok(n3));
         assert_eq!(per_axis, axes);
-        assert!(!is_shared_basis(&v3[..n3]) && !is_shared_basis(&v2[..n2]));
+        assert_eq!(
+            (crate::blob::blob_kind(&v3[..n3]), crate::blob::blob_kind(&v2[..n2])),
+            (
+                Ok(crate::blob::BlobKind::PerAxis),
+                Ok(crate::blob::BlobKind::SingleAxis)
+            )
+        );
         let mut back = SharedAxisModels::<64>::EMPTY;
         assert_eq!(
             decode_shared_into(&mut back, &v3[..n3]),

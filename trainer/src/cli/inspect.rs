@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use rbf_core::blob::axes::{AXES_FORMAT_VERSION, AxesHeader, AxisModels, decode_axes_into};
-use rbf_core::blob::{self, Header};
+use rbf_core::blob::{self, BlobKind, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{file_problem, read_blob};
 use trainer::output::Existing;
@@ -61,8 +61,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let json_out = a.json.sink(&[&path], Existing::from_force(a.force))?;
     let bytes = read_blob(&path)?;
-    if bytes.get(..4) == Some(&blob::MAGIC[..]) && bytes.get(4..6) == Some(&AXES_FORMAT_VERSION.to_le_bytes()[..]) {
-        return inspect_axes(&path, &bytes, a.format, json_out);
+    let refused = |e: blob::DecodeError| anyhow::anyhow!("{}: model refused: {e}", text::path(&path));
+    match blob::blob_kind(&bytes).map_err(refused)? {
+        BlobKind::SingleAxis => {}
+        kind @ (BlobKind::PerAxis | BlobKind::SharedBasis) => {
+            return inspect_axes(&path, &bytes, kind, a.format, json_out);
+        }
     }
     let header = Header::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: model refused: {e}", text::path(&path)))?;
     let crc = blob::crc_status(&bytes, &header);
@@ -150,12 +154,18 @@ fn add_model_json(v: &mut serde_json::Value, m: &rbf_core::Model) {
 
 /// `trainer inspect` of a multi-axis blob: the blob's facts once, then each
 /// axis's model as a single-axis blob's is shown.
-fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::common::JsonSink) -> anyhow::Result<()> {
+fn inspect_axes(
+    path: &Path,
+    bytes: &[u8],
+    kind: BlobKind,
+    format: Format,
+    json_out: super::common::JsonSink,
+) -> anyhow::Result<()> {
     let refused = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: model refused: {e}", text::path(path));
     let header = AxesHeader::parse(bytes).map_err(|e| refused(&e))?;
     let mut models = Box::new(AxisModels::EMPTY);
     // A shared-basis blob shows each axis as the model of the basis and its layer.
-    let decoded = if header.shared_basis {
+    let decoded = if kind == BlobKind::SharedBasis {
         let mut shared = Box::new(rbf_core::shared::SharedAxisModels::EMPTY);
         let decoded = rbf_core::blob::shared::decode_shared_into(&mut shared, bytes);
         for axis in shared.axes() {
