@@ -1,7 +1,7 @@
 //! Multi-axis runs and models on the commands: which axes a set of runs
 //! carries, which model serves each axis of a run, and `compensate` /
-//! `eval` of every axis. Each axis goes through the single-axis code
-//! ([`crate::evaluate`]) with its own columns and model.
+//! `eval` of every axis. Every axis count goes through the one path of
+//! [`crate::evaluate`] ([`RunModels`]: one entry per axis, or one shared basis).
 
 use crate::diagnose::RunDiagnosis;
 use std::io::Write;
@@ -15,8 +15,7 @@ use rbf_core::record::Columns;
 
 use crate::blobfile::{ModelFile, read_model_file};
 use crate::evaluate::{
-    Compensation, RunEvaluation, compensate_axes_reader, compensate_shared_reader, evaluate_axes_reader,
-    evaluate_shared_reader, require_compensated, require_evaluable,
+    Compensation, RunEvaluation, RunModels, compensate_reader, evaluate_reader, require_compensated, require_evaluable,
 };
 use crate::output::{self, Existing, Output};
 use crate::plausible::require_plausible;
@@ -159,37 +158,13 @@ pub fn compensate_command(
     let (file, blob) = read_model_file(model_path)?;
     let provenance = crate::blobfile::provenance_lines(model_path, &blob);
     let reader = RunReader::open(run)?;
-    if let ModelFile::Shared(models) = &file {
-        let axes = shared_axes_for_run(&file, model_path, &reader)?;
-        let mut out = Output::open(target)?;
-        out.write_all(provenance.as_bytes())
-            .with_context(|| format!("{}: cannot write", text::path(output)))?;
-        let done = compensate_shared_reader(models, &axes, reader, &mut out).map_err(|e| {
-            if e.is::<crate::run::RunError>() {
-                e
-            } else {
-                e.context(text::path(output))
-            }
-        })?;
-        let mask = models.features().set.thermometer_mask();
-        let mut result = Vec::with_capacity(done.len());
-        for ((axis, _), c) in axes.iter().zip(done) {
-            require_usable(run, c.rows, c.compensated, &c.diagnosis, mask, accept)
-                .map_err(|e| on_axis(e, Some(*axis)))?;
-            result.push((Some(*axis), c));
-        }
-        return Ok((result, out));
-    }
-    let pairs = models_for_run(&file, model_path, &reader)?;
-    let axes: Vec<(Option<&Model>, Columns)> = pairs.iter().map(|(_, m, c)| (Some(*m), *c)).collect();
-    for (_, model, columns) in &pairs {
-        reader.require_thermometers_of(columns, model.features().set.thermometer_mask())?;
-    }
+    let (models, labels) = run_models(&file, model_path, &reader)?;
+    models.require_thermometers(&reader)?;
     let mut out = Output::open(target)?;
     out.write_all(provenance.as_bytes())
         .with_context(|| format!("{}: cannot write", text::path(output)))?;
     // Errors of the run name it and the line; write errors name the output.
-    let done = compensate_axes_reader(&axes, reader, &mut out).map_err(|e| {
+    let done = compensate_reader(&models, reader, &mut out).map_err(|e| {
         if e.is::<crate::run::RunError>() {
             e
         } else {
@@ -197,12 +172,44 @@ pub fn compensate_command(
         }
     })?;
     let mut result = Vec::with_capacity(done.len());
-    for ((axis, model, _), c) in pairs.iter().zip(done) {
-        let mask = model.features().set.thermometer_mask();
-        require_usable(run, c.rows, c.compensated, &c.diagnosis, mask, accept).map_err(|e| on_axis(e, *axis))?;
-        result.push((*axis, c));
+    for ((axis, mask), c) in labels.into_iter().zip(done) {
+        require_usable(run, c.rows, c.compensated, &c.diagnosis, mask, accept).map_err(|e| on_axis(e, axis))?;
+        result.push((axis, c));
     }
     Ok((result, out))
+}
+
+/// An axis of a run as the commands report it: its name (`None`: a single-axis run) and
+/// the thermometers its model reads (a mask of thermometer indices).
+type AxisLabel = (Option<Axis>, u8);
+
+/// The models of the model file at `model_path` for the axes of the run `reader` reads
+/// ([`models_for_run`], or [`shared_axes_for_run`] for a shared-basis file), and per axis,
+/// in the same order, its name (`None`: a single-axis run) and the thermometers its model
+/// reads.
+fn run_models<'m>(
+    file: &'m ModelFile,
+    model_path: &Path,
+    reader: &RunReader,
+) -> anyhow::Result<(RunModels<'m>, Vec<AxisLabel>)> {
+    if let ModelFile::Shared(models) = file {
+        let axes = shared_axes_for_run(file, model_path, reader)?;
+        let mask = models.features().set.thermometer_mask();
+        let labels = axes.iter().map(|(axis, _)| (Some(*axis), mask)).collect();
+        return Ok((RunModels::Shared { models, axes }, labels));
+    }
+    let pairs = models_for_run(file, model_path, reader)?;
+    let labels = pairs
+        .iter()
+        .map(|(axis, model, _)| (*axis, model.features().set.thermometer_mask()))
+        .collect();
+    let models = RunModels::PerAxis(
+        pairs
+            .into_iter()
+            .map(|(_, model, columns)| (Some(model), columns))
+            .collect(),
+    );
+    Ok((models, labels))
 }
 
 /// [`require_compensated`], then [`require_plausible`], as `accept` asks.
@@ -259,21 +266,10 @@ pub fn evaluate_files(
     let mut evaluations = Vec::new();
     for path in paths {
         let reader = RunReader::open(path)?;
-        if let ModelFile::Shared(models) = file {
-            let axes = shared_axes_for_run(file, model_path, &reader)?;
-            let mask = models.features().set.thermometer_mask();
-            let done = evaluate_shared_reader(models, &axes, reader)?;
-            for ((axis, _), done) in axes.iter().zip(done) {
-                evaluations.push(accept_evaluation(path, Some(*axis), mask, done, accept)?);
-            }
-            continue;
-        }
-        let pairs = models_for_run(file, model_path, &reader)?;
-        let axes: Vec<(&Model, Columns)> = pairs.iter().map(|(_, m, c)| (*m, *c)).collect();
-        let done = evaluate_axes_reader(&axes, reader)?;
-        for ((axis, model, _), done) in pairs.iter().zip(done) {
-            let mask = model.features().set.thermometer_mask();
-            evaluations.push(accept_evaluation(path, *axis, mask, done, accept)?);
+        let (models, labels) = run_models(file, model_path, &reader)?;
+        let done = evaluate_reader(&models, reader)?;
+        for ((axis, mask), done) in labels.into_iter().zip(done) {
+            evaluations.push(accept_evaluation(path, axis, mask, done, accept)?);
         }
     }
     Ok(evaluations)

@@ -1575,7 +1575,7 @@ mod tests {
         let (merged, d_merged) = fit(4096);
         assert_eq!((d_every, d_merged), (0, 3));
         for path in [&train, &held] {
-            let score = |m: &rbf_core::Model| crate::evaluate::evaluate_file(m, path).unwrap();
+            let score = |m: &rbf_core::Model| crate::evaluate::evaluate_file(m, path, None).unwrap();
             let (a, b) = (score(&every), score(&merged));
             let (std_every, std_merged) = (a.cluster_std_after_dph, b.cluster_std_after_dph);
             assert!(

@@ -144,32 +144,27 @@ pub fn evaluate_output(run: &Run, out: &[CompensatedSample]) -> RunEvaluation {
     evaluator.finish()
 }
 
-/// Before/after accuracy of `model` on the run in `path`, read in one
-/// streaming pass (memory: bin means and a bounded Allan series, whatever
-/// the run's length). Without `ref_dph` deviations are taken about their
-/// mean, which the MSD, cluster STD and Allan deviation are blind to.
-pub fn evaluate_file(model: &Model, path: &Path) -> anyhow::Result<RunEvaluation> {
-    Ok(evaluate_reader(model, RunReader::open(path)?)?.0)
-}
-
-/// [`evaluate_file`] on `axis` of a multi-axis run (`None`: a single-axis run).
-pub fn evaluate_axis_file(model: &Model, path: &Path, axis: Option<Axis>) -> anyhow::Result<RunEvaluation> {
-    Ok(evaluate_axis_reader(model, RunReader::open(path)?, axis)?.0)
-}
-
-/// [`evaluate_reader`] on `axis` of a multi-axis run (`None`: a single-axis
-/// run); the evaluation names the axis.
-pub fn evaluate_axis_reader(
-    model: &Model,
-    mut reader: RunReader,
-    axis: Option<Axis>,
-) -> anyhow::Result<(RunEvaluation, RunDiagnosis, usize)> {
+/// Before/after accuracy of `model` on the run in `path` (on `axis` of a multi-axis run;
+/// `None`: a single-axis run), read in one streaming pass (memory: bin means and a bounded
+/// Allan series, whatever the run's length); the evaluation names the axis. Without
+/// `ref_dph` deviations are taken about their mean, which the MSD, cluster STD and Allan
+/// deviation are blind to.
+pub fn evaluate_file(model: &Model, path: &Path, axis: Option<Axis>) -> anyhow::Result<RunEvaluation> {
+    let mut reader = RunReader::open(path)?;
     if let Some(axis) = axis {
         reader.select_axis(axis)?;
     }
-    let (mut evaluation, diagnosis, compensated) = evaluate_reader(model, reader)?;
+    let (mut evaluation, _, _) = only_axis(evaluate_reader(&RunModels::one(Some(model), &reader), reader)?)?;
     evaluation.axis = axis.map(Axis::name);
-    Ok((evaluation, diagnosis, compensated))
+    Ok(evaluation)
+}
+
+/// The one result of an evaluation or compensation of one axis.
+pub fn only_axis<T>(results: Vec<T>) -> anyhow::Result<T> {
+    results
+        .into_iter()
+        .next()
+        .ok_or_else(|| anyhow::anyhow!("no axis was evaluated or compensated"))
 }
 
 /// [`RunEvaluation::basis`] of a sample-by-sample evaluation.
@@ -275,46 +270,79 @@ pub fn evaluate_blocks_with(
     evaluator.finish()
 }
 
-/// [`evaluate_file`] on an open reader; also returns what the rows showed
-/// ([`RunDiagnosis`]) and the number of compensated rows (no flag 4).
-pub fn evaluate_reader(model: &Model, reader: RunReader) -> anyhow::Result<(RunEvaluation, RunDiagnosis, usize)> {
-    let columns = *reader.columns();
-    let mut axes = evaluate_axes_reader(&[(model, columns)], reader)?;
-    axes.pop().ok_or_else(|| anyhow::anyhow!("no axis was evaluated"))
+/// The models a run's axes are compensated with, whatever their count: what
+/// [`evaluate_reader`] and [`compensate_reader`] take. A single-axis run is one
+/// [`RunModels::PerAxis`] entry on the reader's own columns ([`RunModels::one`]).
+#[derive(Clone, Debug)]
+pub enum RunModels<'m> {
+    /// Each axis its own model (`None`: uncompensated, flag 4) and its columns (the first the
+    /// reader's own, the others from [`RunReader::axis_columns`]), in output order.
+    PerAxis(Vec<(Option<&'m Model>, Columns)>),
+    /// One shared-basis model; each axis with its columns (x, y, z order), all read from one
+    /// thermometer set ([`require_shared_thermometer`]), stepped together by
+    /// [`Compensator::process_shared`], the step the firmware runs.
+    Shared {
+        /// The shared-basis model.
+        models: &'m SharedAxisModels,
+        /// The run's axes and their columns.
+        axes: Vec<(Axis, Columns)>,
+    },
 }
 
-/// [`evaluate_reader`] for one or more axes of a run read once, each given
-/// its model and its columns (the first the reader's own, the others from
-/// [`RunReader::axis_columns`]); per axis, in that order.
-pub fn evaluate_axes_reader(
-    axes: &[(&Model, Columns)],
-    reader: RunReader,
-) -> anyhow::Result<Vec<(RunEvaluation, RunDiagnosis, usize)>> {
-    for (model, columns) in axes {
-        reader.require_thermometers_of(columns, model.features().set.thermometer_mask())?;
+impl<'m> RunModels<'m> {
+    /// One model (`None`: uncompensated) on the reader's own columns: a single-axis run, or
+    /// the axis [`RunReader::select_axis`] chose.
+    pub fn one(model: Option<&'m Model>, reader: &RunReader) -> Self {
+        RunModels::PerAxis(vec![(model, *reader.columns())])
     }
-    let stepper = Stepper::PerAxis(axes.iter().map(|(m, _)| (Some(*m), Compensator::new())).collect());
-    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
-    evaluate_stepped(stepper, &columns, reader)
+
+    /// Each axis's columns, in output order.
+    fn columns(&self) -> Vec<Columns> {
+        match self {
+            RunModels::PerAxis(axes) => axes.iter().map(|(_, c)| *c).collect(),
+            RunModels::Shared { axes, .. } => axes.iter().map(|(_, c)| *c).collect(),
+        }
+    }
+
+    /// Refuses a run without the thermometers the models read (without a model: the loop
+    /// thermometer), and a shared-basis model on axes with their own thermometers.
+    pub fn require_thermometers(&self, reader: &RunReader) -> anyhow::Result<()> {
+        match self {
+            RunModels::PerAxis(axes) => {
+                for (model, columns) in axes {
+                    let mask = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
+                    reader.require_thermometers_of(columns, mask)?;
+                }
+                Ok(())
+            }
+            RunModels::Shared { models, .. } => {
+                require_shared_thermometer(reader, &self.columns(), models.features().set.thermometer_mask())
+            }
+        }
+    }
+
+    /// A fresh stepper: filter state for every axis, none of it warmed up.
+    fn stepper(&self) -> Stepper<'m> {
+        match self {
+            RunModels::PerAxis(axes) => Stepper::PerAxis(axes.iter().map(|(m, _)| (*m, Compensator::new())).collect()),
+            RunModels::Shared { models, axes } => Stepper::Shared {
+                models,
+                axes: axes.iter().map(|(a, _)| *a).collect(),
+                compensator: Compensator::new(),
+            },
+        }
+    }
 }
 
-/// [`evaluate_axes_reader`] for a shared-basis model: `axes` the run's
-/// axes with their columns (x, y, z order), all read from one
-/// thermometer set ([`require_shared_thermometer`]), stepped together by
-/// [`Compensator::process_shared`].
-pub fn evaluate_shared_reader(
-    models: &SharedAxisModels,
-    axes: &[(Axis, Columns)],
+/// Before/after accuracy of each axis of the run `reader` reads, compensated with `models`
+/// in one pass; per axis, in `models`' order, also what the rows showed ([`RunDiagnosis`])
+/// and the number of compensated rows (no flag 4).
+pub fn evaluate_reader(
+    models: &RunModels<'_>,
     reader: RunReader,
 ) -> anyhow::Result<Vec<(RunEvaluation, RunDiagnosis, usize)>> {
-    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
-    require_shared_thermometer(&reader, &columns, models.features().set.thermometer_mask())?;
-    let stepper = Stepper::Shared {
-        models,
-        axes: axes.iter().map(|(a, _)| *a).collect(),
-        compensator: Compensator::new(),
-    };
-    evaluate_stepped(stepper, &columns, reader)
+    models.require_thermometers(&reader)?;
+    evaluate_stepped(models.stepper(), &models.columns(), reader)
 }
 
 /// Refuses a shared-basis model on a run whose axes do not read one
@@ -388,7 +416,7 @@ impl Stepper<'_> {
     }
 }
 
-/// The evaluation loop of [`evaluate_axes_reader`] and [`evaluate_shared_reader`].
+/// The evaluation loop of [`evaluate_reader`].
 fn evaluate_stepped(
     mut stepper: Stepper<'_>,
     columns: &[Columns],
@@ -799,62 +827,21 @@ pub struct Compensation {
     pub diagnosis: RunDiagnosis,
 }
 
-/// Streams the rows of `reader` through the compensator into `out`
-/// (recorded-run format with `bias_dph`, `rate_comp_dph`, `flags`
-/// appended): input lines are passed through as read, one output row per
-/// input row.
+/// Streams the rows of `reader` through the compensator of each axis of `models` into `out`
+/// (recorded-run format, input lines passed through as read, one output row per input row):
+/// per axis `bias_dph`, `rate_comp_dph`, `flags` appended, named for the axis on a
+/// multi-axis run, in `models`' order ([`record::write_compensated_header`]). Returns what
+/// each axis's compensation did, in that order.
 pub fn compensate_reader(
-    model: Option<&Model>,
-    reader: RunReader,
-    out: &mut (impl Write + Send),
-) -> anyhow::Result<Compensation> {
-    let columns = *reader.columns();
-    let mut axes = compensate_axes_reader(&[(model, columns)], reader, out)?;
-    axes.pop().ok_or_else(|| anyhow::anyhow!("no axis was compensated"))
-}
-
-/// [`compensate_reader`] for one or more axes, each given its model and its
-/// columns (the first the reader's own, the others from
-/// [`RunReader::axis_columns`]): one compensator per axis, each the
-/// single-axis step on that axis's samples, and per axis
-/// `bias_<axis>_dph`, `rate_comp_<axis>_dph`, `flags_<axis>` appended in the
-/// order given ([`record::write_compensated_header`]). Returns what each axis's
-/// compensation did, in that order.
-pub fn compensate_axes_reader(
-    axes: &[(Option<&Model>, Columns)],
+    models: &RunModels<'_>,
     reader: RunReader,
     out: &mut (impl Write + Send),
 ) -> anyhow::Result<Vec<Compensation>> {
-    for (model, columns) in axes {
-        let mask = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
-        reader.require_thermometers_of(columns, mask)?;
-    }
-    let stepper = Stepper::PerAxis(axes.iter().map(|(m, _)| (*m, Compensator::new())).collect());
-    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
-    compensate_stepped(stepper, &columns, reader, out)
+    models.require_thermometers(&reader)?;
+    compensate_stepped(models.stepper(), &models.columns(), reader, out)
 }
 
-/// [`compensate_axes_reader`] for a shared-basis model: `axes` the run's
-/// axes with their columns (x, y, z order), all read from one thermometer
-/// set ([`require_shared_thermometer`]), stepped together by
-/// [`Compensator::process_shared`], the step the firmware runs.
-pub fn compensate_shared_reader(
-    models: &SharedAxisModels,
-    axes: &[(Axis, Columns)],
-    reader: RunReader,
-    out: &mut (impl Write + Send),
-) -> anyhow::Result<Vec<Compensation>> {
-    let columns: Vec<Columns> = axes.iter().map(|(_, c)| *c).collect();
-    require_shared_thermometer(&reader, &columns, models.features().set.thermometer_mask())?;
-    let stepper = Stepper::Shared {
-        models,
-        axes: axes.iter().map(|(a, _)| *a).collect(),
-        compensator: Compensator::new(),
-    };
-    compensate_stepped(stepper, &columns, reader, out)
-}
-
-/// The compensation loop of [`compensate_axes_reader`] and [`compensate_shared_reader`].
+/// The compensation loop of [`compensate_reader`].
 fn compensate_stepped(
     mut stepper: Stepper<'_>,
     columns: &[Columns],
@@ -961,7 +948,9 @@ pub fn write_compensated_axes_row(out: &mut Vec<u8>, input_line: &[u8], samples:
 /// see [`compensate_reader`]); returns the row and flag counts.
 pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> anyhow::Result<(usize, FlagCounts)> {
     let mut out = Output::create(output, &[input], Existing::Replace)?;
-    let c = compensate_reader(model, RunReader::open(input)?, &mut out)
+    let reader = RunReader::open(input)?;
+    let c = compensate_reader(&RunModels::one(model, &reader), reader, &mut out)
+        .and_then(only_axis)
         .with_context(|| format!("{}: compensating {}", text::path(output), text::path(input)))?;
     out.commit()?;
     Ok((c.rows, c.flagged))

@@ -9,7 +9,7 @@ use rbf_core::features::Probe;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::blobfile::encode_model;
 use trainer::dataset::{RunFiles, RunSet};
-use trainer::evaluate::{RunEvaluation, evaluate_blocks, evaluate_reader, print_table};
+use trainer::evaluate::{RunEvaluation, RunModels, evaluate_blocks, evaluate_reader, only_axis, print_table};
 use trainer::fit::coverage::InUse;
 use trainer::fit::{self, FitOptions, FitOutcome};
 use trainer::limits::MAX_FOLDS;
@@ -401,7 +401,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     drop((train, validate));
     for path in &a.holdout {
-        let (evaluation, diagnosis, _) = evaluate_reader(&outcome.model, RunReader::open(path)?)?;
+        let reader = RunReader::open(path)?;
+        let models = RunModels::one(Some(&outcome.model), &reader);
+        let (evaluation, diagnosis, _) = only_axis(evaluate_reader(&models, reader)?)?;
         plausible::require_plausible(&diagnosis.implausible(), a.allow_implausible)?;
         evals.push(("holdout", evaluation));
     }

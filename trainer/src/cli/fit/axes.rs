@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 use trainer::blobfile::{encode_axis_models, encode_shared_models};
 use trainer::dataset::{RunFiles, RunSet};
 use trainer::evaluate::{
-    RunEvaluation, evaluate_axis_file, evaluate_blocks, evaluate_blocks_with, evaluate_shared_reader, print_table,
+    RunEvaluation, RunModels, evaluate_blocks, evaluate_blocks_with, evaluate_file, evaluate_reader, print_table,
 };
 use trainer::fit::{self, FitOptions, FitOutcome};
 use trainer::output::{Output, Transaction};
@@ -99,7 +99,11 @@ pub(super) fn run(
                 .iter()
                 .map(|&axis| Ok((axis, reader.axis_columns(axis)?)))
                 .collect::<anyhow::Result<_>>()?;
-            for (evaluation, (axis, _)) in evaluate_shared_reader(shared, &columns, reader)?.into_iter().zip(&columns) {
+            let models = RunModels::Shared {
+                models: shared,
+                axes: columns.clone(),
+            };
+            for (evaluation, (axis, _)) in evaluate_reader(&models, reader)?.into_iter().zip(&columns) {
                 let mut e = evaluation.0;
                 e.axis = Some(axis.name());
                 evals.push(("holdout", e));
@@ -107,7 +111,7 @@ pub(super) fn run(
             continue;
         }
         for (&axis, (outcome, _)) in axes.iter().zip(&outcomes) {
-            evals.push(("holdout", evaluate_axis_file(&outcome.model, path, Some(axis))?));
+            evals.push(("holdout", evaluate_file(&outcome.model, path, Some(axis))?));
         }
     }
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
