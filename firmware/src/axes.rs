@@ -22,7 +22,7 @@ use rbf_core::axis::{Axis, MAX_AXES};
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN};
-use rbf_core::shared::SharedAxisModels;
+use rbf_core::shared_basis::SharedAxisModels;
 use rbf_core::{CompensatedSample, Compensator, Flags, GyroSample};
 
 use crate::compensation::{InPlaceModel, LoopConfig, LoopStats, write_frame};

@@ -64,7 +64,7 @@ pub const AXIS_CENTERS: usize = rbf_core::MAX_AXIS_CENTERS;
 
 /// Centres the shared basis may have on the shared-basis three-axis board
 /// (feature `board-axes-shared`): the capacity `K` of its
-/// [`rbf_core::shared::SharedAxisModels`]. One basis with a weight per
+/// [`rbf_core::shared_basis::SharedAxisModels`]. One basis with a weight per
 /// axis takes about a third of three models' RAM, so this image holds
 /// twice the per-axis board's centres within the same 16 KiB
 /// (docs/firmware.md, "Three axes"). A blob with a larger basis is refused

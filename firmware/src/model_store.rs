@@ -43,9 +43,9 @@
 use embedded_storage::nor_flash::NorFlash;
 use rbf_core::Model;
 use rbf_core::blob::axes::{AxisModels, blob_len, decode_any_into};
-use rbf_core::blob::shared::decode_shared_into;
+use rbf_core::blob::shared_layout::decode_shared_into;
 use rbf_core::blob::{self, DecodeError, HEADER_LEN, MAX_BLOB_LEN};
-use rbf_core::shared::SharedAxisModels;
+use rbf_core::shared_basis::SharedAxisModels;
 
 /// What a slot's blob decodes into, in place: a single-axis [`Model`], the
 /// [`AxisModels`] of a multi-axis IMU or its [`SharedAxisModels`], each

@@ -268,15 +268,15 @@ fn wide_model(centers: usize) -> Model {
 /// The shared-basis model (16-centre basis, every axis) as the
 /// shared-basis board holds it, and its blob.
 fn shared_models() -> (
-    Box<rbf_core::shared::SharedAxisModels<{ firmware::SHARED_AXIS_CENTERS }>>,
+    Box<rbf_core::shared_basis::SharedAxisModels<{ firmware::SHARED_AXIS_CENTERS }>>,
     Vec<u8>,
 ) {
     let dir = tempfile::TempDir::new().unwrap();
     let (blob_path, _) = e2e_tests::fixtures::shared_blob_and_slice(dir.path());
     let blob = std::fs::read(blob_path).unwrap();
-    let mut board = Box::new(rbf_core::shared::SharedAxisModels::EMPTY);
+    let mut board = Box::new(rbf_core::shared_basis::SharedAxisModels::EMPTY);
     assert_eq!(
-        rbf_core::blob::shared::decode_shared_into(&mut *board, &blob),
+        rbf_core::blob::shared_layout::decode_shared_into(&mut *board, &blob),
         Ok(blob.len())
     );
     (board, blob)
@@ -309,7 +309,7 @@ fn under_a_shared_basis_the_one_thermometer_failing_flags_every_axis_and_the_oth
 #[test]
 fn the_store_and_the_uart_update_carry_a_shared_basis_blob_and_refuse_the_other_layouts() {
     use firmware::update::{CMD_INSTALL_MODEL, UpdateStatus, execute_into};
-    use rbf_core::shared::SharedAxisModels;
+    use rbf_core::shared_basis::SharedAxisModels;
     let (board_models, shared_blob) = shared_models();
     let (_, axes_blob) = axis_models();
     let (_, single_blob, _) = models();

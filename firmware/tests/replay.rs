@@ -169,9 +169,9 @@ fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_ev
 #[test]
 fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer_fault_flags_every_axis() {
     use firmware::replay::AxesReplayer;
-    use rbf_core::blob::shared::decode_shared_into;
+    use rbf_core::blob::shared_layout::decode_shared_into;
     use rbf_core::blob::{BlobKind, blob_kind};
-    use rbf_core::shared::SharedAxisModels;
+    use rbf_core::shared_basis::SharedAxisModels;
     use trainer::output::Existing;
 
     let dir = tempfile::TempDir::new().unwrap();

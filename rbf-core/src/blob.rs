@@ -43,7 +43,7 @@ pub const MAX_BLOB_LEN: usize = 4096;
 pub mod axes;
 #[cfg(test)]
 mod damage;
-pub mod shared;
+pub mod shared_layout;
 
 const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
@@ -167,7 +167,7 @@ pub enum BlobKind {
     /// Format 3: one model per axis in the mask ([`axes::decode_axes_into`]).
     PerAxis,
     /// Format 3 with the shared-basis flag: the axes share centres and widths
-    /// ([`shared::decode_shared_into`]).
+    /// ([`shared_layout::decode_shared_into`]).
     SharedBasis,
 }
 
@@ -226,8 +226,8 @@ pub enum DecodeError {
     MultiAxis,
     /// A multi-axis blob's axis mask is 0 or names an axis beyond z.
     BadAxisMask(u8),
-    /// A shared-basis blob ([`shared`]) where one model per axis is
-    /// expected: decode it with [`shared::decode_shared_into`].
+    /// A shared-basis blob ([`shared_layout`]) where one model per axis is
+    /// expected: decode it with [`shared_layout::decode_shared_into`].
     SharedBasis,
     /// A blob with one model per axis (or one model) where a shared-basis
     /// blob is expected.

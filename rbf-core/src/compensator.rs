@@ -9,7 +9,7 @@ use crate::axis::MAX_AXES;
 use crate::features::{FeatureExtractor, FeatureVector, LOOP_THERMOMETER, THERMOMETERS};
 use crate::flags::Flags;
 use crate::model::Model;
-use crate::shared::SharedAxisModels;
+use crate::shared_basis::SharedAxisModels;
 
 /// Loop settings that belong to the deployment, not to the model.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -339,7 +339,7 @@ impl Compensator {
     }
 
     /// The step of a shared-basis multi-axis model
-    /// ([`crate::shared::SharedAxisModels`]): the axes share one
+    /// ([`crate::shared_basis::SharedAxisModels`]): the axes share one
     /// thermometer set, so one compensator computes the features once, the
     /// model evaluates every axis's bias from them, and each axis's rate
     /// (x first, `rates_dph`) is checked and compensated as

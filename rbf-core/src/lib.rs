@@ -14,7 +14,7 @@
 //! - [`compensator`]: the per-sample loop state (sensor-fault hold, gaps, flags).
 //! - [`blob`]: the model blob format (header, postcard payload, CRC-32) and its decoder.
 //! - [`frame`]: the firmware's per-sample output frames (postcard + COBS).
-//! - [`shared`]: shared-basis multi-axis models (one basis, an output layer per axis).
+//! - [`shared_basis`]: shared-basis multi-axis models (one basis, an output layer per axis).
 //! - [`record`]: row parsing of recorded runs; [`sensor`]: TMP117 conversions;
 //!   [`axis`]: the axes of a multi-axis IMU ([`axis::Axis`], [`axis::MAX_AXES`]).
 //!
@@ -37,7 +37,7 @@ pub mod rbf;
 pub mod record;
 pub mod response_bank;
 pub mod sensor;
-pub mod shared;
+pub mod shared_basis;
 
 /// Most Gaussian centres a deployable model may hold (firmware RAM is sized for it).
 pub const MAX_CENTERS: usize = 64;

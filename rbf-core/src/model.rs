@@ -367,7 +367,7 @@ impl<const K: usize> Model<K> {
         (&self.linear_min[..d], &self.linear_max[..d])
     }
 
-    /// The evaluation of a shared basis ([`crate::shared`]): this model's
+    /// The evaluation of a shared basis ([`crate::shared_basis`]): this model's
     /// network is the basis (every weight 1, no linear terms), `weights`
     /// hold each centre's three output-layer weights and `linear` each
     /// layer's linear terms ([`RbfNetwork::linear_box_terms`]). The same

@@ -841,7 +841,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
     }
 
     /// Σ_j w_j[a]·exp(−‖z − c_j‖²/2σ²) for each of the three output layers
-    /// `a` of a shared basis ([`crate::shared`]): the kernel values are
+    /// `a` of a shared basis ([`crate::shared_basis`]): the kernel values are
     /// computed once per centre and weighted three times. On the table path
     /// (only meaningful when [`Self::table_ready`] with every centre at
     /// weight 1, which puts every centre in `exponent` in order with

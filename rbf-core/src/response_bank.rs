@@ -83,10 +83,10 @@ pub struct ResponseBank {
     pub range_max_c: f32,
     /// Powers of u among the inputs, 1 ..= [`MAX_RESPONSE_DEGREE`].
     pub static_degree: u8,
-    /// Rows 0 ..= 2: the rate responses' weights, R_j = Σ weights[j][k]·ΔT_k
+    /// Rows 0 ..= 2: the rate responses' weights, R_j = Σ `weights[j][k]`·ΔT_k
     /// in °/h (row 0 in °/h per °C/min, rows 1 and 2 per °C/min and per °C
     /// and °C² of u_c). Rows 3 and 4: the filtered powers' weights, H_q =
-    /// Σ weights[q+1][k]·ΔP_q,k in °/h (per °C^q/min). Unused filters' weights are 0.
+    /// Σ `weights[q+1][k]`·ΔP_q,k in °/h (per °C^q/min). Unused filters' weights are 0.
     pub weights: [[f32; RESPONSE_FILTERS]; WEIGHT_ROWS],
 }
 

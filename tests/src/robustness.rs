@@ -1,6 +1,6 @@
 //! The invariants the fuzz targets (fuzz/fuzz_targets/) check on arbitrary
 //! bytes, shared with the regression test that replays every input fuzzing
-//! ever broke (tests/fuzz-regressions/<target>/, tests/tests/fuzz_regressions.rs).
+//! ever broke (`tests/fuzz-regressions/<target>/`, `tests/tests/fuzz_regressions.rs`).
 //! Each function panics when an invariant fails, which libFuzzer reports.
 
 use std::io::Cursor;
@@ -65,8 +65,8 @@ pub fn sealed_shared_blob(data: &[u8]) -> Option<Vec<u8>> {
 /// at the three-axis board's capacity too, and every axis gives a finite
 /// bias from one compensator.
 fn check_shared_blob(data: &[u8]) {
-    use rbf_core::blob::shared::{decode_shared_into, encode_shared};
-    use rbf_core::shared::SharedAxisModels;
+    use rbf_core::blob::shared_layout::{decode_shared_into, encode_shared};
+    use rbf_core::shared_basis::SharedAxisModels;
     let mut models = Box::new(SharedAxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
     let Ok(len) = decode_shared_into(&mut models, data) else {
         return;

@@ -8,8 +8,8 @@ use anyhow::Context;
 use rbf_core::Model;
 use rbf_core::axis::Axis;
 use rbf_core::blob::axes::{self, AxisModels};
-use rbf_core::blob::{self, BlobKind, MAX_BLOB_LEN, shared};
-use rbf_core::shared::SharedAxisModels;
+use rbf_core::blob::{self, BlobKind, MAX_BLOB_LEN, shared_layout};
+use rbf_core::shared_basis::SharedAxisModels;
 
 use crate::input;
 use crate::output::{Existing, write_bytes_with};
@@ -110,7 +110,7 @@ fn decode_file(bytes: &[u8]) -> Result<(ModelFile, usize), blob::DecodeError> {
     match blob::blob_kind(bytes)? {
         BlobKind::SharedBasis => {
             let mut models = Box::new(SharedAxisModels::EMPTY);
-            let len = shared::decode_shared_into(&mut models, bytes)?;
+            let len = shared_layout::decode_shared_into(&mut models, bytes)?;
             Ok((ModelFile::Shared(models), len))
         }
         BlobKind::PerAxis => {
@@ -194,11 +194,11 @@ pub fn encode_axis_models(models: &[(Axis, &Model)]) -> anyhow::Result<Vec<u8>> 
 /// (see [`encode_model`]).
 pub fn encode_shared_models(models: &SharedAxisModels) -> anyhow::Result<Vec<u8>> {
     let mut buf = vec![0u8; MAX_BLOB_LEN];
-    let len = shared::encode_shared(models, &mut buf)
+    let len = shared_layout::encode_shared(models, &mut buf)
         .map_err(|e| anyhow::anyhow!("the shared-basis model does not fit one {MAX_BLOB_LEN}-byte blob: {e}"))?;
     buf.truncate(len);
     let mut back = Box::new(SharedAxisModels::EMPTY);
-    shared::decode_shared_into(&mut back, &buf).context("the encoded shared-basis blob does not decode")?;
+    shared_layout::decode_shared_into(&mut back, &buf).context("the encoded shared-basis blob does not decode")?;
     anyhow::ensure!(
         *back == *models,
         "the encoded blob does not reproduce the shared-basis model"

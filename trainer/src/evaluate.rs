@@ -7,7 +7,7 @@ use anyhow::Context;
 use rbf_core::axis::Axis;
 use rbf_core::features::LOOP_THERMOMETER;
 use rbf_core::record::{self, Columns};
-use rbf_core::shared::SharedAxisModels;
+use rbf_core::shared_basis::SharedAxisModels;
 use rbf_core::{
     CompensatedSample, Compensator, CompensatorConfig, FeatureVector, Flags, GyroSample, MAX_INPUTS, Model,
 };

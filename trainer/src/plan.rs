@@ -373,9 +373,9 @@ const ROOM_C: f64 = 23.0;
 const PRE_SOAK_WITHIN_C: f64 = 0.1;
 
 /// How long the unpowered gyro must soak at `start_c` after the lab
-/// ([`ROOM_C`]) before a plan's power-on, s, in whole minutes: until every
+/// (`ROOM_C`) before a plan's power-on, s, in whole minutes: until every
 /// node of `plant` (housing, electronics, coil layers, hub) lies within
-/// [`PRE_SOAK_WITHIN_C`] of the air, as the plan's first state assumes.
+/// `PRE_SOAK_WITHIN_C` of the air, as the plan's first state assumes.
 pub fn pre_soak_s(plant: &PlantParams, start_c: f64) -> f64 {
     let unpowered = PlantParams {
         self_heating_c: 0.0,

@@ -19,7 +19,7 @@ use rbf_core::blob::axes::AxisModels;
 use rbf_core::lag_bank::LagBank;
 use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
-use rbf_core::shared::SharedAxisModels;
+use rbf_core::shared_basis::SharedAxisModels;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 
 use crate::replay::MODEL_SLOT_A;
@@ -189,7 +189,7 @@ fn shared_axes(update: bool) -> anyhow::Result<Vec<u8>> {
     let pairs: Vec<(Axis, &Model)> = Axis::ALL.into_iter().zip(&models).collect();
     let shared = SharedAxisModels::from_models(&pairs).map_err(|e| anyhow::anyhow!("shared basis: {e}"))?;
     let mut blob = vec![0u8; rbf_core::blob::MAX_BLOB_LEN];
-    let n = rbf_core::blob::shared::encode_shared(&shared, &mut blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let n = rbf_core::blob::shared_layout::encode_shared(&shared, &mut blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     blob.truncate(n);
     Ok(blob)
 }

@@ -191,14 +191,14 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
     // scaled copies of it on y and z; raw and in the sealed form.
     let paper = &models[2].1;
     let mut shared = Box::new(
-        rbf_core::shared::SharedAxisModels::from_models(&[(rbf_core::axis::Axis::X, paper)])
+        rbf_core::shared_basis::SharedAxisModels::from_models(&[(rbf_core::axis::Axis::X, paper)])
             .map_err(|e| anyhow::anyhow!("{e}"))?,
     );
     if let ModelBody::Rbf(net) = paper.body() {
         for (axis, gain) in [(rbf_core::axis::Axis::Y, -0.5f32), (rbf_core::axis::Axis::Z, 0.25)] {
             let weights: Vec<f32> = net.weights().iter().map(|w| w * gain).collect();
             let linear: Vec<f32> = net.linear().iter().map(|a| a * gain).collect();
-            let layer = rbf_core::shared::OutputLayer {
+            let layer = rbf_core::shared_basis::OutputLayer {
                 weights: &weights,
                 linear: &linear,
                 constant: net.constant() * gain,
@@ -206,7 +206,7 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
             shared.assign_layer(axis, &layer).map_err(|e| anyhow::anyhow!("{e}"))?;
         }
     }
-    let len = rbf_core::blob::shared::encode_shared(&shared, &mut buf).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let len = rbf_core::blob::shared_layout::encode_shared(&shared, &mut buf).map_err(|e| anyhow::anyhow!("{e}"))?;
     write("blob_decode", "shared-basis.bin", &buf[..len])?;
     let sealed: Vec<u8> = [buf[6]].iter().chain(&buf[HEADER_LEN..len - 4]).copied().collect();
     write("blob_decode", "shared-basis.sealed", &sealed)?;
@@ -298,9 +298,9 @@ mod tests {
         );
         assert_eq!(axes.axes().count(), 3);
         let shared = std::fs::read(blobs.join("shared-basis.bin")).unwrap();
-        let mut models = Box::new(rbf_core::shared::SharedAxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
+        let mut models = Box::new(rbf_core::shared_basis::SharedAxisModels::<{ rbf_core::MAX_CENTERS }>::EMPTY);
         assert_eq!(
-            rbf_core::blob::shared::decode_shared_into(&mut models, &shared),
+            rbf_core::blob::shared_layout::decode_shared_into(&mut models, &shared),
             Ok(shared.len())
         );
         assert_eq!(models.mask(), 0b111);

@@ -21,13 +21,13 @@ mod board {
     use rbf_core::axis::{Axis, MAX_AXES};
     use rbf_core::blob::MAX_BLOB_LEN;
     use rbf_core::blob::axes::{AxisModels, decode_axes_into, encode_axes};
-    use rbf_core::blob::shared::{decode_shared_into, encode_shared};
+    use rbf_core::blob::shared_layout::{decode_shared_into, encode_shared};
     use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
     use rbf_core::lag_bank::LagBank;
     use rbf_core::model::{ModelBody, ModelInfo};
     use rbf_core::rbf::{RbfNetwork, RbfParams};
     use rbf_core::response_bank::ResponseBank;
-    use rbf_core::shared::{OutputLayer, SharedAxisModels};
+    use rbf_core::shared_basis::{OutputLayer, SharedAxisModels};
     use rbf_core::{
         Compensator, CompensatorConfig, FeatureConfig, FeatureSet, FeatureVector, GyroSample, MAX_CENTERS, Model,
     };

@@ -24,9 +24,9 @@ mod board {
     use firmware::replay::ReplayError;
     use firmware::replay::{AxesReplayer, PeriodProbe, ReplaySample, Replayer};
     use rbf_core::blob::axes::{AxisModels, decode_axes_into};
-    use rbf_core::blob::shared::decode_shared_into;
+    use rbf_core::blob::shared_layout::decode_shared_into;
     use rbf_core::blob::{BlobKind, blob_kind};
-    use rbf_core::shared::SharedAxisModels;
+    use rbf_core::shared_basis::SharedAxisModels;
 
     /// Semihosting file as an embedded-io writer (the UART of the real board).
     struct HostWriter(HostFile);

@@ -92,7 +92,7 @@ mod board {
     #[cfg(all(feature = "board-axes", not(feature = "board-axes-shared")))]
     use rbf_core::blob::axes::AxisModels;
     #[cfg(feature = "board-axes-shared")]
-    use rbf_core::shared::SharedAxisModels;
+    use rbf_core::shared_basis::SharedAxisModels;
     use rbf_core::{CompensatorConfig, Flags};
     use stm32f4xx_hal::gpio::{Edge, ExtiPin, Input, PB0};
     use stm32f4xx_hal::pac::{self, interrupt};

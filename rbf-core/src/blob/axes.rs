@@ -44,13 +44,13 @@ pub struct AxesHeader {
     pub axis_mask: u8,
     /// Payload length, bytes.
     pub payload_len: u32,
-    /// The axes share one basis ([`super::shared`]): header byte 7 is
+    /// The axes share one basis ([`super::shared_layout`]): header byte 7 is
     /// [`SHARED_BASIS_FLAG`] (else 0).
     pub shared_basis: bool,
 }
 
 /// Header byte 7 of a format-3 blob whose axes share one basis
-/// ([`super::shared`]); 0 for one model per axis.
+/// ([`super::shared_layout`]); 0 for one model per axis.
 pub const SHARED_BASIS_FLAG: u8 = 1;
 
 impl AxesHeader {

@@ -166,8 +166,8 @@ fn inspect_axes(
     let mut models = Box::new(AxisModels::EMPTY);
     // A shared-basis blob shows each axis as the model of the basis and its layer.
     let decoded = if kind == BlobKind::SharedBasis {
-        let mut shared = Box::new(rbf_core::shared::SharedAxisModels::EMPTY);
-        let decoded = rbf_core::blob::shared::decode_shared_into(&mut shared, bytes);
+        let mut shared = Box::new(rbf_core::shared_basis::SharedAxisModels::EMPTY);
+        let decoded = rbf_core::blob::shared_layout::decode_shared_into(&mut shared, bytes);
         for axis in shared.axes() {
             if let Some(Ok(model)) = shared.axis_model(axis) {
                 models.insert(axis, model);

@@ -21,7 +21,7 @@ use firmware::{AXIS_CENTERS, SHARED_AXIS_CENTERS};
 use rbf_core::Model;
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::blob::{DecodeError, MAX_BLOB_LEN};
-use rbf_core::shared::SharedAxisModels;
+use rbf_core::shared_basis::SharedAxisModels;
 
 use super::link::{Link, Message};
 use super::status::{self, UnitStatus};

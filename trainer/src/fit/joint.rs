@@ -9,7 +9,7 @@
 use nalgebra::DVector;
 use rbf_core::axis::Axis;
 use rbf_core::model::ModelBody;
-use rbf_core::shared::{OutputLayer, SharedAxisModels};
+use rbf_core::shared_basis::{OutputLayer, SharedAxisModels};
 use rbf_core::{MAX_INPUTS, Model};
 
 use super::linalg::{FeatureRow, GramStats, InputShape, design, ridge_solve};

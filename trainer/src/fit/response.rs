@@ -56,7 +56,7 @@ pub fn taus_s() -> [f32; FILTERS] {
 /// Block means of the channels a response bank mixes, and their targets.
 #[derive(Clone, Debug, Default)]
 pub struct ChannelBlocks {
-    /// Per block, the [`CHANNELS`] channel means: u, u², u³, then per mixture
+    /// Per block, the `CHANNELS` channel means: u, u², u³, then per mixture
     /// (R₀, u_c·R₁, u_c²·R₂, H₂, H₃) its filters' channels.
     pub x: Vec<[f64; CHANNELS]>,
     /// Mean bias target of each block, °/h.
@@ -218,7 +218,7 @@ impl ChannelBlocks {
 }
 
 /// The weights by ridge regression of the block targets on an offset per
-/// run and the [`CHANNELS`] channels, the channels standardised, the
+/// run and the `CHANNELS` channels, the channels standardised, the
 /// penalty λ·n ([`RIDGE_LAMBDA`]) on the dynamic ones only.
 pub fn solve_weights(blocks: &ChannelBlocks) -> anyhow::Result<Weights> {
     let statics = STATIC_DEGREE as usize;

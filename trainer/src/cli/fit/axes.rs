@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use rbf_core::MAX_AXIS_CENTERS;
 use rbf_core::axis::Axis;
-use rbf_core::shared::SharedAxisModels;
+use rbf_core::shared_basis::SharedAxisModels;
 use std::fmt::Write as _;
 use trainer::blobfile::{encode_axis_models, encode_shared_models};
 use trainer::dataset::{RunFiles, RunSet};

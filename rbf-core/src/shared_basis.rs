@@ -26,7 +26,7 @@
 //! The axes read one thermometer set: a shared-basis model suits an IMU
 //! whose axes share one loop thermometer (`temp_c` of a multi-axis run,
 //! `trainer simulate --axes 3 --shared-thermometer`). Blob layout: format 3
-//! with the shared-basis flag ([`crate::blob::shared`]).
+//! with the shared-basis flag ([`crate::blob::shared_layout`]).
 
 use crate::axis::{Axis, MAX_AXES};
 use crate::blob::DecodeError;

@@ -31,7 +31,7 @@ use super::{
     encode_section, seal,
 };
 use crate::axis::{Axis, MAX_AXES};
-use crate::shared::{OutputLayer, SharedAxisModels};
+use crate::shared_basis::{OutputLayer, SharedAxisModels};
 use crate::{MAX_CENTERS, MAX_INPUTS};
 
 /// One axis's output layer on the wire.
