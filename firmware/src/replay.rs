@@ -292,7 +292,7 @@ impl<'c, W: embedded_io::Write> Replayer<'c, W> {
         let dt_s = rbf_core::compensator::time_step_s(self.prev_time_s, row.time_s);
         self.prev_time_s = Some(row.time_s);
         let sample = self.compensation.step(dt_s);
-        record::write_compensated_row(out, text, &sample)?;
+        record::write_compensated_row(out, text, core::slice::from_ref(&sample))?;
         Ok(())
     }
 
@@ -429,7 +429,7 @@ impl<'c, W: embedded_io::Write, M: AxesHolder<K>, const K: usize> AxesReplayer<'
                 n += 1;
             }
         }
-        record::write_compensated_axes_row(out, text, present.get(..n).unwrap_or(&[]))?;
+        record::write_compensated_row(out, text, present.get(..n).unwrap_or(&[]))?;
         Ok(())
     }
 

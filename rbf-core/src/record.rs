@@ -365,17 +365,6 @@ pub fn metadata_sample_rate_hz(line: &str) -> Option<f64> {
 /// Names of the columns `compensate` appends, with their leading comma.
 pub const COMPENSATED_COLUMNS: &str = ",bias_dph,rate_comp_dph,flags";
 
-/// Writes one compensated output row: the input line as read, then
-/// `bias_dph`, `rate_comp_dph` and `flags` (f32 shortest round-trip decimal),
-/// and a `\n`. The trainer and the firmware replay both write rows with this.
-pub fn write_compensated_row<W: core::fmt::Write>(
-    out: &mut W,
-    input_line: &str,
-    sample: &crate::CompensatedSample,
-) -> core::fmt::Result {
-    write_compensated_axes_row(out, input_line, core::slice::from_ref(sample))
-}
-
 /// Writes the header of a compensated output: the input header as read,
 /// then per axis present `bias_<axis>_dph`, `rate_comp_<axis>_dph`,
 /// `flags_<axis>` (a single-axis run: [`COMPENSATED_COLUMNS`]), and a `\n`.
@@ -395,10 +384,11 @@ pub fn write_compensated_header<W: core::fmt::Write>(
     out.write_char('\n')
 }
 
-/// Writes one compensated output row of a run with one or more axes: the
-/// input line as read, then `bias`, `rate_comp` and `flags` of each sample
-/// in axis order (one sample: exactly [`write_compensated_row`]), and a `\n`.
-pub fn write_compensated_axes_row<W: core::fmt::Write>(
+/// Writes one compensated output row of a run with one or more axes: the input line as
+/// read, then `bias`, `rate_comp` and `flags` of each sample in axis order (f32 shortest
+/// round-trip decimal), and a `\n`. The firmware replay writes rows with this; the trainer's
+/// byte-buffer twin (`trainer::evaluate::push_compensated_row`) is tested against it.
+pub fn write_compensated_row<W: core::fmt::Write>(
     out: &mut W,
     input_line: &str,
     samples: &[crate::CompensatedSample],
@@ -902,7 +892,7 @@ mod tests {
         let mut text = heapless::String::<256>::new();
         let multi = Columns::from_header("time_s,rate_x_dph,rate_y_dph,temp_c").unwrap();
         write_compensated_header(&mut text, "time_s,rate_x_dph,rate_y_dph,temp_c", &multi).unwrap();
-        write_compensated_axes_row(&mut text, "0,1,1,20", &[sample(0.25, 0), sample(-0.5, 9)]).unwrap();
+        write_compensated_row(&mut text, "0,1,1,20", &[sample(0.25, 0), sample(-0.5, 9)]).unwrap();
         assert_eq!(
             text.as_str(),
             "time_s,rate_x_dph,rate_y_dph,temp_c,bias_x_dph,rate_comp_x_dph,flags_x,bias_y_dph,rate_comp_y_dph,flags_y\n\
@@ -911,7 +901,7 @@ mod tests {
         text.clear();
         let single = Columns::from_header("time_s,rate_dph,temp_c").unwrap();
         write_compensated_header(&mut text, "time_s,rate_dph,temp_c", &single).unwrap();
-        write_compensated_row(&mut text, "0,1,20", &sample(0.1, 8)).unwrap();
+        write_compensated_row(&mut text, "0,1,20", &[sample(0.1, 8)]).unwrap();
         assert_eq!(
             text.as_str(),
             "time_s,rate_dph,temp_c,bias_dph,rate_comp_dph,flags\n0,1,20,0.1,0.9,8\n"

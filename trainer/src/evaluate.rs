@@ -880,7 +880,7 @@ fn compensate_stepped(
             for (batch, outputs) in rx {
                 text.clear();
                 for (i, row) in outputs.chunks_exact(n).enumerate() {
-                    write_compensated_axes_row(&mut text, batch.line_text(i), row);
+                    push_compensated_row(&mut text, batch.line_text(i), row);
                 }
                 out.write_all(&text)?;
             }
@@ -922,16 +922,11 @@ fn compensate_stepped(
     Ok(c)
 }
 
-/// Appends one compensated output row: the input line as read, then
-/// `bias_dph`, `rate_comp_dph` and `flags` and a `\n`, byte for byte what
-/// [`record::write_compensated_row`] (the firmware replay's writer) writes.
-pub fn write_compensated_row(out: &mut Vec<u8>, input_line: &[u8], sample: &CompensatedSample) {
-    write_compensated_axes_row(out, input_line, std::slice::from_ref(sample));
-}
-
-/// [`write_compensated_row`] for the samples of one or more axes, byte for
-/// byte what [`record::write_compensated_axes_row`] writes.
-pub fn write_compensated_axes_row(out: &mut Vec<u8>, input_line: &[u8], samples: &[CompensatedSample]) {
+/// Appends one compensated output row of one or more axes: the input line as read, then
+/// `bias`, `rate_comp` and `flags` of each sample in axis order and a `\n`, byte for byte
+/// what [`record::write_compensated_row`] (the firmware replay's writer) writes, without
+/// its formatter (a long run's compensation is mostly this).
+pub fn push_compensated_row(out: &mut Vec<u8>, input_line: &[u8], samples: &[CompensatedSample]) {
     out.extend_from_slice(input_line);
     for sample in samples {
         out.push(b',');
@@ -1059,8 +1054,16 @@ mod tests {
                 flags: Flags(rng.random()),
             };
             let line = format!("{i}.01,9.75,20.0078125");
-            write_compensated_row(&mut fast, line.as_bytes(), &sample);
-            record::write_compensated_row(&mut shared, &line, &sample).unwrap();
+            let samples = [
+                sample,
+                CompensatedSample {
+                    flags: Flags(i as u8),
+                    ..sample
+                },
+            ];
+            let n = 1 + (i % 2) as usize;
+            push_compensated_row(&mut fast, line.as_bytes(), &samples[..n]);
+            record::write_compensated_row(&mut shared, &line, &samples[..n]).unwrap();
         }
         assert_eq!(String::from_utf8(fast).unwrap(), shared);
     }
