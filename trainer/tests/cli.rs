@@ -941,6 +941,30 @@ fn simulate_unit_draws_a_recorded_gyro_that_params_override_and_in_use_runs_star
     let (mut expected, got) = (params(&unit), params(&noisier));
     expected["gyro"]["arw_deg_per_sqrt_h"] = serde_json::json!(0.004);
     assert_eq!(got, expected);
+    // --design N: a gyro of another design, the same for every run, recorded as such.
+    let design = run("design.csv", &["--design", "3"]);
+    assert!(
+        design.contains("# design: 3\n") && !design.contains("# unit:"),
+        "{design:.600}"
+    );
+    assert_eq!(design, run("design-again.csv", &["--design", "3"]));
+    assert_ne!(data_rows(&design), data_rows(&unit), "design 3 is not unit 3");
+    assert_eq!(
+        params(&design)["gyro"]["shupe_gain_of_layer_temp"],
+        serde_json::json!(true)
+    );
+    assert!(params(&unit)["gyro"].get("shupe_gain_of_layer_temp").is_none());
+    let o = trainer(&[
+        "simulate",
+        "--unit",
+        "1",
+        "--design",
+        "1",
+        "-o",
+        dir.path().join("x.csv").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "--unit and --design exclude each other");
+    assert!(stderr(&o).contains("cannot be used with"), "{}", stderr(&o));
 }
 
 /// Number of data rows of a compensated run whose flags carry `bit`.

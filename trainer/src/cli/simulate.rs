@@ -7,6 +7,7 @@ use trainer::limits::{
     MAX_PARAMS_BYTES, MAX_SIM_HOURS, MAX_SIM_OUTPUT_BYTES, MIN_RUN_ROWS, MIN_SAMPLE_RATE_HZ, SIM_BYTES_PER_FIELD,
 };
 use trainer::output::{self, Output, Transaction};
+use trainer::simulate::unit::Family;
 use trainer::simulate::{ChamberRun, ParamsError, Profile, SimParams};
 use trainer::{input, text};
 
@@ -24,9 +25,11 @@ use super::values::ProfileArg;
 /// random walk. ref_dph is the Earth-rate projection at 39.9° N, axis heading
 /// 30°. Every run starts at power-on, soaked at its first temperature; the
 /// chamber protocols ifog, cycle and random start with a 1-h hold. --unit N
-/// draws a whole gyro from documented ranges. Same seed, same file.
+/// draws a whole gyro from documented ranges, --design N one of another
+/// mechanical design from wider ones. Same seed, same file.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Examples:\n  trainer simulate --profile field --unit 3 --seed 7 -o field.csv\n  \
+                        trainer simulate --chamber-profile plan.csv --design 7 -o planned.csv\n  \
                         trainer simulate --profile cycle --axes 3 -o imu-cycle.csv")]
 pub struct Args {
     /// Temperature history (docs/simulator.md, "Profiles").
@@ -50,6 +53,13 @@ pub struct Args {
     /// seeded by N (--params overrides fields of it).
     #[arg(long, value_name = "N", help_heading = "Model")]
     unit: Option<u64>,
+    /// A gyro of another mechanical design, drawn by seed N.
+    ///
+    /// Every plant and bias constant drawn from the documented design ranges, wider than a
+    /// unit's: time constants, self-heating, thermometer lag, each coil layer with its own
+    /// Shupe residual of either sign (--params overrides fields of it).
+    #[arg(long, value_name = "N", conflicts_with = "unit", help_heading = "Model")]
+    design: Option<u64>,
     /// Chamber ramp between set points, °C/min.
     ///
     /// ifog and cycle: 1 (the RLG paper used 1, 2, 3, 5); designed: 5.
@@ -158,9 +168,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(PathBuf::as_path)
         .collect();
     let target = output::check_target(&a.output, &inputs, a.force.existing())?;
-    let unit_params = a
-        .unit
-        .map_or_else(SimParams::default, trainer::simulate::unit::unit_params);
+    let drawn = match (a.unit, a.design) {
+        (Some(n), _) => Some((Family::Unit, n)),
+        (None, Some(n)) => Some((Family::Design, n)),
+        (None, None) => None,
+    };
+    let drawn_params = drawn.map_or_else(SimParams::default, |(family, n)| family.params(n));
     let profile = Profile::from(a.profile);
     let mut run = match &a.chamber_profile {
         Some(path) => ChamberRun::planned(
@@ -180,11 +193,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     run.multi = a.multi;
     run.random_range_c = (lo, hi);
     run.ramp_range_c_per_min = (slowest, fastest);
-    run.unit = a.unit;
+    run.drawn = drawn;
     run.noise_only = a.noise_only;
     run.params = match &a.params {
-        Some(path) => read_sim_params(path, &unit_params)?,
-        None => unit_params,
+        Some(path) => read_sim_params(path, &drawn_params)?,
+        None => drawn_params,
     };
     run.params
         .check()

@@ -43,6 +43,14 @@ pub struct GyroParams {
     /// Weights of the layers' temperature rates in the Shupe term, outer to
     /// inner, one per coil layer.
     pub shupe_layer_weights: Vec<f64>,
+    /// Whether the Shupe gain's temperature term follows each layer's own
+    /// temperature, K_S Σ w_i (1 + α (T_i − 25 °C)) dT_i/dt, instead of the
+    /// mean coil temperature's (false, the documented gyro). It matters where
+    /// layers of large weights of opposite sign sit at different temperatures
+    /// (`--design`). Left out of the JSON when false, so the records of the
+    /// gyros before it stay as they were.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub shupe_gain_of_layer_temp: bool,
     /// Bias per °C of housing − coil (radial gradient), °/h/°C.
     pub radial_gradient_dph_per_c: f64,
     /// Thermal stress: bias per °C of innermost − outer coil layer, °/h/°C.
@@ -67,6 +75,7 @@ impl Default for GyroParams {
             shupe_dph_per_c_per_min: 0.3,
             shupe_temp_coeff_per_c: 0.01,
             shupe_layer_weights: vec![0.55, 0.30, 0.10, 0.05],
+            shupe_gain_of_layer_temp: false,
             radial_gradient_dph_per_c: 0.004,
             stress_gradient_dph_per_c: 0.0,
             stress_temp_coeff_per_c: 0.0,
@@ -159,13 +168,17 @@ impl Gyro {
         let u = plant.coil_mean_c() - STATIC_REF_C;
         let [c0, c1, c2, c3] = p.static_coeffs;
         let static_dph = c0 + u * (c1 + u * (c2 + u * c3));
-        let weighted_rate_c_per_min: f64 = p
-            .shupe_layer_weights
-            .iter()
-            .zip(&rates.coil_c_per_s)
-            .map(|(w, r)| w * r * 60.0)
-            .sum();
-        let shupe_dph = p.shupe_dph_per_c_per_min * (1.0 + p.shupe_temp_coeff_per_c * u) * weighted_rate_c_per_min;
+        let weighted_rates = p.shupe_layer_weights.iter().zip(&rates.coil_c_per_s);
+        let shupe_dph = if p.shupe_gain_of_layer_temp {
+            let gained_rate_c_per_min: f64 = weighted_rates
+                .zip(plant.layers_c())
+                .map(|((w, r), t)| w * (1.0 + p.shupe_temp_coeff_per_c * (t - STATIC_REF_C)) * r * 60.0)
+                .sum();
+            p.shupe_dph_per_c_per_min * gained_rate_c_per_min
+        } else {
+            let weighted_rate_c_per_min: f64 = weighted_rates.map(|(w, r)| w * r * 60.0).sum();
+            p.shupe_dph_per_c_per_min * (1.0 + p.shupe_temp_coeff_per_c * u) * weighted_rate_c_per_min
+        };
         let radial_dph = p.radial_gradient_dph_per_c * (plant.housing_c() - plant.coil_mean_c());
         let stress_dph =
             p.stress_gradient_dph_per_c * (1.0 + p.stress_temp_coeff_per_c * u) * (plant.inner_c() - plant.outer_c())
@@ -187,5 +200,78 @@ impl Gyro {
     pub fn noise_dph(&mut self, rng: &mut impl Rng) -> f64 {
         let n: f64 = StandardNormal.sample(rng);
         self.white_dph * n
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::SeedableRng;
+    use rand_pcg::Pcg64;
+
+    use super::*;
+    use crate::simulate::plant::{Plant, PlantParams};
+
+    /// The Shupe term alone, °/h: every other term zeroed, no noise.
+    fn shupe_dph(params: &GyroParams, plant: &Plant, rates: &NodeRates) -> f64 {
+        let p = GyroParams {
+            static_coeffs: [0.0; 4],
+            radial_gradient_dph_per_c: 0.0,
+            bias_instability_dph: 0.0,
+            ..params.clone()
+        };
+        Gyro::new(&p, 1.0, false).bias_dph(plant, rates, &mut Pcg64::seed_from_u64(1))
+    }
+
+    #[test]
+    fn the_shupe_gain_follows_each_layers_own_temperature_when_asked() {
+        let weights = vec![2.0, -3.0, 1.5, 0.5];
+        let mean_gain = GyroParams {
+            shupe_dph_per_c_per_min: 0.4,
+            shupe_temp_coeff_per_c: 0.02,
+            shupe_layer_weights: weights.clone(),
+            ..GyroParams::default()
+        };
+        let layer_gain = GyroParams {
+            shupe_gain_of_layer_temp: true,
+            ..mean_gain.clone()
+        };
+        let mut plant = Plant::soaked(&PlantParams::default(), 0.0);
+        let rates_c_per_min = [1.0, 0.6, 0.3, 0.1];
+        let mut rates = NodeRates::default();
+        for (r, per_min) in rates.coil_c_per_s.iter_mut().zip(rates_c_per_min) {
+            *r = per_min / 60.0;
+        }
+        // Soaked at one temperature, both forms are the same law.
+        let (a, b) = (
+            shupe_dph(&mean_gain, &plant, &rates),
+            shupe_dph(&layer_gain, &plant, &rates),
+        );
+        assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        // Layers 20, 10, 0, −10 °C (mean 5 °C): each layer's gain at its own temperature.
+        plant.coil_c[..4].copy_from_slice(&[20.0, 10.0, 0.0, -10.0]);
+        let expected = |temps: [f64; 4]| -> f64 {
+            (0..4)
+                .map(|i| 0.4 * weights[i] * (1.0 + 0.02 * (temps[i] - 25.0)) * rates_c_per_min[i])
+                .sum()
+        };
+        let got = shupe_dph(&layer_gain, &plant, &rates);
+        assert!((got - expected([20.0, 10.0, 0.0, -10.0])).abs() < 1e-12, "{got}");
+        let got = shupe_dph(&mean_gain, &plant, &rates);
+        assert!((got - expected([5.0; 4])).abs() < 1e-12, "{got}");
+        // With weights of opposite sign the two differ by much more than rounding.
+        assert!((got - expected([20.0, 10.0, 0.0, -10.0])).abs() > 0.01);
+    }
+
+    #[test]
+    fn the_layer_gain_flag_is_recorded_only_when_set() {
+        let json = serde_json::to_string(&GyroParams::default()).unwrap();
+        assert!(!json.contains("shupe_gain_of_layer_temp"), "{json}");
+        let set = GyroParams {
+            shupe_gain_of_layer_temp: true,
+            ..GyroParams::default()
+        };
+        let json = serde_json::to_string(&set).unwrap();
+        assert!(json.contains("\"shupe_gain_of_layer_temp\":true"), "{json}");
+        assert_eq!(serde_json::from_str::<GyroParams>(&json).unwrap(), set);
     }
 }

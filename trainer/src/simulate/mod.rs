@@ -6,7 +6,8 @@
 //! integrates the thermal network (air → housing base/top → self-heated
 //! electronics → fiber coil in radial layers on its hub → thermometers),
 //! [`gyro`] turns the coil's temperature distribution into bias and adds
-//! noise, [`unit`](mod@unit) draws a whole gyro from the documented ranges.
+//! noise, [`unit`](mod@unit) draws a whole gyro (`--unit`, `--design`) from the
+//! documented ranges.
 //! [`ChamberRun::write_csv`] streams the recorded run, so hundreds of MB
 //! never sit in memory.
 
@@ -144,8 +145,9 @@ pub struct ChamberRun {
     pub planned_source: Option<String>,
     /// The gyro's thermal network and bias model.
     pub params: SimParams,
-    /// The unit the parameters were drawn for (`--unit`; metadata).
-    pub unit: Option<u64>,
+    /// The family and number the parameters were drawn for (`--unit N`,
+    /// `--design N`; metadata).
+    pub drawn: Option<(unit::Family, u64)>,
     /// Zero every thermal bias term: the run's noise alone, sample for sample
     /// the noise of the same run with its thermal bias (its noise ceiling).
     pub noise_only: bool,
@@ -171,7 +173,7 @@ impl ChamberRun {
             planned: None,
             planned_source: None,
             params: SimParams::default(),
-            unit: None,
+            drawn: None,
             noise_only: false,
             seed,
         }
@@ -338,8 +340,8 @@ impl ChamberRun {
         writeln!(out, "# heading_deg: {}", gyro::HEADING_DEG)?;
         writeln!(out, "# arw_deg_per_sqrt_h: {}", params.gyro.arw_deg_per_sqrt_h)?;
         writeln!(out, "# bias_instability_dph: {}", params.gyro.bias_instability_dph)?;
-        if let Some(unit) = self.unit {
-            writeln!(out, "# unit: {unit}")?;
+        if let Some((family, n)) = self.drawn {
+            writeln!(out, "# {}: {n}", family.name())?;
         }
         if self.noise_only {
             writeln!(
@@ -398,7 +400,13 @@ mod tests {
             multi: true,
             ..ChamberRun::with_profile(Profile::Field, 8)
         };
-        for thermal in [documented, unit] {
+        // A drawn design: layers of large opposite-sign weights, the gain at each layer's temperature.
+        let design = ChamberRun {
+            params: unit::Family::Design.params(3),
+            ..ChamberRun::with_profile(Profile::Swings, 9)
+        };
+        assert!(design.params.gyro.shupe_gain_of_layer_temp);
+        for thermal in [documented, unit, design] {
             let quiet = ChamberRun {
                 noise_only: true,
                 ..thermal.clone()
@@ -437,7 +445,7 @@ mod tests {
         let run = |unit: u64, seed: u64| {
             ChamberRun {
                 params: unit::unit_params(unit),
-                unit: Some(unit),
+                drawn: Some((unit::Family::Unit, unit)),
                 duration_s: Some(1800.0),
                 ..ChamberRun::with_profile(Profile::ColdStart, seed)
             }
