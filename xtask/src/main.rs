@@ -96,16 +96,6 @@ enum Cmd {
     /// noise, a loop stall): one line per scenario, then `board faults: N
     /// scenarios, M failed`; fails when any scenario fails (part of `ci`).
     BoardFaults,
-    /// Accuracy against the peers: on simulated chamber runs of both protocols
-    /// (trained on one 1 °C/min run, verified at other ramp rates and on a random
-    /// profile) compare no compensation, poly3, rbf2, the IFOG paper's rbf, the
-    /// default, and scikit-learn SVR and KernelRidge on the same features (in a
-    /// venv it makes under target/). Then in use: on four plants (the documented
-    /// gyro, units 1 and 2, another mechanical design) the default trained on the
-    /// 1 °C/min cycle and on the designed run alone, verified on two random
-    /// set-point runs and two field histories, beside a lag-bank least-squares
-    /// reference and each run's noise ceiling. Prints improvement %, residual
-    /// 100-s STD, fit time.
     /// The default fit on recorded gyros of other designs: each trained on its
     /// planned run and its cycle, verified on its random and field histories
     /// (100-s cluster STD against ref_dph), beside the fit's forecast.
@@ -117,6 +107,16 @@ enum Cmd {
         #[arg(long, value_name = "PATH")]
         trainer: Option<PathBuf>,
     },
+    /// Accuracy against the peers: on simulated chamber runs of both protocols
+    /// (trained on one 1 °C/min run, verified at other ramp rates and on a random
+    /// profile) compare no compensation, poly3, rbf2, the IFOG paper's rbf, the
+    /// default, and scikit-learn SVR and KernelRidge on the same features (in a
+    /// venv it makes under target/). Then in use: on four plants (the documented
+    /// gyro, units 1 and 2, another mechanical design) the default trained on the
+    /// 1 °C/min cycle and on the designed run alone, verified on two random
+    /// set-point runs and two field histories, beside a lag-bank least-squares
+    /// reference and each run's noise ceiling. Prints improvement %, residual
+    /// 100-s STD, fit time.
     BenchAccuracy {
         /// Simulate another gyro in the chamber protocols (`trainer simulate
         /// --params`), e.g. bench/accuracy/another-gyro.json: does the default
@@ -130,7 +130,7 @@ enum Cmd {
         #[arg(long)]
         quick: bool,
         /// In-use section: also units 3 … N of `trainer simulate --unit`
-        /// (plants the default was not developed on; about 15 s each).
+        /// (plants the default was not developed on).
         #[arg(long, value_name = "N", default_value_t = 0)]
         units: u64,
         /// Write the in-use section's results as JSON (`-`: stdout).
@@ -168,7 +168,14 @@ enum Cmd {
     /// scikit-learn pipeline doing the same job (read, 1-s means, features,
     /// kernel ridge with a small grid search; bench/large-run/) one after the
     /// other, with each one's peak memory. The venv is made under target/.
-    BenchLargeRun,
+    BenchLargeRun {
+        /// Then time `trainer fit` and `trainer compensate` on the 20-h run and
+        /// `trainer fit` on the 2-h run N more times each and print the median
+        /// and range of wall time and peak memory (one run is noisy on a shared
+        /// machine).
+        #[arg(long, value_name = "N", default_value_t = 0)]
+        repeat: u32,
+    },
     /// Fuzz everything that reads outside input (model blobs, recorded runs,
     /// output frames) with libFuzzer via cargo fuzz (installed when missing),
     /// each target for --seconds, from a seed corpus written by the current
@@ -271,7 +278,7 @@ fn main() -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Cmd::BenchLargeRun => xtask::large_run::bench_large_run(),
+        Cmd::BenchLargeRun { repeat } => xtask::large_run::bench_large_run(repeat),
         Cmd::Fuzz { seconds } => xtask::fuzz::fuzz(seconds).map(|_| ()),
     }
 }
