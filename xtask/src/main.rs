@@ -106,6 +106,10 @@ enum Cmd {
         /// Judge this trainer instead of this workspace's release build.
         #[arg(long, value_name = "PATH")]
         trainer: Option<PathBuf>,
+        /// Options for `trainer fit` instead of the default model, as one string,
+        /// e.g. --fit-args="--features lag-bank".
+        #[arg(long, value_name = "ARGS", allow_hyphen_values = true)]
+        fit_args: Option<String>,
     },
     /// Accuracy against the peers: on simulated chamber runs of both protocols
     /// (trained on one 1 °C/min run, verified at other ramp rates and on a random
@@ -236,7 +240,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::ImportCircles => xtask::import_circles::import_circles(),
         Cmd::CheckBoardPanics => xtask::firmware::check_board_panics(),
         Cmd::BoardFaults => xtask::board_faults::board_faults(),
-        Cmd::BenchDesigns { dir, trainer } => {
+        Cmd::BenchDesigns { dir, trainer, fit_args } => {
             let trainer = match trainer {
                 Some(t) => std::path::absolute(t)?,
                 None => {
@@ -244,7 +248,12 @@ fn main() -> anyhow::Result<()> {
                     xtask::workspace_root().join("target/release/trainer")
                 }
             };
-            xtask::accuracy::designs::bench_designs(&dir, &trainer)
+            let fit_args: Vec<String> = fit_args
+                .iter()
+                .flat_map(|a| a.split_whitespace())
+                .map(str::to_owned)
+                .collect();
+            xtask::accuracy::designs::bench_designs(&dir, &trainer, &fit_args)
         }
         Cmd::BenchAccuracy {
             params,
