@@ -4,14 +4,18 @@ with each one's peak memory (os.wait4's ru_maxrss of that child alone),
 throughput, and the floor measured on the same file in the same run: one
 pass that only reads it and counts its line ends. The peak memory of a fit
 on a run 10x shorter shows whether memory grows with the run's length.
+With REPEAT above 0, the trainer's three jobs then run REPEAT more times
+each and their median and range are printed: one run of each is noisy on a
+shared machine.
 
-Usage: python run.py TRAINER RUN.csv WORK_DIR SHORT_RUN.csv
-Called by `cargo xtask bench-large-run`, which makes the runs with
-`trainer simulate` and the venv with pandas and scikit-learn.
+Usage: python run.py TRAINER RUN.csv WORK_DIR SHORT_RUN.csv [REPEAT]
+Called by `cargo xtask bench-large-run [--repeat N]`, which makes the runs
+with `trainer simulate` and the venv with pandas and scikit-learn.
 """
 
 import json
 import os
+import statistics
 import subprocess
 import sys
 import time
@@ -44,7 +48,21 @@ def floor_pass(run):
     return time.perf_counter() - started, lines
 
 
-def main(trainer, run, work, short_run):
+def repeated(name, cmd, log_path, repeat):
+    """Prints the median and range of wall time and peak RSS of `repeat` runs of cmd."""
+    walls, peaks = [], []
+    for _ in range(repeat):
+        seconds, mb, _ = timed(cmd, log_path)
+        walls.append(seconds)
+        peaks.append(mb)
+    print(
+        f"{name:<28} {statistics.median(walls):>6.2f} s ({min(walls):.2f}-{max(walls):.2f})"
+        f" {statistics.median(peaks):>7.1f} MB ({min(peaks):.1f}-{max(peaks):.1f})"
+    )
+
+
+def main(trainer, run, work, short_run, repeat="0"):
+    repeat = int(repeat)
     here = os.path.dirname(os.path.abspath(__file__))
     model = os.path.join(work, "model.bin")
     report = os.path.join(work, "fit.json")
@@ -76,7 +94,7 @@ def main(trainer, run, work, short_run):
         [sys.executable, os.path.join(here, "pandas_compensate.py"), run, os.path.join(work, "pandas_out.csv")],
         os.path.join(work, "pandas_compensate.log"),
     )
-    print(f"large run: {rows} rows, {size_mb:.0f} MB ({run})")
+    print(f"large run: {rows} rows, {size_mb:.0f} MB ({os.path.basename(run)})")
     head = f"{'job':<28} {'wall [s]':>9} {'peak RSS [MB]':>14} {'MB/s':>7} {'Mrows/s':>8} {'x floor':>8}"
     print(head)
 
@@ -97,7 +115,27 @@ def main(trainer, run, work, short_run):
         f"compensate {pandas_comp_s / comp_s:.1f}x faster than a pandas read + write"
     )
     print(f"fit peak RSS: {ours_mb:.0f} MB on this run, {short_mb:.0f} MB on one 10x shorter (ratio {ours_mb / short_mb:.2f})")
+    if repeat > 0:
+        print(f"{repeat} more runs each, after the runs above: median wall (range), median peak RSS (range)")
+        repeated(
+            "trainer fit",
+            [trainer, "fit", "-q", "--force", run, "-o", model],
+            os.path.join(work, "trainer.log"),
+            repeat,
+        )
+        repeated(
+            "trainer compensate",
+            [trainer, "compensate", "--force", "--model", model, run, "-o", compensated],
+            os.path.join(work, "compensate.log"),
+            repeat,
+        )
+        repeated(
+            "trainer fit, run 10x shorter",
+            [trainer, "fit", "-q", "--force", short_run, "-o", os.path.join(work, "short.bin")],
+            os.path.join(work, "short.log"),
+            repeat,
+        )
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:5])
+    main(*sys.argv[1:6])

@@ -28,8 +28,8 @@
 //! memory-mapped) and decoded in place into a model the caller owns
 //! ([`ModelStore::open_with`], [`ModelStore::load_into`],
 //! [`ModelStore::install_into`]): the board keeps its one model in a
-//! `static`, and neither a 4 KiB blob buffer nor a 4 KiB model lands on its
-//! stack. [`ModelStore::open`], [`ModelStore::load`] and
+//! `static`, and neither a blob buffer nor a model (each kilobytes) lands
+//! on its stack. [`ModelStore::open`], [`ModelStore::load`] and
 //! [`ModelStore::install`] return models by value for host tools and tests.
 //!
 //! A slot holds either blob format: a single-axis model (format 2) or an

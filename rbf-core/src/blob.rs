@@ -460,8 +460,8 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
 }
 
 /// [`decode`] in place: validates the blob in `bytes` and builds its model
-/// in `model` (the firmware's `static`, so that no 4 KiB model is moved by
-/// value); returns the bytes the blob occupied. On error `model` is
+/// in `model` (the firmware's `static`, so that the model, the largest
+/// object the board holds, is not moved by value); returns the bytes the blob occupied. On error `model` is
 /// [`Model::EMPTY`] and the reason is returned.
 pub fn decode_into(model: &mut Model, bytes: &[u8]) -> Result<usize, DecodeError> {
     // Non-generic: the firmware's decoder is instantiated here, at full

@@ -203,9 +203,9 @@ impl Probes {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 // An explicit tag: without it the compiler keeps the variant in a spare
 // value of the lag bank's `gain_of` (a niche), so every match on the set
-// decodes it and an empty model is no longer all zero bytes (10 KiB of
-// flash, a 4.6 KiB constant among it, and 70 instructions per sample on
-// the board, as docs/decisions.md records).
+// decodes it, and an empty model is no longer all zero bytes: the board's
+// `static` model then needs an initialiser constant in flash, and every
+// sample pays for the decoding (docs/decisions.md).
 #[repr(u8)]
 #[allow(
     clippy::large_enum_variant,
@@ -750,8 +750,8 @@ fn assemble(set: &FeatureSet, rate_c_per_min: &[f32; FILTERS], temps_c: &[f32; T
         }
         FeatureSet::MultiScaleSecondOrder | FeatureSet::MultiScaleLagged { .. } => {
             // Written out apart from the first-order arm on purpose: one arm for
-            // both sets with a shared prefix cost the firmware's whole step about
-            // 96 instructions more (`cargo xtask bench-fw`).
+            // both sets with a shared prefix made the firmware's whole step
+            // longer (`cargo xtask bench-fw`).
             let [fast, slow, slowest, ..] = *rate_c_per_min;
             // The lagged set's first input: T̄ = T − L·ΔT₃, the mean coil temperature.
             let first = match *set {

@@ -286,7 +286,7 @@ fn max_ceil_log2_abs(weights: &[f32]) -> Option<i32> {
 
 /// 2^n for an integer-valued `n`, exactly `libm::exp2(n) as f32` (0 below
 /// 2^−149, +∞ above 2^127) built in the exponent bits: libm's exp2 would
-/// bring a 4 KiB table into the firmware for a power of two.
+/// bring its lookup table into the firmware for a power of two.
 fn exp2_integer(n: f64) -> f32 {
     if n > 127.0 {
         f32::INFINITY
@@ -888,8 +888,8 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
 
     /// [`Self::kernel_dots`] on the polynomial path. Its normalisation and
     /// kernel loop repeat [`Self::polynomial_gaussians`]' on purpose: one
-    /// helper taking a closure for both measured +1.4 KB of board flash and
-    /// +14 instructions per evaluation (`cargo xtask bench-fw`).
+    /// helper taking a closure for both cost the board image flash and every
+    /// evaluation instructions (`cargo xtask bench-fw` shows both).
     fn polynomial_kernel_dots(&self, x_kernel: &[f32; MAX_INPUTS_ALL], weights: &[[f32; 3]]) -> [f32; 3] {
         let m = self.kernel_inputs.min(D);
         let mut z = [0.0f32; D];

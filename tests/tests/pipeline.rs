@@ -242,8 +242,9 @@ fn svr_pso_on_multi_point_runs_selects_by_correlation_or_validation_and_generali
     // The default: the subset of thermometers that validates best on the
     // training run's folds. Beyond the training ramp rate it reaches 90 % and
     // beats the RBF network on the loop sensor's multi-scale inputs, the
-    // paper's claim. (The default lag bank, a thermal model of the coil, beats
-    // both on this plant: 98.0 % against 97.3 % when this was written.)
+    // paper's claim. (The default lag bank, a thermal model of the coil, does
+    // better still on the loop sensor alone: `cargo xtask bench-accuracy`'s
+    // multi-point table, docs/benchmarks.md.)
     let validated = FitOptions {
         method: Method::SvrPso,
         ..FitOptions::default()

@@ -1547,8 +1547,7 @@ mod tests {
         // A 3-h run held in 1350 8-s blocks (as a 20-h run ends at the
         // default limit) against all its 10800 1-s blocks: the compensated cluster
         // STD, scored on every sample of the training run and of a run with
-        // another ramp rate, within 5 % of each other (0.4 % and 0.5 % apart
-        // when this was written).
+        // another ramp rate, within 5 % of each other.
         let dir = tempfile::tempdir().unwrap();
         let train = simulated_run(&dir, 1.0, 17);
         let held_dir = tempfile::tempdir().unwrap();

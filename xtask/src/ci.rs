@@ -31,8 +31,9 @@ fn ensure_toolchain() -> anyhow::Result<()> {
 /// Runs this `cargo xtask ci` again with cargo's incremental caches off, for every cargo it
 /// starts and what those start; returns its exit code.
 ///
-/// CI builds each crate once from a clean clone: the caches were 4.3 GB of a 9.5 GB target
-/// folder and only cost disk, which the machine CI runs on shares with others. (A second
+/// CI builds each crate once from a clean clone: the caches are never reused there, were
+/// a large share of the target folder and only cost disk, which the machine CI runs on
+/// shares with others. (A second
 /// process, as setting the variable in this one would take `unsafe`, which xtask forbids.)
 fn rerun_without_incremental_builds() -> anyhow::Result<i32> {
     let status = Command::new(std::env::current_exe().context("cannot find xtask itself")?)

@@ -1,8 +1,10 @@
 //! `cargo xtask bench-large-run`: `trainer fit` and `trainer compensate`
 //! against pandas pipelines doing the same jobs on a 20-h, 100-Hz chamber
-//! run (7.2 million rows, 277 MB), one after the other, with peak memory,
+//! run (7.2 million rows), one after the other, with peak memory,
 //! throughput, the floor (one pass that only finds line ends) and the peak
-//! memory of a fit on a run 10× shorter (memory flat in the run length).
+//! memory of a fit on a run 10× shorter (memory flat in the run length);
+//! with `--repeat N`, the median and range of N more runs of the trainer's
+//! jobs.
 
 use std::process::Command;
 
@@ -17,8 +19,9 @@ pub const RATE_HZ: &str = "100";
 /// Hours of the short run whose fit's peak memory the long run's is compared with.
 pub const SHORT_HOURS: &str = "2";
 
-/// Generates the run (once), then runs bench/large-run/run.py, which prints both.
-pub fn bench_large_run() -> anyhow::Result<()> {
+/// Generates the run (once), then runs bench/large-run/run.py, which prints both
+/// (and, `repeat` above 0, the trainer's jobs `repeat` more times each).
+pub fn bench_large_run(repeat: u32) -> anyhow::Result<()> {
     let root = workspace_root();
     let dir = root.join("target/bench-large-run");
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
@@ -47,6 +50,7 @@ pub fn bench_large_run() -> anyhow::Result<()> {
         .arg(&csv)
         .arg(&dir)
         .arg(&short)
+        .arg(repeat.to_string())
         .status()
         .context("cannot run bench/large-run/run.py")?;
     if !status.success() {

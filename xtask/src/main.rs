@@ -106,6 +106,10 @@ enum Cmd {
         /// Judge this trainer instead of this workspace's release build.
         #[arg(long, value_name = "PATH")]
         trainer: Option<PathBuf>,
+        /// Options for `trainer fit` instead of the default model, as one string,
+        /// e.g. --fit-args="--features lag-bank".
+        #[arg(long, value_name = "ARGS", allow_hyphen_values = true)]
+        fit_args: Option<String>,
     },
     /// Accuracy against the peers: on simulated chamber runs of both protocols
     /// (trained on one 1 °C/min run, verified at other ramp rates and on a random
@@ -131,7 +135,7 @@ enum Cmd {
         #[arg(long)]
         quick: bool,
         /// In-use section: also units 3 … N of `trainer simulate --unit`
-        /// (plants the default was not developed on; about 15 s each).
+        /// (plants the default was not developed on).
         #[arg(long, value_name = "N", default_value_t = 0)]
         units: u64,
         /// In-use section: also designs 1 … N of `trainer simulate --design` (gyros of
@@ -174,7 +178,14 @@ enum Cmd {
     /// scikit-learn pipeline doing the same job (read, 1-s means, features,
     /// kernel ridge with a small grid search; bench/large-run/) one after the
     /// other, with each one's peak memory. The venv is made under target/.
-    BenchLargeRun,
+    BenchLargeRun {
+        /// Then time `trainer fit` and `trainer compensate` on the 20-h run and
+        /// `trainer fit` on the 2-h run N more times each and print the median
+        /// and range of wall time and peak memory (one run is noisy on a shared
+        /// machine).
+        #[arg(long, value_name = "N", default_value_t = 0)]
+        repeat: u32,
+    },
     /// Fuzz everything that reads outside input (model blobs, recorded runs,
     /// output frames) with libFuzzer via cargo fuzz (installed when missing),
     /// each target for --seconds, from a seed corpus written by the current
@@ -235,7 +246,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::ImportCircles => xtask::import_circles::import_circles(),
         Cmd::CheckBoardPanics => xtask::firmware::check_board_panics(),
         Cmd::BoardFaults => xtask::board_faults::board_faults(),
-        Cmd::BenchDesigns { dir, trainer } => {
+        Cmd::BenchDesigns { dir, trainer, fit_args } => {
             let trainer = match trainer {
                 Some(t) => std::path::absolute(t)?,
                 None => {
@@ -243,7 +254,12 @@ fn main() -> anyhow::Result<()> {
                     xtask::workspace_root().join("target/release/trainer")
                 }
             };
-            xtask::accuracy::designs::bench_designs(&dir, &trainer)
+            let fit_args: Vec<String> = fit_args
+                .iter()
+                .flat_map(|a| a.split_whitespace())
+                .map(str::to_owned)
+                .collect();
+            xtask::accuracy::designs::bench_designs(&dir, &trainer, &fit_args)
         }
         Cmd::BenchAccuracy {
             params,
@@ -279,7 +295,7 @@ fn main() -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Cmd::BenchLargeRun => xtask::large_run::bench_large_run(),
+        Cmd::BenchLargeRun { repeat } => xtask::large_run::bench_large_run(repeat),
         Cmd::Fuzz { seconds } => xtask::fuzz::fuzz(seconds).map(|_| ()),
     }
 }

@@ -247,7 +247,8 @@ mod board {
 
     impl embedded_hal::delay::DelayNs for CycleDelay {
         fn delay_ns(&mut self, ns: u32) {
-            // Rounded up to whole µs: 32-bit arithmetic (a 64-bit division costs 864 B of flash).
+            // Rounded up to whole µs: 32-bit arithmetic (a 64-bit division would link the
+            // soft division routine into the image).
             let cycles = (ns / 1000 + 1).saturating_mul(self.core_hz / 1_000_000);
             cortex_m::asm::delay(cycles);
         }

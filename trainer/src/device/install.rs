@@ -55,7 +55,7 @@ pub struct CheckedBlob {
 }
 
 /// Decodes `bytes` as the board whose running model is an `M` does (into
-/// `model`, on the heap: the three kinds take up to 14 KiB); the blob's length.
+/// `model`, on the heap: a model of any kind is kilobytes large); the blob's length.
 fn check_as<M: StoredModel>(model: &mut M, bytes: &[u8]) -> Result<usize, DecodeError> {
     model.decode_from(bytes)
 }

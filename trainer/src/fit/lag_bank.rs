@@ -42,7 +42,8 @@ pub const LADDERS_S: [&[f32]; 2] = [
 /// reaches the 15-s ladder's 4.3-h filter: chamber holds of an hour or two
 /// never bring it near its steady state, so its weight is not identified,
 /// and a slow in-use drift (a day cycle at 0.2 °C/min) drives it where no
-/// training run went (on the bench's gyros it cost up to 25 points there).
+/// training run went (on the bench's gyros it cost in-use accuracy there:
+/// docs/benchmarks.md, "Measurements behind design choices").
 pub const CANDIDATES: [(usize, usize, usize); 3] = [(1, 0, 5), (1, 0, 4), (0, 0, 5)];
 
 /// Degrees of the Shupe gain g(T̂) tried: linear in T̂. A quadratic gain

@@ -35,8 +35,9 @@ const MAX_SELECTION_ROWS: usize = 3000;
 /// training folds are pooled into means of consecutive blocks
 /// ([`pool_means`]); the final model is fitted on all rows. Pooling by two
 /// (the bundled IFOG run's folds) gave the same choices and accuracy as all
-/// rows on the three benchmark gyros; 8192 lost 1.5-2.6 points on their
-/// random IFOG runs.
+/// rows on the three benchmark gyros; half this many rows lost accuracy on
+/// their random IFOG runs (docs/benchmarks.md, "Measurements behind design
+/// choices").
 const MAX_SEARCH_TRAIN_ROWS: usize = 16_384;
 /// Rows (strided) the candidate pool is drawn from by farthest-point sampling:
 /// the pool only needs to cover the input space.
@@ -94,17 +95,12 @@ pub fn kernel_inputs(set: FeatureSet) -> usize {
     }
 }
 
-/// Fewest centres a network of `set` may have: none for the lag bank, whose
-/// static curve is a cubic in T̂ that extrapolates along its tangent (a
-/// Gaussian clamped at the covered range does not), so Gaussians are added
-/// only where validation on held-out thermal events wants them.
 /// Most centres a search tries unless `--centers` says how many: none for
 /// the lag bank, whose static part is the cubic in T̂ alone. Gaussians over
 /// T̂ chosen on held-out chamber events bend the curve near the covered
-/// range's ends, and the cubic left beside them extrapolates worse: trained
-/// on the designed run, the documented gyro's in-use worst case fell from
-/// 92.2 to 84.5 % with them, and no bench gyro trained on a cycle gained
-/// more than 0.3 points (`cargo xtask bench-accuracy --in-use --units 16`,
+/// range's ends, and the cubic left beside them extrapolates worse: in use,
+/// past the range a chamber run covered, they lost more than they gained
+/// anywhere (docs/benchmarks.md, "Measurements behind design choices";
 /// docs/methods.md).
 fn default_max_centers(set: FeatureSet, opts: &FitOptions) -> usize {
     match set {
@@ -113,6 +109,10 @@ fn default_max_centers(set: FeatureSet, opts: &FitOptions) -> usize {
     }
 }
 
+/// Fewest centres a network of `set` may have: none for the lag bank, whose
+/// static curve is a cubic in T̂ that extrapolates along its tangent (a
+/// Gaussian clamped at the covered range does not), so Gaussians are added
+/// only where validation on held-out thermal events wants them.
 fn min_centers(set: FeatureSet) -> usize {
     match set {
         FeatureSet::LagBank(_) => 0,

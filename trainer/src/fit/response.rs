@@ -336,10 +336,11 @@ pub const RESPONSE_BANK_MARGIN: f64 = 0.6;
 
 /// The response bank's forecast of the residual 100-s cluster STD on in-use
 /// histories, as a multiple of its training residual's. Its many weights
-/// follow the training run to its noise; in-use histories then measured
-/// 1.5–2.3 times that on the gyros of other designs (docs/methods.md, "The
-/// forecast"); held-out events of a chamber run forecast 4–6 times too much
-/// (a planned run holds each level once: its held-out part is unlike the rest).
+/// follow the training run to its noise, so in-use histories measure a
+/// residual some times the training one on the gyros of other designs;
+/// held-out events of a chamber run forecast far too much (a planned run
+/// holds each level once: its held-out part is unlike the rest). Figures:
+/// docs/methods.md, "The forecast"; `cargo xtask bench-designs`.
 pub const IN_USE_FORECAST_FACTOR: f64 = 2.0;
 
 impl StructureChoice {

@@ -18,9 +18,10 @@ const TRAININGS: [&str; 2] = ["planned", "cycle"];
 /// The in-use histories a design is verified on.
 const IN_USE: [&str; 2] = ["random", "field"];
 
-/// Fits, compensates and scores every design in `dir` with `trainer`; prints
-/// one line per design and training run, then the means.
-pub fn bench_designs(dir: &Path, trainer: &Path) -> anyhow::Result<()> {
+/// Fits (with `fit_args` after the default options, if any), compensates and
+/// scores every design in `dir` with `trainer`; prints one line per design and
+/// training run, then the means.
+pub fn bench_designs(dir: &Path, trainer: &Path, fit_args: &[String]) -> anyhow::Result<()> {
     let mut designs: Vec<String> = std::fs::read_dir(dir)
         .with_context(|| format!("cannot read {}", dir.display()))?
         .filter_map(|e| e.ok())
@@ -30,9 +31,14 @@ pub fn bench_designs(dir: &Path, trainer: &Path) -> anyhow::Result<()> {
     anyhow::ensure!(!designs.is_empty(), "{}: no NAME_planned.csv", dir.display());
     let work = tempfile::TempDir::new().context("cannot create a working directory")?;
     println!(
-        "designs in {} (judged: {} fit, default model)",
+        "designs in {} (judged: {} fit, {})",
         dir.display(),
-        trainer.display()
+        trainer.display(),
+        if fit_args.is_empty() {
+            "default model".to_owned()
+        } else {
+            fit_args.join(" ")
+        }
     );
     println!(
         "{:<10} {:<8} {:>9} {:>9} {:>9} {:>13} {:>13}  structure",
@@ -44,18 +50,18 @@ pub fn bench_designs(dir: &Path, trainer: &Path) -> anyhow::Result<()> {
         for (t, training) in TRAININGS.iter().enumerate() {
             let model = work.path().join(format!("{design}_{training}.bin"));
             let json = work.path().join(format!("{design}_{training}.json"));
-            run_tool(
-                trainer,
-                &[
-                    "fit",
-                    "-q",
-                    path(&file(training)),
-                    "-o",
-                    path(&model),
-                    "--json",
-                    path(&json),
-                ],
-            )?;
+            let training_run = file(training);
+            let mut args = vec![
+                "fit",
+                "-q",
+                path(&training_run),
+                "-o",
+                path(&model),
+                "--json",
+                path(&json),
+            ];
+            args.extend(fit_args.iter().map(String::as_str));
+            run_tool(trainer, &args)?;
             let fit: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
             let forecast = fit["predicted_in_use_std100_dph"].as_f64();
             let structure = match fit["structure"]["response_bank"].as_bool() {

@@ -175,8 +175,9 @@ struct JointTrial {
 /// validation runs, else the training runs'), every axis's 100-s cluster STD
 /// improvement is within [`JOINT_TOLERANCE_POINTS`] of its own fit's, or
 /// when `--joint` asks for it. (MSD, dominated by white noise, hid a basis
-/// that misfits an axis's thermal structure: 99.6 % joint and own on the
-/// y axis of a simulated IMU whose STD100 was 97.2 % joint, 98.4 % own.)
+/// that misfits an axis's thermal structure: on a simulated IMU it scored an
+/// axis's joint and own fits alike where their STD100 differed by more than
+/// the tolerance.)
 /// Runs whose axes have their own thermometers keep the per-axis models (a
 /// shared basis reads one thermometer), as do fits that are not Gaussian RBF
 /// networks.

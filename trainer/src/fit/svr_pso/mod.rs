@@ -131,8 +131,9 @@ pub fn fit<T: RunSet + ?Sized>(
     // The swarm tunes what is deployed: the network within the firmware's
     // centre budget. Tuned on the SVR alone it drifted to wide kernels and
     // C at the box edge, whose hundreds of near-dependent support vectors
-    // OLS could not reduce (bench-accuracy, six on-gyro thermometers: SVR
-    // 0.020 °/h on validation, its 6-centre network 0.062 °/h).
+    // OLS could not reduce: the deployed network then validated far worse
+    // than the SVR it was reduced from (docs/benchmarks.md, "Measurements
+    // behind design choices").
     let score = |params: SvrParams| data.validation_rms(params, Some(budget), partially_linear);
     let pso_opts = PsoOptions::default();
     progress.start("tuning σ, C, ε (PSO)", pso_opts.iterations as u64 + 1);
