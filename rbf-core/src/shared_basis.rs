@@ -28,7 +28,7 @@
 //! `trainer simulate --axes 3 --shared-thermometer`). Blob layout: format 3
 //! with the shared-basis flag ([`crate::blob::shared_layout`]).
 
-use crate::axis::{Axis, MAX_AXES};
+use crate::axis::{Axis, AxisSet, MAX_AXES};
 use crate::blob::DecodeError;
 use crate::features::{FeatureConfig, FeatureVector};
 use crate::model::{MAX_ABS_BIAS_DPH, Model, ModelBody, ModelError};
@@ -84,7 +84,7 @@ pub struct SharedAxisModels<const K: usize = MAX_CENTERS> {
     weights: [[f32; MAX_AXES]; K],
     basis: Model<K>,
     layers: [Layer; MAX_AXES],
-    mask: u8,
+    mask: AxisSet,
 }
 
 /// True when two models have the same basis: features, input ranges,
@@ -115,7 +115,7 @@ impl<const K: usize> SharedAxisModels<K> {
         weights: [[0.0; MAX_AXES]; K],
         basis: Model::EMPTY,
         layers: [Layer::EMPTY; MAX_AXES],
-        mask: 0,
+        mask: AxisSet::EMPTY,
     };
 
     /// The shared-basis form of per-axis models that share one basis
@@ -171,7 +171,7 @@ impl<const K: usize> SharedAxisModels<K> {
     /// network, every weight 1, no linear terms, constant 0) and removes
     /// every layer; [`DecodeError::Malformed`] otherwise.
     pub(crate) fn accept_basis(&mut self) -> Result<(), DecodeError> {
-        self.mask = 0;
+        self.mask = AxisSet::EMPTY;
         self.weights = [[0.0; MAX_AXES]; K];
         self.layers = [Layer::EMPTY; MAX_AXES];
         self.boxed = [([0.0; MAX_INPUTS], 0.0); MAX_AXES];
@@ -224,7 +224,7 @@ impl<const K: usize> SharedAxisModels<K> {
             constant: layer.constant,
         };
         self.boxed[a] = net.linear_box_terms(layer.linear, layer.constant);
-        self.mask |= 1 << a;
+        self.mask.insert(axis);
         Ok(())
     }
 
@@ -250,17 +250,17 @@ impl<const K: usize> SharedAxisModels<K> {
 
     /// True when `axis` has an output layer.
     pub fn has(&self, axis: Axis) -> bool {
-        self.mask & (1 << axis.index()) != 0
+        self.mask.contains(axis)
     }
 
     /// The axes with a layer, x first.
     pub fn axes(&self) -> impl Iterator<Item = Axis> + '_ {
-        Axis::ALL.into_iter().filter(|a| self.has(*a))
+        self.mask.iter()
     }
 
     /// Axes present as a bit mask (bit 0 = x).
     pub fn mask(&self) -> u8 {
-        self.mask
+        self.mask.bits()
     }
 
     /// Centres of the basis.

@@ -29,7 +29,7 @@ use super::{
     decode_section, encode_section, seal,
 };
 use crate::MAX_CENTERS;
-use crate::axis::{Axis, MAX_AXES};
+use crate::axis::{Axis, AxisSet, MAX_AXES};
 use crate::model::Model;
 
 /// Format version of multi-axis blobs.
@@ -91,7 +91,7 @@ impl AxesHeader {
 #[derive(Clone, Debug, PartialEq)]
 pub struct AxisModels<const K: usize = MAX_CENTERS> {
     models: [Model<K>; MAX_AXES],
-    mask: u8,
+    mask: AxisSet,
 }
 
 impl<const K: usize> AxisModels<K> {
@@ -99,7 +99,7 @@ impl<const K: usize> AxisModels<K> {
     /// holding it costs no flash).
     pub const EMPTY: Self = AxisModels {
         models: [Model::EMPTY, Model::EMPTY, Model::EMPTY],
-        mask: 0,
+        mask: AxisSet::EMPTY,
     };
 
     /// The model of `axis`, if the blob had one.
@@ -109,24 +109,24 @@ impl<const K: usize> AxisModels<K> {
 
     /// True when `axis` has a model.
     pub fn has(&self, axis: Axis) -> bool {
-        self.mask & (1 << axis.index()) != 0
+        self.mask.contains(axis)
     }
 
     /// The axes with a model, x first.
     pub fn axes(&self) -> impl Iterator<Item = Axis> + '_ {
-        Axis::ALL.into_iter().filter(|a| self.has(*a))
+        self.mask.iter()
     }
 
     /// Axes present as a bit mask (bit 0 = x).
     pub fn mask(&self) -> u8 {
-        self.mask
+        self.mask.bits()
     }
 
     /// Sets the model of `axis` (host tools assembling a blob).
     pub fn insert(&mut self, axis: Axis, model: Model<K>) {
         if let Some(slot) = self.models.get_mut(axis.index()) {
             *slot = model;
-            self.mask |= 1 << axis.index();
+            self.mask.insert(axis);
         }
     }
 }
@@ -136,7 +136,7 @@ impl<const K: usize> AxisModels<K> {
 /// axis, [`EncodeError::BufferTooSmall`] when the blob would pass `out`
 /// or [`MAX_BLOB_LEN`].
 pub fn encode_axes<const K: usize>(axes: &AxisModels<K>, out: &mut [u8]) -> Result<usize, EncodeError> {
-    if axes.mask == 0 {
+    if axes.mask.is_empty() {
         return Err(EncodeError::NoModel);
     }
     let limit = out.len().min(MAX_BLOB_LEN);
@@ -162,7 +162,7 @@ pub fn encode_axes<const K: usize>(axes: &AxisModels<K>, out: &mut [u8]) -> Resu
     }
     out[0..4].copy_from_slice(&MAGIC);
     out[4..6].copy_from_slice(&AXES_FORMAT_VERSION.to_le_bytes());
-    out[6] = axes.mask;
+    out[6] = axes.mask.bits();
     out[7..12].fill(0);
     out[12..16].copy_from_slice(&((at - HEADER_LEN) as u32).to_le_bytes());
     seal(out, at)
@@ -207,10 +207,26 @@ pub fn decode_any_into<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -
     let [x, y, z] = &mut axes.models;
     *y = Model::EMPTY;
     *z = Model::EMPTY;
-    axes.mask = 0;
+    axes.mask = AxisSet::EMPTY;
     let len = super::decode_into_capacity(x, bytes)?;
-    axes.mask = 1 << Axis::X.index();
+    axes.mask.insert(Axis::X);
     Ok(len)
+}
+
+/// Splits the next section off `rest`: the shape its 8-byte header states, its bytes, and
+/// what follows it (the per-axis and the shared-basis layouts read sections alike).
+pub(super) fn split_section(rest: &[u8]) -> Result<(SectionShape, &[u8], &[u8]), DecodeError> {
+    let (head, tail) = rest
+        .split_at_checked(SECTION_HEADER_LEN)
+        .ok_or(DecodeError::Malformed)?;
+    let shape = SectionShape {
+        kind_code: head[0],
+        inputs: head[1],
+        centers: u16::from_le_bytes([head[2], head[3]]),
+    };
+    let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
+    let (section, tail) = tail.split_at_checked(len).ok_or(DecodeError::Malformed)?;
+    Ok((shape, section, tail))
 }
 
 fn decode_axes_payload<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
@@ -222,30 +238,21 @@ fn decode_axes_payload<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -
     let mut rest = bytes
         .get(HEADER_LEN..HEADER_LEN + header.payload_len as usize)
         .ok_or(DecodeError::Malformed)?;
-    axes.mask = 0;
+    axes.mask = AxisSet::EMPTY;
     for axis in Axis::ALL {
         let slot = &mut axes.models[axis.index()];
         if header.axis_mask & (1 << axis.index()) == 0 {
             *slot = Model::EMPTY;
             continue;
         }
-        let (head, tail) = rest
-            .split_at_checked(SECTION_HEADER_LEN)
-            .ok_or(DecodeError::Malformed)?;
-        let shape = SectionShape {
-            kind_code: head[0],
-            inputs: head[1],
-            centers: u16::from_le_bytes([head[2], head[3]]),
-        };
-        let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
-        let (section, tail) = tail.split_at_checked(len).ok_or(DecodeError::Malformed)?;
+        let (shape, section, tail) = split_section(rest)?;
         decode_section(slot, shape, section)?;
         rest = tail;
     }
     if !rest.is_empty() {
         return Err(DecodeError::Malformed);
     }
-    axes.mask = header.axis_mask;
+    axes.mask = AxisSet::from_bits(header.axis_mask);
     Ok(header.blob_len())
 }
 

@@ -27,8 +27,8 @@ use serde::{Deserialize, Serialize};
 
 use super::axes::{AXES_FORMAT_VERSION, AxesHeader, SECTION_HEADER_LEN, SHARED_BASIS_FLAG};
 use super::{
-    CRC_LEN, DecodeError, EncodeError, HEADER_LEN, MAGIC, MAX_BLOB_LEN, SectionShape, crc_status_at, decode_section,
-    encode_section, seal,
+    CRC_LEN, DecodeError, EncodeError, HEADER_LEN, MAGIC, MAX_BLOB_LEN, crc_status_at, decode_section, encode_section,
+    seal,
 };
 use crate::axis::{Axis, MAX_AXES};
 use crate::shared_basis::{OutputLayer, SharedAxisModels};
@@ -114,16 +114,7 @@ fn decode_shared_payload<const K: usize>(models: &mut SharedAxisModels<K>, bytes
     let payload = bytes
         .get(HEADER_LEN..HEADER_LEN + header.payload_len as usize)
         .ok_or(DecodeError::Malformed)?;
-    let (head, tail) = payload
-        .split_at_checked(SECTION_HEADER_LEN)
-        .ok_or(DecodeError::Malformed)?;
-    let shape = SectionShape {
-        kind_code: head[0],
-        inputs: head[1],
-        centers: u16::from_le_bytes([head[2], head[3]]),
-    };
-    let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
-    let (section, mut rest) = tail.split_at_checked(len).ok_or(DecodeError::Malformed)?;
+    let (shape, section, mut rest) = super::axes::split_section(payload)?;
     decode_section(models.basis_mut(), shape, section)?;
     models.accept_basis()?;
     for axis in Axis::ALL.into_iter().take(MAX_AXES) {
