@@ -64,9 +64,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let refused = |e: blob::DecodeError| anyhow::anyhow!("{}: model refused: {e}", text::path(&path));
     match blob::blob_kind(&bytes).map_err(refused)? {
         BlobKind::SingleAxis => {}
-        kind @ (BlobKind::PerAxis | BlobKind::SharedBasis) => {
-            return inspect_axes(&path, &bytes, kind, a.format, json_out);
-        }
+        BlobKind::PerAxis | BlobKind::SharedBasis => return inspect_axes(&path, &bytes, a.format, json_out),
     }
     let header = Header::parse(&bytes).map_err(|e| anyhow::anyhow!("{}: model refused: {e}", text::path(&path)))?;
     let crc = blob::crc_status(&bytes, &header);
@@ -154,18 +152,12 @@ fn add_model_json(v: &mut serde_json::Value, m: &rbf_core::Model) {
 
 /// `trainer inspect` of a multi-axis blob: the blob's facts once, then each
 /// axis's model as a single-axis blob's is shown.
-fn inspect_axes(
-    path: &Path,
-    bytes: &[u8],
-    kind: BlobKind,
-    format: Format,
-    json_out: super::common::JsonSink,
-) -> anyhow::Result<()> {
+fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::common::JsonSink) -> anyhow::Result<()> {
     let refused = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: model refused: {e}", text::path(path));
     let header = AxesHeader::parse(bytes).map_err(|e| refused(&e))?;
     let mut models = Box::new(AxisModels::EMPTY);
     // A shared-basis blob shows each axis as the model of the basis and its layer.
-    let decoded = if kind == BlobKind::SharedBasis {
+    let decoded = if header.shared_basis {
         let mut shared = Box::new(rbf_core::shared_basis::SharedAxisModels::EMPTY);
         let decoded = rbf_core::blob::shared_layout::decode_shared_into(&mut shared, bytes);
         for axis in shared.axes() {
