@@ -219,17 +219,24 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             structure: None,
         }),
         Method::Rbf if opts.features == RbfFeatures::LagBank => {
+            let choose_structure = opts.centers.is_none() && opts.structure_choice;
+            if choose_structure {
+                // The response bank's temperature range read in the lag bank's pass.
+                let mut configs = lag_bank::ladder_configs();
+                configs.push(response::range_config());
+                train.prepare(&configs, opts.block_s)?;
+            }
             let (bank, search) = lag_bank::search(train, validate, opts, &progress)?;
             let config = rbf_core::FeatureConfig::lag_bank(bank);
             let (lag_model, choice) = rbf::fit_configs(train, validate, &[config], opts, &rbf::WIDTHS, &progress)?;
             // The default: the response bank where the lag bank cannot follow
             // the training runs ([`response::StructureChoice`]).
-            let structure = match (opts.centers, opts.structure_choice) {
-                (Some(_), _) | (_, false) => None,
-                (None, true) => match response::identify(train, opts) {
+            let structure = match choose_structure {
+                false => None,
+                true => match response::identify_with_residual(train, opts) {
                     // A comparison the runs are too short for keeps the lag bank.
-                    Ok(response_model) => {
-                        response::StructureChoice::compare(train, &lag_model, &response_model, opts.block_s)
+                    Ok((response_model, residual_dph)) => {
+                        response::StructureChoice::compare(train, &lag_model, residual_dph, opts.block_s)
                             .ok()
                             .map(|c| (c, response_model))
                     }

@@ -63,6 +63,8 @@ pub struct ChannelBlocks {
     pub y: Vec<f64>,
     /// Run of each block.
     pub run: Vec<usize>,
+    /// Start of each block on its run's clock, s.
+    pub time_s: Vec<f64>,
     /// Number of runs.
     pub runs: usize,
     /// Per-sample range of each channel.
@@ -82,16 +84,37 @@ pub struct Weights {
 
 /// The bank and its deployable model for `train`.
 pub fn identify<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) -> anyhow::Result<Model> {
-    let (bank, blocks) = plain_bank_and_blocks(train)?;
-    fitted_model(bank, &blocks, opts)
+    identify_with_residual(train, opts).map(|(model, _)| model)
 }
 
-/// The bank's structure for `train` (weights 0) and the block means of its channels.
-pub fn plain_bank_and_blocks<T: RunSet + ?Sized>(train: &T) -> anyhow::Result<(ResponseBank, ChannelBlocks)> {
-    let temp = FeatureConfig::single(FeatureSet::Temp, 0.0);
-    train.prepare(&[temp], BLOCK_S)?;
+/// [`identify`], with the fitted model's residual 100-s cluster STD on the
+/// training runs, °/h (RMS over the runs), from the same channel blocks: the
+/// model is linear in its channels, so their block means give the block
+/// means of its bias, and the runs are read once.
+pub fn identify_with_residual<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) -> anyhow::Result<(Model, f64)> {
+    let (bank, blocks) = plain_bank_and_blocks(train, opts.block_s)?;
+    let w = solve_weights(&blocks)?;
+    let residual = training_std100_of_weights(&blocks, &w)?;
+    Ok((fitted_model_with(bank, &w, &blocks, opts)?, residual))
+}
+
+/// The configuration whose blocks give the loop temperature's range the
+/// bank is centred on: a fit that will try the bank prepares it with its
+/// other configurations, so that the range costs no pass of its own.
+pub fn range_config() -> FeatureConfig {
+    FeatureConfig::single(FeatureSet::Temp, 0.0)
+}
+
+/// The bank's structure for `train` (weights 0) and the block means of its
+/// channels; the loop temperature's range is read from [`range_config`]'s
+/// blocks of `block_s` (computed unless prepared).
+pub fn plain_bank_and_blocks<T: RunSet + ?Sized>(
+    train: &T,
+    block_s: f64,
+) -> anyhow::Result<(ResponseBank, ChannelBlocks)> {
+    let temp = range_config();
     let (lo, hi) = train
-        .block_means(&temp, BLOCK_S)?
+        .block_means(&temp, block_s)?
         .sample_range
         .first()
         .copied()
@@ -113,16 +136,26 @@ pub fn plain_bank_and_blocks<T: RunSet + ?Sized>(train: &T) -> anyhow::Result<(R
 }
 
 /// The fitted model of `bank` on `blocks`.
-pub fn fitted_model(mut bank: ResponseBank, blocks: &ChannelBlocks, opts: &FitOptions) -> anyhow::Result<Model> {
-    let w = solve_weights(blocks)?;
+pub fn fitted_model(bank: ResponseBank, blocks: &ChannelBlocks, opts: &FitOptions) -> anyhow::Result<Model> {
+    fitted_model_with(bank, &solve_weights(blocks)?, blocks, opts)
+}
+
+/// The model of `bank` with the weights `w` solved on `blocks`.
+fn fitted_model_with(
+    mut bank: ResponseBank,
+    w: &Weights,
+    blocks: &ChannelBlocks,
+    opts: &FitOptions,
+) -> anyhow::Result<Model> {
     bank.weights = w.bank;
     anyhow::ensure!(bank.is_valid(), "the fitted response bank is out of range");
-    model(bank, &w, blocks, opts)
+    model(bank, w, blocks, opts)
 }
 
 /// One block being summed.
 struct BlockSum {
     key: (usize, u64, u64),
+    start_s: f64,
     x: [f64; CHANNELS],
     y: f64,
     count: usize,
@@ -164,6 +197,7 @@ fn channel_blocks<T: RunSet + ?Sized>(train: &T, bank: &ResponseBank) -> anyhow:
             }
             current = Some(BlockSum {
                 key,
+                start_s: segment.2 + key.2 as f64 * BLOCK_S,
                 x: [0.0; CHANNELS],
                 y: 0.0,
                 count: 0,
@@ -214,6 +248,7 @@ impl ChannelBlocks {
         self.x.push(block.x.map(|v| v / n));
         self.y.push(block.y / n);
         self.run.push(block.key.0);
+        self.time_s.push(block.start_s);
     }
 }
 
@@ -350,11 +385,17 @@ impl StructureChoice {
         IN_USE_FORECAST_FACTOR * self.response_bank_std100_dph
     }
 
-    /// Compares `lag` and `response` on the training runs `train`.
-    pub fn compare<T: RunSet + ?Sized>(train: &T, lag: &Model, response: &Model, block_s: f64) -> anyhow::Result<Self> {
+    /// Compares `lag` on the training runs `train` with the response bank's
+    /// training residual ([`identify_with_residual`]), °/h.
+    pub fn compare<T: RunSet + ?Sized>(
+        train: &T,
+        lag: &Model,
+        response_bank_std100_dph: f64,
+        block_s: f64,
+    ) -> anyhow::Result<Self> {
         Ok(Self::from_residuals(
             training_std100(train, lag, block_s)?,
-            training_std100(train, response, block_s)?,
+            response_bank_std100_dph,
         ))
     }
 
@@ -376,29 +417,63 @@ fn training_std100<T: RunSet + ?Sized>(train: &T, model: &Model, block_s: f64) -
     let dims = blocks.dims.min(rbf_core::MAX_INPUTS);
     // A long run's blocks are merged: their length, not `block_s`, is the period.
     let period_s = blocks.length_s(block_s);
+    let residual: Vec<f64> = (0..blocks.len())
+        .map(|i| {
+            let x: Vec<f32> = blocks.x[i][..dims].iter().map(|&v| v as f32).collect();
+            blocks.y[i] - f64::from(model.eval(&rbf_core::FeatureVector::from_values(&x)).bias_dph)
+        })
+        .collect();
+    let time: Vec<f64> = (0..blocks.len())
+        .map(|i| blocks.time_s.get(i).copied().unwrap_or(i as f64 * period_s))
+        .collect();
+    rms_cluster_std_over_runs(&blocks.run, &time, &residual, period_s)
+}
+
+/// The residual 100-s cluster STD on the training runs of the bank whose
+/// weights are `w`, from its channels' block means, °/h (RMS over the runs):
+/// the weights as the model stores them (f32), summed in f64.
+fn training_std100_of_weights(blocks: &ChannelBlocks, w: &Weights) -> anyhow::Result<f64> {
+    let statics = STATIC_DEGREE as usize;
+    let residual: Vec<f64> = blocks
+        .x
+        .iter()
+        .zip(&blocks.y)
+        .map(|(x, y)| {
+            let statics_dph: f64 = (0..statics).map(|p| f64::from(w.static_dph[p] as f32) * x[p]).sum();
+            let dynamic_dph: f64 = (0..MIXTURES)
+                .flat_map(|m| (0..FILTERS).map(move |k| (m, k)))
+                .map(|(m, k)| f64::from(w.bank[m][k]) * x[statics + m * FILTERS + k])
+                .sum();
+            y - (w.constant_dph + statics_dph + dynamic_dph)
+        })
+        .collect();
+    rms_cluster_std_over_runs(&blocks.run, &blocks.time_s, &residual, BLOCK_S)
+}
+
+/// RMS over the runs of each run's 100-s cluster STD of `residual_dph`
+/// (blocks of `period_s` starting at `time_s`, run `run`), °/h; runs too
+/// short for two clusters are left out.
+fn rms_cluster_std_over_runs(
+    run: &[usize],
+    time_s: &[f64],
+    residual_dph: &[f64],
+    period_s: f64,
+) -> anyhow::Result<f64> {
+    let runs = run.iter().max().map_or(0, |&r| r + 1);
     let mut sum_sq = 0.0;
-    let mut runs = 0usize;
-    for run in 0..train.count() {
-        let rows: Vec<usize> = (0..blocks.len()).filter(|&i| blocks.run[i] == run).collect();
-        let time: Vec<f64> = rows
-            .iter()
-            .map(|&i| blocks.time_s.get(i).copied().unwrap_or(i as f64 * period_s))
-            .collect();
-        let residual: Vec<f64> = rows
-            .iter()
-            .map(|&i| {
-                let x: Vec<f32> = blocks.x[i][..dims].iter().map(|&v| v as f32).collect();
-                blocks.y[i] - f64::from(model.eval(&rbf_core::FeatureVector::from_values(&x)).bias_dph)
-            })
-            .collect();
+    let mut counted = 0usize;
+    for r in 0..runs {
+        let rows: Vec<usize> = (0..run.len()).filter(|&i| run[i] == r).collect();
+        let time: Vec<f64> = rows.iter().map(|&i| time_s[i]).collect();
+        let residual: Vec<f64> = rows.iter().map(|&i| residual_dph[i]).collect();
         let std = crate::metrics::cluster_std(&time, &residual, period_s);
         if std.is_finite() {
             sum_sq += std * std;
-            runs += 1;
+            counted += 1;
         }
     }
-    anyhow::ensure!(runs > 0, "no training run is long enough for a 100-s cluster STD");
-    Ok((sum_sq / runs as f64).sqrt())
+    anyhow::ensure!(counted > 0, "no training run is long enough for a 100-s cluster STD");
+    Ok((sum_sq / counted as f64).sqrt())
 }
 
 #[cfg(test)]
@@ -470,6 +545,33 @@ mod tests {
                 assert!((f64::from(b) - want).abs() < 0.01, "row {m} filter {k}: {b}");
             }
         }
+    }
+
+    #[test]
+    fn the_residual_from_the_channel_blocks_is_the_fitted_models_own() {
+        // The residual the structure choice reads from the channels' block
+        // means (no second pass over the runs) agrees with the deployable
+        // model evaluated on the run's block means of the same length: a
+        // channel weighted wrongly, or a weight not as the blob stores it,
+        // would not.
+        use crate::dataset::RunFiles;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.csv");
+        let mut sim = crate::simulate::ChamberRun::ifog(1.5, 3);
+        sim.duration_s = Some(4.0 * 3600.0);
+        sim.sample_rate_hz = 5.0;
+        sim.write_csv(&mut std::fs::File::create(&path).unwrap()).unwrap();
+        let train = RunFiles::new(std::slice::from_ref(&path));
+        let opts = FitOptions {
+            progress: false,
+            ..FitOptions::default()
+        };
+        let (model, from_channels) = identify_with_residual(&train, &opts).unwrap();
+        let from_model = training_std100(&train, &model, BLOCK_S).unwrap();
+        assert!(
+            from_channels > 0.0 && (from_channels / from_model - 1.0).abs() < 0.02,
+            "channels {from_channels:e}, model {from_model:e} °/h"
+        );
     }
 
     #[test]
