@@ -482,21 +482,25 @@ pub fn write_summary(
     if let Some(s) = &outcome.structure {
         writeln!(
             out,
-            "structure: residual STD100 on the training runs {:.4e} °/h with the lag bank, {:.4e} °/h with the response bank (ratio {:.2}; the response bank is taken below {}): {}",
+            "structure: residual STD100 on the training runs {:.4e} °/h with the lag bank, {:.4e} °/h with the response bank (ratio {:.2}); held-out events {:.4e} and {:.4e} °/h (the response bank is taken below a ratio of {} when it also predicts held-out events better): {}",
             s.lag_bank_std100_dph,
             s.response_bank_std100_dph,
             s.response_bank_std100_dph / s.lag_bank_std100_dph,
+            s.lag_bank_held_out_rms_dph,
+            s.response_bank_held_out_rms_dph,
             fit::response::RESPONSE_BANK_MARGIN,
             if s.response_bank { "response bank" } else { "lag bank" }
         )?;
-        if s.response_bank {
-            writeln!(
-                out,
-                "predicted RMS of 100-s means on unseen histories {:.4e} °/h ({}× the training residual)",
-                s.response_bank_forecast_dph(),
-                fit::response::IN_USE_FORECAST_FACTOR
-            )?;
-        }
+    }
+    if let (Some(predicted), Some(factor), Some(training)) = (
+        outcome.predicted_in_use_std100_dph(),
+        outcome.forecast_factor(),
+        outcome.training_std100_dph,
+    ) {
+        writeln!(
+            out,
+            "predicted residual STD100 in use {predicted:.4e} °/h ({factor}× the training residual {training:.4e} °/h)"
+        )?;
     }
     let response_chosen = outcome.structure.as_ref().is_some_and(|s| s.response_bank);
     if let Some(c) = outcome.choice.as_ref().filter(|_| !response_chosen) {
@@ -619,7 +623,7 @@ fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankS
     };
     writeln!(
         out,
-        "structure chosen on {how} among {} candidates; predicted RMS of 100-s means on unseen histories {:.4e} °/h",
+        "structure chosen on {how} among {} candidates; held-out RMS of 100-s means {:.4e} °/h",
         search.candidates.len(),
         search.predicted_rms_dph()
     )?;
@@ -675,6 +679,7 @@ pub(super) fn outcome_json(o: &FitOutcome) -> serde_json::Value {
         "lag_bank_search": o.bank,
         "structure": o.structure,
         "predicted_in_use_std100_dph": o.predicted_in_use_std100_dph(),
+        "training_std100_dph": o.training_std100_dph,
         "features": features_json(o.model.features()),
         "svr": o.svr,
     })

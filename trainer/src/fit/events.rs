@@ -15,6 +15,54 @@ const MOVING_C_PER_MIN: f64 = 0.05;
 /// Most folds leave-one-run-out makes (runs beyond it share folds).
 pub const MAX_RUN_FOLDS: usize = 10;
 
+/// Length of the means a held-out score is taken on, s: the cluster of the
+/// 100-s cluster STD the in-use histories are judged by.
+const SCORE_MEAN_S: f64 = crate::metrics::CLUSTER_S;
+
+/// RMS of the [`SCORE_MEAN_S`] means of a residual over held-out rows, the
+/// mean of each run removed: what the cluster STD of an unseen history
+/// would see. `held[f]` are the rows fold `f` held out (ascending; a mean
+/// never spans a break in them or two runs, and one with under half its
+/// rows is dropped), `residual(f, row)` the residual there of the model
+/// fitted without them. Rows are `row_s` apart; infinite below three means.
+pub fn held_out_rms(held: &[&[usize]], run: &[usize], row_s: f64, residual: impl Fn(usize, usize) -> f64) -> f64 {
+    let per_mean = (SCORE_MEAN_S / row_s).round().max(1.0) as usize;
+    let mut means: Vec<(usize, f64)> = Vec::new();
+    for (fold, rows) in held.iter().enumerate() {
+        let mut chunk: Vec<usize> = Vec::new();
+        let mut flush = |chunk: &mut Vec<usize>| {
+            if chunk.len() * 2 >= per_mean {
+                let r = chunk.iter().map(|&i| residual(fold, i)).sum::<f64>() / chunk.len() as f64;
+                means.push((run[chunk[0]], r));
+            }
+            chunk.clear();
+        };
+        for &i in rows.iter() {
+            let contiguous = chunk.last().is_none_or(|&l| l + 1 == i && run[l] == run[i]);
+            if !contiguous || chunk.len() == per_mean {
+                flush(&mut chunk);
+            }
+            chunk.push(i);
+        }
+        flush(&mut chunk);
+    }
+    let runs = means.iter().map(|m| m.0).max().map_or(0, |m| m + 1);
+    let mut sse = 0.0;
+    for r in 0..runs {
+        let vals: Vec<f64> = means.iter().filter(|m| m.0 == r).map(|m| m.1).collect();
+        if vals.is_empty() {
+            continue;
+        }
+        let mean = vals.iter().sum::<f64>() / vals.len() as f64;
+        sse += vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
+    }
+    if means.len() < 3 {
+        f64::INFINITY
+    } else {
+        (sse / means.len() as f64).sqrt()
+    }
+}
+
 /// How the training blocks were split for validation.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum FoldKind {

@@ -54,7 +54,6 @@ const GAIN_DEGREES: [usize; 1] = [1];
 /// Length of the means the search fits on, s.
 const SEARCH_MEAN_S: f64 = 10.0;
 /// Length of the residual means validation scores, s (the cluster-STD window).
-const SCORE_MEAN_S: f64 = crate::metrics::CLUSTER_S;
 /// Temperature scale of the polynomial terms inside the fit, °C (conditioning only).
 const TEMP_SCALE_C: f64 = 30.0;
 /// Starting coil lags tried for the full fit (total over the filters), minutes.
@@ -381,51 +380,14 @@ fn fit_structure(s: &Structure, t0: f64, data: &LadderData, rows: &[usize], star
         .map(|(p, _)| Fitted::new(s, p, data, rows))
 }
 
-/// RMS of the residual's [`SCORE_MEAN_S`] means over `groups` (each a
-/// contiguous stretch), the mean residual of each run removed: what the
-/// cluster STD of an unseen history would see.
+/// The held-out score of `fits` (each fitted without its held-out rows):
+/// [`super::events::held_out_rms`] of the residuals on those rows.
 fn score(s: &Structure, fits: &[(Fitted, Vec<usize>)], t0: f64, data: &LadderData) -> f64 {
-    let per_mean = (SCORE_MEAN_S / data.row_s).round().max(1.0) as usize;
-    let mut means: Vec<(usize, f64)> = Vec::new();
-    for (fitted, held) in fits {
-        let mut chunk: Vec<usize> = Vec::new();
-        let mut flush = |chunk: &mut Vec<usize>| {
-            if chunk.len() * 2 >= per_mean {
-                let r = chunk
-                    .iter()
-                    .map(|&i| {
-                        data.y[i] - predict_row(s, &fitted.p, t0, fitted.range, data.temp_c[i], &data.rates[i], None)
-                    })
-                    .sum::<f64>()
-                    / chunk.len() as f64;
-                means.push((data.run[chunk[0]], r));
-            }
-            chunk.clear();
-        };
-        for &i in held {
-            let contiguous = chunk.last().is_none_or(|&l| l + 1 == i && data.run[l] == data.run[i]);
-            if !contiguous || chunk.len() == per_mean {
-                flush(&mut chunk);
-            }
-            chunk.push(i);
-        }
-        flush(&mut chunk);
-    }
-    let runs = means.iter().map(|m| m.0).max().map_or(0, |m| m + 1);
-    let mut sse = 0.0;
-    for r in 0..runs {
-        let vals: Vec<f64> = means.iter().filter(|m| m.0 == r).map(|m| m.1).collect();
-        if vals.is_empty() {
-            continue;
-        }
-        let mean = vals.iter().sum::<f64>() / vals.len() as f64;
-        sse += vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
-    }
-    if means.len() < 3 {
-        f64::INFINITY
-    } else {
-        (sse / means.len() as f64).sqrt()
-    }
+    let held: Vec<&[usize]> = fits.iter().map(|(_, rows)| rows.as_slice()).collect();
+    super::events::held_out_rms(&held, &data.run, data.row_s, |fold, i| {
+        let fitted = &fits[fold].0;
+        data.y[i] - predict_row(s, &fitted.p, t0, fitted.range, data.temp_c[i], &data.rates[i], None)
+    })
 }
 
 /// One candidate's result in the search.

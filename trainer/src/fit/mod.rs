@@ -5,6 +5,7 @@ pub mod coverage;
 pub mod events;
 pub mod excitation;
 pub(crate) mod folds;
+pub mod forecast;
 pub mod joint;
 pub mod lag_bank;
 pub mod linalg;
@@ -120,17 +121,29 @@ pub struct FitOutcome {
     pub bank: Option<lag_bank::BankSearch>,
     /// The default's choice between the lag bank and the response bank.
     pub structure: Option<response::StructureChoice>,
+    /// The deployed lag or response bank's residual 100-s cluster STD on the
+    /// training runs, °/h (`None` for the other methods).
+    pub training_std100_dph: Option<f64>,
 }
 
 impl FitOutcome {
     /// The residual 100-s cluster STD the fit forecasts for in-use histories
-    /// unlike its training runs, °/h: the lag bank's from its held-out thermal
-    /// events, the response bank's from its training residual
-    /// ([`response::IN_USE_FORECAST_FACTOR`]); `None` for the other methods.
+    /// unlike its training runs, °/h: the deployed bank's training residual
+    /// times its structure's factor ([`forecast`]); `None` for the other methods.
     pub fn predicted_in_use_std100_dph(&self) -> Option<f64> {
+        let factor = match self.forecast_factor()? {
+            f if f.is_finite() => f,
+            _ => return None,
+        };
+        self.training_std100_dph.map(|r| factor * r).filter(|v| v.is_finite())
+    }
+
+    /// The factor [`Self::predicted_in_use_std100_dph`] applies to the
+    /// training residual; `None` for the methods it does not forecast.
+    pub fn forecast_factor(&self) -> Option<f64> {
         match (&self.structure, &self.bank) {
-            (Some(s), _) if s.response_bank => Some(s.response_bank_forecast_dph()),
-            (_, Some(search)) => Some(search.predicted_rms_dph()).filter(|v| v.is_finite()),
+            (Some(s), _) if s.response_bank => Some(forecast::RESPONSE_BANK_FORECAST_FACTOR),
+            (_, Some(_)) => Some(forecast::LAG_BANK_FORECAST_FACTOR),
             _ => None,
         }
     }
@@ -159,6 +172,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             svr: None,
             bank: None,
             structure: None,
+            training_std100_dph: None,
         }),
         Method::SvrPso => {
             if validate.count() > 0 {
@@ -174,6 +188,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 svr: Some(choice),
                 bank: None,
                 structure: None,
+                training_std100_dph: None,
             })
         }
         Method::Rbf if opts.features == RbfFeatures::MultiscaleValidated => {
@@ -208,6 +223,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 svr: None,
                 bank: None,
                 structure: None,
+                training_std100_dph: None,
             })
         }
         Method::Rbf if opts.features == RbfFeatures::ResponseBank => Ok(FitOutcome {
@@ -217,6 +233,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             svr: None,
             bank: None,
             structure: None,
+            training_std100_dph: None,
         }),
         Method::Rbf if opts.features == RbfFeatures::LagBank => {
             let choose_structure = opts.centers.is_none() && opts.structure_choice;
@@ -231,22 +248,22 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             let (lag_model, choice) = rbf::fit_configs(train, validate, &[config], opts, &rbf::WIDTHS, &progress)?;
             // The default: the response bank where the lag bank cannot follow
             // the training runs ([`response::StructureChoice`]).
-            let structure = match choose_structure {
-                false => None,
-                true => match response::identify_with_residual(train, opts) {
-                    // A comparison the runs are too short for keeps the lag bank.
-                    Ok((response_model, residual_dph)) => {
-                        response::StructureChoice::compare(train, &lag_model, residual_dph, opts.block_s)
-                            .ok()
-                            .map(|c| (c, response_model))
+            // Runs too short for a 100-s cluster STD: no forecast, no comparison.
+            let lag_std100 = forecast::training_std100(train, &lag_model, opts.block_s).ok();
+            let structure = match (choose_structure, lag_std100) {
+                (true, Some(lag_std100)) => match response::identify_with_residual(train, opts) {
+                    Ok(response) => {
+                        let c = response::StructureChoice::between(lag_std100, search.predicted_rms_dph(), &response);
+                        Some((c, response))
                     }
                     Err(_) => None,
                 },
+                _ => None,
             };
-            let (model, structure) = match structure {
-                Some((c, response_model)) if c.response_bank => (response_model, Some(c)),
-                Some((c, _)) => (lag_model, Some(c)),
-                None => (lag_model, None),
+            let (model, training_std100_dph, structure) = match structure {
+                Some((c, response)) if c.response_bank => (response.model, Some(response.training_std100_dph), Some(c)),
+                Some((c, _)) => (lag_model, lag_std100, Some(c)),
+                None => (lag_model, lag_std100, None),
             };
             Ok(FitOutcome {
                 model,
@@ -255,6 +272,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 svr: None,
                 bank: Some(search),
                 structure,
+                training_std100_dph,
             })
         }
         method => {
@@ -266,6 +284,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
                 svr: None,
                 bank: None,
                 structure: None,
+                training_std100_dph: None,
             })
         }
     }

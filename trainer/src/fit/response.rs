@@ -82,20 +82,70 @@ pub struct Weights {
     pub bank: [[f32; RESPONSE_FILTERS]; WEIGHT_ROWS],
 }
 
-/// The bank and its deployable model for `train`.
-pub fn identify<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) -> anyhow::Result<Model> {
-    identify_with_residual(train, opts).map(|(model, _)| model)
+impl Weights {
+    /// The bias these weights give for a block's channel means `x`, °/h: the
+    /// weights as the model stores them (f32), summed in f64.
+    pub fn bias_dph(&self, x: &[f64; CHANNELS]) -> f64 {
+        let statics = STATIC_DEGREE as usize;
+        let statics_dph: f64 = (0..statics).map(|p| f64::from(self.static_dph[p] as f32) * x[p]).sum();
+        let dynamic_dph: f64 = (0..MIXTURES)
+            .flat_map(|m| (0..FILTERS).map(move |k| (m, k)))
+            .map(|(m, k)| f64::from(self.bank[m][k]) * x[statics + m * FILTERS + k])
+            .sum();
+        self.constant_dph + statics_dph + dynamic_dph
+    }
 }
 
-/// [`identify`], with the fitted model's residual 100-s cluster STD on the
-/// training runs, °/h (RMS over the runs), from the same channel blocks: the
-/// model is linear in its channels, so their block means give the block
-/// means of its bias, and the runs are read once.
-pub fn identify_with_residual<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) -> anyhow::Result<(Model, f64)> {
+/// The bank and its deployable model for `train`.
+pub fn identify<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) -> anyhow::Result<Model> {
+    identify_with_residual(train, opts).map(|identified| identified.model)
+}
+
+/// A fitted bank and what the structure choice reads of it.
+pub struct Identified {
+    /// The deployable model.
+    pub model: Model,
+    /// Its residual 100-s cluster STD on the training runs, °/h (RMS over the runs).
+    pub training_std100_dph: f64,
+    /// Its held-out score ([`held_out_rms`]), °/h.
+    pub held_out_rms_dph: f64,
+}
+
+/// [`identify`], with the fitted model's training residual and held-out
+/// score, from the same channel blocks: the model is linear in its
+/// channels, so their block means give the block means of its bias, and
+/// the runs are read once.
+pub fn identify_with_residual<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) -> anyhow::Result<Identified> {
     let (bank, blocks) = plain_bank_and_blocks(train, opts.block_s)?;
     let w = solve_weights(&blocks)?;
-    let residual = training_std100_of_weights(&blocks, &w)?;
-    Ok((fitted_model_with(bank, &w, &blocks, opts)?, residual))
+    let training_std100_dph = training_std100_of_weights(&blocks, &w)?;
+    let held_out_rms_dph = held_out_rms(&blocks, f64::from(bank.ref_c), opts.folds);
+    Ok(Identified {
+        model: fitted_model_with(bank, &w, &blocks, opts)?,
+        training_std100_dph,
+        held_out_rms_dph,
+    })
+}
+
+/// The bank's held-out score on `blocks`, °/h: refitted ([`solve_weights`])
+/// without each fold of whole thermal events ([`super::events::thermal_folds`]
+/// over the blocks' loop temperature, `ref_c` + u; at most `folds`
+/// contiguous folds where the runs hold too few events), the residual on
+/// the held-out blocks scored as the lag bank's candidates are
+/// ([`super::events::held_out_rms`]). Infinite where a fold cannot be fitted.
+pub fn held_out_rms(blocks: &ChannelBlocks, ref_c: f64, folds: usize) -> f64 {
+    let temp_c: Vec<f64> = blocks.x.iter().map(|x| x[0] + ref_c).collect();
+    let f = super::events::thermal_folds(&temp_c, &blocks.run, BLOCK_S, folds);
+    let fits: Option<Vec<Weights>> = (0..f.held_out.len())
+        .map(|k| solve_weights(&blocks.subset(&f.train_rows(k, blocks.y.len()))).ok())
+        .collect();
+    let Some(fits) = fits else {
+        return f64::INFINITY;
+    };
+    let held: Vec<&[usize]> = f.held_out.iter().map(Vec::as_slice).collect();
+    super::events::held_out_rms(&held, &blocks.run, BLOCK_S, |fold, i| {
+        blocks.y[i] - fits[fold].bias_dph(&blocks.x[i])
+    })
 }
 
 /// The configuration whose blocks give the loop temperature's range the
@@ -239,6 +289,30 @@ fn channel_blocks<T: RunSet + ?Sized>(train: &T, bank: &ResponseBank) -> anyhow:
 }
 
 impl ChannelBlocks {
+    /// The blocks `rows` (ascending), their runs renumbered from 0 in order
+    /// so that a run left out entirely leaves no offset to fit.
+    fn subset(&self, rows: &[usize]) -> ChannelBlocks {
+        let mut number = vec![usize::MAX; self.runs.max(1)];
+        let mut runs = 0;
+        let mut run = Vec::with_capacity(rows.len());
+        for &i in rows {
+            let r = &mut number[self.run[i].min(self.runs.max(1) - 1)];
+            if *r == usize::MAX {
+                *r = runs;
+                runs += 1;
+            }
+            run.push(*r);
+        }
+        ChannelBlocks {
+            x: rows.iter().map(|&i| self.x[i]).collect(),
+            y: rows.iter().map(|&i| self.y[i]).collect(),
+            run,
+            time_s: rows.iter().map(|&i| self.time_s[i]).collect(),
+            runs,
+            range: self.range.clone(),
+        }
+    }
+
     /// Keeps `block` if it holds at least half its nominal samples.
     fn push(&mut self, block: BlockSum) {
         if block.count < block.min_count {
@@ -352,15 +426,21 @@ fn input_ranges(bank: &ResponseBank, blocks: &ChannelBlocks) -> Vec<(f32, f32)> 
 /// the one it encodes (several radial layers with their own Shupe residuals,
 /// a hub path, self-heating) it cannot follow even on its own training run.
 /// The free response bank then takes over, but only where the grey box
-/// misses the training run by a wide margin: its residual's 100-s cluster
-/// STD above 1/[`RESPONSE_BANK_MARGIN`] times the response bank's. Where
-/// both follow the run, the simpler structure is kept (docs/methods.md).
+/// misses the training run by a wide margin (its residual's 100-s cluster
+/// STD above 1/[`RESPONSE_BANK_MARGIN`] times the response bank's) and the
+/// response bank predicts held-out thermal events better than the lag bank
+/// does: where its many weights only follow the run's noise, it does not.
+/// Where both follow the run, the simpler structure is kept (docs/methods.md).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct StructureChoice {
     /// The lag bank's residual 100-s cluster STD on the training runs, °/h.
     pub lag_bank_std100_dph: f64,
     /// The response bank's, °/h.
     pub response_bank_std100_dph: f64,
+    /// The lag bank's held-out score (its chosen candidate's), °/h.
+    pub lag_bank_held_out_rms_dph: f64,
+    /// The response bank's held-out score on the same kind of folds ([`held_out_rms`]), °/h.
+    pub response_bank_held_out_rms_dph: f64,
     /// The response bank was chosen.
     pub response_bank: bool,
 }
@@ -369,111 +449,38 @@ pub struct StructureChoice {
 /// below this share of the lag bank's.
 pub const RESPONSE_BANK_MARGIN: f64 = 0.6;
 
-/// The response bank's forecast of the residual 100-s cluster STD on in-use
-/// histories, as a multiple of its training residual's. Its many weights
-/// follow the training run to its noise, so in-use histories measure a
-/// residual some times the training one on the gyros of other designs;
-/// held-out events of a chamber run forecast far too much (a planned run
-/// holds each level once: its held-out part is unlike the rest). Figures:
-/// docs/methods.md, "The forecast"; `cargo xtask bench-designs`.
-pub const IN_USE_FORECAST_FACTOR: f64 = 2.0;
-
 impl StructureChoice {
-    /// The forecast residual 100-s cluster STD on in-use histories of the
-    /// response bank, °/h ([`IN_USE_FORECAST_FACTOR`]).
-    pub fn response_bank_forecast_dph(&self) -> f64 {
-        IN_USE_FORECAST_FACTOR * self.response_bank_std100_dph
+    /// The choice between a lag bank whose training residual and held-out
+    /// score are `lag_bank_std100_dph` and `lag_bank_held_out_rms_dph`, °/h,
+    /// and the identified `response` bank.
+    pub fn between(lag_bank_std100_dph: f64, lag_bank_held_out_rms_dph: f64, response: &Identified) -> Self {
+        Self::from_scores(
+            [lag_bank_std100_dph, lag_bank_held_out_rms_dph],
+            [response.training_std100_dph, response.held_out_rms_dph],
+        )
     }
 
-    /// Compares `lag` on the training runs `train` with the response bank's
-    /// training residual ([`identify_with_residual`]), °/h.
-    pub fn compare<T: RunSet + ?Sized>(
-        train: &T,
-        lag: &Model,
-        response_bank_std100_dph: f64,
-        block_s: f64,
-    ) -> anyhow::Result<Self> {
-        Ok(Self::from_residuals(
-            training_std100(train, lag, block_s)?,
-            response_bank_std100_dph,
-        ))
-    }
-
-    /// The choice from the two training residuals' 100-s cluster STDs, °/h.
-    pub fn from_residuals(lag_bank_std100_dph: f64, response_bank_std100_dph: f64) -> Self {
+    /// The choice from each structure's [training residual, held-out score], °/h.
+    pub fn from_scores(lag_bank: [f64; 2], response_bank: [f64; 2]) -> Self {
+        let [lag_bank_std100_dph, lag_bank_held_out_rms_dph] = lag_bank;
+        let [response_bank_std100_dph, response_bank_held_out_rms_dph] = response_bank;
         StructureChoice {
             lag_bank_std100_dph,
             response_bank_std100_dph,
-            response_bank: response_bank_std100_dph < RESPONSE_BANK_MARGIN * lag_bank_std100_dph,
+            lag_bank_held_out_rms_dph,
+            response_bank_held_out_rms_dph,
+            response_bank: response_bank_std100_dph < RESPONSE_BANK_MARGIN * lag_bank_std100_dph
+                && response_bank_held_out_rms_dph < lag_bank_held_out_rms_dph,
         }
     }
-}
-
-/// The residual 100-s cluster STD of `model` on the block means of `train`
-/// (RMS over the runs), °/h. The models compared are linear in their inputs,
-/// so the block means of the inputs give the block means of the bias.
-fn training_std100<T: RunSet + ?Sized>(train: &T, model: &Model, block_s: f64) -> anyhow::Result<f64> {
-    let blocks = train.block_means(model.features(), block_s)?;
-    let dims = blocks.dims.min(rbf_core::MAX_INPUTS);
-    // A long run's blocks are merged: their length, not `block_s`, is the period.
-    let period_s = blocks.length_s(block_s);
-    let residual: Vec<f64> = (0..blocks.len())
-        .map(|i| {
-            let x: Vec<f32> = blocks.x[i][..dims].iter().map(|&v| v as f32).collect();
-            blocks.y[i] - f64::from(model.eval(&rbf_core::FeatureVector::from_values(&x)).bias_dph)
-        })
-        .collect();
-    let time: Vec<f64> = (0..blocks.len())
-        .map(|i| blocks.time_s.get(i).copied().unwrap_or(i as f64 * period_s))
-        .collect();
-    rms_cluster_std_over_runs(&blocks.run, &time, &residual, period_s)
 }
 
 /// The residual 100-s cluster STD on the training runs of the bank whose
 /// weights are `w`, from its channels' block means, °/h (RMS over the runs):
 /// the weights as the model stores them (f32), summed in f64.
 fn training_std100_of_weights(blocks: &ChannelBlocks, w: &Weights) -> anyhow::Result<f64> {
-    let statics = STATIC_DEGREE as usize;
-    let residual: Vec<f64> = blocks
-        .x
-        .iter()
-        .zip(&blocks.y)
-        .map(|(x, y)| {
-            let statics_dph: f64 = (0..statics).map(|p| f64::from(w.static_dph[p] as f32) * x[p]).sum();
-            let dynamic_dph: f64 = (0..MIXTURES)
-                .flat_map(|m| (0..FILTERS).map(move |k| (m, k)))
-                .map(|(m, k)| f64::from(w.bank[m][k]) * x[statics + m * FILTERS + k])
-                .sum();
-            y - (w.constant_dph + statics_dph + dynamic_dph)
-        })
-        .collect();
-    rms_cluster_std_over_runs(&blocks.run, &blocks.time_s, &residual, BLOCK_S)
-}
-
-/// RMS over the runs of each run's 100-s cluster STD of `residual_dph`
-/// (blocks of `period_s` starting at `time_s`, run `run`), °/h; runs too
-/// short for two clusters are left out.
-fn rms_cluster_std_over_runs(
-    run: &[usize],
-    time_s: &[f64],
-    residual_dph: &[f64],
-    period_s: f64,
-) -> anyhow::Result<f64> {
-    let runs = run.iter().max().map_or(0, |&r| r + 1);
-    let mut sum_sq = 0.0;
-    let mut counted = 0usize;
-    for r in 0..runs {
-        let rows: Vec<usize> = (0..run.len()).filter(|&i| run[i] == r).collect();
-        let time: Vec<f64> = rows.iter().map(|&i| time_s[i]).collect();
-        let residual: Vec<f64> = rows.iter().map(|&i| residual_dph[i]).collect();
-        let std = crate::metrics::cluster_std(&time, &residual, period_s);
-        if std.is_finite() {
-            sum_sq += std * std;
-            counted += 1;
-        }
-    }
-    anyhow::ensure!(counted > 0, "no training run is long enough for a 100-s cluster STD");
-    Ok((sum_sq / counted as f64).sqrt())
+    let residual: Vec<f64> = blocks.x.iter().zip(&blocks.y).map(|(x, y)| y - w.bias_dph(x)).collect();
+    super::forecast::rms_cluster_std_over_runs(&blocks.run, &blocks.time_s, &residual, BLOCK_S)
 }
 
 #[cfg(test)]
@@ -548,6 +555,48 @@ mod tests {
     }
 
     #[test]
+    fn the_held_out_score_is_near_the_noise_where_the_banks_form_explains_the_targets_and_not_where_it_cannot() {
+        // Blocks of 10 s over two runs, channels drawn at random; targets of
+        // the bank's form plus noise score near the noise's 100-s means, the
+        // same channels with a slow wander no channel carries score far above.
+        let mut state = 11u32;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            f64::from(state) / f64::from(u32::MAX) - 0.5
+        };
+        let statics = STATIC_DEGREE as usize;
+        let mut explained = ChannelBlocks {
+            runs: 2,
+            range: vec![(-1.0, 1.0); CHANNELS],
+            ..ChannelBlocks::default()
+        };
+        let mut wander = Vec::new();
+        for i in 0..4000 {
+            let run = i / 2000;
+            let u = 30.0 * (i as f64 / 400.0).sin();
+            let mut x = [0.0; CHANNELS];
+            x[..statics].copy_from_slice(&[u, u * u, u * u * u]);
+            for v in x.iter_mut().skip(statics) {
+                *v = uniform();
+            }
+            let y = 0.02 * u + 0.3 * x[statics + 2] + 0.01 * uniform();
+            explained.x.push(x);
+            explained.y.push(y);
+            explained.run.push(run);
+            explained.time_s.push((i % 2000) as f64 * BLOCK_S);
+            wander.push(y + 0.05 * (i as f64 / 97.0).sin() * (i as f64 / 613.0).cos());
+        }
+        let good = held_out_rms(&explained, 0.0, 5);
+        let mut unexplained = explained.clone();
+        unexplained.y = wander;
+        let bad = held_out_rms(&unexplained, 0.0, 5);
+        assert!(good < 0.003, "explained: {good:e} °/h (noise 100-s means about 1e-3)");
+        assert!(bad > 5.0 * good, "unexplained wander {bad:e} against {good:e} °/h");
+    }
+
+    #[test]
     fn the_residual_from_the_channel_blocks_is_the_fitted_models_own() {
         // The residual the structure choice reads from the channels' block
         // means (no second pass over the runs) agrees with the deployable
@@ -566,8 +615,9 @@ mod tests {
             progress: false,
             ..FitOptions::default()
         };
-        let (model, from_channels) = identify_with_residual(&train, &opts).unwrap();
-        let from_model = training_std100(&train, &model, BLOCK_S).unwrap();
+        let identified = identify_with_residual(&train, &opts).unwrap();
+        let from_channels = identified.training_std100_dph;
+        let from_model = super::super::forecast::training_std100(&train, &identified.model, BLOCK_S).unwrap();
         assert!(
             from_channels > 0.0 && (from_channels / from_model - 1.0).abs() < 0.02,
             "channels {from_channels:e}, model {from_model:e} °/h"
@@ -575,14 +625,25 @@ mod tests {
     }
 
     #[test]
-    fn the_response_bank_replaces_the_lag_bank_only_where_the_lag_bank_misses_its_run() {
-        let choice = StructureChoice::from_residuals;
-        assert!(choice(0.02, 0.006).response_bank, "the grey box misses its run by 3×");
+    fn the_response_bank_replaces_the_lag_bank_only_where_the_lag_bank_misses_its_run_and_the_bank_predicts_held_out_events_better()
+     {
+        let choice = |lag: f64, response: f64, lag_held_out: f64, response_held_out: f64| {
+            StructureChoice::from_scores([lag, lag_held_out], [response, response_held_out]).response_bank
+        };
         assert!(
-            !choice(0.006, 0.0058).response_bank,
+            choice(0.02, 0.006, 0.05, 0.03),
+            "the grey box misses its run by 3× and predicts worse"
+        );
+        assert!(
+            !choice(0.02, 0.006, 0.05, 0.08),
+            "the free bank follows the run but predicts held-out events worse: over-fitted"
+        );
+        assert!(
+            !choice(0.006, 0.0058, 0.05, 0.01),
             "both follow the run: the grey box stays"
         );
-        assert!(!choice(0.01, 0.0061).response_bank, "a 1.6× gap is not wide enough");
-        assert!(!choice(0.006, 0.017).response_bank);
+        assert!(!choice(0.01, 0.0061, 0.05, 0.01), "a 1.6× gap is not wide enough");
+        assert!(!choice(0.006, 0.017, 0.05, 0.01));
+        assert!(!choice(0.02, 0.006, 0.05, f64::INFINITY), "a bank no fold could fit");
     }
 }

@@ -213,6 +213,9 @@ struct ModelScores {
     /// The structure the fit took (`structure.response_bank` of its `--json`):
     /// "response bank" or "lag bank"; `None` when it does not say.
     structure: Option<&'static str>,
+    /// The fit's `--json` report (`None` for the lag bank and refusals): what
+    /// a forecast can be built from, kept in the bench's JSON to study it.
+    fit_report: Option<Value>,
 }
 
 /// How far a forecast is from what was measured, as a factor of at least 1:
@@ -475,6 +478,7 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
                     "mean_pct": finite(mean),
                     "worst_pct": finite(worst),
                     "forecast_worst_factor": forecast,
+                    "fit_report": scores.fit_report,
                 }));
             }
             training_json.push(json!({
@@ -590,6 +594,7 @@ fn fit_and_compensate(
             clamped_pct: vec![None; verify.len()],
             forecast_dph: None,
             structure: None,
+            fit_report: None,
         });
     }
     let fit_s = started.elapsed().as_secs_f64();
@@ -624,6 +629,7 @@ fn fit_and_compensate(
         clamped_pct,
         forecast_dph,
         structure,
+        fit_report: Some(report),
     })
 }
 
@@ -668,6 +674,7 @@ fn lag_bank_scores(
         after_dph,
         forecast_dph: None,
         structure: None,
+        fit_report: None,
     })
 }
 
