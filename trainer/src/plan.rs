@@ -1075,6 +1075,32 @@ mod tests {
     }
 
     #[test]
+    fn the_designed_segments_themselves_hold_whole_degrees_and_minutes_within_the_checks() {
+        // The plan's values, not only their printing: a hold of 1.3 min
+        // printed as 1 would put the table and the set points at odds.
+        for (seed, soak_ends) in [(1, false), (2, false), (5, false), (7, true), (9, true)] {
+            let plan = design(&LIMITS, seed, 4, soak_ends).unwrap();
+            for g in &plan.segments {
+                assert!(g.target_c.fract() == 0.0, "seed {seed}: set point {}", g.target_c);
+                assert!(g.hold_s % 60.0 == 0.0, "seed {seed}: hold {} s", g.hold_s);
+                assert!(g.ramp_s % 6.0 == 0.0, "seed {seed}: ramp {} s", g.ramp_s);
+            }
+            // The limits still hold after the rounding.
+            for w in plan.segments.windows(2) {
+                let rate_c_per_min = (w[1].target_c - w[0].target_c).abs() / (w[1].ramp_s / 60.0);
+                assert!(rate_c_per_min <= LIMITS.max_rate_c_per_min, "seed {seed}: {w:?}");
+            }
+            assert!(
+                plan.segments
+                    .iter()
+                    .all(|g| (LIMITS.min_c..=LIMITS.max_c).contains(&g.target_c))
+            );
+            assert!(plan.duration_s() <= LIMITS.hours * 3600.0, "seed {seed}");
+            assert!(plan.pre_soak_s() % 60.0 == 0.0 && plan.pre_soak_s() > 0.0);
+        }
+    }
+
+    #[test]
     fn ramps_are_rounded_up_to_stay_under_the_limit() {
         // Whole minutes: exact in f64.
         let secs = |delta: f64, rate: f64| ramp_seconds(delta, rate).to_bits();
