@@ -1537,27 +1537,37 @@ mod tests {
         assert!(!reached[60 * 60 - 1] && reached[0]);
     }
 
-    #[test]
-    fn a_box_models_surface_hatches_what_no_run_reached_with_ticks_written_as_numbers() {
+    /// The SVG of `model`'s bias plot over `trajectory` (the reported runs').
+    fn surface_svg(model: &Model, trajectory: Vec<(f32, f32, f32)>) -> String {
+        let surface = SurfacePlot {
+            model,
+            trajectory,
+            training_only: false,
+        };
+        render(&surface).unwrap().0
+    }
+
+    /// A cubic in T trained over -40 … 60 °C.
+    fn cubic_in_t() -> Model {
         use rbf_core::model::{ModelBody, ModelInfo};
         use rbf_core::poly::Poly3;
-        let model = Model::new(
+        Model::new(
             rbf_core::FeatureConfig::single(FeatureSet::Temp, 0.0),
             &[(-40.0, 60.0)],
             ModelBody::Poly3(Poly3::new(25.0, [0.5, -0.01, 1e-4, -2e-6]).unwrap()),
             ModelInfo::default(),
         )
-        .unwrap();
+        .unwrap()
+    }
+
+    #[test]
+    fn a_box_models_surface_hatches_what_no_run_reached_with_ticks_written_as_numbers() {
+        let model = cubic_in_t();
         // The runs stayed below 0 °C and within ±0.2 °C/min.
         let trajectory: Vec<(f32, f32, f32)> = (0..100)
             .map(|k| (-40.0 + 0.4 * k as f32, 0.2 * (k as f32 / 7.0).sin(), 0.0))
             .collect();
-        let (svg, _) = render(&SurfacePlot {
-            model: &model,
-            trajectory,
-            training_only: false,
-        })
-        .unwrap();
+        let svg = surface_svg(&model, trajectory);
         let hatch = format!(
             "stroke=\"#{:02X}{:02X}{:02X}\"",
             OUTSIDE_TRAINING.0, OUTSIDE_TRAINING.1, OUTSIDE_TRAINING.2
@@ -1576,15 +1586,7 @@ mod tests {
 
     #[test]
     fn a_box_surface_from_a_fit_is_masked_by_the_training_runs_alone() {
-        use rbf_core::model::{ModelBody, ModelInfo};
-        use rbf_core::poly::Poly3;
-        let model = Model::new(
-            rbf_core::FeatureConfig::single(FeatureSet::Temp, 0.0),
-            &[(-40.0, 60.0)],
-            ModelBody::Poly3(Poly3::new(25.0, [0.5, -0.01, 1e-4, -2e-6]).unwrap()),
-            ModelInfo::default(),
-        )
-        .unwrap();
+        let model = cubic_in_t();
         // A training run below 0 °C (samples 0 … 99), a holdout above it.
         let points: Vec<(usize, (f32, f32, f32))> = (0..200).map(|k| (k, (-40.0 + 0.5 * k as f32, 0.0, 0.0))).collect();
         let surface = SurfacePlot::new(&model, points.clone(), Some(100));
@@ -1669,12 +1671,7 @@ mod tests {
                 (t as f32, 0.5 * (k as f32 / 20.0).sin(), 0.0)
             })
             .collect();
-        let (svg, _) = render(&SurfacePlot {
-            model: &model,
-            trajectory,
-            training_only: false,
-        })
-        .unwrap();
+        let svg = surface_svg(&model, trajectory);
         let temps = x_ticks(&svg);
         assert!(
             temps.len() >= 3 && temps.iter().all(|&t| t >= t_lo - 1.0 && t <= t_hi + 1.0),
@@ -1704,12 +1701,7 @@ mod tests {
             .model;
         let (lo, hi) = model.input_range(0).unwrap();
         // One sample beyond the training range: drawn grey, outside the dashed box.
-        let surface = SurfacePlot {
-            model: &model,
-            trajectory: vec![(lo, 0.0, 0.1), (hi, 0.0, 0.2), (hi + 20.0, 0.0, 9.0)],
-            training_only: false,
-        };
-        let (svg, _) = render(&surface).unwrap();
+        let svg = surface_svg(&model, vec![(lo, 0.0, 0.1), (hi, 0.0, 0.2), (hi + 20.0, 0.0, 9.0)]);
         assert_drawable(&svg);
         assert!(svg.contains("mean coil temperature T-hat [°C]"), "T̂ written out");
         assert!(
