@@ -938,7 +938,12 @@ where
         )
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(60)
+        .y_label_area_size(crate::plot_axes::y_label_area_px(
+            &root,
+            crate::plot_axes::linear_tick_labels(c_lo, c_hi),
+            crate::plot_axes::TICK_LABEL_PX,
+            60,
+        ))
         .build_cartesian_2d(x_lo..x_hi, c_lo..c_hi)?;
     chart
         .configure_mesh()

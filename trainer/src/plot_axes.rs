@@ -6,6 +6,77 @@
 //! own put a light line on the next decade (a doubled label there) and
 //! stack a hundred light lines per decade on a short axis.
 
+use plotters::coord::Shift;
+use plotters::coord::ranged1d::Ranged;
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::{DrawingArea, DrawingBackend, IntoTextStyle};
+
+/// A title's font size, px, unless it must shrink to fit.
+pub const TITLE_PX: f64 = 22.0;
+/// The smallest a title's font shrinks to, px.
+const MIN_TITLE_PX: f64 = 11.0;
+/// Room left on each side of a title, px.
+const TITLE_SIDE_PX: u32 = 8;
+
+/// The largest font size up to [`TITLE_PX`] at which `title` fits the width
+/// of `area` (which plotters would otherwise clip on both sides), px; at
+/// least [`MIN_TITLE_PX`].
+pub fn title_font_px<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, title: &str) -> f64 {
+    let room = area.dim_in_pixel().0.saturating_sub(2 * TITLE_SIDE_PX);
+    let mut px = TITLE_PX;
+    while px > MIN_TITLE_PX {
+        match area.estimate_text_size(title, &("sans-serif", px).into_text_style(area)) {
+            Ok((width, _)) if width > room => px -= 1.0,
+            _ => break,
+        }
+    }
+    px
+}
+
+/// Font size of tick labels, px (plotters' default).
+pub const TICK_LABEL_PX: f64 = 12.0;
+/// Room a y label area keeps beside its tick labels, px: the rotated axis
+/// description, the tick marks and the gaps plotters leaves between them.
+const Y_DESC_ROOM_PX: u32 = 38;
+
+/// Width of the label area of a y axis whose tick labels are `labels`,
+/// written at `font_px`, px: the widest of them beside the axis's
+/// description, so that neither is clipped nor overlaps the other; at
+/// least `min_px`.
+pub fn y_label_area_px<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    labels: impl IntoIterator<Item = String>,
+    font_px: f64,
+    min_px: u32,
+) -> u32 {
+    let style = ("sans-serif", font_px).into_text_style(area);
+    let widest = labels
+        .into_iter()
+        .filter_map(|l| area.estimate_text_size(&l, &style).ok())
+        .map(|(width, _)| width)
+        .max()
+        .unwrap_or(0);
+    (widest + Y_DESC_ROOM_PX).max(min_px)
+}
+
+/// The tick labels plotters writes on a linear axis over `lo` … `hi`
+/// ([`LINEAR_TICKS`] key points, as [`tick_label`] writes them).
+pub fn linear_tick_labels(lo: f64, hi: f64) -> Vec<String> {
+    RangedCoordf64::from(lo..hi)
+        .key_points(LINEAR_TICKS)
+        .iter()
+        .map(tick_label)
+        .collect()
+}
+
+/// Labelled ticks of a linear axis at most (plotters' default).
+const LINEAR_TICKS: usize = 11;
+
+/// The tick labels of a logarithmic axis over `lo` … `hi` ([`log_ticks`]).
+pub fn log_tick_labels(lo: f64, hi: f64) -> Vec<String> {
+    log_ticks(lo, hi).0.iter().map(tick_label).collect()
+}
+
 /// Height of one legend row, px (plotters' default legend font and spacing).
 const LEGEND_ROW_PX: f64 = 20.0;
 /// The legend box's frame and its distance from the plot's top edge, px.
@@ -138,7 +209,14 @@ pub fn tick_label(v: &f64) -> String {
     if v.abs() < 1e-12 {
         return "0".to_owned();
     }
-    crate::summary::sig(*v, 4)
+    let label = crate::summary::sig(*v, 4);
+    // Exponent form keeps its digits (tables align them); a tick label drops them.
+    match label.split_once('e') {
+        Some((mantissa, exponent)) if mantissa.contains('.') => {
+            format!("{}e{exponent}", mantissa.trim_end_matches('0').trim_end_matches('.'))
+        }
+        _ => label,
+    }
 }
 
 #[cfg(test)]
@@ -240,5 +318,8 @@ mod tests {
         assert_eq!(tick_label(&10000.0), "10000");
         assert_eq!(tick_label(&0.25), "0.25");
         assert_eq!(tick_label(&-1e-17), "0");
+        assert_eq!(tick_label(&-2e-5), "-2e-5");
+        assert_eq!(tick_label(&1.25e-5), "1.25e-5");
+        assert_eq!(tick_label(&1.5e7), "1.5e7");
     }
 }

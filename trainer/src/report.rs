@@ -23,7 +23,10 @@ use rbf_core::{FeatureSet, FeatureVector, Model};
 use crate::diagnose::RunDiagnosis;
 use crate::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
 use crate::output::{self, DirTarget, Existing, StagedDir};
-use crate::plot_axes::{drawable, log_ticks, padded, padded_log, tick_label, with_legend_room, with_legend_room_log};
+use crate::plot_axes::{
+    TICK_LABEL_PX, drawable, linear_tick_labels, log_tick_labels, log_ticks, padded, padded_log, tick_label,
+    title_font_px, with_legend_room, with_legend_room_log, y_label_area_px,
+};
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, summary, text};
 use rbf_core::axis::Axis;
@@ -243,16 +246,23 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE)?;
-    let root = root.titled(&p.title, ("sans-serif", 22))?;
+    let root = root.titled(&p.title, ("sans-serif", title_font_px(&root, &p.title)))?;
     let (top, bottom) = root.split_vertically((SIZE.1 as f64 * 0.58) as u32);
     let (t_lo, t_hi) = range(p.points.iter().map(|q| q.temp_c));
     let (t_lo, t_hi) = padded(t_lo, t_hi);
     let (y_lo, y_hi) = range(p.points.iter().flat_map(|q| [q.measured_dph, q.model_dph]));
     let (y_lo, y_hi) = with_legend_room(y_lo, y_hi, 4, plot_height_px(&top, 30));
+    let (r_lo, r_hi) = range(p.points.iter().map(|q| q.residual_dph));
+    let (r_lo, r_hi) = padded(r_lo, r_hi);
+    // One width for both panels, so that their temperature axes line up.
+    let labels = linear_tick_labels(y_lo, y_hi)
+        .into_iter()
+        .chain(linear_tick_labels(r_lo, r_hi));
+    let y_label_px = y_label_area_px(&root, labels, TICK_LABEL_PX, 80);
     let mut chart = ChartBuilder::on(&top)
         .margin(10)
         .x_label_area_size(30)
-        .y_label_area_size(80)
+        .y_label_area_size(y_label_px)
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
     chart
         .configure_mesh()
@@ -286,12 +296,10 @@ where
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
-    let (r_lo, r_hi) = range(p.points.iter().map(|q| q.residual_dph));
-    let (r_lo, r_hi) = padded(r_lo, r_hi);
     let mut residual = ChartBuilder::on(&bottom)
         .margin(10)
         .x_label_area_size(40)
-        .y_label_area_size(80)
+        .y_label_area_size(y_label_px)
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
     residual
         .configure_mesh()
@@ -454,6 +462,8 @@ fn colour(x: f64) -> RGBColor {
 
 /// Width of the colour bar beside a plot whose colour carries a value, pixels.
 const COLOUR_BAR_PX: u32 = 120;
+/// Font size of the colour bar's tick labels, px.
+const BAR_LABEL_PX: f64 = 13.0;
 
 /// Splits `root` into the plot's area and the colour bar's, draws the bar
 /// (the [`colour`] scale from `lo` at the bottom to `hi` at the top, with an
@@ -474,14 +484,14 @@ where
         .margin_top(46)
         .margin_bottom(52)
         .margin_right(8)
-        .y_label_area_size(70)
+        .y_label_area_size(y_label_area_px(&bar, linear_tick_labels(lo, hi), BAR_LABEL_PX, 70))
         .build_cartesian_2d(0.0..1.0, lo..hi)?;
     chart
         .configure_mesh()
         .disable_x_axis()
         .disable_mesh()
         .y_desc(label)
-        .label_style(("sans-serif", 13))
+        .label_style(("sans-serif", BAR_LABEL_PX))
         .axis_desc_style(("sans-serif", 14))
         .y_label_formatter(&tick_label)
         .draw()?;
@@ -537,10 +547,15 @@ where
     let caption = "model bias where the runs went; dashed: training range, grey: outside it".to_owned();
     let plot = with_colour_bar(&root, b_lo, b_hi, "model bias [°/h]")?;
     let mut chart = ChartBuilder::on(&plot)
-        .caption(caption, ("sans-serif", 22))
+        .caption(&caption, ("sans-serif", title_font_px(&plot, &caption)))
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(70)
+        .y_label_area_size(y_label_area_px(
+            &plot,
+            linear_tick_labels(r_lo, r_hi),
+            TICK_LABEL_PX,
+            70,
+        ))
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
     chart
         .configure_mesh()
@@ -587,11 +602,21 @@ where
     let (c_lo, c_hi) = range(p.temp.iter().map(|v| v.1));
     let (c_lo, c_hi) = with_legend_room(c_lo, c_hi, 3, plot_px);
     let mut chart = ChartBuilder::on(&root)
-        .caption(&p.title, ("sans-serif", 22))
+        .caption(&p.title, ("sans-serif", title_font_px(&root, &p.title)))
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(70)
-        .right_y_label_area_size(60)
+        .y_label_area_size(y_label_area_px(
+            &root,
+            linear_tick_labels(y_lo, y_hi),
+            TICK_LABEL_PX,
+            70,
+        ))
+        .right_y_label_area_size(y_label_area_px(
+            &root,
+            linear_tick_labels(c_lo, c_hi),
+            TICK_LABEL_PX,
+            60,
+        ))
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?
         .set_secondary_coord(t_lo..t_hi, c_lo..c_hi);
     chart
@@ -679,10 +704,10 @@ where
     // Two curves with their bands, and up to three read-off lines.
     let (d_lo, d_hi) = with_legend_room_log(d_lo, d_hi, 7, plot_height_px(&root, 40 + 34));
     let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
+        .caption(title, ("sans-serif", title_font_px(&root, title)))
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(80)
+        .y_label_area_size(y_label_area_px(&root, log_tick_labels(d_lo, d_hi), TICK_LABEL_PX, 80))
         .build_cartesian_2d(log_axis(t_lo, t_hi), log_axis(d_lo, d_hi))?;
     chart
         .configure_mesh()
@@ -922,10 +947,15 @@ where
     let (x_lo, x_hi) = padded(t_lo as f64, t_hi as f64);
     let (y_lo, y_hi) = padded(r_lo as f64, r_hi as f64);
     let mut chart = ChartBuilder::on(&plot)
-        .caption(caption, ("sans-serif", 22))
+        .caption(&caption, ("sans-serif", title_font_px(&plot, &caption)))
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(70)
+        .y_label_area_size(y_label_area_px(
+            &plot,
+            linear_tick_labels(y_lo, y_hi),
+            TICK_LABEL_PX,
+            70,
+        ))
         .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
     chart
         .configure_mesh()
@@ -1522,6 +1552,75 @@ mod tests {
             x_max < f64::from(SIZE.0) - 12.0 - 10.0,
             "last marker on the frame: x {x_max}"
         );
+    }
+
+    /// The font size an SVG that plotters drew gives the text `content`.
+    fn svg_font_size(svg: &str, content: &str) -> f64 {
+        svg.split("<text")
+            .skip(1)
+            .find(|t| {
+                t.split_once('>')
+                    .is_some_and(|(_, rest)| rest.trim_start().starts_with(content))
+            })
+            .and_then(|t| t.split(" font-size=\"").nth(1)?.split('"').next()?.parse().ok())
+            .unwrap_or_else(|| panic!("no text {content:?}"))
+    }
+
+    #[test]
+    fn a_title_too_long_for_the_plot_shrinks_to_fit_rather_than_being_clipped() {
+        let e = evaluation_with_allan(0.003, 0.05);
+        let size_of = |title: String| {
+            let plot = AllanPlot {
+                title: title.clone(),
+                evaluation: &e,
+                duration_s: 20_000.0,
+            };
+            svg_font_size(&render(&plot).unwrap().0, &title)
+        };
+        let tail = ": overlapping Allan deviation; bias instability ≤9.75e-3 → ≤2.24e-3 °/h";
+        let short = size_of(format!("run{tail}"));
+        let long = size_of(format!("{}{tail}", "chamber_run_of_unit_0042_axis_z_".repeat(2)));
+        assert!(long < 0.9 * short, "{long} against {short}");
+    }
+
+    #[test]
+    fn long_y_tick_labels_widen_their_label_area_rather_than_run_into_the_axis_description() {
+        // A rate about -1.2e-4 °/h that varies by 1e-6: labels such as -0.0001202.
+        let wave = |k: usize| -1.2e-4 + 1e-6 * (k as f64 / 9.0).sin();
+        let series = |f: &dyn Fn(usize) -> f64| (0..400).map(|k| (10.0 * k as f64, f(k))).collect::<Vec<_>>();
+        let plot = RatePlot {
+            title: "r".into(),
+            y_desc: "rate − ref_dph [°/h] (10-s means)",
+            raw: series(&wave),
+            comp: series(&|k| wave(k) + 2e-7),
+            temp: series(&|k| 20.0 + k as f64 / 40.0),
+        };
+        let (svg, _) = render(&plot).unwrap();
+        let mut area_svg = String::new();
+        let area = SVGBackend::with_string(&mut area_svg, SIZE).into_drawing_area();
+        let style = ("sans-serif", TICK_LABEL_PX).into_text_style(&area);
+        // The description's rotated line ends at its x plus its font's height.
+        let desc_right_px = 12.0 + TICK_LABEL_PX;
+        let left_labels: Vec<(f64, String)> = svg
+            .split("<text")
+            .skip(1)
+            .filter_map(|t| {
+                let (attrs, rest) = t.split_once('>')?;
+                let text = rest.split_once("</text>")?.0.trim();
+                text.parse::<f64>().ok()?;
+                let x: f64 = attrs.split(" x=\"").nth(1)?.split('"').next()?.parse().ok()?;
+                (x < 200.0 && attrs.contains("text-anchor=\"end\"")).then(|| (x, text.to_owned()))
+            })
+            .collect();
+        assert!(left_labels.len() >= 3, "{left_labels:?}");
+        assert!(left_labels.iter().any(|(_, t)| t.len() >= 10), "{left_labels:?}");
+        for (right_px, text) in &left_labels {
+            let (width, _) = area.estimate_text_size(text, &style).unwrap();
+            assert!(
+                right_px - f64::from(width) > desc_right_px,
+                "{text} reaches the axis description: {right_px} − {width} px"
+            );
+        }
     }
 
     #[test]
