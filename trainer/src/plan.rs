@@ -945,8 +945,11 @@ where
             60,
         ))
         .build_cartesian_2d(x_lo..x_hi, c_lo..c_hi)?;
+    let (x_light, y_light) = crate::plot_axes::light_lines_of(chart.plotting_area());
     chart
         .configure_mesh()
+        .x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
         .x_label_formatter(&crate::plot_axes::tick_label)
         .y_label_formatter(&crate::plot_axes::tick_label)
         .x_desc("time [h]")

@@ -6,9 +6,9 @@
 //! own put a light line on the next decade (a doubled label there) and
 //! stack a hundred light lines per decade on a short axis.
 
-use plotters::coord::Shift;
 use plotters::coord::ranged1d::Ranged;
 use plotters::coord::types::RangedCoordf64;
+use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::{DrawingArea, DrawingBackend, IntoTextStyle};
 
 /// A title's font size, px, unless it must shrink to fit.
@@ -71,6 +71,21 @@ pub fn linear_tick_labels(lo: f64, hi: f64) -> Vec<String> {
 
 /// Labelled ticks of a linear axis at most (plotters' default).
 const LINEAR_TICKS: usize = 11;
+/// Closest two light grid lines come, px: closer, they stack into a grey band.
+const MIN_LIGHT_LINE_GAP_PX: u32 = 8;
+
+/// How many light grid lines plotters may draw per labelled tick of a
+/// linear axis `axis_px` long ([`MIN_LIGHT_LINE_GAP_PX`] apart at the least;
+/// none on a short axis).
+pub fn light_lines(axis_px: u32) -> usize {
+    (axis_px / MIN_LIGHT_LINE_GAP_PX) as usize / LINEAR_TICKS
+}
+
+/// [`light_lines`] for the x and the y axis of a plot whose plotting area is `area`.
+pub fn light_lines_of<DB: DrawingBackend, CT: CoordTranslate>(area: &DrawingArea<DB, CT>) -> (usize, usize) {
+    let (width_px, height_px) = area.dim_in_pixel();
+    (light_lines(width_px), light_lines(height_px))
+}
 
 /// The tick labels of a logarithmic axis over `lo` … `hi` ([`log_ticks`]).
 pub fn log_tick_labels(lo: f64, hi: f64) -> Vec<String> {

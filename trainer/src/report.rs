@@ -24,8 +24,8 @@ use crate::diagnose::RunDiagnosis;
 use crate::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
 use crate::output::{self, DirTarget, Existing, StagedDir};
 use crate::plot_axes::{
-    TICK_LABEL_PX, drawable, linear_tick_labels, log_tick_labels, log_ticks, padded, padded_log, tick_label,
-    title_font_px, with_legend_room, with_legend_room_log, y_label_area_px,
+    TICK_LABEL_PX, drawable, light_lines_of, linear_tick_labels, log_tick_labels, log_ticks, padded, padded_log,
+    tick_label, title_font_px, with_legend_room, with_legend_room_log, y_label_area_px,
 };
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, summary, text};
@@ -264,8 +264,11 @@ where
         .x_label_area_size(30)
         .y_label_area_size(y_label_px)
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
+    let (x_light, y_light) = light_lines_of(chart.plotting_area());
     chart
         .configure_mesh()
+        .x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
         .x_label_formatter(&tick_label)
         .y_label_formatter(&tick_label)
         .y_desc("bias [°/h] (10-s means)")
@@ -301,8 +304,11 @@ where
         .x_label_area_size(40)
         .y_label_area_size(y_label_px)
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
+    let (x_light, y_light) = light_lines_of(residual.plotting_area());
     residual
         .configure_mesh()
+        .x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
         .x_label_formatter(&tick_label)
         .y_label_formatter(&tick_label)
         .x_desc("loop temperature T [°C]")
@@ -557,8 +563,11 @@ where
             70,
         ))
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
+    let (x_light, y_light) = light_lines_of(chart.plotting_area());
     chart
         .configure_mesh()
+        .x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
         .x_label_formatter(&tick_label)
         .y_label_formatter(&tick_label)
         .x_desc(drawable(x_desc))
@@ -619,8 +628,11 @@ where
         ))
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?
         .set_secondary_coord(t_lo..t_hi, c_lo..c_hi);
+    let (x_light, y_light) = light_lines_of(chart.plotting_area());
     chart
         .configure_mesh()
+        .x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
         .x_label_formatter(&tick_label)
         .y_label_formatter(&tick_label)
         .x_desc("time [h]")
@@ -1620,6 +1632,55 @@ mod tests {
                 right_px - f64::from(width) > desc_right_px,
                 "{text} reaches the axis description: {right_px} − {width} px"
             );
+        }
+    }
+
+    #[test]
+    fn light_grid_lines_stay_apart_rather_than_stack_into_a_grey_band() {
+        let points: Vec<BiasPoint> = (0..300)
+            .map(|k| {
+                let temp_c = 12.0 + k as f64 * 0.09;
+                BiasPoint {
+                    temp_c,
+                    measured_dph: 0.02 * temp_c,
+                    model_dph: 0.02 * temp_c,
+                    residual_dph: 0.06 * (k as f64 / 5.0).sin(),
+                    ramp: Ramp::Heating,
+                }
+            })
+            .collect();
+        let (svg, _) = render(&BiasTempPlot {
+            title: "r".into(),
+            points,
+        })
+        .unwrap();
+        // plotters draws the light lines at a tenth of black's opacity.
+        let attr = |l: &str, name: &str| -> i64 {
+            l.split(&format!(" {name}=\""))
+                .nth(1)
+                .unwrap()
+                .split('"')
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap()
+        };
+        let light: Vec<&str> = svg
+            .split("<line")
+            .skip(1)
+            .filter(|l| l.contains("opacity=\"0.1\""))
+            .collect();
+        assert!(light.len() > 10, "no light grid lines drawn");
+        for (from, to) in [("y1", "y2"), ("x1", "x2")] {
+            let mut at: Vec<i64> = light
+                .iter()
+                .filter(|l| attr(l, from) == attr(l, to))
+                .map(|l| attr(l, from))
+                .collect();
+            at.sort_unstable();
+            at.dedup();
+            let closest = at.windows(2).map(|w| w[1] - w[0]).min().unwrap_or(i64::MAX);
+            assert!(closest >= 7, "light lines along {from} {closest} px apart: {at:?}");
         }
     }
 
