@@ -938,10 +938,18 @@ where
         )
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(60)
+        .y_label_area_size(crate::plot_axes::y_label_area_px(
+            &root,
+            crate::plot_axes::linear_tick_labels(c_lo, c_hi),
+            crate::plot_axes::TICK_LABEL_PX,
+            60,
+        ))
         .build_cartesian_2d(x_lo..x_hi, c_lo..c_hi)?;
+    let (x_light, y_light) = crate::plot_axes::light_lines_of(chart.plotting_area());
     chart
         .configure_mesh()
+        .x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
         .x_label_formatter(&crate::plot_axes::tick_label)
         .y_label_formatter(&crate::plot_axes::tick_label)
         .x_desc("time [h]")
@@ -1072,6 +1080,32 @@ mod tests {
         let cold = pre_soak_s(&plant, -40.0);
         assert!((3600.0..86_400.0).contains(&cold) && cold % 60.0 == 0.0, "{cold}");
         assert!(pre_soak_s(&plant, ROOM_C) < 60.0 + 1e-9);
+    }
+
+    #[test]
+    fn the_designed_segments_themselves_hold_whole_degrees_and_minutes_within_the_checks() {
+        // The plan's values, not only their printing: a hold of 1.3 min
+        // printed as 1 would put the table and the set points at odds.
+        for (seed, soak_ends) in [(1, false), (2, false), (5, false), (7, true), (9, true)] {
+            let plan = design(&LIMITS, seed, 4, soak_ends).unwrap();
+            for g in &plan.segments {
+                assert!(g.target_c.fract() == 0.0, "seed {seed}: set point {}", g.target_c);
+                assert!(g.hold_s % 60.0 == 0.0, "seed {seed}: hold {} s", g.hold_s);
+                assert!(g.ramp_s % 6.0 == 0.0, "seed {seed}: ramp {} s", g.ramp_s);
+            }
+            // The limits still hold after the rounding.
+            for w in plan.segments.windows(2) {
+                let rate_c_per_min = (w[1].target_c - w[0].target_c).abs() / (w[1].ramp_s / 60.0);
+                assert!(rate_c_per_min <= LIMITS.max_rate_c_per_min, "seed {seed}: {w:?}");
+            }
+            assert!(
+                plan.segments
+                    .iter()
+                    .all(|g| (LIMITS.min_c..=LIMITS.max_c).contains(&g.target_c))
+            );
+            assert!(plan.duration_s() <= LIMITS.hours * 3600.0, "seed {seed}");
+            assert!(plan.pre_soak_s() % 60.0 == 0.0 && plan.pre_soak_s() > 0.0);
+        }
     }
 
     #[test]

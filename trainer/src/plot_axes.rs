@@ -6,6 +6,92 @@
 //! own put a light line on the next decade (a doubled label there) and
 //! stack a hundred light lines per decade on a short axis.
 
+use plotters::coord::ranged1d::Ranged;
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::{CoordTranslate, Shift};
+use plotters::prelude::{DrawingArea, DrawingBackend, IntoTextStyle};
+
+/// A title's font size, px, unless it must shrink to fit.
+pub const TITLE_PX: f64 = 22.0;
+/// The smallest a title's font shrinks to, px.
+const MIN_TITLE_PX: f64 = 11.0;
+/// Room left on each side of a title, px.
+const TITLE_SIDE_PX: u32 = 8;
+
+/// The largest font size up to [`TITLE_PX`] at which `title` fits the width
+/// of `area` (which plotters would otherwise clip on both sides), px; at
+/// least [`MIN_TITLE_PX`].
+pub fn title_font_px<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, title: &str) -> f64 {
+    let room = area.dim_in_pixel().0.saturating_sub(2 * TITLE_SIDE_PX);
+    let mut px = TITLE_PX;
+    while px > MIN_TITLE_PX {
+        match area.estimate_text_size(title, &("sans-serif", px).into_text_style(area)) {
+            Ok((width, _)) if width > room => px -= 1.0,
+            _ => break,
+        }
+    }
+    px
+}
+
+/// Font size of tick labels, px (plotters' default).
+pub const TICK_LABEL_PX: f64 = 12.0;
+/// Room a y label area keeps beside its tick labels, px: the rotated axis
+/// description, the tick marks and the gaps plotters leaves between them.
+const Y_DESC_ROOM_PX: u32 = 38;
+
+/// Width of the label area of a y axis whose tick labels are `labels`,
+/// written at `font_px`, px: the widest of them beside the axis's
+/// description, so that neither is clipped nor overlaps the other; at
+/// least `min_px`.
+pub fn y_label_area_px<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    labels: impl IntoIterator<Item = String>,
+    font_px: f64,
+    min_px: u32,
+) -> u32 {
+    let style = ("sans-serif", font_px).into_text_style(area);
+    let widest = labels
+        .into_iter()
+        .filter_map(|l| area.estimate_text_size(&l, &style).ok())
+        .map(|(width, _)| width)
+        .max()
+        .unwrap_or(0);
+    (widest + Y_DESC_ROOM_PX).max(min_px)
+}
+
+/// The tick labels plotters writes on a linear axis over `lo` … `hi`
+/// ([`LINEAR_TICKS`] key points, as [`tick_label`] writes them).
+pub fn linear_tick_labels(lo: f64, hi: f64) -> Vec<String> {
+    RangedCoordf64::from(lo..hi)
+        .key_points(LINEAR_TICKS)
+        .iter()
+        .map(tick_label)
+        .collect()
+}
+
+/// Labelled ticks of a linear axis at most (plotters' default).
+const LINEAR_TICKS: usize = 11;
+/// Closest two light grid lines come, px: closer, they stack into a grey band.
+const MIN_LIGHT_LINE_GAP_PX: u32 = 8;
+
+/// How many light grid lines plotters may draw per labelled tick of a
+/// linear axis `axis_px` long ([`MIN_LIGHT_LINE_GAP_PX`] apart at the least;
+/// none on a short axis).
+pub fn light_lines(axis_px: u32) -> usize {
+    (axis_px / MIN_LIGHT_LINE_GAP_PX) as usize / LINEAR_TICKS
+}
+
+/// [`light_lines`] for the x and the y axis of a plot whose plotting area is `area`.
+pub fn light_lines_of<DB: DrawingBackend, CT: CoordTranslate>(area: &DrawingArea<DB, CT>) -> (usize, usize) {
+    let (width_px, height_px) = area.dim_in_pixel();
+    (light_lines(width_px), light_lines(height_px))
+}
+
+/// The tick labels of a logarithmic axis over `lo` … `hi` ([`log_ticks`]).
+pub fn log_tick_labels(lo: f64, hi: f64) -> Vec<String> {
+    log_ticks(lo, hi).0.iter().map(tick_label).collect()
+}
+
 /// Height of one legend row, px (plotters' default legend font and spacing).
 const LEGEND_ROW_PX: f64 = 20.0;
 /// The legend box's frame and its distance from the plot's top edge, px.
@@ -52,38 +138,84 @@ pub fn padded_log(lo: f64, hi: f64) -> (f64, f64) {
 const MIN_LOG_LABELS: usize = 3;
 
 /// Ticks of a logarithmic axis over `lo` … `hi` (0 < `lo` < `hi`): the
-/// labelled ones (decades; with 2 and 5 between them, or every digit, when
-/// fewer than three decades lie within the range) and the grid-only ones
-/// (the other digits 2 … 9 of each decade). Each value occurs once, so no
-/// label is written twice and no grid line drawn over another.
+/// labelled ones (decades when three fit; else 1-2-5; else every digit;
+/// on an axis shorter than that, evenly spaced ones at a 1-2-5 step) and
+/// the grid-only ones (the digits 2 … 9 of each decade not labelled). Each
+/// value occurs once, so no label is written twice and no grid line drawn
+/// over another.
 pub fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
     if !(lo > 0.0 && hi > lo && hi.is_finite()) {
         return (Vec::new(), Vec::new());
     }
     let (k_lo, k_hi) = (lo.log10().floor() as i32 - 1, hi.log10().ceil() as i32 + 1);
-    let within = |m: u32, k: i32| {
-        let v = f64::from(m) * 10f64.powi(k);
+    let within = |v: f64| {
         // A tick at an end that rounding put just outside still counts.
         (v >= lo * (1.0 - 1e-9) && v <= hi * (1.0 + 1e-9)).then_some(v)
     };
     let over = |mantissas: &[u32]| -> Vec<f64> {
         (k_lo..=k_hi)
-            .flat_map(|k| mantissas.iter().filter_map(move |&m| within(m, k)))
+            .flat_map(|k| {
+                mantissas
+                    .iter()
+                    .filter_map(move |&m| within(f64::from(m) * 10f64.powi(k)))
+            })
             .collect()
     };
-    let labelled: &[u32] = [&[1][..], &[1, 2, 5], &[1, 2, 3, 4, 5, 6, 7, 8, 9]]
+    let labelled = [&[1][..], &[1, 2, 5], &[1, 2, 3, 4, 5, 6, 7, 8, 9]]
         .into_iter()
-        .find(|m| over(m).len() >= MIN_LOG_LABELS)
-        .unwrap_or(&[1, 2, 3, 4, 5, 6, 7, 8, 9]);
+        .find(|m| over(m).len() >= MIN_LOG_LABELS);
+    let Some(labelled) = labelled else {
+        return (evenly_spaced(lo, hi, MIN_LOG_LABELS), Vec::new());
+    };
     let grid: Vec<u32> = (2..=9).filter(|m| !labelled.contains(m)).collect();
     (over(labelled), over(&grid))
 }
 
-/// Text as the plots' fonts can draw it: a letter with a combining hat
-/// (U+0302, T̂) is written `T^`, since the PNG's font draws the hat not at
-/// all and would leave T̂ reading as T.
+/// At least `count` multiples of one step 1, 2 or 5 × 10ⁿ within `lo` … `hi`
+/// (`lo` < `hi`): the largest such step that fits `count` of them.
+fn evenly_spaced(lo: f64, hi: f64, count: usize) -> Vec<f64> {
+    let most = (hi - lo) / count as f64;
+    let decade = 10f64.powf(most.log10().floor());
+    let step = [5.0, 2.0, 1.0]
+        .into_iter()
+        .map(|m| m * decade)
+        .find(|&s| s <= most)
+        .unwrap_or(decade);
+    let first = (lo / step).ceil() as i64;
+    (first..)
+        .map(|k| k as f64 * step)
+        .take_while(|&v| v <= hi * (1.0 + 1e-9))
+        .collect()
+}
+
+/// Combining marks the plots name in words, with the words: the PNG's
+/// font draws a combining mark not at all, so T̂ would read as T.
+const COMBINING_WORDS: [(char, &str); 5] = [
+    ('\u{302}', "-hat"),
+    ('\u{304}', "-bar"),
+    ('\u{303}', "-tilde"),
+    ('\u{307}', "-dot"),
+    ('\u{308}', "-ddot"),
+];
+
+/// Whether `c` is a combining mark (drawn on the character before it).
+pub fn is_combining(c: char) -> bool {
+    matches!(c, '\u{300}'..='\u{36F}' | '\u{1AB0}'..='\u{1AFF}' | '\u{1DC0}'..='\u{1DFF}' | '\u{20D0}'..='\u{20FF}' | '\u{FE20}'..='\u{FE2F}')
+}
+
+/// Text as the plots' fonts can draw it: a letter with a combining mark
+/// written with the mark's word after it (T̂ as `T-hat`, T̄ as `T-bar`), the
+/// same words on every plot; a mark without a word is left out.
 pub fn drawable(text: &str) -> String {
-    text.replace('\u{302}', "^")
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        if !is_combining(c) {
+            out.push(c);
+        } else if let Some((_, word)) = COMBINING_WORDS.iter().find(|(mark, _)| *mark == c) {
+            out.push_str(word);
+        }
+    }
+    out
 }
 
 /// A tick label: at most 4 significant digits, no trailing zeros, `0` for
@@ -92,7 +224,14 @@ pub fn tick_label(v: &f64) -> String {
     if v.abs() < 1e-12 {
         return "0".to_owned();
     }
-    crate::summary::sig(*v, 4)
+    let label = crate::summary::sig(*v, 4);
+    // Exponent form keeps its digits (tables align them); a tick label drops them.
+    match label.split_once('e') {
+        Some((mantissa, exponent)) if mantissa.contains('.') => {
+            format!("{}e{exponent}", mantissa.trim_end_matches('0').trim_end_matches('.'))
+        }
+        _ => label,
+    }
 }
 
 #[cfg(test)]
@@ -148,12 +287,44 @@ mod tests {
     }
 
     #[test]
-    fn a_hat_the_font_lacks_is_written_out() {
+    fn every_log_axis_has_three_labels_each_once_however_short() {
+        for (lo, hi) in [
+            (3.1, 4.9),
+            (0.0021, 0.0029),
+            (0.0015, 0.08),
+            (0.002, 0.099),
+            (0.11, 0.19),
+            (1.0, 1.05),
+            (0.7, 20000.0),
+        ] {
+            let (labels, grid) = log_ticks(lo, hi);
+            assert!(labels.len() >= MIN_LOG_LABELS, "{lo} … {hi}: {labels:?}");
+            assert!(
+                labels
+                    .iter()
+                    .chain(&grid)
+                    .all(|v| *v >= lo * (1.0 - 1e-9) && *v <= hi * (1.0 + 1e-9)),
+                "{lo} … {hi}: a tick outside"
+            );
+            let mut text: Vec<String> = labels.iter().chain(&grid).map(tick_label).collect();
+            let all = text.len();
+            text.sort();
+            text.dedup();
+            assert_eq!(text.len(), all, "{lo} … {hi}: a tick twice: {labels:?} {grid:?}");
+        }
+        let (labels, _) = log_ticks(3.1, 4.9);
+        assert_eq!(labels.iter().map(tick_label).collect::<Vec<_>>(), ["3.5", "4", "4.5"]);
+    }
+
+    #[test]
+    fn combining_marks_the_font_lacks_are_written_as_words() {
         assert_eq!(
             drawable("mean coil temperature T\u{302} [°C]"),
-            "mean coil temperature T^ [°C]"
+            "mean coil temperature T-hat [°C]"
         );
+        assert_eq!(drawable("T\u{304} = T − L·ΔT₃ [°C]"), "T-bar = T − L·ΔT₃ [°C]");
         assert_eq!(drawable("ΔT [°C/min]"), "ΔT [°C/min]");
+        assert!(!drawable("a\u{301}\u{20D7}").chars().any(is_combining));
     }
 
     #[test]
@@ -162,5 +333,8 @@ mod tests {
         assert_eq!(tick_label(&10000.0), "10000");
         assert_eq!(tick_label(&0.25), "0.25");
         assert_eq!(tick_label(&-1e-17), "0");
+        assert_eq!(tick_label(&-2e-5), "-2e-5");
+        assert_eq!(tick_label(&1.25e-5), "1.25e-5");
+        assert_eq!(tick_label(&1.5e7), "1.5e7");
     }
 }

@@ -4,10 +4,13 @@
 //! temperature; the measured bias (10-s means) against the loop temperature,
 //! coloured by ramp direction, with the model overlaid, and the residual
 //! against temperature; the Allan deviation before/after on log-log axes with
-//! shaded ±1-σ confidence bands. For the model: its bias over T and a steady
-//! ramp rate ΔT (every ΔT window reads the same rate on a steady ramp), with a
-//! colour bar. Plus report.json and report.md (the model, and per run its
-//! figures and how many samples were clamped).
+//! shaded ±1-σ confidence bands. For the model, with a colour bar: a lag bank's
+//! or multi-scale model's bias along the runs' path over its own inputs; any
+//! other model's over the loop temperature T and a steady ramp rate ΔT (every
+//! ΔT window reads the same rate on a steady ramp), greyed where no training
+//! sample lay (no sample of the reported runs, when the training runs are not
+//! known). Plus report.json and report.md (the model, and per run its figures
+//! and how many samples were clamped).
 
 use std::path::{Path, PathBuf};
 
@@ -20,7 +23,10 @@ use rbf_core::{FeatureSet, FeatureVector, Model};
 use crate::diagnose::RunDiagnosis;
 use crate::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
 use crate::output::{self, DirTarget, Existing, StagedDir};
-use crate::plot_axes::{drawable, log_ticks, padded, padded_log, tick_label, with_legend_room, with_legend_room_log};
+use crate::plot_axes::{
+    TICK_LABEL_PX, drawable, light_lines_of, linear_tick_labels, log_tick_labels, log_ticks, padded, padded_log,
+    tick_label, title_font_px, with_legend_room, with_legend_room_log, y_label_area_px,
+};
 use crate::run::{RunReader, StreamedRun};
 use crate::{input, summary, text};
 use rbf_core::axis::Axis;
@@ -240,19 +246,29 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE)?;
-    let root = root.titled(&p.title, ("sans-serif", 22))?;
+    let root = root.titled(&p.title, ("sans-serif", title_font_px(&root, &p.title)))?;
     let (top, bottom) = root.split_vertically((SIZE.1 as f64 * 0.58) as u32);
     let (t_lo, t_hi) = range(p.points.iter().map(|q| q.temp_c));
     let (t_lo, t_hi) = padded(t_lo, t_hi);
     let (y_lo, y_hi) = range(p.points.iter().flat_map(|q| [q.measured_dph, q.model_dph]));
     let (y_lo, y_hi) = with_legend_room(y_lo, y_hi, 4, plot_height_px(&top, 30));
+    let (r_lo, r_hi) = range(p.points.iter().map(|q| q.residual_dph));
+    let (r_lo, r_hi) = padded(r_lo, r_hi);
+    // One width for both panels, so that their temperature axes line up.
+    let labels = linear_tick_labels(y_lo, y_hi)
+        .into_iter()
+        .chain(linear_tick_labels(r_lo, r_hi));
+    let y_label_px = y_label_area_px(&root, labels, TICK_LABEL_PX, 80);
     let mut chart = ChartBuilder::on(&top)
         .margin(10)
         .x_label_area_size(30)
-        .y_label_area_size(80)
+        .y_label_area_size(y_label_px)
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
+    let (x_light, y_light) = light_lines_of(chart.plotting_area());
     chart
         .configure_mesh()
+        .x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
         .x_label_formatter(&tick_label)
         .y_label_formatter(&tick_label)
         .y_desc("bias [°/h] (10-s means)")
@@ -283,15 +299,16 @@ where
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
-    let (r_lo, r_hi) = range(p.points.iter().map(|q| q.residual_dph));
-    let (r_lo, r_hi) = padded(r_lo, r_hi);
     let mut residual = ChartBuilder::on(&bottom)
         .margin(10)
         .x_label_area_size(40)
-        .y_label_area_size(80)
+        .y_label_area_size(y_label_px)
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
+    let (x_light, y_light) = light_lines_of(residual.plotting_area());
     residual
         .configure_mesh()
+        .x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
         .x_label_formatter(&tick_label)
         .y_label_formatter(&tick_label)
         .x_desc("loop temperature T [°C]")
@@ -328,9 +345,28 @@ impl Figure for AllanPlot<'_> {
 
 struct SurfacePlot<'a> {
     model: &'a Model,
-    /// (input 0, the fastest rate input, bias) along the reported runs, for
-    /// multi-scale models and lag banks.
+    /// Per sample, the plot's two coordinates and the model's bias
+    /// ([`SurfaceCoordinates`]): of every reported run on a path plot, of
+    /// the training runs on a box surface when they are known.
     trajectory: Vec<(f32, f32, f32)>,
+    /// Whether `trajectory` holds the training runs' samples alone.
+    training_only: bool,
+}
+
+impl<'a> SurfacePlot<'a> {
+    /// The bias plot of `model` from the reported runs' `points` (sample
+    /// index, point); those before `trained_end_index` are the training
+    /// runs'.
+    fn new(model: &'a Model, points: Vec<(usize, (f32, f32, f32))>, trained_end_index: Option<usize>) -> Self {
+        let training_only = trained_end_index
+            .is_some_and(|end| !drawn_along_the_path(model.features().set) && points.iter().any(|(i, _)| *i < end));
+        let end = trained_end_index.filter(|_| training_only).unwrap_or(usize::MAX);
+        SurfacePlot {
+            model,
+            trajectory: points.into_iter().filter(|(i, _)| *i < end).map(|(_, p)| p).collect(),
+            training_only,
+        }
+    }
 }
 
 impl Figure for SurfacePlot<'_> {
@@ -341,28 +377,82 @@ impl Figure for SurfacePlot<'_> {
         let set = self.model.features().set;
         // Where the runs went, not a box whose corners (fast rates at the
         // extremes of temperature) no run reached: there the model only extrapolates.
-        if set.is_multiscale() || matches!(set, FeatureSet::LagBank(_)) {
+        if drawn_along_the_path(set) {
             let axis = |i: usize| set.name(i).map_or_else(String::new, |n| n.to_string());
-            // In words too: a font without the combining hat draws T̂ as T.
             let x_desc = match set {
                 FeatureSet::LagBank(_) => format!("mean coil temperature {}", axis(0)),
                 _ => axis(0),
             };
+            let rate_input = surface_rate_input(set).unwrap_or(1);
             let (t, r) = (
                 self.model.input_range(0).unwrap_or((0.0, 0.0)),
-                surface_rate_range(self.model),
+                surface_rate_range(self.model).unwrap_or((-1.0, 1.0)),
             );
             let training = ((f64::from(t.0), f64::from(t.1)), (f64::from(r.0), f64::from(r.1)));
-            draw_trajectory(
-                root,
-                &self.trajectory,
-                training,
-                &x_desc,
-                &axis(surface_rate_input(set)),
-            )
+            draw_trajectory(root, &self.trajectory, training, &x_desc, &axis(rate_input))
         } else {
-            draw_surface(root, self.model, &self.trajectory)
+            draw_surface(root, self.model, &self.trajectory, self.training_only)
         }
+    }
+}
+
+/// Whether the bias plot of a model of `set` follows the runs' path over
+/// its own inputs (multi-scale models and lag banks: a steady ramp, all
+/// filters equal, never occurs in a run) rather than filling a box.
+fn drawn_along_the_path(set: FeatureSet) -> bool {
+    set.is_multiscale() || matches!(set, FeatureSet::LagBank(_))
+}
+
+/// The ΔT window of the bias surface of a model without a ΔT input of its
+/// own (a cubic in T, the response bank), s.
+const SURFACE_RATE_WINDOW_S: f32 = 60.0;
+
+/// What a bias plot's point is made of, per sample: input 0 and input
+/// `rate_input` of `features`, computed by `extractor`. Those are the
+/// model's own inputs on path plots and multi-point surfaces; on the other
+/// surfaces (over T and a steady-ramp ΔT, whatever the model's inputs: a
+/// response bank's are T − T₀ and its powers, a cubic in T has no rate) the
+/// loop temperature and its rate.
+struct SurfaceCoordinates {
+    features: rbf_core::FeatureConfig,
+    rate_input: Option<usize>,
+    extractor: rbf_core::Compensator,
+}
+
+/// The ΔT window of `model`'s bias surface over T and ΔT, s: its own for a
+/// model with a ΔT input, so that the plotted points are its inputs.
+fn surface_rate_window_s(model: &Model) -> f32 {
+    let features = model.features();
+    if surface_rate_input(features.set).is_some() && features.rate_window_s > 0.0 {
+        features.rate_window_s
+    } else {
+        SURFACE_RATE_WINDOW_S
+    }
+}
+
+impl SurfaceCoordinates {
+    /// The coordinates of `model`'s bias plot.
+    fn of(model: &Model) -> Self {
+        let set = model.features().set;
+        let (features, rate_input) = if drawn_along_the_path(set) || matches!(set, FeatureSet::MultiPoint(_)) {
+            (*model.features(), surface_rate_input(set))
+        } else {
+            let rate = rbf_core::FeatureConfig::single(FeatureSet::TempRate, surface_rate_window_s(model));
+            (rate, Some(1))
+        };
+        SurfaceCoordinates {
+            features,
+            rate_input,
+            extractor: rbf_core::Compensator::new(),
+        }
+    }
+
+    /// The point of `sample` (`config`: the run's); `None` while the
+    /// filters warm up.
+    fn point(&mut self, config: &rbf_core::CompensatorConfig, sample: &rbf_core::GyroSample) -> Option<(f32, f32)> {
+        let inputs = self.extractor.features(&self.features, config, sample).features?;
+        let v = inputs.as_slice();
+        Some((v[0], self.rate_input.and_then(|i| v.get(i).copied()).unwrap_or(0.0)))
     }
 }
 
@@ -378,6 +468,8 @@ fn colour(x: f64) -> RGBColor {
 
 /// Width of the colour bar beside a plot whose colour carries a value, pixels.
 const COLOUR_BAR_PX: u32 = 120;
+/// Font size of the colour bar's tick labels, px.
+const BAR_LABEL_PX: f64 = 13.0;
 
 /// Splits `root` into the plot's area and the colour bar's, draws the bar
 /// (the [`colour`] scale from `lo` at the bottom to `hi` at the top, with an
@@ -398,14 +490,14 @@ where
         .margin_top(46)
         .margin_bottom(52)
         .margin_right(8)
-        .y_label_area_size(70)
+        .y_label_area_size(y_label_area_px(&bar, linear_tick_labels(lo, hi), BAR_LABEL_PX, 70))
         .build_cartesian_2d(0.0..1.0, lo..hi)?;
     chart
         .configure_mesh()
         .disable_x_axis()
         .disable_mesh()
         .y_desc(label)
-        .label_style(("sans-serif", 13))
+        .label_style(("sans-serif", BAR_LABEL_PX))
         .axis_desc_style(("sans-serif", 14))
         .y_label_formatter(&tick_label)
         .draw()?;
@@ -461,13 +553,21 @@ where
     let caption = "model bias where the runs went; dashed: training range, grey: outside it".to_owned();
     let plot = with_colour_bar(&root, b_lo, b_hi, "model bias [°/h]")?;
     let mut chart = ChartBuilder::on(&plot)
-        .caption(caption, ("sans-serif", 22))
+        .caption(&caption, ("sans-serif", title_font_px(&plot, &caption)))
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(70)
+        .y_label_area_size(y_label_area_px(
+            &plot,
+            linear_tick_labels(r_lo, r_hi),
+            TICK_LABEL_PX,
+            70,
+        ))
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
+    let (x_light, y_light) = light_lines_of(chart.plotting_area());
     chart
         .configure_mesh()
+        .x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
         .x_label_formatter(&tick_label)
         .y_label_formatter(&tick_label)
         .x_desc(drawable(x_desc))
@@ -511,15 +611,28 @@ where
     let (c_lo, c_hi) = range(p.temp.iter().map(|v| v.1));
     let (c_lo, c_hi) = with_legend_room(c_lo, c_hi, 3, plot_px);
     let mut chart = ChartBuilder::on(&root)
-        .caption(&p.title, ("sans-serif", 22))
+        .caption(&p.title, ("sans-serif", title_font_px(&root, &p.title)))
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(70)
-        .right_y_label_area_size(60)
+        .y_label_area_size(y_label_area_px(
+            &root,
+            linear_tick_labels(y_lo, y_hi),
+            TICK_LABEL_PX,
+            70,
+        ))
+        .right_y_label_area_size(y_label_area_px(
+            &root,
+            linear_tick_labels(c_lo, c_hi),
+            TICK_LABEL_PX,
+            60,
+        ))
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?
         .set_secondary_coord(t_lo..t_hi, c_lo..c_hi);
+    let (x_light, y_light) = light_lines_of(chart.plotting_area());
     chart
         .configure_mesh()
+        .x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
         .x_label_formatter(&tick_label)
         .y_label_formatter(&tick_label)
         .x_desc("time [h]")
@@ -603,10 +716,10 @@ where
     // Two curves with their bands, and up to three read-off lines.
     let (d_lo, d_hi) = with_legend_room_log(d_lo, d_hi, 7, plot_height_px(&root, 40 + 34));
     let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
+        .caption(title, ("sans-serif", title_font_px(&root, title)))
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(80)
+        .y_label_area_size(y_label_area_px(&root, log_tick_labels(d_lo, d_hi), TICK_LABEL_PX, 80))
         .build_cartesian_2d(log_axis(t_lo, t_hi), log_axis(d_lo, d_hi))?;
     chart
         .configure_mesh()
@@ -717,50 +830,54 @@ fn steady_bias(model: &Model, t_c: f32, rate: f32) -> f32 {
     model.eval(&features).bias_dph
 }
 
-/// The input on the bias plot's second axis: the fastest rate (input 1 of
-/// the paper and multi-scale sets; the first after the static powers of T̂
-/// in the lag bank; a multi-point set's input 1).
-fn surface_rate_input(set: FeatureSet) -> usize {
-    match set {
+/// The model input on the bias plot's second axis, a rate: the fastest
+/// (input 1 of the paper and multi-scale sets; the first after the static
+/// powers of T̂ in the lag bank); a multi-point set's input 1. `None` for a
+/// model with no rate among its inputs (a cubic in T; the response bank,
+/// whose inputs are T − T₀, its powers and mixtures of filtered rates).
+fn surface_rate_input(set: FeatureSet) -> Option<usize> {
+    let input = match set {
         FeatureSet::LagBank(bank) => bank.static_inputs(),
+        FeatureSet::Temp | FeatureSet::ResponseBank(_) => return None,
         _ => 1,
-    }
+    };
+    (input < set.dims()).then_some(input)
 }
 
-/// The bias surface's second axis, °C/min (multi-point: input 1's units):
-/// the training range of [`surface_rate_input`].
-fn surface_rate_range(model: &Model) -> (f32, f32) {
-    let set = model.features().set;
-    let rate_input = surface_rate_input(set);
-    if set.dims() <= rate_input {
-        (-1.0, 1.0)
-    } else {
-        model.input_range(rate_input).unwrap_or((-1.0, 1.0))
+/// The training range of [`surface_rate_input`], °C/min (multi-point:
+/// input 1's units).
+fn surface_rate_range(model: &Model) -> Option<(f32, f32)> {
+    model.input_range(surface_rate_input(model.features().set)?)
+}
+
+/// The loop temperature range a model was trained over, °C: its input 0,
+/// or a response bank's covered range (its input 0 is T − T₀).
+fn loop_temperature_range(model: &Model) -> (f32, f32) {
+    match model.features().set {
+        FeatureSet::ResponseBank(bank) => (bank.range_min_c, bank.range_max_c),
+        _ => model.input_range(0).unwrap_or((0.0, 1.0)),
     }
 }
 
 /// Grey of what lies outside the training data on the bias plots.
 const OUTSIDE_TRAINING: RGBColor = RGBColor(170, 170, 170);
+/// Fill of the bias surface's cells that no sample reached (hatched in
+/// [`OUTSIDE_TRAINING`] over it): no colour, so none reads as a bias.
+const MASKED: RGBColor = RGBColor(232, 232, 232);
 
 /// Which cells of an `n` × `n` grid over `t` × `r` some sample of `points`
-/// (input 0, rate input) lies in or next to, row-major from (t.0, r.0); with
-/// `uses_rate` false (a model without a rate input) only the T column counts.
-fn reached_cells(points: &[(f32, f32, f32)], t: (f32, f32), r: (f32, f32), n: usize, uses_rate: bool) -> Vec<bool> {
+/// (x, y) lies in or next to, row-major from (t.0, r.0).
+fn reached_cells(points: &[(f32, f32, f32)], t: (f32, f32), r: (f32, f32), n: usize) -> Vec<bool> {
     let cell = |v: f32, (lo, hi): (f32, f32)| {
         let x = ((v - lo) / (hi - lo) * (n - 1) as f32).round();
         (x >= -1.0 && x <= n as f32).then_some(x as i64)
     };
     let mut hit = vec![false; n * n];
     for p in points {
-        let (Some(i), Some(j)) = (cell(p.0, t), if uses_rate { cell(p.1, r) } else { Some(0) }) else {
+        let (Some(i), Some(j)) = (cell(p.0, t), cell(p.1, r)) else {
             continue;
         };
-        let rows: Vec<i64> = if uses_rate {
-            (j - 1..=j + 1).collect()
-        } else {
-            (0..n as i64).collect()
-        };
-        for jj in rows {
+        for jj in j - 1..=j + 1 {
             for ii in i - 1..=i + 1 {
                 if (0..n as i64).contains(&ii) && (0..n as i64).contains(&jj) {
                     hit[jj as usize * n + ii as usize] = true;
@@ -775,20 +892,38 @@ fn draw_surface<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
     model: &Model,
     trajectory: &[(f32, f32, f32)],
+    training_only: bool,
 ) -> DrawResult
 where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE)?;
-    let (t_lo, t_hi) = model.input_range(0).unwrap_or((0.0, 1.0));
     let set = model.features().set;
-    let (r_lo, r_hi) = surface_rate_range(model);
     let multi_point = matches!(set, FeatureSet::MultiPoint(_));
+    let (t_lo, t_hi) = if multi_point {
+        model.input_range(0).unwrap_or((0.0, 1.0))
+    } else {
+        loop_temperature_range(model)
+    };
+    // A model without a rate input: the rates the runs went through.
+    let (r_lo, r_hi) = surface_rate_range(model).unwrap_or_else(|| {
+        let (lo, hi) = range(trajectory.iter().map(|p| f64::from(p.1)));
+        (lo as f32, hi as f32)
+    });
     let axis = |i: usize| set.name(i).map_or_else(String::new, |n| n.to_string());
+    let no_rate_input = surface_rate_input(set).is_none() && !matches!(set, FeatureSet::ResponseBank(_));
     let (x_desc, y_desc) = if multi_point {
         (axis(0), axis(1))
     } else {
-        ("loop temperature T [°C]".to_owned(), "ΔT [°C/min]".to_owned())
+        let rate = format!("ΔT (τ {} s) [°C/min]", surface_rate_window_s(model));
+        (
+            "loop temperature T [°C]".to_owned(),
+            if no_rate_input {
+                format!("{rate}, not a model input")
+            } else {
+                rate
+            },
+        )
     };
     const N: usize = 60;
     let grid: Vec<(f32, f32, f32)> = (0..N * N)
@@ -798,8 +933,7 @@ where
             (t, r, steady_bias(model, t, r))
         })
         .collect();
-    let uses_rate = set.dims() > surface_rate_input(set);
-    let reached = reached_cells(trajectory, (t_lo, t_hi), (r_lo, r_hi), N, uses_rate);
+    let reached = reached_cells(trajectory, (t_lo, t_hi), (r_lo, r_hi), N);
     // The colours span the bias where the runs went; elsewhere in the box the
     // model extrapolates between edges that no sample joined.
     let (b_lo, b_hi) = if reached.contains(&true) {
@@ -809,17 +943,32 @@ where
     };
     let over = if multi_point {
         "its first two inputs (others mid-range)"
+    } else if no_rate_input {
+        "T"
     } else {
         "T and a steady-ramp ΔT"
     };
-    let caption = format!("fitted bias over {over}; hatched: no sample of these runs");
+    let unsampled = if training_only {
+        "no training sample"
+    } else {
+        "no sample of these runs"
+    };
+    let caption = format!("fitted bias over {over}; grey, hatched: {unsampled}");
     let plot = with_colour_bar(&root, b_lo, b_hi, "fitted bias [°/h]")?;
+    // The cells reach half a cell past the box; the margins keep them off the frame.
+    let (x_lo, x_hi) = padded(t_lo as f64, t_hi as f64);
+    let (y_lo, y_hi) = padded(r_lo as f64, r_hi as f64);
     let mut chart = ChartBuilder::on(&plot)
-        .caption(caption, ("sans-serif", 22))
+        .caption(&caption, ("sans-serif", title_font_px(&plot, &caption)))
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(t_lo as f64..t_hi as f64, r_lo as f64..r_hi as f64)?;
+        .y_label_area_size(y_label_area_px(
+            &plot,
+            linear_tick_labels(y_lo, y_hi),
+            TICK_LABEL_PX,
+            70,
+        ))
+        .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
     chart
         .configure_mesh()
         .x_label_formatter(&tick_label)
@@ -834,8 +983,11 @@ where
     );
     chart.draw_series(grid.iter().zip(&reached).map(|(&(t, r, b), &reached)| {
         let (t, r) = (t as f64, r as f64);
-        let c = colour((b as f64 - b_lo) / (b_hi - b_lo));
-        let fill = if reached { c.filled() } else { c.mix(0.25).filled() };
+        let fill = if reached {
+            colour((b as f64 - b_lo) / (b_hi - b_lo)).filled()
+        } else {
+            MASKED.filled()
+        };
         Rectangle::new([(t - dt / 2.0, r - dr / 2.0), (t + dt / 2.0, r + dr / 2.0)], fill)
     }))?;
     // Hatching over the cells no sample reached: one diagonal per cell.
@@ -906,12 +1058,12 @@ fn read_run(
 ) -> anyhow::Result<RunPlots> {
     let path = reader.path().to_owned();
     let mask = model.features().set.thermometer_mask();
-    let rate_input = surface_rate_input(model.features().set);
+    let mut surface = SurfaceCoordinates::of(model);
     let named = RunDiagnosis::new(&path, 1.0).named_by(reader.header_line(), reader.columns());
     let run = StreamedRun::from_reader(reader, mask)?;
     let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
     let config = rbf_core::CompensatorConfig::for_nominal_period_s(period_s);
-    let (mut compensator, mut features) = (rbf_core::Compensator::new(), rbf_core::Compensator::new());
+    let mut compensator = rbf_core::Compensator::new();
     let mut evaluator = Evaluator::new(&path, period_s, has_ref);
     let mut diagnosis = RunDiagnosis::new(&path, period_s).named_like(&named);
     let (mut raw, mut comp, mut temp, mut bias) = (
@@ -936,13 +1088,8 @@ fn read_run(
             row.time_s,
             row.readings_c()[rbf_core::features::LOOP_THERMOMETER].unwrap_or(f64::NAN),
         );
-        let frame = features.features(model.features(), &config, sample);
-        if let Some(f) = frame.features {
-            let v = f.as_slice();
-            trajectory.push(
-                *first_index + rows,
-                (v[0], v.get(rate_input).copied().unwrap_or(0.0), out.bias_dph),
-            );
+        if let Some((x, y)) = surface.point(&config, sample) {
+            trajectory.push(*first_index + rows, (x, y, out.bias_dph));
         }
         rows += 1;
     })?;
@@ -1093,6 +1240,18 @@ fn clamped_cell(n: usize, samples: usize) -> String {
     format!("{n} ({:.1} %)", 100.0 * n as f64 / samples as f64)
 }
 
+/// The runs a report is made of.
+#[derive(Clone, Copy, Debug)]
+pub struct ReportRuns<'a> {
+    /// Every run, in the order reported.
+    pub paths: &'a [PathBuf],
+    /// How many of the first `paths` the model was trained on (`trainer
+    /// fit`): their samples alone mark where a box model's bias surface is
+    /// backed by data. `None` when that is not known (`trainer report`):
+    /// every run's samples then.
+    pub trained_on: Option<usize>,
+}
+
 /// Writes the report of `model` (read from `model_path`) on the runs at
 /// `runs` (`-`: standard input) into the staged directory `out`, in its
 /// subdirectory `sub` (empty: at the top); returns how many files it wrote
@@ -1107,12 +1266,13 @@ fn clamped_cell(n: usize, samples: usize) -> String {
 pub fn write_report(
     model: &Model,
     model_path: &Path,
-    runs: &[PathBuf],
+    runs: ReportRuns,
     out: &StagedDir,
     sub: &Path,
     accept: crate::axes::Acceptance,
     axis: Option<Axis>,
 ) -> anyhow::Result<(usize, Vec<RunEvaluation>)> {
+    let (trained_on, runs) = (runs.trained_on, runs.paths);
     input::check_stdin_once(runs.iter().map(|p| p.as_path()).chain([model_path]))?;
     let stems: Vec<String> = runs.iter().map(|p| run_stem(p)).collect();
     // A multi-axis report's titles name the axis.
@@ -1122,10 +1282,16 @@ pub fn write_report(
     };
     let mut trajectory = Trajectory::new();
     let mut first_index = 0;
+    // The first sample index past the training runs.
+    let mut trained_end_index = None;
     let plots = runs
         .iter()
         .zip(&stems)
-        .map(|(path, stem)| {
+        .enumerate()
+        .map(|(k, (path, stem))| {
+            if Some(k) == trained_on {
+                trained_end_index = Some(first_index);
+            }
             let mut reader = RunReader::open(path)?;
             match axis {
                 Some(axis) => reader.select_axis(axis)?,
@@ -1194,10 +1360,8 @@ pub fn write_report(
          (flag 1).\n",
     );
     md.push_str(&format!("{}.\n", crate::allan::FLOOR_RULE));
-    let surface = SurfacePlot {
-        model,
-        trajectory: trajectory.points.into_iter().map(|(_, p)| p).collect(),
-    };
+    let trained_end_index = trained_end_index.or(trained_on.map(|_| first_index));
+    let surface = SurfacePlot::new(model, trajectory.points, trained_end_index);
     both("bias_surface", render(&surface))?;
     md.push_str("\n## Plots\n\n![bias surface](bias_surface.svg)\n\n");
     for p in &plots {
@@ -1277,7 +1441,7 @@ mod tests {
             panic!("the default is the lag bank")
         };
         let fastest = model.input_range(bank.static_inputs()).unwrap();
-        assert_eq!(surface_rate_range(&model), fastest);
+        assert_eq!(surface_rate_range(&model), Some(fastest));
         // The 1 °C/min run's rates stay within ±1 °C/min; (T̂ − T₀)² reaches 100 °C².
         assert!(fastest.0 > -1.0 && fastest.1 < 1.0, "{fastest:?}");
     }
@@ -1380,6 +1544,7 @@ mod tests {
             duration_s: 20_000.0,
         };
         let (svg, _) = render(&plot).unwrap();
+        assert_drawable(&svg);
         let (texts, circles) = svg_texts_and_circles(&svg);
         for label in ["0.005", "0.01", "0.02", "0.05"] {
             assert!(texts.iter().any(|t| t == label), "no tick label {label}: {texts:?}");
@@ -1401,41 +1566,168 @@ mod tests {
         );
     }
 
+    /// The font size an SVG that plotters drew gives the text `content`.
+    fn svg_font_size(svg: &str, content: &str) -> f64 {
+        svg.split("<text")
+            .skip(1)
+            .find(|t| {
+                t.split_once('>')
+                    .is_some_and(|(_, rest)| rest.trim_start().starts_with(content))
+            })
+            .and_then(|t| t.split(" font-size=\"").nth(1)?.split('"').next()?.parse().ok())
+            .unwrap_or_else(|| panic!("no text {content:?}"))
+    }
+
+    #[test]
+    fn a_title_too_long_for_the_plot_shrinks_to_fit_rather_than_being_clipped() {
+        let e = evaluation_with_allan(0.003, 0.05);
+        let size_of = |title: String| {
+            let plot = AllanPlot {
+                title: title.clone(),
+                evaluation: &e,
+                duration_s: 20_000.0,
+            };
+            svg_font_size(&render(&plot).unwrap().0, &title)
+        };
+        let tail = ": overlapping Allan deviation; bias instability ≤9.75e-3 → ≤2.24e-3 °/h";
+        let short = size_of(format!("run{tail}"));
+        let long = size_of(format!("{}{tail}", "chamber_run_of_unit_0042_axis_z_".repeat(2)));
+        assert!(long < 0.9 * short, "{long} against {short}");
+    }
+
+    #[test]
+    fn long_y_tick_labels_widen_their_label_area_rather_than_run_into_the_axis_description() {
+        // A rate about -1.2e-4 °/h that varies by 1e-6: labels such as -0.0001202.
+        let wave = |k: usize| -1.2e-4 + 1e-6 * (k as f64 / 9.0).sin();
+        let series = |f: &dyn Fn(usize) -> f64| (0..400).map(|k| (10.0 * k as f64, f(k))).collect::<Vec<_>>();
+        let plot = RatePlot {
+            title: "r".into(),
+            y_desc: "rate − ref_dph [°/h] (10-s means)",
+            raw: series(&wave),
+            comp: series(&|k| wave(k) + 2e-7),
+            temp: series(&|k| 20.0 + k as f64 / 40.0),
+        };
+        let (svg, _) = render(&plot).unwrap();
+        let mut area_svg = String::new();
+        let area = SVGBackend::with_string(&mut area_svg, SIZE).into_drawing_area();
+        let style = ("sans-serif", TICK_LABEL_PX).into_text_style(&area);
+        // The description's rotated line ends at its x plus its font's height.
+        let desc_right_px = 12.0 + TICK_LABEL_PX;
+        let left_labels: Vec<(f64, String)> = svg
+            .split("<text")
+            .skip(1)
+            .filter_map(|t| {
+                let (attrs, rest) = t.split_once('>')?;
+                let text = rest.split_once("</text>")?.0.trim();
+                text.parse::<f64>().ok()?;
+                let x: f64 = attrs.split(" x=\"").nth(1)?.split('"').next()?.parse().ok()?;
+                (x < 200.0 && attrs.contains("text-anchor=\"end\"")).then(|| (x, text.to_owned()))
+            })
+            .collect();
+        assert!(left_labels.len() >= 3, "{left_labels:?}");
+        assert!(left_labels.iter().any(|(_, t)| t.len() >= 10), "{left_labels:?}");
+        for (right_px, text) in &left_labels {
+            let (width, _) = area.estimate_text_size(text, &style).unwrap();
+            assert!(
+                right_px - f64::from(width) > desc_right_px,
+                "{text} reaches the axis description: {right_px} − {width} px"
+            );
+        }
+    }
+
+    #[test]
+    fn light_grid_lines_stay_apart_rather_than_stack_into_a_grey_band() {
+        let points: Vec<BiasPoint> = (0..300)
+            .map(|k| {
+                let temp_c = 12.0 + k as f64 * 0.09;
+                BiasPoint {
+                    temp_c,
+                    measured_dph: 0.02 * temp_c,
+                    model_dph: 0.02 * temp_c,
+                    residual_dph: 0.06 * (k as f64 / 5.0).sin(),
+                    ramp: Ramp::Heating,
+                }
+            })
+            .collect();
+        let (svg, _) = render(&BiasTempPlot {
+            title: "r".into(),
+            points,
+        })
+        .unwrap();
+        // plotters draws the light lines at a tenth of black's opacity.
+        let attr = |l: &str, name: &str| -> i64 {
+            l.split(&format!(" {name}=\""))
+                .nth(1)
+                .unwrap()
+                .split('"')
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap()
+        };
+        let light: Vec<&str> = svg
+            .split("<line")
+            .skip(1)
+            .filter(|l| l.contains("opacity=\"0.1\""))
+            .collect();
+        assert!(light.len() > 10, "no light grid lines drawn");
+        for (from, to) in [("y1", "y2"), ("x1", "x2")] {
+            let mut at: Vec<i64> = light
+                .iter()
+                .filter(|l| attr(l, from) == attr(l, to))
+                .map(|l| attr(l, from))
+                .collect();
+            at.sort_unstable();
+            at.dedup();
+            let closest = at.windows(2).map(|w| w[1] - w[0]).min().unwrap_or(i64::MAX);
+            assert!(closest >= 7, "light lines along {from} {closest} px apart: {at:?}");
+        }
+    }
+
     #[test]
     fn the_bias_surface_masks_what_no_run_reached_and_spends_its_colours_on_the_rest() {
         // Samples only in the lower-left quarter of the box.
         let path: Vec<(f32, f32, f32)> = (0..200)
             .map(|k| (-40.0 + k as f32 * 0.2, -1.0 + k as f32 * 0.004, 0.0))
             .collect();
-        let reached = reached_cells(&path, (-40.0, 60.0), (-1.0, 1.0), 60, true);
+        let reached = reached_cells(&path, (-40.0, 60.0), (-1.0, 1.0), 60);
         let share = reached.iter().filter(|r| **r).count() as f64 / reached.len() as f64;
         assert!(share > 0.01 && share < 0.2, "{share}");
         // The corner no sample reached is masked; where they went is not.
         assert!(!reached[60 * 60 - 1] && reached[0]);
-        // A model without a rate input: a reached temperature counts at every rate.
-        let reached = reached_cells(&[(10.0, 0.0, 0.0)], (-40.0, 60.0), (-1.0, 1.0), 60, false);
-        let column = ((10.0 + 40.0) / 100.0 * 59.0f32).round() as usize;
-        assert!((0..60).all(|j| reached[j * 60 + column]));
     }
 
-    #[test]
-    fn a_box_models_surface_hatches_what_no_run_reached_with_ticks_written_as_numbers() {
+    /// The SVG of `model`'s bias plot over `trajectory` (the reported runs').
+    fn surface_svg(model: &Model, trajectory: Vec<(f32, f32, f32)>) -> String {
+        let surface = SurfacePlot {
+            model,
+            trajectory,
+            training_only: false,
+        };
+        render(&surface).unwrap().0
+    }
+
+    /// A cubic in T trained over -40 … 60 °C.
+    fn cubic_in_t() -> Model {
         use rbf_core::model::{ModelBody, ModelInfo};
         use rbf_core::poly::Poly3;
-        let model = Model::new(
+        Model::new(
             rbf_core::FeatureConfig::single(FeatureSet::Temp, 0.0),
             &[(-40.0, 60.0)],
             ModelBody::Poly3(Poly3::new(25.0, [0.5, -0.01, 1e-4, -2e-6]).unwrap()),
             ModelInfo::default(),
         )
-        .unwrap();
-        // The runs stayed below 0 °C.
-        let trajectory: Vec<(f32, f32, f32)> = (0..100).map(|k| (-40.0 + 0.4 * k as f32, 0.0, 0.0)).collect();
-        let (svg, _) = render(&SurfacePlot {
-            model: &model,
-            trajectory,
-        })
-        .unwrap();
+        .unwrap()
+    }
+
+    #[test]
+    fn a_box_models_surface_hatches_what_no_run_reached_with_ticks_written_as_numbers() {
+        let model = cubic_in_t();
+        // The runs stayed below 0 °C and within ±0.2 °C/min.
+        let trajectory: Vec<(f32, f32, f32)> = (0..100)
+            .map(|k| (-40.0 + 0.4 * k as f32, 0.2 * (k as f32 / 7.0).sin(), 0.0))
+            .collect();
+        let svg = surface_svg(&model, trajectory);
         let hatch = format!(
             "stroke=\"#{:02X}{:02X}{:02X}\"",
             OUTSIDE_TRAINING.0, OUTSIDE_TRAINING.1, OUTSIDE_TRAINING.2
@@ -1443,13 +1735,125 @@ mod tests {
         assert!(svg.matches(&hatch).count() > 60, "the warm half is hatched");
         let (texts, _) = svg_texts_and_circles(&svg);
         assert!(texts.iter().any(|t| t.contains("hatched")), "{texts:?}");
+        assert!(texts.iter().any(|t| t.contains("not a model input")), "{texts:?}");
         for t in texts.iter().filter(|t| t.parse::<f64>().is_ok()) {
             assert!(!t.ends_with(".0") && t != "-0", "tick label {t}");
+        }
+        // The rate axis spans the runs' rates, not a made-up ±1 °C/min.
+        let rates = y_ticks(&svg);
+        assert!(rates.len() >= 3 && rates.iter().all(|r| r.abs() <= 0.25), "{rates:?}");
+    }
+
+    #[test]
+    fn a_box_surface_from_a_fit_is_masked_by_the_training_runs_alone() {
+        let model = cubic_in_t();
+        // A training run below 0 °C (samples 0 … 99), a holdout above it.
+        let points: Vec<(usize, (f32, f32, f32))> = (0..200).map(|k| (k, (-40.0 + 0.5 * k as f32, 0.0, 0.0))).collect();
+        let surface = SurfacePlot::new(&model, points.clone(), Some(100));
+        assert!(surface.training_only);
+        assert!(surface.trajectory.len() == 100 && surface.trajectory.iter().all(|p| p.0 < 10.0));
+        let (svg, _) = render(&surface).unwrap();
+        let (texts, _) = svg_texts_and_circles(&svg);
+        assert!(texts.iter().any(|t| t.contains("no training sample")), "{texts:?}");
+        // Without knowing the training runs (trainer report): every run's samples.
+        let surface = SurfacePlot::new(&model, points, None);
+        assert!(!surface.training_only && surface.trajectory.len() == 200);
+    }
+
+    /// The numbers an SVG that plotters drew writes, with where: (x, y, value).
+    fn svg_numbers(svg: &str) -> Vec<(f64, f64, f64)> {
+        svg.split("<text")
+            .skip(1)
+            .filter_map(|t| {
+                let (attrs, rest) = t.split_once('>')?;
+                let value = rest.split_once("</text>")?.0.trim().parse().ok()?;
+                let attr = |name: &str| -> Option<f64> {
+                    attrs
+                        .split(&format!(" {name}=\""))
+                        .nth(1)?
+                        .split('"')
+                        .next()?
+                        .parse()
+                        .ok()
+                };
+                Some((attr("x")?, attr("y")?, value))
+            })
+            .collect()
+    }
+
+    /// The tick labels of a surface plot's x axis (below the plot, left of
+    /// the colour bar).
+    fn x_ticks(svg: &str) -> Vec<f64> {
+        svg_numbers(svg)
+            .into_iter()
+            .filter(|n| n.1 > f64::from(SIZE.1) - 60.0 && n.0 < f64::from(SIZE.0 - COLOUR_BAR_PX))
+            .map(|n| n.2)
+            .collect()
+    }
+
+    /// The tick labels of a plot's left y axis.
+    fn y_ticks(svg: &str) -> Vec<f64> {
+        svg_numbers(svg)
+            .into_iter()
+            .filter(|n| n.0 < 100.0 && n.1 < f64::from(SIZE.1) - 60.0)
+            .map(|n| n.2)
+            .collect()
+    }
+
+    /// No text of `svg` carries a combining mark, which the PNG's font does not draw.
+    fn assert_drawable(svg: &str) {
+        let (texts, _) = svg_texts_and_circles(svg);
+        for t in texts {
+            assert!(
+                !t.chars().any(crate::plot_axes::is_combining),
+                "a combining mark the PNG font drops: {t:?}"
+            );
         }
     }
 
     #[test]
-    fn the_lag_banks_bias_plot_marks_its_training_range_and_writes_t_hat_as_the_font_can() {
+    fn a_response_banks_surface_spans_the_loop_temperature_and_the_runs_rates() {
+        let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
+        let run = crate::run::Run::load(&data).unwrap();
+        let opts = crate::fit::FitOptions {
+            features: crate::fit::RbfFeatures::ResponseBank,
+            ..crate::fit::FitOptions::default()
+        };
+        let model = crate::fit::fit(std::slice::from_ref(&run), &[], &opts).unwrap().model;
+        let FeatureSet::ResponseBank(bank) = model.features().set else {
+            panic!("the response bank was asked for")
+        };
+        let (t_lo, t_hi) = (f64::from(bank.range_min_c), f64::from(bank.range_max_c));
+        // Along the run: T across the covered range, ΔT within ±0.5 °C/min.
+        let trajectory: Vec<(f32, f32, f32)> = (0..200)
+            .map(|k| {
+                let t = t_lo + (t_hi - t_lo) * f64::from(k) / 199.0;
+                (t as f32, 0.5 * (k as f32 / 20.0).sin(), 0.0)
+            })
+            .collect();
+        let svg = surface_svg(&model, trajectory);
+        let temps = x_ticks(&svg);
+        assert!(
+            temps.len() >= 3 && temps.iter().all(|&t| t >= t_lo - 1.0 && t <= t_hi + 1.0),
+            "the x axis spans the loop temperature {t_lo} … {t_hi}: {temps:?}"
+        );
+        let rates = y_ticks(&svg);
+        assert!(rates.len() >= 3 && rates.iter().all(|r| r.abs() <= 0.6), "{rates:?}");
+        let (texts, _) = svg_texts_and_circles(&svg);
+        assert!(texts.iter().any(|t| t == "loop temperature T [°C]"), "{texts:?}");
+        // The colours: the bias at the run's temperatures, below 1 °/h in size
+        // (off the run's temperatures, the bank's tangents reach over 1 °/h).
+        let bar: Vec<f64> = svg_numbers(&svg)
+            .into_iter()
+            .filter(|n| n.0 > f64::from(SIZE.0 - COLOUR_BAR_PX))
+            .map(|n| n.2)
+            .collect();
+        assert!(!bar.is_empty() && bar.iter().all(|b| b.abs() <= 1.0), "{bar:?}");
+        assert_drawable(&svg);
+    }
+
+    #[test]
+    fn the_lag_banks_bias_plot_marks_its_training_range_and_writes_t_hat_in_words() {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
         let run = crate::run::Run::load(&data).unwrap();
         let model = crate::fit::fit(std::slice::from_ref(&run), &[], &crate::fit::FitOptions::default())
@@ -1457,13 +1861,9 @@ mod tests {
             .model;
         let (lo, hi) = model.input_range(0).unwrap();
         // One sample beyond the training range: drawn grey, outside the dashed box.
-        let surface = SurfacePlot {
-            model: &model,
-            trajectory: vec![(lo, 0.0, 0.1), (hi, 0.0, 0.2), (hi + 20.0, 0.0, 9.0)],
-        };
-        let (svg, _) = render(&surface).unwrap();
-        assert!(!svg.contains('\u{302}'), "a combining hat the PNG font drops");
-        assert!(svg.contains("T^"), "T̂ written out");
+        let svg = surface_svg(&model, vec![(lo, 0.0, 0.1), (hi, 0.0, 0.2), (hi + 20.0, 0.0, 9.0)]);
+        assert_drawable(&svg);
+        assert!(svg.contains("mean coil temperature T-hat [°C]"), "T̂ written out");
         assert!(
             svg.contains("stroke-dasharray") || svg.matches("<polyline").count() > 10,
             "training range drawn"

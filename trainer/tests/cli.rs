@@ -689,8 +689,8 @@ fn report_writes_svg_and_png_plots_json_and_markdown() {
         surface.contains("model bias [°/h]")
             && surface.contains("where the runs went")
             && surface.contains("dashed: training range")
-            && surface.contains("T^ [°C]"),
-        "colour bar axis, the path and the training range, the lag bank's inputs (T̂ as the PNG font can draw it)"
+            && surface.contains("mean coil temperature T-hat [°C]"),
+        "colour bar axis, the path and the training range, the lag bank's inputs (T̂ in words: the PNG font draws no combining hat)"
     );
 }
 

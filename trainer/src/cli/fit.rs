@@ -444,7 +444,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     uncompensated: true,
                     implausible: true,
                 };
-                trainer::report::write_report(&outcome.model, &a.output, &report_runs, &staged, Path::new(""), accept, None)?
+                trainer::report::write_report(
+                    &outcome.model,
+                    &a.output,
+                    trainer::report::ReportRuns {
+                        paths: &report_runs,
+                        trained_on: Some(a.runs.len()),
+                    },
+                    &staged,
+                    Path::new(""),
+                    accept,
+                    None,
+                )?
                     .0
             };
         staged.write(Path::new(FIT_TEXT), &out)?;

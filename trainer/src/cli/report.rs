@@ -49,11 +49,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // Written into a hidden directory beside DIR, which replaces DIR as a whole at the end.
     let staged = StagedDir::create(target)?;
     let allow = a.uncompensated.acceptance();
+    // Which runs trained the model is not known here.
+    let runs = trainer::report::ReportRuns {
+        paths: &a.runs,
+        trained_on: None,
+    };
     let mut printed = Vec::new();
     let axes = file.axes();
     if axes.is_empty() {
         let model = file.model(None).ok_or_else(|| anyhow::anyhow!("the model file holds no model"))?;
-        let (files, _) = trainer::report::write_report(model, model_path, &a.runs, &staged, Path::new(""), allow, None)?;
+        let (files, _) = trainer::report::write_report(model, model_path, runs, &staged, Path::new(""), allow, None)?;
         writeln!(printed, "wrote {files} files into {}", text::path(&a.output))?;
     }
     // A multi-axis model: a whole report per axis, in DIR/axis-<axis>.
@@ -76,7 +81,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .ok_or_else(|| anyhow::anyhow!("axis {} has no model", axis.name()))?;
         let sub = PathBuf::from(format!("axis-{}", axis.name()));
         let (files, evaluations) =
-            trainer::report::write_report(model, model_path, &a.runs, &staged, &sub, allow, Some(axis))
+            trainer::report::write_report(model, model_path, runs, &staged, &sub, allow, Some(axis))
                 .map_err(|e| e.context(format!("axis {}", axis.name())))?;
         writeln!(printed, "wrote {files} files into {}", text::path(&a.output.join(&sub)))?;
         summary.push((axis, evaluations));

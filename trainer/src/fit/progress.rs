@@ -1,10 +1,17 @@
 //! The fit's progress bar.
 
+use std::sync::{Mutex, PoisonError};
+
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+/// Where a stage's bar is drawn: made anew for each stage's bar.
+type DrawTarget = Box<dyn Fn() -> ProgressDrawTarget + Send + Sync>;
 
 /// A progress bar that is silent when disabled or not on a terminal.
 pub struct Progress {
-    bar: ProgressBar,
+    target: DrawTarget,
+    /// The current stage's bar.
+    bar: Mutex<ProgressBar>,
 }
 
 /// Every stage's bar: its name, the bar, the count and the time left.
@@ -17,37 +24,47 @@ fn style() -> ProgressStyle {
 impl Progress {
     /// A bar, hidden unless `visible`.
     pub fn new(visible: bool) -> Self {
-        Progress::on(if visible {
-            ProgressDrawTarget::stderr()
-        } else {
-            ProgressDrawTarget::hidden()
-        })
+        Progress::on(Box::new(move || {
+            if visible {
+                ProgressDrawTarget::stderr()
+            } else {
+                ProgressDrawTarget::hidden()
+            }
+        }))
     }
 
-    /// A bar drawn on `target`, styled from the start: indicatif draws on
-    /// the first change, so a bar styled after it would show once unnamed.
-    fn on(target: ProgressDrawTarget) -> Self {
+    /// Bars drawn on what `target` makes.
+    fn on(target: DrawTarget) -> Self {
         Progress {
-            bar: ProgressBar::with_draw_target(Some(0), target).with_style(style()),
+            target,
+            bar: Mutex::new(ProgressBar::hidden()),
         }
     }
 
-    /// Starts a stage of `total` steps: named before its length is set,
-    /// since setting the length draws the bar.
+    /// Starts a stage of `total` steps: a new bar, named, styled and of its
+    /// length before it first draws (indicatif draws on every change, so a
+    /// bar set up step by step shows once unnamed or of no length).
     pub fn start(&self, stage: &str, total: u64) {
-        self.bar.set_message(stage.to_owned());
-        self.bar.set_length(total);
-        self.bar.set_position(0);
+        let bar = ProgressBar::with_draw_target(Some(total), (self.target)())
+            .with_style(style())
+            .with_message(stage.to_owned());
+        bar.tick();
+        *self.bar.lock().unwrap_or_else(PoisonError::into_inner) = bar;
     }
 
     /// One step done.
     pub fn inc(&self) {
-        self.bar.inc(1);
+        self.current().inc(1);
     }
 
     /// The stage is over.
     pub fn finish(&self) {
-        self.bar.finish_and_clear();
+        self.current().finish_and_clear();
+    }
+
+    /// The current stage's bar (a handle: cloning shares it).
+    fn current(&self) -> ProgressBar {
+        self.bar.lock().unwrap_or_else(PoisonError::into_inner).clone()
     }
 }
 
@@ -95,19 +112,35 @@ mod tests {
     }
 
     #[test]
-    fn every_bar_drawn_names_its_stage() {
+    fn every_bar_drawn_names_its_stage_and_counts_to_its_length() {
         let screen = Screen::default();
-        let progress = Progress::on(ProgressDrawTarget::term_like(Box::new(screen.clone())));
-        progress.start("lag-bank structure", 3);
-        progress.inc();
-        progress.finish();
-        let drawn = screen.0.lock().unwrap().clone();
-        assert!(!drawn.is_empty(), "nothing drawn");
-        for line in &drawn {
-            assert!(
-                line.contains("lag-bank structure"),
-                "a bar without its stage: {line:?} in {drawn:?}"
-            );
+        let on_screen = screen.clone();
+        let progress = Progress::on(Box::new(move || {
+            ProgressDrawTarget::term_like(Box::new(on_screen.clone()))
+        }));
+        for (stage, total) in [("lag-bank structure", 3), ("selecting centres", 5)] {
+            progress.start(stage, total);
+            progress.inc();
+            progress.finish();
         }
+        let drawn = screen.0.lock().unwrap().clone();
+        for (stage, total) in [("lag-bank structure", 3), ("selecting centres", 5)] {
+            assert!(
+                drawn.iter().any(|l| l.contains(stage)),
+                "{stage} never drawn: {drawn:?}"
+            );
+            for line in drawn.iter().filter(|l| l.contains(stage)) {
+                assert!(
+                    line.contains(&format!("/{total} ")),
+                    "a bar of {stage} without its length: {line:?} in {drawn:?}"
+                );
+            }
+        }
+        assert!(
+            drawn
+                .iter()
+                .all(|l| l.contains("lag-bank structure") || l.contains("selecting centres")),
+            "a bar without its stage: {drawn:?}"
+        );
     }
 }
