@@ -44,6 +44,37 @@ fn rerun_without_incremental_builds() -> anyhow::Result<i32> {
     Ok(status.code().unwrap_or(1))
 }
 
+/// Wall time per CI step, printed at the end: where CI's minutes go.
+struct StepClock {
+    last: Instant,
+    laps: Vec<(&'static str, f64)>,
+}
+
+impl StepClock {
+    fn new() -> Self {
+        StepClock {
+            last: Instant::now(),
+            laps: Vec::new(),
+        }
+    }
+
+    /// Ends the step `name`, begun when the last one ended.
+    fn lap(&mut self, name: &'static str) {
+        let now = Instant::now();
+        self.laps.push((name, (now - self.last).as_secs_f64()));
+        self.last = now;
+    }
+
+    /// The steps and their wall times, s, one per line.
+    fn print(&self) {
+        eprintln!("
+ci: wall time per step");
+        for (name, seconds) in &self.laps {
+            eprintln!("  {seconds:>6.0} s  {name}");
+        }
+    }
+}
+
 /// Runs `cargo test` with `args`, echoing its output; returns (passed, failed).
 fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
     eprintln!("\n==> cargo {}", args.join(" "));
@@ -85,16 +116,20 @@ pub fn ci() -> anyhow::Result<()> {
         std::process::exit(rerun_without_incremental_builds()?);
     }
     let started = Instant::now();
+    let mut clock = StepClock::new();
     ensure_toolchain()?;
     crate::firmware::ensure_flip_link()?;
     qemu::ensure_installed()?;
+    clock.lap("toolchain, flip-link and QEMU present");
     run("cargo", &["fmt", "--all", "--check"])?;
     run("cargo", &["fmt", "--manifest-path", "fuzz/Cargo.toml", "--check"])?;
     crate::import_circles::import_circles()?;
+    clock.lap("fmt and import circles");
     run(
         "cargo",
         &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
     )?;
+    clock.lap("clippy, host workspace");
     // The QEMU boards, then the STM32F405 board on its own: its HAL switches
     // cortex-m-rt to device mode, whose vector table the QEMU boards lack.
     let qemu_boards = [
@@ -222,6 +257,7 @@ pub fn ci() -> anyhow::Result<()> {
     ] {
         run("cargo", &[&["clippy"][..], board, &["--", "-D", "warnings"]].concat())?;
     }
+    clock.lap("clippy, firmware feature sets");
     run(
         "cargo",
         &[
@@ -242,9 +278,12 @@ pub fn ci() -> anyhow::Result<()> {
     ] {
         run("cargo", &[&["build", "--release"][..], board].concat())?;
     }
+    clock.lap("rbf-core no_std check and firmware release images");
     crate::firmware::check_panic_free()?;
     crate::board_faults::board_faults()?;
+    clock.lap("panic-free check and board faults");
     let (mut passed, mut failed) = run_tests(&["test", "--workspace"])?;
+    clock.lap("host tests (build and run)");
     // The tests that need QEMU, the cross build or PyPI (ignored in a plain `cargo test`).
     // Named with `--workspace`, so that they build with the workspace's features and reuse
     // the step above (`--package e2e-tests` resolved other features and rebuilt trainer and
@@ -262,8 +301,11 @@ pub fn ci() -> anyhow::Result<()> {
         "--ignored",
     ])?;
     (passed, failed) = (passed + p, failed + f);
+    clock.lap("QEMU, device and allantools tests");
     // Each fuzz target for 20 s (longer runs: `cargo xtask fuzz --seconds N`); a finding fails CI (and becomes a regression file).
     crate::fuzz::fuzz(CI_FUZZ_SECONDS)?;
+    clock.lap("fuzzing (build and run)");
+    clock.print();
     eprintln!("\nci: all steps passed in {:.0} s", started.elapsed().as_secs_f64());
     println!("{passed} passed, {failed} failed");
     Ok(())
