@@ -105,23 +105,23 @@ impl RunSet for [Run] {
     }
 }
 
-/// Arrays of runs (so that `&[]` reads as "no validation runs").
+/// Arrays of runs (so that `&[]` reads as "no validation runs"): the runs
+/// as a slice.
 impl<const N: usize> RunSet for [Run; N] {
     fn count(&self) -> usize {
         N
     }
 
     fn thermometer_mask(&self) -> anyhow::Result<u8> {
-        Ok(common_thermometers(self))
+        self[..].thermometer_mask()
     }
 
     fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
-        Ok(sample_block_means(self, features, block_s))
+        self[..].filtered_block_means(features, block_s)
     }
 
     fn for_each_sample(&self, visit: &mut dyn FnMut(&SampleVisit)) -> anyhow::Result<()> {
-        visit_runs(self, visit);
-        Ok(())
+        self[..].for_each_sample(visit)
     }
 }
 
