@@ -14,7 +14,7 @@ use plotters::prelude::{DrawingArea, DrawingBackend, IntoTextStyle};
 /// A title's font size, px, unless it must shrink to fit.
 pub const TITLE_PX: f64 = 22.0;
 /// The smallest a title's font shrinks to, px.
-const MIN_TITLE_PX: f64 = 11.0;
+pub const MIN_TITLE_PX: f64 = 11.0;
 /// Room left on each side of a title, px.
 const TITLE_SIDE_PX: u32 = 8;
 
@@ -70,9 +70,9 @@ pub fn linear_tick_labels(lo: f64, hi: f64) -> Vec<String> {
 }
 
 /// Labelled ticks of a linear axis at most (plotters' default).
-const LINEAR_TICKS: usize = 11;
+pub const LINEAR_TICKS: usize = 11;
 /// Closest two light grid lines come, px: closer, they stack into a grey band.
-const MIN_LIGHT_LINE_GAP_PX: u32 = 8;
+pub const MIN_LIGHT_LINE_GAP_PX: u32 = 8;
 
 /// How many light grid lines plotters may draw per labelled tick of a
 /// linear axis `axis_px` long ([`MIN_LIGHT_LINE_GAP_PX`] apart at the least;

@@ -67,8 +67,10 @@ impl StepClock {
 
     /// The steps and their wall times, s, one per line.
     fn print(&self) {
-        eprintln!("
-ci: wall time per step");
+        eprintln!(
+            "
+ci: wall time per step"
+        );
         for (name, seconds) in &self.laps {
             eprintln!("  {seconds:>6.0} s  {name}");
         }

@@ -17,7 +17,7 @@ pub const MAX_RUN_FOLDS: usize = 10;
 
 /// Length of the means a held-out score is taken on, s: the cluster of the
 /// 100-s cluster STD the in-use histories are judged by.
-const SCORE_MEAN_S: f64 = crate::metrics::CLUSTER_S;
+pub const SCORE_MEAN_S: f64 = crate::metrics::CLUSTER_S;
 
 /// RMS of the [`SCORE_MEAN_S`] means of a residual over held-out rows, the
 /// mean of each run removed: what the cluster STD of an unseen history
