@@ -487,6 +487,26 @@ fn training_std100_of_weights(blocks: &ChannelBlocks, w: &Weights) -> anyhow::Re
 mod tests {
     use super::*;
 
+    /// Uniform draws in −0.5 … 0.5 from xorshift32 seeded with `seed`.
+    fn uniform_from(seed: u32) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            f64::from(state) / f64::from(u32::MAX) - 0.5
+        }
+    }
+
+    /// No blocks yet, of two runs, every channel ranging over −1 … 1.
+    fn two_runs_of_blocks() -> ChannelBlocks {
+        ChannelBlocks {
+            runs: 2,
+            range: vec![(-1.0, 1.0); CHANNELS],
+            ..ChannelBlocks::default()
+        }
+    }
+
     #[test]
     fn the_filters_span_ten_seconds_to_eleven_hours_evenly_on_a_log_scale() {
         let t = taus_s();
@@ -504,19 +524,9 @@ mod tests {
         // the temperature: the static part comes back closely (unpenalised),
         // each run's offset is its own, the responses come back slightly
         // shrunk by the ridge and the other weights stay small.
-        let mut state = 7u32;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            f64::from(state) / f64::from(u32::MAX) - 0.5
-        };
+        let mut uniform = uniform_from(7);
         let statics = STATIC_DEGREE as usize;
-        let mut blocks = ChannelBlocks {
-            runs: 2,
-            range: vec![(-1.0, 1.0); CHANNELS],
-            ..ChannelBlocks::default()
-        };
+        let mut blocks = two_runs_of_blocks();
         for i in 0..6000 {
             let run = i / 3000;
             let u = 30.0 * (i as f64 / 300.0).sin();
@@ -559,19 +569,9 @@ mod tests {
         // Blocks of 10 s over two runs, channels drawn at random; targets of
         // the bank's form plus noise score near the noise's 100-s means, the
         // same channels with a slow wander no channel carries score far above.
-        let mut state = 11u32;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            f64::from(state) / f64::from(u32::MAX) - 0.5
-        };
+        let mut uniform = uniform_from(11);
         let statics = STATIC_DEGREE as usize;
-        let mut explained = ChannelBlocks {
-            runs: 2,
-            range: vec![(-1.0, 1.0); CHANNELS],
-            ..ChannelBlocks::default()
-        };
+        let mut explained = two_runs_of_blocks();
         let mut wander = Vec::new();
         for i in 0..4000 {
             let run = i / 2000;
