@@ -5,8 +5,14 @@
 use rbf_core::{Compensator, CompensatorConfig, FeatureConfig, Flags, GyroSample, MAX_INPUTS};
 
 use super::blocks::{Blocks, merge_on_grid};
-use super::run_files::MAX_BLOCKS_PER_RUN;
 use crate::metrics::BinIndex;
+
+/// Blocks a streamed run keeps per configuration before merging them in
+/// pairs ([`Blocks::merge_pairs`]): 32768 (9.1 h of 1-s blocks), so runs of
+/// a working day keep every 1-s block and longer ones end with between
+/// 8192 and 16384 blocks of 2, 4, 8 … s ([`BlockBuilder::with_max_blocks`]):
+/// what a fit holds no longer grows with the run's length.
+pub const MAX_BLOCKS_PER_RUN: usize = 32_768;
 
 /// The blocks of one configuration while a [`BlockBuilder`] reads a run:
 /// the means stored `dims` to a block (a [`Blocks`] row has room for

@@ -38,7 +38,7 @@ mod run_set;
 mod test_support;
 
 pub use blocks::Blocks;
-pub use builder::{BlockBuilder, MAX_GROUP};
+pub use builder::{BlockBuilder, MAX_BLOCKS_PER_RUN, MAX_GROUP};
 pub use derive::{bank_blocks, block_source};
-pub use run_files::{MAX_BLOCKS_PER_RUN, RunFiles};
+pub use run_files::RunFiles;
 pub use run_set::{RunSet, SampleVisit, sample_block_means};

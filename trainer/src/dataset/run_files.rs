@@ -9,7 +9,7 @@ use rbf_core::axis::Axis;
 use rbf_core::{FeatureConfig, FeatureSet};
 
 use super::blocks::Blocks;
-use super::builder::{BlockBuilder, filter_groups};
+use super::builder::{BlockBuilder, MAX_BLOCKS_PER_RUN, filter_groups};
 use super::derive::slice_plain;
 use super::run_set::{RunSet, SampleVisit};
 use crate::chunked::Batch;
@@ -27,13 +27,6 @@ pub struct RunFiles {
     max_blocks_per_run: usize,
     cache: Mutex<Vec<(CacheKey, Blocks)>>,
 }
-
-/// Blocks a streamed run keeps per configuration before merging them in
-/// pairs ([`Blocks::merge_pairs`]): 32768 (9.1 h of 1-s blocks), so runs of
-/// a working day keep every 1-s block and longer ones end with between
-/// 8192 and 16384 blocks of 2, 4, 8 … s ([`BlockBuilder::with_max_blocks`]):
-/// what a fit holds no longer grows with the run's length.
-pub const MAX_BLOCKS_PER_RUN: usize = 32_768;
 
 type CacheKey = (FeatureConfigKey, u64);
 type FeatureConfigKey = (FeatureSet, [u32; 3]);
