@@ -636,7 +636,7 @@ fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankS
         out,
         "structure chosen on {how} among {} candidates; held-out RMS of 100-s means {:.4e} °/h",
         search.candidates.len(),
-        search.predicted_rms_dph()
+        search.held_out_rms_dph()
     )?;
     let dims = model.features().dims();
     let mut covered = Vec::new();

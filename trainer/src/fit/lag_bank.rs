@@ -447,9 +447,10 @@ pub struct EdgeTest {
 }
 
 impl BankSearch {
-    /// The chosen candidate's validation RMS, °/h: what the search predicts
-    /// for 100-s means on histories like the held-out ones.
-    pub fn predicted_rms_dph(&self) -> f64 {
+    /// The chosen candidate's validation RMS of 100-s means on the held-out
+    /// folds, °/h (what chose the structure; the in-use forecast is
+    /// [`super::forecast`]'s).
+    pub fn held_out_rms_dph(&self) -> f64 {
         self.candidates
             .get(self.chosen)
             .map_or(f64::NAN, |c| c.validation_rms_dph)

@@ -131,11 +131,7 @@ impl FitOutcome {
     /// unlike its training runs, °/h: the deployed bank's training residual
     /// times its structure's factor ([`forecast`]); `None` for the other methods.
     pub fn predicted_in_use_std100_dph(&self) -> Option<f64> {
-        let factor = match self.forecast_factor()? {
-            f if f.is_finite() => f,
-            _ => return None,
-        };
-        self.training_std100_dph.map(|r| factor * r).filter(|v| v.is_finite())
+        Some(self.forecast_factor()? * self.training_std100_dph?).filter(|v| v.is_finite())
     }
 
     /// The factor [`Self::predicted_in_use_std100_dph`] applies to the
@@ -253,7 +249,7 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             let structure = match (choose_structure, lag_std100) {
                 (true, Some(lag_std100)) => match response::identify_with_residual(train, opts) {
                     Ok(response) => {
-                        let c = response::StructureChoice::between(lag_std100, search.predicted_rms_dph(), &response);
+                        let c = response::StructureChoice::between(lag_std100, search.held_out_rms_dph(), &response);
                         Some((c, response))
                     }
                     Err(_) => None,

@@ -98,7 +98,8 @@ impl Weights {
 
 /// The bank and its deployable model for `train`.
 pub fn identify<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) -> anyhow::Result<Model> {
-    identify_with_residual(train, opts).map(|identified| identified.model)
+    let (bank, blocks) = plain_bank_and_blocks(train, opts.block_s)?;
+    fitted_model(bank, &blocks, opts)
 }
 
 /// A fitted bank and what the structure choice reads of it.
