@@ -483,6 +483,38 @@ pub struct FitHow {
     pub selection: Option<trainer::gradients::Selection>,
 }
 
+/// The default's structure choice, as `trainer fit` prints it: both
+/// structures' training residuals and held-out scores beside the runs'
+/// noise floor, or why the response bank was not tried.
+fn write_structure(out: &mut impl Write, s: &fit::response::StructureChoice) -> anyhow::Result<()> {
+    let floor = match s.noise_floor_std100_dph {
+        Some(floor) => format!(
+            "; the runs' noise floor {floor:.4e} °/h ({:.2}× of it left)",
+            s.lag_bank_std100_dph / floor
+        ),
+        None => String::new(),
+    };
+    match (s.response_bank_std100_dph, s.response_bank_held_out_rms_dph) {
+        (Some(response), Some(response_held_out)) => writeln!(
+            out,
+            "structure: residual STD100 on the training runs {:.4e} °/h with the lag bank, {response:.4e} °/h with the response bank (ratio {:.2}){floor}; held-out events {:.4e} and {response_held_out:.4e} °/h (the response bank is taken below a ratio of {} when it also predicts held-out events better): {}",
+            s.lag_bank_std100_dph,
+            response / s.lag_bank_std100_dph,
+            s.lag_bank_held_out_rms_dph,
+            fit::response::RESPONSE_BANK_MARGIN,
+            if s.response_bank { "response bank" } else { "lag bank" }
+        )?,
+        _ => writeln!(
+            out,
+            "structure: lag bank; residual STD100 on the training runs {:.4e} °/h{floor}: no bank gets {} of it below {} of the floor, so the response bank was not tried",
+            s.lag_bank_std100_dph,
+            fit::response::RESPONSE_BANK_MARGIN,
+            fit::response::NOISE_FLOOR_SHARE,
+        )?,
+    }
+    Ok(())
+}
+
 /// The fit's choices as `trainer fit` prints them above its accuracy table.
 pub fn write_summary(
     out: &mut impl Write,
@@ -491,17 +523,7 @@ pub fn write_summary(
 ) -> anyhow::Result<()> {
     writeln!(out, "model: {}", describe(&outcome.model))?;
     if let Some(s) = &outcome.structure {
-        writeln!(
-            out,
-            "structure: residual STD100 on the training runs {:.4e} °/h with the lag bank, {:.4e} °/h with the response bank (ratio {:.2}); held-out events {:.4e} and {:.4e} °/h (the response bank is taken below a ratio of {} when it also predicts held-out events better): {}",
-            s.lag_bank_std100_dph,
-            s.response_bank_std100_dph,
-            s.response_bank_std100_dph / s.lag_bank_std100_dph,
-            s.lag_bank_held_out_rms_dph,
-            s.response_bank_held_out_rms_dph,
-            fit::response::RESPONSE_BANK_MARGIN,
-            if s.response_bank { "response bank" } else { "lag bank" }
-        )?;
+        write_structure(out, s)?;
     }
     if let (Some(predicted), Some(factor), Some(training)) = (
         outcome.predicted_in_use_std100_dph(),

@@ -24,11 +24,24 @@ pub const LAG_BANK_FORECAST_FACTOR: f64 = 1.1;
 /// residual: its many weights follow the training run to its noise.
 pub const RESPONSE_BANK_FORECAST_FACTOR: f64 = 2.0;
 
-/// The residual 100-s cluster STD of `model` on the block means of `train`
-/// (RMS over the runs), °/h. For models linear in their inputs (the lag and
-/// response banks) the block means of the inputs give the block means of
-/// the bias.
-pub fn training_std100<T: RunSet + ?Sized>(train: &T, model: &Model, block_s: f64) -> anyhow::Result<f64> {
+/// What a linear model leaves of its training runs, at the 100-s scale.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrainingResidual {
+    /// The residual's 100-s cluster STD, °/h (RMS over the runs).
+    pub std100_dph: f64,
+    /// The part of it white noise explains ([`white_noise_std100`]), °/h;
+    /// `None` where the runs hold too few adjacent blocks to tell.
+    pub noise_floor_std100_dph: Option<f64>,
+}
+
+/// The residual of `model` on the block means of `train` ([`TrainingResidual`]).
+/// For models linear in their inputs (the lag and response banks) the block
+/// means of the inputs give the block means of the bias.
+pub fn training_residual<T: RunSet + ?Sized>(
+    train: &T,
+    model: &Model,
+    block_s: f64,
+) -> anyhow::Result<TrainingResidual> {
     let blocks = train.block_means(model.features(), block_s)?;
     let dims = blocks.dims.min(rbf_core::MAX_INPUTS);
     // A long run's blocks are merged: their length, not `block_s`, is the period.
@@ -42,7 +55,50 @@ pub fn training_std100<T: RunSet + ?Sized>(train: &T, model: &Model, block_s: f6
     let time: Vec<f64> = (0..blocks.len())
         .map(|i| blocks.time_s.get(i).copied().unwrap_or(i as f64 * period_s))
         .collect();
-    rms_cluster_std_over_runs(&blocks.run, &time, &residual, period_s)
+    Ok(TrainingResidual {
+        std100_dph: rms_cluster_std_over_runs(&blocks.run, &time, &residual, period_s)?,
+        noise_floor_std100_dph: white_noise_std100(&blocks.run, &time, &residual, period_s),
+    })
+}
+
+/// The residual 100-s cluster STD of `model` on the block means of `train`
+/// (RMS over the runs), °/h ([`training_residual`]'s `std100_dph`).
+pub fn training_std100<T: RunSet + ?Sized>(train: &T, model: &Model, block_s: f64) -> anyhow::Result<f64> {
+    Ok(training_residual(train, model, block_s)?.std100_dph)
+}
+
+/// Adjacent block pairs a run needs before its white noise is estimated.
+const MIN_NOISE_PAIRS: usize = 16;
+
+/// The 100-s cluster STD that white noise alone would give `residual_dph`
+/// (blocks of `period_s` starting at `time_s`, of run `run`), °/h, RMS over
+/// the runs: each run's Allan variance at τ = `period_s` from its adjacent
+/// blocks, scaled as white noise scales (σ²₁₀₀ = σ²(τ)·τ / 100 s).
+///
+/// At one block's length the residual is the gyro's noise: the thermal
+/// part changes little from one block to the next, and the difference of
+/// adjacent blocks removes it. Flicker and random walk add to the 100-s
+/// figure on top of this, so it is a lower bound of what no thermal model
+/// can remove. `None` where no run holds [`MIN_NOISE_PAIRS`] adjacent pairs.
+pub fn white_noise_std100(run: &[usize], time_s: &[f64], residual_dph: &[f64], period_s: f64) -> Option<f64> {
+    let runs = run.iter().max().map_or(0, |&r| r + 1);
+    let mut sums = vec![(0.0f64, 0usize); runs];
+    let n = run.len().min(time_s.len()).min(residual_dph.len());
+    for i in 1..n {
+        let adjacent = run[i] == run[i - 1] && (time_s[i] - time_s[i - 1] - period_s).abs() < 0.5 * period_s;
+        let d = residual_dph[i] - residual_dph[i - 1];
+        if adjacent && d.is_finite() {
+            let (sum, pairs) = &mut sums[run[i]];
+            *sum += d * d;
+            *pairs += 1;
+        }
+    }
+    let per_run: Vec<f64> = sums
+        .into_iter()
+        .filter(|&(_, pairs)| pairs >= MIN_NOISE_PAIRS)
+        .map(|(sum, pairs)| 0.5 * sum / pairs as f64 * period_s / crate::metrics::CLUSTER_S)
+        .collect();
+    (!per_run.is_empty()).then(|| (per_run.iter().sum::<f64>() / per_run.len() as f64).sqrt())
 }
 
 /// RMS over the runs of each run's 100-s cluster STD of `residual_dph`
@@ -74,6 +130,50 @@ pub fn rms_cluster_std_over_runs(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_noise_floor_is_the_white_noise_of_the_residual_whatever_slow_drift_rides_on_it() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        // Two 4-h runs of 4-s blocks: white noise of 0.02 °/h per block, run 1
+        // with a slow swing of ±0.05 °/h (a 2-h period) on top.
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let white = Normal::new(0.0, 0.02).unwrap();
+        let period_s = 4.0;
+        let (mut run, mut time, mut noise, mut drifting) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for r in 0..2 {
+            for i in 0..3600 {
+                let t = f64::from(i) * period_s;
+                let n = white.sample(&mut rng);
+                run.push(r);
+                time.push(t);
+                noise.push(n);
+                drifting.push(
+                    n + if r == 1 {
+                        0.05 * (t / 7200.0 * std::f64::consts::TAU).sin()
+                    } else {
+                        0.0
+                    },
+                );
+            }
+        }
+        // White noise: 100-s means of 25 blocks have 0.02/√25 = 0.004 °/h.
+        let floor = white_noise_std100(&run, &time, &noise, period_s).unwrap();
+        assert!((floor - 0.004).abs() < 0.0003, "{floor}");
+        let measured = rms_cluster_std_over_runs(&run, &time, &noise, period_s).unwrap();
+        assert!(
+            (floor / measured - 1.0).abs() < 0.1,
+            "{floor} against {measured} measured"
+        );
+        // The swing raises the residual's 100-s STD, not its noise floor.
+        let with_drift = white_noise_std100(&run, &time, &drifting, period_s).unwrap();
+        assert!((with_drift / floor - 1.0).abs() < 0.01, "{with_drift} against {floor}");
+        assert!(rms_cluster_std_over_runs(&run, &time, &drifting, period_s).unwrap() > 3.0 * floor);
+        // A gap is no pair; runs of too few pairs give no floor.
+        assert!(white_noise_std100(&run[..10], &time[..10], &noise[..10], period_s).is_none());
+        let gapped: Vec<f64> = (0..40).map(|i| f64::from(i) * 2.0 * period_s).collect();
+        assert!(white_noise_std100(&[0; 40], &gapped, &noise[..40], period_s).is_none());
+    }
 
     #[test]
     fn the_rms_over_runs_weighs_each_run_alike_and_skips_runs_too_short() {

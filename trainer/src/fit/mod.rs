@@ -245,19 +245,27 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             // The default: the response bank where the lag bank cannot follow
             // the training runs ([`response::StructureChoice`]).
             // Runs too short for a 100-s cluster STD: no forecast, no comparison.
-            let lag_std100 = forecast::training_std100(train, &lag_model, opts.block_s).ok();
-            let structure = match (choose_structure, lag_std100) {
-                (true, Some(lag_std100)) => match response::identify_with_residual(train, opts) {
-                    Ok(response) => {
-                        let c = response::StructureChoice::between(lag_std100, search.held_out_rms_dph(), &response);
-                        Some((c, response))
+            let lag = forecast::training_residual(train, &lag_model, opts.block_s).ok();
+            let lag_std100 = lag.map(|l| l.std100_dph);
+            let structure = match lag.filter(|_| choose_structure) {
+                Some(lag) => {
+                    let floor = lag.noise_floor_std100_dph;
+                    let scores = [lag.std100_dph, search.held_out_rms_dph()];
+                    if response::StructureChoice::worth_trying(lag.std100_dph, floor) {
+                        match response::identify_with_residual(train, opts) {
+                            Ok(r) => Some((response::StructureChoice::between(scores, floor, Some(&r)), Some(r))),
+                            Err(_) => None,
+                        }
+                    } else {
+                        Some((response::StructureChoice::between(scores, floor, None), None))
                     }
-                    Err(_) => None,
-                },
-                _ => None,
+                }
+                None => None,
             };
             let (model, training_std100_dph, structure) = match structure {
-                Some((c, response)) if c.response_bank => (response.model, Some(response.training_std100_dph), Some(c)),
+                Some((c, Some(response))) if c.response_bank => {
+                    (response.model, Some(response.training_std100_dph), Some(c))
+                }
                 Some((c, _)) => (lag_model, lag_std100, Some(c)),
                 None => (lag_model, lag_std100, None),
             };

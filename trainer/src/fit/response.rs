@@ -432,16 +432,23 @@ fn input_ranges(bank: &ResponseBank, blocks: &ChannelBlocks) -> Vec<(f32, f32)> 
 /// response bank predicts held-out thermal events better than the lag bank
 /// does: where its many weights only follow the run's noise, it does not.
 /// Where both follow the run, the simpler structure is kept (docs/methods.md).
+///
+/// Where the lag bank's residual is already near the runs' noise floor
+/// ([`super::forecast::white_noise_std100`]) no bank can leave the margin
+/// below it, and the response bank is not identified at all
+/// ([`Self::worth_trying`]): its scores are then `None`.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct StructureChoice {
     /// The lag bank's residual 100-s cluster STD on the training runs, °/h.
     pub lag_bank_std100_dph: f64,
-    /// The response bank's, °/h.
-    pub response_bank_std100_dph: f64,
+    /// The share of it white noise explains, °/h (`None`: runs too short to tell).
+    pub noise_floor_std100_dph: Option<f64>,
+    /// The response bank's, °/h (`None`: not identified).
+    pub response_bank_std100_dph: Option<f64>,
     /// The lag bank's held-out score (its chosen candidate's), °/h.
     pub lag_bank_held_out_rms_dph: f64,
     /// The response bank's held-out score on the same kind of folds ([`held_out_rms`]), °/h.
-    pub response_bank_held_out_rms_dph: f64,
+    pub response_bank_held_out_rms_dph: Option<f64>,
     /// The response bank was chosen.
     pub response_bank: bool,
 }
@@ -450,28 +457,50 @@ pub struct StructureChoice {
 /// below this share of the lag bank's.
 pub const RESPONSE_BANK_MARGIN: f64 = 0.6;
 
+/// The lowest share of the runs' noise floor a bank's training residual
+/// reaches: its weights cannot follow the noise of runs hours long further
+/// (docs/methods.md, "When the default takes it").
+pub const NOISE_FLOOR_SHARE: f64 = 0.9;
+
 impl StructureChoice {
+    /// Whether the response bank could replace a lag bank whose training
+    /// residual is `lag_bank_std100_dph` over runs whose noise floor is
+    /// `noise_floor_std100_dph`, °/h: only where [`RESPONSE_BANK_MARGIN`] of
+    /// the lag bank's residual lies above [`NOISE_FLOOR_SHARE`] of the
+    /// floor. An unknown floor leaves the choice to the scores.
+    pub fn worth_trying(lag_bank_std100_dph: f64, noise_floor_std100_dph: Option<f64>) -> bool {
+        noise_floor_std100_dph
+            .is_none_or(|floor| RESPONSE_BANK_MARGIN * lag_bank_std100_dph >= NOISE_FLOOR_SHARE * floor)
+    }
+
     /// The choice between a lag bank whose training residual and held-out
-    /// score are `lag_bank_std100_dph` and `lag_bank_held_out_rms_dph`, °/h,
-    /// and the identified `response` bank.
-    pub fn between(lag_bank_std100_dph: f64, lag_bank_held_out_rms_dph: f64, response: &Identified) -> Self {
+    /// score are `lag_bank` ([training residual, held-out score], °/h) and
+    /// the identified `response` bank, if it was identified, over runs
+    /// whose noise floor is `noise_floor_std100_dph`.
+    pub fn between(lag_bank: [f64; 2], noise_floor_std100_dph: Option<f64>, response: Option<&Identified>) -> Self {
         Self::from_scores(
-            [lag_bank_std100_dph, lag_bank_held_out_rms_dph],
-            [response.training_std100_dph, response.held_out_rms_dph],
+            lag_bank,
+            noise_floor_std100_dph,
+            response.map(|r| [r.training_std100_dph, r.held_out_rms_dph]),
         )
     }
 
     /// The choice from each structure's [training residual, held-out score], °/h.
-    pub fn from_scores(lag_bank: [f64; 2], response_bank: [f64; 2]) -> Self {
+    pub fn from_scores(
+        lag_bank: [f64; 2],
+        noise_floor_std100_dph: Option<f64>,
+        response_bank: Option<[f64; 2]>,
+    ) -> Self {
         let [lag_bank_std100_dph, lag_bank_held_out_rms_dph] = lag_bank;
-        let [response_bank_std100_dph, response_bank_held_out_rms_dph] = response_bank;
         StructureChoice {
             lag_bank_std100_dph,
-            response_bank_std100_dph,
+            noise_floor_std100_dph,
+            response_bank_std100_dph: response_bank.map(|r| r[0]),
             lag_bank_held_out_rms_dph,
-            response_bank_held_out_rms_dph,
-            response_bank: response_bank_std100_dph < RESPONSE_BANK_MARGIN * lag_bank_std100_dph
-                && response_bank_held_out_rms_dph < lag_bank_held_out_rms_dph,
+            response_bank_held_out_rms_dph: response_bank.map(|r| r[1]),
+            response_bank: response_bank.is_some_and(|[train, held_out]| {
+                train < RESPONSE_BANK_MARGIN * lag_bank_std100_dph && held_out < lag_bank_held_out_rms_dph
+            }),
         }
     }
 }
@@ -629,7 +658,7 @@ mod tests {
     fn the_response_bank_replaces_the_lag_bank_only_where_the_lag_bank_misses_its_run_and_the_bank_predicts_held_out_events_better()
      {
         let choice = |lag: f64, response: f64, lag_held_out: f64, response_held_out: f64| {
-            StructureChoice::from_scores([lag, lag_held_out], [response, response_held_out]).response_bank
+            StructureChoice::from_scores([lag, lag_held_out], None, Some([response, response_held_out])).response_bank
         };
         assert!(
             choice(0.02, 0.006, 0.05, 0.03),
@@ -646,5 +675,24 @@ mod tests {
         assert!(!choice(0.01, 0.0061, 0.05, 0.01), "a 1.6× gap is not wide enough");
         assert!(!choice(0.006, 0.017, 0.05, 0.01));
         assert!(!choice(0.02, 0.006, 0.05, f64::INFINITY), "a bank no fold could fit");
+        assert!(
+            !StructureChoice::from_scores([0.02, 0.05], Some(0.005), None).response_bank,
+            "a bank not identified"
+        );
+    }
+
+    #[test]
+    fn the_response_bank_is_tried_only_where_the_lag_bank_leaves_room_above_the_noise_floor() {
+        // 0.6 × 0.0070 = 0.0042 lies under 0.9 × 0.0060 = 0.0054: no bank gets there.
+        assert!(!StructureChoice::worth_trying(0.0070, Some(0.0060)));
+        // 0.6 × 0.0200 = 0.012 lies well above it.
+        assert!(StructureChoice::worth_trying(0.0200, Some(0.0060)));
+        assert!(
+            StructureChoice::worth_trying(0.0070, None),
+            "no floor known: the scores decide"
+        );
+        let at_floor = StructureChoice::from_scores([0.0070, 0.01], Some(0.0060), None);
+        assert_eq!(at_floor.response_bank_std100_dph, None);
+        assert_eq!(at_floor.noise_floor_std100_dph, Some(0.0060));
     }
 }
