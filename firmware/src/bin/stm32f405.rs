@@ -61,12 +61,8 @@ mod board {
     use embedded_hal_bus::spi::ExclusiveDevice;
     #[cfg(feature = "board-axes")]
     use embedded_hal_bus::util::AtomicCell;
-    #[cfg(feature = "board-axes")]
-    use firmware::axes::AxesLoop;
     use firmware::bench::{Bench, CMD_BENCH};
-    #[cfg(not(feature = "board-axes"))]
-    use firmware::compensation::CompensationLoop;
-    use firmware::compensation::{InPlaceModel, LoopConfig, LoopStats, write_frame};
+    use firmware::compensation::{CompensationLoop, InPlaceModel, LoopConfig, LoopStats, write_frame};
     use firmware::fault::{self, FaultReason, FaultRecord};
     #[cfg(not(feature = "board-qemu"))]
     use firmware::flash_ctl::ControllerFlash;
@@ -815,7 +811,7 @@ mod board {
             for f in &mut front_ends {
                 let _ = f.init();
             }
-            AxesLoop::new(model, 0b111, config, thermometers, front_ends, output)
+            CompensationLoop::new(model, config, thermometers, front_ends, output)
         };
         if boot_cause.is_some() {
             compensation.flag_next_frame(Flags::FAULT_RESET);
