@@ -33,7 +33,8 @@
 //! front ends sample together, data-ready from x on PB0), each coil's
 //! TMP117 sits on I2C1 (0x48 x, 0x49 y, 0x4A z), the model slots hold a
 //! multi-axis blob (format 3, [`firmware::AXIS_CENTERS`] centres per axis)
-//! and every sample goes out as one frame with all axes (firmware::axes).
+//! and every sample goes out as one frame with all axes (firmware::compensation,
+//! the loop of three axes).
 //! With `board-axes-shared` as well, the same three-axis board holds a
 //! shared-basis blob instead (one basis of up to
 //! [`firmware::SHARED_AXIS_CENTERS`] centres, a layer per axis, evaluated
