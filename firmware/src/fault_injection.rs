@@ -13,11 +13,10 @@ use core::cell::Cell;
 use embedded_hal::spi::{self, SpiDevice};
 use rbf_core::axis::{Axis, MAX_AXES};
 use rbf_core::blob;
-use rbf_core::frame::{self, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN};
+use rbf_core::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN};
 use rbf_core::{CompensatorConfig, Flags, Model};
 
-use crate::axes::{AxesHolder, AxesLoop};
-use crate::compensation::{CompensationLoop, LoopConfig};
+use crate::compensation::{CompensationLoop, LoopConfig, ModelHolder};
 use crate::emulated_flash::{EmulatedFlash, PAGE};
 use crate::frontend::FrontEnd;
 use crate::model_store::{COMMIT_LEN, ModelStore, SlotLayout};
@@ -145,28 +144,34 @@ impl SpiDevice for FaultySpi<'_> {
     }
 }
 
-/// Decodes every output frame as it is written and checks it.
+/// Decodes every output frame of a loop of `N` axes as it is written and
+/// checks it: a single gyro's frames (`N = 1`) or an IMU's
+/// [`AxesFrame`]s, each axis the frame carries checked alike.
 #[derive(Debug)]
-pub struct FrameChecker<'c> {
-    buf: [u8; MAX_FRAME_LEN],
+pub struct FrameChecker<'c, const N: usize = 1> {
+    buf: [u8; MAX_AXES_FRAME_LEN],
     len: usize,
     expected_flag: &'c Cell<Option<Flags>>,
     next_seq: u32,
-    /// Frames decoded with the right sequence number.
+    /// Frames decoded (those out of sequence included, and counted bad).
     pub frames: u32,
     /// Frames that did not decode or broke the sequence.
     pub bad_frames: u32,
-    /// Frames missing the flag their sample's fault calls for.
+    /// Frames in which an axis lacks the flag its sample's fault calls for.
     pub missing_flags: u32,
-    /// Frames with a non-finite bias or an unflagged non-finite output.
+    /// Frames in which an axis has a non-finite bias or an unflagged non-finite output.
     pub non_finite: u32,
+    /// The last frame decoded in sequence (a single gyro's as axis x of an
+    /// [`AxesFrame`]); none after a frame that did not decode or broke the sequence.
+    pub last: Option<AxesFrame>,
 }
 
-impl<'c> FrameChecker<'c> {
-    /// A checker expecting sequence 0 first.
+impl<'c, const N: usize> FrameChecker<'c, N> {
+    /// A checker expecting sequence 0 first; while `expected_flag` holds a
+    /// flag, every axis of every frame must carry it.
     pub fn new(expected_flag: &'c Cell<Option<Flags>>) -> Self {
         FrameChecker {
-            buf: [0; MAX_FRAME_LEN],
+            buf: [0; MAX_AXES_FRAME_LEN],
             len: 0,
             expected_flag,
             next_seq: 0,
@@ -174,38 +179,74 @@ impl<'c> FrameChecker<'c> {
             bad_frames: 0,
             missing_flags: 0,
             non_finite: 0,
+            last: None,
+        }
+    }
+
+    /// The frame in the buffer, decoded as the loop of `N` axes writes it.
+    fn decode(bytes: &mut [u8]) -> Option<AxesFrame> {
+        if N == 1 {
+            let f = frame::decode(bytes).ok()?;
+            let mut axes = [AxisOutput::default(); MAX_AXES];
+            axes[0] = AxisOutput {
+                rate_dph: f.rate_dph,
+                bias_dph: f.bias_dph,
+                rate_comp_dph: f.rate_comp_dph,
+                temp_c: f.temp_c,
+                flags: f.flags,
+            };
+            Some(AxesFrame {
+                tag: AXES_FRAME_TAG,
+                seq: f.seq,
+                axis_mask: 1,
+                axes,
+            })
+        } else {
+            frame::decode_axes(bytes).ok()
         }
     }
 
     fn frame_done(&mut self) {
         let bytes = self.buf.get_mut(..self.len).unwrap_or(&mut []);
         self.len = 0;
-        let Ok(f) = frame::decode(bytes) else {
+        let Some(f) = Self::decode(bytes) else {
             self.bad_frames += 1;
+            self.last = None;
             return;
         };
-        if f.seq != self.next_seq {
+        let in_sequence = f.seq == self.next_seq;
+        if !in_sequence {
             self.bad_frames += 1;
         }
         self.next_seq = f.seq.wrapping_add(1);
         self.frames += 1;
-        if let Some(flag) = self.expected_flag.get()
-            && !f.flags().contains(flag)
-        {
-            self.missing_flags += 1;
+        let carried = f
+            .axes
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| f.axis_mask & (1 << i) != 0)
+            .map(|(_, a)| a);
+        let (mut missing, mut non_finite) = (false, false);
+        for a in carried {
+            if let Some(flag) = self.expected_flag.get()
+                && !a.flags().contains(flag)
+            {
+                missing = true;
+            }
+            let rate_ok = a.rate_comp_dph.is_finite() || a.flags().contains(Flags::RATE_INVALID);
+            non_finite |= !a.bias_dph.is_finite() || !rate_ok;
         }
-        let rate_ok = f.rate_comp_dph.is_finite() || f.flags().contains(Flags::RATE_INVALID);
-        if !f.bias_dph.is_finite() || !rate_ok {
-            self.non_finite += 1;
-        }
+        self.missing_flags += u32::from(missing);
+        self.non_finite += u32::from(non_finite);
+        self.last = in_sequence.then_some(f);
     }
 }
 
-impl embedded_io::ErrorType for FrameChecker<'_> {
+impl<const N: usize> embedded_io::ErrorType for FrameChecker<'_, N> {
     type Error = embedded_io::ErrorKind;
 }
 
-impl embedded_io::Write for FrameChecker<'_> {
+impl<const N: usize> embedded_io::Write for FrameChecker<'_, N> {
     fn write(&mut self, data: &[u8]) -> Result<usize, Self::Error> {
         for &b in data {
             if let Some(slot) = self.buf.get_mut(self.len) {
@@ -278,7 +319,8 @@ pub fn sensor_campaign(model: Option<Model>, samples: u32, seed: u32) -> SensorC
         compensator: CompensatorConfig::for_sample_rate(1.0 / period_s),
         temp_read_every: 1,
     };
-    let mut compensation = CompensationLoop::new(model, config, thermometer, front_end, FrameChecker::new(&expected));
+    let checker = FrameChecker::<1>::new(&expected);
+    let mut compensation = CompensationLoop::new(model, config, thermometer, front_end, checker);
     let mut rng = Rng(seed | 1);
     let (mut kind, mut left, mut stuck_c) = (None::<FaultKind>, 0u32, 0.0f64);
     for i in 0..samples {
@@ -335,55 +377,6 @@ pub fn sensor_campaign(model: Option<Model>, samples: u32, seed: u32) -> SensorC
     report
 }
 
-/// Decodes every multi-axis frame as it is written; keeps the last one.
-#[derive(Debug)]
-struct AxesFrameChecker {
-    buf: [u8; MAX_AXES_FRAME_LEN],
-    len: usize,
-    next_seq: u32,
-    frames: u32,
-    bad_frames: u32,
-    last: Option<frame::AxesFrame>,
-}
-
-impl embedded_io::ErrorType for AxesFrameChecker {
-    type Error = embedded_io::ErrorKind;
-}
-
-impl embedded_io::Write for AxesFrameChecker {
-    fn write(&mut self, data: &[u8]) -> Result<usize, Self::Error> {
-        for &b in data {
-            if let Some(slot) = self.buf.get_mut(self.len) {
-                *slot = b;
-                self.len += 1;
-            } else {
-                self.bad_frames += 1;
-                self.len = 0;
-            }
-            if b == 0 {
-                let bytes = self.buf.get_mut(..self.len).unwrap_or(&mut []);
-                self.len = 0;
-                match frame::decode_axes(bytes) {
-                    Ok(f) if f.seq == self.next_seq => {
-                        self.frames += 1;
-                        self.next_seq = f.seq.wrapping_add(1);
-                        self.last = Some(f);
-                    }
-                    _ => {
-                        self.bad_frames += 1;
-                        self.last = None;
-                    }
-                }
-            }
-        }
-        Ok(data.len())
-    }
-
-    fn flush(&mut self) -> Result<(), Self::Error> {
-        Ok(())
-    }
-}
-
 /// What the one-axis thermometer campaign found.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AxisThermometerCampaign {
@@ -414,11 +407,11 @@ pub struct AxisThermometerCampaign {
 /// samples and outages of 150 (past the 10-s hold), on a schedule seeded
 /// by `seed`. Checks every frame: flag 2 on the failing axis whenever its
 /// thermometer failed, the other axes compensating undisturbed. Under a
-/// shared-basis model (`M::SHARED`) the loop reads axis x's thermometer
+/// shared-basis model ([`ModelHolder::SHARED`]) the loop reads axis x's thermometer
 /// for every axis: when that one fails, every axis counts as failing (flag
 /// 2 on each, flag 4 past the hold); when y's or z's fails, which that
 /// model does not read, no axis may be disturbed.
-pub fn axis_thermometer_campaign<M: AxesHolder<K>, const K: usize>(
+pub fn axis_thermometer_campaign<M: ModelHolder<K, MAX_AXES>, const K: usize>(
     models: M,
     failing: Axis,
     samples: u32,
@@ -449,19 +442,13 @@ pub fn axis_thermometer_campaign<M: AxesHolder<K>, const K: usize>(
         compensator: CompensatorConfig::for_sample_rate(1.0 / period_s),
         temp_read_every: 1,
     };
-    let checker = AxesFrameChecker {
-        buf: [0; MAX_AXES_FRAME_LEN],
-        len: 0,
-        next_seq: 0,
-        frames: 0,
-        bad_frames: 0,
-        last: None,
-    };
-    let has_models = models.models().is_some() || models.shared().is_some();
+    let no_expected_flag = Cell::new(None);
+    let checker = FrameChecker::<MAX_AXES>::new(&no_expected_flag);
+    let has_models = models.loaded();
     let affected = |axis: Axis| {
         if M::SHARED { failing == Axis::X } else { axis == failing }
     };
-    let mut axes = AxesLoop::new(models, 0b111, config, thermometers, front_ends, checker);
+    let mut axes = CompensationLoop::new(models, config, thermometers, front_ends, checker);
     let mut rng = Rng(seed | 1);
     let mut left = 0u32;
     for i in 0..samples {
@@ -711,18 +698,22 @@ pub fn command_campaign(old: &[u8], new: &[u8]) -> CommandCampaign {
         let expected = Cell::new(None);
         let current = Cell::new(ReplaySample::with_loop(Some(25.0), 15.0));
         let mut lp = CompensationLoop::new(
-            None,
+            None::<Model>,
             LoopConfig {
                 compensator: CompensatorConfig::for_sample_rate(10.0),
                 temp_read_every: 1,
             },
             Tmp117::new(EmulatedTmp117::new(&current, 0), LOOP_SENSOR_ADDRESS),
             FrontEnd::new(EmulatedFrontEnd::new(&current)),
-            FrameChecker::new(&expected),
+            FrameChecker::<1>::new(&expected),
         );
-        let before = lp.step(0.0).flags.contains(Flags::NO_VALID_MODEL);
+        let [before] = lp.step(0.0);
         lp.replace_model(store.load().ok());
-        let after = lp.step(0.1).flags.contains(Flags::NO_VALID_MODEL);
+        let [after] = lp.step(0.1);
+        let (before, after) = (
+            before.flags.contains(Flags::NO_VALID_MODEL),
+            after.flags.contains(Flags::NO_VALID_MODEL),
+        );
         report.switched = before && !after;
     }
     report

@@ -3,9 +3,9 @@
 //! `no_std`, no allocation. Everything but the board wiring lives here, so it
 //! builds and is tested on the host:
 //! - [`tmp117`]: loop-thermometer driver (I2C); [`frontend`]: rate front end (SPI, docs/frontend.md);
-//! - [`sensors`]: the traits the loop needs from them;
-//! - [`compensation`]: the per-sample loop (rbf-core compensation, one output frame per sample);
-//! - [`axes`]: the same loop for a multi-axis IMU (every axis read, one frame with all axes);
+//! - [`sensors`]: the traits the loop needs from them, per axis;
+//! - [`compensation`]: the per-sample loop for any number of axes (rbf-core compensation, one
+//!   output frame per sample: a single gyro's frame, or one frame with every axis of an IMU);
 //! - [`uart`]: the transmit queue an interrupt drains (frames whole or dropped and counted);
 //! - `replay` (feature `test-harness`): emulated devices and the recorded-run replayer of the QEMU board;
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
@@ -22,7 +22,6 @@
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
-pub mod axes;
 pub mod bench;
 pub mod clock;
 pub mod compensation;

@@ -7,9 +7,10 @@
 //! without a value in the row (no such column, or `temp_fault` = 1) NACKs;
 //! the rate goes out as the front end's binary32 word. [`Replayer`] feeds a
 //! run line by line through [`Tmp117Array`], [`FrontEnd`] and
-//! [`CompensationLoop`] and writes the compensated
-//! run exactly as `trainer compensate` does (same row parser, period rule,
-//! time step and row formatter from rbf-core), so the two are byte-identical.
+//! [`CompensationLoop`], per axis (one for a single gyro's run), and writes
+//! the compensated run exactly as `trainer compensate` does (same row
+//! parser, period rule, time step and row formatter from rbf-core), so the
+//! two are byte-identical.
 //! The QEMU board reads and writes the files over semihosting; host tests use
 //! the same code.
 
@@ -17,14 +18,12 @@ use core::cell::Cell;
 
 use embedded_hal::i2c::{self, I2c, NoAcknowledgeSource};
 use embedded_hal::spi::{self, SpiDevice};
-use rbf_core::axis::{Axis, MAX_AXES};
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self, Columns, HeaderError, RowError};
 use rbf_core::sensor::tmp117_raw;
-use rbf_core::{CompensatorConfig, Model};
+use rbf_core::{CompensatorConfig, MAX_CENTERS};
 
-use crate::axes::{AxesHolder, AxesLoop};
-use crate::compensation::{CompensationLoop, LoopConfig, LoopStats};
+use crate::compensation::{CompensationLoop, LoopConfig, LoopStats, ModelHolder};
 use crate::frontend::{self, FrontEnd};
 use crate::tmp117::{self, Tmp117Array};
 
@@ -234,141 +233,67 @@ fn clean(line: &str, line_no: u32) -> &str {
 /// The replay's thermometers: eight TMP117s on two emulated buses.
 pub type ReplayThermometers<'c> = Tmp117Array<EmulatedTmp117<'c>, EmulatedTmp117<'c>>;
 
-/// The replay loop type: real drivers over emulated buses.
-pub type ReplayLoop<'c, W> = CompensationLoop<ReplayThermometers<'c>, FrontEnd<EmulatedFrontEnd<'c>>, W>;
+/// The replay loop: per axis, eight TMP117s on two emulated buses and a
+/// front end, all answering from that axis's cell; `M` holds the models
+/// ([`ModelHolder`]: a single gyro's, a model per axis, or a shared basis).
+pub type ReplayLoop<'c, W, M, const K: usize = MAX_CENTERS, const N: usize = 1> =
+    CompensationLoop<[ReplayThermometers<'c>; N], [FrontEnd<EmulatedFrontEnd<'c>>; N], W, M, K, N>;
 
-/// Second pass: feeds rows through the loop and writes the compensated run.
-pub struct Replayer<'c, W> {
-    current: &'c Cell<ReplaySample>,
-    compensation: ReplayLoop<'c, W>,
-    columns: Option<Columns>,
+/// Second pass: feeds every row through the drivers and the loop and
+/// writes the compensated run as `trainer compensate` writes it, one frame
+/// per row. `N` is the loop's axis count: 1 for a single gyro's run
+/// (`rate_dph`; `bias_dph`, `rate_comp_dph`, `flags` appended, single-axis
+/// frames), [`rbf_core::axis::MAX_AXES`] for a multi-axis run (`rate_x_dph` …; per axis
+/// present `bias_<axis>_dph`, `rate_comp_<axis>_dph`, `flags_<axis>`,
+/// [`rbf_core::frame::AxesFrame`]s).
+///
+/// Each axis's devices answer from the row as that axis reads it
+/// ([`Columns::for_axis`]): its rate, `temp_<axis>_c` (else `temp_c`) as
+/// its loop thermometer, the shared `temp_a` … `temp_h` as the others.
+/// `M` is `Option<&Model>` (a single gyro), `Option<&AxisModels<K>>` (a
+/// model per axis) or `Option<&SharedAxisModels<K>>` (one basis for every
+/// axis, stepped by [`rbf_core::Compensator::process_shared`] on the first
+/// axis's thermometers, as `trainer compensate` steps it).
+///
+/// [`AxisModels<K>`]: rbf_core::blob::axes::AxisModels
+/// [`SharedAxisModels<K>`]: rbf_core::shared_basis::SharedAxisModels
+pub struct Replayer<'c, W, M, const K: usize = MAX_CENTERS, const N: usize = 1> {
+    current: &'c [Cell<ReplaySample>; N],
+    compensation: ReplayLoop<'c, W, M, K, N>,
+    /// Per axis present, its columns.
+    axes: [Option<Columns>; N],
+    header_read: bool,
     prev_time_s: Option<f64>,
     line: u32,
 }
 
-impl<'c, W: embedded_io::Write> Replayer<'c, W> {
-    /// A replayer over `model` for a run of nominal period `period_s`; frames go to `frames`.
-    pub fn new(
-        model: Option<&Model>,
-        period_s: f64,
-        current: &'c Cell<ReplaySample>,
-        frames: W,
-    ) -> Result<Self, ReplayError> {
-        let (thermometer, front_end) = axis_devices(current)?;
+impl<'c, W: embedded_io::Write, M: ModelHolder<K, N>, const K: usize, const N: usize> Replayer<'c, W, M, K, N> {
+    /// A replayer over `models` for a run of nominal period `period_s`,
+    /// each axis's devices answering from its cell of `current`; frames go
+    /// to `frames`. Which axes run comes from the run's header.
+    pub fn new(models: M, period_s: f64, current: &'c [Cell<ReplaySample>; N], frames: W) -> Result<Self, ReplayError> {
+        let mut thermometers = current.each_ref().map(|c| {
+            Tmp117Array::new(
+                EmulatedTmp117::new(c, 0),
+                EmulatedTmp117::new(c, tmp117::PER_BUS),
+                u8::MAX,
+            )
+        });
+        let mut front_ends = current.each_ref().map(|c| FrontEnd::new(EmulatedFrontEnd::new(c)));
+        for (thermometer, front_end) in thermometers.iter_mut().zip(&mut front_ends) {
+            if thermometer.init() != 0 {
+                return Err(ReplayError::DeviceInit);
+            }
+            front_end.init().map_err(|_| ReplayError::DeviceInit)?;
+        }
         let config = LoopConfig {
             compensator: CompensatorConfig::for_nominal_period_s(period_s),
             temp_read_every: 1,
         };
         Ok(Replayer {
             current,
-            compensation: CompensationLoop::new(model.cloned(), config, thermometer, front_end, frames),
-            columns: None,
-            prev_time_s: None,
-            line: 0,
-        })
-    }
-
-    /// Consumes one input line and writes what `trainer compensate` writes for it.
-    pub fn feed_line(&mut self, line: &str, out: &mut impl core::fmt::Write) -> Result<(), ReplayError> {
-        self.line += 1;
-        let text = clean(line, self.line);
-        let Some(columns) = &self.columns else {
-            if record::is_comment_or_blank(text) {
-                writeln!(out, "{text}")?;
-            } else {
-                self.columns = Some(Columns::from_header(text).map_err(ReplayError::Header)?);
-                writeln!(out, "{text}{}", record::COMPENSATED_COLUMNS)?;
-            }
-            return Ok(());
-        };
-        if record::is_comment_or_blank(text) {
-            return Ok(());
-        }
-        let row = columns.parse_row(text).map_err(|e| ReplayError::Row(self.line, e))?;
-        self.current.set(ReplaySample {
-            temps_c: row.readings_c(),
-            rate_dph: row.rate_dph as f32,
-        });
-        let dt_s = rbf_core::compensator::time_step_s(self.prev_time_s, row.time_s);
-        self.prev_time_s = Some(row.time_s);
-        let sample = self.compensation.step(dt_s);
-        record::write_compensated_row(out, text, core::slice::from_ref(&sample))?;
-        Ok(())
-    }
-
-    /// Health counters of the loop.
-    pub fn stats(&self) -> LoopStats {
-        self.compensation.stats()
-    }
-}
-
-/// One axis's (or a single-axis run's) emulated devices: its thermometer array and front end,
-/// answering from the axis's cell.
-fn axis_devices(
-    current: &Cell<ReplaySample>,
-) -> Result<(ReplayThermometers<'_>, FrontEnd<EmulatedFrontEnd<'_>>), ReplayError> {
-    let mut thermometer = Tmp117Array::new(
-        EmulatedTmp117::new(current, 0),
-        EmulatedTmp117::new(current, tmp117::PER_BUS),
-        u8::MAX,
-    );
-    if thermometer.init() != 0 {
-        return Err(ReplayError::DeviceInit);
-    }
-    let mut front_end = FrontEnd::new(EmulatedFrontEnd::new(current));
-    front_end.init().map_err(|_| ReplayError::DeviceInit)?;
-    Ok((thermometer, front_end))
-}
-
-/// The multi-axis replay loop: per axis, eight TMP117s on two emulated
-/// buses and a front end, all answering from that axis's cell; `M` holds
-/// the models ([`AxesHolder`]: a model per axis, or a shared basis).
-pub type AxesReplayLoop<'c, W, M, const K: usize> =
-    AxesLoop<[ReplayThermometers<'c>; MAX_AXES], [FrontEnd<EmulatedFrontEnd<'c>>; MAX_AXES], W, M, K>;
-
-/// Second pass over a multi-axis run (`rate_x_dph` …): every row through
-/// the drivers and [`AxesLoop`], the compensated run written as `trainer
-/// compensate` writes it (per axis present `bias_<axis>_dph`,
-/// `rate_comp_<axis>_dph`, `flags_<axis>`), one [`rbf_core::frame::AxesFrame`] per row.
-///
-/// Each axis's devices answer from the row as that axis reads it
-/// ([`Columns::for_axis`]): its rate, `temp_<axis>_c` (else `temp_c`) as
-/// its loop thermometer, the shared `temp_a` … `temp_h` as the others.
-/// `M` is `Option<&AxisModels<K>>` (a model per axis) or
-/// `Option<&SharedAxisModels<K>>` (one basis for every axis, stepped by
-/// [`rbf_core::Compensator::process_shared`] on the first axis's
-/// thermometers, as `trainer compensate` steps it).
-pub struct AxesReplayer<'c, W, M, const K: usize> {
-    current: &'c [Cell<ReplaySample>; MAX_AXES],
-    compensation: AxesReplayLoop<'c, W, M, K>,
-    /// Per axis present, its columns.
-    axes: [Option<Columns>; MAX_AXES],
-    header_read: bool,
-    prev_time_s: Option<f64>,
-    line: u32,
-}
-
-impl<'c, W: embedded_io::Write, M: AxesHolder<K>, const K: usize> AxesReplayer<'c, W, M, K> {
-    /// A replayer over `models` for a run of nominal period `period_s`;
-    /// frames go to `frames`. The axes come from the run's header.
-    pub fn new(
-        models: M,
-        period_s: f64,
-        current: &'c [Cell<ReplaySample>; MAX_AXES],
-        frames: W,
-    ) -> Result<Self, ReplayError> {
-        let [cx, cy, cz] = current;
-        let (tx, fx) = axis_devices(cx)?;
-        let (ty, fy) = axis_devices(cy)?;
-        let (tz, fz) = axis_devices(cz)?;
-        let config = LoopConfig {
-            compensator: CompensatorConfig::for_nominal_period_s(period_s),
-            temp_read_every: 1,
-        };
-        Ok(AxesReplayer {
-            current,
-            compensation: AxesLoop::new(models, 0, config, [tx, ty, tz], [fx, fy, fz], frames),
-            axes: [None; MAX_AXES],
+            compensation: CompensationLoop::new(models, config, thermometers, front_ends, frames),
+            axes: [None; N],
             header_read: false,
             prev_time_s: None,
             line: 0,
@@ -386,31 +311,41 @@ impl<'c, W: embedded_io::Write, M: AxesHolder<K>, const K: usize> AxesReplayer<'
             }
             let columns = Columns::from_header(text).map_err(ReplayError::Header)?;
             let mut mask = 0u8;
-            for axis in columns.axes_present() {
-                self.axes[axis.index()] = columns.for_axis(axis);
-                mask |= 1 << axis.index();
+            if N > 1 {
+                for axis in columns.axes_present() {
+                    if let Some(slot) = self.axes.get_mut(axis.index()) {
+                        *slot = columns.for_axis(axis);
+                        mask |= 1 << axis.index();
+                    }
+                }
             }
             if mask == 0 {
-                // A single-axis run: `rate_dph` serves as axis x.
-                self.axes[0] = Some(columns);
+                // A single gyro's run (or a single gyro's replay): `rate_dph` serves as axis x.
+                if let Some(slot) = self.axes.first_mut() {
+                    *slot = Some(columns);
+                }
                 mask = 1;
             }
             self.header_read = true;
             self.compensation.set_axis_mask(mask);
-            record::write_compensated_header(out, text, &columns)?;
+            if N == 1 {
+                writeln!(out, "{text}{}", record::COMPENSATED_COLUMNS)?;
+            } else {
+                record::write_compensated_header(out, text, &columns)?;
+            }
             return Ok(());
         }
         if record::is_comment_or_blank(text) {
             return Ok(());
         }
         let mut time_s = None;
-        for axis in Axis::ALL {
-            let Some(columns) = &self.axes[axis.index()] else {
+        for (columns, cell) in self.axes.iter().zip(self.current) {
+            let Some(columns) = columns else {
                 continue;
             };
             let row = columns.parse_row(text).map_err(|e| ReplayError::Row(self.line, e))?;
             time_s.get_or_insert(row.time_s);
-            self.current[axis.index()].set(ReplaySample {
+            cell.set(ReplaySample {
                 temps_c: row.readings_c(),
                 rate_dph: row.rate_dph as f32,
             });
@@ -419,10 +354,10 @@ impl<'c, W: embedded_io::Write, M: AxesHolder<K>, const K: usize> AxesReplayer<'
         let dt_s = rbf_core::compensator::time_step_s(self.prev_time_s, time_s);
         self.prev_time_s = Some(time_s);
         let samples = self.compensation.step(dt_s);
-        let mut present = [samples[0]; MAX_AXES];
+        let mut present = samples;
         let mut n = 0;
-        for (axis, sample) in Axis::ALL.into_iter().zip(samples) {
-            if self.axes[axis.index()].is_some()
+        for (columns, sample) in self.axes.iter().zip(samples) {
+            if columns.is_some()
                 && let Some(slot) = present.get_mut(n)
             {
                 *slot = sample;
@@ -439,7 +374,7 @@ impl<'c, W: embedded_io::Write, M: AxesHolder<K>, const K: usize> AxesReplayer<'
     }
 
     /// Thermometer reads that failed, per axis (x first).
-    pub fn temp_read_faults_per_axis(&self) -> [u32; MAX_AXES] {
+    pub fn temp_read_faults_per_axis(&self) -> [u32; N] {
         self.compensation.temp_read_faults_per_axis()
     }
 }

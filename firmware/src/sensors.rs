@@ -1,5 +1,9 @@
-//! What the compensation loop needs from its sensors, independent of buses.
+//! What the compensation loop needs from its sensors, independent of buses:
+//! per axis, its thermometers ([`AxisThermometers`]) and its rate front end
+//! ([`AxisFrontEnds`]). A single gyro's sensors are the one axis x; an
+//! IMU's are an array, one per axis, x first.
 
+use rbf_core::axis::Axis;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 
 /// Why a sensor produced no usable value this time.
@@ -70,4 +74,58 @@ pub struct RateSample {
 pub trait RateFrontEnd {
     /// Reads the sample that data-ready announced.
     fn read_rate(&mut self) -> Result<RateSample, SensorFault>;
+}
+
+/// The thermometers of every axis the loop runs: each axis's loop
+/// thermometer (its coil sensor) as `temp_c`, plus whatever shared
+/// thermometers its model reads.
+pub trait AxisThermometers {
+    /// Reads the thermometers of `wanted` (bit i = thermometer i) for
+    /// `axis` into `readings` (`None` where a read failed and for those not
+    /// wanted); returns how many wanted thermometers gave no reading.
+    fn read_axis(&mut self, axis: Axis, wanted: u8, readings: &mut Readings) -> u32;
+}
+
+/// A single gyro's thermometers: the one axis (the loop asks for axis x only).
+impl<T: Thermometers> AxisThermometers for T {
+    #[inline(always)]
+    fn read_axis(&mut self, _axis: Axis, wanted: u8, readings: &mut Readings) -> u32 {
+        self.read_wanted(wanted, readings)
+    }
+}
+
+/// One thermometer set per axis, x first; an axis beyond the array reads
+/// nothing (every wanted thermometer failed).
+impl<T: Thermometers, const N: usize> AxisThermometers for [T; N] {
+    fn read_axis(&mut self, axis: Axis, wanted: u8, readings: &mut Readings) -> u32 {
+        match self.get_mut(axis.index()) {
+            Some(t) => t.read_wanted(wanted, readings),
+            None => {
+                *readings = [None; THERMOMETERS];
+                wanted.count_ones()
+            }
+        }
+    }
+}
+
+/// The rate front ends of every axis the loop runs.
+pub trait AxisFrontEnds {
+    /// Reads `axis`'s sample that data-ready announced.
+    fn read_axis_rate(&mut self, axis: Axis) -> Result<RateSample, SensorFault>;
+}
+
+/// A single gyro's front end: the one axis (the loop asks for axis x only).
+impl<R: RateFrontEnd> AxisFrontEnds for R {
+    #[inline(always)]
+    fn read_axis_rate(&mut self, _axis: Axis) -> Result<RateSample, SensorFault> {
+        self.read_rate()
+    }
+}
+
+/// One front end per axis, x first; an axis beyond the array fails its read.
+impl<R: RateFrontEnd, const N: usize> AxisFrontEnds for [R; N] {
+    fn read_axis_rate(&mut self, axis: Axis) -> Result<RateSample, SensorFault> {
+        self.get_mut(axis.index())
+            .map_or(Err(SensorFault::Bus), RateFrontEnd::read_rate)
+    }
 }

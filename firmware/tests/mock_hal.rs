@@ -12,7 +12,7 @@ use firmware::frontend::{self, FrontEnd};
 use firmware::tmp117::{self, Tmp117};
 use rbf_core::frame::{self, OutputFrame};
 use rbf_core::sensor::tmp117_raw;
-use rbf_core::{CompensatorConfig, Flags};
+use rbf_core::{CompensatorConfig, Flags, Model};
 use trainer::evaluate::compensate_run;
 use trainer::run::Run;
 
@@ -82,7 +82,7 @@ fn recorded_run_through_the_mock_hal_gives_the_trainers_numbers() {
         &mut frames,
     );
     for (i, sample) in run.samples().enumerate() {
-        let out = lp.step(sample.dt_s);
+        let [out] = lp.step(sample.dt_s);
         assert_eq!(out.bias_dph.to_bits(), expected[i].bias_dph.to_bits(), "row {i}");
         assert_eq!(
             out.rate_comp_dph.to_bits(),
@@ -140,13 +140,13 @@ fn decimated_temperature_reads_and_front_end_faults_still_emit_every_frame() {
     };
     let mut frames = Vec::new();
     let mut lp = CompensationLoop::new(
-        None,
+        None::<Model>,
         config,
         Tmp117::new(I2cMock::new(&i2c_script), ADDRESS),
         FrontEnd::new(SpiMock::new(&spi_script)),
         &mut frames,
     );
-    let flags: Vec<Flags> = (0..words.len()).map(|_| lp.step(1.0).flags).collect();
+    let flags: Vec<Flags> = (0..words.len()).map(|_| lp.step(1.0)[0].flags).collect();
     let invalid: Vec<bool> = flags.iter().map(|f| f.contains(Flags::RATE_INVALID)).collect();
     assert_eq!(invalid, [false, false, true, true, true, true, false, true]);
     assert!(

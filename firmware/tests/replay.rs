@@ -21,7 +21,7 @@ fn replay_is_byte_identical_to_trainer_compensate() {
 
     let input = std::fs::read_to_string(&slice).unwrap();
     let period_s = replay::probe_period(input.lines()).unwrap();
-    let current = Cell::new(ReplaySample::default());
+    let current: [Cell<ReplaySample>; 1] = Default::default();
     let mut frames: Vec<u8> = Vec::new();
     let mut out = String::new();
     let mut replayer = Replayer::new(Some(&model), period_s, &current, &mut frames).unwrap();
@@ -57,8 +57,8 @@ fn replay_without_a_model_passes_every_sample_through_with_flag_4() {
     let dir = tempfile::TempDir::new().unwrap();
     let (_, slice) = common::model_and_faulty_slice(dir.path());
     let input = std::fs::read_to_string(&slice).unwrap();
-    let current = Cell::new(ReplaySample::default());
-    let mut replayer = Replayer::new(None, 1.0, &current, Vec::new()).unwrap();
+    let current: [Cell<ReplaySample>; 1] = Default::default();
+    let mut replayer = Replayer::new(None::<&rbf_core::Model>, 1.0, &current, Vec::new()).unwrap();
     let mut out = String::new();
     for line in input.lines() {
         replayer.feed_line(line, &mut out).unwrap();
@@ -92,7 +92,7 @@ fn replay_and_trainer_agree_on_the_period_when_metadata_repeats_or_is_bad() {
     let input = std::fs::read_to_string(&odd).unwrap();
     let period_s = replay::probe_period(input.lines()).unwrap();
     assert_eq!(period_s.to_bits(), 0.5f64.to_bits());
-    let current = Cell::new(ReplaySample::default());
+    let current: [Cell<ReplaySample>; 1] = Default::default();
     let mut out = String::new();
     let mut replayer = Replayer::new(Some(&model), period_s, &current, Vec::new()).unwrap();
     for line in input.lines() {
@@ -103,7 +103,6 @@ fn replay_and_trainer_agree_on_the_period_when_metadata_repeats_or_is_bad() {
 
 #[test]
 fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_every_axis() {
-    use firmware::replay::AxesReplayer;
     use rbf_core::blob::axes::{AxisModels, decode_axes_into};
     use trainer::output::Existing;
 
@@ -133,7 +132,7 @@ fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_ev
     let current: [Cell<ReplaySample>; 3] = Default::default();
     let mut frames: Vec<u8> = Vec::new();
     let mut out = String::new();
-    let mut replayer = AxesReplayer::new(Some(&*models), period_s, &current, &mut frames).unwrap();
+    let mut replayer = Replayer::new(Some(&*models), period_s, &current, &mut frames).unwrap();
     for line in input.lines() {
         replayer.feed_line(line, &mut out).unwrap();
     }
@@ -168,7 +167,6 @@ fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_ev
 
 #[test]
 fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer_fault_flags_every_axis() {
-    use firmware::replay::AxesReplayer;
     use rbf_core::blob::shared_layout::decode_shared_into;
     use rbf_core::blob::{BlobKind, blob_kind};
     use rbf_core::shared_basis::SharedAxisModels;
@@ -197,7 +195,7 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
     let current: [Cell<ReplaySample>; 3] = Default::default();
     let mut frames: Vec<u8> = Vec::new();
     let mut out = String::new();
-    let mut replayer = AxesReplayer::new(Some(&*models), period_s, &current, &mut frames).unwrap();
+    let mut replayer = Replayer::new(Some(&*models), period_s, &current, &mut frames).unwrap();
     for line in input.lines() {
         replayer.feed_line(line, &mut out).unwrap();
     }

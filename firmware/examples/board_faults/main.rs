@@ -23,6 +23,7 @@ use firmware::sensors::{RateFrontEnd, RateSample, SensorFault, Thermometer};
 use firmware::tmp117::Tmp117;
 use firmware::update::{self, CommandReceiver, Received, UpdateStatus};
 use firmware::watchdog::{LSI_FASTEST_HZ, SECTOR_ERASE_WORST_MS, Watchdog, running_setting};
+use rbf_core::axis::Axis;
 use rbf_core::frame::{self, OutputFrame};
 use rbf_core::{CompensatorConfig, Flags, Model};
 use sim::{FakeI2c, FakeSpi, FlashSim, FrontEndSim, I2cSim, SimClock, SimWatchdog};
@@ -75,7 +76,7 @@ impl Board {
             compensator: CompensatorConfig::for_sample_rate(1000.0),
             temp_read_every: 125,
         };
-        let lp = CompensationLoop::new(None, config, thermometer, front_end, Vec::new());
+        let lp = CompensationLoop::new(None::<Model>, config, thermometer, front_end, Vec::new());
         Board {
             clock: clock.clone(),
             fe: fe.clone(),
@@ -636,7 +637,7 @@ fn flash_error() -> Verdict {
             inst.store.flash().errors(),
             inst.sim().status() & flash_ctl::SR_ERRORS,
             inst.sim().locked(),
-            lp.model().is_some(),
+            lp.model(Axis::X).is_some(),
         ));
     }
     let (errors, flags, locked, model_after_failure) = after_first.unwrap_or_default();
@@ -656,7 +657,7 @@ fn flash_error() -> Verdict {
         restarts == 1,
         "filters restarted {restarts} times for one installed model"
     );
-    ensure!(lp.model().is_some(), "the installed model does not run");
+    ensure!(lp.model(Axis::X).is_some(), "the installed model does not run");
     ensure!(
         inst.store.identity().sequence == 1,
         "identity {:?}",

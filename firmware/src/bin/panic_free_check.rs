@@ -213,7 +213,7 @@ mod board {
         }
         loop {
             // A sample, as the board runs it from a data-ready stamp.
-            let out = compensation.step_at(opaque_word(), f32::from_bits(opaque_word()));
+            let [out] = compensation.step_at(opaque_word(), f32::from_bits(opaque_word()));
             WORD.store(out.bias_dph.to_bits() ^ u32::from(out.flags.bits()), Ordering::Relaxed);
             // A command byte, as the board takes it from the receive queue.
             let reply = match commands.push(opaque_byte(7)) {

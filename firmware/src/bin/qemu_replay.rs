@@ -22,7 +22,7 @@ mod board {
     use cortex_m_semihosting::{debug, hprintln};
     use firmware::host_file::{HostFile, HostLines};
     use firmware::replay::ReplayError;
-    use firmware::replay::{AxesReplayer, PeriodProbe, ReplaySample, Replayer};
+    use firmware::replay::{PeriodProbe, ReplaySample, Replayer};
     use rbf_core::blob::axes::{AxisModels, decode_axes_into};
     use rbf_core::blob::shared_layout::decode_shared_into;
     use rbf_core::blob::{BlobKind, blob_kind};
@@ -102,19 +102,20 @@ mod board {
     /// The shared-basis model of a multi-axis replay whose blob has one.
     static mut SHARED_MODELS: SharedAxisModels<{ rbf_core::MAX_CENTERS }> = SharedAxisModels::EMPTY;
 
-    /// Replays every line through `replayer`; prints the per-axis
-    /// thermometer faults and returns the loop's counters.
-    fn replay_axes<M: firmware::axes::AxesHolder<{ rbf_core::MAX_CENTERS }>>(
+    /// Replays every line through `replayer`; for a multi-axis run prints
+    /// the per-axis thermometer faults; returns the loop's counters.
+    fn replay<M: firmware::compensation::ModelHolder<{ rbf_core::MAX_CENTERS }, N>, const N: usize>(
         lines: &mut HostLines,
         out: &mut CsvOut,
-        replayer: Result<AxesReplayer<'_, HostWriter, M, { rbf_core::MAX_CENTERS }>, ReplayError>,
+        replayer: Result<Replayer<'_, HostWriter, M, { rbf_core::MAX_CENTERS }, N>, ReplayError>,
     ) -> firmware::compensation::LoopStats {
         let Ok(mut replayer) = replayer else {
             fail("emulated devices did not initialise")
         };
         feed_lines(lines, |line| replayer.feed_line(line, out).is_ok());
-        let [x, y, z] = replayer.temp_read_faults_per_axis();
-        hprintln!("replay: temp_read_faults per axis x {} y {} z {}", x, y, z);
+        if let &[x, y, z] = replayer.temp_read_faults_per_axis().as_slice() {
+            hprintln!("replay: temp_read_faults per axis x {} y {} z {}", x, y, z);
+        }
         replayer.stats()
     }
 
@@ -167,8 +168,8 @@ mod board {
                     None
                 }
             };
-            let replayer = AxesReplayer::new(models, period_s, &current, HostWriter(frames));
-            replay_axes(&mut lines, &mut out, replayer)
+            let replayer = Replayer::new(models, period_s, &current, HostWriter(frames));
+            replay(&mut lines, &mut out, replayer)
         } else if multi_axis {
             // SAFETY: the only reference to AXIS_MODELS, taken once in main.
             let models = unsafe { &mut *core::ptr::addr_of_mut!(AXIS_MODELS) };
@@ -179,20 +180,17 @@ mod board {
                     None
                 }
             };
-            let replayer = AxesReplayer::new(models, period_s, &current, HostWriter(frames));
-            replay_axes(&mut lines, &mut out, replayer)
+            let replayer = Replayer::new(models, period_s, &current, HostWriter(frames));
+            replay(&mut lines, &mut out, replayer)
         } else {
             let model = firmware::load_model(slot);
             if let Err(e) = &model {
                 hprintln!("replay: model slot refused ({}); output uncompensated with flag 4", e);
             }
             let model = model.ok();
-            let current = Cell::new(ReplaySample::default());
-            let Ok(mut replayer) = Replayer::new(model.as_ref(), period_s, &current, HostWriter(frames)) else {
-                fail("emulated devices did not initialise")
-            };
-            feed_lines(&mut lines, |line| replayer.feed_line(line, &mut out).is_ok());
-            replayer.stats()
+            let current: [Cell<ReplaySample>; 1] = Default::default();
+            let replayer = Replayer::new(model.as_ref(), period_s, &current, HostWriter(frames));
+            replay(&mut lines, &mut out, replayer)
         };
         if out.flush().is_err() {
             fail("cannot write output.csv");

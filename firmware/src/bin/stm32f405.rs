@@ -33,7 +33,8 @@
 //! front ends sample together, data-ready from x on PB0), each coil's
 //! TMP117 sits on I2C1 (0x48 x, 0x49 y, 0x4A z), the model slots hold a
 //! multi-axis blob (format 3, [`firmware::AXIS_CENTERS`] centres per axis)
-//! and every sample goes out as one frame with all axes (firmware::axes).
+//! and every sample goes out as one frame with all axes (firmware::compensation,
+//! the loop of three axes).
 //! With `board-axes-shared` as well, the same three-axis board holds a
 //! shared-basis blob instead (one basis of up to
 //! [`firmware::SHARED_AXIS_CENTERS`] centres, a layer per axis, evaluated
@@ -61,12 +62,8 @@ mod board {
     use embedded_hal_bus::spi::ExclusiveDevice;
     #[cfg(feature = "board-axes")]
     use embedded_hal_bus::util::AtomicCell;
-    #[cfg(feature = "board-axes")]
-    use firmware::axes::AxesLoop;
     use firmware::bench::{Bench, CMD_BENCH};
-    #[cfg(not(feature = "board-axes"))]
-    use firmware::compensation::CompensationLoop;
-    use firmware::compensation::{InPlaceModel, LoopConfig, LoopStats, write_frame};
+    use firmware::compensation::{CompensationLoop, InPlaceModel, LoopConfig, LoopStats, write_frame};
     use firmware::fault::{self, FaultReason, FaultRecord};
     #[cfg(not(feature = "board-qemu"))]
     use firmware::flash_ctl::ControllerFlash;
@@ -815,7 +812,7 @@ mod board {
             for f in &mut front_ends {
                 let _ = f.init();
             }
-            AxesLoop::new(model, 0b111, config, thermometers, front_ends, output)
+            CompensationLoop::new(model, config, thermometers, front_ends, output)
         };
         if boot_cause.is_some() {
             compensation.flag_next_frame(Flags::FAULT_RESET);
