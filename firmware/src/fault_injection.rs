@@ -24,6 +24,22 @@ use crate::replay::{EmulatedFrontEnd, EmulatedTmp117, ReplaySample};
 use crate::tmp117::{self, Tmp117};
 use crate::update::{self, CommandReceiver, Received, UpdateStatus};
 
+/// A model any board test can install: a static cubic in the loop
+/// temperature about 25 °C, trained range 10 … 40 °C, no filters (so no
+/// warm-up). `None` only if rbf-core refused it.
+pub fn cubic_model() -> Option<Model> {
+    use rbf_core::model::{ModelBody, ModelInfo};
+    use rbf_core::poly::Poly3;
+    use rbf_core::{FeatureConfig, FeatureSet};
+    Model::new(
+        FeatureConfig::single(FeatureSet::Temp, 0.0),
+        &[(10.0, 40.0)],
+        ModelBody::Poly3(Poly3::new(25.0, [0.3, 0.01, 0.0, 0.0]).ok()?),
+        ModelInfo::default(),
+    )
+    .ok()
+}
+
 /// The loop sensor (`temp_c`) sits at its multi-point-board address: bus 1, third address.
 const LOOP_SENSOR_ADDRESS: u8 = tmp117::ADDRESSES[rbf_core::features::LOOP_THERMOMETER];
 

@@ -131,16 +131,7 @@ pub fn faulty_slice(dir: &Path, run_csv: &str, name: &str) -> PathBuf {
 
 /// A small valid cubic-in-T model (a second, different model for update tests).
 pub fn cubic_model() -> rbf_core::Model {
-    use rbf_core::model::{ModelBody, ModelInfo};
-    use rbf_core::poly::Poly3;
-    use rbf_core::{FeatureConfig, FeatureSet, Model};
-    Model::new(
-        FeatureConfig::single(FeatureSet::Temp, 0.0),
-        &[(10.0, 40.0)],
-        ModelBody::Poly3(Poly3::new(25.0, [0.3, 0.01, 0.0, 0.0]).expect("valid cubic")),
-        ModelInfo::default(),
-    )
-    .expect("valid cubic model")
+    firmware::fault_injection::cubic_model().expect("valid cubic model")
 }
 
 /// Data rows of the three-axis slice.
