@@ -22,6 +22,7 @@ pub mod device;
 pub mod diagnose;
 pub mod evaluate;
 pub mod fit;
+pub mod fit_axes;
 pub mod frames;
 pub mod gradients;
 pub mod input;
