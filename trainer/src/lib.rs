@@ -29,9 +29,11 @@ pub mod input;
 pub mod limits;
 pub mod metrics;
 pub mod output;
+pub mod parallel;
 pub mod plan;
 pub mod plausible;
-pub mod plot_axes;
+pub mod plotting;
+
 pub mod refusals;
 pub mod report;
 pub mod run;

@@ -843,7 +843,7 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, soak_ends: bool
     };
     let plant = SimParams::default().plant;
     let indices: Vec<u64> = (0..candidates.max(1) as u64).collect();
-    let scored = crate::fit::rbf::parallel_map(&indices, |&i| {
+    let scored = crate::parallel::parallel_map(&indices, |&i| {
         let mut rng = Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(i));
         let segments = match end_soak_s {
             Some(s) => candidate_soaking_ends(limits, s, &mut rng),
@@ -909,7 +909,7 @@ pub fn plot(plan: &Plan, format: PlotFormat) -> anyhow::Result<Vec<u8>> {
                 &temps,
             )
             .map_err(|e| anyhow::anyhow!("drawing the PNG: {e}"))?;
-            crate::report::encode_png(&rgb, PLOT_SIZE)
+            crate::plotting::png::encode_png(&rgb, PLOT_SIZE)
         }
     }
 }
@@ -925,9 +925,9 @@ where
     root.fill(&WHITE)?;
     let l = &plan.limits;
     let hours = (plan.duration_s() / 3600.0).max(1e-3);
-    let (x_lo, x_hi) = crate::plot_axes::padded(0.0, hours);
+    let (x_lo, x_hi) = crate::plotting::axes::padded(0.0, hours);
     let (c_lo, c_hi) =
-        crate::plot_axes::with_legend_room(l.min_c, l.max_c, 2, root.dim_in_pixel().1.saturating_sub(100));
+        crate::plotting::axes::with_legend_room(l.min_c, l.max_c, 2, root.dim_in_pixel().1.saturating_sub(100));
     let mut chart = ChartBuilder::on(&root)
         .caption(
             format!(
@@ -938,20 +938,20 @@ where
         )
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(crate::plot_axes::y_label_area_px(
+        .y_label_area_size(crate::plotting::axes::y_label_area_px(
             &root,
-            crate::plot_axes::linear_tick_labels(c_lo, c_hi),
-            crate::plot_axes::TICK_LABEL_PX,
+            crate::plotting::axes::linear_tick_labels(c_lo, c_hi),
+            crate::plotting::axes::TICK_LABEL_PX,
             60,
         ))
         .build_cartesian_2d(x_lo..x_hi, c_lo..c_hi)?;
-    let (x_light, y_light) = crate::plot_axes::light_lines_of(chart.plotting_area());
+    let (x_light, y_light) = crate::plotting::axes::light_lines_of(chart.plotting_area());
     chart
         .configure_mesh()
         .x_max_light_lines(x_light)
         .y_max_light_lines(y_light)
-        .x_label_formatter(&crate::plot_axes::tick_label)
-        .y_label_formatter(&crate::plot_axes::tick_label)
+        .x_label_formatter(&crate::plotting::axes::tick_label)
+        .y_label_formatter(&crate::plotting::axes::tick_label)
         .x_desc("time [h]")
         .y_desc("temperature [°C]")
         .draw()?;

@@ -23,7 +23,7 @@ use rbf_core::{FeatureSet, FeatureVector, Model};
 use crate::diagnose::RunDiagnosis;
 use crate::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
 use crate::output::{self, DirTarget, Existing, StagedDir};
-use crate::plot_axes::{
+use crate::plotting::axes::{
     TICK_LABEL_PX, drawable, light_lines_of, linear_tick_labels, log_tick_labels, log_ticks, padded, padded_log,
     tick_label, title_font_px, with_legend_room, with_legend_room_log, y_label_area_px,
 };
@@ -56,22 +56,7 @@ fn render(figure: &impl Figure) -> anyhow::Result<(String, Vec<u8>)> {
     figure
         .draw(BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area())
         .map_err(|e| anyhow::anyhow!("drawing the PNG: {e}"))?;
-    Ok((svg, encode_png(&rgb, SIZE)?))
-}
-
-/// PNG bytes of an RGB8 bitmap of `size` (width, height) pixels, as plotters'
-/// bitmap backend draws it.
-pub(crate) fn encode_png(rgb: &[u8], size: (u32, u32)) -> anyhow::Result<Vec<u8>> {
-    let mut png = Vec::new();
-    image::ImageEncoder::write_image(
-        image::codecs::png::PngEncoder::new(&mut png),
-        rgb,
-        size.0,
-        size.1,
-        image::ColorType::Rgb8,
-    )
-    .map_err(|e| anyhow::anyhow!("encoding the PNG: {e}"))?;
-    Ok(png)
+    Ok((svg, crate::plotting::png::encode_png(&rgb, SIZE)?))
 }
 
 /// Running means over consecutive blocks of `block_s` seconds (a block
@@ -1805,7 +1790,7 @@ mod tests {
         let (texts, _) = svg_texts_and_circles(svg);
         for t in texts {
             assert!(
-                !t.chars().any(crate::plot_axes::is_combining),
+                !t.chars().any(crate::plotting::axes::is_combining),
                 "a combining mark the PNG font drops: {t:?}"
             );
         }

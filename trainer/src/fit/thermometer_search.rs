@@ -27,9 +27,10 @@ use rbf_core::MAX_INPUTS;
 
 use super::Progress;
 use super::linalg::{FeatureRow, GramStats, InputShape, design, farthest_points, ridge_solve};
-use super::rbf::{PARSIMONY, parallel_map};
+use super::rbf::PARSIMONY;
 use super::scoring::cluster_rms;
 use super::svr_data::SvrData;
+use crate::parallel::parallel_map;
 
 /// Gaussian centres of the stand-in network.
 const CENTRES: usize = 32;

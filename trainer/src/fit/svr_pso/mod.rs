@@ -143,7 +143,7 @@ pub fn fit<T: RunSet + ?Sized>(
         &lower,
         &upper,
         &pso_opts,
-        |swarm| rbf::parallel_map(swarm, |p| score(params_at(p))),
+        |swarm| crate::parallel::parallel_map(swarm, |p| score(params_at(p))),
         || progress.inc(),
     );
     progress.finish();
