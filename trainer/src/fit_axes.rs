@@ -1,7 +1,7 @@
 //! The fit of multi-axis runs: every axis fitted by the single-axis fit (its
 //! full model search, the axes in parallel) and the joint three-axis policy,
 //! which tries one shared basis for every axis and chooses it or a model per
-//! axis. It sits above [`crate::fit`] and [`crate::evaluate`] (it scores the
+//! axis. It sits above [`crate::fit`] and [`crate::evaluation::evaluate`] (it scores the
 //! fits on their block means); `trainer fit` prints and writes what it gives.
 
 use std::fmt::Write as _;
@@ -12,9 +12,9 @@ use rbf_core::axis::Axis;
 use rbf_core::shared_basis::SharedAxisModels;
 
 use crate::dataset::{RunFiles, RunSet};
-use crate::evaluate::{RunEvaluation, evaluate_blocks, evaluate_blocks_with};
+use crate::evaluation::evaluate::{RunEvaluation, evaluate_blocks, evaluate_blocks_with};
 use crate::fit::{self, FitOptions, FitOutcome};
-use crate::run::RunReader;
+use crate::reading::run::RunReader;
 use crate::text;
 
 /// The runs of a multi-axis fit, by role.

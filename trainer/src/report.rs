@@ -20,15 +20,15 @@ use plotters::coord::combinators::{LogCoord, WithKeyPoints};
 use plotters::prelude::*;
 use rbf_core::{FeatureSet, FeatureVector, Model};
 
-use crate::diagnose::RunDiagnosis;
-use crate::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
+use crate::evaluation::diagnose::RunDiagnosis;
+use crate::evaluation::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
 use crate::output::{self, DirTarget, Existing, StagedDir};
 use crate::plotting::axes::{
     TICK_LABEL_PX, drawable, light_lines_of, linear_tick_labels, log_tick_labels, log_ticks, padded, padded_log,
     tick_label, title_font_px, with_legend_room, with_legend_room_log, y_label_area_px,
 };
-use crate::run::{RunReader, StreamedRun};
-use crate::{input, summary, text};
+use crate::reading::run::{RunReader, StreamedRun};
+use crate::{describe::summary, reading::input, text};
 use rbf_core::axis::Axis;
 
 /// Plot size, pixels.
@@ -652,12 +652,12 @@ where
 }
 
 /// The ±1-σ band (τ, lower, upper) of an Allan curve, per
-/// [`crate::allan::relative_error`]; the lower edge kept above zero for log axes.
+/// [`crate::evaluation::allan::relative_error`]; the lower edge kept above zero for log axes.
 fn allan_band(points: &[(f64, f64)], duration_s: f64) -> Vec<(f64, f64, f64)> {
     points
         .iter()
         .map(|&(t, d)| {
-            let e = crate::allan::relative_error(t, duration_s).min(0.95);
+            let e = crate::evaluation::allan::relative_error(t, duration_s).min(0.95);
             (t, d * (1.0 - e), d * (1.0 + e))
         })
         .collect()
@@ -681,7 +681,7 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE)?;
-    let pts = |a: &crate::allan::AllanDeviation| {
+    let pts = |a: &crate::evaluation::allan::AllanDeviation| {
         a.tau_s
             .iter()
             .zip(&a.adev_dph)
@@ -754,7 +754,7 @@ where
             .label(format!("τ^−½: ARW {arw:.2e} °/√h"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], guide));
     }
-    let floor = a.bias_instability_dph * crate::allan::FLICKER_FLOOR;
+    let floor = a.bias_instability_dph * crate::evaluation::allan::FLICKER_FLOOR;
     if floor.is_finite() && floor > 0.0 {
         let orange = RGBColor(230, 140, 20);
         chart
@@ -1039,7 +1039,7 @@ fn read_run(
     title: &str,
     trajectory: &mut Trajectory,
     first_index: &mut usize,
-    accept: crate::axes::Acceptance,
+    accept: crate::evaluation::axes::Acceptance,
 ) -> anyhow::Result<RunPlots> {
     let path = reader.path().to_owned();
     let mask = model.features().set.thermometer_mask();
@@ -1081,7 +1081,7 @@ fn read_run(
     *first_index += rows;
     require_evaluable(&path, rows, &diagnosis)?;
     require_compensated(&path, rows, compensated, &diagnosis, mask, accept.uncompensated)?;
-    crate::plausible::require_plausible(&diagnosis.implausible(), accept.implausible)?;
+    crate::reading::plausible::require_plausible(&diagnosis.implausible(), accept.implausible)?;
     // Without ref_dph each trace is taken about its own mean (as the
     // evaluation's figures are), known only now: a block mean of (v − m) is
     // the block mean of v, less m.
@@ -1247,14 +1247,14 @@ pub struct ReportRuns<'a> {
 /// trajectory, whatever the run's length), before any file is written.
 /// Nothing is visible until `out`'s [`output::Transaction`] commits. A run
 /// where no row could be compensated, or that is implausible
-/// ([`crate::plausible`]), is refused unless `accept` says so.
+/// ([`crate::reading::plausible`]), is refused unless `accept` says so.
 pub fn write_report(
     model: &Model,
     model_path: &Path,
     runs: ReportRuns,
     out: &StagedDir,
     sub: &Path,
-    accept: crate::axes::Acceptance,
+    accept: crate::evaluation::axes::Acceptance,
     axis: Option<Axis>,
 ) -> anyhow::Result<(usize, Vec<RunEvaluation>)> {
     let (trained_on, runs) = (runs.trained_on, runs.paths);
@@ -1344,7 +1344,7 @@ pub fn write_report(
         "\nClamped samples: inputs outside the model's training range, held at its edge \
          (flag 1).\n",
     );
-    md.push_str(&format!("{}.\n", crate::allan::FLOOR_RULE));
+    md.push_str(&format!("{}.\n", crate::evaluation::allan::FLOOR_RULE));
     let trained_end_index = trained_end_index.or(trained_on.map(|_| first_index));
     let surface = SurfacePlot::new(model, trajectory.points, trained_end_index);
     both("bias_surface", render(&surface))?;
@@ -1398,7 +1398,7 @@ pub fn axes_summary_markdown(model_path: &Path, axes: &[(Axis, Vec<RunEvaluation
             ));
         }
     }
-    md.push_str(&format!("\n{}.\n", crate::allan::FLOOR_RULE));
+    md.push_str(&format!("\n{}.\n", crate::evaluation::allan::FLOOR_RULE));
     md
 }
 
@@ -1419,7 +1419,7 @@ mod tests {
     #[test]
     fn the_default_models_surface_spans_its_fastest_rate_input_not_a_power_of_temperature() {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
-        let run = crate::run::Run::load(&data).unwrap();
+        let run = crate::reading::run::Run::load(&data).unwrap();
         let opts = crate::fit::FitOptions::default();
         let model = crate::fit::fit(std::slice::from_ref(&run), &[], &opts).unwrap().model;
         let FeatureSet::LagBank(bank) = model.features().set else {
@@ -1450,9 +1450,9 @@ mod tests {
     #[test]
     fn allan_bands_narrow_with_more_clusters() {
         // T/τ = 3: 1/√4; T/τ = 51: 1/√100.
-        assert!((crate::allan::relative_error(10.0, 30.0) - 0.5).abs() < 1e-12);
-        assert!((crate::allan::relative_error(1.0, 51.0) - 0.1).abs() < 1e-12);
-        assert!(crate::allan::relative_error(10.0, 10.0).is_infinite());
+        assert!((crate::evaluation::allan::relative_error(10.0, 30.0) - 0.5).abs() < 1e-12);
+        assert!((crate::evaluation::allan::relative_error(1.0, 51.0) - 0.1).abs() < 1e-12);
+        assert!(crate::evaluation::allan::relative_error(10.0, 10.0).is_infinite());
         let band = allan_band(&[(1.0, 2.0)], 51.0);
         assert!((band[0].1 - 1.8).abs() < 1e-12 && (band[0].2 - 2.2).abs() < 1e-12);
     }
@@ -1491,7 +1491,7 @@ mod tests {
     /// An evaluation whose Allan curves run from `hi` down to `lo`, °/h, over 1 … 1000 s.
     fn evaluation_with_allan(lo: f64, hi: f64) -> RunEvaluation {
         let tau_s: Vec<f64> = (0..11).map(|k| 2f64.powi(k)).collect();
-        let curve = |top: f64| crate::allan::AllanDeviation {
+        let curve = |top: f64| crate::evaluation::allan::AllanDeviation {
             adev_dph: tau_s.iter().map(|t| top * (lo / top).powf(t.log2() / 10.0)).collect(),
             tau_s: tau_s.clone(),
             arw_deg_per_sqrt_h: f64::NAN,
@@ -1799,7 +1799,7 @@ mod tests {
     #[test]
     fn a_response_banks_surface_spans_the_loop_temperature_and_the_runs_rates() {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
-        let run = crate::run::Run::load(&data).unwrap();
+        let run = crate::reading::run::Run::load(&data).unwrap();
         let opts = crate::fit::FitOptions {
             features: crate::fit::RbfFeatures::ResponseBank,
             ..crate::fit::FitOptions::default()
@@ -1840,7 +1840,7 @@ mod tests {
     #[test]
     fn the_lag_banks_bias_plot_marks_its_training_range_and_writes_t_hat_in_words() {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
-        let run = crate::run::Run::load(&data).unwrap();
+        let run = crate::reading::run::Run::load(&data).unwrap();
         let model = crate::fit::fit(std::slice::from_ref(&run), &[], &crate::fit::FitOptions::default())
             .unwrap()
             .model;

@@ -9,16 +9,16 @@ use rbf_core::features::Probe;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::blobfile::encode_model;
 use trainer::dataset::{RunFiles, RunSet};
-use trainer::evaluate::{RunEvaluation, RunModels, evaluate_blocks, evaluate_reader, only_axis, print_table};
+use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_blocks, evaluate_reader, only_axis, print_table};
 use trainer::fit::coverage::InUse;
 use trainer::fit::{self, FitOptions, FitOutcome};
-use trainer::limits::MAX_FOLDS;
+use trainer::reading::limits::MAX_FOLDS;
 use trainer::output::{self, Output, StagedDir, Transaction};
-use trainer::run::RunReader;
+use trainer::reading::run::RunReader;
 use trainer::describe::{gain_symbol, gain_text};
-use trainer::plausible;
+use trainer::reading::plausible;
 use trainer::text;
-use trainer::{diagnose, input};
+use trainer::{evaluation::diagnose, reading::input};
 
 use super::common::{
     ForceArg, JsonArg, JsonSink, SelectArgs, describe_selection, input_names, print_and_commit, rule_name,
@@ -313,7 +313,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         RunReader::open(path)?.require_temp()?;
     }
     plausible::require_distinct_runs(&a.runs, &[("--validate", &a.validate), ("--holdout", &a.holdout)])?;
-    trainer::limits::check_block_s(a.block_s)?;
+    trainer::reading::limits::check_block_s(a.block_s)?;
     if let Some(s) = &a.serial {
         anyhow::ensure!(
             s.len() <= rbf_core::model::SERIAL_CAPACITY,
@@ -350,7 +350,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
         opts.rate_windows_s = a.dt_window_s.clone();
     }
-    let axes = trainer::axes::common_axes(&all_runs)?;
+    let axes = trainer::evaluation::axes::common_axes(&all_runs)?;
     let model_out = targets.next().map(Output::open).transpose()?;
     let json_out = match targets.next() {
         Some(target) => JsonSink::File(Output::open(target)?),
@@ -440,7 +440,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let files =
             {
                 // The fit has checked its runs; the report takes them as they are.
-                let accept = trainer::axes::Acceptance {
+                let accept = trainer::evaluation::axes::Acceptance {
                     uncompensated: true,
                     implausible: true,
                 };
@@ -480,7 +480,7 @@ pub struct FitHow {
     /// Whether the multi-point inputs were named (--inputs).
     pub named_inputs: bool,
     /// The correlation rule asked for, if any.
-    pub selection: Option<trainer::gradients::Selection>,
+    pub selection: Option<trainer::dataset::gradients::Selection>,
 }
 
 /// The default's structure choice, as `trainer fit` prints it: both
@@ -641,7 +641,7 @@ fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankS
         list(bank.taus(), 0),
         list(bank.coil_lags(), 2),
         gain_text(&bank),
-        trainer::summary::sig(f64::from(bank.ref_c), 4),
+        trainer::describe::summary::sig(f64::from(bank.ref_c), 4),
     )?;
     let how = match search.folds {
         fit::events::FoldKind::Runs => format!("leave-one-run-out ({} folds)", search.fold_count),
@@ -745,7 +745,7 @@ pub(super) fn describe(model: &Model) -> String {
     let windows: Vec<String> = f
         .filter_taus_s()
         .iter()
-        .map(|t| trainer::summary::sig(f64::from(*t), 4))
+        .map(|t| trainer::describe::summary::sig(f64::from(*t), 4))
         .collect();
     let d = trainer::describe::describe(model);
     match f.set {

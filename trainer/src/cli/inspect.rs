@@ -8,7 +8,7 @@ use rbf_core::blob::{self, BlobKind, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{file_problem, read_blob};
 use trainer::output::Existing;
-use trainer::summary::{count, sig};
+use trainer::describe::summary::{count, sig};
 use trainer::text;
 
 use super::common::{JsonArg, print_and_commit};

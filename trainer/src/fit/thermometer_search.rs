@@ -3,7 +3,7 @@
 //! correlation alone.
 //!
 //! The RLG paper keeps every temperature and gradient whose block means
-//! correlate with the bias at |r| ≥ 0.9 ([`crate::gradients`], still
+//! correlate with the bias at |r| ≥ 0.9 ([`crate::dataset::gradients`], still
 //! available as `--select-threshold` / `--select-top`). Correlation favours
 //! sensors that *lead* the fiber coil, such as chamber air or the mounting
 //! plate: on a 1 °C/min cycle their lead stands in for the Shupe rate term,

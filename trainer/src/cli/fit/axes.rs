@@ -9,11 +9,11 @@ use std::path::PathBuf;
 use rbf_core::MAX_AXIS_CENTERS;
 use rbf_core::axis::Axis;
 use trainer::blobfile::{encode_axis_models, encode_shared_models};
-use trainer::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader, print_table};
+use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader, print_table};
 use trainer::fit::FitOptions;
 use trainer::fit_axes::{AxisRuns, JointMode, fit_axes, try_joint};
 use trainer::output::{Output, Transaction};
-use trainer::run::RunReader;
+use trainer::reading::run::RunReader;
 use trainer::text;
 
 use super::super::common::{JsonSink, print_and_commit};
@@ -137,7 +137,7 @@ pub(super) fn run(
         "\nwrote {} ({} bytes, axes {})",
         text::path(&a.output),
         blob.len(),
-        trainer::axes::names(axes)
+        trainer::evaluation::axes::names(axes)
     )?;
     let json = serde_json::json!({
         "method": opts.method,

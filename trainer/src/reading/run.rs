@@ -3,8 +3,8 @@
 //!
 //! Row parsing is [`rbf_core::record`] (shared with the firmware replay); this
 //! module adds files, line numbers, metadata, the strictly-increasing time
-//! check, the sample-rate checks of [`crate::sampling`], the limits of
-//! [`crate::limits`] and error messages of the form
+//! check, the sample-rate checks of [`crate::reading::sampling`], the limits of
+//! [`crate::reading::limits`] and error messages of the form
 //! `run.csv:1042: column rate_dph: "1.2.3" is not a number`.
 //!
 //! A run is read once, front to back: [`RunReader::open`] reads the
@@ -21,10 +21,10 @@ use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row, RowErrorKind};
 use rbf_core::{CompensatorConfig, GyroSample};
 
-use crate::chunked::{self, Batch, Defect};
-use crate::limits::{MAX_COLUMNS, MAX_LINE_BYTES, MAX_PREAMBLE_BYTES, bytes};
-use crate::sampling::{self, PeriodSource, PeriodWatch};
-use crate::{input, text};
+use crate::reading::chunked::{self, Batch, Defect};
+use crate::reading::limits::{MAX_COLUMNS, MAX_LINE_BYTES, MAX_PREAMBLE_BYTES, bytes};
+use crate::reading::sampling::{self, PeriodSource, PeriodWatch};
+use crate::{reading::input, text};
 
 /// A defect in a run file, with its position.
 #[derive(Debug, thiserror::Error)]
@@ -593,7 +593,7 @@ impl RunReader {
     }
 
     /// Hands every remaining data row to `consume` in batches, in file
-    /// order, parsed on every core ([`crate::chunked`]) with the checks and
+    /// order, parsed on every core ([`crate::reading::chunked`]) with the checks and
     /// the error messages of [`RunReader::next_row`]: a batch holds only rows
     /// that passed, and the error of the first that did not follows it.
     /// Returns the number of rows handed out.

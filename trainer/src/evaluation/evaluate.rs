@@ -13,14 +13,14 @@ use rbf_core::{
 };
 use serde::Serialize;
 
-use crate::allan::{self, AllanDeviation};
-use crate::chunked::Batch;
 use crate::dataset::Blocks;
-use crate::diagnose::RunDiagnosis;
+use crate::evaluation::allan::{self, AllanDeviation};
+use crate::evaluation::diagnose::RunDiagnosis;
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
 use crate::output::{Existing, Output};
-use crate::run::{Run, RunReader};
-use crate::{decimal, text};
+use crate::reading::chunked::Batch;
+use crate::reading::run::{Run, RunReader};
+use crate::{evaluation::decimal, text};
 
 /// How many samples carried each flag.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -438,7 +438,7 @@ fn evaluate_stepped(
     let parser = reader.row_parser();
     let mut rows = Vec::with_capacity(columns.len());
     let mut outputs = Vec::with_capacity(columns.len());
-    let mut refused: Option<crate::run::RunError> = None;
+    let mut refused: Option<crate::reading::run::RunError> = None;
     reader.for_each_batch(|batch| {
         for i in 0..batch.len() {
             if refused.is_some() {
@@ -471,12 +471,12 @@ fn evaluate_stepped(
 /// others' samples take the first's time step. A refused field's error
 /// names the file, line and column.
 fn rows_of_axes(
-    parser: &crate::run::RowParser,
+    parser: &crate::reading::run::RowParser,
     columns: &[Columns],
     batch: &Batch,
     i: usize,
     out: &mut Vec<(rbf_core::record::Row, GyroSample)>,
-) -> Result<(), crate::run::RunError> {
+) -> Result<(), crate::reading::run::RunError> {
     out.clear();
     let first = (batch.row(i), batch.sample(i));
     out.push(first);
@@ -870,7 +870,7 @@ fn compensate_stepped(
     let parser = reader.row_parser();
     let mut rows = Vec::with_capacity(n);
     let mut step = Vec::with_capacity(n);
-    let mut refused: Option<crate::run::RunError> = None;
+    let mut refused: Option<crate::reading::run::RunError> = None;
     // The rows are parsed on every core, compensated in order here, and
     // formatted and written on a thread of their own, a batch at a time.
     let (tx, rx) = std::sync::mpsc::sync_channel::<(Batch, Vec<CompensatedSample>)>(4);

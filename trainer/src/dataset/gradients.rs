@@ -14,7 +14,7 @@ use rbf_core::features::Probe;
 use rbf_core::record;
 
 use crate::dataset::Blocks;
-use crate::run::{RunError, RunReader};
+use crate::reading::run::{RunError, RunReader};
 
 /// Column names of the thermometers, in the matrix's order.
 pub const THERMOMETERS: [&str; 8] = record::column::THERMOMETERS;
