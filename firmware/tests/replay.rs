@@ -9,7 +9,7 @@ use std::cell::Cell;
 use firmware::replay::{self, ReplaySample, Replayer};
 use rbf_core::Flags;
 use rbf_core::frame;
-use trainer::evaluation::evaluate::compensate_file;
+use trainer::evaluation::compensate::compensate_file;
 
 #[test]
 fn replay_is_byte_identical_to_trainer_compensate() {

@@ -9,7 +9,8 @@ use e2e_tests::fixtures;
 use rbf_core::{Flags, frame};
 use tempfile::TempDir;
 use trainer::blobfile::write_model;
-use trainer::evaluation::evaluate::{FlagCounts, compensate_file};
+use trainer::evaluation::compensate::compensate_file;
+use trainer::evaluation::evaluate::FlagCounts;
 use trainer::output::Existing;
 use xtask::replay::ReplaySummary;
 

@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 
 use trainer::evaluation::axes::evaluate_files;
 use trainer::blobfile::read_model_file;
-use trainer::evaluation::evaluate::{RunEvaluation, print_allan_table, print_table};
+use trainer::evaluation::evaluate::RunEvaluation;
+use trainer::evaluation::table::{print_allan_table, print_table};
 use trainer::reading::input;
 
 use super::common::{AllowUncompensated, ForceArg, JsonArg, print_and_commit};

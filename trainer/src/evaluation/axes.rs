@@ -14,9 +14,8 @@ use rbf_core::axis::Axis;
 use rbf_core::record::Columns;
 
 use crate::blobfile::{ModelFile, read_model_file};
-use crate::evaluation::evaluate::{
-    Compensation, RunEvaluation, RunModels, compensate_reader, evaluate_reader, require_compensated, require_evaluable,
-};
+use crate::evaluation::compensate::{Compensation, compensate_reader};
+use crate::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_reader, require_compensated, require_evaluable};
 use crate::output::{self, Existing, Output};
 use crate::reading::plausible::require_plausible;
 use crate::reading::run::RunReader;

@@ -18,7 +18,8 @@ use anyhow::Context;
 use rbf_core::Model;
 
 use crate::evaluation::diagnose::RunDiagnosis;
-use crate::evaluation::evaluate::{Evaluator, RunEvaluation, figure, require_compensated, require_evaluable};
+use crate::evaluation::evaluate::{Evaluator, RunEvaluation, require_compensated, require_evaluable};
+use crate::evaluation::table::figure;
 use crate::output::{self, DirTarget, Existing, StagedDir};
 use crate::reading::run::{RunReader, StreamedRun};
 use crate::{describe::summary, reading::input, text};
