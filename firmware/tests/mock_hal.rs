@@ -14,7 +14,7 @@ use rbf_core::frame::{self, OutputFrame};
 use rbf_core::sensor::tmp117_raw;
 use rbf_core::{CompensatorConfig, Flags};
 use trainer::evaluation::evaluate::compensate_run;
-use trainer::reading::run::Run;
+use trainer::reading::run::samples::Run;
 
 const ADDRESS: u8 = tmp117::DEFAULT_ADDRESS;
 

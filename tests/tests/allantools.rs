@@ -6,7 +6,7 @@
 use std::process::Command;
 
 use trainer::evaluation::allan;
-use trainer::reading::run::Run;
+use trainer::reading::run::samples::Run;
 
 #[test]
 #[ignore = "installs allantools from PyPI into a temporary venv: run by `cargo xtask ci`"]

@@ -9,7 +9,7 @@ use trainer::evaluation::compensate::compensate_file;
 use trainer::evaluation::evaluate::{compensate_run, evaluate_run};
 use trainer::fit::{self, FitOptions, Method};
 use trainer::output::Existing;
-use trainer::reading::run::Run;
+use trainer::reading::run::samples::Run;
 use trainer::simulate::ChamberRun;
 
 fn simulated(dir: &TempDir, name: &str, run: &ChamberRun) -> PathBuf {

@@ -86,7 +86,7 @@ impl QemuBoard {
                 ),
                 _ => {}
             }
-            trainer::reading::run::Run::load(run)?;
+            trainer::reading::run::samples::Run::load(run)?;
             std::fs::copy(run, dir.path().join("run.csv"))
                 .with_context(|| format!("{}: cannot read", run.display()))?;
         }

@@ -164,7 +164,7 @@ pub fn compensate_command(
         .with_context(|| format!("{}: cannot write", text::path(output)))?;
     // Errors of the run name it and the line; write errors name the output.
     let done = compensate_reader(&models, reader, &mut out).map_err(|e| {
-        if e.is::<crate::reading::run::RunError>() {
+        if e.is::<crate::reading::run::rows::RunError>() {
             e
         } else {
             e.context(text::path(output))

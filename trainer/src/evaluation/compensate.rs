@@ -74,7 +74,7 @@ pub(super) fn compensate_stepped(
     let parser = reader.row_parser();
     let mut rows = Vec::with_capacity(n);
     let mut step = Vec::with_capacity(n);
-    let mut refused: Option<crate::reading::run::RunError> = None;
+    let mut refused: Option<crate::reading::run::rows::RunError> = None;
     // The rows are parsed on every core, compensated in order here, and
     // formatted and written on a thread of their own, a batch at a time.
     let (tx, rx) = std::sync::mpsc::sync_channel::<(Batch, Vec<CompensatedSample>)>(4);

@@ -11,7 +11,8 @@ use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self as record, Columns, Row, column};
 
 use crate::reading::plausible::Plausibility;
-use crate::reading::run::{RunError, RunReader};
+use crate::reading::run::RunReader;
+use crate::reading::run::rows::RunError;
 use crate::reading::sampling::sig;
 use crate::text;
 

@@ -16,7 +16,8 @@ use crate::evaluation::allan::{self, AllanDeviation};
 use crate::evaluation::diagnose::RunDiagnosis;
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
 use crate::reading::chunked::Batch;
-use crate::reading::run::{Run, RunReader};
+use crate::reading::run::RunReader;
+use crate::reading::run::samples::Run;
 use crate::text;
 
 /// How many samples carried each flag.
@@ -435,7 +436,7 @@ fn evaluate_stepped(
     let parser = reader.row_parser();
     let mut rows = Vec::with_capacity(columns.len());
     let mut outputs = Vec::with_capacity(columns.len());
-    let mut refused: Option<crate::reading::run::RunError> = None;
+    let mut refused: Option<crate::reading::run::rows::RunError> = None;
     reader.for_each_batch(|batch| {
         for i in 0..batch.len() {
             if refused.is_some() {
@@ -468,12 +469,12 @@ fn evaluate_stepped(
 /// others' samples take the first's time step. A refused field's error
 /// names the file, line and column.
 pub(super) fn rows_of_axes(
-    parser: &crate::reading::run::RowParser,
+    parser: &crate::reading::run::rows::RowParser,
     columns: &[Columns],
     batch: &Batch,
     i: usize,
     out: &mut Vec<(rbf_core::record::Row, GyroSample)>,
-) -> Result<(), crate::reading::run::RunError> {
+) -> Result<(), crate::reading::run::rows::RunError> {
     out.clear();
     let first = (batch.row(i), batch.sample(i));
     out.push(first);

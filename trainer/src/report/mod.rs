@@ -21,7 +21,8 @@ use crate::evaluation::diagnose::RunDiagnosis;
 use crate::evaluation::evaluate::{Evaluator, RunEvaluation, require_compensated, require_evaluable};
 use crate::evaluation::table::figure;
 use crate::output::{self, DirTarget, Existing, StagedDir};
-use crate::reading::run::{RunReader, StreamedRun};
+use crate::reading::run::RunReader;
+use crate::reading::run::samples::StreamedRun;
 use crate::{describe::summary, reading::input, text};
 use rbf_core::axis::Axis;
 
@@ -435,7 +436,7 @@ mod tests {
     #[test]
     fn the_default_models_surface_spans_its_fastest_rate_input_not_a_power_of_temperature() {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
-        let run = crate::reading::run::Run::load(&data).unwrap();
+        let run = crate::reading::run::samples::Run::load(&data).unwrap();
         let opts = crate::fit::FitOptions::default();
         let model = crate::fit::fit(std::slice::from_ref(&run), &[], &opts).unwrap().model;
         let FeatureSet::LagBank(bank) = model.features().set else {
@@ -815,7 +816,7 @@ mod tests {
     #[test]
     fn a_response_banks_surface_spans_the_loop_temperature_and_the_runs_rates() {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
-        let run = crate::reading::run::Run::load(&data).unwrap();
+        let run = crate::reading::run::samples::Run::load(&data).unwrap();
         let opts = crate::fit::FitOptions {
             features: crate::fit::RbfFeatures::ResponseBank,
             ..crate::fit::FitOptions::default()
@@ -856,7 +857,7 @@ mod tests {
     #[test]
     fn the_lag_banks_bias_plot_marks_its_training_range_and_writes_t_hat_in_words() {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
-        let run = crate::reading::run::Run::load(&data).unwrap();
+        let run = crate::reading::run::samples::Run::load(&data).unwrap();
         let model = crate::fit::fit(std::slice::from_ref(&run), &[], &crate::fit::FitOptions::default())
             .unwrap()
             .model;
