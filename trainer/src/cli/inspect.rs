@@ -13,7 +13,7 @@ use trainer::text;
 
 use super::common::{JsonArg, print_and_commit};
 use trainer::output::Transaction;
-use super::fit::features_json;
+use super::fit::json::features_json;
 use super::toml;
 
 /// Show what a model blob holds and whether it is intact.

@@ -18,7 +18,9 @@ use trainer::reading::run::RunReader;
 use trainer::text;
 
 use super::super::common::{JsonSink, print_and_commit};
-use super::{Args, FitHow, outcome_json, runs_json, write_blob, write_summary};
+use super::json::{outcome_json, runs_json};
+use super::summary::{FitHow, write_summary};
+use super::{Args, write_blob};
 
 /// Fits every axis of `axes` on the runs of `a` with `opts`, writes the
 /// blob into `model_out` and the JSON report into `json_out`, and prints
