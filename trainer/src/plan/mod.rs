@@ -14,6 +14,10 @@
 //! other than the nominal one, at the cost of dynamic excitation. Either
 //! way the plan predicts the loop range on both plants. docs/plan.md argues
 //! the choice. Deterministic for a given seed.
+//!
+//! One module a job, each importing only those below it: [`limits`] (the
+//! limits, segments and time arithmetic), [`candidates`], [`criterion`] (the
+//! plan on the plant), this module ([`Plan`], [`design`]) and [`plot`].
 
 use std::fmt::Write as _;
 

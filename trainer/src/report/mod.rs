@@ -11,6 +11,11 @@
 //! sample lay (no sample of the reported runs, when the training runs are not
 //! known). Plus report.json and report.md (the model, and per run its figures
 //! and how many samples were clamped).
+//!
+//! This module writes the page (report.md, report.json, the run pass that
+//! gathers every plot's data); `canvas` holds what the plots share (the
+//! `Figure` trait, rendering, block means) and `rate`, `bias_temp`,
+//! `allan_plot` and `surface` draw a plot kind each.
 
 use std::path::{Path, PathBuf};
 
