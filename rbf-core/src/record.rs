@@ -387,7 +387,7 @@ pub fn write_compensated_header<W: core::fmt::Write>(
 /// Writes one compensated output row of a run with one or more axes: the input line as
 /// read, then `bias`, `rate_comp` and `flags` of each sample in axis order (f32 shortest
 /// round-trip decimal), and a `\n`. The firmware replay writes rows with this; the trainer's
-/// byte-buffer twin (`trainer::evaluate::push_compensated_row`) is tested against it.
+/// byte-buffer twin (`trainer::evaluation::compensate::push_compensated_row`) is tested against it.
 pub fn write_compensated_row<W: core::fmt::Write>(
     out: &mut W,
     input_line: &str,

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use trainer::fit::{self, FitOptions};
-use trainer::run::Run;
+use trainer::reading::run::samples::Run;
 use trainer::simulate::ChamberRun;
 
 /// Rows of the fault-injected slice.

@@ -9,7 +9,9 @@ use std::path::Path;
 use rbf_core::blob::{self, FORMAT_VERSION, HEADER_LEN, MAGIC, MAX_BLOB_LEN, axes};
 use rbf_core::frame::{self, MAX_FRAME_LEN};
 use rbf_core::{Compensator, CompensatorConfig, GyroSample};
-use trainer::run::{Run, RunError, RunReader};
+use trainer::reading::run::RunReader;
+use trainer::reading::run::rows::RunError;
+use trainer::reading::run::samples::Run;
 
 pub use xtask::fuzz::TARGETS;
 

@@ -5,8 +5,8 @@
 
 use std::process::Command;
 
-use trainer::allan;
-use trainer::run::Run;
+use trainer::evaluation::allan;
+use trainer::reading::run::samples::Run;
 
 #[test]
 #[ignore = "installs allantools from PyPI into a temporary venv: run by `cargo xtask ci`"]

@@ -8,7 +8,7 @@ use e2e_tests::example;
 use rbf_core::{Compensator, Flags};
 use trainer::fit::{self, FitOptions, RbfFeatures};
 use trainer::metrics::cluster_std;
-use trainer::run::Run;
+use trainer::reading::run::samples::Run;
 
 /// Residual 100-s cluster STD of a run compensated with the deployed
 /// evaluation and with the exact one, °/h.

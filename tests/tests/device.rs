@@ -178,7 +178,7 @@ fn status_update_status_record_through_the_board_s_pty() {
     assert_eq!(header, "time_s,seq,rate_dph,bias_dph,rate_comp_dph,temp_c,flags");
     // A recorded run the trainer reads; at 1 kHz for 3 s of real time
     // (QEMU in real time on a shared machine: at least a third of it).
-    let run = trainer::run::Run::load(&recorded).unwrap();
+    let run = trainer::reading::run::samples::Run::load(&recorded).unwrap();
     assert!(run.time_s.len() > 1000, "{} rows; {said}", run.time_s.len());
     eprintln!("recorded {} rows in {:.2} s", run.time_s.len(), took.as_secs_f64());
     // The new model runs: no row flagged 4 (no valid model).
@@ -228,7 +228,10 @@ fn a_blob_the_unit_would_refuse_is_refused_before_sending_and_the_unit_runs_on()
 
     let out = recording.wait();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let rows = trainer::run::Run::load(&recorded).unwrap().time_s.len();
+    let rows = trainer::reading::run::samples::Run::load(&recorded)
+        .unwrap()
+        .time_s
+        .len();
     assert!(rows > 1000, "the unit recorded on: {rows} rows in 3 s");
     // A multi-axis blob: valid, but not for a single-axis unit (its frames say which).
     let err = update(&axes_blob);
@@ -298,7 +301,7 @@ fn ctrl_c_or_a_unit_that_goes_away_leaves_a_complete_recorded_run() {
     let complete = |path: &Path| {
         let text = std::fs::read_to_string(path).unwrap();
         assert!(text.ends_with('\n'), "the last row is whole");
-        let run = trainer::run::Run::load(path).unwrap();
+        let run = trainer::reading::run::samples::Run::load(path).unwrap();
         assert!(run.time_s.len() > 100, "{} rows", run.time_s.len());
         run.time_s.len()
     };

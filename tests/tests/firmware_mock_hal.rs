@@ -13,8 +13,8 @@ use firmware::tmp117::{self, Tmp117};
 use rbf_core::frame::{self, OutputFrame};
 use rbf_core::sensor::tmp117_raw;
 use rbf_core::{CompensatorConfig, Flags, Model};
-use trainer::evaluate::compensate_run;
-use trainer::run::Run;
+use trainer::evaluation::evaluate::compensate_run;
+use trainer::reading::run::samples::Run;
 
 const ADDRESS: u8 = tmp117::DEFAULT_ADDRESS;
 

@@ -9,7 +9,7 @@ use std::cell::Cell;
 use firmware::replay::{self, ReplaySample, Replayer};
 use rbf_core::Flags;
 use rbf_core::frame;
-use trainer::evaluate::compensate_file;
+use trainer::evaluation::compensate::compensate_file;
 
 #[test]
 fn replay_is_byte_identical_to_trainer_compensate() {
@@ -110,7 +110,8 @@ fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_ev
     let (blob_path, slice) = common::axes_blob_and_slice(dir.path());
     let expected_path = dir.path().join("expected.csv");
     let (_, expected) =
-        trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+        trainer::evaluation::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false)
+            .unwrap();
     expected.commit().unwrap();
     // The replay library writes the run; the provenance lines before it are
     // the host tools' (trainer compensate, cargo xtask qemu-replay).
@@ -176,7 +177,8 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
     let (blob_path, slice) = common::shared_blob_and_slice(dir.path());
     let expected_path = dir.path().join("expected.csv");
     let (_, expected) =
-        trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+        trainer::evaluation::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false)
+            .unwrap();
     expected.commit().unwrap();
     // The replay library writes the run; the provenance lines before it are
     // the host tools' (trainer compensate, cargo xtask qemu-replay).

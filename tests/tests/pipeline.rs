@@ -5,10 +5,11 @@ use std::path::PathBuf;
 use rbf_core::Flags;
 use tempfile::TempDir;
 use trainer::blobfile::{read_model, write_model};
-use trainer::evaluate::{compensate_file, compensate_run, evaluate_run};
+use trainer::evaluation::compensate::compensate_file;
+use trainer::evaluation::evaluate::{compensate_run, evaluate_run};
 use trainer::fit::{self, FitOptions, Method};
 use trainer::output::Existing;
-use trainer::run::Run;
+use trainer::reading::run::samples::Run;
 use trainer::simulate::ChamberRun;
 
 fn simulated(dir: &TempDir, name: &str, run: &ChamberRun) -> PathBuf {
@@ -215,10 +216,10 @@ fn svr_pso_on_multi_point_runs_selects_by_correlation_or_validation_and_generali
         &multi(ChamberRun::cycle(5.0, 52)),
     ))];
     // Two inputs by correlation (the threshold rule is unit-tested in
-    // trainer::gradients; a short selection keeps this fit quick).
+    // trainer::dataset::gradients; a short selection keeps this fit quick).
     let paper = FitOptions {
         method: Method::SvrPso,
-        selection: Some(trainer::gradients::Selection::Top(2)),
+        selection: Some(trainer::dataset::gradients::Selection::Top(2)),
         ..FitOptions::default()
     };
     let outcome = fit::fit(std::slice::from_ref(&train), &[], &paper).unwrap();
@@ -226,10 +227,10 @@ fn svr_pso_on_multi_point_runs_selects_by_correlation_or_validation_and_generali
         .svr
         .and_then(|c| c.selection)
         .expect("a multi-point run is correlated");
-    let r = |c: &trainer::gradients::Candidate| selection.table.r[c.i][c.j].abs();
+    let r = |c: &trainer::dataset::gradients::Candidate| selection.table.r[c.i][c.j].abs();
     assert_eq!(selection.selected.len(), 2);
     let strongest_left_out = (0..8)
-        .flat_map(|i| (i..8).map(move |j| trainer::gradients::Candidate { i, j }))
+        .flat_map(|i| (i..8).map(move |j| trainer::dataset::gradients::Candidate { i, j }))
         .filter(|c| !selection.selected.contains(c))
         .map(|c| r(&c))
         .fold(0.0, f64::max);

@@ -9,7 +9,8 @@ use e2e_tests::fixtures;
 use rbf_core::{Flags, frame};
 use tempfile::TempDir;
 use trainer::blobfile::write_model;
-use trainer::evaluate::{FlagCounts, compensate_file};
+use trainer::evaluation::compensate::compensate_file;
+use trainer::evaluation::evaluate::FlagCounts;
 use trainer::output::Existing;
 use xtask::replay::ReplaySummary;
 
@@ -118,7 +119,8 @@ fn qemu_replay_of_a_three_axis_run_is_byte_identical_to_trainer_compensate() {
     let (blob_path, slice) = fixtures::axes_blob_and_slice(dir.path());
     let expected_path = dir.path().join("expected.csv");
     let (_, expected) =
-        trainer::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false).unwrap();
+        trainer::evaluation::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false)
+            .unwrap();
     expected.commit().unwrap();
     let out = dir.path().join("qemu.csv");
     let frames_path = dir.path().join("frames.bin");

@@ -11,8 +11,8 @@ use rbf_core::blob::axes::{self, AxisModels};
 use rbf_core::blob::{self, BlobKind, MAX_BLOB_LEN, shared_layout};
 use rbf_core::shared_basis::SharedAxisModels;
 
-use crate::input;
 use crate::output::{Existing, write_bytes_with};
+use crate::reading::input;
 use crate::text;
 
 /// Encodes `model` into blob bytes, decoded again and compared: a blob that

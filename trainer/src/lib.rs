@@ -4,37 +4,34 @@
 //! compensates/evaluates runs with exactly the `rbf-core` code the firmware
 //! runs. The `trainer` binary is a thin clap front end over these modules.
 //!
-//! Data flow of a fit: [`run`] (CSV) → [`dataset`] (rbf-core features,
-//! 1-s block means, targets) → [`fit`] (OLS centre selection, ridge weights,
-//! validation) → [`blobfile`] (postcard + CRC) → [`evaluate`] (streaming
-//! compensation + [`metrics`]).
+//! Data flow of a fit, one folder a layer: [`reading`] (the run CSV, parsed
+//! on every core and checked: [`reading::run`]) → [`dataset`] (rbf-core
+//! features, 1-s block means, targets) → [`fit`] (OLS centre selection,
+//! ridge weights, validation; [`fit_axes`]: every axis of a multi-axis run
+//! and the joint model) → [`blobfile`] (postcard + CRC) → [`evaluation`]
+//! (streaming compensation + [`metrics`]) → [`report`] (plots and written
+//! summary; [`describe`]: a model in words). Beside them: [`plan`] designs
+//! the chamber run, [`simulate`] synthesises runs, [`device`] talks to the
+//! unit, [`output`] writes every file through a transaction, [`refusals`]
+//! names the flag that accepts a refusal. Shared helpers sit below the
+//! features that use them: [`parallel`], [`plotting`], [`text`].
 
 #![forbid(unsafe_code)]
 
-pub mod allan;
-pub mod axes;
 pub mod blobfile;
-pub mod chunked;
 pub mod dataset;
-pub mod decimal;
 pub mod describe;
 pub mod device;
-pub mod diagnose;
-pub mod evaluate;
+pub mod evaluation;
 pub mod fit;
-pub mod frames;
-pub mod gradients;
-pub mod input;
-pub mod limits;
+pub mod fit_axes;
 pub mod metrics;
 pub mod output;
+pub mod parallel;
 pub mod plan;
-pub mod plausible;
-pub mod plot_axes;
+pub mod plotting;
+pub mod reading;
 pub mod refusals;
 pub mod report;
-pub mod run;
-pub mod sampling;
 pub mod simulate;
-pub mod summary;
 pub mod text;

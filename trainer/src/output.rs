@@ -33,7 +33,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use tempfile::NamedTempFile;
 
-use crate::input;
+use crate::reading::input;
 use crate::text;
 
 mod cleanup;

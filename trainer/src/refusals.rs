@@ -10,9 +10,9 @@ pub fn flag_hint(e: &anyhow::Error) -> &'static str {
         "; pass --force to overwrite it"
     } else if root.is::<crate::output::OutputReadOnly>() {
         ", even with --force"
-    } else if root.is::<crate::evaluate::NothingCompensated>() {
+    } else if root.is::<crate::evaluation::evaluate::NothingCompensated>() {
         ". Pass --allow-uncompensated to accept such a run"
-    } else if root.is::<crate::plausible::Implausible>() {
+    } else if root.is::<crate::reading::plausible::Implausible>() {
         ". Convert the run to the recorded-run format's units, or pass --allow-implausible if it is right"
     } else {
         ""

@@ -17,7 +17,7 @@ use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::poly::Poly3;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::fit::{self, FitOptions};
-use trainer::run::Run;
+use trainer::reading::run::samples::Run;
 
 use crate::{output, run, workspace_root};
 

@@ -211,7 +211,7 @@ fn main() -> anyhow::Result<()> {
             allow_implausible,
         } => {
             xtask::qemu::ensure_installed()?;
-            let accept = trainer::axes::Acceptance {
+            let accept = trainer::evaluation::axes::Acceptance {
                 uncompensated: allow_uncompensated,
                 implausible: allow_implausible,
             };

@@ -73,7 +73,7 @@ impl QemuBoard {
         if let Some(run) = &options.run {
             // Checked here with the trainer's reader, so that the image reads
             // a valid run with the image's axes.
-            let run_axes = trainer::run::RunReader::open(run)?.axes();
+            let run_axes = trainer::reading::run::RunReader::open(run)?.axes();
             match (options.three_axes, run_axes.is_empty()) {
                 (true, true) => anyhow::bail!(
                     "{}: a single-axis run; the three-axis board (--axes 3) answers from a three-axis run \
@@ -86,7 +86,7 @@ impl QemuBoard {
                 ),
                 _ => {}
             }
-            trainer::run::Run::load(run)?;
+            trainer::reading::run::samples::Run::load(run)?;
             std::fs::copy(run, dir.path().join("run.csv"))
                 .with_context(|| format!("{}: cannot read", run.display()))?;
         }

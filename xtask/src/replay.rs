@@ -7,9 +7,9 @@ use std::time::Duration;
 use std::io::Write;
 
 use anyhow::{Context, bail};
-use trainer::axes::{Acceptance, compensate_command};
+use trainer::evaluation::axes::{Acceptance, compensate_command};
 use trainer::output::{Existing, Output, Transaction};
-use trainer::run::Run;
+use trainer::reading::run::samples::Run;
 
 use crate::{firmware, qemu};
 

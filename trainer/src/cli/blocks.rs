@@ -8,9 +8,9 @@ use rbf_core::FeatureSet;
 use trainer::blobfile::read_model;
 use trainer::dataset::{Blocks, RunFiles, RunSet};
 use trainer::fit::Method;
-use trainer::limits::{MAX_BLOCKS_WRITTEN, check_block_s};
+use trainer::reading::limits::{MAX_BLOCKS_WRITTEN, check_block_s};
 use trainer::output::{self, Output, Transaction};
-use trainer::{input, text};
+use trainer::{reading::input, text};
 
 use super::common::{ForceArg, input_names, print_and_commit};
 use super::values::FeaturesArg;

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Args;
 use clap::builder::RangedU64ValueParser;
-use trainer::gradients::Selection;
+use trainer::dataset::gradients::Selection;
 use trainer::output::{Existing, Output, Transaction};
 use trainer::text::{self, SafeWriter};
 
@@ -60,8 +60,8 @@ pub struct AllowUncompensated {
 
 impl AllowUncompensated {
     /// The runs the command accepts that it would otherwise refuse.
-    pub fn acceptance(&self) -> trainer::axes::Acceptance {
-        trainer::axes::Acceptance {
+    pub fn acceptance(&self) -> trainer::evaluation::axes::Acceptance {
+        trainer::evaluation::axes::Acceptance {
             uncompensated: self.allow_uncompensated,
             implausible: self.allow_implausible,
         }
@@ -94,7 +94,7 @@ impl JsonArg {
     pub fn sink(&self, inputs: &[&Path], existing: Existing) -> anyhow::Result<JsonSink> {
         Ok(match &self.json {
             None => JsonSink::None,
-            Some(p) if trainer::input::is_stdin(p) => JsonSink::Stdout,
+            Some(p) if trainer::reading::input::is_stdin(p) => JsonSink::Stdout,
             Some(p) => JsonSink::File(Output::create(p, inputs, existing)?),
         })
     }
@@ -202,11 +202,11 @@ pub fn rule_name(selection: Selection) -> String {
 /// The correlation matrix and the selection's line (chosen by `rule`), as
 /// `correlate` and `fit` print them.
 pub fn describe_selection(
-    table: &trainer::gradients::CorrelationTable,
-    selected: &[trainer::gradients::Candidate],
+    table: &trainer::dataset::gradients::CorrelationTable,
+    selected: &[trainer::dataset::gradients::Candidate],
     rule: &str,
 ) -> String {
-    use trainer::gradients::{candidate_name, format_table};
+    use trainer::dataset::gradients::{candidate_name, format_table};
     let names: Vec<String> = selected
         .iter()
         .map(|&c| format!("{} (r = {:.3})", candidate_name(table, c), table.r[c.i][c.j]))

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use trainer::axes::{self, compensate_command};
+use trainer::evaluation::axes::{self, compensate_command};
 use trainer::text;
 
 use super::common::{AllowUncompensated, ForceArg, print_and_commit};

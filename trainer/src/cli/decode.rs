@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use trainer::output::{self, Output, Transaction};
-use trainer::{input, text};
+use trainer::{reading::input, text};
 
 use super::common::{ForceArg, print_and_commit};
 
@@ -33,7 +33,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let target = output::check_target(&a.output, &[&a.frames], a.force.existing())?;
     let capture = input::open(&a.frames).with_context(|| format!("{}: cannot read", text::path(&a.frames)))?;
     let mut out = Output::open(target)?;
-    let decoded = trainer::frames::decode_capture(capture, &mut out).with_context(|| text::path(&a.frames))?;
+    let decoded = trainer::reading::frames::decode_capture(capture, &mut out).with_context(|| text::path(&a.frames))?;
     if decoded.damaged > 0 {
         eprintln!(
             "warning: {}: {} damaged frame(s) skipped, at byte offsets {:?}",

@@ -3,10 +3,11 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use trainer::axes::evaluate_files;
+use trainer::evaluation::axes::evaluate_files;
 use trainer::blobfile::read_model_file;
-use trainer::evaluate::{RunEvaluation, print_allan_table, print_table};
-use trainer::input;
+use trainer::evaluation::evaluate::RunEvaluation;
+use trainer::evaluation::table::{print_allan_table, print_table};
+use trainer::reading::input;
 
 use super::common::{AllowUncompensated, ForceArg, JsonArg, print_and_commit};
 use trainer::output::Transaction;

@@ -6,26 +6,30 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::builder::RangedU64ValueParser;
 use rbf_core::features::Probe;
-use rbf_core::{FeatureConfig, FeatureSet, Model};
 use trainer::blobfile::encode_model;
 use trainer::dataset::{RunFiles, RunSet};
-use trainer::evaluate::{RunEvaluation, RunModels, evaluate_blocks, evaluate_reader, only_axis, print_table};
+use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_blocks, evaluate_reader, only_axis};
+use trainer::evaluation::table::print_table;
 use trainer::fit::coverage::InUse;
-use trainer::fit::{self, FitOptions, FitOutcome};
-use trainer::limits::MAX_FOLDS;
+use trainer::fit::{self, FitOptions};
+use trainer::reading::limits::MAX_FOLDS;
 use trainer::output::{self, Output, StagedDir, Transaction};
-use trainer::run::RunReader;
-use trainer::describe::{gain_symbol, gain_text};
-use trainer::plausible;
+use trainer::reading::run::RunReader;
+use trainer::reading::plausible;
 use trainer::text;
-use trainer::{diagnose, input};
+use trainer::{evaluation::diagnose, reading::input};
 
 use super::common::{
-    ForceArg, JsonArg, JsonSink, SelectArgs, describe_selection, input_names, print_and_commit, rule_name,
+    ForceArg, JsonArg, JsonSink, SelectArgs, print_and_commit,
 };
 use super::values::{FeaturesArg, MethodArg};
 
 mod axes;
+pub(super) mod json;
+mod summary;
+
+use self::json::{outcome_json, runs_json};
+use self::summary::{FitHow, training_loop_range_c, write_summary};
 
 /// Fit a bias model to recorded chamber runs and write the model blob.
 ///
@@ -313,7 +317,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         RunReader::open(path)?.require_temp()?;
     }
     plausible::require_distinct_runs(&a.runs, &[("--validate", &a.validate), ("--holdout", &a.holdout)])?;
-    trainer::limits::check_block_s(a.block_s)?;
+    trainer::reading::limits::check_block_s(a.block_s)?;
     if let Some(s) = &a.serial {
         anyhow::ensure!(
             s.len() <= rbf_core::model::SERIAL_CAPACITY,
@@ -350,7 +354,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
         opts.rate_windows_s = a.dt_window_s.clone();
     }
-    let axes = trainer::axes::common_axes(&all_runs)?;
+    let axes = trainer::evaluation::axes::common_axes(&all_runs)?;
     let model_out = targets.next().map(Output::open).transpose()?;
     let json_out = match targets.next() {
         Some(target) => JsonSink::File(Output::open(target)?),
@@ -440,7 +444,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let files =
             {
                 // The fit has checked its runs; the report takes them as they are.
-                let accept = trainer::axes::Acceptance {
+                let accept = trainer::evaluation::axes::Acceptance {
                     uncompensated: true,
                     implausible: true,
                 };
@@ -471,261 +475,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 /// The file in `--report DIR` that holds what `fit` prints.
 const FIT_TEXT: &str = "fit.txt";
 
-/// How the fit was asked to choose, for the summary's wording.
-pub struct FitHow {
-    /// Whether --validate runs chose the hyper-parameters.
-    pub with_validate_runs: bool,
-    /// Contiguous folds per run otherwise.
-    pub folds: usize,
-    /// Whether the multi-point inputs were named (--inputs).
-    pub named_inputs: bool,
-    /// The correlation rule asked for, if any.
-    pub selection: Option<trainer::gradients::Selection>,
-}
-
-/// The default's structure choice, as `trainer fit` prints it: both
-/// structures' training residuals and held-out scores beside the runs'
-/// noise floor, or why the response bank was not tried.
-fn write_structure(out: &mut impl Write, s: &fit::response::StructureChoice) -> anyhow::Result<()> {
-    let floor = match s.noise_floor_std100_dph {
-        Some(floor) => format!(
-            "; the runs' noise floor {floor:.4e} °/h ({:.2}× of it left)",
-            s.lag_bank_std100_dph / floor
-        ),
-        None => String::new(),
-    };
-    match (s.response_bank_std100_dph, s.response_bank_held_out_rms_dph) {
-        (Some(response), Some(response_held_out)) => writeln!(
-            out,
-            "structure: residual STD100 on the training runs {:.4e} °/h with the lag bank, {response:.4e} °/h with the response bank (ratio {:.2}){floor}; held-out events {:.4e} and {response_held_out:.4e} °/h (the response bank is taken below a ratio of {} when it also predicts held-out events better): {}",
-            s.lag_bank_std100_dph,
-            response / s.lag_bank_std100_dph,
-            s.lag_bank_held_out_rms_dph,
-            fit::response::RESPONSE_BANK_MARGIN,
-            if s.response_bank { "response bank" } else { "lag bank" }
-        )?,
-        _ => writeln!(
-            out,
-            "structure: lag bank; residual STD100 on the training runs {:.4e} °/h{floor}: no bank gets {} of it below {} of the floor, so the response bank was not tried",
-            s.lag_bank_std100_dph,
-            fit::response::RESPONSE_BANK_MARGIN,
-            fit::response::NOISE_FLOOR_SHARE,
-        )?,
-    }
-    Ok(())
-}
-
-/// The fit's choices as `trainer fit` prints them above its accuracy table.
-pub fn write_summary(
-    out: &mut impl Write,
-    outcome: &FitOutcome,
-    how: &FitHow,
-) -> anyhow::Result<()> {
-    writeln!(out, "model: {}", describe(&outcome.model))?;
-    if let Some(s) = &outcome.structure {
-        write_structure(out, s)?;
-    }
-    if let (Some(predicted), Some(factor), Some(training)) = (
-        outcome.predicted_in_use_std100_dph(),
-        outcome.forecast_factor(),
-        outcome.training_std100_dph,
-    ) {
-        writeln!(
-            out,
-            "predicted residual STD100 in use {predicted:.4e} °/h ({factor}× the training residual {training:.4e} °/h)"
-        )?;
-    }
-    let response_chosen = outcome.structure.as_ref().is_some_and(|s| s.response_bank);
-    if let Some(c) = outcome.choice.as_ref().filter(|_| !response_chosen) {
-        writeln!(
-            out,
-            "chosen on {}: {}{}ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
-            if how.with_validate_runs {
-                "--validate runs".into()
-            } else if let Some(search) = &outcome.bank {
-                format!("the same {} folds as the bank's structure", search.fold_count)
-            } else {
-                format!("{}-fold contiguous validation", how.folds.max(2))
-            },
-            // The lag bank's filters are its structure (printed below), not one window.
-            if outcome.bank.is_some() {
-                String::new()
-            } else {
-                format!("ΔT window {} s, ", c.rate_window_s)
-            },
-            // No Gaussians (the lag bank's default): no width to speak of.
-            if c.centers == 0 {
-                String::new()
-            } else {
-                format!("width σ {} (normalised), ", c.width)
-            },
-            c.ridge,
-            c.centers,
-            c.validation_rms_dph
-        )?;
-    }
-    if let Some(search) = &outcome.bank {
-        write_bank(out, &outcome.model, search)?;
-    }
-    if let Some(s) = &outcome.sets {
-        let kept = outcome.model.features();
-        let slowest_s = kept.windows_s()[2];
-        let kept = match kept.set {
-            FeatureSet::MultiScale => "first-order".to_owned(),
-            FeatureSet::MultiScaleLagged { coil_lag_min } => {
-                format!("second-order, coil lag {coil_lag_min} min, slowest window {slowest_s} s")
-            }
-            _ => format!("second-order, slowest window {slowest_s} s"),
-        };
-        writeln!(
-            out,
-            "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃², coil lags {:?} min and slowest window ×{:?} tried) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
-            s.first_order_rms_dph,
-            fit::COIL_LAGS_MIN,
-            fit::rbf::SLOWEST_WINDOW_FACTORS,
-            s.second_order_rms_dph,
-            s.second_order_rms_dph / s.first_order_rms_dph,
-            fit::SECOND_ORDER_GAIN,
-            kept
-        )?;
-    }
-    if let Some(c) = &outcome.svr {
-        if let Some(sel) = &c.selection {
-            let rule = match (how.named_inputs, how.selection) {
-                (true, _) => "--inputs".to_owned(),
-                (false, Some(rule)) => rule_name(rule),
-                (false, None) => format!(
-                    "the best of {} subsets of thermometers on 3-fold contiguous validation",
-                    (1u32 << sel.table.names.len()) - 1
-                ),
-            };
-            write!(out, "{}", describe_selection(&sel.table, &sel.selected, &rule))?;
-            if !sel.ranking.is_empty() {
-                writeln!(out, "validation RMS of the best subsets (°/h):")?;
-                for s in &sel.ranking {
-                    let names: Vec<&str> = s.sensors.iter().map(|&k| sel.table.names[k].as_str()).collect();
-                    writeln!(out, "  {:.4e}  {}", s.validation_rms_dph, names.join(", "))?;
-                }
-            }
-        }
-        writeln!(out, "inputs: {}", c.inputs.join(", "))?;
-        writeln!(
-            out,
-            "PSO on 3-fold contiguous validation of the deployed network ({} particles × {} iterations): ΔT window {} s, σ {:.4} (normalised), C {:.4e}, ε {:.3e} °/h; the SVR's own validation RMS {:.4e} °/h",
-            c.pso.particles,
-            c.pso.iterations,
-            c.rate_window_s,
-            c.params.sigma,
-            c.params.c,
-            c.params.epsilon,
-            c.validation_rms_dph
-        )?;
-        writeln!(
-            out,
-            "{} support vectors → {} centres deployed (OLS, weights refitted); validation RMS of the deployed network {:.4e} °/h (the swarm's fitness)",
-            c.support_vectors, c.centers, c.deployed_validation_rms_dph
-        )?;
-    }
-    Ok(())
-}
-
-/// The lag bank a fit identified, how it was chosen, and what the training runs covered.
-fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankSearch) -> anyhow::Result<()> {
-    let FeatureSet::LagBank(bank) = model.features().set else {
-        return Ok(());
-    };
-    let list = |v: &[f32], digits: usize| v.iter().map(|x| format!("{x:.digits$}")).collect::<Vec<_>>().join(", ");
-    writeln!(
-        out,
-        "lag bank: τ [{}] s; coil lags a [{}] min (T̂ = T + Σ a·ΔT); Shupe gain {}; T₀ {} °C",
-        list(bank.taus(), 0),
-        list(bank.coil_lags(), 2),
-        gain_text(&bank),
-        trainer::summary::sig(f64::from(bank.ref_c), 4),
-    )?;
-    let how = match search.folds {
-        fit::events::FoldKind::Runs => format!("leave-one-run-out ({} folds)", search.fold_count),
-        fit::events::FoldKind::Events => format!(
-            "{} folds of whole thermal events ({} events found)",
-            search.fold_count, search.events
-        ),
-        fit::events::FoldKind::Contiguous => format!(
-            "{} contiguous folds (only {} thermal events found)",
-            search.fold_count, search.events
-        ),
-    };
-    writeln!(
-        out,
-        "structure chosen on {how} among {} candidates; held-out RMS of 100-s means {:.4e} °/h",
-        search.candidates.len(),
-        search.held_out_rms_dph()
-    )?;
-    let dims = model.features().dims();
-    let mut covered = Vec::new();
-    for i in 0..dims {
-        let (Some(name), Some((lo, hi))) = (model.features().set.name(i), model.input_range(i)) else {
-            continue;
-        };
-        if matches!(
-            name,
-            rbf_core::features::InputName::Bank(rbf_core::lag_bank::BankInput::CoilTemp { power: 2.. })
-        ) {
-            continue;
-        }
-        covered.push(format!("{name} {lo:.3} … {hi:.3}"));
-    }
-    writeln!(out, "training covered: {}", covered.join("; "))?;
-    let x = &search.extrapolation;
-    let end = |name: &str, e: &fit::lag_bank::EdgeTest| {
-        if e.tangent_rms_dph.is_nan() {
-            format!("{name}: too few means to test, tangent")
-        } else {
-            format!(
-                "{name}: tangent {:.2e} / cubic {:.2e} °/h → {}",
-                e.tangent_rms_dph,
-                e.cubic_rms_dph,
-                if e.reach_c > 0.0 {
-                    format!("cubic for {:.1} °C", e.reach_c)
-                } else {
-                    "tangent".to_owned()
-                }
-            )
-        }
-    };
-    writeln!(
-        out,
-        "extrapolation of the static cubic past T̂ {:.1} … {:.1} °C (edge test, outer {:.1} °C held out): {}; {}",
-        x.covered_c.0,
-        x.covered_c.1,
-        x.band_c,
-        end("below", &x.lower),
-        end("above", &x.upper)
-    )?;
-    Ok(())
-}
-
-/// What a fit chose, as `trainer fit --json` writes it (one axis).
-pub(super) fn outcome_json(o: &FitOutcome) -> serde_json::Value {
-    serde_json::json!({
-        "choice": o.choice,
-        "feature_sets": o.sets,
-        "lag_bank_search": o.bank,
-        "structure": o.structure,
-        "predicted_in_use_std100_dph": o.predicted_in_use_std100_dph(),
-        "training_std100_dph": o.training_std100_dph,
-        "features": features_json(o.model.features()),
-        "svr": o.svr,
-    })
-}
-
-/// The table's evaluations, as `trainer fit --json` writes them.
-pub(super) fn runs_json(evals: &[(&str, RunEvaluation)]) -> serde_json::Value {
-    evals
-        .iter()
-        .map(|(role, e)| serde_json::json!({"role": role, "evaluation": e}))
-        .collect()
-}
-
 /// Writes `blob` into `model_out` (if any), staged in `transaction`.
 pub(super) fn write_blob(model_out: Option<Output>, blob: &[u8], transaction: &mut Transaction) -> anyhow::Result<()> {
     if let Some(mut output) = model_out {
@@ -735,90 +484,6 @@ pub(super) fn write_blob(model_out: Option<Output>, blob: &[u8], transaction: &m
         transaction.add(output);
     }
     Ok(())
-}
-
-/// One line naming the model as it is ([`trainer::describe`]): kind, form,
-/// T₀, and the ΔT windows of a set that is not a lag bank (whose filters
-/// the bank's own line lists).
-pub(super) fn describe(model: &Model) -> String {
-    let f = model.features();
-    let windows: Vec<String> = f
-        .filter_taus_s()
-        .iter()
-        .map(|t| trainer::summary::sig(f64::from(*t), 4))
-        .collect();
-    let d = trainer::describe::describe(model);
-    match f.set {
-        FeatureSet::LagBank(_) | FeatureSet::ResponseBank(_) => d.line(),
-        _ if windows.is_empty() => d.line(),
-        _ => format!("{}; ΔT windows {} s", d.line(), windows.join(", ")),
-    }
-}
-
-/// The loop temperature's range over the training runs, °C: the lag bank
-/// search's coverage (10-s means), or the model's first input's training
-/// range where that input is the loop temperature; `None` otherwise.
-fn training_loop_range_c(outcome: &FitOutcome) -> Option<(f64, f64)> {
-    if let Some(search) = &outcome.bank {
-        return Some(search.coverage.temp_range_c);
-    }
-    match outcome.model.features().set {
-        FeatureSet::Temp
-        | FeatureSet::TempRate
-        | FeatureSet::TempRateProduct
-        | FeatureSet::MultiScale
-        | FeatureSet::MultiScaleSecondOrder => {
-            let (lo, hi) = outcome.model.input_range(0)?;
-            Some((f64::from(lo), f64::from(hi)))
-        }
-        // A response bank's range is the loop temperature's over its training runs.
-        FeatureSet::ResponseBank(b) => Some((f64::from(b.range_min_c), f64::from(b.range_max_c))),
-        _ => None,
-    }
-}
-
-/// A model's inputs as `trainer inspect --json` and `trainer fit --json` give them.
-pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
-    let mut v = serde_json::json!({
-        "set": match f.set {
-            FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
-            FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
-            FeatureSet::LagBank(_) => "LagBank".to_owned(),
-            FeatureSet::ResponseBank(_) => "ResponseBank".to_owned(),
-            set => format!("{set:?}"),
-        },
-        "inputs": input_names(f.set),
-        "rate_window_s": f.rate_window_s,
-        "windows_s": f.filter_taus_s().as_slice(),
-        "warmup_s": f.warmup_s(),
-    });
-    // Only what the set has: no `null` beside another set's real value.
-    match f.set {
-        FeatureSet::MultiScaleLagged { coil_lag_min } => v["coil_lag_min"] = serde_json::json!(coil_lag_min),
-        FeatureSet::LagBank(b) => {
-            v["lag_bank"] = serde_json::json!({
-                "taus_s": b.taus(),
-                "coil_lag_min": b.coil_lags(),
-                "ref_c": b.ref_c,
-                "gain_per_c": b.gain_per_c,
-                "gain_per_c2": b.gain_per_c2,
-                "gain_of": gain_symbol(b.gain_of),
-                "static_degree": b.static_degree,
-                "coil_range_c": [b.coil_min_c, b.coil_max_c],
-            })
-        }
-        FeatureSet::ResponseBank(b) => {
-            v["response_bank"] = serde_json::json!({
-                "taus_s": b.taus(),
-                "ref_c": b.ref_c,
-                "temp_range_c": [b.range_min_c, b.range_max_c],
-                "static_degree": b.static_degree,
-                "weights": b.weights.iter().map(|row| &row[..b.filter_count()]).collect::<Vec<_>>(),
-            })
-        }
-        _ => {}
-    }
-    v
 }
 
 #[cfg(test)]

@@ -8,12 +8,12 @@ use rbf_core::blob::{self, BlobKind, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{file_problem, read_blob};
 use trainer::output::Existing;
-use trainer::summary::{count, sig};
+use trainer::describe::summary::{count, sig};
 use trainer::text;
 
 use super::common::{JsonArg, print_and_commit};
 use trainer::output::Transaction;
-use super::fit::features_json;
+use super::fit::json::features_json;
 use super::toml;
 
 /// Show what a model blob holds and whether it is intact.

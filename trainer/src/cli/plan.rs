@@ -41,7 +41,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = PlanFormat::SetPoints, help_heading = "Output")]
     format: PlanFormat,
     /// Candidate profiles scored, 1–1000 (more: a higher criterion, a longer design).
-    #[arg(long, value_name = "N", default_value_t = trainer::plan::DEFAULT_CANDIDATES,
+    #[arg(long, value_name = "N", default_value_t = trainer::plan::limits::DEFAULT_CANDIDATES,
           value_parser = RangedU64ValueParser::<usize>::new().range(1..=1000))]
     candidates: usize,
     /// Random seed of the candidates.
@@ -78,7 +78,8 @@ pub enum PlanFormat {
 
 /// Runs `trainer plan`.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    use trainer::plan::{PlanLimits, PlotFormat};
+    use trainer::plan::limits::PlanLimits;
+    use trainer::plan::plot::PlotFormat;
     let limits = PlanLimits {
         min_c: a.min_c,
         max_c: a.max_c,
@@ -113,7 +114,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         PlanFormat::SetPoints => plan.set_points_csv(),
         PlanFormat::Segments => plan.segments_csv(),
     };
-    let plot = plot_format.map(|f| trainer::plan::plot(&plan, f)).transpose()?;
+    let plot = plot_format.map(|f| trainer::plan::plot::plot(&plan, f)).transpose()?;
     let mut transaction = Transaction::new();
     for bytes in std::iter::once(text_out.into_bytes()).chain(plot) {
         let Some(target) = targets.next() else { break };

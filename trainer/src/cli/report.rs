@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use trainer::blobfile::read_model_file;
 use trainer::output::{StagedDir, Transaction};
-use trainer::{input, text};
+use trainer::{reading::input, text};
 
 use super::common::{AllowUncompensated, ForceArg, print_and_commit};
 use super::model_arg::ModelArg;

@@ -3,13 +3,13 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use trainer::limits::{
+use trainer::reading::limits::{
     MAX_PARAMS_BYTES, MAX_SIM_HOURS, MAX_SIM_OUTPUT_BYTES, MIN_RUN_ROWS, MIN_SAMPLE_RATE_HZ, SIM_BYTES_PER_FIELD,
 };
 use trainer::output::{self, Output, Transaction};
 use trainer::simulate::unit::Family;
 use trainer::simulate::{ChamberRun, ParamsError, Profile, SimParams};
-use trainer::{input, text};
+use trainer::{reading::input, text};
 
 use super::common::{ForceArg, print_and_commit};
 use super::values::ProfileArg;
@@ -243,7 +243,7 @@ fn check_extent(run: &ChamberRun, axes: Option<usize>, chamber_profile: Option<&
         estimate <= MAX_SIM_OUTPUT_BYTES,
         "the run would take about {:.1} GB ({rows} rows of {columns} columns); at most {} are written (the limit): shorten --hours or lower --sample-rate-hz",
         estimate as f64 / 1e9,
-        trainer::limits::bytes(MAX_SIM_OUTPUT_BYTES)
+        trainer::reading::limits::bytes(MAX_SIM_OUTPUT_BYTES)
     );
     Ok(())
 }

@@ -218,7 +218,7 @@ mod tests {
     use super::*;
     use crate::dataset::test_support::{multiscale, simulated_run};
     use crate::dataset::{RunFiles, RunSet, sample_block_means};
-    use crate::run::Run;
+    use crate::reading::run::samples::Run;
 
     #[test]
     fn lagged_blocks_derived_from_the_second_order_blocks_match_the_per_sample_features() {

@@ -28,10 +28,14 @@
 //!    bank) are derived from those without another pass (`derive.rs`,
 //!    [`block_source`], [`bank_blocks`]);
 //! 4. fits: [`crate::fit`] reads the blocks through [`RunSet::block_means`].
+//!
+//! The thermometers' pairwise gradients and their correlation with the bias
+//! (the RLG paper's input selection, `trainer correlate`) are [`gradients`].
 
 mod blocks;
 mod builder;
 mod derive;
+pub mod gradients;
 mod run_files;
 mod run_set;
 #[cfg(test)]

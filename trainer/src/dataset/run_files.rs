@@ -12,8 +12,9 @@ use super::blocks::Blocks;
 use super::builder::{BlockBuilder, MAX_BLOCKS_PER_RUN, filter_groups};
 use super::derive::slice_plain;
 use super::run_set::{RunSet, SampleVisit};
-use crate::chunked::Batch;
-use crate::run::{RunReader, StreamedRun};
+use crate::reading::chunked::Batch;
+use crate::reading::run::RunReader;
+use crate::reading::run::samples::StreamedRun;
 
 /// Run files read in streaming passes: only block means and running sums are
 /// ever held, whatever the file's length. One pass computes the blocks of
@@ -66,7 +67,7 @@ impl RunFiles {
     }
 
     /// A reader of `path` on this set's axis.
-    fn open(&self, path: &std::path::Path) -> Result<RunReader, crate::run::RunError> {
+    fn open(&self, path: &std::path::Path) -> Result<RunReader, crate::reading::run::rows::RunError> {
         let mut reader = RunReader::open(path)?;
         match self.axis {
             Some(axis) => reader.select_axis(axis)?,
@@ -275,7 +276,7 @@ mod tests {
     use crate::dataset::derive::plain_bank;
     use crate::dataset::sample_block_means;
     use crate::dataset::test_support::{multiscale, simulated_run};
-    use crate::run::Run;
+    use crate::reading::run::samples::Run;
     use rbf_core::lag_bank::LagBank;
 
     #[test]
@@ -454,7 +455,7 @@ mod tests {
         let (merged, d_merged) = fit(4096);
         assert_eq!((d_every, d_merged), (0, 3));
         for path in [&train, &held] {
-            let score = |m: &rbf_core::Model| crate::evaluate::evaluate_file(m, path, None).unwrap();
+            let score = |m: &rbf_core::Model| crate::evaluation::evaluate::evaluate_file(m, path, None).unwrap();
             let (a, b) = (score(&every), score(&merged));
             let (std_every, std_merged) = (a.cluster_std_after_dph, b.cluster_std_after_dph);
             assert!(

@@ -7,7 +7,7 @@ use rbf_core::{FeatureConfig, GyroSample};
 use super::blocks::Blocks;
 use super::builder::BlockBuilder;
 use super::derive::{block_source, derive_blocks};
-use crate::run::Run;
+use crate::reading::run::samples::Run;
 
 /// Runs the trainer learns from: in memory ([`Run`]) or streamed from files
 /// ([`RunFiles`](super::RunFiles)), seen through their block means.

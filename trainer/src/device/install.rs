@@ -25,7 +25,7 @@ use rbf_core::shared_basis::SharedAxisModels;
 
 use super::link::{Link, Message};
 use super::status::{self, UnitStatus};
-use crate::frames::Kind;
+use crate::reading::frames::Kind;
 use crate::text;
 
 /// How long the unit may take to answer an install: the worst-case 128-KiB
@@ -100,7 +100,7 @@ pub fn read_blob(path: &Path) -> anyhow::Result<CheckedBlob> {
     // A blob is at most MAX_BLOB_LEN bytes; a little more tells "too long" apart.
     let limit = (MAX_BLOB_LEN * 2) as u64;
     let mut bytes = Vec::new();
-    crate::input::open(path)
+    crate::reading::input::open(path)
         .and_then(|f| f.take(limit + 1).read_to_end(&mut bytes))
         .map_err(|e| anyhow::anyhow!("{shown}: cannot read: {e}"))?;
     anyhow::ensure!(

@@ -1,7 +1,7 @@
 //! The unit's UART as messages: `COBS(payload) 0x00` in both directions.
 //!
 //! In: output frames (single- or three-axis, rbf-core's decoders via
-//! [`crate::frames::Frame`]), command replies (2 bytes), the boot report of
+//! [`crate::reading::frames::Frame`]), command replies (2 bytes), the boot report of
 //! a fault or watchdog reset (11 bytes, tag 0xFB), the bench report (17
 //! bytes, tag 0x02) and the health report (76 bytes, tag 0xFC; the
 //! firmware's own [`HealthReport::from_bytes`]). Anything else is damage:
@@ -16,7 +16,7 @@ use firmware::fault::{BOOT_REPORT_LEN, BOOT_REPORT_TAG};
 use firmware::health::{HEALTH_REPORT_LEN, HEALTH_REPORT_TAG, HealthReport};
 use firmware::update::{MAX_COMMAND_FRAME_LEN, REPLY_LEN, cobs_decode_in_place};
 
-use crate::frames::Frame;
+use crate::reading::frames::Frame;
 
 /// Longest message the unit sends on the wire, COBS bytes without the 0x00
 /// (the health report: 72 payload bytes); anything longer is damage.

@@ -24,7 +24,7 @@ use rbf_core::Flags;
 
 use super::link::{Link, Message};
 use super::status::{self, UnitStatus};
-use crate::frames::{self, Frame, Kind};
+use crate::reading::frames::{self, Frame, Kind};
 use crate::simulate::profile::Schedule;
 
 /// Sample periods left out of `time_s` after a unit reset (more than the

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use firmware::health::{BOARD_ON_HSI, CMD_HEALTH, HealthReport, ResetCause};
 
 use super::link::{Link, Message};
-use crate::frames::{Kind, axes_of};
+use crate::reading::frames::{Kind, axes_of};
 
 /// How often an unanswered health command is sent again (a duplicate only
 /// brings another report; QEMU's pty may take a second to connect).

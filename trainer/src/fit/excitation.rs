@@ -15,7 +15,7 @@ pub const MIN_RATE_SPAN_C_PER_MIN: f64 = 0.2;
 
 /// Training data that cannot identify a model: what is missing (see
 /// [`check_excitation`]; `trainer fit` adds the causes it finds in the runs,
-/// [`crate::diagnose::with_causes`]).
+/// [`crate::evaluation::diagnose::with_causes`]).
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
 pub struct Unidentifiable(pub String);
@@ -47,7 +47,7 @@ pub fn check_excitation(blocks: &Blocks, set: FeatureSet, opts: &FitOptions) -> 
     if y_hi - y_lo < MIN_TARGET_SPREAD_DPH {
         missing.push(format!(
             "the bias target rate_dph − ref_dph is {} °/h in every block: no excitation to fit (is rate_dph the gyro output?)",
-            crate::sampling::sig(y_lo)
+            crate::reading::sampling::sig(y_lo)
         ));
     }
     let (lo, hi) = blocks.block_range(0);

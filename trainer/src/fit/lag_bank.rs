@@ -23,9 +23,9 @@ use rbf_core::lag_bank::{BANK_FILTERS, GainOf, LagBank};
 
 use super::coverage::Coverage;
 use super::events::{FoldKind, Folds, thermal_folds};
-use super::rbf::parallel_map;
 use super::{FitOptions, Progress};
 use crate::dataset::{Blocks, RunSet};
+use crate::parallel::parallel_map;
 
 /// The two filter ladders whose blocks one pass over the data builds, s:
 /// time constants 4× apart from 15 s and from 30 s. Every candidate is a

@@ -109,7 +109,7 @@ pub struct FitOptions {
     /// How `svr-pso` picks multi-point inputs: `None` = the subset of
     /// thermometers that validates best ([`thermometer_search`](super::thermometer_search)), else the RLG
     /// paper's correlation rule.
-    pub selection: Option<crate::gradients::Selection>,
+    pub selection: Option<crate::dataset::gradients::Selection>,
     /// `svr-pso` on multi-point runs: these inputs instead of a selection.
     pub inputs: Option<Vec<rbf_core::features::Probe>>,
     /// The default's choice: the response bank instead of the lag bank where

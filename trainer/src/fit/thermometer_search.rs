@@ -3,7 +3,7 @@
 //! correlation alone.
 //!
 //! The RLG paper keeps every temperature and gradient whose block means
-//! correlate with the bias at |r| ≥ 0.9 ([`crate::gradients`], still
+//! correlate with the bias at |r| ≥ 0.9 ([`crate::dataset::gradients`], still
 //! available as `--select-threshold` / `--select-top`). Correlation favours
 //! sensors that *lead* the fiber coil, such as chamber air or the mounting
 //! plate: on a 1 °C/min cycle their lead stands in for the Shupe rate term,
@@ -27,9 +27,10 @@ use rbf_core::MAX_INPUTS;
 
 use super::Progress;
 use super::linalg::{FeatureRow, GramStats, InputShape, design, farthest_points, ridge_solve};
-use super::rbf::{PARSIMONY, parallel_map};
+use super::rbf::PARSIMONY;
 use super::scoring::cluster_rms;
 use super::svr_data::SvrData;
+use crate::parallel::parallel_map;
 
 /// Gaussian centres of the stand-in network.
 const CENTRES: usize = 32;

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use super::{Existing, OutputExists, OutputReadOnly, cleanup, hidden_prefix, kind};
-use crate::{input, text};
+use crate::{reading::input, text};
 
 /// An output directory that passed [`check_dir_target`].
 #[derive(Clone, Debug)]

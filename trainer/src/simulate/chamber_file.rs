@@ -37,10 +37,10 @@ pub enum ChamberProfileError {
 }
 
 /// Reads the chamber profile in `path`, refused past
-/// [`crate::limits::MAX_PROFILE_BYTES`] without reading further.
+/// [`crate::reading::limits::MAX_PROFILE_BYTES`] without reading further.
 pub fn read_chamber_profile(path: &Path) -> Result<Schedule, ChamberProfileError> {
     use std::io::Read;
-    let limit = crate::limits::MAX_PROFILE_BYTES;
+    let limit = crate::reading::limits::MAX_PROFILE_BYTES;
     let io = |error| ChamberProfileError::Io {
         path: path.to_owned(),
         error,
@@ -52,7 +52,7 @@ pub fn read_chamber_profile(path: &Path) -> Result<Schedule, ChamberProfileError
     if text.len() as u64 > limit {
         return Err(io(std::io::Error::other(format!(
             "more than {limit} bytes; a chamber profile is at most {} (the limit)",
-            crate::limits::bytes(limit)
+            crate::reading::limits::bytes(limit)
         ))));
     }
     parse_chamber_profile(path, &text)

@@ -7,7 +7,7 @@
 //! Inputs: on runs with two or more thermometers (`temp_a` … `temp_h`), the
 //! paper's multi-point inputs: every temperature and pairwise gradient is a
 //! candidate, its 100-s block means are correlated with the bias
-//! ([`crate::gradients`], the paper's Table 3). By default the thermometers
+//! ([`crate::dataset::gradients`], the paper's Table 3). By default the thermometers
 //! are then chosen by validation ([`super::thermometer_search`]: correlation
 //! favours sensors whose lead over the coil does not carry to other ramp
 //! rates); with a correlation rule ([`FitOptions::selection`]) the paper's
@@ -39,7 +39,7 @@ use super::svr_data::SvrData;
 use super::thermometer_search::{self, SubsetScore};
 use super::{FitOptions, Progress, check_excitation, deploy_ranges, rbf, serial};
 use crate::dataset::RunSet;
-use crate::gradients::{self, Candidate, CorrelationTable, MultiBlocks};
+use crate::dataset::gradients::{self, Candidate, CorrelationTable, MultiBlocks};
 
 /// The deployed network's centre budget.
 fn centre_budget(opts: &FitOptions) -> usize {
@@ -143,7 +143,7 @@ pub fn fit<T: RunSet + ?Sized>(
         &lower,
         &upper,
         &pso_opts,
-        |swarm| rbf::parallel_map(swarm, |p| score(params_at(p))),
+        |swarm| crate::parallel::parallel_map(swarm, |p| score(params_at(p))),
         || progress.inc(),
     );
     progress.finish();

@@ -9,7 +9,7 @@ use std::io::{BufRead, BufReader, Read, Write};
 use rbf_core::axis::Axis;
 use rbf_core::frame::{self, AxesFrame, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
 
-use crate::limits::{MAX_FRAME_SEARCH_BYTES, bytes};
+use crate::reading::limits::{MAX_FRAME_SEARCH_BYTES, bytes};
 
 /// The CSV header `decode` writes.
 pub const CSV_HEADER: &str = "seq,rate_dph,bias_dph,rate_comp_dph,temp_c,flags";

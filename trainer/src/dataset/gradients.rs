@@ -14,7 +14,8 @@ use rbf_core::features::Probe;
 use rbf_core::record;
 
 use crate::dataset::Blocks;
-use crate::run::{RunError, RunReader};
+use crate::reading::run::RunReader;
+use crate::reading::run::rows::RunError;
 
 /// Column names of the thermometers, in the matrix's order.
 pub const THERMOMETERS: [&str; 8] = record::column::THERMOMETERS;

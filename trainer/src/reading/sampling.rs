@@ -5,7 +5,7 @@
 //! of one-sample segments, all warming up; it is refused instead, with the
 //! lines concerned and what was expected.
 
-use crate::limits::{MAX_SAMPLE_RATE_HZ, MIN_SAMPLE_RATE_HZ};
+use crate::reading::limits::{MAX_SAMPLE_RATE_HZ, MIN_SAMPLE_RATE_HZ};
 
 /// Consecutive time steps off the nominal period (over twice it, or under
 /// half) that mark a change of sample rate rather than a gap or jitter.

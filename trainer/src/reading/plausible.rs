@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use crate::sampling::sig;
+use crate::reading::sampling::sig;
 use crate::text;
 
 /// Coldest loop temperature a gyro in use or in a chamber sees, °C.

@@ -35,7 +35,7 @@ pub fn read_limited(path: &Path, limit: u64, what: &str) -> anyhow::Result<Vec<u
         anyhow::bail!(
             "{}: more than {limit} bytes; {what} is at most {} (the limit)",
             text::path(path),
-            crate::limits::bytes(limit)
+            crate::reading::limits::bytes(limit)
         );
     }
     Ok(bytes)

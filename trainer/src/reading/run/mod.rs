@@ -3,51 +3,38 @@
 //!
 //! Row parsing is [`rbf_core::record`] (shared with the firmware replay); this
 //! module adds files, line numbers, metadata, the strictly-increasing time
-//! check, the sample-rate checks of [`crate::sampling`], the limits of
-//! [`crate::limits`] and error messages of the form
+//! check, the sample-rate checks of [`crate::reading::sampling`], the limits of
+//! [`crate::reading::limits`] and error messages of the form
 //! `run.csv:1042: column rate_dph: "1.2.3" is not a number`.
 //!
 //! A run is read once, front to back: [`RunReader::open`] reads the
 //! metadata, the header and the first [`PERIOD_ESTIMATE_STEPS`] + 1 rows
 //! (the nominal period needs them) and hands those rows out again first, so
 //! pipes and FIFOs read like files.
+//!
+//! Three layers, each importing only the ones below: [`rows`] (the lines,
+//! the batch row parser and [`RunError`]), this module ([`RunReader`]), and
+//! [`samples`] (a whole run in memory, [`samples::Run`], or streamed,
+//! [`samples::StreamedRun`]).
 
 use std::collections::VecDeque;
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
 use rbf_core::axis::Axis;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
-use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row, RowErrorKind};
+use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row};
 use rbf_core::{CompensatorConfig, GyroSample};
 
-use crate::chunked::{self, Batch, Defect};
-use crate::limits::{MAX_COLUMNS, MAX_LINE_BYTES, MAX_PREAMBLE_BYTES, bytes};
-use crate::sampling::{self, PeriodSource, PeriodWatch};
-use crate::{input, text};
+use crate::reading::chunked::{self, Batch, Defect};
+use crate::reading::limits::{MAX_COLUMNS, MAX_LINE_BYTES, MAX_PREAMBLE_BYTES, bytes};
+use crate::reading::sampling::{self, PeriodSource, PeriodWatch};
+use crate::{reading::input, text};
 
-/// A defect in a run file, with its position.
-#[derive(Debug, thiserror::Error)]
-pub enum RunError {
-    /// The file could not be opened or read.
-    #[error("{}: {error}", text::path(.path))]
-    Io {
-        /// File concerned.
-        path: PathBuf,
-        /// Underlying error (in the message, so not chained again).
-        error: std::io::Error,
-    },
-    /// The content breaks the format.
-    #[error("{}:{line}: {message}", text::path(.path))]
-    Format {
-        /// File concerned.
-        path: PathBuf,
-        /// 1-based line number.
-        line: usize,
-        /// What is wrong, naming the column where there is one.
-        message: String,
-    },
-}
+pub mod rows;
+pub mod samples;
+
+use self::rows::*;
 
 /// Streams the rows of one run file, checking them as it goes.
 pub struct RunReader {
@@ -86,62 +73,6 @@ impl std::fmt::Debug for RunReader {
             .field("line", &self.line_no)
             .finish()
     }
-}
-
-/// One data row with its raw text (passed through by `compensate`).
-#[derive(Clone, Debug)]
-pub struct RawRow {
-    /// 1-based line number in the file.
-    pub line: usize,
-    /// The parsed known columns.
-    pub row: Row,
-    /// The line as read, without its line end.
-    pub text: String,
-}
-
-/// One line read through the line-length limit.
-enum Bounded {
-    /// The line's bytes are in the buffer (its `\n`, if any, removed).
-    Line,
-    /// The end of the input.
-    End,
-    /// The line exceeds [`MAX_LINE_BYTES`].
-    TooLong,
-}
-
-/// Reads one line of at most [`MAX_LINE_BYTES`] (plus its `\n`) into `buf`,
-/// reading no further than one byte past the limit.
-fn read_line_bounded(source: &mut (dyn BufRead + Send), buf: &mut Vec<u8>) -> std::io::Result<Bounded> {
-    buf.clear();
-    let read = source.take(MAX_LINE_BYTES as u64 + 1).read_until(b'\n', buf)?;
-    if read == 0 {
-        return Ok(Bounded::End);
-    }
-    if buf.last() == Some(&b'\n') {
-        buf.pop();
-    } else if buf.len() > MAX_LINE_BYTES {
-        return Ok(Bounded::TooLong);
-    }
-    Ok(Bounded::Line)
-}
-
-/// True when `line` (without its `\n`) holds a carriage return before its
-/// end: the file's lines end in CR alone.
-fn has_inner_cr(line: &[u8]) -> bool {
-    let body = line.strip_suffix(b"\r").unwrap_or(line);
-    memchr::memchr(b'\r', body).is_some()
-}
-
-/// The message for a file whose lines end in CR alone.
-const CR_ONLY: &str = "the file uses CR-only line endings (a carriage return, \\r, ends its lines, as on classic Mac OS); \
-     recorded runs end lines with \\n or \\r\\n: convert it, e.g. tr '\\r' '\\n' < in.csv > out.csv";
-
-/// The message for a line past [`MAX_LINE_BYTES`].
-fn too_long() -> String {
-    format!(
-        "line is longer than {} (the limit for one line; a recorded-run row is a few dozen bytes)",
-        bytes(MAX_LINE_BYTES as u64)
-    )
 }
 
 impl RunReader {
@@ -593,7 +524,7 @@ impl RunReader {
     }
 
     /// Hands every remaining data row to `consume` in batches, in file
-    /// order, parsed on every core ([`crate::chunked`]) with the checks and
+    /// order, parsed on every core ([`crate::reading::chunked`]) with the checks and
     /// the error messages of [`RunReader::next_row`]: a batch holds only rows
     /// that passed, and the error of the first that did not follows it.
     /// Returns the number of rows handed out.
@@ -699,345 +630,6 @@ impl RunReader {
             path: self.path.clone(),
             column_names: self.column_names.clone(),
         }
-    }
-}
-
-/// Parses a run's data lines by given columns, with the reader's error messages.
-#[derive(Clone, Debug)]
-pub struct RowParser {
-    path: PathBuf,
-    column_names: Vec<String>,
-}
-
-impl RowParser {
-    /// Parses the text of data line `line` with `columns`.
-    pub fn parse(&self, columns: &Columns, line: usize, text: &str) -> Result<Row, RunError> {
-        columns.parse_row(text).map_err(|e| self.error(line, text, e))
-    }
-
-    /// The error for row `text` of line `line`, naming its column and quoting its field.
-    fn error(&self, line: usize, text: &str, e: record::RowError) -> RunError {
-        let column = e.column.and_then(|i| self.column_names.get(i).map(|n| (i, n)));
-        let field = e
-            .column
-            .and_then(|i| text.split(',').nth(i))
-            .map(record::trim_field)
-            .unwrap_or("");
-        let message = match e.kind {
-            RowErrorKind::FieldCount { expected, found } => {
-                format!("row has {found} fields, the header has {expected}")
-            }
-            RowErrorKind::NotANumber if field.is_empty() => "field is empty, a number is required".to_owned(),
-            RowErrorKind::NotANumber => format!("\"{}\" is not a number", short(field)),
-            RowErrorKind::NonFinite => format!("\"{}\" is not a finite number", short(field)),
-            RowErrorKind::NotAFlag => format!("\"{}\" is not 0 or 1", short(field)),
-            RowErrorKind::OverRange => format!(
-                "\"{}\" is beyond ±{} °/h (1000 °/s), the range a recorded run may hold; is the column in °/h?",
-                short(field),
-                record::MAX_ABS_RATE_DPH
-            ),
-            _ => "unreadable row".to_owned(),
-        };
-        let message = match column {
-            Some((i, name)) => format!("column {} (field {}): {message}", text::escape_controls(name), i + 1),
-            None => message,
-        };
-        RunError::Format {
-            path: self.path.clone(),
-            line,
-            message,
-        }
-    }
-}
-
-/// Threads that parse a run's chunks: one per core.
-fn parse_workers() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
-}
-
-/// What one line of the data section is.
-enum Line {
-    /// Blank or a comment.
-    Skip,
-    /// A data row.
-    Row(Row),
-    /// A data row the format refuses.
-    Refused(record::RowError),
-    /// Bytes that are not UTF-8 text.
-    NotUtf8,
-}
-
-/// Classifies `line` (without its `\n`), copying its text (without a
-/// trailing `\r`) into `text` when `keep_text` or when it is refused.
-fn classify(columns: &Columns, line: &[u8], text: &mut String, keep_text: bool) -> Line {
-    let Ok(line) = std::str::from_utf8(line) else {
-        return Line::NotUtf8;
-    };
-    let line = line.strip_suffix('\r').unwrap_or(line);
-    if record::is_comment_or_blank(line) {
-        return Line::Skip;
-    }
-    let parsed = columns.parse_row_bytes(line.as_bytes());
-    if keep_text || parsed.is_err() {
-        text.clear();
-        text.push_str(line);
-    }
-    match parsed {
-        Ok(row) => Line::Row(row),
-        Err(e) => Line::Refused(e),
-    }
-}
-
-fn io_or_utf8(path: &Path, line: usize, e: std::io::Error) -> RunError {
-    if e.kind() == std::io::ErrorKind::InvalidData {
-        RunError::Format {
-            path: path.to_owned(),
-            line,
-            message: "line is not valid UTF-8 text".into(),
-        }
-    } else {
-        RunError::Io {
-            path: path.to_owned(),
-            error: e,
-        }
-    }
-}
-
-/// `s` for a message: at most 60 characters, control characters escaped.
-/// The message for a header without a required column: every required
-/// column it lacks, and the delimiter it uses when that is not a comma.
-fn missing_columns(header_line: &str, names: &[String]) -> String {
-    use rbf_core::record::column;
-    let has = |name: &str| names.iter().any(|n| n == name);
-    let mut missing = Vec::new();
-    if !has(column::TIME_S) {
-        missing.push(column::TIME_S.to_owned());
-    }
-    if !has(column::RATE_DPH) && !column::AXIS_RATES_DPH.iter().any(|r| has(r)) {
-        missing.push(format!(
-            "{} (or {})",
-            column::RATE_DPH,
-            column::AXIS_RATES_DPH.join(", ")
-        ));
-    }
-    let list = match missing.len() {
-        1 => format!("column {}", missing[0]),
-        _ => format!("columns {}", missing.join(" and ")),
-    };
-    let delimiter = [(';', "';'"), ('\t', "a tab"), ('|', "'|'")]
-        .into_iter()
-        .find(|(c, _)| !header_line.contains(',') && header_line.contains(*c));
-    match delimiter {
-        Some((c, name)) => format!(
-            "header has no required {list}: its fields are separated by {name}, not by commas (header: {}); \
-             the recorded-run format is comma-separated: convert the file, e.g. tr '{}' ',' (with decimal commas, \
-             turn them into points first)",
-            short(header_line),
-            c.escape_default()
-        ),
-        None => format!("header has no required {list} (header: {})", short(header_line)),
-    }
-}
-
-fn short(s: &str) -> String {
-    const MAX: usize = 60;
-    let s = if s.chars().count() <= MAX {
-        s.to_owned()
-    } else {
-        format!("{}…", s.chars().take(MAX).collect::<String>())
-    };
-    text::escape_controls(&s).into_owned()
-}
-
-/// A whole run in memory, column-wise.
-#[derive(Clone, Debug)]
-pub struct Run {
-    /// File it came from.
-    pub path: PathBuf,
-    /// Sample times, s.
-    pub time_s: Vec<f64>,
-    /// Gyro output, °/h.
-    pub rate_dph: Vec<f64>,
-    /// Loop temperature, °C (`None` where `temp_fault` = 1).
-    pub temp_c: Vec<Option<f64>>,
-    /// All thermometers `temp_a` … `temp_h` per row, °C (`None` where absent
-    /// or `temp_fault` = 1); empty unless the run has thermometers besides `temp_c`.
-    pub temps_c: Vec<[Option<f64>; THERMOMETERS]>,
-    /// The thermometer columns the run has (bit i = `temp_a` … `temp_h`).
-    pub thermometer_mask: u8,
-    /// Known true rate, °/h, if the run has the column.
-    pub ref_dph: Option<Vec<f64>>,
-    /// Nominal sample period, s (see [`record::nominal_period_s`]).
-    pub nominal_period_s: f64,
-}
-
-impl Run {
-    /// Reads a whole run that has a `temp_c` column or other thermometers.
-    pub fn load(path: &Path) -> Result<Run, RunError> {
-        Self::read(RunReader::open(path)?)
-    }
-
-    /// Reads the rest of a run from an open reader (the run needs a `temp_c`
-    /// column or other thermometers).
-    pub fn read(mut reader: RunReader) -> Result<Run, RunError> {
-        let path = reader.path().to_owned();
-        let thermometer_mask = reader.columns().thermometer_mask();
-        if thermometer_mask == 0 {
-            reader.require_temp()?;
-        }
-        let has_ref = reader.columns().ref_dph.is_some();
-        let multi_point = thermometer_mask & !(1 << LOOP_THERMOMETER) != 0;
-        let (mut time_s, mut rate_dph, mut temp_c, mut temps_c, mut ref_dph) = (vec![], vec![], vec![], vec![], vec![]);
-        while let Some((_, row)) = reader.next_parsed()? {
-            time_s.push(row.time_s);
-            rate_dph.push(row.rate_dph);
-            let readings = row.readings_c();
-            temp_c.push(readings[LOOP_THERMOMETER]);
-            if multi_point {
-                temps_c.push(readings);
-            }
-            if has_ref {
-                ref_dph.push(row.ref_dph.unwrap_or(0.0));
-            }
-        }
-        if time_s.len() < 2 {
-            return Err(RunError::Format {
-                path: path.to_owned(),
-                line: reader.line_number(),
-                message: format!("run has {} data rows; at least 2 are needed", time_s.len()),
-            });
-        }
-        Ok(Run {
-            path,
-            time_s,
-            rate_dph,
-            temp_c,
-            temps_c,
-            thermometer_mask,
-            ref_dph: has_ref.then_some(ref_dph),
-            nominal_period_s: reader.nominal_period_s(),
-        })
-    }
-
-    /// Number of samples.
-    pub fn len(&self) -> usize {
-        self.time_s.len()
-    }
-
-    /// True when the run has no samples.
-    pub fn is_empty(&self) -> bool {
-        self.time_s.is_empty()
-    }
-
-    /// The reference rate of sample `i`: `ref_dph`, or else the run's mean rate, °/h.
-    pub fn reference_dph(&self) -> Reference<'_> {
-        match &self.ref_dph {
-            Some(r) => Reference::Known(r),
-            None => Reference::Mean(self.rate_dph.iter().sum::<f64>() / self.len() as f64),
-        }
-    }
-
-    /// The compensator settings for this run's sample rate.
-    pub fn compensator_config(&self) -> CompensatorConfig {
-        CompensatorConfig::for_nominal_period_s(self.nominal_period_s)
-    }
-
-    /// Samples in rbf-core form, as the firmware receives them.
-    pub fn samples(&self) -> impl Iterator<Item = GyroSample> + '_ {
-        (0..self.len()).map(|i| {
-            let prev = i.checked_sub(1).map(|p| self.time_s[p]);
-            let readings = match self.temps_c.get(i) {
-                Some(all) => *all,
-                None => loop_only(self.temp_c[i]),
-            };
-            GyroSample::from_recorded(prev, self.time_s[i], self.rate_dph[i], &readings)
-        })
-    }
-}
-
-/// What a run's rate is compared against.
-#[derive(Clone, Copy, Debug)]
-pub enum Reference<'a> {
-    /// Per-sample known true rate (`ref_dph`).
-    Known(&'a [f64]),
-    /// No reference column: the run's mean rate (IFOG paper, step 2).
-    Mean(f64),
-}
-
-impl Reference<'_> {
-    /// Reference rate of sample `i`, °/h.
-    pub fn at(&self, i: usize) -> f64 {
-        match self {
-            Reference::Known(r) => r[i],
-            Reference::Mean(m) => *m,
-        }
-    }
-}
-
-/// Thermometer readings with only the loop temperature.
-fn loop_only(temp_c: Option<f64>) -> [Option<f64>; THERMOMETERS] {
-    let mut readings = [None; THERMOMETERS];
-    readings[LOOP_THERMOMETER] = temp_c;
-    readings
-}
-
-impl RawRow {
-    /// The gyro sample of this row (see [`GyroSample::from_recorded`]).
-    pub fn sample(&self, prev_time_s: Option<f64>) -> GyroSample {
-        GyroSample::from_recorded(prev_time_s, self.row.time_s, self.row.rate_dph, &self.row.readings_c())
-    }
-}
-
-/// Nominal period of a run file read in a first pass (for streaming commands).
-/// A run read in one streaming pass: its nominal period and reference are
-/// known up front, its samples are handed out one by one, parsed on a second
-/// thread (so parsing and computation overlap); nothing holds the whole run.
-pub struct StreamedRun {
-    /// Nominal sample period, s (see [`RunReader::nominal_period_s`]).
-    pub nominal_period_s: f64,
-    /// The run has a `ref_dph` column.
-    pub has_ref: bool,
-    reader: RunReader,
-}
-
-impl StreamedRun {
-    /// Opens a run that has the thermometer columns of `mask` (bit i =
-    /// `temp_a` … `temp_h`; single-point models read `temp_c`, see
-    /// [`rbf_core::FeatureSet::thermometer_mask`]).
-    pub fn open(path: &Path, mask: u8) -> Result<Self, RunError> {
-        Self::from_reader(RunReader::open(path)?, mask)
-    }
-
-    /// [`StreamedRun::open`] on an open reader.
-    pub fn from_reader(reader: RunReader, mask: u8) -> Result<Self, RunError> {
-        reader.require_thermometers(mask)?;
-        Ok(StreamedRun {
-            nominal_period_s: reader.nominal_period_s(),
-            has_ref: reader.columns().ref_dph.is_some(),
-            reader,
-        })
-    }
-
-    /// Feeds every data row and its gyro sample (as the firmware sees it) to
-    /// `each`, in order; returns the number of rows.
-    pub fn for_each(self, mut each: impl FnMut(&Row, &GyroSample)) -> anyhow::Result<usize> {
-        self.for_each_line(|_, row, sample| each(row, sample))
-    }
-
-    /// Hands the rows to `consume` in batches, in order (see
-    /// [`RunReader::for_each_batch`]); returns the number of rows.
-    pub fn for_each_batch(self, consume: impl FnMut(Batch)) -> anyhow::Result<usize> {
-        Ok(self.reader.for_each_batch(consume)?)
-    }
-
-    /// [`StreamedRun::for_each`] with each row's line number.
-    pub fn for_each_line(self, mut each: impl FnMut(usize, &Row, &GyroSample)) -> anyhow::Result<usize> {
-        let rows = self.reader.for_each_batch(|batch| {
-            for i in 0..batch.len() {
-                each(batch.line(i), &batch.row(i), &batch.sample(i));
-            }
-        })?;
-        Ok(rows)
     }
 }
 

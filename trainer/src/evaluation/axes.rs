@@ -1,9 +1,9 @@
 //! Multi-axis runs and models on the commands: which axes a set of runs
 //! carries, which model serves each axis of a run, and `compensate` /
 //! `eval` of every axis. Every axis count goes through the one path of
-//! [`crate::evaluate`] ([`RunModels`]: one entry per axis, or one shared basis).
+//! [`crate::evaluation::evaluate`] ([`RunModels`]: one entry per axis, or one shared basis).
 
-use crate::diagnose::RunDiagnosis;
+use crate::evaluation::diagnose::RunDiagnosis;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -14,13 +14,12 @@ use rbf_core::axis::Axis;
 use rbf_core::record::Columns;
 
 use crate::blobfile::{ModelFile, read_model_file};
-use crate::evaluate::{
-    Compensation, RunEvaluation, RunModels, compensate_reader, evaluate_reader, require_compensated, require_evaluable,
-};
+use crate::evaluation::compensate::{Compensation, compensate_reader};
+use crate::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_reader, require_compensated, require_evaluable};
 use crate::output::{self, Existing, Output};
-use crate::plausible::require_plausible;
-use crate::run::RunReader;
-use crate::{input, text};
+use crate::reading::plausible::require_plausible;
+use crate::reading::run::RunReader;
+use crate::{reading::input, text};
 
 /// Axis names as a message lists them, e.g. `x, y, z`.
 pub fn names(axes: &[Axis]) -> String {
@@ -119,7 +118,7 @@ pub fn shared_axes_for_run(
 pub struct Acceptance {
     /// A run where no row could be compensated (`--allow-uncompensated`).
     pub uncompensated: bool,
-    /// A run implausible as a gyro recording ([`crate::plausible`], `--allow-implausible`).
+    /// A run implausible as a gyro recording ([`crate::reading::plausible`], `--allow-implausible`).
     pub implausible: bool,
 }
 
@@ -142,7 +141,7 @@ pub type AxisCompensations = Vec<(Option<Axis>, Compensation)>;
 /// target against the inputs and `existing`, the model, the run's header);
 /// the output appears only when the whole run is written, and not at all
 /// when an axis had no row compensated or the run is implausible
-/// ([`crate::plausible`]), unless `accept` says so.
+/// ([`crate::reading::plausible`]), unless `accept` says so.
 /// Returns what each axis's compensation did and the output, written but
 /// not yet committed (the caller prints, then commits).
 pub fn compensate_command(
@@ -165,7 +164,7 @@ pub fn compensate_command(
         .with_context(|| format!("{}: cannot write", text::path(output)))?;
     // Errors of the run name it and the line; write errors name the output.
     let done = compensate_reader(&models, reader, &mut out).map_err(|e| {
-        if e.is::<crate::run::RunError>() {
+        if e.is::<crate::reading::run::rows::RunError>() {
             e
         } else {
             e.context(text::path(output))

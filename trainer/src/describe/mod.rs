@@ -1,6 +1,9 @@
 //! A model described as it is, from the model itself: its kind, its form,
 //! its inputs with units and its reference temperature T₀. `trainer fit`,
-//! `trainer inspect` and report.md print these same words.
+//! `trainer inspect` and report.md print these same words. Its [`summary`]
+//! gives the tidy numbers and counts those words are made of.
+
+pub mod summary;
 
 use rbf_core::Model;
 use rbf_core::features::FeatureSet;
@@ -9,7 +12,7 @@ use rbf_core::model::ModelBody;
 use rbf_core::response_bank::ResponseBank;
 use serde::Serialize;
 
-use crate::summary::{count, sig};
+use crate::describe::summary::{count, sig};
 
 /// What a model is, in words.
 #[derive(Clone, Debug, PartialEq, Serialize)]

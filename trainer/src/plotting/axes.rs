@@ -224,7 +224,7 @@ pub fn tick_label(v: &f64) -> String {
     if v.abs() < 1e-12 {
         return "0".to_owned();
     }
-    let label = crate::summary::sig(*v, 4);
+    let label = crate::describe::summary::sig(*v, 4);
     // Exponent form keeps its digits (tables align them); a tick label drops them.
     match label.split_once('e') {
         Some((mantissa, exponent)) if mantissa.contains('.') => {

@@ -17,7 +17,7 @@ use rbf_core::GyroSample;
 use rbf_core::features::THERMOMETERS;
 use rbf_core::record::{self, Columns, Row, RowError};
 
-use crate::limits::MAX_LINE_BYTES;
+use crate::reading::limits::MAX_LINE_BYTES;
 
 /// Bytes of text one parsing job takes (a little more: the chunk runs to
 /// the next line end).

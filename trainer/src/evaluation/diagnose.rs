@@ -10,9 +10,10 @@ use rbf_core::CompensatorConfig;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self as record, Columns, Row, column};
 
-use crate::plausible::Plausibility;
-use crate::run::{RunError, RunReader};
-use crate::sampling::sig;
+use crate::reading::plausible::Plausibility;
+use crate::reading::run::RunReader;
+use crate::reading::run::rows::RunError;
+use crate::reading::sampling::sig;
 use crate::text;
 
 /// Least and greatest of a column's values and how many there were.

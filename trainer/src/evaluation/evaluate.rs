@@ -1,26 +1,24 @@
 //! Compensation of whole runs and their before/after accuracy.
 
-use std::io::Write;
 use std::path::Path;
 
-use anyhow::Context;
 use rbf_core::axis::Axis;
 use rbf_core::features::LOOP_THERMOMETER;
-use rbf_core::record::{self, Columns};
+use rbf_core::record::Columns;
 use rbf_core::shared_basis::SharedAxisModels;
 use rbf_core::{
     CompensatedSample, Compensator, CompensatorConfig, FeatureVector, Flags, GyroSample, MAX_INPUTS, Model,
 };
 use serde::Serialize;
 
-use crate::allan::{self, AllanDeviation};
-use crate::chunked::Batch;
 use crate::dataset::Blocks;
-use crate::diagnose::RunDiagnosis;
+use crate::evaluation::allan::{self, AllanDeviation};
+use crate::evaluation::diagnose::RunDiagnosis;
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
-use crate::output::{Existing, Output};
-use crate::run::{Run, RunReader};
-use crate::{decimal, text};
+use crate::reading::chunked::Batch;
+use crate::reading::run::RunReader;
+use crate::reading::run::samples::Run;
+use crate::text;
 
 /// How many samples carried each flag.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -60,7 +58,7 @@ impl FlagCounts {
         }
     }
 
-    fn add(&mut self, flags: Flags, samples: usize) {
+    pub(super) fn add(&mut self, flags: Flags, samples: usize) {
         let count = |bit: Flags| if flags.contains(bit) { samples } else { 0 };
         self.input_clamped += count(Flags::INPUT_CLAMPED);
         self.temp_sensor_fault += count(Flags::TEMP_SENSOR_FAULT);
@@ -271,7 +269,7 @@ pub fn evaluate_blocks_with(
 }
 
 /// The models a run's axes are compensated with, whatever their count: what
-/// [`evaluate_reader`] and [`compensate_reader`] take. A single-axis run is one
+/// [`evaluate_reader`] and [`compensate_reader`](super::compensate::compensate_reader) take. A single-axis run is one
 /// [`RunModels::PerAxis`] entry on the reader's own columns ([`RunModels::one`]).
 #[derive(Clone, Debug)]
 pub enum RunModels<'m> {
@@ -297,7 +295,7 @@ impl<'m> RunModels<'m> {
     }
 
     /// Each axis's columns, in output order.
-    fn columns(&self) -> Vec<Columns> {
+    pub(super) fn columns(&self) -> Vec<Columns> {
         match self {
             RunModels::PerAxis(axes) => axes.iter().map(|(_, c)| *c).collect(),
             RunModels::Shared { axes, .. } => axes.iter().map(|(_, c)| *c).collect(),
@@ -322,7 +320,7 @@ impl<'m> RunModels<'m> {
     }
 
     /// A fresh stepper: filter state for every axis, none of it warmed up.
-    fn stepper(&self) -> Stepper<'m> {
+    pub(super) fn stepper(&self) -> Stepper<'m> {
         match self {
             RunModels::PerAxis(axes) => Stepper::PerAxis(axes.iter().map(|(m, _)| (*m, Compensator::new())).collect()),
             RunModels::Shared { models, axes } => Stepper::Shared {
@@ -368,7 +366,7 @@ pub fn require_shared_thermometer(reader: &RunReader, columns: &[Columns], mask:
     clippy::large_enum_variant,
     reason = "one stepper per run, built once: the shared variant's compensator (its filter state) is not worth a box"
 )]
-enum Stepper<'m> {
+pub(super) enum Stepper<'m> {
     /// Per axis, in the order of the columns: its model (`None`:
     /// uncompensated) and its compensator.
     PerAxis(Vec<(Option<&'m Model>, Compensator)>),
@@ -382,7 +380,7 @@ enum Stepper<'m> {
 
 impl Stepper<'_> {
     /// One row's step: per axis (in the columns' order) its output into `out`.
-    fn step(
+    pub(super) fn step(
         &mut self,
         config: &CompensatorConfig,
         rows: &[(rbf_core::record::Row, GyroSample)],
@@ -438,7 +436,7 @@ fn evaluate_stepped(
     let parser = reader.row_parser();
     let mut rows = Vec::with_capacity(columns.len());
     let mut outputs = Vec::with_capacity(columns.len());
-    let mut refused: Option<crate::run::RunError> = None;
+    let mut refused: Option<crate::reading::run::rows::RunError> = None;
     reader.for_each_batch(|batch| {
         for i in 0..batch.len() {
             if refused.is_some() {
@@ -470,13 +468,13 @@ fn evaluate_stepped(
 /// own columns, the row as parsed), with its gyro sample, into `out`; the
 /// others' samples take the first's time step. A refused field's error
 /// names the file, line and column.
-fn rows_of_axes(
-    parser: &crate::run::RowParser,
+pub(super) fn rows_of_axes(
+    parser: &crate::reading::run::rows::RowParser,
     columns: &[Columns],
     batch: &Batch,
     i: usize,
     out: &mut Vec<(rbf_core::record::Row, GyroSample)>,
-) -> Result<(), crate::run::RunError> {
+) -> Result<(), crate::reading::run::rows::RunError> {
     out.clear();
     let first = (batch.row(i), batch.sample(i));
     out.push(first);
@@ -623,337 +621,11 @@ impl Evaluator {
     }
 }
 
-/// Writes a before/after table, one line per (role, evaluation).
-/// A row per run, or per run and axis when a row names an axis (a multi-axis
-/// run: the axis follows the run's name).
-pub fn print_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std::io::Result<()> {
-    writeln!(
-        out,
-        "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7} {:>8}",
-        "role",
-        "run",
-        axis_cell(rows, Some("axis")),
-        "MSD before",
-        "MSD after",
-        "gain",
-        "STD100 bef",
-        "STD100 aft",
-        "gain",
-        "clamped"
-    )?;
-    writeln!(
-        out,
-        "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7} {:>8}",
-        "",
-        "",
-        axis_cell(rows, Some("")),
-        "[°²/h²]",
-        "[°²/h²]",
-        "[%]",
-        "[°/h]",
-        "[°/h]",
-        "[%]",
-        "[%]"
-    )?;
-    for (role, e) in rows {
-        writeln!(
-            out,
-            "{:<10} {:<28}{} {:>11} {:>11} {:>7}  {:>11} {:>11} {:>7} {:>8}",
-            role,
-            table_name(&e.run),
-            axis_cell(rows, e.axis),
-            figure(e.msd_before_dph2, |v| format!("{v:.4e}")),
-            figure(e.msd_after_dph2, |v| format!("{v:.4e}")),
-            figure(e.msd_improvement_pct, |v| format!("{v:.1}")),
-            figure(e.cluster_std_before_dph, |v| format!("{v:.4e}")),
-            figure(e.cluster_std_after_dph, |v| format!("{v:.4e}")),
-            figure(e.cluster_std_improvement_pct, |v| format!("{v:.1}")),
-            figure(e.clamped_pct(), |v| format!("{v:.1}"))
-        )?;
-    }
-    if rows.iter().any(|(_, e)| e.clamped_pct() > 0.0) {
-        writeln!(
-            out,
-            "(clamped: samples whose inputs lay outside the model's training range, held at its edge (flag 1): \
-             there the model extrapolates)"
-        )?;
-    }
-    for (_, e) in rows.iter().filter(|(_, e)| e.reference == RUN_MEAN) {
-        writeln!(
-            out,
-            "({}{}: no ref_dph column; the reference is the run's mean rate, so a constant bias is not seen)",
-            table_name(&e.run),
-            e.axis.map_or(String::new(), |a| format!(" axis {a}"))
-        )?;
-    }
-    let short = |e: &RunEvaluation| {
-        [
-            e.msd_before_dph2,
-            e.msd_after_dph2,
-            e.cluster_std_before_dph,
-            e.cluster_std_after_dph,
-        ]
-        .iter()
-        .any(|v| !v.is_finite())
-    };
-    if rows.iter().any(|(_, e)| short(e)) {
-        writeln!(
-            out,
-            "(—: not enough data for the figure: STD100 needs two 100-s clusters at least half full, a gain both figures)"
-        )?;
-    }
-    if let Some((_, e)) = rows.iter().find(|(_, e)| e.basis.ends_with(BLOCK_MEANS)) {
-        let merged = if e.basis == BLOCK_MEANS {
-            String::new()
-        } else {
-            format!(
-                " (--block-s blocks merged in pairs: a run past {} blocks has them merged)",
-                crate::dataset::MAX_BLOCKS_PER_RUN
-            )
-        };
-        writeln!(
-            out,
-            "(train: scored on the fit's {}{merged}, warm-up left out; `trainer eval` scores every sample)",
-            e.basis
-        )?;
-    }
-    Ok(())
-}
-
-/// The axis column of a table row: absent (empty) unless some row names an axis.
-fn axis_cell(rows: &[(&str, &RunEvaluation)], text: Option<&str>) -> String {
-    if rows.iter().any(|(_, e)| e.axis.is_some()) {
-        format!(" {:<4}", text.unwrap_or(""))
-    } else {
-        String::new()
-    }
-}
-
-/// Writes the Allan read-offs (ARW, bias instability), one line per (role, evaluation).
-pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std::io::Result<()> {
-    writeln!(
-        out,
-        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>7} {:>4}",
-        "role",
-        "run",
-        axis_cell(rows, Some("axis")),
-        "ARW before",
-        "ARW after",
-        "BI before",
-        "BI after",
-        "at τ",
-        "±"
-    )?;
-    writeln!(
-        out,
-        "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>7} {:>4}",
-        "",
-        "",
-        axis_cell(rows, Some("")),
-        "[°/√h]",
-        "[°/√h]",
-        "[°/h]",
-        "[°/h]",
-        "[s]",
-        "[%]"
-    )?;
-    for (role, e) in rows {
-        let after = &e.allan_after;
-        writeln!(
-            out,
-            "{:<10} {:<28}{} {:>11} {:>11}  {:>11} {:>11} {:>7} {:>4}",
-            role,
-            table_name(&e.run),
-            axis_cell(rows, e.axis),
-            figure(e.allan_before.arw_deg_per_sqrt_h, |v| format!("{v:.3e}")),
-            figure(after.arw_deg_per_sqrt_h, |v| format!("{v:.3e}")),
-            e.allan_before.bias_instability_cell(),
-            after.bias_instability_cell(),
-            figure(after.floor_tau_s, |v| format!("{v:.0}")),
-            figure(after.floor_uncertainty_pct, |v| format!("{v:.0}"))
-        )?;
-    }
-    writeln!(out, "({}; at τ and ± of BI after)", allan::FLOOR_RULE)?;
-    if rows
-        .iter()
-        .any(|(_, e)| !e.allan_after.bias_instability_dph.is_finite())
-    {
-        writeln!(out, "(—: the run is too short for an Allan deviation)")?;
-    }
-    Ok(())
-}
-
-/// A table cell: `v` as `show` writes it, or "—" when there is no figure
-/// (NaN or ±∞: too few samples or clusters), never "NaN".
-pub(crate) fn figure(v: f64, show: impl Fn(f64) -> String) -> String {
-    if v.is_finite() { show(v) } else { "—".to_owned() }
-}
-
-/// A run's file name, shortened from the left to fit the table's column.
-fn table_name(run: &str) -> String {
-    let name = Path::new(run)
-        .file_name()
-        .map_or(run.to_owned(), |n| n.to_string_lossy().into_owned());
-    truncate(&name, 28)
-}
-
-fn truncate(s: &str, max: usize) -> String {
-    if s.chars().count() <= max {
-        s.to_owned()
-    } else {
-        format!(
-            "…{}",
-            s.chars()
-                .rev()
-                .take(max - 1)
-                .collect::<Vec<_>>()
-                .into_iter()
-                .rev()
-                .collect::<String>()
-        )
-    }
-}
-
-/// How compensating a run went.
-#[derive(Clone, Debug)]
-pub struct Compensation {
-    /// Rows written, one per input row.
-    pub rows: usize,
-    /// Samples per flag.
-    pub flagged: FlagCounts,
-    /// Rows whose output is compensated (no flag 4).
-    pub compensated: usize,
-    /// What the rows showed, to explain an output with nothing compensated.
-    pub diagnosis: RunDiagnosis,
-}
-
-/// Streams the rows of `reader` through the compensator of each axis of `models` into `out`
-/// (recorded-run format, input lines passed through as read, one output row per input row):
-/// per axis `bias_dph`, `rate_comp_dph`, `flags` appended, named for the axis on a
-/// multi-axis run, in `models`' order ([`record::write_compensated_header`]). Returns what
-/// each axis's compensation did, in that order.
-pub fn compensate_reader(
-    models: &RunModels<'_>,
-    reader: RunReader,
-    out: &mut (impl Write + Send),
-) -> anyhow::Result<Vec<Compensation>> {
-    models.require_thermometers(&reader)?;
-    compensate_stepped(models.stepper(), &models.columns(), reader, out)
-}
-
-/// The compensation loop of [`compensate_reader`].
-fn compensate_stepped(
-    mut stepper: Stepper<'_>,
-    columns: &[Columns],
-    reader: RunReader,
-    out: &mut (impl Write + Send),
-) -> anyhow::Result<Vec<Compensation>> {
-    let n = columns.len();
-    let config = CompensatorConfig::for_nominal_period_s(reader.nominal_period_s());
-    let mut c: Vec<Compensation> = columns
-        .iter()
-        .map(|columns| Compensation {
-            rows: 0,
-            flagged: FlagCounts::default(),
-            compensated: 0,
-            diagnosis: RunDiagnosis::new(reader.path(), reader.nominal_period_s())
-                .named_by(reader.header_line(), columns),
-        })
-        .collect();
-    let io = |e: std::io::Error| anyhow::Error::new(e).context("write failed");
-    for line in reader.preamble() {
-        writeln!(out, "{line}").map_err(io)?;
-    }
-    let mut header = String::new();
-    record::write_compensated_header(&mut header, reader.header_line(), reader.columns())?;
-    out.write_all(header.as_bytes()).map_err(io)?;
-    let parser = reader.row_parser();
-    let mut rows = Vec::with_capacity(n);
-    let mut step = Vec::with_capacity(n);
-    let mut refused: Option<crate::run::RunError> = None;
-    // The rows are parsed on every core, compensated in order here, and
-    // formatted and written on a thread of their own, a batch at a time.
-    let (tx, rx) = std::sync::mpsc::sync_channel::<(Batch, Vec<CompensatedSample>)>(4);
-    std::thread::scope(|scope| {
-        let writer = scope.spawn(move || -> std::io::Result<()> {
-            let mut text = Vec::new();
-            for (batch, outputs) in rx {
-                text.clear();
-                for (i, row) in outputs.chunks_exact(n).enumerate() {
-                    push_compensated_row(&mut text, batch.line_text(i), row);
-                }
-                out.write_all(&text)?;
-            }
-            Ok(())
-        });
-        let mut writing = true;
-        let read = reader.for_each_batch(|batch| {
-            if refused.is_some() {
-                return;
-            }
-            let mut outputs = Vec::with_capacity(batch.len() * n);
-            for i in 0..batch.len() {
-                if let Err(e) = rows_of_axes(&parser, columns, &batch, i, &mut rows) {
-                    refused = Some(e);
-                    break;
-                }
-                stepper.step(&config, &rows, &mut step);
-                for ((axis, (row, _)), &o) in c.iter_mut().zip(&rows).zip(&step) {
-                    axis.flagged.add(o.flags, 1);
-                    axis.compensated += usize::from(!o.flags.contains(Flags::NO_VALID_MODEL));
-                    axis.diagnosis.push(batch.line(i), row);
-                    axis.rows += 1;
-                    outputs.push(o);
-                }
-            }
-            // A failed write stops the writer; its error is reported below.
-            writing = writing && tx.send((batch, outputs)).is_ok();
-        });
-        drop(tx);
-        let written = writer
-            .join()
-            .map_err(|_| anyhow::anyhow!("the output writer thread panicked"))?;
-        read?;
-        if let Some(e) = refused.take() {
-            return Err(e.into());
-        }
-        written.map_err(io)
-    })?;
-    Ok(c)
-}
-
-/// Appends one compensated output row of one or more axes: the input line as read, then
-/// `bias`, `rate_comp` and `flags` of each sample in axis order and a `\n`, byte for byte
-/// what [`record::write_compensated_row`] (the firmware replay's writer) writes, without
-/// its formatter (a long run's compensation is mostly this).
-pub fn push_compensated_row(out: &mut Vec<u8>, input_line: &[u8], samples: &[CompensatedSample]) {
-    out.extend_from_slice(input_line);
-    for sample in samples {
-        out.push(b',');
-        decimal::push_f32(out, sample.bias_dph);
-        out.push(b',');
-        decimal::push_f32(out, sample.rate_comp_dph);
-        out.push(b',');
-        decimal::push_u8(out, sample.flags.bits());
-    }
-    out.push(b'\n');
-}
-
-/// Streams `input` through the compensator into `output` (replacing it;
-/// see [`compensate_reader`]); returns the row and flag counts.
-pub fn compensate_file(model: Option<&Model>, input: &Path, output: &Path) -> anyhow::Result<(usize, FlagCounts)> {
-    let mut out = Output::create(output, &[input], Existing::Replace)?;
-    let reader = RunReader::open(input)?;
-    let c = compensate_reader(&RunModels::one(model, &reader), reader, &mut out)
-        .and_then(only_axis)
-        .with_context(|| format!("{}: compensating {}", text::path(output), text::path(input)))?;
-    out.commit()?;
-    Ok((c.rows, c.flagged))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::evaluation::compensate::push_compensated_row;
+    use rbf_core::record;
 
     #[test]
     fn a_fit_s_block_mean_scores_agree_with_scoring_every_sample() {

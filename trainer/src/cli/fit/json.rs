@@ -1,0 +1,75 @@
+//! The JSON report of `trainer fit` (`--json`): the fit's outcome, its runs' figures
+//! and the model's feature configuration (which `trainer inspect --json` shares).
+
+use rbf_core::{FeatureConfig, FeatureSet};
+use trainer::evaluation::evaluate::RunEvaluation;
+use trainer::describe::gain_symbol;
+use trainer::fit::FitOutcome;
+
+use super::super::common::input_names;
+
+/// What a fit chose, as `trainer fit --json` writes it (one axis).
+pub(super) fn outcome_json(o: &FitOutcome) -> serde_json::Value {
+    serde_json::json!({
+        "choice": o.choice,
+        "feature_sets": o.sets,
+        "lag_bank_search": o.bank,
+        "structure": o.structure,
+        "predicted_in_use_std100_dph": o.predicted_in_use_std100_dph(),
+        "training_std100_dph": o.training_std100_dph,
+        "features": features_json(o.model.features()),
+        "svr": o.svr,
+    })
+}
+
+/// The table's evaluations, as `trainer fit --json` writes them.
+pub(super) fn runs_json(evals: &[(&str, RunEvaluation)]) -> serde_json::Value {
+    evals
+        .iter()
+        .map(|(role, e)| serde_json::json!({"role": role, "evaluation": e}))
+        .collect()
+}
+
+/// A model's inputs as `trainer inspect --json` and `trainer fit --json` give them.
+pub fn features_json(f: &FeatureConfig) -> serde_json::Value {
+    let mut v = serde_json::json!({
+        "set": match f.set {
+            FeatureSet::MultiPoint(_) => "MultiPoint".to_owned(),
+            FeatureSet::MultiScaleLagged { .. } => "MultiScaleLagged".to_owned(),
+            FeatureSet::LagBank(_) => "LagBank".to_owned(),
+            FeatureSet::ResponseBank(_) => "ResponseBank".to_owned(),
+            set => format!("{set:?}"),
+        },
+        "inputs": input_names(f.set),
+        "rate_window_s": f.rate_window_s,
+        "windows_s": f.filter_taus_s().as_slice(),
+        "warmup_s": f.warmup_s(),
+    });
+    // Only what the set has: no `null` beside another set's real value.
+    match f.set {
+        FeatureSet::MultiScaleLagged { coil_lag_min } => v["coil_lag_min"] = serde_json::json!(coil_lag_min),
+        FeatureSet::LagBank(b) => {
+            v["lag_bank"] = serde_json::json!({
+                "taus_s": b.taus(),
+                "coil_lag_min": b.coil_lags(),
+                "ref_c": b.ref_c,
+                "gain_per_c": b.gain_per_c,
+                "gain_per_c2": b.gain_per_c2,
+                "gain_of": gain_symbol(b.gain_of),
+                "static_degree": b.static_degree,
+                "coil_range_c": [b.coil_min_c, b.coil_max_c],
+            })
+        }
+        FeatureSet::ResponseBank(b) => {
+            v["response_bank"] = serde_json::json!({
+                "taus_s": b.taus(),
+                "ref_c": b.ref_c,
+                "temp_range_c": [b.range_min_c, b.range_max_c],
+                "static_degree": b.static_degree,
+                "weights": b.weights.iter().map(|row| &row[..b.filter_count()]).collect::<Vec<_>>(),
+            })
+        }
+        _ => {}
+    }
+    v
+}

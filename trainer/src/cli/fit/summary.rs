@@ -1,0 +1,283 @@
+//! The fit summary `trainer fit` prints (and writes to fit.txt with --report): the
+//! model in words, the structure choice, the lag bank's search, the training range.
+
+use std::io::Write;
+
+use rbf_core::{FeatureSet, Model};
+use trainer::describe::gain_text;
+use trainer::fit::{self, FitOutcome};
+
+use super::super::common::{describe_selection, rule_name};
+
+/// How the fit was asked to choose, for the summary's wording.
+pub struct FitHow {
+    /// Whether --validate runs chose the hyper-parameters.
+    pub with_validate_runs: bool,
+    /// Contiguous folds per run otherwise.
+    pub folds: usize,
+    /// Whether the multi-point inputs were named (--inputs).
+    pub named_inputs: bool,
+    /// The correlation rule asked for, if any.
+    pub selection: Option<trainer::dataset::gradients::Selection>,
+}
+
+/// The default's structure choice, as `trainer fit` prints it: both
+/// structures' training residuals and held-out scores beside the runs'
+/// noise floor, or why the response bank was not tried.
+pub(super) fn write_structure(out: &mut impl Write, s: &fit::response::StructureChoice) -> anyhow::Result<()> {
+    let floor = match s.noise_floor_std100_dph {
+        Some(floor) => format!(
+            "; the runs' noise floor {floor:.4e} °/h ({:.2}× of it left)",
+            s.lag_bank_std100_dph / floor
+        ),
+        None => String::new(),
+    };
+    match (s.response_bank_std100_dph, s.response_bank_held_out_rms_dph) {
+        (Some(response), Some(response_held_out)) => writeln!(
+            out,
+            "structure: residual STD100 on the training runs {:.4e} °/h with the lag bank, {response:.4e} °/h with the response bank (ratio {:.2}){floor}; held-out events {:.4e} and {response_held_out:.4e} °/h (the response bank is taken below a ratio of {} when it also predicts held-out events better): {}",
+            s.lag_bank_std100_dph,
+            response / s.lag_bank_std100_dph,
+            s.lag_bank_held_out_rms_dph,
+            fit::response::RESPONSE_BANK_MARGIN,
+            if s.response_bank { "response bank" } else { "lag bank" }
+        )?,
+        _ => writeln!(
+            out,
+            "structure: lag bank; residual STD100 on the training runs {:.4e} °/h{floor}: no bank gets {} of it below {} of the floor, so the response bank was not tried",
+            s.lag_bank_std100_dph,
+            fit::response::RESPONSE_BANK_MARGIN,
+            fit::response::NOISE_FLOOR_SHARE,
+        )?,
+    }
+    Ok(())
+}
+
+/// The fit's choices as `trainer fit` prints them above its accuracy table.
+pub fn write_summary(
+    out: &mut impl Write,
+    outcome: &FitOutcome,
+    how: &FitHow,
+) -> anyhow::Result<()> {
+    writeln!(out, "model: {}", describe(&outcome.model))?;
+    if let Some(s) = &outcome.structure {
+        write_structure(out, s)?;
+    }
+    if let (Some(predicted), Some(factor), Some(training)) = (
+        outcome.predicted_in_use_std100_dph(),
+        outcome.forecast_factor(),
+        outcome.training_std100_dph,
+    ) {
+        writeln!(
+            out,
+            "predicted residual STD100 in use {predicted:.4e} °/h ({factor}× the training residual {training:.4e} °/h)"
+        )?;
+    }
+    let response_chosen = outcome.structure.as_ref().is_some_and(|s| s.response_bank);
+    if let Some(c) = outcome.choice.as_ref().filter(|_| !response_chosen) {
+        writeln!(
+            out,
+            "chosen on {}: {}{}ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
+            if how.with_validate_runs {
+                "--validate runs".into()
+            } else if let Some(search) = &outcome.bank {
+                format!("the same {} folds as the bank's structure", search.fold_count)
+            } else {
+                format!("{}-fold contiguous validation", how.folds.max(2))
+            },
+            // The lag bank's filters are its structure (printed below), not one window.
+            if outcome.bank.is_some() {
+                String::new()
+            } else {
+                format!("ΔT window {} s, ", c.rate_window_s)
+            },
+            // No Gaussians (the lag bank's default): no width to speak of.
+            if c.centers == 0 {
+                String::new()
+            } else {
+                format!("width σ {} (normalised), ", c.width)
+            },
+            c.ridge,
+            c.centers,
+            c.validation_rms_dph
+        )?;
+    }
+    if let Some(search) = &outcome.bank {
+        write_bank(out, &outcome.model, search)?;
+    }
+    if let Some(s) = &outcome.sets {
+        let kept = outcome.model.features();
+        let slowest_s = kept.windows_s()[2];
+        let kept = match kept.set {
+            FeatureSet::MultiScale => "first-order".to_owned(),
+            FeatureSet::MultiScaleLagged { coil_lag_min } => {
+                format!("second-order, coil lag {coil_lag_min} min, slowest window {slowest_s} s")
+            }
+            _ => format!("second-order, slowest window {slowest_s} s"),
+        };
+        writeln!(
+            out,
+            "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃², coil lags {:?} min and slowest window ×{:?} tried) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
+            s.first_order_rms_dph,
+            fit::COIL_LAGS_MIN,
+            fit::rbf::SLOWEST_WINDOW_FACTORS,
+            s.second_order_rms_dph,
+            s.second_order_rms_dph / s.first_order_rms_dph,
+            fit::SECOND_ORDER_GAIN,
+            kept
+        )?;
+    }
+    if let Some(c) = &outcome.svr {
+        if let Some(sel) = &c.selection {
+            let rule = match (how.named_inputs, how.selection) {
+                (true, _) => "--inputs".to_owned(),
+                (false, Some(rule)) => rule_name(rule),
+                (false, None) => format!(
+                    "the best of {} subsets of thermometers on 3-fold contiguous validation",
+                    (1u32 << sel.table.names.len()) - 1
+                ),
+            };
+            write!(out, "{}", describe_selection(&sel.table, &sel.selected, &rule))?;
+            if !sel.ranking.is_empty() {
+                writeln!(out, "validation RMS of the best subsets (°/h):")?;
+                for s in &sel.ranking {
+                    let names: Vec<&str> = s.sensors.iter().map(|&k| sel.table.names[k].as_str()).collect();
+                    writeln!(out, "  {:.4e}  {}", s.validation_rms_dph, names.join(", "))?;
+                }
+            }
+        }
+        writeln!(out, "inputs: {}", c.inputs.join(", "))?;
+        writeln!(
+            out,
+            "PSO on 3-fold contiguous validation of the deployed network ({} particles × {} iterations): ΔT window {} s, σ {:.4} (normalised), C {:.4e}, ε {:.3e} °/h; the SVR's own validation RMS {:.4e} °/h",
+            c.pso.particles,
+            c.pso.iterations,
+            c.rate_window_s,
+            c.params.sigma,
+            c.params.c,
+            c.params.epsilon,
+            c.validation_rms_dph
+        )?;
+        writeln!(
+            out,
+            "{} support vectors → {} centres deployed (OLS, weights refitted); validation RMS of the deployed network {:.4e} °/h (the swarm's fitness)",
+            c.support_vectors, c.centers, c.deployed_validation_rms_dph
+        )?;
+    }
+    Ok(())
+}
+
+/// The lag bank a fit identified, how it was chosen, and what the training runs covered.
+pub(super) fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankSearch) -> anyhow::Result<()> {
+    let FeatureSet::LagBank(bank) = model.features().set else {
+        return Ok(());
+    };
+    let list = |v: &[f32], digits: usize| v.iter().map(|x| format!("{x:.digits$}")).collect::<Vec<_>>().join(", ");
+    writeln!(
+        out,
+        "lag bank: τ [{}] s; coil lags a [{}] min (T̂ = T + Σ a·ΔT); Shupe gain {}; T₀ {} °C",
+        list(bank.taus(), 0),
+        list(bank.coil_lags(), 2),
+        gain_text(&bank),
+        trainer::describe::summary::sig(f64::from(bank.ref_c), 4),
+    )?;
+    let how = match search.folds {
+        fit::events::FoldKind::Runs => format!("leave-one-run-out ({} folds)", search.fold_count),
+        fit::events::FoldKind::Events => format!(
+            "{} folds of whole thermal events ({} events found)",
+            search.fold_count, search.events
+        ),
+        fit::events::FoldKind::Contiguous => format!(
+            "{} contiguous folds (only {} thermal events found)",
+            search.fold_count, search.events
+        ),
+    };
+    writeln!(
+        out,
+        "structure chosen on {how} among {} candidates; held-out RMS of 100-s means {:.4e} °/h",
+        search.candidates.len(),
+        search.held_out_rms_dph()
+    )?;
+    let dims = model.features().dims();
+    let mut covered = Vec::new();
+    for i in 0..dims {
+        let (Some(name), Some((lo, hi))) = (model.features().set.name(i), model.input_range(i)) else {
+            continue;
+        };
+        if matches!(
+            name,
+            rbf_core::features::InputName::Bank(rbf_core::lag_bank::BankInput::CoilTemp { power: 2.. })
+        ) {
+            continue;
+        }
+        covered.push(format!("{name} {lo:.3} … {hi:.3}"));
+    }
+    writeln!(out, "training covered: {}", covered.join("; "))?;
+    let x = &search.extrapolation;
+    let end = |name: &str, e: &fit::lag_bank::EdgeTest| {
+        if e.tangent_rms_dph.is_nan() {
+            format!("{name}: too few means to test, tangent")
+        } else {
+            format!(
+                "{name}: tangent {:.2e} / cubic {:.2e} °/h → {}",
+                e.tangent_rms_dph,
+                e.cubic_rms_dph,
+                if e.reach_c > 0.0 {
+                    format!("cubic for {:.1} °C", e.reach_c)
+                } else {
+                    "tangent".to_owned()
+                }
+            )
+        }
+    };
+    writeln!(
+        out,
+        "extrapolation of the static cubic past T̂ {:.1} … {:.1} °C (edge test, outer {:.1} °C held out): {}; {}",
+        x.covered_c.0,
+        x.covered_c.1,
+        x.band_c,
+        end("below", &x.lower),
+        end("above", &x.upper)
+    )?;
+    Ok(())
+}
+
+/// One line naming the model as it is ([`trainer::describe`]): kind, form,
+/// T₀, and the ΔT windows of a set that is not a lag bank (whose filters
+/// the bank's own line lists).
+pub(super) fn describe(model: &Model) -> String {
+    let f = model.features();
+    let windows: Vec<String> = f
+        .filter_taus_s()
+        .iter()
+        .map(|t| trainer::describe::summary::sig(f64::from(*t), 4))
+        .collect();
+    let d = trainer::describe::describe(model);
+    match f.set {
+        FeatureSet::LagBank(_) | FeatureSet::ResponseBank(_) => d.line(),
+        _ if windows.is_empty() => d.line(),
+        _ => format!("{}; ΔT windows {} s", d.line(), windows.join(", ")),
+    }
+}
+
+/// The loop temperature's range over the training runs, °C: the lag bank
+/// search's coverage (10-s means), or the model's first input's training
+/// range where that input is the loop temperature; `None` otherwise.
+pub(super) fn training_loop_range_c(outcome: &FitOutcome) -> Option<(f64, f64)> {
+    if let Some(search) = &outcome.bank {
+        return Some(search.coverage.temp_range_c);
+    }
+    match outcome.model.features().set {
+        FeatureSet::Temp
+        | FeatureSet::TempRate
+        | FeatureSet::TempRateProduct
+        | FeatureSet::MultiScale
+        | FeatureSet::MultiScaleSecondOrder => {
+            let (lo, hi) = outcome.model.input_range(0)?;
+            Some((f64::from(lo), f64::from(hi)))
+        }
+        // A response bank's range is the loop temperature's over its training runs.
+        FeatureSet::ResponseBank(b) => Some((f64::from(b.range_min_c), f64::from(b.range_max_c))),
+        _ => None,
+    }
+}

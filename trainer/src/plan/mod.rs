@@ -1,0 +1,404 @@
+//! `trainer plan`: designing the chamber run the default model learns from.
+//!
+//! A plan is a sequence of [`Segment`]s (ramp to a target at a rate, hold)
+//! after a power-on soak at its first temperature. Candidates are drawn from
+//! a family that contains what the lag bank needs to see (a cold start whose
+//! self-heating transient is recorded, levels across the range, full-rate
+//! steps, bursts of swings, slow ramps, holds as long as the slowest coil
+//! mode) and the one whose lag-bank regression on a nominal plant has the
+//! largest D-criterion ([`d_criterion`]) is kept. On request
+//! (`trainer plan --soak-ends`, [`candidate_soaking_ends`]) every candidate
+//! also soaks at both ends of the range long enough for a loop
+//! [`SLOW_PLANT_FACTOR`] times slower than nominal to settle there
+//! ([`end_soak_s`]), so the run reaches the asked range at the loop on plants
+//! other than the nominal one, at the cost of dynamic excitation. Either
+//! way the plan predicts the loop range on both plants. docs/plan.md argues
+//! the choice. Deterministic for a given seed.
+//!
+//! One module a job, each importing only those below it: [`limits`] (the
+//! limits, segments and time arithmetic), [`candidates`], [`criterion`] (the
+//! plan on the plant), this module ([`Plan`], [`design`]) and [`plot`].
+
+use std::fmt::Write as _;
+
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+
+use crate::simulate::SimParams;
+
+pub mod candidates;
+pub mod criterion;
+pub mod limits;
+pub mod plot;
+
+use self::{candidates::*, criterion::*, limits::*};
+
+/// A designed profile: the segments, the score of the criterion and what it was chosen among.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// The limits it meets.
+    pub limits: PlanLimits,
+    /// The first segment is the power-on soak (no ramp).
+    pub segments: Vec<Segment>,
+    /// D-criterion of the plan ([`d_criterion`]).
+    pub criterion: f64,
+    /// Median criterion of the candidates.
+    pub median_criterion: f64,
+    /// Candidates drawn.
+    pub candidates: usize,
+    /// Seed of the draw.
+    pub seed: u64,
+    /// Lowest and highest loop temperature the nominal plant reads under the plan, °C.
+    pub loop_range_c: (f64, f64),
+    /// The same on a plant [`SLOW_PLANT_FACTOR`] times slower than nominal, °C.
+    pub slow_loop_range_c: (f64, f64),
+    /// With `--soak-ends`, each end soak lasts at least this, s
+    /// ([`end_soak_s`]); `None` without (the plan as before the end soaks).
+    pub end_soak_s: Option<f64>,
+}
+
+impl Plan {
+    /// Set points (time s, temperature °C), time from 0 strictly increasing.
+    pub fn knots(&self) -> Vec<(f64, f64)> {
+        knots(&self.segments)
+    }
+
+    /// How long the gyro must soak unpowered at the first set point before
+    /// power-on, s ([`pre_soak_s`] on the documented gyro's plant).
+    pub fn pre_soak_s(&self) -> f64 {
+        pre_soak_s(&SimParams::default().plant, self.segments[0].target_c)
+    }
+
+    /// Length of the run, s.
+    pub fn duration_s(&self) -> f64 {
+        self.knots().last().map_or(0.0, |k| k.0)
+    }
+
+    /// The `#` metadata lines every output format starts with.
+    fn metadata(&self) -> String {
+        let l = &self.limits;
+        let mut s = String::new();
+        let _ = writeln!(s, "# source: trainer plan (D-optimal chamber profile, docs/plan.md)");
+        let _ = writeln!(s, "# min_c: {}", l.min_c);
+        let _ = writeln!(s, "# max_c: {}", l.max_c);
+        let _ = writeln!(s, "# max_rate_c_per_min: {}", l.max_rate_c_per_min);
+        let _ = writeln!(s, "# hours: {}", l.hours);
+        let _ = writeln!(s, "# seed: {}", self.seed);
+        let _ = writeln!(
+            s,
+            "# criterion: D-optimal, (1/p)·ln det of the information matrix per 100-s mean of the lag-bank regression (p = {CRITERION_PARAMS}: a cubic in T; ΔT at τ {} s, each times 1, T, T²) on the nominal plant (trainer simulate's documented gyro)",
+            CRITERION_TAUS_S.map(|t| format!("{t:.0}")).join("/")
+        );
+        let _ = writeln!(
+            s,
+            "# criterion_value: {:.4} (best of {} candidates; median {:.4})",
+            self.criterion, self.candidates, self.median_criterion
+        );
+        let first = self.segments[0];
+        let _ = writeln!(
+            s,
+            "# pre_soak: before 0 s, the gyro unpowered at {} °C for at least {:.0} min (the nominal plant's every node within {PRE_SOAK_WITHIN_C} °C of the air after {ROOM_C} °C)",
+            first.target_c,
+            self.pre_soak_s() / 60.0
+        );
+        let _ = writeln!(
+            s,
+            "# power_on: at 0 s, soaked at {} °C; held {:.0} min (cold start: the self-heating transient)",
+            first.target_c,
+            first.hold_s / 60.0
+        );
+        let _ = writeln!(s, "# duration_h: {:.3}", self.duration_s() / 3600.0);
+        if let Some(end_soak_s) = self.end_soak_s {
+            let _ = writeln!(
+                s,
+                "# end_soak_min: {:.1} (at each end of the range: a loop {SLOW_PLANT_FACTOR}× slower than nominal comes within {:.1} °C of where it settles)",
+                end_soak_s / 60.0,
+                self.limits.reach_c()
+            );
+        }
+        let _ = writeln!(
+            s,
+            "# predicted_loop_c: {:.1},{:.1} (nominal plant; {:.1},{:.1} with every time constant {SLOW_PLANT_FACTOR}× nominal)",
+            self.loop_range_c.0, self.loop_range_c.1, self.slow_loop_range_c.0, self.slow_loop_range_c.1
+        );
+        s
+    }
+
+    /// Whether a loop of this range reaches both ends of the asked range
+    /// (within [`PlanLimits::reach_c`]).
+    pub fn reaches(&self, loop_range_c: (f64, f64)) -> bool {
+        let reach_c = self.limits.reach_c();
+        loop_range_c.0 <= self.limits.min_c + reach_c && loop_range_c.1 >= self.limits.max_c - reach_c
+    }
+
+    /// What the plan predicts at the loop, in a line or more: the range on
+    /// the nominal plant and on the slow one, and a warning for each that
+    /// stays short of an end of the asked range by more than
+    /// [`PlanLimits::reach_c`], saying by how much and what closes the gap.
+    pub fn loop_range_lines(&self) -> Vec<String> {
+        let (min_c, max_c) = (self.limits.min_c, self.limits.max_c);
+        let (lo, hi) = self.loop_range_c;
+        let (slo, shi) = self.slow_loop_range_c;
+        let soaks = match self.end_soak_s {
+            Some(s) => format!("soaks of {:.1} min or more at each end", s / 60.0),
+            None => "no end soaks: --soak-ends adds them".to_owned(),
+        };
+        let mut out = vec![format!(
+            "predicted loop range: {lo:.1} … {hi:.1} °C on the nominal plant, {slo:.1} … {shi:.1} °C with every time constant {SLOW_PLANT_FACTOR}× nominal (asked {min_c} … {max_c} °C; {soaks})"
+        )];
+        for (name, range) in [
+            ("the nominal plant", self.loop_range_c),
+            ("the slow plant", self.slow_loop_range_c),
+        ] {
+            if self.reaches(range) {
+                continue;
+            }
+            let short: Vec<String> = [(range.0 - min_c, min_c), (max_c - range.1, max_c)]
+                .into_iter()
+                .filter(|&(gap, _)| gap > self.limits.reach_c())
+                .map(|(gap, end)| format!("{gap:.1} °C short of {end} °C"))
+                .collect();
+            let remedy = match self.end_soak_s {
+                None => "--soak-ends closes the gap (more --hours may)",
+                Some(_) => "its self-heating or lags keep it from the ends; more --hours may close the gap",
+            };
+            out.push(format!(
+                "warning: on {name} the loop is predicted to reach only {:.1} … {:.1} °C, {} (more than the {:.1} °C a fit counts as reached): {remedy}",
+                range.0,
+                range.1,
+                short.join(" and "),
+                self.limits.reach_c()
+            ));
+        }
+        out
+    }
+
+    /// The set-point CSV `trainer simulate --chamber-profile` reads.
+    pub fn set_points_csv(&self) -> String {
+        let mut s = self.metadata();
+        s.push_str("time_s,chamber_c\n");
+        for (t, c) in self.knots() {
+            let _ = writeln!(s, "{t:.0},{c}");
+        }
+        s
+    }
+
+    /// The segment table chamber controllers take: set point, ramp and hold minutes.
+    pub fn segments_csv(&self) -> String {
+        let mut s = self.metadata();
+        let _ = writeln!(
+            s,
+            "# segment 1 is the power-on soak: no ramp; before it, the pre-soak above (unpowered, {:.0} min)",
+            self.pre_soak_s() / 60.0
+        );
+        s.push_str("segment,target_c,ramp_min,hold_min\n");
+        for (i, g) in self.segments.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "{},{},{},{}",
+                i + 1,
+                g.target_c,
+                ramp_minutes(g.ramp_s),
+                minutes(g.hold_s)
+            );
+        }
+        s
+    }
+}
+
+/// A hold in minutes: every hold of a plan is a whole number of minutes.
+fn minutes(s: f64) -> String {
+    format!("{:.0}", s / 60.0)
+}
+
+/// A ramp in minutes: every ramp is a whole number of tenths of a minute,
+/// so one decimal is exact.
+fn ramp_minutes(s: f64) -> String {
+    format!("{:.1}", s / 60.0)
+}
+
+/// Designs a plan within `limits`: the best of `candidates` draws from
+/// `seed` by the D-criterion on the documented gyro's plant; with
+/// `soak_ends`, drawn by [`candidate_soaking_ends`], else by [`candidate`]
+/// (the draws are then the same as before end soaks existed).
+pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, soak_ends: bool) -> Result<Plan, String> {
+    let end_soak_s = if soak_ends {
+        limits.check_soaking_ends()?;
+        Some(end_soak_s(limits))
+    } else {
+        limits.check()?;
+        None
+    };
+    let plant = SimParams::default().plant;
+    let indices: Vec<u64> = (0..candidates.max(1) as u64).collect();
+    let scored = crate::parallel::parallel_map(&indices, |&i| {
+        let mut rng = Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(i));
+        let segments = match end_soak_s {
+            Some(s) => candidate_soaking_ends(limits, s, &mut rng),
+            None => candidate(limits, &mut rng),
+        };
+        let score = d_criterion(&loop_temps(&segments, &plant), limits);
+        (segments, score)
+    });
+    let mut scores: Vec<f64> = scored.iter().map(|s| s.1).collect();
+    scores.sort_by(f64::total_cmp);
+    let median_criterion = scores[scores.len() / 2];
+    let (segments, criterion) = scored
+        .into_iter()
+        .filter(|s| s.1.is_finite())
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .ok_or_else(|| "no candidate plan has an invertible information matrix".to_owned())?;
+    let loop_range_c = range_of(&loop_temps(&segments, &plant));
+    let slow_loop_range_c = range_of(&loop_temps(&segments, &slowed(&plant, SLOW_PLANT_FACTOR)));
+    Ok(Plan {
+        limits: *limits,
+        segments,
+        criterion,
+        median_criterion,
+        candidates: candidates.max(1),
+        seed,
+        loop_range_c,
+        slow_loop_range_c,
+        end_soak_s,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIMITS: PlanLimits = PlanLimits {
+        min_c: -40.0,
+        max_c: 60.0,
+        max_rate_c_per_min: 5.0,
+        hours: 12.0,
+    };
+
+    #[test]
+    fn candidates_keep_every_limit_and_end_within_the_budget() {
+        let soak_s = end_soak_s(&LIMITS);
+        for (seed, soak_ends) in (0..40).flat_map(|seed| [(seed, false), (seed, true)]) {
+            let mut rng = Pcg64::seed_from_u64(seed);
+            let segments = if soak_ends {
+                candidate_soaking_ends(&LIMITS, soak_s, &mut rng)
+            } else {
+                candidate(&LIMITS, &mut rng)
+            };
+            let k = knots(&segments);
+            assert_eq!(k[0].0.to_bits(), 0.0f64.to_bits(), "seed {seed}: starts at 0");
+            assert!(k.last().unwrap().0 <= 12.0 * 3600.0, "seed {seed}: {:?}", k.last());
+            for w in k.windows(2) {
+                assert!(w[1].0 > w[0].0, "seed {seed}: time not increasing {w:?}");
+                let rate = (w[1].1 - w[0].1).abs() / (w[1].0 - w[0].0) * 60.0;
+                assert!(rate < 5.0, "seed {seed}: {rate} °C/min");
+            }
+            assert!(k.iter().all(|&(_, c)| (-40.0..=60.0).contains(&c)));
+        }
+    }
+
+    #[test]
+    fn the_criterion_prefers_a_rich_profile_to_a_slow_cycle() {
+        let plant = SimParams::default().plant;
+        let cycle = vec![
+            Segment {
+                target_c: 20.0,
+                ramp_s: 0.0,
+                hold_s: 3600.0,
+            },
+            Segment {
+                target_c: -40.0,
+                ramp_s: 3601.0,
+                hold_s: 7200.0,
+            },
+            Segment {
+                target_c: 60.0,
+                ramp_s: 6001.0,
+                hold_s: 7200.0,
+            },
+            Segment {
+                target_c: 20.0,
+                ramp_s: 2401.0,
+                hold_s: 10_000.0,
+            },
+        ];
+        let slow = d_criterion(&loop_temps(&cycle, &plant), &LIMITS);
+        let plan = design(&LIMITS, 1, 8, false).unwrap();
+        assert!(plan.criterion > slow + 1.0, "plan {} vs cycle {slow}", plan.criterion);
+        assert!(plan.criterion >= plan.median_criterion);
+    }
+
+    #[test]
+    fn the_same_seed_gives_the_same_plan() {
+        for soak_ends in [false, true] {
+            let a = design(&LIMITS, 7, 6, soak_ends).unwrap();
+            let b = design(&LIMITS, 7, 6, soak_ends).unwrap();
+            assert_eq!(a.set_points_csv(), b.set_points_csv());
+            assert_ne!(
+                a.set_points_csv(),
+                design(&LIMITS, 8, 6, soak_ends).unwrap().set_points_csv()
+            );
+        }
+    }
+
+    #[test]
+    fn segment_tables_hold_whole_degrees_and_whole_minutes_of_hold_after_a_stated_pre_soak() {
+        for (seed, soak_ends) in [(1, false), (3, false), (7, true)] {
+            let plan = design(&LIMITS, seed, 4, soak_ends).unwrap();
+            let table = plan.segments_csv();
+            for row in table.lines().filter(|l| !l.starts_with('#')).skip(1) {
+                let f: Vec<&str> = row.split(',').collect();
+                for v in [f[1], f[3]] {
+                    assert!(!v.contains('.'), "seed {seed}: {row}: not a whole number");
+                }
+            }
+            let pre = table
+                .lines()
+                .find(|l| l.starts_with("# pre_soak: "))
+                .expect("a pre-soak line");
+            assert!(pre.contains(" min "), "{pre}");
+        }
+        // The nominal plant, from the lab to -40 °C: hours, not minutes; a
+        // start at the lab's temperature needs none.
+        let plant = SimParams::default().plant;
+        let cold = pre_soak_s(&plant, -40.0);
+        assert!((3600.0..86_400.0).contains(&cold) && cold % 60.0 == 0.0, "{cold}");
+        assert!(pre_soak_s(&plant, ROOM_C) < 60.0 + 1e-9);
+    }
+
+    #[test]
+    fn the_designed_segments_themselves_hold_whole_degrees_and_minutes_within_the_checks() {
+        // The plan's values, not only their printing: a hold of 1.3 min
+        // printed as 1 would put the table and the set points at odds.
+        for (seed, soak_ends) in [(1, false), (2, false), (5, false), (7, true), (9, true)] {
+            let plan = design(&LIMITS, seed, 4, soak_ends).unwrap();
+            for g in &plan.segments {
+                assert!(g.target_c.fract() == 0.0, "seed {seed}: set point {}", g.target_c);
+                assert!(g.hold_s % 60.0 == 0.0, "seed {seed}: hold {} s", g.hold_s);
+                assert!(g.ramp_s % 6.0 == 0.0, "seed {seed}: ramp {} s", g.ramp_s);
+            }
+            // The limits still hold after the rounding.
+            for w in plan.segments.windows(2) {
+                let rate_c_per_min = (w[1].target_c - w[0].target_c).abs() / (w[1].ramp_s / 60.0);
+                assert!(rate_c_per_min <= LIMITS.max_rate_c_per_min, "seed {seed}: {w:?}");
+            }
+            assert!(
+                plan.segments
+                    .iter()
+                    .all(|g| (LIMITS.min_c..=LIMITS.max_c).contains(&g.target_c))
+            );
+            assert!(plan.duration_s() <= LIMITS.hours * 3600.0, "seed {seed}");
+            assert!(plan.pre_soak_s() % 60.0 == 0.0 && plan.pre_soak_s() > 0.0);
+        }
+    }
+
+    #[test]
+    fn ramps_are_rounded_up_to_stay_under_the_limit() {
+        // Whole minutes: exact in f64.
+        let secs = |delta: f64, rate: f64| ramp_seconds(delta, rate).to_bits();
+        assert_eq!(secs(100.0, 5.0), 1206.0f64.to_bits());
+        assert_eq!(secs(10.0, 3.0), 204.0f64.to_bits());
+        assert_eq!(secs(7.0, 3.0), 144.0f64.to_bits());
+        assert_eq!(ramp_minutes(90.0), "1.5");
+        assert_eq!(minutes(3600.0), "60");
+    }
+}
