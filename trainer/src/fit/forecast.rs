@@ -68,7 +68,7 @@ pub fn training_std100<T: RunSet + ?Sized>(train: &T, model: &Model, block_s: f6
 }
 
 /// Adjacent block pairs a run needs before its white noise is estimated.
-const MIN_NOISE_PAIRS: usize = 16;
+pub const MIN_NOISE_PAIRS: usize = 16;
 
 /// The 100-s cluster STD that white noise alone would give `residual_dph`
 /// (blocks of `period_s` starting at `time_s`, of run `run`), °/h, RMS over
