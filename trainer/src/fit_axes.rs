@@ -12,7 +12,7 @@ use rbf_core::axis::Axis;
 use rbf_core::shared_basis::SharedAxisModels;
 
 use crate::dataset::{RunFiles, RunSet};
-use crate::evaluation::evaluate::{RunEvaluation, evaluate_blocks, evaluate_blocks_with};
+use crate::evaluation::evaluate::{RunEvaluation, SharedAxis, evaluate_blocks};
 use crate::fit::{self, FitOptions, FitOutcome};
 use crate::reading::run::RunReader;
 use crate::text;
@@ -143,11 +143,8 @@ pub fn try_joint(
                 let mut reader = RunReader::open(path)?;
                 reader.select_axis(axis)?;
                 let has_ref = reader.columns().ref_dph.is_some();
-                let eval = |f: &rbf_core::FeatureVector| {
-                    let e = shared.eval_axes(f);
-                    (e.bias_dph.get(axis.index()).copied().unwrap_or(0.0), e.clamped)
-                };
-                let mut e = evaluate_blocks_with(eval, &blocks, i, path, opts.block_s, has_ref);
+                let scored = SharedAxis { models: &shared, axis };
+                let mut e = evaluate_blocks(&scored, &blocks, i, path, opts.block_s, has_ref);
                 e.axis = Some(axis.name());
                 axis_scored.push((role, i, e));
             }

@@ -132,7 +132,7 @@ pub fn evaluate_run(model: &Model, run: &Run) -> RunEvaluation {
 }
 
 /// Before/after accuracy of `run` given its compensated output `out` (one per sample).
-pub fn evaluate_output(run: &Run, out: &[CompensatedSample]) -> RunEvaluation {
+fn evaluate_output(run: &Run, out: &[CompensatedSample]) -> RunEvaluation {
     let reference = run.reference_dph();
     let mut evaluator = Evaluator::new(&run.path, run.nominal_period_s, run.ref_dph.is_some());
     for (i, o) in out.iter().enumerate().take(run.len()) {
@@ -195,24 +195,63 @@ pub fn block_basis(doublings: u32, length_s: f64) -> String {
 /// clamped with all its samples when its mean inputs are. `has_ref`: the
 /// targets are deviations from `ref_dph` (else from the run's mean).
 pub fn evaluate_blocks(
-    model: &Model,
+    model: &impl BlockBias,
     blocks: &Blocks,
     run: usize,
     path: &Path,
     block_s: f64,
     has_ref: bool,
 ) -> RunEvaluation {
-    evaluate_blocks_with(
-        |f| {
-            let e = model.eval(f);
-            (e.bias_dph, e.clamped)
-        },
-        blocks,
-        run,
-        path,
-        block_s,
-        has_ref,
-    )
+    let length_s = blocks.length_s(block_s);
+    let mut evaluator = Evaluator::new(path, block_spacing_s(blocks, run, length_s), has_ref);
+    evaluator.basis = block_basis(blocks.doublings, length_s);
+    let dims = blocks.dims.min(MAX_INPUTS);
+    for i in (0..blocks.len()).filter(|&i| blocks.run[i] == run) {
+        let mut x = [0.0f32; MAX_INPUTS];
+        for (x, v) in x.iter_mut().zip(&blocks.x[i][..dims]) {
+            *x = *v as f32;
+        }
+        let (bias_dph, clamped) = model.bias_at(&FeatureVector::from_values(&x[..dims]));
+        let flags = if clamped { Flags::INPUT_CLAMPED } else { Flags::NONE };
+        let (time_s, samples) = (blocks.time_s.get(i), blocks.samples.get(i));
+        let y = blocks.y[i];
+        evaluator.push_mean(
+            time_s.copied().unwrap_or(i as f64 * length_s),
+            y,
+            y - f64::from(bias_dph),
+            flags,
+            samples.map_or(1, |n| *n as usize),
+        );
+    }
+    evaluator.finish()
+}
+
+/// What [`evaluate_blocks`] scores: a model evaluated at a block's mean inputs.
+pub trait BlockBias {
+    /// The bias at `inputs`, °/h, and whether they were clamped to the trained range.
+    fn bias_at(&self, inputs: &FeatureVector) -> (f32, bool);
+}
+
+impl BlockBias for Model {
+    fn bias_at(&self, inputs: &FeatureVector) -> (f32, bool) {
+        let e = self.eval(inputs);
+        (e.bias_dph, e.clamped)
+    }
+}
+
+/// One axis of a shared-basis model, as [`evaluate_blocks`] scores it.
+pub struct SharedAxis<'m> {
+    /// The shared-basis model.
+    pub models: &'m SharedAxisModels,
+    /// The axis whose output layer is scored.
+    pub axis: Axis,
+}
+
+impl BlockBias for SharedAxis<'_> {
+    fn bias_at(&self, inputs: &FeatureVector) -> (f32, bool) {
+        let e = self.models.eval_axes(inputs);
+        (e.bias_dph.get(self.axis.index()).copied().unwrap_or(0.0), e.clamped)
+    }
 }
 
 /// How far apart run `run`'s blocks of `length_s` seconds start, s: the
@@ -232,40 +271,6 @@ fn block_spacing_s(blocks: &Blocks, run: usize, length_s: f64) -> f64 {
     let middle = steps.len() / 2;
     let (_, median, _) = steps.select_nth_unstable_by(middle, f64::total_cmp);
     median.max(length_s)
-}
-
-/// [`evaluate_blocks`] with the bias (°/h) and the clamping flag from
-/// `eval` (e.g. one axis of a shared-basis model).
-pub fn evaluate_blocks_with(
-    eval: impl Fn(&FeatureVector) -> (f32, bool),
-    blocks: &Blocks,
-    run: usize,
-    path: &Path,
-    block_s: f64,
-    has_ref: bool,
-) -> RunEvaluation {
-    let length_s = blocks.length_s(block_s);
-    let mut evaluator = Evaluator::new(path, block_spacing_s(blocks, run, length_s), has_ref);
-    evaluator.basis = block_basis(blocks.doublings, length_s);
-    let dims = blocks.dims.min(MAX_INPUTS);
-    for i in (0..blocks.len()).filter(|&i| blocks.run[i] == run) {
-        let mut x = [0.0f32; MAX_INPUTS];
-        for (x, v) in x.iter_mut().zip(&blocks.x[i][..dims]) {
-            *x = *v as f32;
-        }
-        let (bias_dph, clamped) = eval(&FeatureVector::from_values(&x[..dims]));
-        let flags = if clamped { Flags::INPUT_CLAMPED } else { Flags::NONE };
-        let (time_s, samples) = (blocks.time_s.get(i), blocks.samples.get(i));
-        let y = blocks.y[i];
-        evaluator.push_mean(
-            time_s.copied().unwrap_or(i as f64 * length_s),
-            y,
-            y - f64::from(bias_dph),
-            flags,
-            samples.map_or(1, |n| *n as usize),
-        );
-    }
-    evaluator.finish()
 }
 
 /// The models a run's axes are compensated with, whatever their count: what
