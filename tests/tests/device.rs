@@ -285,6 +285,30 @@ fn silent_pty() -> (std::os::fd::OwnedFd, String) {
     (master, name.to_str().unwrap().to_owned())
 }
 
+/// Waits until `record` is recording into `dir`: it opens its staged file
+/// (beside the target, named with a leading dot) once the unit answered
+/// its status query, so the wait covers however long a loaded machine
+/// takes to start it and reach the unit; then lets it record for 2 s, time
+/// for the hundreds of rows the complete run must hold. Panics after a
+/// minute without a staged file.
+fn let_record_run(dir: &Path) {
+    let started = Instant::now();
+    let staged = || {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .any(|e| e.file_name().to_string_lossy().starts_with('.'))
+    };
+    while !staged() {
+        assert!(
+            started.elapsed() < Duration::from_secs(60),
+            "record staged no file in a minute"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_secs(2));
+}
+
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn ctrl_c_or_a_unit_that_goes_away_leaves_a_complete_recorded_run() {
@@ -309,7 +333,7 @@ fn ctrl_c_or_a_unit_that_goes_away_leaves_a_complete_recorded_run() {
     // Ctrl-C: the run so far, committed, exit 0.
     let stopped = dir.path().join("stopped.csv");
     let child = record(&stopped);
-    std::thread::sleep(Duration::from_secs(2));
+    let_record_run(dir.path());
     rustix::process::kill_process(
         rustix::process::Pid::from_raw(child.id() as i32).unwrap(),
         rustix::process::Signal::INT,
@@ -329,7 +353,7 @@ fn ctrl_c_or_a_unit_that_goes_away_leaves_a_complete_recorded_run() {
     // The unit goes away: the rows before, committed, exit 1 naming the port.
     let cut = dir.path().join("cut.csv");
     let child = record(&cut);
-    std::thread::sleep(Duration::from_secs(2));
+    let_record_run(dir.path());
     board.check_running().unwrap();
     drop(board);
     let started = Instant::now();
