@@ -61,12 +61,6 @@ pub fn training_residual<T: RunSet + ?Sized>(
     })
 }
 
-/// The residual 100-s cluster STD of `model` on the block means of `train`
-/// (RMS over the runs), °/h ([`training_residual`]'s `std100_dph`).
-pub fn training_std100<T: RunSet + ?Sized>(train: &T, model: &Model, block_s: f64) -> anyhow::Result<f64> {
-    Ok(training_residual(train, model, block_s)?.std100_dph)
-}
-
 /// Adjacent block pairs a run needs before its white noise is estimated.
 pub const MIN_NOISE_PAIRS: usize = 16;
 
@@ -81,24 +75,17 @@ pub const MIN_NOISE_PAIRS: usize = 16;
 /// figure on top of this, so it is a lower bound of what no thermal model
 /// can remove. `None` where no run holds [`MIN_NOISE_PAIRS`] adjacent pairs.
 pub fn white_noise_std100(run: &[usize], time_s: &[f64], residual_dph: &[f64], period_s: f64) -> Option<f64> {
-    let runs = run.iter().max().map_or(0, |&r| r + 1);
-    let mut sums = vec![(0.0f64, 0usize); runs];
-    let n = run.len().min(time_s.len()).min(residual_dph.len());
-    for i in 1..n {
-        let adjacent = run[i] == run[i - 1] && (time_s[i] - time_s[i - 1] - period_s).abs() < 0.5 * period_s;
-        let d = residual_dph[i] - residual_dph[i - 1];
-        if adjacent && d.is_finite() {
-            let (sum, pairs) = &mut sums[run[i]];
-            *sum += d * d;
-            *pairs += 1;
+    rms_over_runs(run, time_s, residual_dph, |time_s, residual_dph| {
+        let (mut sum, mut pairs) = (0.0f64, 0usize);
+        for (t, r) in time_s.windows(2).zip(residual_dph.windows(2)) {
+            let d = r[1] - r[0];
+            if (t[1] - t[0] - period_s).abs() < 0.5 * period_s && d.is_finite() {
+                sum += d * d;
+                pairs += 1;
+            }
         }
-    }
-    let per_run: Vec<f64> = sums
-        .into_iter()
-        .filter(|&(_, pairs)| pairs >= MIN_NOISE_PAIRS)
-        .map(|(sum, pairs)| 0.5 * sum / pairs as f64 * period_s / crate::metrics::CLUSTER_S)
-        .collect();
-    (!per_run.is_empty()).then(|| (per_run.iter().sum::<f64>() / per_run.len() as f64).sqrt())
+        (pairs >= MIN_NOISE_PAIRS).then(|| (0.5 * sum / pairs as f64 * period_s / crate::metrics::CLUSTER_S).sqrt())
+    })
 }
 
 /// RMS over the runs of each run's 100-s cluster STD of `residual_dph`
@@ -110,21 +97,31 @@ pub fn rms_cluster_std_over_runs(
     residual_dph: &[f64],
     period_s: f64,
 ) -> anyhow::Result<f64> {
+    rms_over_runs(run, time_s, residual_dph, |time_s, residual_dph| {
+        Some(crate::metrics::cluster_std(time_s, residual_dph, period_s)).filter(|std| std.is_finite())
+    })
+    .ok_or_else(|| anyhow::anyhow!("no training run is long enough for a 100-s cluster STD"))
+}
+
+/// RMS over the runs of `per_run` (given each run's times and residuals, in
+/// block order), the runs it gives `None` for left out; `None` if it gives
+/// none.
+fn rms_over_runs(
+    run: &[usize],
+    time_s: &[f64],
+    residual_dph: &[f64],
+    per_run: impl Fn(&[f64], &[f64]) -> Option<f64>,
+) -> Option<f64> {
     let runs = run.iter().max().map_or(0, |&r| r + 1);
-    let mut sum_sq = 0.0;
-    let mut counted = 0usize;
-    for r in 0..runs {
-        let rows: Vec<usize> = (0..run.len()).filter(|&i| run[i] == r).collect();
-        let time: Vec<f64> = rows.iter().map(|&i| time_s[i]).collect();
-        let residual: Vec<f64> = rows.iter().map(|&i| residual_dph[i]).collect();
-        let std = crate::metrics::cluster_std(&time, &residual, period_s);
-        if std.is_finite() {
-            sum_sq += std * std;
-            counted += 1;
-        }
-    }
-    anyhow::ensure!(counted > 0, "no training run is long enough for a 100-s cluster STD");
-    Ok((sum_sq / counted as f64).sqrt())
+    let values: Vec<f64> = (0..runs)
+        .filter_map(|r| {
+            let rows: Vec<usize> = (0..run.len()).filter(|&i| run[i] == r).collect();
+            let time: Vec<f64> = rows.iter().map(|&i| time_s[i]).collect();
+            let residual: Vec<f64> = rows.iter().map(|&i| residual_dph[i]).collect();
+            per_run(&time, &residual)
+        })
+        .collect();
+    (!values.is_empty()).then(|| (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt())
 }
 
 #[cfg(test)]

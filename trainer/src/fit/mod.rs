@@ -247,21 +247,20 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             // Runs too short for a 100-s cluster STD: no forecast, no comparison.
             let lag = forecast::training_residual(train, &lag_model, opts.block_s).ok();
             let lag_std100 = lag.map(|l| l.std100_dph);
-            let structure = match lag.filter(|_| choose_structure) {
-                Some(lag) => {
-                    let floor = lag.noise_floor_std100_dph;
-                    let scores = [lag.std100_dph, search.held_out_rms_dph()];
-                    if response::StructureChoice::worth_trying(lag.std100_dph, floor) {
-                        match response::identify_with_residual(train, opts) {
-                            Ok(r) => Some((response::StructureChoice::between(scores, floor, Some(&r)), Some(r))),
-                            Err(_) => None,
-                        }
-                    } else {
-                        Some((response::StructureChoice::between(scores, floor, None), None))
-                    }
-                }
-                None => None,
-            };
+            // A response bank that cannot be identified leaves no choice to report.
+            let structure = lag.filter(|_| choose_structure).and_then(|lag| {
+                let floor = lag.noise_floor_std100_dph;
+                let response = if response::StructureChoice::worth_trying(lag.std100_dph, floor) {
+                    Some(response::identify_with_residual(train, opts).ok()?)
+                } else {
+                    None
+                };
+                let scores = [lag.std100_dph, search.held_out_rms_dph()];
+                Some((
+                    response::StructureChoice::between(scores, floor, response.as_ref()),
+                    response,
+                ))
+            });
             let (model, training_std100_dph, structure) = match structure {
                 Some((c, Some(response))) if c.response_bank => {
                     (response.model, Some(response.training_std100_dph), Some(c))

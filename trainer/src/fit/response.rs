@@ -647,7 +647,9 @@ mod tests {
         };
         let identified = identify_with_residual(&train, &opts).unwrap();
         let from_channels = identified.training_std100_dph;
-        let from_model = super::super::forecast::training_std100(&train, &identified.model, BLOCK_S).unwrap();
+        let from_model = super::super::forecast::training_residual(&train, &identified.model, BLOCK_S)
+            .unwrap()
+            .std100_dph;
         assert!(
             from_channels > 0.0 && (from_channels / from_model - 1.0).abs() < 0.02,
             "channels {from_channels:e}, model {from_model:e} °/h"
