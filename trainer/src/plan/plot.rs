@@ -103,12 +103,7 @@ where
         .draw_series(LineSeries::new(sensed, RGBColor(30, 90, 200)))?
         .label("loop sensor, nominal plant")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(30, 90, 200)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    crate::plotting::axes::draw_legend(&mut chart)?;
     root.present()?;
     Ok(())
 }

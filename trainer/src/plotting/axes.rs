@@ -6,10 +6,12 @@
 //! own put a light line on the next decade (a doubled label there) and
 //! stack a hundred light lines per decade on a short axis.
 
+use plotters::chart::{ChartContext, SeriesLabelPosition};
 use plotters::coord::ranged1d::Ranged;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::{CoordTranslate, Shift};
-use plotters::prelude::{DrawingArea, DrawingBackend, IntoTextStyle};
+use plotters::drawing::DrawingAreaErrorKind;
+use plotters::prelude::{BLACK, Color, DrawingArea, DrawingBackend, IntoTextStyle, WHITE};
 
 /// A title's font size, px, unless it must shrink to fit.
 pub const TITLE_PX: f64 = 22.0;
@@ -232,6 +234,19 @@ pub fn tick_label(v: &f64) -> String {
         }
         _ => label,
     }
+}
+
+/// Draws `chart`'s legend as every plot of the project places it: upper
+/// right, on a translucent white box with a black border.
+pub fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
 }
 
 #[cfg(test)]

@@ -8,8 +8,8 @@ use plotters::prelude::*;
 use super::canvas::{DrawResult, Figure, plot_height_px, range};
 use crate::evaluation::evaluate::RunEvaluation;
 use crate::plotting::axes::{
-    TICK_LABEL_PX, log_tick_labels, log_ticks, padded_log, tick_label, title_font_px, with_legend_room_log,
-    y_label_area_px,
+    TICK_LABEL_PX, draw_legend, log_tick_labels, log_ticks, padded_log, tick_label, title_font_px,
+    with_legend_room_log, y_label_area_px,
 };
 
 pub(super) struct AllanPlot<'a> {
@@ -164,12 +164,7 @@ where
             .label("τ^+½ guide")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], guide));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    draw_legend(&mut chart)?;
     root.present()?;
     Ok(())
 }

@@ -6,8 +6,8 @@ use plotters::prelude::*;
 
 use super::canvas::{DrawResult, Figure, SIZE, plot_height_px, range};
 use crate::plotting::axes::{
-    TICK_LABEL_PX, light_lines_of, linear_tick_labels, padded, tick_label, title_font_px, with_legend_room,
-    y_label_area_px,
+    TICK_LABEL_PX, draw_legend, light_lines_of, linear_tick_labels, padded, tick_label, title_font_px,
+    with_legend_room, y_label_area_px,
 };
 
 /// Below this |dT/dt|, °C/min, the loop temperature counts as steady.
@@ -159,12 +159,7 @@ where
         )?
         .label("model")
         .legend(|(x, y)| Circle::new((x + 10, y), 3, BLACK.filled()));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    draw_legend(&mut chart)?;
     let mut residual = ChartBuilder::on(&bottom)
         .margin(10)
         .x_label_area_size(40)

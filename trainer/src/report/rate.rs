@@ -5,8 +5,8 @@ use plotters::prelude::*;
 
 use super::canvas::{DrawResult, Figure, plot_height_px, range};
 use crate::plotting::axes::{
-    TICK_LABEL_PX, light_lines_of, linear_tick_labels, padded, tick_label, title_font_px, with_legend_room,
-    y_label_area_px,
+    TICK_LABEL_PX, draw_legend, light_lines_of, linear_tick_labels, padded, tick_label, title_font_px,
+    with_legend_room, y_label_area_px,
 };
 
 pub(super) struct RatePlot {
@@ -85,12 +85,7 @@ where
         .draw_secondary_series(LineSeries::new(hours(&p.temp), RGBColor(120, 120, 120)))?
         .label("loop temperature (right axis)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(120, 120, 120)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    draw_legend(&mut chart)?;
     root.present()?;
     Ok(())
 }
