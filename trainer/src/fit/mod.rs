@@ -233,12 +233,6 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         }),
         Method::Rbf if opts.features == RbfFeatures::LagBank => {
             let choose_structure = opts.centers.is_none() && opts.structure_choice;
-            if choose_structure {
-                // The response bank's temperature range read in the lag bank's pass.
-                let mut configs = lag_bank::ladder_configs();
-                configs.push(response::range_config());
-                train.prepare(&configs, opts.block_s)?;
-            }
             let (bank, search) = lag_bank::search(train, validate, opts, &progress)?;
             let config = rbf_core::FeatureConfig::lag_bank(bank);
             let (lag_model, choice) = rbf::fit_configs(train, validate, &[config], opts, &rbf::WIDTHS, &progress)?;

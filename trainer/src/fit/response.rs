@@ -150,9 +150,11 @@ pub fn held_out_rms(blocks: &ChannelBlocks, ref_c: f64, folds: usize) -> f64 {
 }
 
 /// The configuration whose blocks give the loop temperature's range the
-/// bank is centred on: a fit that will try the bank prepares it with its
-/// other configurations, so that the range costs no pass of its own.
-pub fn range_config() -> FeatureConfig {
+/// bank is centred on. Read only where the bank is identified: the default
+/// fit does not prepare it beside the lag bank's ladders, since on runs
+/// where the bank is not worth trying ([`StructureChoice::worth_trying`])
+/// it would be a builder's work for nothing.
+fn range_config() -> FeatureConfig {
     FeatureConfig::single(FeatureSet::Temp, 0.0)
 }
 
