@@ -1,5 +1,5 @@
 //! Fuzz target `frame_decode`: the invariants of [`e2e_tests::robustness::check_frame`]
-//! on arbitrary bytes (regressions replay in tests/tests/fuzz_regressions.rs).
+//! on arbitrary bytes (regressions replay in tests/tests/host/fuzz_regressions.rs).
 #![no_main]
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| e2e_tests::robustness::check_frame(data));

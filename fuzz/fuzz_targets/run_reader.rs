@@ -1,5 +1,5 @@
 //! Fuzz target `run_reader`: the invariants of [`e2e_tests::robustness::check_run`]
-//! on arbitrary bytes (regressions replay in tests/tests/fuzz_regressions.rs).
+//! on arbitrary bytes (regressions replay in tests/tests/host/fuzz_regressions.rs).
 #![no_main]
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| e2e_tests::robustness::check_run(data));

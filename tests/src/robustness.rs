@@ -1,6 +1,6 @@
 //! The invariants the fuzz targets (fuzz/fuzz_targets/) check on arbitrary
 //! bytes, shared with the regression test that replays every input fuzzing
-//! ever broke (`tests/fuzz-regressions/<target>/`, `tests/tests/fuzz_regressions.rs`).
+//! ever broke (`tests/fuzz-regressions/<target>/`, `tests/tests/host/fuzz_regressions.rs`).
 //! Each function panics when an invariant fails, which libFuzzer reports.
 
 use std::io::Cursor;

@@ -59,15 +59,19 @@ pub fn build(bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
     Ok(kept)
 }
 
-/// Builds the `trainer` CLI (host, the dev profile: optimised, as the
-/// workspace's tests build it) in the workspace's own target directory and
-/// returns its path. Inside `cargo test` (which holds no build lock while
-/// tests run) it is the binary `cargo test --workspace` already built, so
-/// the call costs a no-op build rather than a second release build of the
-/// trainer and its dependencies.
+/// The `trainer` CLI exactly as `cargo test --workspace` builds it (host,
+/// the dev profile) in the workspace's own target directory: its path.
+///
+/// Built through `cargo test --workspace --no-run`, not `cargo build
+/// --package trainer`: the workspace's tests turn on features of shared
+/// crates (the firmware's `test-harness` among them) that a build of
+/// the trainer alone does not, so that build would compile the firmware, the
+/// trainer and its binary a second time, inside the QEMU and device tests'
+/// time. After `cargo xtask ci`'s host tests every target is fresh and this
+/// costs a no-op; run alone it builds the workspace's tests once.
 pub fn trainer_cli() -> anyhow::Result<PathBuf> {
     let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
-        .args(["build", "--quiet", "--package", "trainer", "--bin", "trainer"])
+        .args(["test", "--quiet", "--workspace", "--no-run"])
         .env("CARGO_TARGET_DIR", workspace_root().join("target"))
         .current_dir(workspace_root())
         .status()

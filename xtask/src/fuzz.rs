@@ -1,5 +1,6 @@
 //! `cargo xtask fuzz --seconds N`: every libFuzzer target in fuzz/ for N
-//! seconds each, from a seed corpus written fresh by the current encoders.
+//! seconds, side by side, from a seed corpus written fresh by the current
+//! encoders.
 //!
 //! The targets run without a sanitizer (`cargo fuzz run -s none`): the code
 //! they reach forbids `unsafe`, so AddressSanitizer (nightly only) would have
@@ -45,16 +46,26 @@ pub fn ensure_cargo_fuzz() -> anyhow::Result<()> {
     run("cargo", &["install", "cargo-fuzz", "--locked"])
 }
 
-/// Runs every target for `seconds`; prints a table and fails on any finding.
+/// Runs every target for `seconds`, all at once; prints a table and fails on any finding.
 pub fn fuzz(seconds: u32) -> anyhow::Result<Vec<FuzzOutcome>> {
     ensure_cargo_fuzz()?;
     let work = workspace_root().join("target/fuzz");
     write_seeds(&work.join("seeds"))?;
     run("cargo", &["fuzz", "build", "--fuzz-dir", "fuzz", "-s", "none"])?;
-    let mut outcomes = Vec::new();
-    for target in TARGETS {
-        outcomes.push(fuzz_target(&work, target, seconds)?);
-    }
+    // The targets side by side: each is one libFuzzer process, and CI waits
+    // for `seconds` once rather than once per target.
+    let outcomes = std::thread::scope(|scope| {
+        let runs: Vec<_> = TARGETS
+            .map(|target| scope.spawn(|| fuzz_target(&work, target, seconds)))
+            .into_iter()
+            .collect();
+        runs.into_iter()
+            .map(|run| {
+                run.join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("a fuzz target's thread panicked")))
+            })
+            .collect::<anyhow::Result<Vec<FuzzOutcome>>>()
+    })?;
     println!("\n| target | seconds | executions | corpus | findings |\n|---|---:|---:|---:|---:|");
     for o in &outcomes {
         println!(

@@ -6,8 +6,6 @@
 //! output left behind, or with exit 0 and a valid output; and no file but
 //! its `-o` target may change.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
@@ -30,7 +28,7 @@ fn fixture() -> &'static Fixture {
     static FIXTURE: OnceLock<Fixture> = OnceLock::new();
     FIXTURE.get_or_init(|| {
         let dir = tempfile::TempDir::new().unwrap();
-        let model = common::fitted_model(&dir);
+        let model = crate::common::fitted_model(&dir);
         let run = dir.path().join("train.csv");
         let run_text = std::fs::read_to_string(&run).unwrap();
         Fixture {

@@ -2,9 +2,7 @@
 //! are, clamped shares in the tables, plausibility checks that name the
 //! mistake and the way around it.
 
-mod common;
-
-use common::{fitted_model, stderr, stdout, trainer, with_model, write};
+use crate::common::{fitted_model, stderr, stdout, trainer, with_model, write};
 use tempfile::TempDir;
 
 #[test]

@@ -2,11 +2,9 @@
 //! accepts, bad arguments are refused in words, the plan runs through
 //! `trainer simulate --chamber-profile` and `trainer fit`.
 
-mod common;
-
 use std::path::Path;
 
-use common::{stderr, stdout, trainer};
+use crate::common::{stderr, stdout, trainer};
 use tempfile::TempDir;
 
 /// Set points (time s, °C) of a plan file, and its `#` metadata lines.

@@ -1,11 +1,9 @@
 //! The `trainer` binary as a user meets it: exit codes, messages naming file,
 //! line and column, files written.
 
-mod common;
-
 use std::path::Path;
 
-use common::{compensate, fitted_model, shared_data, stderr, stdout, trainer, with_model, write};
+use crate::common::{compensate, fitted_model, shared_data, stderr, stdout, trainer, with_model, write};
 use tempfile::TempDir;
 
 /// `trainer blocks RUN --block-s 60 -o OUT` with `args`, which must succeed; the CSV written.

@@ -1,9 +1,7 @@
 //! `trainer fit --features response-bank` as a user meets it: a blob that
 //! inspects, compensates and evaluates, and improves a run it never saw.
 
-mod common;
-
-use common::{compensate, stderr, stdout, trainer};
+use crate::common::{compensate, stderr, stdout, trainer};
 use tempfile::TempDir;
 
 #[test]

@@ -1,8 +1,6 @@
 //! Helpers the `trainer` CLI tests share: running the binary, reading what
 //! it printed, a fitted model to work with.
 
-#![allow(dead_code, reason = "each test file uses its own subset")]
-
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};

@@ -2,11 +2,9 @@
 //! path, and no NaN in a table (issue 35): each test states the case a user
 //! met and what they must be told.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
-use common::{shared_data, stderr, stdout, trainer, write};
+use crate::common::{shared_data, stderr, stdout, trainer, write};
 use tempfile::TempDir;
 
 /// Fails unless `o` exited 1 with a message containing every one of

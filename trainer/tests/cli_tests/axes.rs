@@ -2,11 +2,9 @@
 //! `fit` for every axis, `eval`, `compensate` and `inspect` per axis, and
 //! each axis no worse than fitting it alone.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
-use common::{compensate, stderr, stdout, trainer, with_model};
+use crate::common::{compensate, stderr, stdout, trainer, with_model};
 use tempfile::TempDir;
 
 /// `trainer simulate --axes 3` of `profile` with `seed` into `dir/name`.
@@ -143,7 +141,7 @@ fn a_three_axis_imu_is_fitted_compensated_and_evaluated_per_axis_as_well_as_each
     let gains = msd_gains(&model, &verify);
     assert_eq!(gains.len(), 3);
     // Read once: standard input gives the same figures.
-    let o = common::trainer_with_stdin(
+    let o = crate::common::trainer_with_stdin(
         &["eval", "--model", model.to_str().unwrap(), "-", "--json", "-"],
         &std::fs::read(&verify).unwrap(),
     );
@@ -301,7 +299,7 @@ fn models_and_runs_of_different_axes_are_refused_naming_both() {
             }
         })
         .collect();
-    let damaged = common::write(&dir, "damaged.csv", (damaged.join("\n") + "\n").as_bytes());
+    let damaged = crate::common::write(&dir, "damaged.csv", (damaged.join("\n") + "\n").as_bytes());
     let want = format!(
         "damaged.csv:{}: column rate_y_dph (field 5): \"1.2.3\" is not a number",
         bad_line + 1
@@ -317,7 +315,7 @@ fn models_and_runs_of_different_axes_are_refused_naming_both() {
     ]);
     assert!(!o.status.success() && stderr(&o).contains(&want), "{}", stderr(&o));
     // A run with rate_dph and a per-axis rate.
-    let mixed = common::write(
+    let mixed = crate::common::write(
         &dir,
         "mixed.csv",
         b"time_s,rate_dph,temp_c,rate_y_dph\n0,1,20,2\n1,1,20,2\n",

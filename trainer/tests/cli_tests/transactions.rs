@@ -4,13 +4,11 @@
 //! output byte-identical and nothing beside it; a report directory is
 //! replaced as a whole.
 
-mod common;
-
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use common::{fitted_model, shared_data, stderr, trainer};
+use crate::common::{fitted_model, shared_data, stderr, trainer};
 use tempfile::TempDir;
 
 /// Every entry under `dir`, recursively, with the content of files, sorted.

@@ -2,13 +2,11 @@
 //! never destroy what they should not, memory bounded on every input, inputs
 //! read once, and messages that name the real cause (docs/reliability.md).
 
-mod common;
-
 use std::os::unix::fs::{PermissionsExt, symlink};
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use common::{compensate, fitted_model, stderr, stdout, trainer, trainer_with_stdin, write};
+use crate::common::{compensate, fitted_model, stderr, stdout, trainer, trainer_with_stdin, write};
 use tempfile::TempDir;
 
 /// Fails unless `o` exited 1 with a message containing `expected` and no panic.

@@ -1,0 +1,15 @@
+//! The `trainer` CLI driven as a user drives it: one test binary for every
+//! module below (one link of the trainer and its dependencies instead of one
+//! per file; `cargo test --test cli_tests MODULE::` runs one module).
+
+mod common;
+
+mod axes;
+mod cli;
+mod hostile;
+mod messages;
+mod plan;
+mod reading;
+mod response_bank;
+mod robustness;
+mod transactions;
