@@ -51,7 +51,7 @@ pub fn fuzz(seconds: u32) -> anyhow::Result<Vec<FuzzOutcome>> {
     ensure_cargo_fuzz()?;
     let work = workspace_root().join("target/fuzz");
     write_seeds(&work.join("seeds"))?;
-    run("cargo", &["fuzz", "build", "--fuzz-dir", "fuzz", "-s", "none"])?;
+    run("cargo", &["fuzz", "build", "--dev", "--fuzz-dir", "fuzz", "-s", "none"])?;
     // The targets side by side: each is one libFuzzer process, and CI waits
     // for `seconds` once rather than once per target.
     let outcomes = std::thread::scope(|scope| {
@@ -83,7 +83,7 @@ pub fn fuzz(seconds: u32) -> anyhow::Result<Vec<FuzzOutcome>> {
     if !found.is_empty() {
         bail!(
             "fuzzing found {} input(s) that break a target; reproduce with \
-             `cargo fuzz run -s none --fuzz-dir fuzz TARGET FILE`:\n{}",
+             `cargo fuzz run --dev -s none --fuzz-dir fuzz TARGET FILE`:\n{}",
             found.len(),
             found.join("\n")
         );
@@ -100,7 +100,7 @@ fn fuzz_target(work: &Path, target: &'static str, seconds: u32) -> anyhow::Resul
     }
     eprintln!("\n==> cargo fuzz run {target} for {seconds} s");
     let result = Command::new("cargo")
-        .args(["fuzz", "run", "--fuzz-dir", "fuzz", "-s", "none", target])
+        .args(["fuzz", "run", "--dev", "--fuzz-dir", "fuzz", "-s", "none", target])
         .arg(&corpus)
         .arg(&seeds)
         .arg("--")
