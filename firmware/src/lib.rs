@@ -18,7 +18,8 @@
 //! - [`bench`](mod@bench): the board's `bench` command (DWT cycle counts of its sample steps);
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
-//! The board binaries in `src/bin/` only wire peripherals to these.
+//! - [`board`]: the board's timer arithmetic (host-tested) and, on the MCU, its setup,
+//!   handlers and run loop; one small binary per board image in `src/bin/` wires its sensors to it.
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
@@ -44,7 +45,6 @@ pub mod uart;
 pub mod update;
 pub mod watchdog;
 
-#[cfg(target_os = "none")]
 pub mod board;
 #[cfg(all(target_os = "none", feature = "test-harness"))]
 pub mod host_file;
@@ -52,8 +52,8 @@ pub mod host_file;
 use rbf_core::Model;
 use rbf_core::blob::{self, DecodeError};
 
-/// Centres each axis's model may have on the three-axis board (feature
-/// `board-axes`): the capacity `K` of its
+/// Centres each axis's model may have on the three-axis board (the
+/// image `stm32f405-axes`): the capacity `K` of its
 /// [`rbf_core::blob::axes::AxisModels`], chosen so that three models, the
 /// update buffer and the stack stay within the board's 16 KiB of RAM
 /// (docs/firmware.md, "Three axes"). A blob with a larger axis is refused
@@ -62,7 +62,7 @@ use rbf_core::blob::{self, DecodeError};
 pub const AXIS_CENTERS: usize = rbf_core::MAX_AXIS_CENTERS;
 
 /// Centres the shared basis may have on the shared-basis three-axis board
-/// (feature `board-axes-shared`): the capacity `K` of its
+/// (image `stm32f405-axes-shared`): the capacity `K` of its
 /// [`rbf_core::shared_basis::SharedAxisModels`]. One basis with a weight per
 /// axis takes about a third of three models' RAM, so this image holds
 /// twice the per-axis board's centres within the same 16 KiB

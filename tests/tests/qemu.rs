@@ -308,15 +308,15 @@ fn benchmark_image_runs_and_reports_every_model_size() {
 }
 
 /// A board run under QEMU (`run`) took its update and answered the bench
-/// command, one frame per sample; the board image built with `features`
+/// command, one frame per sample; board image `image`
 /// fits its flash budget, and its static RAM and the run's stack peak its
 /// RAM budget (`xtask::bench::budget_for`: 64 / 16 KiB single-axis, 96 / 24
 /// KiB three-axis).
-fn board_within_budgets(run: &xtask::board_stack::BoardRun, features: &[&str]) {
+fn board_within_budgets(run: &xtask::board_stack::BoardRun, image: xtask::firmware::BoardImage) {
     assert!(run.summary.contains("update Some(Installed)"), "{run:?}");
     assert!(run.frames > 10_000, "one frame per sample and the replies: {run:?}");
-    let budget = xtask::bench::budget_for(features);
-    let board = xtask::firmware::build("stm32f405", features).unwrap();
+    let budget = xtask::bench::budget_for(image);
+    let board = image.build().unwrap();
     let size = xtask::firmware::image_size(&board).unwrap();
     assert!(
         size.static_ram + run.stack_peak_bytes <= budget.ram_bytes,
@@ -334,33 +334,33 @@ fn board_within_budgets(run: &xtask::board_stack::BoardRun, features: &[&str]) {
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn the_board_image_takes_an_update_and_a_bench_command_within_its_ram_budget() {
-    // The stm32f405 binary itself (board-qemu: QEMU's missing pieces
-    // swapped): boot with a model, an install and a bench command over its
+    // The stm32f405 board's code under QEMU (stm32f405-qemu: QEMU's missing
+    // pieces swapped): boot with a model, an install and a bench command over its
     // UART (measure() refuses a run without the install or the bench
     // report), 10,000 samples; its static RAM and painted stack fit 16 KiB.
     let run = xtask::board_stack::measure().unwrap();
-    board_within_budgets(&run, &["board-stm32f405"]);
+    board_within_budgets(&run, xtask::firmware::BOARD);
 }
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn the_three_axis_board_takes_a_three_axis_update_within_the_boards_budgets() {
-    // The stm32f405 binary with board-axes (and board-qemu): three models of
+    // The three-axis board under QEMU (stm32f405-axes-qemu): three models of
     // firmware::AXIS_CENTERS centres at boot, a three-axis install and a bench
     // command over its UART, 10,000 samples; flash, static RAM and stack fit.
     let run = xtask::board_stack::measure_axes().unwrap();
-    board_within_budgets(&run, &["board-axes"]);
+    board_within_budgets(&run, xtask::firmware::BOARD_AXES);
 }
 
 #[test]
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn the_shared_basis_board_takes_a_shared_basis_update_within_the_boards_budgets() {
-    // The stm32f405 binary with board-axes-shared (and board-qemu): a
+    // The shared-basis board under QEMU (stm32f405-axes-shared-qemu): a
     // shared basis of firmware::SHARED_AXIS_CENTERS centres at boot, a
     // shared-basis install and a bench command over its UART, 10,000
     // samples; flash, static RAM and stack fit.
     let run = xtask::board_stack::measure_axes_shared().unwrap();
-    board_within_budgets(&run, &["board-axes-shared"]);
+    board_within_budgets(&run, xtask::firmware::BOARD_AXES_SHARED);
 }
 
 #[test]

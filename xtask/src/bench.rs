@@ -29,9 +29,9 @@ pub const THREE_AXIS_BUDGET: Budget = Budget {
     ram_bytes: 24 * 1024,
 };
 
-/// The budget of the board image built with `features`.
-pub fn budget_for(features: &[&str]) -> Budget {
-    if features.iter().any(|f| f.starts_with("board-axes")) {
+/// The budget of board image `image`.
+pub fn budget_for(image: firmware::BoardImage) -> Budget {
+    if image.three_axes() {
         THREE_AXIS_BUDGET
     } else {
         SINGLE_AXIS_BUDGET
@@ -46,20 +46,14 @@ const RESPONSE_BANK_STEP_BUDGET_INSTRUCTIONS: u64 = 1200;
 /// `instructions_per_sample K=32 D=3: N`, N the model evaluation's count.
 pub fn bench_fw() -> anyhow::Result<()> {
     qemu::ensure_installed()?;
-    // First: it builds the board binary with `board-qemu` to the path the
-    // board image is built to next.
     let board_run = crate::board_stack::measure()?;
     let axes_run = crate::board_stack::measure_axes()?;
     let shared_run = crate::board_stack::measure_axes_shared()?;
-    // The three-axis board images, kept apart from the single-axis one built to the same path.
-    let axes_board_dir = tempfile::TempDir::new()?;
-    let axes_board = axes_board_dir.path().join("stm32f405-axes");
-    std::fs::copy(firmware::build("stm32f405", &["board-axes"])?, &axes_board)?;
-    let shared_board = axes_board_dir.path().join("stm32f405-axes-shared");
-    std::fs::copy(firmware::build("stm32f405", &["board-axes-shared"])?, &shared_board)?;
+    let axes_board = firmware::BOARD_AXES.build()?;
+    let shared_board = firmware::BOARD_AXES_SHARED.build()?;
     let bench = firmware::build("qemu-bench", &[])?;
     let replay = firmware::build("qemu-replay", &["test-harness"])?;
-    let board = firmware::build("stm32f405", &["board-stm32f405"])?;
+    let board = firmware::BOARD.build()?;
     let dir = tempfile::TempDir::new()?;
     let icount = ["-icount".to_owned(), "shift=0".to_owned()];
     let result = qemu::run(&bench, dir.path(), &icount, Duration::from_secs(300))?;
@@ -143,12 +137,12 @@ pub fn bench_fw() -> anyhow::Result<()> {
         (
             "stm32f405-3ax",
             &axes_board,
-            "the same board for a three-axis IMU (feature board-axes): three models of firmware::AXIS_CENTERS centres",
+            "the same board for a three-axis IMU (image stm32f405-axes): three models of firmware::AXIS_CENTERS centres",
         ),
         (
             "stm32f405-3ax-sb",
             &shared_board,
-            "the three-axis board for a shared-basis blob (feature board-axes-shared): one basis of \
+            "the three-axis board for a shared-basis blob (image stm32f405-axes-shared): one basis of \
              firmware::SHARED_AXIS_CENTERS centres, a layer per axis",
         ),
         (
@@ -174,7 +168,7 @@ pub fn bench_fw() -> anyhow::Result<()> {
         board_size.largest_rodata.0, board_size.largest_rodata.1
     );
     println!(
-        "stm32f405 main loop under QEMU (board-qemu image: boot with a model, an update and a bench command \
+        "stm32f405 main loop under QEMU (stm32f405-qemu image: boot with a model, an update and a bench command \
          over the UART ({} steps reported), {} frames received; {})",
         board_run.bench_steps, board_run.frames, board_run.summary
     );
@@ -188,7 +182,7 @@ pub fn bench_fw() -> anyhow::Result<()> {
     );
     let axes_size = firmware::image_size(&axes_board)?;
     println!(
-        "stm32f405 three-axis board under QEMU (board-qemu + board-axes: three K={} models at boot, a three-axis \
+        "stm32f405 three-axis board under QEMU (stm32f405-axes-qemu: three K={} models at boot, a three-axis \
          update and a bench command over the UART ({} steps reported), {} frames received; {})",
         firmware_lib::AXIS_CENTERS,
         axes_run.bench_steps,
@@ -205,7 +199,7 @@ pub fn bench_fw() -> anyhow::Result<()> {
     );
     let shared_size = firmware::image_size(&shared_board)?;
     println!(
-        "stm32f405 shared-basis three-axis board under QEMU (board-qemu + board-axes-shared: a K={} shared basis \
+        "stm32f405 shared-basis three-axis board under QEMU (stm32f405-axes-shared-qemu: a K={} shared basis \
          at boot, a shared-basis update and a bench command over the UART ({} steps reported), {} frames received; {})",
         firmware_lib::SHARED_AXIS_CENTERS,
         shared_run.bench_steps,

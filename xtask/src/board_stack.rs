@@ -1,5 +1,5 @@
-//! The gyro board's own stack peak, measured under QEMU: the `board-qemu`
-//! image of the stm32f405 binary (the board's main loop, interrupt handlers
+//! The gyro board's own stack peak, measured under QEMU: the
+//! `stm32f405-qemu` image (the board's main loop, interrupt handlers
 //! and drivers; the clock setup and the pieces QEMU lacks swapped, see
 //! docs/firmware.md) boots with a model in flash slot A, receives a model
 //! update and a `bench` command over its UART (this module plays the host:
@@ -201,34 +201,33 @@ fn encode_axes_blob(axes: &AxisModels<64>) -> anyhow::Result<Vec<u8>> {
     Ok(blob)
 }
 
-/// Builds the `board-qemu` image and runs it as the module docs say.
+/// Builds the `stm32f405-qemu` image and runs it as the module docs say.
 pub fn measure() -> anyhow::Result<BoardRun> {
-    measure_image(&["board-qemu"], encode(&boot_model()?)?, encode(&update_model()?)?)
+    measure_image(firmware::BOARD_QEMU, encode(&boot_model()?)?, encode(&update_model()?)?)
 }
 
-/// [`measure`] for the three-axis board (`board-axes`): a multi-axis blob
+/// [`measure`] for the three-axis board (`stm32f405-axes-qemu`): a multi-axis blob
 /// at boot and a multi-axis update, one frame per sample with every axis.
 pub fn measure_axes() -> anyhow::Result<BoardRun> {
-    measure_image(&["board-qemu", "board-axes"], boot_axes()?, update_axes()?)
+    measure_image(firmware::BOARD_AXES_QEMU, boot_axes()?, update_axes()?)
 }
 
 /// [`measure`] for the shared-basis three-axis board
-/// (`board-axes-shared`): a shared-basis blob at boot and a shared-basis
+/// (`stm32f405-axes-shared-qemu`): a shared-basis blob at boot and a shared-basis
 /// update, one frame per sample with every axis.
 pub fn measure_axes_shared() -> anyhow::Result<BoardRun> {
     measure_image(
-        &["board-qemu", "board-axes-shared"],
+        firmware::BOARD_AXES_SHARED_QEMU,
         shared_axes(false)?,
         shared_axes(true)?,
     )
 }
 
-fn measure_image(features: &[&str], boot: Vec<u8>, update: Vec<u8>) -> anyhow::Result<BoardRun> {
-    let built = firmware::build("stm32f405", features)?;
+fn measure_image(image: firmware::BoardImage, boot: Vec<u8>, update: Vec<u8>) -> anyhow::Result<BoardRun> {
+    let built = image.build()?;
     let dir = tempfile::TempDir::new()?;
-    // The real board image is built to the same path: keep this one apart.
-    let elf = dir.path().join("stm32f405-qemu");
-    std::fs::copy(&built, &elf).context("copy the board-qemu image")?;
+    let elf = dir.path().join(image.bin);
+    std::fs::copy(&built, &elf).context("copy the QEMU board image")?;
     std::fs::write(dir.path().join("boot.bin"), boot)?;
     let mut commands = vec![0u8; firmware_lib::update::MAX_COMMAND_FRAME_LEN];
     let n = firmware_lib::update::encode_install_command(&update, &mut commands).context("encode the command")?;
@@ -308,7 +307,7 @@ fn run(elf: &Path, dir: &Path, command: &[u8]) -> anyhow::Result<BoardRun> {
             })
         }
         _ => bail!(
-            "the board-qemu run failed (update reply status {reply}, bench report of {bench_steps} steps, {} frames):\n{}",
+            "the QEMU board run failed (update reply status {reply}, bench report of {bench_steps} steps, {} frames):\n{}",
             frames.load(Ordering::Relaxed),
             result.log
         ),

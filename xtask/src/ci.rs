@@ -143,97 +143,6 @@ pub fn ci() -> anyhow::Result<()> {
         "test-harness",
         "--bins",
     ];
-    let stm32_board = [
-        "--package",
-        "firmware",
-        "--target",
-        TARGET,
-        "--features",
-        "board-stm32f405",
-        "--bin",
-        "stm32f405",
-    ];
-    let debug_board = [
-        "--package",
-        "firmware",
-        "--target",
-        TARGET,
-        "--features",
-        "board-debug",
-        "--bin",
-        "stm32f405",
-    ];
-    let qemu_board = [
-        "--package",
-        "firmware",
-        "--target",
-        TARGET,
-        "--features",
-        "board-qemu",
-        "--bin",
-        "stm32f405",
-    ];
-    let axes_board = [
-        "--package",
-        "firmware",
-        "--target",
-        TARGET,
-        "--features",
-        "board-axes",
-        "--bin",
-        "stm32f405",
-    ];
-    let axes_qemu_board = [
-        "--package",
-        "firmware",
-        "--target",
-        TARGET,
-        "--features",
-        "board-qemu,board-axes",
-        "--bin",
-        "stm32f405",
-    ];
-    let shared_board = [
-        "--package",
-        "firmware",
-        "--target",
-        TARGET,
-        "--features",
-        "board-axes-shared",
-        "--bin",
-        "stm32f405",
-    ];
-    let shared_qemu_board = [
-        "--package",
-        "firmware",
-        "--target",
-        TARGET,
-        "--features",
-        "board-qemu,board-axes-shared",
-        "--bin",
-        "stm32f405",
-    ];
-    // The boards `cargo xtask qemu-board --pty` serves (tests/tests/device.rs).
-    let serve_board = [
-        "--package",
-        "firmware",
-        "--target",
-        TARGET,
-        "--features",
-        "board-qemu-serve",
-        "--bin",
-        "stm32f405",
-    ];
-    let axes_serve_board = [
-        "--package",
-        "firmware",
-        "--target",
-        TARGET,
-        "--features",
-        "board-qemu-serve,board-axes",
-        "--bin",
-        "stm32f405",
-    ];
     let panic_check = [
         "--package",
         "firmware",
@@ -244,19 +153,27 @@ pub fn ci() -> anyhow::Result<()> {
         "--bin",
         "panic-free-check",
     ];
-    for board in [
-        &qemu_boards[..],
-        &stm32_board[..],
-        &debug_board[..],
-        &qemu_board[..],
-        &axes_board[..],
-        &axes_qemu_board[..],
-        &shared_board[..],
-        &shared_qemu_board[..],
-        &serve_board[..],
-        &axes_serve_board[..],
-        &panic_check[..],
-    ] {
+    // Every board image (one binary each, with the feature it requires), then the panic check.
+    let boards: Vec<[&str; 8]> = crate::firmware::BOARD_IMAGES
+        .iter()
+        .map(|image| {
+            [
+                "--package",
+                "firmware",
+                "--target",
+                TARGET,
+                "--features",
+                image.feature,
+                "--bin",
+                image.bin,
+            ]
+        })
+        .collect();
+    run(
+        "cargo",
+        &[&["clippy"][..], &qemu_boards[..], &["--", "-D", "warnings"]].concat(),
+    )?;
+    for board in boards.iter().map(|b| &b[..]).chain([&panic_check[..]]) {
         run("cargo", &[&["clippy"][..], board, &["--", "-D", "warnings"]].concat())?;
     }
     clock.lap("clippy, firmware feature sets");
@@ -271,13 +188,10 @@ pub fn ci() -> anyhow::Result<()> {
             "--no-default-features",
         ],
     )?;
-    for board in [
-        &qemu_boards[..],
-        &stm32_board[..],
-        &debug_board[..],
-        &axes_board[..],
-        &shared_board[..],
-    ] {
+    // The QEMU test images, then the images that are flashed (the QEMU board
+    // images are built by the tests that run them).
+    run("cargo", &[&["build", "--release"][..], &qemu_boards[..]].concat())?;
+    for board in boards.iter().filter(|b| b[5] != "board-qemu").map(|b| &b[..]) {
         run("cargo", &[&["build", "--release"][..], board].concat())?;
     }
     clock.lap("rbf-core no_std check and firmware release images");

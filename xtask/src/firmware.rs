@@ -38,6 +38,87 @@ pub fn ensure_flip_link() -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A board image: its binary (`firmware/src/bin/`, one per image over
+/// `firmware::board`) and the feature it requires.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BoardImage {
+    /// The binary's name.
+    pub bin: &'static str,
+    /// The feature that selects its HAL and, for the QEMU images, QEMU's substitutes.
+    pub feature: &'static str,
+}
+
+impl BoardImage {
+    /// Builds the image (release) and returns its ELF path.
+    pub fn build(self) -> anyhow::Result<PathBuf> {
+        build(self.bin, &[self.feature])
+    }
+
+    /// True for the three-axis images.
+    pub fn three_axes(self) -> bool {
+        self.bin.starts_with("stm32f405-axes")
+    }
+}
+
+/// The single-axis gyro board (what `cargo flash-board` flashes).
+pub const BOARD: BoardImage = BoardImage {
+    bin: "stm32f405",
+    feature: "board-stm32f405",
+};
+/// The single-axis board with defmt logging over RTT.
+pub const BOARD_DEBUG: BoardImage = BoardImage {
+    bin: "stm32f405-debug",
+    feature: "board-debug",
+};
+/// The three-axis board, a model per axis.
+pub const BOARD_AXES: BoardImage = BoardImage {
+    bin: "stm32f405-axes",
+    feature: "board-stm32f405",
+};
+/// The three-axis board for a shared-basis blob.
+pub const BOARD_AXES_SHARED: BoardImage = BoardImage {
+    bin: "stm32f405-axes-shared",
+    feature: "board-stm32f405",
+};
+/// [`BOARD`] under QEMU (stack peak measured, exits when done).
+pub const BOARD_QEMU: BoardImage = BoardImage {
+    bin: "stm32f405-qemu",
+    feature: "board-qemu",
+};
+/// [`BOARD_AXES`] under QEMU.
+pub const BOARD_AXES_QEMU: BoardImage = BoardImage {
+    bin: "stm32f405-axes-qemu",
+    feature: "board-qemu",
+};
+/// [`BOARD_AXES_SHARED`] under QEMU.
+pub const BOARD_AXES_SHARED_QEMU: BoardImage = BoardImage {
+    bin: "stm32f405-axes-shared-qemu",
+    feature: "board-qemu",
+};
+/// [`BOARD_QEMU`] serving until stopped (`cargo xtask qemu-board --pty`).
+pub const BOARD_QEMU_SERVE: BoardImage = BoardImage {
+    bin: "stm32f405-qemu-serve",
+    feature: "board-qemu",
+};
+/// [`BOARD_AXES_QEMU`] serving until stopped (`cargo xtask qemu-board --axes 3 --pty`).
+pub const BOARD_AXES_QEMU_SERVE: BoardImage = BoardImage {
+    bin: "stm32f405-axes-qemu-serve",
+    feature: "board-qemu",
+};
+
+/// Every board image, as CI builds and lints them.
+pub const BOARD_IMAGES: [BoardImage; 9] = [
+    BOARD,
+    BOARD_DEBUG,
+    BOARD_AXES,
+    BOARD_AXES_SHARED,
+    BOARD_QEMU,
+    BOARD_AXES_QEMU,
+    BOARD_AXES_SHARED_QEMU,
+    BOARD_QEMU_SERVE,
+    BOARD_AXES_QEMU_SERVE,
+];
+
 /// Builds board binary `bin` (release) and returns the ELF path: with
 /// `features`, a copy of its own (`bin+feature+…` beside it), because
 /// every feature set of one binary is built to the same path and tests
@@ -118,27 +199,28 @@ pub fn check_panic_free() -> anyhow::Result<()> {
     check_board_panics()
 }
 
-/// Builds the board image (what is flashed), single-axis, three-axis
-/// (`board-axes`) and shared-basis three-axis (`board-axes-shared`), and
+/// Builds the board images (what is flashed), single-axis (`stm32f405`),
+/// three-axis (`stm32f405-axes`) and shared-basis three-axis
+/// (`stm32f405-axes-shared`), and
 /// proves from their machine code that they hold no panic call site, and
 /// that nothing after init reaches one ([`crate::panic_paths`]).
 pub fn check_board_panics() -> anyhow::Result<()> {
     eprintln!("\n==> board image: no panic call site, none reachable from its loop and handlers");
-    let board = build("stm32f405", &["board-stm32f405"])?;
+    let board = BOARD.build()?;
     let reach = crate::panic_paths::check_board_image(&board)?;
     eprintln!(
         "    ok: no panic call site in the image; {} functions reachable from run_forever and the handlers",
         reach.functions
     );
-    eprintln!("\n==> three-axis board image (board-axes): no panic call site");
-    let board = build("stm32f405", &["board-axes"])?;
+    eprintln!("\n==> three-axis board image (stm32f405-axes): no panic call site");
+    let board = BOARD_AXES.build()?;
     let reach = crate::panic_paths::check_board_image(&board)?;
     eprintln!(
         "    ok: no panic call site in the image; {} functions reachable from run_forever and the handlers",
         reach.functions
     );
-    eprintln!("\n==> shared-basis three-axis board image (board-axes-shared): no panic call site");
-    let board = build("stm32f405", &["board-axes-shared"])?;
+    eprintln!("\n==> shared-basis three-axis board image (stm32f405-axes-shared): no panic call site");
+    let board = BOARD_AXES_SHARED.build()?;
     let reach = crate::panic_paths::check_board_image(&board)?;
     eprintln!(
         "    ok: no panic call site in the image; {} functions reachable from run_forever and the handlers",

@@ -57,7 +57,7 @@ enum Cmd {
     ///
     /// Example: cargo xtask qemu-board --pty
     QemuBoard {
-        /// The three-axis IMU board (board-axes: one frame with x, y, z per sample).
+        /// The three-axis IMU board (stm32f405-axes-qemu-serve: one frame with x, y, z per sample).
         #[arg(long, value_name = "N", default_value_t = 1,
               value_parser = clap::value_parser!(u8).range(1..=3))]
         axes: u8,

@@ -222,7 +222,7 @@ mod tests {
             f(0x110, 0x10, "USART1"),
             f(0x120, 0x10, "HardFault"),
             f(0x130, 0x10, "SysTick"),
-            f(0x200, 0x20, "_ZN9stm32f4055board11run_forever17h0E"),
+            f(0x200, 0x20, "_ZN8firmware5board5image11run_forever17h0E"),
             f(0x300, 0x10, "_ZN4step17h1E"),
             f(0x400, 0x10, "_ZN4init17h2E"),
             f(0x500, 0x10, "_RNvNtCs0_4core9panicking9panic_fmt"),

@@ -1,7 +1,7 @@
 //! `cargo xtask qemu-board --pty`: the gyro board without hardware. The
-//! stm32f405 board image built with `board-qemu-serve` (the `board-qemu`
-//! image that never exits, its front ends and thermometers emulated; add
-//! `board-axes` for a three-axis IMU) runs under QEMU with USART1 on a
+//! `stm32f405-qemu-serve` board image (the `stm32f405-qemu` image that
+//! never exits, its front ends and thermometers emulated;
+//! `stm32f405-axes-qemu-serve` for a three-axis IMU) runs under QEMU with USART1 on a
 //! pseudo-terminal, at its real sample rate (1 kHz, no `-icount`), until it
 //! is stopped: `trainer device` talks to the pty as to a USB serial adapter.
 //! The sensors answer from a built-in temperature ramp, or (single-axis)
@@ -25,7 +25,7 @@ const PTY_WAIT: Duration = Duration::from_secs(10);
 /// What `qemu-board` runs.
 #[derive(Clone, Debug, Default)]
 pub struct BoardOptions {
-    /// The three-axis image (`board-axes`) instead of the single-axis one.
+    /// The three-axis image (`stm32f405-axes-qemu-serve`) instead of the single-axis one.
     pub three_axes: bool,
     /// A model blob placed in flash slot A before boot (none: the board
     /// starts without a model, flag 4 on every frame).
@@ -50,12 +50,11 @@ pub struct QemuBoard {
 
 /// Builds the serving image for `options` and returns its ELF path.
 pub fn build_image(three_axes: bool) -> anyhow::Result<PathBuf> {
-    let features: &[&str] = if three_axes {
-        &["board-qemu-serve", "board-axes"]
+    if three_axes {
+        firmware::BOARD_AXES_QEMU_SERVE.build()
     } else {
-        &["board-qemu-serve"]
-    };
-    firmware::build("stm32f405", features)
+        firmware::BOARD_QEMU_SERVE.build()
+    }
 }
 
 impl QemuBoard {

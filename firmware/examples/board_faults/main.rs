@@ -49,7 +49,7 @@ const TEMP_25C_RAW: i16 = 3200;
 type Bus = BoundedI2c<FakeI2c, SimClock>;
 type BoardLoop = CompensationLoop<Tmp117<Bus>, FrontEnd<FakeSpi>, Vec<u8>, Option<Model>>;
 
-/// The single-axis board's sample path, wired as `src/bin/stm32f405.rs` wires it.
+/// The single-axis board's sample path, wired as `src/bin/stm32f405.rs` and `firmware::board` wire it.
 struct Board {
     clock: SimClock,
     fe: Rc<RefCell<FrontEndSim>>,

@@ -70,15 +70,15 @@ pub struct Args {
     holdout: Vec<PathBuf>,
     /// Multi-axis runs: a model per axis, never one shared basis.
     ///
-    /// For the per-axis three-axis firmware image, board-axes;
-    /// board-axes-shared takes the joint model's blob.
+    /// For the per-axis three-axis firmware image, stm32f405-axes;
+    /// stm32f405-axes-shared takes the joint model's blob.
     #[arg(long, help_heading = "Model")]
     no_joint: bool,
     /// Multi-axis runs on one thermometer: one shared basis, whatever it costs.
     ///
     /// Writes the joint model even where an axis loses more than 0.5 points
     /// (100-s cluster STD) with it against its own fit; the firmware then
-    /// evaluates one basis for every axis (board-axes-shared).
+    /// evaluates one basis for every axis (image stm32f405-axes-shared).
     #[arg(long, help_heading = "Model", conflicts_with = "no_joint")]
     joint: bool,
     /// Averaging block for training, s; a run past 32768 blocks has them

@@ -35,11 +35,11 @@ pub const INSTALL_TIMEOUT: Duration = Duration::from_secs(15);
 /// Which board images take a blob.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Suits {
-    /// The single-axis board (`board-stm32f405`).
+    /// The single-axis board (image `stm32f405`).
     pub single: bool,
-    /// The three-axis board with a model per axis (`board-axes`).
+    /// The three-axis board with a model per axis (image `stm32f405-axes`).
     pub per_axis: bool,
-    /// The shared-basis three-axis board (`board-axes-shared`).
+    /// The shared-basis three-axis board (image `stm32f405-axes-shared`).
     pub shared: bool,
 }
 

@@ -1,4 +1,4 @@
-//! Bare-metal pieces shared by the board binaries: the model flash slots and
+//! Bare-metal pieces of every image (the board's and the QEMU test images): the model flash slots and
 //! the panic handler. Only built for `target_os = "none"`.
 #![allow(unsafe_code)]
 

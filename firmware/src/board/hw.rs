@@ -3,17 +3,15 @@
 //! [`Watchdog`], I2C1 on PB6/PB7 as [`I2cRegisters`], the flash controller
 //! as [`FlashRegisters`], and the bounded HSE start. What runs on these is
 //! library code (`cargo xtask board-faults` runs it against simulations).
+#![allow(unsafe_code)]
 
 use core::sync::atomic::AtomicU32;
-#[cfg(not(feature = "board-qemu"))]
 use core::sync::atomic::Ordering;
 
-use firmware::clock::Clock;
-#[cfg(not(feature = "board-qemu"))]
-use firmware::flash_ctl::FlashRegisters;
-#[cfg(not(feature = "board-qemu"))]
-use firmware::i2c_master::I2cRegisters;
-use firmware::watchdog::{IwdgSetting, Watchdog};
+use crate::clock::Clock;
+use crate::flash_ctl::FlashRegisters;
+use crate::i2c_master::I2cRegisters;
+use crate::watchdog::{IwdgSetting, Watchdog};
 use stm32f4xx_hal::pac;
 
 /// I2C1 bus recoveries (each ends in a peripheral reset): the one at boot,
@@ -109,7 +107,6 @@ pub struct ClockTree {
     /// Core (SYSCLK = HCLK).
     pub sysclk_hz: u32,
     /// APB1 (I2C1).
-    #[cfg_attr(feature = "board-qemu", allow(dead_code, reason = "the QEMU image has no I2C1"))]
     pub pclk1_hz: u32,
     /// APB2 (SPI1, USART1).
     pub pclk2_hz: u32,
@@ -135,7 +132,6 @@ pub const HSI_TREE: ClockTree = ClockTree {
 /// prefetch and caches on, APB1 ÷4 (42 MHz, timers 84 MHz), APB2 ÷2
 /// (84 MHz). A PLL that does not lock leaves the chip on the HSI
 /// ([`HSI_TREE`]).
-#[cfg(not(feature = "board-qemu"))]
 pub fn setup_clocks() -> ClockTree {
     // SAFETY: RCC and FLASH's ACR, configured once from `main` before any
     // peripheral runs; values as RM0090 §6.3 and §3.5.1 define them.
@@ -187,7 +183,7 @@ pub fn setup_clocks() -> ClockTree {
 /// Sets SPI1's clock divider for `tree` (the HAL computed one for the
 /// reset clocks it believes in): at most the front end's `max_hz`.
 pub fn set_spi1_divider(tree: &ClockTree, max_hz: u32) {
-    let divider = firmware::frontend::spi_divider(tree.pclk2_hz, max_hz);
+    let divider = crate::frontend::spi_divider(tree.pclk2_hz, max_hz);
     // BR [5:3]: ÷2^(BR+1).
     let code = (divider.trailing_zeros().saturating_sub(1) & 0b111) as u16;
     // SAFETY: SPI1's CR1, disabled (SPE, bit 6) while BR changes.
@@ -210,14 +206,12 @@ pub fn set_usart1_baud(tree: &ClockTree, baud: u32) {
 }
 
 /// I2C1 (RM0090 §27) with SCL on PB6 and SDA on PB7 (AF4, open drain).
-#[cfg(not(feature = "board-qemu"))]
 #[derive(Debug)]
 pub struct I2c1Regs {
     /// APB1 clock, MHz (2 … 42).
     pub pclk1_mhz: u16,
 }
 
-#[cfg(not(feature = "board-qemu"))]
 impl I2c1Regs {
     fn i2c() -> &'static pac::i2c1::RegisterBlock {
         // SAFETY: I2C1 is owned by this driver alone (the HAL's I2C is not built).
@@ -230,7 +224,6 @@ impl I2c1Regs {
     }
 }
 
-#[cfg(not(feature = "board-qemu"))]
 impl I2cRegisters for I2c1Regs {
     fn sr1(&mut self) -> u16 {
         Self::i2c().sr1().read().bits()
@@ -270,7 +263,7 @@ impl I2cRegisters for I2c1Regs {
             i2c.cr2().write(|w| w.bits(mhz));
             i2c.trise().write(|w| w.bits(mhz * 300 / 1000 + 1));
             i2c.ccr().write(|w| w.bits((1 << 15) | (ccr & 0xFFF)));
-            i2c.cr1().write(|w| w.bits(firmware::i2c_master::CR1_PE));
+            i2c.cr1().write(|w| w.bits(crate::i2c_master::CR1_PE));
         }
         I2C_RECOVERIES.fetch_add(1, Ordering::Relaxed);
     }
@@ -299,11 +292,9 @@ impl I2cRegisters for I2c1Regs {
 }
 
 /// The flash controller (RM0090 §3.9) and the model slots, memory-mapped.
-#[cfg(not(feature = "board-qemu"))]
 #[derive(Debug)]
 pub struct FlashRegs;
 
-#[cfg(not(feature = "board-qemu"))]
 impl FlashRegs {
     fn flash() -> &'static pac::flash::RegisterBlock {
         // SAFETY: the flash controller is owned by this driver alone.
@@ -311,7 +302,6 @@ impl FlashRegs {
     }
 }
 
-#[cfg(not(feature = "board-qemu"))]
 impl FlashRegisters for FlashRegs {
     fn sr(&mut self) -> u32 {
         Self::flash().sr().read().bits()
@@ -333,10 +323,10 @@ impl FlashRegisters for FlashRegs {
     }
     fn write_word(&mut self, offset: u32, word: u32) {
         // Only words inside the model slots are ever programmed.
-        let in_slot = super::MODEL_SLOTS
+        let in_slot = super::chip::SLOTS
             .offsets
             .iter()
-            .any(|&start| offset >= start && offset + 4 <= start + super::MODEL_SLOTS.len);
+            .any(|&start| offset >= start && offset + 4 <= start + super::chip::SLOTS.len);
         if in_slot {
             let address = 0x0800_0000u32 + offset;
             // SAFETY: an aligned word inside a model slot, with PG set (the
@@ -354,8 +344,8 @@ impl FlashRegisters for FlashRegs {
     }
     fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
         // Only the model slots are read (the linker's MODEL_A and MODEL_B).
-        let slots = [firmware::board::model_slot_a(), firmware::board::model_slot_b()];
-        super::MODEL_SLOTS.offsets.iter().zip(slots).find_map(|(start, slot)| {
+        let slots = [crate::board::model_slot_a(), crate::board::model_slot_b()];
+        super::chip::SLOTS.offsets.iter().zip(slots).find_map(|(start, slot)| {
             let from = offset.checked_sub(*start)? as usize;
             slot.get(from..from.checked_add(len)?)
         })

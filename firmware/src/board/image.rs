@@ -1,0 +1,836 @@
+//! The board image over its wiring: setup ([`Board::setup`]: watchdog,
+//! reset cause, clock tree, TIM2, SPI1, USART1 and its queues, the
+//! data-ready line, the boot report), the interrupt and exception
+//! handlers, and the run loop ([`Board::run`]: model store, sensors'
+//! init, pacing, commands, health). An image's binary (`src/bin/`) only
+//! wires its sensors to the pieces `setup` hands it and picks its model
+//! kind by type ([`BoardModel`]).
+//!
+//! - TMP117 on I2C1 (PB6 SCL, PB7 SDA, 400 kHz);
+//! - IFOG front ends on SPI1 (PA5 SCK, PA6 MISO, PA7 MOSI, chip selects
+//!   PA4, PA3, PA2, mode 3, at most 10 MHz: 84 MHz / 16) with data-ready on
+//!   PB0 (EXTI0, rising edge), 1 kHz;
+//! - output frames on USART1 TX (PA9, 921 600 Bd, 8N1); model-update,
+//!   bench and health commands on USART1 RX (PA10, pulled up), replies on
+//!   TX (crate::update, crate::health);
+//! - the model in flash slot MODEL_A (0x080C_0000) or MODEL_B (0x080E_0000),
+//!   whichever holds the newest committed blob (crate::model_store).
+//!
+//! Timing (docs/firmware.md): the EXTI0 interrupt timestamps every
+//! data-ready edge with TIM2 (32 bits at the 84 MHz timer clock) and queues
+//! the stamp; the main loop takes stamps from the queue, derives dt and the
+//! edge number from them (edges lost while the CPU stalled, as during a
+//! flash erase, count and are flagged) and runs one compensation step per
+//! stamp (crate::pacing: glitches rejected, a backlog counted as missed,
+//! steps synthesised when data-ready falls silent; SysTick wakes the loop
+//! every millisecond to notice). USART1's interrupt moves bytes between the
+//! UART and two queues: frames out (crate::uart::FrameQueue, whole or
+//! dropped and flagged) and command bytes in (overruns counted). The
+//! independent watchdog starts before the clock tree (crate::watchdog:
+//! ≥ 2 s at the fastest LSI, ≥ 4.5 s around a model install) and is fed
+//! once per step. Every wait on I2C, the flash controller and the clock
+//! setup is bounded (crate::i2c_master, crate::flash_ctl, `hw`). A
+//! panic or HardFault records its cause in RAM that survives the reset
+//! (crate::fault) and resets; the next boot reports it, and every boot
+//! sends the health report (crate::health).
+#![allow(unsafe_code)]
+
+use core::cell::RefCell;
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cortex_m::interrupt::Mutex;
+use cortex_m::peripheral::DWT;
+use cortex_m_rt::{ExceptionFrame, exception};
+#[cfg(feature = "board-debug")]
+use defmt_rtt as _;
+use embedded_hal::i2c::I2c;
+use embedded_hal::spi::SpiDevice;
+use embedded_hal_bus::spi::{AtomicDevice, ExclusiveDevice};
+use embedded_hal_bus::util::AtomicCell;
+use heapless::spsc::{Consumer, Producer, Queue};
+use rbf_core::blob::axes::AxisModels;
+use rbf_core::shared_basis::SharedAxisModels;
+use rbf_core::{CompensatorConfig, Flags, Model};
+use stm32f4xx_hal::gpio::{Edge, ErasedPin, ExtiPin, Input, Output, PA2, PA3, PA4, PB0};
+use stm32f4xx_hal::pac::{self, interrupt};
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::rcc::{Enable, Reset};
+use stm32f4xx_hal::serial::{Rx, RxListen, Tx, TxListen};
+use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
+
+#[cfg(not(feature = "board-qemu"))]
+use super::chip as platform;
+use super::hw;
+#[cfg(feature = "board-qemu")]
+use super::qemu as platform;
+use super::timing;
+use crate::bench::{Bench, CMD_BENCH};
+use crate::compensation::{CompensationLoop, InPlaceModel, LoopConfig, LoopStats, ModelHolder, write_frame};
+use crate::fault::{self, FaultReason, FaultRecord};
+use crate::frontend::{self, FrontEnd};
+use crate::health::{
+    BOARD_ON_HSI, CMD_HEALTH, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause,
+};
+use crate::model_store::{ModelStore, StoredModel};
+use crate::pacing::{self, Pacer, PacerCounters};
+use crate::sensors::{AxisFrontEnds, AxisThermometers};
+use crate::tmp117::Tmp117;
+use crate::uart::{self, FrameQueue};
+use crate::update::{self, CommandReceiver, Received, UpdateStatus};
+use crate::watchdog::{self, Watchdog};
+
+pub use platform::I2c1;
+
+/// Logs over RTT in the debug image (`board-debug`); nothing otherwise.
+macro_rules! log {
+    ($($arg:tt)*) => {
+        #[cfg(feature = "board-debug")]
+        defmt::info!($($arg)*);
+    };
+}
+
+/// Front-end output data rate, Hz (paced by its crystal; data-ready marks each sample).
+pub const GYRO_RATE_HZ: f32 = 1000.0;
+/// Read the TMP117 every 125th sample: 8 Hz, its conversion rate at 8 averages.
+const TEMP_READ_EVERY: u32 = 125;
+/// The front end's fastest SPI clock, Hz (docs/frontend.md).
+const SPI_MAX_HZ: u32 = 10_000_000;
+/// Bytes of the transmit queue: 24 output frames (≤ 21 B each at 1 kHz
+/// take 0.23 ms of the 1 ms at 921 600 Bd), or a reply and a burst.
+const TX_QUEUE: usize = 512;
+/// Bytes of the receive queue: commands arrive faster than the loop
+/// takes them only while it is busy (2.8 ms of bytes at 921 600 Bd).
+const RX_QUEUE: usize = 256;
+/// Data-ready stamps waiting for the loop.
+const STAMP_QUEUE: usize = 16;
+
+/// USART1's halves and the queue ends its interrupt serves.
+struct UartIsr {
+    tx: Tx<pac::USART1>,
+    rx: Rx<pac::USART1>,
+    outgoing: Consumer<'static, u8>,
+    incoming: Producer<'static, u8>,
+}
+
+/// The data-ready pin and the stamp queue its interrupt fills.
+struct DataReadyIsr {
+    pin: PB0<Input>,
+    stamps: Producer<'static, u32>,
+}
+
+/// The model kinds a board image runs, each decoded in place into a
+/// `static` of its own (all bits zero: .bss, no flash): a single gyro's
+/// [`Model`], an IMU's [`AxisModels`] of [`crate::AXIS_CENTERS`] centres
+/// per axis, or one [`SharedAxisModels`] basis of
+/// [`crate::SHARED_AXIS_CENTERS`] centres.
+pub trait BoardModel: StoredModel + 'static {
+    /// The image's model storage.
+    ///
+    /// # Safety
+    /// Called once ([`Board::run`] does): the only reference.
+    unsafe fn storage() -> &'static mut Self;
+}
+
+/// The running model, decoded in place (all bits zero: .bss, no flash).
+static mut MODEL: Model = Model::EMPTY;
+/// The running axis models, decoded in place.
+static mut AXIS_MODELS: AxisModels<{ crate::AXIS_CENTERS }> = AxisModels::EMPTY;
+/// The running shared-basis model of every axis, decoded in place.
+static mut SHARED_MODELS: SharedAxisModels<{ crate::SHARED_AXIS_CENTERS }> = SharedAxisModels::EMPTY;
+
+impl BoardModel for Model {
+    unsafe fn storage() -> &'static mut Self {
+        let storage = &raw mut MODEL;
+        // SAFETY: the caller's promise.
+        unsafe { &mut *storage }
+    }
+}
+
+impl BoardModel for AxisModels<{ crate::AXIS_CENTERS }> {
+    unsafe fn storage() -> &'static mut Self {
+        let storage = &raw mut AXIS_MODELS;
+        // SAFETY: the caller's promise.
+        unsafe { &mut *storage }
+    }
+}
+
+impl BoardModel for SharedAxisModels<{ crate::SHARED_AXIS_CENTERS }> {
+    unsafe fn storage() -> &'static mut Self {
+        let storage = &raw mut SHARED_MODELS;
+        // SAFETY: the caller's promise.
+        unsafe { &mut *storage }
+    }
+}
+
+/// An image's thermometers: one TMP117, or one per coil.
+pub trait BoardThermometers: AxisThermometers {
+    /// Tries each thermometer's init once (a failure is not fatal: the
+    /// driver retries on each read, and the frames are flagged meanwhile).
+    fn init_all(&mut self);
+}
+
+impl<I: I2c> BoardThermometers for Tmp117<I> {
+    #[inline(always)]
+    fn init_all(&mut self) {
+        let _ = self.init();
+    }
+}
+
+impl<I: I2c, const N: usize> BoardThermometers for [Tmp117<I>; N] {
+    #[inline(always)]
+    fn init_all(&mut self) {
+        for t in self {
+            let _ = t.init();
+        }
+    }
+}
+
+/// An image's rate front ends: one, or one per axis.
+pub trait BoardFrontEnds: AxisFrontEnds {
+    /// Tries each front end's init once (retried on reads, as the thermometers').
+    fn init_all(&mut self);
+    /// Initialisations so far, every front end's (the health report).
+    fn inits(&self) -> u32;
+}
+
+impl<S: SpiDevice> BoardFrontEnds for FrontEnd<S> {
+    #[inline(always)]
+    fn init_all(&mut self) {
+        let _ = self.init();
+    }
+    #[inline(always)]
+    fn inits(&self) -> u32 {
+        FrontEnd::inits(self)
+    }
+}
+
+impl<S: SpiDevice, const N: usize> BoardFrontEnds for [FrontEnd<S>; N] {
+    #[inline(always)]
+    fn init_all(&mut self) {
+        for f in self {
+            let _ = f.init();
+        }
+    }
+    #[inline(always)]
+    fn inits(&self) -> u32 {
+        self.iter().map(FrontEnd::inits).sum::<u32>()
+    }
+}
+
+/// What an image adds to the board's loop (none on the chip: `()`; the
+/// QEMU images' sensors and data-ready source, [`super::qemu`]).
+pub trait Hooks {
+    /// The interrupts are enabled, the loop is about to start; samples
+    /// come every `period_ticks` TIM2 ticks.
+    #[inline(always)]
+    fn start(&mut self, nvic: &mut cortex_m::peripheral::NVIC, period_ticks: u32) {
+        let _ = (nvic, period_ticks);
+    }
+    /// Sample `seq` was compensated and its frame queued.
+    #[inline(always)]
+    fn stepped(&mut self, seq: u32) {
+        let _ = seq;
+    }
+    /// A command was answered with `status`.
+    #[inline(always)]
+    fn replied(&mut self, status: UpdateStatus) {
+        let _ = status;
+    }
+    /// One pass of the loop is done; `stats` are the loop's counters.
+    #[inline(always)]
+    fn served(&mut self, stats: &LoopStats) {
+        let _ = stats;
+    }
+}
+
+/// The gyro board's own image: nothing added.
+impl Hooks for () {}
+
+static UART: Mutex<RefCell<Option<UartIsr>>> = Mutex::new(RefCell::new(None));
+static DATA_READY: Mutex<RefCell<Option<DataReadyIsr>>> = Mutex::new(RefCell::new(None));
+/// Command bytes lost: the UART overran or the receive queue was full.
+static RX_OVERRUNS: AtomicU32 = AtomicU32::new(0);
+/// Data-ready stamps lost to a full stamp queue (the edge count still includes them).
+static STAMP_OVERRUNS: AtomicU32 = AtomicU32::new(0);
+
+#[exception]
+unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+    super::store_fault(FaultRecord {
+        reason: FaultReason::HardFault,
+        pc: frame.pc(),
+        lr: frame.lr(),
+    });
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+/// Wakes the main loop every millisecond, so that a silent data-ready
+/// line is noticed (crate::pacing synthesises the steps).
+#[exception]
+fn SysTick() {}
+
+#[interrupt]
+fn USART1() {
+    cortex_m::interrupt::free(|cs| {
+        // `try_borrow_mut`: a critical section on one core cannot find
+        // the cell borrowed, and this way no panic path is linked.
+        let Ok(mut uart) = UART.borrow(cs).try_borrow_mut() else {
+            return;
+        };
+        let Some(u) = uart.as_mut() else { return };
+        // The byte the receiver holds (an error read clears its flag;
+        // bounded, so a line full of errors cannot hold the handler).
+        for _ in 0..4 {
+            match u.rx.read() {
+                Ok(byte) => {
+                    if uart::enqueue(&mut u.incoming, byte).is_err() {
+                        RX_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+                Err(stm32f4xx_hal::nb::Error::WouldBlock) => break,
+                Err(stm32f4xx_hal::nb::Error::Other(_)) => {
+                    RX_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+        match u.outgoing.peek().copied() {
+            Some(byte) => {
+                if u.tx.write(byte).is_ok() {
+                    let _ = uart::dequeue(&mut u.outgoing);
+                }
+                platform::pend_tx();
+            }
+            None => u.tx.unlisten(),
+        }
+    });
+}
+
+#[interrupt]
+fn EXTI0() {
+    let stamp = hw::Tim2Clock::now();
+    cortex_m::interrupt::free(|cs| {
+        if let Some(d) = DATA_READY
+            .borrow(cs)
+            .try_borrow_mut()
+            .ok()
+            .as_deref_mut()
+            .and_then(Option::as_mut)
+        {
+            d.pin.clear_interrupt_pending_bit();
+            if uart::enqueue(&mut d.stamps, stamp).is_err() {
+                STAMP_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    });
+}
+
+/// Busy-waits on the core clock: the SPI devices' delay (embedded-hal-bus's
+/// `NoDelay` would link a panic for a delay operation).
+#[derive(Clone, Copy, Debug)]
+pub struct CycleDelay {
+    core_hz: u32,
+}
+
+impl embedded_hal::delay::DelayNs for CycleDelay {
+    fn delay_ns(&mut self, ns: u32) {
+        cortex_m::asm::delay(timing::delay_cycles(ns, self.core_hz));
+    }
+}
+
+/// Everything the board does after init: `serve` once per wake-up,
+/// forever. Its own function (never inlined), so that `cargo xtask
+/// check-board-panics` can prove from the image that no panic is
+/// reachable from here or from the interrupt handlers.
+#[inline(never)]
+fn run_forever(mut serve: impl FnMut()) -> ! {
+    loop {
+        serve();
+    }
+}
+
+/// Stops for good (a setup step that cannot fail failed): the watchdog resets.
+pub fn halt() -> ! {
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+/// Starts the transmit interrupt after a frame was queued.
+fn start_tx() {
+    cortex_m::interrupt::free(|cs| {
+        if let Some(u) = UART
+            .borrow(cs)
+            .try_borrow_mut()
+            .ok()
+            .as_deref_mut()
+            .and_then(Option::as_mut)
+        {
+            u.tx.listen();
+        }
+    });
+    platform::pend_tx();
+}
+
+/// What the boot found out about the last reset.
+#[derive(Clone, Copy)]
+struct Boot {
+    cause: ResetCause,
+    flags: u8,
+    fault: Option<FaultRecord>,
+    on_crystal: bool,
+}
+
+/// The front ends' chip selects on SPI1 (x, y, z of a three-axis IMU;
+/// a single gyro's is PA4).
+pub struct ChipSelects {
+    /// Axis x's (or the single front end's).
+    pub pa4: PA4,
+    /// Axis y's.
+    pub pa3: PA3,
+    /// Axis z's.
+    pub pa2: PA2,
+}
+
+/// What [`Board::setup`] hands an image to wire its sensors to.
+pub struct Wiring {
+    /// I2C1 (PB6 SCL, PB7 SDA) through the bounded master, the bus
+    /// recovered (QEMU: none, `qemu::NoI2c`).
+    pub i2c: I2c1,
+    /// SPI1, mode 3, at most 10 MHz.
+    pub spi: Spi<pac::SPI1>,
+    /// The front ends' chip select pins.
+    pub cs: ChipSelects,
+    /// A delay on the core clock for the SPI devices.
+    pub delay: CycleDelay,
+}
+
+/// The board after [`Board::setup`], which [`Board::run`] runs.
+pub struct Board {
+    /// TIM2's rate, Hz: the pacer's and the data-ready stamps' time base
+    /// (the clock tree's; an image may set another, as QEMU's serving image does).
+    pub timer_hz: u32,
+    core_hz: u32,
+    core: cortex_m::Peripherals,
+    watchdog: hw::Iwdg,
+    boot: Boot,
+    boot_cause: Option<FaultRecord>,
+    out_producer: Producer<'static, u8>,
+    in_consumer: Consumer<'static, u8>,
+    stamp_consumer: Consumer<'static, u32>,
+    flash: platform::SlotFlash,
+}
+
+/// The single gyro's front end: SPI1 with chip select PA4.
+pub type SingleFrontEnd = FrontEnd<ExclusiveDevice<Spi<pac::SPI1>, PA4<Output>, CycleDelay>>;
+
+/// A front end of a three-axis IMU: SPI1 shared, its own chip select.
+pub type AxisFrontEnd<'a> = FrontEnd<AtomicDevice<'a, Spi<pac::SPI1>, ErasedPin<Output>, CycleDelay>>;
+
+/// The single gyro's front end on SPI1, chip select PA4.
+#[inline(always)]
+pub fn single_front_end(spi: Spi<pac::SPI1>, cs: PA4, delay: CycleDelay) -> SingleFrontEnd {
+    let Ok(device) = ExclusiveDevice::new(spi, cs.into_push_pull_output(), delay);
+    FrontEnd::new(device)
+}
+
+/// A three-axis IMU's front ends on one SPI1 `bus` (chip selects PA4 x,
+/// PA3 y, PA2 z): a busy bus is an error the loop flags, never a wait or a panic.
+#[inline(always)]
+pub fn axis_front_ends<'a>(
+    bus: &'a AtomicCell<Spi<pac::SPI1>>,
+    cs: ChipSelects,
+    delay: CycleDelay,
+) -> [AxisFrontEnd<'a>; 3] {
+    let (Ok(x), Ok(y), Ok(z)) = (
+        AtomicDevice::new(bus, cs.pa4.into_push_pull_output().erase(), delay),
+        AtomicDevice::new(bus, cs.pa3.into_push_pull_output().erase(), delay),
+        AtomicDevice::new(bus, cs.pa2.into_push_pull_output().erase(), delay),
+    );
+    [FrontEnd::new(x), FrontEnd::new(y), FrontEnd::new(z)]
+}
+
+/// A three-axis IMU's coil TMP117s on one I2C `bus`, each at its own
+/// address (0x48 x, 0x49 y, 0x4A z).
+#[inline(always)]
+pub fn coil_thermometers<B: I2c>(bus: &AtomicCell<B>) -> [Tmp117<embedded_hal_bus::i2c::AtomicDevice<'_, B>>; 3] {
+    let [bx, by, bz] = [0, 1, 2].map(|_| embedded_hal_bus::i2c::AtomicDevice::new(bus));
+    [Tmp117::new(bx, 0x48), Tmp117::new(by, 0x49), Tmp117::new(bz, 0x4A)]
+}
+
+impl Board {
+    /// Sets the board up, every wait bounded: the watchdog first, the
+    /// reset cause, the clock tree, TIM2 free-running, I2C1 (its bus
+    /// recovered), SPI1, USART1 with its interrupt's queues, the
+    /// data-ready line's interrupt. The interrupts are still masked.
+    #[inline(always)]
+    pub fn setup() -> (Board, Wiring) {
+        let Some(mut dp) = pac::Peripherals::take() else { halt() };
+        let Some(mut core) = cortex_m::Peripherals::take() else {
+            halt()
+        };
+        // The watchdog first: a dead crystal or a stuck setup wait must not hang the board.
+        let _ = hw::Iwdg::start(watchdog::running_setting());
+        let watchdog = hw::Iwdg;
+        let rcc_csr = dp.RCC.csr().read().bits();
+        let reset_flags = (rcc_csr >> 24) as u8;
+        let watchdog_reset = dp.RCC.csr().read().wdgrstf().bit_is_set();
+        dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
+        let fault_record = super::take_fault();
+        let reset_cause = ResetCause::from_boot(fault_record, rcc_csr);
+        let boot_cause = fault::boot_cause(fault_record, watchdog_reset);
+
+        // The board's own clock setup, every wait bounded (a dead crystal:
+        // the HSI); QEMU has no clock controller: the reset clocks.
+        let clocks = platform::clocks();
+        // The HAL's RCC only enables and resets peripherals here: it
+        // believes in the reset clocks, so the SPI divider and the UART's
+        // baud rate are set again below from `clocks`.
+        let mut rcc = dp.RCC.constrain();
+        // The cycle counter the `bench` command reads (crate::bench).
+        core.DCB.enable_trace();
+        core.DWT.enable_cycle_counter();
+
+        let gpioa = dp.GPIOA.split(&mut rcc);
+        let gpiob = dp.GPIOB.split(&mut rcc);
+        let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
+
+        // TIM2 free-running over 32 bits at the timer clock: the data-ready
+        // timestamps and the clock of every bounded wait.
+        let timer_hz = clocks.timclk1_hz;
+        pac::TIM2::enable(&mut rcc);
+        pac::TIM2::reset(&mut rcc);
+        dp.TIM2.arr().write(|w| unsafe { w.bits(u32::MAX) });
+        dp.TIM2.cr1().modify(|_, w| w.cen().set_bit());
+        let tim2 = hw::Tim2Clock {
+            ticks_per_us: timing::ticks_per_us(timer_hz),
+        };
+
+        let i2c = platform::i2c1(gpiob.pb6, gpiob.pb7, &mut rcc, &clocks, tim2);
+        let mode = Mode {
+            polarity: Polarity::IdleHigh,
+            phase: Phase::CaptureOnSecondTransition,
+        };
+        let spi = Spi::new(
+            dp.SPI1,
+            (Some(gpioa.pa5), Some(gpioa.pa6), Some(gpioa.pa7)),
+            mode,
+            frontend::spi_clock_hz(rcc.clocks.pclk2().raw(), SPI_MAX_HZ).Hz(),
+            &mut rcc,
+        );
+        hw::set_spi1_divider(&clocks, SPI_MAX_HZ);
+        // RX pulled up: an unconnected or floating line reads idle, not noise.
+        let rx_pin = gpioa.pa10.internal_pull_up(true);
+        let Ok(serial) = dp.USART1.serial::<u8>((gpioa.pa9, rx_pin), 921_600.bps(), &mut rcc) else {
+            halt()
+        };
+        hw::set_usart1_baud(&clocks, 921_600);
+        let (tx, mut rx) = serial.split();
+        rx.listen();
+        let flash = platform::model_flash(tim2);
+
+        let Some(out_queue) = cortex_m::singleton!(: Queue<u8, TX_QUEUE> = Queue::new()) else {
+            halt()
+        };
+        let Some(in_queue) = cortex_m::singleton!(: Queue<u8, RX_QUEUE> = Queue::new()) else {
+            halt()
+        };
+        let Some(stamp_queue) = cortex_m::singleton!(: Queue<u32, STAMP_QUEUE> = Queue::new()) else {
+            halt()
+        };
+        let (out_producer, outgoing) = out_queue.split();
+        let (incoming, in_consumer) = in_queue.split();
+        let (stamps, stamp_consumer) = stamp_queue.split();
+
+        let mut data_ready = gpiob.pb0.into_pull_down_input();
+        data_ready.make_interrupt_source(&mut syscfg);
+        data_ready.trigger_on_edge(&mut dp.EXTI, Edge::Rising);
+        data_ready.enable_interrupt(&mut dp.EXTI);
+        cortex_m::interrupt::free(|cs| {
+            // `try_borrow_mut`: nothing else holds the cells yet, and no panic path is linked.
+            if let Ok(mut uart) = UART.borrow(cs).try_borrow_mut() {
+                *uart = Some(UartIsr {
+                    tx,
+                    rx,
+                    outgoing,
+                    incoming,
+                });
+            }
+            if let Ok(mut d) = DATA_READY.borrow(cs).try_borrow_mut() {
+                *d = Some(DataReadyIsr {
+                    pin: data_ready,
+                    stamps,
+                });
+            }
+        });
+        let core_hz = clocks.sysclk_hz;
+        let wiring = Wiring {
+            i2c,
+            spi,
+            cs: ChipSelects {
+                pa4: gpioa.pa4,
+                pa3: gpioa.pa3,
+                pa2: gpioa.pa2,
+            },
+            delay: CycleDelay { core_hz },
+        };
+        let board = Board {
+            core_hz,
+            timer_hz,
+            core,
+            watchdog,
+            boot: Boot {
+                cause: reset_cause,
+                flags: reset_flags,
+                fault: fault_record,
+                on_crystal: clocks.on_crystal,
+            },
+            boot_cause,
+            out_producer,
+            in_consumer,
+            stamp_consumer,
+            flash,
+        };
+        (board, wiring)
+    }
+
+    /// Runs the board for good: the boot report, the model of kind `M`
+    /// from its flash slots, the sensors' init, the health report, the
+    /// interrupts, then one compensation step per data-ready edge and the
+    /// commands between them (see the module docs). `hooks` adds what an
+    /// image needs around that (none on the chip).
+    #[inline(always)]
+    pub fn run<M, T, R, H, const K: usize, const N: usize>(self, thermometers: T, front_ends: R, mut hooks: H) -> !
+    where
+        M: BoardModel,
+        for<'m> InPlaceModel<'m, M>: ModelHolder<K, N>,
+        T: BoardThermometers,
+        R: BoardFrontEnds,
+        H: Hooks,
+    {
+        let Board {
+            timer_hz,
+            core_hz,
+            mut core,
+            mut watchdog,
+            boot,
+            boot_cause,
+            out_producer,
+            mut in_consumer,
+            mut stamp_consumer,
+            flash,
+        } = self;
+        let mut output = FrameQueue::new(out_producer, start_tx);
+        // The boot report goes out first (a fault or watchdog reset before this boot).
+        if let Some(cause) = boot_cause {
+            let mut report = [0u8; 16];
+            if let Some(n) = fault::encode_boot_report(cause, boot.flags, &mut report) {
+                write_frame(&mut output, report.get(..n).unwrap_or(&[]));
+            }
+        }
+
+        // SAFETY: `run` runs once and these are the only references to the
+        // two statics (no interrupt handler touches them).
+        let (model, commands) = (unsafe { M::storage() }, &raw mut COMMANDS);
+        let commands = unsafe { &mut *commands };
+        // An invalid or absent model is not fatal: every frame then carries flag 4.
+        let mut store = ModelStore::open_with(flash, platform::SLOTS, model);
+        let loaded = store.load_into(model).is_ok();
+        let model = InPlaceModel::new(model, loaded);
+        log!(
+            "boot: reset flags {=u8:#x}, fault or watchdog reset {=bool}, model loaded {=bool}",
+            boot.flags,
+            boot_cause.is_some(),
+            loaded
+        );
+        let config = LoopConfig {
+            compensator: CompensatorConfig::for_sample_rate(GYRO_RATE_HZ),
+            temp_read_every: TEMP_READ_EVERY,
+        };
+        // Sensor init failures are not fatal either: the drivers retry on
+        // each read until the sensors answer, and the frames are flagged meanwhile.
+        let mut compensation = {
+            let mut thermometers = thermometers;
+            thermometers.init_all();
+            let mut front_ends = front_ends;
+            front_ends.init_all();
+            CompensationLoop::new(model, config, thermometers, front_ends, output)
+        };
+        if boot_cause.is_some() {
+            compensation.flag_next_frame(Flags::FAULT_RESET);
+        }
+        let period_ticks = timing::sample_period_ticks(timer_hz, GYRO_RATE_HZ);
+        let mut pacer = Pacer::new(timer_hz, period_ticks, hw::Tim2Clock::now());
+        // The health report after every reset, before the first output frame.
+        send_health(&boot, &mut compensation, &store, &pacer);
+        let mut bench = Bench::default();
+        // SysTick wakes the loop every millisecond (a silent data-ready line is noticed).
+        core.SYST
+            .set_clock_source(cortex_m::peripheral::syst::SystClkSource::Core);
+        core.SYST.set_reload(timing::systick_reload_1ms(core_hz));
+        core.SYST.clear_current();
+        core.SYST.enable_interrupt();
+        core.SYST.enable_counter();
+        // SAFETY: the handlers' state is in place; enabling their interrupts is all that is left.
+        unsafe {
+            core.NVIC.set_priority(pac::Interrupt::EXTI0, 0x40);
+            core.NVIC.set_priority(pac::Interrupt::USART1, 0x80);
+            cortex_m::peripheral::NVIC::unmask(pac::Interrupt::EXTI0);
+            cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
+        }
+        // A data-ready line already high (the front end kept its sample over
+        // an MCU-only reset) gives no rising edge: take it as one.
+        let data_ready_high = cortex_m::interrupt::free(|cs| {
+            DATA_READY
+                .borrow(cs)
+                .try_borrow()
+                .ok()
+                .as_deref()
+                .and_then(Option::as_ref)
+                .is_some_and(|d| d.pin.is_high())
+        });
+        if data_ready_high {
+            cortex_m::peripheral::NVIC::pend(pac::Interrupt::EXTI0);
+        }
+        hooks.start(&mut core.NVIC, period_ticks);
+        run_forever(move || {
+            // One step per pass for the newest data-ready edge (or the
+            // silence); the watchdog is fed by steps only.
+            pacing::serve_samples(
+                &mut pacer,
+                || uart::dequeue(&mut stamp_consumer),
+                hw::Tim2Clock::now(),
+                &mut watchdog,
+                |tick| {
+                    let started = DWT::cycle_count();
+                    compensation.step_at(tick.seq, tick.dt_s);
+                    if let Some(stats) = bench.record(timing::elapsed(started, DWT::cycle_count())) {
+                        log!(
+                            "bench: {=u32} steps, cycles min {=u32} mean {=u32} max {=u32}",
+                            stats.steps,
+                            stats.min,
+                            stats.mean(),
+                            stats.max
+                        );
+                        let mut report = [0u8; 24];
+                        if let Some(n) = stats.encode_report(&mut report) {
+                            write_frame(compensation.output_mut(), report.get(..n).unwrap_or(&[]));
+                        }
+                    }
+                    hooks.stepped(tick.seq);
+                },
+            );
+            // Commands between samples.
+            while let Some(byte) = uart::dequeue(&mut in_consumer) {
+                let (command, status) = match commands.push(byte) {
+                    None => continue,
+                    Some(Received::Rejected(status)) => (0, status),
+                    // Answered by its report after the timed steps.
+                    Some(Received::Command(&[CMD_BENCH])) => {
+                        bench.start();
+                        continue;
+                    }
+                    Some(Received::Command(&[CMD_HEALTH])) => {
+                        send_health(&boot, &mut compensation, &store, &pacer);
+                        continue;
+                    }
+                    Some(Received::Command(payload)) => {
+                        // The flash driver runs the watchdog at its install period around the erase.
+                        watchdog.feed();
+                        let mut status = UpdateStatus::UnknownCommand;
+                        // The filters restart only for a model actually installed.
+                        compensation.update_model_if(|model| {
+                            status = update::run_in_place(&mut store, payload, model);
+                            status == UpdateStatus::Installed
+                        });
+                        watchdog.feed();
+                        log!(
+                            "update: status {=u8}, model loaded {=bool}",
+                            status as u8,
+                            store.model_loaded()
+                        );
+                        (payload.first().copied().unwrap_or(0), status)
+                    }
+                };
+                let mut reply = [0u8; 8];
+                if let Some(n) = update::encode_reply(command, status, &mut reply) {
+                    write_frame(compensation.output_mut(), reply.get(..n).unwrap_or(&[]));
+                }
+                hooks.replied(status);
+            }
+            hooks.served(&compensation.stats());
+            // Sleep only if no interrupt queued work since the checks above:
+            // with interrupts masked, an edge or byte that arrives now stays
+            // pending and ends the WFI at once (unmasked, its handler could
+            // run between the check and the WFI, and the stamp would wait a
+            // whole sample period for the next wake-up). SysTick ends it
+            // within a millisecond in any case.
+            cortex_m::interrupt::free(|_| {
+                if !stamp_consumer.ready() && !in_consumer.ready() {
+                    cortex_m::asm::wfi();
+                }
+            });
+        })
+    }
+}
+
+/// Command bytes collect here between samples (4 KiB: off the stack).
+static mut COMMANDS: CommandReceiver = CommandReceiver::new();
+
+/// Sends the health report: `boot`, then the counters of the loop
+/// `compensation`, the model store `store` and the pacer `pacer`.
+#[inline(never)]
+fn send_health<T, R: BoardFrontEnds, W: embedded_io::Write, MH, const K: usize, const N: usize>(
+    boot: &Boot,
+    compensation: &mut CompensationLoop<T, R, W, MH, K, N>,
+    store: &ModelStore<platform::SlotFlash>,
+    pacer: &Pacer,
+) where
+    T: AxisThermometers,
+    MH: ModelHolder<K, N>,
+{
+    let report = HealthReport {
+        reset_cause: boot.cause,
+        reset_flags: boot.flags,
+        fault_pc: boot.fault.map_or(0, |r| r.pc),
+        fault_lr: boot.fault.map_or(0, |r| r.lr),
+        counters: health_counters(
+            &compensation.stats(),
+            &pacer.counters(),
+            compensation.sensors().1.inits(),
+            platform::flash_errors(store.flash()),
+        ),
+        model: store.identity(),
+        board_flags: if boot.on_crystal { 0 } else { BOARD_ON_HSI },
+        firmware_version: FirmwareVersion::CURRENT,
+    };
+    let mut frame = [0u8; HEALTH_FRAME_LEN];
+    if let Some(n) = report.encode(&mut frame) {
+        write_frame(compensation.output_mut(), frame.get(..n).unwrap_or(&[]));
+    }
+}
+
+/// The counters of the health report, gathered from their owners.
+fn health_counters(
+    stats: &LoopStats,
+    pacer: &PacerCounters,
+    front_end_inits: u32,
+    flash_errors: u32,
+) -> HealthCounters {
+    let recoveries = hw::I2C_RECOVERIES.load(Ordering::Relaxed);
+    HealthCounters {
+        samples: stats.samples,
+        samples_missed: stats.samples_missed,
+        rate_read_faults: stats.rate_read_faults,
+        temp_read_faults: stats.temp_read_faults,
+        // Every recovery after the one at boot ends a timed-out transaction.
+        sensor_timeouts: recoveries.saturating_sub(1),
+        bus_recoveries: recoveries,
+        front_end_inits,
+        data_ready_glitches: pacer.glitches,
+        synthetic_steps: pacer.synthetic,
+        overruns: RX_OVERRUNS
+            .load(Ordering::Relaxed)
+            .wrapping_add(STAMP_OVERRUNS.load(Ordering::Relaxed)),
+        output_dropped: stats.output_errors,
+        flash_errors,
+    }
+}

@@ -1,0 +1,33 @@
+//! The gyro board: everything an image runs but its own few lines of
+//! wiring (`src/bin/stm32f405*.rs`, one small binary per image).
+//!
+//! - [`timing`]: the timer arithmetic (TIM2 rates, the SysTick reload,
+//!   delays, elapsed ticks on wrapping counters), host-tested;
+//! - on the MCU (`target_os = "none"`), for every image including the QEMU
+//!   test images: the model flash slots, the fault record kept across a
+//!   reset, the stack painting and the panic handler;
+//! - with the feature `board-stm32f405` (stm32f4xx-hal): `hw` (TIM2, the
+//!   IWDG, I2C1, the flash controller and the clock tree at register
+//!   level), the board's setup, interrupt and exception handlers and run
+//!   loop (`Board`), generic over the model kind and the sensors an image
+//!   wires, and with `board-qemu` the substitutes for what QEMU's
+//!   netduinoplus2 lacks (`qemu`).
+#![allow(unsafe_code)]
+
+pub mod timing;
+
+#[cfg(target_os = "none")]
+mod rt;
+#[cfg(target_os = "none")]
+pub use rt::*;
+
+#[cfg(all(target_os = "none", feature = "board-stm32f405"))]
+pub mod chip;
+#[cfg(all(target_os = "none", feature = "board-stm32f405"))]
+pub mod hw;
+#[cfg(all(target_os = "none", feature = "board-stm32f405"))]
+mod image;
+#[cfg(all(target_os = "none", feature = "board-stm32f405"))]
+pub use image::*;
+#[cfg(all(target_os = "none", feature = "board-qemu"))]
+pub mod qemu;
