@@ -111,8 +111,8 @@ fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
 }
 
 /// fmt, the import circles, clippy (host and firmware), the no_std check, firmware builds, host
-/// tests, the tests needing QEMU or PyPI, then 20 s of fuzzing per
-/// target; ends with `N passed, N failed`.
+/// tests, the tests needing QEMU, then 20 s of fuzzing (the targets side by side) beside the
+/// test needing PyPI; ends with `N passed, N failed`.
 pub fn ci() -> anyhow::Result<()> {
     if std::env::var_os("CARGO_INCREMENTAL").is_none_or(|v| v != "0") {
         std::process::exit(rerun_without_incremental_builds()?);
