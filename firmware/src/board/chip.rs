@@ -34,11 +34,9 @@ pub fn i2c1(pb6: PB6, pb7: PB7, rcc: &mut Rcc, clocks: &ClockTree, tim2: Tim2Clo
 /// The model slots' flash: the flash controller.
 pub type SlotFlash = ControllerFlash<hw::FlashRegs, Tim2Clock, hw::Iwdg>;
 
-/// MODEL_A and MODEL_B (memory.x) as offsets from the start of flash: sectors 10 and 11.
-pub const SLOTS: SlotLayout = SlotLayout {
-    offsets: [0x000C_0000, 0x000E_0000],
-    len: crate::MODEL_SLOT_LEN as u32,
-};
+/// MODEL_A and MODEL_B (memory.x) as offsets from the start of flash: the
+/// flash controller's registers only ever program or map words inside them.
+pub const SLOTS: SlotLayout = hw::MODEL_SLOTS;
 
 /// The flash controller driver over the model slots.
 #[inline(always)]

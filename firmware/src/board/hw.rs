@@ -11,6 +11,7 @@ use core::sync::atomic::Ordering;
 use crate::clock::Clock;
 use crate::flash_ctl::FlashRegisters;
 use crate::i2c_master::I2cRegisters;
+use crate::model_store::SlotLayout;
 use crate::watchdog::{IwdgSetting, Watchdog};
 use stm32f4xx_hal::pac;
 
@@ -302,6 +303,13 @@ impl FlashRegs {
     }
 }
 
+/// MODEL_A and MODEL_B (memory.x) as offsets from the start of flash:
+/// sectors 10 and 11, the only words [`FlashRegs`] programs or maps.
+pub const MODEL_SLOTS: SlotLayout = SlotLayout {
+    offsets: [0x000C_0000, 0x000E_0000],
+    len: crate::MODEL_SLOT_LEN as u32,
+};
+
 impl FlashRegisters for FlashRegs {
     fn sr(&mut self) -> u32 {
         Self::flash().sr().read().bits()
@@ -323,10 +331,10 @@ impl FlashRegisters for FlashRegs {
     }
     fn write_word(&mut self, offset: u32, word: u32) {
         // Only words inside the model slots are ever programmed.
-        let in_slot = super::chip::SLOTS
+        let in_slot = MODEL_SLOTS
             .offsets
             .iter()
-            .any(|&start| offset >= start && offset + 4 <= start + super::chip::SLOTS.len);
+            .any(|&start| offset >= start && offset + 4 <= start + MODEL_SLOTS.len);
         if in_slot {
             let address = 0x0800_0000u32 + offset;
             // SAFETY: an aligned word inside a model slot, with PG set (the
@@ -345,7 +353,7 @@ impl FlashRegisters for FlashRegs {
     fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
         // Only the model slots are read (the linker's MODEL_A and MODEL_B).
         let slots = [crate::board::model_slot_a(), crate::board::model_slot_b()];
-        super::chip::SLOTS.offsets.iter().zip(slots).find_map(|(start, slot)| {
+        MODEL_SLOTS.offsets.iter().zip(slots).find_map(|(start, slot)| {
             let from = offset.checked_sub(*start)? as usize;
             slot.get(from..from.checked_add(len)?)
         })
