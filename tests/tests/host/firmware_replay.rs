@@ -104,22 +104,10 @@ fn replay_and_trainer_agree_on_the_period_when_metadata_repeats_or_is_bad() {
 #[test]
 fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_every_axis() {
     use rbf_core::blob::axes::{AxisModels, decode_axes_into};
-    use trainer::output::Existing;
-
     let dir = tempfile::TempDir::new().unwrap();
     let (blob_path, slice) = common::axes_blob_and_slice(dir.path());
-    let expected_path = dir.path().join("expected.csv");
-    let (_, expected) =
-        trainer::evaluation::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false)
-            .unwrap();
-    expected.commit().unwrap();
-    // The replay library writes the run; the provenance lines before it are
-    // the host tools' (trainer compensate, cargo xtask qemu-replay).
-    let provenance = trainer::blobfile::provenance_lines(&blob_path, &std::fs::read(&blob_path).unwrap());
-    let expected = std::fs::read_to_string(&expected_path).unwrap();
-    let expected = expected
-        .strip_prefix(&provenance)
-        .expect("compensate starts with the provenance lines");
+    let expected = multi_axis_compensated_run(&blob_path, &slice, dir.path());
+    let expected = expected.as_str();
 
     // Replayed at the trainer's capacity; the fitted axes (OLS kept at most
     // 16 centres of those asked for) also fit the three-axis board.
@@ -171,22 +159,10 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
     use rbf_core::blob::shared_layout::decode_shared_into;
     use rbf_core::blob::{BlobKind, blob_kind};
     use rbf_core::shared_basis::SharedAxisModels;
-    use trainer::output::Existing;
-
     let dir = tempfile::TempDir::new().unwrap();
     let (blob_path, slice) = common::shared_blob_and_slice(dir.path());
-    let expected_path = dir.path().join("expected.csv");
-    let (_, expected) =
-        trainer::evaluation::axes::compensate_command(&blob_path, &slice, &expected_path, Existing::Replace, false)
-            .unwrap();
-    expected.commit().unwrap();
-    // The replay library writes the run; the provenance lines before it are
-    // the host tools' (trainer compensate, cargo xtask qemu-replay).
-    let provenance = trainer::blobfile::provenance_lines(&blob_path, &std::fs::read(&blob_path).unwrap());
-    let expected = std::fs::read_to_string(&expected_path).unwrap();
-    let expected = expected
-        .strip_prefix(&provenance)
-        .expect("compensate starts with the provenance lines");
+    let expected = multi_axis_compensated_run(&blob_path, &slice, dir.path());
+    let expected = expected.as_str();
 
     let blob = std::fs::read(&blob_path).unwrap();
     assert_eq!(blob_kind(&blob), Ok(BlobKind::SharedBasis));
@@ -243,4 +219,27 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
     }
     assert_eq!(seq as usize, common::AXES_ROWS);
     assert!(held_out > 0, "the outage outlasts the hold: flag 4 on every axis");
+}
+
+/// `trainer compensate` of a multi-axis blob on `slice`, written in `dir`,
+/// without the provenance lines before the run: the replay library writes
+/// the run, the host tools (trainer compensate, cargo xtask qemu-replay)
+/// the lines before it.
+fn multi_axis_compensated_run(blob_path: &std::path::Path, slice: &std::path::Path, dir: &std::path::Path) -> String {
+    let expected_path = dir.join("expected.csv");
+    let (_, expected) = trainer::evaluation::axes::compensate_command(
+        blob_path,
+        slice,
+        &expected_path,
+        trainer::output::Existing::Replace,
+        false,
+    )
+    .unwrap();
+    expected.commit().unwrap();
+    let provenance = trainer::blobfile::provenance_lines(blob_path, &std::fs::read(blob_path).unwrap());
+    let expected = std::fs::read_to_string(&expected_path).unwrap();
+    expected
+        .strip_prefix(&provenance)
+        .expect("compensate starts with the provenance lines")
+        .to_owned()
 }

@@ -78,13 +78,7 @@ where
             60,
         ))
         .build_cartesian_2d(x_lo..x_hi, c_lo..c_hi)?;
-    let (x_light, y_light) = crate::plotting::axes::light_lines_of(chart.plotting_area());
-    chart
-        .configure_mesh()
-        .x_max_light_lines(x_light)
-        .y_max_light_lines(y_light)
-        .x_label_formatter(&crate::plotting::axes::tick_label)
-        .y_label_formatter(&crate::plotting::axes::tick_label)
+    crate::plotting::axes::linear_mesh(&mut chart)
         .x_desc("time [h]")
         .y_desc("temperature [°C]")
         .draw()?;

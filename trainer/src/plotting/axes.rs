@@ -6,7 +6,8 @@
 //! own put a light line on the next decade (a doubled label there) and
 //! stack a hundred light lines per decade on a short axis.
 
-use plotters::chart::{ChartContext, SeriesLabelPosition};
+use plotters::chart::{ChartContext, MeshStyle, SeriesLabelPosition};
+use plotters::coord::cartesian::Cartesian2d;
 use plotters::coord::ranged1d::Ranged;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::{CoordTranslate, Shift};
@@ -87,6 +88,21 @@ pub fn light_lines(axis_px: u32) -> usize {
 pub fn light_lines_of<DB: DrawingBackend, CT: CoordTranslate>(area: &DrawingArea<DB, CT>) -> (usize, usize) {
     let (width_px, height_px) = area.dim_in_pixel();
     (light_lines(width_px), light_lines(height_px))
+}
+
+/// The grid and tick labels of a plot whose two axes are linear: light
+/// lines no closer than [`MIN_LIGHT_LINE_GAP_PX`], every label by
+/// [`tick_label`]; the caller names the axes and draws it.
+pub fn linear_mesh<'a, 'b, DB: DrawingBackend>(
+    chart: &'b mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+) -> MeshStyle<'a, 'b, RangedCoordf64, RangedCoordf64, DB> {
+    let (x_light, y_light) = light_lines_of(chart.plotting_area());
+    let mut mesh = chart.configure_mesh();
+    mesh.x_max_light_lines(x_light)
+        .y_max_light_lines(y_light)
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label);
+    mesh
 }
 
 /// The tick labels of a logarithmic axis over `lo` … `hi` ([`log_ticks`]).

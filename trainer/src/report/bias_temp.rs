@@ -6,8 +6,8 @@ use plotters::prelude::*;
 
 use super::canvas::{DrawResult, Figure, SIZE, plot_height_px, range};
 use crate::plotting::axes::{
-    TICK_LABEL_PX, draw_legend, light_lines_of, linear_tick_labels, padded, tick_label, title_font_px,
-    with_legend_room, y_label_area_px,
+    TICK_LABEL_PX, draw_legend, linear_mesh, linear_tick_labels, padded, title_font_px, with_legend_room,
+    y_label_area_px,
 };
 
 /// Below this |dT/dt|, °C/min, the loop temperature counts as steady.
@@ -130,15 +130,7 @@ where
         .x_label_area_size(30)
         .y_label_area_size(y_label_px)
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?;
-    let (x_light, y_light) = light_lines_of(chart.plotting_area());
-    chart
-        .configure_mesh()
-        .x_max_light_lines(x_light)
-        .y_max_light_lines(y_light)
-        .x_label_formatter(&tick_label)
-        .y_label_formatter(&tick_label)
-        .y_desc("bias [°/h] (10-s means)")
-        .draw()?;
+    linear_mesh(&mut chart).y_desc("bias [°/h] (10-s means)").draw()?;
     for ramp in [Ramp::Steady, Ramp::Cooling, Ramp::Heating] {
         let colour = ramp.colour();
         chart
@@ -165,13 +157,7 @@ where
         .x_label_area_size(40)
         .y_label_area_size(y_label_px)
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
-    let (x_light, y_light) = light_lines_of(residual.plotting_area());
-    residual
-        .configure_mesh()
-        .x_max_light_lines(x_light)
-        .y_max_light_lines(y_light)
-        .x_label_formatter(&tick_label)
-        .y_label_formatter(&tick_label)
+    linear_mesh(&mut residual)
         .x_desc("loop temperature T [°C]")
         .y_desc("residual [°/h]")
         .draw()?;

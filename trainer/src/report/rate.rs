@@ -5,8 +5,8 @@ use plotters::prelude::*;
 
 use super::canvas::{DrawResult, Figure, plot_height_px, range};
 use crate::plotting::axes::{
-    TICK_LABEL_PX, draw_legend, light_lines_of, linear_tick_labels, padded, tick_label, title_font_px,
-    with_legend_room, y_label_area_px,
+    TICK_LABEL_PX, draw_legend, linear_mesh, linear_tick_labels, padded, tick_label, title_font_px, with_legend_room,
+    y_label_area_px,
 };
 
 pub(super) struct RatePlot {
@@ -57,16 +57,7 @@ where
         ))
         .build_cartesian_2d(t_lo..t_hi, y_lo..y_hi)?
         .set_secondary_coord(t_lo..t_hi, c_lo..c_hi);
-    let (x_light, y_light) = light_lines_of(chart.plotting_area());
-    chart
-        .configure_mesh()
-        .x_max_light_lines(x_light)
-        .y_max_light_lines(y_light)
-        .x_label_formatter(&tick_label)
-        .y_label_formatter(&tick_label)
-        .x_desc("time [h]")
-        .y_desc(p.y_desc)
-        .draw()?;
+    linear_mesh(&mut chart).x_desc("time [h]").y_desc(p.y_desc).draw()?;
     chart
         .configure_secondary_axes()
         .y_label_formatter(&tick_label)

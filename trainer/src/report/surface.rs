@@ -8,7 +8,7 @@ use rbf_core::{FeatureSet, FeatureVector, Model};
 
 use super::canvas::{DrawResult, Figure, range};
 use crate::plotting::axes::{
-    TICK_LABEL_PX, drawable, light_lines_of, linear_tick_labels, padded, tick_label, title_font_px, y_label_area_px,
+    TICK_LABEL_PX, drawable, linear_mesh, linear_tick_labels, padded, tick_label, title_font_px, y_label_area_px,
 };
 
 pub(super) struct SurfacePlot<'a> {
@@ -239,13 +239,7 @@ where
             70,
         ))
         .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
-    let (x_light, y_light) = light_lines_of(chart.plotting_area());
-    chart
-        .configure_mesh()
-        .x_max_light_lines(x_light)
-        .y_max_light_lines(y_light)
-        .x_label_formatter(&tick_label)
-        .y_label_formatter(&tick_label)
+    linear_mesh(&mut chart)
         .x_desc(drawable(x_desc))
         .y_desc(drawable(y_desc))
         .draw()?;
