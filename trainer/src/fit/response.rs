@@ -159,7 +159,7 @@ fn range_config() -> FeatureConfig {
 }
 
 /// The bank's structure for `train` (weights 0) and the block means of its
-/// channels; the loop temperature's range is read from [`range_config`]'s
+/// channels; the loop temperature's range is read from `range_config`'s
 /// blocks of `block_s` (computed unless prepared).
 pub fn plain_bank_and_blocks<T: RunSet + ?Sized>(
     train: &T,
