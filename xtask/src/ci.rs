@@ -153,28 +153,32 @@ pub fn ci() -> anyhow::Result<()> {
         "--bin",
         "panic-free-check",
     ];
-    // Every board image (one binary each, with the feature it requires), then the panic check.
-    let boards: Vec<[&str; 8]> = crate::firmware::BOARD_IMAGES
-        .iter()
-        .map(|image| {
-            [
-                "--package",
-                "firmware",
-                "--target",
-                TARGET,
-                "--features",
-                image.feature,
-                "--bin",
-                image.bin,
-            ]
-        })
-        .collect();
+    // Every board image: one binary each, with the feature it requires.
+    let image_args = |image: &crate::firmware::BoardImage| {
+        [
+            "--package",
+            "firmware",
+            "--target",
+            TARGET,
+            "--features",
+            image.feature,
+            "--bin",
+            image.bin,
+        ]
+    };
     run(
         "cargo",
         &[&["clippy"][..], &qemu_boards[..], &["--", "-D", "warnings"]].concat(),
     )?;
-    for board in boards.iter().map(|b| &b[..]).chain([&panic_check[..]]) {
-        run("cargo", &[&["clippy"][..], board, &["--", "-D", "warnings"]].concat())?;
+    for args in crate::firmware::BOARD_IMAGES
+        .iter()
+        .map(image_args)
+        .chain([panic_check])
+    {
+        run(
+            "cargo",
+            &[&["clippy"][..], &args[..], &["--", "-D", "warnings"]].concat(),
+        )?;
     }
     clock.lap("clippy, firmware feature sets");
     run(
@@ -191,8 +195,11 @@ pub fn ci() -> anyhow::Result<()> {
     // The QEMU test images, then the images that are flashed (the QEMU board
     // images are built by the tests that run them).
     run("cargo", &[&["build", "--release"][..], &qemu_boards[..]].concat())?;
-    for board in boards.iter().filter(|b| b[5] != "board-qemu").map(|b| &b[..]) {
-        run("cargo", &[&["build", "--release"][..], board].concat())?;
+    for image in crate::firmware::BOARD_IMAGES
+        .iter()
+        .filter(|i| i.feature != "board-qemu")
+    {
+        run("cargo", &[&["build", "--release"][..], &image_args(image)[..]].concat())?;
     }
     clock.lap("rbf-core no_std check and firmware release images");
     crate::firmware::check_panic_free()?;

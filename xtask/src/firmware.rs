@@ -205,27 +205,17 @@ pub fn check_panic_free() -> anyhow::Result<()> {
 /// proves from their machine code that they hold no panic call site, and
 /// that nothing after init reaches one ([`crate::panic_paths`]).
 pub fn check_board_panics() -> anyhow::Result<()> {
-    eprintln!("\n==> board image: no panic call site, none reachable from its loop and handlers");
-    let board = BOARD.build()?;
-    let reach = crate::panic_paths::check_board_image(&board)?;
-    eprintln!(
-        "    ok: no panic call site in the image; {} functions reachable from run_forever and the handlers",
-        reach.functions
-    );
-    eprintln!("\n==> three-axis board image (stm32f405-axes): no panic call site");
-    let board = BOARD_AXES.build()?;
-    let reach = crate::panic_paths::check_board_image(&board)?;
-    eprintln!(
-        "    ok: no panic call site in the image; {} functions reachable from run_forever and the handlers",
-        reach.functions
-    );
-    eprintln!("\n==> shared-basis three-axis board image (stm32f405-axes-shared): no panic call site");
-    let board = BOARD_AXES_SHARED.build()?;
-    let reach = crate::panic_paths::check_board_image(&board)?;
-    eprintln!(
-        "    ok: no panic call site in the image; {} functions reachable from run_forever and the handlers",
-        reach.functions
-    );
+    for image in [BOARD, BOARD_AXES, BOARD_AXES_SHARED] {
+        eprintln!(
+            "\n==> board image {}: no panic call site, none reachable from its loop and handlers",
+            image.bin
+        );
+        let reach = crate::panic_paths::check_board_image(&image.build()?)?;
+        eprintln!(
+            "    ok: no panic call site in the image; {} functions reachable from run_forever and the handlers",
+            reach.functions
+        );
+    }
     Ok(())
 }
 
