@@ -28,22 +28,6 @@ fn ensure_toolchain() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Runs this `cargo xtask ci` again with cargo's incremental caches off, for every cargo it
-/// starts and what those start; returns its exit code.
-///
-/// CI builds each crate once from a clean clone: the caches are never reused there, were
-/// a large share of the target folder and only cost disk, which the machine CI runs on
-/// shares with others. (A second
-/// process, as setting the variable in this one would take `unsafe`, which xtask forbids.)
-fn rerun_without_incremental_builds() -> anyhow::Result<i32> {
-    let status = Command::new(std::env::current_exe().context("cannot find xtask itself")?)
-        .args(std::env::args_os().skip(1))
-        .env("CARGO_INCREMENTAL", "0")
-        .status()
-        .context("cannot start xtask again")?;
-    Ok(status.code().unwrap_or(1))
-}
-
 /// Wall time per CI step, printed at the end: where CI's minutes go.
 struct StepClock {
     last: Instant,
@@ -110,13 +94,10 @@ fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
     Ok((passed, failed))
 }
 
-/// fmt, the import circles, clippy (host and firmware), the no_std check, firmware builds, host
-/// tests, the tests needing QEMU, then 20 s of fuzzing (the targets side by side) beside the
-/// test needing PyPI; ends with `N passed, N failed`.
+/// fmt, the import circles, clippy (host and firmware) with the no_std check, firmware builds,
+/// host tests, the tests needing QEMU beside the fuzz build, then 20 s of fuzzing (the targets
+/// side by side) beside the test needing PyPI; ends with `N passed, N failed`.
 pub fn ci() -> anyhow::Result<()> {
-    if std::env::var_os("CARGO_INCREMENTAL").is_none_or(|v| v != "0") {
-        std::process::exit(rerun_without_incremental_builds()?);
-    }
     let started = Instant::now();
     let mut clock = StepClock::new();
     ensure_toolchain()?;
@@ -166,9 +147,28 @@ pub fn ci() -> anyhow::Result<()> {
             image.bin,
         ]
     };
+    // The no_std check of rbf-core (without its default `std`, for the target) in the same
+    // run as the QEMU test images: one feature resolution, so the proc macros both use
+    // compile once.
     run(
         "cargo",
-        &[&["clippy"][..], &qemu_boards[..], &["--", "-D", "warnings"]].concat(),
+        &[
+            "clippy",
+            "--package",
+            "rbf-core",
+            "--package",
+            "firmware",
+            "--target",
+            TARGET,
+            "--no-default-features",
+            "--features",
+            "firmware/test-harness",
+            "--lib",
+            "--bins",
+            "--",
+            "-D",
+            "warnings",
+        ],
     )?;
     for args in crate::firmware::BOARD_IMAGES
         .iter()
@@ -180,18 +180,7 @@ pub fn ci() -> anyhow::Result<()> {
             &[&["clippy"][..], &args[..], &["--", "-D", "warnings"]].concat(),
         )?;
     }
-    clock.lap("clippy, firmware feature sets");
-    run(
-        "cargo",
-        &[
-            "check",
-            "--package",
-            "rbf-core",
-            "--target",
-            TARGET,
-            "--no-default-features",
-        ],
-    )?;
+    clock.lap("clippy, firmware feature sets and the rbf-core no_std check");
     // The QEMU test images, then the images that are flashed (the QEMU board
     // images are built by the tests that run them).
     run("cargo", &[&["build", "--release"][..], &qemu_boards[..]].concat())?;
@@ -201,7 +190,7 @@ pub fn ci() -> anyhow::Result<()> {
     {
         run("cargo", &[&["build", "--release"][..], &image_args(image)[..]].concat())?;
     }
-    clock.lap("rbf-core no_std check and firmware release images");
+    clock.lap("firmware release images");
     crate::firmware::check_panic_free()?;
     crate::board_faults::board_faults()?;
     clock.lap("panic-free check and board faults");
@@ -211,32 +200,40 @@ pub fn ci() -> anyhow::Result<()> {
     // Named with `--workspace`, so that they build with the workspace's features and reuse
     // the step above (`--package e2e-tests` resolved other features and rebuilt trainer and
     // xtask).
-    let (p, f) = run_tests(&[
-        "test",
-        "--workspace",
-        "--test",
-        "qemu",
-        "--test",
-        "device",
-        "--",
-        "--ignored",
-    ])?;
+    // Beside them, at the lowest CPU priority, the fuzz targets' instrumented build (its own
+    // target folder): the boards run in real time and leave a core idle most of the time.
+    let (p, f) = std::thread::scope(|scope| {
+        let fuzz_build = scope.spawn(|| crate::fuzz::build_targets(crate::fuzz::Priority::Background));
+        let boards = run_tests(&[
+            "test",
+            "--workspace",
+            "--test",
+            "qemu",
+            "--test",
+            "device",
+            "--",
+            "--ignored",
+        ]);
+        let fuzz_build = fuzz_build
+            .join()
+            .unwrap_or_else(|_| Err(anyhow::anyhow!("the fuzz build's thread panicked")));
+        boards.and_then(|counts| fuzz_build.map(|()| counts))
+    })?;
     (passed, failed) = (passed + p, failed + f);
-    clock.lap("QEMU and device tests");
+    clock.lap("QEMU and device tests, beside them the fuzz build");
     // Each fuzz target for 20 s (longer runs: `cargo xtask fuzz --seconds N`); a finding
     // fails CI (and becomes a regression file). Beside it the test against allantools,
-    // which mostly waits on PyPI: the fuzz build has the cores, and nothing here runs
-    // in real time as the QEMU boards above do.
+    // which mostly waits on PyPI.
     let allantools = std::thread::scope(|scope| {
         let reference = scope.spawn(|| run_tests(&["test", "--workspace", "--test", "allantools", "--", "--ignored"]));
-        let fuzzed = crate::fuzz::fuzz(CI_FUZZ_SECONDS);
+        let fuzzed = crate::fuzz::run_targets(CI_FUZZ_SECONDS);
         let reference = reference
             .join()
             .unwrap_or_else(|_| Err(anyhow::anyhow!("the allantools test's thread panicked")));
         fuzzed.and(reference)
     })?;
     (passed, failed) = (passed + allantools.0, failed + allantools.1);
-    clock.lap("fuzzing (build and run) beside the allantools test");
+    clock.lap("fuzzing beside the allantools test");
     clock.print();
     eprintln!("\nci: all steps passed in {:.0} s", started.elapsed().as_secs_f64());
     println!("{passed} passed, {failed} failed");

@@ -11,13 +11,14 @@
 //! - [`import_circles`]: `cargo xtask import-circles`;
 //! - [`faults`]: `cargo xtask qemu-faults`;
 //! - [`large_run`]: `cargo xtask bench-large-run`;
-//! - [`ci`]: `cargo xtask ci`, the whole test suite.
+//! - [`ci`]: `cargo xtask ci`, the whole test suite; [`build_graph`]: that xtask and the tests build one trainer.
 #![forbid(unsafe_code)]
 
 pub mod accuracy;
 pub mod bench;
 pub mod board_faults;
 pub mod board_stack;
+pub mod build_graph;
 pub mod ci;
 pub mod faults;
 pub mod firmware;
