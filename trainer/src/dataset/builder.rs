@@ -114,6 +114,28 @@ impl Default for Accumulator {
     }
 }
 
+impl Accumulator {
+    /// Adds one sample's slot values (slot 0 first).
+    fn add(&mut self, values: &[f32]) {
+        for (((&v, sum), min), max) in values
+            .iter()
+            .zip(&mut self.sum_x)
+            .zip(&mut self.min_x)
+            .zip(&mut self.max_x)
+        {
+            *sum += v as f64;
+            // Comparisons rather than f32::min/max: the same result on the finite values
+            // (and a NaN is skipped either way), without the NaN handling in the loop.
+            if v < *min {
+                *min = v;
+            }
+            if v > *max {
+                *max = v;
+            }
+        }
+    }
+}
+
 /// Where one accumulator slot's value comes from: input `input` of the
 /// vector of configuration `config` (0 = the computed one).
 #[derive(Clone, Copy)]
@@ -137,6 +159,9 @@ pub struct BlockBuilder {
     slot_of: Vec<Vec<usize>>,
     /// Configurations whose converted vector some slot reads (besides the first).
     converted: Vec<usize>,
+    /// The slots are the computed vector's inputs, in order (a builder of one
+    /// configuration, as the lag bank's ladders): summed without the copy into slots.
+    direct: bool,
     config: CompensatorConfig,
     block_index: BinIndex,
     /// The length of the blocks being built now, s (doubled by each merge).
@@ -190,6 +215,7 @@ impl BlockBuilder {
         }
         let mut converted: Vec<usize> = slots.iter().map(|s| s.config).filter(|&c| c > 0).collect();
         converted.dedup();
+        let direct = slots.iter().enumerate().all(|(i, s)| s.config == 0 && s.input == i);
         let outputs = configs
             .iter()
             .map(|c| Blocks {
@@ -210,6 +236,7 @@ impl BlockBuilder {
             slots,
             slot_of,
             converted,
+            direct,
             config: CompensatorConfig::for_nominal_period_s(nominal_period_s),
             block_index: BinIndex::new(block_s),
             block_s,
@@ -313,23 +340,23 @@ impl BlockBuilder {
         let Some(computed) = frame.features.filter(|_| frame.flags.0 & unusable.0 == 0) else {
             return;
         };
-        let mut vectors = [computed; MAX_GROUP];
-        for &c in &self.converted {
-            match computed.to_multiscale_set(head.set, self.configs[c].set) {
-                Some(v) => vectors[c] = v,
-                None => return,
+        if self.direct {
+            self.acc.add(computed.as_slice());
+        } else {
+            let mut vectors = [computed; MAX_GROUP];
+            for &c in &self.converted {
+                match computed.to_multiscale_set(head.set, self.configs[c].set) {
+                    Some(v) => vectors[c] = v,
+                    None => return,
+                }
             }
-        }
-        let mut values = [0.0f32; MAX_SLOTS];
-        for (v, slot) in values.iter_mut().zip(&self.slots) {
-            *v = vectors[slot.config].as_slice()[slot.input];
+            let mut values = [0.0f32; MAX_SLOTS];
+            for (v, slot) in values.iter_mut().zip(&self.slots) {
+                *v = vectors[slot.config].as_slice()[slot.input];
+            }
+            self.acc.add(values.get(..self.slots.len()).unwrap_or(&[]));
         }
         let acc = &mut self.acc;
-        for (s, &v) in values.iter().enumerate().take(self.slots.len()) {
-            acc.sum_x[s] += v as f64;
-            acc.min_x[s] = acc.min_x[s].min(v);
-            acc.max_x[s] = acc.max_x[s].max(v);
-        }
         acc.sum_y += target_dph;
         acc.count += 1;
         for out in &mut self.outputs {
