@@ -183,12 +183,12 @@ pub fn ci() -> anyhow::Result<()> {
     clock.lap("clippy, firmware feature sets and the rbf-core no_std check");
     // The QEMU test images, then the images that are flashed (the QEMU board
     // images are built by the tests that run them).
-    run("cargo", &[&["build", "--release"][..], &qemu_boards[..]].concat())?;
+    crate::firmware::build_release(&qemu_boards)?;
     for image in crate::firmware::BOARD_IMAGES
         .iter()
         .filter(|i| i.feature != "board-qemu")
     {
-        run("cargo", &[&["build", "--release"][..], &image_args(image)[..]].concat())?;
+        crate::firmware::build_release(&image_args(image))?;
     }
     clock.lap("firmware release images");
     crate::firmware::check_panic_free()?;

@@ -17,6 +17,20 @@ pub fn target_dir() -> PathBuf {
     workspace_root().join("target").join("firmware")
 }
 
+/// `cargo build --release ARGS` in [`target_dir`], echoed: CI builds the
+/// images there, so that the panic checks, the benchmarks and the QEMU tests
+/// after it ([`build`]) find them built instead of compiling the HAL and
+/// the firmware again in a folder of their own.
+pub fn build_release(args: &[&str]) -> anyhow::Result<()> {
+    ensure_flip_link()?;
+    let dir = target_dir();
+    crate::run_with_env(
+        "cargo",
+        &[&["build", "--release"][..], args].concat(),
+        &[("CARGO_TARGET_DIR", dir.as_os_str())],
+    )
+}
+
 /// The linker .cargo/config.toml sets for the firmware target.
 const FLIP_LINK: &str = "flip-link";
 

@@ -46,10 +46,16 @@ pub fn workspace_root() -> PathBuf {
 
 /// Runs a command in the workspace root, echoing it, failing if it fails.
 pub fn run(program: &str, args: &[&str]) -> anyhow::Result<()> {
+    run_with_env(program, args, &[])
+}
+
+/// [`run`] with the environment variables `env` set for the command.
+pub fn run_with_env(program: &str, args: &[&str], env: &[(&str, &std::ffi::OsStr)]) -> anyhow::Result<()> {
     eprintln!("\n==> {program} {}", args.join(" "));
     let started = Instant::now();
     let status = Command::new(program)
         .args(args)
+        .envs(env.iter().copied())
         .current_dir(workspace_root())
         .status()
         .with_context(|| format!("cannot start {program}"))?;
