@@ -132,20 +132,22 @@ pub fn ci() -> anyhow::Result<()> {
         &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
     )?;
     clock.lap("clippy, host workspace");
-    // The QEMU boards, then the STM32F405 board on its own: its HAL switches
-    // cortex-m-rt to device mode, whose vector table the QEMU boards lack.
+    // The QEMU test images (qemu-bench, and qemu-replay and qemu-faults on
+    // the test harnesses), then each board image on its own: its HAL
+    // switches cortex-m-rt to device mode, whose vector table the QEMU test
+    // images lack.
     let qemu_boards = [
         "--package",
-        "firmware",
+        crate::firmware::FIRMWARE,
+        "--package",
+        crate::firmware::HARNESS,
         "--target",
         TARGET,
-        "--features",
-        "test-harness",
         "--bins",
     ];
     let panic_check = [
         "--package",
-        "firmware",
+        crate::firmware::FIRMWARE,
         "--target",
         TARGET,
         "--features",
@@ -157,7 +159,7 @@ pub fn ci() -> anyhow::Result<()> {
     let image_args = |image: &crate::firmware::BoardImage| {
         [
             "--package",
-            "firmware",
+            image.package,
             "--target",
             TARGET,
             "--features",
