@@ -7,10 +7,7 @@
 //! - [`compensation`]: the per-sample loop for any number of axes (rbf-core compensation, one
 //!   output frame per sample: a single gyro's frame, or one frame with every axis of an IMU);
 //! - [`uart`]: the transmit queue an interrupt drains (frames whole or dropped and counted);
-//! - `replay` (feature `test-harness`): emulated devices and the recorded-run replayer of the QEMU board;
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
-//! - `emulated_flash` (feature `test-harness`): NOR flash in RAM that can lose power mid-operation (QEMU and host tests);
-//! - `fault_injection` (feature `test-harness`): buses that fail on a schedule and the fault campaign of the QEMU fault board;
 //! - [`fault`]: the fault record kept across a reset and the boot report frame; [`health`]: the health report;
 //! - the board's peripherals, bounded and host-tested (`cargo xtask board-faults`): [`clock`] (deadlines),
 //!   [`i2c_master`] (I2C with timeouts and bus recovery), [`flash_ctl`] (the flash controller),
@@ -20,25 +17,24 @@
 //!
 //! - [`board`]: the board's timer arithmetic (host-tested) and, on the MCU, its setup,
 //!   handlers and run loop; one small binary per board image in `src/bin/` wires its sensors to it.
+//!
+//! The test harnesses (emulated devices and flash, the recorded-run replayer, fault
+//! injection, semihosting files) and the QEMU images built on them are the crate
+//! `firmware-harness` (`firmware-harness/`), so that neither the board image nor an
+//! application of this library ever sees them.
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
 pub mod bench;
 pub mod clock;
 pub mod compensation;
-#[cfg(any(test, feature = "test-harness"))]
-pub mod emulated_flash;
 pub mod fault;
-#[cfg(any(test, feature = "test-harness"))]
-pub mod fault_injection;
 pub mod flash_ctl;
 pub mod frontend;
 pub mod health;
 pub mod i2c_master;
 pub mod model_store;
 pub mod pacing;
-#[cfg(any(test, feature = "test-harness"))]
-pub mod replay;
 pub mod sensors;
 pub mod tmp117;
 pub mod uart;
@@ -46,8 +42,6 @@ pub mod update;
 pub mod watchdog;
 
 pub mod board;
-#[cfg(all(target_os = "none", feature = "test-harness"))]
-pub mod host_file;
 
 use rbf_core::Model;
 use rbf_core::blob::{self, DecodeError};

@@ -131,7 +131,7 @@ pub fn faulty_slice(dir: &Path, run_csv: &str, name: &str) -> PathBuf {
 
 /// A small valid cubic-in-T model (a second, different model for update tests).
 pub fn cubic_model() -> rbf_core::Model {
-    firmware::fault_injection::cubic_model().expect("valid cubic model")
+    firmware_harness::fault_injection::cubic_model().expect("valid cubic model")
 }
 
 /// Data rows of the three-axis slice.

@@ -13,8 +13,6 @@ use trainer::reading::run::RunReader;
 use trainer::reading::run::rows::RunError;
 use trainer::reading::run::samples::Run;
 
-pub use xtask::fuzz::TARGETS;
-
 const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// `data` as header fields (kind, inputs, centres, reserved) and payload,

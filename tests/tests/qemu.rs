@@ -250,7 +250,7 @@ fn corrupt_model_slot_runs_uncompensated_with_flag_4_never_halts() {
     blob[20] ^= 0x40;
     std::fs::write(dir.path().join("model.bin"), &blob).unwrap();
     std::fs::copy(&slice, dir.path().join("input.csv")).unwrap();
-    let elf = xtask::firmware::build("qemu-replay", &["test-harness"]).unwrap();
+    let elf = xtask::firmware::build(xtask::firmware::HARNESS, "qemu-replay", &[]).unwrap();
     let loader = format!("loader,file=model.bin,addr={:#x}", xtask::replay::MODEL_SLOT_A);
     let run = xtask::qemu::run(
         &elf,
@@ -274,7 +274,7 @@ fn corrupt_model_slot_runs_uncompensated_with_flag_4_never_halts() {
 #[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
 fn benchmark_image_runs_and_reports_every_model_size() {
     // A smoke test: the figures themselves are `cargo xtask bench-fw`'s job.
-    let elf = xtask::firmware::build("qemu-bench", &[]).unwrap();
+    let elf = xtask::firmware::build(xtask::firmware::FIRMWARE, "qemu-bench", &[]).unwrap();
     let dir = TempDir::new().unwrap();
     let icount = ["-icount".to_owned(), "shift=0".to_owned()];
     let run = xtask::qemu::run(&elf, dir.path(), &icount, std::time::Duration::from_secs(120)).unwrap();

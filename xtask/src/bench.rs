@@ -51,8 +51,8 @@ pub fn bench_fw() -> anyhow::Result<()> {
     let shared_run = crate::board_stack::measure_axes_shared()?;
     let axes_board = firmware::BOARD_AXES.build()?;
     let shared_board = firmware::BOARD_AXES_SHARED.build()?;
-    let bench = firmware::build("qemu-bench", &[])?;
-    let replay = firmware::build("qemu-replay", &["test-harness"])?;
+    let bench = firmware::build(firmware::FIRMWARE, "qemu-bench", &[])?;
+    let replay = firmware::build(firmware::HARNESS, "qemu-replay", &[])?;
     let board = firmware::BOARD.build()?;
     let dir = tempfile::TempDir::new()?;
     let icount = ["-icount".to_owned(), "shift=0".to_owned()];

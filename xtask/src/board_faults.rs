@@ -1,6 +1,6 @@
 //! `cargo xtask board-faults`: the stm32f405 board's own driver and loop
 //! code against scripted faulty peripherals on the host
-//! (`firmware/examples/board_faults/`; docs/firmware.md, "Faults the board
+//! (`firmware-harness/examples/board_faults/`; docs/firmware.md, "Faults the board
 //! survives").
 
 use std::process::Command;
@@ -26,7 +26,14 @@ pub fn parse_summary(line: &str) -> Option<(u32, u32)> {
 /// summary is missing.
 pub fn board_faults() -> anyhow::Result<()> {
     let output = Command::new("cargo")
-        .args(["run", "--quiet", "--package", "firmware", "--example", "board_faults"])
+        .args([
+            "run",
+            "--quiet",
+            "--package",
+            "firmware-harness",
+            "--example",
+            "board_faults",
+        ])
         .current_dir(workspace_root())
         .output()
         .context("cannot start cargo run")?;

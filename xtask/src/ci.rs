@@ -113,20 +113,22 @@ pub fn ci() -> anyhow::Result<()> {
         &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
     )?;
     clock.lap("clippy, host workspace");
-    // The QEMU boards, then the STM32F405 board on its own: its HAL switches
-    // cortex-m-rt to device mode, whose vector table the QEMU boards lack.
+    // The QEMU test images (qemu-bench, and qemu-replay and qemu-faults on
+    // the test harnesses), then each board image on its own: its HAL
+    // switches cortex-m-rt to device mode, whose vector table the QEMU test
+    // images lack.
     let qemu_boards = [
         "--package",
-        "firmware",
+        crate::firmware::FIRMWARE,
+        "--package",
+        crate::firmware::HARNESS,
         "--target",
         TARGET,
-        "--features",
-        "test-harness",
         "--bins",
     ];
     let panic_check = [
         "--package",
-        "firmware",
+        crate::firmware::FIRMWARE,
         "--target",
         TARGET,
         "--features",
@@ -138,7 +140,7 @@ pub fn ci() -> anyhow::Result<()> {
     let image_args = |image: &crate::firmware::BoardImage| {
         [
             "--package",
-            "firmware",
+            image.package,
             "--target",
             TARGET,
             "--features",
@@ -153,22 +155,11 @@ pub fn ci() -> anyhow::Result<()> {
     run(
         "cargo",
         &[
-            "clippy",
-            "--package",
-            "rbf-core",
-            "--package",
-            "firmware",
-            "--target",
-            TARGET,
-            "--no-default-features",
-            "--features",
-            "firmware/test-harness",
-            "--lib",
-            "--bins",
-            "--",
-            "-D",
-            "warnings",
-        ],
+            &["clippy", "--package", "rbf-core", "--no-default-features", "--lib"][..],
+            &qemu_boards[..],
+            &["--", "-D", "warnings"],
+        ]
+        .concat(),
     )?;
     for args in crate::firmware::BOARD_IMAGES
         .iter()

@@ -20,7 +20,7 @@ pub const MODEL_SLOT_B: u32 = 0x080E_0000;
 pub fn qemu_faults(model: &Path, update: &Path) -> anyhow::Result<Vec<String>> {
     read_model(model)?;
     read_model(update)?;
-    let elf = firmware::build("qemu-faults", &["test-harness"])?;
+    let elf = firmware::build(firmware::HARNESS, "qemu-faults", &[])?;
     let dir = tempfile::TempDir::new().context("cannot create a working directory")?;
     std::fs::copy(model, dir.path().join("a.bin")).with_context(|| format!("{}: cannot copy", model.display()))?;
     std::fs::copy(update, dir.path().join("b.bin")).with_context(|| format!("{}: cannot copy", update.display()))?;

@@ -1,4 +1,6 @@
-//! Cross builds of the firmware board binaries.
+//! Cross builds of the firmware images: the board's (package
+//! [`FIRMWARE`]) and the QEMU test images on the test harnesses (package
+//! [`HARNESS`]).
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -9,6 +11,11 @@ use crate::workspace_root;
 
 /// Bare-metal target of the gyro MCU (Cortex-M4F with FPU).
 pub const TARGET: &str = "thumbv7em-none-eabihf";
+
+/// The firmware library's package: the board images, `qemu-bench`, `panic-free-check`.
+pub const FIRMWARE: &str = "firmware";
+/// The test harnesses' package: `qemu-replay`, `qemu-faults` and the board images under QEMU.
+pub const HARNESS: &str = "firmware-harness";
 
 /// Target directory of firmware builds made from here. Separate from the
 /// workspace's so that a build started inside `cargo test` never waits on
@@ -52,10 +59,13 @@ pub fn ensure_flip_link() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A board image: its binary (`firmware/src/bin/`, one per image over
-/// `firmware::board`) and the feature it requires.
+/// A board image: its package, its binary (one per image over
+/// `firmware::board`: `firmware/src/bin/`, the QEMU images in
+/// `firmware-harness/src/bin/`) and the feature it requires.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BoardImage {
+    /// Its package: [`FIRMWARE`] or, for the QEMU images, [`HARNESS`].
+    pub package: &'static str,
     /// The binary's name.
     pub bin: &'static str,
     /// The feature that selects its HAL and, for the QEMU images, QEMU's substitutes.
@@ -65,7 +75,7 @@ pub struct BoardImage {
 impl BoardImage {
     /// Builds the image (release) and returns its ELF path.
     pub fn build(self) -> anyhow::Result<PathBuf> {
-        build(self.bin, &[self.feature])
+        build(self.package, self.bin, &[self.feature])
     }
 
     /// True for the three-axis images.
@@ -76,46 +86,55 @@ impl BoardImage {
 
 /// The single-axis gyro board (what `cargo flash-board` flashes).
 pub const BOARD: BoardImage = BoardImage {
+    package: FIRMWARE,
     bin: "stm32f405",
     feature: "board-stm32f405",
 };
 /// The single-axis board with defmt logging over RTT.
 pub const BOARD_DEBUG: BoardImage = BoardImage {
+    package: FIRMWARE,
     bin: "stm32f405-debug",
     feature: "board-debug",
 };
 /// The three-axis board, a model per axis.
 pub const BOARD_AXES: BoardImage = BoardImage {
+    package: FIRMWARE,
     bin: "stm32f405-axes",
     feature: "board-stm32f405",
 };
 /// The three-axis board for a shared-basis blob.
 pub const BOARD_AXES_SHARED: BoardImage = BoardImage {
+    package: FIRMWARE,
     bin: "stm32f405-axes-shared",
     feature: "board-stm32f405",
 };
 /// [`BOARD`] under QEMU (stack peak measured, exits when done).
 pub const BOARD_QEMU: BoardImage = BoardImage {
+    package: HARNESS,
     bin: "stm32f405-qemu",
     feature: "board-qemu",
 };
 /// [`BOARD_AXES`] under QEMU.
 pub const BOARD_AXES_QEMU: BoardImage = BoardImage {
+    package: HARNESS,
     bin: "stm32f405-axes-qemu",
     feature: "board-qemu",
 };
 /// [`BOARD_AXES_SHARED`] under QEMU.
 pub const BOARD_AXES_SHARED_QEMU: BoardImage = BoardImage {
+    package: HARNESS,
     bin: "stm32f405-axes-shared-qemu",
     feature: "board-qemu",
 };
 /// [`BOARD_QEMU`] serving until stopped (`cargo xtask qemu-board --pty`).
 pub const BOARD_QEMU_SERVE: BoardImage = BoardImage {
+    package: HARNESS,
     bin: "stm32f405-qemu-serve",
     feature: "board-qemu",
 };
 /// [`BOARD_AXES_QEMU`] serving until stopped (`cargo xtask qemu-board --axes 3 --pty`).
 pub const BOARD_AXES_QEMU_SERVE: BoardImage = BoardImage {
+    package: HARNESS,
     bin: "stm32f405-axes-qemu-serve",
     feature: "board-qemu",
 };
@@ -133,15 +152,17 @@ pub const BOARD_IMAGES: [BoardImage; 9] = [
     BOARD_AXES_QEMU_SERVE,
 ];
 
-/// Builds board binary `bin` (release) and returns the ELF path: with
-/// `features`, a copy of its own (`bin+feature+…` beside it), because
-/// every feature set of one binary is built to the same path and tests
-/// build several of them at once.
-pub fn build(bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
+/// Builds binary `bin` of firmware package `package` ([`FIRMWARE`] or
+/// [`HARNESS`]) (release) and returns the ELF path: with `features`, a copy
+/// of its own (`bin+feature+…` beside it), because every feature set of one
+/// binary is built to the same path and tests build several of them at once.
+pub fn build(package: &str, bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
     static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
     ensure_flip_link()?;
     let _building = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    let status = build_command(bin, features).status().context("cannot start cargo")?;
+    let status = build_command(package, bin, features)
+        .status()
+        .context("cannot start cargo")?;
     if !status.success() {
         bail!("building firmware binary {bin} for {TARGET} failed");
     }
@@ -159,8 +180,7 @@ pub fn build(bin: &str, features: &[&str]) -> anyhow::Result<PathBuf> {
 ///
 /// Built through `cargo test --workspace --no-run`, not `cargo build
 /// --package trainer`: the workspace's tests turn on features of shared
-/// crates (the firmware's `test-harness` among them) that a build of
-/// the trainer alone does not, so that build would compile the firmware, the
+/// crates that a build of the trainer alone does not, so that build would compile the firmware, the
 /// trainer and its binary a second time, inside the QEMU and device tests'
 /// time. After `cargo xtask ci`'s host tests every target is fresh and this
 /// costs a no-op; run alone it builds the workspace's tests once.
@@ -188,7 +208,7 @@ pub const PANIC_SYMBOL: &str = "hot_path_can_panic";
 pub fn check_panic_free() -> anyhow::Result<()> {
     let bin = "panic-free-check";
     eprintln!("\n==> panic-free check: {bin} must link");
-    let out = build_command(bin, &["panic-free-check"])
+    let out = build_command(FIRMWARE, bin, &["panic-free-check"])
         .output()
         .context("cannot start cargo")?;
     if !out.status.success() {
@@ -202,7 +222,7 @@ pub fn check_panic_free() -> anyhow::Result<()> {
         bail!("building {bin} failed:\n{log}");
     }
     eprintln!("==> panic-free check: its canary must not link");
-    let out = build_command(bin, &["panic-free-check-canary"])
+    let out = build_command(FIRMWARE, bin, &["panic-free-check-canary"])
         .output()
         .context("cannot start cargo")?;
     let log = String::from_utf8_lossy(&out.stderr);
@@ -233,14 +253,14 @@ pub fn check_board_panics() -> anyhow::Result<()> {
     Ok(())
 }
 
-fn build_command(bin: &str, features: &[&str]) -> Command {
+fn build_command(package: &str, bin: &str, features: &[&str]) -> Command {
     let mut cmd = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
     cmd.args([
         "build",
         "--quiet",
         "--release",
         "--package",
-        "firmware",
+        package,
         "--target",
         TARGET,
         "--bin",

@@ -62,7 +62,7 @@ pub fn qemu_replay_checked(
     }
     drop(compensate_command(model, run, output, existing, accept)?);
     let rows = Run::load(run)?.len();
-    let elf = firmware::build("qemu-replay", &["test-harness"])?;
+    let elf = firmware::build(firmware::HARNESS, "qemu-replay", &[])?;
     let dir = tempfile::TempDir::new().context("cannot create a working directory")?;
     std::fs::copy(run, dir.path().join("input.csv")).with_context(|| format!("{}: cannot copy", run.display()))?;
     std::fs::copy(model, dir.path().join("model.bin")).with_context(|| format!("{}: cannot copy", model.display()))?;

@@ -1,7 +1,8 @@
 //! The STM32F405 itself behind the board's few chip-or-QEMU choices (the
-//! QEMU images take [`super::qemu`]'s instead): the bounded clock setup,
-//! I2C1 through the bounded master, the model slots in flash through the
-//! flash controller.
+//! QEMU images take `super::qemu`'s instead): the bounded clock setup,
+//! I2C1 through the bounded master; and the model slots in flash through
+//! the flash controller, the board's [`super::BoardFlash`] unless an image
+//! picks another (the QEMU images' emulated flash).
 
 use stm32f4xx_hal::gpio::{PB6, PB7};
 use stm32f4xx_hal::pac;
@@ -34,20 +35,22 @@ pub fn i2c1(pb6: PB6, pb7: PB7, rcc: &mut Rcc, clocks: &ClockTree, tim2: Tim2Clo
 /// The model slots' flash: the flash controller.
 pub type SlotFlash = ControllerFlash<hw::FlashRegs, Tim2Clock, hw::Iwdg>;
 
-/// MODEL_A and MODEL_B (memory.x) as offsets from the start of flash: the
-/// flash controller's registers only ever program or map words inside them.
-pub const SLOTS: SlotLayout = hw::MODEL_SLOTS;
+impl super::BoardFlash for SlotFlash {
+    /// MODEL_A and MODEL_B (memory.x) as offsets from the start of flash: the
+    /// flash controller's registers only ever program or map words inside them.
+    const SLOTS: SlotLayout = hw::MODEL_SLOTS;
 
-/// The flash controller driver over the model slots.
-#[inline(always)]
-pub fn model_flash(tim2: Tim2Clock) -> SlotFlash {
-    ControllerFlash::new(hw::FlashRegs, tim2, hw::Iwdg)
-}
+    /// The flash controller driver over the model slots.
+    #[inline(always)]
+    fn open(tim2: Tim2Clock) -> Self {
+        ControllerFlash::new(hw::FlashRegs, tim2, hw::Iwdg)
+    }
 
-/// Flash operations that failed so far.
-#[inline(always)]
-pub fn flash_errors(flash: &SlotFlash) -> u32 {
-    flash.errors()
+    /// Flash operations that failed so far.
+    #[inline(always)]
+    fn errors(&self) -> u32 {
+        ControllerFlash::errors(self)
+    }
 }
 
 /// After a byte was written or a frame queued: the transmit-empty

@@ -71,7 +71,7 @@ use crate::frontend::{self, FrontEnd};
 use crate::health::{
     BOARD_ON_HSI, CMD_HEALTH, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause,
 };
-use crate::model_store::{ModelStore, StoredModel};
+use crate::model_store::{MappedFlash, ModelStore, SlotLayout, StoredModel};
 use crate::pacing::{self, Pacer, PacerCounters};
 use crate::sensors::{AxisFrontEnds, AxisThermometers};
 use crate::tmp117::Tmp117;
@@ -80,6 +80,18 @@ use crate::update::{self, CommandReceiver, Received, UpdateStatus};
 use crate::watchdog::{self, Watchdog};
 
 pub use platform::I2c1;
+
+/// The flash an image keeps its two model slots in: the chip's flash
+/// through its controller ([`super::chip::SlotFlash`]), or what a test
+/// image emulates (the QEMU images' NOR flash in RAM, `firmware-harness`).
+pub trait BoardFlash: MappedFlash + Sized {
+    /// Where the two slots lie in it.
+    const SLOTS: SlotLayout;
+    /// The flash, ready for the model store; `tim2` bounds its waits.
+    fn open(tim2: hw::Tim2Clock) -> Self;
+    /// Flash operations that failed so far (the health report).
+    fn errors(&self) -> u32;
+}
 
 /// Logs over RTT in the debug image (`board-debug`); nothing otherwise.
 macro_rules! log {
@@ -218,7 +230,7 @@ impl<S: SpiDevice, const N: usize> BoardFrontEnds for [FrontEnd<S>; N] {
 }
 
 /// What an image adds to the board's loop (none on the chip: `()`; the
-/// QEMU images' sensors and data-ready source, [`super::qemu`]).
+/// QEMU images' sensors and data-ready source, `firmware_harness::qemu`).
 pub trait Hooks {
     /// The interrupts are enabled, the loop is about to start; samples
     /// come every `period_ticks` TIM2 ticks.
@@ -403,8 +415,10 @@ pub struct Wiring {
     pub delay: CycleDelay,
 }
 
-/// The board after [`Board::setup`], which [`Board::run`] runs.
-pub struct Board {
+/// The board after [`Board::setup`], which [`Board::run`] runs; its
+/// model slots in the flash `F` (the chip's own unless an image picks
+/// another, [`Board::setup_with_slots`]).
+pub struct Board<F = super::chip::SlotFlash> {
     /// TIM2's rate, Hz: the pacer's and the data-ready stamps' time base
     /// (the clock tree's; an image may set another, as QEMU's serving image does).
     pub timer_hz: u32,
@@ -416,7 +430,7 @@ pub struct Board {
     out_producer: Producer<'static, u8>,
     in_consumer: Consumer<'static, u8>,
     stamp_consumer: Consumer<'static, u32>,
-    flash: platform::SlotFlash,
+    flash: F,
 }
 
 /// The single gyro's front end: SPI1 with chip select PA4.
@@ -457,12 +471,22 @@ pub fn coil_thermometers<B: I2c>(bus: &AtomicCell<B>) -> [Tmp117<embedded_hal_bu
 }
 
 impl Board {
+    /// Sets the board up with its model slots in the chip's flash
+    /// ([`Board::setup_with_slots`]).
+    #[inline(always)]
+    pub fn setup() -> (Board, Wiring) {
+        Board::setup_with_slots()
+    }
+}
+
+impl<F: BoardFlash> Board<F> {
     /// Sets the board up, every wait bounded: the watchdog first, the
     /// reset cause, the clock tree, TIM2 free-running, I2C1 (its bus
     /// recovered), SPI1, USART1 with its interrupt's queues, the
-    /// data-ready line's interrupt. The interrupts are still masked.
+    /// data-ready line's interrupt, the model slots' flash `F`. The
+    /// interrupts are still masked.
     #[inline(always)]
-    pub fn setup() -> (Board, Wiring) {
+    pub fn setup_with_slots() -> (Self, Wiring) {
         let Some(mut dp) = pac::Peripherals::take() else { halt() };
         let Some(mut core) = cortex_m::Peripherals::take() else {
             halt()
@@ -525,7 +549,7 @@ impl Board {
         hw::set_usart1_baud(&clocks, 921_600);
         let (tx, mut rx) = serial.split();
         rx.listen();
-        let flash = platform::model_flash(tim2);
+        let flash = F::open(tim2);
 
         let Some(out_queue) = cortex_m::singleton!(: Queue<u8, TX_QUEUE> = Queue::new()) else {
             halt()
@@ -632,7 +656,7 @@ impl Board {
         let (model, commands) = (unsafe { M::storage() }, &raw mut COMMANDS);
         let commands = unsafe { &mut *commands };
         // An invalid or absent model is not fatal: every frame then carries flag 4.
-        let mut store = ModelStore::open_with(flash, platform::SLOTS, model);
+        let mut store = ModelStore::open_with(flash, F::SLOTS, model);
         let loaded = store.load_into(model).is_ok();
         let model = InPlaceModel::new(model, loaded);
         log!(
@@ -778,10 +802,10 @@ static mut COMMANDS: CommandReceiver = CommandReceiver::new();
 /// Sends the health report: `boot`, then the counters of the loop
 /// `compensation`, the model store `store` and the pacer `pacer`.
 #[inline(never)]
-fn send_health<T, R: BoardFrontEnds, W: embedded_io::Write, MH, const K: usize, const N: usize>(
+fn send_health<F: BoardFlash, T, R: BoardFrontEnds, W: embedded_io::Write, MH, const K: usize, const N: usize>(
     boot: &Boot,
     compensation: &mut CompensationLoop<T, R, W, MH, K, N>,
-    store: &ModelStore<platform::SlotFlash>,
+    store: &ModelStore<F>,
     pacer: &Pacer,
 ) where
     T: AxisThermometers,
@@ -796,7 +820,7 @@ fn send_health<T, R: BoardFrontEnds, W: embedded_io::Write, MH, const K: usize, 
             &compensation.stats(),
             &pacer.counters(),
             compensation.sensors().1.inits(),
-            platform::flash_errors(store.flash()),
+            store.flash().errors(),
         ),
         model: store.identity(),
         board_flags: if boot.on_crystal { 0 } else { BOARD_ON_HSI },

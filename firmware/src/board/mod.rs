@@ -1,5 +1,6 @@
 //! The gyro board: everything an image runs but its own few lines of
-//! wiring (`src/bin/stm32f405*.rs`, one small binary per image).
+//! wiring (`src/bin/stm32f405*.rs`, one small binary per image; the
+//! images under QEMU are firmware-harness's, beside their emulation).
 //!
 //! - [`timing`]: the timer arithmetic (TIM2 rates, the SysTick reload,
 //!   delays, elapsed ticks on wrapping counters), host-tested;
@@ -10,8 +11,9 @@
 //!   IWDG, I2C1, the flash controller and the clock tree at register
 //!   level), the board's setup, interrupt and exception handlers and run
 //!   loop (`Board`), generic over the model kind and the sensors an image
-//!   wires, and with `board-qemu` the substitutes for what QEMU's
-//!   netduinoplus2 lacks (`qemu`).
+//!   wires and over the flash of its model slots (`BoardFlash`), and
+//!   with `board-qemu` the substitutes for what QEMU's netduinoplus2
+//!   lacks (`qemu`).
 #![allow(unsafe_code)]
 
 pub mod timing;

@@ -1,13 +1,13 @@
 //! Fault injection on the host: the campaigns the QEMU fault board runs
-//! (firmware::fault_injection), on a fitted model, with their pass criteria.
+//! (firmware_harness::fault_injection), on a fitted model, with their pass criteria.
 
 use e2e_tests::fixtures::model_and_faulty_slice;
-use firmware::emulated_flash::EmulatedFlash;
-use firmware::fault_injection::{
+use firmware::model_store::{InstallError, ModelStore, SlotState};
+use firmware_harness::emulated_flash::EmulatedFlash;
+use firmware_harness::fault_injection::{
     EMULATED_LAYOUT, FaultKind, ModelFlash, axis_thermometer_campaign, bit_flip_campaign, command_campaign,
     power_cut_campaign, sensor_campaign,
 };
-use firmware::model_store::{InstallError, ModelStore, SlotState};
 use rbf_core::Model;
 use rbf_core::axis::Axis;
 use rbf_core::blob::axes::{AxisModels, decode_axes_into, encode_axes};

@@ -6,7 +6,7 @@ use e2e_tests::fixtures as common;
 
 use std::cell::Cell;
 
-use firmware::replay::{self, ReplaySample, Replayer};
+use firmware_harness::replay::{self, ReplaySample, Replayer};
 use rbf_core::Flags;
 use rbf_core::frame;
 use trainer::evaluation::compensate::compensate_file;

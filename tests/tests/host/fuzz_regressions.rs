@@ -2,8 +2,9 @@
 //! files under tests/fuzz-regressions/<target>/ replay through the same
 //! checks the fuzz targets run (e2e_tests::robustness).
 
-use e2e_tests::robustness::{TARGETS, check};
+use e2e_tests::robustness::check;
 use e2e_tests::workspace_root;
+use xtask::fuzz::TARGETS;
 
 #[test]
 fn every_past_fuzz_finding_is_handled() {

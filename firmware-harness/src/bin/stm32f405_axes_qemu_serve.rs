@@ -8,14 +8,13 @@
 fn main() -> ! {
     use core::cell::Cell;
     use firmware::AXIS_CENTERS;
-    use firmware::board::Board;
-    use firmware::board::qemu::{self, Emulation};
     use firmware::frontend::FrontEnd;
-    use firmware::replay::EmulatedFrontEnd;
+    use firmware_harness::qemu::{self, Emulation};
+    use firmware_harness::replay::EmulatedFrontEnd;
     use rbf_core::blob::axes::AxisModels;
 
     // SPI1 stays set up and unused: QEMU has no front end on it.
-    let (mut board, _wiring) = Board::setup();
+    let (mut board, _wiring) = qemu::setup();
     // TIM2 at QEMU's timer clock: samples at 1 kHz of real time (no -icount).
     board.timer_hz = qemu::TIMER_HZ;
     let mut source = qemu::RunSource::<3>::open();

@@ -16,13 +16,13 @@ use rbf_core::blob;
 use rbf_core::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN};
 use rbf_core::{CompensatorConfig, Flags, Model};
 
-use crate::compensation::{CompensationLoop, LoopConfig, ModelHolder};
 use crate::emulated_flash::{EmulatedFlash, PAGE};
-use crate::frontend::FrontEnd;
-use crate::model_store::{COMMIT_LEN, ModelStore, SlotLayout};
 use crate::replay::{EmulatedFrontEnd, EmulatedTmp117, ReplaySample};
-use crate::tmp117::{self, Tmp117};
-use crate::update::{self, CommandReceiver, Received, UpdateStatus};
+use firmware::compensation::{CompensationLoop, LoopConfig, ModelHolder};
+use firmware::frontend::FrontEnd;
+use firmware::model_store::{COMMIT_LEN, ModelStore, SlotLayout};
+use firmware::tmp117::{self, Tmp117};
+use firmware::update::{self, CommandReceiver, Received, UpdateStatus};
 
 /// A model any board test can install: a static cubic in the loop
 /// temperature about 25 °C, trained range 10 … 40 °C, no filters (so no

@@ -2,7 +2,7 @@
 //!
 //! Reads `input.csv` over semihosting from the directory QEMU runs in, takes
 //! the model from flash slot MODEL_A (placed with `-device loader`), replays
-//! the run through the real drivers on emulated buses ([`firmware::replay`])
+//! the run through the real drivers on emulated buses ([`firmware_harness::replay`])
 //! and writes `output.csv` (byte-identical to `trainer compensate`) and
 //! `frames.bin` (the UART frames). A multi-axis run (`rate_x_dph` …) takes
 //! a multi-axis blob (format 3, a model per axis or one shared basis for
@@ -20,9 +20,9 @@ mod board {
 
     use cortex_m_rt::entry;
     use cortex_m_semihosting::{debug, hprintln};
-    use firmware::host_file::{HostFile, HostLines};
-    use firmware::replay::ReplayError;
-    use firmware::replay::{PeriodProbe, ReplaySample, Replayer};
+    use firmware_harness::host_file::{HostFile, HostLines};
+    use firmware_harness::replay::ReplayError;
+    use firmware_harness::replay::{PeriodProbe, ReplaySample, Replayer};
     use rbf_core::blob::axes::{AxisModels, decode_axes_into};
     use rbf_core::blob::shared_layout::decode_shared_into;
     use rbf_core::blob::{BlobKind, blob_kind};

@@ -7,11 +7,11 @@
 fn main() -> ! {
     use embedded_hal_bus::util::AtomicCell;
     use firmware::SHARED_AXIS_CENTERS;
-    use firmware::board::qemu::{self, Emulation};
-    use firmware::board::{self, Board};
+    use firmware::board;
+    use firmware_harness::qemu::{self, Emulation};
     use rbf_core::shared_basis::SharedAxisModels;
 
-    let (board, wiring) = Board::setup();
+    let (board, wiring) = qemu::setup();
     let readings = qemu::ramp::<3>();
     let thermometers = qemu::coil_thermometers(&readings);
     let spi = AtomicCell::new(wiring.spi);

@@ -1,10 +1,10 @@
 //! QEMU fault board (netduinoplus2 = STM32F405): the fault-injection
-//! campaigns of [`firmware::fault_injection`] on the target.
+//! campaigns of [`firmware_harness::fault_injection`] on the target.
 //!
 //! The model to run comes from flash slot MODEL_A, the update to install from
 //! MODEL_B (both placed with `-device loader`). QEMU's flash is read-only and
 //! its flash controller is not modelled, so the power-safe update runs on
-//! [`firmware::emulated_flash`] in RAM with the same store code the real
+//! [`firmware_harness::emulated_flash`] in RAM with the same store code the real
 //! board uses. Prints one line per campaign and ends with
 //! `faults injected N, samples lost 0, panics 0`; exits with failure if any
 //! criterion fails. Run it with `cargo xtask qemu-faults`.
@@ -14,7 +14,7 @@
 mod board {
     use cortex_m_rt::entry;
     use cortex_m_semihosting::{debug, hprintln};
-    use firmware::fault_injection::{
+    use firmware_harness::fault_injection::{
         axis_thermometer_campaign, bit_flip_campaign, command_campaign, power_cut_campaign, sensor_campaign,
     };
     use rbf_core::axis::Axis;

@@ -571,7 +571,7 @@ fn install_payload(model: &Model) -> Vec<u8> {
 
 fn slow_erase_at_fast_lsi() -> Verdict {
     let mut inst = Installer::new(u64::from(SECTOR_ERASE_WORST_MS) * 1000, 0);
-    let payload = install_payload(&firmware::fault_injection::cubic_model().expect("valid cubic model"));
+    let payload = install_payload(&firmware_harness::fault_injection::cubic_model().expect("valid cubic model"));
     let mut model: Model = Model::EMPTY;
     inst.watchdog.feed();
     let status = update::execute_into(&mut inst.store, &payload, &mut model);
@@ -612,7 +612,7 @@ fn slow_erase_at_fast_lsi() -> Verdict {
 fn flash_error() -> Verdict {
     // The first word program fails (PGSERR).
     let mut inst = Installer::new(1_000_000, 1);
-    let payload = install_payload(&firmware::fault_injection::cubic_model().expect("valid cubic model"));
+    let payload = install_payload(&firmware_harness::fault_injection::cubic_model().expect("valid cubic model"));
     let mut storage: Model = Model::EMPTY;
     let mut lp = CompensationLoop::new(
         InPlaceModel::new(&mut storage, false),
@@ -671,7 +671,7 @@ fn flash_error() -> Verdict {
 
 fn rx_noise() -> Verdict {
     let mut inst = Installer::new(1_000_000, 0);
-    let good = install_payload(&firmware::fault_injection::cubic_model().expect("valid cubic model"));
+    let good = install_payload(&firmware_harness::fault_injection::cubic_model().expect("valid cubic model"));
     let mut storage: Model = Model::EMPTY;
     let mut lp = CompensationLoop::new(
         InPlaceModel::new(&mut storage, false),

@@ -23,9 +23,9 @@ use rbf_core::record::{self, Columns, HeaderError, RowError};
 use rbf_core::sensor::tmp117_raw;
 use rbf_core::{CompensatorConfig, MAX_CENTERS};
 
-use crate::compensation::{CompensationLoop, LoopConfig, LoopStats, ModelHolder};
-use crate::frontend::{self, FrontEnd};
-use crate::tmp117::{self, Tmp117Array};
+use firmware::compensation::{CompensationLoop, LoopConfig, LoopStats, ModelHolder};
+use firmware::frontend::{self, FrontEnd};
+use firmware::tmp117::{self, Tmp117Array};
 
 /// What the buses present for the current row.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -2,7 +2,7 @@
 //!
 //! QEMU's STM32F405 (netduinoplus2) maps flash as ROM and does not model the
 //! flash controller, so the model-update tests run the real
-//! [`crate::model_store::ModelStore`] on this device instead, in QEMU and on
+//! [`firmware::model_store::ModelStore`] on this device instead, in QEMU and on
 //! the host. It behaves as NOR flash does: erase sets whole pages to 0xFF,
 //! programming can only clear bits. [`EmulatedFlash::cut_power_after`] makes
 //! the n-th primitive operation (one page erase or one word program) tear (a
@@ -135,7 +135,7 @@ impl<const N: usize> ReadNorFlash for EmulatedFlash<N> {
     }
 }
 
-impl<const N: usize> crate::model_store::MappedFlash for EmulatedFlash<N> {
+impl<const N: usize> firmware::model_store::MappedFlash for EmulatedFlash<N> {
     fn mapped(&self, offset: u32, len: usize) -> Option<&[u8]> {
         let start = offset as usize;
         self.bytes.get(start..start.checked_add(len)?)
