@@ -67,16 +67,33 @@ pub struct Batch {
     /// The first defect in the chunk, after the rows: its line, what it is,
     /// and where the line's text lies in `text`.
     defect: Option<(usize, Defect, Range<usize>)>,
+    /// Where the batch's buffers go when it is dropped ([`for_each_batch`]'s batches).
+    recycler: Option<Arc<Recycler>>,
 }
 
 impl Batch {
     /// An empty batch for rows of a run with `columns`.
     pub fn new(columns: &Columns) -> Batch {
+        Batch::with_buffers(columns, Vec::new(), Buffers::default())
+    }
+
+    /// An empty batch for rows of a run with `columns` in `text` and `buffers`
+    /// (emptied, their capacity kept).
+    fn with_buffers(columns: &Columns, mut text: Vec<u8>, mut buffers: Buffers) -> Batch {
         let mask = columns.thermometer_mask();
+        text.clear();
+        buffers.rows.clear();
+        buffers.temps.clear();
+        buffers.samples.clear();
         Batch {
+            text,
+            rows: buffers.rows,
+            temps: buffers.temps,
             mask,
             stride: mask.count_ones() as usize,
-            ..Batch::default()
+            samples: buffers.samples,
+            defect: None,
+            recycler: None,
         }
     }
 
@@ -225,6 +242,75 @@ impl Batch {
     }
 }
 
+/// A batch's row buffers, kept for the next batch.
+#[derive(Debug, Default)]
+struct Buffers {
+    rows: Vec<ChunkRow>,
+    temps: Vec<f64>,
+    samples: Vec<GyroSample>,
+}
+
+/// The buffers of consumed batches, handed back to the reader (texts) and
+/// the parsers (rows): a run's batches reuse a few allocations instead of
+/// taking fresh pages for every chunk. Without it the system allocator gave
+/// the megabytes of each batch back to the kernel as the consumers freed
+/// them on other threads, and faulted them in again for the next.
+#[derive(Debug)]
+struct Recycler {
+    texts: Mutex<Vec<Vec<u8>>>,
+    buffers: Mutex<Vec<Buffers>>,
+    /// Buffers kept of each kind, at most (the batches alive at once).
+    keep: usize,
+}
+
+impl Recycler {
+    fn new(keep: usize) -> Self {
+        Recycler {
+            texts: Mutex::new(Vec::new()),
+            buffers: Mutex::new(Vec::new()),
+            keep,
+        }
+    }
+
+    /// A text buffer, empty (one used before where there is one).
+    fn text(&self) -> Vec<u8> {
+        let mut text = self.texts.lock().ok().and_then(|mut t| t.pop()).unwrap_or_default();
+        text.clear();
+        text
+    }
+
+    /// Row buffers, one set used before where there is one.
+    fn buffers(&self) -> Buffers {
+        self.buffers.lock().ok().and_then(|mut b| b.pop()).unwrap_or_default()
+    }
+
+    /// Keeps `batch`'s buffers for the batches to come.
+    fn give(&self, batch: &mut Batch) {
+        if let Ok(mut texts) = self.texts.lock()
+            && texts.len() < self.keep
+        {
+            texts.push(std::mem::take(&mut batch.text));
+        }
+        if let Ok(mut buffers) = self.buffers.lock()
+            && buffers.len() < self.keep
+        {
+            buffers.push(Buffers {
+                rows: std::mem::take(&mut batch.rows),
+                temps: std::mem::take(&mut batch.temps),
+                samples: std::mem::take(&mut batch.samples),
+            });
+        }
+    }
+}
+
+impl Drop for Batch {
+    fn drop(&mut self) {
+        if let Some(recycler) = self.recycler.take() {
+            recycler.give(self);
+        }
+    }
+}
+
 /// A chunk of text ending at a line end (or at the end of the input), and
 /// the number of its first line.
 struct Chunk {
@@ -290,10 +376,15 @@ fn parse_row_fast(columns: &Columns, line: &[u8]) -> Option<Row> {
 /// Parses the lines of `text` (line `first_line` first) with `columns`,
 /// stopping at the first defect; the rules of the line-by-line reader.
 pub fn parse_chunk(columns: &Columns, text: Vec<u8>, first_line: usize) -> Batch {
+    parse_chunk_into(columns, text, first_line, Buffers::default())
+}
+
+/// [`parse_chunk`] into `buffers`.
+fn parse_chunk_into(columns: &Columns, text: Vec<u8>, first_line: usize, buffers: Buffers) -> Batch {
     // Lines split at `\n` of valid UTF-8 are valid UTF-8: one check for the
     // chunk, and one per line only when it fails.
     let all_utf8 = std::str::from_utf8(&text).is_ok();
-    let mut batch = Batch::new(columns);
+    let mut batch = Batch::with_buffers(columns, Vec::new(), buffers);
     // Room for every line without a reallocation, and no more: capacity
     // the rows never fill still ends up resident as the allocator reuses
     // it at other offsets, so that a long run's resident memory would grow.
@@ -338,8 +429,14 @@ pub fn parse_chunk(columns: &Columns, text: Vec<u8>, first_line: usize) -> Batch
 /// last line end, the rest kept in `carry` for the next; a line without an
 /// end past [`MAX_LINE_BYTES`] is handed out whole (the parser refuses it).
 /// `None` at the end of the input.
-fn next_chunk(source: &mut dyn BufRead, carry: &mut Vec<u8>, chunk_bytes: usize) -> std::io::Result<Option<Vec<u8>>> {
-    let mut buf = Vec::with_capacity(chunk_bytes + carry.len());
+fn next_chunk(
+    source: &mut dyn BufRead,
+    carry: &mut Vec<u8>,
+    chunk_bytes: usize,
+    mut buf: Vec<u8>,
+) -> std::io::Result<Option<Vec<u8>>> {
+    buf.clear();
+    buf.reserve(chunk_bytes + carry.len());
     buf.append(carry);
     let mut target = chunk_bytes.max(buf.len() + 1);
     loop {
@@ -389,7 +486,9 @@ pub fn for_each_batch<E>(
     // One token per chunk in flight: the reader takes one before reading,
     // the consumer gives it back after consuming.
     let (token_tx, token_rx) = sync_channel::<()>(IN_FLIGHT);
+    let recycler = Arc::new(Recycler::new(IN_FLIGHT + 2 * workers));
     std::thread::scope(|scope| {
+        let reader_recycler = Arc::clone(&recycler);
         let reader = scope.spawn(move || -> Result<(), (usize, std::io::Error)> {
             let mut carry = Vec::new();
             let mut line = first_line;
@@ -397,7 +496,7 @@ pub fn for_each_batch<E>(
                 if token_tx.send(()).is_err() {
                     return Ok(());
                 }
-                let text = match next_chunk(source, &mut carry, chunk_bytes) {
+                let text = match next_chunk(source, &mut carry, chunk_bytes, reader_recycler.text()) {
                     Ok(Some(text)) => text,
                     Ok(None) => return Ok(()),
                     Err(e) => return Err((line, e)),
@@ -418,11 +517,13 @@ pub fn for_each_batch<E>(
         for _ in 0..workers {
             let chunk_rx = Arc::clone(&chunk_rx);
             let parsed_tx = parsed_tx.clone();
+            let recycler = Arc::clone(&recycler);
             scope.spawn(move || {
                 loop {
                     let next = chunk_rx.lock().ok().and_then(|rx| rx.recv().ok());
                     let Some(chunk) = next else { return };
-                    let batch = parse_chunk(columns, chunk.text, chunk.first_line);
+                    let mut batch = parse_chunk_into(columns, chunk.text, chunk.first_line, recycler.buffers());
+                    batch.recycler = Some(Arc::clone(&recycler));
                     if parsed_tx.send((chunk.seq, batch)).is_err() {
                         return;
                     }
@@ -489,7 +590,7 @@ mod tests {
         let mut source: &[u8] = &text;
         let mut carry = Vec::new();
         let mut joined = Vec::new();
-        while let Some(chunk) = next_chunk(&mut source, &mut carry, CHUNK_BYTES).unwrap() {
+        while let Some(chunk) = next_chunk(&mut source, &mut carry, CHUNK_BYTES, Vec::new()).unwrap() {
             assert!(chunk.ends_with(b"\n") || chunk.ends_with(b"9e9,1,2"));
             joined.extend_from_slice(&chunk);
         }
@@ -502,7 +603,7 @@ mod tests {
         text.extend(std::iter::repeat_n(b'1', MAX_LINE_BYTES + 1));
         let batch = parse_chunk(&columns(), text, 10);
         assert_eq!(batch.len(), 1);
-        assert_eq!(batch.defect.map(|(line, d, _)| (line, d)), Some((12, Defect::TooLong)));
+        assert_eq!(batch.defect.clone().map(|(line, d, _)| (line, d)), Some((12, Defect::TooLong)));
     }
 
     #[test]
