@@ -603,7 +603,10 @@ mod tests {
         text.extend(std::iter::repeat_n(b'1', MAX_LINE_BYTES + 1));
         let batch = parse_chunk(&columns(), text, 10);
         assert_eq!(batch.len(), 1);
-        assert_eq!(batch.defect.clone().map(|(line, d, _)| (line, d)), Some((12, Defect::TooLong)));
+        assert_eq!(
+            batch.defect.clone().map(|(line, d, _)| (line, d)),
+            Some((12, Defect::TooLong))
+        );
     }
 
     #[test]
