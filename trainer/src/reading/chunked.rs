@@ -272,11 +272,9 @@ impl Recycler {
         }
     }
 
-    /// A text buffer, empty (one used before where there is one).
+    /// A text buffer, one used before where there is one (`next_chunk` empties it).
     fn text(&self) -> Vec<u8> {
-        let mut text = self.texts.lock().ok().and_then(|mut t| t.pop()).unwrap_or_default();
-        text.clear();
-        text
+        self.texts.lock().ok().and_then(|mut t| t.pop()).unwrap_or_default()
     }
 
     /// Row buffers, one set used before where there is one.
