@@ -337,13 +337,15 @@ impl BlockBuilder {
         };
         let frame = self.compensator.features(head, &self.config, sample);
         let unusable = Flags::WARMING_UP | Flags::TEMP_SENSOR_FAULT | Flags::NO_VALID_MODEL;
-        let Some(computed) = frame.features.filter(|_| frame.flags.0 & unusable.0 == 0) else {
+        // By reference: a copy of the returned vector reads, in wide loads, what the
+        // compensator has just written field by field, and stalls on it.
+        let Some(computed) = frame.features.as_ref().filter(|_| frame.flags.0 & unusable.0 == 0) else {
             return;
         };
         if self.direct {
             self.acc.add(computed.as_slice());
         } else {
-            let mut vectors = [computed; MAX_GROUP];
+            let mut vectors = [*computed; MAX_GROUP];
             for &c in &self.converted {
                 match computed.to_multiscale_set(head.set, self.configs[c].set) {
                     Some(v) => vectors[c] = v,
