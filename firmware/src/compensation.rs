@@ -422,7 +422,7 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: ModelHolder<K, N>, cons
         let i = axis.index() % N;
         let model = self.models.model(axis);
         if read_temps {
-            let wanted = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
+            let wanted = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometers().bits());
             let failed = self.thermometers.read_axis(axis, wanted, &mut self.latest_temps_c[i]);
             self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
             self.temp_read_faults_per_axis[i] = self.temp_read_faults_per_axis[i].wrapping_add(failed);
@@ -454,7 +454,8 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: ModelHolder<K, N>, cons
         };
         let t = first.index() % N;
         if read_temps {
-            let wanted = (self.models.shared()).map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
+            let wanted =
+                (self.models.shared()).map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometers().bits());
             let failed = self.thermometers.read_axis(first, wanted, &mut self.latest_temps_c[t]);
             self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
             for axis in Axis::ALL {

@@ -253,7 +253,7 @@ impl Compensator {
         let fresh_start = gap || self.restart_pending;
         let mut temps_c = [0.0f32; THERMOMETERS];
         let mut expired = false;
-        let mut unvisited = model_features.set.thermometer_mask();
+        let mut unvisited = model_features.set.thermometers().bits();
         while unvisited != 0 {
             let i = unvisited.trailing_zeros() as usize;
             unvisited &= unvisited - 1;

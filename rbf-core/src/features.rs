@@ -57,6 +57,7 @@ use crate::MAX_INPUTS;
 pub use crate::lag_bank::{BANK_FILTERS, BankInput, GainOf, LagBank};
 use crate::response_bank::{BANK_SIGNALS, WEIGHT_ROWS};
 pub use crate::response_bank::{BankChannels, BankFilters, RESPONSE_FILTERS, ResponseBank, ResponseInput};
+pub use crate::thermometer::{LOOP_THERMOMETER, THERMOMETERS, ThermometerSet, thermometer_letter};
 
 /// Derivative filters of the loop temperature the extractor runs for every
 /// set but the response bank (which runs its own, [`BankFilters`]): a lag
@@ -74,12 +75,6 @@ const WARMUP_TIME_CONSTANTS: f32 = 3.0;
 /// Longest derivative time constant accepted, s (one day).
 const MAX_RATE_WINDOW_S: f32 = 86_400.0;
 
-/// Thermometers a multi-point model can read: `temp_a` … `temp_h`.
-pub const THERMOMETERS: usize = 8;
-/// Index of the fiber-loop thermometer (`temp_c`) among [`THERMOMETERS`]:
-/// the one single-point feature sets read.
-pub const LOOP_THERMOMETER: usize = 2;
-
 /// One multi-point model input, from thermometers by index (0 = `temp_a` … 7 = `temp_h`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Probe {
@@ -90,8 +85,15 @@ pub enum Probe {
 }
 
 impl Probe {
-    /// The thermometers this input reads, as a bit mask (bit i = thermometer i).
-    pub const fn thermometer_mask(self) -> u8 {
+    /// The thermometers this input reads.
+    pub const fn thermometers(self) -> ThermometerSet {
+        ThermometerSet::from_bits(self.thermometer_bits())
+    }
+
+    /// [`Probe::thermometers`] as bits, what [`Probes::thermometers`] folds:
+    /// over bare bits LLVM compiles the board's step smaller than over sets
+    /// (`cargo xtask bench-fw` shows the flash).
+    const fn thermometer_bits(self) -> u8 {
         match self {
             Probe::Temp(i) => bit(i),
             Probe::Gradient(i, j) => bit(i) | bit(j),
@@ -126,14 +128,9 @@ pub const fn loop_reading(temp_c: f32) -> [f32; THERMOMETERS] {
     temps
 }
 
-/// Bit `i` of a thermometer mask (0 past the eighth thermometer).
+/// Bit `i` of a thermometer set (0 past the eighth thermometer).
 const fn bit(i: u8) -> u8 {
-    if (i as usize) < THERMOMETERS { 1 << i } else { 0 }
-}
-
-/// The letter of thermometer `i` in its column name (`temp_a` … `temp_h`).
-pub const fn thermometer_letter(i: u8) -> char {
-    (b'a' + i) as char
+    ThermometerSet::of(i).bits()
 }
 
 impl core::fmt::Display for Probe {
@@ -193,9 +190,9 @@ impl Probes {
         n > 0 && n <= MAX_PROBES && self.as_slice().iter().all(|p| p.is_valid())
     }
 
-    /// The thermometers the inputs read, as a bit mask.
-    pub fn thermometer_mask(&self) -> u8 {
-        self.as_slice().iter().fold(0, |m, p| m | p.thermometer_mask())
+    /// The thermometers the inputs read.
+    pub fn thermometers(&self) -> ThermometerSet {
+        ThermometerSet::from_bits(self.as_slice().iter().fold(0, |m, p| m | p.thermometer_bits()))
     }
 }
 
@@ -284,12 +281,12 @@ impl FeatureSet {
         )
     }
 
-    /// The thermometers the inputs read, as a bit mask (bit i = thermometer i):
-    /// the loop thermometer alone for the single-point sets.
-    pub fn thermometer_mask(&self) -> u8 {
+    /// The thermometers the inputs read: the loop thermometer alone for the
+    /// single-point sets.
+    pub fn thermometers(&self) -> ThermometerSet {
         match self {
-            FeatureSet::MultiPoint(probes) => probes.thermometer_mask(),
-            _ => 1 << LOOP_THERMOMETER,
+            FeatureSet::MultiPoint(probes) => probes.thermometers(),
+            _ => ThermometerSet::LOOP,
         }
     }
 
@@ -619,7 +616,7 @@ impl FeatureExtractor {
     /// the first sample of a segment. A non-finite or non-positive `dt_s`
     /// restarts the segment. `temps_c` holds the thermometer readings, °C
     /// (index [`LOOP_THERMOMETER`] is the fiber loop); those the set reads
-    /// ([`FeatureSet::thermometer_mask`]) must be finite (the compensator
+    /// ([`FeatureSet::thermometers`]) must be finite (the compensator
     /// guarantees it by holding the last good values), the others are ignored.
     #[inline(always)]
     pub fn update(&mut self, config: &FeatureConfig, dt_s: f32, temps_c: &[f32; THERMOMETERS]) -> FeatureVector {
@@ -1078,7 +1075,7 @@ mod tests {
         let probes = Probes::new(&[Probe::Temp(0), Probe::Gradient(2, 4), Probe::Gradient(7, 1)]).unwrap();
         let cfg = FeatureConfig::multipoint(probes);
         assert!(cfg.is_valid());
-        assert_eq!(cfg.set.thermometer_mask(), 0b1001_0111);
+        assert_eq!(cfg.set.thermometers().bits(), 0b1001_0111);
         assert_eq!(cfg.set.reference_thermometer(), 0);
         let temps = [20.0, 21.0, 22.5, 0.0, 25.0, 0.0, 0.0, 30.0];
         let mut fx = FeatureExtractor::new();

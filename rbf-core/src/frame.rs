@@ -10,6 +10,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::axis::AxisSet;
 use crate::flags::Flags;
 
 /// Largest encoded frame including the 0x00 delimiter, bytes.
@@ -86,6 +87,13 @@ pub struct AxesFrame {
     pub axis_mask: u8,
     /// Per axis, x first.
     pub axes: [AxisOutput; 3],
+}
+
+impl AxesFrame {
+    /// The axes present ([`AxesFrame::axis_mask`] as a set).
+    pub const fn axes_present(&self) -> AxisSet {
+        AxisSet::from_bits(self.axis_mask)
+    }
 }
 
 /// Encodes `frame` COBS-framed, 0x00-terminated, into `out`; returns the

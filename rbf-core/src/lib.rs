@@ -16,7 +16,8 @@
 //! - [`frame`]: the firmware's per-sample output frames (postcard + COBS).
 //! - [`shared_basis`]: shared-basis multi-axis models (one basis, an output layer per axis).
 //! - [`record`]: row parsing of recorded runs; [`sensor`]: TMP117 conversions;
-//!   [`axis`]: the axes of a multi-axis IMU ([`axis::Axis`], [`axis::MAX_AXES`]).
+//!   [`axis`]: the axes of a multi-axis IMU ([`axis::Axis`], [`axis::MAX_AXES`]);
+//!   [`thermometer`]: the thermometers a run provides and a model reads ([`thermometer::ThermometerSet`]).
 //!
 //! Sizes live in types ([`MAX_CENTERS`], [`MAX_INPUTS`]); values are runtime data.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
@@ -38,6 +39,7 @@ pub mod record;
 pub mod response_bank;
 pub mod sensor;
 pub mod shared_basis;
+pub mod thermometer;
 
 /// Most Gaussian centres a deployable model may hold (firmware RAM is sized for it).
 pub const MAX_CENTERS: usize = 64;

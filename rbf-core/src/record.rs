@@ -5,7 +5,7 @@
 //! names live with the callers; this module maps header names to columns and
 //! turns one data line into numbers, never panicking.
 
-use crate::features::{LOOP_THERMOMETER, THERMOMETERS};
+use crate::thermometer::{LOOP_THERMOMETER, THERMOMETERS, ThermometerSet};
 
 /// Column names the format defines.
 pub mod column {
@@ -16,7 +16,7 @@ pub mod column {
     /// Fiber-loop temperature, °C (thermometer c of a multi-point run).
     pub const TEMP_C: &str = "temp_c";
     /// Thermometers of multi-point runs, °C, in index order; `temp_c` is the fiber loop's.
-    pub const THERMOMETERS: [&str; crate::features::THERMOMETERS] = [
+    pub const THERMOMETERS: [&str; crate::thermometer::THERMOMETERS] = [
         "temp_a", "temp_b", TEMP_C, "temp_d", "temp_e", "temp_f", "temp_g", "temp_h",
     ];
     /// Known true rate, °/h.
@@ -503,12 +503,15 @@ impl Columns {
         self.temps[LOOP_THERMOMETER]
     }
 
-    /// The thermometers present, as a bit mask (bit i = `temps[i]` exists).
-    pub fn thermometer_mask(&self) -> u8 {
-        self.temps
-            .iter()
-            .enumerate()
-            .fold(0, |m, (i, t)| if t.is_some() { m | 1 << i } else { m })
+    /// The thermometers present (thermometer i when `temps[i]` exists).
+    pub fn thermometers(&self) -> ThermometerSet {
+        let mut set = ThermometerSet::EMPTY;
+        for (i, t) in self.temps.iter().enumerate() {
+            if t.is_some() {
+                set.insert(i);
+            }
+        }
+        set
     }
 
     /// One pass over a row whose fields are all plain decimals (what every
@@ -776,7 +779,7 @@ mod tests {
     fn thermometer_columns_parse_alike_on_both_paths_and_name_a_bad_one() {
         let c = Columns::from_header("time_s,rate_dph,ref_dph,temp_a,temp_b,temp_c,temp_d,temp_e,temp_f,temp_g,temp_h")
             .unwrap();
-        assert_eq!((c.thermometer_mask(), c.temp_c()), (0xFF, Some(5)));
+        assert_eq!((c.thermometers(), c.temp_c()), (ThermometerSet::ALL, Some(5)));
         let line = "1,2,3,20.5,21,22,23,24,25,26,27.25";
         let fast = c.parse_row_fast(line.as_bytes()).unwrap();
         assert_eq!(Ok(fast), c.parse_row_general(line.as_bytes()));
@@ -793,7 +796,7 @@ mod tests {
             })
         );
         let some = Columns::from_header("temp_h,time_s,temp_b,rate_dph").unwrap();
-        assert_eq!(some.thermometer_mask(), 0b1000_0010);
+        assert_eq!(some.thermometers().bits(), 0b1000_0010);
         let row = some.parse_row("30,1,20,5").unwrap();
         assert_eq!(
             (row.temps_c[7], row.temps_c[1], row.temp_c()),

@@ -1,10 +1,10 @@
 //! The board image over its wiring: setup ([`Board::setup`]: watchdog,
 //! reset cause, clock tree, TIM2, SPI1, USART1 and its queues, the
-//! data-ready line, the boot report), the interrupt and exception
-//! handlers, and the run loop ([`Board::run`]: model store, sensors'
-//! init, pacing, commands, health). An image's binary (`src/bin/`) only
-//! wires its sensors to the pieces `setup` hands it and picks its model
-//! kind by type ([`BoardModel`]).
+//! data-ready line, the boot report) and the run loop ([`Board::run`]:
+//! model store, sensors' init, pacing, commands, health); the interrupt
+//! and exception handlers it starts are in `isr`. An image's
+//! binary (`src/bin/`) only wires its sensors to the pieces `setup` hands
+//! it and picks its model kind by type ([`BoardModel`]).
 //!
 //! - TMP117 on I2C1 (PB6 SCL, PB7 SDA, 400 kHz);
 //! - IFOG front ends on SPI1 (PA5 SCK, PA6 MISO, PA7 MOSI, chip selects
@@ -35,12 +35,9 @@
 //! sends the health report (crate::health).
 #![allow(unsafe_code)]
 
-use core::cell::RefCell;
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::Ordering;
 
-use cortex_m::interrupt::Mutex;
 use cortex_m::peripheral::DWT;
-use cortex_m_rt::{ExceptionFrame, exception};
 #[cfg(feature = "board-debug")]
 use defmt_rtt as _;
 use embedded_hal::i2c::I2c;
@@ -51,22 +48,23 @@ use heapless::spsc::{Consumer, Producer, Queue};
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::shared_basis::SharedAxisModels;
 use rbf_core::{CompensatorConfig, Flags, Model};
-use stm32f4xx_hal::gpio::{Edge, ErasedPin, ExtiPin, Input, Output, PA2, PA3, PA4, PB0};
-use stm32f4xx_hal::pac::{self, interrupt};
+use stm32f4xx_hal::gpio::{Edge, ErasedPin, ExtiPin, Output, PA2, PA3, PA4};
+use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{Enable, Reset};
-use stm32f4xx_hal::serial::{Rx, RxListen, Tx, TxListen};
+use stm32f4xx_hal::serial::RxListen;
 use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
 
 #[cfg(not(feature = "board-qemu"))]
 use super::chip as platform;
 use super::hw;
+use super::isr::{DATA_READY, DataReadyIsr, RX_OVERRUNS, STAMP_OVERRUNS, UART, UartIsr, start_tx};
 #[cfg(feature = "board-qemu")]
 use super::qemu as platform;
 use super::timing;
 use crate::bench::{Bench, CMD_BENCH};
 use crate::compensation::{CompensationLoop, InPlaceModel, LoopConfig, LoopStats, ModelHolder, write_frame};
-use crate::fault::{self, FaultReason, FaultRecord};
+use crate::fault::{self, FaultRecord};
 use crate::frontend::{self, FrontEnd};
 use crate::health::{
     BOARD_ON_HSI, CMD_HEALTH, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause,
@@ -115,20 +113,6 @@ const TX_QUEUE: usize = 512;
 const RX_QUEUE: usize = 256;
 /// Data-ready stamps waiting for the loop.
 const STAMP_QUEUE: usize = 16;
-
-/// USART1's halves and the queue ends its interrupt serves.
-struct UartIsr {
-    tx: Tx<pac::USART1>,
-    rx: Rx<pac::USART1>,
-    outgoing: Consumer<'static, u8>,
-    incoming: Producer<'static, u8>,
-}
-
-/// The data-ready pin and the stamp queue its interrupt fills.
-struct DataReadyIsr {
-    pin: PB0<Input>,
-    stamps: Producer<'static, u32>,
-}
 
 /// The model kinds a board image runs, each decoded in place into a
 /// `static` of its own (all bits zero: .bss, no flash): a single gyro's
@@ -258,83 +242,6 @@ pub trait Hooks {
 /// The gyro board's own image: nothing added.
 impl Hooks for () {}
 
-static UART: Mutex<RefCell<Option<UartIsr>>> = Mutex::new(RefCell::new(None));
-static DATA_READY: Mutex<RefCell<Option<DataReadyIsr>>> = Mutex::new(RefCell::new(None));
-/// Command bytes lost: the UART overran or the receive queue was full.
-static RX_OVERRUNS: AtomicU32 = AtomicU32::new(0);
-/// Data-ready stamps lost to a full stamp queue (the edge count still includes them).
-static STAMP_OVERRUNS: AtomicU32 = AtomicU32::new(0);
-
-#[exception]
-unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
-    super::store_fault(FaultRecord {
-        reason: FaultReason::HardFault,
-        pc: frame.pc(),
-        lr: frame.lr(),
-    });
-    cortex_m::peripheral::SCB::sys_reset()
-}
-
-/// Wakes the main loop every millisecond, so that a silent data-ready
-/// line is noticed (crate::pacing synthesises the steps).
-#[exception]
-fn SysTick() {}
-
-#[interrupt]
-fn USART1() {
-    cortex_m::interrupt::free(|cs| {
-        // `try_borrow_mut`: a critical section on one core cannot find
-        // the cell borrowed, and this way no panic path is linked.
-        let Ok(mut uart) = UART.borrow(cs).try_borrow_mut() else {
-            return;
-        };
-        let Some(u) = uart.as_mut() else { return };
-        // The byte the receiver holds (an error read clears its flag;
-        // bounded, so a line full of errors cannot hold the handler).
-        for _ in 0..4 {
-            match u.rx.read() {
-                Ok(byte) => {
-                    if uart::enqueue(&mut u.incoming, byte).is_err() {
-                        RX_OVERRUNS.fetch_add(1, Ordering::Relaxed);
-                    }
-                }
-                Err(stm32f4xx_hal::nb::Error::WouldBlock) => break,
-                Err(stm32f4xx_hal::nb::Error::Other(_)) => {
-                    RX_OVERRUNS.fetch_add(1, Ordering::Relaxed);
-                }
-            }
-        }
-        match u.outgoing.peek().copied() {
-            Some(byte) => {
-                if u.tx.write(byte).is_ok() {
-                    let _ = uart::dequeue(&mut u.outgoing);
-                }
-                platform::pend_tx();
-            }
-            None => u.tx.unlisten(),
-        }
-    });
-}
-
-#[interrupt]
-fn EXTI0() {
-    let stamp = hw::Tim2Clock::now();
-    cortex_m::interrupt::free(|cs| {
-        if let Some(d) = DATA_READY
-            .borrow(cs)
-            .try_borrow_mut()
-            .ok()
-            .as_deref_mut()
-            .and_then(Option::as_mut)
-        {
-            d.pin.clear_interrupt_pending_bit();
-            if uart::enqueue(&mut d.stamps, stamp).is_err() {
-                STAMP_OVERRUNS.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-    });
-}
-
 /// Busy-waits on the core clock: the SPI devices' delay (embedded-hal-bus's
 /// `NoDelay` would link a panic for a delay operation).
 #[derive(Clone, Copy, Debug)]
@@ -364,22 +271,6 @@ pub fn halt() -> ! {
     loop {
         cortex_m::asm::wfi();
     }
-}
-
-/// Starts the transmit interrupt after a frame was queued.
-fn start_tx() {
-    cortex_m::interrupt::free(|cs| {
-        if let Some(u) = UART
-            .borrow(cs)
-            .try_borrow_mut()
-            .ok()
-            .as_deref_mut()
-            .and_then(Option::as_mut)
-        {
-            u.tx.listen();
-        }
-    });
-    platform::pend_tx();
 }
 
 /// What the boot found out about the last reset.

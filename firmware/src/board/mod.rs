@@ -30,6 +30,8 @@ pub mod hw;
 #[cfg(all(target_os = "none", feature = "board-stm32f405"))]
 mod image;
 #[cfg(all(target_os = "none", feature = "board-stm32f405"))]
+mod isr;
+#[cfg(all(target_os = "none", feature = "board-stm32f405"))]
 pub use image::*;
 #[cfg(all(target_os = "none", feature = "board-qemu"))]
 pub mod qemu;

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::builder::RangedU64ValueParser;
 use rbf_core::features::Probe;
+use rbf_core::thermometer::ThermometerSet;
 use trainer::blobfile::encode_model;
 use trainer::dataset::{RunFiles, RunSet};
 use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_blocks, evaluate_reader, only_axis};
@@ -377,9 +378,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if !short.is_empty() {
             anyhow::anyhow!("{}", short.join("; "))
         } else if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
-            let mask =
-                opts.method.feature_set(opts.features).thermometer_mask() | (1 << rbf_core::features::LOOP_THERMOMETER);
-            diagnose::with_causes(e, &a.runs, mask)
+            let thermometers = opts.method.feature_set(opts.features).thermometers().union(ThermometerSet::LOOP);
+            diagnose::with_causes(e, &a.runs, thermometers)
         } else {
             e
         }

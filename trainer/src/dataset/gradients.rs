@@ -69,8 +69,7 @@ pub fn row_block_means(paths: &[PathBuf], block_samples: usize) -> Result<MultiB
     for (n, path) in paths.iter().enumerate() {
         let mut reader = RunReader::open(path)?;
         reader.require_single_axis()?;
-        let mask = reader.columns().thermometer_mask();
-        let sensors: Vec<usize> = (0..THERMOMETERS.len()).filter(|k| mask & (1 << k) != 0).collect();
+        let sensors: Vec<usize> = reader.columns().thermometers().iter().collect();
         let header_error = |message: String| RunError::Format {
             path: path.clone(),
             line: reader.line_number(),

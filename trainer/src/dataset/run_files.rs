@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 use rbf_core::axis::Axis;
+use rbf_core::thermometer::ThermometerSet;
 use rbf_core::{FeatureConfig, FeatureSet};
 
 use super::blocks::Blocks;
@@ -105,8 +106,10 @@ impl RunFiles {
     /// One pass over run `index`: blocks for each of `configs`.
     fn pass(&self, index: usize, configs: &[FeatureConfig], block_s: f64) -> anyhow::Result<Vec<Blocks>> {
         let path = &self.paths[index];
-        let mask = configs.iter().fold(0, |m, c| m | c.set.thermometer_mask());
-        let run = StreamedRun::from_reader(self.open(path)?, mask)?;
+        let thermometers = configs
+            .iter()
+            .fold(ThermometerSet::EMPTY, |m, c| m.union(c.set.thermometers()));
+        let run = StreamedRun::from_reader(self.open(path)?, thermometers)?;
         let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
         // Configurations sharing filters go to one builder.
         let groups = filter_groups(configs);
@@ -191,10 +194,10 @@ impl RunSet for RunFiles {
         self.paths.len()
     }
 
-    fn thermometer_mask(&self) -> anyhow::Result<u8> {
-        self.paths
-            .iter()
-            .try_fold(u8::MAX, |m, path| Ok(m & self.open(path)?.columns().thermometer_mask()))
+    fn thermometers(&self) -> anyhow::Result<ThermometerSet> {
+        self.paths.iter().try_fold(ThermometerSet::ALL, |m, path| {
+            Ok(m.intersection(self.open(path)?.columns().thermometers()))
+        })
     }
 
     fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {
@@ -208,7 +211,7 @@ impl RunSet for RunFiles {
 
     fn for_each_sample(&self, visit: &mut dyn FnMut(&SampleVisit)) -> anyhow::Result<()> {
         for (index, path) in self.paths.iter().enumerate() {
-            let run = StreamedRun::from_reader(self.open(path)?, 0)?;
+            let run = StreamedRun::from_reader(self.open(path)?, ThermometerSet::EMPTY)?;
             let period_s = run.nominal_period_s;
             let rows = run.for_each_batch(|batch| {
                 for i in 0..batch.len() {

@@ -2,6 +2,7 @@
 //! (or sample by sample, [`SampleVisit`]), and its implementation for runs
 //! held in memory ([`sample_block_means`]).
 
+use rbf_core::thermometer::ThermometerSet;
 use rbf_core::{FeatureConfig, GyroSample};
 
 use super::blocks::Blocks;
@@ -42,8 +43,8 @@ pub trait RunSet {
     /// from the samples, as [`block_source`] gives them): a later
     /// [`RunSet::block_means`] of one reads the runs again.
     fn release(&self, _configs: &[FeatureConfig], _block_s: f64) {}
-    /// The thermometer columns every run has (bit i = `temp_a` … `temp_h`).
-    fn thermometer_mask(&self) -> anyhow::Result<u8>;
+    /// The thermometer columns every run has.
+    fn thermometers(&self) -> anyhow::Result<ThermometerSet>;
     /// Hands every sample of every run, in order, to `visit`: for fits whose
     /// sums do not fit in a feature vector (the response bank's filter
     /// channels). Targets are `rate − ref_dph` (the rate itself without a
@@ -82,8 +83,9 @@ fn visit_runs(runs: &[Run], visit: &mut dyn FnMut(&SampleVisit)) {
 }
 
 /// The thermometers all of `runs` have.
-fn common_thermometers(runs: &[Run]) -> u8 {
-    runs.iter().fold(u8::MAX, |m, r| m & r.thermometer_mask)
+fn common_thermometers(runs: &[Run]) -> ThermometerSet {
+    runs.iter()
+        .fold(ThermometerSet::ALL, |m, r| m.intersection(r.thermometers))
 }
 
 impl RunSet for [Run] {
@@ -91,7 +93,7 @@ impl RunSet for [Run] {
         self.len()
     }
 
-    fn thermometer_mask(&self) -> anyhow::Result<u8> {
+    fn thermometers(&self) -> anyhow::Result<ThermometerSet> {
         Ok(common_thermometers(self))
     }
 
@@ -112,8 +114,8 @@ impl<const N: usize> RunSet for [Run; N] {
         N
     }
 
-    fn thermometer_mask(&self) -> anyhow::Result<u8> {
-        self[..].thermometer_mask()
+    fn thermometers(&self) -> anyhow::Result<ThermometerSet> {
+        self[..].thermometers()
     }
 
     fn filtered_block_means(&self, features: &FeatureConfig, block_s: f64) -> anyhow::Result<Blocks> {

@@ -162,7 +162,7 @@ fn usable(frame: &Frame) -> (f32, f32, u8, bool) {
             f.rate_dph.is_finite() && f.temp_c.is_finite(),
         ),
         Frame::Axes(f) => {
-            let present: Vec<_> = frames::axes_of(f.axis_mask).map(|a| f.axes[a.index()]).collect();
+            let present: Vec<_> = f.axes_present().iter().map(|a| f.axes[a.index()]).collect();
             let finite = present.iter().all(|o| o.rate_dph.is_finite() && o.temp_c.is_finite());
             let flags = present.iter().fold(0, |acc, o| acc | o.flags);
             let first = present.first().copied().unwrap_or_default();

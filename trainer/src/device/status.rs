@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use firmware::health::{BOARD_ON_HSI, CMD_HEALTH, HealthReport, ResetCause};
 
 use super::link::{Link, Message};
-use crate::reading::frames::{Kind, axes_of};
+use crate::reading::frames::Kind;
 
 /// How often an unanswered health command is sent again (a duplicate only
 /// brings another report; QEMU's pty may take a second to connect).
@@ -87,8 +87,8 @@ pub fn kind_words(kind: Option<Kind>) -> String {
     match kind {
         None => "no output frames seen (its sampling has stopped?)".to_owned(),
         Some(Kind::Single) => "single-axis (one output frame per sample)".to_owned(),
-        Some(Kind::Axes(mask)) => {
-            let axes: Vec<&str> = axes_of(mask).map(|a| a.name()).collect();
+        Some(Kind::Axes(axes)) => {
+            let axes: Vec<&str> = axes.iter().map(|a| a.name()).collect();
             format!(
                 "three-axis IMU, axes {} (one frame with every axis per sample)",
                 axes.join(", ")
@@ -179,7 +179,7 @@ pub fn to_json(port: &str, status: &UnitStatus) -> serde_json::Value {
             Some(Kind::Single) => "single-axis".into(),
             Some(Kind::Axes(_)) => "three-axis".into(),
         },
-        "axis_mask": match status.kind { Some(Kind::Axes(m)) => m.into(), _ => serde_json::Value::Null },
+        "axis_mask": match status.kind { Some(Kind::Axes(axes)) => axes.bits().into(), _ => serde_json::Value::Null },
         "reset_cause": reset_cause_words(r.reset_cause),
         "reset_cause_code": r.reset_cause as u8,
         "reset_flags": r.reset_flags,
@@ -224,7 +224,7 @@ mod tests {
     fn the_description_says_what_the_report_means() {
         let status = UnitStatus {
             report: report(0x1234_abcd, 3),
-            kind: Some(Kind::Axes(0b111)),
+            kind: Some(Kind::Axes(rbf_core::axis::AxisSet::from_bits(0b111))),
         };
         let text = describe("/dev/ttyUSB0", &status);
         assert!(

@@ -12,6 +12,7 @@ use anyhow::Context;
 use rbf_core::Model;
 use rbf_core::axis::Axis;
 use rbf_core::record::Columns;
+use rbf_core::thermometer::ThermometerSet;
 
 use crate::blobfile::{ModelFile, read_model_file};
 use crate::evaluation::compensate::{Compensation, compensate_reader};
@@ -171,16 +172,16 @@ pub fn compensate_command(
         }
     })?;
     let mut result = Vec::with_capacity(done.len());
-    for ((axis, mask), c) in labels.into_iter().zip(done) {
-        require_usable(run, c.rows, c.compensated, &c.diagnosis, mask, accept).map_err(|e| on_axis(e, axis))?;
+    for ((axis, thermometers), c) in labels.into_iter().zip(done) {
+        require_usable(run, c.rows, c.compensated, &c.diagnosis, thermometers, accept).map_err(|e| on_axis(e, axis))?;
         result.push((axis, c));
     }
     Ok((result, out))
 }
 
 /// An axis of a run as the commands report it: its name (`None`: a single-axis run) and
-/// the thermometers its model reads (a mask of thermometer indices).
-type AxisLabel = (Option<Axis>, u8);
+/// the thermometers its model reads.
+type AxisLabel = (Option<Axis>, ThermometerSet);
 
 /// The models of the model file at `model_path` for the axes of the run `reader` reads
 /// ([`models_for_run`], or [`shared_axes_for_run`] for a shared-basis file), and per axis,
@@ -193,14 +194,14 @@ fn run_models<'m>(
 ) -> anyhow::Result<(RunModels<'m>, Vec<AxisLabel>)> {
     if let ModelFile::Shared(models) = file {
         let axes = shared_axes_for_run(file, model_path, reader)?;
-        let mask = models.features().set.thermometer_mask();
-        let labels = axes.iter().map(|(axis, _)| (Some(*axis), mask)).collect();
+        let thermometers = models.features().set.thermometers();
+        let labels = axes.iter().map(|(axis, _)| (Some(*axis), thermometers)).collect();
         return Ok((RunModels::Shared { models, axes }, labels));
     }
     let pairs = models_for_run(file, model_path, reader)?;
     let labels = pairs
         .iter()
-        .map(|(axis, model, _)| (*axis, model.features().set.thermometer_mask()))
+        .map(|(axis, model, _)| (*axis, model.features().set.thermometers()))
         .collect();
     let models = RunModels::PerAxis(
         pairs
@@ -217,10 +218,10 @@ fn require_usable(
     rows: usize,
     compensated: usize,
     diagnosis: &RunDiagnosis,
-    mask: u8,
+    thermometers: ThermometerSet,
     accept: Acceptance,
 ) -> anyhow::Result<()> {
-    require_compensated(run, rows, compensated, diagnosis, mask, accept.uncompensated)?;
+    require_compensated(run, rows, compensated, diagnosis, thermometers, accept.uncompensated)?;
     require_plausible(&diagnosis.implausible(), accept.implausible)
 }
 
@@ -234,17 +235,18 @@ fn on_axis(e: anyhow::Error, axis: Option<Axis>) -> anyhow::Error {
 
 /// One axis's evaluation of run `path` as `trainer eval` reports it: refused
 /// (naming the axis) when it cannot be evaluated or, unless
-/// `accept`, when no row was compensated (`mask`: the thermometers the
+/// `accept`, when no row was compensated (`thermometers`: those the
 /// model reads) or the run is implausible; labelled with its axis.
 fn accept_evaluation(
     path: &Path,
     axis: Option<Axis>,
-    mask: u8,
+    thermometers: ThermometerSet,
     (mut evaluation, diagnosis, compensated): (RunEvaluation, RunDiagnosis, usize),
     accept: Acceptance,
 ) -> anyhow::Result<RunEvaluation> {
     require_evaluable(path, evaluation.samples, &diagnosis).map_err(|e| on_axis(e, axis))?;
-    require_usable(path, evaluation.samples, compensated, &diagnosis, mask, accept).map_err(|e| on_axis(e, axis))?;
+    require_usable(path, evaluation.samples, compensated, &diagnosis, thermometers, accept)
+        .map_err(|e| on_axis(e, axis))?;
     evaluation.axis = axis.map(Axis::name);
     Ok(evaluation)
 }
@@ -267,8 +269,8 @@ pub fn evaluate_files(
         let reader = RunReader::open(path)?;
         let (models, labels) = run_models(file, model_path, &reader)?;
         let done = evaluate_reader(&models, reader)?;
-        for ((axis, mask), done) in labels.into_iter().zip(done) {
-            evaluations.push(accept_evaluation(path, axis, mask, done, accept)?);
+        for ((axis, thermometers), done) in labels.into_iter().zip(done) {
+            evaluations.push(accept_evaluation(path, axis, thermometers, done, accept)?);
         }
     }
     Ok(evaluations)

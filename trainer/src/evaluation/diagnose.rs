@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use rbf_core::CompensatorConfig;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self as record, Columns, Row, column};
+use rbf_core::thermometer::ThermometerSet;
 
 use crate::reading::plausible::Plausibility;
 use crate::reading::run::RunReader;
@@ -173,14 +174,13 @@ impl RunDiagnosis {
     }
 
     /// What in this run keeps samples from being compensated or trained on,
-    /// for the thermometers of `mask` (bit i = `temp_a` … `temp_h`); empty
-    /// when the rows show nothing wrong.
-    pub fn causes(&self, mask: u8) -> Vec<String> {
+    /// for `thermometers`; empty when the rows show nothing wrong.
+    pub fn causes(&self, thermometers: ThermometerSet) -> Vec<String> {
         let name = text::path(&self.path);
         let mut causes = Vec::new();
         let (lo, hi) = self.plausible_c;
         for (i, spread) in self.temps.iter().enumerate() {
-            if mask & (1 << i) == 0 || spread.implausible == 0 || 2 * spread.implausible < spread.count {
+            if !thermometers.contains(i) || spread.implausible == 0 || 2 * spread.implausible < spread.count {
                 continue;
             }
             let hint = if spread.min >= 200.0 && spread.max <= 500.0 {
@@ -243,15 +243,15 @@ pub fn diagnose_file(path: &Path) -> Result<RunDiagnosis, RunError> {
     Ok(diagnosis)
 }
 
-/// `error` with the causes found in the runs at `paths` (thermometers of
-/// `mask`) appended, when there are any: for a fit refused for lack of
+/// `error` with the causes found in the runs at `paths` (for
+/// `thermometers`) appended, when there are any: for a fit refused for lack of
 /// usable data. Runs that cannot be read add nothing (their error was
 /// reported first).
-pub fn with_causes(error: anyhow::Error, paths: &[PathBuf], mask: u8) -> anyhow::Error {
+pub fn with_causes(error: anyhow::Error, paths: &[PathBuf], thermometers: ThermometerSet) -> anyhow::Error {
     let causes: Vec<String> = paths
         .iter()
         .filter_map(|p| diagnose_file(p).ok())
-        .flat_map(|d| d.causes(mask))
+        .flat_map(|d| d.causes(thermometers))
         .collect();
     if causes.is_empty() {
         error
@@ -311,7 +311,7 @@ mod tests {
         for (i, r) in rows.enumerate() {
             d.push(i + 3, &r);
         }
-        d.causes(0xFF)
+        d.causes(ThermometerSet::ALL)
     }
 
     #[test]
@@ -340,7 +340,7 @@ mod tests {
         for i in 0..700 {
             d.push(i + 3, &row(i as f64 / 3600.0, i as f64, 25.0));
         }
-        let causes = d.causes(0xFF);
+        let causes = d.causes(ThermometerSet::ALL);
         assert_eq!(causes.len(), 1, "{causes:?}");
         assert!(
             causes[0].contains("run.csv: its 700 rows span only 0.1942 s (3600 Hz)")

@@ -3,9 +3,9 @@
 use std::path::Path;
 
 use rbf_core::axis::Axis;
-use rbf_core::features::LOOP_THERMOMETER;
 use rbf_core::record::Columns;
 use rbf_core::shared_basis::SharedAxisModels;
+use rbf_core::thermometer::ThermometerSet;
 use rbf_core::{
     CompensatedSample, Compensator, CompensatorConfig, FeatureVector, Flags, GyroSample, MAX_INPUTS, Model,
 };
@@ -313,13 +313,13 @@ impl<'m> RunModels<'m> {
         match self {
             RunModels::PerAxis(axes) => {
                 for (model, columns) in axes {
-                    let mask = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometer_mask());
-                    reader.require_thermometers_of(columns, mask)?;
+                    let thermometers = model.map_or(ThermometerSet::LOOP, |m| m.features().set.thermometers());
+                    reader.require_thermometers_of(columns, thermometers)?;
                 }
                 Ok(())
             }
             RunModels::Shared { models, .. } => {
-                require_shared_thermometer(reader, &self.columns(), models.features().set.thermometer_mask())
+                require_shared_thermometer(reader, &self.columns(), models.features().set.thermometers())
             }
         }
     }
@@ -349,11 +349,15 @@ pub fn evaluate_reader(
 }
 
 /// Refuses a shared-basis model on a run whose axes do not read one
-/// thermometer set (per-axis coil thermometers), and a run without the
-/// thermometers of `mask`.
-pub fn require_shared_thermometer(reader: &RunReader, columns: &[Columns], mask: u8) -> anyhow::Result<()> {
+/// thermometer set (per-axis coil thermometers), and a run without
+/// `thermometers`.
+pub fn require_shared_thermometer(
+    reader: &RunReader,
+    columns: &[Columns],
+    thermometers: ThermometerSet,
+) -> anyhow::Result<()> {
     if let Some(first) = columns.first() {
-        reader.require_thermometers_of(first, mask)?;
+        reader.require_thermometers_of(first, thermometers)?;
         if columns.iter().any(|c| c.temps != first.temps) {
             anyhow::bail!(
                 "{}: its axes have their own thermometers (temp_x_c …); a shared-basis model reads one thermometer \
@@ -500,20 +504,20 @@ pub(super) fn rows_of_axes(
 
 /// Refuses a run of `rows` rows where none could be compensated
 /// (`compensated` = 0), naming the causes [`RunDiagnosis::causes`] finds
-/// for the thermometers of `mask`, unless `allow_uncompensated`. A run
+/// for `thermometers`, unless `allow_uncompensated`. A run
 /// without rows has nothing to compensate and passes.
 pub fn require_compensated(
     path: &Path,
     rows: usize,
     compensated: usize,
     diagnosis: &RunDiagnosis,
-    mask: u8,
+    thermometers: ThermometerSet,
     allow_uncompensated: bool,
 ) -> anyhow::Result<()> {
     if compensated > 0 || rows == 0 || allow_uncompensated {
         return Ok(());
     }
-    let causes = diagnosis.causes(mask);
+    let causes = diagnosis.causes(thermometers);
     let why = if causes.is_empty() {
         String::new()
     } else {

@@ -16,6 +16,7 @@ use std::sync::{Arc, Mutex};
 use rbf_core::GyroSample;
 use rbf_core::features::THERMOMETERS;
 use rbf_core::record::{self, Columns, Row, RowError};
+use rbf_core::thermometer::ThermometerSet;
 
 use crate::reading::limits::MAX_LINE_BYTES;
 
@@ -58,9 +59,9 @@ pub struct Batch {
     text: Vec<u8>,
     rows: Vec<ChunkRow>,
     /// The thermometer readings of the rows, `stride` per row, in the order
-    /// of `temp_a` … `temp_h` among the columns of `mask`.
+    /// of `temp_a` … `temp_h` among the columns of `thermometers`.
     temps: Vec<f64>,
-    mask: u8,
+    thermometers: ThermometerSet,
     stride: usize,
     /// Each row's gyro sample as the firmware receives it ([`GyroSample::from_recorded`]).
     samples: Vec<GyroSample>,
@@ -80,7 +81,7 @@ impl Batch {
     /// An empty batch for rows of a run with `columns` in `text` and `buffers`
     /// (emptied, their capacity kept).
     fn with_buffers(columns: &Columns, mut text: Vec<u8>, mut buffers: Buffers) -> Batch {
-        let mask = columns.thermometer_mask();
+        let thermometers = columns.thermometers();
         text.clear();
         buffers.rows.clear();
         buffers.temps.clear();
@@ -89,8 +90,8 @@ impl Batch {
             text,
             rows: buffers.rows,
             temps: buffers.temps,
-            mask,
-            stride: mask.count_ones() as usize,
+            thermometers,
+            stride: thermometers.len(),
             samples: buffers.samples,
             defect: None,
             recycler: None,
@@ -116,7 +117,7 @@ impl Batch {
             temp_fault: row.temp_fault,
         });
         for (i, t) in row.temps_c.iter().enumerate() {
-            if self.mask & (1 << i) != 0 {
+            if self.thermometers.contains(i) {
                 self.temps.push(t.unwrap_or(f64::NAN));
             }
         }
@@ -211,7 +212,7 @@ impl Batch {
         let mut temps_c = [None; THERMOMETERS];
         let mut k = i * self.stride;
         for (j, t) in temps_c.iter_mut().enumerate() {
-            if self.mask & (1 << j) != 0 {
+            if self.thermometers.contains(j) {
                 *t = self.temps.get(k).copied();
                 k += 1;
             }

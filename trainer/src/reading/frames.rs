@@ -6,7 +6,7 @@
 
 use std::io::{BufRead, BufReader, Read, Write};
 
-use rbf_core::axis::Axis;
+use rbf_core::axis::AxisSet;
 use rbf_core::frame::{self, AxesFrame, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
 
 use crate::reading::limits::{MAX_FRAME_SEARCH_BYTES, bytes};
@@ -19,8 +19,8 @@ pub const CSV_HEADER: &str = "seq,rate_dph,bias_dph,rate_comp_dph,temp_c,flags";
 pub enum Kind {
     /// [`OutputFrame`]s.
     Single,
-    /// [`AxesFrame`]s with this axis mask.
-    Axes(u8),
+    /// [`AxesFrame`]s with these axes.
+    Axes(AxisSet),
 }
 
 /// One decoded output frame of either kind.
@@ -49,14 +49,9 @@ impl Frame {
     pub fn kind(&self) -> Kind {
         match self {
             Frame::Single(_) => Kind::Single,
-            Frame::Axes(f) => Kind::Axes(f.axis_mask),
+            Frame::Axes(f) => Kind::Axes(f.axes_present()),
         }
     }
-}
-
-/// The axes of `mask`, x first.
-pub fn axes_of(mask: u8) -> impl Iterator<Item = Axis> {
-    Axis::ALL.into_iter().filter(move |a| mask & (1 << a.index()) != 0)
 }
 
 /// The CSV header of frames of `kind`: [`CSV_HEADER`], or `seq` and each
@@ -64,8 +59,8 @@ pub fn axes_of(mask: u8) -> impl Iterator<Item = Axis> {
 pub fn header(kind: Kind) -> String {
     match kind {
         Kind::Single => CSV_HEADER.to_owned(),
-        Kind::Axes(mask) => std::iter::once("seq".to_owned())
-            .chain(axes_of(mask).flat_map(|a| {
+        Kind::Axes(axes) => std::iter::once("seq".to_owned())
+            .chain(axes.iter().flat_map(|a| {
                 let n = a.name();
                 [
                     format!("rate_{n}_dph"),
@@ -90,7 +85,7 @@ pub fn write_row(out: &mut impl Write, frame: &Frame) -> std::io::Result<()> {
         ),
         Frame::Axes(f) => {
             write!(out, "{}", f.seq)?;
-            for a in axes_of(f.axis_mask) {
+            for a in f.axes_present().iter() {
                 let o = &f.axes[a.index()];
                 write!(
                     out,

@@ -61,10 +61,10 @@ fn read_run(
     accept: crate::evaluation::axes::Acceptance,
 ) -> anyhow::Result<RunPlots> {
     let path = reader.path().to_owned();
-    let mask = model.features().set.thermometer_mask();
+    let thermometers = model.features().set.thermometers();
     let mut surface = SurfaceCoordinates::of(model);
     let named = RunDiagnosis::new(&path, 1.0).named_by(reader.header_line(), reader.columns());
-    let run = StreamedRun::from_reader(reader, mask)?;
+    let run = StreamedRun::from_reader(reader, thermometers)?;
     let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
     let config = rbf_core::CompensatorConfig::for_nominal_period_s(period_s);
     let mut compensator = rbf_core::Compensator::new();
@@ -99,7 +99,7 @@ fn read_run(
     })?;
     *first_index += rows;
     require_evaluable(&path, rows, &diagnosis)?;
-    require_compensated(&path, rows, compensated, &diagnosis, mask, accept.uncompensated)?;
+    require_compensated(&path, rows, compensated, &diagnosis, thermometers, accept.uncompensated)?;
     crate::reading::plausible::require_plausible(&diagnosis.implausible(), accept.implausible)?;
     // Without ref_dph each trace is taken about its own mean (as the
     // evaluation's figures are), known only now: a block mean of (v − m) is

@@ -26,7 +26,7 @@ pub mod pso;
 pub mod svr;
 
 use nalgebra::{DMatrix, DVector};
-use rbf_core::features::{Probe, Probes, THERMOMETERS};
+use rbf_core::features::{Probe, Probes};
 use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::rbf::{RbfNetwork, RbfParams};
 use rbf_core::{FeatureConfig, FeatureSet, MAX_CENTERS, MAX_INPUTS, Model};
@@ -240,8 +240,8 @@ fn choose_inputs<T: RunSet + ?Sized>(
     opts: &FitOptions,
     progress: &Progress,
 ) -> anyhow::Result<(FeatureConfig, Option<InputSelection>)> {
-    let mask = train.thermometer_mask()?;
-    if mask.count_ones() < 2 {
+    let thermometers = train.thermometers()?;
+    if thermometers.len() < 2 {
         anyhow::ensure!(
             opts.inputs.is_none(),
             "named multi-point inputs given, but the training runs do not all have two or more \
@@ -255,7 +255,7 @@ fn choose_inputs<T: RunSet + ?Sized>(
     }
     // Every thermometer's block means, computed by rbf-core as the firmware
     // would (TMP117 resolution, faults held); gradients are their differences.
-    let sensors: Vec<usize> = (0..THERMOMETERS).filter(|i| mask & (1 << i) != 0).collect();
+    let sensors: Vec<usize> = thermometers.iter().collect();
     let all_temps: Vec<Probe> = sensors.iter().map(|&i| Probe::Temp(i as u8)).collect();
     let temps_config =
         FeatureConfig::multipoint(Probes::new(&all_temps).ok_or_else(|| anyhow::anyhow!("no thermometer to read"))?);
@@ -269,7 +269,7 @@ fn choose_inputs<T: RunSet + ?Sized>(
         (Some(given), _) => {
             for p in given {
                 anyhow::ensure!(
-                    p.thermometer_mask() & !mask == 0,
+                    p.thermometers().is_subset(thermometers),
                     "input {p}: the training runs lack that thermometer"
                 );
             }

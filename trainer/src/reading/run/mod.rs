@@ -24,6 +24,7 @@ use std::path::{Path, PathBuf};
 use rbf_core::axis::Axis;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row};
+use rbf_core::thermometer::ThermometerSet;
 use rbf_core::{CompensatorConfig, GyroSample};
 
 use crate::reading::chunked::{self, Batch, Defect};
@@ -369,27 +370,28 @@ impl RunReader {
 
     /// Fails unless the run has a `temp_c` column (single-point models need it).
     pub fn require_temp(&self) -> Result<(), RunError> {
-        self.require_thermometers(1 << LOOP_THERMOMETER)
+        self.require_thermometers(ThermometerSet::LOOP)
     }
 
-    /// Fails unless the run has the thermometer columns of `mask` (bit i =
-    /// `temp_a` … `temp_h`), naming the missing ones.
-    pub fn require_thermometers(&self, mask: u8) -> Result<(), RunError> {
-        self.require_thermometers_of(&self.columns, mask)
+    /// Fails unless the run has the columns of `thermometers`, naming the
+    /// missing ones.
+    pub fn require_thermometers(&self, thermometers: ThermometerSet) -> Result<(), RunError> {
+        self.require_thermometers_of(&self.columns, thermometers)
     }
 
     /// [`RunReader::require_thermometers`] for `columns` (another axis's).
-    pub fn require_thermometers_of(&self, columns: &Columns, mask: u8) -> Result<(), RunError> {
+    pub fn require_thermometers_of(&self, columns: &Columns, thermometers: ThermometerSet) -> Result<(), RunError> {
+        let absent = thermometers.difference(columns.thermometers());
         let missing: Vec<&str> = record::column::THERMOMETERS
             .iter()
             .enumerate()
-            .filter(|(i, _)| mask & !columns.thermometer_mask() & (1 << i) != 0)
+            .filter(|(i, _)| absent.contains(*i))
             .map(|(_, name)| *name)
             .collect();
         if missing.is_empty() {
             return Ok(());
         }
-        let what = if mask == 1 << LOOP_THERMOMETER {
+        let what = if thermometers == ThermometerSet::LOOP {
             "which single-point models need"
         } else {
             "which the model's inputs need"

@@ -18,8 +18,8 @@ pub struct Run {
     /// All thermometers `temp_a` … `temp_h` per row, °C (`None` where absent
     /// or `temp_fault` = 1); empty unless the run has thermometers besides `temp_c`.
     pub temps_c: Vec<[Option<f64>; THERMOMETERS]>,
-    /// The thermometer columns the run has (bit i = `temp_a` … `temp_h`).
-    pub thermometer_mask: u8,
+    /// The thermometer columns the run has.
+    pub thermometers: ThermometerSet,
     /// Known true rate, °/h, if the run has the column.
     pub ref_dph: Option<Vec<f64>>,
     /// Nominal sample period, s (see [`record::nominal_period_s`]).
@@ -36,12 +36,12 @@ impl Run {
     /// column or other thermometers).
     pub fn read(mut reader: RunReader) -> Result<Run, RunError> {
         let path = reader.path().to_owned();
-        let thermometer_mask = reader.columns().thermometer_mask();
-        if thermometer_mask == 0 {
+        let thermometers = reader.columns().thermometers();
+        if thermometers.is_empty() {
             reader.require_temp()?;
         }
         let has_ref = reader.columns().ref_dph.is_some();
-        let multi_point = thermometer_mask & !(1 << LOOP_THERMOMETER) != 0;
+        let multi_point = !thermometers.is_subset(ThermometerSet::LOOP);
         let (mut time_s, mut rate_dph, mut temp_c, mut temps_c, mut ref_dph) = (vec![], vec![], vec![], vec![], vec![]);
         while let Some((_, row)) = reader.next_parsed()? {
             time_s.push(row.time_s);
@@ -68,7 +68,7 @@ impl Run {
             rate_dph,
             temp_c,
             temps_c,
-            thermometer_mask,
+            thermometers,
             ref_dph: has_ref.then_some(ref_dph),
             nominal_period_s: reader.nominal_period_s(),
         })
@@ -156,16 +156,15 @@ pub struct StreamedRun {
 }
 
 impl StreamedRun {
-    /// Opens a run that has the thermometer columns of `mask` (bit i =
-    /// `temp_a` … `temp_h`; single-point models read `temp_c`, see
-    /// [`rbf_core::FeatureSet::thermometer_mask`]).
-    pub fn open(path: &Path, mask: u8) -> Result<Self, RunError> {
-        Self::from_reader(RunReader::open(path)?, mask)
+    /// Opens a run that has the columns of `thermometers` (single-point
+    /// models read `temp_c`, see [`rbf_core::FeatureSet::thermometers`]).
+    pub fn open(path: &Path, thermometers: ThermometerSet) -> Result<Self, RunError> {
+        Self::from_reader(RunReader::open(path)?, thermometers)
     }
 
     /// [`StreamedRun::open`] on an open reader.
-    pub fn from_reader(reader: RunReader, mask: u8) -> Result<Self, RunError> {
-        reader.require_thermometers(mask)?;
+    pub fn from_reader(reader: RunReader, thermometers: ThermometerSet) -> Result<Self, RunError> {
+        reader.require_thermometers(thermometers)?;
         Ok(StreamedRun {
             nominal_period_s: reader.nominal_period_s(),
             has_ref: reader.columns().ref_dph.is_some(),
