@@ -158,6 +158,13 @@ enum Cmd {
         /// --max-c 60 --max-rate-c-per-min 5 --hours 12`.
         #[arg(long, value_name = "PLAN.csv")]
         plan: Option<PathBuf>,
+        /// In-use section: train every plant on the default plan drawn with seeds 1 … N, each
+        /// its own planned column; the targets read the means over them. One plan's draw
+        /// moves a design's planned score by several points (docs/benchmarks.md): judge a
+        /// model change on more than one.
+        #[arg(long, value_name = "N", default_value_t = 1, conflicts_with = "plan",
+              value_parser = clap::value_parser!(u64).range(1..=9))]
+        plan_seeds: u64,
     },
     /// Fault injection on the firmware image under QEMU: 20,000 samples through the
     /// real drivers with I2C NACK bursts, stuck readings, a stuck bus, spikes,
@@ -271,6 +278,7 @@ fn main() -> anyhow::Result<()> {
             trainer,
             fit_args,
             plan,
+            plan_seeds,
         } => xtask::accuracy::bench_accuracy(&xtask::accuracy::AccuracyOptions {
             params,
             in_use_only: in_use,
@@ -285,6 +293,7 @@ fn main() -> anyhow::Result<()> {
                     .map(str::to_owned)
                     .collect(),
                 plan: plan.map(std::path::absolute).transpose()?,
+                plan_seeds,
             },
             json,
         }),

@@ -49,8 +49,11 @@ pub struct InUseOptions {
     /// Options added to `trainer fit` (default: none, the default model).
     pub fit_args: Vec<String>,
     /// The planned chamber run every plant is trained on (`trainer simulate
-    /// --chamber-profile`); `None`: the plan [`DEFAULT_PLAN`] makes.
+    /// --chamber-profile`); `None`: the plans [`DEFAULT_PLAN`] makes.
     pub plan: Option<PathBuf>,
+    /// Without `plan`: the plans of [`DEFAULT_PLAN`] with seeds 1 … this
+    /// (at least 1), each a planned training of its own.
+    pub plan_seeds: u64,
 }
 
 /// A simulated gyro: label, `trainer simulate` options, whether `--quick` keeps it.
@@ -145,28 +148,33 @@ pub const DEFAULT_PLAN: [&str; 8] = [
     "12",
 ];
 
-/// The training runs, in print order: the planned run `plan` (named by
-/// `plan_name`), the cycle, the designed run.
-fn training_runs(plan: &Path, plan_name: &str) -> Vec<(Training, RunSpec)> {
-    let plan = plan.to_str().expect("a UTF-8 path for the plan");
-    vec![
+/// The training runs, in print order: a planned run per plan of `plans`
+/// (path, name), the cycle, the designed run.
+fn training_runs(plans: &[(PathBuf, String)]) -> Vec<(Training, RunSpec)> {
+    let planned = plans.iter().map(|(plan, name)| {
+        let plan = plan.to_str().expect("a UTF-8 path for the plan");
+        // The same run seed: only the plan differs between the planned runs.
         (
             Training::Planned,
-            RunSpec::new(&format!("planned {plan_name}"), &["--chamber-profile", plan], 503),
-        ),
-        (
-            Training::Cycle,
-            RunSpec::new(
-                "cycle −40…60 °C, 1 °C/min, 2-h holds",
-                &["--profile", "cycle", "--ramp", "1", "--hold-min", "120"],
-                501,
+            RunSpec::new(&format!("planned {name}"), &["--chamber-profile", plan], 503),
+        )
+    });
+    planned
+        .chain([
+            (
+                Training::Cycle,
+                RunSpec::new(
+                    "cycle −40…60 °C, 1 °C/min, 2-h holds",
+                    &["--profile", "cycle", "--ramp", "1", "--hold-min", "120"],
+                    501,
+                ),
             ),
-        ),
-        (
-            Training::Designed,
-            RunSpec::new("designed 10.9 h, 5 °C/min", &["--profile", "designed"], 502),
-        ),
-    ]
+            (
+                Training::Designed,
+                RunSpec::new("designed 10.9 h, 5 °C/min", &["--profile", "designed"], 502),
+            ),
+        ])
+        .collect()
 }
 
 /// The in-use histories: random set points −20 … 50 °C at 0.2 … 3 °C/min
@@ -262,22 +270,26 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
     let fit_args: Vec<&str> = opts.fit_args.iter().map(String::as_str).collect();
     // The planned run is part of the protocol, not of the judged model: the
     // plan comes from this workspace's trainer, like the runs.
-    let (plan, plan_name) = match &opts.plan {
-        Some(plan) => (
+    let plans: Vec<(PathBuf, String)> = match &opts.plan {
+        Some(plan) => vec![(
             plan.clone(),
             plan.file_name()
                 .map_or("plan".into(), |n| n.to_string_lossy().into_owned()),
-        ),
-        None => {
-            let plan = dir.join("plan.csv");
-            let mut args = vec!["plan"];
-            args.extend(DEFAULT_PLAN);
-            args.extend(["-o", path(&plan)]);
-            run_tool(&simulator, &args)?;
-            (plan, format!("trainer plan {}", DEFAULT_PLAN.join(" ")))
-        }
+        )],
+        None => (1..=opts.plan_seeds.max(1))
+            .map(|seed| {
+                let plan = dir.join(format!("plan_seed{seed}.csv"));
+                let seed_text = seed.to_string();
+                let mut args = vec!["plan"];
+                args.extend(DEFAULT_PLAN);
+                args.extend(["--seed", &seed_text, "-o", path(&plan)]);
+                run_tool(&simulator, &args)?;
+                let name = format!("trainer plan {} --seed {seed}", DEFAULT_PLAN.join(" "));
+                Ok((plan, name))
+            })
+            .collect::<anyhow::Result<_>>()?,
     };
-    let training = training_runs(&plan, &plan_name);
+    let training = training_runs(&plans);
     let in_use = in_use_runs();
     println!("\nin use: trained on one chamber run, verified on in-use histories it never saw");
     println!(
@@ -354,7 +366,8 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
                 "trained on {} (loop {:.1} … {:.1} °C):",
                 scenario.name, loop_c.0, loop_c.1
             );
-            if *kind == Training::Planned {
+            // The loop range of the first plan's run (the default plan's, seed 1).
+            if *kind == Training::Planned && s == 0 {
                 plant_summary.planned_loop_c = loop_c;
             }
             let mut models_json = Vec::new();
@@ -436,7 +449,8 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
     Ok(json!({
         "judged_trainer": judged.display().to_string(),
         "fit_args": opts.fit_args,
-        "plan": plan.display().to_string(),
+        "plan": plans.first().map(|p| p.0.display().to_string()),
+        "plans": plans.iter().map(|p| p.0.display().to_string()).collect::<Vec<_>>(),
         "rate_hz": RATE_HZ,
         "targets": {
             "planned_mean_pct": TARGET_PLANNED_MEAN_PCT,
@@ -685,7 +699,7 @@ mod tests {
 
     #[test]
     fn every_plant_trains_on_the_planned_run_first_and_the_cycle_keeps_its_seed() {
-        let runs = training_runs(Path::new("/tmp/p.csv"), "p.csv");
+        let runs = training_runs(&[(PathBuf::from("/tmp/p.csv"), "p.csv".to_owned())]);
         let kinds: Vec<Training> = runs.iter().map(|(k, _)| *k).collect();
         assert_eq!(kinds, [Training::Planned, Training::Cycle, Training::Designed]);
         assert_eq!(runs[0].1.args, ["--chamber-profile", "/tmp/p.csv"]);
@@ -699,5 +713,20 @@ mod tests {
                 .join(" ")
                 .contains("--profile cycle --ramp 1 --hold-min 120")
         );
+        // Several plans: one planned run each, first, on the same run seed.
+        let plans = [1, 2].map(|k| (PathBuf::from(format!("/tmp/p{k}.csv")), format!("seed {k}")));
+        let seeded = training_runs(&plans);
+        let kinds: Vec<Training> = seeded.iter().map(|(k, _)| *k).collect();
+        assert_eq!(
+            kinds,
+            [
+                Training::Planned,
+                Training::Planned,
+                Training::Cycle,
+                Training::Designed
+            ]
+        );
+        assert_eq!(seeded[1].1.args, ["--chamber-profile", "/tmp/p2.csv"]);
+        assert_eq!(seeded[0].1.seed, seeded[1].1.seed);
     }
 }

@@ -53,18 +53,41 @@ pub(super) struct PlantSummary {
 }
 
 impl PlantSummary {
+    /// The mean and worst improvement after `training`, %: over several
+    /// trainings of that kind (plans of other seeds), the mean of each;
+    /// `None` when any was refused or none ran.
     pub(super) fn scores(&self, training: Training) -> Option<(f64, f64)> {
-        self.default_pct
+        let scores: Vec<(f64, f64)> = self
+            .default_pct
             .iter()
-            .find(|(t, _)| *t == training)
-            .and_then(|(_, s)| *s)
+            .filter(|(t, _)| *t == training)
+            .map(|(_, s)| *s)
+            .collect::<Option<_>>()?;
+        let n = scores.len();
+        (n > 0).then(|| {
+            let (mean, worst) = scores.iter().fold((0.0, 0.0), |acc, s| (acc.0 + s.0, acc.1 + s.1));
+            (mean / n as f64, worst / n as f64)
+        })
     }
 
-    /// The worst forecast factor over the planned and cycle trainings
-    /// (`None` when either has none).
+    /// The `index`-th training's scores, in column order ([`summary_table`]).
+    fn scores_at(&self, index: usize) -> Option<(f64, f64)> {
+        self.default_pct.get(index).and_then(|(_, s)| *s)
+    }
+
+    /// The worst forecast factor over every planned and cycle training
+    /// (`None` when any of them has none).
     pub(super) fn target_forecast(&self) -> Option<f64> {
-        let of = |t| self.forecast.iter().find(|(k, _)| *k == t).and_then(|(_, f)| *f);
-        Some(of(Training::Planned)?.max(of(Training::Cycle)?))
+        let judged: Vec<Option<f64>> = self
+            .forecast
+            .iter()
+            .filter(|(k, _)| matches!(k, Training::Planned | Training::Cycle))
+            .map(|(_, f)| *f)
+            .collect();
+        if judged.is_empty() {
+            return None;
+        }
+        judged.into_iter().try_fold(1.0f64, |worst, f| Some(worst.max(f?)))
     }
 
     /// The targets this plant misses, in words; empty when it meets them all.
@@ -115,9 +138,17 @@ pub(super) fn summary_table(plants: &[PlantSummary], training: &[(Training, &str
         "\nin-use summary: the default's mean / worst improvement over the four in-use runs [%], trained on"
     );
     let _ = write!(out, "{:<18}", "plant");
-    for (_, name) in training {
+    for (i, (kind, name)) in training.iter().enumerate() {
         let short = name.split(' ').next().unwrap_or_default();
-        let _ = write!(out, " {short:>15}");
+        // Several trainings of a kind (plans of other seeds): numbered.
+        let of_kind = training.iter().filter(|(k, _)| k == kind).count();
+        let nth = training[..i].iter().filter(|(k, _)| k == kind).count() + 1;
+        let label = if of_kind > 1 {
+            format!("{short} {nth}")
+        } else {
+            short.to_owned()
+        };
+        let _ = write!(out, " {label:>15}");
     }
     let _ = writeln!(
         out,
@@ -126,8 +157,8 @@ pub(super) fn summary_table(plants: &[PlantSummary], training: &[(Training, &str
     );
     for p in plants {
         let _ = write!(out, "{:<18}", p.name);
-        for (kind, _) in training {
-            let _ = write!(out, " {:>15}", pair(p.scores(*kind)));
+        for i in 0..training.len() {
+            let _ = write!(out, " {:>15}", pair(p.scores_at(i)));
         }
         let missed = p.missed_targets();
         let _ = writeln!(
@@ -150,11 +181,11 @@ pub(super) fn summary_table(plants: &[PlantSummary], training: &[(Training, &str
         Some((mean, scores.iter().map(|s| s.1).fold(f64::INFINITY, f64::min)))
     };
     let _ = write!(out, "{:<18}", "all plants");
-    for (kind, _) in training {
+    for i in 0..training.len() {
         let _ = write!(
             out,
             " {:>15}",
-            pair(overall(plants.iter().map(|p| p.scores(*kind)).collect()))
+            pair(overall(plants.iter().map(|p| p.scores_at(i)).collect()))
         );
     }
     let forecast = plants
@@ -239,6 +270,45 @@ mod tests {
             refused.missed_targets(),
             ["planned: fit refused", "cycle mean NaN < 88", "no forecast"]
         );
+    }
+
+    #[test]
+    fn plans_of_several_seeds_are_judged_by_their_means_and_the_worst_forecast() {
+        let mut p = plant(Some((95.0, 93.0)), Some((90.0, 85.0)), [Some(1.2), Some(1.3)]);
+        // A second plan's training, scored lower and forecast worse.
+        p.default_pct.insert(1, (Training::Planned, Some((89.0, 87.0))));
+        p.forecast.insert(1, (Training::Planned, Some(1.7)));
+        let (mean, worst) = p.scores(Training::Planned).unwrap();
+        assert!(close(mean, 92.0) && close(worst, 90.0), "{mean} {worst}");
+        assert!(close(p.target_forecast().unwrap(), 1.7));
+        assert_eq!(
+            p.missed_targets(),
+            [
+                "planned mean 92.0 < 93",
+                "planned worst 90.0 < 91",
+                "forecast ×1.70 > 1.5"
+            ]
+        );
+        // Its columns are numbered and keep each plan's own figures.
+        let training = [
+            (Training::Planned, "planned seed 1"),
+            (Training::Planned, "planned seed 2"),
+            (Training::Cycle, "cycle"),
+            (Training::Designed, "designed"),
+        ];
+        let table = summary_table(std::slice::from_ref(&p), &training);
+        let lines: Vec<&str> = table.lines().filter(|l| !l.is_empty()).collect();
+        assert!(
+            lines[1].contains("planned 1") && lines[1].contains("planned 2"),
+            "{table}"
+        );
+        assert!(
+            lines[2].contains("95.0 / 93.0") && lines[2].contains("89.0 / 87.0"),
+            "{table}"
+        );
+        // One refused plan: no planned score.
+        p.default_pct[1].1 = None;
+        assert_eq!(p.scores(Training::Planned), None);
     }
 
     #[test]
