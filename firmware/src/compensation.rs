@@ -25,7 +25,7 @@
 use embedded_io::Write;
 use rbf_core::axis::{Axis, MAX_AXES};
 use rbf_core::blob::axes::AxisModels;
-use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
+use rbf_core::features::{THERMOMETERS, ThermometerSet};
 use rbf_core::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
 use rbf_core::shared_basis::SharedAxisModels;
 use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, GyroSample, MAX_CENTERS, Model};
@@ -422,7 +422,7 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: ModelHolder<K, N>, cons
         let i = axis.index() % N;
         let model = self.models.model(axis);
         if read_temps {
-            let wanted = model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometers().bits());
+            let wanted = model.map_or(ThermometerSet::LOOP.bits(), |m| m.features().set.thermometers().bits());
             let failed = self.thermometers.read_axis(axis, wanted, &mut self.latest_temps_c[i]);
             self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
             self.temp_read_faults_per_axis[i] = self.temp_read_faults_per_axis[i].wrapping_add(failed);
@@ -455,7 +455,7 @@ impl<T: AxisThermometers, R: AxisFrontEnds, W: Write, M: ModelHolder<K, N>, cons
         let t = first.index() % N;
         if read_temps {
             let wanted =
-                (self.models.shared()).map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometers().bits());
+                (self.models.shared()).map_or(ThermometerSet::LOOP.bits(), |m| m.features().set.thermometers().bits());
             let failed = self.thermometers.read_axis(first, wanted, &mut self.latest_temps_c[t]);
             self.stats.temp_read_faults = self.stats.temp_read_faults.wrapping_add(failed);
             for axis in Axis::ALL {

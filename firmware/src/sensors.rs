@@ -4,7 +4,7 @@
 //! IMU's are an array, one per axis, x first.
 
 use rbf_core::axis::Axis;
-use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
+use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS, ThermometerSet};
 
 /// Why a sensor produced no usable value this time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -48,7 +48,7 @@ pub trait Thermometers {
 impl<T: Thermometer> Thermometers for T {
     fn read_wanted(&mut self, wanted: u8, readings: &mut Readings) -> u32 {
         *readings = [None; THERMOMETERS];
-        let loop_bit = 1u8 << LOOP_THERMOMETER;
+        let loop_bit = ThermometerSet::LOOP.bits();
         if wanted & loop_bit != 0 {
             readings[LOOP_THERMOMETER] = self.read_temp_c().ok();
         }
