@@ -162,15 +162,23 @@ pub fn cluster_design(
 /// Ridge solution on the first `p` columns: (AᵀA + λ n I′) w = Aᵀy, with I′
 /// leaving the constant (column 0) unpenalised. `None` if the system is singular.
 pub fn ridge_solve(stats: &GramStats, p: usize, lambda: f64) -> Option<DVector<f64>> {
-    ridge_solve_from(stats, p, lambda, 1)
+    ridge_solve_weighted(stats, p, lambda, |i| if i == 0 { 0.0 } else { 1.0 })
 }
 
-/// [`ridge_solve`] with the penalty on columns `first_penalised .. p` only.
-pub fn ridge_solve_from(stats: &GramStats, p: usize, lambda: f64, first_penalised: usize) -> Option<DVector<f64>> {
+/// Ridge solution on the first `p` columns with a penalty of its own per
+/// column: (AᵀA + λ n diag(s)) w = Aᵀy, s_i = `scale(i)` ≥ 0 (0 leaves
+/// column i unpenalised): a Gaussian prior on weight i of precision λ n s_i
+/// in units of the noise variance.
+pub fn ridge_solve_weighted(
+    stats: &GramStats,
+    p: usize,
+    lambda: f64,
+    scale: impl Fn(usize) -> f64,
+) -> Option<DVector<f64>> {
     let mut m = stats.gram.view((0, 0), (p, p)).clone_owned();
     let penalty = lambda * stats.n as f64;
-    for i in first_penalised..p {
-        m[(i, i)] += penalty;
+    for i in 0..p {
+        m[(i, i)] += penalty * scale(i);
     }
     let w = m.cholesky()?.solve(&stats.aty.rows(0, p).clone_owned());
     w.iter().all(|v| v.is_finite()).then_some(w)

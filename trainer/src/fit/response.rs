@@ -12,7 +12,8 @@
 //!   extractor ([`rbf_core::FeatureExtractor::update_with_channels`], the
 //!   firmware's arithmetic), samples still warming up left out.
 //! - The weights: [`solve_weights`], one ridge regression with an offset per
-//!   run, the columns standardised and the penalty on the dynamic ones.
+//!   run, the columns standardised and the penalty on the dynamic ones,
+//!   growing with the filter's time constant.
 //! - The network: no centres, the linear layer [c₁ … c₃, 1, 1, 1, 1, 1] on
 //!   the bank's inputs and the constant c₀.
 //!
@@ -27,7 +28,7 @@ use rbf_core::response_bank::{POWER_RESPONSES, RESPONSE_FILTERS, RESPONSES, Resp
 use rbf_core::{CompensatorConfig, FeatureConfig, FeatureExtractor, FeatureSet};
 
 use super::FitOptions;
-use super::linalg::{GramStats, ridge_solve_from};
+use super::linalg::{GramStats, ridge_solve_weighted};
 use crate::dataset::{RunSet, SampleVisit};
 
 /// Filters the fitted bank runs.
@@ -40,8 +41,17 @@ pub const SLOWEST_TAU_S: f64 = 11.0 * 3600.0;
 pub const STATIC_DEGREE: u8 = 3;
 /// Length of the blocks the weights are fitted on, s.
 pub const BLOCK_S: f64 = 10.0;
-/// Ridge penalty λ (times the number of blocks) on the standardised dynamic columns.
-pub const RIDGE_LAMBDA: f64 = 3e-4;
+/// Ridge penalty λ (times the number of blocks) on a standardised dynamic
+/// column whose filter's time constant is [`PRIOR_TAU_S`]; a column of
+/// filter k takes λ·τ_k/[`PRIOR_TAU_S`].
+pub const RIDGE_LAMBDA: f64 = 1e-4;
+/// The time constant at which a dynamic column's penalty is [`RIDGE_LAMBDA`], s.
+///
+/// The penalty grows in proportion to the filter's time constant: a prior
+/// whose variance falls as 1/τ_k, so that the slow responses a chamber run
+/// of a few holds barely excites stay near zero instead of trading off
+/// against the static curve (docs/methods.md, "The identification").
+pub const PRIOR_TAU_S: f64 = 600.0;
 /// Mixtures of the filters the bank holds: the three rate responses and the two filtered powers.
 const MIXTURES: usize = RESPONSES + POWER_RESPONSES;
 /// Channels a block holds: the static powers, then each mixture's [`FILTERS`] channels.
@@ -331,7 +341,8 @@ impl ChannelBlocks {
 
 /// The weights by ridge regression of the block targets on an offset per
 /// run and the `CHANNELS` channels, the channels standardised, the
-/// penalty λ·n ([`RIDGE_LAMBDA`]) on the dynamic ones only.
+/// penalty on the dynamic ones only: λ·n·τ_k/τ₀ on a channel of filter k
+/// ([`RIDGE_LAMBDA`], [`PRIOR_TAU_S`]).
 pub fn solve_weights(blocks: &ChannelBlocks) -> anyhow::Result<Weights> {
     let statics = STATIC_DEGREE as usize;
     let n = blocks.y.len();
@@ -357,7 +368,12 @@ pub fn solve_weights(blocks: &ChannelBlocks) -> anyhow::Result<Weights> {
     }
     let y = DVector::from_column_slice(&blocks.y);
     let stats = GramStats::new(&a, &y);
-    let beta = ridge_solve_from(&stats, cols, RIDGE_LAMBDA, runs + statics)
+    let taus = taus_s();
+    let penalty_scale = |c: usize| match c.checked_sub(runs + statics) {
+        Some(dynamic) => f64::from(taus[dynamic % FILTERS]) / PRIOR_TAU_S,
+        None => 0.0,
+    };
+    let beta = ridge_solve_weighted(&stats, cols, RIDGE_LAMBDA, penalty_scale)
         .ok_or_else(|| anyhow::anyhow!("the response bank's regression is singular"))?;
     let raw: Vec<f64> = (0..cols).map(|c| beta[c] / scale[c]).collect();
     let shift: f64 = (runs..cols).map(|c| raw[c] * mean[c]).sum();
@@ -594,6 +610,43 @@ mod tests {
                 assert!((f64::from(b) - want).abs() < 0.01, "row {m} filter {k}: {b}");
             }
         }
+    }
+
+    #[test]
+    fn a_response_seen_by_a_fast_and_a_slow_filter_alike_goes_to_the_fast_one_in_the_ratio_of_their_time_constants() {
+        // The same signal in the rate channel of filter 1 (τ ≈ 20 s) and of
+        // filter 9 (τ ≈ 3 h): the run cannot tell them apart, so the prior
+        // decides. Each weight's penalty grows with its filter's τ, so the
+        // standardised weights split in the inverse ratio of their penalties
+        // (w₁·τ₁ = w₉·τ₉): almost all on the fast filter, none swinging.
+        let mut uniform = uniform_from(11);
+        let statics = STATIC_DEGREE as usize;
+        let (fast, slow) = (statics + 1, statics + 9);
+        let mut blocks = two_runs_of_blocks();
+        for i in 0..4000 {
+            let mut x = [0.0; CHANNELS];
+            let u = 20.0 * (i as f64 / 500.0).sin();
+            x[..statics].copy_from_slice(&[u, u * u, u * u * u]);
+            let shared = uniform();
+            x[fast] = shared;
+            x[slow] = shared;
+            blocks.x.push(x);
+            blocks.y.push(0.4 * shared + 0.001 * uniform());
+            blocks.run.push(i / 2000);
+        }
+        let w = solve_weights(&blocks).unwrap();
+        let (w_fast, w_slow) = (f64::from(w.bank[0][1]), f64::from(w.bank[0][9]));
+        let taus = taus_s();
+        let expected_ratio = f64::from(taus[9] / taus[1]);
+        assert!(
+            (w_fast / w_slow / expected_ratio - 1.0).abs() < 1e-3,
+            "w_fast {w_fast}, w_slow {w_slow}: ratio {} against τ₉/τ₁ = {expected_ratio}",
+            w_fast / w_slow
+        );
+        assert!(
+            (w_fast + w_slow - 0.4).abs() < 0.01,
+            "together they carry the response: {w_fast} + {w_slow}"
+        );
     }
 
     #[test]
