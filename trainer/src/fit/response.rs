@@ -49,8 +49,9 @@ pub const RIDGE_LAMBDA: f64 = 1e-4;
 ///
 /// The penalty grows in proportion to the filter's time constant: a prior
 /// whose variance falls as 1/τ_k, so that the slow responses a chamber run
-/// of a few holds barely excites stay near zero instead of trading off
-/// against the static curve (docs/methods.md, "The identification").
+/// of a few holds barely excites stay near zero instead of taking weights
+/// that fit the run and not the in-use histories (docs/methods.md, "The
+/// identification").
 pub const PRIOR_TAU_S: f64 = 600.0;
 /// Mixtures of the filters the bank holds: the three rate responses and the two filtered powers.
 const MIXTURES: usize = RESPONSES + POWER_RESPONSES;
