@@ -131,7 +131,8 @@ pub struct Args {
     /// on T, (T − T₀)² and (T − T₀)³, a static cubic in T − T₀ (T₀ the middle of the covered
     /// range, tangent beyond it), five free mixtures of the filters' rates (R₀, (T − T₀)·R₁,
     /// (T − T₀)²·R₂ and the filtered square and cube), fitted by one ridge regression on 10-s
-    /// block means (docs/methods.md).
+    /// block means whose penalty grows with each filter's time constant, so that responses of
+    /// hours a chamber run barely excites stay small (docs/methods.md).
     #[arg(long, value_enum, hide_possible_values = true, help_heading = "Model")]
     features: Option<FeaturesArg>,
     /// Use exactly K Gaussian centres (1–64; 1–16 per axis on multi-axis runs).
