@@ -8,8 +8,8 @@ use rbf_core::FeatureSet;
 use trainer::blobfile::read_model;
 use trainer::dataset::{Blocks, RunFiles, RunSet};
 use trainer::fit::Method;
-use trainer::reading::limits::{MAX_BLOCKS_WRITTEN, check_block_s};
 use trainer::output::{self, Output, Transaction};
+use trainer::reading::limits::{MAX_BLOCKS_WRITTEN, check_block_s};
 use trainer::{reading::input, text};
 
 use super::common::{ForceArg, input_names, print_and_commit};
@@ -42,8 +42,13 @@ pub struct Args {
           help_heading = "Model")]
     features: FeaturesArg,
     /// Fastest ΔT filter time constant, s (without --model).
-    #[arg(long = "dt-window-s", alias = "rate-window-s", value_name = "SECONDS", default_value_t = 60.0,
-          help_heading = "Model")]
+    #[arg(
+        long = "dt-window-s",
+        alias = "rate-window-s",
+        value_name = "SECONDS",
+        default_value_t = 60.0,
+        help_heading = "Model"
+    )]
     dt_window_s: f32,
     /// Coil lag of the second-order set's lagged form, minutes.
     ///
@@ -106,8 +111,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         blocks.length_s(a.block_s)
     );
     let mut out = Output::open(target)?;
-    write_csv(&mut out, features.set, &blocks)
-        .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
+    write_csv(&mut out, features.set, &blocks).with_context(|| format!("{}: write failed", text::path(&a.output)))?;
     let printed = format!("wrote {} ({} blocks)\n", text::path(&a.output), blocks.len());
     print_and_commit(printed.as_bytes(), false, Transaction::of(out))
 }

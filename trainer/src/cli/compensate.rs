@@ -6,8 +6,8 @@ use trainer::evaluation::axes::{self, compensate_command};
 use trainer::text;
 
 use super::common::{AllowUncompensated, ForceArg, print_and_commit};
-use trainer::output::Transaction;
 use super::model_arg::ModelArg;
+use trainer::output::Transaction;
 
 /// Compensate a run with a model, exactly as the firmware does.
 ///
@@ -62,6 +62,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     } else {
         format!(", axes {}", axes::names(&axes))
     };
-    let printed = format!("wrote {} ({rows} rows{what}; flagged: {flagged})\n", text::path(&a.output));
+    let printed = format!(
+        "wrote {} ({rows} rows{what}; flagged: {flagged})\n",
+        text::path(&a.output)
+    );
     print_and_commit(printed.as_bytes(), false, Transaction::of(out))
 }

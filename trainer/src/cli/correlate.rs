@@ -4,9 +4,9 @@ use std::path::{Path, PathBuf};
 
 use clap::builder::RangedU64ValueParser;
 use trainer::dataset::gradients::{Selection, candidate_name, correlations, row_block_means, select};
+use trainer::output::Existing;
 use trainer::reading::input;
 use trainer::reading::limits::MAX_BLOCK_SAMPLES;
-use trainer::output::Existing;
 
 use super::common::{JsonArg, PAPER_THRESHOLD, SelectArgs, describe_selection, print_and_commit, rule_name};
 use trainer::output::Transaction;

@@ -24,10 +24,12 @@ use super::model_arg::ModelArg;
 /// wait is bounded: a unit that does not answer fails the command with the
 /// port's name. The protocol is in docs/firmware.md.
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example (no hardware: `cargo xtask qemu-board --pty` prints the pty):\n  \
+#[command(
+    after_help = "Example (no hardware: `cargo xtask qemu-board --pty` prints the pty):\n  \
                         trainer device status --port /dev/pts/3\n  \
                         trainer device update --port /dev/pts/3 --model model.bin\n  \
-                        trainer device record --port /dev/pts/3 --seconds 20 -o run.csv")]
+                        trainer device record --port /dev/pts/3 --seconds 20 -o run.csv"
+)]
 pub struct Args {
     #[command(subcommand)]
     command: DeviceCommand,
@@ -128,8 +130,10 @@ struct UpdateArgs {
 /// and the command exits 1 with the cause. Frames without a rate or
 /// temperature (a sensor that has not answered) are counted, not written.
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Examples:\n  trainer device record --port /dev/ttyUSB0 --hours 12 --plan plan.csv -o chamber1.csv\n  \
-                        trainer device record --port /dev/pts/3 --seconds 20 -o run.csv")]
+#[command(
+    after_help = "Examples:\n  trainer device record --port /dev/ttyUSB0 --hours 12 --plan plan.csv -o chamber1.csv\n  \
+                        trainer device record --port /dev/pts/3 --seconds 20 -o run.csv"
+)]
 struct RecordArgs {
     #[command(flatten)]
     port: PortArgs,
@@ -174,7 +178,11 @@ fn status_command(a: StatusArgs) -> anyhow::Result<()> {
     let on_stdout = sink.is_stdout();
     let mut transaction = Transaction::new();
     sink.write(&status::to_json(&a.port.port, &unit), &mut transaction)?;
-    print_and_commit(status::describe(&text::terminal_safe(&a.port.port), &unit).as_bytes(), on_stdout, transaction)
+    print_and_commit(
+        status::describe(&text::terminal_safe(&a.port.port), &unit).as_bytes(),
+        on_stdout,
+        transaction,
+    )
 }
 
 fn update_command(a: UpdateArgs) -> anyhow::Result<()> {

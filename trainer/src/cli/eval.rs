@@ -3,15 +3,15 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use trainer::evaluation::axes::evaluate_files;
 use trainer::blobfile::read_model_file;
+use trainer::evaluation::axes::evaluate_files;
 use trainer::evaluation::evaluate::RunEvaluation;
 use trainer::evaluation::table::{print_allan_table, print_table};
 use trainer::reading::input;
 
 use super::common::{AllowUncompensated, ForceArg, JsonArg, print_and_commit};
-use trainer::output::Transaction;
 use super::model_arg::ModelArg;
+use trainer::output::Transaction;
 
 /// Before/after accuracy of a model on runs.
 ///

@@ -13,16 +13,14 @@ use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_blocks, e
 use trainer::evaluation::table::print_table;
 use trainer::fit::coverage::InUse;
 use trainer::fit::{self, FitOptions};
-use trainer::reading::limits::MAX_FOLDS;
 use trainer::output::{self, Output, StagedDir, Transaction};
-use trainer::reading::run::RunReader;
+use trainer::reading::limits::MAX_FOLDS;
 use trainer::reading::plausible;
+use trainer::reading::run::RunReader;
 use trainer::text;
 use trainer::{evaluation::diagnose, reading::input};
 
-use super::common::{
-    ForceArg, JsonArg, JsonSink, SelectArgs, print_and_commit,
-};
+use super::common::{ForceArg, JsonArg, JsonSink, SelectArgs, print_and_commit};
 use super::values::{FeaturesArg, MethodArg};
 
 mod axes;
@@ -151,8 +149,13 @@ pub struct Args {
     ///
     /// Comma-separated; for multiscale the fastest of three, the others 16 and 256 times
     /// it; 0 = one-sample difference (IFOG Eq. 22). Default: choose among 15, 60 and 240 s.
-    #[arg(long = "dt-window-s", alias = "rate-window-s", value_name = "SECONDS",
-          value_delimiter = ',', help_heading = "Search")]
+    #[arg(
+        long = "dt-window-s",
+        alias = "rate-window-s",
+        value_name = "SECONDS",
+        value_delimiter = ',',
+        help_heading = "Search"
+    )]
     dt_window_s: Vec<f32>,
     /// Folds per run without --validate (2–20).
     ///
@@ -205,8 +208,13 @@ pub struct Args {
     /// the range of each end (the model extrapolates there), e.g. a chamber that went to
     /// −40 … 60 °C with holds too short for the loop to follow. Without it they judge the
     /// range the loop covered and say where it turned before it settled.
-    #[arg(long = "use-range-c", value_name = "MIN,MAX", value_delimiter = ',', allow_hyphen_values = true,
-          help_heading = "Data")]
+    #[arg(
+        long = "use-range-c",
+        value_name = "MIN,MAX",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        help_heading = "Data"
+    )]
     use_range_c: Option<Vec<f64>>,
     /// Fastest loop-temperature change in use, °C/min (either sign).
     ///
@@ -270,7 +278,12 @@ fn check_distinct_inputs(inputs: &[Probe]) -> anyhow::Result<()> {
         Probe::Temp(i) => (i, i),
         Probe::Gradient(i, j) => (i.min(j), i.max(j)),
     };
-    let name = |i: u8| rbf_core::record::column::THERMOMETERS.get(usize::from(i)).copied().unwrap_or("?");
+    let name = |i: u8| {
+        rbf_core::record::column::THERMOMETERS
+            .get(usize::from(i))
+            .copied()
+            .unwrap_or("?")
+    };
     for (k, p) in inputs.iter().enumerate() {
         if let Some(q) = inputs[..k].iter().find(|q| key(q) == key(p)) {
             let show = |p: &Probe| match *p {
@@ -379,7 +392,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if !short.is_empty() {
             anyhow::anyhow!("{}", short.join("; "))
         } else if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
-            let thermometers = opts.method.feature_set(opts.features).thermometers().union(ThermometerSet::LOOP);
+            let thermometers = opts
+                .method
+                .feature_set(opts.features)
+                .thermometers()
+                .union(ThermometerSet::LOOP);
             diagnose::with_causes(e, &a.runs, thermometers)
         } else {
             e
@@ -401,7 +418,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let blocks = runs.block_means(outcome.model.features(), opts.block_s)?;
         for (i, path) in runs.paths().iter().enumerate() {
             let has_ref = RunReader::open(path)?.columns().ref_dph.is_some();
-            evals.push((role, evaluate_blocks(&outcome.model, &blocks, i, path, opts.block_s, has_ref)));
+            evals.push((
+                role,
+                evaluate_blocks(&outcome.model, &blocks, i, path, opts.block_s, has_ref),
+            ));
         }
     }
     drop((train, validate));
@@ -442,27 +462,26 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut transaction = Transaction::new();
     if let Some(target) = report_target {
         let staged = StagedDir::create(target)?;
-        let files =
-            {
-                // The fit has checked its runs; the report takes them as they are.
-                let accept = trainer::evaluation::axes::Acceptance {
-                    uncompensated: true,
-                    implausible: true,
-                };
-                trainer::report::write_report(
-                    &outcome.model,
-                    &a.output,
-                    trainer::report::ReportRuns {
-                        paths: &report_runs,
-                        trained_on: Some(a.runs.len()),
-                    },
-                    &staged,
-                    Path::new(""),
-                    accept,
-                    None,
-                )?
-                    .0
+        let files = {
+            // The fit has checked its runs; the report takes them as they are.
+            let accept = trainer::evaluation::axes::Acceptance {
+                uncompensated: true,
+                implausible: true,
             };
+            trainer::report::write_report(
+                &outcome.model,
+                &a.output,
+                trainer::report::ReportRuns {
+                    paths: &report_runs,
+                    trained_on: Some(a.runs.len()),
+                },
+                &staged,
+                Path::new(""),
+                accept,
+                None,
+            )?
+            .0
+        };
         staged.write(Path::new(FIT_TEXT), &out)?;
         writeln!(out, "wrote {} files into {}", files + 1, text::path(staged.target()))?;
         transaction.add_dir(staged);

@@ -7,14 +7,14 @@ use rbf_core::blob::axes::{AXES_FORMAT_VERSION, AxesHeader, AxisModels, decode_a
 use rbf_core::blob::{self, BlobKind, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{file_problem, read_blob};
-use trainer::output::Existing;
 use trainer::describe::summary::{count, sig};
+use trainer::output::Existing;
 use trainer::text;
 
 use super::common::{JsonArg, print_and_commit};
-use trainer::output::Transaction;
 use super::fit::json::features_json;
 use super::toml;
+use trainer::output::Transaction;
 
 /// Show what a model blob holds and whether it is intact.
 ///
@@ -27,8 +27,14 @@ use super::toml;
                         trainer inspect --model model.bin --format toml > model.toml")]
 pub struct Args {
     /// Model blob written by `trainer fit` (- reads standard input).
-    #[arg(long = "model", id = "model_option", value_name = "MODEL.bin", help_heading = "Model",
-          required_unless_present = "model", conflicts_with = "model")]
+    #[arg(
+        long = "model",
+        id = "model_option",
+        value_name = "MODEL.bin",
+        help_heading = "Model",
+        required_unless_present = "model",
+        conflicts_with = "model"
+    )]
     model_option: Option<PathBuf>,
     /// The model blob given without --model.
     #[arg(value_name = "MODEL.bin", hide = true)]
@@ -84,7 +90,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Format::Toml => toml::to_toml(&info),
         Format::Json => format!("{}\n", serde_json::to_string_pretty(&info)?),
     };
-    print_and_commit(printed.as_bytes(), json_on_stdout && a.format == Format::Text, transaction)?;
+    print_and_commit(
+        printed.as_bytes(),
+        json_on_stdout && a.format == Format::Text,
+        transaction,
+    )?;
     match (decoded, problem) {
         (Ok(_), None) => Ok(()),
         (Ok(_), Some(problem)) => Err(anyhow::anyhow!("{}: model refused: {problem}", text::path(&path))),
@@ -222,7 +232,10 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
             for (axis, v) in models.axes().zip(info["axes"].as_array().into_iter().flatten()) {
                 let _ = writeln!(text, "axis {}", axis.name());
                 for line in summary(v).lines() {
-                    if !["file", "format version", "CRC-32", "valid"].iter().any(|k| line.starts_with(k)) {
+                    if !["file", "format version", "CRC-32", "valid"]
+                        .iter()
+                        .any(|k| line.starts_with(k))
+                    {
                         let _ = writeln!(text, "  {line}");
                     }
                 }
@@ -232,7 +245,11 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
         Format::Toml => toml::to_toml(&info),
         Format::Json => format!("{}\n", serde_json::to_string_pretty(&info)?),
     };
-    print_and_commit(printed.as_bytes(), json_on_stdout && format == Format::Text, transaction)?;
+    print_and_commit(
+        printed.as_bytes(),
+        json_on_stdout && format == Format::Text,
+        transaction,
+    )?;
     match problem {
         None => Ok(()),
         Some(problem) => Err(refused(&problem)),

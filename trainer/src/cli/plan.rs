@@ -22,7 +22,9 @@ use super::common::{ForceArg, print_and_commit};
 /// points `trainer simulate --chamber-profile` reads (time_s,chamber_c, piecewise linear), or
 /// with --format segments the segment table a chamber controller takes. Same seed, same plan.
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Example:\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 -o plan.csv\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 --format segments --plot plan.svg -o segments.csv")]
+#[command(
+    after_help = "Example:\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 -o plan.csv\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 --format segments --plot plan.svg -o segments.csv"
+)]
 pub struct Args {
     /// Lowest set point, °C.
     #[arg(long, value_name = "C", allow_hyphen_values = true, help_heading = "Chamber limits")]
@@ -31,7 +33,12 @@ pub struct Args {
     #[arg(long, value_name = "C", allow_hyphen_values = true, help_heading = "Chamber limits")]
     max_c: f64,
     /// Fastest ramp the chamber may run, °C/min (every segment stays at or below it).
-    #[arg(long, value_name = "C_PER_MIN", allow_hyphen_values = true, help_heading = "Chamber limits")]
+    #[arg(
+        long,
+        value_name = "C_PER_MIN",
+        allow_hyphen_values = true,
+        help_heading = "Chamber limits"
+    )]
     max_rate_c_per_min: f64,
     /// Longest run, hours (the last set point is at most this far in).
     #[arg(long, value_name = "H", allow_hyphen_values = true, help_heading = "Chamber limits")]
@@ -109,7 +116,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(a.plot.as_deref()).collect();
     let mut targets = output::check_targets(&outputs, &[], a.force.existing())?.into_iter();
-    let plan = trainer::plan::design(&limits, a.seed, a.candidates, a.soak_ends).map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
+    let plan = trainer::plan::design(&limits, a.seed, a.candidates, a.soak_ends)
+        .map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
     let text_out = match a.format {
         PlanFormat::SetPoints => plan.set_points_csv(),
         PlanFormat::Segments => plan.segments_csv(),

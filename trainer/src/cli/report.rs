@@ -57,7 +57,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut printed = Vec::new();
     let axes = file.axes();
     if axes.is_empty() {
-        let model = file.model(None).ok_or_else(|| anyhow::anyhow!("the model file holds no model"))?;
+        let model = file
+            .model(None)
+            .ok_or_else(|| anyhow::anyhow!("the model file holds no model"))?;
         let (files, _) = trainer::report::write_report(model, model_path, runs, &staged, Path::new(""), allow, None)?;
         writeln!(printed, "wrote {files} files into {}", text::path(&a.output))?;
     }

@@ -3,10 +3,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use trainer::output::{self, Output, Transaction};
 use trainer::reading::limits::{
     MAX_PARAMS_BYTES, MAX_SIM_HOURS, MAX_SIM_OUTPUT_BYTES, MIN_RUN_ROWS, MIN_SAMPLE_RATE_HZ, SIM_BYTES_PER_FIELD,
 };
-use trainer::output::{self, Output, Transaction};
 use trainer::simulate::unit::Family;
 use trainer::simulate::{ChamberRun, ParamsError, Profile, SimParams};
 use trainer::{reading::input, text};
@@ -28,9 +28,11 @@ use super::values::ProfileArg;
 /// draws a whole gyro from documented ranges, --design N one of another
 /// mechanical design from wider ones. Same seed, same file.
 #[derive(clap::Args, Debug)]
-#[command(after_help = "Examples:\n  trainer simulate --profile field --unit 3 --seed 7 -o field.csv\n  \
+#[command(
+    after_help = "Examples:\n  trainer simulate --profile field --unit 3 --seed 7 -o field.csv\n  \
                         trainer simulate --chamber-profile plan.csv --design 7 -o planned.csv\n  \
-                        trainer simulate --profile cycle --axes 3 -o imu-cycle.csv")]
+                        trainer simulate --profile cycle --axes 3 -o imu-cycle.csv"
+)]
 pub struct Args {
     /// Temperature history (docs/simulator.md, "Profiles").
     ///
@@ -63,11 +65,21 @@ pub struct Args {
     /// Chamber ramp between set points, °C/min.
     ///
     /// ifog and cycle: 1 (the RLG paper used 1, 2, 3, 5); designed: 5.
-    #[arg(long = "ramp-c-per-min", alias = "ramp", value_name = "C_PER_MIN", help_heading = "Data")]
+    #[arg(
+        long = "ramp-c-per-min",
+        alias = "ramp",
+        value_name = "C_PER_MIN",
+        help_heading = "Data"
+    )]
     ramp_c_per_min: Option<f64>,
     /// Gyro sample rate, Hz.
-    #[arg(long = "sample-rate-hz", alias = "rate-hz", value_name = "HZ", default_value_t = 1.0,
-          help_heading = "Data")]
+    #[arg(
+        long = "sample-rate-hz",
+        alias = "rate-hz",
+        value_name = "HZ",
+        default_value_t = 1.0,
+        help_heading = "Data"
+    )]
     sample_rate_hz: f64,
     /// Hold at each set point, minutes (ifog and cycle).
     #[arg(long, value_name = "MINUTES", default_value_t = 120.0, help_heading = "Data")]

@@ -2,8 +2,8 @@
 //! and the model's feature configuration (which `trainer inspect --json` shares).
 
 use rbf_core::{FeatureConfig, FeatureSet};
-use trainer::evaluation::evaluate::RunEvaluation;
 use trainer::describe::gain_symbol;
+use trainer::evaluation::evaluate::RunEvaluation;
 use trainer::fit::FitOutcome;
 
 use super::super::common::input_names;

@@ -54,11 +54,7 @@ pub(super) fn write_structure(out: &mut impl Write, s: &fit::response::Structure
 }
 
 /// The fit's choices as `trainer fit` prints them above its accuracy table.
-pub fn write_summary(
-    out: &mut impl Write,
-    outcome: &FitOutcome,
-    how: &FitHow,
-) -> anyhow::Result<()> {
+pub fn write_summary(out: &mut impl Write, outcome: &FitOutcome, how: &FitHow) -> anyhow::Result<()> {
     writeln!(out, "model: {}", describe(&outcome.model))?;
     if let Some(s) = &outcome.structure {
         write_structure(out, s)?;
@@ -168,7 +164,11 @@ pub fn write_summary(
 }
 
 /// The lag bank a fit identified, how it was chosen, and what the training runs covered.
-pub(super) fn write_bank(out: &mut impl Write, model: &Model, search: &fit::lag_bank::BankSearch) -> anyhow::Result<()> {
+pub(super) fn write_bank(
+    out: &mut impl Write,
+    model: &Model,
+    search: &fit::lag_bank::BankSearch,
+) -> anyhow::Result<()> {
     let FeatureSet::LagBank(bank) = model.features().set else {
         return Ok(());
     };
