@@ -171,14 +171,29 @@ pub fn range_finding(what: &str, lo_c: f64, hi_c: f64) -> Option<String> {
     })
 }
 
-/// Refuses a run of `others` (role and paths, e.g. `--holdout`) that holds
-/// the same data as a training run of `train`: the same file, or a copy
-/// of it. Its figures would be the training run's, presented as an
-/// independent check.
+/// Refuses a run listed twice: a training run that holds the same data as
+/// an earlier training run (it would count twice and pull the model towards
+/// it), or a run of `others` (role and paths, e.g. `--holdout`) that holds
+/// the same data as a training run (its figures would be the training
+/// run's, presented as an independent check). The same data: the same
+/// file, a byte copy, or the same rows whatever the `#` lines and line ends
+/// ([`same_data`]).
 pub fn require_distinct_runs(
     train: &[std::path::PathBuf],
     others: &[(&str, &[std::path::PathBuf])],
 ) -> anyhow::Result<()> {
+    for (i, path) in train.iter().enumerate() {
+        for earlier in &train[..i] {
+            if let Some(how) = same_data(earlier, path)? {
+                anyhow::bail!(
+                    "{}: the training run is {how} training run {}: it would count twice and pull the model \
+                     towards it; list each run once",
+                    text::path(path),
+                    text::path(earlier)
+                );
+            }
+        }
+    }
     for (role, paths) in others {
         for path in *paths {
             for trained in train {
@@ -197,9 +212,10 @@ pub fn require_distinct_runs(
 }
 
 /// How the files at `a` and `b` hold the same data (`the same file as`,
-/// `a copy of`), or `None`.
+/// `a copy of`, `the same rows as`), or `None`. The same rows: equal once
+/// `#` lines, blank lines and `\r` line ends are left out, so a copy with
+/// its metadata stripped or its line ends converted is still found.
 fn same_data(a: &Path, b: &Path) -> anyhow::Result<Option<&'static str>> {
-    use std::io::Read;
     let (Ok(ca), Ok(cb)) = (a.canonicalize(), b.canonicalize()) else {
         return Ok(None);
     };
@@ -207,26 +223,65 @@ fn same_data(a: &Path, b: &Path) -> anyhow::Result<Option<&'static str>> {
         return Ok(Some("the same file as"));
     }
     let (ma, mb) = (std::fs::metadata(&ca)?, std::fs::metadata(&cb)?);
-    if !ma.is_file() || !mb.is_file() || ma.len() != mb.len() {
+    if !ma.is_file() || !mb.is_file() {
         return Ok(None);
     }
-    let open = |p: &Path| {
-        std::fs::File::open(p)
-            .map(|f| std::io::BufReader::with_capacity(1 << 20, f))
-            .map_err(|e| anyhow::anyhow!("{}: {e}", text::path(p)))
-    };
-    let (mut fa, mut fb) = (open(&ca)?, open(&cb)?);
-    let (mut ba, mut bb) = (vec![0u8; 1 << 16], vec![0u8; 1 << 16]);
-    loop {
-        let n = fa.read(&mut ba)?;
-        if n == 0 {
-            return Ok(Some("a copy of"));
-        }
-        fb.read_exact(&mut bb[..n])?;
-        if ba[..n] != bb[..n] {
-            return Ok(None);
-        }
+    let (ra, rb) = (data_rows(&ca)?, data_rows(&cb)?);
+    if ra.digest != rb.digest || ra.rows != rb.rows {
+        return Ok(None);
     }
+    Ok(Some(if ma.len() == mb.len() && ra.raw_digest == rb.raw_digest {
+        "a copy of"
+    } else {
+        "the same rows as"
+    }))
+}
+
+/// Digests of a file's data rows and of its bytes.
+struct RowDigest {
+    /// Over the lines that are not `#` lines nor blank, without their line ends.
+    digest: u64,
+    /// Over every byte.
+    raw_digest: u64,
+    /// Lines the row digest took.
+    rows: u64,
+}
+
+/// [`RowDigest`] of the file at `path`, streamed.
+fn data_rows(path: &Path) -> anyhow::Result<RowDigest> {
+    use std::hash::Hasher;
+    use std::io::BufRead;
+    let file = std::fs::File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", text::path(path)))?;
+    let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
+    let (mut digest, mut raw_digest) = (std::hash::DefaultHasher::new(), std::hash::DefaultHasher::new());
+    let mut rows = 0u64;
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        if reader
+            .read_until(b'\n', &mut line)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", text::path(path)))?
+            == 0
+        {
+            break;
+        }
+        raw_digest.write(&line);
+        let mut row = line.as_slice();
+        while let [head @ .., b'\n' | b'\r'] = row {
+            row = head;
+        }
+        if row.is_empty() || row.starts_with(b"#") {
+            continue;
+        }
+        digest.write(row);
+        digest.write_u8(b'\n');
+        rows += 1;
+    }
+    Ok(RowDigest {
+        digest: digest.finish(),
+        raw_digest: raw_digest.finish(),
+        rows,
+    })
 }
 
 /// Refuses a run with `findings` ([`Plausibility::findings`]) unless `allow`.

@@ -181,6 +181,43 @@ fn a_holdout_that_is_a_training_run_or_a_copy_of_one_is_refused() {
 }
 
 #[test]
+fn a_run_listed_twice_is_refused_by_its_rows_whatever_its_metadata_and_line_ends() {
+    let dir = TempDir::new().unwrap();
+    let _ = fitted_model(&dir);
+    let train = dir.path().join("train.csv");
+    let text = std::fs::read_to_string(&train).unwrap();
+    // The same rows without the `#` lines, with CRLF line ends.
+    let rows: String = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| format!("{l}\r\n"))
+        .collect();
+    assert!(text.starts_with('#') && rows.len() != text.len());
+    let stripped = write(&dir, "stripped.csv", rows.as_bytes());
+    let model = dir.path().join("m.bin");
+    let fit = |args: &[&str]| {
+        let mut all = vec!["fit", "-q"];
+        all.extend_from_slice(args);
+        all.extend_from_slice(&["-o", model.to_str().unwrap()]);
+        trainer(&all)
+    };
+    let (t, s) = (train.to_str().unwrap(), stripped.to_str().unwrap());
+    for (args, expected) in [
+        (vec![t, t], "the training run is the same file as training run"),
+        (vec![t, s], "the training run is the same rows as training run"),
+        (
+            vec![t, "--validate", s],
+            "the --validate run is the same rows as training run",
+        ),
+    ] {
+        let o = fit(&args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        assert!(stderr(&o).contains(expected), "{args:?}: {}", stderr(&o));
+        assert!(!model.exists());
+    }
+}
+
+#[test]
 fn a_header_with_another_delimiter_names_it_and_every_missing_column() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
