@@ -7,6 +7,7 @@
 
 pub mod designs;
 pub mod in_use;
+mod tools;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -15,6 +16,9 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 
 use crate::workspace_root;
+// Re-exported for the benches below this module (`super::run_tool`), which
+// would otherwise import their parent.
+pub(crate) use self::tools::{path, run_tool};
 
 /// One protocol: a training run and verification runs (simulate arguments),
 /// the methods compared and whether the Python peers join.
@@ -122,27 +126,6 @@ const PROTOCOLS: [Protocol; 3] = [
 
 fn trainer(args: &[&str]) -> anyhow::Result<String> {
     run_tool(&workspace_root().join("target/release/trainer"), args)
-}
-
-/// Runs `exe` with `args`; its standard output, or an error with its standard error.
-fn run_tool(exe: &Path, args: &[&str]) -> anyhow::Result<String> {
-    let out = Command::new(exe)
-        .args(args)
-        .output()
-        .with_context(|| format!("cannot run {}", exe.display()))?;
-    if !out.status.success() {
-        bail!(
-            "{} {} failed: {}",
-            exe.display(),
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
-}
-
-fn path(p: &Path) -> &str {
-    p.to_str().expect("UTF-8 paths under target/")
 }
 
 /// A result line: improvement % and residual 100-s STD per verification run.

@@ -13,6 +13,7 @@ pub mod ols;
 pub mod options;
 pub mod poly;
 pub mod progress;
+pub(crate) mod ranges;
 pub mod rbf;
 pub mod response;
 pub(crate) mod scoring;
@@ -28,8 +29,9 @@ pub use self::excitation::{
 pub(crate) use self::options::serial;
 pub use self::options::{FitOptions, Method, RbfFeatures};
 pub use self::progress::Progress;
+pub(crate) use self::ranges::deploy_ranges;
 pub use self::svr_pso::{pso, svr};
-use crate::dataset::{Blocks, RunSet};
+use crate::dataset::RunSet;
 
 /// The second-order multi-scale set must validate at least this much better
 /// (RMS ratio to the first-order set) to be chosen (`--features multiscale-validated`). The ΔT₃²
@@ -285,13 +287,4 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             })
         }
     }
-}
-
-/// Clamp ranges for deployment: the per-sample feature range seen in training.
-pub(crate) fn deploy_ranges(blocks: &Blocks) -> Vec<(f32, f32)> {
-    blocks
-        .sample_range
-        .iter()
-        .map(|&(lo, hi)| (lo as f32, hi as f32))
-        .collect()
 }

@@ -18,9 +18,10 @@ use trainer::reading::run::RunReader;
 use trainer::text;
 
 use super::super::common::{JsonSink, print_and_commit};
+use super::args::Args;
+use super::blob_out::write_blob;
 use super::json::{outcome_json, runs_json};
 use super::summary::{FitHow, write_summary};
-use super::{Args, write_blob};
 
 /// Fits every axis of `axes` on the runs of `a` with `opts`, writes the
 /// blob into `model_out` and the JSON report into `json_out`, and prints
