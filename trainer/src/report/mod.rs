@@ -80,7 +80,14 @@ fn read_run(
     run.for_each_line(|line, row, sample| {
         let out = compensator.process(Some(model), &config, sample);
         let r = row.ref_dph.unwrap_or(0.0);
-        evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
+        let loop_c = row.readings_c()[rbf_core::features::LOOP_THERMOMETER];
+        evaluator.push(
+            row.time_s,
+            loop_c,
+            row.rate_dph - r,
+            out.rate_comp_dph as f64 - r,
+            out.flags,
+        );
         diagnosis.push(line, row);
         compensated += usize::from(!out.flags.contains(rbf_core::Flags::NO_VALID_MODEL));
         rate_sum += row.rate_dph;
@@ -538,6 +545,7 @@ mod tests {
             flagged: Default::default(),
             allan_before: curve(hi),
             allan_after: curve(hi * 0.9),
+            settled: None,
         }
     }
 
