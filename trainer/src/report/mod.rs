@@ -35,9 +35,10 @@ mod allan_plot;
 mod bias_temp;
 mod canvas;
 mod rate;
+mod settled;
 mod surface;
 
-use self::{allan_plot::*, bias_temp::*, canvas::*, rate::*, surface::*};
+use self::{allan_plot::*, bias_temp::*, canvas::*, rate::*, settled::*, surface::*};
 
 /// What one run contributes to the report, gathered in one streaming pass.
 struct RunPlots {
@@ -352,6 +353,17 @@ pub fn write_report(
             duration_s: p.duration_s,
         };
         both(&format!("{stem}_allan"), render(&allan))?;
+        if let Some(settled) = &p.evaluation.settled {
+            let plot = SettledPlot {
+                title: format!(
+                    "{}: settled bias against loop temperature, ±2σ of the mean; {}",
+                    titled(stem),
+                    spread_words(settled)
+                ),
+                settled,
+            };
+            both(&format!("{stem}_settled_bias"), render(&plot))?;
+        }
         let e = &p.evaluation;
         md.push_str(&format!(
             "| {} | {} | {} | {} | {} | {} | {} → {} | {} |\n",
@@ -371,6 +383,7 @@ pub fn write_report(
          (flag 1).\n",
     );
     md.push_str(&format!("{}.\n", crate::evaluation::allan::FLOOR_RULE));
+    md.push_str(&settled_markdown(&plots));
     let trained_end_index = trained_end_index.or(trained_on.map(|_| first_index));
     let surface = SurfacePlot::new(model, trajectory.points, trained_end_index);
     both("bias_surface", render(&surface))?;
@@ -378,7 +391,7 @@ pub fn write_report(
     for p in &plots {
         let stem = &p.stem;
         md.push_str(&format!(
-            "### {}\n\n![rate]({stem}_rate.svg)\n\n![bias against temperature]({stem}_bias_vs_temp.svg)\n\n![Allan deviation]({stem}_allan.svg)\n\n",
+            "### {}\n\n![rate]({stem}_rate.svg)\n\n![bias against temperature]({stem}_bias_vs_temp.svg)\n\n![Allan deviation]({stem}_allan.svg)\n\n![settled bias]({stem}_settled_bias.svg)\n\n",
             text::escape_controls(stem)
         ));
     }
@@ -388,6 +401,50 @@ pub fn write_report(
     write("report.json", json.as_bytes())?;
     write("report.md", md.as_bytes())?;
     Ok((written.get(), plots.into_iter().map(|p| p.evaluation).collect()))
+}
+
+/// The settled-bias section of report.md: per run its spread (or why none)
+/// and a row per plateau.
+fn settled_markdown(plots: &[RunPlots]) -> String {
+    let mut md = String::from(
+        "\n## Settled bias (soak plateaus)\n\nA plateau: 60-s means of the loop temperature within 0.05 °C of the \
+         block before for at least 30 min (a gap ends it); its settled bias is the mean residual over its last \
+         30 min but the final minute, ± the noise of that mean (STD of the minute means / √n).\n\n",
+    );
+    for p in plots {
+        let Some(settled) = &p.evaluation.settled else { continue };
+        md.push_str(&format!(
+            "- {}: {}\n",
+            text::escape_controls(&p.stem),
+            spread_words(settled)
+        ));
+    }
+    let any = plots
+        .iter()
+        .any(|p| p.evaluation.settled.as_ref().is_some_and(|s| !s.plateaus.is_empty()));
+    if any {
+        md.push_str(
+            "\n| run | loop T [°C] | steady [min] | window [s] | bias before [°/h] | bias after [°/h] | noise [°/h] |\n\
+             |---|---|---|---|---|---|---|\n",
+        );
+        for p in plots {
+            let Some(settled) = &p.evaluation.settled else { continue };
+            for q in &settled.plateaus {
+                md.push_str(&format!(
+                    "| {} | {:.2} | {:.0} | {:.0} … {:.0} | {:+.4} | {:+.4} | {} |\n",
+                    text::escape_controls(&p.stem),
+                    q.temp_c,
+                    q.steady_s / 60.0,
+                    q.window_start_s,
+                    q.window_end_s,
+                    q.bias_before_dph,
+                    q.bias_after_dph,
+                    figure(q.noise_dph, |v| format!("{v:.4}"))
+                ));
+            }
+        }
+    }
+    md
 }
 
 /// The summary page of a multi-axis report (its top report.md): every run
