@@ -92,7 +92,7 @@ impl Figure for SettledPlot<'_> {
             }))?;
             chart.draw_series(
                 bars.iter()
-                    .map(|&(t, _, mid, _)| Circle::new((t, mid), 4, colour.filled())),
+                    .map(|&(t, _, mid, _)| Circle::new((t, mid), 2, colour.filled())),
             )?;
         }
         root.present()?;
