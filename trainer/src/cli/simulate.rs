@@ -111,9 +111,9 @@ pub struct Args {
         help_heading = "Data"
     )]
     soak_levels_c: Option<Vec<f64>>,
-    /// Hold at each level of the soak profile, hours.
-    #[arg(long = "soak-hold-h", value_name = "H", default_value_t = 3.0, help_heading = "Data")]
-    soak_hold_h: f64,
+    /// Hold at each level of the soak profile, hours [default: 3].
+    #[arg(long = "soak-hold-h", value_name = "H", help_heading = "Data")]
+    soak_hold_h: Option<f64>,
     /// Zero every thermal bias term: the run's noise alone.
     ///
     /// The same run sample for sample without its thermal bias (the run's noise ceiling).
@@ -189,13 +189,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             "--soak-levels-c takes 1 … 32 levels within −55 … 150 °C (the TMP117's range)"
         );
     }
+    if let Some(h) = a.soak_hold_h {
+        anyhow::ensure!(
+            h.is_finite() && h > 0.0 && h <= 48.0,
+            "--soak-hold-h {h}: must be more than 0 and at most 48 h"
+        );
+    }
     anyhow::ensure!(
-        a.soak_hold_h.is_finite() && a.soak_hold_h > 0.0 && a.soak_hold_h <= 48.0,
-        "--soak-hold-h {}: must be more than 0 and at most 48 h",
-        a.soak_hold_h
-    );
-    anyhow::ensure!(
-        profile_is_soak(a.profile) || (a.soak_levels_c.is_none() && a.soak_hold_h == 3.0),
+        profile_is_soak(a.profile) || (a.soak_levels_c.is_none() && a.soak_hold_h.is_none()),
         "--soak-levels-c and --soak-hold-h shape the soak profile: add --profile soak"
     );
     if let Some(h) = a.hours {
@@ -239,7 +240,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(levels) = &a.soak_levels_c {
         run.soak_levels_c.clone_from(levels);
     }
-    run.soak_hold_s = a.soak_hold_h * 3600.0;
+    if let Some(h) = a.soak_hold_h {
+        run.soak_hold_s = h * 3600.0;
+    }
     run.drawn = drawn;
     run.noise_only = a.noise_only;
     run.params = match &a.params {
