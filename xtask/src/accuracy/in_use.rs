@@ -315,6 +315,7 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
     );
     let mut plants_json = Vec::new();
     let mut summary = Vec::new();
+    let mut soak_table: Vec<(String, Vec<Option<f64>>)> = Vec::new();
     let plants = plants(opts);
     for (p, plant) in plants.iter().enumerate() {
         let tag = format!("p{p}");
@@ -485,10 +486,12 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             "forecast_worst_factor": plant_summary.target_forecast(),
             "targets_missed": plant_summary.missed_targets(),
         }));
+        soak_table.push((plant.name.clone(), soak_spreads.iter().map(|s| s.1).collect()));
         summary.push(plant_summary);
     }
     let columns: Vec<(Training, &str)> = training.iter().map(|(kind, run)| (*kind, run.name.as_str())).collect();
     print!("{}", summary_table(&summary, &columns));
+    print_soak_table(&soak_table, &training);
     let runtime_s = started.elapsed().as_secs_f64();
     println!("in-use section: {runtime_s:.0} s");
     Ok(json!({
@@ -644,6 +647,30 @@ fn lag_bank_scores(
         structure: None,
         fit_report: None,
     })
+}
+
+/// The soak test's settled spread after the default's fit, °/h: a row per
+/// plant, a column per training run (`-`: fit refused, or under two plateaus).
+fn print_soak_table(rows: &[(String, Vec<Option<f64>>)], training: &[(Training, RunSpec)]) {
+    println!("\nsoak test (simulate --profile soak): settled spread after compensation [°/h], trained on");
+    print!("{:<22}", "plant");
+    for (k, (kind, _)) in training.iter().enumerate() {
+        print!(" {:>12}", format!("{kind:?} {}", k + 1).to_lowercase());
+    }
+    println!();
+    for (plant, spreads) in rows {
+        print!("{plant:<22}");
+        for s in spreads {
+            print!(" {:>12}", s.map_or("-".into(), |s| format!("{s:.4}")));
+        }
+        println!();
+    }
+    let names: Vec<String> = training
+        .iter()
+        .enumerate()
+        .map(|(k, (_, run))| format!("{} {}", k + 1, run.name))
+        .collect();
+    println!("({})", names.join("; "));
 }
 
 const LABEL_WIDTH: usize = 38;
