@@ -466,22 +466,31 @@ pub fn axes_summary_markdown(model_path: &Path, axes: &[(Axis, Vec<RunEvaluation
             .join(", ")
     );
     md.push_str(
-        "| run | axis | 100-s STD before [°/h] | after [°/h] | improvement | BI after [°/h] | clamped |\n\
-         |---|---|---|---|---|---|---|\n",
+        "| run | axis | 100-s STD before [°/h] | after [°/h] | improvement | BI after [°/h] | clamped | settled spread before → after [°/h] |\n\
+         |---|---|---|---|---|---|---|---|\n",
     );
     let runs = axes.iter().map(|(_, e)| e.len()).max().unwrap_or(0);
     for run in 0..runs {
         for (axis, evaluations) in axes {
             let Some(e) = evaluations.get(run) else { continue };
+            let settled = match e
+                .settled
+                .as_ref()
+                .map(|s| (s.settled_spread_before_dph, s.settled_spread_dph))
+            {
+                Some((Some(before), Some(after))) => format!("{before:.3} → {after:.4}"),
+                _ => "– (under 2 plateaus)".to_owned(),
+            };
             md.push_str(&format!(
-                "| {} | {} | {} | {} | {} | {} | {} |\n",
+                "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
                 text::escape_controls(&run_stem(Path::new(&e.run))),
                 axis.name(),
                 figure(e.cluster_std_before_dph, |v| format!("{v:.4}")),
                 figure(e.cluster_std_after_dph, |v| format!("{v:.4}")),
                 figure(e.cluster_std_improvement_pct, |v| format!("{v:.1} %")),
                 e.allan_after.bias_instability_cell(),
-                clamped_cell(e.flagged.input_clamped, e.samples)
+                clamped_cell(e.flagged.input_clamped, e.samples),
+                settled
             ));
         }
     }
