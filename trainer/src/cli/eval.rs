@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use trainer::blobfile::read_model_file;
 use trainer::evaluation::axes::evaluate_files;
 use trainer::evaluation::evaluate::RunEvaluation;
-use trainer::evaluation::table::{print_allan_table, print_table};
+use trainer::evaluation::table::{print_allan_table, print_settled_table, print_table};
 use trainer::reading::input;
 
 use super::common::{AllowUncompensated, ForceArg, JsonArg, print_and_commit};
@@ -19,7 +19,10 @@ use trainer::output::Transaction;
 /// mean), and the bias STD of 100-s cluster means (RLG paper), before and after
 /// compensation, with the improvement in %; then the overlapping Allan
 /// deviation (IEEE Std 952) before and after, with angle random walk [°/√h] and
-/// bias instability [°/h] read off it (--json has the whole curves). A
+/// bias instability [°/h] read off it (--json has the whole curves); then the
+/// settled bias of every plateau where the loop held a temperature for 30 min
+/// (a soak test), before and after, and its spread across the plateaus
+/// (--json: `settled_spread_dph`, `settled_spread_before_dph`, `plateaus`). A
 /// multi-axis run gets a row per axis, with its axis's model, in one pass.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  trainer eval --model model.bin check.csv field.csv --json eval.json")]
@@ -59,5 +62,10 @@ pub fn write_tables(out: &mut impl Write, evals: &[RunEvaluation]) -> anyhow::Re
     print_table(out, &rows)?;
     writeln!(out, "\nOverlapping Allan deviation (IEEE Std 952) of rate − reference:")?;
     print_allan_table(out, &rows)?;
+    writeln!(
+        out,
+        "\nSettled bias of soak plateaus (mean of rate − reference over the plateau's settled window):"
+    )?;
+    print_settled_table(out, &rows)?;
     Ok(())
 }

@@ -31,12 +31,13 @@ use super::values::ProfileArg;
 #[command(
     after_help = "Examples:\n  trainer simulate --profile field --unit 3 --seed 7 -o field.csv\n  \
                         trainer simulate --chamber-profile plan.csv --design 7 -o planned.csv\n  \
-                        trainer simulate --profile cycle --axes 3 -o imu-cycle.csv"
+                        trainer simulate --profile cycle --axes 3 -o imu-cycle.csv\n  \
+                        trainer simulate --profile soak --design 7 -o soak.csv"
 )]
 pub struct Args {
     /// Temperature history (docs/simulator.md, "Profiles").
     ///
-    /// Chamber: ifog, cycle, random, designed; in use: cold-start, ambient-steps, swings,
+    /// Chamber: ifog, cycle, random, designed, soak; in use: cold-start, ambient-steps, swings,
     /// day-cycle, field.
     #[arg(long, value_enum, default_value_t = ProfileArg::Ifog, conflicts_with = "chamber_profile",
           help_heading = "Data")]
@@ -98,6 +99,21 @@ pub struct Args {
     #[arg(long = "ramp-range-c-per-min", alias = "ramp-range", value_name = "MIN,MAX",
           value_delimiter = ',', default_values_t = [0.5, 5.0], help_heading = "Data")]
     ramp_range_c_per_min: Vec<f64>,
+    /// Levels of the soak profile, °C, in order, as A,B,C,….
+    ///
+    /// Default 25,0,40,-20,60,20,-40,10 (issue 48's soak test); 1 … 32 levels within
+    /// −55 … 150 °C.
+    #[arg(
+        long = "soak-levels-c",
+        value_name = "C,...",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        help_heading = "Data"
+    )]
+    soak_levels_c: Option<Vec<f64>>,
+    /// Hold at each level of the soak profile, hours [default: 3].
+    #[arg(long = "soak-hold-h", value_name = "H", help_heading = "Data")]
+    soak_hold_h: Option<f64>,
     /// Zero every thermal bias term: the run's noise alone.
     ///
     /// The same run sample for sample without its thermal bias (the run's noise ceiling).
@@ -167,6 +183,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         slowest.is_finite() && fastest.is_finite() && 0.01 <= slowest && slowest <= fastest && fastest <= 20.0,
         "--ramp-range-c-per-min must lie within 0.01 … 20 °C/min, slowest first"
     );
+    if let Some(levels) = &a.soak_levels_c {
+        anyhow::ensure!(
+            (1..=32).contains(&levels.len()) && levels.iter().all(|c| c.is_finite() && (-55.0..=150.0).contains(c)),
+            "--soak-levels-c takes 1 … 32 levels within −55 … 150 °C (the TMP117's range)"
+        );
+    }
+    if let Some(h) = a.soak_hold_h {
+        anyhow::ensure!(
+            h.is_finite() && h > 0.0 && h <= 48.0,
+            "--soak-hold-h {h}: must be more than 0 and at most 48 h"
+        );
+    }
+    anyhow::ensure!(
+        profile_is_soak(a.profile) || (a.soak_levels_c.is_none() && a.soak_hold_h.is_none()),
+        "--soak-levels-c and --soak-hold-h shape the soak profile: add --profile soak"
+    );
     if let Some(h) = a.hours {
         anyhow::ensure!(
             h.is_finite() && h > 0.0 && h <= MAX_SIM_HOURS,
@@ -205,6 +237,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     run.multi = a.multi;
     run.random_range_c = (lo, hi);
     run.ramp_range_c_per_min = (slowest, fastest);
+    if let Some(levels) = &a.soak_levels_c {
+        run.soak_levels_c.clone_from(levels);
+    }
+    if let Some(h) = a.soak_hold_h {
+        run.soak_hold_s = h * 3600.0;
+    }
     run.drawn = drawn;
     run.noise_only = a.noise_only;
     run.params = match &a.params {
@@ -223,6 +261,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     .with_context(|| format!("{}: write failed", text::path(&a.output)))?;
     let printed = format!("wrote {}\n", text::path(&a.output));
     print_and_commit(printed.as_bytes(), false, Transaction::of(out))
+}
+
+/// Whether `profile` is the soak profile (the only one `--soak-levels-c` and `--soak-hold-h` shape).
+fn profile_is_soak(profile: ProfileArg) -> bool {
+    matches!(profile, ProfileArg::Soak)
 }
 
 /// Fastest sample rate `trainer simulate` writes, Hz.

@@ -80,6 +80,8 @@ pub enum ProfileArg {
     DayCycle,
     /// In use: a cold start followed by a seeded mix of steps, swings and slow drifts.
     Field,
+    /// Chamber: a soak test, 3-h holds at 25, 0, 40, −20, 60, 20, −40, 10 °C, 1 °C/min between.
+    Soak,
 }
 
 impl From<ProfileArg> for Profile {
@@ -94,6 +96,7 @@ impl From<ProfileArg> for Profile {
             ProfileArg::Swings => Profile::Swings,
             ProfileArg::DayCycle => Profile::DayCycle,
             ProfileArg::Field => Profile::Field,
+            ProfileArg::Soak => Profile::Soak,
         }
     }
 }

@@ -30,12 +30,14 @@
 //! 4. fits: [`crate::fit`] reads the blocks through [`RunSet::block_means`].
 //!
 //! The thermometers' pairwise gradients and their correlation with the bias
-//! (the RLG paper's input selection, `trainer correlate`) are [`gradients`].
+//! (the RLG paper's input selection, `trainer correlate`) are [`gradients`];
+//! the settled plateaus of a run (a soak test's figure) are [`plateaus`].
 
 mod blocks;
 mod builder;
 mod derive;
 pub mod gradients;
+pub mod plateaus;
 mod run_files;
 mod run_set;
 #[cfg(test)]

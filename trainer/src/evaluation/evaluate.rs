@@ -12,6 +12,7 @@ use rbf_core::{
 use serde::Serialize;
 
 use crate::dataset::Blocks;
+use crate::dataset::plateaus::{MinuteBlocker, SettledBias};
 use crate::evaluation::allan::{self, AllanDeviation};
 use crate::evaluation::diagnose::RunDiagnosis;
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
@@ -103,6 +104,11 @@ pub struct RunEvaluation {
     pub allan_before: AllanDeviation,
     /// Overlapping Allan deviation of rate − reference, compensated.
     pub allan_after: AllanDeviation,
+    /// The settled plateaus and the spread of their bias, before and after
+    /// ([`crate::dataset::plateaus`]); `None` where the run was scored on a
+    /// fit's block means, which do not keep the loop temperature.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub settled: Option<SettledBias>,
 }
 
 /// [`RunEvaluation::reference`] of a run without `ref_dph`.
@@ -137,7 +143,13 @@ fn evaluate_output(run: &Run, out: &[CompensatedSample]) -> RunEvaluation {
     let mut evaluator = Evaluator::new(&run.path, run.nominal_period_s, run.ref_dph.is_some());
     for (i, o) in out.iter().enumerate().take(run.len()) {
         let r = reference.at(i);
-        evaluator.push(run.time_s[i], run.rate_dph[i] - r, o.rate_comp_dph as f64 - r, o.flags);
+        evaluator.push(
+            run.time_s[i],
+            run.temp_c[i],
+            run.rate_dph[i] - r,
+            o.rate_comp_dph as f64 - r,
+            o.flags,
+        );
     }
     evaluator.finish()
 }
@@ -205,6 +217,7 @@ pub fn evaluate_blocks(
     let length_s = blocks.length_s(block_s);
     let mut evaluator = Evaluator::new(path, block_spacing_s(blocks, run, length_s), has_ref);
     evaluator.basis = block_basis(blocks.doublings, length_s);
+    evaluator.settled = None;
     let dims = blocks.dims.min(MAX_INPUTS);
     for i in (0..blocks.len()).filter(|&i| blocks.run[i] == run) {
         let mut x = [0.0f32; MAX_INPUTS];
@@ -458,7 +471,13 @@ fn evaluate_stepped(
             stepper.step(&config, &rows, &mut outputs);
             for (((evaluator, diagnosis, compensated), (row, _)), out) in state.iter_mut().zip(&rows).zip(&outputs) {
                 let r = row.ref_dph.unwrap_or(0.0);
-                evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
+                evaluator.push(
+                    row.time_s,
+                    row.readings_c()[rbf_core::features::LOOP_THERMOMETER],
+                    row.rate_dph - r,
+                    out.rate_comp_dph as f64 - r,
+                    out.flags,
+                );
                 diagnosis.push(batch.line(i), row);
                 *compensated += usize::from(!out.flags.contains(Flags::NO_VALID_MODEL));
             }
@@ -549,7 +568,8 @@ pub fn require_evaluable(path: &Path, rows: usize, diagnosis: &RunDiagnosis) -> 
 }
 
 /// Accumulates a run's before/after accuracy sample by sample: 1-s and 100-s
-/// bin means, flag counts and bounded Allan series ([`allan::Decimated`]).
+/// bin means, flag counts, bounded Allan series ([`allan::Decimated`]) and
+/// the 60-s blocks its settled plateaus are found in ([`MinuteBlocker`]).
 pub struct Evaluator {
     run: String,
     basis: String,
@@ -560,6 +580,11 @@ pub struct Evaluator {
     msd: [BinMeans; 2],
     clusters: [BinMeans; 2],
     allan: [allan::Decimated; 2],
+    /// `None`: block means are scored, whose temperatures are not known here.
+    settled: Option<MinuteBlocker>,
+    /// Sum of the residual before compensation over every sample, °/h (the
+    /// run mean is the reference of a run without `ref_dph`).
+    before_sum_dph: f64,
 }
 
 impl Evaluator {
@@ -582,17 +607,24 @@ impl Evaluator {
             msd: bins(MSD_WINDOW_S),
             clusters: bins(CLUSTER_S),
             allan: [allan::Decimated::new(), allan::Decimated::new()],
+            settled: Some(MinuteBlocker::new(nominal_period_s)),
+            before_sum_dph: 0.0,
         }
     }
 
-    /// Takes one sample at `time_s`: raw and compensated deviation from the reference, °/h.
-    pub fn push(&mut self, time_s: f64, before_dph: f64, after_dph: f64, flags: Flags) {
+    /// Takes one sample at `time_s`: its loop temperature (°C, `None`: not
+    /// read), raw and compensated deviation from the reference, °/h.
+    pub fn push(&mut self, time_s: f64, temp_c: Option<f64>, before_dph: f64, after_dph: f64, flags: Flags) {
+        if let Some(blocker) = &mut self.settled {
+            blocker.push(time_s, temp_c, before_dph, after_dph);
+        }
         self.push_mean(time_s, before_dph, after_dph, flags, 1);
     }
 
     /// Takes the mean of `samples` samples starting at `time_s` (a block).
     fn push_mean(&mut self, time_s: f64, before_dph: f64, after_dph: f64, flags: Flags, samples: usize) {
         self.samples += samples;
+        self.before_sum_dph += before_dph * samples as f64;
         self.flagged.add(flags, samples);
         for (k, v) in [before_dph, after_dph].into_iter().enumerate() {
             self.msd[k].push(time_s, v);
@@ -607,6 +639,16 @@ impl Evaluator {
         let [msd_before, msd_after] = self.msd.map(|b| msd_of_means(&b.finish(), about_mean));
         let [std_before, std_after] = self.clusters.map(|b| sample_std(&b.finish()));
         let period = self.nominal_period_s;
+        // Without ref_dph the reference is the run's mean rate.
+        let offset_dph = if about_mean && self.samples > 0 {
+            self.before_sum_dph / self.samples as f64
+        } else {
+            0.0
+        };
+        let settled = self.settled.map(|blocker| {
+            let first_time_s = blocker.first_time_s().unwrap_or(0.0);
+            SettledBias::of(&blocker.finish(), first_time_s, period, offset_dph)
+        });
         let [allan_before, allan_after] = self.allan.map(|a| {
             let (series, factor) = a.finish();
             allan::analyse(&series, period * factor as f64)
@@ -626,6 +668,7 @@ impl Evaluator {
             flagged: self.flagged,
             allan_before,
             allan_after,
+            settled,
         }
     }
 }
@@ -666,6 +709,7 @@ mod tests {
             let r = run.ref_dph.as_ref().unwrap()[i];
             evaluator.push(
                 run.time_s[i],
+                run.temp_c[i],
                 run.rate_dph[i] - r,
                 f64::from(o.rate_comp_dph) - r,
                 o.flags,

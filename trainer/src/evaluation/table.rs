@@ -1,5 +1,6 @@
 //! The accuracy tables `trainer eval` and `trainer fit` print: before/after figures
-//! per run ([`print_table`]) and the Allan noise terms ([`print_allan_table`]).
+//! per run ([`print_table`]), the Allan noise terms ([`print_allan_table`]) and
+//! the settled bias of soak plateaus ([`print_settled_table`]).
 
 use std::io::Write;
 use std::path::Path;
@@ -164,6 +165,81 @@ pub fn print_allan_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) 
     {
         writeln!(out, "(—: the run is too short for an Allan deviation)")?;
     }
+    Ok(())
+}
+
+/// What a run without settled plateaus reads as.
+pub const NO_PLATEAU: &str = "no settled plateau (the loop never steady for 30 min)";
+
+/// Writes the settled bias of every plateau before and after compensation,
+/// a line per plateau, then each run's spread (max − min) or why it has
+/// none ([`crate::dataset::plateaus`] states the rule). Evaluations scored
+/// on block means (no settled figures) are left out.
+pub fn print_settled_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "{:<28}{} {:>8} {:>7}  {:>21}  {:>21}",
+        "run",
+        axis_cell(rows, Some("axis")),
+        "T loop",
+        "steady",
+        "bias before ± noise",
+        "bias after ± noise"
+    )?;
+    writeln!(
+        out,
+        "{:<28}{} {:>8} {:>7}  {:>21}  {:>21}",
+        "",
+        axis_cell(rows, Some("")),
+        "[°C]",
+        "[min]",
+        "[°/h]",
+        "[°/h]"
+    )?;
+    let bias = |b: f64, noise: f64| {
+        format!(
+            "{} ± {}",
+            figure(b, |v| format!("{v:+.4}")),
+            figure(noise, |v| format!("{v:.4}"))
+        )
+    };
+    let mut spreads = Vec::new();
+    for (_, e) in rows {
+        let Some(settled) = &e.settled else { continue };
+        let name = table_name(&e.run);
+        let axis = e.axis.map_or(String::new(), |a| format!(" axis {a}"));
+        for p in &settled.plateaus {
+            writeln!(
+                out,
+                "{:<28}{} {:>8.2} {:>7.0}  {:>21}  {:>21}",
+                name,
+                axis_cell(rows, e.axis),
+                p.temp_c,
+                p.steady_s / 60.0,
+                bias(p.bias_before_dph, p.noise_before_dph),
+                bias(p.bias_after_dph, p.noise_dph)
+            )?;
+        }
+        spreads.push(match (settled.settled_spread_before_dph, settled.settled_spread_dph) {
+            (Some(before), Some(after)) => format!(
+                "{name}{axis}: settled spread (max − min over {} plateaus) before {before:.4} °/h, after {after:.4} °/h",
+                settled.plateaus.len()
+            ),
+            _ if settled.plateaus.len() == 1 => format!("{name}{axis}: one settled plateau, no spread"),
+            _ => format!("{name}{axis}: {NO_PLATEAU}"),
+        });
+    }
+    for line in spreads {
+        writeln!(out, "{line}")?;
+    }
+    writeln!(
+        out,
+        "(plateau: 60-s means of the loop temperature within {} °C of the block before for ≥ {:.0} min, a gap ends it; its last \
+         {:.0} min but the final minute read; noise: STD of the minute means / √n)",
+        crate::dataset::plateaus::STEADY_STEP_C,
+        crate::dataset::plateaus::MIN_STEADY_S / 60.0,
+        crate::dataset::plateaus::WINDOW_S / 60.0
+    )?;
     Ok(())
 }
 

@@ -35,9 +35,10 @@ mod allan_plot;
 mod bias_temp;
 mod canvas;
 mod rate;
+mod settled;
 mod surface;
 
-use self::{allan_plot::*, bias_temp::*, canvas::*, rate::*, surface::*};
+use self::{allan_plot::*, bias_temp::*, canvas::*, rate::*, settled::*, surface::*};
 
 /// What one run contributes to the report, gathered in one streaming pass.
 struct RunPlots {
@@ -80,7 +81,14 @@ fn read_run(
     run.for_each_line(|line, row, sample| {
         let out = compensator.process(Some(model), &config, sample);
         let r = row.ref_dph.unwrap_or(0.0);
-        evaluator.push(row.time_s, row.rate_dph - r, out.rate_comp_dph as f64 - r, out.flags);
+        let loop_c = row.readings_c()[rbf_core::features::LOOP_THERMOMETER];
+        evaluator.push(
+            row.time_s,
+            loop_c,
+            row.rate_dph - r,
+            out.rate_comp_dph as f64 - r,
+            out.flags,
+        );
         diagnosis.push(line, row);
         compensated += usize::from(!out.flags.contains(rbf_core::Flags::NO_VALID_MODEL));
         rate_sum += row.rate_dph;
@@ -345,6 +353,17 @@ pub fn write_report(
             duration_s: p.duration_s,
         };
         both(&format!("{stem}_allan"), render(&allan))?;
+        if let Some(settled) = &p.evaluation.settled {
+            let plot = SettledPlot {
+                title: format!(
+                    "{}: settled bias against loop temperature, ±2σ of the mean; {}",
+                    titled(stem),
+                    spread_words(settled)
+                ),
+                settled,
+            };
+            both(&format!("{stem}_settled_bias"), render(&plot))?;
+        }
         let e = &p.evaluation;
         md.push_str(&format!(
             "| {} | {} | {} | {} | {} | {} | {} → {} | {} |\n",
@@ -364,6 +383,7 @@ pub fn write_report(
          (flag 1).\n",
     );
     md.push_str(&format!("{}.\n", crate::evaluation::allan::FLOOR_RULE));
+    md.push_str(&settled_markdown(&plots));
     let trained_end_index = trained_end_index.or(trained_on.map(|_| first_index));
     let surface = SurfacePlot::new(model, trajectory.points, trained_end_index);
     both("bias_surface", render(&surface))?;
@@ -371,7 +391,7 @@ pub fn write_report(
     for p in &plots {
         let stem = &p.stem;
         md.push_str(&format!(
-            "### {}\n\n![rate]({stem}_rate.svg)\n\n![bias against temperature]({stem}_bias_vs_temp.svg)\n\n![Allan deviation]({stem}_allan.svg)\n\n",
+            "### {}\n\n![rate]({stem}_rate.svg)\n\n![bias against temperature]({stem}_bias_vs_temp.svg)\n\n![Allan deviation]({stem}_allan.svg)\n\n![settled bias]({stem}_settled_bias.svg)\n\n",
             text::escape_controls(stem)
         ));
     }
@@ -381,6 +401,54 @@ pub fn write_report(
     write("report.json", json.as_bytes())?;
     write("report.md", md.as_bytes())?;
     Ok((written.get(), plots.into_iter().map(|p| p.evaluation).collect()))
+}
+
+/// The settled-bias section of report.md: per run its spread (or why none)
+/// and a row per plateau.
+fn settled_markdown(plots: &[RunPlots]) -> String {
+    use crate::dataset::plateaus::{BLOCK_S, MIN_STEADY_S, STEADY_STEP_C, WINDOW_S};
+    let mut md = format!(
+        "\n## Settled bias (soak plateaus)\n\nA plateau: {BLOCK_S:.0}-s means of the loop temperature within \
+         {STEADY_STEP_C} °C of the block before for at least {:.0} min (a gap ends it); its settled bias is the \
+         mean residual over its last {:.0} min but the final block, ± the noise of that mean (STD of the block \
+         means / √n).\n\n",
+        MIN_STEADY_S / 60.0,
+        WINDOW_S / 60.0
+    );
+    for p in plots {
+        let Some(settled) = &p.evaluation.settled else { continue };
+        md.push_str(&format!(
+            "- {}: {}\n",
+            text::escape_controls(&p.stem),
+            spread_words(settled)
+        ));
+    }
+    let any = plots
+        .iter()
+        .any(|p| p.evaluation.settled.as_ref().is_some_and(|s| !s.plateaus.is_empty()));
+    if any {
+        md.push_str(
+            "\n| run | loop T [°C] | steady [min] | window [s] | bias before [°/h] | bias after [°/h] | noise [°/h] |\n\
+             |---|---|---|---|---|---|---|\n",
+        );
+        for p in plots {
+            let Some(settled) = &p.evaluation.settled else { continue };
+            for q in &settled.plateaus {
+                md.push_str(&format!(
+                    "| {} | {:.2} | {:.0} | {:.0} … {:.0} | {:+.4} | {:+.4} | {} |\n",
+                    text::escape_controls(&p.stem),
+                    q.temp_c,
+                    q.steady_s / 60.0,
+                    q.window_start_s,
+                    q.window_end_s,
+                    q.bias_before_dph,
+                    q.bias_after_dph,
+                    figure(q.noise_dph, |v| format!("{v:.4}"))
+                ));
+            }
+        }
+    }
+    md
 }
 
 /// The summary page of a multi-axis report (its top report.md): every run
@@ -398,22 +466,31 @@ pub fn axes_summary_markdown(model_path: &Path, axes: &[(Axis, Vec<RunEvaluation
             .join(", ")
     );
     md.push_str(
-        "| run | axis | 100-s STD before [°/h] | after [°/h] | improvement | BI after [°/h] | clamped |\n\
-         |---|---|---|---|---|---|---|\n",
+        "| run | axis | 100-s STD before [°/h] | after [°/h] | improvement | BI after [°/h] | clamped | settled spread before → after [°/h] |\n\
+         |---|---|---|---|---|---|---|---|\n",
     );
     let runs = axes.iter().map(|(_, e)| e.len()).max().unwrap_or(0);
     for run in 0..runs {
         for (axis, evaluations) in axes {
             let Some(e) = evaluations.get(run) else { continue };
+            let settled = match e
+                .settled
+                .as_ref()
+                .map(|s| (s.settled_spread_before_dph, s.settled_spread_dph))
+            {
+                Some((Some(before), Some(after))) => format!("{before:.3} → {after:.4}"),
+                _ => "– (under 2 plateaus)".to_owned(),
+            };
             md.push_str(&format!(
-                "| {} | {} | {} | {} | {} | {} | {} |\n",
+                "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
                 text::escape_controls(&run_stem(Path::new(&e.run))),
                 axis.name(),
                 figure(e.cluster_std_before_dph, |v| format!("{v:.4}")),
                 figure(e.cluster_std_after_dph, |v| format!("{v:.4}")),
                 figure(e.cluster_std_improvement_pct, |v| format!("{v:.1} %")),
                 e.allan_after.bias_instability_cell(),
-                clamped_cell(e.flagged.input_clamped, e.samples)
+                clamped_cell(e.flagged.input_clamped, e.samples),
+                settled
             ));
         }
     }
@@ -538,6 +615,7 @@ mod tests {
             flagged: Default::default(),
             allan_before: curve(hi),
             allan_after: curve(hi * 0.9),
+            settled: None,
         }
     }
 

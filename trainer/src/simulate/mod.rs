@@ -139,6 +139,10 @@ pub struct ChamberRun {
     pub random_range_c: (f64, f64),
     /// Ramp-rate range of random profiles, °C/min (slowest, fastest).
     pub ramp_range_c_per_min: (f64, f64),
+    /// Chamber levels of [`Profile::Soak`] runs, in order, °C.
+    pub soak_levels_c: Vec<f64>,
+    /// Hold at each level of [`Profile::Soak`] runs, s.
+    pub soak_hold_s: f64,
     /// The chamber profile of [`Profile::Planned`] runs.
     pub planned: Option<Schedule>,
     /// Where the planned profile was read from (metadata).
@@ -170,6 +174,8 @@ impl ChamberRun {
             multi: false,
             random_range_c: (-40.0, 60.0),
             ramp_range_c_per_min: RANDOM_RAMP_RANGE_C_PER_MIN,
+            soak_levels_c: profile::SOAK_LEVELS_C.to_vec(),
+            soak_hold_s: profile::SOAK_HOLD_S,
             planned: None,
             planned_source: None,
             params: SimParams::default(),
@@ -331,9 +337,15 @@ impl ChamberRun {
             Profile::Ifog | Profile::Cycle | Profile::Designed => {
                 writeln!(out, "# ramp_c_per_min: {}", self.ramp_c_per_min)?;
             }
+            Profile::Soak => {
+                writeln!(out, "# ramp_c_per_min: {}", self.ramp_c_per_min)?;
+                let levels: Vec<String> = self.soak_levels_c.iter().map(f64::to_string).collect();
+                writeln!(out, "# soak_levels_c: {}", levels.join(", "))?;
+                writeln!(out, "# soak_hold_h: {}", self.soak_hold_s / 3600.0)?;
+            }
             _ => {}
         }
-        if matches!(self.profile, Profile::Designed | Profile::Planned) || self.profile.in_use() {
+        if matches!(self.profile, Profile::Designed | Profile::Planned | Profile::Soak) || self.profile.in_use() {
             writeln!(out, "# power_on: at 0 s, soaked at {start_c:.2} °C")?;
         }
         writeln!(out, "# latitude_deg: {}", gyro::LATITUDE_DEG)?;

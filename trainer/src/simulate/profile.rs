@@ -34,6 +34,10 @@ pub enum Profile {
     Field,
     /// A chamber profile read from a file (`trainer simulate --chamber-profile PLAN.csv`).
     Planned,
+    /// Chamber, a soak test (IEEE Std 952 style): holds at set levels until the
+    /// gyro settles (default: 3 h at 25, 0, 40, −20, 60, 20, −40, 10 °C), 1 °C/min
+    /// ramps between ([`SOAK_LEVELS_C`], [`SOAK_HOLD_S`]).
+    Soak,
 }
 
 impl Profile {
@@ -50,6 +54,7 @@ impl Profile {
             Profile::DayCycle => "day-cycle",
             Profile::Field => "field",
             Profile::Planned => "chamber-profile",
+            Profile::Soak => "soak",
         }
     }
 
@@ -69,7 +74,7 @@ impl Profile {
             Profile::ColdStart | Profile::Swings => 4.0,
             Profile::AmbientSteps => 6.0,
             Profile::DayCycle => 24.0,
-            Profile::Ifog | Profile::Cycle | Profile::Designed | Profile::Planned => return None,
+            Profile::Ifog | Profile::Cycle | Profile::Designed | Profile::Planned | Profile::Soak => return None,
         };
         Some(hours * 3600.0)
     }
@@ -130,6 +135,11 @@ pub const DESIGNED_LEVELS_C: [f64; 15] = [
 pub const DESIGNED_HOLD_MIN: (f64, f64) = (15.0, 50.0);
 /// Ramp rate of the designed run unless `--ramp` says otherwise, °C/min.
 pub const DESIGNED_RAMP_C_PER_MIN: f64 = 5.0;
+
+/// Chamber levels of the soak profile, in order, °C (the soak test of issue 48).
+pub const SOAK_LEVELS_C: [f64; 8] = [25.0, 0.0, 40.0, -20.0, 60.0, 20.0, -40.0, 10.0];
+/// Hold at each level of the soak profile, s (3 h).
+pub const SOAK_HOLD_S: f64 = 3.0 * 3600.0;
 
 /// A piecewise-linear air temperature.
 #[derive(Clone, Debug, PartialEq)]
@@ -265,6 +275,20 @@ fn random(run: &ChamberRun, end_s: f64, rng: &mut impl Rng) -> Vec<(f64, f64)> {
     knots
 }
 
+/// A hold of `hold_s` at each of `levels_c` from power-on, ramps of `ramp_c_per_min` between.
+fn soak(levels_c: &[f64], hold_s: f64, ramp_c_per_min: f64) -> Vec<(f64, f64)> {
+    let Some((&first, rest)) = levels_c.split_first() else {
+        return Vec::new();
+    };
+    let mut k = Knots::start(first);
+    k.hold(hold_s);
+    for &level in rest {
+        k.ramp_to(level, ramp_c_per_min);
+        k.hold(hold_s);
+    }
+    k.done()
+}
+
 fn designed(ramp_c_per_min: f64, rng: &mut impl Rng) -> Vec<(f64, f64)> {
     let mut k = Knots::start(DESIGNED_LEVELS_C[0]);
     k.hold(uniform(rng, DESIGNED_HOLD_MIN) * 60.0);
@@ -383,6 +407,7 @@ pub fn schedule(run: &ChamberRun, rng: &mut impl Rng) -> Schedule {
         Profile::DayCycle => day_cycle(end_s, rng),
         Profile::Field => field(end_s, rng),
         Profile::Planned => run.planned.as_ref().map_or_else(Vec::new, |s| s.knots.clone()),
+        Profile::Soak => soak(&run.soak_levels_c, run.soak_hold_s, run.ramp_c_per_min),
     };
     Schedule { knots }
 }
@@ -502,6 +527,38 @@ mod tests {
                 assert!(dc == 0.0 || within((0.2, 3.0), rate), "seed {seed}: {rate} °C/min");
             }
         }
+    }
+
+    #[test]
+    fn the_soak_test_holds_3_h_at_each_level_in_order_with_1_c_per_min_ramps() {
+        let knots = knots_of(&ChamberRun::with_profile(Profile::Soak, 1));
+        let holds: Vec<(f64, f64)> = pieces(&knots)
+            .iter()
+            .zip(&knots)
+            .filter(|(p, _)| p.1 == 0.0)
+            .map(|(p, k)| (k.1, p.0))
+            .collect();
+        assert_eq!(
+            holds.iter().map(|h| h.0).collect::<Vec<_>>(),
+            SOAK_LEVELS_C.to_vec(),
+            "levels in order"
+        );
+        assert!(holds.iter().all(|h| (h.1 - SOAK_HOLD_S).abs() < 1e-9), "{holds:?}");
+        for (_, dc, rate) in pieces(&knots) {
+            assert!(dc == 0.0 || (rate - 1.0).abs() < 1e-9, "{rate} °C/min");
+        }
+        // 8 × 3 h of holds + 355 °C of ramps at 1 °C/min: 29.9 h, as design4/5_soak.csv.
+        let hours = knots.last().unwrap().0 / 3600.0;
+        assert!((hours - (24.0 + 355.0 / 60.0)).abs() < 1e-9, "{hours} h");
+        let other = ChamberRun {
+            soak_levels_c: vec![-10.0, 50.0],
+            soak_hold_s: 3600.0,
+            ..ChamberRun::with_profile(Profile::Soak, 1)
+        };
+        assert_eq!(
+            knots_of(&other),
+            vec![(0.0, -10.0), (3600.0, -10.0), (7200.0, 50.0), (10_800.0, 50.0)]
+        );
     }
 
     #[test]

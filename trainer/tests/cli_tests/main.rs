@@ -12,4 +12,5 @@ mod plan;
 mod reading;
 mod response_bank;
 mod robustness;
+mod soak;
 mod transactions;

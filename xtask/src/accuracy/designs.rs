@@ -1,9 +1,13 @@
 //! `cargo xtask bench-designs`: the default `trainer fit` on recorded gyros
 //! of other designs (a directory of `NAME_planned.csv`, `NAME_cycle.csv`,
-//! `NAME_random.csv`, `NAME_field.csv`, as ../shared/data/other-designs
-//! holds): each design trained on its planned run and on its cycle, verified
-//! on its two in-use histories by the 100-s cluster STD against `ref_dph`,
-//! beside the forecast the fit wrote (`predicted_in_use_std100_dph`).
+//! `NAME_random.csv`, `NAME_field.csv`, and where present
+//! `NAME_planned24.csv` and `NAME_soak.csv`, as ../shared/data/other-designs
+//! holds): each design trained on its planned run, its 24-h planned run and
+//! its cycle, verified on its two in-use histories by the 100-s cluster STD
+//! against `ref_dph`, beside the forecast the fit wrote
+//! (`predicted_in_use_std100_dph`), and on its soak test by the spread of
+//! the settled bias across the plateaus (`trainer eval --json`'s
+//! `settled_spread_dph`, the rule of `trainer::dataset::plateaus`).
 
 use std::path::{Path, PathBuf};
 
@@ -13,8 +17,11 @@ use trainer::metrics::{cluster_std, improvement_pct};
 use super::in_use::read_columns;
 use super::{path, run_tool};
 
-/// The chamber runs a design is trained on, in print order.
-const TRAININGS: [&str; 2] = ["planned", "cycle"];
+/// The chamber runs a design is trained on, in print order (a design
+/// without one of them skips it).
+const TRAININGS: [&str; 3] = ["planned", "planned24", "cycle"];
+/// The soak test a design's models are compensated on, where it has one.
+const SOAK: &str = "soak";
 /// The in-use histories a design is verified on.
 const IN_USE: [&str; 2] = ["random", "field"];
 
@@ -41,13 +48,18 @@ pub fn bench_designs(dir: &Path, trainer: &Path, fit_args: &[String]) -> anyhow:
         }
     );
     println!(
-        "{:<10} {:<8} {:>9} {:>9} {:>9} {:>13} {:>13}  structure",
-        "design", "trained", "random %", "field %", "mean %", "forecast °/h", "measured °/h"
+        "{:<10} {:<9} {:>9} {:>9} {:>9} {:>13} {:>13} {:>10}  structure",
+        "design", "trained", "random %", "field %", "mean %", "forecast °/h", "measured °/h", "soak °/h"
     );
-    let mut means = [Vec::new(), Vec::new()];
+    let mut means = [Vec::new(), Vec::new(), Vec::new()];
+    let mut soak_spreads = [Vec::new(), Vec::new(), Vec::new()];
     for design in &designs {
         let file = |kind: &str| dir.join(format!("{design}_{kind}.csv"));
+        let mut soak_before = None;
         for (t, training) in TRAININGS.iter().enumerate() {
+            if !file(training).exists() {
+                continue;
+            }
             let model = work.path().join(format!("{design}_{training}.bin"));
             let json = work.path().join(format!("{design}_{training}.json"));
             let training_run = file(training);
@@ -97,8 +109,19 @@ pub fn bench_designs(dir: &Path, trainer: &Path, fit_args: &[String]) -> anyhow:
             }
             let mean = scores.iter().sum::<f64>() / scores.len() as f64;
             means[t].push(mean);
+            let soak = if file(SOAK).exists() {
+                let json = work.path().join(format!("{design}_{training}_soak.json"));
+                let (after, before) = soak_spread(trainer, &model, &file(SOAK), &json)?;
+                soak_before = soak_before.or(before);
+                after
+            } else {
+                None
+            };
+            if let Some(s) = soak {
+                soak_spreads[t].push(s);
+            }
             println!(
-                "{:<10} {:<8} {:>9.1} {:>9.1} {:>9.1} {:>13} {:>13}  {}",
+                "{:<10} {:<9} {:>9.1} {:>9.1} {:>9.1} {:>13} {:>13} {:>10}  {}",
                 design,
                 training,
                 scores[0],
@@ -110,17 +133,64 @@ pub fn bench_designs(dir: &Path, trainer: &Path, fit_args: &[String]) -> anyhow:
                     .map(|r| format!("{r:.4}"))
                     .collect::<Vec<_>>()
                     .join("/"),
+                soak.map_or("-".into(), |s| format!("{s:.4}")),
                 structure
             );
         }
+        if let Some(before) = soak_before {
+            println!(
+                "{:<10} {:<9} {:>69.3}  (soak test uncompensated)",
+                design, "none", before
+            );
+        }
     }
-    for (training, m) in TRAININGS.iter().zip(&means) {
+    for ((training, m), soak) in TRAININGS.iter().zip(&means).zip(&soak_spreads) {
+        if m.is_empty() {
+            continue;
+        }
         let worst = m.iter().copied().fold(f64::INFINITY, f64::min);
+        let soak = match soak.iter().copied().reduce(f64::max) {
+            Some(worst_soak) => format!(", soak spread worst {worst_soak:.4} °/h"),
+            None => String::new(),
+        };
         println!(
-            "trained on the {training}: mean of the designs' means {:.1} %, worst design {:.1} %",
+            "trained on the {training}: mean of the designs' means {:.1} %, worst design {:.1} %{soak}",
             m.iter().sum::<f64>() / m.len() as f64,
             worst
         );
     }
+    println!(
+        "(soak °/h: max − min of the settled bias (`trainer eval`'s settled_spread_dph) over the soak test's plateaus, \
+         after compensation; the uncompensated row: before)"
+    );
     Ok(())
+}
+
+/// `trainer eval --json` of `model` on the soak test `soak` (written to
+/// `json`): the settled spread after and before compensation, °/h (`None`:
+/// fewer than two plateaus).
+pub(super) fn soak_spread(
+    trainer: &Path,
+    model: &Path,
+    soak: &Path,
+    json: &Path,
+) -> anyhow::Result<(Option<f64>, Option<f64>)> {
+    run_tool(
+        trainer,
+        &[
+            "eval",
+            "--model",
+            path(model),
+            path(soak),
+            "--json",
+            path(json),
+            "--force",
+        ],
+    )?;
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json)?)
+        .with_context(|| format!("{}: trainer eval --json is not JSON", json.display()))?;
+    Ok((
+        v[0]["settled_spread_dph"].as_f64(),
+        v[0]["settled_spread_before_dph"].as_f64(),
+    ))
 }

@@ -10,7 +10,10 @@
 //! compensate` runs on four in-use histories (two random set-point runs
 //! −20 … 50 °C at 0.2 … 3 °C/min, two field histories), and the output is
 //! scored by its 100-s cluster STD against the known rate (`ref_dph`), beside
-//! the fit's forecast of that figure (`predicted_in_use_std100_dph`). Beside
+//! the fit's forecast of that figure (`predicted_in_use_std100_dph`), and on
+//! a soak test of the same plant (`trainer simulate --profile soak`: 3-h
+//! holds at eight levels across −40 … 60 °C) by the spread of its settled
+//! bias (`trainer eval --json`'s `settled_spread_dph`). Beside
 //! it: the lag-bank reference (bench/accuracy/lag_bank.py) on the same runs,
 //! and each run's noise ceiling (the same run with `--noise-only`);
 //! `summary`: the forecasts' factors and each plant against the targets.
@@ -197,6 +200,15 @@ fn in_use_runs() -> Vec<RunSpec> {
     ]
 }
 
+/// The soak test every plant's default models are also compensated on.
+fn soak_run() -> RunSpec {
+    RunSpec::new(
+        "soak 25/0/40/−20/60/20/−40/10 °C, 3-h holds",
+        &["--profile", "soak"],
+        515,
+    )
+}
+
 /// The models compared, in print order.
 const DEFAULT_MODEL: &str = "trainer fit (default)";
 const LAG_BANK: &str = "lag-bank reference";
@@ -303,6 +315,7 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
     );
     let mut plants_json = Vec::new();
     let mut summary = Vec::new();
+    let mut soak_table: Vec<(String, Vec<Option<f64>>)> = Vec::new();
     let plants = plants(opts);
     for (p, plant) in plants.iter().enumerate() {
         let tag = format!("p{p}");
@@ -344,6 +357,8 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             .iter()
             .map(|n| Ok(residual_std(&read_columns(n, &["time_s", "rate_dph", "ref_dph"])?)))
             .collect::<anyhow::Result<_>>()?;
+        let soak = simulate(&soak_run(), "soak", false)?;
+        let mut soak_spreads = Vec::new();
         let mut training_json = Vec::new();
         let mut plant_summary = PlantSummary {
             name: plant.name.clone(),
@@ -362,6 +377,16 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             let model = dir.join(format!("{tag}_train{s}.bin"));
             let default = fit_and_compensate(&judged, &fit_args, &train, &model, &verify, &raw)?;
             let reference = lag_bank_scores(python, &lag_bank, &train, &verify, &raw)?;
+            let soak_spread = match default.refusal {
+                None => Some(super::designs::soak_spread(
+                    &judged,
+                    &model,
+                    &soak,
+                    &dir.join(format!("{tag}_train{s}_soak.json")),
+                )?),
+                Some(_) => None,
+            };
+            soak_spreads.push((scenario.name.clone(), soak_spread.and_then(|s| s.0)));
             println!(
                 "trained on {} (loop {:.1} … {:.1} °C):",
                 scenario.name, loop_c.0, loop_c.1
@@ -373,6 +398,16 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             let mut models_json = Vec::new();
             for scores in [&default, &reference] {
                 print_model(scores, &before);
+                if scores.model == DEFAULT_MODEL
+                    && let Some((after, before)) = soak_spread
+                {
+                    let cell = |s: Option<f64>| s.map_or("- (under 2 plateaus)".into(), |s| format!("{s:.4}"));
+                    println!(
+                        "    soak test: settled spread {} °/h (uncompensated {})",
+                        cell(after),
+                        cell(before)
+                    );
+                }
                 let pct: Vec<f64> = scores
                     .after_dph
                     .iter()
@@ -399,6 +434,8 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
                     "mean_pct": finite(mean),
                     "worst_pct": finite(worst),
                     "forecast_worst_factor": forecast,
+                    "soak_settled_spread_dph": (scores.model == DEFAULT_MODEL)
+                        .then_some(soak_spread.and_then(|s| s.0).map(finite)).flatten(),
                     "fit_report": scores.fit_report,
                 }));
             }
@@ -424,6 +461,14 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
         );
         let (mean, worst) = mean_and_worst(&ceiling_pct);
         println!(" {mean:>7.1} {worst:>7.1}");
+        println!(
+            "soak test settled spread [°/h] after {}",
+            soak_spreads
+                .iter()
+                .map(|(name, s)| format!("{name}: {}", s.map_or("-".into(), |s| format!("{s:.4}"))))
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
         plant_summary.ceiling_pct = (mean, worst);
         plants_json.push(json!({
             "plant": plant.name,
@@ -437,13 +482,16 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
                 "noise_ceiling_pct": ceiling_pct[i],
             })).collect::<Vec<_>>(),
             "training": training_json,
+            "soak_run": { "simulate_args": soak_run().args, "seed": soak_run().seed + PLANT_SEED_STEP * p as u64 },
             "forecast_worst_factor": plant_summary.target_forecast(),
             "targets_missed": plant_summary.missed_targets(),
         }));
+        soak_table.push((plant.name.clone(), soak_spreads.iter().map(|s| s.1).collect()));
         summary.push(plant_summary);
     }
     let columns: Vec<(Training, &str)> = training.iter().map(|(kind, run)| (*kind, run.name.as_str())).collect();
     print!("{}", summary_table(&summary, &columns));
+    print_soak_table(&soak_table, &training);
     let runtime_s = started.elapsed().as_secs_f64();
     println!("in-use section: {runtime_s:.0} s");
     Ok(json!({
@@ -599,6 +647,30 @@ fn lag_bank_scores(
         structure: None,
         fit_report: None,
     })
+}
+
+/// The soak test's settled spread after the default's fit, °/h: a row per
+/// plant, a column per training run (`-`: fit refused, or under two plateaus).
+fn print_soak_table(rows: &[(String, Vec<Option<f64>>)], training: &[(Training, RunSpec)]) {
+    println!("\nsoak test (simulate --profile soak): settled spread after compensation [°/h], trained on");
+    print!("{:<22}", "plant");
+    for (k, (kind, _)) in training.iter().enumerate() {
+        print!(" {:>12}", format!("{kind:?} {}", k + 1).to_lowercase());
+    }
+    println!();
+    for (plant, spreads) in rows {
+        print!("{plant:<22}");
+        for s in spreads {
+            print!(" {:>12}", s.map_or("-".into(), |s| format!("{s:.4}")));
+        }
+        println!();
+    }
+    let names: Vec<String> = training
+        .iter()
+        .enumerate()
+        .map(|(k, (_, run))| format!("{} {}", k + 1, run.name))
+        .collect();
+    println!("({})", names.join("; "));
 }
 
 const LABEL_WIDTH: usize = 38;

@@ -1,0 +1,444 @@
+//! Settled plateaus of a run: where the loop held a temperature long enough
+//! for the gyro to settle, and the settled bias there (a soak test, IEEE Std
+//! 952 style). One rule, used by every command that reports it (`trainer
+//! eval`, `trainer report`, the benches through `eval --json`):
+//!
+//! 1. **Minute blocks.** The run is cut into [`BLOCK_S`] (60-s) blocks on its
+//!    own clock, block `k` holding the samples with
+//!    `k·60 ≤ time_s − time_s[0] < (k+1)·60`. Each block keeps the mean of the
+//!    loop temperature (`temp_c`, or an axis's loop thermometer) and of the
+//!    residuals before and after compensation. A block is *complete* when it
+//!    holds at least half its nominal samples, at least one temperature, and no
+//!    gap (a step longer than [`GAP_PERIODS`] nominal periods) lies inside it
+//!    or just before its first sample.
+//! 2. **Steady blocks.** Block `k` is steady when it and block `k − 1` are
+//!    both complete and its mean temperature differs from block `k − 1`'s by
+//!    at most [`STEADY_STEP_C`] (0.05 °C, i.e. 0.05 °C/min). A gap therefore
+//!    ends any plateau.
+//! 3. **Plateaus.** A plateau is a maximal stretch of consecutive steady
+//!    blocks lasting at least [`MIN_STEADY_S`] (30 min, 30 blocks). Its last
+//!    steady block is dropped (the loop already leaves the level during it:
+//!    the next ramp has begun); the *settled window* is the last
+//!    [`WINDOW_S`] (30 blocks) of what remains (29 blocks for a stretch of
+//!    exactly 30).
+//! 4. **Per plateau**: the loop temperature (mean over the window's samples,
+//!    °C); the steady stretch's duration (its blocks × 60 s, the dropped
+//!    one included); the window's start and end on the run's clock (s); the
+//!    settled bias, the mean of the residual over the window's samples
+//!    (°/h), before and after compensation; the noise of that mean, the
+//!    sample standard deviation of the window's one-minute residual means
+//!    divided by √(their number) (°/h).
+//! 5. **Spread**: max − min of the settled biases over the run's plateaus
+//!    (°/h), only with at least two plateaus ([`settled_spread_dph`]).
+//!
+//! The residual is `rate − ref` before compensation and `rate_comp − ref`
+//! after, `ref` being `ref_dph` or, without it, the run's mean rate (as the
+//! rest of `trainer eval` does): the caller hands it in.
+//!
+//! Everything here is a pure function of slices ([`minute_blocks`],
+//! [`settled_plateaus`]) or of a stream folded into the same blocks
+//! ([`MinuteBlocker`]), so a streamed evaluation holds one block a minute,
+//! whatever the run's sample rate.
+
+use serde::Serialize;
+
+/// Length of a block the loop temperature is averaged over, s.
+pub const BLOCK_S: f64 = 60.0;
+/// Largest change of a block's mean loop temperature from the previous
+/// block's for the block to count as steady, °C (per 60-s block: °C/min).
+pub const STEADY_STEP_C: f64 = 0.05;
+/// Shortest stretch of steady blocks that makes a plateau, s.
+pub const MIN_STEADY_S: f64 = 1800.0;
+/// Length of the settled window at the end of a plateau, s.
+pub const WINDOW_S: f64 = 1800.0;
+/// A time step longer than this many nominal periods is a gap in the run.
+pub const GAP_PERIODS: f64 = 2.0;
+
+/// Steady blocks a plateau needs ([`MIN_STEADY_S`] / [`BLOCK_S`]).
+const MIN_STEADY_BLOCKS: usize = (MIN_STEADY_S / BLOCK_S) as usize;
+/// Blocks of a full settled window ([`WINDOW_S`] / [`BLOCK_S`]).
+const WINDOW_BLOCKS: usize = (WINDOW_S / BLOCK_S) as usize;
+
+/// The sums of one 60-s block of a run.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MinuteBlock {
+    /// Block number on the run's clock: the block spans
+    /// `first_time_s + index·60 … + 60` s.
+    pub index: u64,
+    /// Samples in the block.
+    pub samples: usize,
+    /// Samples with a loop temperature.
+    pub temp_samples: usize,
+    /// Sum of the loop temperature, °C.
+    pub temp_sum_c: f64,
+    /// Sum of the residual before compensation, °/h.
+    pub before_sum_dph: f64,
+    /// Sum of the residual after compensation, °/h.
+    pub after_sum_dph: f64,
+    /// A gap lies inside the block or just before its first sample.
+    pub gap: bool,
+}
+
+impl MinuteBlock {
+    fn mean_temp_c(&self) -> f64 {
+        self.temp_sum_c / self.temp_samples as f64
+    }
+
+    fn mean_before_dph(&self) -> f64 {
+        self.before_sum_dph / self.samples as f64
+    }
+
+    fn mean_after_dph(&self) -> f64 {
+        self.after_sum_dph / self.samples as f64
+    }
+}
+
+/// Folds a run's samples, in time order, into [`MinuteBlock`]s.
+#[derive(Clone, Debug)]
+pub struct MinuteBlocker {
+    nominal_period_s: f64,
+    first_time_s: Option<f64>,
+    last_time_s: f64,
+    pending_gap: bool,
+    blocks: Vec<MinuteBlock>,
+}
+
+impl MinuteBlocker {
+    /// A blocker for a run sampled every `nominal_period_s`, s.
+    pub fn new(nominal_period_s: f64) -> Self {
+        MinuteBlocker {
+            nominal_period_s,
+            first_time_s: None,
+            last_time_s: f64::NAN,
+            pending_gap: false,
+            blocks: Vec::new(),
+        }
+    }
+
+    /// Takes one sample at `time_s` (s): its loop temperature (°C; `None` or
+    /// not finite: none read) and its residuals before and after
+    /// compensation (°/h).
+    pub fn push(&mut self, time_s: f64, temp_c: Option<f64>, before_dph: f64, after_dph: f64) {
+        let first = *self.first_time_s.get_or_insert(time_s);
+        if time_s - self.last_time_s > GAP_PERIODS * self.nominal_period_s {
+            self.pending_gap = true;
+        }
+        self.last_time_s = time_s;
+        let index = ((time_s - first) / BLOCK_S).floor().max(0.0) as u64;
+        if self.blocks.last().is_none_or(|b| b.index != index) {
+            self.blocks.push(MinuteBlock {
+                index,
+                ..MinuteBlock::default()
+            });
+        }
+        let Some(block) = self.blocks.last_mut() else {
+            return;
+        };
+        block.gap |= std::mem::take(&mut self.pending_gap);
+        block.samples += 1;
+        if let Some(t) = temp_c.filter(|t| t.is_finite()) {
+            block.temp_samples += 1;
+            block.temp_sum_c += t;
+        }
+        block.before_sum_dph += before_dph;
+        block.after_sum_dph += after_dph;
+    }
+
+    /// The run's first sample time, s (`None` before any sample).
+    pub fn first_time_s(&self) -> Option<f64> {
+        self.first_time_s
+    }
+
+    /// The blocks, in time order.
+    pub fn finish(self) -> Vec<MinuteBlock> {
+        self.blocks
+    }
+}
+
+/// The [`MinuteBlock`]s of a run given as slices of equal length, in time
+/// order: `time_s` (s), `temp_c` (°C, NaN where none was read) and the
+/// residuals before and after compensation (°/h); `nominal_period_s` (s).
+pub fn minute_blocks(
+    time_s: &[f64],
+    temp_c: &[f64],
+    before_dph: &[f64],
+    after_dph: &[f64],
+    nominal_period_s: f64,
+) -> Vec<MinuteBlock> {
+    let mut blocker = MinuteBlocker::new(nominal_period_s);
+    for (((&t, &temp), &before), &after) in time_s.iter().zip(temp_c).zip(before_dph).zip(after_dph) {
+        blocker.push(t, Some(temp), before, after);
+    }
+    blocker.finish()
+}
+
+/// One settled plateau of a run (the rule: the module's documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SettledPlateau {
+    /// Loop temperature, mean over the settled window, °C.
+    pub temp_c: f64,
+    /// Length of the steady stretch (its last block included), s.
+    pub steady_s: f64,
+    /// Start of the settled window on the run's clock (`time_s`), s.
+    pub window_start_s: f64,
+    /// End of the settled window on the run's clock, s.
+    pub window_end_s: f64,
+    /// Settled bias before compensation: mean of `rate − ref` over the window, °/h.
+    pub bias_before_dph: f64,
+    /// Settled bias after compensation: mean of `rate_comp − ref` over the window, °/h.
+    pub bias_after_dph: f64,
+    /// Noise of `bias_after_dph`: standard deviation of the window's one-minute
+    /// compensated residual means / √(their number), °/h.
+    pub noise_dph: f64,
+    /// Noise of `bias_before_dph`, the same way, °/h.
+    pub noise_before_dph: f64,
+}
+
+/// The settled plateaus of a run from its [`MinuteBlock`]s (in time order;
+/// `first_time_s`: the run's first sample time, s; `nominal_period_s`: its
+/// nominal sample period, s), in time order.
+pub fn settled_plateaus(blocks: &[MinuteBlock], first_time_s: f64, nominal_period_s: f64) -> Vec<SettledPlateau> {
+    let nominal_samples = BLOCK_S / nominal_period_s;
+    let complete = |b: &MinuteBlock| !b.gap && b.temp_samples > 0 && b.samples as f64 >= 0.5 * nominal_samples;
+    let steady: Vec<bool> = blocks
+        .iter()
+        .enumerate()
+        .map(|(k, b)| {
+            k.checked_sub(1).and_then(|p| blocks.get(p)).is_some_and(|prev| {
+                prev.index + 1 == b.index
+                    && complete(prev)
+                    && complete(b)
+                    && (b.mean_temp_c() - prev.mean_temp_c()).abs() <= STEADY_STEP_C
+            })
+        })
+        .collect();
+    let mut plateaus = Vec::new();
+    let mut k = 0;
+    while k < blocks.len() {
+        if !steady[k] {
+            k += 1;
+            continue;
+        }
+        let start = k;
+        while k < blocks.len() && steady[k] {
+            k += 1;
+        }
+        let stretch = start..k;
+        if stretch.len() >= MIN_STEADY_BLOCKS {
+            let kept_end = stretch.end - 1;
+            let window = &blocks[kept_end.saturating_sub(WINDOW_BLOCKS).max(start)..kept_end];
+            plateaus.push(plateau_of(window, stretch.len(), first_time_s));
+        }
+    }
+    plateaus
+}
+
+/// The figures of a settled `window` (complete blocks) of a steady stretch of `steady_blocks`.
+fn plateau_of(window: &[MinuteBlock], steady_blocks: usize, first_time_s: f64) -> SettledPlateau {
+    let samples: usize = window.iter().map(|b| b.samples).sum();
+    let temp_samples: usize = window.iter().map(|b| b.temp_samples).sum();
+    let sum = |f: fn(&MinuteBlock) -> f64| window.iter().map(f).sum::<f64>();
+    let start_index = window.first().map_or(0, |b| b.index);
+    let end_index = window.last().map_or(0, |b| b.index + 1);
+    SettledPlateau {
+        temp_c: sum(|b| b.temp_sum_c) / temp_samples as f64,
+        steady_s: steady_blocks as f64 * BLOCK_S,
+        window_start_s: first_time_s + start_index as f64 * BLOCK_S,
+        window_end_s: first_time_s + end_index as f64 * BLOCK_S,
+        bias_before_dph: sum(|b| b.before_sum_dph) / samples as f64,
+        bias_after_dph: sum(|b| b.after_sum_dph) / samples as f64,
+        noise_dph: noise_of_mean(window.iter().map(MinuteBlock::mean_after_dph)),
+        noise_before_dph: noise_of_mean(window.iter().map(MinuteBlock::mean_before_dph)),
+    }
+}
+
+/// Sample standard deviation of `means` / √(their number); NaN for fewer than two.
+fn noise_of_mean(means: impl Iterator<Item = f64> + Clone) -> f64 {
+    let n = means.clone().count();
+    if n < 2 {
+        return f64::NAN;
+    }
+    let mean = means.clone().sum::<f64>() / n as f64;
+    let variance = means.map(|m| (m - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+    (variance / n as f64).sqrt()
+}
+
+/// The spread of settled biases, max − min, °/h; `None` with fewer than two.
+pub fn settled_spread_dph(biases_dph: impl IntoIterator<Item = f64>) -> Option<f64> {
+    let (n, lo, hi) = biases_dph
+        .into_iter()
+        .fold((0usize, f64::INFINITY, f64::NEG_INFINITY), |(n, lo, hi), b| {
+            (n + 1, lo.min(b), hi.max(b))
+        });
+    (n >= 2).then_some(hi - lo)
+}
+
+/// A run's settled plateaus and the spread of their bias before and after
+/// compensation: what `trainer eval --json` carries per run (and axis).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SettledBias {
+    /// Spread (max − min) of the settled bias after compensation, °/h; `None`
+    /// (null) without at least two plateaus.
+    pub settled_spread_dph: Option<f64>,
+    /// The same before compensation, °/h.
+    pub settled_spread_before_dph: Option<f64>,
+    /// The plateaus, in time order.
+    pub plateaus: Vec<SettledPlateau>,
+}
+
+impl SettledBias {
+    /// The plateaus of `blocks` (see [`settled_plateaus`]), their biases taken
+    /// about `offset_dph` (the run's mean rate when the residuals were summed
+    /// without `ref_dph`, else 0), and their spreads.
+    pub fn of(blocks: &[MinuteBlock], first_time_s: f64, nominal_period_s: f64, offset_dph: f64) -> Self {
+        let plateaus: Vec<SettledPlateau> = settled_plateaus(blocks, first_time_s, nominal_period_s)
+            .into_iter()
+            .map(|p| SettledPlateau {
+                bias_before_dph: p.bias_before_dph - offset_dph,
+                bias_after_dph: p.bias_after_dph - offset_dph,
+                ..p
+            })
+            .collect();
+        SettledBias {
+            settled_spread_dph: settled_spread_dph(plateaus.iter().map(|p| p.bias_after_dph)),
+            settled_spread_before_dph: settled_spread_dph(plateaus.iter().map(|p| p.bias_before_dph)),
+            plateaus,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 1-Hz run of the loop temperature `temp(t)` with residuals
+    /// `before(t)`, `after(t)`; the times `time_s` (s).
+    fn run(
+        time_s: &[f64],
+        temp: impl Fn(f64) -> f64,
+        before: impl Fn(f64) -> f64,
+        after: impl Fn(f64) -> f64,
+    ) -> Vec<SettledPlateau> {
+        let t = |f: &dyn Fn(f64) -> f64| time_s.iter().map(|&t| f(t)).collect::<Vec<_>>();
+        let blocks = minute_blocks(time_s, &t(&temp), &t(&before), &t(&after), 1.0);
+        settled_plateaus(&blocks, time_s[0], 1.0)
+    }
+
+    fn seconds(from_s: f64, to_s: f64) -> Vec<f64> {
+        (0..((to_s - from_s) as usize)).map(|i| from_s + i as f64).collect()
+    }
+
+    /// Holds of `hold_s` at `levels`, 1 °C/min ramps between; the time each hold ends.
+    fn staircase(levels: &[f64], hold_s: f64) -> (impl Fn(f64) -> f64 + Clone, Vec<f64>, f64) {
+        let mut knots = vec![(0.0, levels[0]), (hold_s, levels[0])];
+        for &l in &levels[1..] {
+            let (t, c) = *knots.last().unwrap();
+            knots.push((t + (l - c).abs() * 60.0, l));
+            knots.push((t + (l - c).abs() * 60.0 + hold_s, l));
+        }
+        let ends: Vec<f64> = knots.iter().skip(1).step_by(2).map(|k| k.0).collect();
+        let end = knots.last().unwrap().0;
+        let temp = move |t: f64| {
+            let i = knots.partition_point(|k| k.0 <= t).clamp(1, knots.len() - 1);
+            let (a, b) = (knots[i - 1], knots[i]);
+            if b.0 > a.0 {
+                a.1 + (b.1 - a.1) * ((t - a.0) / (b.0 - a.0)).clamp(0.0, 1.0)
+            } else {
+                b.1
+            }
+        };
+        (temp, ends, end)
+    }
+
+    #[test]
+    fn a_staircase_of_holds_gives_each_hold_read_over_its_last_30_min() {
+        let levels = [25.0, 0.0, 40.0, -20.0];
+        let (temp, hold_ends, end) = staircase(&levels, 3.0 * 3600.0);
+        // The bias follows the level: 0.01 °/h per °C before, a tenth after.
+        let time = seconds(0.0, end);
+        let plateaus = run(&time, &temp, |t| 0.01 * temp(t), |t| 0.001 * temp(t));
+        assert_eq!(plateaus.len(), levels.len(), "{plateaus:#?}");
+        for ((p, level), hold_end) in plateaus.iter().zip(levels).zip(hold_ends) {
+            assert!((p.temp_c - level).abs() < 1e-9, "{p:?} at {level} °C");
+            // The window ends a block before the stretch's last block (which
+            // ends where the ramp's first minute does, or the run does).
+            assert!(
+                (p.window_end_s - p.window_start_s - WINDOW_S).abs() < 1e-9,
+                "30-min window: {p:?}"
+            );
+            assert!(
+                p.window_end_s <= hold_end && p.window_end_s >= hold_end - 2.0 * BLOCK_S,
+                "window ends at the hold's end {hold_end} s: {p:?}"
+            );
+            assert!(p.steady_s >= 3.0 * 3600.0 - 3.0 * BLOCK_S, "{p:?}");
+            assert!((p.bias_before_dph - 0.01 * level).abs() < 1e-9);
+            assert!((p.bias_after_dph - 0.001 * level).abs() < 1e-9);
+        }
+        let spread = settled_spread_dph(plateaus.iter().map(|p| p.bias_after_dph)).unwrap();
+        assert!((spread - 0.001 * 60.0).abs() < 1e-9, "{spread}");
+    }
+
+    #[test]
+    fn ramps_give_no_plateau_nor_spread() {
+        // 1 °C/min up and down, and 0.1 °C/min: never steady for 30 min.
+        let time = seconds(0.0, 6.0 * 3600.0);
+        let zigzag = |t: f64| 50.0 - ((t / 60.0) % 100.0 - 50.0).abs();
+        assert!(run(&time, zigzag, |_| 0.0, |_| 0.0).is_empty());
+        let slow = |t: f64| 0.1 * t / 60.0;
+        let plateaus = run(&time, slow, |_| 0.0, |_| 0.0);
+        assert!(plateaus.is_empty());
+        assert_eq!(settled_spread_dph(plateaus.iter().map(|p| p.bias_after_dph)), None);
+    }
+
+    #[test]
+    fn a_20_or_29_min_hold_is_no_plateau_a_33_min_one_is() {
+        for (hold_min, expected) in [(20.0, 0), (29.0, 0), (33.0, 1)] {
+            let (temp, _, end) = staircase(&[0.0, 30.0, 60.0], hold_min * 60.0);
+            let plateaus = run(&seconds(0.0, end), temp, |_| 0.0, |_| 0.0);
+            // The last hold runs to the run's end; only the middle one counts.
+            let middle = plateaus.iter().filter(|p| (p.temp_c - 30.0).abs() < 1e-6).count();
+            assert_eq!(middle, expected, "{hold_min}-min hold: {plateaus:?}");
+        }
+        let one = settled_spread_dph([0.3]);
+        assert_eq!(one, None, "one plateau has no spread");
+    }
+
+    #[test]
+    fn a_gap_ends_a_plateau() {
+        // A 3-h hold at 20 °C with a 10-min gap at 1 h 40 min: the stretch
+        // before it (100 min) and after it (80 min) are plateaus of their own.
+        let mut time = seconds(0.0, 6000.0);
+        time.extend(seconds(6600.0, 3.0 * 3600.0));
+        let plateaus = run(&time, |_| 20.0, |_| 1.0, |_| 0.0);
+        assert_eq!(plateaus.len(), 2, "{plateaus:#?}");
+        assert!(plateaus[0].window_end_s <= 6000.0);
+        assert!(plateaus[1].window_start_s >= 6600.0);
+        // 99 steady blocks: the first block has no predecessor, the last
+        // one before the gap holds 60 samples and no gap.
+        assert!((plateaus[0].steady_s - 99.0 * 60.0).abs() < 1e-9, "{:?}", plateaus[0]);
+        // After the gap: the block holding the gap is not steady, nor the next.
+        assert!((plateaus[1].steady_s - 68.0 * 60.0).abs() < 1e-9, "{:?}", plateaus[1]);
+    }
+
+    #[test]
+    fn the_noise_is_the_spread_of_the_minute_means_over_root_30() {
+        // A hold whose compensated residual alternates ±a by minute: 30
+        // window minutes (15 each way) have sample STD a·√(30/29), so the
+        // noise of their mean is a·√(30/29)/√30 = a/√29.
+        let a = 0.006;
+        let time = seconds(0.0, 2.0 * 3600.0);
+        let after = move |t: f64| {
+            if ((t / 60.0).floor() as u64).is_multiple_of(2) {
+                a
+            } else {
+                -a
+            }
+        };
+        let plateaus = run(&time, |_| 10.0, |_| 0.0, after);
+        assert_eq!(plateaus.len(), 1);
+        let p = plateaus[0];
+        assert!((p.noise_dph - a / 29f64.sqrt()).abs() < 1e-12, "{p:?}");
+        assert!(p.bias_after_dph.abs() < 1e-12, "{p:?}");
+        assert_eq!(p.noise_before_dph.to_bits(), 0f64.to_bits(), "a constant has no noise");
+    }
+}
