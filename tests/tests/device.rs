@@ -189,17 +189,20 @@ fn status_update_status_record_through_the_board_s_pty() {
     let text = std::fs::read_to_string(&recorded).unwrap();
     assert!(text.contains(&format!("# model_blob_crc32: {crc}")), "{said}");
     let header = text.lines().find(|l| !l.starts_with('#')).unwrap();
-    assert_eq!(header, "time_s,seq,rate_dph,bias_dph,rate_comp_dph,temp_c,flags");
+    assert_eq!(
+        header,
+        "time_s,seq,rate_dph,unit_bias_dph,unit_rate_comp_dph,temp_c,unit_flags"
+    );
     // A recorded run the trainer reads; at 1 kHz for 3 s of real time
     // (QEMU in real time on a shared machine: at least a third of it).
     let run = trainer::reading::run::samples::Run::load(&recorded).unwrap();
     assert!(run.time_s.len() > 1000, "{} rows; {said}", run.time_s.len());
     eprintln!("recorded {} rows in {:.2} s", run.time_s.len(), took.as_secs_f64());
     // The new model runs: no row flagged 4 (no valid model).
-    let flags_col = header.split(',').position(|c| c == "flags").unwrap();
+    let flags_col = header.split(',').position(|c| c == "unit_flags").unwrap();
     let no_model = text
         .lines()
-        .skip_while(|l| l.starts_with('#'))
+        .filter(|l| !l.starts_with('#'))
         .skip(1)
         .filter(|l| l.split(',').nth(flags_col).unwrap().parse::<u8>().unwrap() & 4 != 0)
         .count();
