@@ -543,3 +543,44 @@ fn a_three_axis_run_replayed_through_the_three_axis_board_comes_back_axis_by_axi
         ],
     );
 }
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn a_three_axis_unit_refuses_a_single_axis_blob_unless_forced() {
+    let dir = TempDir::new().unwrap();
+    // A single-axis model within the three-axis board's capacity (it would run it as axis x).
+    let model = dir.path().join("single.bin");
+    let train = e2e_tests::example("ifog_train_1cpm.csv");
+    ok(&[
+        "fit",
+        train.to_str().unwrap(),
+        "--max-centers",
+        "16",
+        "-o",
+        model.to_str().unwrap(),
+    ]);
+    let _one = ONE_BOARD.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    xtask::qemu::ensure_installed().unwrap();
+    let board = QemuBoard::start(&BoardOptions {
+        three_axes: true,
+        model: None,
+        run: None,
+        limit: Some(QEMU_LIMIT),
+    })
+    .unwrap();
+    let port = board.pty().to_str().unwrap().to_owned();
+    let update = ["device", "update", "--port", &port, "--model", model.to_str().unwrap()];
+    let err = fails(&update);
+    assert!(
+        err.contains(&format!(
+            "{port}: blob refused, nothing sent: the unit's frames carry the axes x, y, z but the blob has a model for x alone"
+        )),
+        "{err}"
+    );
+    assert!(
+        ok(&["device", "status", "--port", &port]).contains("none running"),
+        "no model was installed"
+    );
+    let said = ok(&[&update[..], &["--force"]].concat());
+    assert!(said.contains("installed: the new model runs"), "{said}");
+}
