@@ -31,8 +31,9 @@ fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
-            let _ = e.print();
-            return if e.use_stderr() {
+            // --help or --version that cannot be printed (stdout full) fails too.
+            let printed = e.print();
+            return if e.use_stderr() || printed.is_err() {
                 ExitCode::FAILURE
             } else {
                 ExitCode::SUCCESS

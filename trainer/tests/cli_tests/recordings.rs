@@ -201,6 +201,9 @@ fn an_error_or_warning_that_cannot_be_written_exits_1_never_101() {
         let o = trainer_full(args, true);
         assert_eq!(o.status.code(), Some(1), "{args:?} with stdout full too");
     }
+    // --help that cannot be printed.
+    assert_eq!(trainer_full(&["--help"], true).status.code(), Some(1));
+    assert_eq!(trainer_full(&["--help"], false).status.code(), Some(0));
     // A warning (a damaged frame) that cannot be written: the output is
     // written, the warning lost, no panic.
     let mut capture = vec![3, 1, 1, 0];
