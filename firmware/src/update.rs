@@ -102,35 +102,9 @@ impl CommandReceiver {
     }
 }
 
-/// Decodes one COBS frame (without its 0x00 terminator) in place; the
-/// decoded length, or `None` when the bytes are not COBS (a zero inside, a
-/// block longer than the frame). Every access is checked, so it links in
-/// the panic-free image (the `cobs` crate's decoder indexes its buffer).
-/// The decoded bytes never overtake the encoded ones: writing in place is safe.
-pub fn cobs_decode_in_place(frame: &mut [u8]) -> Option<usize> {
-    let (mut read, mut write) = (0usize, 0usize);
-    let end = frame.len();
-    while let Some(&code) = frame.get(read) {
-        if code == 0 {
-            return None;
-        }
-        read += 1;
-        for _ in 1..code {
-            let byte = *frame.get(read)?;
-            if byte == 0 {
-                return None;
-            }
-            *frame.get_mut(write)? = byte;
-            read += 1;
-            write += 1;
-        }
-        if code != 0xFF && read < end {
-            *frame.get_mut(write)? = 0;
-            write += 1;
-        }
-    }
-    Some(write)
-}
+/// COBS decoding in place, rbf-core's: one decoder for commands and
+/// output frames, every access checked (it links in the panic-free image).
+pub use rbf_core::frame::cobs_decode_in_place;
 
 /// Carries out one command payload on `store`; the status and, when a model
 /// was installed, the model to switch the loop to (host tools and tests).

@@ -46,7 +46,8 @@ impl CompensatorConfig {
             max_temp_hold_s: 10.0,
             min_plausible_temp_c: -60.0,
             max_plausible_temp_c: 160.0,
-            max_abs_rate_dph: 3.6e6,
+            // The reader's limit (one number: what the unit flags 16, a run may not hold).
+            max_abs_rate_dph: crate::record::MAX_ABS_RATE_DPH as f32,
             max_temp_slew_c_per_s: 1.0,
             temp_step_tolerance_c: 0.5,
         }

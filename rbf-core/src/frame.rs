@@ -2,19 +2,61 @@
 //! COBS-framed (0x00 ends every frame), so a receiver resynchronises after
 //! any byte loss at the next zero.
 //!
-//! Two frame kinds share the wire, told apart by their decoded length:
-//! a single-axis firmware sends [`OutputFrame`]s (18 … 22 payload bytes),
-//! a multi-axis one [`AxesFrame`]s ([`AXES_FRAME_PAYLOAD_MIN`] …
-//! [`AXES_FRAME_PAYLOAD_MAX`] bytes, led by [`AXES_FRAME_TAG`]); command
-//! replies have 2 (docs/firmware.md, "Output frames").
+//! Format 2 (this firmware's): a tag byte that names the kind and version
+//! ([`OUTPUT_FRAME_TAG`], [`AXES_FRAME_TAG`]), the postcard fields, then the
+//! CRC-32 (ISO-HDLC, the model blob's, little-endian) of every byte before
+//! it; a frame whose CRC does not match is [`FrameError::BadCrc`]. Format 1
+//! (older firmware: no check; the single-axis frame without a tag, the
+//! three-axis one tagged [`AXES_FRAME_TAG_V1`]) is still decoded, and
+//! [`FrameFormat`] says which one a frame came in.
+//!
+//! Frame kinds share the wire with the other messages, told apart by
+//! payload length (docs/firmware.md, "Output frames"): command replies 2,
+//! boot report 11, bench report 17, single-axis frames 18 … 22 (format 1)
+//! and [`OUTPUT_FRAME_PAYLOAD_MIN`] … [`OUTPUT_FRAME_PAYLOAD_MAX`]
+//! (format 2), three-axis frames [`AXES_FRAME_PAYLOAD_MIN`] …
+//! [`AXES_FRAME_PAYLOAD_MAX`] (either format, and the tag), the health
+//! report 76.
 
 use serde::{Deserialize, Serialize};
 
 use crate::axis::AxisSet;
+use crate::blob::CRC32;
 use crate::flags::Flags;
 
-/// Largest encoded frame including the 0x00 delimiter, bytes.
+/// Largest encoded single-axis frame including the 0x00 delimiter, bytes.
 pub const MAX_FRAME_LEN: usize = 32;
+
+/// Bytes of the CRC-32 that ends a format-2 payload.
+pub const FRAME_CRC_LEN: usize = 4;
+
+/// First payload byte of a single-axis [`OutputFrame`] of format 2.
+pub const OUTPUT_FRAME_TAG: u8 = 0xB2;
+/// Payload bytes of an [`OutputFrame`]'s fields: a 1- to 5-byte sequence
+/// number, four f32 and the flags byte (format 1 is exactly these).
+const OUTPUT_FIELDS_MIN: usize = 1 + 16 + 1;
+const OUTPUT_FIELDS_MAX: usize = 5 + 16 + 1;
+/// Shortest format-2 single-axis payload (tag, fields, CRC), bytes.
+pub const OUTPUT_FRAME_PAYLOAD_MIN: usize = 1 + OUTPUT_FIELDS_MIN + FRAME_CRC_LEN;
+/// Longest format-2 single-axis payload, bytes.
+pub const OUTPUT_FRAME_PAYLOAD_MAX: usize = 1 + OUTPUT_FIELDS_MAX + FRAME_CRC_LEN;
+
+/// How a decoded frame came: which format, and so whether it was checked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameFormat {
+    /// Format 1 (older firmware): no check; any bytes of the right length
+    /// decode, so a damaged frame can pass for one.
+    V1,
+    /// Format 2: its CRC-32 matched.
+    V2,
+}
+
+impl FrameFormat {
+    /// Whether the frame's bytes were checked (its CRC matched).
+    pub const fn is_checked(self) -> bool {
+        matches!(self, FrameFormat::V2)
+    }
+}
 
 /// What the firmware emits for every gyro sample.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -40,13 +82,16 @@ impl OutputFrame {
     }
 }
 
-/// First payload byte of an [`AxesFrame`] (its frame format version).
-pub const AXES_FRAME_TAG: u8 = 0xA3;
-/// Shortest payload of an [`AxesFrame`] (tag, 1-byte sequence number,
-/// mask, three axes), bytes.
+/// First payload byte of a format-2 [`AxesFrame`].
+pub const AXES_FRAME_TAG: u8 = 0xA4;
+/// First payload byte of a format-1 [`AxesFrame`] (no CRC).
+pub const AXES_FRAME_TAG_V1: u8 = 0xA3;
+/// Shortest payload of an [`AxesFrame`] (format 1: tag, 1-byte sequence
+/// number, mask, three axes), bytes.
 pub const AXES_FRAME_PAYLOAD_MIN: usize = 3 + 3 * AXIS_OUTPUT_LEN;
-/// Longest payload of an [`AxesFrame`] (a 5-byte sequence number), bytes.
-pub const AXES_FRAME_PAYLOAD_MAX: usize = 7 + 3 * AXIS_OUTPUT_LEN;
+/// Longest payload of an [`AxesFrame`] (format 2: a 5-byte sequence
+/// number and the CRC), bytes.
+pub const AXES_FRAME_PAYLOAD_MAX: usize = 7 + 3 * AXIS_OUTPUT_LEN + FRAME_CRC_LEN;
 /// Largest encoded [`AxesFrame`] including COBS overhead and the 0x00 delimiter, bytes.
 pub const MAX_AXES_FRAME_LEN: usize = AXES_FRAME_PAYLOAD_MAX + 2;
 /// Payload bytes of one [`AxisOutput`]: four f32 and the flags byte.
@@ -78,8 +123,9 @@ impl AxisOutput {
 /// IMU in one frame, x, y, z (axes not in `axis_mask` are all zero).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AxesFrame {
-    /// [`AXES_FRAME_TAG`]: tells this frame from an [`OutputFrame`] and
-    /// versions its layout.
+    /// [`AXES_FRAME_TAG`] (or [`AXES_FRAME_TAG_V1`] as decoded from format
+    /// 1): tells this frame from an [`OutputFrame`] and versions its layout.
+    /// [`encode_axes`] writes [`AXES_FRAME_TAG`] whatever it holds.
     pub tag: u8,
     /// Sample counter since boot (wraps at 2³²); a gap reveals lost frames.
     pub seq: u32,
@@ -96,30 +142,15 @@ impl AxesFrame {
     }
 }
 
-/// Encodes `frame` COBS-framed, 0x00-terminated, into `out`; returns the
-/// bytes used. Never panics, as [`encode`].
-pub fn encode_axes(frame: &AxesFrame, out: &mut [u8]) -> Result<usize, FrameError> {
-    let mut raw = [0u8; AXES_FRAME_PAYLOAD_MAX];
-    let raw = postcard::to_slice(frame, &mut raw).map_err(|_| FrameError::BufferTooSmall)?;
-    cobs_encode(raw, out).ok_or(FrameError::BufferTooSmall)
-}
-
-/// Decodes one multi-axis frame from its COBS bytes (with or without the
-/// 0x00), in place; a frame without [`AXES_FRAME_TAG`] is malformed.
-pub fn decode_axes(bytes: &mut [u8]) -> Result<AxesFrame, FrameError> {
-    let frame: AxesFrame = postcard::from_bytes_cobs(bytes).map_err(|_| FrameError::Malformed)?;
-    if frame.tag != AXES_FRAME_TAG {
-        return Err(FrameError::Malformed);
-    }
-    Ok(frame)
-}
-
 /// Why bytes are not a frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum FrameError {
-    /// The COBS layer or the postcard payload is malformed.
+    /// The COBS layer or the postcard payload is malformed, or its length
+    /// or tag is no frame's.
     Malformed,
+    /// A format-2 frame whose CRC-32 does not match its bytes.
+    BadCrc,
     /// The output buffer is too small.
     BufferTooSmall,
 }
@@ -128,6 +159,7 @@ impl core::fmt::Display for FrameError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(match self {
             FrameError::Malformed => "malformed frame",
+            FrameError::BadCrc => "frame CRC mismatch",
             FrameError::BufferTooSmall => "buffer too small for the frame",
         })
     }
@@ -136,18 +168,114 @@ impl core::fmt::Display for FrameError {
 #[cfg(feature = "std")]
 impl std::error::Error for FrameError {}
 
-/// Encodes `frame` COBS-framed, 0x00-terminated, into `out`; returns the bytes used.
+/// Serialises `value` into `raw`, appends the CRC-32 of those bytes and
+/// COBS-frames the lot into `out`; returns the bytes used. Never panics:
+/// postcard serialises into a plain slice (errors, no panics) and every
+/// other access is checked.
+fn encode_checked<T: Serialize>(value: &T, raw: &mut [u8], out: &mut [u8]) -> Result<usize, FrameError> {
+    let n = postcard::to_slice(value, raw)
+        .map_err(|_| FrameError::BufferTooSmall)?
+        .len();
+    let crc = CRC32.checksum(raw.get(..n).ok_or(FrameError::BufferTooSmall)?);
+    let slot = raw
+        .get_mut(n..)
+        .and_then(|rest| rest.first_chunk_mut::<FRAME_CRC_LEN>())
+        .ok_or(FrameError::BufferTooSmall)?;
+    *slot = crc.to_le_bytes();
+    let payload = raw.get(..n + FRAME_CRC_LEN).ok_or(FrameError::BufferTooSmall)?;
+    cobs_encode(payload, out).ok_or(FrameError::BufferTooSmall)
+}
+
+/// The fields of a format-2 `payload` (tag first): without the CRC when it
+/// matches.
+fn checked_fields(payload: &[u8]) -> Result<&[u8], FrameError> {
+    let (body, crc) = payload
+        .split_last_chunk::<FRAME_CRC_LEN>()
+        .ok_or(FrameError::Malformed)?;
+    if CRC32.checksum(body) != u32::from_le_bytes(*crc) {
+        return Err(FrameError::BadCrc);
+    }
+    Ok(body)
+}
+
+/// `bytes` as a `T`, every byte used.
+fn exactly<'a, T: Deserialize<'a>>(bytes: &'a [u8]) -> Result<T, FrameError> {
+    match postcard::take_from_bytes(bytes) {
+        Ok((value, [])) => Ok(value),
+        _ => Err(FrameError::Malformed),
+    }
+}
+
+/// Decodes `bytes`' COBS layer (with or without its 0x00) in place; the payload.
+fn payload(bytes: &mut [u8]) -> Result<&[u8], FrameError> {
+    let len = bytes.len() - usize::from(bytes.last() == Some(&0));
+    let bytes = bytes.get_mut(..len).ok_or(FrameError::Malformed)?;
+    let n = cobs_decode_in_place(bytes).ok_or(FrameError::Malformed)?;
+    bytes.get(..n).ok_or(FrameError::Malformed)
+}
+
+/// Encodes `frame` in format 2 (the tag, its fields, the CRC) COBS-framed,
+/// 0x00-terminated, into `out`; returns the bytes used.
 ///
 /// This runs once per gyro sample in the firmware, so it must not be able to
 /// panic (checked at link time, firmware/src/bin/panic_free_check.rs):
 /// postcard serialises into a plain slice (returns errors, never panics) and
 /// [`cobs_encode`] frames it; postcard's own COBS flavour indexes with
 /// assertions the optimiser cannot remove. The bytes are the same
-/// (`frames_match_postcards_cobs_encoding`); decoding uses postcard.
+/// (`frames_match_postcards_cobs_encoding`).
 pub fn encode(frame: &OutputFrame, out: &mut [u8]) -> Result<usize, FrameError> {
-    let mut raw = [0u8; MAX_FRAME_LEN];
-    let raw = postcard::to_slice(frame, &mut raw).map_err(|_| FrameError::BufferTooSmall)?;
-    cobs_encode(raw, out).ok_or(FrameError::BufferTooSmall)
+    let mut raw = [0u8; OUTPUT_FRAME_PAYLOAD_MAX];
+    encode_checked(&(OUTPUT_FRAME_TAG, frame), &mut raw, out)
+}
+
+/// Decodes one single-axis frame of either format from its COBS bytes
+/// (with or without the 0x00), in place.
+pub fn decode(bytes: &mut [u8]) -> Result<OutputFrame, FrameError> {
+    decode_with_format(bytes).map(|(frame, _)| frame)
+}
+
+/// [`decode`], and the format the frame came in.
+pub fn decode_with_format(bytes: &mut [u8]) -> Result<(OutputFrame, FrameFormat), FrameError> {
+    let payload = payload(bytes)?;
+    match (payload.len(), payload.first()) {
+        (OUTPUT_FRAME_PAYLOAD_MIN..=OUTPUT_FRAME_PAYLOAD_MAX, Some(&OUTPUT_FRAME_TAG)) => {
+            let (_, frame): (u8, OutputFrame) = exactly(checked_fields(payload)?)?;
+            Ok((frame, FrameFormat::V2))
+        }
+        (OUTPUT_FIELDS_MIN..=OUTPUT_FIELDS_MAX, _) => Ok((exactly(payload)?, FrameFormat::V1)),
+        _ => Err(FrameError::Malformed),
+    }
+}
+
+/// Encodes `frame` in format 2 (tag [`AXES_FRAME_TAG`], its fields, the
+/// CRC) COBS-framed, 0x00-terminated, into `out`; returns the bytes used.
+/// Never panics, as [`encode`].
+pub fn encode_axes(frame: &AxesFrame, out: &mut [u8]) -> Result<usize, FrameError> {
+    let mut raw = [0u8; AXES_FRAME_PAYLOAD_MAX];
+    let frame = AxesFrame {
+        tag: AXES_FRAME_TAG,
+        ..*frame
+    };
+    encode_checked(&frame, &mut raw, out)
+}
+
+/// Decodes one multi-axis frame of either format from its COBS bytes (with
+/// or without the 0x00), in place; a frame without either tag is malformed.
+pub fn decode_axes(bytes: &mut [u8]) -> Result<AxesFrame, FrameError> {
+    decode_axes_with_format(bytes).map(|(frame, _)| frame)
+}
+
+/// [`decode_axes`], and the format the frame came in.
+pub fn decode_axes_with_format(bytes: &mut [u8]) -> Result<(AxesFrame, FrameFormat), FrameError> {
+    let payload = payload(bytes)?;
+    if !(AXES_FRAME_PAYLOAD_MIN..=AXES_FRAME_PAYLOAD_MAX).contains(&payload.len()) {
+        return Err(FrameError::Malformed);
+    }
+    match payload.first() {
+        Some(&AXES_FRAME_TAG) => Ok((exactly(checked_fields(payload)?)?, FrameFormat::V2)),
+        Some(&AXES_FRAME_TAG_V1) => Ok((exactly(payload)?, FrameFormat::V1)),
+        _ => Err(FrameError::Malformed),
+    }
 }
 
 /// COBS-encodes `src` into `out` followed by the 0x00 delimiter; returns the
@@ -176,9 +304,35 @@ pub fn cobs_encode(src: &[u8], out: &mut [u8]) -> Option<usize> {
     Some(next + 1)
 }
 
-/// Decodes one frame from its COBS bytes (with or without the 0x00), in place.
-pub fn decode(bytes: &mut [u8]) -> Result<OutputFrame, FrameError> {
-    postcard::from_bytes_cobs(bytes).map_err(|_| FrameError::Malformed)
+/// Decodes a COBS frame (without its 0x00 delimiter) in place; returns the
+/// decoded length, or `None` if the frame is malformed (a zero inside, a
+/// block running past the end). Never panics: every access is checked (the
+/// `cobs` crate's decoder indexes its buffer), so it links in the
+/// panic-free firmware image. The decoded bytes never overtake the encoded
+/// ones: writing in place is safe.
+pub fn cobs_decode_in_place(frame: &mut [u8]) -> Option<usize> {
+    let (mut read, mut write) = (0usize, 0usize);
+    let end = frame.len();
+    while let Some(&code) = frame.get(read) {
+        if code == 0 {
+            return None;
+        }
+        read += 1;
+        for _ in 1..code {
+            let byte = *frame.get(read)?;
+            if byte == 0 {
+                return None;
+            }
+            *frame.get_mut(write)? = byte;
+            read += 1;
+            write += 1;
+        }
+        if code != 0xFF && read < end {
+            *frame.get_mut(write)? = 0;
+            write += 1;
+        }
+    }
+    Some(write)
 }
 
 #[cfg(test)]
@@ -209,7 +363,7 @@ mod tests {
     }
 
     #[test]
-    fn frames_match_postcards_cobs_encoding() {
+    fn frames_round_trip_bit_for_bit_and_our_cobs_is_postcards() {
         let mut state = 0x9E37_79B9u32;
         let mut next = || {
             state ^= state << 13;
@@ -230,10 +384,107 @@ mod tests {
             };
             let mut ours = [0u8; MAX_FRAME_LEN];
             let n = encode(&frame, &mut ours).unwrap();
+            let (back, format) = decode_with_format(&mut ours[..n]).unwrap();
+            assert_eq!(format, FrameFormat::V2);
+            let bits = |f: &OutputFrame| {
+                (
+                    f.seq,
+                    [f.rate_dph, f.bias_dph, f.rate_comp_dph, f.temp_c].map(f32::to_bits),
+                    f.flags,
+                )
+            };
+            assert_eq!(bits(&back), bits(&frame));
+            // The COBS layer is postcard's, byte for byte.
+            let mut raw = [0u8; MAX_FRAME_LEN];
+            let raw = postcard::to_slice(&frame, &mut raw).unwrap();
+            let n = cobs_encode(raw, &mut ours).unwrap();
             let mut theirs = [0u8; MAX_FRAME_LEN];
             let reference = postcard::to_slice_cobs(&frame, &mut theirs).unwrap();
             assert_eq!(&ours[..n], reference, "frame {frame:?}");
         }
+    }
+
+    #[test]
+    fn format_2_frames_are_tagged_and_checked_and_every_bit_flip_is_refused() {
+        let frame = OutputFrame {
+            seq: 1100,
+            rate_dph: 10.5,
+            bias_dph: 0.25,
+            rate_comp_dph: 10.25,
+            temp_c: 25.0,
+            flags: 0,
+        };
+        for seq in [0u32, 1100, u32::MAX] {
+            let mut buf = [0u8; MAX_FRAME_LEN];
+            let n = encode(&OutputFrame { seq, ..frame }, &mut buf).unwrap();
+            let mut payload = buf;
+            let len = cobs_decode_in_place(&mut payload[..n - 1]).unwrap();
+            assert!(
+                (OUTPUT_FRAME_PAYLOAD_MIN..=OUTPUT_FRAME_PAYLOAD_MAX).contains(&len),
+                "{len}"
+            );
+            assert_eq!(payload[0], OUTPUT_FRAME_TAG);
+        }
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let n = encode(&frame, &mut buf).unwrap();
+        for bit in 0..(n - 1) * 8 {
+            let mut damaged = buf;
+            damaged[bit / 8] ^= 1 << (bit % 8);
+            if damaged[bit / 8] == 0 {
+                continue; // a 0x00 ends the frame early: the receiver sees two fragments
+            }
+            let result = decode_with_format(&mut damaged[..n - 1]);
+            assert!(
+                matches!(result, Err(FrameError::BadCrc | FrameError::Malformed)),
+                "bit {bit}: {result:?}"
+            );
+        }
+        // One bit of the sequence number on the payload, CRC left as it was.
+        let mut raw = [0u8; MAX_FRAME_LEN];
+        let len = postcard::to_slice(&(OUTPUT_FRAME_TAG, frame), &mut raw).unwrap().len();
+        let crc = CRC32.checksum(&raw[..len]).to_le_bytes();
+        raw[len..len + 4].copy_from_slice(&crc);
+        raw[2] ^= 0x08;
+        let mut wire = [0u8; MAX_FRAME_LEN + 2];
+        let n = cobs_encode(&raw[..len + 4], &mut wire).unwrap();
+        assert_eq!(decode(&mut wire[..n]), Err(FrameError::BadCrc));
+    }
+
+    #[test]
+    fn format_1_captures_still_decode_and_say_so() {
+        let frame = OutputFrame {
+            seq: 77,
+            rate_dph: -3.5,
+            bias_dph: 0.5,
+            rate_comp_dph: -4.0,
+            temp_c: 21.25,
+            flags: 8,
+        };
+        // Format 1 was postcard's COBS of the bare fields.
+        let mut old = [0u8; MAX_FRAME_LEN];
+        let n = postcard::to_slice_cobs(&frame, &mut old).unwrap().len();
+        assert_eq!(decode_with_format(&mut old[..n]), Ok((frame, FrameFormat::V1)));
+        let axes = AxesFrame {
+            tag: AXES_FRAME_TAG_V1,
+            seq: 9,
+            axis_mask: 0b111,
+            axes: [AxisOutput {
+                rate_dph: 1.0,
+                bias_dph: 0.5,
+                rate_comp_dph: 0.5,
+                temp_c: 20.0,
+                flags: 1,
+            }; 3],
+        };
+        let mut old = [0u8; MAX_AXES_FRAME_LEN];
+        let n = postcard::to_slice_cobs(&axes, &mut old).unwrap().len();
+        assert_eq!(decode_axes_with_format(&mut old[..n]), Ok((axes, FrameFormat::V1)));
+        // Format 1 with a trailing byte is no frame.
+        let mut raw = [0u8; MAX_FRAME_LEN];
+        let len = postcard::to_slice(&frame, &mut raw).unwrap().len();
+        let mut wire = [0u8; MAX_FRAME_LEN + 2];
+        let n = cobs_encode(&raw[..len + 1], &mut wire).unwrap();
+        assert_eq!(decode(&mut wire[..n]), Err(FrameError::Malformed));
     }
 
     #[test]
@@ -278,16 +529,35 @@ mod tests {
             let n = encode(&OutputFrame { seq, ..single }, &mut buf).unwrap();
             assert_eq!(decode_axes(&mut buf[..n]), Err(FrameError::Malformed));
         }
-        // A wrong tag is refused.
-        let mut frame_bytes = [0u8; MAX_AXES_FRAME_LEN];
+        // A wrong tag is refused, with a matching CRC or without one.
         let wrong = AxesFrame {
             tag: 0x01,
             seq: 1,
             axis_mask: 1,
             axes: [AxisOutput::default(); 3],
         };
-        let n = encode_axes(&wrong, &mut frame_bytes).unwrap();
+        let mut raw = [0u8; AXES_FRAME_PAYLOAD_MAX];
+        let len = postcard::to_slice(&wrong, &mut raw).unwrap().len();
+        let mut frame_bytes = [0u8; MAX_AXES_FRAME_LEN];
+        let n = cobs_encode(&raw[..len], &mut frame_bytes).unwrap();
         assert_eq!(decode_axes(&mut frame_bytes[..n]), Err(FrameError::Malformed));
+        let crc = CRC32.checksum(&raw[..len]).to_le_bytes();
+        raw[len..len + 4].copy_from_slice(&crc);
+        let n = cobs_encode(&raw[..len + 4], &mut frame_bytes).unwrap();
+        assert_eq!(decode_axes(&mut frame_bytes[..n]), Err(FrameError::Malformed));
+        // encode_axes writes the current tag, and every bit flip is refused.
+        let n = encode_axes(&wrong, &mut frame_bytes).unwrap();
+        assert_eq!(
+            decode_axes_with_format(&mut { frame_bytes }[..n]).unwrap().1,
+            FrameFormat::V2
+        );
+        for bit in 0..(n - 1) * 8 {
+            let mut damaged = frame_bytes;
+            damaged[bit / 8] ^= 1 << (bit % 8);
+            if damaged[bit / 8] != 0 {
+                assert!(decode_axes(&mut damaged[..n - 1]).is_err(), "bit {bit}");
+            }
+        }
     }
 
     #[test]

@@ -189,17 +189,20 @@ fn status_update_status_record_through_the_board_s_pty() {
     let text = std::fs::read_to_string(&recorded).unwrap();
     assert!(text.contains(&format!("# model_blob_crc32: {crc}")), "{said}");
     let header = text.lines().find(|l| !l.starts_with('#')).unwrap();
-    assert_eq!(header, "time_s,seq,rate_dph,bias_dph,rate_comp_dph,temp_c,flags");
+    assert_eq!(
+        header,
+        "time_s,seq,rate_dph,unit_bias_dph,unit_rate_comp_dph,temp_c,unit_flags"
+    );
     // A recorded run the trainer reads; at 1 kHz for 3 s of real time
     // (QEMU in real time on a shared machine: at least a third of it).
     let run = trainer::reading::run::samples::Run::load(&recorded).unwrap();
     assert!(run.time_s.len() > 1000, "{} rows; {said}", run.time_s.len());
     eprintln!("recorded {} rows in {:.2} s", run.time_s.len(), took.as_secs_f64());
     // The new model runs: no row flagged 4 (no valid model).
-    let flags_col = header.split(',').position(|c| c == "flags").unwrap();
+    let flags_col = header.split(',').position(|c| c == "unit_flags").unwrap();
     let no_model = text
         .lines()
-        .skip_while(|l| l.starts_with('#'))
+        .filter(|l| !l.starts_with('#'))
         .skip(1)
         .filter(|l| l.split(',').nth(flags_col).unwrap().parse::<u8>().unwrap() & 4 != 0)
         .count();
@@ -539,4 +542,45 @@ fn a_three_axis_run_replayed_through_the_three_axis_board_comes_back_axis_by_axi
             ("rate_z_dph", "temp_z_c", "rate_z_dph", "temp_z_c"),
         ],
     );
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and the thumbv7em target: run by `cargo xtask ci`"]
+fn a_three_axis_unit_refuses_a_single_axis_blob_unless_forced() {
+    let dir = TempDir::new().unwrap();
+    // A single-axis model within the three-axis board's capacity (it would run it as axis x).
+    let model = dir.path().join("single.bin");
+    let train = e2e_tests::example("ifog_train_1cpm.csv");
+    ok(&[
+        "fit",
+        train.to_str().unwrap(),
+        "--max-centers",
+        "16",
+        "-o",
+        model.to_str().unwrap(),
+    ]);
+    let _one = ONE_BOARD.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    xtask::qemu::ensure_installed().unwrap();
+    let board = QemuBoard::start(&BoardOptions {
+        three_axes: true,
+        model: None,
+        run: None,
+        limit: Some(QEMU_LIMIT),
+    })
+    .unwrap();
+    let port = board.pty().to_str().unwrap().to_owned();
+    let update = ["device", "update", "--port", &port, "--model", model.to_str().unwrap()];
+    let err = fails(&update);
+    assert!(
+        err.contains(&format!(
+            "{port}: blob refused, nothing sent: the unit's frames carry the axes x, y, z but the blob has a model for x alone"
+        )),
+        "{err}"
+    );
+    assert!(
+        ok(&["device", "status", "--port", &port]).contains("none running"),
+        "no model was installed"
+    );
+    let said = ok(&[&update[..], &["--force"]].concat());
+    assert!(said.contains("installed: the new model runs"), "{said}");
 }

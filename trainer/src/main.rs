@@ -3,6 +3,7 @@
 //! This file parses the command line and dispatches; each subcommand lives in
 //! its own module under `cli/`.
 
+use std::io::Write;
 use std::process::ExitCode;
 
 use clap::Parser;
@@ -30,8 +31,9 @@ fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
-            let _ = e.print();
-            return if e.use_stderr() {
+            // --help or --version that cannot be printed (stdout full) fails too.
+            let printed = e.print();
+            return if e.use_stderr() || printed.is_err() {
                 ExitCode::FAILURE
             } else {
                 ExitCode::SUCCESS
@@ -43,7 +45,9 @@ fn main() -> ExitCode {
         Err(e) => {
             // File names, fields and serials from outside may hold control characters.
             let message = format!("{e:#}{}", cli::flag_hint(&e));
-            eprintln!("error: {}", text::terminal_safe(&message));
+            // Exit 1 even when the message cannot be written (stderr closed
+            // or full): `eprintln!` would panic (exit 101).
+            let _ = writeln!(std::io::stderr(), "error: {}", text::terminal_safe(&message));
             ExitCode::FAILURE
         }
     }

@@ -261,6 +261,69 @@ mod board {
         ticks * 1000 / TICKS_PER_KILO_INSTRUCTION / SAMPLES as u64
     }
 
+    /// The output frame of every sample (outside the step): postcard, the
+    /// CRC-32 of format 2 and COBS, for each frame kind, and the CRC-32 alone
+    /// over as many bytes (what format 2 added to format 1).
+    fn frame_instructions() {
+        use rbf_core::frame::{self, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
+        const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+        let sample = |seq: u32| OutputFrame {
+            seq,
+            rate_dph: 12.5,
+            bias_dph: 0.25,
+            rate_comp_dph: 12.25,
+            temp_c: 25.0 + seq as f32 * 1e-4,
+            flags: 0,
+        };
+        let mut buf = [0u8; MAX_AXES_FRAME_LEN];
+        let mut single_len = 0;
+        let start = SYST::get_current();
+        for seq in 0..SAMPLES {
+            let f = core::hint::black_box(sample(1_000_000 + seq));
+            single_len = frame::encode(&f, &mut buf[..MAX_FRAME_LEN]).unwrap_or(0);
+        }
+        let single = instructions_per_sample(start);
+        let axis = |seq: u32| AxisOutput {
+            rate_dph: 12.5,
+            bias_dph: 0.25,
+            rate_comp_dph: 12.25,
+            temp_c: 25.0 + seq as f32 * 1e-4,
+            flags: 0,
+        };
+        let mut axes_len = 0;
+        let start = SYST::get_current();
+        for seq in 0..SAMPLES {
+            let f = core::hint::black_box(AxesFrame {
+                tag: frame::AXES_FRAME_TAG,
+                seq: 1_000_000 + seq,
+                axis_mask: 0b111,
+                axes: [axis(seq), axis(seq + 1), axis(seq + 2)],
+            });
+            axes_len = frame::encode_axes(&f, &mut buf).unwrap_or(0);
+        }
+        let axes = instructions_per_sample(start);
+        // The CRC-32 over the bytes it covers (payload less the CRC: wire
+        // bytes less COBS's code byte, the 0x00 and the CRC's 4).
+        let crc_of = |covered: usize| {
+            let bytes = [0x5Au8; MAX_AXES_FRAME_LEN];
+            let start = SYST::get_current();
+            for _ in 0..SAMPLES {
+                core::hint::black_box(CRC32.checksum(core::hint::black_box(&bytes[..covered])));
+            }
+            instructions_per_sample(start)
+        };
+        let (crc_single, crc_axes) = (crc_of(single_len.saturating_sub(6)), crc_of(axes_len.saturating_sub(6)));
+        hprintln!(
+            "instructions_per_sample output frame (postcard, CRC-32, COBS; outside the step): single-axis {} ({} B on the wire, CRC-32 {}), three-axis {} ({} B, CRC-32 {})",
+            single,
+            single_len,
+            crc_single,
+            axes,
+            axes_len,
+            crc_axes
+        );
+    }
+
     #[entry]
     fn main() -> ! {
         firmware::board::paint_stack();
@@ -431,6 +494,7 @@ mod board {
             eval
         );
         hprintln!("instructions_per_sample axes=3 K=32 D=3: {}", step);
+        frame_instructions();
         hprintln!("stack_peak_bytes {}", firmware::board::stack_peak_bytes());
         debug::exit(debug::EXIT_SUCCESS);
         loop {

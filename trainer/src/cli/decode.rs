@@ -1,20 +1,24 @@
 //! `trainer decode`: firmware output frames (a UART capture) to CSV.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Context;
 use trainer::output::{self, Output, Transaction};
 use trainer::{reading::input, text};
 
-use super::common::{ForceArg, print_and_commit};
+use super::common::{ForceArg, print_and_commit, stderr};
 
 /// Decode firmware output frames (a UART capture) into CSV.
 ///
-/// Frames are postcard + COBS, each ended by 0x00. Writes
+/// Frames are postcard + COBS, each ended by 0x00, CRC-checked (format 2;
+/// format 1 of older firmware, without a check, is read too). Writes
 /// seq, rate_dph [°/h], bias_dph [°/h], rate_comp_dph [°/h], temp_c [°C], flags; a
 /// three-axis firmware's frames give those per axis (rate_x_dph … flags_x, then y, z).
-/// A damaged frame is skipped and reported (the seq gap shows where); a capture
-/// that starts mid-frame loses only that first partial frame.
+/// A damaged frame (its CRC does not match, or it is of another kind) is
+/// skipped and reported (the seq gap shows where); a capture that starts
+/// mid-frame loses only that first partial frame. A capture without one
+/// valid frame, an empty one included, is an error and writes nothing.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  trainer decode uart.bin -o frames.csv")]
 pub struct Args {
@@ -35,7 +39,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut out = Output::open(target)?;
     let decoded = trainer::reading::frames::decode_capture(capture, &mut out).with_context(|| text::path(&a.frames))?;
     if decoded.damaged > 0 {
-        eprintln!(
+        // A warning that cannot be written (stderr closed or full) is lost, never a panic.
+        let _ = writeln!(
+            stderr(),
             "warning: {}: {} damaged frame(s) skipped, at byte offsets {:?}",
             text::path(&a.frames),
             decoded.damaged,

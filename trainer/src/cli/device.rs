@@ -12,6 +12,9 @@ use trainer::device::port::{self, DEFAULT_BAUD};
 use trainer::device::record::{self, End, RecordOptions};
 use trainer::device::status;
 use trainer::output::{self, Output, Transaction};
+use trainer::reading::limits::{
+    MAX_PROGRESS_S, MAX_RECORD_HOURS, MAX_SAMPLE_RATE_HZ, MIN_PROGRESS_S, MIN_SAMPLE_RATE_HZ,
+};
 use trainer::text;
 
 use super::common::{ForceArg, JsonArg, print_and_commit, print_text, stderr};
@@ -114,21 +117,32 @@ struct UpdateArgs {
     port: PortArgs,
     #[command(flatten)]
     model: ModelArg,
+    /// Install a blob for other axes than the unit's.
+    ///
+    /// A three-axis unit takes a single-axis blob (as axis x) or a blob for
+    /// some of its axes, and runs the others uncompensated (flag 4); without
+    /// --force such a blob is refused, naming both, before anything is sent.
+    #[arg(long, help_heading = "Model")]
+    force: bool,
 }
 
 /// Record the unit's output live into a recorded-run CSV (a chamber run).
 ///
 /// One row per output frame: time_s (from the frame's sequence number at
-/// --sample-rate-hz; lost frames leave gaps), seq, rate_dph, bias_dph,
-/// rate_comp_dph, temp_c and flags (per axis for a three-axis unit), after
+/// --sample-rate-hz; lost frames leave gaps), seq, rate_dph, unit_bias_dph,
+/// unit_rate_comp_dph, temp_c and unit_flags (per axis for a three-axis unit), after
 /// `#` lines naming the unit, its model and the sample rate. The file is a
 /// recorded run `trainer fit` reads as it is. A progress line shows the
 /// elapsed time, temperature, rate, rows, missed and damaged frames and the
 /// flags seen. It stops after --seconds/--hours, or at Ctrl-C: either way the
 /// run written so far is committed whole. If the line fails (the unit goes
 /// silent or the adapter is unplugged) the rows before are committed too
-/// and the command exits 1 with the cause. Frames without a rate or
-/// temperature (a sensor that has not answered) are counted, not written.
+/// and the command exits 1 with the cause. Every frame is written: one the
+/// reader of runs would refuse as a row (a rate or temperature that is not
+/// a number, a rate beyond ±3,600,000 °/h: flags 16, 2) becomes a `#` line
+/// with the reader's reason, which readers skip. The unit's bias,
+/// compensated rate and flags are unit_bias_dph, unit_rate_comp_dph and
+/// unit_flags, so `trainer compensate` adds its own beside them.
 #[derive(clap::Args, Debug)]
 #[command(
     after_help = "Examples:\n  trainer device record --port /dev/ttyUSB0 --hours 12 --plan plan.csv -o chamber1.csv\n  \
@@ -190,7 +204,7 @@ fn update_command(a: UpdateArgs) -> anyhow::Result<()> {
     // Checked before the port is even opened: a blob no unit takes is never sent.
     let blob = read_blob(&a.model.path)?;
     let mut link = a.port.open()?;
-    let done = install::install(&mut link, &blob, timeout)?;
+    let done = install::install(&mut link, &blob, timeout, a.force)?;
     let text = format!(
         "{}: {} in {:.2} s\nrunning model: {} (was: {})\n",
         link.name(),
@@ -202,26 +216,43 @@ fn update_command(a: UpdateArgs) -> anyhow::Result<()> {
     print_text(text.as_bytes(), false).context("standard output: write failed")
 }
 
+/// A number as a message quotes it: `1e300`, not its 301 digits.
+fn shown(x: f64) -> String {
+    if x.is_finite() && x.abs() >= 1e9 {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
 fn record_command(a: RecordArgs) -> anyhow::Result<()> {
     let timeout = a.port.timeout()?;
+    // Every figure is checked before the port is opened, against the limits
+    // the reader of the run holds (the sample rate goes into its `#` line).
+    let max_s = MAX_RECORD_HOURS * 3600.0;
     let duration = match (a.seconds, a.hours) {
-        (Some(s), _) => Some(s),
-        (None, Some(h)) => Some(h * 3600.0),
+        (Some(s), _) => Some(("--seconds", s, s)),
+        (None, Some(h)) => Some(("--hours", h, h * 3600.0)),
         (None, None) => None,
     };
-    if let Some(d) = duration {
-        anyhow::ensure!(d.is_finite() && d > 0.0, "the duration must be positive: {d} s");
+    if let Some((flag, given, s)) = duration {
+        anyhow::ensure!(
+            s.is_finite() && s > 0.0 && s <= max_s,
+            "{flag} {}: the duration must be positive and at most {MAX_RECORD_HOURS} h ({max_s} s)",
+            shown(given)
+        );
     }
     anyhow::ensure!(
-        a.sample_rate_hz.is_finite() && a.sample_rate_hz > 0.0,
-        "--sample-rate-hz {}: must be positive",
-        a.sample_rate_hz
+        a.sample_rate_hz.is_finite() && (MIN_SAMPLE_RATE_HZ..=MAX_SAMPLE_RATE_HZ).contains(&a.sample_rate_hz),
+        "--sample-rate-hz {}: must be {MIN_SAMPLE_RATE_HZ} … {MAX_SAMPLE_RATE_HZ} Hz (what a recorded run may state)",
+        shown(a.sample_rate_hz)
     );
     anyhow::ensure!(
-        a.progress_s.is_finite() && a.progress_s > 0.0,
-        "--progress-s {}: must be positive",
-        a.progress_s
+        a.progress_s.is_finite() && (MIN_PROGRESS_S..=MAX_PROGRESS_S).contains(&a.progress_s),
+        "--progress-s {}: must be {MIN_PROGRESS_S} … {MAX_PROGRESS_S} s",
+        shown(a.progress_s)
     );
+    let duration = duration.map(|(_, _, s)| s);
     let plan = a
         .plan
         .as_deref()
@@ -261,7 +292,7 @@ fn record_command(a: RecordArgs) -> anyhow::Result<()> {
         End::Failed(_) => "the line failed".to_owned(),
     };
     let summary = format!(
-        "wrote {} ({} rows in {:.1} s, {how}; {} frames missed, {} damaged, {} unusable)\n",
+        "wrote {} ({} rows in {:.1} s, {how}; {} frames missed, {} damaged, {} unusable kept as # lines)\n",
         text::path(&a.output),
         progress.rows,
         progress.elapsed_s,

@@ -19,6 +19,7 @@ use firmware::model_store::StoredModel;
 use firmware::update::{CMD_INSTALL_MODEL, MAX_COMMAND_FRAME_LEN, UpdateStatus, encode_install_command};
 use firmware::{AXIS_CENTERS, SHARED_AXIS_CENTERS};
 use rbf_core::Model;
+use rbf_core::axis::{Axis, AxisSet};
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::blob::{DecodeError, MAX_BLOB_LEN};
 use rbf_core::shared_basis::SharedAxisModels;
@@ -52,6 +53,9 @@ pub struct CheckedBlob {
     pub crc32: u32,
     /// The images that take it.
     pub suits: Suits,
+    /// The axes it holds a model for (a single-axis blob: x alone, as the
+    /// three-axis board runs it).
+    pub axes: AxisSet,
 }
 
 /// Decodes `bytes` as the board whose running model is an `M` does (into
@@ -75,8 +79,16 @@ fn other_image(e: &DecodeError) -> bool {
 /// it, else the reason the most fitting image gives.
 pub fn check_blob(bytes: &[u8]) -> Result<CheckedBlob, DecodeError> {
     let single = check_as(&mut *Box::new(Model::<{ rbf_core::MAX_CENTERS }>::EMPTY), bytes);
-    let per_axis = check_as(&mut *Box::new(AxisModels::<AXIS_CENTERS>::EMPTY), bytes);
-    let shared = check_as(&mut *Box::new(SharedAxisModels::<SHARED_AXIS_CENTERS>::EMPTY), bytes);
+    let mut per_axis_models = Box::new(AxisModels::<AXIS_CENTERS>::EMPTY);
+    let per_axis = check_as(&mut *per_axis_models, bytes);
+    let mut shared_models = Box::new(SharedAxisModels::<SHARED_AXIS_CENTERS>::EMPTY);
+    let shared = check_as(&mut *shared_models, bytes);
+    let axes = match (&single, &per_axis, &shared) {
+        (Ok(_), _, _) => AxisSet::from_bits(1 << Axis::X.index()),
+        (_, Ok(_), _) => AxisSet::from_bits(per_axis_models.mask()),
+        (_, _, Ok(_)) => AxisSet::from_bits(shared_models.mask()),
+        _ => AxisSet::from_bits(0),
+    };
     let suits = Suits {
         single: single.is_ok(),
         per_axis: per_axis.is_ok(),
@@ -90,7 +102,12 @@ pub fn check_blob(bytes: &[u8]) -> Result<CheckedBlob, DecodeError> {
     };
     let bytes = bytes.get(..len).ok_or(DecodeError::Malformed)?.to_vec();
     let crc32 = crate::blobfile::blob_crc32(&bytes);
-    Ok(CheckedBlob { bytes, crc32, suits })
+    Ok(CheckedBlob {
+        bytes,
+        crc32,
+        suits,
+        axes,
+    })
 }
 
 /// Reads and checks the blob at `path` (`-`: standard input); errors name
@@ -110,18 +127,29 @@ pub fn read_blob(path: &Path) -> anyhow::Result<CheckedBlob> {
     check_blob(&bytes).map_err(|e| anyhow::anyhow!("{shown}: no unit would take this blob, nothing sent: {e}"))
 }
 
-/// Whether a unit of `kind` takes `blob`; the reason when it does not.
-pub fn check_for_unit(blob: &CheckedBlob, kind: Kind) -> Result<(), String> {
+/// Whether a unit of `kind` takes `blob`; the reason when it does not. A
+/// three-axis unit would take a blob with fewer axes than it has (the
+/// others then run uncompensated, flag 4) or other axes: that is refused
+/// too unless `force`.
+pub fn check_for_unit(blob: &CheckedBlob, kind: Kind, force: bool) -> Result<(), String> {
+    let names = |axes: AxisSet| axes.iter().map(Axis::name).collect::<Vec<_>>().join(", ");
     match kind {
         Kind::Single if blob.suits.single => Ok(()),
         Kind::Single => {
             Err("a single-axis unit takes a single-axis blob (format 2); this one is for a three-axis unit".into())
         }
-        Kind::Axes(_) if blob.suits.per_axis || blob.suits.shared => Ok(()),
-        Kind::Axes(_) => Err(format!(
+        Kind::Axes(_) if !(blob.suits.per_axis || blob.suits.shared) => Err(format!(
             "a three-axis unit takes a blob with a model per axis of at most {AXIS_CENTERS} centres, or a shared basis \
              of at most {SHARED_AXIS_CENTERS}; this one is neither"
         )),
+        Kind::Axes(unit) if blob.axes != unit && !force => Err(format!(
+            "the unit's frames carry the axes {} but the blob has a model for {} alone{}; the unit would run \
+             the other axes uncompensated (flag 4): fit a model for every axis, or --force to install it anyway",
+            names(unit),
+            names(blob.axes),
+            if blob.suits.single { " (a single-axis blob)" } else { "" }
+        )),
+        Kind::Axes(_) => Ok(()),
     }
 }
 
@@ -157,19 +185,21 @@ pub struct Installed {
 }
 
 /// Installs `blob` on the unit behind `link`: asks its status (which also
-/// says its kind), checks the blob for that kind, sends it, waits for the
-/// reply and confirms from a new health report that the blob runs.
+/// says its kind), checks the blob for that kind ([`check_for_unit`]; `force`
+/// lets a blob for other axes through), sends it, waits for the reply and
+/// confirms from a new health report that the blob runs.
 pub fn install<P: Read + Write>(
     link: &mut Link<P>,
     blob: &CheckedBlob,
     timeout: Duration,
+    force: bool,
 ) -> anyhow::Result<Installed> {
     let name = link.name().to_owned();
     let before = status::query(link, timeout)?;
     let kind = before.kind.ok_or_else(|| {
         anyhow::anyhow!("{name}: the unit sends no output frames, so its kind is unknown; nothing sent")
     })?;
-    check_for_unit(blob, kind).map_err(|why| anyhow::anyhow!("{name}: blob refused, nothing sent: {why}"))?;
+    check_for_unit(blob, kind, force).map_err(|why| anyhow::anyhow!("{name}: blob refused, nothing sent: {why}"))?;
     let mut command = vec![0u8; MAX_COMMAND_FRAME_LEN];
     let n = encode_install_command(&blob.bytes, &mut command)
         .ok_or_else(|| anyhow::anyhow!("{name}: blob too long for the install command"))?;
@@ -250,6 +280,7 @@ mod tests {
                 per_axis: false,
                 shared: false,
             },
+            axes: AxisSet::from_bits(1),
         };
         let answer = |after_install: Vec<u8>| {
             let mut input = [output_frame(1), health(100), output_frame(2)].concat();
@@ -258,7 +289,7 @@ mod tests {
         };
         // Counters from 0 again: a reset.
         let mut link = answer([health(5), output_frame(3)].concat());
-        let err = install(&mut link, &blob, Duration::from_millis(300))
+        let err = install(&mut link, &blob, Duration::from_millis(300), false)
             .unwrap_err()
             .to_string();
         assert!(err.starts_with("/dev/fake: the unit reset during the update"), "{err}");
@@ -266,10 +297,38 @@ mod tests {
         let mut reply = [0u8; 8];
         let n = firmware::update::encode_reply(CMD_INSTALL_MODEL, UpdateStatus::Refused, &mut reply).unwrap();
         let mut link = answer([health(150), reply[..n].to_vec()].concat());
-        let err = install(&mut link, &blob, Duration::from_millis(300))
+        let err = install(&mut link, &blob, Duration::from_millis(300), false)
             .unwrap_err()
             .to_string();
         assert!(err.contains("/dev/fake: status 4: the unit refused the blob"), "{err}");
+    }
+
+    #[test]
+    fn a_blob_for_fewer_or_other_axes_than_the_unit_s_is_refused_unless_forced() {
+        let xyz = Kind::Axes(AxisSet::from_bits(0b111));
+        let blob = |single: bool, mask: u8| CheckedBlob {
+            bytes: vec![],
+            crc32: 0,
+            suits: Suits {
+                single,
+                per_axis: true,
+                shared: false,
+            },
+            axes: AxisSet::from_bits(mask),
+        };
+        let err = check_for_unit(&blob(true, 0b001), xyz, false).unwrap_err();
+        assert!(
+            err.starts_with(
+                "the unit's frames carry the axes x, y, z but the blob has a model for x alone (a single-axis blob)"
+            ),
+            "{err}"
+        );
+        assert!(check_for_unit(&blob(false, 0b011), xyz, false).is_err());
+        assert!(check_for_unit(&blob(true, 0b001), xyz, true).is_ok(), "--force");
+        assert!(check_for_unit(&blob(false, 0b111), xyz, false).is_ok());
+        assert!(check_for_unit(&blob(true, 0b001), Kind::Single, false).is_ok());
+        let xz = Kind::Axes(AxisSet::from_bits(0b101));
+        assert!(check_for_unit(&blob(false, 0b101), xz, false).is_ok());
     }
 
     #[test]

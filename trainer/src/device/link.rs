@@ -1,6 +1,6 @@
 //! The unit's UART as messages: `COBS(payload) 0x00` in both directions.
 //!
-//! In: output frames (single- or three-axis, rbf-core's decoders via
+//! In: output frames (single- or three-axis, either format, rbf-core's decoders via
 //! [`crate::reading::frames::Frame`]), command replies (2 bytes), the boot report of
 //! a fault or watchdog reset (11 bytes, tag 0xFB), the bench report (17
 //! bytes, tag 0x02) and the health report (76 bytes, tag 0xFC; the
@@ -16,6 +16,8 @@ use firmware::fault::{BOOT_REPORT_LEN, BOOT_REPORT_TAG};
 use firmware::health::{HEALTH_REPORT_LEN, HEALTH_REPORT_TAG, HealthReport};
 use firmware::update::{MAX_COMMAND_FRAME_LEN, REPLY_LEN, cobs_decode_in_place};
 
+use rbf_core::frame::FrameFormat;
+
 use crate::reading::frames::Frame;
 
 /// Longest message the unit sends on the wire, COBS bytes without the 0x00
@@ -25,8 +27,8 @@ pub const MAX_MESSAGE_LEN: usize = HEALTH_REPORT_LEN + 2;
 /// One message from the unit.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Message {
-    /// An output frame: one sample.
-    Output(Frame),
+    /// An output frame: one sample, and the format it came in.
+    Output(Frame, FrameFormat),
     /// The health report (after every reset, and in answer to the health command).
     Health(HealthReport),
     /// The reply to a command: the command byte and its status.
@@ -67,7 +69,10 @@ pub fn classify(chunk: &[u8]) -> Option<Message> {
         (HEALTH_REPORT_LEN, Some(HEALTH_REPORT_TAG)) => Message::Health(HealthReport::from_bytes(payload)?),
         (BOOT_REPORT_LEN, Some(BOOT_REPORT_TAG)) => Message::BootReport,
         (bench::REPORT_LEN, Some(bench::CMD_BENCH)) => Message::BenchReport,
-        _ => Message::Output(Frame::decode(&mut chunk.to_vec())?),
+        _ => {
+            let (frame, format) = Frame::decode(&mut chunk.to_vec())?;
+            Message::Output(frame, format)
+        }
     };
     Some(message)
 }
@@ -290,7 +295,7 @@ pub(crate) mod tests {
         let mut replies = Vec::new();
         while let Some(m) = link.next(deadline).unwrap() {
             match m {
-                Message::Output(Frame::Single(f)) => seqs.push(f.seq),
+                Message::Output(Frame::Single(f), _) => seqs.push(f.seq),
                 Message::Reply { command, status } => replies.push((command, status)),
                 other => panic!("unexpected {other:?}"),
             }

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use firmware::health::{BOARD_ON_HSI, CMD_HEALTH, HealthReport, ResetCause};
 
 use super::link::{Link, Message};
-use crate::reading::frames::Kind;
+use crate::reading::frames::{FrameSync, Kind};
 
 /// How often an unanswered health command is sent again (a duplicate only
 /// brings another report; QEMU's pty may take a second to connect).
@@ -21,8 +21,9 @@ const KIND_WAIT: Duration = Duration::from_millis(300);
 pub struct UnitStatus {
     /// Its health report.
     pub report: HealthReport,
-    /// The kind of its output frames (`None`: none seen; the unit sends
-    /// one per sample, so its sampling has stopped).
+    /// The kind of its output frames (`None`: none seen, or not one
+    /// confirmed ([`FrameSync`]); the unit sends one per sample, so its
+    /// sampling has stopped).
     pub kind: Option<Kind>,
 }
 
@@ -30,7 +31,7 @@ pub struct UnitStatus {
 pub fn query<P: Read + Write>(link: &mut Link<P>, timeout: Duration) -> anyhow::Result<UnitStatus> {
     let started = Instant::now();
     let deadline = started + timeout;
-    let mut kind = None;
+    let mut sync = FrameSync::default();
     let mut sent = None::<Instant>;
     let report = loop {
         if sent.is_none_or(|at| at.elapsed() >= RESEND_EVERY) {
@@ -40,7 +41,9 @@ pub fn query<P: Read + Write>(link: &mut Link<P>, timeout: Duration) -> anyhow::
         let slice_end = (Instant::now() + RESEND_EVERY / 4).min(deadline);
         match link.next(slice_end)? {
             Some(Message::Health(report)) => break report,
-            Some(Message::Output(frame)) => kind = Some(frame.kind()),
+            Some(Message::Output(frame, format)) => {
+                sync.push(frame, format);
+            }
             Some(_) => {}
             None if Instant::now() >= deadline => {
                 let c = link.counters();
@@ -58,14 +61,19 @@ pub fn query<P: Read + Write>(link: &mut Link<P>, timeout: Duration) -> anyhow::
         }
     };
     let kind_deadline = Instant::now() + KIND_WAIT;
-    while kind.is_none() {
+    while sync.kind().is_none() {
         match link.next(kind_deadline)? {
-            Some(Message::Output(frame)) => kind = Some(frame.kind()),
+            Some(Message::Output(frame, format)) => {
+                sync.push(frame, format);
+            }
             Some(_) => {}
             None => break,
         }
     }
-    Ok(UnitStatus { report, kind })
+    Ok(UnitStatus {
+        report,
+        kind: sync.kind(),
+    })
 }
 
 /// The reset cause in words.

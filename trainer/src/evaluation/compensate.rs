@@ -42,7 +42,29 @@ pub fn compensate_reader(
     out: &mut (impl Write + Send),
 ) -> anyhow::Result<Vec<Compensation>> {
     models.require_thermometers(&reader)?;
+    refuse_columns_compensate_writes(&reader)?;
     compensate_stepped(models.stepper(), &models.columns(), reader, out)
+}
+
+/// Refuses a run that already has a column compensate appends (a
+/// compensated output, or a recording of an older `trainer device record`,
+/// which named the unit's outputs so): the output would name it twice.
+fn refuse_columns_compensate_writes(reader: &RunReader) -> anyhow::Result<()> {
+    let mut appended = String::new();
+    record::write_compensated_header(&mut appended, "", reader.columns())?;
+    let appended: Vec<&str> = appended.trim_end().split(',').filter(|n| !n.is_empty()).collect();
+    for (i, name) in reader.header_line().split(',').enumerate() {
+        let name = record::trim_field(name);
+        anyhow::ensure!(
+            !appended.contains(&name),
+            "{}: column {name} (field {}) is one compensate adds (the run is a compensated output, or was recorded \
+             before `trainer device record` named the unit's columns unit_{name}); the output would hold it twice: \
+             rename the column first, e.g. to unit_{name}",
+            text::path(reader.path()),
+            i + 1
+        );
+    }
+    Ok(())
 }
 
 /// The compensation loop of [`compensate_reader`].

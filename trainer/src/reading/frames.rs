@@ -7,7 +7,7 @@
 use std::io::{BufRead, BufReader, Read, Write};
 
 use rbf_core::axis::AxisSet;
-use rbf_core::frame::{self, AxesFrame, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
+use rbf_core::frame::{self, AxesFrame, FrameFormat, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
 
 use crate::reading::limits::{MAX_FRAME_SEARCH_BYTES, bytes};
 
@@ -34,12 +34,17 @@ pub enum Frame {
 
 impl Frame {
     /// Decodes `chunk` (COBS bytes without the 0x00, decoded in place) as
-    /// the frame its length allows; `None` when it is no output frame.
-    pub fn decode(chunk: &mut [u8]) -> Option<Frame> {
+    /// the frame its length allows, of either format; `None` when it is no
+    /// output frame (a format-2 frame whose CRC does not match included).
+    pub fn decode(chunk: &mut [u8]) -> Option<(Frame, FrameFormat)> {
         if chunk.len() <= MAX_FRAME_LEN {
-            frame::decode(chunk).ok().map(Frame::Single)
+            frame::decode_with_format(chunk)
+                .ok()
+                .map(|(f, format)| (Frame::Single(f), format))
         } else if chunk.len() <= MAX_AXES_FRAME_LEN {
-            frame::decode_axes(chunk).ok().map(Frame::Axes)
+            frame::decode_axes_with_format(chunk)
+                .ok()
+                .map(|(f, format)| (Frame::Axes(f), format))
         } else {
             None
         }
@@ -52,22 +57,113 @@ impl Frame {
             Frame::Axes(f) => Kind::Axes(f.axes_present()),
         }
     }
+
+    /// The frame's sequence number.
+    pub fn seq(&self) -> u32 {
+        match self {
+            Frame::Single(f) => f.seq,
+            Frame::Axes(f) => f.seq,
+        }
+    }
+}
+
+/// Most a format-1 frame's sequence number may lie past the one before it
+/// for the two to confirm each other ([`FrameSync`]).
+const CONFIRM_WITHIN: u32 = 16;
+
+/// Which frames of a stream are the unit's. The stream's kind and format
+/// are those of its first CRC-checked frame (format 2), or of a format-1
+/// frame that the next frame confirms (same kind and format, its sequence
+/// number 1 … [`CONFIRM_WITHIN`] on): format 1 carries no check, so the
+/// tail of a cut frame, or a damaged format-2 frame, can pass for one.
+/// After that a frame of another kind or format is refused.
+#[derive(Debug, Default)]
+pub struct FrameSync {
+    locked: Option<(Kind, FrameFormat)>,
+    candidate: Option<Frame>,
+}
+
+/// What [`FrameSync::push`] made of a frame.
+#[derive(Debug, Default)]
+pub struct Synced {
+    /// The stream's frames to take, in order (a confirmed candidate first).
+    pub frames: Vec<Frame>,
+    /// Frames refused: of another kind or format than the stream's, or a
+    /// candidate the next frame did not confirm.
+    pub refused: u64,
+}
+
+impl FrameSync {
+    /// The stream's kind, once known.
+    pub fn kind(&self) -> Option<Kind> {
+        self.locked.map(|(k, _)| k)
+    }
+
+    /// The stream's format, once known.
+    pub fn format(&self) -> Option<FrameFormat> {
+        self.locked.map(|(_, f)| f)
+    }
+
+    /// Takes the next decoded frame of the stream.
+    pub fn push(&mut self, frame: Frame, format: FrameFormat) -> Synced {
+        let mut synced = Synced::default();
+        match self.locked {
+            Some(stream) if stream == (frame.kind(), format) => synced.frames.push(frame),
+            Some(_) => synced.refused += 1,
+            None if format.is_checked() => {
+                synced.refused += u64::from(self.candidate.take().is_some());
+                self.locked = Some((frame.kind(), format));
+                synced.frames.push(frame);
+            }
+            None => match self.candidate.replace(frame) {
+                Some(c)
+                    if c.kind() == frame.kind()
+                        && (1..=CONFIRM_WITHIN).contains(&frame.seq().wrapping_sub(c.seq())) =>
+                {
+                    self.candidate = None;
+                    self.locked = Some((frame.kind(), format));
+                    synced.frames.extend([c, frame]);
+                }
+                Some(_) => synced.refused += 1,
+                None => {}
+            },
+        }
+        synced
+    }
+
+    /// At the stream's end: a candidate never confirmed (refused).
+    pub fn finish(&mut self) -> u64 {
+        u64::from(self.candidate.take().is_some())
+    }
 }
 
 /// The CSV header of frames of `kind`: [`CSV_HEADER`], or `seq` and each
 /// axis's columns.
 pub fn header(kind: Kind) -> String {
+    header_with(kind, "")
+}
+
+/// The columns of frames of `kind` in a recorded run (`trainer device
+/// record`): [`header`]'s, with the unit's bias, compensated rate and flags
+/// named `unit_bias_dph`, `unit_rate_comp_dph`, `unit_flags` (per axis
+/// `unit_bias_x_dph` …), so that `trainer compensate` adds its own beside them.
+pub fn recording_header(kind: Kind) -> String {
+    header_with(kind, "unit_")
+}
+
+/// The header with `unit` before the names of the unit's outputs.
+fn header_with(kind: Kind, unit: &str) -> String {
     match kind {
-        Kind::Single => CSV_HEADER.to_owned(),
+        Kind::Single => format!("seq,rate_dph,{unit}bias_dph,{unit}rate_comp_dph,temp_c,{unit}flags"),
         Kind::Axes(axes) => std::iter::once("seq".to_owned())
             .chain(axes.iter().flat_map(|a| {
                 let n = a.name();
                 [
                     format!("rate_{n}_dph"),
-                    format!("bias_{n}_dph"),
-                    format!("rate_comp_{n}_dph"),
+                    format!("{unit}bias_{n}_dph"),
+                    format!("{unit}rate_comp_{n}_dph"),
                     format!("temp_{n}_c"),
-                    format!("flags_{n}"),
+                    format!("{unit}flags_{n}"),
                 ]
             }))
             .collect::<Vec<_>>()
@@ -113,17 +209,28 @@ pub struct Decoded {
 }
 
 /// Decodes the frames of `capture` into CSV rows on `out` (header
-/// [`CSV_HEADER`], or each axis's columns for a three-axis firmware's frames). A damaged frame is skipped and counted (a capture that
-/// starts mid-frame loses only that first partial frame); a capture without
-/// one valid frame in its first [`MAX_FRAME_SEARCH_BYTES`] is refused as
-/// not a capture, so an endless source ends quickly, and so is a capture
-/// that holds damaged frames only (an empty one decodes to no rows).
+/// [`CSV_HEADER`], or each axis's columns for a three-axis firmware's
+/// frames). A damaged frame (a format-2 frame whose CRC does not match, a
+/// frame of another kind or format than the capture's, see [`FrameSync`])
+/// is skipped and counted (a capture that starts mid-frame loses only that
+/// first partial frame). A capture without one valid frame is refused: an
+/// empty one (no kind to name the columns by), one of damaged frames only,
+/// or one without a valid frame in its first [`MAX_FRAME_SEARCH_BYTES`], so
+/// an endless source ends quickly.
 pub fn decode_capture(capture: impl Read, out: &mut impl Write) -> anyhow::Result<Decoded> {
     let mut source = BufReader::with_capacity(1 << 16, capture);
     let mut decoded = Decoded::default();
     let mut chunk = Vec::with_capacity(MAX_AXES_FRAME_LEN + 1);
     let mut offset = 0u64;
-    let mut kind: Option<Kind> = None;
+    let mut sync = FrameSync::default();
+    let damaged = |decoded: &mut Decoded, at: u64, n: u64| {
+        for _ in 0..n {
+            decoded.damaged += 1;
+            if decoded.damaged_at.len() < DAMAGED_SHOWN {
+                decoded.damaged_at.push(at);
+            }
+        }
+    };
     loop {
         if decoded.frames == 0 && offset > MAX_FRAME_SEARCH_BYTES {
             anyhow::bail!(
@@ -150,34 +257,31 @@ pub fn decode_capture(capture: impl Read, out: &mut impl Write) -> anyhow::Resul
         if chunk.is_empty() {
             continue;
         }
-        // The first valid frame says which firmware sent the capture; a
-        // frame of another kind (or other axes) after it is damage.
-        let frame = Frame::decode(&mut chunk).filter(|f| kind.is_none_or(|k| k == f.kind()));
-        match frame {
-            Some(f) => {
-                if kind.is_none() {
-                    kind = Some(f.kind());
-                    writeln!(out, "{}", header(f.kind()))?;
-                }
-                write_row(out, &f)?;
-                decoded.frames += 1;
+        let Some((frame, format)) = Frame::decode(&mut chunk) else {
+            damaged(&mut decoded, start, 1);
+            continue;
+        };
+        let synced = sync.push(frame, format);
+        damaged(&mut decoded, start, synced.refused);
+        for f in &synced.frames {
+            if decoded.frames == 0 {
+                writeln!(out, "{}", header(f.kind()))?;
             }
-            None => {
-                decoded.damaged += 1;
-                if decoded.damaged_at.len() < DAMAGED_SHOWN {
-                    decoded.damaged_at.push(start);
-                }
-            }
+            write_row(out, f)?;
+            decoded.frames += 1;
         }
     }
-    if decoded.frames == 0 && decoded.damaged > 0 {
+    let unconfirmed = sync.finish();
+    damaged(&mut decoded, offset, unconfirmed);
+    if decoded.frames == 0 {
+        anyhow::ensure!(
+            decoded.damaged > 0,
+            "empty: not one byte of a frame, so no output (was the capture taken from the unit's port, at its baud rate?)"
+        );
         anyhow::bail!(
             "{} damaged frame(s) and not one valid frame: not a capture of firmware output frames",
             decoded.damaged
         );
-    }
-    if kind.is_none() {
-        writeln!(out, "{CSV_HEADER}")?;
     }
     Ok(decoded)
 }
@@ -211,16 +315,19 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_capture_of_damaged_frames_only_is_refused_an_empty_one_is_not() {
+    fn a_capture_of_damaged_frames_only_is_refused_and_so_is_an_empty_one() {
         let mut out = Vec::new();
         let err = decode_capture(&b"\x03abc\x00\x05\x00"[..], &mut out).unwrap_err();
         assert!(
             err.to_string().contains("2 damaged frame(s) and not one valid frame"),
             "{err}"
         );
-        let mut out = Vec::new();
-        assert_eq!(decode_capture(&b""[..], &mut out).unwrap(), Decoded::default());
-        assert_eq!(String::from_utf8(out).unwrap(), format!("{CSV_HEADER}\n"));
+        for empty in [&b""[..], b"\0\0\0"] {
+            let mut out = Vec::new();
+            let err = decode_capture(empty, &mut out).unwrap_err().to_string();
+            assert!(err.starts_with("empty: not one byte of a frame"), "{err}");
+            assert!(out.is_empty(), "no header without a frame to name its columns");
+        }
     }
 
     #[test]

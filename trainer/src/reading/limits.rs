@@ -40,6 +40,15 @@ pub const MAX_PROFILE_BYTES: u64 = 128 << 20;
 /// Largest `trainer simulate --params` file, bytes.
 pub const MAX_PARAMS_BYTES: u64 = 1 << 20;
 
+/// Longest recording `trainer device record` takes (`--seconds`, `--hours`), hours.
+pub const MAX_RECORD_HOURS: f64 = 1000.0;
+
+/// Most seconds between `trainer device record`'s progress lines.
+pub const MAX_PROGRESS_S: f64 = 3600.0;
+
+/// Fewest seconds between `trainer device record`'s progress lines.
+pub const MIN_PROGRESS_S: f64 = 0.01;
+
 /// Bytes of a frame capture read without one valid frame before `decode`
 /// gives up on it as not a capture.
 pub const MAX_FRAME_SEARCH_BYTES: u64 = 1 << 20;

@@ -10,6 +10,7 @@ mod hostile;
 mod messages;
 mod plan;
 mod reading;
+mod recordings;
 mod response_bank;
 mod robustness;
 mod soak;

@@ -98,13 +98,37 @@ pub struct RowParser {
 }
 
 impl RowParser {
+    /// A parser for the rows under `header` (a run's header line), its
+    /// errors naming `path`.
+    pub fn new(path: &Path, header: &str) -> Self {
+        RowParser {
+            path: path.to_owned(),
+            column_names: header.split(',').map(|n| record::trim_field(n).to_owned()).collect(),
+        }
+    }
+
     /// Parses the text of data line `line` with `columns`.
     pub fn parse(&self, columns: &Columns, line: usize, text: &str) -> Result<Row, RunError> {
         columns.parse_row(text).map_err(|e| self.error(line, text, e))
     }
 
+    /// Why the reader refuses row `text` under `columns`, in its words
+    /// (`None`: it takes it); what a recorder asks before it writes a row.
+    pub fn refusal(&self, columns: &Columns, text: &str) -> Option<String> {
+        columns.parse_row(text).err().map(|e| self.message(text, e))
+    }
+
     /// The error for row `text` of line `line`, naming its column and quoting its field.
     pub(super) fn error(&self, line: usize, text: &str, e: record::RowError) -> RunError {
+        RunError::Format {
+            path: self.path.clone(),
+            line,
+            message: self.message(text, e),
+        }
+    }
+
+    /// What is wrong with row `text`, naming its column and quoting its field.
+    fn message(&self, text: &str, e: record::RowError) -> String {
         let column = e.column.and_then(|i| self.column_names.get(i).map(|n| (i, n)));
         let field = e
             .column
@@ -126,14 +150,9 @@ impl RowParser {
             ),
             _ => "unreadable row".to_owned(),
         };
-        let message = match column {
+        match column {
             Some((i, name)) => format!("column {} (field {}): {message}", text::escape_controls(name), i + 1),
             None => message,
-        };
-        RunError::Format {
-            path: self.path.clone(),
-            line,
-            message,
         }
     }
 }
