@@ -232,14 +232,7 @@ pub fn print_settled_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]
     for line in spreads {
         writeln!(out, "{line}")?;
     }
-    writeln!(
-        out,
-        "(plateau: 60-s means of the loop temperature within {} °C of the block before for ≥ {:.0} min, a gap ends it; its last \
-         {:.0} min but the final minute read; noise: STD of the minute means / √n)",
-        crate::dataset::plateaus::STEADY_STEP_C,
-        crate::dataset::plateaus::MIN_STEADY_S / 60.0,
-        crate::dataset::plateaus::WINDOW_S / 60.0
-    )?;
+    writeln!(out, "({})", crate::dataset::plateaus::rule_text())?;
     Ok(())
 }
 

@@ -406,14 +406,9 @@ pub fn write_report(
 /// The settled-bias section of report.md: per run its spread (or why none)
 /// and a row per plateau.
 fn settled_markdown(plots: &[RunPlots]) -> String {
-    use crate::dataset::plateaus::{BLOCK_S, MIN_STEADY_S, STEADY_STEP_C, WINDOW_S};
     let mut md = format!(
-        "\n## Settled bias (soak plateaus)\n\nA plateau: {BLOCK_S:.0}-s means of the loop temperature within \
-         {STEADY_STEP_C} °C of the block before for at least {:.0} min (a gap ends it); its settled bias is the \
-         mean residual over its last {:.0} min but the final block, ± the noise of that mean (STD of the block \
-         means / √n).\n\n",
-        MIN_STEADY_S / 60.0,
-        WINDOW_S / 60.0
+        "\n## Settled bias (soak plateaus)\n\nA {} (docs/workflow.md, \"The soak test\").\n\n",
+        crate::dataset::plateaus::rule_text()
     );
     for p in plots {
         let Some(settled) = &p.evaluation.settled else { continue };

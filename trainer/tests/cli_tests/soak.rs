@@ -28,32 +28,66 @@ fn plateaus_by_hand(rows: &[(f64, f64, f64)], period_s: f64) -> Vec<(f64, f64)> 
         b.2 += residual;
         b.3 |= gap;
     }
-    let blocks: Vec<(u64, (f64, f64, f64, bool))> = blocks.into_iter().collect();
-    let complete = |b: &(f64, f64, f64, bool)| !b.3 && b.0 >= 0.5 * 60.0 / period_s;
-    let steady: Vec<bool> = (0..blocks.len())
-        .map(|k| {
-            k > 0 && {
-                let ((i, a), (j, b)) = (blocks[k - 1], blocks[k]);
-                j == i + 1 && complete(&a) && complete(&b) && (b.1 / b.0 - a.1 / a.0).abs() <= 0.05
-            }
-        })
+    // Minute by minute from the first block: (Σ temp, Σ residual, samples) of the complete ones.
+    let minutes = *blocks.keys().last().unwrap() as usize + 1;
+    let mut at: Vec<Option<(f64, f64, f64)>> = vec![None; minutes];
+    for (&m, b) in &blocks {
+        if !b.3 && b.0 >= 0.5 * 60.0 / period_s {
+            at[m as usize] = Some((b.1, b.2, b.0));
+        }
+    }
+    let temp = |m: usize| at[m].map(|b| b.0 / b.2);
+    let whole = |from: usize, to: usize| (from..=to).all(|m| at[m].is_some());
+    // Steady: the loop moved ≤ 1.5 °C over the 10 minutes before, all complete.
+    let steady: Vec<bool> = (0..minutes)
+        .map(|k| k >= 10 && whole(k - 10, k) && (temp(k).unwrap() - temp(k - 10).unwrap()).abs() <= 1.5)
         .collect();
     let mut out = Vec::new();
-    let mut k = 0;
-    while k < blocks.len() {
-        let start = k;
-        while k < blocks.len() && steady[k] {
-            k += 1;
+    let mut i = 0;
+    while i < minutes {
+        if !steady[i] {
+            i += 1;
+            continue;
         }
-        if k - start >= 30 {
-            // Drop the stretch's last block, read the 30 before it.
-            let window = &blocks[(k - 1 - 30).max(start)..k - 1];
-            let n: f64 = window.iter().map(|b| b.1.0).sum();
-            let temp = window.iter().map(|b| b.1.1).sum::<f64>() / n;
-            let bias = window.iter().map(|b| b.1.2).sum::<f64>() / n;
-            out.push((temp, bias));
+        let mut j = i;
+        while j + 1 < minutes && steady[j + 1] {
+            j += 1;
         }
-        k = k.max(start + 1);
+        // The loop departs where it lies 0.03 °C off the line through its
+        // last 10 min and twice as far as the least of the 5 min before; the
+        // hold ends 5 min before. No departure: the stretch's end, less 15
+        // min where the loop moved on.
+        let off = |k: usize| {
+            whole(k - 11, k).then(|| {
+                (temp(k).unwrap() - (temp(k - 1).unwrap() + (temp(k - 1).unwrap() - temp(k - 11).unwrap()) / 10.0))
+                    .abs()
+            })
+        };
+        let mut departure = None;
+        for k in i + 16..=(j + 10).min(minutes - 1) {
+            let Some(now) = off(k) else { break };
+            let Some(least) = (k - 5..k).map(off).try_fold(f64::INFINITY, |m, o| o.map(|o| m.min(o))) else {
+                break;
+            };
+            if now > 0.03 && now > 2.0 * least {
+                departure = Some(k);
+                break;
+            }
+        }
+        let moved_on = j + 1 < minutes && whole(j - 9, j + 1);
+        let end = match departure {
+            Some(k) => k as i64 - 6,
+            None if moved_on => j as i64 - 15,
+            None => j as i64,
+        };
+        if end - i as i64 + 1 >= 30 {
+            let window = (end - 29) as usize..=end as usize;
+            let (t, r, n) = window
+                .filter_map(|m| at[m])
+                .fold((0.0, 0.0, 0.0), |s, b| (s.0 + b.0, s.1 + b.1, s.2 + b.2));
+            out.push((t / n, r / n));
+        }
+        i = departure.unwrap_or(j) + 1;
     }
     out
 }
