@@ -35,6 +35,12 @@ pub struct CompensatorConfig {
     pub temp_step_tolerance_c: f32,
 }
 
+/// Largest |rate| a run may hold in `rate_dph` or `ref_dph`, °/h: 1000 °/s,
+/// the compensator's plausible-rate limit (beyond it a live sample is
+/// flagged invalid; a file holding one is refused by the run reader,
+/// `record::MAX_ABS_RATE_DPH`).
+pub const MAX_ABS_RATE_DPH: f64 = 3.6e6;
+
 impl CompensatorConfig {
     /// Defaults for a gyro sampled at `sample_rate_hz`: 10 s temperature hold,
     /// −60 … 160 °C plausible, ±1000 °/s (3.6e6 °/h) plausible rate, spikes
@@ -47,7 +53,7 @@ impl CompensatorConfig {
             min_plausible_temp_c: -60.0,
             max_plausible_temp_c: 160.0,
             // The reader's limit (one number: what the unit flags 16, a run may not hold).
-            max_abs_rate_dph: crate::record::MAX_ABS_RATE_DPH as f32,
+            max_abs_rate_dph: MAX_ABS_RATE_DPH as f32,
             max_temp_slew_c_per_s: 1.0,
             temp_step_tolerance_c: 0.5,
         }

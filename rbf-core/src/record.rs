@@ -109,10 +109,9 @@ pub enum RowErrorKind {
     OverRange,
 }
 
-/// Largest |rate| a run may hold in `rate_dph` or `ref_dph`, °/h: 1000 °/s,
-/// the compensator's plausible-rate limit (beyond it a live sample is
-/// flagged invalid; a file holding one is refused).
-pub const MAX_ABS_RATE_DPH: f64 = 3.6e6;
+/// Largest |rate| a run may hold in `rate_dph` or `ref_dph`, °/h: the
+/// compensator's plausible-rate limit, one number for both.
+pub use crate::compensator::MAX_ABS_RATE_DPH;
 
 /// True when `rate_dph` lies within ±[`MAX_ABS_RATE_DPH`].
 fn rate_in_range(rate_dph: f64) -> bool {

@@ -14,6 +14,7 @@
 pub mod axes;
 pub mod chamber_file;
 pub mod gyro;
+pub mod params;
 pub mod plant;
 pub mod profile;
 pub mod unit;
@@ -23,6 +24,7 @@ use std::io::Write;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
+pub use params::{ParamsError, SimParams};
 pub use profile::{Profile, Schedule};
 
 /// Thermometer columns of multi-point runs; `temp_c` is the fiber-loop sensor,
@@ -30,94 +32,6 @@ pub use profile::{Profile, Schedule};
 pub const MULTI_COLUMNS: [&str; 8] = [
     "temp_a", "temp_b", "temp_c", "temp_d", "temp_e", "temp_f", "temp_g", "temp_h",
 ];
-
-/// The simulated gyro: its thermal network and its bias and noise. Read from
-/// `trainer simulate --params FILE.json` (any field left out keeps the
-/// documented default, or the `--unit` draw's value), e.g. `{"plant":
-/// {"tau_top_s": 2400}, "gyro": {"axial_gradient_dph_per_c": 0.05}}`.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct SimParams {
-    /// Time constants and couplings of the thermal network.
-    pub plant: plant::PlantParams,
-    /// Bias and noise.
-    pub gyro: gyro::GyroParams,
-}
-
-impl SimParams {
-    /// Why these parameters cannot be simulated, if they cannot.
-    pub fn check(&self) -> Result<(), String> {
-        self.plant.check().and_then(|()| self.gyro.check())?;
-        if self.gyro.shupe_layer_weights.len() != self.plant.coil_layers {
-            return Err(format!(
-                "gyro.shupe_layer_weights has {} weights, the coil {} layers (plant.coil_layers): give one per layer",
-                self.gyro.shupe_layer_weights.len(),
-                self.plant.coil_layers
-            ));
-        }
-        Ok(())
-    }
-
-    /// These parameters with the fields of the JSON object `json` (the text
-    /// of a `--params` file) put over them; nested objects (`plant`, `gyro`,
-    /// `plant.hub`) field by field, any other value whole. Syntax errors and
-    /// unknown fields give the line and column; the result is checked.
-    pub fn overridden(&self, json: &str) -> Result<SimParams, ParamsError> {
-        // Parsing alone first: it places syntax errors and unknown fields.
-        serde_json::from_str::<SimParams>(json).map_err(|e| {
-            let message = e.to_string();
-            // serde_json appends the place; the caller leads with it instead.
-            let message = message.split(" at line ").next().unwrap_or(&message).to_owned();
-            ParamsError::Syntax {
-                line: e.line(),
-                column: e.column(),
-                message,
-            }
-        })?;
-        let overrides: serde_json::Value =
-            serde_json::from_str(json).map_err(|e| ParamsError::Invalid(e.to_string()))?;
-        let mut merged = serde_json::to_value(self).map_err(|e| ParamsError::Invalid(e.to_string()))?;
-        merge(&mut merged, overrides);
-        let params: SimParams = serde_json::from_value(merged).map_err(|e| ParamsError::Invalid(e.to_string()))?;
-        params.check().map_err(ParamsError::Invalid)?;
-        Ok(params)
-    }
-}
-
-/// Why a `--params` file cannot be used.
-#[derive(Debug, thiserror::Error)]
-pub enum ParamsError {
-    /// Bad JSON or an unknown field, at a place.
-    #[error("{line}:{column}: {message}")]
-    Syntax {
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// What is wrong.
-        message: String,
-    },
-    /// Parameters that cannot be simulated.
-    #[error("{0}")]
-    Invalid(String),
-}
-
-/// Puts `over` over `base`: objects field by field, anything else whole.
-fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
-    match (base, over) {
-        (serde_json::Value::Object(base), serde_json::Value::Object(over)) => {
-            for (key, value) in over {
-                match base.get_mut(&key) {
-                    Some(slot) => merge(slot, value),
-                    None => {
-                        base.insert(key, value);
-                    }
-                }
-            }
-        }
-        (slot, value) => *slot = value,
-    }
-}
 
 /// What to simulate: a chamber run or a history in use.
 #[derive(Clone, Debug)]
@@ -163,6 +77,21 @@ pub struct ChamberRun {
 pub const RANDOM_RAMP_RANGE_C_PER_MIN: (f64, f64) = (0.5, 5.0);
 
 impl ChamberRun {
+    /// The profile settings its schedule is drawn from.
+    pub fn schedule_spec(&self) -> profile::ScheduleSpec<'_> {
+        profile::ScheduleSpec {
+            profile: self.profile,
+            duration_s: self.duration_s,
+            ramp_c_per_min: self.ramp_c_per_min,
+            hold_s: self.hold_s,
+            random_range_c: self.random_range_c,
+            ramp_range_c_per_min: self.ramp_range_c_per_min,
+            soak_levels_c: &self.soak_levels_c,
+            soak_hold_s: self.soak_hold_s,
+            planned: self.planned.as_ref(),
+        }
+    }
+
     /// The IFOG paper's protocol: 25 °C, down to 10 °C, hold, up to 40 °C, hold, back to 25 °C; 1 Hz.
     pub fn ifog(ramp_c_per_min: f64, seed: u64) -> Self {
         ChamberRun {
@@ -291,7 +220,7 @@ impl ChamberRun {
     /// The air schedule, the run's length, s, and the simulated gyro's
     /// parameters (noise alone with `noise_only`), drawn from `rng` first.
     pub(crate) fn setup(&self, rng: &mut Pcg64) -> (Schedule, f64, SimParams) {
-        let schedule = profile::schedule(self, rng);
+        let schedule = profile::schedule(&self.schedule_spec(), rng);
         // In-use histories end at their length; chamber runs with their last hold.
         let in_use_s = self.profile.default_duration_s().filter(|_| self.profile.in_use());
         let duration_s = self.duration_s.or(in_use_s).unwrap_or(schedule.duration_s());

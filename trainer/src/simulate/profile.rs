@@ -7,8 +7,6 @@ use std::f64::consts::PI;
 
 use rand::Rng;
 
-use super::ChamberRun;
-
 /// The temperature histories.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Profile {
@@ -250,7 +248,7 @@ fn through(set_points: &[f64], ramp_c_per_min: f64, hold_s: f64) -> Vec<(f64, f6
     knots
 }
 
-fn random(run: &ChamberRun, end_s: f64, rng: &mut impl Rng) -> Vec<(f64, f64)> {
+fn random(run: &ScheduleSpec, end_s: f64, rng: &mut impl Rng) -> Vec<(f64, f64)> {
     let (lo, hi) = run.random_range_c;
     let (slowest, fastest) = run.ramp_range_c_per_min;
     let start = 0.5 * (lo + hi);
@@ -393,8 +391,32 @@ fn field(end_s: f64, rng: &mut impl Rng) -> Vec<(f64, f64)> {
     k.done()
 }
 
-/// The schedule of `run` (random, designed and in-use profiles draw from `rng`).
-pub fn schedule(run: &ChamberRun, rng: &mut impl Rng) -> Schedule {
+/// What a schedule is drawn from: a simulated run's profile settings
+/// (`ChamberRun::schedule_spec`).
+#[derive(Clone, Copy, Debug)]
+pub struct ScheduleSpec<'a> {
+    /// The profile.
+    pub profile: Profile,
+    /// Total duration, s; `None`: the profile's own.
+    pub duration_s: Option<f64>,
+    /// Chamber ramp rate between set points, °C/min.
+    pub ramp_c_per_min: f64,
+    /// Hold at each set point, s (ifog and cycle profiles).
+    pub hold_s: f64,
+    /// Set-point range of random profiles, °C (min, max).
+    pub random_range_c: (f64, f64),
+    /// Ramp-rate range of random profiles, °C/min (slowest, fastest).
+    pub ramp_range_c_per_min: (f64, f64),
+    /// Chamber levels of soak runs, in order, °C.
+    pub soak_levels_c: &'a [f64],
+    /// Hold at each soak level, s.
+    pub soak_hold_s: f64,
+    /// The chamber profile of planned runs.
+    pub planned: Option<&'a Schedule>,
+}
+
+/// The schedule `run` asks for (random, designed and in-use profiles draw from `rng`).
+pub fn schedule(run: &ScheduleSpec, rng: &mut impl Rng) -> Schedule {
     let end_s = run.duration_s.or(run.profile.default_duration_s()).unwrap_or(0.0);
     let knots = match run.profile {
         Profile::Ifog => through(&[25.0, 10.0, 40.0, 25.0], run.ramp_c_per_min, run.hold_s),
@@ -406,8 +428,8 @@ pub fn schedule(run: &ChamberRun, rng: &mut impl Rng) -> Schedule {
         Profile::Swings => swings_history(end_s, rng),
         Profile::DayCycle => day_cycle(end_s, rng),
         Profile::Field => field(end_s, rng),
-        Profile::Planned => run.planned.as_ref().map_or_else(Vec::new, |s| s.knots.clone()),
-        Profile::Soak => soak(&run.soak_levels_c, run.soak_hold_s, run.ramp_c_per_min),
+        Profile::Planned => run.planned.map_or_else(Vec::new, |s| s.knots.clone()),
+        Profile::Soak => soak(run.soak_levels_c, run.soak_hold_s, run.ramp_c_per_min),
     };
     Schedule { knots }
 }
@@ -418,9 +440,10 @@ mod tests {
     use rand_pcg::Pcg64;
 
     use super::*;
+    use crate::simulate::ChamberRun;
 
     fn knots_of(run: &ChamberRun) -> Vec<(f64, f64)> {
-        schedule(run, &mut Pcg64::seed_from_u64(run.seed)).knots
+        schedule(&run.schedule_spec(), &mut Pcg64::seed_from_u64(run.seed)).knots
     }
 
     /// Each piece as (duration s, change °C), with its rate in °C/min.

@@ -10,8 +10,8 @@ use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use rand_pcg::Pcg64;
 
-use super::SimParams;
 use super::gyro::GyroParams;
+use super::params::SimParams;
 use super::plant::{Hub, LoopSensor, MAX_COIL_LAYERS, MIN_COIL_LAYERS, MIN_TAU_S, PlantParams, THERMOMETERS};
 
 /// A range a constant is drawn from: uniform, or uniform in its logarithm.

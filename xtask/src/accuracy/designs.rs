@@ -14,8 +14,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use trainer::metrics::{cluster_std, improvement_pct};
 
-use super::in_use::read_columns;
 use super::{path, run_tool};
+use super::{read_columns, soak_spread};
 
 /// The chamber runs a design is trained on, in print order (a design
 /// without one of them skips it).
@@ -164,33 +164,4 @@ pub fn bench_designs(dir: &Path, trainer: &Path, fit_args: &[String]) -> anyhow:
          after compensation; the uncompensated row: before)"
     );
     Ok(())
-}
-
-/// `trainer eval --json` of `model` on the soak test `soak` (written to
-/// `json`): the settled spread after and before compensation, °/h (`None`:
-/// fewer than two plateaus).
-pub(super) fn soak_spread(
-    trainer: &Path,
-    model: &Path,
-    soak: &Path,
-    json: &Path,
-) -> anyhow::Result<(Option<f64>, Option<f64>)> {
-    run_tool(
-        trainer,
-        &[
-            "eval",
-            "--model",
-            path(model),
-            path(soak),
-            "--json",
-            path(json),
-            "--force",
-        ],
-    )?;
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json)?)
-        .with_context(|| format!("{}: trainer eval --json is not JSON", json.display()))?;
-    Ok((
-        v[0]["settled_spread_dph"].as_f64(),
-        v[0]["settled_spread_before_dph"].as_f64(),
-    ))
 }

@@ -32,7 +32,7 @@ use self::summary::{
     PlantSummary, TARGET_CYCLE_MEAN_PCT, TARGET_FORECAST_FACTOR, TARGET_PLANNED_MEAN_PCT, TARGET_PLANNED_WORST_PCT,
     Training, forecast_factor, summary_table, worst_forecast_factor,
 };
-use super::{path, run_tool};
+use super::{path, read_columns, run_tool};
 use crate::workspace_root;
 
 /// What the in-use section runs and where its results go.
@@ -234,31 +234,6 @@ struct ModelScores {
     fit_report: Option<Value>,
 }
 
-/// The named columns of a CSV with `#` metadata lines, in the order asked.
-pub(super) fn read_columns(file: &Path, names: &[&str]) -> anyhow::Result<Vec<Vec<f64>>> {
-    let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
-    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
-    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
-    let index: Vec<usize> = names
-        .iter()
-        .map(|n| {
-            header
-                .iter()
-                .position(|h| h == n)
-                .with_context(|| format!("{}: no column {n}", file.display()))
-        })
-        .collect::<anyhow::Result<_>>()?;
-    let mut columns = vec![Vec::new(); names.len()];
-    for (row, line) in lines.enumerate() {
-        let fields: Vec<&str> = line.split(',').collect();
-        for (column, &i) in columns.iter_mut().zip(&index) {
-            let value = fields.get(i).and_then(|f| f.parse().ok());
-            column.push(value.with_context(|| format!("{}: data row {}: bad field", file.display(), row + 1))?);
-        }
-    }
-    Ok(columns)
-}
-
 /// 100-s cluster STD of `rate − ref` (`time_s`, `rate`, `ref` columns), °/h.
 fn residual_std(columns: &[Vec<f64>]) -> f64 {
     let deviation: Vec<f64> = columns[1].iter().zip(&columns[2]).map(|(r, q)| r - q).collect();
@@ -378,7 +353,7 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             let default = fit_and_compensate(&judged, &fit_args, &train, &model, &verify, &raw)?;
             let reference = lag_bank_scores(python, &lag_bank, &train, &verify, &raw)?;
             let soak_spread = match default.refusal {
-                None => Some(super::designs::soak_spread(
+                None => Some(super::soak_spread(
                     &judged,
                     &model,
                     &soak,

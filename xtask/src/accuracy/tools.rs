@@ -1,4 +1,5 @@
-//! Running the trainer and naming files, for the accuracy benches.
+//! Running the trainer, naming files and reading what it writes, for the
+//! accuracy benches.
 
 use std::path::Path;
 use std::process::Command;
@@ -25,4 +26,58 @@ pub(crate) fn run_tool(exe: &Path, args: &[&str]) -> anyhow::Result<String> {
 /// `p` as text (the benches write under target/, always UTF-8).
 pub(crate) fn path(p: &Path) -> &str {
     p.to_str().expect("UTF-8 paths under target/")
+}
+
+/// The named columns of a CSV with `#` metadata lines, in the order asked.
+pub(crate) fn read_columns(file: &Path, names: &[&str]) -> anyhow::Result<Vec<Vec<f64>>> {
+    let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
+    let index: Vec<usize> = names
+        .iter()
+        .map(|n| {
+            header
+                .iter()
+                .position(|h| h == n)
+                .with_context(|| format!("{}: no column {n}", file.display()))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let mut columns = vec![Vec::new(); names.len()];
+    for (row, line) in lines.enumerate() {
+        let fields: Vec<&str> = line.split(',').collect();
+        for (column, &i) in columns.iter_mut().zip(&index) {
+            let value = fields.get(i).and_then(|f| f.parse().ok());
+            column.push(value.with_context(|| format!("{}: data row {}: bad field", file.display(), row + 1))?);
+        }
+    }
+    Ok(columns)
+}
+
+/// `trainer eval --json` of `model` on the soak test `soak` (written to
+/// `json`): the settled spread after and before compensation, °/h (`None`:
+/// fewer than two plateaus).
+pub(crate) fn soak_spread(
+    trainer: &Path,
+    model: &Path,
+    soak: &Path,
+    json: &Path,
+) -> anyhow::Result<(Option<f64>, Option<f64>)> {
+    run_tool(
+        trainer,
+        &[
+            "eval",
+            "--model",
+            path(model),
+            path(soak),
+            "--json",
+            path(json),
+            "--force",
+        ],
+    )?;
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json)?)
+        .with_context(|| format!("{}: trainer eval --json is not JSON", json.display()))?;
+    Ok((
+        v[0]["settled_spread_dph"].as_f64(),
+        v[0]["settled_spread_before_dph"].as_f64(),
+    ))
 }
