@@ -183,7 +183,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     writeln!(out, "\nwrote {} ({} bytes)", text::path(&a.output), blob.len())?;
-    let mut json = outcome_json(&outcome);
+    let mut json = outcome_json(&outcome, &in_use);
     json["method"] = serde_json::json!(opts.method);
     json["fit_seconds"] = serde_json::json!(fit_s);
     json["blob_bytes"] = serde_json::json!(blob.len());

@@ -82,6 +82,35 @@ pub struct Coverage {
     /// turned there before it settled, so the chamber went further than the
     /// loop followed.
     pub end_rates_c_per_min: (f64, f64),
+    /// Loop temperatures of the runs' settled plateaus by the soak test's
+    /// rule ([`crate::dataset::plateaus`]), °C, in time order: where the
+    /// runs show the settled bias a soak test reads. Empty until
+    /// [`settled_levels_c`] fills it.
+    pub settled_c: Vec<f64>,
+}
+
+/// The loop temperatures of the settled plateaus ([`crate::dataset::plateaus`])
+/// in means of the loop temperature `temp_c` starting at `time_s` on their
+/// run's clock, of run `run`, each `period_s` long, °C.
+pub fn settled_levels_c(time_s: &[f64], temp_c: &[f64], run: &[usize], period_s: f64) -> Vec<f64> {
+    use crate::dataset::plateaus::{MinuteBlocker, settled_plateaus};
+    let mut out = Vec::new();
+    let mut start = 0;
+    while start < run.len() {
+        let end = (start..run.len()).find(|&i| run[i] != run[start]).unwrap_or(run.len());
+        let mut blocker = MinuteBlocker::new(period_s);
+        for (&t, &temp) in time_s[start..end].iter().zip(&temp_c[start..end]) {
+            blocker.push(t, Some(temp), 0.0, 0.0);
+        }
+        let first_s = blocker.first_time_s().unwrap_or(0.0);
+        out.extend(
+            settled_plateaus(&blocker.finish(), first_s, period_s)
+                .iter()
+                .map(|p| p.temp_c),
+        );
+        start = end;
+    }
+    out
 }
 
 impl Coverage {
@@ -178,7 +207,29 @@ impl Coverage {
             events,
             cold_start_c,
             end_rates_c_per_min,
+            settled_c: Vec::new(),
         }
+    }
+
+    /// Lower edges of the 20-°C bands of the range of use (or, told none,
+    /// of the covered range) that hold no settled level ([`Self::settled_c`]), °C.
+    pub fn unsettled_bands_c(&self, in_use: &InUse) -> Vec<f64> {
+        let (lo, hi) = in_use.range_c.unwrap_or(self.temp_range_c);
+        // NaN ends (no reading) or an empty range: nothing to ask for.
+        if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+            return Vec::new();
+        }
+        // Bands [edge, edge + 20) from the low end; the last one ends at the
+        // high end, inclusive (a range a hair over 100 °C is five bands).
+        let bands = ((hi - lo) / BAND_C - 1e-9).ceil().max(1.0) as usize;
+        (0..bands)
+            .map(|b| (b, lo + b as f64 * BAND_C))
+            .filter(|&(b, edge)| {
+                let inside = |t: f64| t >= edge && (t < edge + BAND_C || (b + 1 == bands && t <= hi));
+                !self.settled_c.iter().any(|&t| inside(t))
+            })
+            .map(|(_, edge)| edge)
+            .collect()
     }
 
     /// What the lag bank needs for `in_use` and these runs lack, in words an engineer acts on.
@@ -255,6 +306,15 @@ impl Coverage {
                 ));
             }
         }
+        let unsettled = self.unsettled_bands_c(in_use);
+        if !unsettled.is_empty() {
+            let hi = in_use.range_c.map_or(hi, |r| r.1);
+            out.push(format!(
+                "no settled level in {} °C (the loop steady {:.0} min by the soak rule of `eval`): the settled bias a soak test reads there is not identified from these runs, and the fit does not forecast its spread (`predicted_settled_spread_dph` null); hold the chamber at a level in each such band until the loop settles, an hour or more",
+                band_list(&unsettled, hi),
+                crate::dataset::plateaus::MIN_STEADY_S / 60.0
+            ));
+        }
         if self.long_holds == 0 {
             out.push(format!(
                 "no long hold ({:.0} min slower than {SLOW_C_PER_MIN} °C/min): the slowest lags are not told apart from the static curve; hold an hour at least once after a fast change",
@@ -300,6 +360,18 @@ impl Coverage {
                 }
             ),
             format!("coverage: fastest fall/rise per filter [°C/min]: {}", rates.join(", ")),
+            format!(
+                "coverage: settled levels (soak rule) at {} °C",
+                if self.settled_c.is_empty() {
+                    "none".to_owned()
+                } else {
+                    self.settled_c
+                        .iter()
+                        .map(|t| format!("{t:.1}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                }
+            ),
         ];
         let missing = self.missing(in_use);
         if missing.is_empty() {
@@ -391,9 +463,10 @@ mod tests {
         assert_eq!(c.long_holds, 3);
     }
 
-    /// A planned run: a cold start, fast steps both ways, holds at −40 and 60 °C.
+    /// A planned run: a cold start, fast steps both ways, holds at −40 and
+    /// 60 °C, and (as its runs would show) a settled level in every 20-°C band.
     fn planned() -> Coverage {
-        coverage(
+        let mut c = coverage(
             -40.0,
             &[
                 (3600.0, 0.0),
@@ -409,7 +482,43 @@ mod tests {
                 (1800.0, 0.0),
             ],
             8,
-        )
+        );
+        c.settled_c = vec![-39.0, -15.0, 5.0, 25.0, 59.0];
+        c
+    }
+
+    #[test]
+    fn settled_levels_are_the_holds_the_soak_rule_finds_and_the_bands_without_one_are_named() {
+        // 10-s means: a 2-h hold at −40 °C, 1 °C/min to 20 °C, a 2-h hold,
+        // 1 °C/min to 60 °C and a 20-min hold: two settled levels, none hot.
+        let mut temp = vec![-40.0; 720];
+        temp.extend((1..=360).map(|i| -40.0 + f64::from(i) / 6.0));
+        temp.extend(vec![20.0; 720]);
+        temp.extend((1..=240).map(|i| 20.0 + f64::from(i) / 6.0));
+        temp.extend(vec![60.0; 120]);
+        let time: Vec<f64> = (0..temp.len()).map(|i| i as f64 * 10.0).collect();
+        let run = vec![0; temp.len()];
+        let settled = settled_levels_c(&time, &temp, &run, 10.0);
+        assert_eq!(settled.len(), 2, "{settled:?}");
+        assert!(
+            (settled[0] + 40.0).abs() < 1e-9 && (settled[1] - 20.0).abs() < 1e-9,
+            "{settled:?}"
+        );
+        let mut c = planned();
+        c.settled_c = settled;
+        assert_eq!(c.unsettled_bands_c(&InUse::default()), [-20.0, 0.0, 40.0]);
+        let missing = c.missing(&InUse::default()).join("\n");
+        assert!(
+            missing.contains("no settled level in -20 … 20, 40 … 60 °C")
+                && missing.contains("predicted_settled_spread_dph"),
+            "{missing}"
+        );
+        // Told a range of use, the bands are the range's.
+        let in_use = InUse {
+            range_c: Some((-40.0, 20.0)),
+            max_rate_c_per_min: None,
+        };
+        assert_eq!(c.unsettled_bands_c(&in_use), [-20.0]);
     }
 
     #[test]

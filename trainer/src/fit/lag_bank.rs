@@ -21,7 +21,7 @@ use nalgebra::{DMatrix, DVector};
 use rbf_core::FeatureConfig;
 use rbf_core::lag_bank::{BANK_FILTERS, GainOf, LagBank};
 
-use super::coverage::Coverage;
+use super::coverage::{Coverage, settled_levels_c};
 use super::events::{FoldKind, Folds, thermal_folds};
 use super::{FitOptions, Progress};
 use crate::dataset::{Blocks, RunSet};
@@ -78,6 +78,8 @@ const EDGE_CUBIC_MAX_RATIO: f64 = 0.8;
 #[derive(Clone, Debug, Default)]
 struct LadderData {
     temp_c: Vec<f64>,
+    /// Start of each mean on its run's clock, s.
+    time_s: Vec<f64>,
     rates: Vec<[f64; BANK_FILTERS]>,
     y: Vec<f64>,
     run: Vec<usize>,
@@ -115,6 +117,7 @@ impl LadderData {
                 *r = mean(1 + k);
             }
             out.temp_c.push(mean(0));
+            out.time_s.push(blocks.time_s.get(start).copied().unwrap_or(f64::NAN));
             out.rates.push(rates);
             out.y.push(blocks.y[start..end].iter().sum::<f64>() / n);
             out.run.push(blocks.run[start]);
@@ -507,7 +510,9 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         let rates: Vec<&[f64]> = data.rates.iter().map(|r| &r[..LADDERS_S[0].len()]).collect();
         let taus: Vec<f64> = LADDERS_S[0].iter().map(|&t| f64::from(t)).collect();
         // The 960-s filter tells a settled level from a ramp.
-        Coverage::of_means(&data.temp_c, &rates, &data.run, &taus, 3, data.mean_s, folds[0].events)
+        let mut coverage = Coverage::of_means(&data.temp_c, &rates, &data.run, &taus, 3, data.mean_s, folds[0].events);
+        coverage.settled_c = settled_levels_c(&data.time_s, &data.temp_c, &data.run, data.row_s);
+        coverage
     };
     for ((data, val), f) in ladders.iter_mut().zip(&folds) {
         if val.is_none() && f.kind == FoldKind::Contiguous {

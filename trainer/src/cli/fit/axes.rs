@@ -143,10 +143,11 @@ pub(super) fn run(
         blob.len(),
         trainer::evaluation::axes::names(axes)
     )?;
+    let in_use = a.in_use()?;
     let json = serde_json::json!({
         "method": opts.method,
         "axes": axes.iter().zip(&outcomes).map(|(axis, (o, _))| {
-            let mut axis_json = outcome_json(o);
+            let mut axis_json = outcome_json(o, &in_use);
             axis_json["axis"] = serde_json::json!(axis.name());
             axis_json
         }).collect::<Vec<_>>(),

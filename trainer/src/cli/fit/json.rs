@@ -5,21 +5,46 @@ use rbf_core::{FeatureConfig, FeatureSet};
 use trainer::describe::gain_symbol;
 use trainer::evaluation::evaluate::RunEvaluation;
 use trainer::fit::FitOutcome;
+use trainer::fit::coverage::InUse;
 
 use super::super::common::input_names;
 
-/// What a fit chose, as `trainer fit --json` writes it (one axis).
-pub(super) fn outcome_json(o: &FitOutcome) -> serde_json::Value {
+/// What a fit chose, as `trainer fit --json` writes it (one axis), for use
+/// over `in_use`.
+pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse) -> serde_json::Value {
     serde_json::json!({
         "choice": o.choice,
         "feature_sets": o.sets,
         "lag_bank_search": o.bank,
         "structure": o.structure,
         "predicted_in_use_std100_dph": o.predicted_in_use_std100_dph(),
+        "predicted_settled_spread_dph": serde_json::Value::Null,
+        "settled_forecast": settled_forecast(o, in_use),
         "training_std100_dph": o.training_std100_dph,
         "features": features_json(o.model.features()),
         "svr": o.svr,
     })
+}
+
+/// Why `predicted_settled_spread_dph` is null: the fit names the settled
+/// bias it cannot vouch for (docs/decisions.md, "The settled curve after a
+/// planned run": no forecast of the soak spread has been validated yet).
+fn settled_forecast(o: &FitOutcome, in_use: &InUse) -> String {
+    let Some(search) = &o.bank else {
+        return "not forecast: this method's fit does not read the runs' settled levels".to_owned();
+    };
+    let unsettled = search.coverage.unsettled_bands_c(in_use);
+    if unsettled.is_empty() {
+        "not forecast: the runs hold a settled level in every 20-°C band, but no forecast of the soak spread has been \
+         validated; measure it with `trainer eval` on a soak run"
+            .to_owned()
+    } else {
+        let bands: Vec<String> = unsettled.iter().map(|b| format!("{b:.0}")).collect();
+        format!(
+            "not forecast: no settled level in the 20-°C bands from {} °C (`missing:` says where to hold)",
+            bands.join(", ")
+        )
+    }
 }
 
 /// The table's evaluations, as `trainer fit --json` writes them.
