@@ -89,29 +89,7 @@ pub struct Coverage {
     pub settled_c: Vec<f64>,
 }
 
-/// The loop temperatures of the settled plateaus ([`crate::dataset::plateaus`])
-/// in means of the loop temperature `temp_c` starting at `time_s` on their
-/// run's clock, of run `run`, each `period_s` long, °C.
-pub fn settled_levels_c(time_s: &[f64], temp_c: &[f64], run: &[usize], period_s: f64) -> Vec<f64> {
-    use crate::dataset::plateaus::{MinuteBlocker, settled_plateaus};
-    let mut out = Vec::new();
-    let mut start = 0;
-    while start < run.len() {
-        let end = (start..run.len()).find(|&i| run[i] != run[start]).unwrap_or(run.len());
-        let mut blocker = MinuteBlocker::new(period_s);
-        for (&t, &temp) in time_s[start..end].iter().zip(&temp_c[start..end]) {
-            blocker.push(t, Some(temp), 0.0, 0.0);
-        }
-        let first_s = blocker.first_time_s().unwrap_or(0.0);
-        out.extend(
-            settled_plateaus(&blocker.finish(), first_s, period_s)
-                .iter()
-                .map(|p| p.temp_c),
-        );
-        start = end;
-    }
-    out
-}
+pub use crate::dataset::plateaus::settled_levels_c;
 
 impl Coverage {
     /// Coverage of 10-s means: loop temperature `temp_c`, the filters'

@@ -52,6 +52,11 @@ pub struct Plan {
     pub loop_range_c: (f64, f64),
     /// The same on a plant [`SLOW_PLANT_FACTOR`] times slower than nominal, °C.
     pub slow_loop_range_c: (f64, f64),
+    /// Loop temperatures of the settled plateaus (the soak rule,
+    /// [`crate::dataset::plateaus`]) the nominal plant reads under the plan, °C.
+    pub settled_c: Vec<f64>,
+    /// The same on the slow plant, °C.
+    pub slow_settled_c: Vec<f64>,
     /// With `--soak-ends`, each end soak lasts at least this, s
     /// ([`end_soak_s`]); `None` without (the plan as before the end soaks).
     pub end_soak_s: Option<f64>,
@@ -116,6 +121,12 @@ impl Plan {
                 self.limits.reach_c()
             );
         }
+        let levels = |l: &[f64]| l.iter().map(|t| format!("{t:.1}")).collect::<Vec<_>>().join(",");
+        let _ = writeln!(
+            s,
+            "# predicted_settled_c: {} (nominal plant; soak rule of trainer eval)",
+            levels(&self.settled_c)
+        );
         let _ = writeln!(
             s,
             "# predicted_loop_c: {:.1},{:.1} (nominal plant; {:.1},{:.1} with every time constant {SLOW_PLANT_FACTOR}× nominal)",
@@ -146,6 +157,7 @@ impl Plan {
         let mut out = vec![format!(
             "predicted loop range: {lo:.1} … {hi:.1} °C on the nominal plant, {slo:.1} … {shi:.1} °C with every time constant {SLOW_PLANT_FACTOR}× nominal (asked {min_c} … {max_c} °C; {soaks})"
         )];
+        out.push(self.settled_line());
         for (name, range) in [
             ("the nominal plant", self.loop_range_c),
             ("the slow plant", self.slow_loop_range_c),
@@ -171,6 +183,42 @@ impl Plan {
             ));
         }
         out
+    }
+
+    /// The settled levels the plan gives (the soak rule of `trainer eval`),
+    /// and the 20-°C bands of the asked range it leaves without one on the
+    /// nominal plant: there the fit that follows forecasts no soak spread.
+    fn settled_line(&self) -> String {
+        let list = |levels: &[f64]| {
+            if levels.is_empty() {
+                "none".to_owned()
+            } else {
+                levels.iter().map(|t| format!("{t:.1}")).collect::<Vec<_>>().join(", ")
+            }
+        };
+        let (min_c, max_c) = (self.limits.min_c, self.limits.max_c);
+        let bands = ((max_c - min_c) / 20.0 - 1e-9).ceil().max(1.0) as usize;
+        let bare: Vec<String> = (0..bands)
+            .map(|b| (b, min_c + 20.0 * b as f64))
+            .filter(|&(b, lo)| {
+                let hi = if b + 1 == bands { max_c + self.limits.reach_c() } else { lo + 20.0 };
+                !self.settled_c.iter().any(|&t| t >= lo && t < hi)
+            })
+            .map(|(_, lo)| format!("{lo:.0} … {:.0}", (lo + 20.0).min(max_c)))
+            .collect();
+        let verdict = if bare.is_empty() {
+            "one in every 20-°C band of the asked range".to_owned()
+        } else {
+            format!(
+                "none in {} °C: a soak test's settled bias there is not identified from this run (more --hours hold more levels; docs/plan.md)",
+                bare.join(", ")
+            )
+        };
+        format!(
+            "predicted settled levels (soak rule): {} °C on the nominal plant, {} °C on the slow plant; {verdict}",
+            list(&self.settled_c),
+            list(&self.slow_settled_c)
+        )
     }
 
     /// The set-point CSV `trainer simulate --chamber-profile` reads.
@@ -248,8 +296,15 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, soak_ends: bool
         .filter(|s| s.1.is_finite())
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .ok_or_else(|| "no candidate plan has an invertible information matrix".to_owned())?;
-    let loop_range_c = range_of(&loop_temps(&segments, &plant));
-    let slow_loop_range_c = range_of(&loop_temps(&segments, &slowed(&plant, SLOW_PLANT_FACTOR)));
+    let nominal = loop_temps(&segments, &plant);
+    let slow = loop_temps(&segments, &slowed(&plant, SLOW_PLANT_FACTOR));
+    let loop_range_c = range_of(&nominal);
+    let slow_loop_range_c = range_of(&slow);
+    // loop_temps reads the loop every second from 0 s.
+    let settled = |temps: &[f64]| {
+        let time_s: Vec<f64> = (0..temps.len()).map(|i| i as f64).collect();
+        crate::dataset::plateaus::settled_levels_c(&time_s, temps, &vec![0; temps.len()], 1.0)
+    };
     Ok(Plan {
         limits: *limits,
         segments,
@@ -259,6 +314,8 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, soak_ends: bool
         seed,
         loop_range_c,
         slow_loop_range_c,
+        settled_c: settled(&nominal),
+        slow_settled_c: settled(&slow),
         end_soak_s,
     })
 }
