@@ -201,7 +201,11 @@ impl Plan {
         let bare: Vec<String> = (0..bands)
             .map(|b| (b, min_c + 20.0 * b as f64))
             .filter(|&(b, lo)| {
-                let hi = if b + 1 == bands { max_c + self.limits.reach_c() } else { lo + 20.0 };
+                let hi = if b + 1 == bands {
+                    max_c + self.limits.reach_c()
+                } else {
+                    lo + 20.0
+                };
                 !self.settled_c.iter().any(|&t| t >= lo && t < hi)
             })
             .map(|(_, lo)| format!("{lo:.0} … {:.0}", (lo + 20.0).min(max_c)))
