@@ -11,10 +11,10 @@ per run, then scored as `cargo xtask bench-designs` scores:
 - in use: the 100-s cluster STD improvement on `<design>_random.csv` and
   `<design>_field.csv`, %;
 - soak: the settled spread on `<design>_soak.csv`, °/h, by trainer's plateau
-  rule (trainer/src/dataset/plateaus.rs: 60-s means of the loop temperature,
-  steady when a mean moves at most 0.05 °C from the one before, plateaus of
-  at least 30 min of steady minutes less the last, the residual's mean over
-  the last 30 min of each; spread = max - min);
+  rule (trainer/src/dataset/plateaus.rs and docs/workflow.md, "The soak
+  test": 60-s means of the loop temperature, steady where it moved at most
+  1.5 °C over 10 min, the hold's end 5 min before the loop departs from its
+  line; the residual's mean over the last 30 min of each; spread = max - min);
 - the training residual's STD of 100-s means per run, °/h: each run alone
   fits to its noise (about 0.006 °/h); a combination that cannot is one the
   model class cannot represent.
@@ -30,31 +30,50 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import response_prior as rp  # noqa: E402
 
-STEADY_STEP_C = 0.05
+STEADY_SPAN_MIN = 10
+STEADY_MOVE_C = 1.5
+DEPARTURE_C = 0.03
+DEPARTURE_GROWTH = 2.0
+DEPARTURE_GROWTH_MIN = 5
+DEPARTURE_MARGIN_MIN = 5
+UNSEEN_DEPARTURE_MIN = 15
 MIN_STEADY_MIN = 30
 WINDOW_MIN = 30
 
 
 def settled_biases(time_s, temp_c, residual_dph):
-    """(loop temperature °C, settled bias °/h) per plateau, by trainer's rule (one run, no gaps)."""
+    """(loop temperature degC, settled bias deg/h) per plateau, by trainer's rule
+    (trainer/src/dataset/plateaus.rs; one run at 1 Hz or faster, no gaps)."""
     block = ((time_s - time_s[0]) // 60.0).astype(int)
-    count = np.bincount(block)
-    temp = np.bincount(block, temp_c) / np.maximum(count, 1)
-    steady = np.zeros(len(temp), bool)
-    steady[1:] = np.abs(np.diff(temp)) <= STEADY_STEP_C
+    temp = np.bincount(block, temp_c) / np.maximum(np.bincount(block), 1)
+    n, span = len(temp), STEADY_SPAN_MIN
+    steady = np.zeros(n, bool)
+    steady[span:] = np.abs(temp[span:] - temp[:-span]) <= STEADY_MOVE_C
+    off = np.full(n, np.nan)
+    for k in range(span + 1, n):
+        off[k] = abs(temp[k] - (temp[k - 1] + (temp[k - 1] - temp[k - 1 - span]) / span))
     out, i = [], 0
-    while i < len(temp):
+    while i < n:
         if not steady[i]:
             i += 1
             continue
         j = i
-        while j + 1 < len(temp) and steady[j + 1]:
+        while j + 1 < n and steady[j + 1]:
             j += 1
-        if j - i + 1 >= MIN_STEADY_MIN:
-            last = j - 1  # the last steady minute is dropped: the next ramp has begun
-            window = (block > last - WINDOW_MIN) & (block <= last) & (block >= i)
+        departure = None
+        for k in range(i + span + 1 + DEPARTURE_GROWTH_MIN, min(j + span, n - 1) + 1):
+            least = off[k - DEPARTURE_GROWTH_MIN : k].min()
+            if off[k] > DEPARTURE_C and off[k] > DEPARTURE_GROWTH * least:
+                departure = k
+                break
+        if departure is not None:
+            end = departure - 1 - DEPARTURE_MARGIN_MIN
+        else:
+            end = j - UNSEEN_DEPARTURE_MIN if j + 1 < n else j
+        if end - i + 1 >= MIN_STEADY_MIN:
+            window = (block > end - WINDOW_MIN) & (block <= end)
             out.append((temp_c[window].mean(), residual_dph[window].mean()))
-        i = j + 1
+        i = (departure if departure is not None else j) + 1
     return out
 
 
