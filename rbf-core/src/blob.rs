@@ -23,6 +23,7 @@
 use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
+use crate::axis::MAX_AXES;
 use crate::features::FeatureConfig;
 use crate::model::{BodyParams, Model, ModelBody, ModelError, ModelInfo, ModelKind, SERIAL_CAPACITY};
 use crate::poly::Poly3;
@@ -123,7 +124,7 @@ impl Header {
             centers: u16::from_le_bytes([h[8], h[9]]),
             payload_len: u32::from_le_bytes([h[12], h[13], h[14], h[15]]),
         };
-        if header.version == axes::AXES_FORMAT_VERSION {
+        if header.version == AXES_FORMAT_VERSION {
             return Err(DecodeError::MultiAxis);
         }
         if header.version != FORMAT_VERSION {
@@ -158,6 +159,57 @@ fn header_bytes(bytes: &[u8]) -> Result<(&[u8], u16), DecodeError> {
     Ok((h, u16::from_le_bytes([h[4], h[5]])))
 }
 
+/// Format version of multi-axis blobs.
+pub const AXES_FORMAT_VERSION: u16 = 3;
+
+/// The header of a multi-axis blob.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AxesHeader {
+    /// Axes present: bit 0 = x, bit 1 = y, bit 2 = z.
+    pub axis_mask: u8,
+    /// Payload length, bytes.
+    pub payload_len: u32,
+    /// The axes share one basis ([`shared_layout`]): header byte 7 is
+    /// [`SHARED_BASIS_FLAG`] (else 0).
+    pub shared_basis: bool,
+}
+
+/// Header byte 7 of a format-3 blob whose axes share one basis
+/// ([`shared_layout`]); 0 for one model per axis.
+pub const SHARED_BASIS_FLAG: u8 = 1;
+
+impl AxesHeader {
+    /// Total blob length (header + payload + CRC), bytes.
+    pub fn blob_len(&self) -> usize {
+        HEADER_LEN + self.payload_len as usize + CRC_LEN
+    }
+
+    /// Parses and checks a multi-axis header: magic, version, axis mask,
+    /// reserved bytes and the length limit.
+    pub fn parse(bytes: &[u8]) -> Result<AxesHeader, DecodeError> {
+        let (h, version) = header_bytes(bytes)?;
+        if version != AXES_FORMAT_VERSION {
+            return Err(DecodeError::UnsupportedVersion(version));
+        }
+        let axis_mask = h[6];
+        if axis_mask == 0 || axis_mask >> MAX_AXES != 0 {
+            return Err(DecodeError::BadAxisMask(axis_mask));
+        }
+        if h[8..12].iter().any(|&b| b != 0) || !matches!(h[7], 0 | SHARED_BASIS_FLAG) {
+            return Err(DecodeError::Malformed);
+        }
+        let header = AxesHeader {
+            axis_mask,
+            payload_len: u32::from_le_bytes([h[12], h[13], h[14], h[15]]),
+            shared_basis: h[7] == SHARED_BASIS_FLAG,
+        };
+        if header.blob_len() > MAX_BLOB_LEN {
+            return Err(DecodeError::Malformed);
+        }
+        Ok(header)
+    }
+}
+
 /// What a blob holds, by its header: the one place a reader recognises a blob's kind
 /// (the firmware's model store, the trainer's model files and `trainer inspect` ask here,
 /// then call that kind's decoder).
@@ -177,7 +229,7 @@ pub enum BlobKind {
 /// version, or a multi-axis header that does not parse.
 pub fn blob_kind(bytes: &[u8]) -> Result<BlobKind, DecodeError> {
     match header_bytes(bytes)?.1 {
-        axes::AXES_FORMAT_VERSION => Ok(if axes::AxesHeader::parse(bytes)?.shared_basis {
+        AXES_FORMAT_VERSION => Ok(if AxesHeader::parse(bytes)?.shared_basis {
             BlobKind::SharedBasis
         } else {
             BlobKind::PerAxis
@@ -222,7 +274,7 @@ pub enum DecodeError {
     Malformed,
     /// The parameters parse but do not form a valid model.
     Model(ModelError),
-    /// A multi-axis blob ([`axes::AXES_FORMAT_VERSION`]) where one model was
+    /// A multi-axis blob ([`AXES_FORMAT_VERSION`]) where one model was
     /// expected: decode it with [`axes::decode_axes_into`].
     MultiAxis,
     /// A multi-axis blob's axis mask is 0 or names an axis beyond z.

@@ -1,7 +1,9 @@
 //! `cargo xtask import-circles`: the circles among each crate's modules.
 //!
 //! A module imports another when its code (tests and comments left out)
-//! names a path into it: `crate::a::b::Item`, `super::Item`, or a `use` tree
+//! names a path into it: `crate::a::b::Item`, `super::Item`, a child module
+//! by its name (`json::write()`, the parent's half of a parent ↔ child
+//! circle), or a `use` tree
 //! such as `crate::{a::X, b::{Y, Z}}`. A path is resolved to the deepest
 //! module it names; an item a module re-exports (`pub use`) is followed to
 //! the module that defines it, and re-exports do not count as imports
@@ -219,9 +221,18 @@ fn referenced_paths(module: &Module, known: &BTreeSet<Vec<String>>) -> Vec<(Vec<
             }
         }
     }
-    // Paths in code outside `use` items: `crate::a::b` and `super::x`.
+    // Paths in code outside `use` items: `crate::a::b`, `super::x`, and a
+    // child module named without `self::` (`json::write(…)` in a parent:
+    // the parent's half of a parent ↔ child circle).
     let code = without_use_items(&module.code);
-    for anchor in ["crate::", "super::"] {
+    let children: Vec<String> = known
+        .iter()
+        .filter(|k| k.len() == module.path.len() + 1 && k.starts_with(&module.path))
+        .filter_map(|k| k.last().map(|child| format!("{child}::")))
+        .collect();
+    let anchors = ["crate::".to_owned(), "super::".to_owned()].into_iter().chain(children);
+    for anchor in anchors {
+        let anchor = anchor.as_str();
         let mut from = 0;
         while let Some(at) = code[from..].find(anchor).map(|i| i + from) {
             from = at + anchor.len();
@@ -629,5 +640,20 @@ mod tests {
         let circles = find(dir.path(), "demo").unwrap();
         assert_eq!(circles.len(), 1, "{circles:?}");
         assert_eq!(circles[0].files, ["demo/src/fit.rs", "demo/src/fit/rbf.rs"]);
+    }
+
+    #[test]
+    fn a_parent_calling_its_child_by_name_and_the_child_reading_super_is_a_circle() {
+        let dir = demo(&[
+            ("main.rs", "mod cli;\n"),
+            (
+                "cli.rs",
+                "mod json;\npub struct Args;\npub fn run() { json::write() }\n",
+            ),
+            ("cli/json.rs", "use super::Args;\npub fn write() {}\n"),
+        ]);
+        let circles = find(dir.path(), "demo").unwrap();
+        assert_eq!(circles.len(), 1, "{circles:?}");
+        assert_eq!(circles[0].files, ["demo/src/cli.rs", "demo/src/cli/json.rs"]);
     }
 }

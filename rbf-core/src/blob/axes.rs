@@ -24,6 +24,9 @@
 //! (see `docs/blob-format.md` for the figures), so a firmware picks the
 //! smallest `K` its blobs need. [`decode_axes_into`] builds them in place.
 
+// The multi-axis header lives with the other headers in `blob`, so that
+// `blob` does not import its child; re-exported here, where it was.
+pub use super::{AXES_FORMAT_VERSION, AxesHeader, SHARED_BASIS_FLAG};
 use super::{
     BlobKind, CRC_LEN, DecodeError, EncodeError, HEADER_LEN, MAGIC, MAX_BLOB_LEN, SectionShape, crc_status_at,
     decode_section, encode_section, seal,
@@ -32,58 +35,8 @@ use crate::MAX_CENTERS;
 use crate::axis::{Axis, AxisSet, MAX_AXES};
 use crate::model::Model;
 
-/// Format version of multi-axis blobs.
-pub const AXES_FORMAT_VERSION: u16 = 3;
 /// Length of the header in front of each axis's section, bytes.
 pub const SECTION_HEADER_LEN: usize = 8;
-
-/// The header of a multi-axis blob.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct AxesHeader {
-    /// Axes present: bit 0 = x, bit 1 = y, bit 2 = z.
-    pub axis_mask: u8,
-    /// Payload length, bytes.
-    pub payload_len: u32,
-    /// The axes share one basis ([`super::shared_layout`]): header byte 7 is
-    /// [`SHARED_BASIS_FLAG`] (else 0).
-    pub shared_basis: bool,
-}
-
-/// Header byte 7 of a format-3 blob whose axes share one basis
-/// ([`super::shared_layout`]); 0 for one model per axis.
-pub const SHARED_BASIS_FLAG: u8 = 1;
-
-impl AxesHeader {
-    /// Total blob length (header + payload + CRC), bytes.
-    pub fn blob_len(&self) -> usize {
-        HEADER_LEN + self.payload_len as usize + CRC_LEN
-    }
-
-    /// Parses and checks a multi-axis header: magic, version, axis mask,
-    /// reserved bytes and the length limit.
-    pub fn parse(bytes: &[u8]) -> Result<AxesHeader, DecodeError> {
-        let (h, version) = super::header_bytes(bytes)?;
-        if version != AXES_FORMAT_VERSION {
-            return Err(DecodeError::UnsupportedVersion(version));
-        }
-        let axis_mask = h[6];
-        if axis_mask == 0 || axis_mask >> MAX_AXES != 0 {
-            return Err(DecodeError::BadAxisMask(axis_mask));
-        }
-        if h[8..12].iter().any(|&b| b != 0) || !matches!(h[7], 0 | SHARED_BASIS_FLAG) {
-            return Err(DecodeError::Malformed);
-        }
-        let header = AxesHeader {
-            axis_mask,
-            payload_len: u32::from_le_bytes([h[12], h[13], h[14], h[15]]),
-            shared_basis: h[7] == SHARED_BASIS_FLAG,
-        };
-        if header.blob_len() > MAX_BLOB_LEN {
-            return Err(DecodeError::Malformed);
-        }
-        Ok(header)
-    }
-}
 
 /// The models of a multi-axis IMU, one per axis present, each with room
 /// for `K` Gaussian centres; a model is read through `&self` and never
