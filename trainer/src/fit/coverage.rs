@@ -19,7 +19,7 @@ const SLOW_C_PER_MIN: f64 = 0.3;
 const LEVEL_S: f64 = 1200.0;
 /// Width of the temperature bands, °C: a cubic static curve is bridged
 /// safely across one band without a level, not across two.
-const BAND_C: f64 = 20.0;
+pub const BAND_C: f64 = 20.0;
 /// A long hold: a slow stretch at least this long, s (long enough for the
 /// 960-s and 3840-s filters to read the slow decay apart from the static curve).
 pub const LONG_HOLD_S: f64 = 2400.0;
@@ -90,6 +90,25 @@ pub struct Coverage {
 }
 
 pub use crate::dataset::plateaus::settled_levels_c;
+
+/// Lower edges of the [`BAND_C`] bands `[edge, edge + 20)` from `lo` up that
+/// hold none of `levels_c`, °C. The last band ends at `hi` + `top_slack_c`,
+/// inclusive (a range a hair over a multiple of the width is no band more).
+/// Empty for an empty or unread (NaN) range.
+pub fn bands_without_level_c(levels_c: &[f64], lo: f64, hi: f64, top_slack_c: f64) -> Vec<f64> {
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+        return Vec::new();
+    }
+    let bands = ((hi - lo) / BAND_C - 1e-9).ceil().max(1.0) as usize;
+    (0..bands)
+        .map(|b| (b, lo + b as f64 * BAND_C))
+        .filter(|&(b, edge)| {
+            let inside = |t: f64| t >= edge && (t < edge + BAND_C || (b + 1 == bands && t <= hi + top_slack_c));
+            !levels_c.iter().any(|&t| inside(t))
+        })
+        .map(|(_, edge)| edge)
+        .collect()
+}
 
 impl Coverage {
     /// Coverage of 10-s means: loop temperature `temp_c`, the filters'
@@ -193,21 +212,7 @@ impl Coverage {
     /// of the covered range) that hold no settled level ([`Self::settled_c`]), °C.
     pub fn unsettled_bands_c(&self, in_use: &InUse) -> Vec<f64> {
         let (lo, hi) = in_use.range_c.unwrap_or(self.temp_range_c);
-        // NaN ends (no reading) or an empty range: nothing to ask for.
-        if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
-            return Vec::new();
-        }
-        // Bands [edge, edge + 20) from the low end; the last one ends at the
-        // high end, inclusive (a range a hair over 100 °C is five bands).
-        let bands = ((hi - lo) / BAND_C - 1e-9).ceil().max(1.0) as usize;
-        (0..bands)
-            .map(|b| (b, lo + b as f64 * BAND_C))
-            .filter(|&(b, edge)| {
-                let inside = |t: f64| t >= edge && (t < edge + BAND_C || (b + 1 == bands && t <= hi));
-                !self.settled_c.iter().any(|&t| inside(t))
-            })
-            .map(|(_, edge)| edge)
-            .collect()
+        bands_without_level_c(&self.settled_c, lo, hi, 0.0)
     }
 
     /// What the lag bank needs for `in_use` and these runs lack, in words an engineer acts on.

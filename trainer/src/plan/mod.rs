@@ -197,19 +197,12 @@ impl Plan {
             }
         };
         let (min_c, max_c) = (self.limits.min_c, self.limits.max_c);
-        let bands = ((max_c - min_c) / 20.0 - 1e-9).ceil().max(1.0) as usize;
-        let bare: Vec<String> = (0..bands)
-            .map(|b| (b, min_c + 20.0 * b as f64))
-            .filter(|&(b, lo)| {
-                let hi = if b + 1 == bands {
-                    max_c + self.limits.reach_c()
-                } else {
-                    lo + 20.0
-                };
-                !self.settled_c.iter().any(|&t| t >= lo && t < hi)
-            })
-            .map(|(_, lo)| format!("{lo:.0} … {:.0}", (lo + 20.0).min(max_c)))
-            .collect();
+        let band_c = crate::fit::coverage::BAND_C;
+        let bare: Vec<String> =
+            crate::fit::coverage::bands_without_level_c(&self.settled_c, min_c, max_c, self.limits.reach_c())
+                .iter()
+                .map(|lo| format!("{lo:.0} … {:.0}", (lo + band_c).min(max_c)))
+                .collect();
         let verdict = if bare.is_empty() {
             "one in every 20-°C band of the asked range".to_owned()
         } else {
