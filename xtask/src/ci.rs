@@ -188,8 +188,7 @@ pub fn ci() -> anyhow::Result<()> {
     // Beside the host tests, at the lowest CPU priority, the fuzz targets'
     // instrumented build (its own target folder). Not beside the QEMU tests:
     // their boards run in real time, and on a loaded machine a board that
-    // falls behind drops samples (seen in CI: a 1-kHz recording read as
-    // 256 Hz and refused by the reader).
+    // falls behind drops samples, which its recordings then show.
     let (mut passed, mut failed) = std::thread::scope(|scope| {
         let fuzz_build = scope.spawn(|| crate::fuzz::build_targets(crate::fuzz::Priority::Background));
         let host = run_tests(&["test", "--workspace"]);

@@ -14,8 +14,8 @@
 //! 2. **Steady blocks.** Block `k` is steady when it and the
 //!    [`STEADY_SPAN_S`] (10) blocks before it are complete, no gap lies
 //!    among them, and the loop moved at most [`STEADY_MOVE_C`] (1.5 °C) over
-//!    those 10 minutes (0.15 °C/min: a chamber ramp moves it 10 °C, the end
-//!    of a 3-h hold of the slowest gyros simulated still 0.7 °C). A gap
+//!    those 10 minutes (0.15 °C/min: far below a chamber ramp, above what a
+//!    slow gyro's loop still moves at the end of a long hold). A gap
 //!    therefore ends any plateau.
 //! 3. **Where the hold ends.** The loop sensor lags the chamber: it shows
 //!    the next ramp minutes after the chamber began it. Within a stretch of
@@ -32,11 +32,9 @@
 //!    last steady block. A ramp slower than 0.15 °C/min counts as steady.
 //! 4. **Plateaus.** A plateau is a stretch whose steady blocks up to the
 //!    hold's end last at least [`MIN_STEADY_S`] (30 min); the *settled
-//!    window* is its last [`WINDOW_S`] (30 min) before the hold's end.
-//!    Measured against the known hold timing of simulated soak tests (eight
-//!    and nine 3-h holds, 1 °C/min ramps, six gyros from the documented one
-//!    to designs three times as slow): every hold found, the compensated
-//!    spread within 1 % of the one read over each hold's true last 30 min.
+//!    window* is its last [`WINDOW_S`] (30 min) before the hold's end. How
+//!    well it finds the holds of simulated soak tests: docs/workflow.md,
+//!    "The soak test".
 //! 5. **Per plateau**: the loop temperature (mean over the window's samples,
 //!    °C); how long the loop was steady up to the hold's end (s); the window's start and end on the run's clock (s); the
 //!    settled bias, the mean of the residual over the window's samples
