@@ -8,7 +8,7 @@ use clap::builder::RangedU64ValueParser;
 use trainer::output::{self, Output, Transaction};
 use trainer::text;
 
-use super::common::{ForceArg, print_and_commit};
+use super::common::{ForceArg, JsonArg, print_and_commit};
 
 /// Design the chamber run to calibrate on: a profile the default model can be identified from.
 ///
@@ -18,12 +18,15 @@ use super::common::{ForceArg, print_and_commit};
 /// and keeps the one of largest D-criterion: the log-determinant of the information matrix of
 /// the lag-bank regression on the documented gyro's plant (docs/plan.md). Prints the loop
 /// range it predicts on that plant and on one 1.5× as slow, and warns when the loop stays short
-/// of the asked range (--soak-ends closes the gap). Writes the set
+/// of the asked range (--soak-ends closes the gap). Predicts, on both plants, what the default
+/// fit on the plan's run gives: the settled spread a soak test reads and the in-use 100-s
+/// cluster STD improvement (simulated, fitted and evaluated here; docs/plan.md, "Predicted
+/// figures"); --settled-spread-dph designs the shortest run predicted to meet a soak spec. Writes the set
 /// points `trainer simulate --chamber-profile` reads (time_s,chamber_c, piecewise linear), or
 /// with --format segments the segment table a chamber controller takes. Same seed, same plan.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 -o plan.csv\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 --format segments --plot plan.svg -o segments.csv"
+    after_help = "Example:\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 -o plan.csv\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 --format segments --plot plan.svg -o segments.csv\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 36 --settled-spread-dph 0.01 -o plan.csv --json plan.json"
 )]
 pub struct Args {
     /// Lowest set point, °C.
@@ -64,12 +67,25 @@ pub struct Args {
     /// before end soaks existed.
     #[arg(long)]
     soak_ends: bool,
+    /// Design the shortest run predicted to meet this settled spread on both plants, °/h.
+    ///
+    /// The spread of settled bias a soak test reads after the default fit on the run (3-h
+    /// holds at 25, 0, 40, -20, 60, 20, -40, 10 °C and at 10, -40, 50, -10, 30, 60, -30,
+    /// 0 °C, the worse), on the documented gyro and on one 1.5× as slow. Tries whole hours from
+    /// the shortest the limits allow up to --hours (the longest first, then by bisection),
+    /// each as a plain and, where it fits, a --soak-ends plan, and prints which it chose.
+    /// When no length within --hours meets it: exit 1, nothing written, the best length's
+    /// figures in the message. A minute or more in a release build.
+    #[arg(long, value_name = "DPH", conflicts_with = "soak_ends", help_heading = "Spec")]
+    settled_spread_dph: Option<f64>,
     /// Also draw the plan (set points and the nominal loop temperature) as SVG or PNG, by extension.
     #[arg(long, value_name = "FILE.svg|png", help_heading = "Output")]
     plot: Option<PathBuf>,
     /// Plan to write.
     #[arg(short, long, value_name = "PLAN.csv", help_heading = "Output")]
     output: PathBuf,
+    #[command(flatten)]
+    json: JsonArg,
     #[command(flatten)]
     force: ForceArg,
 }
@@ -114,10 +130,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             },
         ),
     };
+    if let Some(x) = a.settled_spread_dph {
+        anyhow::ensure!(
+            x.is_finite() && x > 0.0,
+            "--settled-spread-dph {x}: must be a positive number of °/h"
+        );
+    }
     let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(a.plot.as_deref()).collect();
     let mut targets = output::check_targets(&outputs, &[], a.force.existing())?.into_iter();
-    let plan = trainer::plan::design(&limits, a.seed, a.candidates, a.soak_ends)
-        .map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
+    let json_out = a.json.sink(&outputs, a.force.existing())?;
+    let progress = trainer::fit::Progress::new(true);
+    let (plan, spec) = designed(&a, &limits, &progress)?;
     let text_out = match a.format {
         PlanFormat::SetPoints => plan.set_points_csv(),
         PlanFormat::Segments => plan.segments_csv(),
@@ -151,8 +174,82 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for line in plan.loop_range_lines() {
         writeln!(out, "{line}")?;
     }
+    for line in plan.prediction.iter().flat_map(|p| p.lines()) {
+        writeln!(out, "{line}")?;
+    }
+    if let Some(spec) = &spec {
+        writeln!(out, "{}", spec.summary())?;
+    }
     if let Some(p) = &a.plot {
         writeln!(out, "wrote {}", text::path(p))?;
     }
-    print_and_commit(&out, false, transaction)
+    let json_on_stdout = json_out.is_stdout();
+    json_out.write(&json_report(&plan, spec.as_ref()), &mut transaction)?;
+    print_and_commit(&out, json_on_stdout, transaction)
+}
+
+/// The plan to write, with its prediction: designed within `limits` as
+/// asked, or, with --settled-spread-dph, the shortest that meets it (an
+/// error saying the best figures when none within --hours does).
+fn designed(
+    a: &Args,
+    limits: &trainer::plan::limits::PlanLimits,
+    progress: &trainer::fit::Progress,
+) -> anyhow::Result<(trainer::plan::Plan, Option<trainer::plan::spec::SpecOutcome>)> {
+    use trainer::plan::predict::{TestBench, predict};
+    progress.start("soaks and histories", 1);
+    let benches = TestBench::both()?;
+    progress.finish();
+    match a.settled_spread_dph {
+        Some(target_dph) => {
+            let outcome = trainer::plan::spec::design_for_settled_spread(
+                limits,
+                a.seed,
+                a.candidates,
+                target_dph,
+                &benches,
+                progress,
+            )?;
+            match outcome.plan() {
+                Some(t) => Ok((t.plan.clone(), Some(outcome))),
+                None => anyhow::bail!("cannot plan for the spec: {}", outcome.summary()),
+            }
+        }
+        None => {
+            let mut plan = trainer::plan::design(limits, a.seed, a.candidates, a.soak_ends)
+                .map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
+            progress.start("predicting", 2);
+            plan.prediction = Some(predict(&plan, &benches, progress)?);
+            progress.finish();
+            Ok((plan, None))
+        }
+    }
+}
+
+/// `--json`: the plan's length and family, its predicted figures and, with
+/// --settled-spread-dph, what the search tried.
+fn json_report(plan: &trainer::plan::Plan, spec: Option<&trainer::plan::spec::SpecOutcome>) -> serde_json::Value {
+    let seeds = {
+        use trainer::plan::predict::*;
+        serde_json::json!({
+            "plan_run": PLAN_RUN_SEED,
+            "soak_tests": SOAK_SEEDS,
+            "random_history": RANDOM_SEED,
+            "field_history": FIELD_SEED,
+        })
+    };
+    serde_json::json!({
+        "hours": plan.limits.hours,
+        "duration_h": plan.duration_s() / 3600.0,
+        "soak_ends": plan.end_soak_s.is_some(),
+        "seed": plan.seed,
+        "criterion": plan.criterion,
+        "predicted": plan.prediction,
+        "prediction_seeds": seeds,
+        "soak_orders_c": trainer::plan::predict::SOAK_ORDERS_C,
+        "settled_spread_target_dph": spec.map(|s| s.target_dph),
+        "tried": spec.map(|s| s.tried.iter().map(|(h, family, spread)| serde_json::json!({
+            "hours": h, "family": family, "worse_settled_spread_dph": spread,
+        })).collect::<Vec<_>>()),
+    })
 }

@@ -30,6 +30,8 @@ pub mod candidates;
 pub mod criterion;
 pub mod limits;
 pub mod plot;
+pub mod predict;
+pub mod spec;
 
 use self::{candidates::*, criterion::*, limits::*};
 
@@ -60,6 +62,9 @@ pub struct Plan {
     /// With `--soak-ends`, each end soak lasts at least this, s
     /// ([`end_soak_s`]); `None` without (the plan as before the end soaks).
     pub end_soak_s: Option<f64>,
+    /// The figures predicted after the default fit on the plan's run
+    /// ([`predict::predict`]); `None` until predicted.
+    pub prediction: Option<predict::Prediction>,
 }
 
 impl Plan {
@@ -132,6 +137,9 @@ impl Plan {
             "# predicted_loop_c: {:.1},{:.1} (nominal plant; {:.1},{:.1} with every time constant {SLOW_PLANT_FACTOR}× nominal)",
             self.loop_range_c.0, self.loop_range_c.1, self.slow_loop_range_c.0, self.slow_loop_range_c.1
         );
+        if let Some(prediction) = &self.prediction {
+            s.push_str(&prediction.metadata());
+        }
         s
     }
 
@@ -314,6 +322,7 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, soak_ends: bool
         settled_c: settled(&nominal),
         slow_settled_c: settled(&slow),
         end_soak_s,
+        prediction: None,
     })
 }
 
