@@ -72,10 +72,10 @@ pub struct Args {
     /// The spread of settled bias a soak test reads after the default fit on the run (3-h
     /// holds at 25, 0, 40, -20, 60, 20, -40, 10 °C and at 10, -40, 50, -10, 30, 60, -30,
     /// 0 °C, the worse), on the documented gyro and on one 1.5× as slow. Tries whole hours from
-    /// the shortest the limits allow up to --hours (the longest first, then by bisection),
-    /// each as a plain and, where it fits, a --soak-ends plan, and prints which it chose.
-    /// When no length within --hours meets it: exit 1, nothing written, the best length's
-    /// figures in the message. A minute or more in a release build.
+    /// the shortest the limits allow, up to --hours, each as a plain and, where the end soaks
+    /// fit, a --soak-ends plan; writes the first length that meets it and says which family.
+    /// When none within --hours does: exit 1, nothing written, the best length's figures in
+    /// the message. About 10–20 s a length in a release build.
     #[arg(long, value_name = "DPH", conflicts_with = "soak_ends", help_heading = "Spec")]
     settled_spread_dph: Option<f64>,
     /// Also draw the plan (set points and the nominal loop temperature) as SVG or PNG, by extension.
@@ -140,7 +140,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut targets = output::check_targets(&outputs, &[], a.force.existing())?.into_iter();
     let json_out = a.json.sink(&outputs, a.force.existing())?;
     let progress = trainer::fit::Progress::new(true);
-    let (plan, spec) = designed(&a, &limits, &progress)?;
+    let (plan, spec, no_prediction) = designed(&a, &limits, &progress)?;
     let text_out = match a.format {
         PlanFormat::SetPoints => plan.set_points_csv(),
         PlanFormat::Segments => plan.segments_csv(),
@@ -180,6 +180,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(spec) = &spec {
         writeln!(out, "{}", spec.summary())?;
     }
+    if let Some(warning) = &no_prediction {
+        writeln!(out, "{warning}")?;
+    }
     if let Some(p) = &a.plot {
         writeln!(out, "wrote {}", text::path(p))?;
     }
@@ -190,12 +193,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 
 /// The plan to write, with its prediction: designed within `limits` as
 /// asked, or, with --settled-spread-dph, the shortest that meets it (an
-/// error saying the best figures when none within --hours does).
+/// error saying the best figures when none within --hours does); and the
+/// warning to print when the plan is written without a prediction.
 fn designed(
     a: &Args,
     limits: &trainer::plan::limits::PlanLimits,
     progress: &trainer::fit::Progress,
-) -> anyhow::Result<(trainer::plan::Plan, Option<trainer::plan::spec::SpecOutcome>)> {
+) -> anyhow::Result<(
+    trainer::plan::Plan,
+    Option<trainer::plan::spec::SpecOutcome>,
+    Option<String>,
+)> {
     use trainer::plan::predict::{TestBench, predict};
     progress.start("soaks and histories", 1);
     let benches = TestBench::both()?;
@@ -211,7 +219,7 @@ fn designed(
                 progress,
             )?;
             match outcome.plan() {
-                Some(t) => Ok((t.plan.clone(), Some(outcome))),
+                Some(t) => Ok((t.plan.clone(), Some(outcome), None)),
                 None => anyhow::bail!("cannot plan for the spec: {}", outcome.summary()),
             }
         }
@@ -219,9 +227,14 @@ fn designed(
             let mut plan = trainer::plan::design(limits, a.seed, a.candidates, a.soak_ends)
                 .map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
             progress.start("predicting", 2);
-            plan.prediction = Some(predict(&plan, &benches, progress)?);
+            // A plan the default fit cannot learn from is still a plan: written, with the reason.
+            let prediction = predict(&plan, &benches, progress);
             progress.finish();
-            Ok((plan, None))
+            match prediction {
+                Ok(p) => plan.prediction = Some(p),
+                Err(e) => return Ok((plan, None, Some(format!("warning: no prediction for this plan: {e:#}")))),
+            }
+            Ok((plan, None, None))
         }
     }
 }

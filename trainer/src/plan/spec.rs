@@ -6,12 +6,12 @@
 //! the plain plan and, where the length holds its end soaks, the
 //! `--soak-ends` plan are designed and predicted; the length's pick is the
 //! family that meets the spec (the better in use when both do), else the one
-//! of lower settled spread. The search first tries the longest length: when
-//! it does not meet the spec, no length is taken to (the spread falls with
-//! the hours, measured in docs/plan.md) and the answer is that it cannot.
-//! Otherwise it bisects between the shortest length and that one, each step
-//! keeping the longer end meeting the spec, so the answer is a length that
-//! was predicted to meet it and whose next shorter length tried did not.
+//! of lower settled spread. The lengths are scanned from the shortest up and
+//! the first that meets the spec is the answer: the predicted spread does
+//! not fall monotonically with the hours (docs/plan.md, "What each extra
+//! hour buys": a longer plain plan may turn back from an end sooner), so a
+//! bisection could skip the shortest length that meets it. The price: a
+//! spec that cannot be met is known only after every length up to `--hours`.
 
 use super::limits::PlanLimits;
 use super::predict::{Prediction, TestBench, predict};
@@ -150,8 +150,9 @@ fn try_length(
 }
 
 /// The shortest plan within `limits` (lengths by [`lengths_h`]) predicted to
-/// give a settled spread of at most `target_dph` on both plants, found as the
-/// module says. `progress` counts one step per plan and plant predicted.
+/// give a settled spread of at most `target_dph` on both plants, found by
+/// the scan the module describes. `progress` counts one step per plan and
+/// plant predicted.
 pub fn design_for_settled_spread(
     limits: &PlanLimits,
     seed: u64,
@@ -166,34 +167,19 @@ pub fn design_for_settled_spread(
     );
     limits.check().map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
     let lengths = lengths_h(limits);
-    // At most 2 + log2(lengths) lengths, two families and two plants each.
-    let steps = 4 * (2 + lengths.len().ilog2() as u64 + 1);
-    progress.start("plan for the spec", steps);
+    // Up to two families and two plants a length.
+    progress.start("plan for the spec", 4 * lengths.len() as u64);
     let mut tried: Vec<(usize, Tried)> = Vec::new();
-    let at = |i: usize, tried: &mut Vec<(usize, Tried)>| -> anyhow::Result<bool> {
-        let t = try_length(limits, lengths[i], seed, candidates, target_dph, benches, progress)?;
+    let mut met = None;
+    for (i, &hours) in lengths.iter().enumerate() {
+        let t = try_length(limits, hours, seed, candidates, target_dph, benches, progress)?;
         let meets = t.prediction.meets(target_dph);
         tried.push((i, t));
-        Ok(meets)
-    };
-    let last = lengths.len() - 1;
-    let met = if !at(last, &mut tried)? {
-        None
-    } else if last == 0 || at(0, &mut tried)? {
-        Some(if last == 0 { last } else { 0 })
-    } else {
-        // lengths[lo] misses, lengths[hi] meets.
-        let (mut lo, mut hi) = (0, last);
-        while hi - lo > 1 {
-            let mid = (lo + hi) / 2;
-            if at(mid, &mut tried)? {
-                hi = mid;
-            } else {
-                lo = mid;
-            }
+        if meets {
+            met = Some(i);
+            break;
         }
-        Some(hi)
-    };
+    }
     progress.finish();
     tried.sort_by_key(|t| t.0);
     let summary = tried

@@ -590,3 +590,113 @@ fn the_default_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_sh
     );
     assert!(!meta.iter().any(|m| m.starts_with("# end_soak_min")), "{meta:?}");
 }
+
+/// The two `# predicted_settled_spread_dph:` figures (nominal, slow plant) of a plan file, °/h.
+fn predicted_spreads(meta: &[String]) -> [f64; 2] {
+    let line = meta
+        .iter()
+        .find_map(|m| m.strip_prefix("# predicted_settled_spread_dph: "))
+        .unwrap_or_else(|| panic!("no predicted settled spread in {meta:?}"));
+    let figures = line.split_whitespace().next().unwrap();
+    let (nominal, slow) = figures.split_once(',').unwrap();
+    [nominal.parse().unwrap(), slow.parse().unwrap()]
+}
+
+#[test]
+fn a_plan_predicts_both_figures_on_both_plants_in_its_output_file_and_json() {
+    // The prediction simulates the plan's run, fits the default model and
+    // evaluates it on soak tests and in-use histories of both plants: the
+    // printed lines, the metadata and --json carry the same figures.
+    let dir = TempDir::new().unwrap();
+    let json = dir.path().join("plan.json");
+    let o = plan(
+        &dir,
+        "p.csv",
+        ["-40", "60", "5", "6"],
+        &["--candidates", "8", "--json", json.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed = stdout(&o);
+    let (_, meta) = read_plan(&dir.path().join("p.csv"));
+    let spreads = predicted_spreads(&meta);
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for (plant, spread) in ["nominal", "slow"].iter().zip(spreads) {
+        let figures = &report["predicted"][plant];
+        let from_json = figures["settled_spread_dph"].as_f64().unwrap();
+        // Written with four decimals.
+        assert!((from_json - spread).abs() <= 0.5e-4, "{plant}: {from_json} vs {spread}");
+        // A soak test after a 6-h plan: far above the soak's noise, far below the raw 1.4–2 °/h.
+        assert!((0.005..1.5).contains(&spread), "{plant}: {spread}");
+        let gain = figures["in_use_std100_gain_pct"].as_f64().unwrap();
+        assert!((50.0..100.0).contains(&gain), "{plant}: {gain} %");
+        let line = format!("{plant} plant: settled spread {spread:.4} °/h");
+        assert!(printed.contains(&line), "no {line:?} in {printed}");
+        assert!(printed.contains(&format!("improvement {gain:.1} %")), "{printed}");
+    }
+    assert!(
+        meta.iter()
+            .any(|m| m.starts_with("# predicted_in_use_std100_gain_pct: ")),
+        "{meta:?}"
+    );
+}
+
+#[test]
+fn a_settled_spread_spec_gives_the_shortest_plan_predicted_to_meet_it_or_says_it_cannot() {
+    let dir = TempDir::new().unwrap();
+    let limits = ["-40", "60", "5", "5"];
+    // Unreachable within 5 h: exit 1, no file, the best length's figures said.
+    let json = dir.path().join("no.json");
+    let o = plan(
+        &dir,
+        "no.csv",
+        limits,
+        &["--settled-spread-dph", "0.001", "--json", json.to_str().unwrap()],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("no plan within --hours 5 is predicted to meet it on both plants; the best tried"),
+        "{err}"
+    );
+    assert!(!dir.path().join("no.csv").exists() && !json.exists(), "nothing written");
+    // Reachable: the shortest length that meets it, its printed prediction
+    // within the spec on both plants, every shorter length tried missing it.
+    let json = dir.path().join("yes.json");
+    let o = plan(
+        &dir,
+        "yes.csv",
+        limits,
+        &["--settled-spread-dph", "0.5", "--json", json.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed = stdout(&o);
+    assert!(
+        printed.contains("--settled-spread-dph 0.5: met on both plants by the "),
+        "{printed}"
+    );
+    let (knots, meta) = read_plan(&dir.path().join("yes.csv"));
+    for spread in predicted_spreads(&meta) {
+        assert!(spread <= 0.5, "{spread} in {meta:?}");
+    }
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let tried = report["tried"].as_array().unwrap();
+    let (last, shorter) = tried.split_last().unwrap();
+    assert!(last["worse_settled_spread_dph"].as_f64().unwrap() <= 0.5, "{tried:?}");
+    assert!(
+        shorter
+            .iter()
+            .all(|t| t["worse_settled_spread_dph"].as_f64().unwrap() > 0.5),
+        "{tried:?}"
+    );
+    let hours = report["hours"].as_f64().unwrap();
+    assert_eq!(last["hours"].as_f64().unwrap().to_bits(), hours.to_bits());
+    assert!(knots.last().unwrap().0 <= hours * 3600.0, "within the chosen length");
+    // The search picks the family itself.
+    let o = plan(&dir, "c.csv", limits, &["--settled-spread-dph", "0.5", "--soak-ends"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("cannot be used with"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("c.csv").exists());
+}
