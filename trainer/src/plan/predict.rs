@@ -280,6 +280,27 @@ mod tests {
     }
 
     #[test]
+    fn the_same_plan_gets_the_same_figures_and_a_soak_spread_on_the_plant() {
+        // Fixed seeds: the prediction is a function of the plan; and the
+        // soak tests hold plateaus, so a spread is read.
+        let limits = super::super::limits::PlanLimits {
+            min_c: -40.0,
+            max_c: 60.0,
+            max_rate_c_per_min: 5.0,
+            hours: 6.0,
+        };
+        let plan = super::super::design(&limits, 1, 4, false).unwrap();
+        let bench = TestBench::new(PlantKind::Nominal).unwrap();
+        let a = bench.judge(&plan).unwrap();
+        let b = bench.judge(&plan).unwrap();
+        let spread = a.settled_spread_dph.expect("eight plateaus a soak test");
+        assert_eq!(spread.to_bits(), b.settled_spread_dph.unwrap().to_bits());
+        assert_eq!(a.in_use_std100_gain_pct.to_bits(), b.in_use_std100_gain_pct.to_bits());
+        // Compensated: well below the raw bias's 1.4–2 °/h span, above the soak's noise.
+        assert!((0.005..1.0).contains(&spread), "{spread}");
+    }
+
+    #[test]
     fn a_prediction_meets_a_target_only_when_both_plants_do() {
         let figures = |plant, spread| PlantFigures {
             plant,
