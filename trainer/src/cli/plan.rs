@@ -26,7 +26,7 @@ use super::common::{ForceArg, JsonArg, print_and_commit};
 /// with --format segments the segment table a chamber controller takes. Same seed, same plan.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Example:\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 -o plan.csv\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 --format segments --plot plan.svg -o segments.csv\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 36 --settled-spread-dph 0.01 -o plan.csv --json plan.json"
+    after_help = "Example:\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 -o plan.csv\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 12 --format segments --plot plan.svg -o segments.csv\n  trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours 36 --settled-spread-dph 0.02 -o plan.csv --json plan.json"
 )]
 pub struct Args {
     /// Lowest set point, °C.
