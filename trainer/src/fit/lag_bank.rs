@@ -43,7 +43,7 @@ pub const LADDERS_S: [&[f32]; 2] = [
 /// never bring it near its steady state, so its weight is not identified,
 /// and a slow in-use drift (a day cycle at 0.2 °C/min) drives it where no
 /// training run went (on the bench's gyros it cost in-use accuracy there:
-/// docs/benchmarks.md, "Measurements behind design choices").
+/// docs/decisions.md, "Measurements behind design choices").
 pub const CANDIDATES: [(usize, usize, usize); 3] = [(1, 0, 5), (1, 0, 4), (0, 0, 5)];
 
 /// Degrees of the Shupe gain g(T̂) tried: linear in T̂. A quadratic gain
