@@ -321,6 +321,17 @@ fn linear_start(s: &Structure, lags_min: f64, t0: f64, data: &LadderData, rows: 
 }
 
 /// Levenberg–Marquardt from `p` on `rows`; returns the parameters and their cost.
+///
+/// Why not the `levenberg-marquardt` crate: it is MINPACK's `lmder`, which
+/// takes the whole rows × parameters Jacobian and factors it by QR, with its
+/// own trust-region step and column scaling. This fit sums JᵀJ row by row
+/// (up to 32,768 blocks per ladder, for every structure, fold and start in
+/// parallel) and steps by Marquardt's diagonal on a cost that includes the
+/// prior ([`prior`]), so the crate would hold each fit's Jacobian in memory
+/// and walk other steps: the fitted lags, and so every lag-bank blob, would
+/// change in their last bits, where the same inputs must give the same blob.
+/// (Not measured against it; a trial would be judged by `cargo xtask
+/// bench-accuracy --in-use --designs 16` and the blobs' bytes.)
 fn levenberg_marquardt(s: &Structure, mut p: Vec<f64>, t0: f64, data: &LadderData, rows: &[usize]) -> (Vec<f64>, f64) {
     let m = s.params();
     let mut current = cost(s, &p, t0, data, rows);
