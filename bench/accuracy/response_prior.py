@@ -1,7 +1,7 @@
 """The response bank's identification prior, swept: how the ridge penalty's
 shape over the filters' time constants carries a chamber fit to in-use
 histories (docs/methods.md, "The identification"; figures in
-docs/benchmarks.md, "Measurements behind design choices").
+docs/decisions.md, "Measurements behind design choices").
 
 A numpy replica of `trainer fit`'s response-bank regression
 (trainer/src/fit/response.rs): the loop temperature T, (T - T0)^2 and

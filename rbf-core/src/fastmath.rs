@@ -3,7 +3,7 @@
 //!
 //! `libm::expf` follows musl and computes in `f64`, which is soft-float on a
 //! Cortex-M4F (single-precision FPU) and dominated a 32-centre evaluation
-//! (docs/benchmarks.md, "Measurements behind design choices").
+//! (docs/decisions.md, "Measurements behind design choices").
 //! [`exp`] needs only f32 operations. Being plain IEEE-754 arithmetic in a
 //! fixed order (Rust never contracts to FMA), it gives the same bits on the
 //! host and the target.

@@ -54,6 +54,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::MAX_INPUTS;
+use crate::filter::DerivativeFilter;
 pub use crate::lag_bank::{BANK_FILTERS, BankInput, GainOf, LagBank};
 use crate::response_bank::{BANK_SIGNALS, WEIGHT_ROWS};
 pub use crate::response_bank::{BankChannels, BankFilters, RESPONSE_FILTERS, ResponseBank, ResponseInput};
@@ -68,8 +69,6 @@ const _: () = assert!(WINDOWS <= FILTERS);
 /// its blob encoding holds exactly this many probe slots.
 pub const MAX_PROBES: usize = 8;
 
-/// Seconds per minute: ΔT is reported in °C/min.
-const SECONDS_PER_MINUTE: f32 = 60.0;
 /// Warm-up lasts this many filter time constants (95 % settled).
 const WARMUP_TIME_CONSTANTS: f32 = 3.0;
 /// Longest derivative time constant accepted, s (one day).
@@ -585,7 +584,7 @@ impl FeatureVector {
 /// model stays the single owner of it (principle: model is data, state is separate).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct FeatureExtractor {
-    smoothed_c: [f32; FILTERS],
+    filters: [DerivativeFilter; FILTERS],
     /// A response bank's filters (its own: three signals, twelve filters).
     bank: BankFilters,
     since_restart_s: f32,
@@ -596,9 +595,9 @@ impl FeatureExtractor {
     /// A fresh extractor; the first sample starts a segment.
     pub const fn new() -> Self {
         FeatureExtractor {
-            smoothed_c: [0.0; FILTERS],
+            filters: [DerivativeFilter::settled_at(0.0); FILTERS],
             bank: BankFilters {
-                smoothed: [[0.0; RESPONSE_FILTERS]; BANK_SIGNALS],
+                filters: [[DerivativeFilter::settled_at(0.0); RESPONSE_FILTERS]; BANK_SIGNALS],
             },
             since_restart_s: 0.0,
             started: false,
@@ -682,14 +681,10 @@ impl FeatureExtractor {
                 };
                 let mut rate_c_per_min = [0.0f32; FILTERS];
                 if restart {
-                    self.smoothed_c = [temp_c; FILTERS];
+                    self.filters = [DerivativeFilter::settled_at(temp_c); FILTERS];
                 } else {
-                    for ((smoothed, out), &tau_s) in self.smoothed_c.iter_mut().zip(rate_c_per_min.iter_mut()).zip(taus)
-                    {
-                        let rate = (temp_c - *smoothed) / (tau_s + dt_s);
-                        // τ = 0 is exactly the one-sample difference: keep S = T bit for bit.
-                        *smoothed = if tau_s == 0.0 { temp_c } else { *smoothed + dt_s * rate };
-                        *out = rate * SECONDS_PER_MINUTE;
+                    for ((filter, out), &tau_s) in self.filters.iter_mut().zip(rate_c_per_min.iter_mut()).zip(taus) {
+                        *out = filter.update(temp_c, tau_s, dt_s);
                     }
                 }
                 assemble(set, &rate_c_per_min, temps_c)

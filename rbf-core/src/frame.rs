@@ -281,6 +281,14 @@ pub fn decode_axes_with_format(bytes: &mut [u8]) -> Result<(AxesFrame, FrameForm
 /// COBS-encodes `src` into `out` followed by the 0x00 delimiter; returns the
 /// bytes used, or `None` if `out` is too small. Never panics: every access is
 /// checked and fails as `None`.
+///
+/// Why not the `cobs` crate (0.3, the one postcard's COBS flavour uses): its
+/// frames are ours byte for byte, but `try_encode` reports a length past the
+/// end of a buffer one byte too small (it skips the last code byte it has
+/// no room for and still counts it) and encodes an empty source as nothing,
+/// and its decoder takes the bytes before a 0x00 inside a frame as the
+/// frame (`cobs_crate_frames_are_ours_but_its_edges_are_not`). Here a
+/// short buffer is `None` and a damaged frame is refused.
 pub fn cobs_encode(src: &[u8], out: &mut [u8]) -> Option<usize> {
     // `code_at` holds the code byte of the current block: 1 + its non-zero bytes.
     let mut code_at = 0;
@@ -360,6 +368,28 @@ mod tests {
         assert_eq!(back.flags(), Flags::TEMP_SENSOR_FAULT | Flags::WARMING_UP);
         let mut garbage = [1u8, 2, 3, 0];
         assert_eq!(decode(&mut garbage), Err(FrameError::Malformed));
+    }
+
+    /// Why frame.rs keeps its own COBS (see [`cobs_encode`]): the crate's
+    /// bytes are ours, its edges are not what a panic-free receiver needs.
+    #[test]
+    fn cobs_crate_frames_are_ours_but_its_edges_are_not() {
+        for src in [&[0x11, 0, 0x22, 0x33][..], &[0u8; 3], &[7u8; 300], &[0, 1, 2, 0]] {
+            let mut ours = [0u8; 400];
+            let n = cobs_encode(src, &mut ours).unwrap();
+            let mut theirs = [0u8; 400];
+            let m = cobs::try_encode(src, &mut theirs).unwrap();
+            assert_eq!(ours[..n - 1], theirs[..m], "the same frame, ours with its 0x00");
+        }
+        // A buffer one byte short: the crate says it wrote 2 bytes into 1.
+        assert_eq!(cobs::try_encode(&[0], &mut [0u8; 1]).ok(), Some(2));
+        assert_eq!(cobs_encode(&[0], &mut [0u8; 2]), None);
+        // An empty source: nothing from the crate, a frame from ours.
+        assert_eq!(cobs::try_encode(&[], &mut [0u8; 4]).ok(), Some(0));
+        assert_eq!(cobs_encode(&[], &mut [0u8; 4]), Some(2));
+        // A 0x00 inside a frame: the crate decodes what lies before it.
+        assert_eq!(cobs::decode_in_place(&mut [2, 7, 0, 9, 9]).ok(), Some(1));
+        assert_eq!(cobs_decode_in_place(&mut [2, 7, 0, 9, 9]), None);
     }
 
     #[test]

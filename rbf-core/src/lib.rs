@@ -7,6 +7,7 @@
 //! - [`features`]: streaming fiber-loop temperature features (T, ΔT, T×ΔT), ΔT in °C/min;
 //!   [`lag_bank`]: the thermal lag bank (mean coil temperature and coil rates);
 //!   [`response_bank`]: the thermal response bank (a static quartic and three free rate responses).
+//! - [`filter`]: the first-order derivative filter every ΔT is read through.
 //! - [`rbf`]: a fixed-capacity Gaussian RBF network with input normalisation and clamping.
 //! - [`poly`]: the cubic-in-T baseline (the PX4 / ArduPilot form).
 //! - [`error`]: why parameters are not a usable model ([`ModelError`]).
@@ -29,6 +30,7 @@ pub mod compensator;
 pub mod error;
 pub mod fastmath;
 pub mod features;
+pub mod filter;
 pub mod flags;
 pub mod frame;
 pub mod lag_bank;

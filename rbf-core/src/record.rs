@@ -205,9 +205,12 @@ pub fn parse_f64_bytes(bytes: &[u8]) -> Option<f64> {
     fast_decimal(bytes).or_else(|| core::str::from_utf8(bytes).ok()?.parse().ok())
 }
 
-/// The leading `[+-]digits[.digits]` of `bytes` by [`fast_decimal`]'s rule,
-/// with the number of bytes it spans; `None` where that rule does not give
-/// the exact value (no digit, more than 15 digits).
+/// The leading `[+-]digits[.digits]` of `bytes`, with the number of bytes
+/// it spans: the one decimal parser of recorded runs (a whole field by
+/// [`parse_f64`], a field where it lies in a row by the one-pass row
+/// parser). `None` where the rule does not give the exact value (no digit,
+/// more than 15 digits). At most 15 digits:
+/// 10^15 < 2^53, so the mantissa needs no overflow check.
 fn fast_decimal_prefix(bytes: &[u8]) -> Option<(f64, usize)> {
     let (negative, sign_len) = match bytes.first() {
         Some(b'-') => (true, 1),
@@ -242,39 +245,13 @@ fn fast_decimal_prefix(bytes: &[u8]) -> Option<(f64, usize)> {
     Some((if negative { -value } else { value }, len))
 }
 
-/// The fast path of [`parse_f64`]: `Some` only where it is exact.
+/// The fast path of [`parse_f64`]: `Some` only where the whole of `bytes`
+/// is one decimal [`fast_decimal_prefix`] reads exactly.
 fn fast_decimal(bytes: &[u8]) -> Option<f64> {
-    let (negative, digits) = match bytes.first() {
-        Some(b'-') => (true, &bytes[1..]),
-        Some(b'+') => (false, &bytes[1..]),
-        _ => (false, bytes),
-    };
-    // At most 15 digits: 10^15 < 2^53, so the mantissa needs no overflow check.
-    const MAX_DIGITS: usize = 15;
-    let mut mantissa: u64 = 0;
-    let mut digit_count = 0usize;
-    let mut point_at = None;
-    for (i, &b) in digits.iter().enumerate() {
-        let d = b.wrapping_sub(b'0');
-        if d < 10 {
-            mantissa = mantissa * 10 + u64::from(d);
-            digit_count += 1;
-            if digit_count > MAX_DIGITS {
-                return None;
-            }
-        } else if b == b'.' && point_at.is_none() {
-            point_at = Some(i);
-        } else {
-            return None;
-        }
+    match fast_decimal_prefix(bytes)? {
+        (value, len) if len == bytes.len() => Some(value),
+        _ => None,
     }
-    if digit_count == 0 {
-        return None;
-    }
-    let fraction_digits = point_at.map_or(0, |p| digits.len() - p - 1);
-    let &scale = POW10.get(fraction_digits)?;
-    let value = mantissa as f64 / scale;
-    Some(if negative { -value } else { value })
 }
 
 /// A metadata line (`# ...`), blank line, or data/header line.

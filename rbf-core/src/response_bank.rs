@@ -41,6 +41,10 @@
 
 use serde::{Deserialize, Serialize};
 
+#[cfg(test)]
+use crate::filter::SECONDS_PER_MINUTE;
+use crate::filter::{DerivativeFilter, DerivativeGain};
+
 /// Derivative filters a response bank holds.
 pub const RESPONSE_FILTERS: usize = 12;
 /// Highest power of u = T − T₀ among a bank's inputs.
@@ -62,8 +66,6 @@ const MAX_TAU_S: f32 = 86_400.0;
 const MAX_TEMP_C: f32 = 1000.0;
 /// Largest |weight| accepted, °/h per °C^q/min.
 const MAX_WEIGHT: f32 = 1.0e6;
-/// Seconds per minute: the filters' rates are per minute.
-const SECONDS_PER_MINUTE: f32 = 60.0;
 
 /// The configuration of a thermal response bank, stored in the model blob
 /// (encoded as one tuple, see the `Serialize` impl).
@@ -90,12 +92,12 @@ pub struct ResponseBank {
     pub weights: [[f32; RESPONSE_FILTERS]; WEIGHT_ROWS],
 }
 
-/// The state of a response bank's filters: the smoothed value S_k of each
-/// signal (T, P_2, P_3) per filter.
+/// The state of a response bank's filters: the derivative filter of each
+/// signal (T, P_2, P_3) per time constant.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BankFilters {
-    /// S_k per signal, in the signal's unit (°C, °C², °C³).
-    pub smoothed: [[f32; RESPONSE_FILTERS]; BANK_SIGNALS],
+    /// The filters per signal; their smoothed values S_k in the signal's unit (°C, °C², °C³).
+    pub filters: [[DerivativeFilter; RESPONSE_FILTERS]; BANK_SIGNALS],
 }
 
 /// The filters' outputs for one sample: the rate of each signal (T, P_2,
@@ -241,10 +243,10 @@ impl ResponseBank {
     pub fn start(&self, temp_c: f32) -> BankFilters {
         let ([_, p2, p3, _], _) = self.powers(temp_c);
         BankFilters {
-            smoothed: [
-                [temp_c; RESPONSE_FILTERS],
-                [p2; RESPONSE_FILTERS],
-                [p3; RESPONSE_FILTERS],
+            filters: [
+                [DerivativeFilter::settled_at(temp_c); RESPONSE_FILTERS],
+                [DerivativeFilter::settled_at(p2); RESPONSE_FILTERS],
+                [DerivativeFilter::settled_at(p3); RESPONSE_FILTERS],
             ],
         }
     }
@@ -267,19 +269,14 @@ impl ResponseBank {
         let (powers, uc) = self.powers(temp_c);
         let signals = [temp_c, powers[1], powers[2]];
         let [w0, w1, w2, h2, h3] = &self.weights;
-        let [s_t, s_p2, s_p3] = &mut filters.smoothed;
+        let [f_t, f_p2, f_p3] = &mut filters.filters;
         let mut sums = [0.0f32; WEIGHT_ROWS];
         for k in 0..RESPONSE_FILTERS {
-            // One division per filter: its gain per second and per minute.
-            let per_s = 1.0 / (self.taus_s[k] + dt_s);
-            let (step, per_min) = (dt_s * per_s, SECONDS_PER_MINUTE * per_s);
-            let d_t = signals[0] - s_t[k];
-            let d_p2 = signals[1] - s_p2[k];
-            let d_p3 = signals[2] - s_p3[k];
-            s_t[k] += step * d_t;
-            s_p2[k] += step * d_p2;
-            s_p3[k] += step * d_p3;
-            let (rt, rp2, rp3) = (per_min * d_t, per_min * d_p2, per_min * d_p3);
+            // One division per filter, its gains shared by the three signals.
+            let gain = DerivativeGain::new(self.taus_s[k], dt_s);
+            let rt = f_t[k].update_with(signals[0], gain);
+            let rp2 = f_p2[k].update_with(signals[1], gain);
+            let rp3 = f_p3[k].update_with(signals[2], gain);
             if let Some(c) = channels.as_deref_mut() {
                 [c.rates[0][k], c.rates[1][k], c.rates[2][k]] = [rt, rp2, rp3];
             }
@@ -506,7 +503,7 @@ mod tests {
         );
         // The square's filters see (21 − 20)² − 0 = 1 °C².
         assert_eq!(channels.rates[1][..3], expected[..]);
-        assert_eq!(filters.smoothed[0][0], 20.0 + 1.0 / 11.0);
+        assert_eq!(filters.filters[0][0].smoothed(), 20.0 + 1.0 / 11.0);
         let r0 = expected[0] + 0.5 * expected[1] + 0.25 * expected[2];
         assert!((out[4] - r0).abs() < 1e-6, "R₀ = {}", out[4]);
         assert!((out[5] - 1.0 * 2.0 * expected[1]).abs() < 1e-6, "u_c·R₁ = {}", out[5]);

@@ -62,7 +62,7 @@ pub struct Args {
     /// What it buys: the loop reaches the asked range (within 5 % of it), on the documented
     /// gyro and on slower designs. What it costs: the soaks take hours the steps, swings and
     /// ramps would have used, so the run excites the lags less, and on some plants the fit
-    /// after it is less accurate in use (measured in docs/benchmarks.md). Refuses --hours too
+    /// after it is less accurate in use (measured in docs/decisions.md). Refuses --hours too
     /// short for the soaks, saying how long they need. Without it the plan is the one drawn
     /// before end soaks existed.
     #[arg(long)]

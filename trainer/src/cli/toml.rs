@@ -1,107 +1,60 @@
-//! A JSON document as TOML, for `trainer inspect --format toml`: tables for
-//! objects, arrays of tables for arrays of objects, inline arrays otherwise.
-//! TOML has no null: a null field is left out, a null in an array is `nan`.
-
-use std::fmt::Write as _;
+//! A JSON document as TOML, for `trainer inspect --format toml`, written by
+//! the `toml` crate: tables for objects, arrays of tables for arrays of
+//! objects, inline arrays otherwise. Two things TOML or the crate would
+//! otherwise do differently are settled here first: TOML has no null (a
+//! null field is left out, a null in an array is `nan`), and a blob's
+//! parameters are f32, so a float that is an f32 is shown as that f32's
+//! shortest decimal (`-28.123835`, not the widened `-28.123834609985352`).
+//! The crate's own spelling stands where TOML allows several (a float
+//! without an exponent, a string holding `"` as a literal string `'x"y'`):
+//! every value reads back to the same bits.
 
 use serde_json::Value;
 
-/// `value` (an object) as a TOML document.
+/// `value` (an object) as a TOML document; anything else gives an empty one.
 pub fn to_toml(value: &Value) -> String {
-    let mut out = String::new();
-    if let Value::Object(map) = value {
-        write_table(&mut out, &[], map);
-    }
-    out
-}
-
-/// Whether `v` is written as a table or an array of tables rather than `key = value`.
-fn is_table(v: &Value) -> bool {
-    match v {
-        Value::Object(_) => true,
-        Value::Array(items) => !items.is_empty() && items.iter().all(Value::is_object),
-        _ => false,
+    match to_toml_value(value) {
+        Some(toml::Value::Table(table)) => toml::to_string(&table).unwrap_or_default(),
+        _ => String::new(),
     }
 }
 
-fn write_table(out: &mut String, path: &[String], map: &serde_json::Map<String, Value>) {
-    for (k, v) in map {
-        if !v.is_null() && !is_table(v) {
-            let _ = writeln!(out, "{} = {}", key(k), inline(v));
-        }
-    }
-    for (k, v) in map {
-        let mut sub = path.to_vec();
-        sub.push(key(k));
-        match v {
-            Value::Object(m) => {
-                let _ = writeln!(out, "\n[{}]", sub.join("."));
-                write_table(out, &sub, m);
-            }
-            Value::Array(items) if is_table(v) => {
-                for item in items {
-                    let _ = writeln!(out, "\n[[{}]]", sub.join("."));
-                    if let Value::Object(m) = item {
-                        write_table(out, &sub, m);
-                    }
-                }
-            }
-            _ => {}
-        }
-    }
-}
-
-/// A key, bare when TOML allows it, else quoted.
-fn key(k: &str) -> String {
-    if !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
-        k.to_owned()
-    } else {
-        Value::String(k.to_owned()).to_string()
-    }
-}
-
-/// A value in inline form.
-fn inline(v: &Value) -> String {
-    match v {
-        Value::Null => "nan".to_owned(),
-        Value::Bool(b) => b.to_string(),
-        Value::Number(n) => match (n.as_i64(), n.as_u64(), n.as_f64()) {
-            (Some(i), _, _) => i.to_string(),
-            (_, Some(u), _) => u.to_string(),
-            (_, _, Some(f)) => float(f),
-            _ => n.to_string(),
+/// `v` as a TOML value: `None` for a null (left out of its table).
+fn to_toml_value(v: &Value) -> Option<toml::Value> {
+    Some(match v {
+        Value::Null => return None,
+        Value::Bool(b) => toml::Value::Boolean(*b),
+        Value::Number(n) => match (n.as_i64(), n.as_f64()) {
+            (Some(i), _) => toml::Value::Integer(i),
+            (None, Some(f)) => toml::Value::Float(shortest_f32_if_exact(f)),
+            // A u64 past i64::MAX has no TOML integer; its decimal is kept.
+            (None, None) => toml::Value::String(n.to_string()),
         },
-        // A JSON string's escapes (\" \\ \n \uXXXX …) are TOML's basic string's.
-        Value::String(_) => v.to_string(),
-        Value::Array(items) => format!("[{}]", items.iter().map(inline).collect::<Vec<_>>().join(", ")),
-        Value::Object(map) => format!(
-            "{{ {} }}",
-            map.iter()
-                .filter(|(_, v)| !v.is_null())
-                .map(|(k, v)| format!("{} = {}", key(k), inline(v)))
-                .collect::<Vec<_>>()
-                .join(", ")
+        Value::String(s) => toml::Value::String(s.clone()),
+        Value::Array(items) => toml::Value::Array(
+            items
+                .iter()
+                .map(|item| to_toml_value(item).unwrap_or(toml::Value::Float(f64::NAN)))
+                .collect(),
         ),
-    }
+        Value::Object(map) => toml::Value::Table(
+            map.iter()
+                .filter_map(|(k, v)| Some((k.clone(), to_toml_value(v)?)))
+                .collect(),
+        ),
+    })
 }
 
-/// A float TOML reads back to the same value: always with a `.` or exponent.
-fn float(f: f64) -> String {
-    if f.is_nan() {
-        return "nan".to_owned();
-    }
-    if f.is_infinite() {
-        return if f > 0.0 { "inf" } else { "-inf" }.to_owned();
-    }
-    // Debug is the shortest form that reads back exactly, with a `.` or an
-    // exponent; a blob's parameters are f32, shown as the f32 they are.
+/// `f`, or where `f` is exactly an f32, the f64 nearest that f32's shortest
+/// decimal, which the writer then prints as that decimal.
+fn shortest_f32_if_exact(f: f64) -> f64 {
     // Exact comparison on purpose: only a value that is an f32 is shown as one.
     #[allow(clippy::float_cmp)]
     let is_f32 = f64::from(f as f32) == f;
-    if is_f32 {
-        format!("{:?}", f as f32)
+    if is_f32 && f.is_finite() {
+        format!("{:?}", f as f32).parse().unwrap_or(f)
     } else {
-        format!("{f:?}")
+        f
     }
 }
 
@@ -120,18 +73,27 @@ mod tests {
         let toml = to_toml(&v);
         assert_eq!(
             toml,
-            "\"a key\" = \"x\\\"y\"\ncenters = 2\nkind = \"gaussian-rbf\"\nvalid = true\n\
+            "\"a key\" = 'x\"y'\ncenters = 2\nkind = \"gaussian-rbf\"\nvalid = true\n\
              \n[rbf]\nconstant_dph = -3.25\nwidths = [0.5, 1.0]\n\
              \n[[training_ranges]]\ninput = \"T [°C]\"\nmin = -10.0\n"
         );
+        // What it writes reads back as the document without its nulls.
+        let back: toml::Table = toml::from_str(&toml).unwrap();
+        assert_eq!(back["training_ranges"][0]["min"].as_float(), Some(-10.0));
+        assert!(!back.contains_key("serial"));
     }
 
     #[test]
     fn floats_keep_a_point_and_specials_are_spelled_as_toml_does() {
-        assert_eq!(float(3.0), "3.0");
-        assert_eq!(float(1e300), "1e300");
-        assert_eq!(float(f64::from(-28.123835f32)), "-28.123835");
-        assert_eq!(float(f64::NEG_INFINITY), "-inf");
-        assert_eq!(inline(&serde_json::json!([1, null])), "[1, nan]");
+        let doc = |v: Value| to_toml(&serde_json::json!({ "x": v }));
+        assert_eq!(doc(serde_json::json!(3.0)), "x = 3.0\n");
+        // The crate spells floats without an exponent; they read back the same.
+        for x in [1e300f64, 3.2e-8, -0.0] {
+            let back: toml::Table = toml::from_str(&doc(serde_json::json!(x))).unwrap();
+            assert_eq!(back["x"].as_float().map(f64::to_bits), Some(x.to_bits()), "{x}");
+        }
+        assert_eq!(doc(serde_json::json!(f64::from(-28.123835f32))), "x = -28.123835\n");
+        assert_eq!(doc(serde_json::json!(0.1)), "x = 0.1\n");
+        assert_eq!(doc(serde_json::json!([1, null])), "x = [1, nan]\n");
     }
 }

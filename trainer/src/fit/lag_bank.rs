@@ -43,7 +43,7 @@ pub const LADDERS_S: [&[f32]; 2] = [
 /// never bring it near its steady state, so its weight is not identified,
 /// and a slow in-use drift (a day cycle at 0.2 °C/min) drives it where no
 /// training run went (on the bench's gyros it cost in-use accuracy there:
-/// docs/benchmarks.md, "Measurements behind design choices").
+/// docs/decisions.md, "Measurements behind design choices").
 pub const CANDIDATES: [(usize, usize, usize); 3] = [(1, 0, 5), (1, 0, 4), (0, 0, 5)];
 
 /// Degrees of the Shupe gain g(T̂) tried: linear in T̂. A quadratic gain
@@ -321,6 +321,17 @@ fn linear_start(s: &Structure, lags_min: f64, t0: f64, data: &LadderData, rows: 
 }
 
 /// Levenberg–Marquardt from `p` on `rows`; returns the parameters and their cost.
+///
+/// Why not the `levenberg-marquardt` crate: it is MINPACK's `lmder`, which
+/// takes the whole rows × parameters Jacobian and factors it by QR, with its
+/// own trust-region step and column scaling. This fit sums JᵀJ row by row
+/// (up to 32,768 blocks per ladder, for every structure, fold and start in
+/// parallel) and steps by Marquardt's diagonal on a cost that includes the
+/// prior ([`prior`]), so the crate would hold each fit's Jacobian in memory
+/// and walk other steps: the fitted lags, and so every lag-bank blob, would
+/// change in their last bits, where the same inputs must give the same blob.
+/// (Not measured against it; a trial would be judged by `cargo xtask
+/// bench-accuracy --in-use --designs 16` and the blobs' bytes.)
 fn levenberg_marquardt(s: &Structure, mut p: Vec<f64>, t0: f64, data: &LadderData, rows: &[usize]) -> (Vec<f64>, f64) {
     let m = s.params();
     let mut current = cost(s, &p, t0, data, rows);

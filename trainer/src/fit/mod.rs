@@ -37,7 +37,7 @@ use crate::dataset::RunSet;
 /// (RMS ratio to the first-order set) to be chosen (`--features multiscale-validated`). The ΔT₃²
 /// term is fitted on one training ramp rate and extrapolated to others: where
 /// it does not clearly explain the training run it extrapolated badly, where
-/// it does (cycle runs) it gained (figures: docs/benchmarks.md, "Measurements
+/// it does (cycle runs) it gained (figures: docs/decisions.md, "Measurements
 /// behind design choices").
 pub const SECOND_ORDER_GAIN: f64 = 0.9;
 

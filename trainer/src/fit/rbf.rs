@@ -36,7 +36,7 @@ const MAX_SELECTION_ROWS: usize = 3000;
 /// ([`pool_means`]); the final model is fitted on all rows. Pooling by two
 /// (the bundled IFOG run's folds) gave the same choices and accuracy as all
 /// rows on the three benchmark gyros; half this many rows lost accuracy on
-/// their random IFOG runs (docs/benchmarks.md, "Measurements behind design
+/// their random IFOG runs (docs/decisions.md, "Measurements behind design
 /// choices").
 const MAX_SEARCH_TRAIN_ROWS: usize = 16_384;
 /// Rows (strided) the candidate pool is drawn from by farthest-point sampling:
@@ -54,7 +54,7 @@ pub(super) const PARSIMONY: f64 = 1.005;
 /// Ratios of the slower ΔT windows to the fastest in the multi-scale set:
 /// three scales 16× apart span the coil's and housing's time constants
 /// (minutes to hours). Chosen on both simulated gyros' bench-accuracy, where
-/// 16× spacing improved more than 8× (1, 8, 64) (figures: docs/benchmarks.md,
+/// 16× spacing improved more than 8× (1, 8, 64) (figures: docs/decisions.md,
 /// "Measurements behind design choices").
 pub const MULTISCALE_RATIOS: [f32; 3] = [1.0, 16.0, 256.0];
 
@@ -66,7 +66,7 @@ pub const MULTISCALE_RATIOS: [f32; 3] = [1.0, 16.0, 256.0];
 /// bench/accuracy/third-gyro.json`) validation picks ×1.25 and its
 /// verification improves; the other two gyros keep ×1. ×0.67 and ×1.5
 /// validated worse wherever the second-order family is kept (figures:
-/// docs/benchmarks.md, "Measurements behind design choices").
+/// docs/decisions.md, "Measurements behind design choices").
 pub const SLOWEST_WINDOW_FACTORS: [f32; 2] = [1.0, 1.25];
 
 /// The feature configuration of `set` with fastest window `window_s`; the
@@ -100,7 +100,7 @@ pub fn kernel_inputs(set: FeatureSet) -> usize {
 /// T̂ chosen on held-out chamber events bend the curve near the covered
 /// range's ends, and the cubic left beside them extrapolates worse: in use,
 /// past the range a chamber run covered, they lost more than they gained
-/// anywhere (docs/benchmarks.md, "Measurements behind design choices";
+/// anywhere (docs/decisions.md, "Measurements behind design choices";
 /// docs/methods.md).
 fn default_max_centers(set: FeatureSet, opts: &FitOptions) -> usize {
     match set {

@@ -659,4 +659,53 @@ mod tests {
             }
         }
     }
+
+    /// A field as recorders write it, or one of the forms around it.
+    fn field() -> impl proptest::strategy::Strategy<Value = String> {
+        use proptest::prelude::*;
+        let number = prop_oneof![
+            4 => "[+-]?[0-9]{0,20}(\\.[0-9]{0,25})?",
+            2 => "[+-]?[0-9]{1,3}(\\.[0-9]{1,8})?[eE][+-]?[0-9]{1,3}",
+            1 => "[0-9a-zA-Z.+\\-_]{0,8}",
+            1 => prop::sample::select(vec!["inf", "-infinity", "NaN", "9007199254740993", "1e400", ".", "+.5", "5."])
+                .prop_map(str::to_owned),
+        ];
+        ("[ \t]{0,2}", number, "[ \t\r]{0,2}").prop_map(|(before, n, after)| format!("{before}{n}{after}"))
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::test_runner::Config {
+            cases: 20_000,
+            failure_persistence: None,
+            ..proptest::test_runner::Config::default()
+        })]
+
+        /// The host reader's fast path (`fast_float2`, numbers read where they
+        /// lie) gives every row, value and error that rbf-core's one decimal
+        /// parser and row parser give, the path the firmware's replay runs.
+        #[test]
+        fn the_host_fast_path_reads_every_line_as_rbf_core_does(
+            fields in proptest::collection::vec(field(), 4),
+        ) {
+            let columns = Columns::from_header("time_s,rate_dph,temp_c,ref_dph").unwrap();
+            let line = fields.join(",");
+            proptest::prop_assert_eq!(
+                parse_row(&columns, line.as_bytes()),
+                columns.parse_row_bytes(line.as_bytes()),
+                "{:?}", line
+            );
+            // Field by field: where the fast path reads a whole field as a
+            // finite number, it is rbf-core's value to the bit.
+            for f in &fields {
+                let trimmed = skip_blanks(f.as_bytes());
+                if let Ok((value, len)) = fast_float2::parse_partial::<f64, _>(trimmed)
+                    && value.is_finite()
+                    && skip_blanks(&trimmed[len..]).is_empty()
+                {
+                    let shared = rbf_core::record::parse_f64_bytes(rbf_core::record::trim_field_bytes(f.as_bytes()));
+                    proptest::prop_assert_eq!(shared.map(f64::to_bits), Some(value.to_bits()), "{:?}", f);
+                }
+            }
+        }
+    }
 }

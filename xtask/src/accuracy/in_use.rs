@@ -246,7 +246,6 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
     let started = Instant::now();
     let simulator = workspace_root().join("target/release/trainer");
     let judged = opts.trainer.clone().unwrap_or_else(|| simulator.clone());
-    let lag_bank = workspace_root().join("bench/accuracy/lag_bank.py");
     let dir = dir.join("in-use");
     // A fresh directory each time: the trainer refuses to replace outputs
     // without --force, and a judged build (--trainer) may predate that flag.
@@ -254,214 +253,39 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
         std::fs::remove_dir_all(&dir).with_context(|| format!("{}: cannot clear", dir.display()))?;
     }
     std::fs::create_dir_all(&dir)?;
-    let fit_args: Vec<&str> = opts.fit_args.iter().map(String::as_str).collect();
-    // The planned run is part of the protocol, not of the judged model: the
-    // plan comes from this workspace's trainer, like the runs.
-    let plans: Vec<(PathBuf, String)> = match &opts.plan {
-        Some(plan) => vec![(
-            plan.clone(),
-            plan.file_name()
-                .map_or("plan".into(), |n| n.to_string_lossy().into_owned()),
-        )],
-        None => (1..=opts.plan_seeds.max(1))
-            .map(|seed| {
-                let plan = dir.join(format!("plan_seed{seed}.csv"));
-                let seed_text = seed.to_string();
-                let mut args = vec!["plan"];
-                args.extend(DEFAULT_PLAN);
-                args.extend(["--seed", &seed_text, "-o", path(&plan)]);
-                run_tool(&simulator, &args)?;
-                let name = format!("trainer plan {} --seed {seed}", DEFAULT_PLAN.join(" "));
-                Ok((plan, name))
-            })
-            .collect::<anyhow::Result<_>>()?,
+    let bench = Bench {
+        simulator: &simulator,
+        judged: &judged,
+        fit_args: opts.fit_args.iter().map(String::as_str).collect(),
+        python,
+        lag_bank: workspace_root().join("bench/accuracy/lag_bank.py"),
+        dir: &dir,
     };
+    let plans = planned_runs(opts, &simulator, &dir)?;
     let training = training_runs(&plans);
     let in_use = in_use_runs();
     println!("\nin use: trained on one chamber run, verified on in-use histories it never saw");
     println!(
         "(1 Hz; 100-s cluster STD improvement against ref_dph [%], residual STD [°/h] in brackets; judged: {} fit {})",
         judged.display(),
-        if fit_args.is_empty() {
+        if bench.fit_args.is_empty() {
             "(default)".to_owned()
         } else {
-            fit_args.join(" ")
+            bench.fit_args.join(" ")
         }
     );
     let mut plants_json = Vec::new();
     let mut summary = Vec::new();
     let mut soak_table: Vec<(String, Vec<Option<f64>>)> = Vec::new();
-    let plants = plants(opts);
-    for (p, plant) in plants.iter().enumerate() {
-        let tag = format!("p{p}");
-        let simulate = |spec: &RunSpec, name: &str, noise_only: bool| -> anyhow::Result<PathBuf> {
-            let file = dir.join(format!("{tag}_{name}.csv"));
-            let seed = (spec.seed + PLANT_SEED_STEP * p as u64).to_string();
-            let mut args = vec!["simulate", "--rate-hz", "1", "--seed", &seed, "-o", path(&file)];
-            args.extend(spec.args.iter().map(String::as_str));
-            let params;
-            match plant.args.as_slice() {
-                [flag, file] if flag == "--params" => {
-                    params = workspace_root().join(file);
-                    args.extend([flag.as_str(), path(&params)]);
-                }
-                other => args.extend(other.iter().map(String::as_str)),
-            }
-            if noise_only {
-                args.push("--noise-only");
-            }
-            run_tool(&simulator, &args)?;
-            Ok(file)
+    for (p, plant) in plants(opts).iter().enumerate() {
+        let runs = PlantRuns {
+            bench: &bench,
+            plant,
+            index: p,
         };
-        let verify: Vec<PathBuf> = in_use
-            .iter()
-            .enumerate()
-            .map(|(i, spec)| simulate(spec, &format!("use{i}"), false))
-            .collect::<anyhow::Result<_>>()?;
-        let noise: Vec<PathBuf> = in_use
-            .iter()
-            .enumerate()
-            .map(|(i, spec)| simulate(spec, &format!("use{i}_noise"), true))
-            .collect::<anyhow::Result<_>>()?;
-        let raw: Vec<Vec<Vec<f64>>> = verify
-            .iter()
-            .map(|v| read_columns(v, &["time_s", "rate_dph", "ref_dph"]))
-            .collect::<anyhow::Result<_>>()?;
-        let before: Vec<f64> = raw.iter().map(|c| residual_std(c)).collect();
-        let ceiling: Vec<f64> = noise
-            .iter()
-            .map(|n| Ok(residual_std(&read_columns(n, &["time_s", "rate_dph", "ref_dph"])?)))
-            .collect::<anyhow::Result<_>>()?;
-        let soak = simulate(&soak_run(), "soak", false)?;
-        let mut soak_spreads = Vec::new();
-        let mut training_json = Vec::new();
-        let mut plant_summary = PlantSummary {
-            name: plant.name.clone(),
-            ..PlantSummary::default()
-        };
-        match plant.args.as_slice() {
-            [] => println!("\nplant: {} (trainer simulate's defaults)", plant.name),
-            args => println!("\nplant: {} (trainer simulate {})", plant.name, args.join(" ")),
-        }
-        print_header(&in_use);
-        print_cells("no compensation (STD [°/h])", before.iter().map(|b| format!("{b:.4}")));
-        println!();
-        for (s, (kind, scenario)) in training.iter().enumerate() {
-            let train = simulate(scenario, &format!("train{s}"), false)?;
-            let loop_c = loop_range_c(&train)?;
-            let model = dir.join(format!("{tag}_train{s}.bin"));
-            let default = fit_and_compensate(&judged, &fit_args, &train, &model, &verify, &raw)?;
-            let reference = lag_bank_scores(python, &lag_bank, &train, &verify, &raw)?;
-            let soak_spread = match default.refusal {
-                None => Some(super::soak_spread(
-                    &judged,
-                    &model,
-                    &soak,
-                    &dir.join(format!("{tag}_train{s}_soak.json")),
-                )?),
-                Some(_) => None,
-            };
-            soak_spreads.push((scenario.name.clone(), soak_spread.and_then(|s| s.0)));
-            println!(
-                "trained on {} (loop {:.1} … {:.1} °C):",
-                scenario.name, loop_c.0, loop_c.1
-            );
-            // The loop range of the first plan's run (the default plan's, seed 1).
-            if *kind == Training::Planned && s == 0 {
-                plant_summary.planned_loop_c = loop_c;
-            }
-            let mut models_json = Vec::new();
-            for scores in [&default, &reference] {
-                print_model(scores, &before);
-                if scores.model == DEFAULT_MODEL
-                    && let Some((after, before)) = soak_spread
-                {
-                    let cell = |s: Option<f64>| s.map_or("- (under 2 plateaus)".into(), |s| format!("{s:.4}"));
-                    println!(
-                        "    soak test: settled spread {} °/h (uncompensated {})",
-                        cell(after),
-                        cell(before)
-                    );
-                }
-                let pct: Vec<f64> = scores
-                    .after_dph
-                    .iter()
-                    .zip(&before)
-                    .map(|(a, b)| improvement_pct(*b, *a))
-                    .collect();
-                let (mean, worst) = mean_and_worst(&pct);
-                let forecast = worst_forecast_factor(scores.forecast_dph, &scores.after_dph);
-                if scores.model == DEFAULT_MODEL {
-                    let scored = scores.refusal.is_none().then_some((mean, worst));
-                    plant_summary.default_pct.push((*kind, scored));
-                    plant_summary.forecast.push((*kind, forecast));
-                }
-                models_json.push(json!({
-                    "model": scores.model,
-                    "fit_s": finite(scores.fit_s),
-                    "refusal": scores.refusal,
-                    "predicted_in_use_std100_dph": scores.forecast_dph.map(finite),
-                    "structure": scores.structure,
-                    "runs": scores.after_dph.iter().zip(&pct).zip(&scores.clamped_pct).map(|((a, i), c)| json!({
-                        "after_dph": finite(*a), "improvement_pct": finite(*i), "clamped_pct": c,
-                        "forecast_factor": forecast_factor(scores.forecast_dph, *a),
-                    })).collect::<Vec<_>>(),
-                    "mean_pct": finite(mean),
-                    "worst_pct": finite(worst),
-                    "forecast_worst_factor": forecast,
-                    "soak_settled_spread_dph": (scores.model == DEFAULT_MODEL)
-                        .then_some(soak_spread.and_then(|s| s.0).map(finite)).flatten(),
-                    "fit_report": scores.fit_report,
-                }));
-            }
-            training_json.push(json!({
-                "training": scenario.name,
-                "simulate_args": scenario.args,
-                "seed": scenario.seed + PLANT_SEED_STEP * p as u64,
-                "loop_c": [loop_c.0, loop_c.1],
-                "models": models_json,
-            }));
-        }
-        let ceiling_pct: Vec<f64> = ceiling
-            .iter()
-            .zip(&before)
-            .map(|(n, b)| improvement_pct(*b, *n))
-            .collect();
-        print_cells(
-            "noise ceiling (thermal bias zeroed)",
-            ceiling_pct
-                .iter()
-                .zip(&ceiling)
-                .map(|(i, n)| format!("{i:.1} ({n:.4})")),
-        );
-        let (mean, worst) = mean_and_worst(&ceiling_pct);
-        println!(" {mean:>7.1} {worst:>7.1}");
-        println!(
-            "soak test settled spread [°/h] after {}",
-            soak_spreads
-                .iter()
-                .map(|(name, s)| format!("{name}: {}", s.map_or("-".into(), |s| format!("{s:.4}"))))
-                .collect::<Vec<_>>()
-                .join("; ")
-        );
-        plant_summary.ceiling_pct = (mean, worst);
-        plants_json.push(json!({
-            "plant": plant.name,
-            "simulate_args": plant.args,
-            "runs": in_use.iter().enumerate().map(|(i, spec)| json!({
-                "run": spec.name,
-                "simulate_args": spec.args,
-                "seed": spec.seed + PLANT_SEED_STEP * p as u64,
-                "before_dph": before[i],
-                "noise_dph": ceiling[i],
-                "noise_ceiling_pct": ceiling_pct[i],
-            })).collect::<Vec<_>>(),
-            "training": training_json,
-            "soak_run": { "simulate_args": soak_run().args, "seed": soak_run().seed + PLANT_SEED_STEP * p as u64 },
-            "forecast_worst_factor": plant_summary.target_forecast(),
-            "targets_missed": plant_summary.missed_targets(),
-        }));
-        soak_table.push((plant.name.clone(), soak_spreads.iter().map(|s| s.1).collect()));
+        let (plant_json, plant_summary, soak_spreads) = runs.bench_plant(&training, &in_use)?;
+        plants_json.push(plant_json);
+        soak_table.push((plant.name.clone(), soak_spreads));
         summary.push(plant_summary);
     }
     let columns: Vec<(Training, &str)> = training.iter().map(|(kind, run)| (*kind, run.name.as_str())).collect();
@@ -484,6 +308,306 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
         "plants": plants_json,
         "runtime_s": runtime_s,
     }))
+}
+
+/// What every plant of one bench run shares: the trainers, the lag-bank
+/// reference and the directory the runs go to.
+struct Bench<'a> {
+    /// This workspace's trainer: the plans and every simulated run.
+    simulator: &'a Path,
+    /// The trainer whose `fit` and `compensate` are judged.
+    judged: &'a Path,
+    fit_args: Vec<&'a str>,
+    /// Python with numpy, for the lag-bank reference.
+    python: &'a Path,
+    lag_bank: PathBuf,
+    dir: &'a Path,
+}
+
+/// The planned training runs: `--plan`'s, or the default plan of seeds 1 …
+/// `--plan-seeds`, made by `simulator` (the plan is part of the protocol,
+/// not of the judged model); (path, name) each.
+fn planned_runs(opts: &InUseOptions, simulator: &Path, dir: &Path) -> anyhow::Result<Vec<(PathBuf, String)>> {
+    Ok(match &opts.plan {
+        Some(plan) => vec![(
+            plan.clone(),
+            plan.file_name()
+                .map_or("plan".into(), |n| n.to_string_lossy().into_owned()),
+        )],
+        None => (1..=opts.plan_seeds.max(1))
+            .map(|seed| {
+                let plan = dir.join(format!("plan_seed{seed}.csv"));
+                let seed_text = seed.to_string();
+                let mut args = vec!["plan"];
+                args.extend(DEFAULT_PLAN);
+                args.extend(["--seed", &seed_text, "-o", path(&plan)]);
+                run_tool(simulator, &args)?;
+                let name = format!("trainer plan {} --seed {seed}", DEFAULT_PLAN.join(" "));
+                Ok((plan, name))
+            })
+            .collect::<anyhow::Result<_>>()?,
+    })
+}
+
+/// The in-use histories of one plant, simulated, and what they measure
+/// before any compensation.
+struct Histories {
+    verify: Vec<PathBuf>,
+    /// Each history's `time_s`, `rate_dph`, `ref_dph` columns.
+    raw: Vec<Vec<Vec<f64>>>,
+    /// Residual 100-s cluster STD uncompensated, °/h.
+    before: Vec<f64>,
+    /// The same of the noise-only run (thermal bias zeroed), °/h.
+    ceiling: Vec<f64>,
+}
+
+/// One plant of the bench: its runs are simulated with its options and
+/// seeds offset by its index.
+struct PlantRuns<'a> {
+    bench: &'a Bench<'a>,
+    plant: &'a PlantSpec,
+    index: usize,
+}
+
+impl PlantRuns<'_> {
+    /// `spec` simulated for this plant as `NAME.csv` (tagged with the plant).
+    fn simulate(&self, spec: &RunSpec, name: &str, noise_only: bool) -> anyhow::Result<PathBuf> {
+        let file = self.bench.dir.join(format!("p{}_{name}.csv", self.index));
+        let seed = self.seed(spec).to_string();
+        let mut args = vec!["simulate", "--rate-hz", "1", "--seed", &seed, "-o", path(&file)];
+        args.extend(spec.args.iter().map(String::as_str));
+        let params;
+        match self.plant.args.as_slice() {
+            [flag, file] if flag == "--params" => {
+                params = workspace_root().join(file);
+                args.extend([flag.as_str(), path(&params)]);
+            }
+            other => args.extend(other.iter().map(String::as_str)),
+        }
+        if noise_only {
+            args.push("--noise-only");
+        }
+        run_tool(self.bench.simulator, &args)?;
+        Ok(file)
+    }
+
+    /// `spec`'s seed for this plant.
+    fn seed(&self, spec: &RunSpec) -> u64 {
+        spec.seed + PLANT_SEED_STEP * self.index as u64
+    }
+
+    /// The in-use histories and their noise-only twins, read and scored.
+    fn histories(&self, in_use: &[RunSpec]) -> anyhow::Result<Histories> {
+        let verify: Vec<PathBuf> = in_use
+            .iter()
+            .enumerate()
+            .map(|(i, spec)| self.simulate(spec, &format!("use{i}"), false))
+            .collect::<anyhow::Result<_>>()?;
+        let noise: Vec<PathBuf> = in_use
+            .iter()
+            .enumerate()
+            .map(|(i, spec)| self.simulate(spec, &format!("use{i}_noise"), true))
+            .collect::<anyhow::Result<_>>()?;
+        let raw: Vec<Vec<Vec<f64>>> = verify
+            .iter()
+            .map(|v| read_columns(v, &["time_s", "rate_dph", "ref_dph"]))
+            .collect::<anyhow::Result<_>>()?;
+        let before: Vec<f64> = raw.iter().map(|c| residual_std(c)).collect();
+        let ceiling: Vec<f64> = noise
+            .iter()
+            .map(|n| Ok(residual_std(&read_columns(n, &["time_s", "rate_dph", "ref_dph"])?)))
+            .collect::<anyhow::Result<_>>()?;
+        Ok(Histories {
+            verify,
+            raw,
+            before,
+            ceiling,
+        })
+    }
+
+    /// Every training of this plant, fitted and scored on its histories;
+    /// prints its table and returns its JSON, its summary row and the soak
+    /// spread after each training.
+    fn bench_plant(
+        &self,
+        training: &[(Training, RunSpec)],
+        in_use: &[RunSpec],
+    ) -> anyhow::Result<(Value, PlantSummary, Vec<Option<f64>>)> {
+        let plant = self.plant;
+        let histories = self.histories(in_use)?;
+        let before = &histories.before;
+        let soak = self.simulate(&soak_run(), "soak", false)?;
+        let mut soak_spreads = Vec::new();
+        let mut training_json = Vec::new();
+        let mut plant_summary = PlantSummary {
+            name: plant.name.clone(),
+            ..PlantSummary::default()
+        };
+        match plant.args.as_slice() {
+            [] => println!("\nplant: {} (trainer simulate's defaults)", plant.name),
+            args => println!("\nplant: {} (trainer simulate {})", plant.name, args.join(" ")),
+        }
+        print_header(in_use);
+        print_cells("no compensation (STD [°/h])", before.iter().map(|b| format!("{b:.4}")));
+        println!();
+        for (s, (kind, scenario)) in training.iter().enumerate() {
+            let (json, soak_spread) = self.bench_training(s, *kind, scenario, &histories, &soak, &mut plant_summary)?;
+            soak_spreads.push((scenario.name.clone(), soak_spread));
+            training_json.push(json);
+        }
+        let ceiling = &histories.ceiling;
+        let ceiling_pct: Vec<f64> = ceiling
+            .iter()
+            .zip(before)
+            .map(|(n, b)| improvement_pct(*b, *n))
+            .collect();
+        print_cells(
+            "noise ceiling (thermal bias zeroed)",
+            ceiling_pct.iter().zip(ceiling).map(|(i, n)| format!("{i:.1} ({n:.4})")),
+        );
+        let (mean, worst) = mean_and_worst(&ceiling_pct);
+        println!(" {mean:>7.1} {worst:>7.1}");
+        println!(
+            "soak test settled spread [°/h] after {}",
+            soak_spreads
+                .iter()
+                .map(|(name, s)| format!("{name}: {}", s.map_or("-".into(), |s| format!("{s:.4}"))))
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
+        plant_summary.ceiling_pct = (mean, worst);
+        let plant_json = json!({
+            "plant": plant.name,
+            "simulate_args": plant.args,
+            "runs": in_use.iter().enumerate().map(|(i, spec)| json!({
+                "run": spec.name,
+                "simulate_args": spec.args,
+                "seed": self.seed(spec),
+                "before_dph": before[i],
+                "noise_dph": ceiling[i],
+                "noise_ceiling_pct": ceiling_pct[i],
+            })).collect::<Vec<_>>(),
+            "training": training_json,
+            "soak_run": { "simulate_args": soak_run().args, "seed": self.seed(&soak_run()) },
+            "forecast_worst_factor": plant_summary.target_forecast(),
+            "targets_missed": plant_summary.missed_targets(),
+        });
+        Ok((
+            plant_json,
+            plant_summary,
+            soak_spreads.into_iter().map(|s| s.1).collect(),
+        ))
+    }
+
+    /// Training `s` of this plant (`kind`, simulated from `scenario`): the
+    /// judged fit and the lag-bank reference scored on the histories, the
+    /// default's soak spread; prints their rows, adds the default's scores
+    /// to `summary` and returns the training's JSON and the soak spread.
+    fn bench_training(
+        &self,
+        s: usize,
+        kind: Training,
+        scenario: &RunSpec,
+        histories: &Histories,
+        soak: &Path,
+        summary: &mut PlantSummary,
+    ) -> anyhow::Result<(Value, Option<f64>)> {
+        let (bench, tag) = (self.bench, format!("p{}", self.index));
+        let train = self.simulate(scenario, &format!("train{s}"), false)?;
+        let loop_c = loop_range_c(&train)?;
+        let model = bench.dir.join(format!("{tag}_train{s}.bin"));
+        let default = fit_and_compensate(
+            bench.judged,
+            &bench.fit_args,
+            &train,
+            &model,
+            &histories.verify,
+            &histories.raw,
+        )?;
+        let reference = lag_bank_scores(bench.python, &bench.lag_bank, &train, &histories.verify, &histories.raw)?;
+        let soak_spread = match default.refusal {
+            None => Some(super::soak_spread(
+                bench.judged,
+                &model,
+                soak,
+                &bench.dir.join(format!("{tag}_train{s}_soak.json")),
+            )?),
+            Some(_) => None,
+        };
+        println!(
+            "trained on {} (loop {:.1} … {:.1} °C):",
+            scenario.name, loop_c.0, loop_c.1
+        );
+        // The loop range of the first plan's run (the default plan's, seed 1).
+        if kind == Training::Planned && s == 0 {
+            summary.planned_loop_c = loop_c;
+        }
+        let mut models_json = Vec::new();
+        for scores in [&default, &reference] {
+            models_json.push(model_row(scores, &histories.before, soak_spread, kind, summary));
+        }
+        let json = json!({
+            "training": scenario.name,
+            "simulate_args": scenario.args,
+            "seed": self.seed(scenario),
+            "loop_c": [loop_c.0, loop_c.1],
+            "models": models_json,
+        });
+        Ok((json, soak_spread.and_then(|s| s.0)))
+    }
+}
+
+/// One model's row of a training: printed, its JSON returned, and for the
+/// default its scores and forecast added to `summary`. `soak_spread`: the
+/// default's settled spread on the soak test (after, before), °/h.
+fn model_row(
+    scores: &ModelScores,
+    before: &[f64],
+    soak_spread: Option<(Option<f64>, Option<f64>)>,
+    kind: Training,
+    summary: &mut PlantSummary,
+) -> Value {
+    print_model(scores, before);
+    if scores.model == DEFAULT_MODEL
+        && let Some((after, before)) = soak_spread
+    {
+        let cell = |s: Option<f64>| s.map_or("- (under 2 plateaus)".into(), |s| format!("{s:.4}"));
+        println!(
+            "    soak test: settled spread {} °/h (uncompensated {})",
+            cell(after),
+            cell(before)
+        );
+    }
+    let pct: Vec<f64> = scores
+        .after_dph
+        .iter()
+        .zip(before)
+        .map(|(a, b)| improvement_pct(*b, *a))
+        .collect();
+    let (mean, worst) = mean_and_worst(&pct);
+    let forecast = worst_forecast_factor(scores.forecast_dph, &scores.after_dph);
+    if scores.model == DEFAULT_MODEL {
+        let scored = scores.refusal.is_none().then_some((mean, worst));
+        summary.default_pct.push((kind, scored));
+        summary.forecast.push((kind, forecast));
+    }
+    json!({
+        "model": scores.model,
+        "fit_s": finite(scores.fit_s),
+        "refusal": scores.refusal,
+        "predicted_in_use_std100_dph": scores.forecast_dph.map(finite),
+        "structure": scores.structure,
+        "runs": scores.after_dph.iter().zip(&pct).zip(&scores.clamped_pct).map(|((a, i), c)| json!({
+            "after_dph": finite(*a), "improvement_pct": finite(*i), "clamped_pct": c,
+            "forecast_factor": forecast_factor(scores.forecast_dph, *a),
+        })).collect::<Vec<_>>(),
+        "mean_pct": finite(mean),
+        "worst_pct": finite(worst),
+        "forecast_worst_factor": forecast,
+        "soak_settled_spread_dph": (scores.model == DEFAULT_MODEL)
+            .then_some(soak_spread.and_then(|s| s.0).map(finite)).flatten(),
+        "fit_report": scores.fit_report,
+    })
 }
 
 /// The range of the loop temperature (`temp_c`) of a run, °C.

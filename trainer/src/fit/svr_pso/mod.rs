@@ -110,7 +110,7 @@ pub fn fit<T: RunSet + ?Sized>(
     // Multi-point inputs get a linear part: gradients grow in proportion to
     // the ramp rate, and it carries the model past the training ramps. On the
     // single-point (T, ΔT, T×ΔT) it extrapolates worse than the paper's pure
-    // ε-SVR, so that stays pure (figures: docs/benchmarks.md, "Measurements
+    // ε-SVR, so that stays pure (figures: docs/decisions.md, "Measurements
     // behind design choices").
     let partially_linear = selection.is_some();
     let set = features.set;
@@ -132,7 +132,7 @@ pub fn fit<T: RunSet + ?Sized>(
     // centre budget. Tuned on the SVR alone it drifted to wide kernels and
     // C at the box edge, whose hundreds of near-dependent support vectors
     // OLS could not reduce: the deployed network then validated far worse
-    // than the SVR it was reduced from (docs/benchmarks.md, "Measurements
+    // than the SVR it was reduced from (docs/decisions.md, "Measurements
     // behind design choices").
     let score = |params: SvrParams| data.validation_rms(params, Some(budget), partially_linear);
     let pso_opts = PsoOptions::default();
