@@ -42,7 +42,7 @@ pub enum FeaturesArg {
     MultiscaleValidated,
     /// (T, ΔT, T×ΔT) with Gaussians over all three: the IFOG paper's network.
     Paper,
-    /// The thermal response bank: a static cubic in T and five responses mixed from 12 filters (10 s … 11 h).
+    /// The thermal response bank: a static cubic in T and five responses mixed from 12 filters (10 s … 1.1 h).
     ResponseBank,
 }
 

@@ -101,7 +101,7 @@ pub fn describe(model: &Model) -> ModelDescription {
     }
 }
 
-/// A response bank's filters and static curve: `12 filters 10 s … 11 h on
+/// A response bank's filters and static curve: `12 filters 10 s … 1.1 h on
 /// T, (T − T₀)², (T − T₀)³, static cubic in T`.
 pub fn response_bank_form(bank: &ResponseBank) -> String {
     let taus = bank.taus();

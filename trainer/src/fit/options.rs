@@ -35,7 +35,7 @@ pub enum RbfFeatures {
     Paper,
     /// The thermal response bank (`FeatureSet::ResponseBank`): a static
     /// cubic in T about T₀ and five responses mixed from twelve derivative
-    /// filters (10 s … 11 h), fitted by [`response`](super::response).
+    /// filters (10 s … 1.1 h), fitted by [`response`](super::response).
     ResponseBank,
 }
 

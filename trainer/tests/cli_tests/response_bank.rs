@@ -22,7 +22,7 @@ fn a_response_bank_fitted_on_one_simulated_run_improves_the_cluster_std_of_anoth
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
-        stdout(&o).contains("model: thermal response bank, linear in its 8 inputs; 12 filters 10 s … 11 h on T, (T − T₀)², (T − T₀)³, static cubic in T; T₀ "),
+        stdout(&o).contains("model: thermal response bank, linear in its 8 inputs; 12 filters 10 s … 1.1 h on T, (T − T₀)², (T − T₀)³, static cubic in T; T₀ "),
         "{}",
         stdout(&o)
     );

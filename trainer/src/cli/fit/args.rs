@@ -105,7 +105,7 @@ pub struct Args {
     /// coil's slowest radial mode), the best of these kept only when its validation RMS is
     /// below 0.9 × the first-order one (a term fitted at one ramp rate must earn its
     /// extrapolation); paper = (T, ΔT, T×ΔT) with Gaussians over all, the IFOG paper's network;
-    /// response-bank = the thermal response bank alone: 12 derivative filters from 10 s to 11 h
+    /// response-bank = the thermal response bank alone: 12 derivative filters from 10 s to 1.1 h
     /// on T, (T − T₀)² and (T − T₀)³, a static cubic in T − T₀ (T₀ the middle of the covered
     /// range, tangent beyond it), five free mixtures of the filters' rates (R₀, (T − T₀)·R₁,
     /// (T − T₀)²·R₂ and the filtered square and cube), fitted by one ridge regression on 10-s

@@ -1,0 +1,141 @@
+"""The soak test and the in-use histories after a planned run, every run of one unit
+(issue 48; findings in docs/decisions.md, "The settled curve: one unit, fast and slow plants").
+
+For each gyro (trainer simulate's documented gyro, `--unit 1`, `--design 1`, `--design 3`,
+`--design 4`, and each of them with every time constant halved: a plant that settles
+within a 3-h hold, as the handed-out designs' do) and each plan length (12 and 24 h of
+`trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5 --hours H`), it simulates
+the planned run, fits the default model (`trainer fit`, or `--fit-args`), and reads with
+`trainer eval --json`:
+
+- the settled spread (`settled_spread_dph`) on two soak tests of the same unit: the
+  issue's (3-h holds at 25, 0, 40, -20, 60, 20, -40, 10 degC) and one of other levels and
+  order (10, -40, 50, -10, 30, 60, -30, 0 degC); the worse of the two is printed;
+- the 100-s cluster STD improvement on a random history (-20 ... 50 degC, 0.2 ... 3
+  degC/min, 8 h) and a field history, and their mean.
+
+    python3 bench/accuracy/one_unit_soak.py [--trainer target/release/trainer] [--dir target/one-unit-soak]
+        [--fit-args "--features response-bank"] [--hours 12,24] [--gyros doc,fast-d4]
+
+Runs are simulated once per directory and reused (delete the directory to redo them);
+fits and evaluations are redone every time, so two trainers can be compared on the same
+runs with `--trainer`.
+"""
+import argparse
+import json
+import os
+import shlex
+import subprocess
+from concurrent.futures import ThreadPoolExecutor
+
+GYROS = {
+    "doc": [],
+    "unit1": ["--unit", "1"],
+    "design1": ["--design", "1"],
+    "design3": ["--design", "3"],
+    "design4": ["--design", "4"],
+}
+TIME_CONSTANTS = ["tau_base_s", "tau_top_s", "tau_electronics_s", "tau_coil_outer_s", "tau_coil_layer_s"]
+# The documented gyro's time constants (trainer/src/simulate/plant.rs, PlantParams::default).
+DOC_PLANT = {"tau_base_s": 900.0, "tau_top_s": 1500.0, "tau_electronics_s": 600.0,
+             "tau_coil_outer_s": 500.0, "tau_coil_layer_s": 700.0}
+SOAK_B = "10,-40,50,-10,30,60,-30,0"
+MIN_LAG_S = 5.0
+
+
+def run(cmd):
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+
+
+def simulated_params(trainer, args, path):
+    """The plant and gyro `trainer simulate ARGS` draws (its `# simulator_params` line)."""
+    run([trainer, "simulate", *args, "--profile", "ifog", "--hours", "0.1", "-o", path, "--force"])
+    for line in open(path):
+        if line.startswith("# simulator_params:"):
+            return json.loads(line.split(":", 1)[1])
+    return {"plant": dict(DOC_PLANT)}
+
+
+def fast_args(trainer, name, args, d):
+    """`args` with every time constant halved (thermometer lags at least 5 s), as a --params file."""
+    params = simulated_params(trainer, args, os.path.join(d, f"{name}_draw.csv"))
+    plant = params["plant"]
+    for k in TIME_CONSTANTS:
+        plant[k] = plant.get(k, DOC_PLANT[k]) * 0.5
+    if plant.get("hub"):
+        plant["hub"]["tau_base_s"] *= 0.5
+        plant["hub"]["tau_coil_s"] *= 0.5
+    if "thermometer_lags_s" in plant:
+        plant["thermometer_lags_s"] = [max(MIN_LAG_S, 0.5 * x) for x in plant["thermometer_lags_s"]]
+    path = os.path.join(d, f"fast-{name}.json")
+    json.dump(params, open(path, "w"))
+    return args + ["--params", path]
+
+
+def histories(trainer, gyro_args, d):
+    sim = [trainer, "simulate", "--sample-rate-hz", "1", *gyro_args, "--force"]
+    runs = {
+        "soakA": ["--profile", "soak", "--seed", "503"],
+        "soakB": ["--profile", "soak", "--soak-levels-c", SOAK_B, "--seed", "507"],
+        "random": ["--profile", "random", "--random-range-c=-20,50", "--ramp-range-c-per-min", "0.2,3",
+                   "--hours", "8", "--seed", "511"],
+        "field": ["--profile", "field", "--seed", "513"],
+    }
+    for name, args in runs.items():
+        path = os.path.join(d, f"{name}.csv")
+        if not os.path.exists(path):
+            run(sim + args + ["-o", path])
+    return [os.path.join(d, f"{n}.csv") for n in runs]
+
+
+def score(trainer, fit_args, gyro, gyro_args, plan, hours, root):
+    d = os.path.join(root, gyro)
+    use = histories(trainer, gyro_args, d)
+    train = os.path.join(d, f"planned{hours}.csv")
+    if not os.path.exists(train):
+        run([trainer, "simulate", "--sample-rate-hz", "1", *gyro_args, "--chamber-profile", plan,
+             "--seed", "501", "-o", train, "--force"])
+    model, report = os.path.join(d, f"planned{hours}.bin"), os.path.join(d, f"planned{hours}.eval.json")
+    run([trainer, "fit", train, "-o", model, "--force", "-q", *fit_args])
+    run([trainer, "eval", "--model", model, *use, "--json", report, "--force"])
+    e = json.load(open(report))
+    spread = max(e[0]["settled_spread_dph"], e[1]["settled_spread_dph"])
+    gains = [e[2]["cluster_std_improvement_pct"], e[3]["cluster_std_improvement_pct"]]
+    return gyro, hours, spread, gains
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--trainer", default="target/release/trainer")
+    p.add_argument("--dir", default="target/one-unit-soak")
+    p.add_argument("--fit-args", default="")
+    p.add_argument("--hours", default="12,24")
+    p.add_argument("--gyros", help="default: every gyro and its fast twin (doc, fast-doc, unit1, ...)")
+    a = p.parse_args()
+    os.makedirs(a.dir, exist_ok=True)
+    plans = {}
+    for h in a.hours.split(","):
+        plans[h] = os.path.join(a.dir, f"plan{h}.csv")
+        run([a.trainer, "plan", "--min-c", "-40", "--max-c", "60", "--max-rate-c-per-min", "5", "--hours", h,
+             "-o", plans[h], "--force"])
+    gyros = {}
+    for name, args in GYROS.items():
+        gyros[name] = args
+        gyros[f"fast-{name}"] = fast_args(a.trainer, name, args, a.dir)
+    chosen = a.gyros.split(",") if a.gyros else list(gyros)
+    jobs = [(g, h) for g in chosen for h in plans]
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 2) as pool:
+        # Each gyro's histories first, once: the plan lengths share them.
+        for g in chosen:
+            os.makedirs(os.path.join(a.dir, g), exist_ok=True)
+        list(pool.map(lambda g: histories(a.trainer, gyros[g], os.path.join(a.dir, g)), chosen))
+        results = list(pool.map(
+            lambda j: score(a.trainer, shlex.split(a.fit_args), j[0], gyros[j[0]], plans[j[1]], j[1], a.dir), jobs))
+    print("gyro            plan   soak spread [deg/h, worse of 2]   in use: random  field  mean [%]")
+    for gyro, hours, spread, gains in results:
+        print(f"{gyro:15s} {hours:>3s} h   {spread:10.4f}                       {gains[0]:5.1f}  {gains[1]:5.1f}  "
+              f"{sum(gains) / 2:5.1f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
