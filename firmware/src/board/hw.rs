@@ -102,29 +102,7 @@ impl Watchdog for Iwdg {
     }
 }
 
-/// The frequencies the board runs at, Hz.
-#[derive(Clone, Copy, Debug)]
-pub struct ClockTree {
-    /// Core (SYSCLK = HCLK).
-    pub sysclk_hz: u32,
-    /// APB1 (I2C1).
-    pub pclk1_hz: u32,
-    /// APB2 (SPI1, USART1).
-    pub pclk2_hz: u32,
-    /// APB1 timers (TIM2).
-    pub timclk1_hz: u32,
-    /// The PLL runs from the crystal (false: from the HSI, a dead crystal).
-    pub on_crystal: bool,
-}
-
-/// After reset the chip runs on the 16 MHz HSI, every bus undivided.
-pub const HSI_TREE: ClockTree = ClockTree {
-    sysclk_hz: 16_000_000,
-    pclk1_hz: 16_000_000,
-    pclk2_hz: 16_000_000,
-    timclk1_hz: 16_000_000,
-    on_crystal: false,
-};
+pub use super::timing::{ClockTree, HSI_TREE};
 
 /// Sets the clock tree up with every wait bounded (RM0090 §6.3; the
 /// stm32f4xx-hal's `freeze` waits without a limit and asserts): the 8 MHz
@@ -164,21 +142,13 @@ pub fn setup_clocks() -> ClockTree {
     rcc.cfgr()
         .modify(|r, w| unsafe { w.bits((r.bits() & !0xFCF3) | (0b101 << 10) | (0b100 << 13) | 0b10) });
     if !poll(|| rcc.cfgr().read().bits() & 0b1100 == 0b1000) {
-        // Still on the HSI with APB1 ÷4 and APB2 ÷2.
-        return ClockTree {
-            pclk1_hz: 4_000_000,
-            pclk2_hz: 8_000_000,
-            timclk1_hz: 8_000_000,
-            ..HSI_TREE
-        };
+        // Still on the HSI: the prescalers back to ÷1 and SW to the HSI, so
+        // that the tree is the one the dividers are known for (APB2 at
+        // 4 MHz would leave the UART 3.5 % slow).
+        rcc.cfgr().modify(|r, w| unsafe { w.bits(r.bits() & !0xFCF3) });
+        return HSI_TREE;
     }
-    ClockTree {
-        sysclk_hz: 168_000_000,
-        pclk1_hz: 42_000_000,
-        pclk2_hz: 84_000_000,
-        timclk1_hz: 84_000_000,
-        on_crystal,
-    }
+    super::timing::pll_tree(on_crystal)
 }
 
 /// Sets SPI1's clock divider for `tree` (the HAL computed one for the
@@ -194,16 +164,25 @@ pub fn set_spi1_divider(tree: &ClockTree, max_hz: u32) {
         .modify(|r, w| unsafe { w.bits((r.bits() & !(0b111 << 3)) | (code << 3) | (1 << 6)) });
 }
 
-/// Sets USART1's baud rate for `tree` (16× oversampling): BRR = pclk2 / baud, rounded.
+/// Sets USART1's baud rate for `tree` (16× oversampling, [`super::timing::usart_brr`]).
 pub fn set_usart1_baud(tree: &ClockTree, baud: u32) {
-    let brr = (tree.pclk2_hz + baud / 2) / baud.max(1);
+    let brr = super::timing::usart_brr(tree.pclk2_hz, baud);
     // SAFETY: USART1's CR1 (UE bit 13, OVER8 bit 15) and BRR, the UART disabled while BRR changes.
     let usart = unsafe { &*pac::USART1::ptr() };
     usart
         .cr1()
         .modify(|r, w| unsafe { w.bits(r.bits() & !((1 << 13) | (1 << 15))) });
-    usart.brr().write(|w| unsafe { w.bits((brr & 0xFFFF) as u16) });
+    usart.brr().write(|w| unsafe { w.bits(brr) });
     usart.cr1().modify(|r, w| unsafe { w.bits(r.bits() | (1 << 13)) });
+}
+
+/// Enables USART1's transmit-empty interrupt (TXEIE) from the main loop:
+/// a read-modify-write of CR1 the USART1 handler cannot interleave with
+/// (interrupts masked for its three instructions).
+pub fn usart1_listen_tx() {
+    // SAFETY: CR1's TXEIE alone changes; the handler only ever clears it.
+    let usart = unsafe { &*pac::USART1::ptr() };
+    cortex_m::interrupt::free(|_| usart.cr1().modify(|_, w| w.txeie().set_bit()));
 }
 
 /// I2C1 (RM0090 §27) with SCL on PB6 and SDA on PB7 (AF4, open drain).
@@ -258,8 +237,8 @@ impl I2cRegisters for I2c1Regs {
         rcc.apb1rstr().modify(|_, w| w.i2c1rst().clear_bit());
         let i2c = Self::i2c();
         let mhz = self.pclk1_mhz.clamp(2, 42);
-        // Fast mode, 400 kHz, duty 2:1 (CCR = f / (3 · 400 kHz)), rise time 300 ns.
-        let ccr = (u32::from(mhz) * 1_000_000 / (3 * 400_000)).max(1) as u16;
+        // Fast mode, at most 400 kHz, duty 2:1, rise time 300 ns.
+        let ccr = super::timing::i2c_fast_mode_ccr(u32::from(mhz) * 1_000_000);
         unsafe {
             i2c.cr2().write(|w| w.bits(mhz));
             i2c.trise().write(|w| w.bits(mhz * 300 / 1000 + 1));
@@ -303,6 +282,9 @@ impl FlashRegs {
     }
 }
 
+/// Where flash is mapped (RM0090 §2.3: main memory at 0x0800_0000).
+const FLASH_BASE: u32 = 0x0800_0000;
+
 /// MODEL_A and MODEL_B (memory.x) as offsets from the start of flash:
 /// sectors 10 and 11, the only words [`FlashRegs`] programs or maps.
 pub const MODEL_SLOTS: SlotLayout = SlotLayout {
@@ -329,18 +311,16 @@ impl FlashRegisters for FlashRegs {
         // SAFETY: KEYR takes the unlock keys.
         Self::flash().keyr().write(|w| unsafe { w.bits(key) });
     }
-    fn write_word(&mut self, offset: u32, word: u32) {
+    fn write_word(&mut self, offset: u32, word: u32) -> bool {
         // Only words inside the model slots are ever programmed.
-        let in_slot = MODEL_SLOTS
-            .offsets
-            .iter()
-            .any(|&start| offset >= start && offset + 4 <= start + MODEL_SLOTS.len);
-        if in_slot {
-            let address = 0x0800_0000u32 + offset;
-            // SAFETY: an aligned word inside a model slot, with PG set (the
-            // driver's sequence); the controller flags anything else.
-            unsafe { core::ptr::write_volatile(address as *mut u32, word) };
+        if !MODEL_SLOTS.holds_word(offset) {
+            return false;
         }
+        let address = FLASH_BASE + offset;
+        // SAFETY: an aligned word inside a model slot, with PG set (the
+        // driver's sequence); the controller flags anything else.
+        unsafe { core::ptr::write_volatile(address as *mut u32, word) };
+        true
     }
     fn flush_caches(&mut self) {
         // RM0090 §3.5.2: caches off, reset, on again.

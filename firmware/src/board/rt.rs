@@ -131,6 +131,11 @@ pub fn paint_stack() {
     }
 }
 
+/// The stack region, `(bottom, top)` addresses (it grows down from `top`).
+pub fn stack_bounds() -> (u32, u32) {
+    (&raw const _stack_end as u32, &raw const _stack_start as u32)
+}
+
 /// Deepest stack use since [`paint_stack`], bytes.
 pub fn stack_peak_bytes() -> usize {
     let bottom = &raw const _stack_end as usize;
