@@ -116,46 +116,33 @@ const RX_QUEUE: usize = 256;
 const STAMP_QUEUE: usize = 16;
 
 /// The model kinds a board image runs, each decoded in place into a
-/// `static` of its own (all bits zero: .bss, no flash): a single gyro's
-/// [`Model`], an IMU's [`AxisModels`] of [`crate::AXIS_CENTERS`] centres
-/// per axis, or one [`SharedAxisModels`] basis of
-/// [`crate::SHARED_AXIS_CENTERS`] centres.
+/// `static` of its own (`singleton!`, all bits zero: .bss, no flash): a
+/// single gyro's [`Model`], an IMU's [`AxisModels`] of
+/// [`crate::AXIS_CENTERS`] centres per axis, or one [`SharedAxisModels`]
+/// basis of [`crate::SHARED_AXIS_CENTERS`] centres.
 pub trait BoardModel: StoredModel + 'static {
-    /// The image's model storage.
-    ///
-    /// # Safety
-    /// Called once ([`Board::run`] does): the only reference.
-    unsafe fn storage() -> &'static mut Self;
+    /// The image's model storage: the first call's; `None` on any later one.
+    fn storage() -> Option<&'static mut Self>;
 }
 
-/// The running model, decoded in place (all bits zero: .bss, no flash).
-static mut MODEL: Model = Model::EMPTY;
-/// The running axis models, decoded in place.
-static mut AXIS_MODELS: AxisModels<{ crate::AXIS_CENTERS }> = AxisModels::EMPTY;
-/// The running shared-basis model of every axis, decoded in place.
-static mut SHARED_MODELS: SharedAxisModels<{ crate::SHARED_AXIS_CENTERS }> = SharedAxisModels::EMPTY;
-
 impl BoardModel for Model {
-    unsafe fn storage() -> &'static mut Self {
-        let storage = &raw mut MODEL;
-        // SAFETY: the caller's promise.
-        unsafe { &mut *storage }
+    #[inline(always)]
+    fn storage() -> Option<&'static mut Self> {
+        cortex_m::singleton!(: Model = Model::EMPTY)
     }
 }
 
 impl BoardModel for AxisModels<{ crate::AXIS_CENTERS }> {
-    unsafe fn storage() -> &'static mut Self {
-        let storage = &raw mut AXIS_MODELS;
-        // SAFETY: the caller's promise.
-        unsafe { &mut *storage }
+    #[inline(always)]
+    fn storage() -> Option<&'static mut Self> {
+        cortex_m::singleton!(: AxisModels<{ crate::AXIS_CENTERS }> = AxisModels::EMPTY)
     }
 }
 
 impl BoardModel for SharedAxisModels<{ crate::SHARED_AXIS_CENTERS }> {
-    unsafe fn storage() -> &'static mut Self {
-        let storage = &raw mut SHARED_MODELS;
-        // SAFETY: the caller's promise.
-        unsafe { &mut *storage }
+    #[inline(always)]
+    fn storage() -> Option<&'static mut Self> {
+        cortex_m::singleton!(: SharedAxisModels<{ crate::SHARED_AXIS_CENTERS }> = SharedAxisModels::EMPTY)
     }
 }
 
@@ -586,10 +573,13 @@ impl<F: BoardFlash> Board<F> {
             }
         }
 
-        // SAFETY: `run` runs once and these are the only references to the
-        // two statics (no interrupt handler touches them).
-        let (model, commands) = (unsafe { M::storage() }, &raw mut COMMANDS);
-        let commands = unsafe { &mut *commands };
+        // Command bytes collect in a static of their own (4 KiB: off the stack).
+        let (Some(model), Some(commands)) = (
+            M::storage(),
+            cortex_m::singleton!(: CommandReceiver = CommandReceiver::new()),
+        ) else {
+            halt()
+        };
         // An invalid or absent model is not fatal: every frame then carries flag 4.
         let mut store = ModelStore::open_with(flash, F::SLOTS, model);
         let loaded = store.load_into(model).is_ok();
@@ -719,9 +709,6 @@ impl<F: BoardFlash> Board<F> {
         })
     }
 }
-
-/// Command bytes collect here between samples (4 KiB: off the stack).
-static mut COMMANDS: CommandReceiver = CommandReceiver::new();
 
 /// Sends the health report: `boot`, then the counters of the loop
 /// `compensation`, the model store `store` and the pacer `pacer`.
