@@ -355,18 +355,6 @@ mod tests {
         }
     }
 
-    struct Ticks(u32);
-
-    impl Clock for Ticks {
-        fn now_ticks(&mut self) -> u32 {
-            self.0 = self.0.wrapping_add(1);
-            self.0
-        }
-        fn ticks_per_us(&self) -> u32 {
-            1
-        }
-    }
-
     #[test]
     fn a_write_outside_the_model_slots_is_refused_not_skipped() {
         let slots = crate::model_store::SlotLayout {
@@ -374,7 +362,14 @@ mod tests {
             len: 0x2_0000,
         };
         let regs = SlotRegs { slots, written: 0 };
-        let mut flash = ControllerFlash::new(regs, Ticks(0), NoWatchdog);
+        let mut flash = ControllerFlash::new(
+            regs,
+            crate::clock::CountingClock {
+                ticks: 0,
+                ticks_per_us: 1,
+            },
+            NoWatchdog,
+        );
         assert_eq!(flash.write(0x000C_0000, &[1, 2, 3, 4]), Ok(()));
         assert_eq!(
             flash.write(0x0000_8000, &[1, 2, 3, 4]),

@@ -374,19 +374,6 @@ impl<R: I2cRegisters, C: Clock> I2c<SevenBitAddress> for BoundedI2c<R, C> {
 mod tests {
     use super::*;
 
-    /// A clock one tick (1 µs) per read.
-    struct Ticks(u32);
-
-    impl Clock for Ticks {
-        fn now_ticks(&mut self) -> u32 {
-            self.0 = self.0.wrapping_add(1);
-            self.0
-        }
-        fn ticks_per_us(&self) -> u32 {
-            1
-        }
-    }
-
     /// The I2C peripheral reading two bytes from a slave, to RM0090's
     /// rules: a byte takes 3 register accesses; with POS clear the ACK bit
     /// answers the byte being received when it ends, with POS set the next
@@ -499,7 +486,13 @@ mod tests {
                 stall_after_first_read: stall,
                 ..TwoByteRead::default()
             };
-            let mut master = BoundedI2c::new(regs, Ticks(0));
+            let mut master = BoundedI2c::new(
+                regs,
+                crate::clock::CountingClock {
+                    ticks: 0,
+                    ticks_per_us: 1,
+                },
+            );
             let mut bytes = [0u8; 2];
             master.read(0x48, &mut bytes).unwrap();
             assert_eq!(bytes, [0x12, 0x34]);

@@ -132,7 +132,7 @@ use crate::pacing::Pacer;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::clock::{Clock, Deadline};
+    use crate::clock::{CountingClock, Deadline};
 
     #[test]
     fn on_every_clock_tree_i2c_stays_at_or_below_400_khz_and_the_uart_within_2_5_percent() {
@@ -210,22 +210,13 @@ mod tests {
         assert_eq!(delay_cycles(u32::MAX, u32::MAX), u32::MAX, "saturates, never wraps");
     }
 
-    /// TIM2 as the clock of a deadline: one tick per read, from just below the wrap.
-    struct Tim2(u32);
-
-    impl Clock for Tim2 {
-        fn now_ticks(&mut self) -> u32 {
-            self.0 = self.0.wrapping_add(1);
-            self.0
-        }
-        fn ticks_per_us(&self) -> u32 {
-            ticks_per_us(84_000_000)
-        }
-    }
-
     #[test]
     fn a_deadline_at_the_board_rate_holds_across_the_wrap() {
-        let mut clock = Tim2(u32::MAX - 10);
+        // TIM2 as the clock of a deadline: one tick per read, from just below the wrap.
+        let mut clock = CountingClock {
+            ticks: u32::MAX - 10,
+            ticks_per_us: ticks_per_us(84_000_000),
+        };
         let deadline = Deadline::after_us(&mut clock, 2);
         let mut polls = 0u32;
         while !deadline.expired(&mut clock) {
