@@ -82,7 +82,7 @@ pub const fn i2c_fast_mode_ccr(pclk1_hz: u32) -> u16 {
 /// at least 16 (a mantissa of 0 is not allowed).
 pub const fn usart_brr(pclk_hz: u32, baud: u32) -> u16 {
     let baud = if baud == 0 { 1 } else { baud };
-    let brr = (pclk_hz + baud / 2) / baud;
+    let brr = pclk_hz.saturating_add(baud / 2) / baud;
     if brr < 16 {
         16
     } else if brr > 0xFFFF {
