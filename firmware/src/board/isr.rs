@@ -80,6 +80,9 @@ core::arch::global_asm!(
     "    ldr r1, =_stack_start",
     "    msr msp, r1",
     "    b {handler}",
+    // Its size in the symbol table: `cargo xtask check-board-panics` walks
+    // the image's functions from it.
+    ".size HardFault, . - HardFault",
     handler = sym hard_fault_on_fresh_stack,
 );
 
