@@ -50,26 +50,37 @@ pub fn delay_us<C: Clock>(clock: &mut C, us: u32) {
     while !deadline.expired(clock) {}
 }
 
+/// The unit tests' clock: one tick per read, wrapping like TIM2.
+#[cfg(test)]
+#[derive(Debug)]
+pub(crate) struct CountingClock {
+    /// The counter now.
+    pub ticks: u32,
+    /// Ticks per µs.
+    pub ticks_per_us: u32,
+}
+
+#[cfg(test)]
+impl Clock for CountingClock {
+    fn now_ticks(&mut self) -> u32 {
+        self.ticks = self.ticks.wrapping_add(1);
+        self.ticks
+    }
+    fn ticks_per_us(&self) -> u32 {
+        self.ticks_per_us
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// A clock that advances one tick per read, wrapping like TIM2.
-    struct Counting(u32);
-
-    impl Clock for Counting {
-        fn now_ticks(&mut self) -> u32 {
-            self.0 = self.0.wrapping_add(1);
-            self.0
-        }
-        fn ticks_per_us(&self) -> u32 {
-            2
-        }
-    }
-
     #[test]
     fn a_deadline_expires_after_its_limit_even_across_the_counter_wrap() {
-        let mut clock = Counting(u32::MAX - 5);
+        let mut clock = CountingClock {
+            ticks: u32::MAX - 5,
+            ticks_per_us: 2,
+        };
         let deadline = Deadline::after_us(&mut clock, 10);
         let mut polls = 0;
         while !deadline.expired(&mut clock) {

@@ -88,6 +88,39 @@ pub fn boot_cause(record: Option<FaultRecord>, watchdog_reset: bool) -> Option<F
     }
 }
 
+/// Bytes of the exception frame the core stacks on a fault (R0–R3, R12, LR, PC, xPSR).
+pub const EXCEPTION_FRAME_LEN: u32 = 32;
+
+/// The record of a HardFault whose handler found the main stack pointer at
+/// `faulting_sp`, the stack being `stack_bottom..stack_top`: PC and LR from
+/// the exception frame (words 6 and 5, read with `read_word`) when the
+/// frame lies inside the stack; otherwise the stack overflowed (the core
+/// could not stack the frame), and the record says so with PC 0 and the
+/// faulting SP in place of the LR, without reading the bad address. The
+/// board's handler runs this on a fresh stack (`firmware::board`).
+pub fn hard_fault_record(
+    faulting_sp: u32,
+    stack_bottom: u32,
+    stack_top: u32,
+    read_word: impl Fn(u32) -> u32,
+) -> FaultRecord {
+    let frame_inside = faulting_sp >= stack_bottom
+        && faulting_sp.is_multiple_of(4)
+        && faulting_sp
+            .checked_add(EXCEPTION_FRAME_LEN)
+            .is_some_and(|end| end <= stack_top);
+    let (pc, lr) = if frame_inside {
+        (read_word(faulting_sp + 24), read_word(faulting_sp + 20))
+    } else {
+        (0, faulting_sp)
+    };
+    FaultRecord {
+        reason: FaultReason::HardFault,
+        pc,
+        lr,
+    }
+}
+
 /// Encodes the boot report for `cause` and the raw reset flags
 /// (RCC_CSR bits 24..31 on the STM32F4) into `out`; the bytes used.
 pub fn encode_boot_report(cause: FaultRecord, reset_flags: u8, out: &mut [u8]) -> Option<usize> {
@@ -117,6 +150,36 @@ mod tests {
         assert_eq!(FaultRecord::from_words(torn), None, "a changed PC fails the check");
         assert_eq!(FaultRecord::from_words([0; 4]), None);
         assert_eq!(FaultRecord::from_words([0xDEAD_BEEF, 1, 2, 3]), None);
+    }
+
+    #[test]
+    fn a_hard_fault_on_an_overflowed_stack_is_recorded_without_reading_the_frame() {
+        let (bottom, top) = (0x2000_0000, 0x2000_4000);
+        let memory = |addr: u32| {
+            assert!((bottom..top).contains(&addr), "read outside the stack at {addr:#x}");
+            addr ^ 0x5555_0000
+        };
+        let inside = hard_fault_record(0x2000_1000, bottom, top, memory);
+        assert_eq!(inside.reason, FaultReason::HardFault);
+        assert_eq!(
+            (inside.pc, inside.lr),
+            (0x2000_1018 ^ 0x5555_0000, 0x2000_1014 ^ 0x5555_0000)
+        );
+        // flip-link: an overflow runs below the start of RAM.
+        let overflow = hard_fault_record(0x1FFF_FFE0, bottom, top, memory);
+        assert_eq!(
+            (overflow.reason, overflow.pc, overflow.lr),
+            (FaultReason::HardFault, 0, 0x1FFF_FFE0)
+        );
+        let at_top = hard_fault_record(top - 16, bottom, top, memory);
+        assert_eq!(at_top.pc, 0, "a frame that would end above the stack is not read");
+        let wrapped = hard_fault_record(u32::MAX - 3, bottom, top, memory);
+        assert_eq!(wrapped.lr, u32::MAX - 3);
+        assert_eq!(
+            FaultRecord::from_words(overflow.to_words()),
+            Some(overflow),
+            "and it survives the reset"
+        );
     }
 
     #[test]

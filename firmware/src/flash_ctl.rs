@@ -18,7 +18,7 @@ use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashError, NorFlashEr
 
 use crate::clock::{Clock, Deadline};
 use crate::model_store::MappedFlash;
-use crate::watchdog::{Watchdog, install_setting, running_setting};
+use crate::watchdog::{LSI_FASTEST_HZ, SECTOR_ERASE_WORST_MS, Watchdog, install_setting, running_setting};
 
 /// SR: end of operation.
 pub const SR_EOP: u32 = 1 << 0;
@@ -51,13 +51,22 @@ pub const CR_LOCK: u32 = 1 << 31;
 /// The two unlock keys, in order.
 pub const KEYS: [u32; 2] = [0x4567_0123, 0xCDEF_89AB];
 
-/// Longest a 128 KiB sector erase may take before it counts as failed, µs
-/// (the datasheet's worst case is 4 s at ×8).
-pub const ERASE_TIMEOUT_US: u32 = 5_000_000;
+/// Longest a 128 KiB sector erase may take before it counts as failed, µs:
+/// the datasheet's worst case at ×8 ([`SECTOR_ERASE_WORST_MS`]; at the ×32
+/// used here it is 2 s).
+pub const ERASE_TIMEOUT_US: u32 = SECTOR_ERASE_WORST_MS * 1000;
 /// Longest one word program may take before it counts as failed, µs (100 µs worst case).
 pub const PROGRAM_TIMEOUT_US: u32 = 1000;
-/// Longest a previous operation may keep the controller busy, µs.
-pub const IDLE_TIMEOUT_US: u32 = ERASE_TIMEOUT_US;
+/// Longest a previous operation may keep the controller busy, µs (none
+/// should: every operation here waits for its end; a controller still busy
+/// is stuck).
+pub const IDLE_TIMEOUT_US: u32 = 100_000;
+
+/// Every wait of one erase ends before the install watchdog fires (it is
+/// fed before each sector; at the fastest LSI): a stuck controller is an
+/// error the unit reports, not a watchdog reset in the middle of an install.
+const _: () =
+    assert!((IDLE_TIMEOUT_US as u64 + ERASE_TIMEOUT_US as u64) < install_setting().period_us_at(LSI_FASTEST_HZ));
 
 /// The flash controller's registers and the memory-mapped flash.
 pub trait FlashRegisters {
@@ -71,8 +80,10 @@ pub trait FlashRegisters {
     fn set_cr(&mut self, value: u32);
     /// Writes KEYR.
     fn write_key(&mut self, key: u32);
-    /// Writes one 32-bit word at `offset` from the start of flash.
-    fn write_word(&mut self, offset: u32, word: u32);
+    /// Writes one 32-bit word at `offset` from the start of flash; false,
+    /// and nothing written, when `offset` lies outside the words it may
+    /// program (the board: the model slots).
+    fn write_word(&mut self, offset: u32, word: u32) -> bool;
     /// Resets the data and instruction caches (off, reset, on).
     fn flush_caches(&mut self);
     /// The `len` bytes at `offset` from the start of flash, memory-mapped.
@@ -212,7 +223,10 @@ impl<R: FlashRegisters, C: Clock, W: Watchdog> ControllerFlash<R, C, W> {
         let mut at = offset;
         for word in bytes.chunks_exact(4) {
             let value = u32::from_le_bytes([word[0], word[1], word[2], word[3]]);
-            self.regs.write_word(at, value);
+            if !self.regs.write_word(at, value) {
+                self.regs.set_cr(CR_PSIZE_X32);
+                return Err(FlashError::OutOfBounds);
+            }
             self.wait_idle(PROGRAM_TIMEOUT_US)?;
             self.check()?;
             at = at.wrapping_add(4);
@@ -292,6 +306,84 @@ impl<R: FlashRegisters, C: Clock, W: Watchdog> MappedFlash for ControllerFlash<R
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_sector_erase_and_its_idle_wait_end_before_the_install_watchdog_fires() {
+        let watchdog_us = install_setting().period_us_at(LSI_FASTEST_HZ);
+        let longest_us = u64::from(IDLE_TIMEOUT_US) + u64::from(ERASE_TIMEOUT_US);
+        assert!(
+            longest_us < watchdog_us,
+            "{longest_us} µs of waits, watchdog {watchdog_us} µs"
+        );
+        let x32_worst_us = 2_000_000;
+        assert!(ERASE_TIMEOUT_US >= x32_worst_us, "the ×32 worst case still fits");
+    }
+
+    /// A controller that programs whatever lands inside `slots`.
+    struct SlotRegs {
+        slots: crate::model_store::SlotLayout,
+        written: u32,
+    }
+
+    impl FlashRegisters for SlotRegs {
+        fn sr(&mut self) -> u32 {
+            0
+        }
+        fn clear_sr(&mut self, _bits: u32) {}
+        fn cr(&mut self) -> u32 {
+            0
+        }
+        fn set_cr(&mut self, _value: u32) {}
+        fn write_key(&mut self, _key: u32) {}
+        fn write_word(&mut self, offset: u32, _word: u32) -> bool {
+            let inside = self.slots.holds_word(offset);
+            self.written += u32::from(inside);
+            inside
+        }
+        fn flush_caches(&mut self) {}
+        fn mapped(&self, _offset: u32, _len: usize) -> Option<&[u8]> {
+            None
+        }
+    }
+
+    struct NoWatchdog;
+
+    impl Watchdog for NoWatchdog {
+        fn feed(&mut self) {}
+        fn set_period(&mut self, _setting: crate::watchdog::IwdgSetting) -> bool {
+            true
+        }
+    }
+
+    #[test]
+    fn a_write_outside_the_model_slots_is_refused_not_skipped() {
+        let slots = crate::model_store::SlotLayout {
+            offsets: [0x000C_0000, 0x000E_0000],
+            len: 0x2_0000,
+        };
+        let regs = SlotRegs { slots, written: 0 };
+        let mut flash = ControllerFlash::new(
+            regs,
+            crate::clock::CountingClock {
+                ticks: 0,
+                ticks_per_us: 1,
+            },
+            NoWatchdog,
+        );
+        assert_eq!(flash.write(0x000C_0000, &[1, 2, 3, 4]), Ok(()));
+        assert_eq!(
+            flash.write(0x0000_8000, &[1, 2, 3, 4]),
+            Err(FlashError::OutOfBounds),
+            "the program image's sector 2"
+        );
+        assert_eq!(
+            flash.write(0x000F_FFFC, &[1, 2, 3, 4, 5, 6, 7, 8]),
+            Err(FlashError::OutOfBounds),
+            "a write that runs past slot B's end, the end of flash"
+        );
+        assert_eq!(flash.errors(), 2);
+        assert_eq!(flash.registers().written, 2, "the first word, and slot B's last word");
+    }
 
     #[test]
     fn the_model_slots_are_sectors_10_and_11() {

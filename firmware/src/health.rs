@@ -18,11 +18,12 @@
 //! | 12 | 4 × 12 | [`HealthCounters`] in field order |
 //! | 60 | 4 | running model's blob CRC-32, its trailer (0: none) |
 //! | 64 | 4 | running model's commit sequence number (its serial; 0: none or uncommitted) |
-//! | 68 | 4 | board flags: bit 0 the crystal did not start (the clocks run from the HSI) |
+//! | 68 | 4 | board flags: bit 0 the crystal did not start (the clocks run from the HSI), bit 1 the brown-out reset is not at 2.7 V |
 //! | 72 | 4 | firmware version ([`FirmwareVersion::word`]: major · 2¹⁶ + minor · 2⁸ + patch) |
+//! | 76 | 4 | deepest stack use since the reset, bytes (the stack is painted at boot) |
 //!
 //! A receiver tells it from the other frames on the UART by its length
-//! (76; replies 2, boot report 11, single-axis output frames 18–22,
+//! (80; replies 2, boot report 11, single-axis output frames 18–22,
 //! three-axis 54–58) and its tag.
 
 use rbf_core::frame::cobs_encode;
@@ -34,9 +35,9 @@ pub const CMD_HEALTH: u8 = 0x03;
 /// First payload byte of a health report.
 pub const HEALTH_REPORT_TAG: u8 = 0xFC;
 /// The report layout's version.
-pub const HEALTH_REPORT_VERSION: u8 = 2;
+pub const HEALTH_REPORT_VERSION: u8 = 3;
 /// Payload bytes of a health report.
-pub const HEALTH_REPORT_LEN: usize = 76;
+pub const HEALTH_REPORT_LEN: usize = 80;
 /// Bytes of a COBS-framed health report with its terminator, at most.
 pub const HEALTH_FRAME_LEN: usize = HEALTH_REPORT_LEN + 2;
 
@@ -192,10 +193,12 @@ pub struct HealthReport {
     pub counters: HealthCounters,
     /// The running model.
     pub model: ModelIdentity,
-    /// Board flags ([`BOARD_ON_HSI`]).
+    /// Board flags ([`BOARD_ON_HSI`], [`BOARD_BROWN_OUT_BELOW_2V7`]).
     pub board_flags: u32,
     /// The firmware that sent the report.
     pub firmware_version: FirmwareVersion,
+    /// Deepest stack use since the reset, bytes (the painted stack's high-water mark).
+    pub stack_peak_bytes: u32,
 }
 
 /// A firmware release, as the workspace's `Cargo.toml` numbers it.
@@ -261,6 +264,29 @@ const fn parse_u8(text: &str) -> u8 {
 
 /// Board flag: the crystal did not start; the clocks run from the internal RC oscillator.
 pub const BOARD_ON_HSI: u32 = 1 << 0;
+/// Board flag: the brown-out reset is not at level 3 (2.70 V): the option
+/// bytes leave the chip running below the 2.7 V its ×32 flash erase and
+/// 5 wait states at 168 MHz need (a production step sets it:
+/// docs/firmware.md, "Brown-out level").
+pub const BOARD_BROWN_OUT_BELOW_2V7: u32 = 1 << 1;
+
+/// FLASH_OPTCR's BOR_LEV field (bits 3:2; RM0090 §3.7.1: 00 level 3, 2.70 V;
+/// 01 level 2; 10 level 1; 11 off, the factory setting). Named here, not
+/// through the PAC, whose enumeration names the codes in reverse.
+const OPTCR_BOR_LEV_SHIFT: u32 = 2;
+const OPTCR_BOR_LEV_MASK: u32 = 0b11 << OPTCR_BOR_LEV_SHIFT;
+/// BOR_LEV code of brown-out level 3 (reset below 2.70 V).
+pub const BOR_LEVEL_3: u32 = 0b00;
+
+/// The board flag [`BOARD_BROWN_OUT_BELOW_2V7`] for the option control
+/// register `flash_optcr` as read at boot: set unless BOR_LEV is level 3.
+pub const fn brown_out_flag(flash_optcr: u32) -> u32 {
+    if (flash_optcr & OPTCR_BOR_LEV_MASK) >> OPTCR_BOR_LEV_SHIFT == BOR_LEVEL_3 {
+        0
+    } else {
+        BOARD_BROWN_OUT_BELOW_2V7
+    }
+}
 
 impl HealthReport {
     /// The payload bytes (module docs).
@@ -279,7 +305,12 @@ impl HealthReport {
             *d = s;
         }
         words[15] = self.model.blob_crc32;
-        let tail = [self.model.sequence, self.board_flags, self.firmware_version.word()];
+        let tail = [
+            self.model.sequence,
+            self.board_flags,
+            self.firmware_version.word(),
+            self.stack_peak_bytes,
+        ];
         for (chunk, w) in p.chunks_exact_mut(4).zip(words.iter().chain(&tail)) {
             chunk.copy_from_slice(&w.to_le_bytes());
         }
@@ -325,6 +356,7 @@ impl HealthReport {
             },
             board_flags: words[17],
             firmware_version: FirmwareVersion::from_word(words[18])?,
+            stack_peak_bytes: words[19],
         })
     }
 
@@ -367,7 +399,7 @@ mod tests {
     }
 
     #[test]
-    fn the_report_lays_out_its_fields_as_documented_and_frames_to_76_bytes() {
+    fn the_report_lays_out_its_fields_as_documented_and_frames_to_80_bytes() {
         let report = HealthReport {
             reset_cause: ResetCause::Watchdog,
             reset_flags: 0x24,
@@ -388,9 +420,10 @@ mod tests {
                 minor: 2,
                 patch: 3,
             },
+            stack_peak_bytes: 4_040,
         };
         let p = report.to_bytes();
-        assert_eq!(&p[..4], &[0xFC, 2, 4, 0x24]);
+        assert_eq!(&p[..4], &[0xFC, 3, 4, 0x24]);
         assert_eq!(u32::from_le_bytes(p[4..8].try_into().unwrap()), 0x0800_1234);
         assert_eq!(u32::from_le_bytes(p[16..20].try_into().unwrap()), 7, "samples_missed");
         assert_eq!(u32::from_le_bytes(p[56..60].try_into().unwrap()), 1, "flash_errors");
@@ -398,6 +431,7 @@ mod tests {
         assert_eq!(u32::from_le_bytes(p[64..68].try_into().unwrap()), 3);
         assert_eq!(u32::from_le_bytes(p[68..72].try_into().unwrap()), 1);
         assert_eq!(&p[72..76], &[3, 2, 1, 0], "firmware version 1.2.3");
+        assert_eq!(u32::from_le_bytes(p[76..80].try_into().unwrap()), 4_040, "stack peak");
         let mut out = [0u8; HEALTH_FRAME_LEN];
         let n = report.encode(&mut out).unwrap();
         let mut frame = out[..n].to_vec();
@@ -417,10 +451,23 @@ mod tests {
         let mut wrong_cause = p;
         wrong_cause[2] = 8;
         assert_eq!(HealthReport::from_bytes(&wrong_cause), None);
-        assert_eq!(HealthReport::from_bytes(&p[..75]), None);
+        assert_eq!(HealthReport::from_bytes(&p[..76]), None, "layout 2 was 76 bytes");
         let mut older_layout = p;
-        older_layout[1] = 1;
-        assert_eq!(HealthReport::from_bytes(&older_layout), None, "layout 1 was 72 bytes");
+        older_layout[1] = 2;
+        assert_eq!(
+            HealthReport::from_bytes(&older_layout),
+            None,
+            "layout 2 had no stack peak"
+        );
+    }
+
+    #[test]
+    fn only_brown_out_level_3_clears_the_flag_and_the_factory_option_bytes_set_it() {
+        // RM0090 §3.7.1: OPTCR's reset value, BOR off.
+        assert_eq!(brown_out_flag(0x0FFF_AAED), BOARD_BROWN_OUT_BELOW_2V7);
+        assert_eq!(brown_out_flag(0x0FFF_AAE1), 0, "BOR_LEV = 00: level 3, 2.70 V");
+        assert_eq!(brown_out_flag(0x0FFF_AAE5), BOARD_BROWN_OUT_BELOW_2V7, "level 2");
+        assert_eq!(brown_out_flag(0x0FFF_AAE9), BOARD_BROWN_OUT_BELOW_2V7, "level 1");
     }
 
     #[test]

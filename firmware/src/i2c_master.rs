@@ -42,6 +42,8 @@ pub const CR1_START: u16 = 1 << 8;
 pub const CR1_STOP: u16 = 1 << 9;
 /// CR1: acknowledge received bytes.
 pub const CR1_ACK: u16 = 1 << 10;
+/// CR1: ACK applies to the next byte (the one in the shift register), for 2-byte reads.
+pub const CR1_POS: u16 = 1 << 11;
 
 /// Longest a whole transaction may take, µs: a TMP117 register read
 /// (five bytes) takes about 130 µs at 400 kHz.
@@ -227,10 +229,70 @@ impl<R: I2cRegisters, C: Clock> BoundedI2c<R, C> {
         self.regs.set_cr1((cr1 & !CR1_START) | CR1_STOP);
     }
 
+    /// A 1-byte read (RM0090 §27.3.3, "case of a single byte"): NACK set
+    /// before ADDR is cleared, STOP right after, then the byte.
+    fn read_one(&mut self, address: u8, read: &mut [u8], deadline: &Deadline) -> Result<(), I2cError> {
+        self.address((address << 1) | 1, false, deadline)?;
+        let _ = self.regs.sr2();
+        self.stop();
+        self.wait_sr1(SR1_RXNE, deadline, NoAcknowledgeSource::Data)?;
+        if let Some(byte) = read.first_mut() {
+            *byte = self.regs.read_dr();
+        }
+        Ok(())
+    }
+
+    /// A 2-byte read (RM0090 §27.3.3, "case of two bytes"): POS and ACK
+    /// set before ADDR is cleared, ACK cleared after it (so the second
+    /// byte is NACKed whatever delays the CPU), BTF awaited (both bytes
+    /// in), STOP, then DR read twice. POS is cleared once the STOP is done
+    /// ([`Self::clear_pos`]: clearing it earlier would rewrite CR1 while
+    /// the STOP is pending).
+    fn read_two(&mut self, address: u8, read: &mut [u8], deadline: &Deadline) -> Result<(), I2cError> {
+        let cr1 = self.regs.cr1();
+        self.regs.set_cr1(cr1 | CR1_POS);
+        self.address((address << 1) | 1, true, deadline)?;
+        let _ = self.regs.sr2();
+        let cr1 = self.regs.cr1();
+        self.regs.set_cr1(cr1 & !(CR1_ACK | CR1_START));
+        self.wait_sr1(SR1_BTF, deadline, NoAcknowledgeSource::Data)?;
+        self.stop();
+        for byte in read.iter_mut() {
+            *byte = self.regs.read_dr();
+        }
+        Ok(())
+    }
+
+    /// A read of three bytes or more (RM0090 §27.3.3): bytes on RXNE until
+    /// three are left; then BTF (N−2 in DR, N−1 in the shift register),
+    /// NACK, byte N−2; BTF again, STOP, bytes N−1 and N.
+    fn read_many(&mut self, address: u8, read: &mut [u8], deadline: &Deadline) -> Result<(), I2cError> {
+        self.address((address << 1) | 1, true, deadline)?;
+        let _ = self.regs.sr2();
+        let (head, last_three) = read.split_at_mut(read.len().saturating_sub(3));
+        for byte in head.iter_mut() {
+            self.wait_sr1(SR1_RXNE, deadline, NoAcknowledgeSource::Data)?;
+            *byte = self.regs.read_dr();
+        }
+        let [n2, n1, n] = last_three else {
+            return Err(I2cError::Overrun);
+        };
+        self.wait_sr1(SR1_BTF, deadline, NoAcknowledgeSource::Data)?;
+        let cr1 = self.regs.cr1();
+        self.regs.set_cr1(cr1 & !(CR1_ACK | CR1_START));
+        *n2 = self.regs.read_dr();
+        self.wait_sr1(SR1_BTF, deadline, NoAcknowledgeSource::Data)?;
+        self.stop();
+        *n1 = self.regs.read_dr();
+        *n = self.regs.read_dr();
+        Ok(())
+    }
+
     /// One transaction: `write` (if any), then `read` (if any) after a repeated START, then STOP.
     fn transfer(&mut self, address: u8, write: &[u8], read: &mut [u8]) -> Result<(), I2cError> {
         let deadline = Deadline::after_us(&mut self.clock, TRANSACTION_TIMEOUT_US);
         self.wait_stop_done(&deadline)?;
+        self.clear_pos();
         self.regs.clear_sr1(0xFFFF);
         if !write.is_empty() || read.is_empty() {
             self.address(address << 1, false, &deadline)?;
@@ -241,23 +303,24 @@ impl<R: I2cRegisters, C: Clock> BoundedI2c<R, C> {
             }
             self.wait_sr1(SR1_BTF, &deadline, NoAcknowledgeSource::Data)?;
         }
-        if let Some((last, head)) = read.split_last_mut() {
-            self.address((address << 1) | 1, !head.is_empty(), &deadline)?;
-            let _ = self.regs.sr2();
-            for byte in head.iter_mut() {
-                self.wait_sr1(SR1_RXNE, &deadline, NoAcknowledgeSource::Data)?;
-                *byte = self.regs.read_dr();
-            }
-            // NACK and STOP after the last byte.
-            let cr1 = self.regs.cr1() & !CR1_ACK;
-            self.regs.set_cr1(cr1);
-            self.stop();
-            self.wait_sr1(SR1_RXNE, &deadline, NoAcknowledgeSource::Data)?;
-            *last = self.regs.read_dr();
-        } else {
-            self.stop();
+        match read.len() {
+            0 => self.stop(),
+            1 => self.read_one(address, read, &deadline)?,
+            2 => self.read_two(address, read, &deadline)?,
+            _ => self.read_many(address, read, &deadline)?,
         }
-        self.wait_stop_done(&deadline)
+        self.wait_stop_done(&deadline)?;
+        self.clear_pos();
+        Ok(())
+    }
+
+    /// Clears POS (a 2-byte read's) with no STOP pending; also at the start
+    /// of every transaction, after one that ended in an error.
+    fn clear_pos(&mut self) {
+        let cr1 = self.regs.cr1();
+        if cr1 & CR1_POS != 0 {
+            self.regs.set_cr1(cr1 & !(CR1_POS | CR1_START | CR1_STOP));
+        }
     }
 }
 
@@ -304,5 +367,142 @@ impl<R: I2cRegisters, C: Clock> I2c<SevenBitAddress> for BoundedI2c<R, C> {
             Ok(()) => {}
         }
         result
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The I2C peripheral reading two bytes from a slave, to RM0090's
+    /// rules: a byte takes 3 register accesses; with POS clear the ACK bit
+    /// answers the byte being received when it ends, with POS set the next
+    /// one; a second byte that finds DR full waits in the shift register
+    /// (BTF) with SCL held. The CPU is held up (an interrupt) for
+    /// `stall_after_first_read` accesses as it reads the first byte.
+    #[derive(Default)]
+    struct TwoByteRead {
+        t: u32,
+        cr1: u16,
+        started: bool,
+        addressed: bool,
+        addr_cleared_at: Option<u32>,
+        byte1_in: bool,
+        byte2_in: bool,
+        dr_reads: usize,
+        stall_after_first_read: u32,
+        /// Whether the master acknowledged the second byte (then the slave sends a third).
+        byte2_acked: Option<bool>,
+    }
+
+    impl TwoByteRead {
+        fn update(&mut self) {
+            let Some(t0) = self.addr_cleared_at else { return };
+            let ack = self.cr1 & CR1_ACK != 0;
+            let pos = self.cr1 & CR1_POS != 0;
+            if !self.byte1_in && self.t >= t0 + 3 {
+                self.byte1_in = true;
+                if pos {
+                    self.byte2_acked = Some(ack);
+                }
+            }
+            if self.byte1_in && !self.byte2_in && self.t >= t0 + 6 {
+                self.byte2_in = true;
+                if self.byte2_acked.is_none() {
+                    self.byte2_acked = Some(ack);
+                }
+            }
+        }
+    }
+
+    impl I2cRegisters for TwoByteRead {
+        fn sr1(&mut self) -> u16 {
+            self.t += 1;
+            self.update();
+            let mut sr1 = 0;
+            if self.started && !self.addressed {
+                sr1 |= SR1_SB;
+            }
+            if self.addressed && self.addr_cleared_at.is_none() {
+                sr1 |= SR1_ADDR;
+            }
+            if self.byte1_in && self.dr_reads < 2 {
+                sr1 |= SR1_RXNE;
+            }
+            if self.byte2_in && self.dr_reads == 0 {
+                sr1 |= SR1_BTF;
+            }
+            sr1
+        }
+        fn sr2(&mut self) -> u16 {
+            self.t += 1;
+            if self.addressed && self.addr_cleared_at.is_none() {
+                self.addr_cleared_at = Some(self.t);
+            }
+            0
+        }
+        fn cr1(&mut self) -> u16 {
+            self.cr1
+        }
+        fn set_cr1(&mut self, value: u16) {
+            self.t += 1;
+            self.update();
+            if value & CR1_START != 0 {
+                self.started = true;
+            }
+            self.cr1 = value & !(CR1_START | CR1_STOP);
+        }
+        fn clear_sr1(&mut self, _bits: u16) {}
+        fn write_dr(&mut self, _byte: u8) {
+            self.t += 1;
+            if self.started {
+                self.addressed = true;
+            }
+        }
+        fn read_dr(&mut self) -> u8 {
+            if self.dr_reads == 0 {
+                self.t += self.stall_after_first_read;
+            }
+            self.t += 1;
+            self.update();
+            self.dr_reads += 1;
+            [0x12, 0x34].get(self.dr_reads - 1).copied().unwrap_or(0xFF)
+        }
+        fn reset(&mut self) {
+            self.cr1 = CR1_PE;
+        }
+        fn lines_as_gpio(&mut self, _gpio: bool) {}
+        fn set_scl(&mut self, _high: bool) {}
+        fn set_sda(&mut self, _high: bool) {}
+        fn sda_is_high(&mut self) -> bool {
+            true
+        }
+    }
+
+    #[test]
+    fn a_two_byte_read_nacks_the_second_byte_even_when_an_interrupt_delays_the_cpu() {
+        for stall in [0, 50] {
+            let regs = TwoByteRead {
+                stall_after_first_read: stall,
+                ..TwoByteRead::default()
+            };
+            let mut master = BoundedI2c::new(
+                regs,
+                crate::clock::CountingClock {
+                    ticks: 0,
+                    ticks_per_us: 1,
+                },
+            );
+            let mut bytes = [0u8; 2];
+            master.read(0x48, &mut bytes).unwrap();
+            assert_eq!(bytes, [0x12, 0x34]);
+            let (regs, _) = master.destroy();
+            assert_eq!(
+                regs.byte2_acked,
+                Some(false),
+                "stall {stall}: the last byte is NACKed (RM0090's POS sequence), or the slave sends on"
+            );
+            assert_eq!(regs.cr1 & CR1_POS, 0, "POS is cleared again for the next transaction");
+        }
     }
 }

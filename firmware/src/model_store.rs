@@ -14,7 +14,12 @@
 //! At boot ([`ModelStore::open`]) the slot to run is the one whose blob
 //! decodes and whose commit record matches it, with the newest sequence; a
 //! slot with a valid blob but no record (a blob flashed by a programmer, or by
-//! QEMU's loader) counts below any committed slot, slot A before slot B.
+//! QEMU's loader) counts below any committed slot, slot A before slot B. A
+//! probe writes a slot by erasing its whole sector, commit record included,
+//! so the documented probe procedure writes the model into both slots: no
+//! earlier UART install is left to outrank it (docs/firmware.md, "Flashing
+//! and debugging"; `tests/tests/host/probe_flash.rs` holds the documents to
+//! this rule).
 //!
 //! [`ModelStore::install`] never touches the running slot: it checks the new
 //! blob (CRC, shape, model), erases the other slot, writes the blob, reads it
@@ -122,6 +127,16 @@ pub struct SlotLayout {
 }
 
 impl SlotLayout {
+    /// Whether the 4-byte word at `offset` lies wholly inside one of the slots.
+    pub fn holds_word(&self, offset: u32) -> bool {
+        self.offsets.iter().any(|&start| {
+            offset >= start
+                && offset
+                    .checked_add(4)
+                    .is_some_and(|end| end <= start.saturating_add(self.len))
+        })
+    }
+
     fn commit_offset(&self, slot: usize) -> u32 {
         self.offsets[slot & 1] + self.len - COMMIT_LEN as u32
     }

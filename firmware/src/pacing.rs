@@ -54,6 +54,8 @@ pub struct Pacer {
     last: Option<(u32, u32)>,
     start_ticks: u32,
     counters: PacerCounters,
+    /// dt from whole periods between edges, not from the stamps ([`Pacer::timed_by_edge_count`]).
+    edge_counted_dt: bool,
 }
 
 impl Pacer {
@@ -65,6 +67,18 @@ impl Pacer {
             last: None,
             start_ticks: now_ticks,
             counters: PacerCounters::default(),
+            edge_counted_dt: false,
+        }
+    }
+
+    /// The same pacer with every dt taken as whole periods between edges
+    /// times the nominal period rather than from the stamps: the front
+    /// end's crystal paces the samples, so when the timer runs from an
+    /// inaccurate clock (the HSI, ±1 % or worse) its error stays out of dt.
+    pub fn timed_by_edge_count(self) -> Self {
+        Pacer {
+            edge_counted_dt: true,
+            ..self
         }
     }
 
@@ -122,9 +136,14 @@ impl Pacer {
                     }
                     // Whole periods since the last accepted edge: ≥ 1 here.
                     let periods = ticks.saturating_add(self.period_ticks / 2) / self.period_ticks.max(1);
+                    let dt_s = if self.edge_counted_dt {
+                        periods as f32 * self.nominal_dt_s()
+                    } else {
+                        ticks as f32 / self.ticks_per_s
+                    };
                     Tick {
                         seq: seq.wrapping_add(periods),
-                        dt_s: ticks as f32 / self.ticks_per_s,
+                        dt_s,
                         synthetic: false,
                     }
                 }
@@ -209,6 +228,25 @@ mod tests {
         let t = p.take([2110], 2110).unwrap();
         assert_eq!((t.seq, t.synthetic), (2, false));
         assert!((t.dt_s - 1.01e-3).abs() < 1e-6);
+    }
+
+    #[test]
+    fn timed_by_edge_count_a_timer_off_by_1_5_percent_leaves_dt_at_the_nominal_period() {
+        // The timer believes in 1 MHz but runs 1.5 % fast (an HSI at its
+        // limit): the front end's edges come every 1015 of its ticks.
+        let mut by_stamps = pacer();
+        let mut by_edges = pacer().timed_by_edge_count();
+        for p in [&mut by_stamps, &mut by_edges] {
+            p.take([0], 0);
+        }
+        let stamped = by_stamps.take([1015], 1015).unwrap();
+        let counted = by_edges.take([1015], 1015).unwrap();
+        assert!((stamped.dt_s - 1.015e-3).abs() < 1e-7, "stamps carry the timer's error");
+        assert_eq!(counted.seq, 1);
+        assert_eq!(counted.dt_s.to_bits(), 1e-3f32.to_bits(), "one nominal period, exactly");
+        let skipped = by_edges.take([3045], 3045).unwrap();
+        assert_eq!(skipped.seq, 3);
+        assert!((skipped.dt_s - 2e-3).abs() < 1e-9, "two periods: two nominal periods");
     }
 
     #[test]

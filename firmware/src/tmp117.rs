@@ -47,12 +47,17 @@ pub const RESULT_NOT_CONVERTED: i16 = i16::MIN;
 /// Until it has answered [`Tmp117::init`], each
 /// [`Thermometer::read_temp_c`] tries the init again first (a sensor that
 /// powers up late, or a bus that was stuck, is picked up when it answers);
-/// the reads fail meanwhile and the loop flags them.
+/// the reads fail meanwhile and the loop flags them. A result register
+/// back at its power-on value ([`RESULT_NOT_CONVERTED`]) after it had
+/// converted means the sensor reset on its own (a brown-out): it is
+/// initialised again the same way.
 #[derive(Debug)]
 pub struct Tmp117<I2C> {
     i2c: I2C,
     address: u8,
     ready: bool,
+    /// A conversion result was read since the last init.
+    converted: bool,
 }
 
 impl<I2C: I2c> Tmp117<I2C> {
@@ -62,6 +67,7 @@ impl<I2C: I2c> Tmp117<I2C> {
             i2c,
             address,
             ready: false,
+            converted: false,
         }
     }
 
@@ -71,6 +77,7 @@ impl<I2C: I2c> Tmp117<I2C> {
             i2c,
             address,
             ready: true,
+            converted: false,
         }
     }
 
@@ -99,6 +106,7 @@ impl<I2C: I2c> Tmp117<I2C> {
             .write(self.address, &[REG_CONFIGURATION, hi, lo])
             .map_err(Error::I2c)?;
         self.ready = true;
+        self.converted = false;
         Ok(())
     }
 
@@ -126,8 +134,21 @@ impl<I2C: I2c> Thermometer for Tmp117<I2C> {
             })?;
         }
         match self.read_raw().map_err(fault)? {
-            RESULT_NOT_CONVERTED => Err(SensorFault::NotReady),
-            raw => Ok(tmp117_celsius(raw)),
+            RESULT_NOT_CONVERTED => {
+                // The power-on value after a conversion was read: the
+                // sensor went through a reset of its own (a brown-out) and
+                // runs its power-on configuration (a result a second): it
+                // is initialised again on the next read. Before the first
+                // conversion it is the value a late sensor still reads.
+                if self.converted {
+                    self.ready = false;
+                }
+                Err(SensorFault::NotReady)
+            }
+            raw => {
+                self.converted = true;
+                Ok(tmp117_celsius(raw))
+            }
         }
     }
 }
@@ -289,8 +310,26 @@ mod tests {
             Err(SensorFault::NotReady),
             "−256 °C: not converted yet"
         );
-        assert!(tmp.is_ready());
+        assert!(tmp.is_ready(), "not converted yet is no reset of its own");
         assert_eq!(tmp.read_temp_c(), Ok(25.0));
+        tmp.destroy().done();
+    }
+
+    #[test]
+    fn a_sensor_back_at_its_power_on_value_after_a_brown_out_is_initialised_again() {
+        let expectations = [
+            Transaction::write_read(0x48, vec![REG_TEMP_RESULT], vec![0x0C, 0x80]),
+            // Its own brown-out: the result register at −256 °C, the
+            // configuration back at the power-on one (a result a second).
+            Transaction::write_read(0x48, vec![REG_TEMP_RESULT], vec![0x80, 0x00]),
+            Transaction::write_read(0x48, vec![REG_DEVICE_ID], vec![0x01, 0x17]),
+            Transaction::write(0x48, vec![REG_CONFIGURATION, 0x00, 0x20]),
+            Transaction::write_read(0x48, vec![REG_TEMP_RESULT], vec![0x0C, 0x80]),
+        ];
+        let mut tmp = Tmp117::started(Mock::new(&expectations), 0x48);
+        assert_eq!(tmp.read_temp_c(), Ok(25.0));
+        assert_eq!(tmp.read_temp_c(), Err(SensorFault::NotReady));
+        assert_eq!(tmp.read_temp_c(), Ok(25.0), "configured again, then read");
         tmp.destroy().done();
     }
 

@@ -1,7 +1,7 @@
 //! `cargo xtask board-faults`: the stm32f405 board's own driver and loop
 //! code against scripted faulty peripherals on the host
-//! (`firmware-harness/examples/board_faults/`; docs/firmware.md, "Faults the board
-//! survives").
+//! (the test target `firmware-harness/tests/board_faults/`, which `cargo
+//! test` runs too; docs/firmware.md, "Faults the board survives").
 
 use std::process::Command;
 
@@ -27,16 +27,16 @@ pub fn parse_summary(line: &str) -> Option<(u32, u32)> {
 pub fn board_faults() -> anyhow::Result<()> {
     let output = Command::new("cargo")
         .args([
-            "run",
+            "test",
             "--quiet",
             "--package",
             "firmware-harness",
-            "--example",
+            "--test",
             "board_faults",
         ])
         .current_dir(workspace_root())
         .output()
-        .context("cannot start cargo run")?;
+        .context("cannot start cargo test")?;
     let stdout = String::from_utf8_lossy(&output.stdout);
     print!("{stdout}");
     let summary = stdout.lines().last().and_then(parse_summary);

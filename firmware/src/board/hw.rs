@@ -1,8 +1,11 @@
 //! The board's register-level pieces behind the library's small traits:
 //! TIM2 as the [`Clock`] of every bounded wait, the IWDG as the
 //! [`Watchdog`], I2C1 on PB6/PB7 as [`I2cRegisters`], the flash controller
-//! as [`FlashRegisters`], and the bounded HSE start. What runs on these is
-//! library code (`cargo xtask board-faults` runs it against simulations).
+//! as [`FlashRegisters`], and the bounded HSE start. Fields are written by
+//! the PAC's field writers; the I2C and flash registers pass whole words to
+//! the drivers, which name their bits (`i2c_master`, `flash_ctl`). What runs
+//! on these is library code (`cargo xtask board-faults` runs it against
+//! simulations).
 #![allow(unsafe_code)]
 
 use core::sync::atomic::AtomicU32;
@@ -53,8 +56,8 @@ fn poll(mut done: impl FnMut() -> bool) -> bool {
     (0..SETUP_POLLS).any(|_| done())
 }
 
-/// The independent watchdog (RM0090 §21): keys 0xCCCC start, 0x5555
-/// unlock PR/RLR, 0xAAAA reload.
+/// The independent watchdog (RM0090 §21): the key register's start,
+/// unlock (PR, RLR) and feed keys, by the PAC's names.
 #[derive(Clone, Copy, Debug)]
 pub struct Iwdg;
 
@@ -63,14 +66,14 @@ impl Iwdg {
     /// core; false if the period did not take (it then runs at its reset
     /// period, the longest).
     pub fn start(setting: IwdgSetting) -> bool {
-        // SAFETY: DBGMCU_APB1_FZ bit 12 (DBG_IWDG_STOP) only affects debug halts.
+        // SAFETY: DBG_IWDG_STOP only affects debug halts.
         unsafe {
             (*pac::DBGMCU::ptr())
                 .apb1_fz()
-                .modify(|r, w| w.bits(r.bits() | (1 << 12)))
+                .modify(|_, w| w.dbg_iwdg_stop().set_bit())
         };
-        // SAFETY: the key register takes only these keys.
-        unsafe { (*pac::IWDG::ptr()).kr().write(|w| w.bits(0xCCCC)) };
+        // SAFETY: the start key.
+        unsafe { (*pac::IWDG::ptr()).kr().write(|w| w.key().start()) };
         Iwdg.set_period(setting)
     }
 }
@@ -78,7 +81,7 @@ impl Iwdg {
 impl Watchdog for Iwdg {
     fn feed(&mut self) {
         // SAFETY: the reload key.
-        unsafe { (*pac::IWDG::ptr()).kr().write(|w| w.bits(0xAAAA)) };
+        unsafe { (*pac::IWDG::ptr()).kr().write(|w| w.key().feed()) };
     }
 
     #[inline(never)]
@@ -86,45 +89,24 @@ impl Watchdog for Iwdg {
         // SAFETY: IWDG accesses as RM0090 §21.3 describes; PR and RLR
         // take new values only while SR shows no update in progress.
         let iwdg = unsafe { &*pac::IWDG::ptr() };
-        let idle = || iwdg.sr().read().bits() & 0b11 == 0;
+        let idle = || {
+            let sr = iwdg.sr().read();
+            sr.pvu().bit_is_clear() && sr.rvu().bit_is_clear()
+        };
         if !poll(idle) {
             self.feed();
             return false;
         }
-        unsafe {
-            iwdg.kr().write(|w| w.bits(0x5555));
-            iwdg.pr().write(|w| w.bits(u16::from(setting.prescaler_code & 0b111)));
-            iwdg.rlr().write(|w| w.bits(setting.reload & 0xFFF));
-        }
+        iwdg.kr().write(|w| w.key().unlock());
+        iwdg.pr().write(|w| w.pr().set(setting.prescaler_code & 0b111));
+        iwdg.rlr().write(|w| w.rl().set(setting.reload & 0xFFF));
         let taken = poll(idle);
         self.feed();
         taken
     }
 }
 
-/// The frequencies the board runs at, Hz.
-#[derive(Clone, Copy, Debug)]
-pub struct ClockTree {
-    /// Core (SYSCLK = HCLK).
-    pub sysclk_hz: u32,
-    /// APB1 (I2C1).
-    pub pclk1_hz: u32,
-    /// APB2 (SPI1, USART1).
-    pub pclk2_hz: u32,
-    /// APB1 timers (TIM2).
-    pub timclk1_hz: u32,
-    /// The PLL runs from the crystal (false: from the HSI, a dead crystal).
-    pub on_crystal: bool,
-}
-
-/// After reset the chip runs on the 16 MHz HSI, every bus undivided.
-pub const HSI_TREE: ClockTree = ClockTree {
-    sysclk_hz: 16_000_000,
-    pclk1_hz: 16_000_000,
-    pclk2_hz: 16_000_000,
-    timclk1_hz: 16_000_000,
-    on_crystal: false,
-};
+pub use super::timing::{ClockTree, HSI_TREE};
 
 /// Sets the clock tree up with every wait bounded (RM0090 §6.3; the
 /// stm32f4xx-hal's `freeze` waits without a limit and asserts): the 8 MHz
@@ -143,67 +125,77 @@ pub fn setup_clocks() -> ClockTree {
     if !on_crystal {
         rcc.cr().modify(|_, w| w.hseon().clear_bit());
     }
-    let (m, source) = if on_crystal { (8, 1) } else { (16, 0) };
-    // PLLM [5:0], PLLN [14:6], PLLP [17:16] (00: ÷2), PLLSRC [22], PLLQ [27:24].
-    let fields = m | (336 << 6) | (source << 22) | (7 << 24);
-    rcc.pllcfgr()
-        .modify(|r, w| unsafe { w.bits((r.bits() & !0x0F43_7FFF) | fields) });
+    // VCO input 1 MHz: the 8 MHz crystal ÷8 or the 16 MHz HSI ÷16.
+    let pllm = if on_crystal { 8 } else { 16 };
+    // SAFETY: PLLM 8 or 16 (2 … 63), PLLN 336 (50 … 432), PLLQ 7 (2 … 15).
+    rcc.pllcfgr().modify(|_, w| unsafe {
+        let w = w.pllm().bits(pllm).plln().bits(336).pllp().div2().pllq().bits(7);
+        if on_crystal { w.pllsrc().hse() } else { w.pllsrc().hsi() }
+    });
     rcc.cr().modify(|_, w| w.pllon().set_bit());
     if !poll(|| rcc.cr().read().pllrdy().bit_is_set()) {
         rcc.cr().modify(|_, w| w.pllon().clear_bit());
         return HSI_TREE;
     }
     // Five wait states for 168 MHz at 2.7–3.6 V, before the switch.
-    flash
-        .acr()
-        .modify(|r, w| unsafe { w.bits((r.bits() & !0xF) | 5 | (1 << 8) | (1 << 9) | (1 << 10)) });
-    if flash.acr().read().bits() & 0xF != 5 {
+    const WAIT_STATES_168_MHZ: u8 = 5;
+    flash.acr().modify(|_, w| {
+        w.latency()
+            .set(WAIT_STATES_168_MHZ)
+            .prften()
+            .set_bit()
+            .icen()
+            .set_bit()
+            .dcen()
+            .set_bit()
+    });
+    if flash.acr().read().latency().bits() != WAIT_STATES_168_MHZ {
         return HSI_TREE;
     }
-    // HPRE [7:4] ÷1, PPRE1 [12:10] ÷4, PPRE2 [15:13] ÷2, SW [1:0] PLL.
     rcc.cfgr()
-        .modify(|r, w| unsafe { w.bits((r.bits() & !0xFCF3) | (0b101 << 10) | (0b100 << 13) | 0b10) });
-    if !poll(|| rcc.cfgr().read().bits() & 0b1100 == 0b1000) {
-        // Still on the HSI with APB1 ÷4 and APB2 ÷2.
-        return ClockTree {
-            pclk1_hz: 4_000_000,
-            pclk2_hz: 8_000_000,
-            timclk1_hz: 8_000_000,
-            ..HSI_TREE
-        };
+        .modify(|_, w| w.hpre().div1().ppre1().div4().ppre2().div2().sw().pll());
+    if !poll(|| rcc.cfgr().read().sws().is_pll()) {
+        // Still on the HSI: the prescalers back to ÷1 and SW to the HSI, so
+        // that the tree is the one the dividers are known for (APB2 at
+        // 4 MHz would leave the UART 3.5 % slow).
+        rcc.cfgr()
+            .modify(|_, w| w.hpre().div1().ppre1().div1().ppre2().div1().sw().hsi());
+        return HSI_TREE;
     }
-    ClockTree {
-        sysclk_hz: 168_000_000,
-        pclk1_hz: 42_000_000,
-        pclk2_hz: 84_000_000,
-        timclk1_hz: 84_000_000,
-        on_crystal,
-    }
+    super::timing::pll_tree(on_crystal)
 }
 
 /// Sets SPI1's clock divider for `tree` (the HAL computed one for the
 /// reset clocks it believes in): at most the front end's `max_hz`.
 pub fn set_spi1_divider(tree: &ClockTree, max_hz: u32) {
     let divider = crate::frontend::spi_divider(tree.pclk2_hz, max_hz);
-    // BR [5:3]: ÷2^(BR+1).
-    let code = (divider.trailing_zeros().saturating_sub(1) & 0b111) as u16;
-    // SAFETY: SPI1's CR1, disabled (SPE, bit 6) while BR changes.
+    // BR: ÷2^(BR+1).
+    let code = (divider.trailing_zeros().saturating_sub(1) & 0b111) as u8;
+    // SAFETY: SPI1's CR1, disabled while BR changes.
     let spi = unsafe { &*pac::SPI1::ptr() };
-    spi.cr1().modify(|r, w| unsafe { w.bits(r.bits() & !(1 << 6)) });
-    spi.cr1()
-        .modify(|r, w| unsafe { w.bits((r.bits() & !(0b111 << 3)) | (code << 3) | (1 << 6)) });
+    spi.cr1().modify(|_, w| w.spe().clear_bit());
+    spi.cr1().modify(|_, w| w.br().set(code).spe().set_bit());
 }
 
-/// Sets USART1's baud rate for `tree` (16× oversampling): BRR = pclk2 / baud, rounded.
+/// Sets USART1's baud rate for `tree` (16× oversampling, [`super::timing::usart_brr`]).
 pub fn set_usart1_baud(tree: &ClockTree, baud: u32) {
-    let brr = (tree.pclk2_hz + baud / 2) / baud.max(1);
-    // SAFETY: USART1's CR1 (UE bit 13, OVER8 bit 15) and BRR, the UART disabled while BRR changes.
+    let brr = super::timing::usart_brr(tree.pclk2_hz, baud);
+    // SAFETY: USART1's CR1 and BRR, the UART disabled while BRR changes.
     let usart = unsafe { &*pac::USART1::ptr() };
+    usart.cr1().modify(|_, w| w.ue().clear_bit().over8().clear_bit());
     usart
-        .cr1()
-        .modify(|r, w| unsafe { w.bits(r.bits() & !((1 << 13) | (1 << 15))) });
-    usart.brr().write(|w| unsafe { w.bits((brr & 0xFFFF) as u16) });
-    usart.cr1().modify(|r, w| unsafe { w.bits(r.bits() | (1 << 13)) });
+        .brr()
+        .write(|w| w.div_mantissa().set(brr >> 4).div_fraction().set((brr & 0xF) as u8));
+    usart.cr1().modify(|_, w| w.ue().set_bit());
+}
+
+/// Enables USART1's transmit-empty interrupt (TXEIE) from the main loop:
+/// a read-modify-write of CR1 the USART1 handler cannot interleave with
+/// (interrupts masked for its three instructions).
+pub fn usart1_listen_tx() {
+    // SAFETY: CR1's TXEIE alone changes; the handler only ever clears it.
+    let usart = unsafe { &*pac::USART1::ptr() };
+    cortex_m::interrupt::free(|_| usart.cr1().modify(|_, w| w.txeie().set_bit()));
 }
 
 /// I2C1 (RM0090 §27) with SCL on PB6 and SDA on PB7 (AF4, open drain).
@@ -258,37 +250,41 @@ impl I2cRegisters for I2c1Regs {
         rcc.apb1rstr().modify(|_, w| w.i2c1rst().clear_bit());
         let i2c = Self::i2c();
         let mhz = self.pclk1_mhz.clamp(2, 42);
-        // Fast mode, 400 kHz, duty 2:1 (CCR = f / (3 · 400 kHz)), rise time 300 ns.
-        let ccr = (u32::from(mhz) * 1_000_000 / (3 * 400_000)).max(1) as u16;
-        unsafe {
-            i2c.cr2().write(|w| w.bits(mhz));
-            i2c.trise().write(|w| w.bits(mhz * 300 / 1000 + 1));
-            i2c.ccr().write(|w| w.bits((1 << 15) | (ccr & 0xFFF)));
-            i2c.cr1().write(|w| w.bits(crate::i2c_master::CR1_PE));
-        }
+        // Fast mode, at most 400 kHz, duty 2:1, rise time 300 ns.
+        let ccr = super::timing::i2c_fast_mode_ccr(u32::from(mhz) * 1_000_000);
+        // SAFETY: FREQ 2 … 42 (MHz), CCR 1 … 0xFFF.
+        i2c.cr2().write(|w| unsafe { w.freq().bits(mhz as u8) });
+        i2c.trise().write(|w| w.trise().set((mhz * 300 / 1000 + 1) as u8));
+        i2c.ccr()
+            .write(|w| unsafe { w.f_s().fast().duty().duty2_1().ccr().bits(ccr) });
+        i2c.cr1().write(|w| w.pe().set_bit());
         I2C_RECOVERIES.fetch_add(1, Ordering::Relaxed);
     }
     fn lines_as_gpio(&mut self, gpio: bool) {
-        // MODER of PB6 and PB7: 01 output (open drain, as OTYPER already
-        // says), 10 alternate function.
-        let mode = if gpio { 0b01 } else { 0b10 };
-        let gpiob = Self::gpiob();
-        gpiob
-            .moder()
-            .modify(|r, w| unsafe { w.bits((r.bits() & !(0b1111 << 12)) | (mode << 12) | (mode << 14)) });
+        // PB6 and PB7 as outputs (open drain, as OTYPER already says) or
+        // back to their alternate function.
+        Self::gpiob().moder().modify(|_, w| {
+            if gpio {
+                w.moder6().output().moder7().output()
+            } else {
+                w.moder6().alternate().moder7().alternate()
+            }
+        });
     }
     fn set_scl(&mut self, high: bool) {
-        let bit = if high { 1 << 6 } else { 1 << (6 + 16) };
-        // SAFETY: BSRR sets or resets PB6 alone.
-        Self::gpiob().bsrr().write(|w| unsafe { w.bits(bit) });
+        // BSRR sets or resets PB6 alone.
+        Self::gpiob()
+            .bsrr()
+            .write(|w| if high { w.bs6().set_bit() } else { w.br6().set_bit() });
     }
     fn set_sda(&mut self, high: bool) {
-        let bit = if high { 1 << 7 } else { 1 << (7 + 16) };
-        // SAFETY: BSRR sets or resets PB7 alone.
-        Self::gpiob().bsrr().write(|w| unsafe { w.bits(bit) });
+        // BSRR sets or resets PB7 alone.
+        Self::gpiob()
+            .bsrr()
+            .write(|w| if high { w.bs7().set_bit() } else { w.br7().set_bit() });
     }
     fn sda_is_high(&mut self) -> bool {
-        Self::gpiob().idr().read().bits() & (1 << 7) != 0
+        Self::gpiob().idr().read().idr7().bit_is_set()
     }
 }
 
@@ -302,6 +298,9 @@ impl FlashRegs {
         unsafe { &*pac::FLASH::ptr() }
     }
 }
+
+/// Where flash is mapped (RM0090 §2.3: main memory at 0x0800_0000).
+const FLASH_BASE: u32 = 0x0800_0000;
 
 /// MODEL_A and MODEL_B (memory.x) as offsets from the start of flash:
 /// sectors 10 and 11, the only words [`FlashRegs`] programs or maps.
@@ -329,18 +328,16 @@ impl FlashRegisters for FlashRegs {
         // SAFETY: KEYR takes the unlock keys.
         Self::flash().keyr().write(|w| unsafe { w.bits(key) });
     }
-    fn write_word(&mut self, offset: u32, word: u32) {
+    fn write_word(&mut self, offset: u32, word: u32) -> bool {
         // Only words inside the model slots are ever programmed.
-        let in_slot = MODEL_SLOTS
-            .offsets
-            .iter()
-            .any(|&start| offset >= start && offset + 4 <= start + MODEL_SLOTS.len);
-        if in_slot {
-            let address = 0x0800_0000u32 + offset;
-            // SAFETY: an aligned word inside a model slot, with PG set (the
-            // driver's sequence); the controller flags anything else.
-            unsafe { core::ptr::write_volatile(address as *mut u32, word) };
+        if !MODEL_SLOTS.holds_word(offset) {
+            return false;
         }
+        let address = FLASH_BASE + offset;
+        // SAFETY: an aligned word inside a model slot, with PG set (the
+        // driver's sequence); the controller flags anything else.
+        unsafe { core::ptr::write_volatile(address as *mut u32, word) };
+        true
     }
     fn flush_caches(&mut self) {
         // RM0090 §3.5.2: caches off, reset, on again.

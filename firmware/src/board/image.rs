@@ -48,7 +48,7 @@ use heapless::spsc::{Consumer, Producer, Queue};
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::shared_basis::SharedAxisModels;
 use rbf_core::{CompensatorConfig, Flags, Model};
-use stm32f4xx_hal::gpio::{Edge, ErasedPin, ExtiPin, Output, PA2, PA3, PA4};
+use stm32f4xx_hal::gpio::{Edge, ErasedPin, ExtiPin, Output, PA2, PA3, PA4, PinState, Speed};
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{Enable, Reset};
@@ -58,7 +58,7 @@ use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
 #[cfg(not(feature = "board-qemu"))]
 use super::chip as platform;
 use super::hw;
-use super::isr::{DATA_READY, DataReadyIsr, RX_OVERRUNS, STAMP_OVERRUNS, UART, UartIsr, start_tx};
+use super::isr::{DataReadyIsr, RX_OVERRUNS, STAMP_OVERRUNS, UartIsr, hand_over, start_tx};
 #[cfg(feature = "board-qemu")]
 use super::qemu as platform;
 use super::timing;
@@ -68,6 +68,7 @@ use crate::fault::{self, FaultRecord};
 use crate::frontend::{self, FrontEnd};
 use crate::health::{
     BOARD_ON_HSI, CMD_HEALTH, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause,
+    brown_out_flag,
 };
 use crate::model_store::{MappedFlash, ModelStore, SlotLayout, StoredModel};
 use crate::pacing::{self, Pacer, PacerCounters};
@@ -115,46 +116,33 @@ const RX_QUEUE: usize = 256;
 const STAMP_QUEUE: usize = 16;
 
 /// The model kinds a board image runs, each decoded in place into a
-/// `static` of its own (all bits zero: .bss, no flash): a single gyro's
-/// [`Model`], an IMU's [`AxisModels`] of [`crate::AXIS_CENTERS`] centres
-/// per axis, or one [`SharedAxisModels`] basis of
-/// [`crate::SHARED_AXIS_CENTERS`] centres.
+/// `static` of its own (`singleton!`, all bits zero: .bss, no flash): a
+/// single gyro's [`Model`], an IMU's [`AxisModels`] of
+/// [`crate::AXIS_CENTERS`] centres per axis, or one [`SharedAxisModels`]
+/// basis of [`crate::SHARED_AXIS_CENTERS`] centres.
 pub trait BoardModel: StoredModel + 'static {
-    /// The image's model storage.
-    ///
-    /// # Safety
-    /// Called once ([`Board::run`] does): the only reference.
-    unsafe fn storage() -> &'static mut Self;
+    /// The image's model storage: the first call's; `None` on any later one.
+    fn storage() -> Option<&'static mut Self>;
 }
 
-/// The running model, decoded in place (all bits zero: .bss, no flash).
-static mut MODEL: Model = Model::EMPTY;
-/// The running axis models, decoded in place.
-static mut AXIS_MODELS: AxisModels<{ crate::AXIS_CENTERS }> = AxisModels::EMPTY;
-/// The running shared-basis model of every axis, decoded in place.
-static mut SHARED_MODELS: SharedAxisModels<{ crate::SHARED_AXIS_CENTERS }> = SharedAxisModels::EMPTY;
-
 impl BoardModel for Model {
-    unsafe fn storage() -> &'static mut Self {
-        let storage = &raw mut MODEL;
-        // SAFETY: the caller's promise.
-        unsafe { &mut *storage }
+    #[inline(always)]
+    fn storage() -> Option<&'static mut Self> {
+        cortex_m::singleton!(: Model = Model::EMPTY)
     }
 }
 
 impl BoardModel for AxisModels<{ crate::AXIS_CENTERS }> {
-    unsafe fn storage() -> &'static mut Self {
-        let storage = &raw mut AXIS_MODELS;
-        // SAFETY: the caller's promise.
-        unsafe { &mut *storage }
+    #[inline(always)]
+    fn storage() -> Option<&'static mut Self> {
+        cortex_m::singleton!(: AxisModels<{ crate::AXIS_CENTERS }> = AxisModels::EMPTY)
     }
 }
 
 impl BoardModel for SharedAxisModels<{ crate::SHARED_AXIS_CENTERS }> {
-    unsafe fn storage() -> &'static mut Self {
-        let storage = &raw mut SHARED_MODELS;
-        // SAFETY: the caller's promise.
-        unsafe { &mut *storage }
+    #[inline(always)]
+    fn storage() -> Option<&'static mut Self> {
+        cortex_m::singleton!(: SharedAxisModels<{ crate::SHARED_AXIS_CENTERS }> = SharedAxisModels::EMPTY)
     }
 }
 
@@ -266,6 +254,16 @@ fn run_forever(mut serve: impl FnMut()) -> ! {
     }
 }
 
+/// Sleeps until an interrupt is pending (called with interrupts masked).
+/// The debug image does not sleep: a probe keeps DBG_SLEEP set for RTT,
+/// and with it a WFI from flash can fetch wrongly on wake-up (setup clears
+/// the bit in every other image).
+#[inline(always)]
+fn sleep_until_interrupt() {
+    #[cfg(not(feature = "board-debug"))]
+    cortex_m::asm::wfi();
+}
+
 /// Stops for good (a setup step that cannot fail failed): the watchdog resets.
 pub fn halt() -> ! {
     loop {
@@ -279,18 +277,22 @@ struct Boot {
     cause: ResetCause,
     flags: u8,
     fault: Option<FaultRecord>,
-    on_crystal: bool,
+    /// The clock tree the setup ended in.
+    tree: hw::ClockTree,
+    /// FLASH_OPTCR at boot (its brown-out level).
+    option_bytes: u32,
 }
 
 /// The front ends' chip selects on SPI1 (x, y, z of a three-axis IMU;
-/// a single gyro's is PA4).
+/// a single gyro's is PA4): push-pull outputs, high (deselected) from the
+/// moment setup makes them outputs.
 pub struct ChipSelects {
     /// Axis x's (or the single front end's).
-    pub pa4: PA4,
+    pub pa4: PA4<Output>,
     /// Axis y's.
-    pub pa3: PA3,
+    pub pa3: PA3<Output>,
     /// Axis z's.
-    pub pa2: PA2,
+    pub pa2: PA2<Output>,
 }
 
 /// What [`Board::setup`] hands an image to wire its sensors to.
@@ -321,6 +323,8 @@ pub struct Board<F = super::chip::SlotFlash> {
     out_producer: Producer<'static, u8>,
     in_consumer: Consumer<'static, u8>,
     stamp_consumer: Consumer<'static, u32>,
+    /// The data-ready line was high when setup armed its interrupt.
+    data_ready_high: bool,
     flash: F,
 }
 
@@ -332,8 +336,8 @@ pub type AxisFrontEnd<'a> = FrontEnd<AtomicDevice<'a, Spi<pac::SPI1>, ErasedPin<
 
 /// The single gyro's front end on SPI1, chip select PA4.
 #[inline(always)]
-pub fn single_front_end(spi: Spi<pac::SPI1>, cs: PA4, delay: CycleDelay) -> SingleFrontEnd {
-    let Ok(device) = ExclusiveDevice::new(spi, cs.into_push_pull_output(), delay);
+pub fn single_front_end(spi: Spi<pac::SPI1>, cs: PA4<Output>, delay: CycleDelay) -> SingleFrontEnd {
+    let Ok(device) = ExclusiveDevice::new(spi, cs, delay);
     FrontEnd::new(device)
 }
 
@@ -346,9 +350,9 @@ pub fn axis_front_ends<'a>(
     delay: CycleDelay,
 ) -> [AxisFrontEnd<'a>; 3] {
     let (Ok(x), Ok(y), Ok(z)) = (
-        AtomicDevice::new(bus, cs.pa4.into_push_pull_output().erase(), delay),
-        AtomicDevice::new(bus, cs.pa3.into_push_pull_output().erase(), delay),
-        AtomicDevice::new(bus, cs.pa2.into_push_pull_output().erase(), delay),
+        AtomicDevice::new(bus, cs.pa4.erase(), delay),
+        AtomicDevice::new(bus, cs.pa3.erase(), delay),
+        AtomicDevice::new(bus, cs.pa2.erase(), delay),
     );
     [FrontEnd::new(x), FrontEnd::new(y), FrontEnd::new(z)]
 }
@@ -378,6 +382,8 @@ impl<F: BoardFlash> Board<F> {
     /// interrupts are still masked.
     #[inline(always)]
     pub fn setup_with_slots() -> (Self, Wiring) {
+        // Every image paints its stack first: the health report carries its peak.
+        super::paint_stack();
         let Some(mut dp) = pac::Peripherals::take() else { halt() };
         let Some(mut core) = cortex_m::Peripherals::take() else {
             halt()
@@ -385,6 +391,20 @@ impl<F: BoardFlash> Board<F> {
         // The watchdog first: a dead crystal or a stuck setup wait must not hang the board.
         let _ = hw::Iwdg::start(watchdog::running_setting());
         let watchdog = hw::Iwdg;
+        // No debug clocks kept running in sleep: with DBG_SLEEP set (by a
+        // probe that was attached), a WFI from flash right after masking
+        // interrupts can fetch a wrong instruction on wake-up (the STM32
+        // WFI erratum; docs/firmware.md, "Sleep and the debug probe"). The
+        // debug image keeps them for RTT and never sleeps instead.
+        #[cfg(not(feature = "board-debug"))]
+        dp.DBGMCU.cr().modify(|_, w| {
+            w.dbg_sleep()
+                .clear_bit()
+                .dbg_stop()
+                .clear_bit()
+                .dbg_standby()
+                .clear_bit()
+        });
         let rcc_csr = dp.RCC.csr().read().bits();
         let reset_flags = (rcc_csr >> 24) as u8;
         let watchdog_reset = dp.RCC.csr().read().wdgrstf().bit_is_set();
@@ -424,9 +444,20 @@ impl<F: BoardFlash> Board<F> {
             polarity: Polarity::IdleHigh,
             phase: Phase::CaptureOnSecondTransition,
         };
+        // The chip selects high (no front end selected) before SPI1 exists.
+        let cs = ChipSelects {
+            pa4: gpioa.pa4.into_push_pull_output_in_state(PinState::High),
+            pa3: gpioa.pa3.into_push_pull_output_in_state(PinState::High),
+            pa2: gpioa.pa2.into_push_pull_output_in_state(PinState::High),
+        };
+        // SCK and MOSI at High speed: at the reset's Low speed their edges
+        // are too slow for 5.25 MHz (the HAL's note on `Spi::new`: a wrong
+        // last bit in received bytes).
+        let sck = gpioa.pa5.into_alternate::<5>().speed(Speed::High);
+        let mosi = gpioa.pa7.into_alternate::<5>().speed(Speed::High);
         let spi = Spi::new(
             dp.SPI1,
-            (Some(gpioa.pa5), Some(gpioa.pa6), Some(gpioa.pa7)),
+            (Some(sck), Some(gpioa.pa6), Some(mosi)),
             mode,
             frontend::spi_clock_hz(rcc.clocks.pclk2().raw(), SPI_MAX_HZ).Hz(),
             &mut rcc,
@@ -459,32 +490,29 @@ impl<F: BoardFlash> Board<F> {
         data_ready.make_interrupt_source(&mut syscfg);
         data_ready.trigger_on_edge(&mut dp.EXTI, Edge::Rising);
         data_ready.enable_interrupt(&mut dp.EXTI);
-        cortex_m::interrupt::free(|cs| {
-            // `try_borrow_mut`: nothing else holds the cells yet, and no panic path is linked.
-            if let Ok(mut uart) = UART.borrow(cs).try_borrow_mut() {
-                *uart = Some(UartIsr {
-                    tx,
-                    rx,
-                    outgoing,
-                    incoming,
-                });
-            }
-            if let Ok(mut d) = DATA_READY.borrow(cs).try_borrow_mut() {
-                *d = Some(DataReadyIsr {
-                    pin: data_ready,
-                    stamps,
-                });
-            }
-        });
+        // A data-ready line already high (the front end kept its sample
+        // over an MCU-only reset) gives no rising edge: `run` takes it as one.
+        let data_ready_high = data_ready.is_high();
+        let Some(uart_isr) = cortex_m::singleton!(: UartIsr = UartIsr {
+            tx,
+            rx,
+            outgoing,
+            incoming,
+        }) else {
+            halt()
+        };
+        let Some(data_ready_isr) = cortex_m::singleton!(: DataReadyIsr = DataReadyIsr {
+            pin: data_ready,
+            stamps,
+        }) else {
+            halt()
+        };
+        hand_over(uart_isr, data_ready_isr);
         let core_hz = clocks.sysclk_hz;
         let wiring = Wiring {
             i2c,
             spi,
-            cs: ChipSelects {
-                pa4: gpioa.pa4,
-                pa3: gpioa.pa3,
-                pa2: gpioa.pa2,
-            },
+            cs,
             delay: CycleDelay { core_hz },
         };
         let board = Board {
@@ -496,12 +524,14 @@ impl<F: BoardFlash> Board<F> {
                 cause: reset_cause,
                 flags: reset_flags,
                 fault: fault_record,
-                on_crystal: clocks.on_crystal,
+                tree: clocks,
+                option_bytes: dp.FLASH.optcr().read().bits(),
             },
             boot_cause,
             out_producer,
             in_consumer,
             stamp_consumer,
+            data_ready_high,
             flash,
         };
         (board, wiring)
@@ -531,6 +561,7 @@ impl<F: BoardFlash> Board<F> {
             out_producer,
             mut in_consumer,
             mut stamp_consumer,
+            data_ready_high,
             flash,
         } = self;
         let mut output = FrameQueue::new(out_producer, start_tx);
@@ -542,10 +573,13 @@ impl<F: BoardFlash> Board<F> {
             }
         }
 
-        // SAFETY: `run` runs once and these are the only references to the
-        // two statics (no interrupt handler touches them).
-        let (model, commands) = (unsafe { M::storage() }, &raw mut COMMANDS);
-        let commands = unsafe { &mut *commands };
+        // Command bytes collect in a static of their own (4 KiB: off the stack).
+        let (Some(model), Some(commands)) = (
+            M::storage(),
+            cortex_m::singleton!(: CommandReceiver = CommandReceiver::new()),
+        ) else {
+            halt()
+        };
         // An invalid or absent model is not fatal: every frame then carries flag 4.
         let mut store = ModelStore::open_with(flash, F::SLOTS, model);
         let loaded = store.load_into(model).is_ok();
@@ -573,7 +607,7 @@ impl<F: BoardFlash> Board<F> {
             compensation.flag_next_frame(Flags::FAULT_RESET);
         }
         let period_ticks = timing::sample_period_ticks(timer_hz, GYRO_RATE_HZ);
-        let mut pacer = Pacer::new(timer_hz, period_ticks, hw::Tim2Clock::now());
+        let mut pacer = timing::sample_pacer(&boot.tree, timer_hz, period_ticks, hw::Tim2Clock::now());
         // The health report after every reset, before the first output frame.
         send_health(&boot, &mut compensation, &store, &pacer);
         let mut bench = Bench::default();
@@ -591,17 +625,6 @@ impl<F: BoardFlash> Board<F> {
             cortex_m::peripheral::NVIC::unmask(pac::Interrupt::EXTI0);
             cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
         }
-        // A data-ready line already high (the front end kept its sample over
-        // an MCU-only reset) gives no rising edge: take it as one.
-        let data_ready_high = cortex_m::interrupt::free(|cs| {
-            DATA_READY
-                .borrow(cs)
-                .try_borrow()
-                .ok()
-                .as_deref()
-                .and_then(Option::as_ref)
-                .is_some_and(|d| d.pin.is_high())
-        });
         if data_ready_high {
             cortex_m::peripheral::NVIC::pend(pac::Interrupt::EXTI0);
         }
@@ -680,15 +703,12 @@ impl<F: BoardFlash> Board<F> {
             // within a millisecond in any case.
             cortex_m::interrupt::free(|_| {
                 if !stamp_consumer.ready() && !in_consumer.ready() {
-                    cortex_m::asm::wfi();
+                    sleep_until_interrupt();
                 }
             });
         })
     }
 }
-
-/// Command bytes collect here between samples (4 KiB: off the stack).
-static mut COMMANDS: CommandReceiver = CommandReceiver::new();
 
 /// Sends the health report: `boot`, then the counters of the loop
 /// `compensation`, the model store `store` and the pacer `pacer`.
@@ -714,8 +734,9 @@ fn send_health<F: BoardFlash, T, R: BoardFrontEnds, W: embedded_io::Write, MH, c
             store.flash().errors(),
         ),
         model: store.identity(),
-        board_flags: if boot.on_crystal { 0 } else { BOARD_ON_HSI },
+        board_flags: if boot.tree.on_crystal { 0 } else { BOARD_ON_HSI } | brown_out_flag(boot.option_bytes),
         firmware_version: FirmwareVersion::CURRENT,
+        stack_peak_bytes: super::stack_peak_bytes() as u32,
     };
     let mut frame = [0u8; HEALTH_FRAME_LEN];
     if let Some(n) = report.encode(&mut frame) {

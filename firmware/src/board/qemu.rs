@@ -7,11 +7,9 @@
 use stm32f4xx_hal::pac;
 
 /// The clocks QEMU runs at: it has no clock controller (the HSE never
-/// reports ready), so the reset clocks. The stack is painted first, for
-/// [`crate::board::stack_peak_bytes`].
+/// reports ready), so the reset clocks.
 #[inline(always)]
 pub fn clocks() -> super::hw::ClockTree {
-    crate::board::paint_stack();
     super::hw::HSI_TREE
 }
 

@@ -3,6 +3,7 @@
 #![allow(unsafe_code)]
 
 use core::panic::PanicInfo;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 // Copies the tables memory.x keeps in RAM (`.ram_tables`: rbf-core's exp2
 // octave table) from their load address in flash, before RAM is initialised
@@ -46,12 +47,12 @@ pub fn model_slot_b() -> &'static [u8] {
 /// The fault record ([`crate::fault`]): words the runtime never
 /// initialises (`.uninit`), so they survive a reset.
 #[unsafe(link_section = ".uninit.FAULT_RECORD")]
-static mut FAULT_RECORD: [u32; crate::fault::RECORD_WORDS] = [0; crate::fault::RECORD_WORDS];
+static FAULT_RECORD: [AtomicU32; crate::fault::RECORD_WORDS] =
+    [const { AtomicU32::new(0) }; crate::fault::RECORD_WORDS];
 
 fn store_fault_words(words: [u32; crate::fault::RECORD_WORDS]) {
-    for (i, w) in words.into_iter().enumerate() {
-        // SAFETY: word writes into the record's own four words.
-        unsafe { core::ptr::write_volatile((&raw mut FAULT_RECORD).cast::<u32>().add(i), w) };
+    for (cell, w) in FAULT_RECORD.iter().zip(words) {
+        cell.store(w, Ordering::SeqCst);
     }
 }
 
@@ -63,9 +64,8 @@ pub fn store_fault(record: crate::fault::FaultRecord) {
 /// The record a fault handler left before the last reset, if any; clears it.
 pub fn take_fault() -> Option<crate::fault::FaultRecord> {
     let mut words = [0u32; crate::fault::RECORD_WORDS];
-    for (i, w) in words.iter_mut().enumerate() {
-        // SAFETY: mapped RAM; any bits are a valid u32.
-        *w = unsafe { core::ptr::read_volatile((&raw const FAULT_RECORD).cast::<u32>().add(i)) };
+    for (w, cell) in words.iter_mut().zip(&FAULT_RECORD) {
+        *w = cell.load(Ordering::SeqCst);
     }
     store_fault_words([0; crate::fault::RECORD_WORDS]);
     crate::fault::FaultRecord::from_words(words)
@@ -129,6 +129,11 @@ pub fn paint_stack() {
         unsafe { core::ptr::write_volatile(addr as *mut u32, PAINT) };
         addr += 4;
     }
+}
+
+/// The stack region, `(bottom, top)` addresses (it grows down from `top`).
+pub fn stack_bounds() -> (u32, u32) {
+    (&raw const _stack_end as u32, &raw const _stack_start as u32)
 }
 
 /// Deepest stack use since [`paint_stack`], bytes.

@@ -1,8 +1,96 @@
 //! The board's timer arithmetic, host-tested: TIM2's rate in the units the
 //! drivers and the pacer take, the SysTick reload, the SPI device's delay,
 //! and elapsed ticks and cycles on wrapping 32-bit counters (TIM2, the DWT
-//! cycle counter). Pure functions of their arguments; the board
+//! cycle counter), the clock trees the setup can end in and the dividers
+//! for them (I2C1's CCR, USART1's BRR). Pure functions of their arguments; the board
 //! (`firmware::board`, on the MCU) calls them with its clock tree.
+
+/// The frequencies the board runs at, Hz.
+#[derive(Clone, Copy, Debug)]
+pub struct ClockTree {
+    /// Core (SYSCLK = HCLK).
+    pub sysclk_hz: u32,
+    /// APB1 (I2C1).
+    pub pclk1_hz: u32,
+    /// APB2 (SPI1, USART1).
+    pub pclk2_hz: u32,
+    /// APB1 timers (TIM2).
+    pub timclk1_hz: u32,
+    /// The PLL runs from the crystal (false: from the HSI, a dead crystal).
+    pub on_crystal: bool,
+}
+
+/// After reset the chip runs on the 16 MHz HSI, every bus undivided.
+pub const HSI_TREE: ClockTree = ClockTree {
+    sysclk_hz: 16_000_000,
+    pclk1_hz: 16_000_000,
+    pclk2_hz: 16_000_000,
+    timclk1_hz: 16_000_000,
+    on_crystal: false,
+};
+
+/// The tree the clock setup ends in when the PLL runs (168 MHz core,
+/// APB1 ÷4: 42 MHz, timers 84 MHz, APB2 ÷2: 84 MHz), from the crystal or,
+/// when it did not start, from the HSI.
+pub const fn pll_tree(on_crystal: bool) -> ClockTree {
+    ClockTree {
+        sysclk_hz: 168_000_000,
+        pclk1_hz: 42_000_000,
+        pclk2_hz: 84_000_000,
+        timclk1_hz: 84_000_000,
+        on_crystal,
+    }
+}
+
+/// Every tree the clock setup can leave the board in: the PLL from the
+/// crystal or from the HSI, or the HSI alone (the PLL did not lock, or the
+/// switch to it did not take and the prescalers were set back to ÷1).
+pub const BOARD_TREES: [ClockTree; 3] = [pll_tree(true), pll_tree(false), HSI_TREE];
+
+/// The pacer of the board's samples on TIM2 at `timer_hz`, samples every
+/// `period_ticks`, started at `now_ticks`: on the HSI (`tree` not on the
+/// crystal) dt comes from the edge count ([`Pacer::timed_by_edge_count`]),
+/// so the HSI's error (±1 % or more) stays out of every frame.
+pub fn sample_pacer(tree: &ClockTree, timer_hz: u32, period_ticks: u32, now_ticks: u32) -> Pacer {
+    let pacer = Pacer::new(timer_hz, period_ticks, now_ticks);
+    if tree.on_crystal {
+        pacer
+    } else {
+        pacer.timed_by_edge_count()
+    }
+}
+
+/// Fastest SCL of I2C fast mode, Hz.
+pub const I2C_FAST_MODE_MAX_HZ: u32 = 400_000;
+
+/// CCR of the I2C peripheral in fast mode with duty 2:1 (RM0090 §27.6.8:
+/// SCL = PCLK1 / (3 · CCR)) for an APB1 clock of `pclk1_hz`: rounded up,
+/// so that SCL never exceeds 400 kHz; 1 … 0xFFF.
+pub const fn i2c_fast_mode_ccr(pclk1_hz: u32) -> u16 {
+    let ccr = pclk1_hz.div_ceil(3 * I2C_FAST_MODE_MAX_HZ);
+    if ccr < 1 {
+        1
+    } else if ccr > 0xFFF {
+        0xFFF
+    } else {
+        ccr as u16
+    }
+}
+
+/// USART BRR at 16× oversampling (RM0090 §30.3.4: mantissa · 16 +
+/// fraction = PCLK / baud) for `pclk_hz` and `baud`, rounded to nearest;
+/// at least 16 (a mantissa of 0 is not allowed).
+pub const fn usart_brr(pclk_hz: u32, baud: u32) -> u16 {
+    let baud = if baud == 0 { 1 } else { baud };
+    let brr = pclk_hz.saturating_add(baud / 2) / baud;
+    if brr < 16 {
+        16
+    } else if brr > 0xFFFF {
+        0xFFFF
+    } else {
+        brr as u16
+    }
+}
 
 /// Ticks per µs of a timer at `timer_hz` (≥ 1: the [`crate::clock::Clock`] contract).
 #[inline]
@@ -39,11 +127,54 @@ pub const fn elapsed(start: u32, now: u32) -> u32 {
     now.wrapping_sub(start)
 }
 
+use crate::pacing::Pacer;
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::clock::{Clock, Deadline};
-    use crate::pacing::Pacer;
+    use crate::clock::{CountingClock, Deadline};
+
+    #[test]
+    fn on_every_clock_tree_i2c_stays_at_or_below_400_khz_and_the_uart_within_2_5_percent() {
+        for tree in BOARD_TREES {
+            let ccr = u32::from(i2c_fast_mode_ccr(tree.pclk1_hz));
+            let scl_hz = tree.pclk1_hz / (3 * ccr);
+            assert!(
+                (300_000..=I2C_FAST_MODE_MAX_HZ).contains(&scl_hz),
+                "SCL {scl_hz} Hz on APB1 {} Hz",
+                tree.pclk1_hz
+            );
+            let brr = u32::from(usart_brr(tree.pclk2_hz, 921_600));
+            let baud = tree.pclk2_hz as f64 / brr as f64;
+            let error = (baud / 921_600.0 - 1.0).abs();
+            assert!(error < 0.025, "{baud} Bd on APB2 {} Hz: {error}", tree.pclk2_hz);
+        }
+        // The HSI tree at 16 MHz: 13.3 rounds up to 14 (381 kHz), not down to 13 (410 kHz).
+        assert_eq!(i2c_fast_mode_ccr(16_000_000), 14);
+        assert_eq!(i2c_fast_mode_ccr(42_000_000), 35, "exactly 400 kHz");
+        assert_eq!(usart_brr(8_000_000, 921_600), 16, "never a mantissa of 0");
+    }
+
+    #[test]
+    fn on_the_hsi_the_pacer_takes_dt_from_the_edges_and_on_the_crystal_from_the_stamps() {
+        let period = sample_period_ticks(16_000_000, 1000.0);
+        // TIM2 on an HSI running 1 % fast: the front end's edges come every 16,160 ticks.
+        let mut hsi = sample_pacer(&HSI_TREE, 16_000_000, period, 0);
+        hsi.take([0], 0);
+        let tick = hsi.take([16_160], 16_160).unwrap();
+        assert_eq!(
+            tick.dt_s.to_bits(),
+            1e-3f32.to_bits(),
+            "the front end's period, not the HSI's"
+        );
+        let mut crystal = sample_pacer(&pll_tree(true), 16_000_000, period, 0);
+        crystal.take([0], 0);
+        let tick = crystal.take([16_160], 16_160).unwrap();
+        assert!(
+            (tick.dt_s - 1.01e-3).abs() < 1e-7,
+            "on the crystal the stamps are the time"
+        );
+    }
 
     #[test]
     fn elapsed_ticks_are_right_across_the_wrap_at_u32_max() {
@@ -79,22 +210,13 @@ mod tests {
         assert_eq!(delay_cycles(u32::MAX, u32::MAX), u32::MAX, "saturates, never wraps");
     }
 
-    /// TIM2 as the clock of a deadline: one tick per read, from just below the wrap.
-    struct Tim2(u32);
-
-    impl Clock for Tim2 {
-        fn now_ticks(&mut self) -> u32 {
-            self.0 = self.0.wrapping_add(1);
-            self.0
-        }
-        fn ticks_per_us(&self) -> u32 {
-            ticks_per_us(84_000_000)
-        }
-    }
-
     #[test]
     fn a_deadline_at_the_board_rate_holds_across_the_wrap() {
-        let mut clock = Tim2(u32::MAX - 10);
+        // TIM2 as the clock of a deadline: one tick per read, from just below the wrap.
+        let mut clock = CountingClock {
+            ticks: u32::MAX - 10,
+            ticks_per_us: ticks_per_us(84_000_000),
+        };
         let deadline = Deadline::after_us(&mut clock, 2);
         let mut polls = 0u32;
         while !deadline.expired(&mut clock) {

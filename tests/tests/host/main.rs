@@ -10,3 +10,4 @@ mod firmware_mock_hal;
 mod firmware_replay;
 mod fuzz_regressions;
 mod pipeline;
+mod probe_flash;

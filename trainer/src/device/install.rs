@@ -263,8 +263,9 @@ mod tests {
             model: Default::default(),
             board_flags: 0,
             firmware_version: firmware::health::FirmwareVersion::CURRENT,
+            stack_peak_bytes: 0,
         };
-        let mut buf = [0u8; 80];
+        let mut buf = [0u8; 84];
         let n = report.encode(&mut buf).unwrap();
         buf[..n].to_vec()
     }

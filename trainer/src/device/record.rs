@@ -474,6 +474,7 @@ mod tests {
                 model: Default::default(),
                 board_flags: 0,
                 firmware_version: firmware::health::FirmwareVersion::CURRENT,
+                stack_peak_bytes: 0,
             },
             kind: Some(Kind::Single),
         };

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
-use firmware::health::{BOARD_ON_HSI, CMD_HEALTH, HealthReport, ResetCause};
+use firmware::health::{BOARD_BROWN_OUT_BELOW_2V7, BOARD_ON_HSI, CMD_HEALTH, HealthReport, ResetCause};
 
 use super::link::{Link, Message};
 use crate::reading::frames::{FrameSync, Kind};
@@ -167,6 +167,13 @@ pub fn describe(port: &str, status: &UnitStatus) -> String {
             "crystal"
         }
     );
+    if r.board_flags & BOARD_BROWN_OUT_BELOW_2V7 != 0 {
+        let _ = writeln!(
+            s,
+            "supply:      brown-out reset not at 2.7 V (option bytes; docs/firmware.md, \"Brown-out level\")"
+        );
+    }
+    let _ = writeln!(s, "stack peak:  {} bytes", r.stack_peak_bytes);
     let _ = writeln!(s, "since the reset:");
     for (name, value) in counters(r) {
         let _ = writeln!(s, "  {name:<20} {value}");
@@ -196,6 +203,7 @@ pub fn to_json(port: &str, status: &UnitStatus) -> serde_json::Value {
         "model_blob_crc32": r.model.blob_crc32,
         "model_sequence": r.model.sequence,
         "board_flags": r.board_flags,
+        "stack_peak_bytes": r.stack_peak_bytes,
         "counters": counters,
     })
 }
@@ -225,6 +233,7 @@ mod tests {
                 minor: 4,
                 patch: 1,
             },
+            stack_peak_bytes: 4_040,
         }
     }
 

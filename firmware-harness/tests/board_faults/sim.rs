@@ -202,10 +202,12 @@ impl I2cRegisters for FakeI2c {
         if s.sr1 & i2c_master::SR1_ADDR != 0 {
             s.sr1 &= !i2c_master::SR1_ADDR;
             if s.phase == Phase::Reading {
+                // Both bytes of a register arrive: the first in DR, the
+                // second held in the shift register (BTF), SCL stretched.
                 s.reply = s.register(s.pointer).to_be_bytes();
                 s.read_index = 0;
-                s.clock.advance_us(I2C_BYTE_US);
-                s.sr1 |= i2c_master::SR1_RXNE;
+                s.clock.advance_us(2 * I2C_BYTE_US);
+                s.sr1 |= i2c_master::SR1_RXNE | i2c_master::SR1_BTF;
             } else {
                 s.sr1 |= i2c_master::SR1_TXE;
             }
@@ -276,6 +278,10 @@ impl I2cRegisters for FakeI2c {
         let mut s = self.0.borrow_mut();
         let byte = s.reply.get(s.read_index).copied().unwrap_or(0xFF);
         s.read_index += 1;
+        s.sr1 &= !i2c_master::SR1_BTF;
+        if s.read_index >= s.reply.len() {
+            s.sr1 &= !i2c_master::SR1_RXNE;
+        }
         s.clock.advance_us(I2C_BYTE_US);
         byte
     }
@@ -410,32 +416,32 @@ impl FlashRegisters for FlashSim {
             _ => self.key_step = 2,
         }
     }
-    fn write_word(&mut self, offset: u32, word: u32) {
+    fn write_word(&mut self, offset: u32, word: u32) -> bool {
         self.clock.advance_us(16);
         if self.locked || self.cr & flash_ctl::CR_PG == 0 {
             self.sr |= flash_ctl::SR_PGSERR;
-            return;
+            return true;
         }
         if self.cr & (0b11 << 8) != flash_ctl::CR_PSIZE_X32 {
             self.sr |= flash_ctl::SR_PGPERR;
-            return;
+            return true;
         }
         if self.failing_programs > 0 {
             self.failing_programs -= 1;
             self.sr |= flash_ctl::SR_PGSERR;
-            return;
+            return true;
         }
         let Some(at) = offset.checked_sub(SLOTS_START).map(|a| a as usize) else {
-            self.sr |= flash_ctl::SR_WRPERR;
-            return;
+            return false;
         };
         if let Some(cells) = self.mem.get_mut(at..at + 4) {
             for (cell, byte) in cells.iter_mut().zip(word.to_le_bytes()) {
                 *cell &= byte;
             }
             self.words += 1;
+            true
         } else {
-            self.sr |= flash_ctl::SR_WRPERR;
+            false
         }
     }
     fn flush_caches(&mut self) {

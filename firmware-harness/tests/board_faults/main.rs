@@ -1,4 +1,6 @@
-//! `cargo xtask board-faults`: the stm32f405 board's own driver and loop
+//! The board's fault campaign, a test target (`cargo test -p
+//! firmware-harness --test board_faults`; `cargo xtask board-faults`): the
+//! stm32f405 board's own driver and loop
 //! code (the bounded I2C master with bus recovery, the TMP117 and front-end
 //! drivers, the data-ready pacer, the compensation loop, the flash
 //! controller driver, the model store and command path) run on the host
