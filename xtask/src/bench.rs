@@ -39,6 +39,53 @@ const AXES_STEP_BUDGET_INSTRUCTIONS: u64 = 1800;
 /// Instructions the whole step of a response-bank model (12 filters, 8 inputs) may take per sample (issue budget).
 const RESPONSE_BANK_STEP_BUDGET_INSTRUCTIONS: u64 = 1200;
 
+/// How far the C library's step may take more instructions per sample
+/// than the Rust loop's on the same model: 5 %.
+const C_LIBRARY_OVER_RUST_MAX: f64 = 0.05;
+
+/// Times the C library's step on qemu-bench's models (left in `dir`), one
+/// axis and three, against the Rust loop's whole steps `rust_steps` ((axes,
+/// instructions per sample)); prints its flash, RAM and instructions;
+/// returns what needs more than 5 % over the Rust loop's (bench-fw fails on it
+/// after printing every figure).
+fn print_c_library(dir: &std::path::Path, rust_steps: &[(u8, u64)]) -> anyhow::Result<Vec<String>> {
+    println!(
+        "C library (rbf-core-c, librbf_core_c.a for {}, linked by arm-none-eabi-gcc -O2 with --gc-sections into \
+         rbf-core-c/c/bench.c: one load, then one call per sample on qemu-bench's own K=32 D=3 models):",
+        firmware::TARGET
+    );
+    println!(
+        "  {:<5} {:>10} {:>15} {:>11} {:>11} {:>15} {:>15}",
+        "axes", "flash [B]", "static RAM [B]", "state [B]", "stack [B]", "instr./sample", "Rust loop's"
+    );
+    let mut over = Vec::new();
+    for &(axes, rust) in rust_steps {
+        let blob = if axes == 1 {
+            "bench-k32.bin"
+        } else {
+            "bench-axes-shared.bin"
+        };
+        let cost = crate::c_library::bench(dir, axes, blob)?;
+        println!(
+            "  {:<5} {:>10} {:>15} {:>11} {:>11} {:>15} {:>15}",
+            axes,
+            cost.flash_bytes,
+            cost.static_ram_bytes,
+            cost.state_bytes,
+            cost.stack_bytes,
+            cost.instructions_per_sample,
+            rust
+        );
+        if cost.instructions_per_sample as f64 > rust as f64 * (1.0 + C_LIBRARY_OVER_RUST_MAX) {
+            over.push(format!(
+                "C library, {axes} axes: {} instructions per sample, over 5 % above the Rust loop's {rust}",
+                cost.instructions_per_sample
+            ));
+        }
+    }
+    Ok(over)
+}
+
 /// The evaluation and whole-step counts of qemu-bench's line
 /// `instructions_per_sample K=32 D=3: evaluation E whole step S`.
 fn k32_eval_and_step(line: &str) -> Option<(u64, u64)> {
@@ -233,8 +280,10 @@ pub fn bench_fw() -> anyhow::Result<()> {
         shared_size.static_ram + shared_run.stack_peak_bytes,
         BOARD_BUDGET.ram_bytes
     );
+    let rust_steps = [(1u8, step), (3, three_axes)];
+    let c_library_over = print_c_library(dir.path(), &rust_steps)?;
     println!("{k32}");
-    let over: Vec<String> = [
+    let mut over: Vec<String> = [
         ("stm32f405", &board_size, board_run.stack_peak_bytes, BOARD_BUDGET),
         ("stm32f405-3ax", &axes_size, axes_run.stack_peak_bytes, BOARD_BUDGET),
         (
@@ -256,8 +305,9 @@ pub fn bench_fw() -> anyhow::Result<()> {
         )
     })
     .collect();
+    over.extend(c_library_over);
     if !over.is_empty() {
-        bail!("board images over budget:\n  {}", over.join("\n  "));
+        bail!("over budget:\n  {}", over.join("\n  "));
     }
     Ok(())
 }

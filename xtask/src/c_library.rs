@@ -255,3 +255,122 @@ pub fn check_panic_free() -> anyhow::Result<()> {
         Ok(()) => bail!("the C library's panic-free canary linked: the check proves nothing"),
     }
 }
+
+/// What the C library costs in one C loop on the Cortex-M4F (`bench.c`
+/// under QEMU, `-icount shift=0`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CLibraryCost {
+    /// 1 (rbf_gyro_*) or 3 (rbf_imu_*).
+    pub axes: u8,
+    /// Instructions per sample of the step (the C loop's call included).
+    pub instructions_per_sample: u64,
+    /// Flash the library's code and constants take in the linked image, bytes.
+    pub flash_bytes: u64,
+    /// The library's own statics in the image, bytes (the state is the caller's).
+    pub static_ram_bytes: u64,
+    /// The state the caller provides, bytes (`RBF_*_STATE_SIZE`).
+    pub state_bytes: u64,
+    /// Stack the load and the steps took, bytes (the C loop's frame included).
+    pub stack_bytes: u64,
+}
+
+/// The bytes the library's objects (`librbf_core_c`) take in flash and in
+/// static RAM, from a GNU ld map file's input sections.
+pub fn library_sizes_from_map(map: &str) -> (u64, u64) {
+    let (mut flash, mut ram) = (0, 0);
+    let mut output_section = String::new();
+    let mut pending: Option<()> = None;
+    for line in map.lines() {
+        if let Some(name) = line.split_whitespace().next().filter(|_| !line.starts_with(' ')) {
+            output_section = name.to_owned();
+        }
+        // An input section: " .name  0xADDR  0xSIZE  FILE", the name alone on
+        // its line when long.
+        let fields: Vec<&str> = line.split_whitespace().collect();
+        let rest = match fields.as_slice() {
+            [name, addr, ..] if line.starts_with(' ') && name.starts_with('.') && addr.starts_with("0x") => {
+                &fields[1..]
+            }
+            [addr, ..] if addr.starts_with("0x") && pending.is_some() => &fields[..],
+            [name] if line.starts_with(' ') && name.starts_with('.') => {
+                pending = Some(());
+                continue;
+            }
+            _ => {
+                pending = None;
+                continue;
+            }
+        };
+        pending = None;
+        let [_, size, file, ..] = rest else { continue };
+        if !file.contains("librbf_core_c") {
+            continue;
+        }
+        let Ok(size) = u64::from_str_radix(size.trim_start_matches("0x"), 16) else {
+            continue;
+        };
+        match output_section.as_str() {
+            ".bss" => ram += size,
+            ".data" => {
+                ram += size;
+                flash += size;
+            }
+            ".text" | ".ARM.exidx" | ".ARM.extab" | ".init_array" => flash += size,
+            // Debug information, attributes, comments: not in the image.
+            _ => {}
+        }
+    }
+    (flash, ram)
+}
+
+/// Builds `bench.c` for `axes` against the target library, runs it under
+/// QEMU in `dir` on the blob `blob` there (written by qemu-bench: the very
+/// model the Rust loop is timed on) and reads its costs.
+pub fn bench(dir: &std::path::Path, axes: u8, blob: &str) -> anyhow::Result<CLibraryCost> {
+    ensure_arm_toolchain()?;
+    let library = build_library(CTarget::Qemu, &[])?;
+    let elf = dir.join(format!("c-bench-{axes}.elf"));
+    let map = dir.join(format!("c-bench-{axes}.map"));
+    let define = format!("-DBENCH_AXES={axes}");
+    let map_arg = format!("-Wl,-Map={}", map.display());
+    compile_c(
+        CTarget::Qemu,
+        &[c_dir().join("bench.c")],
+        &library,
+        &elf,
+        &[&define, &map_arg],
+    )?;
+    let icount = ["-icount".to_owned(), "shift=0".to_owned()];
+    let run = crate::qemu::run_with_args(
+        &elf,
+        dir,
+        &["bench", blob],
+        &icount,
+        std::time::Duration::from_secs(120),
+    )?;
+    let prefix = format!("c_library axes={axes} instructions_per_sample ");
+    let Some(line) = run.log.lines().find_map(|l| l.strip_prefix(&prefix)) else {
+        bail!("the C library bench (axes {axes}) printed no figure:\n{}", run.log);
+    };
+    let mut words = line.split_whitespace();
+    let instructions_per_sample = words.next().and_then(|n| n.parse().ok());
+    let stack_bytes = words.nth(1).and_then(|n| n.parse().ok());
+    let (Some(instructions_per_sample), Some(stack_bytes)) = (instructions_per_sample, stack_bytes) else {
+        bail!("the C library bench (axes {axes}) printed an unreadable line: {line}");
+    };
+    let map_text = std::fs::read_to_string(&map).with_context(|| format!("{}: cannot read", map.display()))?;
+    let (flash_bytes, static_ram_bytes) = library_sizes_from_map(&map_text);
+    let state_bytes = if axes == 1 {
+        rbf_core_c::RBF_GYRO_STATE_SIZE
+    } else {
+        rbf_core_c::RBF_IMU_STATE_SIZE
+    } as u64;
+    Ok(CLibraryCost {
+        axes,
+        instructions_per_sample,
+        flash_bytes,
+        static_ram_bytes,
+        state_bytes,
+        stack_bytes,
+    })
+}
