@@ -299,6 +299,36 @@ fn passed_through(rate_dph: f32) -> RbfOutput {
     }
 }
 
+/// The step of either kind of state: `run` on the loaded state and the
+/// sample, or `pass` (the rate passed through with flag 4) when the state
+/// cannot run; the result into `*out`.
+///
+/// # Safety
+/// As [`rbf_gyro_step`].
+#[inline(always)]
+unsafe fn step<T: LoopState, S, O>(
+    state: *mut c_void,
+    state_len: usize,
+    sample: *const S,
+    out: *mut O,
+    run: impl FnOnce(&mut T, &S) -> O,
+    pass: impl FnOnce(&S) -> O,
+) -> i32 {
+    if sample.is_null() || out.is_null() {
+        return RBF_ERR_NULL_POINTER;
+    }
+    // SAFETY: non-null and readable (the caller's promise); read unaligned.
+    let sample = unsafe { sample.read_unaligned() };
+    // SAFETY: the caller's promise, passed on.
+    let (code, output) = match unsafe { loaded_state::<T>(state, state_len) } {
+        Ok(loaded) => (RBF_OK, run(loaded, &sample)),
+        Err(code) => (code, pass(&sample)),
+    };
+    // SAFETY: non-null and writable (the caller's promise); written unaligned.
+    unsafe { out.write_unaligned(output) };
+    code
+}
+
 /// Compensates one sample of a single gyro: `*out` gets the bias, the
 /// compensated rate and the flags. Returns `RBF_OK`; a NULL pointer, or a
 /// state that `rbf_gyro_load` did not set up, returns its code, and `*out`
@@ -316,26 +346,16 @@ pub unsafe extern "C" fn rbf_gyro_step(
     sample: *const RbfGyroSample,
     out: *mut RbfOutput,
 ) -> i32 {
-    if sample.is_null() || out.is_null() {
-        return RBF_ERR_NULL_POINTER;
-    }
-    // SAFETY: non-null and readable (the caller's promise); read unaligned.
-    let sample = unsafe { sample.read_unaligned() };
-    // SAFETY: the caller's promise, passed on.
-    let (code, output) = match unsafe { loaded_state::<Gyro>(state, state_len) } {
-        Ok(gyro) => {
-            let sample = GyroSample {
-                dt_s: sample.dt_s,
-                rate_dph: sample.rate_dph,
-                temps_c: state::readings(&sample.temps_c),
-            };
-            (RBF_OK, gyro.step(&sample).into())
-        }
-        Err(code) => (code, passed_through(sample.rate_dph)),
+    let run = |gyro: &mut Gyro, sample: &RbfGyroSample| {
+        let sample = GyroSample {
+            dt_s: sample.dt_s,
+            rate_dph: sample.rate_dph,
+            temps_c: state::readings(&sample.temps_c),
+        };
+        gyro.step(&sample).into()
     };
-    // SAFETY: non-null and writable (the caller's promise); written unaligned.
-    unsafe { out.write_unaligned(output) };
-    code
+    // SAFETY: the caller's promise, passed on.
+    unsafe { step(state, state_len, sample, out, run, |s| passed_through(s.rate_dph)) }
 }
 
 /// Compensates one sample of every axis of a three-axis IMU: `out->axes[a]`
@@ -352,22 +372,16 @@ pub unsafe extern "C" fn rbf_imu_step(
     sample: *const RbfImuSample,
     out: *mut RbfImuOutput,
 ) -> i32 {
-    if sample.is_null() || out.is_null() {
-        return RBF_ERR_NULL_POINTER;
-    }
-    // SAFETY: non-null and readable (the caller's promise); read unaligned.
-    let sample = unsafe { sample.read_unaligned() };
-    // SAFETY: the caller's promise, passed on.
-    let (code, axes) = match unsafe { loaded_state::<Imu>(state, state_len) } {
-        Ok(imu) => {
-            let samples = imu.step(sample.dt_s, &sample.rates_dph, &sample.temps_c, &sample.loop_temps_c);
-            (RBF_OK, samples.map(RbfOutput::from))
-        }
-        Err(code) => (code, sample.rates_dph.map(passed_through)),
+    let run = |imu: &mut Imu, s: &RbfImuSample| RbfImuOutput {
+        axes: imu
+            .step(s.dt_s, &s.rates_dph, &s.temps_c, &s.loop_temps_c)
+            .map(RbfOutput::from),
     };
-    // SAFETY: non-null and writable (the caller's promise); written unaligned.
-    unsafe { out.write_unaligned(RbfImuOutput { axes }) };
-    code
+    let pass = |s: &RbfImuSample| RbfImuOutput {
+        axes: s.rates_dph.map(passed_through),
+    };
+    // SAFETY: the caller's promise, passed on.
+    unsafe { step(state, state_len, sample, out, run, pass) }
 }
 
 /// The info of either kind of state (see `rbf_gyro_model_info`).
@@ -437,4 +451,134 @@ mod panic;
 pub extern "C" fn rbf_panic_canary(index: usize) -> u8 {
     let table = [1u8, 2, 3, 4];
     table[core::hint::black_box(index)]
+}
+
+#[cfg(test)]
+#[allow(
+    clippy::float_cmp,
+    reason = "a cubic in T at exact temperatures: the bits are what the C side gets"
+)]
+mod tests {
+    use super::*;
+    use rbf_core::model::{ModelBody, ModelInfo};
+    use rbf_core::poly::Poly3;
+    use rbf_core::{FeatureConfig, FeatureSet, Model};
+
+    /// Caller-owned state memory, aligned as the header asks.
+    #[repr(C, align(8))]
+    struct Buffer([u8; RBF_IMU_STATE_SIZE + 8]);
+
+    /// A blob of a model whose bias is 2 °/h per °C.
+    fn blob() -> Vec<u8> {
+        let body = ModelBody::Poly3(Poly3::new(0.0, [0.0, 2.0, 0.0, 0.0]).unwrap());
+        let model = Model::new(
+            FeatureConfig::single(FeatureSet::Temp, 0.0),
+            &[(-40.0, 80.0)],
+            body,
+            ModelInfo::default(),
+        )
+        .unwrap();
+        let mut out = vec![0u8; rbf_core::blob::MAX_BLOB_LEN];
+        let n = rbf_core::blob::encode(&model, &mut out).unwrap();
+        out.truncate(n);
+        out
+    }
+
+    fn sample(temp_c: f32) -> RbfGyroSample {
+        let mut temps_c = [f32::NAN; RBF_THERMOMETERS];
+        temps_c[RBF_LOOP_THERMOMETER] = temp_c;
+        RbfGyroSample {
+            dt_s: 0.001,
+            rate_dph: 100.0,
+            temps_c,
+        }
+    }
+
+    fn step(state: &mut Buffer, s: &RbfGyroSample) -> (i32, RbfOutput) {
+        let mut out = passed_through(f32::NAN);
+        // SAFETY: a live, aligned buffer, a sample and an output.
+        let code = unsafe { rbf_gyro_step(state.0.as_mut_ptr().cast(), RBF_GYRO_STATE_SIZE, s, &mut out) };
+        (code, out)
+    }
+
+    #[test]
+    fn a_loaded_gyro_compensates_and_reports_the_blobs_crc() {
+        let mut state = Buffer([0; RBF_IMU_STATE_SIZE + 8]);
+        let blob = blob();
+        let p = state.0.as_mut_ptr().cast();
+        // SAFETY: as above; the blob is followed by nothing.
+        let code = unsafe { rbf_gyro_load(p, RBF_GYRO_STATE_SIZE, blob.as_ptr(), blob.len(), 1000.0) };
+        assert_eq!(code, RBF_OK);
+        let (code, out) = step(&mut state, &sample(25.0));
+        assert_eq!((code, out.bias_dph, out.rate_comp_dph), (RBF_OK, 50.0, 50.0));
+        let mut info = core::mem::MaybeUninit::<RbfModelInfo>::uninit();
+        // SAFETY: a loaded state and a writable info.
+        let code = unsafe { rbf_gyro_model_info(p, RBF_GYRO_STATE_SIZE, info.as_mut_ptr()) };
+        // SAFETY: written by the call.
+        let info = unsafe { info.assume_init() };
+        let trailer = u32::from_le_bytes(blob[blob.len() - 4..].try_into().unwrap());
+        assert_eq!(
+            (code, info.load_status, info.crc32, info.axis_mask),
+            (RBF_OK, RBF_OK, trailer, 1)
+        );
+        assert_eq!(info.provenance_id_len, 0);
+    }
+
+    #[test]
+    fn a_corrupt_blob_is_refused_with_its_code_and_the_rate_passes_through_with_flag_4() {
+        let mut state = Buffer([0; RBF_IMU_STATE_SIZE + 8]);
+        let mut blob = blob();
+        blob[20] ^= 1;
+        let p = state.0.as_mut_ptr().cast();
+        // SAFETY: as above.
+        let code = unsafe { rbf_gyro_load(p, RBF_GYRO_STATE_SIZE, blob.as_ptr(), blob.len(), 1000.0) };
+        assert_eq!(code, RBF_ERR_BLOB_CRC_MISMATCH);
+        let (code, out) = step(&mut state, &sample(25.0));
+        assert_eq!((code, out.bias_dph, out.rate_comp_dph), (RBF_OK, 0.0, 100.0));
+        assert_eq!(out.flags & RBF_FLAG_NO_VALID_MODEL, RBF_FLAG_NO_VALID_MODEL);
+    }
+
+    #[test]
+    fn every_pointer_length_and_alignment_is_checked() {
+        let mut state = Buffer([0; RBF_IMU_STATE_SIZE + 8]);
+        let blob = blob();
+        let p: *mut c_void = state.0.as_mut_ptr().cast();
+        let load = |p: *mut c_void, len: usize, b: *const u8, rate: f32| {
+            // SAFETY: every pointer is null or live for the length given.
+            unsafe { rbf_gyro_load(p, len, b, blob.len(), rate) }
+        };
+        assert_eq!(
+            load(core::ptr::null_mut(), RBF_GYRO_STATE_SIZE, blob.as_ptr(), 1000.0),
+            RBF_ERR_NULL_POINTER
+        );
+        assert_eq!(load(p, 16, blob.as_ptr(), 1000.0), RBF_ERR_STATE_TOO_SMALL);
+        // SAFETY: one byte into the buffer, which is still long enough.
+        let odd = unsafe { p.cast::<u8>().add(1) }.cast();
+        assert_eq!(
+            load(odd, RBF_GYRO_STATE_SIZE, blob.as_ptr(), 1000.0),
+            RBF_ERR_STATE_MISALIGNED
+        );
+        assert_eq!(
+            load(p, RBF_GYRO_STATE_SIZE, blob.as_ptr(), f32::NAN),
+            RBF_ERR_SAMPLE_RATE
+        );
+        // Not loaded (the failed load cleared the tag): refused, the rate passed through.
+        let (code, out) = step(&mut state, &sample(25.0));
+        assert_eq!(
+            (code, out.rate_comp_dph, out.flags),
+            (RBF_ERR_STATE_NOT_LOADED, 100.0, 4)
+        );
+        assert_eq!(
+            load(p, RBF_GYRO_STATE_SIZE, core::ptr::null(), 1000.0),
+            RBF_ERR_NULL_POINTER
+        );
+        // SAFETY: null sample and output are refused before any use.
+        let code = unsafe { rbf_gyro_step(p, RBF_GYRO_STATE_SIZE, core::ptr::null(), core::ptr::null_mut()) };
+        assert_eq!(code, RBF_ERR_NULL_POINTER);
+        // An IMU's load of the same memory makes it no gyro state.
+        // SAFETY: as above.
+        let code = unsafe { rbf_imu_load(p, RBF_IMU_STATE_SIZE, blob.as_ptr(), blob.len(), 1000.0) };
+        assert_eq!(code, RBF_OK);
+        assert_eq!(step(&mut state, &sample(25.0)).0, RBF_ERR_STATE_NOT_LOADED);
+    }
 }
