@@ -62,7 +62,7 @@ pub const AXIS_CENTERS: usize = rbf_core::MAX_AXIS_CENTERS;
 /// twice the per-axis board's centres within the same 16 KiB
 /// (docs/firmware.md, "Three axes"). A blob with a larger basis is refused
 /// with [`DecodeError::ShapeOverCapacity`], as on the per-axis board.
-pub const SHARED_AXIS_CENTERS: usize = 32;
+pub const SHARED_AXIS_CENTERS: usize = rbf_core::MAX_SHARED_AXIS_CENTERS;
 
 /// Length of one model flash slot (`MODEL_A`/`MODEL_B` in memory.x), bytes.
 pub const MODEL_SLOT_LEN: usize = 128 * 1024;

@@ -62,7 +62,14 @@ impl CompensatorConfig {
     /// Defaults for a recorded run whose nominal period is `period_s` (see
     /// [`crate::record::nominal_period_s`]); the same arithmetic on host and target.
     pub fn for_nominal_period_s(period_s: f64) -> Self {
-        Self::for_sample_rate((1.0 / period_s) as f32)
+        Self::for_sample_rate(Self::sample_rate_hz_for_period_s(period_s))
+    }
+
+    /// The sample rate, Hz, that [`Self::for_nominal_period_s`] gives
+    /// [`Self::for_sample_rate`] for a run of nominal period `period_s`: what a
+    /// loop set up by its sample rate (the C library's load) is given to agree.
+    pub fn sample_rate_hz_for_period_s(period_s: f64) -> f32 {
+        (1.0 / period_s) as f32
     }
 
     /// True when a time step of `dt_s` seconds breaks the run into a new segment.

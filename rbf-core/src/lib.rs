@@ -51,6 +51,11 @@ pub const MAX_CENTERS: usize = 64;
 /// (docs/firmware.md, "Three axes"). `trainer fit` keeps multi-axis models
 /// within it; the board refuses a blob with a larger axis.
 pub const MAX_AXIS_CENTERS: usize = 16;
+/// Most Gaussian centres the shared basis of a shared-basis multi-axis blob
+/// may hold on the three-axis boards and in the C library's IMU state: one
+/// basis with a weight per axis takes about a third of three models' RAM,
+/// so it holds twice [`MAX_AXIS_CENTERS`] in the same room.
+pub const MAX_SHARED_AXIS_CENTERS: usize = 2 * MAX_AXIS_CENTERS;
 /// Most model inputs (features) a deployable model may use.
 pub const MAX_INPUTS: usize = 12;
 /// Most inputs the Gaussians of a network may see (the rest enter linearly).

@@ -310,8 +310,7 @@ fn benchmark_image_runs_and_reports_every_model_size() {
 /// A board run under QEMU (`run`) took its update and answered the bench
 /// command, one frame per sample; board image `image`
 /// fits its flash budget, and its static RAM and the run's stack peak its
-/// RAM budget (`xtask::bench::budget_for`: 64 / 16 KiB single-axis, 96 / 24
-/// KiB three-axis).
+/// RAM budget (`xtask::bench::budget_for`: 96 KiB flash, 24 KiB RAM, every image).
 fn board_within_budgets(run: &xtask::board_stack::BoardRun, image: xtask::firmware::BoardImage) {
     assert!(run.summary.contains("update Some(Installed)"), "{run:?}");
     assert!(run.frames > 10_000, "one frame per sample and the replies: {run:?}");
@@ -337,7 +336,7 @@ fn the_board_image_takes_an_update_and_a_bench_command_within_its_ram_budget() {
     // The stm32f405 board's code under QEMU (stm32f405-qemu: QEMU's missing
     // pieces swapped): boot with a model, an install and a bench command over its
     // UART (measure() refuses a run without the install or the bench
-    // report), 10,000 samples; its static RAM and painted stack fit 16 KiB.
+    // report), 10,000 samples; its static RAM and painted stack fit 24 KiB.
     let run = xtask::board_stack::measure().unwrap();
     board_within_budgets(&run, xtask::firmware::BOARD);
 }

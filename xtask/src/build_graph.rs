@@ -8,15 +8,17 @@
 //! compiled twice. xtask/Cargo.toml asks for those features itself;
 //! [`feature_mismatches`] finds the ones it misses.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::process::Command;
 
 use anyhow::{Context, bail};
 
 use crate::workspace_root;
 
-/// Each package of a `cargo tree` resolution ("name vX.Y.Z") and its features.
-fn resolved_features(selection: &[&str], edges: &str) -> anyhow::Result<BTreeMap<String, String>> {
+/// Each package of a `cargo tree` resolution ("name vX.Y.Z") and the feature
+/// sets it is built with (two when proc-macros use it with other features
+/// than a normal dependency does: cargo builds it once for each).
+fn resolved_features(selection: &[&str], edges: &str) -> anyhow::Result<BTreeMap<String, BTreeSet<String>>> {
     let out = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
         .args([
             "tree", "--quiet", "--prefix", "none", "--format", "{p}|{f}", "--edges", edges,
@@ -28,15 +30,19 @@ fn resolved_features(selection: &[&str], edges: &str) -> anyhow::Result<BTreeMap
     if !out.status.success() {
         bail!("cargo tree failed: {}", String::from_utf8_lossy(&out.stderr));
     }
-    Ok(String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .filter_map(|line| {
-            // A package seen before ends in " (*)", after its features.
-            let (package, features) = line.trim_end_matches(" (*)").split_once('|')?;
-            let package = package.trim_end_matches(" (proc-macro)");
-            Some((package.to_owned(), features.to_owned()))
-        })
-        .collect())
+    let mut resolved: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        // A package seen before ends in " (*)", after its features.
+        let Some((package, features)) = line.trim_end_matches(" (*)").split_once('|') else {
+            continue;
+        };
+        let package = package.trim_end_matches(" (proc-macro)");
+        resolved
+            .entry(package.to_owned())
+            .or_default()
+            .insert(features.to_owned());
+    }
+    Ok(resolved)
 }
 
 /// The packages `cargo xtask` builds with other features than `cargo test
@@ -47,9 +53,18 @@ pub fn feature_mismatches() -> anyhow::Result<Vec<String>> {
     let tests = resolved_features(&["--workspace"], "normal,build,dev")?;
     Ok(xtask
         .iter()
-        .filter_map(|(package, features)| {
+        .filter_map(|(package, sets)| {
             let theirs = tests.get(package)?;
-            (theirs != features).then(|| format!("{package}: [{features}] / [{theirs}]"))
+            let missing: Vec<&String> = sets.difference(theirs).collect();
+            let listed =
+                |sets: &mut dyn Iterator<Item = &String>| sets.map(|f| format!("[{f}]")).collect::<Vec<_>>().join(" ");
+            (!missing.is_empty()).then(|| {
+                format!(
+                    "{package}: {} / {}",
+                    listed(&mut missing.into_iter()),
+                    listed(&mut theirs.iter())
+                )
+            })
         })
         .collect())
 }

@@ -94,8 +94,9 @@ fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
     Ok((passed, failed))
 }
 
-/// fmt, the import circles, clippy (host and firmware) with the no_std check, firmware builds,
-/// host tests beside the fuzz build, the tests needing QEMU, then 20 s of fuzzing (the targets
+/// fmt, the import circles and the C header's drift, clippy (host and firmware) with the no_std
+/// check, firmware builds, the panic-free checks (firmware and C library), host tests beside the
+/// fuzz build, the tests needing QEMU (and the C library's replays), then 20 s of fuzzing (the targets
 /// side by side) beside the test needing PyPI; ends with `N passed, N failed`.
 pub fn ci() -> anyhow::Result<()> {
     let started = Instant::now();
@@ -103,11 +104,13 @@ pub fn ci() -> anyhow::Result<()> {
     ensure_toolchain()?;
     crate::firmware::ensure_flip_link()?;
     qemu::ensure_installed()?;
-    clock.lap("toolchain, flip-link and QEMU present");
+    crate::c_library::ensure_arm_toolchain()?;
+    clock.lap("toolchain, flip-link, QEMU and the ARM C toolchain present");
     run("cargo", &["fmt", "--all", "--check"])?;
     run("cargo", &["fmt", "--manifest-path", "fuzz/Cargo.toml", "--check"])?;
     crate::import_circles::import_circles()?;
-    clock.lap("fmt and import circles");
+    crate::c_library::check_header()?;
+    clock.lap("fmt, import circles and the C header");
     run(
         "cargo",
         &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
@@ -155,7 +158,15 @@ pub fn ci() -> anyhow::Result<()> {
     run(
         "cargo",
         &[
-            &["clippy", "--package", "rbf-core", "--no-default-features", "--lib"][..],
+            &[
+                "clippy",
+                "--package",
+                "rbf-core",
+                "--no-default-features",
+                "--package",
+                crate::c_library::PACKAGE,
+                "--lib",
+            ][..],
             &qemu_boards[..],
             &["--", "-D", "warnings"],
         ]
@@ -183,6 +194,7 @@ pub fn ci() -> anyhow::Result<()> {
     }
     clock.lap("firmware release images");
     crate::firmware::check_panic_free()?;
+    crate::c_library::check_panic_free()?;
     crate::board_faults::board_faults()?;
     clock.lap("panic-free check and board faults");
     // Beside the host tests, at the lowest CPU priority, the fuzz targets'
@@ -209,11 +221,13 @@ pub fn ci() -> anyhow::Result<()> {
         "qemu",
         "--test",
         "device",
+        "--test",
+        "c_library",
         "--",
         "--ignored",
     ])?;
     (passed, failed) = (passed + p, failed + f);
-    clock.lap("QEMU and device tests");
+    clock.lap("QEMU, device and C library tests");
     // Each fuzz target for 20 s (longer runs: `cargo xtask fuzz --seconds N`); a finding
     // fails CI (and becomes a regression file). Beside it the test against allantools,
     // which mostly waits on PyPI.

@@ -19,6 +19,8 @@ pub mod bench;
 pub mod board_faults;
 pub mod board_stack;
 pub mod build_graph;
+pub mod c_library;
+pub mod c_replay;
 pub mod ci;
 pub mod faults;
 pub mod firmware;

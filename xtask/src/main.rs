@@ -15,10 +15,11 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Run the whole test suite as CI does: fmt check, import circles, clippy -D warnings (host
-    /// and firmware), the no_std check of rbf-core, the firmware builds, host
-    /// tests and the QEMU tests. Installs the thumbv7em target, rustfmt, clippy
-    /// and qemu-system-arm when missing.
+    /// Run the whole test suite as CI does: fmt check, import circles, the C header's drift,
+    /// clippy -D warnings (host and firmware), the no_std check of rbf-core, the firmware
+    /// builds, the panic-free checks, host tests and the QEMU and C library tests. Installs the
+    /// thumbv7em target, rustfmt, clippy, qemu-system-arm, gcc-arm-none-eabi and
+    /// libnewlib-arm-none-eabi when missing.
     Ci,
     /// Replay a recorded run through the real firmware image under QEMU
     /// (netduinoplus2 = STM32F405): the model goes into flash slot MODEL_A, the
@@ -48,6 +49,35 @@ enum Cmd {
         #[arg(long)]
         allow_implausible: bool,
     },
+    /// Replay a recorded run through rbf-core's C library: the C program
+    /// rbf-core-c/c/replay.c built from the header and the static library with the
+    /// host's cc (or, with --qemu, with arm-none-eabi-gcc and newlib for the
+    /// STM32F405, run under QEMU's netduinoplus2). The output is byte-identical to
+    /// `trainer compensate --model MODEL.bin RUN.csv -o OUT.csv`; a blob the
+    /// library refuses ends it with the library's words and a non-zero exit.
+    ///
+    /// Example: cargo xtask c-replay --qemu --model model.bin run.csv -o out.csv
+    CReplay {
+        /// Build for the STM32F405 and run under QEMU (installs
+        /// gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm when missing).
+        #[arg(long)]
+        qemu: bool,
+        /// Model blob written by `trainer fit`.
+        #[arg(long, value_name = "MODEL.bin")]
+        model: PathBuf,
+        /// Recorded run (single- or multi-axis).
+        #[arg(value_name = "RUN.csv")]
+        run: PathBuf,
+        /// Compensated run to write.
+        #[arg(short, long, value_name = "OUT.csv")]
+        output: PathBuf,
+        /// Replace an output that exists (as `trainer compensate --force`).
+        #[arg(long)]
+        force: bool,
+    },
+    /// Write rbf-core-c/include/rbf_core.h, the C library's header, from the
+    /// crate's source with cbindgen (CI fails when the checked-in one drifts).
+    CHeader,
     /// Run the gyro board without hardware: the stm32f405 board image under
     /// QEMU with USART1 on a pseudo-terminal, at its 1-kHz sample rate, its
     /// front ends and thermometers emulated (a built-in temperature ramp, or
@@ -90,6 +120,9 @@ enum Cmd {
     /// no panic is reachable from its loop and interrupt handlers (part of
     /// `ci`; docs/panic-free.md).
     CheckBoardPanics,
+    /// Prove at link time that no panic is reachable from any function of the C
+    /// library (rbf-core-c) on the MCU target, and that the check can fail (part of `ci`).
+    CheckCLibraryPanics,
     /// Run the stm32f405 board's own driver and loop code on the host against
     /// simulated peripherals that fail (stuck SDA, NACK storm, late sensors,
     /// data-ready faults, a 4-s flash erase at 47 kHz LSI, flash errors, RX
@@ -249,9 +282,39 @@ fn main() -> anyhow::Result<()> {
                 limit: None,
             })
         }
+        Cmd::CReplay {
+            qemu,
+            model,
+            run,
+            output,
+            force,
+        } => {
+            let target = if qemu {
+                xtask::c_library::CTarget::Qemu
+            } else {
+                xtask::c_library::CTarget::Host
+            };
+            let existing = trainer::output::Existing::from_force(force);
+            let summary = xtask::c_replay::c_replay(
+                target,
+                &model,
+                &run,
+                &output,
+                existing,
+                trainer::evaluation::axes::Acceptance::default(),
+            )
+            .map_err(xtask::replay::with_flag_hint)?;
+            println!("wrote {}; {}", output.display(), summary.report);
+            Ok(())
+        }
+        Cmd::CHeader => {
+            println!("wrote {}", xtask::c_library::write_header()?.display());
+            Ok(())
+        }
         Cmd::BenchFw => xtask::bench::bench_fw(),
         Cmd::ImportCircles => xtask::import_circles::import_circles(),
         Cmd::CheckBoardPanics => xtask::firmware::check_board_panics(),
+        Cmd::CheckCLibraryPanics => xtask::c_library::check_panic_free(),
         Cmd::BoardFaults => xtask::board_faults::board_faults(),
         Cmd::BenchDesigns { dir, trainer, fit_args } => {
             let trainer = match trainer {

@@ -31,11 +31,21 @@ pub fn ensure_installed() -> anyhow::Result<()> {
     if available() {
         return Ok(());
     }
-    eprintln!("\n==> installing qemu-system-arm (apt-get, --no-install-recommends)");
-    for args in [
-        &["update", "-qq"][..],
-        &["install", "-y", "-qq", "--no-install-recommends", QEMU],
-    ] {
+    apt_install(&[QEMU])?;
+    if !available() {
+        bail!("{QEMU} still not available after installing it");
+    }
+    Ok(())
+}
+
+/// Installs Debian `packages` (apt-get, --no-install-recommends).
+pub fn apt_install(packages: &[&str]) -> anyhow::Result<()> {
+    eprintln!(
+        "\n==> installing {} (apt-get, --no-install-recommends)",
+        packages.join(" ")
+    );
+    let install = [&["install", "-y", "-qq", "--no-install-recommends"][..], packages].concat();
+    for args in [&["update", "-qq"][..], &install] {
         let status = Command::new("apt-get")
             .args(args)
             .env("DEBIAN_FRONTEND", "noninteractive")
@@ -44,9 +54,6 @@ pub fn ensure_installed() -> anyhow::Result<()> {
         if !status.success() {
             bail!("apt-get {} failed", args.join(" "));
         }
-    }
-    if !available() {
-        bail!("{QEMU} still not available after installing it");
     }
     Ok(())
 }
@@ -62,7 +69,19 @@ pub struct QemuRun {
 
 /// Runs `elf` in `dir` with `extra` arguments; kills it after `deadline`.
 pub fn run(elf: &Path, dir: &Path, extra: &[String], deadline: Duration) -> anyhow::Result<QemuRun> {
-    let child = spawn(elf, dir, "none", extra)?;
+    run_with_args(elf, dir, &[], extra, deadline)
+}
+
+/// [`run`] with `argv` as the program's command line over semihosting
+/// (what newlib's `main` gets as `argc`/`argv`).
+pub fn run_with_args(
+    elf: &Path,
+    dir: &Path,
+    argv: &[&str],
+    extra: &[String],
+    deadline: Duration,
+) -> anyhow::Result<QemuRun> {
+    let child = spawn_command(elf, dir, "none", argv, extra, None)?;
     wait(child, dir, deadline)
 }
 
@@ -82,7 +101,24 @@ pub fn spawn_limited(
     extra: &[String],
     limit: Option<Duration>,
 ) -> anyhow::Result<Child> {
+    spawn_command(elf, dir, serial, &[], extra, limit)
+}
+
+/// [`spawn_limited`] with `argv` as the guest's semihosting command line.
+fn spawn_command(
+    elf: &Path,
+    dir: &Path,
+    serial: &str,
+    argv: &[&str],
+    extra: &[String],
+    limit: Option<Duration>,
+) -> anyhow::Result<Child> {
     let log = File::create(dir.join(LOG)).context("cannot create qemu.log")?;
+    let mut semihosting = String::from("enable=on,target=native");
+    for arg in argv {
+        semihosting.push_str(",arg=");
+        semihosting.push_str(arg);
+    }
     let mut command = match limit {
         Some(limit) => {
             let mut c = Command::new("timeout");
@@ -93,7 +129,7 @@ pub fn spawn_limited(
     };
     command
         .args(["-machine", MACHINE, "-nographic", "-monitor", "none", "-serial", serial])
-        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(["-semihosting-config", &semihosting])
         .args(extra)
         .arg("-kernel")
         .arg(elf)

@@ -54,6 +54,31 @@ mod board {
         LagBank,
     }
 
+    /// Writes a benchmarked model's blob into QEMU's working directory
+    /// (`name` NUL-terminated), where `cargo xtask bench-fw` times the C
+    /// library's step on the same model (rbf-core-c/c/bench.c).
+    #[allow(unsafe_code)]
+    fn save_blob(name: &str, blob: &[u8]) {
+        use cortex_m_semihosting::{nr, syscall};
+        // SAFETY: semihosting calls on a NUL-terminated name and a live
+        // buffer; QEMU runs with semihosting on (`cargo xtask bench-fw`).
+        let written = unsafe {
+            let fd = syscall!(OPEN, name.as_ptr(), nr::open::W_TRUNC_BINARY, name.len() - 1);
+            let not_written = if fd == usize::MAX {
+                blob.len()
+            } else {
+                syscall!(WRITE, fd, blob.as_ptr(), blob.len())
+            };
+            if fd != usize::MAX {
+                syscall!(CLOSE, fd);
+            }
+            not_written == 0
+        };
+        if !written {
+            hprintln!("cannot write {}", name.trim_end_matches('\0'));
+        }
+    }
+
     /// A deterministic K-centre model of `shape` with values like a real fit's.
     fn model(k: usize, shape: Shape, width: f32) -> Model {
         model_seeded(k, shape, width, 0x2545_f491)
@@ -110,6 +135,7 @@ mod board {
         }
         let mut blob = [0u8; MAX_BLOB_LEN];
         let n = encode_shared(&all, &mut blob).expect("a shared-basis blob fits");
+        save_blob("bench-axes-shared.bin\0", &blob[..n]);
         // SAFETY: the only reference to SHARED, taken once.
         let shared = unsafe { &mut *core::ptr::addr_of_mut!(SHARED) };
         decode_shared_into(shared, &blob[..n]).expect("the blob decodes");
@@ -244,8 +270,14 @@ mod board {
         let start = SYST::get_current();
         for _ in 0..SAMPLES {
             temp_c += 0.0001;
-            let sample = GyroSample::new(0.001, 12.5, Some(temp_c));
-            core::hint::black_box(compensator.process(Some(core::hint::black_box(model)), config, &sample));
+            // The config and the sample are runtime data, as on a board
+            // (and in the C library's step, timed against this).
+            let sample = core::hint::black_box(GyroSample::new(0.001, 12.5, Some(temp_c)));
+            core::hint::black_box(compensator.process(
+                Some(core::hint::black_box(model)),
+                core::hint::black_box(config),
+                &sample,
+            ));
         }
         instructions_per_sample(start)
     }
@@ -425,6 +457,10 @@ mod board {
                 );
             }
             if k == 32 && shape == Shape::Paper && width >= 1.0 {
+                let mut blob = [0u8; MAX_BLOB_LEN];
+                if let Ok(n) = rbf_core::blob::encode(&model, &mut blob) {
+                    save_blob("bench-k32.bin\0", &blob[..n]);
+                }
                 hprintln!("instructions_per_sample K=32 D=3: {}", eval);
             }
         }
@@ -482,10 +518,10 @@ mod board {
             temps_c[LOOP_THERMOMETER] = Some(temp_c);
             core::hint::black_box(compensator.process_shared(
                 Some(core::hint::black_box(shared)),
-                &config,
-                0.001,
-                &temps_c,
-                &rates_dph,
+                core::hint::black_box(&config),
+                core::hint::black_box(0.001),
+                core::hint::black_box(&temps_c),
+                core::hint::black_box(&rates_dph),
             ));
         }
         let step = instructions_per_sample(start);
