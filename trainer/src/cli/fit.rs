@@ -45,6 +45,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     input::require_seekable(all_runs.iter().copied(), "`trainer fit` reads its runs several times")?;
     let in_use = a.in_use()?;
     check_distinct_inputs(a.inputs.as_deref().unwrap_or_default())?;
+    a.check_applicable()?;
     let existing = a.force.existing();
     let json_file = a.json.json.as_deref().filter(|p| !input::is_stdin(p));
     let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(json_file).collect();
@@ -61,7 +62,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for path in &all_runs {
         RunReader::open(path)?.require_temp()?;
     }
-    plausible::require_distinct_runs(&a.runs, &[("--validate", &a.validate), ("--holdout", &a.holdout)])?;
+    trainer::reading::distinct::require_distinct_runs(&[
+        ("training", &a.runs),
+        ("--validate", &a.validate),
+        ("--holdout", &a.holdout),
+    ])?;
     trainer::reading::limits::check_block_s(a.block_s)?;
     if let Some(s) = &a.serial {
         anyhow::ensure!(
@@ -82,7 +87,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         structure_choice: a.features.is_none(),
         block_s: a.block_s,
         centers: a.centers,
-        max_centers: a.max_centers,
+        max_centers: a.max_centers.unwrap_or(self::args::DEFAULT_MAX_CENTERS),
         folds: a.folds,
         serial: a.serial.clone(),
         progress: !a.quiet,
@@ -133,6 +138,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     })?;
     let fit_s = started.elapsed().as_secs_f64();
+    // The checks `eval` and `compensate` make (units of time, rate and
+    // temperature), on the runs the fit read only in blocks; after the fit,
+    // whose own refusal names the cause better when nothing was usable.
+    let training_and_validation: Vec<PathBuf> = a.runs.iter().chain(&a.validate).cloned().collect();
+    plausible::require_plausible(
+        &diagnose::implausible_runs(&training_and_validation)?,
+        a.allow_implausible,
+    )?;
     if let Some((lo, hi)) = training_loop_range_c(&outcome) {
         let finding = plausible::range_finding("the training runs' loop temperature", lo, hi);
         plausible::require_plausible(finding.as_slice(), a.allow_implausible)?;

@@ -15,3 +15,4 @@ mod response_bank;
 mod robustness;
 mod soak;
 mod transactions;
+mod units;
