@@ -191,7 +191,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     print_table(&mut out, &rows)?;
     if let Some(search) = &outcome.bank {
         writeln!(out)?;
-        for line in search.coverage.lines(&in_use) {
+        for line in search
+            .coverage
+            .lines(&in_use, fit::coverage::model_range_c(&outcome.model))
+        {
             writeln!(out, "{line}")?;
         }
     }
