@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use rbf_core::thermometer::ThermometerSet;
 use trainer::blobfile::encode_model;
-use trainer::dataset::{RunFiles, RunSet};
-use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_blocks, evaluate_reader, only_axis};
+use trainer::dataset::RunFiles;
+use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader, only_axis};
 use trainer::evaluation::table::print_table;
 use trainer::fit::{self, FitOptions};
 use trainer::output::{self, Output, StagedDir, Transaction};
@@ -150,24 +150,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let finding = plausible::range_finding("the training runs' loop temperature", lo, hi);
         plausible::require_plausible(finding.as_slice(), a.allow_implausible)?;
     }
-    // Training and validation runs are scored on the block means the fit
-    // computed, without reading them again; holdout runs, which the fit
-    // never read, sample by sample.
+    // Every run scored as `trainer eval` and `trainer report` score it: every
+    // sample, MSD of 1-s means, warm-up included (one convention: a run gets
+    // the same figures whichever command reports it).
+    drop((train, validate));
     let mut evals: Vec<(&str, RunEvaluation)> = Vec::new();
-    for (role, runs) in [("train", &train), ("validate", &validate)] {
-        if runs.count() == 0 {
-            continue;
-        }
-        let blocks = runs.block_means(outcome.model.features(), opts.block_s)?;
-        for (i, path) in runs.paths().iter().enumerate() {
-            let has_ref = RunReader::open(path)?.columns().ref_dph.is_some();
-            evals.push((
-                role,
-                evaluate_blocks(&outcome.model, &blocks, i, path, opts.block_s, has_ref),
-            ));
+    for (role, paths) in [("train", &a.runs), ("validate", &a.validate)] {
+        for path in paths {
+            evals.push((role, evaluate_file(&outcome.model, path, None)?));
         }
     }
-    drop((train, validate));
     for path in &a.holdout {
         let reader = RunReader::open(path)?;
         let models = RunModels::one(Some(&outcome.model), &reader);

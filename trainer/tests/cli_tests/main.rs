@@ -6,6 +6,7 @@ mod common;
 
 mod axes;
 mod cli;
+mod figures;
 mod hostile;
 mod messages;
 mod plan;
