@@ -60,8 +60,7 @@ pub fn check_agreement(
         return Ok(());
     }
     Err(format!(
-        "# sample_rate_hz: {} states a sample period of {} s, but the time column steps by {} s ({} Hz; the median of the {steps} steps of lines {first_line}–{last_line}); correct or remove the metadata line",
-        sig(rate_hz),
+        "# sample_rate_hz: {rate_hz} states a sample period of {} s, but the time column steps by {} s ({} Hz; the median of the {steps} steps of lines {first_line}–{last_line}); correct or remove the metadata line",
         sig(period_s),
         sig(median_step_s),
         sig(1.0 / median_step_s)

@@ -47,3 +47,44 @@ fn a_training_run_gets_the_same_figures_from_fit_and_eval_and_one_held_out_figur
         "{fitted}"
     );
 }
+
+/// Wrong causes no more (issue 49, item 12): each refusal names what is wrong.
+#[test]
+fn a_refusal_names_the_cause_it_has() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let (m, run) = (model.to_str().unwrap(), dir.path().join("train.csv"));
+    let r = run.to_str().unwrap();
+    // A gzip file is not a file of CR-only line ends.
+    let gz = crate::common::write(&dir, "run.csv.gz", &[0x1f, 0x8b, 0x08, 0x00, b'\r', 0x00, 0x03]);
+    let o = trainer(&["eval", "--model", m, gz.to_str().unwrap()]);
+    assert!(
+        stderr(&o)
+            .contains("run.csv.gz:1: the file is gzip-compressed, not CSV text; decompress it first (gunzip FILE)"),
+        "{}",
+        stderr(&o)
+    );
+    // A report into standard output, or into one of the runs.
+    let o = trainer(&["report", "--model", m, r, "-o", "-"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("- (standard output) cannot take a directory of files"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!std::path::Path::new("-").exists());
+    let again = dir.path().join("again.bin");
+    let o = trainer(&["fit", "-q", r, "--report", r, "-o", again.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("train.csv: is an input of this command, not a directory to write"),
+        "{}",
+        stderr(&o)
+    );
+    // A stated sample rate is echoed as written.
+    let text = std::fs::read_to_string(&run).unwrap();
+    let restated = text.replace("# sample_rate_hz: 1\n", "# sample_rate_hz: 2.0001\n");
+    let restated = crate::common::write(&dir, "restated.csv", restated.as_bytes());
+    let o = trainer(&["eval", "--model", m, restated.to_str().unwrap()]);
+    assert!(stderr(&o).contains("# sample_rate_hz: 2.0001 states"), "{}", stderr(&o));
+}
