@@ -121,6 +121,40 @@ fn check_existing(path: &Path, meta: &Metadata, existing: Existing) -> anyhow::R
     Ok(())
 }
 
+/// Refuses, before anything is staged, an output `shown` whose directory
+/// `dir` the command cannot write into (it stages beside the target there),
+/// or whose existing target (`target`, its metadata) lies in a sticky
+/// directory (`/tmp`'s mode) and is another user's: only its owner may
+/// replace or remove it there, so the commit would fail and leave the staged
+/// copy behind.
+pub(crate) fn require_replaceable(shown: &str, dir: &Path, target: Option<&Metadata>) -> anyhow::Result<()> {
+    use rustix::fs::{Access, access};
+    if access(dir, Access::WRITE_OK).is_err() {
+        anyhow::bail!(
+            "{shown}: directory {} is not writable by this user, and the output is written beside its target \
+             there; name an output in a directory you can write",
+            text::path(dir)
+        );
+    }
+    let sticky = std::fs::metadata(dir).is_ok_and(|m| m.mode() & 0o1000 != 0);
+    let euid = rustix::process::geteuid();
+    // (root may replace anything there.)
+    if let Some(meta) = target
+        && sticky
+        && !euid.is_root()
+        && meta.uid() != euid.as_raw()
+    {
+        anyhow::bail!(
+            "{shown}: belongs to another user (uid {}) in the sticky directory {} (mode {:o}), where only its owner \
+             may replace it; name another output",
+            meta.uid(),
+            text::path(dir),
+            std::fs::metadata(dir).map_or(0, |m| m.mode() & 0o7777)
+        );
+    }
+    Ok(())
+}
+
 /// Checks `path` as an output of a command that reads `inputs` (run files,
 /// model, parameter files; `-` is standard input), before any work: see
 /// the module documentation for what is refused.
@@ -151,8 +185,9 @@ pub fn check_target(path: &Path, inputs: &[&Path], existing: Existing) -> anyhow
                 );
             }
             check_existing(path, &meta, existing)?;
+            require_replaceable(&shown, &dir, Some(&meta))?;
         }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => require_replaceable(&shown, &dir, None)?,
         Err(e) => anyhow::bail!("{shown}: {e}"),
     }
     Ok(Target {

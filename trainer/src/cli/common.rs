@@ -52,7 +52,7 @@ pub struct AllowUncompensated {
     /// Accept a run implausible as a gyro recording.
     ///
     /// By default a run is refused, naming the reason, when its loop temperature leaves
-    /// −60 … 100 °C (°F?) or changes faster than 30 °C/min by its time column (time_s
+    /// −60 … 100 °C (°F?) or changes faster than 20 °C/min by its time column (time_s
     /// in hours?).
     #[arg(long, help_heading = "Data")]
     pub allow_implausible: bool,

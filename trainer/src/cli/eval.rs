@@ -45,6 +45,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let model_path = a.model.path.as_path();
     let inputs: Vec<&Path> = a.runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
     input::check_stdin_once(inputs.iter().copied())?;
+    trainer::reading::distinct::require_distinct_runs(&[("evaluated", &a.runs)])?;
     let json_out = a.json.sink(&inputs, a.force.existing())?;
     let (model, _) = read_model_file(model_path)?;
     let evals = evaluate_files(&model, model_path, &a.runs, a.uncompensated.acceptance())?;

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use rbf_core::thermometer::ThermometerSet;
 use trainer::blobfile::encode_model;
-use trainer::dataset::{RunFiles, RunSet};
-use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_blocks, evaluate_reader, only_axis};
+use trainer::dataset::RunFiles;
+use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader, only_axis};
 use trainer::evaluation::table::print_table;
 use trainer::fit::{self, FitOptions};
 use trainer::output::{self, Output, StagedDir, Transaction};
@@ -45,6 +45,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     input::require_seekable(all_runs.iter().copied(), "`trainer fit` reads its runs several times")?;
     let in_use = a.in_use()?;
     check_distinct_inputs(a.inputs.as_deref().unwrap_or_default())?;
+    a.check_applicable()?;
     let existing = a.force.existing();
     let json_file = a.json.json.as_deref().filter(|p| !input::is_stdin(p));
     let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(json_file).collect();
@@ -61,7 +62,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for path in &all_runs {
         RunReader::open(path)?.require_temp()?;
     }
-    plausible::require_distinct_runs(&a.runs, &[("--validate", &a.validate), ("--holdout", &a.holdout)])?;
+    trainer::reading::distinct::require_distinct_runs(&[
+        ("training", &a.runs),
+        ("--validate", &a.validate),
+        ("--holdout", &a.holdout),
+    ])?;
     trainer::reading::limits::check_block_s(a.block_s)?;
     if let Some(s) = &a.serial {
         anyhow::ensure!(
@@ -82,7 +87,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         structure_choice: a.features.is_none(),
         block_s: a.block_s,
         centers: a.centers,
-        max_centers: a.max_centers,
+        max_centers: a.max_centers.unwrap_or(self::args::DEFAULT_MAX_CENTERS),
         folds: a.folds,
         serial: a.serial.clone(),
         progress: !a.quiet,
@@ -133,28 +138,28 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     })?;
     let fit_s = started.elapsed().as_secs_f64();
+    // The checks `eval` and `compensate` make (units of time, rate and
+    // temperature), on the runs the fit read only in blocks; after the fit,
+    // whose own refusal names the cause better when nothing was usable.
+    let training_and_validation: Vec<PathBuf> = a.runs.iter().chain(&a.validate).cloned().collect();
+    plausible::require_plausible(
+        &diagnose::implausible_runs(&training_and_validation)?,
+        a.allow_implausible,
+    )?;
     if let Some((lo, hi)) = training_loop_range_c(&outcome) {
         let finding = plausible::range_finding("the training runs' loop temperature", lo, hi);
         plausible::require_plausible(finding.as_slice(), a.allow_implausible)?;
     }
-    // Training and validation runs are scored on the block means the fit
-    // computed, without reading them again; holdout runs, which the fit
-    // never read, sample by sample.
+    // Every run scored as `trainer eval` and `trainer report` score it: every
+    // sample, MSD of 1-s means, warm-up included (one convention: a run gets
+    // the same figures whichever command reports it).
+    drop((train, validate));
     let mut evals: Vec<(&str, RunEvaluation)> = Vec::new();
-    for (role, runs) in [("train", &train), ("validate", &validate)] {
-        if runs.count() == 0 {
-            continue;
-        }
-        let blocks = runs.block_means(outcome.model.features(), opts.block_s)?;
-        for (i, path) in runs.paths().iter().enumerate() {
-            let has_ref = RunReader::open(path)?.columns().ref_dph.is_some();
-            evals.push((
-                role,
-                evaluate_blocks(&outcome.model, &blocks, i, path, opts.block_s, has_ref),
-            ));
+    for (role, paths) in [("train", &a.runs), ("validate", &a.validate)] {
+        for path in paths {
+            evals.push((role, evaluate_file(&outcome.model, path, None)?));
         }
     }
-    drop((train, validate));
     for path in &a.holdout {
         let reader = RunReader::open(path)?;
         let models = RunModels::one(Some(&outcome.model), &reader);
@@ -178,7 +183,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     print_table(&mut out, &rows)?;
     if let Some(search) = &outcome.bank {
         writeln!(out)?;
-        for line in search.coverage.lines(&in_use) {
+        for line in search
+            .coverage
+            .lines(&in_use, fit::coverage::model_range_c(&outcome.model))
+        {
             writeln!(out, "{line}")?;
         }
     }

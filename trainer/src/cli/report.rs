@@ -44,6 +44,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let model_path = a.model.path.as_path();
     let inputs: Vec<&Path> = a.runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
     input::check_stdin_once(inputs.iter().copied())?;
+    trainer::reading::distinct::require_distinct_runs(&[("evaluated", &a.runs)])?;
     let (_, target) = trainer::report::check_report_targets(&a.runs, &a.output, &inputs, &[], a.force.existing())?;
     let (file, _) = read_model_file(model_path)?;
     // Written into a hidden directory beside DIR, which replaces DIR as a whole at the end.

@@ -178,7 +178,36 @@ pub fn describe(port: &str, status: &UnitStatus) -> String {
     for (name, value) in counters(r) {
         let _ = writeln!(s, "  {name:<20} {value}");
     }
+    if let Some(note) = emulator_note(port, r) {
+        let _ = writeln!(s, "{note}");
+    }
     s
+}
+
+/// On a pseudo-terminal (the port `cargo xtask qemu-board` serves), the note
+/// that what would be faults on a unit are QEMU's doing: it emulates no
+/// reset flags (cause `other`) and no crystal, and misses samples when the
+/// host is loaded. `None` on a serial device or when nothing odd is read.
+fn emulator_note(port: &str, r: &HealthReport) -> Option<String> {
+    if !port.starts_with("/dev/pts/") {
+        return None;
+    }
+    let odd: Vec<&str> = [
+        (r.reset_cause == ResetCause::Other).then_some("the reset cause `other` (QEMU emulates no reset flags)"),
+        (r.board_flags & BOARD_ON_HSI != 0).then_some("the crystal that did not start (QEMU emulates none)"),
+        (r.counters.samples_missed > 0)
+            .then_some("the missed samples (QEMU's virtual clock runs on while the host is busy)"),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    (!odd.is_empty()).then(|| {
+        format!(
+            "note:        {port} is a pseudo-terminal, as the QEMU board serves: {} come from the emulator, not from \
+             a failing unit; on a unit's serial port they would be faults",
+            odd.join(", ")
+        )
+    })
 }
 
 /// `status` as JSON (the fields of [`describe`], counters by name).
@@ -262,6 +291,13 @@ mod tests {
             kind: None,
         };
         assert!(describe("p", &none).contains("none running (output uncompensated, flag 4)"));
+        // On a unit's serial port no word of QEMU; on the QEMU board's pty, its causes named.
+        assert!(!text.contains("QEMU"), "{text}");
+        let qemu = describe("/dev/pts/3", &status);
+        assert!(
+            qemu.contains("note:        /dev/pts/3 is a pseudo-terminal, as the QEMU board serves: the crystal that did not start (QEMU emulates none), the missed samples"),
+            "{qemu}"
+        );
         let json = to_json("p", &status);
         assert_eq!(json["model_blob_crc32"], 0x1234_abcd);
         assert_eq!(json["counters"]["samples_missed"], 7);

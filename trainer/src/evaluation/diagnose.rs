@@ -101,6 +101,7 @@ impl RunDiagnosis {
         self.ref_name.clone_from(&other.ref_name);
         self.temp_names.clone_from(&other.temp_names);
         self.plausibility.set_temp_name(&self.temp_names[LOOP_THERMOMETER]);
+        self.plausibility.set_rate_names(&self.rate_name, &self.ref_name);
         self
     }
 
@@ -121,6 +122,7 @@ impl RunDiagnosis {
             }
         }
         self.plausibility.set_temp_name(&self.temp_names[LOOP_THERMOMETER]);
+        self.plausibility.set_rate_names(&self.rate_name, &self.ref_name);
         self
     }
 
@@ -149,6 +151,7 @@ impl RunDiagnosis {
         }
         self.target_dph.push(row.rate_dph - row.ref_dph.unwrap_or(0.0));
         self.plausibility.push(line, row.time_s, row.temps_c[LOOP_THERMOMETER]);
+        self.plausibility.push_rate(row.rate_dph, row.ref_dph);
     }
 
     /// What is implausible about the run as a gyro recording ([`Plausibility::findings`]).
@@ -260,6 +263,24 @@ pub fn with_causes(error: anyhow::Error, paths: &[PathBuf], thermometers: Thermo
         let stop = if error.ends_with('.') { "" } else { "." };
         anyhow::anyhow!("{error}{stop} Why: {}", causes.join("; "))
     }
+}
+
+/// What is implausible about each single-axis run of `paths` as a gyro
+/// recording ([`RunDiagnosis::implausible`]), read through once: the check
+/// `eval` and `compensate` make as they go, for the runs a fit reads in
+/// blocks.
+pub fn implausible_runs(paths: &[PathBuf]) -> Result<Vec<String>, RunError> {
+    let mut found = Vec::new();
+    for path in paths {
+        let mut reader = RunReader::open(path)?;
+        let mut diagnosis =
+            RunDiagnosis::new(path, reader.nominal_period_s()).named_by(reader.header_line(), reader.columns());
+        while let Some((line, row)) = reader.next_parsed()? {
+            diagnosis.push(line, &row);
+        }
+        found.extend(diagnosis.implausible());
+    }
+    Ok(found)
 }
 
 /// For each run at `paths` that spans less than `min_span_s` seconds, a

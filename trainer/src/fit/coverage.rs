@@ -91,6 +91,17 @@ pub struct Coverage {
 
 pub use crate::dataset::plateaus::settled_levels_c;
 
+/// A lag-bank model's range of its static input, the mean coil temperature
+/// T̂ (its first input), °C: where it is valid ([`Coverage::valid_range_c`]).
+/// `None` for a model of another kind (the response bank the default may choose).
+pub fn model_range_c(model: &rbf_core::Model) -> Option<(f64, f64)> {
+    if !matches!(model.features().set, rbf_core::FeatureSet::LagBank(_)) {
+        return None;
+    }
+    let (lo, hi) = model.input_range(0)?;
+    Some((f64::from(lo), f64::from(hi)))
+}
+
 /// Lower edges of the [`BAND_C`] bands `[edge, edge + 20)` from `lo` up that
 /// hold none of `levels_c`, °C. The last band ends at `hi` + `top_slack_c`,
 /// inclusive (a range a hair over a multiple of the width is no band more).
@@ -215,23 +226,44 @@ impl Coverage {
         bands_without_level_c(&self.settled_c, lo, hi, 0.0)
     }
 
-    /// What the lag bank needs for `in_use` and these runs lack, in words an engineer acts on.
-    pub fn missing(&self, in_use: &InUse) -> Vec<String> {
+    /// The loop temperatures the model is valid over, °C: the range of its
+    /// static input (the mean coil temperature T̂, `model_range_c`, which lags
+    /// the loop and so stops short of a chamber's ends) within the loop's
+    /// range; the loop's range without one. A steady loop outside it reads a
+    /// T̂ outside it: clamped (flag 1).
+    pub fn valid_range_c(&self, model_range_c: Option<(f64, f64)>) -> (f64, f64) {
+        let (lo, hi) = self.temp_range_c;
+        model_range_c.map_or((lo, hi), |(m_lo, m_hi)| (m_lo.max(lo), m_hi.min(hi)))
+    }
+
+    /// What the lag bank needs for `in_use` and these runs lack, in words an
+    /// engineer acts on; `model_range_c`: the fitted model's range of T̂, °C
+    /// ([`model_range_c`]), which bounds where it is valid ([`Self::valid_range_c`]).
+    pub fn missing(&self, in_use: &InUse, model_range_c: Option<(f64, f64)>) -> Vec<String> {
         let mut out = Vec::new();
         let (lo, hi) = self.temp_range_c;
         match in_use.range_c {
             Some((use_lo, use_hi)) => {
                 let reach_c = USE_REACH_SHARE * (use_hi - use_lo);
+                let (valid_lo, valid_hi) = self.valid_range_c(model_range_c);
                 let short: Vec<String> = [
-                    (lo > use_lo + reach_c).then(|| format!("below {lo:.1}")),
-                    (hi < use_hi - reach_c).then(|| format!("above {hi:.1}")),
+                    (valid_lo > use_lo + reach_c).then(|| format!("below {valid_lo:.1}")),
+                    (valid_hi < use_hi - reach_c).then(|| format!("above {valid_hi:.1}")),
                 ]
                 .into_iter()
                 .flatten()
                 .collect();
+                let valid = if (valid_lo, valid_hi) == (lo, hi) {
+                    format!("the runs' loop read {lo:.1} … {hi:.1} °C")
+                } else {
+                    format!(
+                        "the model is valid over {valid_lo:.1} … {valid_hi:.1} °C (its mean coil temperature T̂ on \
+                         these runs; the loop read {lo:.1} … {hi:.1} °C)"
+                    )
+                };
                 if !short.is_empty() {
                     out.push(format!(
-                        "range of use {use_lo} … {use_hi} °C not covered: the runs' loop read {lo:.1} … {hi:.1} °C; {} °C the model extrapolates (flag 1); soak at each end of the range until the loop settles within {reach_c:.1} °C of it (`trainer plan` sizes the soaks)",
+                        "range of use {use_lo} … {use_hi} °C not covered: {valid}; {} °C the model extrapolates (flag 1); soak at each end of the range until the loop settles within {reach_c:.1} °C of it (`trainer plan` sizes the soaks)",
                         short.join(" and ")
                     ));
                 }
@@ -321,8 +353,9 @@ impl Coverage {
         out
     }
 
-    /// The coverage in a few lines, then what is missing for `in_use`.
-    pub fn lines(&self, in_use: &InUse) -> Vec<String> {
+    /// The coverage in a few lines, then what is missing for `in_use`
+    /// ([`Self::missing`], the model's range of T̂ `model_range_c`).
+    pub fn lines(&self, in_use: &InUse, model_range_c: Option<(f64, f64)>) -> Vec<String> {
         let rates: Vec<String> = self
             .rates
             .iter()
@@ -356,15 +389,20 @@ impl Coverage {
                 }
             ),
         ];
-        let missing = self.missing(in_use);
+        let missing = self.missing(in_use, model_range_c);
         if missing.is_empty() {
+            let (valid_lo, valid_hi) = self.valid_range_c(model_range_c);
+            let whose = if (valid_lo, valid_hi) == self.temp_range_c {
+                "the loop's range on these runs"
+            } else {
+                "where the model is valid: its mean coil temperature T̂ on these runs"
+            };
             out.push(match in_use.range_c {
                 Some((use_lo, use_hi)) => {
                     format!("missing: nothing the lag bank needs for use over {use_lo} … {use_hi} °C")
                 }
                 None => format!(
-                    "missing: nothing the lag bank needs for use within {:.1} … {:.1} °C, the loop's range on these runs (--use-range-c checks the range of use)",
-                    self.temp_range_c.0, self.temp_range_c.1
+                    "missing: nothing the lag bank needs for use within {valid_lo:.1} … {valid_hi:.1} °C, {whose} (--use-range-c checks the range of use)"
                 ),
             });
         } else {
@@ -437,7 +475,7 @@ mod tests {
             ],
             3,
         );
-        let missing = c.missing(&InUse::default()).join("\n");
+        let missing = c.missing(&InUse::default(), None).join("\n");
         assert!(missing.contains("no fast change"), "{missing}");
         assert!(missing.contains("no cold start"), "{missing}");
         assert!(missing.contains("only 3 thermal events"), "{missing}");
@@ -490,7 +528,7 @@ mod tests {
         let mut c = planned();
         c.settled_c = settled;
         assert_eq!(c.unsettled_bands_c(&InUse::default()), [-20.0, 0.0, 40.0]);
-        let missing = c.missing(&InUse::default()).join("\n");
+        let missing = c.missing(&InUse::default(), None).join("\n");
         assert!(
             missing.contains("no settled level in -20 … 20, 40 … 60 °C")
                 && missing.contains("predicted_settled_spread_dph"),
@@ -508,14 +546,14 @@ mod tests {
     fn a_planned_run_with_a_cold_start_and_fast_steps_misses_nothing() {
         let c = planned();
         assert_eq!(
-            c.missing(&InUse::default()),
+            c.missing(&InUse::default(), None),
             Vec::<String>::new(),
             "{:?}",
-            c.lines(&InUse::default())
+            c.lines(&InUse::default(), None)
         );
         assert_eq!(c.cold_start_c, Some(-40.0));
         assert!(
-            c.lines(&InUse::default())
+            c.lines(&InUse::default(), None)
                 .last()
                 .unwrap()
                 .contains("nothing the lag bank needs")
@@ -552,7 +590,7 @@ mod tests {
             (-21.0..=-19.0).contains(&lo) && (36.0..=38.0).contains(&hi),
             "{lo} … {hi}"
         );
-        let lines = c.lines(&InUse::default()).join("\n");
+        let lines = c.lines(&InUse::default(), None).join("\n");
         assert!(!lines.contains("missing: nothing"), "{lines}");
         assert!(lines.contains("missing: no settled end: the loop bottomed at -20.0 °C still falling 1.2 °C/min and peaked at 37.0 °C still rising 0.6 °C/min"), "{lines}");
         // Told the range of use, it names what the model extrapolates over.
@@ -560,7 +598,7 @@ mod tests {
             range_c: Some((-40.0, 60.0)),
             max_rate_c_per_min: None,
         };
-        let lines = c.lines(&in_use).join("\n");
+        let lines = c.lines(&in_use, None).join("\n");
         assert!(!lines.contains("missing: nothing"), "{lines}");
         assert!(
             lines.contains("missing: range of use -40 … 60 °C not covered: the runs' loop read -20.0 … 37.0 °C; below -20.0 and above 37.0 °C the model extrapolates"),
@@ -571,7 +609,7 @@ mod tests {
             range_c: Some((-23.0, 40.0)),
             max_rate_c_per_min: None,
         };
-        assert!(!c.lines(&near).join("\n").contains("range of use"));
+        assert!(!c.lines(&near, None).join("\n").contains("range of use"));
     }
 
     #[test]
@@ -581,12 +619,12 @@ mod tests {
             range_c: Some((-20.0, 37.0)),
             max_rate_c_per_min: Some(r),
         };
-        let lines = c.lines(&in_use(3.0)).join("\n");
+        let lines = c.lines(&in_use(3.0), None).join("\n");
         assert!(
             lines.contains("missing: rates of use up to ±3 °C/min not covered: the loop's fastest fall/rise was -1.2/+1.4 °C/min (τ 15 s)"),
             "{lines}"
         );
-        assert!(!c.lines(&in_use(1.0)).join("\n").contains("rates of use"));
+        assert!(!c.lines(&in_use(1.0), None).join("\n").contains("rates of use"));
     }
 
     #[test]
@@ -597,7 +635,7 @@ mod tests {
             max_rate_c_per_min: Some(1.0),
         };
         assert_eq!(
-            c.lines(&in_use).last().map(String::as_str),
+            c.lines(&in_use, None).last().map(String::as_str),
             Some("missing: nothing the lag bank needs for use over -40 … 60 °C")
         );
         assert_eq!(c.end_rates_c_per_min, (0.0, 0.0));
@@ -607,9 +645,33 @@ mod tests {
             max_rate_c_per_min: None,
         };
         assert!(
-            c.lines(&wider)
+            c.lines(&wider, None)
                 .join("\n")
                 .contains("range of use -55 … 85 °C not covered")
         );
+    }
+
+    #[test]
+    fn the_range_stated_valid_is_the_models_own_where_it_stops_short_of_the_loops() {
+        // The loop reached −40 … 60 °C; the model's T̂, which lags it, only 39.2 at the top.
+        let c = planned();
+        let (lo, hi) = c.temp_range_c;
+        let model = Some((lo, 39.2));
+        let last = c.lines(&InUse::default(), model).pop().unwrap_or_default();
+        assert!(
+            last.contains(&format!("for use within {lo:.1} … 39.2 °C, where the model is valid")),
+            "{last}"
+        );
+        let in_use = InUse {
+            range_c: Some((lo, hi)),
+            max_rate_c_per_min: None,
+        };
+        let lines = c.lines(&in_use, model).join("\n");
+        assert!(
+            lines.contains("not covered: the model is valid over")
+                && lines.contains("above 39.2 °C the model extrapolates"),
+            "{lines}"
+        );
+        assert!(!lines.contains("missing: nothing"), "{lines}");
     }
 }

@@ -54,6 +54,10 @@ pub fn check_dir_target(
     may_hold: &dyn Fn(&Path) -> bool,
 ) -> anyhow::Result<DirTarget> {
     let shown = text::path(path);
+    anyhow::ensure!(
+        !input::is_stdin(path),
+        "- (standard output) cannot take a directory of files; name the directory to write"
+    );
     let name = path
         .file_name()
         .filter(|n| *n != "." && *n != "..")
@@ -81,6 +85,11 @@ pub fn check_dir_target(
         if input::is_stdin(other) {
             continue;
         }
+        if absolute(other).is_some_and(|o| o == here) {
+            anyhow::bail!(
+                "{shown}: is {role} of this command, not a directory to write; name a new directory for the output"
+            );
+        }
         if absolute(other).is_some_and(|o| o.starts_with(&here)) {
             anyhow::bail!(
                 "{}: is {role} of this command inside {shown}, which is replaced as a whole; name a file outside it",
@@ -102,6 +111,14 @@ pub fn check_dir_target(
                 }
                 .into());
             }
+            super::require_replaceable(&shown, &parent, Some(&meta))?;
+            // The old report's files are removed from inside it.
+            if rustix::fs::access(&target, rustix::fs::Access::WRITE_OK).is_err() {
+                anyhow::bail!(
+                    "{shown}: is not writable by this user, so the old output's files in it could not be removed \
+                     when it is replaced; name another directory"
+                );
+            }
             let mut entries = Vec::new();
             list(&target, Path::new(""), &mut entries)?;
             if !entries.is_empty() {
@@ -117,7 +134,7 @@ pub fn check_dir_target(
             }
         }
         Ok(meta) => anyhow::bail!("{shown}: is {}, not a directory; it is never replaced", kind(&meta)),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => super::require_replaceable(&shown, &parent, None)?,
         Err(e) => anyhow::bail!("{shown}: {e}"),
     }
     Ok(DirTarget {

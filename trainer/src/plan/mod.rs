@@ -179,8 +179,14 @@ impl Plan {
                 .map(|(gap, end)| format!("{gap:.1} °C short of {end} °C"))
                 .collect();
             let remedy = match self.end_soak_s {
-                None => "--soak-ends closes the gap (more --hours may)",
-                Some(_) => "its self-heating or lags keep it from the ends; more --hours may close the gap",
+                None => format!(
+                    "--soak-ends closes the gap, at a cost: it holds each end {:.0} min or more out of the {} h, time \
+                     the other ramps and steps no longer get (fewer thermal events to fit the lags on); more --hours \
+                     may close it too",
+                    end_soak_s(&self.limits) / 60.0,
+                    self.limits.hours
+                ),
+                Some(_) => "its self-heating or lags keep it from the ends; more --hours may close the gap".to_owned(),
             };
             out.push(format!(
                 "warning: on {name} the loop is predicted to reach only {:.1} … {:.1} °C, {} (more than the {:.1} °C a fit counts as reached): {remedy}",

@@ -1,11 +1,13 @@
 //! Is a run a plausible gyro recording? Facts a fiber-optic gyro's physics
 //! bounds, checked row by row in a few numbers of state: the loop
 //! temperature within −60 … 100 °C and changing slower than
-//! [`MAX_LOOP_RATE_C_PER_MIN`] by the time column. A run outside them is
-//! most often one in other units (°F, time in hours); the commands refuse
-//! it with the reason and accept it with `--allow-implausible`. (A time
-//! column in milliseconds the run reader refuses already: samples too far
-//! apart for a gyro.)
+//! [`MAX_LOOP_RATE_C_PER_MIN`] by the time column, a run no longer than
+//! [`MAX_RUN_HOURS`], a rate in °/h that sees its reference and varies as
+//! a gyro's noise does. A run outside them is most often one in other units
+//! (°F, time in hours, minutes or milliseconds, rate in rad/s or °/s); every
+//! command that reads a run refuses it with the reason and accepts it with
+//! `--allow-implausible`. (A time column in milliseconds at a gyro's rates
+//! below 200 Hz the run reader refuses already: samples too far apart.)
 
 use std::path::Path;
 
@@ -16,12 +18,34 @@ use crate::text;
 pub const LOOP_MIN_C: f64 = -60.0;
 /// Hottest loop temperature a gyro in use or in a chamber sees, °C.
 pub const LOOP_MAX_C: f64 = 100.0;
-/// Fastest plausible change of the loop temperature, °C/min, over a minute:
+/// Fastest plausible change of the loop temperature, °C/min, between 10-s means:
 /// a chamber at full rate moves its air at 5 … 15 °C/min and the coil,
 /// inside its housing, follows slower.
-pub const MAX_LOOP_RATE_C_PER_MIN: f64 = 30.0;
-/// The loop temperature's rate is taken between means over this long, s.
-const RATE_BIN_S: f64 = 60.0;
+pub const MAX_LOOP_RATE_C_PER_MIN: f64 = 20.0;
+/// The loop temperature's rate is taken between means over this long, s:
+/// long enough that a thermometer's noise and quantisation do not count, short
+/// enough that a run whose time column is in minutes shows its ramps 60 times
+/// too fast.
+const RATE_BIN_S: f64 = 10.0;
+/// Longest run, h: what `trainer device record` records at most; a longer
+/// span is a time column in milliseconds far more often than a six-week run.
+pub const MAX_RUN_HOURS: f64 = crate::reading::limits::MAX_RECORD_HOURS;
+/// A reference this large, °/h, is one a gyro in °/h reads (Earth rate is up
+/// to 15 °/h): a rate whose mean stays under 1/[`REFERENCE_RATIO`] of it
+/// does not see the reference, and is in other units.
+const MIN_SEEN_REF_DPH: f64 = 1.0;
+/// See [`MIN_SEEN_REF_DPH`].
+const REFERENCE_RATIO: f64 = 100.0;
+/// Narrowest spread of a varying rate column, °/h: the finest gyros' noise
+/// alone spreads 1-s samples over more than 1e-2 °/h; rad/s or °/s readings
+/// of any gyro spread less than this.
+pub const MIN_RATE_SPREAD_DPH: f64 = 1e-4;
+/// Units a rate column is often in, with their size in °/h.
+const RATE_UNITS: [(&str, f64); 3] = [
+    ("rad/s", 3600.0 * 180.0 / std::f64::consts::PI),
+    ("°/s", 3600.0),
+    ("rad/h", 180.0 / std::f64::consts::PI),
+];
 
 /// Row-by-row facts for [`Plausibility::findings`].
 #[derive(Clone, Debug)]
@@ -39,6 +63,12 @@ pub struct Plausibility {
     /// The previous bin's index and mean.
     previous: Option<(i64, f64)>,
     fastest_c_per_min: f64,
+    rate_name: String,
+    ref_name: String,
+    /// Least and greatest rate, °/h, and the sum of the rates.
+    rate_dph: (f64, f64, f64),
+    /// Rows with a reference, and the sums of their rates and references, °/h.
+    with_ref: (usize, f64, f64),
 }
 
 impl Plausibility {
@@ -56,6 +86,30 @@ impl Plausibility {
             bin: None,
             previous: None,
             fastest_c_per_min: 0.0,
+            rate_name: "rate_dph".to_owned(),
+            ref_name: "ref_dph".to_owned(),
+            rate_dph: (f64::INFINITY, f64::NEG_INFINITY, 0.0),
+            with_ref: (0, 0.0, 0.0),
+        }
+    }
+
+    /// Names the rate and reference columns `rate` and `reference` in the findings.
+    pub fn set_rate_names(&mut self, rate: &str, reference: &str) {
+        rate.clone_into(&mut self.rate_name);
+        reference.clone_into(&mut self.ref_name);
+    }
+
+    /// Takes the row's rate and reference (if read), °/h.
+    pub fn push_rate(&mut self, rate_dph: f64, ref_dph: Option<f64>) {
+        let (lo, hi, sum) = &mut self.rate_dph;
+        *lo = lo.min(rate_dph);
+        *hi = hi.max(rate_dph);
+        *sum += rate_dph;
+        if let Some(r) = ref_dph {
+            let (n, rates, refs) = &mut self.with_ref;
+            *n += 1;
+            *rates += rate_dph;
+            *refs += r;
         }
     }
 
@@ -149,7 +203,55 @@ impl Plausibility {
                 sig(fastest)
             ));
         }
+        let span_h = (self.last_time_s - self.first_time_s.unwrap_or(self.last_time_s)) / 3600.0;
+        if span_h > MAX_RUN_HOURS {
+            found.push(format!(
+                "{name}: time_s spans {} h, longer than a recording lasts ({MAX_RUN_HOURS} h at most): is time_s in \
+                 milliseconds? it must be in seconds",
+                sig(span_h)
+            ));
+        }
+        found.extend(self.rate_finding(&name));
         found
+    }
+
+    /// The finding for a rate column in other units than °/h: one that does
+    /// not see a reference of [`MIN_SEEN_REF_DPH`] or more, or whose spread is
+    /// under [`MIN_RATE_SPREAD_DPH`] although it varies.
+    fn rate_finding(&self, name: &str) -> Option<String> {
+        let (lo, hi, _) = self.rate_dph;
+        let (n, rates, refs) = self.with_ref;
+        let unit_hint = |ratio: f64| {
+            RATE_UNITS
+                .iter()
+                .find(|(_, dph)| (ratio * dph - 1.0).abs() < 0.5)
+                .map_or(String::new(), |(unit, _)| format!("{unit}? "))
+        };
+        if n > 0 {
+            let (mean_rate, mean_ref) = (rates / n as f64, refs / n as f64);
+            if mean_ref.abs() >= MIN_SEEN_REF_DPH && mean_rate.abs() < mean_ref.abs() / REFERENCE_RATIO {
+                return Some(format!(
+                    "{name}: {} averages {} while {} averages {} °/h: the gyro does not see the rate it turned at \
+                     ({}the rate and the reference must both be in °/h)",
+                    self.rate_name,
+                    sig(mean_rate),
+                    self.ref_name,
+                    sig(mean_ref),
+                    unit_hint(mean_rate / mean_ref)
+                ));
+            }
+        }
+        let spread = hi - lo;
+        (spread > 0.0 && spread < MIN_RATE_SPREAD_DPH).then(|| {
+            format!(
+                "{name}: {} varies only within {} … {}, a spread of {}; a gyro's noise alone in °/h spreads its \
+                 readings wider than {MIN_RATE_SPREAD_DPH} °/h (rad/s or °/s? the rate must be in °/h)",
+                self.rate_name,
+                sig(lo),
+                sig(hi),
+                sig(spread)
+            )
+        })
     }
 }
 
@@ -168,119 +270,6 @@ pub fn range_finding(what: &str, lo_c: f64, hi_c: f64) -> Option<String> {
             sig(lo_c),
             sig(hi_c)
         )
-    })
-}
-
-/// Refuses a run listed twice: a training run that holds the same data as
-/// an earlier training run (it would count twice and pull the model towards
-/// it), or a run of `others` (role and paths, e.g. `--holdout`) that holds
-/// the same data as a training run (its figures would be the training
-/// run's, presented as an independent check). The same data: the same
-/// file, a byte copy, or the same rows whatever the `#` lines and line ends
-/// ([`same_data`]).
-pub fn require_distinct_runs(
-    train: &[std::path::PathBuf],
-    others: &[(&str, &[std::path::PathBuf])],
-) -> anyhow::Result<()> {
-    for (i, path) in train.iter().enumerate() {
-        for earlier in &train[..i] {
-            if let Some(how) = same_data(earlier, path)? {
-                anyhow::bail!(
-                    "{}: the training run is {how} training run {}: it would count twice and pull the model \
-                     towards it; list each run once",
-                    text::path(path),
-                    text::path(earlier)
-                );
-            }
-        }
-    }
-    for (role, paths) in others {
-        for path in *paths {
-            for trained in train {
-                if let Some(how) = same_data(trained, path)? {
-                    anyhow::bail!(
-                        "{}: the {role} run is {how} training run {}: its figures would be the training run's, not an \
-                         independent check; drop it from {role}, or record another run to hold out",
-                        text::path(path),
-                        text::path(trained)
-                    );
-                }
-            }
-        }
-    }
-    Ok(())
-}
-
-/// How the files at `a` and `b` hold the same data (`the same file as`,
-/// `a copy of`, `the same rows as`), or `None`. The same rows: equal once
-/// `#` lines, blank lines and `\r` line ends are left out, so a copy with
-/// its metadata stripped or its line ends converted is still found.
-fn same_data(a: &Path, b: &Path) -> anyhow::Result<Option<&'static str>> {
-    let (Ok(ca), Ok(cb)) = (a.canonicalize(), b.canonicalize()) else {
-        return Ok(None);
-    };
-    if ca == cb {
-        return Ok(Some("the same file as"));
-    }
-    let (ma, mb) = (std::fs::metadata(&ca)?, std::fs::metadata(&cb)?);
-    if !ma.is_file() || !mb.is_file() {
-        return Ok(None);
-    }
-    let (ra, rb) = (data_rows(&ca)?, data_rows(&cb)?);
-    if ra.digest != rb.digest || ra.rows != rb.rows {
-        return Ok(None);
-    }
-    Ok(Some(if ma.len() == mb.len() && ra.raw_digest == rb.raw_digest {
-        "a copy of"
-    } else {
-        "the same rows as"
-    }))
-}
-
-/// Digests of a file's data rows and of its bytes.
-struct RowDigest {
-    /// Over the lines that are not `#` lines nor blank, without their line ends.
-    digest: u64,
-    /// Over every byte.
-    raw_digest: u64,
-    /// Lines the row digest took.
-    rows: u64,
-}
-
-/// [`RowDigest`] of the file at `path`, streamed.
-fn data_rows(path: &Path) -> anyhow::Result<RowDigest> {
-    use std::hash::Hasher;
-    use std::io::BufRead;
-    let file = std::fs::File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", text::path(path)))?;
-    let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
-    let (mut digest, mut raw_digest) = (std::hash::DefaultHasher::new(), std::hash::DefaultHasher::new());
-    let mut rows = 0u64;
-    let mut line = Vec::new();
-    loop {
-        line.clear();
-        if reader
-            .read_until(b'\n', &mut line)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", text::path(path)))?
-            == 0
-        {
-            break;
-        }
-        raw_digest.write(&line);
-        let mut row = line.as_slice();
-        while let [head @ .., b'\n' | b'\r'] = row {
-            row = head;
-        }
-        if row.is_empty() || row.starts_with(b"#") {
-            continue;
-        }
-        digest.write(row);
-        digest.write_u8(b'\n');
-        rows += 1;
-    }
-    Ok(RowDigest {
-        digest: digest.finish(),
-        raw_digest: raw_digest.finish(),
-        rows,
     })
 }
 

@@ -60,8 +60,7 @@ pub fn check_agreement(
         return Ok(());
     }
     Err(format!(
-        "# sample_rate_hz: {} states a sample period of {} s, but the time column steps by {} s ({} Hz; the median of the {steps} steps of lines {first_line}–{last_line}); correct or remove the metadata line",
-        sig(rate_hz),
+        "# sample_rate_hz: {rate_hz} states a sample period of {} s, but the time column steps by {} s ({} Hz; the median of the {steps} steps of lines {first_line}–{last_line}); correct or remove the metadata line",
         sig(period_s),
         sig(median_step_s),
         sig(1.0 / median_step_s)
@@ -69,9 +68,9 @@ pub fn check_agreement(
 }
 
 /// Longest sample period a run may have without a `# sample_rate_hz` line
-/// stating it, s: a gyro logged slower than once a minute is far more
-/// likely a time column in milliseconds.
-pub const MAX_UNSTATED_PERIOD_S: f64 = 60.0;
+/// stating it, s: a gyro logged slower than once every 5 s is far more
+/// likely a time column in milliseconds (a gyro sampled at 200 Hz or slower).
+pub const MAX_UNSTATED_PERIOD_S: f64 = 5.0;
 
 /// Refuses a time column whose median step (`median_step_s`, of rows
 /// `first_line` … `last_line`) is longer than [`MAX_UNSTATED_PERIOD_S`]
@@ -86,9 +85,9 @@ pub fn check_unstated_period(
         return Ok(());
     }
     Err(format!(
-        "column time_s steps by {} s (the median of the {steps} steps of lines {first_line}–{last_line}), one sample every {} min, slower than a gyro is logged: is time_s in milliseconds? Give it in seconds, or state so slow a rate with a `# sample_rate_hz` line",
+        "column time_s steps by {} s (the median of the {steps} steps of lines {first_line}–{last_line}), one sample every {} s, slower than a gyro is logged without saying so: is time_s in milliseconds? Give it in seconds, or state so slow a rate with a `# sample_rate_hz` line",
         sig(median_step_s),
-        sig(median_step_s / 60.0)
+        sig(median_step_s)
     ))
 }
 

@@ -699,7 +699,7 @@ fn fit_never_overwrites_a_model_without_force() {
     let original = std::fs::read(&model).unwrap();
     let run = shared_data("ifog_verify_3cpm.csv");
     let fit = |extra: &[&str]| {
-        let mut args = vec!["fit", "-q", "--centers", "4", "--rate-window-s", "60"];
+        let mut args = vec!["fit", "-q", "--centers", "4", "--block-s", "1"];
         args.extend(extra);
         args.extend([run.to_str().unwrap(), "-o", model.to_str().unwrap()]);
         trainer(&args)

@@ -69,7 +69,7 @@ fn writers<'a>(model: &'a str, run: &'a str, out: &'a str, capture: &'a str) -> 
         (vec!["decode", capture, "-o", out], vec![capture]),
         (vec!["blocks", run, "--block-s", "60", "-o", out], vec![run]),
         (vec!["eval", "--model", model, run, "--json", out], vec![model, run]),
-        (vec!["fit", "-q", "--rate-window-s", "60", run, "-o", out], vec![run]),
+        (vec!["fit", "-q", "--block-s", "1", run, "-o", out], vec![run]),
     ]
 }
 
@@ -159,7 +159,10 @@ fn report_checks_every_file_it_would_write_before_reading_a_run() {
     // Two runs of one name would overwrite each other's plots.
     let other = dir.path().join("other");
     std::fs::create_dir(&other).unwrap();
-    std::fs::copy(&run, other.join("train.csv")).unwrap();
+    // Another run (its last row left out) under the same name.
+    let text = std::fs::read_to_string(&run).unwrap();
+    let shorter = text.trim_end().rsplit_once('\n').unwrap().0.to_owned() + "\n";
+    std::fs::write(other.join("train.csv"), shorter).unwrap();
     let mut twice = args(&["--force"]);
     twice.push(other.join("train.csv").to_str().unwrap().into());
     refused(&run_args(twice), "two runs are named train");
@@ -180,8 +183,8 @@ fn fit_leaves_the_old_model_when_a_later_step_fails_and_no_temporary_file() {
     let o = trainer(&[
         "fit",
         "-q",
-        "--rate-window-s",
-        "60",
+        "--block-s",
+        "1",
         dir.path().join("train.csv").to_str().unwrap(),
         "--holdout",
         bad.to_str().unwrap(),
@@ -467,7 +470,7 @@ fn rates_beyond_any_gyro_and_a_rate_that_never_varies_are_refused() {
         f[REF] = "0".into();
     });
     let r = flat.to_str().unwrap();
-    let o = trainer(&["fit", "-q", "--rate-window-s", "60", r, "-o", fit_out.to_str().unwrap()]);
+    let o = trainer(&["fit", "-q", "--block-s", "1", r, "-o", fit_out.to_str().unwrap()]);
     refused(
         &o,
         "the bias target rate_dph − ref_dph is 0 °/h in every block: no excitation to fit",
@@ -507,8 +510,8 @@ fn control_characters_from_files_are_printed_escaped() {
     let o = trainer(&[
         "fit",
         "-q",
-        "--rate-window-s",
-        "60",
+        "--block-s",
+        "1",
         "--serial",
         serial,
         run.to_str().unwrap(),

@@ -6,6 +6,7 @@ mod common;
 
 mod axes;
 mod cli;
+mod figures;
 mod hostile;
 mod messages;
 mod plan;
@@ -15,3 +16,4 @@ mod response_bank;
 mod robustness;
 mod soak;
 mod transactions;
+mod units;

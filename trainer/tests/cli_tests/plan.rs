@@ -479,7 +479,8 @@ fn a_fit_on_a_short_hold_run_says_the_range_of_use_is_not_covered() {
     let report = fit(&["--use-range-c", "-40,60", "--use-rate-c-per-min", "3"]);
     assert!(!report.contains("missing: nothing"), "{report}");
     assert!(
-        report.contains("missing: range of use -40 … 60 °C not covered: the runs' loop read -20.0 … "),
+        report.contains("missing: range of use -40 … 60 °C not covered: the model is valid over ")
+            && report.contains("the loop read -20.0 … "),
         "{report}"
     );
     assert!(
@@ -580,6 +581,12 @@ fn the_default_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_sh
         );
         assert!(printed.contains(&warning), "no {warning:?} in {printed}");
     }
+    // The remedy says what it costs (issue 49, item 13).
+    assert!(
+        printed.contains("--soak-ends closes the gap, at a cost: it holds each end ")
+            && printed.contains(" min or more out of the 12 h, time the other ramps and steps no longer get"),
+        "{printed}"
+    );
     // The cold end is reached (the power-on soak starts there): no gap named there.
     assert!(!printed.contains("short of -40"), "{printed}");
     let (_, meta) = read_plan(&dir.path().join("p.csv"));

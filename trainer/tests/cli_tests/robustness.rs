@@ -147,17 +147,7 @@ fn every_subcommand(input: &[u8]) {
     );
     check_command(
         input,
-        &[
-            "fit",
-            "-q",
-            "--rate-window-s",
-            "60",
-            "--max-centers",
-            "4",
-            "input",
-            "-o",
-            "out.bin",
-        ],
+        &["fit", "-q", "--block-s", "1", "input", "-o", "out.bin"],
         Some("out.bin"),
         decodes,
     );

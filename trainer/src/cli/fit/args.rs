@@ -119,12 +119,12 @@ pub struct Args {
     /// on validation, except for the lag bank, which has none unless asked.
     #[arg(long, value_name = "K", value_parser = centres_parser(), help_heading = "Model")]
     pub(super) centers: Option<usize>,
-    /// Most centres tried (1–64; at most 16 per axis on multi-axis runs).
+    /// Most centres tried (1–64, default 32; at most 16 per axis on multi-axis runs).
     ///
     /// The firmware's evaluation cost grows with K; the three-axis firmware holds 16
-    /// centres per axis.
-    #[arg(long, value_name = "K", default_value_t = 32, value_parser = centres_parser(), help_heading = "Search")]
-    pub(super) max_centers: usize,
+    /// centres per axis. Not with --centers, which fixes K.
+    #[arg(long, value_name = "K", value_parser = centres_parser(), help_heading = "Search")]
+    pub(super) max_centers: Option<usize>,
     /// ΔT filter time constants to choose from, s.
     ///
     /// Comma-separated; for multiscale the fastest of three, the others 16 and 256 times
@@ -179,7 +179,7 @@ pub struct Args {
     ///
     /// By default the fit refuses, naming the reason, training runs whose loop
     /// temperature leaves −60 … 100 °C (°F?), and holdouts whose loop temperature does
-    /// or changes faster than 30 °C/min by time_s (in hours?).
+    /// or changes faster than 20 °C/min by time_s (in hours?).
     #[arg(long, help_heading = "Data")]
     pub(super) allow_implausible: bool,
     /// Loop-temperature range of use, °C (MIN,MAX).
@@ -205,7 +205,47 @@ pub struct Args {
     pub(super) use_rate_c_per_min: Option<f64>,
 }
 
+/// Most centres a search tries without `--max-centers`.
+pub(super) const DEFAULT_MAX_CENTERS: usize = 32;
+
 impl Args {
+    /// Refuses an option the fit asked for would ignore, naming why:
+    /// `--max-centers` beside `--centers`, `--dt-window-s` with a model
+    /// whose rate filters are fixed (the lag bank, the response bank, a
+    /// cubic in T), `--inputs` with a method other than svr-pso.
+    pub(super) fn check_applicable(&self) -> anyhow::Result<()> {
+        if let (Some(k), Some(max)) = (self.centers, self.max_centers) {
+            anyhow::bail!(
+                "--centers {k} with --max-centers {max}: --max-centers bounds the search for K, which --centers \
+                 fixes; give one of them"
+            );
+        }
+        let fixed_filters = match (self.method, self.features) {
+            (MethodArg::Poly3, _) => Some("--method poly3 is a cubic in T, with no ΔT filter"),
+            (MethodArg::Rbf, None | Some(FeaturesArg::LagBank)) => Some(
+                "the thermal lag bank (the default) identifies its own filters (τ 15 s … 2 h); --dt-window-s is for \
+                 --features multiscale…, paper, --method rbf2 or svr-pso",
+            ),
+            (MethodArg::Rbf, Some(FeaturesArg::ResponseBank)) => Some(
+                "the response bank has its 12 filters fixed (10 s … 11 h); --dt-window-s is for --features \
+                 multiscale…, paper, --method rbf2 or svr-pso",
+            ),
+            _ => None,
+        };
+        if let Some(why) = fixed_filters
+            && !self.dt_window_s.is_empty()
+        {
+            anyhow::bail!("--dt-window-s would be ignored: {why}");
+        }
+        anyhow::ensure!(
+            self.inputs.is_none() || self.method == MethodArg::SvrPso,
+            "--inputs would be ignored: it names the multi-point inputs of --method svr-pso; --method {} takes its \
+             inputs from --features",
+            clap::ValueEnum::to_possible_value(&self.method).map_or_else(String::new, |v| v.get_name().to_owned())
+        );
+        Ok(())
+    }
+
     /// The range and rates of use given, checked.
     pub fn in_use(&self) -> anyhow::Result<InUse> {
         let range_c = match self.use_range_c.as_deref() {

@@ -131,7 +131,10 @@ pub(super) fn run(
     for (axis, (outcome, _)) in axes.iter().zip(&outcomes) {
         if let Some(search) = &outcome.bank {
             writeln!(out, "\naxis {}:", axis.name())?;
-            for line in search.coverage.lines(&a.in_use()?) {
+            for line in search
+                .coverage
+                .lines(&a.in_use()?, trainer::fit::coverage::model_range_c(&outcome.model))
+            {
                 writeln!(out, "{line}")?;
             }
         }

@@ -66,14 +66,14 @@ pub fn write_summary(out: &mut impl Write, outcome: &FitOutcome, how: &FitHow) -
     ) {
         writeln!(
             out,
-            "predicted residual STD100 in use {predicted:.4e} °/h ({factor}× the training residual {training:.4e} °/h)"
+            "predicted residual STD100 in use {predicted:.4e} °/h ({factor}× the training residual {training:.4e} °/h on the fit's block means, warm-up left out)"
         )?;
     }
     let response_chosen = outcome.structure.as_ref().is_some_and(|s| s.response_bank);
     if let Some(c) = outcome.choice.as_ref().filter(|_| !response_chosen) {
         writeln!(
             out,
-            "chosen on {}: {}{}ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
+            "chosen on {}: {}{}ridge λ {:e}, {} centres{}",
             if how.with_validate_runs {
                 "--validate runs".into()
             } else if let Some(search) = &outcome.bank {
@@ -95,7 +95,12 @@ pub fn write_summary(out: &mut impl Write, outcome: &FitOutcome, how: &FitHow) -
             },
             c.ridge,
             c.centers,
-            c.validation_rms_dph
+            // The lag bank's held-out figure is its structure's, printed once below.
+            if outcome.bank.is_some() {
+                String::new()
+            } else {
+                format!("; validation RMS {:.4e} °/h", c.validation_rms_dph)
+            }
         )?;
     }
     if let Some(search) = &outcome.bank {
@@ -194,7 +199,8 @@ pub(super) fn write_bank(
     };
     writeln!(
         out,
-        "structure chosen on {how} among {} candidates; held-out RMS of 100-s means {:.4e} °/h",
+        "structure chosen on {how} among {} candidates; held-out RMS of 100-s means {:.4e} °/h (it chose the \
+         structure; the forecast above is the training residual times its factor, docs/methods.md \"The forecast\")",
         search.candidates.len(),
         search.held_out_rms_dph()
     )?;

@@ -104,6 +104,16 @@ impl RunReader {
         let header_line = loop {
             line_no += 1;
             let read = read_line_bounded(source.as_mut(), &mut buf).map_err(|e| io_or_utf8(path, line_no, e))?;
+            // A compressed file holds any bytes, a carriage return among them:
+            // named for what it is before the line ends are judged.
+            if line_no == 1
+                && let Some((format, tool)) = compressed_format(&buf)
+            {
+                return Err(format_error(
+                    line_no,
+                    format!("the file is {format}-compressed, not CSV text; decompress it first ({tool})"),
+                ));
+            }
             // A file with CR-only line ends reads as one line: it would
             // otherwise be "no header", "too long" or thousands of columns.
             if has_inner_cr(&buf) {
@@ -633,6 +643,22 @@ impl RunReader {
             column_names: self.column_names.clone(),
         }
     }
+}
+
+/// The compression format whose magic bytes `head` (a file's first bytes)
+/// starts with, and the command that undoes it.
+fn compressed_format(head: &[u8]) -> Option<(&'static str, &'static str)> {
+    const MAGIC: [(&[u8], &str, &str); 5] = [
+        (&[0x1f, 0x8b], "gzip", "gunzip FILE"),
+        (&[0x28, 0xb5, 0x2f, 0xfd], "zstd", "unzstd FILE"),
+        (&[0xfd, b'7', b'z', b'X', b'Z', 0x00], "xz", "unxz FILE"),
+        (b"BZh", "bzip2", "bunzip2 FILE"),
+        (b"PK\x03\x04", "zip", "unzip FILE"),
+    ];
+    MAGIC
+        .iter()
+        .find(|(magic, _, _)| head.starts_with(magic))
+        .map(|&(_, format, tool)| (format, tool))
 }
 
 #[cfg(test)]

@@ -94,8 +94,8 @@ pub fn fitted_model(dir: &TempDir) -> PathBuf {
     let o = trainer(&[
         "fit",
         "-q",
-        "--rate-window-s",
-        "60",
+        "--block-s",
+        "1",
         run.to_str().unwrap(),
         "-o",
         model.to_str().unwrap(),
