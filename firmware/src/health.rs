@@ -20,9 +20,11 @@
 //! | 64 | 4 | running model's commit sequence number (its serial; 0: none or uncommitted) |
 //! | 68 | 4 | board flags: bit 0 the crystal did not start (the clocks run from the HSI) |
 //! | 72 | 4 | firmware version ([`FirmwareVersion::word`]: major · 2¹⁶ + minor · 2⁸ + patch) |
+//! | 76 | 4 | running model's short model id, from its blob's provenance (0: none) |
+//! | 80 | 32 | the serial its provenance names, UTF-8, zero-padded (all zero: none) |
 //!
 //! A receiver tells it from the other frames on the UART by its length
-//! (76; replies 2, boot report 11, single-axis output frames 18–22,
+//! (112; replies 2, boot report 11, single-axis output frames 18–22,
 //! three-axis 54–58) and its tag.
 
 use rbf_core::frame::cobs_encode;
@@ -34,9 +36,11 @@ pub const CMD_HEALTH: u8 = 0x03;
 /// First payload byte of a health report.
 pub const HEALTH_REPORT_TAG: u8 = 0xFC;
 /// The report layout's version.
-pub const HEALTH_REPORT_VERSION: u8 = 2;
+pub const HEALTH_REPORT_VERSION: u8 = 3;
 /// Payload bytes of a health report.
-pub const HEALTH_REPORT_LEN: usize = 76;
+pub const HEALTH_REPORT_LEN: usize = 112;
+/// Bytes of the serial field at the report's end.
+pub const REPORT_SERIAL_LEN: usize = rbf_core::model::SERIAL_CAPACITY;
 /// Bytes of a COBS-framed health report with its terminator, at most.
 pub const HEALTH_FRAME_LEN: usize = HEALTH_REPORT_LEN + 2;
 
@@ -168,13 +172,36 @@ impl HealthCounters {
     }
 }
 
-/// Which model runs: its blob's CRC-32 and its commit sequence number.
+/// Which model runs: its blob's CRC-32, its commit sequence number, and the short model
+/// id and serial of its provenance.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ModelIdentity {
     /// The running blob's CRC-32 trailer (ISO-HDLC over its header and payload); 0 when none runs.
     pub blob_crc32: u32,
     /// The slot's commit sequence number; 0 when uncommitted or none.
     pub sequence: u32,
+    /// The short model id of the blob's provenance; 0 for a blob without provenance.
+    pub model_id: u32,
+    /// The serial of the blob's provenance, zero-padded; all zero when none.
+    pub serial: [u8; REPORT_SERIAL_LEN],
+}
+
+impl ModelIdentity {
+    /// The serial as text (`None`: none, or not UTF-8).
+    pub fn serial_str(&self) -> Option<&str> {
+        let len = self.serial.iter().position(|&b| b == 0).unwrap_or(self.serial.len());
+        core::str::from_utf8(self.serial.get(..len)?)
+            .ok()
+            .filter(|s| !s.is_empty())
+    }
+
+    /// Sets the serial from `text` (cut at [`REPORT_SERIAL_LEN`] bytes, which a blob never passes).
+    pub fn set_serial(&mut self, text: &str) {
+        self.serial = [0; REPORT_SERIAL_LEN];
+        for (d, s) in self.serial.iter_mut().zip(text.as_bytes()) {
+            *d = *s;
+        }
+    }
 }
 
 /// Everything the report carries.
@@ -279,9 +306,17 @@ impl HealthReport {
             *d = s;
         }
         words[15] = self.model.blob_crc32;
-        let tail = [self.model.sequence, self.board_flags, self.firmware_version.word()];
+        let tail = [
+            self.model.sequence,
+            self.board_flags,
+            self.firmware_version.word(),
+            self.model.model_id,
+        ];
         for (chunk, w) in p.chunks_exact_mut(4).zip(words.iter().chain(&tail)) {
             chunk.copy_from_slice(&w.to_le_bytes());
+        }
+        if let Some(serial) = p.get_mut(HEALTH_REPORT_LEN - REPORT_SERIAL_LEN..) {
+            serial.copy_from_slice(&self.model.serial);
         }
         p
     }
@@ -322,6 +357,8 @@ impl HealthReport {
             model: ModelIdentity {
                 blob_crc32: words[15],
                 sequence: words[16],
+                model_id: words[19],
+                serial: *p.last_chunk::<REPORT_SERIAL_LEN>()?,
             },
             board_flags: words[17],
             firmware_version: FirmwareVersion::from_word(words[18])?,
@@ -367,7 +404,7 @@ mod tests {
     }
 
     #[test]
-    fn the_report_lays_out_its_fields_as_documented_and_frames_to_76_bytes() {
+    fn the_report_lays_out_its_fields_as_documented_and_frames_to_112_bytes() {
         let report = HealthReport {
             reset_cause: ResetCause::Watchdog,
             reset_flags: 0x24,
@@ -378,9 +415,15 @@ mod tests {
                 flash_errors: 1,
                 ..HealthCounters::default()
             },
-            model: ModelIdentity {
-                blob_crc32: 0xDEAD_BEEF,
-                sequence: 3,
+            model: {
+                let mut model = ModelIdentity {
+                    blob_crc32: 0xDEAD_BEEF,
+                    sequence: 3,
+                    model_id: 0x6e48_3868,
+                    ..ModelIdentity::default()
+                };
+                model.set_serial("FOG-0001");
+                model
             },
             board_flags: BOARD_ON_HSI,
             firmware_version: FirmwareVersion {
@@ -390,7 +433,7 @@ mod tests {
             },
         };
         let p = report.to_bytes();
-        assert_eq!(&p[..4], &[0xFC, 2, 4, 0x24]);
+        assert_eq!(&p[..4], &[0xFC, 3, 4, 0x24]);
         assert_eq!(u32::from_le_bytes(p[4..8].try_into().unwrap()), 0x0800_1234);
         assert_eq!(u32::from_le_bytes(p[16..20].try_into().unwrap()), 7, "samples_missed");
         assert_eq!(u32::from_le_bytes(p[56..60].try_into().unwrap()), 1, "flash_errors");
@@ -398,6 +441,14 @@ mod tests {
         assert_eq!(u32::from_le_bytes(p[64..68].try_into().unwrap()), 3);
         assert_eq!(u32::from_le_bytes(p[68..72].try_into().unwrap()), 1);
         assert_eq!(&p[72..76], &[3, 2, 1, 0], "firmware version 1.2.3");
+        assert_eq!(
+            u32::from_le_bytes(p[76..80].try_into().unwrap()),
+            0x6e48_3868,
+            "model id"
+        );
+        assert_eq!(&p[80..88], b"FOG-0001");
+        assert!(p[88..].iter().all(|&b| b == 0), "the serial zero-padded");
+        assert_eq!(report.model.serial_str(), Some("FOG-0001"));
         let mut out = [0u8; HEALTH_FRAME_LEN];
         let n = report.encode(&mut out).unwrap();
         let mut frame = out[..n].to_vec();
@@ -417,7 +468,7 @@ mod tests {
         let mut wrong_cause = p;
         wrong_cause[2] = 8;
         assert_eq!(HealthReport::from_bytes(&wrong_cause), None);
-        assert_eq!(HealthReport::from_bytes(&p[..75]), None);
+        assert_eq!(HealthReport::from_bytes(&p[..HEALTH_REPORT_LEN - 1]), None);
         let mut older_layout = p;
         older_layout[1] = 1;
         assert_eq!(HealthReport::from_bytes(&older_layout), None, "layout 1 was 72 bytes");

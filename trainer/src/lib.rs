@@ -30,6 +30,7 @@ pub mod output;
 pub mod parallel;
 pub mod plan;
 pub mod plotting;
+pub mod provenance;
 pub mod reading;
 pub mod refusals;
 pub mod report;

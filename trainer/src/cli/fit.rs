@@ -10,6 +10,7 @@ use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_blocks, e
 use trainer::evaluation::table::print_table;
 use trainer::fit::{self, FitOptions};
 use trainer::output::{self, Output, StagedDir, Transaction};
+use trainer::provenance::ProvenanceRecord;
 use trainer::reading::plausible;
 use trainer::reading::run::RunReader;
 use trainer::text;
@@ -63,17 +64,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     plausible::require_distinct_runs(&a.runs, &[("--validate", &a.validate), ("--holdout", &a.holdout)])?;
     trainer::reading::limits::check_block_s(a.block_s)?;
-    if let Some(s) = &a.serial {
-        anyhow::ensure!(
-            s.len() <= rbf_core::model::SERIAL_CAPACITY,
-            "--serial {s:?}: at most {} bytes",
-            rbf_core::model::SERIAL_CAPACITY
-        );
-    }
     anyhow::ensure!(
         a.method != MethodArg::SvrPso || a.validate.is_empty(),
         "--method svr-pso validates on contiguous folds of the training runs; drop --validate"
     );
+    // Digests and the fit time, taken before the fit reads the runs.
+    let provenance = ProvenanceRecord::for_fit(a.serial.as_deref(), &a.runs, None, None)?;
     let train = RunFiles::new(&a.runs);
     let validate = RunFiles::new(&a.validate);
     let mut opts = FitOptions {
@@ -113,7 +109,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             named_inputs: opts.inputs.is_some(),
             selection: opts.selection,
         };
-        return axes::run(&a, &opts, &how, &axes, model_out, json_out);
+        return axes::run(&a, &opts, &how, &axes, model_out, json_out, &provenance);
     }
     let started = std::time::Instant::now();
     let outcome = fit::fit(&train, &validate, &opts).map_err(|e| {
@@ -162,7 +158,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         plausible::require_plausible(&diagnosis.implausible(), a.allow_implausible)?;
         evals.push(("holdout", evaluation));
     }
-    let blob = encode_model(&outcome.model)?;
+    let blob = encode_model(&outcome.model, Some(&provenance))?;
 
     // Printed once everything is written.
     let mut out: Vec<u8> = Vec::new();
