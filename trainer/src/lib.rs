@@ -18,6 +18,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod acceptance;
 pub mod blobfile;
 pub mod dataset;
 pub mod describe;

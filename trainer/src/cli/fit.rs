@@ -4,10 +4,12 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use rbf_core::thermometer::ThermometerSet;
+use trainer::acceptance::{self, Judged, Rejected, Spec};
 use trainer::blobfile::encode_model;
 use trainer::dataset::{RunFiles, RunSet};
 use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_blocks, evaluate_reader, only_axis};
 use trainer::evaluation::table::print_table;
+use trainer::fit::coverage::InUse;
 use trainer::fit::{self, FitOptions};
 use trainer::output::{self, Output, StagedDir, Transaction};
 use trainer::provenance::ProvenanceRecord;
@@ -68,8 +70,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.method != MethodArg::SvrPso || a.validate.is_empty(),
         "--method svr-pso validates on contiguous folds of the training runs; drop --validate"
     );
+    let spec = a.spec.as_deref().map(Spec::read).transpose()?;
     // Digests and the fit time, taken before the fit reads the runs.
-    let provenance = ProvenanceRecord::for_fit(a.serial.as_deref(), &a.runs, None, None)?;
+    let provenance = ProvenanceRecord::for_fit(a.serial.as_deref(), &a.runs, a.spec.as_deref(), None)?;
     let train = RunFiles::new(&a.runs);
     let validate = RunFiles::new(&a.validate);
     let mut opts = FitOptions {
@@ -103,6 +106,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None => JsonSink::None,
     };
     if !axes.is_empty() {
+        anyhow::ensure!(
+            spec.is_none(),
+            "--spec judges single-axis fits for now; judge each axis's holdout with `trainer eval --json`"
+        );
         let how = FitHow {
             with_validate_runs: !a.validate.is_empty(),
             folds: opts.folds,
@@ -178,12 +185,33 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             writeln!(out, "{line}")?;
         }
     }
+    let verdict = spec.as_ref().map(|spec| {
+        let missing_for = InUse {
+            range_c: spec.use_range_c().or(in_use.range_c),
+            ..in_use
+        };
+        acceptance::judge(
+            spec,
+            &Judged {
+                holdout: evals.iter().filter(|(r, _)| *r == "holdout").map(|(_, e)| e).collect(),
+                forecast_in_use_std100_dph: outcome.predicted_in_use_std100_dph(),
+                missing: outcome.bank.as_ref().map(|b| b.coverage.missing(&missing_for)),
+            },
+        )
+    });
+    if let Some(v) = &verdict {
+        writeln!(out, "\n{}", verdict_text(v))?;
+    }
     writeln!(out, "\nwrote {} ({} bytes)", text::path(&a.output), blob.len())?;
     let mut json = outcome_json(&outcome, &in_use);
     json["method"] = serde_json::json!(opts.method);
     json["fit_seconds"] = serde_json::json!(fit_s);
     json["blob_bytes"] = serde_json::json!(blob.len());
     json["runs"] = runs_json(&evals);
+    json["acceptance"] = match &verdict {
+        Some(v) => serde_json::json!({"status": if v.passed() { "pass" } else { "fail" }, "reasons": v.reasons}),
+        None => serde_json::Value::Null,
+    };
     // Every output staged, then printed, then committed together.
     let mut transaction = Transaction::new();
     if let Some(target) = report_target {
@@ -215,7 +243,27 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     write_blob(model_out, &blob, &mut transaction)?;
     let json_on_stdout = json_out.is_stdout();
     json_out.write(&json, &mut transaction)?;
-    print_and_commit(&out, json_on_stdout, transaction)
+    print_and_commit(&out, json_on_stdout, transaction)?;
+    match verdict {
+        Some(v) if !v.passed() => {
+            Err(Rejected(format!("the unit missed its acceptance spec: {}", v.reasons.join("; "))).into())
+        }
+        _ => Ok(()),
+    }
+}
+
+/// The verdict as `fit` prints it: `acceptance: pass`, or `FAIL` and a line per limit missed.
+pub(crate) fn verdict_text(v: &acceptance::Verdict) -> String {
+    if v.passed() {
+        "acceptance: pass".to_owned()
+    } else {
+        let mut t = "acceptance: FAIL".to_owned();
+        for r in &v.reasons {
+            t.push_str("\n  ");
+            t.push_str(r);
+        }
+        t
+    }
 }
 
 /// The file in `--report DIR` that holds what `fit` prints.

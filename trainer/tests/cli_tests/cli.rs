@@ -1340,3 +1340,82 @@ fn device_commands_fail_at_once_naming_a_missing_port_or_model_and_change_no_fil
         stderr(&o)
     );
 }
+
+/// `fit --spec` judges the unit: a spec it meets passes (exit 0), one it cannot meet
+/// fails naming the limit (exit 3) with the blob and JSON still written; the spec's
+/// SHA-256 is in the blob's provenance; a spec with an unknown key is refused before any
+/// work (exit 1, file and line named).
+#[test]
+fn fit_with_a_spec_passes_or_fails_naming_the_limit_missed() {
+    let dir = TempDir::new().unwrap();
+    let (train, holdout) = (dir.path().join("train.csv"), dir.path().join("holdout.csv"));
+    for (path, seed) in [(&train, "7"), (&holdout, "8")] {
+        let o = trainer(&[
+            "simulate",
+            "--ramp",
+            "1",
+            "--hold-min",
+            "30",
+            "--seed",
+            seed,
+            "-o",
+            path.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let lenient = write(
+        &dir,
+        "lenient.toml",
+        b"[holdout]\nstd100_gain_min_pct = 1\nclamped_max_pct = 100\n",
+    );
+    let strict = write(&dir, "strict.toml", b"[holdout]\nstd100_after_max_dph = 1e-9\n");
+    let unknown = write(&dir, "unknown.toml", b"[holdout]\nstd100_after_max_mdph = 1\n");
+    let fit = |spec: &Path, name: &str| {
+        let model = dir.path().join(format!("{name}.bin"));
+        let json = dir.path().join(format!("{name}.json"));
+        let o = trainer(&[
+            "fit",
+            "-q",
+            train.to_str().unwrap(),
+            "--holdout",
+            holdout.to_str().unwrap(),
+            "--spec",
+            spec.to_str().unwrap(),
+            "-o",
+            model.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ]);
+        (o, model, json)
+    };
+    let (o, model, json) = fit(&lenient, "lenient");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(report["acceptance"]["status"], "pass", "{}", report["acceptance"]);
+    let inspected: serde_json::Value = serde_json::from_str(&stdout(&trainer(&[
+        "inspect",
+        "--model",
+        model.to_str().unwrap(),
+        "--format",
+        "json",
+    ])))
+    .unwrap();
+    assert_eq!(
+        inspected["provenance"]["spec_sha256"],
+        ::trainer::provenance::sha256_file(&lenient).unwrap().as_str()
+    );
+    let (o, model, json) = fit(&strict, "strict");
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stderr(&o).contains("std100_after_max_dph"), "{}", stderr(&o));
+    assert!(model.exists() && json.exists(), "a failed unit's outputs are written");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(report["acceptance"]["status"], "fail");
+    let (o, model, _) = fit(&unknown, "unknown");
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("unknown.toml:2:1:") && stderr(&o).contains("std100_after_max_mdph"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!model.exists());
+}
