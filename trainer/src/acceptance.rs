@@ -180,6 +180,17 @@ impl Verdict {
     }
 }
 
+/// A figure below its least value, or not a number (a figure that cannot be computed
+/// does not meet a limit).
+fn misses_min(value: f64, min: f64) -> bool {
+    value.is_nan() || value < min
+}
+
+/// A figure above its largest value, or not a number.
+fn misses_max(value: f64, max: f64) -> bool {
+    value.is_nan() || value > max
+}
+
 /// Judges `unit` against `spec`.
 pub fn judge(spec: &Spec, unit: &Judged<'_>) -> Verdict {
     let mut reasons = Vec::new();
@@ -201,7 +212,7 @@ pub fn judge(spec: &Spec, unit: &Judged<'_>) -> Verdict {
     for e in &unit.holdout {
         let run = &e.run;
         if let Some(min) = value(&h.std100_gain_min_pct)
-            && !(e.cluster_std_improvement_pct >= min)
+            && misses_min(e.cluster_std_improvement_pct, min)
         {
             reasons.push(format!(
                 "{run}: 100-s STD gain {:.1} % below std100_gain_min_pct {min} %",
@@ -209,7 +220,7 @@ pub fn judge(spec: &Spec, unit: &Judged<'_>) -> Verdict {
             ));
         }
         if let Some(max) = value(&h.clamped_max_pct)
-            && !(e.clamped_pct() <= max)
+            && misses_max(e.clamped_pct(), max)
         {
             reasons.push(format!(
                 "{run}: {:.1} % of samples clamped, above clamped_max_pct {max} %",
@@ -217,7 +228,7 @@ pub fn judge(spec: &Spec, unit: &Judged<'_>) -> Verdict {
             ));
         }
         if let Some(max) = value(&h.std100_after_max_dph)
-            && !(e.cluster_std_after_dph <= max)
+            && misses_max(e.cluster_std_after_dph, max)
         {
             reasons.push(format!(
                 "{run}: 100-s STD after {:.4} °/h above std100_after_max_dph {max} °/h",
@@ -225,7 +236,7 @@ pub fn judge(spec: &Spec, unit: &Judged<'_>) -> Verdict {
             ));
         }
         if let Some(max) = value(&h.msd_after_max_dph2)
-            && !(e.msd_after_dph2 <= max)
+            && misses_max(e.msd_after_dph2, max)
         {
             reasons.push(format!(
                 "{run}: MSD after {:.3e} (°/h)² above msd_after_max_dph2 {max:e}",
@@ -233,7 +244,7 @@ pub fn judge(spec: &Spec, unit: &Judged<'_>) -> Verdict {
             ));
         }
         if let Some(max) = value(&h.bias_instability_after_max_dph)
-            && !(e.allan_after.bias_instability_dph <= max)
+            && misses_max(e.allan_after.bias_instability_dph, max)
         {
             reasons.push(format!(
                 "{run}: bias instability after {:.4} °/h above bias_instability_after_max_dph {max} °/h",
