@@ -72,7 +72,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     let spec = a.spec.as_deref().map(Spec::read).transpose()?;
     // Digests and the fit time, taken before the fit reads the runs.
-    let provenance = ProvenanceRecord::for_fit(a.serial.as_deref(), &a.runs, a.spec.as_deref(), None)?;
+    let provenance = ProvenanceRecord::for_fit(a.serial.as_deref(), &a.runs, a.spec.as_deref(), a.batch.as_deref())?;
     let train = RunFiles::new(&a.runs);
     let validate = RunFiles::new(&a.validate);
     let mut opts = FitOptions {

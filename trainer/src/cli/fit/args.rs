@@ -155,6 +155,9 @@ pub struct Args {
     /// exits 3.
     #[arg(long, value_name = "SPEC.toml", help_heading = "Model")]
     pub(super) spec: Option<PathBuf>,
+    /// Batch id recorded in the blob's provenance (`trainer batch` passes it).
+    #[arg(long, value_name = "ID", hide = true)]
+    pub(super) batch: Option<String>,
     #[command(flatten)]
     pub(super) select: SelectArgs,
     /// svr-pso: these inputs, not a selection.
