@@ -23,7 +23,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::evaluation::evaluate::RunEvaluation;
-use crate::text;
+use crate::text::{self, line_col};
 
 /// Limits on every holdout run.
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
@@ -72,14 +72,6 @@ pub struct Spec {
     /// Coverage.
     #[serde(default)]
     pub coverage: CoverageLimits,
-}
-
-/// Line and column (1-based) of byte `offset` in `source`.
-fn line_col(source: &str, offset: usize) -> (usize, usize) {
-    let before = source.get(..offset).unwrap_or(source);
-    let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, col)
 }
 
 impl Spec {

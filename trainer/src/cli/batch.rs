@@ -17,7 +17,7 @@ use serde::Deserialize;
 use toml::Spanned;
 use trainer::acceptance::{Rejected, Spec};
 use trainer::provenance::sha256_file;
-use trainer::text;
+use trainer::text::{self, line_col};
 
 /// Fit and judge every unit of a production batch.
 ///
@@ -85,15 +85,6 @@ struct Unit {
     train: Vec<PathBuf>,
     holdout: Vec<PathBuf>,
     options: Vec<String>,
-}
-
-/// Line and column (1-based) of byte `offset` in `source`.
-fn line_col(source: &str, offset: usize) -> (usize, usize) {
-    let before = source.get(..offset).unwrap_or(source);
-    (
-        before.matches('\n').count() + 1,
-        before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1,
-    )
 }
 
 /// Reads and checks the manifest: the batch's units, its spec.
