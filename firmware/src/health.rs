@@ -21,9 +21,11 @@
 //! | 68 | 4 | board flags: bit 0 the crystal did not start (the clocks run from the HSI), bit 1 the brown-out reset is not at 2.7 V |
 //! | 72 | 4 | firmware version ([`FirmwareVersion::word`]: major · 2¹⁶ + minor · 2⁸ + patch) |
 //! | 76 | 4 | deepest stack use since the reset, bytes (the stack is painted at boot) |
+//! | 80 | 4 | running model's short model id, from its blob's provenance (0: none) |
+//! | 84 | 32 | the serial its provenance names, UTF-8, zero-padded (all zero: none) |
 //!
 //! A receiver tells it from the other frames on the UART by its length
-//! (80; replies 2, boot report 11, single-axis output frames 18–22,
+//! (116; replies 2, boot report 11, single-axis output frames 18–22,
 //! three-axis 54–58) and its tag.
 
 use rbf_core::frame::cobs_encode;
@@ -37,7 +39,9 @@ pub const HEALTH_REPORT_TAG: u8 = 0xFC;
 /// The report layout's version.
 pub const HEALTH_REPORT_VERSION: u8 = 3;
 /// Payload bytes of a health report.
-pub const HEALTH_REPORT_LEN: usize = 80;
+pub const HEALTH_REPORT_LEN: usize = 116;
+/// Bytes of the serial field at the report's end.
+pub const REPORT_SERIAL_LEN: usize = rbf_core::model::SERIAL_CAPACITY;
 /// Bytes of a COBS-framed health report with its terminator, at most.
 pub const HEALTH_FRAME_LEN: usize = HEALTH_REPORT_LEN + 2;
 
@@ -169,13 +173,36 @@ impl HealthCounters {
     }
 }
 
-/// Which model runs: its blob's CRC-32 and its commit sequence number.
+/// Which model runs: its blob's CRC-32, its commit sequence number, and the short model
+/// id and serial of its provenance.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ModelIdentity {
     /// The running blob's CRC-32 trailer (ISO-HDLC over its header and payload); 0 when none runs.
     pub blob_crc32: u32,
     /// The slot's commit sequence number; 0 when uncommitted or none.
     pub sequence: u32,
+    /// The short model id of the blob's provenance; 0 for a blob without provenance.
+    pub model_id: u32,
+    /// The serial of the blob's provenance, zero-padded; all zero when none.
+    pub serial: [u8; REPORT_SERIAL_LEN],
+}
+
+impl ModelIdentity {
+    /// The serial as text (`None`: none, or not UTF-8).
+    pub fn serial_str(&self) -> Option<&str> {
+        let len = self.serial.iter().position(|&b| b == 0).unwrap_or(self.serial.len());
+        core::str::from_utf8(self.serial.get(..len)?)
+            .ok()
+            .filter(|s| !s.is_empty())
+    }
+
+    /// Sets the serial from `text` (cut at [`REPORT_SERIAL_LEN`] bytes, which a blob never passes).
+    pub fn set_serial(&mut self, text: &str) {
+        self.serial = [0; REPORT_SERIAL_LEN];
+        for (d, s) in self.serial.iter_mut().zip(text.as_bytes()) {
+            *d = *s;
+        }
+    }
 }
 
 /// Everything the report carries.
@@ -310,9 +337,13 @@ impl HealthReport {
             self.board_flags,
             self.firmware_version.word(),
             self.stack_peak_bytes,
+            self.model.model_id,
         ];
         for (chunk, w) in p.chunks_exact_mut(4).zip(words.iter().chain(&tail)) {
             chunk.copy_from_slice(&w.to_le_bytes());
+        }
+        if let Some(serial) = p.get_mut(HEALTH_REPORT_LEN - REPORT_SERIAL_LEN..) {
+            serial.copy_from_slice(&self.model.serial);
         }
         p
     }
@@ -353,6 +384,8 @@ impl HealthReport {
             model: ModelIdentity {
                 blob_crc32: words[15],
                 sequence: words[16],
+                model_id: words[20],
+                serial: *p.last_chunk::<REPORT_SERIAL_LEN>()?,
             },
             board_flags: words[17],
             firmware_version: FirmwareVersion::from_word(words[18])?,
@@ -399,7 +432,7 @@ mod tests {
     }
 
     #[test]
-    fn the_report_lays_out_its_fields_as_documented_and_frames_to_80_bytes() {
+    fn the_report_lays_out_its_fields_as_documented_and_frames_to_116_bytes() {
         let report = HealthReport {
             reset_cause: ResetCause::Watchdog,
             reset_flags: 0x24,
@@ -410,9 +443,15 @@ mod tests {
                 flash_errors: 1,
                 ..HealthCounters::default()
             },
-            model: ModelIdentity {
-                blob_crc32: 0xDEAD_BEEF,
-                sequence: 3,
+            model: {
+                let mut model = ModelIdentity {
+                    blob_crc32: 0xDEAD_BEEF,
+                    sequence: 3,
+                    model_id: 0x6e48_3868,
+                    ..ModelIdentity::default()
+                };
+                model.set_serial("FOG-0001");
+                model
             },
             board_flags: BOARD_ON_HSI,
             firmware_version: FirmwareVersion {
@@ -432,6 +471,14 @@ mod tests {
         assert_eq!(u32::from_le_bytes(p[68..72].try_into().unwrap()), 1);
         assert_eq!(&p[72..76], &[3, 2, 1, 0], "firmware version 1.2.3");
         assert_eq!(u32::from_le_bytes(p[76..80].try_into().unwrap()), 4_040, "stack peak");
+        assert_eq!(
+            u32::from_le_bytes(p[80..84].try_into().unwrap()),
+            0x6e48_3868,
+            "model id"
+        );
+        assert_eq!(&p[84..92], b"FOG-0001");
+        assert!(p[92..].iter().all(|&b| b == 0), "the serial zero-padded");
+        assert_eq!(report.model.serial_str(), Some("FOG-0001"));
         let mut out = [0u8; HEALTH_FRAME_LEN];
         let n = report.encode(&mut out).unwrap();
         let mut frame = out[..n].to_vec();
@@ -452,6 +499,7 @@ mod tests {
         wrong_cause[2] = 8;
         assert_eq!(HealthReport::from_bytes(&wrong_cause), None);
         assert_eq!(HealthReport::from_bytes(&p[..76]), None, "layout 2 was 76 bytes");
+        assert_eq!(HealthReport::from_bytes(&p[..HEALTH_REPORT_LEN - 1]), None);
         let mut older_layout = p;
         older_layout[1] = 2;
         assert_eq!(

@@ -377,14 +377,22 @@ impl<F: MappedFlash> ModelStore<F> {
         };
         // The blob's own trailer: the CRC-32 over its header and payload,
         // checked when it was loaded.
-        let trailer = self.blob(slot).ok().and_then(|b| b.last_chunk::<4>().copied());
-        crate::health::ModelIdentity {
+        let bytes = self.blob(slot).ok();
+        let trailer = bytes.and_then(|b| b.last_chunk::<4>().copied());
+        let mut identity = crate::health::ModelIdentity {
             blob_crc32: trailer.map_or(0, u32::from_le_bytes),
             sequence: match self.states[slot & 1] {
                 SlotState::Committed(sequence) => sequence,
                 _ => 0,
             },
+            ..crate::health::ModelIdentity::default()
+        };
+        // The provenance section (formats 4 and 5): its id and serial, read where they lie.
+        if let Some(Ok(Some(provenance))) = bytes.map(blob::provenance) {
+            identity.model_id = provenance.model_id;
+            identity.set_serial(provenance.serial);
         }
+        identity
     }
 
     /// The flash device (its error counters, for the health report).

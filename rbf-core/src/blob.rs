@@ -19,6 +19,21 @@
 //!
 //! [`decode`] takes untrusted bytes: it returns a [`DecodeError`] for every
 //! defect and never panics.
+//!
+//! **Provenance** (formats 4 and 5): format 4 is format 2, and format 5 format 3
+//! ([`axes`], [`shared_layout`]), with a provenance section at the start of the
+//! payload, before the model's bytes (which are exactly those of the older format):
+//!
+//! ```text
+//! offset  size  field (from the payload's start)
+//!      0     2  section length P (the bytes after these two), u16 LE
+//!      2     4  model id, u32 LE: the short id a unit's health report names
+//!      6     1  serial length S (at most SERIAL_CAPACITY), then S bytes UTF-8
+//!    7+S   P-5-S  the provenance record (the trainer's: postcard; skipped here)
+//! ```
+//! A blob of format 2 or 3 still loads: it has no provenance ([`provenance`] is
+//! `Ok(None)`). The 16-byte header is written by one function ([`RawHeader::write`],
+//! through [`write_blob`]) and read by one ([`RawHeader::read`]), whatever the layout.
 
 use heapless::Vec;
 use serde::{Deserialize, Serialize};
@@ -93,6 +108,204 @@ struct Poly3Wire {
     coeffs: [f32; 4],
 }
 
+/// Format version of a single-axis blob with a provenance section (format 2 after it).
+pub const PROVENANCE_FORMAT_VERSION: u16 = 4;
+/// Format version of a multi-axis blob with a provenance section (format 3 after it).
+pub const AXES_PROVENANCE_FORMAT_VERSION: u16 = 5;
+
+/// The two payload layouts a header's bytes 6..12 describe.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Layout {
+    /// One model: kind, inputs, centres (formats 2 and 4).
+    Single,
+    /// Models per axis: axis mask, shared-basis flag (formats 3 and 5).
+    Axes,
+}
+
+impl Layout {
+    /// The layout a format version names and whether a provenance section leads the payload.
+    fn of_version(version: u16) -> Option<(Layout, bool)> {
+        match version {
+            FORMAT_VERSION => Some((Layout::Single, false)),
+            AXES_FORMAT_VERSION => Some((Layout::Axes, false)),
+            PROVENANCE_FORMAT_VERSION => Some((Layout::Single, true)),
+            AXES_PROVENANCE_FORMAT_VERSION => Some((Layout::Axes, true)),
+            _ => None,
+        }
+    }
+
+    /// The format version of this layout with or without provenance.
+    fn version(self, provenance: bool) -> u16 {
+        match (self, provenance) {
+            (Layout::Single, false) => FORMAT_VERSION,
+            (Layout::Axes, false) => AXES_FORMAT_VERSION,
+            (Layout::Single, true) => PROVENANCE_FORMAT_VERSION,
+            (Layout::Axes, true) => AXES_PROVENANCE_FORMAT_VERSION,
+        }
+    }
+}
+
+/// The 16 bytes in front of every blob, whatever its layout: the one reader and writer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct RawHeader {
+    /// Format version.
+    pub version: u16,
+    /// Bytes 6..12: the layout's own fields.
+    pub fields: [u8; 6],
+    /// Payload length, bytes.
+    pub payload_len: u32,
+}
+
+impl RawHeader {
+    /// The header at the start of `bytes`: there, and starting with [`MAGIC`].
+    pub(crate) fn read(bytes: &[u8]) -> Result<RawHeader, DecodeError> {
+        let h: &[u8; HEADER_LEN] = bytes.first_chunk().ok_or(DecodeError::Truncated {
+            needed: HEADER_LEN,
+            available: bytes.len(),
+        })?;
+        if h[0..4] != MAGIC {
+            return Err(DecodeError::BadMagic);
+        }
+        let mut fields = [0u8; 6];
+        fields.copy_from_slice(&h[6..12]);
+        Ok(RawHeader {
+            version: u16::from_le_bytes([h[4], h[5]]),
+            fields,
+            payload_len: u32::from_le_bytes([h[12], h[13], h[14], h[15]]),
+        })
+    }
+
+    /// Writes the header into the first [`HEADER_LEN`] bytes of `out`.
+    fn write(&self, out: &mut [u8]) -> Result<(), EncodeError> {
+        let h: &mut [u8; HEADER_LEN] = out.first_chunk_mut().ok_or(EncodeError::BufferTooSmall)?;
+        h[0..4].copy_from_slice(&MAGIC);
+        h[4..6].copy_from_slice(&self.version.to_le_bytes());
+        h[6..12].copy_from_slice(&self.fields);
+        h[12..16].copy_from_slice(&self.payload_len.to_le_bytes());
+        Ok(())
+    }
+
+    /// Total blob length (header + payload + CRC), bytes.
+    fn blob_len(&self) -> usize {
+        HEADER_LEN + self.payload_len as usize + CRC_LEN
+    }
+}
+
+/// Where a blob came from, as its provenance section holds it (formats 4 and 5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Provenance<'a> {
+    /// The short id of this calibration (a unit's health report carries it).
+    pub model_id: u32,
+    /// The unit's serial number (empty when none was given).
+    pub serial: &'a str,
+    /// The rest of the provenance, as the trainer wrote it (postcard; this crate does not read it).
+    pub record: &'a [u8],
+}
+
+/// Bytes of the provenance section before the serial: length, model id, serial length.
+const PROVENANCE_FIXED_LEN: usize = 2 + 4 + 1;
+
+impl<'a> Provenance<'a> {
+    /// Writes the section at the start of `out`; its length.
+    fn write(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let serial = self.serial.as_bytes();
+        if serial.len() > SERIAL_CAPACITY {
+            return Err(EncodeError::SerialTooLong);
+        }
+        let total = PROVENANCE_FIXED_LEN + serial.len() + self.record.len();
+        let after_len = u16::try_from(total - 2).map_err(|_| EncodeError::BufferTooSmall)?;
+        let section = out.get_mut(..total).ok_or(EncodeError::BufferTooSmall)?;
+        section[0..2].copy_from_slice(&after_len.to_le_bytes());
+        section[2..6].copy_from_slice(&self.model_id.to_le_bytes());
+        section[6] = serial.len() as u8;
+        let (serial_area, record_area) = section[PROVENANCE_FIXED_LEN..].split_at_mut(serial.len());
+        serial_area.copy_from_slice(serial);
+        record_area.copy_from_slice(self.record);
+        Ok(total)
+    }
+
+    /// Splits the section off the start of `payload`: the provenance and the model's bytes after it.
+    fn split(payload: &'a [u8]) -> Result<(Provenance<'a>, &'a [u8]), DecodeError> {
+        let (len, rest) = payload.split_first_chunk::<2>().ok_or(DecodeError::Malformed)?;
+        let (section, model) = rest
+            .split_at_checked(usize::from(u16::from_le_bytes(*len)))
+            .ok_or(DecodeError::Malformed)?;
+        let (id, rest) = section.split_first_chunk::<4>().ok_or(DecodeError::Malformed)?;
+        let (&serial_len, rest) = rest.split_first().ok_or(DecodeError::Malformed)?;
+        let serial_len = usize::from(serial_len);
+        if serial_len > SERIAL_CAPACITY {
+            return Err(DecodeError::Malformed);
+        }
+        let (serial, record) = rest.split_at_checked(serial_len).ok_or(DecodeError::Malformed)?;
+        let serial = core::str::from_utf8(serial).map_err(|_| DecodeError::Malformed)?;
+        let provenance = Provenance {
+            model_id: u32::from_le_bytes(*id),
+            serial,
+            record,
+        };
+        Ok((provenance, model))
+    }
+}
+
+/// The checked payload of the blob `header` describes: CRC matched, the provenance
+/// section (if the version has one) split off; the provenance and the model's bytes.
+pub(crate) fn checked_payload<'a>(
+    bytes: &'a [u8],
+    header: &RawHeader,
+) -> Result<(Option<Provenance<'a>>, &'a [u8]), DecodeError> {
+    let (_, provenance) = Layout::of_version(header.version).ok_or(DecodeError::UnsupportedVersion(header.version))?;
+    let end = HEADER_LEN + header.payload_len as usize;
+    crc_status_at(bytes, end)?;
+    let payload = bytes.get(HEADER_LEN..end).ok_or(DecodeError::Malformed)?;
+    if provenance {
+        let (provenance, model) = Provenance::split(payload)?;
+        Ok((Some(provenance), model))
+    } else {
+        Ok((None, payload))
+    }
+}
+
+/// The provenance of the blob in `bytes`, of any layout: `Ok(None)` for a blob
+/// written before provenance existed (formats 2 and 3); the CRC is checked, the
+/// models are not decoded.
+pub fn provenance(bytes: &[u8]) -> Result<Option<Provenance<'_>>, DecodeError> {
+    let header = RawHeader::read(bytes)?;
+    if header.blob_len() > MAX_BLOB_LEN {
+        return Err(DecodeError::Malformed);
+    }
+    checked_payload(bytes, &header).map(|(provenance, _)| provenance)
+}
+
+/// Writes a whole blob of `layout` into `out`: the header, the provenance section
+/// when given, the model bytes `body` writes (it gets the area after the provenance and
+/// returns the header's layout fields and its length), and the CRC; the blob's length.
+/// Every encoder goes through here; a blob stays within [`MAX_BLOB_LEN`].
+pub(crate) fn write_blob(
+    out: &mut [u8],
+    layout: Layout,
+    provenance: Option<&Provenance<'_>>,
+    body: impl FnOnce(&mut [u8]) -> Result<([u8; 6], usize), EncodeError>,
+) -> Result<usize, EncodeError> {
+    let limit = out.len().min(MAX_BLOB_LEN);
+    let out = out.get_mut(..limit).ok_or(EncodeError::BufferTooSmall)?;
+    let mut at = HEADER_LEN;
+    if let Some(p) = provenance {
+        at += p.write(out.get_mut(at..).ok_or(EncodeError::BufferTooSmall)?)?;
+    }
+    let (fields, len) = body(out.get_mut(at..).ok_or(EncodeError::BufferTooSmall)?)?;
+    at += len;
+    if at + CRC_LEN > out.len() {
+        return Err(EncodeError::BufferTooSmall);
+    }
+    RawHeader {
+        version: layout.version(provenance.is_some()),
+        fields,
+        payload_len: (at - HEADER_LEN) as u32,
+    }
+    .write(out)?;
+    seal(out, at)
+}
+
 /// The fixed-size header of a blob.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Header {
@@ -104,8 +317,10 @@ pub struct Header {
     pub inputs: u8,
     /// Number of Gaussian centres K.
     pub centers: u16,
-    /// Payload length, bytes.
+    /// Payload length, bytes (with the provenance section, if any).
     pub payload_len: u32,
+    /// A provenance section leads the payload (format 4).
+    pub provenance: bool,
 }
 
 impl Header {
@@ -116,20 +331,21 @@ impl Header {
 
     /// Parses and checks the header: magic, version, kind and shape.
     pub fn parse(bytes: &[u8]) -> Result<Header, DecodeError> {
-        let (h, version) = header_bytes(bytes)?;
-        let header = Header {
-            version,
-            kind_code: h[6],
-            inputs: h[7],
-            centers: u16::from_le_bytes([h[8], h[9]]),
-            payload_len: u32::from_le_bytes([h[12], h[13], h[14], h[15]]),
+        let raw = RawHeader::read(bytes)?;
+        let provenance = match Layout::of_version(raw.version) {
+            Some((Layout::Single, provenance)) => provenance,
+            Some((Layout::Axes, _)) => return Err(DecodeError::MultiAxis),
+            None => return Err(DecodeError::UnsupportedVersion(raw.version)),
         };
-        if header.version == AXES_FORMAT_VERSION {
-            return Err(DecodeError::MultiAxis);
-        }
-        if header.version != FORMAT_VERSION {
-            return Err(DecodeError::UnsupportedVersion(header.version));
-        }
+        let f = raw.fields;
+        let header = Header {
+            version: raw.version,
+            kind_code: f[0],
+            inputs: f[1],
+            centers: u16::from_le_bytes([f[2], f[3]]),
+            payload_len: raw.payload_len,
+            provenance,
+        };
         if ModelKind::from_code(header.kind_code).is_none() {
             return Err(DecodeError::UnknownKind(header.kind_code));
         }
@@ -146,19 +362,6 @@ impl Header {
     }
 }
 
-/// The first [`HEADER_LEN`] bytes of a blob of either format, checked to be
-/// there and to start with [`MAGIC`], and the format version they name.
-fn header_bytes(bytes: &[u8]) -> Result<(&[u8], u16), DecodeError> {
-    let h = bytes.get(..HEADER_LEN).ok_or(DecodeError::Truncated {
-        needed: HEADER_LEN,
-        available: bytes.len(),
-    })?;
-    if h[0..4] != MAGIC {
-        return Err(DecodeError::BadMagic);
-    }
-    Ok((h, u16::from_le_bytes([h[4], h[5]])))
-}
-
 /// Format version of multi-axis blobs.
 pub const AXES_FORMAT_VERSION: u16 = 3;
 
@@ -167,11 +370,13 @@ pub const AXES_FORMAT_VERSION: u16 = 3;
 pub struct AxesHeader {
     /// Axes present: bit 0 = x, bit 1 = y, bit 2 = z.
     pub axis_mask: u8,
-    /// Payload length, bytes.
+    /// Payload length, bytes (with the provenance section, if any).
     pub payload_len: u32,
     /// The axes share one basis ([`shared_layout`]): header byte 7 is
     /// [`SHARED_BASIS_FLAG`] (else 0).
     pub shared_basis: bool,
+    /// A provenance section leads the payload (format 5).
+    pub provenance: bool,
 }
 
 /// Header byte 7 of a format-3 blob whose axes share one basis
@@ -187,21 +392,23 @@ impl AxesHeader {
     /// Parses and checks a multi-axis header: magic, version, axis mask,
     /// reserved bytes and the length limit.
     pub fn parse(bytes: &[u8]) -> Result<AxesHeader, DecodeError> {
-        let (h, version) = header_bytes(bytes)?;
-        if version != AXES_FORMAT_VERSION {
-            return Err(DecodeError::UnsupportedVersion(version));
-        }
-        let axis_mask = h[6];
+        let raw = RawHeader::read(bytes)?;
+        let Some((Layout::Axes, provenance)) = Layout::of_version(raw.version) else {
+            return Err(DecodeError::UnsupportedVersion(raw.version));
+        };
+        let f = raw.fields;
+        let axis_mask = f[0];
         if axis_mask == 0 || axis_mask >> MAX_AXES != 0 {
             return Err(DecodeError::BadAxisMask(axis_mask));
         }
-        if h[8..12].iter().any(|&b| b != 0) || !matches!(h[7], 0 | SHARED_BASIS_FLAG) {
+        if f[2..6].iter().any(|&b| b != 0) || !matches!(f[1], 0 | SHARED_BASIS_FLAG) {
             return Err(DecodeError::Malformed);
         }
         let header = AxesHeader {
             axis_mask,
-            payload_len: u32::from_le_bytes([h[12], h[13], h[14], h[15]]),
-            shared_basis: h[7] == SHARED_BASIS_FLAG,
+            payload_len: raw.payload_len,
+            shared_basis: f[1] == SHARED_BASIS_FLAG,
+            provenance,
         };
         if header.blob_len() > MAX_BLOB_LEN {
             return Err(DecodeError::Malformed);
@@ -228,14 +435,15 @@ pub enum BlobKind {
 /// decoder's to check); the header's defect otherwise: too short, no magic, an unknown
 /// version, or a multi-axis header that does not parse.
 pub fn blob_kind(bytes: &[u8]) -> Result<BlobKind, DecodeError> {
-    match header_bytes(bytes)?.1 {
-        AXES_FORMAT_VERSION => Ok(if AxesHeader::parse(bytes)?.shared_basis {
+    let version = RawHeader::read(bytes)?.version;
+    match Layout::of_version(version) {
+        Some((Layout::Axes, _)) => Ok(if AxesHeader::parse(bytes)?.shared_basis {
             BlobKind::SharedBasis
         } else {
             BlobKind::PerAxis
         }),
-        FORMAT_VERSION => Ok(BlobKind::SingleAxis),
-        version => Err(DecodeError::UnsupportedVersion(version)),
+        Some((Layout::Single, _)) => Ok(BlobKind::SingleAxis),
+        None => Err(DecodeError::UnsupportedVersion(version)),
     }
 }
 
@@ -295,7 +503,10 @@ impl core::fmt::Display for DecodeError {
             }
             DecodeError::BadMagic => f.write_str("bad magic: not an IFOG model blob"),
             DecodeError::UnsupportedVersion(v) => {
-                write!(f, "unsupported format version {v} (this build reads {FORMAT_VERSION})")
+                write!(
+                    f,
+                    "unsupported format version {v} (this build reads {FORMAT_VERSION} to {AXES_PROVENANCE_FORMAT_VERSION})"
+                )
             }
             DecodeError::UnknownKind(k) => write!(f, "unknown model kind code {k}"),
             DecodeError::CrcMismatch { stored, computed } => {
@@ -341,6 +552,8 @@ pub enum EncodeError {
     BufferTooSmall,
     /// A multi-axis blob without any axis's model.
     NoModel,
+    /// The provenance's serial is longer than [`SERIAL_CAPACITY`] bytes.
+    SerialTooLong,
 }
 
 impl core::fmt::Display for EncodeError {
@@ -348,6 +561,9 @@ impl core::fmt::Display for EncodeError {
         match self {
             EncodeError::BufferTooSmall => f.write_str("output buffer too small for the model blob"),
             EncodeError::NoModel => f.write_str("no axis has a model"),
+            EncodeError::SerialTooLong => {
+                write!(f, "serial number longer than the {SERIAL_CAPACITY} bytes a blob holds")
+            }
         }
     }
 }
@@ -487,22 +703,57 @@ pub(crate) fn seal(out: &mut [u8], body_len: usize) -> Result<usize, EncodeError
     Ok(total)
 }
 
-/// Encodes `model` into `out`; returns the number of bytes written.
+/// Encodes `model` into `out` as a format-2 blob (no provenance); returns the number of
+/// bytes written.
 pub fn encode<const K: usize>(model: &Model<K>, out: &mut [u8]) -> Result<usize, EncodeError> {
-    let payload_area = out.get_mut(HEADER_LEN..).ok_or(EncodeError::BufferTooSmall)?;
-    let (shape, payload_len) = encode_section(model, payload_area)?;
-    let total = HEADER_LEN + payload_len + CRC_LEN;
-    if out.len() < total {
-        return Err(EncodeError::BufferTooSmall);
-    }
-    out[0..4].copy_from_slice(&MAGIC);
-    out[4..6].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
-    out[6] = shape.kind_code;
-    out[7] = shape.inputs;
-    out[8..10].copy_from_slice(&shape.centers.to_le_bytes());
-    out[10..12].copy_from_slice(&[0, 0]);
-    out[12..16].copy_from_slice(&(payload_len as u32).to_le_bytes());
-    seal(out, HEADER_LEN + payload_len)
+    encode_with(model, None, out)
+}
+
+/// Encodes `model` into `out`, with `provenance` (format 4) or without (format 2);
+/// returns the number of bytes written. The model's bytes are the same either way.
+pub fn encode_with<const K: usize>(
+    model: &Model<K>,
+    provenance: Option<&Provenance<'_>>,
+    out: &mut [u8],
+) -> Result<usize, EncodeError> {
+    write_blob(out, Layout::Single, provenance, |area| {
+        let (shape, len) = encode_section(model, area)?;
+        let [c0, c1] = shape.centers.to_le_bytes();
+        Ok(([shape.kind_code, shape.inputs, c0, c1, 0, 0], len))
+    })
+}
+
+/// Length of the header in front of each section of a multi-axis blob, bytes.
+pub const SECTION_HEADER_LEN: usize = 8;
+
+/// Writes `model` as a section at the start of `out`: its 8-byte section header (kind
+/// u8, inputs D u8, centres K u16 LE, section length L u32 LE) and L bytes, the
+/// single-axis payload; the bytes written. The one section writer ([`split_section`] reads).
+pub(crate) fn write_section<const K: usize>(model: &Model<K>, out: &mut [u8]) -> Result<usize, EncodeError> {
+    let area = out.get_mut(SECTION_HEADER_LEN..).ok_or(EncodeError::BufferTooSmall)?;
+    let (shape, len) = encode_section(model, area)?;
+    let head: &mut [u8; SECTION_HEADER_LEN] = out.first_chunk_mut().ok_or(EncodeError::BufferTooSmall)?;
+    head[0] = shape.kind_code;
+    head[1] = shape.inputs;
+    head[2..4].copy_from_slice(&shape.centers.to_le_bytes());
+    head[4..8].copy_from_slice(&(len as u32).to_le_bytes());
+    Ok(SECTION_HEADER_LEN + len)
+}
+
+/// Splits the next section off `rest`: the shape its 8-byte header states, its bytes, and
+/// what follows it (the per-axis and the shared-basis layouts read sections alike).
+pub(crate) fn split_section(rest: &[u8]) -> Result<(SectionShape, &[u8], &[u8]), DecodeError> {
+    let (head, tail) = rest
+        .split_first_chunk::<SECTION_HEADER_LEN>()
+        .ok_or(DecodeError::Malformed)?;
+    let shape = SectionShape {
+        kind_code: head[0],
+        inputs: head[1],
+        centers: u16::from_le_bytes([head[2], head[3]]),
+    };
+    let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
+    let (section, tail) = tail.split_at_checked(len).ok_or(DecodeError::Malformed)?;
+    Ok((shape, section, tail))
 }
 
 /// Decodes and validates a blob from untrusted bytes (trailing bytes ignored).
@@ -534,10 +785,7 @@ pub fn decode_into_capacity<const K: usize>(model: &mut Model<K>, bytes: &[u8]) 
 
 fn decode_payload<const K: usize>(model: &mut Model<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
     let header = Header::parse(bytes)?;
-    crc_status(bytes, &header)?;
-    let payload = bytes
-        .get(HEADER_LEN..HEADER_LEN + header.payload_len as usize)
-        .ok_or(DecodeError::Malformed)?;
+    let (_, payload) = checked_payload(bytes, &RawHeader::read(bytes)?)?;
     let shape = SectionShape {
         kind_code: header.kind_code,
         inputs: header.inputs,
@@ -980,6 +1228,70 @@ mod tests {
         let decoded = decode(&golden).unwrap();
         assert_eq!(decoded.model, lag_bank_model());
         assert_eq!(encoded(&decoded.model), golden);
+    }
+
+    fn provenance_of<'a>(serial: &'a str, record: &'a [u8]) -> Provenance<'a> {
+        Provenance {
+            model_id: 0x1a2b_3c4d,
+            serial,
+            record,
+        }
+    }
+
+    /// Removes the provenance section of a format-4/5 blob and writes the older
+    /// version and length back: what the blob would be without provenance.
+    fn without_provenance(blob: &[u8]) -> std::vec::Vec<u8> {
+        let section = 2 + usize::from(u16::from_le_bytes([blob[HEADER_LEN], blob[HEADER_LEN + 1]]));
+        let mut v = blob[..HEADER_LEN].to_vec();
+        v.extend_from_slice(&blob[HEADER_LEN + section..blob.len() - CRC_LEN]);
+        let version = u16::from_le_bytes([v[4], v[5]]) - 2;
+        v[4..6].copy_from_slice(&version.to_le_bytes());
+        let payload = (v.len() - HEADER_LEN) as u32;
+        v[12..16].copy_from_slice(&payload.to_le_bytes());
+        v.extend_from_slice(&[0; CRC_LEN]);
+        reseal(&mut v);
+        v
+    }
+
+    #[test]
+    fn a_blob_with_provenance_holds_the_same_model_bytes_and_gives_its_provenance_back() {
+        let model = rbf_model();
+        let record = b"fitted 2026-11-29T07:00:00Z";
+        let given = provenance_of("FOG-0042", record);
+        let mut buf = [0u8; MAX_BLOB_LEN];
+        let n = encode_with(&model, Some(&given), &mut buf).unwrap();
+        let blob = &buf[..n];
+        assert_eq!(u16::from_le_bytes([blob[4], blob[5]]), PROVENANCE_FORMAT_VERSION);
+        assert_eq!(decode(blob).unwrap().model, model);
+        assert_eq!(provenance(blob), Ok(Some(given)));
+        assert_eq!(blob_kind(blob), Ok(BlobKind::SingleAxis));
+        assert_eq!(
+            without_provenance(blob),
+            encoded(&model),
+            "the model's bytes are those of the format-2 blob"
+        );
+        // A format-2 blob (every blob written before provenance) has none.
+        assert_eq!(provenance(&encoded(&model)), Ok(None));
+        assert_every_bit_flip_refused(blob, decode);
+        assert_every_bit_flip_refused(blob, |b| provenance(b).map(|_| ()));
+        garbage_never_panics(blob, 0x5eed_0004, 5_000, 3, |b| provenance(b).map(|_| ()));
+        garbage_never_panics(blob, 0x5eed_0005, 5_000, 3, decode);
+    }
+
+    #[test]
+    fn a_serial_longer_than_the_blob_holds_is_refused_and_a_lying_section_length_is_malformed() {
+        let long = "S".repeat(SERIAL_CAPACITY + 1);
+        let mut buf = [0u8; MAX_BLOB_LEN];
+        assert_eq!(
+            encode_with(&rbf_model(), Some(&provenance_of(&long, b"")), &mut buf),
+            Err(EncodeError::SerialTooLong)
+        );
+        let n = encode_with(&rbf_model(), Some(&provenance_of("FOG-1", b"r")), &mut buf).unwrap();
+        let mut v = buf[..n].to_vec();
+        v[HEADER_LEN..HEADER_LEN + 2].copy_from_slice(&4000u16.to_le_bytes());
+        reseal(&mut v);
+        assert_eq!(provenance(&v), Err(DecodeError::Malformed));
+        assert_eq!(decode(&v).map(|_| ()), Err(DecodeError::Malformed));
     }
 
     #[test]

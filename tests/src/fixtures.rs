@@ -174,7 +174,7 @@ pub fn axes_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
         models.push((axis, model));
     }
     let refs: Vec<(Axis, &rbf_core::Model)> = models.iter().map(|(a, m)| (*a, m)).collect();
-    let blob = trainer::blobfile::encode_axis_models(&refs).expect("encode the axes");
+    let blob = trainer::blobfile::encode_axis_models(&refs, None).expect("encode the axes");
     let blob_path = dir.join("axes.bin");
     std::fs::write(&blob_path, blob).expect("write blob");
     (blob_path, axes_slice(dir, false))
@@ -212,7 +212,7 @@ pub fn shared_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
     let pairs: Vec<(Axis, &RunFiles)> = Axis::ALL.into_iter().zip(&trains).collect();
     let shared = fit::joint::refit_layers(&basis.model, ridge, &pairs, opts.block_s).expect("joint fit");
     assert!(shared.centers_used() > 1, "a basis of one centre tests little");
-    let blob = trainer::blobfile::encode_shared_models(&shared).expect("encode the shared basis");
+    let blob = trainer::blobfile::encode_shared_models(&shared, None).expect("encode the shared basis");
     let blob_path = dir.join("shared.bin");
     std::fs::write(&blob_path, blob).expect("write blob");
     (blob_path, axes_slice(dir, true))

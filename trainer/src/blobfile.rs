@@ -12,15 +12,20 @@ use rbf_core::blob::{self, BlobKind, MAX_BLOB_LEN, shared_layout};
 use rbf_core::shared_basis::SharedAxisModels;
 
 use crate::output::{Existing, write_bytes_with};
+use crate::provenance::ProvenanceRecord;
 use crate::reading::input;
 use crate::text;
 
-/// Encodes `model` into blob bytes, decoded again and compared: a blob that
-/// reaches the disk is one the firmware accepts and that evaluates to the
-/// same model.
-pub fn encode_model(model: &Model) -> anyhow::Result<Vec<u8>> {
+/// Encodes `model` into blob bytes, with `provenance` (format 4) or without (format 2),
+/// decoded again and compared: a blob that reaches the disk is one the firmware
+/// accepts and that evaluates to the same model.
+pub fn encode_model(model: &Model, provenance: Option<&ProvenanceRecord>) -> anyhow::Result<Vec<u8>> {
     let mut buf = vec![0u8; MAX_BLOB_LEN];
-    let len = blob::encode(model, &mut buf).context("encoding the model blob")?;
+    let len = match provenance {
+        Some(p) => p.with_section(|section| blob::encode_with(model, Some(section), &mut buf)),
+        None => blob::encode(model, &mut buf),
+    }
+    .context("encoding the model blob")?;
     buf.truncate(len);
     let back = blob::decode(&buf).context("the encoded blob does not decode")?;
     anyhow::ensure!(back.model == *model, "the encoded blob does not reproduce the model");
@@ -30,7 +35,7 @@ pub fn encode_model(model: &Model) -> anyhow::Result<Vec<u8>> {
 /// Encodes `model` ([`encode_model`]) and writes it to `path`; returns the
 /// blob bytes. An existing file is replaced only with [`Existing::Replace`] (`--force`).
 pub fn write_model(path: &Path, model: &Model, existing: Existing) -> anyhow::Result<Vec<u8>> {
-    let buf = encode_model(model)?;
+    let buf = encode_model(model, None)?;
     write_bytes_with(path, &[], existing, &buf)?;
     Ok(buf)
 }
@@ -132,6 +137,15 @@ pub fn blob_crc32(blob: &[u8]) -> u32 {
     blob.last_chunk::<4>().map_or(0, |t| u32::from_le_bytes(*t))
 }
 
+/// The provenance a blob holds and its short model id: `None` for a blob written before
+/// provenance existed (formats 2 and 3); an error for a damaged blob or record.
+pub fn blob_provenance(bytes: &[u8]) -> anyhow::Result<Option<(ProvenanceRecord, u32)>> {
+    match blob::provenance(bytes)? {
+        Some(section) => Ok(Some((ProvenanceRecord::from_section(&section)?, section.model_id))),
+        None => Ok(None),
+    }
+}
+
 /// The metadata lines a compensated run carries about the model that
 /// compensated it: `# model: FILE` (the file's name, or standard input)
 /// and `# model_blob_crc32: 0x…` (as `trainer device status` and a
@@ -162,13 +176,17 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<(ModelFile, Vec<u8>)> {
 /// Encodes one model per axis into a multi-axis blob, decoded again and
 /// compared (see [`encode_model`]); refused, naming the fix, when the
 /// models together pass the [`MAX_BLOB_LEN`] a blob may take.
-pub fn encode_axis_models(models: &[(Axis, &Model)]) -> anyhow::Result<Vec<u8>> {
+pub fn encode_axis_models(models: &[(Axis, &Model)], provenance: Option<&ProvenanceRecord>) -> anyhow::Result<Vec<u8>> {
     let mut set = Box::new(AxisModels::EMPTY);
     for (axis, model) in models {
         set.insert(*axis, (*model).clone());
     }
     let mut buf = vec![0u8; MAX_BLOB_LEN];
-    let len = axes::encode_axes(&set, &mut buf).map_err(|e| {
+    let encoded = match provenance {
+        Some(p) => p.with_section(|section| axes::encode_axes_with(&set, Some(section), &mut buf)),
+        None => axes::encode_axes(&set, &mut buf),
+    };
+    let len = encoded.map_err(|e| {
         let singles: Vec<String> = models
             .iter()
             .map(|(axis, m)| {
@@ -192,10 +210,16 @@ pub fn encode_axis_models(models: &[(Axis, &Model)]) -> anyhow::Result<Vec<u8>> 
 
 /// Encodes a shared-basis model into a blob, decoded again and compared
 /// (see [`encode_model`]).
-pub fn encode_shared_models(models: &SharedAxisModels) -> anyhow::Result<Vec<u8>> {
+pub fn encode_shared_models(
+    models: &SharedAxisModels,
+    provenance: Option<&ProvenanceRecord>,
+) -> anyhow::Result<Vec<u8>> {
     let mut buf = vec![0u8; MAX_BLOB_LEN];
-    let len = shared_layout::encode_shared(models, &mut buf)
-        .map_err(|e| anyhow::anyhow!("the shared-basis model does not fit one {MAX_BLOB_LEN}-byte blob: {e}"))?;
+    let len = match provenance {
+        Some(p) => p.with_section(|section| shared_layout::encode_shared_with(models, Some(section), &mut buf)),
+        None => shared_layout::encode_shared(models, &mut buf),
+    }
+    .map_err(|e| anyhow::anyhow!("the shared-basis model does not fit one {MAX_BLOB_LEN}-byte blob: {e}"))?;
     buf.truncate(len);
     let mut back = Box::new(SharedAxisModels::EMPTY);
     shared_layout::decode_shared_into(&mut back, &buf).context("the encoded shared-basis blob does not decode")?;

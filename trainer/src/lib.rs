@@ -18,6 +18,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod acceptance;
 pub mod blobfile;
 pub mod dataset;
 pub mod describe;
@@ -30,6 +31,7 @@ pub mod output;
 pub mod parallel;
 pub mod plan;
 pub mod plotting;
+pub mod provenance;
 pub mod reading;
 pub mod refusals;
 pub mod report;

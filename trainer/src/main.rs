@@ -42,6 +42,11 @@ fn main() -> ExitCode {
     };
     match cli.command.run() {
         Ok(()) => ExitCode::SUCCESS,
+        // A unit that missed its acceptance spec: every output is written; exit 3.
+        Err(e) if e.is::<trainer::acceptance::Rejected>() => {
+            let _ = writeln!(std::io::stderr(), "{}", text::terminal_safe(&format!("{e:#}")));
+            ExitCode::from(3)
+        }
         Err(e) => {
             // File names, fields and serials from outside may hold control characters.
             let message = format!("{e:#}{}", cli::flag_hint(&e));

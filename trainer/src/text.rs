@@ -84,6 +84,15 @@ impl<W: Write> Write for SafeWriter<W> {
     }
 }
 
+/// Line and column (1-based, the column in characters) of byte `offset` in `source`: where
+/// an error in a TOML manifest or spec points.
+pub fn line_col(source: &str, offset: usize) -> (usize, usize) {
+    let before = source.get(..offset).unwrap_or(source);
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -125,7 +125,7 @@ mod tests {
         )
         .unwrap();
         let model_path = dir.path().join("m.bin");
-        std::fs::write(&model_path, trainer::blobfile::encode_model(&model).unwrap()).unwrap();
+        std::fs::write(&model_path, trainer::blobfile::encode_model(&model, None).unwrap()).unwrap();
         // A 0.1 °C/min ramp from `from_c`, 1 Hz.
         let run = |name: &str, from_c: f64| {
             let path = dir.path().join(name);

@@ -4,7 +4,7 @@
 //! ```text
 //! offset  size  field
 //!      0     4  magic  b"IFOG"
-//!      4     2  format version, u16 LE (3: multi-axis)
+//!      4     2  format version, u16 LE (3: multi-axis; 5: with provenance, see [`super`])
 //!      6     1  axis mask: bit 0 = x, bit 1 = y, bit 2 = z (at least one)
 //!      7     5  reserved, 0
 //!     12     4  payload length N, u32 LE
@@ -26,17 +26,14 @@
 
 // The multi-axis header lives with the other headers in `blob`, so that
 // `blob` does not import its child; re-exported here, where it was.
-pub use super::{AXES_FORMAT_VERSION, AxesHeader, SHARED_BASIS_FLAG};
+pub use super::{AXES_FORMAT_VERSION, AxesHeader, SECTION_HEADER_LEN, SHARED_BASIS_FLAG};
 use super::{
-    BlobKind, CRC_LEN, DecodeError, EncodeError, HEADER_LEN, MAGIC, MAX_BLOB_LEN, SectionShape, crc_status_at,
-    decode_section, encode_section, seal,
+    BlobKind, DecodeError, EncodeError, Layout, Provenance, RawHeader, checked_payload, decode_section, split_section,
+    write_blob, write_section,
 };
 use crate::MAX_CENTERS;
 use crate::axis::{Axis, AxisSet, MAX_AXES};
 use crate::model::Model;
-
-/// Length of the header in front of each axis's section, bytes.
-pub const SECTION_HEADER_LEN: usize = 8;
 
 /// The models of a multi-axis IMU, one per axis present, each with room
 /// for `K` Gaussian centres; a model is read through `&self` and never
@@ -84,41 +81,32 @@ impl<const K: usize> AxisModels<K> {
     }
 }
 
-/// Encodes the models of `axes` into `out` as one multi-axis blob; returns
-/// the number of bytes written. [`EncodeError::NoModel`] when there is no
-/// axis, [`EncodeError::BufferTooSmall`] when the blob would pass `out`
-/// or [`MAX_BLOB_LEN`].
+/// Encodes the models of `axes` into `out` as one multi-axis blob (format 3, no
+/// provenance); returns the number of bytes written. [`EncodeError::NoModel`] when there
+/// is no axis, [`EncodeError::BufferTooSmall`] when the blob would pass `out` or
+/// [`super::MAX_BLOB_LEN`].
 pub fn encode_axes<const K: usize>(axes: &AxisModels<K>, out: &mut [u8]) -> Result<usize, EncodeError> {
+    encode_axes_with(axes, None, out)
+}
+
+/// [`encode_axes`] with `provenance` (format 5) or without (format 3); the models'
+/// bytes are the same either way.
+pub fn encode_axes_with<const K: usize>(
+    axes: &AxisModels<K>,
+    provenance: Option<&Provenance<'_>>,
+    out: &mut [u8],
+) -> Result<usize, EncodeError> {
     if axes.mask.is_empty() {
         return Err(EncodeError::NoModel);
     }
-    let limit = out.len().min(MAX_BLOB_LEN);
-    let out = out.get_mut(..limit).ok_or(EncodeError::BufferTooSmall)?;
-    let mut at = HEADER_LEN;
-    for axis in axes.axes() {
-        let model = &axes.models[axis.index()];
-        let section = out
-            .get_mut(at + SECTION_HEADER_LEN..)
-            .ok_or(EncodeError::BufferTooSmall)?;
-        let (shape, len) = encode_section(model, section)?;
-        let head = out
-            .get_mut(at..at + SECTION_HEADER_LEN)
-            .ok_or(EncodeError::BufferTooSmall)?;
-        head[0] = shape.kind_code;
-        head[1] = shape.inputs;
-        head[2..4].copy_from_slice(&shape.centers.to_le_bytes());
-        head[4..8].copy_from_slice(&(len as u32).to_le_bytes());
-        at += SECTION_HEADER_LEN + len;
-    }
-    if at + CRC_LEN > out.len() {
-        return Err(EncodeError::BufferTooSmall);
-    }
-    out[0..4].copy_from_slice(&MAGIC);
-    out[4..6].copy_from_slice(&AXES_FORMAT_VERSION.to_le_bytes());
-    out[6] = axes.mask.bits();
-    out[7..12].fill(0);
-    out[12..16].copy_from_slice(&((at - HEADER_LEN) as u32).to_le_bytes());
-    seal(out, at)
+    write_blob(out, Layout::Axes, provenance, |area| {
+        let mut at = 0;
+        for axis in axes.axes() {
+            let section = area.get_mut(at..).ok_or(EncodeError::BufferTooSmall)?;
+            at += write_section(&axes.models[axis.index()], section)?;
+        }
+        Ok(([axes.mask.bits(), 0, 0, 0, 0, 0], at))
+    })
 }
 
 /// Decodes and validates a multi-axis blob from untrusted bytes into
@@ -166,31 +154,12 @@ pub fn decode_any_into<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -
     Ok(len)
 }
 
-/// Splits the next section off `rest`: the shape its 8-byte header states, its bytes, and
-/// what follows it (the per-axis and the shared-basis layouts read sections alike).
-pub(super) fn split_section(rest: &[u8]) -> Result<(SectionShape, &[u8], &[u8]), DecodeError> {
-    let (head, tail) = rest
-        .split_at_checked(SECTION_HEADER_LEN)
-        .ok_or(DecodeError::Malformed)?;
-    let shape = SectionShape {
-        kind_code: head[0],
-        inputs: head[1],
-        centers: u16::from_le_bytes([head[2], head[3]]),
-    };
-    let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
-    let (section, tail) = tail.split_at_checked(len).ok_or(DecodeError::Malformed)?;
-    Ok((shape, section, tail))
-}
-
 fn decode_axes_payload<const K: usize>(axes: &mut AxisModels<K>, bytes: &[u8]) -> Result<usize, DecodeError> {
     let header = AxesHeader::parse(bytes)?;
     if header.shared_basis {
         return Err(DecodeError::SharedBasis);
     }
-    crc_status_at(bytes, HEADER_LEN + header.payload_len as usize)?;
-    let mut rest = bytes
-        .get(HEADER_LEN..HEADER_LEN + header.payload_len as usize)
-        .ok_or(DecodeError::Malformed)?;
+    let (_, mut rest) = checked_payload(bytes, &RawHeader::read(bytes)?)?;
     axes.mask = AxisSet::EMPTY;
     for axis in Axis::ALL {
         let slot = &mut axes.models[axis.index()];
@@ -214,6 +183,7 @@ mod tests {
     use super::*;
     use crate::blob::damage::{assert_every_bit_flip_refused, garbage_never_panics, reseal};
     use crate::blob::{self, decode};
+    use crate::blob::{HEADER_LEN, MAX_BLOB_LEN};
     use crate::features::{FeatureConfig, FeatureSet};
     use crate::model::ModelInfo;
     use crate::poly::Poly3;
@@ -296,6 +266,32 @@ mod tests {
         assert_eq!(decode_axes_into(&mut back, &blob), Ok(blob.len()));
         assert_eq!(back, xz);
         assert!(back.get(Axis::Y).is_none() && back.get(Axis::Z).is_some());
+    }
+
+    #[test]
+    fn a_multi_axis_blob_with_provenance_decodes_to_the_same_models() {
+        let axes = three_axes();
+        let provenance = blob::Provenance {
+            model_id: 7,
+            serial: "IMU-3",
+            record: &[1, 2, 3],
+        };
+        let mut buf = [0u8; MAX_BLOB_LEN];
+        let n = encode_axes_with(&axes, Some(&provenance), &mut buf).unwrap();
+        let with = &buf[..n];
+        assert_eq!(
+            u16::from_le_bytes([with[4], with[5]]),
+            blob::AXES_PROVENANCE_FORMAT_VERSION
+        );
+        let plain = encoded(&axes);
+        assert_eq!(with[HEADER_LEN + 7 + 5 + 3..n - 4], plain[HEADER_LEN..plain.len() - 4]);
+        let mut back = AxisModels::EMPTY;
+        assert_eq!(decode_axes_into(&mut back, with), Ok(n));
+        assert_eq!(back, axes);
+        assert_eq!(blob_len(with), Ok(n));
+        assert_eq!(blob::blob_kind(with), Ok(BlobKind::PerAxis));
+        assert_eq!(blob::provenance(with), Ok(Some(provenance)));
+        assert_eq!(decode(with), Err(DecodeError::MultiAxis));
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! ```text
 //! offset  size  field
 //!      0     4  magic  b"IFOG"
-//!      4     2  format version, u16 LE (3: multi-axis)
+//!      4     2  format version, u16 LE (3: multi-axis; 5: with provenance, see [`super`])
 //!      6     1  axis mask: bit 0 = x, bit 1 = y, bit 2 = z (at least one)
 //!      7     1  1: shared basis (0: one model per axis, see [`super::axes`])
 //!      8     4  reserved, 0
@@ -25,10 +25,10 @@
 use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
-use super::axes::{AXES_FORMAT_VERSION, AxesHeader, SECTION_HEADER_LEN, SHARED_BASIS_FLAG};
+use super::axes::{AxesHeader, SHARED_BASIS_FLAG};
 use super::{
-    CRC_LEN, DecodeError, EncodeError, HEADER_LEN, MAGIC, MAX_BLOB_LEN, crc_status_at, decode_section, encode_section,
-    seal,
+    DecodeError, EncodeError, Layout, Provenance, RawHeader, checked_payload, decode_section, split_section,
+    write_blob, write_section,
 };
 use crate::axis::{Axis, MAX_AXES};
 use crate::shared_basis::{OutputLayer, SharedAxisModels};
@@ -42,52 +42,42 @@ struct LayerWire {
     constant: f32,
 }
 
-/// Encodes `models` into `out` as one shared-basis blob; returns the
-/// number of bytes written. [`EncodeError::NoModel`] when no axis has a
+/// Encodes `models` into `out` as one shared-basis blob (format 3, no provenance);
+/// returns the number of bytes written. [`EncodeError::NoModel`] when no axis has a
 /// layer, [`EncodeError::BufferTooSmall`] when the blob would pass `out` or
-/// [`MAX_BLOB_LEN`].
+/// [`super::MAX_BLOB_LEN`].
 pub fn encode_shared<const K: usize>(models: &SharedAxisModels<K>, out: &mut [u8]) -> Result<usize, EncodeError> {
+    encode_shared_with(models, None, out)
+}
+
+/// [`encode_shared`] with `provenance` (format 5) or without (format 3); the models'
+/// bytes are the same either way.
+pub fn encode_shared_with<const K: usize>(
+    models: &SharedAxisModels<K>,
+    provenance: Option<&Provenance<'_>>,
+    out: &mut [u8],
+) -> Result<usize, EncodeError> {
     if models.mask() == 0 {
         return Err(EncodeError::NoModel);
     }
-    let limit = out.len().min(MAX_BLOB_LEN);
-    let out = out.get_mut(..limit).ok_or(EncodeError::BufferTooSmall)?;
-    let section = out
-        .get_mut(HEADER_LEN + SECTION_HEADER_LEN..)
-        .ok_or(EncodeError::BufferTooSmall)?;
-    let (shape, len) = encode_section(models.basis(), section)?;
-    let head = out
-        .get_mut(HEADER_LEN..HEADER_LEN + SECTION_HEADER_LEN)
-        .ok_or(EncodeError::BufferTooSmall)?;
-    head[0] = shape.kind_code;
-    head[1] = shape.inputs;
-    head[2..4].copy_from_slice(&shape.centers.to_le_bytes());
-    head[4..8].copy_from_slice(&(len as u32).to_le_bytes());
-    let mut at = HEADER_LEN + SECTION_HEADER_LEN + len;
-    for axis in models.axes() {
-        let mut weights = [0.0f32; MAX_CENTERS];
-        let k = models.weights_into(axis, &mut weights);
-        let (linear, constant) = models.linear_and_constant(axis);
-        let wire = LayerWire {
-            weights: Vec::from_slice(weights.get(..k).unwrap_or(&[])).map_err(|_| EncodeError::BufferTooSmall)?,
-            linear: Vec::from_slice(linear).map_err(|_| EncodeError::BufferTooSmall)?,
-            constant,
-        };
-        let area = out.get_mut(at..).ok_or(EncodeError::BufferTooSmall)?;
-        at += postcard::to_slice(&wire, area)
-            .map_err(|_| EncodeError::BufferTooSmall)?
-            .len();
-    }
-    if at + CRC_LEN > out.len() {
-        return Err(EncodeError::BufferTooSmall);
-    }
-    out[0..4].copy_from_slice(&MAGIC);
-    out[4..6].copy_from_slice(&AXES_FORMAT_VERSION.to_le_bytes());
-    out[6] = models.mask();
-    out[7] = SHARED_BASIS_FLAG;
-    out[8..12].fill(0);
-    out[12..16].copy_from_slice(&((at - HEADER_LEN) as u32).to_le_bytes());
-    seal(out, at)
+    write_blob(out, Layout::Axes, provenance, |area| {
+        let mut at = write_section(models.basis(), area)?;
+        for axis in models.axes() {
+            let mut weights = [0.0f32; MAX_CENTERS];
+            let k = models.weights_into(axis, &mut weights);
+            let (linear, constant) = models.linear_and_constant(axis);
+            let wire = LayerWire {
+                weights: Vec::from_slice(weights.get(..k).unwrap_or(&[])).map_err(|_| EncodeError::BufferTooSmall)?,
+                linear: Vec::from_slice(linear).map_err(|_| EncodeError::BufferTooSmall)?,
+                constant,
+            };
+            let layer_area = area.get_mut(at..).ok_or(EncodeError::BufferTooSmall)?;
+            at += postcard::to_slice(&wire, layer_area)
+                .map_err(|_| EncodeError::BufferTooSmall)?
+                .len();
+        }
+        Ok(([models.mask(), SHARED_BASIS_FLAG, 0, 0, 0, 0], at))
+    })
 }
 
 /// Decodes and validates a shared-basis blob from untrusted bytes into
@@ -110,11 +100,8 @@ fn decode_shared_payload<const K: usize>(models: &mut SharedAxisModels<K>, bytes
     if !header.shared_basis {
         return Err(DecodeError::NotSharedBasis);
     }
-    crc_status_at(bytes, HEADER_LEN + header.payload_len as usize)?;
-    let payload = bytes
-        .get(HEADER_LEN..HEADER_LEN + header.payload_len as usize)
-        .ok_or(DecodeError::Malformed)?;
-    let (shape, section, mut rest) = super::axes::split_section(payload)?;
+    let (_, payload) = checked_payload(bytes, &RawHeader::read(bytes)?)?;
+    let (shape, section, mut rest) = split_section(payload)?;
     decode_section(models.basis_mut(), shape, section)?;
     models.accept_basis()?;
     for axis in Axis::ALL.into_iter().take(MAX_AXES) {
@@ -145,6 +132,7 @@ mod tests {
     use crate::blob::axes::{AxisModels, decode_any_into, decode_axes_into, encode_axes};
     use crate::blob::damage::{assert_every_bit_flip_refused, garbage_never_panics, reseal};
     use crate::blob::{self, decode};
+    use crate::blob::{HEADER_LEN, MAX_BLOB_LEN};
     use crate::features::{FeatureConfig, FeatureSet, FeatureVector};
     use crate::model::ModelBody;
     use crate::model::{BodyParams, Model, ModelError, ModelInfo};
@@ -323,6 +311,26 @@ mod tests {
             Err(DecodeError::ShapeOverCapacity { centers: 20, inputs: 3 })
         );
         assert_eq!(small, SharedAxisModels::EMPTY);
+    }
+
+    #[test]
+    fn a_shared_blob_with_provenance_decodes_to_the_same_models() {
+        let (models, _) = shared(Some(1.5));
+        let provenance = blob::Provenance {
+            model_id: 0xfeed,
+            serial: "",
+            record: b"",
+        };
+        let mut buf = [0u8; MAX_BLOB_LEN];
+        let n = encode_shared_with(&models, Some(&provenance), &mut buf).unwrap();
+        let with = &buf[..n];
+        let plain = encoded(&models);
+        assert_eq!(with[HEADER_LEN + 7..n - 4], plain[HEADER_LEN..plain.len() - 4]);
+        assert_eq!(blob::blob_kind(with), Ok(blob::BlobKind::SharedBasis));
+        let mut back = SharedAxisModels::<64>::EMPTY;
+        assert_eq!(decode_shared_into(&mut back, with), Ok(n));
+        assert_eq!(back, models);
+        assert_eq!(blob::provenance(with), Ok(Some(provenance)));
     }
 
     #[test]

@@ -117,11 +117,13 @@ struct UpdateArgs {
     port: PortArgs,
     #[command(flatten)]
     model: ModelArg,
-    /// Install a blob for other axes than the unit's.
+    /// Install a blob for other axes, or another serial, than the unit's.
     ///
     /// A three-axis unit takes a single-axis blob (as axis x) or a blob for
-    /// some of its axes, and runs the others uncompensated (flag 4); without
-    /// --force such a blob is refused, naming both, before anything is sent.
+    /// some of its axes, and runs the others uncompensated (flag 4); a blob whose
+    /// provenance names another serial than the unit's running model is another
+    /// gyro's calibration. Without --force either is refused, naming both, before
+    /// anything is sent.
     #[arg(long, help_heading = "Model")]
     force: bool,
 }

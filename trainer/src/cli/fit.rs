@@ -4,12 +4,15 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use rbf_core::thermometer::ThermometerSet;
+use trainer::acceptance::{self, Judged, Rejected, Spec};
 use trainer::blobfile::encode_model;
 use trainer::dataset::RunFiles;
 use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader, only_axis};
 use trainer::evaluation::table::print_table;
+use trainer::fit::coverage::InUse;
 use trainer::fit::{self, FitOptions};
 use trainer::output::{self, Output, StagedDir, Transaction};
+use trainer::provenance::ProvenanceRecord;
 use trainer::reading::plausible;
 use trainer::reading::run::RunReader;
 use trainer::text;
@@ -68,17 +71,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ("--holdout", &a.holdout),
     ])?;
     trainer::reading::limits::check_block_s(a.block_s)?;
-    if let Some(s) = &a.serial {
-        anyhow::ensure!(
-            s.len() <= rbf_core::model::SERIAL_CAPACITY,
-            "--serial {s:?}: at most {} bytes",
-            rbf_core::model::SERIAL_CAPACITY
-        );
-    }
     anyhow::ensure!(
         a.method != MethodArg::SvrPso || a.validate.is_empty(),
         "--method svr-pso validates on contiguous folds of the training runs; drop --validate"
     );
+    let spec = a.spec.as_deref().map(Spec::read).transpose()?;
+    // Digests and the fit time, taken before the fit reads the runs.
+    let provenance = ProvenanceRecord::for_fit(a.serial.as_deref(), &a.runs, a.spec.as_deref(), a.batch.as_deref())?;
     let train = RunFiles::new(&a.runs);
     let validate = RunFiles::new(&a.validate);
     let mut opts = FitOptions {
@@ -112,13 +111,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None => JsonSink::None,
     };
     if !axes.is_empty() {
+        anyhow::ensure!(
+            spec.is_none(),
+            "--spec judges single-axis fits for now; judge each axis's holdout with `trainer eval --json`"
+        );
         let how = FitHow {
             with_validate_runs: !a.validate.is_empty(),
             folds: opts.folds,
             named_inputs: opts.inputs.is_some(),
             selection: opts.selection,
         };
-        return axes::run(&a, &opts, &how, &axes, model_out, json_out);
+        return axes::run(&a, &opts, &how, &axes, model_out, json_out, &provenance);
     }
     let started = std::time::Instant::now();
     let outcome = fit::fit(&train, &validate, &opts).map_err(|e| {
@@ -167,7 +170,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         plausible::require_plausible(&diagnosis.implausible(), a.allow_implausible)?;
         evals.push(("holdout", evaluation));
     }
-    let blob = encode_model(&outcome.model)?;
+    let blob = encode_model(&outcome.model, Some(&provenance))?;
 
     // Printed once everything is written.
     let mut out: Vec<u8> = Vec::new();
@@ -190,12 +193,33 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             writeln!(out, "{line}")?;
         }
     }
+    let verdict = spec.as_ref().map(|spec| {
+        let missing_for = InUse {
+            range_c: spec.use_range_c().or(in_use.range_c),
+            ..in_use
+        };
+        acceptance::judge(
+            spec,
+            &Judged {
+                holdout: evals.iter().filter(|(r, _)| *r == "holdout").map(|(_, e)| e).collect(),
+                forecast_in_use_std100_dph: outcome.predicted_in_use_std100_dph(),
+                missing: outcome.bank.as_ref().map(|b| b.coverage.missing(&missing_for)),
+            },
+        )
+    });
+    if let Some(v) = &verdict {
+        writeln!(out, "\n{}", verdict_text(v))?;
+    }
     writeln!(out, "\nwrote {} ({} bytes)", text::path(&a.output), blob.len())?;
     let mut json = outcome_json(&outcome, &in_use);
     json["method"] = serde_json::json!(opts.method);
     json["fit_seconds"] = serde_json::json!(fit_s);
     json["blob_bytes"] = serde_json::json!(blob.len());
     json["runs"] = runs_json(&evals);
+    json["acceptance"] = match &verdict {
+        Some(v) => serde_json::json!({"status": if v.passed() { "pass" } else { "fail" }, "reasons": v.reasons}),
+        None => serde_json::Value::Null,
+    };
     // Every output staged, then printed, then committed together.
     let mut transaction = Transaction::new();
     if let Some(target) = report_target {
@@ -227,7 +251,27 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     write_blob(model_out, &blob, &mut transaction)?;
     let json_on_stdout = json_out.is_stdout();
     json_out.write(&json, &mut transaction)?;
-    print_and_commit(&out, json_on_stdout, transaction)
+    print_and_commit(&out, json_on_stdout, transaction)?;
+    match verdict {
+        Some(v) if !v.passed() => {
+            Err(Rejected(format!("the unit missed its acceptance spec: {}", v.reasons.join("; "))).into())
+        }
+        _ => Ok(()),
+    }
+}
+
+/// The verdict as `fit` prints it: `acceptance: pass`, or `FAIL` and a line per limit missed.
+pub(crate) fn verdict_text(v: &acceptance::Verdict) -> String {
+    if v.passed() {
+        "acceptance: pass".to_owned()
+    } else {
+        let mut t = "acceptance: FAIL".to_owned();
+        for r in &v.reasons {
+            t.push_str("\n  ");
+            t.push_str(r);
+        }
+        t
+    }
 }
 
 /// The file in `--report DIR` that holds what `fit` prints.

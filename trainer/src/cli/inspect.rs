@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use rbf_core::blob::axes::{AXES_FORMAT_VERSION, AxesHeader, AxisModels, decode_axes_into};
-use rbf_core::blob::{self, BlobKind, Header};
+use rbf_core::blob::{self, AXES_PROVENANCE_FORMAT_VERSION, BlobKind, Header};
 use rbf_core::model::ModelBody;
 use trainer::blobfile::{file_problem, read_blob};
 use trainer::describe::summary::{count, sig};
@@ -121,12 +121,28 @@ fn inspect_json(
         "crc": match crc { Ok(()) => "ok".to_owned(), Err(e) => e.to_string() },
         "valid": decoded.is_ok(),
     });
+    add_provenance_json(&mut v, bytes, header.blob_len());
     if let Ok(d) = decoded {
         add_model_json(&mut v, &d.model);
     } else if let Err(e) = decoded {
         v["error"] = serde_json::json!(e.to_string());
     }
     v
+}
+
+/// Adds the blob's CRC-32 (`"crc32": "0x…"`, the value the unit's health report names) and
+/// its provenance (`null`: a blob written before provenance existed) to an inspect JSON object.
+fn add_provenance_json(v: &mut serde_json::Value, bytes: &[u8], blob_len: usize) {
+    let crc = bytes
+        .get(..blob_len)
+        .filter(|b| b.len() == blob_len)
+        .map(trainer::blobfile::blob_crc32);
+    v["crc32"] = serde_json::json!(crc.map(trainer::provenance::crc32_text));
+    v["provenance"] = match trainer::blobfile::blob_provenance(bytes) {
+        Ok(Some((record, id))) => record.to_json(id),
+        Ok(None) => serde_json::Value::Null,
+        Err(e) => serde_json::json!({ "error": format!("{e:#}") }),
+    };
 }
 
 /// Adds what `m` holds to an inspect JSON object: features, training ranges,
@@ -202,11 +218,11 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
             Some(v)
         })
         .collect();
-    let info = serde_json::json!({
+    let mut info = serde_json::json!({
         "file": text::path(path),
         "file_bytes": bytes.len(),
         "blob_bytes": header.blob_len(),
-        "format_version": AXES_FORMAT_VERSION,
+        "format_version": if header.provenance { AXES_PROVENANCE_FORMAT_VERSION } else { AXES_FORMAT_VERSION },
         "axis_mask": header.axis_mask,
         "shared_basis": header.shared_basis,
         "crc": crc,
@@ -214,6 +230,7 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
         "error": problem,
         "axes": axis_json,
     });
+    add_provenance_json(&mut info, bytes, header.blob_len());
     let json_on_stdout = json_out.is_stdout();
     let mut transaction = Transaction::new();
     json_out.write(&info, &mut transaction)?;
@@ -282,7 +299,17 @@ pub fn summary(v: &serde_json::Value) -> String {
         count(num("inputs"), "input", "inputs"),
         count(num("centers"), "centre", "centres")
     );
-    let _ = writeln!(out, "CRC-32          {}", string(&v["crc"]).unwrap_or_default());
+    let _ = match string(&v["crc32"]) {
+        Some(value) => writeln!(
+            out,
+            "CRC-32          {} ({value})",
+            string(&v["crc"]).unwrap_or_default()
+        ),
+        None => writeln!(out, "CRC-32          {}", string(&v["crc"]).unwrap_or_default()),
+    };
+    if let Some(p) = v.get("provenance") {
+        provenance_lines(&mut out, p);
+    }
     if let Some(form) = string(&description["form"]) {
         let _ = writeln!(out, "model           {form}");
     }
@@ -333,6 +360,45 @@ pub fn summary(v: &serde_json::Value) -> String {
         string(&v["error"]).map_or(String::new(), |e| format!(" ({e})"))
     );
     out
+}
+
+/// The provenance lines of the summary: "none" for a blob written before provenance existed.
+fn provenance_lines(out: &mut String, p: &serde_json::Value) {
+    let string = |x: &serde_json::Value| x.as_str().map(|s| text::escape_controls(s).into_owned());
+    if p.is_null() {
+        let _ = writeln!(out, "provenance      none (a blob written before format 4)");
+        return;
+    }
+    if let Some(e) = string(&p["error"]) {
+        let _ = writeln!(out, "provenance      unreadable: {e}");
+        return;
+    }
+    let _ = writeln!(out, "model id        {}", string(&p["model_id"]).unwrap_or_default());
+    let _ = writeln!(
+        out,
+        "fitted          {} by trainer {} ({})",
+        string(&p["fitted_utc"]).unwrap_or_default(),
+        string(&p["trainer_version"]).unwrap_or_default(),
+        string(&p["trainer_commit"]).unwrap_or_default()
+    );
+    for run in p["training_runs"].as_array().into_iter().flatten() {
+        let _ = writeln!(
+            out,
+            "training run    {} sha256 {}",
+            string(&run["file"]).unwrap_or_default(),
+            string(&run["sha256"]).unwrap_or_default()
+        );
+    }
+    let _ = writeln!(
+        out,
+        "spec sha256     {}",
+        string(&p["spec_sha256"]).unwrap_or_else(|| "none".to_owned())
+    );
+    let _ = writeln!(
+        out,
+        "batch           {}",
+        string(&p["batch"]).unwrap_or_else(|| "none".to_owned())
+    );
 }
 
 #[cfg(test)]

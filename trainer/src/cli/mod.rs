@@ -4,6 +4,7 @@
 //! A new subcommand is one file here with `pub struct Args` and
 //! `pub fn run(Args) -> anyhow::Result<()>`, plus a `mod` line and one line in [`commands!`].
 
+mod batch;
 mod blocks;
 mod common;
 mod compensate;
@@ -61,4 +62,5 @@ commands! {
     correlate => Correlate,
     plan => Plan,
     device => Device,
+    batch => Batch,
 }

@@ -362,8 +362,8 @@ mod tests {
         let in_memory = crate::fit::fit(&runs[..], &no_runs[..], &opts).unwrap();
         assert!(from_files.bank.is_some(), "the default is the lag bank");
         assert_eq!(
-            crate::blobfile::encode_model(&from_files.model).unwrap(),
-            crate::blobfile::encode_model(&in_memory.model).unwrap()
+            crate::blobfile::encode_model(&from_files.model, None).unwrap(),
+            crate::blobfile::encode_model(&in_memory.model, None).unwrap()
         );
     }
 

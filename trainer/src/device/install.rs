@@ -56,6 +56,8 @@ pub struct CheckedBlob {
     /// The axes it holds a model for (a single-axis blob: x alone, as the
     /// three-axis board runs it).
     pub axes: AxisSet,
+    /// The serial its provenance names (`None`: no provenance, or no serial given).
+    pub serial: Option<String>,
 }
 
 /// Decodes `bytes` as the board whose running model is an `M` does (into
@@ -102,11 +104,15 @@ pub fn check_blob(bytes: &[u8]) -> Result<CheckedBlob, DecodeError> {
     };
     let bytes = bytes.get(..len).ok_or(DecodeError::Malformed)?.to_vec();
     let crc32 = crate::blobfile::blob_crc32(&bytes);
+    let serial = rbf_core::blob::provenance(&bytes)?
+        .map(|p| p.serial.to_owned())
+        .filter(|s| !s.is_empty());
     Ok(CheckedBlob {
         bytes,
         crc32,
         suits,
         axes,
+        serial,
     })
 }
 
@@ -150,6 +156,18 @@ pub fn check_for_unit(blob: &CheckedBlob, kind: Kind, force: bool) -> Result<(),
             if blob.suits.single { " (a single-axis blob)" } else { "" }
         )),
         Kind::Axes(_) => Ok(()),
+    }
+}
+
+/// Whether a unit whose running model names `unit_serial` takes a blob for `blob_serial`:
+/// a calibration of another unit is refused unless `force`. A unit without a serial (no
+/// model, or one without provenance) and a blob without one take anything.
+pub fn check_serial(blob_serial: Option<&str>, unit_serial: Option<&str>, force: bool) -> Result<(), String> {
+    match (blob_serial, unit_serial) {
+        (Some(blob), Some(unit)) if blob != unit && !force => Err(format!(
+            "the blob is the calibration of serial {blob:?} but the unit runs one of serial {unit:?}; a model fitted              on another gyro does not compensate this one: install that unit's blob, or --force"
+        )),
+        _ => Ok(()),
     }
 }
 
@@ -199,7 +217,9 @@ pub fn install<P: Read + Write>(
     let kind = before.kind.ok_or_else(|| {
         anyhow::anyhow!("{name}: the unit sends no output frames, so its kind is unknown; nothing sent")
     })?;
-    check_for_unit(blob, kind, force).map_err(|why| anyhow::anyhow!("{name}: blob refused, nothing sent: {why}"))?;
+    check_for_unit(blob, kind, force)
+        .and_then(|()| check_serial(blob.serial.as_deref(), before.report.model.serial_str(), force))
+        .map_err(|why| anyhow::anyhow!("{name}: blob refused, nothing sent: {why}"))?;
     let mut command = vec![0u8; MAX_COMMAND_FRAME_LEN];
     let n = encode_install_command(&blob.bytes, &mut command)
         .ok_or_else(|| anyhow::anyhow!("{name}: blob too long for the install command"))?;
@@ -249,6 +269,27 @@ pub fn install<P: Read + Write>(
 mod tests {
     use super::*;
 
+    #[test]
+    fn a_blob_of_another_serial_is_refused_unless_forced_naming_both() {
+        let why = check_serial(Some("FOG-0002"), Some("FOG-0001"), false).unwrap_err();
+        assert!(
+            why.contains("\"FOG-0002\"") && why.contains("\"FOG-0001\"") && why.contains("--force"),
+            "{why}"
+        );
+        assert_eq!(check_serial(Some("FOG-0002"), Some("FOG-0001"), true), Ok(()));
+        assert_eq!(check_serial(Some("FOG-0001"), Some("FOG-0001"), false), Ok(()));
+        assert_eq!(
+            check_serial(Some("FOG-0001"), None, false),
+            Ok(()),
+            "a unit with no serial yet"
+        );
+        assert_eq!(
+            check_serial(None, Some("FOG-0001"), false),
+            Ok(()),
+            "a blob without provenance"
+        );
+    }
+
     /// The framed health report of a unit with `samples` since its reset.
     fn health(samples: u32) -> Vec<u8> {
         let report = firmware::health::HealthReport {
@@ -265,7 +306,7 @@ mod tests {
             firmware_version: firmware::health::FirmwareVersion::CURRENT,
             stack_peak_bytes: 0,
         };
-        let mut buf = [0u8; 84];
+        let mut buf = [0u8; firmware::health::HEALTH_FRAME_LEN];
         let n = report.encode(&mut buf).unwrap();
         buf[..n].to_vec()
     }
@@ -282,6 +323,7 @@ mod tests {
                 shared: false,
             },
             axes: AxisSet::from_bits(1),
+            serial: None,
         };
         let answer = |after_install: Vec<u8>| {
             let mut input = [output_frame(1), health(100), output_frame(2)].concat();
@@ -316,6 +358,7 @@ mod tests {
                 shared: false,
             },
             axes: AxisSet::from_bits(mask),
+            serial: None,
         };
         let err = check_for_unit(&blob(true, 0b001), xyz, false).unwrap_err();
         assert!(

@@ -3,7 +3,7 @@
 //! In: output frames (single- or three-axis, either format, rbf-core's decoders via
 //! [`crate::reading::frames::Frame`]), command replies (2 bytes), the boot report of
 //! a fault or watchdog reset (11 bytes, tag 0xFB), the bench report (17
-//! bytes, tag 0x02) and the health report (80 bytes, tag 0xFC; the
+//! bytes, tag 0x02) and the health report (116 bytes, tag 0xFC; the
 //! firmware's own [`HealthReport::from_bytes`]). Anything else is damage:
 //! counted, and reading goes on at the next 0x00. Out: a command payload,
 //! COBS-framed by rbf-core's encoder. Every wait ends at a deadline.
@@ -316,12 +316,14 @@ pub(crate) mod tests {
             model: firmware::health::ModelIdentity {
                 blob_crc32: 0xDEAD_BEEF,
                 sequence: 2,
+                model_id: 0x0102_0304,
+                serial: [b'S'; 32],
             },
             board_flags: 0,
             firmware_version: firmware::health::FirmwareVersion::CURRENT,
             stack_peak_bytes: 0,
         };
-        let mut buf = [0u8; 84];
+        let mut buf = [0u8; firmware::health::HEALTH_FRAME_LEN];
         let n = report.encode(&mut buf).unwrap();
         assert_eq!(classify(&buf[..n - 1]), Some(Message::Health(report)));
         assert_eq!(classify(&[0x02, 0xFB]), None, "one byte is no message");

@@ -123,6 +123,23 @@ pub fn model_words(report: &HealthReport) -> String {
     }
 }
 
+/// The running model's calibration in words: the short model id and serial of its
+/// provenance (`trainer inspect` and `trainer history` show the same id).
+pub fn calibration_words(report: &HealthReport) -> String {
+    let m = report.model;
+    if m.blob_crc32 == 0 {
+        "none".to_owned()
+    } else if m.model_id == 0 {
+        "no provenance (a blob written before format 4)".to_owned()
+    } else {
+        format!(
+            "model id {}, serial {}",
+            crate::provenance::model_id_text(m.model_id),
+            m.serial_str().unwrap_or("none")
+        )
+    }
+}
+
 /// The counters' names as the report lists them, with their values.
 pub fn counters(report: &HealthReport) -> [(&'static str, u32); 12] {
     let c = &report.counters;
@@ -158,6 +175,7 @@ pub fn describe(port: &str, status: &UnitStatus) -> String {
         let _ = writeln!(s, "fault at:    PC {:#010x}, LR {:#010x}", r.fault_pc, r.fault_lr);
     }
     let _ = writeln!(s, "model:       {}", model_words(r));
+    let _ = writeln!(s, "calibration: {}", calibration_words(r));
     let _ = writeln!(
         s,
         "clocks:      {}",
@@ -231,6 +249,8 @@ pub fn to_json(port: &str, status: &UnitStatus) -> serde_json::Value {
         "fault_lr": r.fault_lr,
         "model_blob_crc32": r.model.blob_crc32,
         "model_sequence": r.model.sequence,
+        "model_id": (r.model.model_id != 0).then(|| crate::provenance::model_id_text(r.model.model_id)),
+        "model_serial": r.model.serial_str(),
         "board_flags": r.board_flags,
         "stack_peak_bytes": r.stack_peak_bytes,
         "counters": counters,
@@ -252,9 +272,15 @@ mod tests {
                 samples_missed: 7,
                 ..Default::default()
             },
-            model: ModelIdentity {
-                blob_crc32: crc,
-                sequence,
+            model: {
+                let mut model = ModelIdentity {
+                    blob_crc32: crc,
+                    sequence,
+                    model_id: 0x6e48_3868,
+                    ..ModelIdentity::default()
+                };
+                model.set_serial("FOG-0001");
+                model
             },
             board_flags: BOARD_ON_HSI,
             firmware_version: firmware::health::FirmwareVersion {
@@ -285,6 +311,10 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("internal 16 MHz RC"), "{text}");
+        assert!(
+            text.contains("calibration: model id 6e483868, serial FOG-0001"),
+            "{text}"
+        );
         assert!(text.contains("samples_missed       7"), "{text}");
         let none = UnitStatus {
             report: report(0, 0),
@@ -303,5 +333,9 @@ mod tests {
         assert_eq!(json["counters"]["samples_missed"], 7);
         assert_eq!(json["kind"], "three-axis");
         assert_eq!(json["firmware_version"], "0.4.1");
+        assert_eq!(
+            (json["model_id"].as_str(), json["model_serial"].as_str()),
+            (Some("6e483868"), Some("FOG-0001"))
+        );
     }
 }

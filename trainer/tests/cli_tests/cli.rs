@@ -544,7 +544,76 @@ fn inspect_reports_header_shapes_ranges_and_crc() {
     // (the identified lags add up to that): T̂ spans only part of the loop's range.
     assert!(t_max - t_min > 0.5 * (hi - lo), "{t_range} vs loop {lo} … {hi}");
     let text = stdout(&trainer(&["inspect", model.to_str().unwrap()]));
-    assert!(text.contains("CRC-32          ok"), "{text}");
+    assert!(text.contains("CRC-32          ok (0x"), "{text}");
+}
+
+/// Every blob `fit` writes holds its provenance (format 4): the digest of each training
+/// run is `sha256sum`'s, the CRC-32 is the blob's trailer as "0x…", in text, JSON and TOML.
+#[test]
+fn a_fitted_blob_carries_its_provenance_and_inspect_shows_it_with_the_crc() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let run = dir.path().join("train.csv");
+    let expected = ::trainer::provenance::sha256_file(&run).unwrap();
+    let blob = std::fs::read(&model).unwrap();
+    let crc = u32::from_le_bytes(blob[blob.len() - 4..].try_into().unwrap());
+    let json: serde_json::Value = serde_json::from_str(&stdout(&trainer(&[
+        "inspect",
+        "--model",
+        model.to_str().unwrap(),
+        "--format",
+        "json",
+    ])))
+    .unwrap();
+    assert_eq!(json["format_version"], 4);
+    assert_eq!(json["crc32"], format!("{crc:#010x}"));
+    let p = &json["provenance"];
+    assert_eq!(p["training_runs"][0]["file"], "train.csv");
+    assert_eq!(p["training_runs"][0]["sha256"], expected.as_str());
+    assert_eq!(p["trainer_version"], env!("CARGO_PKG_VERSION"));
+    assert!(p["fitted_utc"].as_str().unwrap().ends_with('Z'), "{p}");
+    assert!(p["spec_sha256"].is_null() && p["batch"].is_null(), "{p}");
+    let text = stdout(&trainer(&["inspect", "--model", model.to_str().unwrap()]));
+    assert!(
+        text.contains(&format!("training run    train.csv sha256 {expected}")),
+        "{text}"
+    );
+    let toml = stdout(&trainer(&[
+        "inspect",
+        "--model",
+        model.to_str().unwrap(),
+        "--format",
+        "toml",
+    ]));
+    assert!(
+        toml.contains(&expected) && toml.contains(&format!("{crc:#010x}")),
+        "{toml}"
+    );
+}
+
+/// A blob written before provenance existed (format 2) still loads and says so.
+#[test]
+fn a_format_2_blob_still_loads_and_shows_no_provenance() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let (decoded, _) = ::trainer::blobfile::read_model(&model).unwrap();
+    let old = dir.path().join("old.bin");
+    std::fs::write(&old, ::trainer::blobfile::encode_model(&decoded, None).unwrap()).unwrap();
+    let o = trainer(&["inspect", "--model", old.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("provenance      none"), "{}", stdout(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&trainer(&[
+        "inspect",
+        "--model",
+        old.to_str().unwrap(),
+        "--format",
+        "json",
+    ])))
+    .unwrap();
+    assert!(json["provenance"].is_null() && json["format_version"] == 2, "{json}");
+    let run = dir.path().join("train.csv");
+    let o = trainer(&["eval", "--model", old.to_str().unwrap(), run.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
 }
 
 #[test]
@@ -1270,4 +1339,83 @@ fn device_commands_fail_at_once_naming_a_missing_port_or_model_and_change_no_fil
         "{}",
         stderr(&o)
     );
+}
+
+/// `fit --spec` judges the unit: a spec it meets passes (exit 0), one it cannot meet
+/// fails naming the limit (exit 3) with the blob and JSON still written; the spec's
+/// SHA-256 is in the blob's provenance; a spec with an unknown key is refused before any
+/// work (exit 1, file and line named).
+#[test]
+fn fit_with_a_spec_passes_or_fails_naming_the_limit_missed() {
+    let dir = TempDir::new().unwrap();
+    let (train, holdout) = (dir.path().join("train.csv"), dir.path().join("holdout.csv"));
+    for (path, seed) in [(&train, "7"), (&holdout, "8")] {
+        let o = trainer(&[
+            "simulate",
+            "--ramp",
+            "1",
+            "--hold-min",
+            "30",
+            "--seed",
+            seed,
+            "-o",
+            path.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let lenient = write(
+        &dir,
+        "lenient.toml",
+        b"[holdout]\nstd100_gain_min_pct = 1\nclamped_max_pct = 100\n",
+    );
+    let strict = write(&dir, "strict.toml", b"[holdout]\nstd100_after_max_dph = 1e-9\n");
+    let unknown = write(&dir, "unknown.toml", b"[holdout]\nstd100_after_max_mdph = 1\n");
+    let fit = |spec: &Path, name: &str| {
+        let model = dir.path().join(format!("{name}.bin"));
+        let json = dir.path().join(format!("{name}.json"));
+        let o = trainer(&[
+            "fit",
+            "-q",
+            train.to_str().unwrap(),
+            "--holdout",
+            holdout.to_str().unwrap(),
+            "--spec",
+            spec.to_str().unwrap(),
+            "-o",
+            model.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ]);
+        (o, model, json)
+    };
+    let (o, model, json) = fit(&lenient, "lenient");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(report["acceptance"]["status"], "pass", "{}", report["acceptance"]);
+    let inspected: serde_json::Value = serde_json::from_str(&stdout(&trainer(&[
+        "inspect",
+        "--model",
+        model.to_str().unwrap(),
+        "--format",
+        "json",
+    ])))
+    .unwrap();
+    assert_eq!(
+        inspected["provenance"]["spec_sha256"],
+        ::trainer::provenance::sha256_file(&lenient).unwrap().as_str()
+    );
+    let (o, model, json) = fit(&strict, "strict");
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stderr(&o).contains("std100_after_max_dph"), "{}", stderr(&o));
+    assert!(model.exists() && json.exists(), "a failed unit's outputs are written");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    assert_eq!(report["acceptance"]["status"], "fail");
+    let (o, model, _) = fit(&unknown, "unknown");
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("unknown.toml:2:1:") && stderr(&o).contains("std100_after_max_mdph"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!model.exists());
 }

@@ -5,6 +5,7 @@
 mod common;
 
 mod axes;
+mod batch;
 mod cli;
 mod figures;
 mod hostile;

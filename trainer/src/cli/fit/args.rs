@@ -147,6 +147,17 @@ pub struct Args {
     /// Gyro serial number stored in the blob (≤ 32 bytes).
     #[arg(long, help_heading = "Model")]
     pub(super) serial: Option<String>,
+    /// Acceptance spec (TOML) to judge the unit against.
+    ///
+    /// Limits on every holdout run, on the forecast and on coverage (docs/production.md).
+    /// The verdict is printed and in the JSON (`acceptance`); the spec's SHA-256 goes into
+    /// the blob's provenance. A unit that misses a limit is still written, and the command
+    /// exits 3.
+    #[arg(long, value_name = "SPEC.toml", help_heading = "Model")]
+    pub(super) spec: Option<PathBuf>,
+    /// Batch id recorded in the blob's provenance (`trainer batch` passes it).
+    #[arg(long, value_name = "ID", hide = true)]
+    pub(super) batch: Option<String>,
     #[command(flatten)]
     pub(super) select: SelectArgs,
     /// svr-pso: these inputs, not a selection.

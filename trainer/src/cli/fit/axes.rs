@@ -14,6 +14,7 @@ use trainer::evaluation::table::print_table;
 use trainer::fit::FitOptions;
 use trainer::fit_axes::{AxisRuns, JointMode, fit_axes, try_joint};
 use trainer::output::{Output, Transaction};
+use trainer::provenance::ProvenanceRecord;
 use trainer::reading::run::RunReader;
 use trainer::text;
 
@@ -33,6 +34,7 @@ pub(super) fn run(
     axes: &[Axis],
     model_out: Option<Output>,
     json_out: JsonSink,
+    provenance: &ProvenanceRecord,
 ) -> anyhow::Result<()> {
     anyhow::ensure!(
         a.report.is_none(),
@@ -76,9 +78,10 @@ pub(super) fn run(
     let joint = try_joint(&runs, opts, axes, &outcomes, mode)?;
     let fit_s = started.elapsed().as_secs_f64();
     let models: Vec<(Axis, &rbf_core::Model)> = axes.iter().copied().zip(outcomes.iter().map(|o| &o.0.model)).collect();
+    let provenance = Some(provenance);
     let blob = match &joint.chosen {
-        Some(shared) => encode_shared_models(shared)?,
-        None => encode_axis_models(&models)?,
+        Some(shared) => encode_shared_models(shared, provenance)?,
+        None => encode_axis_models(&models, provenance)?,
     };
 
     let mut out: Vec<u8> = Vec::new();

@@ -1,0 +1,548 @@
+//! `trainer batch`: every unit of a production batch fitted and judged, in parallel.
+//!
+//! Each unit runs `trainer fit` itself (this very binary, the one fit entry point) as
+//! a child process with the unit's runs, serial, spec and batch id: a unit that fails or
+//! even crashes costs the others nothing, and memory is bounded by the number of
+//! workers (one per core) times one streaming fit. Then one summary of every unit:
+//! `summary.json`, `summary.csv`, `index.html` (failing units first).
+
+use std::collections::{BTreeMap, HashSet};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Mutex;
+
+use anyhow::Context;
+use serde::Deserialize;
+use toml::Spanned;
+use trainer::acceptance::{Rejected, Spec};
+use trainer::provenance::sha256_file;
+use trainer::text::{self, line_col};
+
+/// Fit and judge every unit of a production batch.
+///
+/// MANIFEST.toml names the batch, an optional acceptance spec and each unit's serial,
+/// training and holdout runs (paths relative to the manifest; docs/production.md).
+/// Every unit is fitted by `trainer fit` on its own, one per core, then judged; OUTDIR
+/// gets `<serial>/model.bin`, `<serial>/fit.json` and `summary.json`, `summary.csv`,
+/// `index.html`. Exit 0: every unit passed; 3: a unit failed or could not be calibrated
+/// (the others are written); 1: the batch could not run (nothing written).
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:\n  trainer batch batch.toml -o out/B-2026-48")]
+pub struct Args {
+    /// The batch manifest (TOML).
+    #[arg(value_name = "MANIFEST.toml")]
+    manifest: PathBuf,
+    /// Output directory.
+    #[arg(short = 'o', long = "output", value_name = "OUTDIR")]
+    output: PathBuf,
+    /// Write into an existing OUTDIR (its units' files are replaced).
+    #[arg(long, conflicts_with = "resume")]
+    force: bool,
+    /// Into an existing OUTDIR: redo only units whose inputs, options or spec changed,
+    /// or whose outputs are missing or damaged.
+    #[arg(long)]
+    resume: bool,
+    /// Parallel fits (default: the number of cores).
+    #[arg(long, value_name = "N")]
+    jobs: Option<usize>,
+}
+
+/// One unit as the manifest gives it.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct UnitEntry {
+    serial: Spanned<String>,
+    #[serde(default)]
+    train: Vec<Spanned<String>>,
+    #[serde(default)]
+    holdout: Vec<Spanned<String>>,
+    /// `--features` of `trainer fit`.
+    features: Option<String>,
+    /// `--method` of `trainer fit`.
+    method: Option<String>,
+    /// `--use-range-c` of `trainer fit`, °C.
+    use_range_c: Option<[f64; 2]>,
+}
+
+/// The manifest.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Manifest {
+    batch: String,
+    spec: Option<Spanned<String>>,
+    /// Allow one run to be the training run of several units (a run shared on purpose).
+    #[serde(default)]
+    allow_shared_runs: bool,
+    #[serde(default)]
+    unit: Vec<UnitEntry>,
+}
+
+/// A unit ready to fit.
+#[derive(Debug, Clone)]
+struct Unit {
+    serial: String,
+    train: Vec<PathBuf>,
+    holdout: Vec<PathBuf>,
+    options: Vec<String>,
+}
+
+/// Reads and checks the manifest: the batch's units, its spec.
+fn read_manifest(path: &Path) -> anyhow::Result<(String, Option<PathBuf>, Vec<Unit>)> {
+    let name = text::path(path);
+    let source =
+        std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("{name}: cannot read the batch manifest: {e}"))?;
+    let at = |offset: usize, why: String| {
+        let (line, col) = line_col(&source, offset);
+        anyhow::anyhow!("{name}:{line}:{col}: {why}")
+    };
+    let m: Manifest =
+        toml::from_str(&source).map_err(|e| at(e.span().map_or(0, |s| s.start), e.message().to_owned()))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let resolve = |p: &Spanned<String>, what: &str| -> anyhow::Result<PathBuf> {
+        let full = base.join(p.get_ref());
+        anyhow::ensure!(
+            full.is_file(),
+            at(p.span().start, format!("{what} {}: no such file", p.get_ref()))
+        );
+        Ok(full)
+    };
+    let spec = m.spec.as_ref().map(|s| resolve(s, "spec")).transpose()?;
+    if let Some(s) = &spec {
+        Spec::read(s)?;
+    }
+    anyhow::ensure!(!m.unit.is_empty(), "{name}: the manifest names no [[unit]]");
+    let mut serials = HashSet::new();
+    let mut trained_by: BTreeMap<PathBuf, String> = BTreeMap::new();
+    let mut units = Vec::new();
+    for u in &m.unit {
+        let serial = u.serial.get_ref().clone();
+        let span = u.serial.span().start;
+        anyhow::ensure!(
+            !serial.is_empty()
+                && serial.len() <= rbf_core::model::SERIAL_CAPACITY
+                && serial.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c)),
+            at(
+                span,
+                format!(
+                    "serial {serial:?}: 1 to {} letters, digits, '-', '_' or '.' (a blob holds at most {} bytes; it names a directory)",
+                    rbf_core::model::SERIAL_CAPACITY,
+                    rbf_core::model::SERIAL_CAPACITY
+                )
+            )
+        );
+        anyhow::ensure!(
+            serials.insert(serial.clone()),
+            at(span, format!("serial {serial} is listed twice"))
+        );
+        anyhow::ensure!(
+            !u.train.is_empty(),
+            at(span, format!("unit {serial} has no training run (train = [...])"))
+        );
+        let train = u
+            .train
+            .iter()
+            .map(|p| resolve(p, "training run"))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let holdout = u
+            .holdout
+            .iter()
+            .map(|p| resolve(p, "holdout run"))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        for (h, spanned) in holdout.iter().zip(&u.holdout) {
+            let canon = std::fs::canonicalize(h).unwrap_or_else(|_| h.clone());
+            anyhow::ensure!(
+                !train
+                    .iter()
+                    .any(|t| std::fs::canonicalize(t).unwrap_or_else(|_| t.clone()) == canon),
+                at(
+                    spanned.span().start,
+                    format!(
+                        "unit {serial}: holdout run {} is also its training run; a holdout must be unseen",
+                        spanned.get_ref()
+                    )
+                )
+            );
+        }
+        for (t, spanned) in train.iter().zip(&u.train) {
+            let canon = std::fs::canonicalize(t).unwrap_or_else(|_| t.clone());
+            if let Some(other) = trained_by.insert(canon, serial.clone())
+                && other != serial
+                && !m.allow_shared_runs
+            {
+                return Err(at(
+                    spanned.span().start,
+                    format!(
+                        "training run {} of unit {serial} is also the training run of unit {other}: each unit is \
+                         calibrated on its own gyro's runs (allow_shared_runs = true accepts it)",
+                        spanned.get_ref()
+                    ),
+                ));
+            }
+        }
+        let mut options = Vec::new();
+        if let Some(f) = &u.features {
+            options.extend(["--features".to_owned(), f.clone()]);
+        }
+        if let Some(me) = &u.method {
+            options.extend(["--method".to_owned(), me.clone()]);
+        }
+        if let Some([lo, hi]) = u.use_range_c {
+            options.extend(["--use-range-c".to_owned(), format!("{lo},{hi}")]);
+        }
+        units.push(Unit {
+            serial,
+            train,
+            holdout,
+            options,
+        });
+    }
+    Ok((m.batch, spec, units))
+}
+
+/// What became of one unit.
+#[derive(Debug, Clone)]
+struct UnitResult {
+    serial: String,
+    status: &'static str,
+    reasons: Vec<String>,
+    fit: Option<serde_json::Value>,
+    resumed: bool,
+}
+
+/// The digest of everything a unit's result depends on: its runs, options, spec, batch
+/// and this trainer's version (`--resume` redoes a unit whose digest changed).
+fn inputs_digest(unit: &Unit, spec: Option<&Path>, batch: &str) -> anyhow::Result<String> {
+    let mut s = format!("{}\n{batch}\n{}\n", env!("CARGO_PKG_VERSION"), unit.serial);
+    for p in unit.train.iter().chain(&unit.holdout) {
+        let _ = writeln!(s, "{}", sha256_file(p)?);
+    }
+    let _ = writeln!(s, "{}|{}", unit.holdout.len(), unit.options.join(" "));
+    if let Some(spec) = spec {
+        let _ = writeln!(s, "spec {}", sha256_file(spec)?);
+    }
+    Ok(trainer::provenance::sha256_bytes(s.as_bytes()))
+}
+
+/// Fits one unit with `trainer fit` into `dir`.
+fn fit_unit(unit: &Unit, spec: Option<&Path>, batch: &str, dir: &Path, digest: &str) -> UnitResult {
+    let mut cmd = match std::env::current_exe() {
+        Ok(exe) => Command::new(exe),
+        Err(e) => return error(unit, format!("cannot find the trainer binary: {e}")),
+    };
+    cmd.arg("fit").arg("-q").args(&unit.train);
+    for h in &unit.holdout {
+        cmd.arg("--holdout").arg(h);
+    }
+    cmd.args(["--serial", &unit.serial, "--batch", batch, "--force"]);
+    if let Some(spec) = spec {
+        cmd.arg("--spec").arg(spec);
+    }
+    cmd.args(&unit.options);
+    cmd.arg("-o")
+        .arg(dir.join("model.bin"))
+        .arg("--json")
+        .arg(dir.join("fit.json"));
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        return error(unit, format!("{}: cannot create: {e}", text::path(dir)));
+    }
+    let _ = std::fs::remove_file(dir.join(DIGEST_FILE));
+    let out = match cmd.output() {
+        Ok(o) => o,
+        Err(e) => return error(unit, format!("cannot run trainer fit: {e}")),
+    };
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let fit = std::fs::read(dir.join("fit.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok());
+    match (out.status.code(), fit) {
+        (Some(0 | 3), Some(fit)) => {
+            let _ = std::fs::write(dir.join(DIGEST_FILE), digest);
+            let reasons: Vec<String> = fit["acceptance"]["reasons"]
+                .as_array()
+                .map(|r| r.iter().filter_map(|x| x.as_str().map(str::to_owned)).collect())
+                .unwrap_or_default();
+            UnitResult {
+                serial: unit.serial.clone(),
+                status: if reasons.is_empty() { "pass" } else { "fail" },
+                reasons,
+                fit: Some(fit),
+                resumed: false,
+            }
+        }
+        _ => {
+            let why = stderr
+                .lines()
+                .rev()
+                .find(|l| !l.trim().is_empty())
+                .unwrap_or("trainer fit failed without a message")
+                .trim_start_matches("error: ")
+                .to_owned();
+            error(unit, why)
+        }
+    }
+}
+
+fn error(unit: &Unit, why: String) -> UnitResult {
+    UnitResult {
+        serial: unit.serial.clone(),
+        status: "error",
+        reasons: vec![why],
+        fit: None,
+        resumed: false,
+    }
+}
+
+/// The file in each unit's directory that holds the digest of its inputs.
+const DIGEST_FILE: &str = "inputs.sha256";
+
+/// A resumed unit's earlier result, if its inputs are unchanged and its outputs whole.
+fn earlier(unit: &Unit, dir: &Path, digest: &str) -> Option<UnitResult> {
+    let stored = std::fs::read_to_string(dir.join(DIGEST_FILE)).ok()?;
+    if stored.trim() != digest {
+        return None;
+    }
+    let blob = std::fs::read(dir.join("model.bin")).ok()?;
+    if trainer::blobfile::file_problem(&blob).is_some() {
+        return None;
+    }
+    let fit: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("fit.json")).ok()?).ok()?;
+    let reasons: Vec<String> = fit["acceptance"]["reasons"]
+        .as_array()
+        .map(|r| r.iter().filter_map(|x| x.as_str().map(str::to_owned)).collect())
+        .unwrap_or_default();
+    Some(UnitResult {
+        serial: unit.serial.clone(),
+        status: if reasons.is_empty() { "pass" } else { "fail" },
+        reasons,
+        fit: Some(fit),
+        resumed: true,
+    })
+}
+
+/// The summary row of one unit: every figure of its fit that a batch is judged on.
+fn row(r: &UnitResult) -> serde_json::Value {
+    let fit = r.fit.as_ref();
+    let holdouts: Vec<&serde_json::Value> = fit
+        .and_then(|f| f["runs"].as_array())
+        .map(|runs| {
+            runs.iter()
+                .filter(|x| x["role"] == "holdout")
+                .map(|x| &x["evaluation"])
+                .collect()
+        })
+        .unwrap_or_default();
+    let worst = |key: &str, max: bool| {
+        let values = holdouts.iter().filter_map(|e| e[key].as_f64());
+        if max {
+            values.reduce(f64::max)
+        } else {
+            values.reduce(f64::min)
+        }
+    };
+    let clamped = holdouts
+        .iter()
+        .filter_map(|e| Some(100.0 * e["flagged"]["input_clamped"].as_f64()? / e["samples"].as_f64()?))
+        .reduce(f64::max);
+    let bias_instability = holdouts
+        .iter()
+        .filter_map(|e| e["allan_after"]["bias_instability_dph"].as_f64())
+        .reduce(f64::max);
+    serde_json::json!({
+        "serial": r.serial,
+        "status": r.status,
+        "reasons": r.reasons,
+        "model_kind": fit.map(|f| f["method"].clone()),
+        "training_std100_dph": fit.map(|f| f["training_std100_dph"].clone()),
+        "holdout_std100_before_dph": worst("cluster_std_before_dph", true),
+        "holdout_std100_after_dph": worst("cluster_std_after_dph", true),
+        "holdout_std100_gain_pct": worst("cluster_std_improvement_pct", false),
+        "forecast_in_use_std100_dph": fit.map(|f| f["predicted_in_use_std100_dph"].clone()),
+        "clamped_pct": clamped,
+        "bias_instability_after_dph": bias_instability,
+        "settled_forecast": fit.map(|f| f["settled_forecast"].clone()),
+        "blob_bytes": fit.map(|f| f["blob_bytes"].clone()),
+        "resumed": r.resumed,
+    })
+}
+
+/// The columns of summary.csv and of the HTML table, in order.
+const COLUMNS: [&str; 11] = [
+    "serial",
+    "status",
+    "model_kind",
+    "training_std100_dph",
+    "holdout_std100_before_dph",
+    "holdout_std100_after_dph",
+    "holdout_std100_gain_pct",
+    "forecast_in_use_std100_dph",
+    "clamped_pct",
+    "bias_instability_after_dph",
+    "reasons",
+];
+
+fn cell(v: &serde_json::Value) -> String {
+    match v {
+        serde_json::Value::Null => String::new(),
+        serde_json::Value::String(s) => s.clone(),
+        serde_json::Value::Array(a) => a.iter().map(cell).collect::<Vec<_>>().join("; "),
+        serde_json::Value::Number(n) => n.as_f64().map_or_else(|| n.to_string(), |x| format!("{x:.6}")),
+        other => other.to_string(),
+    }
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_owned()
+    }
+}
+
+fn html_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// summary.csv: a header and a row per unit.
+fn summary_csv(rows: &[serde_json::Value]) -> String {
+    let mut out = COLUMNS.join(",") + "\n";
+    for r in rows {
+        let line: Vec<String> = COLUMNS.iter().map(|c| csv_field(&cell(&r[*c]))).collect();
+        out += &(line.join(",") + "\n");
+    }
+    out
+}
+
+/// index.html: one self-contained page, failing units first.
+fn summary_html(batch: &str, rows: &[serde_json::Value]) -> String {
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>Batch {b}</title><style>body{{font-family:sans-serif}}\
+         table{{border-collapse:collapse}}td,th{{border:1px solid #999;padding:3px 6px}}.fail{{background:#fdd}}\
+         .error{{background:#fbb}}.pass{{background:#dfd}}</style></head><body>\n<h1>Batch {b}</h1>\n",
+        b = html_escape(batch)
+    );
+    let count = |s: &str| rows.iter().filter(|r| r["status"] == s).count();
+    let _ = writeln!(
+        h,
+        "<p>{} pass, {} fail, {} error</p>",
+        count("pass"),
+        count("fail"),
+        count("error")
+    );
+    h += "<table><tr>";
+    for c in COLUMNS {
+        let _ = write!(h, "<th>{c}</th>");
+    }
+    h += "</tr>\n";
+    for r in rows {
+        let _ = write!(h, "<tr class=\"{}\">", cell(&r["status"]));
+        for c in COLUMNS {
+            let _ = write!(h, "<td>{}</td>", html_escape(&cell(&r[c])));
+        }
+        h += "</tr>\n";
+    }
+    h += "</table></body></html>\n";
+    h
+}
+
+/// Runs `trainer batch`.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let (batch, spec, units) = read_manifest(&a.manifest)?;
+    if a.output.exists() {
+        anyhow::ensure!(
+            a.force || a.resume,
+            "{}: exists; --resume completes it, --force replaces its units' files",
+            text::path(&a.output)
+        );
+    }
+    std::fs::create_dir_all(&a.output).with_context(|| format!("{}: cannot create", text::path(&a.output)))?;
+    let workers = a
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .clamp(1, units.len());
+    eprintln!("batch {batch}: {} units, {workers} at a time", units.len());
+    let next = Mutex::new(0usize);
+    let results: Mutex<Vec<Option<UnitResult>>> = Mutex::new(vec![None; units.len()]);
+    let done = Mutex::new(0usize);
+    std::thread::scope(|s| {
+        for _ in 0..workers {
+            s.spawn(|| {
+                loop {
+                    let i = {
+                        let Ok(mut n) = next.lock() else { return };
+                        let i = *n;
+                        *n += 1;
+                        i
+                    };
+                    let Some(unit) = units.get(i) else { return };
+                    let dir = a.output.join(&unit.serial);
+                    let result = match inputs_digest(unit, spec.as_deref(), &batch) {
+                        Err(e) => error(unit, format!("{e:#}")),
+                        Ok(digest) => match a.resume.then(|| earlier(unit, &dir, &digest)).flatten() {
+                            Some(r) => r,
+                            None => fit_unit(unit, spec.as_deref(), &batch, &dir, &digest),
+                        },
+                    };
+                    let n = done.lock().map(|mut d| {
+                        *d += 1;
+                        *d
+                    });
+                    let first = result.reasons.first().map_or(String::new(), |r| format!(": {r}"));
+                    eprintln!(
+                        "[{}/{}] {} {}{}{}",
+                        n.unwrap_or(0),
+                        units.len(),
+                        unit.serial,
+                        result.status,
+                        if result.resumed { " (unchanged, kept)" } else { "" },
+                        first
+                    );
+                    if let Ok(mut r) = results.lock()
+                        && let Some(slot) = r.get_mut(i)
+                    {
+                        *slot = Some(result);
+                    }
+                }
+            });
+        }
+    });
+    let results: Vec<UnitResult> = results
+        .into_inner()
+        .map_err(|_| anyhow::anyhow!("a worker failed"))?
+        .into_iter()
+        .flatten()
+        .collect();
+    // Failing units first (errors, then fails), each group in manifest order.
+    let mut rows: Vec<serde_json::Value> = results.iter().map(row).collect();
+    rows.sort_by_key(|r| match r["status"].as_str() {
+        Some("error") => 0,
+        Some("fail") => 1,
+        _ => 2,
+    });
+    let summary = serde_json::json!({"batch": batch, "units": rows});
+    let write = |name: &str, bytes: &[u8]| {
+        trainer::output::write_bytes_with(&a.output.join(name), &[], trainer::output::Existing::Replace, bytes)
+    };
+    write("summary.json", serde_json::to_string_pretty(&summary)?.as_bytes())?;
+    write("summary.csv", summary_csv(&rows).as_bytes())?;
+    write("index.html", summary_html(&batch, &rows).as_bytes())?;
+    let bad = rows.iter().filter(|r| r["status"] != "pass").count();
+    println!(
+        "batch {batch}: {} pass, {bad} fail or error; wrote {}",
+        rows.len() - bad,
+        text::path(&a.output.join("summary.json"))
+    );
+    if bad > 0 {
+        return Err(Rejected(format!(
+            "{bad} of {} units failed or could not be calibrated",
+            rows.len()
+        ))
+        .into());
+    }
+    Ok(())
+}
