@@ -203,7 +203,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             &Judged {
                 holdout: evals.iter().filter(|(r, _)| *r == "holdout").map(|(_, e)| e).collect(),
                 forecast_in_use_std100_dph: outcome.predicted_in_use_std100_dph(),
-                missing: outcome.bank.as_ref().map(|b| b.coverage.missing(&missing_for)),
+                missing: outcome.bank.as_ref().map(|b| {
+                    b.coverage
+                        .missing(&missing_for, fit::coverage::model_range_c(&outcome.model))
+                }),
             },
         )
     });
