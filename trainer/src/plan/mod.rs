@@ -31,6 +31,7 @@ pub mod criterion;
 pub mod limits;
 pub mod plot;
 pub mod predict;
+pub mod prediction;
 pub mod spec;
 
 use self::{candidates::*, criterion::*, limits::*};
@@ -62,9 +63,9 @@ pub struct Plan {
     /// With `--soak-ends`, each end soak lasts at least this, s
     /// ([`end_soak_s`]); `None` without (the plan as before the end soaks).
     pub end_soak_s: Option<f64>,
-    /// The figures predicted after the default fit on the plan's run
-    /// ([`predict::predict`]); `None` until predicted.
-    pub prediction: Option<predict::Prediction>,
+    /// The figures predicted after the default fit on the plan's run;
+    /// `None` until predicted.
+    pub prediction: Option<prediction::Prediction>,
 }
 
 impl Plan {
