@@ -99,7 +99,7 @@ impl ProvenanceRecord {
         if let Some(s) = serial {
             anyhow::ensure!(
                 s.len() <= SERIAL_CAPACITY,
-                "serial {s:?} is {} bytes; a blob holds at most {SERIAL_CAPACITY}",
+                "--serial {s:?} is {} bytes; a blob holds at most {SERIAL_CAPACITY}",
                 s.len()
             );
         }

@@ -207,7 +207,7 @@ fn a_three_axis_imu_is_fitted_compensated_and_evaluated_per_axis_as_well_as_each
     assert!(o.status.success(), "{}", stderr(&o));
     let shown = stdout(&o);
     assert!(
-        shown.contains("format version  3\n") && shown.contains("axis z\n"),
+        shown.contains("format version  5\n") && shown.contains("axis z\n"),
         "{shown}"
     );
 }

@@ -60,9 +60,10 @@ pub struct Args {
     /// evaluates one basis for every axis (image stm32f405-axes-shared).
     #[arg(long, help_heading = "Model", conflicts_with = "no_joint")]
     pub(super) joint: bool,
-    /// Averaging block for training, s; a run past 32768 blocks has them
-    /// merged in pairs into blocks twice as long, as often as it takes
-    /// (docs/methods.md, "Large runs").
+    /// Averaging block for training, s (long runs merge blocks in pairs).
+    ///
+    /// A run past 32768 blocks has them merged in pairs into blocks twice as
+    /// long, as often as it takes (docs/methods.md, "Large runs").
     #[arg(long, value_name = "SECONDS", default_value_t = 1.0, help_heading = "Data")]
     pub(super) block_s: f64,
     /// Model form (see --help).
@@ -119,7 +120,7 @@ pub struct Args {
     /// on validation, except for the lag bank, which has none unless asked.
     #[arg(long, value_name = "K", value_parser = centres_parser(), help_heading = "Model")]
     pub(super) centers: Option<usize>,
-    /// Most centres tried (1–64, default 32; at most 16 per axis on multi-axis runs).
+    /// Most centres tried (1–64, default 32; 16 per axis on IMUs).
     ///
     /// The firmware's evaluation cost grows with K; the three-axis firmware holds 16
     /// centres per axis. Not with --centers, which fixes K.
