@@ -2,25 +2,8 @@
 //! every unit with the failing ones first, exit 0/3/1, `--resume`, and bad manifests
 //! refused with file, line and column before anything is written.
 
-use std::path::Path;
-
-use crate::common::{stderr, stdout, trainer};
+use crate::common::{short_chamber_run, stderr, stdout, trainer};
 use tempfile::TempDir;
-
-fn simulate(path: &Path, seed: &str) {
-    let o = trainer(&[
-        "simulate",
-        "--ramp",
-        "1",
-        "--hold-min",
-        "30",
-        "--seed",
-        seed,
-        "-o",
-        path.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-}
 
 /// Two good units and one whose training run is cut short: exit 3, the good units'
 /// blobs written with the batch and the digest of their runs in the provenance, the
@@ -31,7 +14,7 @@ fn a_batch_writes_every_good_unit_and_names_the_broken_one_first() {
     let runs = dir.path().join("runs");
     std::fs::create_dir(&runs).unwrap();
     for (name, seed) in [("u1", "1"), ("u2", "2"), ("h1", "11"), ("h2", "12"), ("h3", "13")] {
-        simulate(&runs.join(format!("{name}.csv")), seed);
+        short_chamber_run(&runs.join(format!("{name}.csv")), seed);
     }
     let whole = std::fs::read(runs.join("u2.csv")).unwrap();
     std::fs::write(runs.join("broken.csv"), &whole[..2000]).unwrap();
@@ -104,8 +87,8 @@ fn a_batch_writes_every_good_unit_and_names_the_broken_one_first() {
 #[test]
 fn bad_manifests_are_refused_with_file_line_and_column_and_nothing_written() {
     let dir = TempDir::new().unwrap();
-    simulate(&dir.path().join("a.csv"), "1");
-    simulate(&dir.path().join("b.csv"), "2");
+    short_chamber_run(&dir.path().join("a.csv"), "1");
+    short_chamber_run(&dir.path().join("b.csv"), "2");
     let long = "X".repeat(40);
     let cases: [(&str, String, &str); 6] = [
         ("missing run", "batch = \"B\"\n[[unit]]\nserial = \"S1\"\ntrain = [\"nope.csv\"]\n".into(), ":4:10: training run nope.csv: no such file"),

@@ -3,7 +3,9 @@
 
 use std::path::Path;
 
-use crate::common::{compensate, fitted_model, shared_data, stderr, stdout, trainer, with_model, write};
+use crate::common::{
+    compensate, fitted_model, shared_data, short_chamber_run, stderr, stdout, trainer, with_model, write,
+};
 use tempfile::TempDir;
 
 /// `trainer blocks RUN --block-s 60 -o OUT` with `args`, which must succeed; the CSV written.
@@ -1350,18 +1352,7 @@ fn fit_with_a_spec_passes_or_fails_naming_the_limit_missed() {
     let dir = TempDir::new().unwrap();
     let (train, holdout) = (dir.path().join("train.csv"), dir.path().join("holdout.csv"));
     for (path, seed) in [(&train, "7"), (&holdout, "8")] {
-        let o = trainer(&[
-            "simulate",
-            "--ramp",
-            "1",
-            "--hold-min",
-            "30",
-            "--seed",
-            seed,
-            "-o",
-            path.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
+        short_chamber_run(path, seed);
     }
     let lenient = write(
         &dir,

@@ -73,10 +73,9 @@ pub fn write(dir: &TempDir, name: &str, content: &[u8]) -> PathBuf {
     p
 }
 
-/// A model fitted on a short simulated chamber run (`train.csv` in `dir`,
-/// 1 Hz, 12,600 rows), for the tests that need any valid model.
-pub fn fitted_model(dir: &TempDir) -> PathBuf {
-    let run = dir.path().join("train.csv");
+/// Simulates into `path` a short chamber run (the IFOG protocol at
+/// 1 °C/min, 30-min holds, 1 Hz, 12,600 rows) of noise seed `seed`.
+pub fn short_chamber_run(path: &Path, seed: &str) {
     let o = trainer(&[
         "simulate",
         "--ramp",
@@ -84,11 +83,18 @@ pub fn fitted_model(dir: &TempDir) -> PathBuf {
         "--hold-min",
         "30",
         "--seed",
-        "7",
+        seed,
         "-o",
-        run.to_str().unwrap(),
+        path.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// A model fitted on a short simulated chamber run (`train.csv` in `dir`,
+/// 1 Hz, 12,600 rows), for the tests that need any valid model.
+pub fn fitted_model(dir: &TempDir) -> PathBuf {
+    let run = dir.path().join("train.csv");
+    short_chamber_run(&run, "7");
     let model = dir.path().join("model.bin");
     // The option before the run file: it must not swallow it.
     let o = trainer(&[
