@@ -15,8 +15,10 @@ the planned run, fits the default model (`trainer fit`, or `--fit-args`), and re
   degC/min, 8 h) and a field history, and their mean.
 
     python3 bench/accuracy/one_unit_soak.py [--trainer target/release/trainer] [--dir target/one-unit-soak]
-        [--fit-args "--features response-bank"] [--hours 12,24] [--gyros doc,fast-d4]
+        [--fit-args "--features response-bank"] [--plan-args --soak-ends] [--hours 12,24]
+        [--gyros doc,fast-d4]
 
+The planned runs are cached per directory too: give each `--plan-args` its own `--dir`.
 Runs are simulated once per directory and reused (delete the directory to redo them);
 fits and evaluations are redone every time, so two trainers can be compared on the same
 runs with `--trainer`.
@@ -109,6 +111,7 @@ def main():
     p.add_argument("--trainer", default="target/release/trainer")
     p.add_argument("--dir", default="target/one-unit-soak")
     p.add_argument("--fit-args", default="")
+    p.add_argument("--plan-args", default="", help="extra `trainer plan` options, e.g. --soak-ends")
     p.add_argument("--hours", default="12,24")
     p.add_argument("--gyros", help="default: every gyro and its fast twin (doc, fast-doc, unit1, ...)")
     a = p.parse_args()
@@ -117,7 +120,7 @@ def main():
     for h in a.hours.split(","):
         plans[h] = os.path.join(a.dir, f"plan{h}.csv")
         run([a.trainer, "plan", "--min-c", "-40", "--max-c", "60", "--max-rate-c-per-min", "5", "--hours", h,
-             "-o", plans[h], "--force"])
+             "-o", plans[h], "--force", *shlex.split(a.plan_args)])
     gyros = {}
     for name, args in GYROS.items():
         gyros[name] = args
