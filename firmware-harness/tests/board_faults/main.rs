@@ -14,21 +14,26 @@ mod sim;
 use std::cell::RefCell;
 use std::process::ExitCode;
 use std::rc::Rc;
+use std::sync::atomic::{AtomicU32, Ordering};
 
+use firmware::commands;
 use firmware::compensation::{CompensationLoop, InPlaceModel, LoopConfig, LoopStats};
 use firmware::flash_ctl::{self, ControllerFlash};
 use firmware::frontend::FrontEnd;
 use firmware::i2c_master::{BoundedI2c, I2cCounters};
+use firmware::interrupts::{self, Transmit};
 use firmware::model_store::{ModelStore, SlotLayout};
 use firmware::pacing::{Pacer, serve_samples};
 use firmware::sensors::{RateFrontEnd, RateSample, SensorFault, Thermometer};
 use firmware::tmp117::Tmp117;
-use firmware::update::{self, CommandReceiver, Received, UpdateStatus};
+use firmware::uart::{self, FrameQueue};
+use firmware::update::{self, CommandReceiver, UpdateStatus};
 use firmware::watchdog::{LSI_FASTEST_HZ, SECTOR_ERASE_WORST_MS, Watchdog, running_setting};
+use heapless::spsc::Queue;
 use rbf_core::axis::Axis;
 use rbf_core::frame::{self, OutputFrame};
 use rbf_core::{CompensatorConfig, Flags, Model};
-use sim::{FakeI2c, FakeSpi, FlashSim, FrontEndSim, I2cSim, SimClock, SimWatchdog};
+use sim::{FakeI2c, FakeSpi, FlashSim, FrontEndSim, I2cSim, SimClock, SimWatchdog, UartRxSim, UartTxSim};
 
 /// A scenario's verdict: what happened, or why it failed.
 type Verdict = Result<String, String>;
@@ -671,9 +676,22 @@ fn flash_error() -> Verdict {
     ))
 }
 
+/// The board's receive and transmit queues' sizes (`firmware::board`'s `RX_QUEUE`, `TX_QUEUE`).
+const RX_QUEUE: usize = 256;
+const TX_QUEUE: usize = 512;
+
 fn rx_noise() -> Verdict {
     let mut inst = Installer::new(1_000_000, 0);
     let good = install_payload(&firmware_harness::fault_injection::cubic_model().expect("valid cubic model"));
+    // The board's queues and UART: frames out through the transmit queue and
+    // USART1's interrupt logic, command bytes in through its receive side.
+    let mut tx_queue: Queue<u8, TX_QUEUE> = Queue::new();
+    let mut rx_queue: Queue<u8, RX_QUEUE> = Queue::new();
+    let (frames_in, mut outgoing) = tx_queue.split();
+    let (mut incoming, mut in_consumer) = rx_queue.split();
+    let mut rx = UartRxSim::with_errors_every(97);
+    let mut tx = UartTxSim::default();
+    let rx_overruns = AtomicU32::new(0);
     let mut storage: Model = Model::EMPTY;
     let mut lp = CompensationLoop::new(
         InPlaceModel::new(&mut storage, false),
@@ -683,44 +701,57 @@ fn rx_noise() -> Verdict {
         },
         Steady,
         Steady,
-        Vec::new(),
+        FrameQueue::new(frames_in, || {}),
     );
     lp.update_model_if(|m| update::run_in_place(&mut inst.store, &good, m) == UpdateStatus::Installed);
     let identity = inst.store.identity();
     let mut receiver = CommandReceiver::new();
     let mut state = 0x2545_F491u32;
-    let (mut replies, mut installs, mut steps) = (0u32, 0u32, 0u32);
+    let (mut replies, mut installs, mut reports, mut steps) = (0u32, 0u32, 0u32, 0u32);
     for seq in 0..2000u32 {
         lp.step_at(seq, 1e-3);
         steps += 1;
+        // 20 noise bytes a sample (mostly non-zero, a frame end now and
+        // then), each raising USART1's interrupt, which drains the
+        // transmit queue as it goes.
         for _ in 0..20 {
             state ^= state << 13;
             state ^= state >> 17;
             state ^= state << 5;
-            // Noise: mostly non-zero bytes, a frame end now and then.
             let byte = if state.is_multiple_of(23) {
                 0
             } else {
                 (state >> 8) as u8
             };
-            match receiver.push(byte) {
-                None => {}
-                Some(Received::Rejected(_)) => replies += 1,
-                Some(Received::Command(payload)) => {
-                    replies += 1;
-                    lp.update_model_if(|m| {
-                        let status = update::run_in_place(&mut inst.store, payload, m);
-                        installs += u32::from(status == UpdateStatus::Installed);
-                        status == UpdateStatus::Installed
-                    });
-                }
-            }
+            rx.line.push_back(byte);
+            interrupts::serve_uart(&mut rx, &mut tx, &mut outgoing, &mut incoming, &rx_overruns);
+        }
+        // The loop's command path between samples, as Board::run runs it.
+        commands::serve_commands(
+            || uart::dequeue(&mut in_consumer),
+            &mut receiver,
+            &mut lp,
+            &mut inst.store,
+            &mut inst.watchdog,
+            |_, _, _| reports += 1,
+            |status, _| {
+                replies += 1;
+                installs += u32::from(status == UpdateStatus::Installed);
+            },
+        );
+        while interrupts::serve_uart(&mut rx, &mut tx, &mut outgoing, &mut incoming, &rx_overruns) == Transmit::Sending
+        {
         }
     }
-    let frames = decode_frames(lp.output_mut());
+    let frames = decode_frames(&tx.sent);
     let stats = lp.stats();
+    let errors = rx_overruns.load(Ordering::Relaxed);
     ensure!(replies >= 100, "only {replies} noise frames");
     ensure!(installs == 0, "noise installed a model");
+    ensure!(
+        errors >= 400,
+        "{errors} receive errors counted of 40,000 bytes, one in 97 in error"
+    );
     ensure!(
         stats.filter_restarts == 1,
         "{} filter restarts (1 from the real install)",
@@ -728,7 +759,7 @@ fn rx_noise() -> Verdict {
     );
     ensure!(
         frames.len() as u32 == steps,
-        "{} frames for {steps} samples",
+        "{} output frames through USART1 for {steps} samples",
         frames.len()
     );
     ensure!(inst.store.identity() == identity, "the running model changed");
@@ -737,7 +768,7 @@ fn rx_noise() -> Verdict {
         "the model stopped running"
     );
     Ok(format!(
-        "40,000 noise bytes on RX during 2,000 samples: {replies} frames refused or unknown, 0 filter restarts, {} frames, model CRC {:#010x} kept",
+        "40,000 noise bytes on RX during 2,000 samples, through USART1's interrupt logic and the loop's command path: {replies} frames refused or unknown, {reports} bench/health reports, {errors} receive errors counted, no filter restart from the noise, {} frames sent, model CRC {:#010x} kept",
         frames.len(),
         identity.blob_crc32
     ))
