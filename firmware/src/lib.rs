@@ -14,6 +14,7 @@
 //! - the board's peripherals, bounded and host-tested (`cargo xtask board-faults`): [`clock`] (deadlines),
 //!   [`i2c_master`] (I2C with timeouts and bus recovery), [`flash_ctl`] (the flash controller),
 //!   [`watchdog`] (IWDG periods), [`pacing`] (data-ready stamps to sample steps);
+//! - the board loop's pass as host code: [`samples`] (a paced, timed step) and [`commands`];
 //! - [`bench`](mod@bench): the board's `bench` command (DWT cycle counts of its sample steps);
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
@@ -39,6 +40,7 @@ pub mod i2c_master;
 pub mod interrupts;
 pub mod model_store;
 pub mod pacing;
+pub mod samples;
 pub mod sensors;
 pub mod tmp117;
 pub mod uart;

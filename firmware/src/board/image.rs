@@ -71,7 +71,8 @@ use crate::health::{
     BOARD_ON_HSI, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause, brown_out_flag,
 };
 use crate::model_store::{MappedFlash, ModelStore, SlotLayout, StoredModel};
-use crate::pacing::{self, Pacer, PacerCounters};
+use crate::pacing::{Pacer, PacerCounters};
+use crate::samples;
 use crate::sensors::{AxisFrontEnds, AxisThermometers};
 use crate::tmp117::Tmp117;
 use crate::uart::{self, FrameQueue};
@@ -632,15 +633,17 @@ impl<F: BoardFlash> Board<F> {
         run_forever(move || {
             // One step per pass for the newest data-ready edge (or the
             // silence); the watchdog is fed by steps only.
-            pacing::serve_samples(
+            samples::serve_samples_timed(
                 &mut pacer,
                 || uart::dequeue(&mut stamp_consumer),
                 hw::Tim2Clock::now(),
                 &mut watchdog,
-                |tick| {
-                    let started = DWT::cycle_count();
-                    compensation.step_at(tick.seq, tick.dt_s);
-                    if let Some(stats) = bench.record(timing::elapsed(started, DWT::cycle_count())) {
+                &mut compensation,
+                &mut bench,
+                DWT::cycle_count,
+                |seq, stats| {
+                    #[cfg(feature = "board-debug")]
+                    if let Some(stats) = stats {
                         log!(
                             "bench: {=u32} steps, cycles min {=u32} mean {=u32} max {=u32}",
                             stats.steps,
@@ -648,12 +651,10 @@ impl<F: BoardFlash> Board<F> {
                             stats.mean(),
                             stats.max
                         );
-                        let mut report = [0u8; 24];
-                        if let Some(n) = stats.encode_report(&mut report) {
-                            write_frame(compensation.output_mut(), report.get(..n).unwrap_or(&[]));
-                        }
                     }
-                    hooks.stepped(tick.seq);
+                    #[cfg(not(feature = "board-debug"))]
+                    let _ = stats;
+                    hooks.stepped(seq);
                 },
             );
             // Commands between samples (crate::commands, as the fault campaign runs it).
