@@ -7,11 +7,14 @@
 //! - [`compensation`]: the per-sample loop for any number of axes (rbf-core compensation, one
 //!   output frame per sample: a single gyro's frame, or one frame with every axis of an IMU);
 //! - [`uart`]: the transmit queue an interrupt drains (frames whole or dropped and counted);
+//!   [`interrupts`]: what the board's UART and data-ready interrupt handlers do;
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
+//!   [`commands`]: the loop's command path (installs, replies, the board's reports);
 //! - [`fault`]: the fault record kept across a reset and the boot report frame; [`health`]: the health report;
 //! - the board's peripherals, bounded and host-tested (`cargo xtask board-faults`): [`clock`] (deadlines),
 //!   [`i2c_master`] (I2C with timeouts and bus recovery), [`flash_ctl`] (the flash controller),
 //!   [`watchdog`] (IWDG periods), [`pacing`] (data-ready stamps to sample steps);
+//! - the board loop's pass as host code: [`samples`] (a paced, timed step) and [`commands`];
 //! - [`bench`](mod@bench): the board's `bench` command (DWT cycle counts of its sample steps);
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
@@ -27,14 +30,17 @@
 
 pub mod bench;
 pub mod clock;
+pub mod commands;
 pub mod compensation;
 pub mod fault;
 pub mod flash_ctl;
 pub mod frontend;
 pub mod health;
 pub mod i2c_master;
+pub mod interrupts;
 pub mod model_store;
 pub mod pacing;
+pub mod samples;
 pub mod sensors;
 pub mod tmp117;
 pub mod uart;

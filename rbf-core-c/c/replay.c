@@ -8,7 +8,8 @@
  * (arm-none-eabi-gcc, newlib; files over semihosting). A run with `rate_dph`
  * goes through rbf_gyro_*, one with `rate_x_dph` ... through rbf_imu_*. The
  * thermometers are read as the board's TMP117s report them (1/128 degC).
- * A refused blob: the library's status in words, exit 2. Exit 1: a file
+ * Its last line: rows, the model's CRC-32, axes and provenance id (or
+ * `provenance none`). A refused blob: the library's status in words, exit 2. Exit 1: a file
  * that cannot be read or written, or a line this reader does not take
  * (`cargo xtask c-replay` runs trainer compensate's checks first). */
 #include <math.h>
@@ -310,7 +311,13 @@ int main(int argc, char **argv) {
         rbf_imu_model_info(imu_state, sizeof imu_state, &info);
     else
         rbf_gyro_model_info(gyro_state, sizeof gyro_state, &info);
-    printf("replay: rows %lu model crc32 0x%08lx axes 0x%x\n", rows, (unsigned long)info.crc32,
+    printf("replay: rows %lu model crc32 0x%08lx axes 0x%x", rows, (unsigned long)info.crc32,
            (unsigned)info.axis_mask);
+    /* The provenance id finds the calibration record again (`trainer inspect`'s model_id). */
+    if (info.has_provenance)
+        printf(" provenance %08lx serial \"%.*s\"\n", (unsigned long)info.provenance_id, (int)info.serial_len,
+               (const char *)info.serial);
+    else
+        printf(" provenance none\n");
     return 0;
 }

@@ -11,7 +11,7 @@
  Bytes of memory a single gyro's state needs (`rbf_gyro_*`): the largest
  over the targets (the thumbv7em state is 24 B smaller than the host's).
  */
-#define RBF_GYRO_STATE_SIZE 5216
+#define RBF_GYRO_STATE_SIZE 5336
 
 /*
  Alignment, bytes, a single gyro's state needs.
@@ -22,7 +22,7 @@
  Bytes of memory a three-axis IMU's state needs (`rbf_imu_*`): the
  largest over the targets (the thumbv7em state is 72 B smaller).
  */
-#define RBF_IMU_STATE_SIZE 6928
+#define RBF_IMU_STATE_SIZE 6968
 
 /*
  Alignment, bytes, a three-axis IMU's state needs.
@@ -45,9 +45,16 @@
 #define RBF_AXES 3
 
 /*
- Bytes reserved for a model's provenance id in `rbf_model_info_t`.
+ Bytes of the unit serial in `rbf_model_info_t` (a provenance names at most this many).
  */
-#define RBF_PROVENANCE_ID_CAPACITY 32
+#define RBF_SERIAL_CAPACITY 32
+
+/*
+ `rbf_model_info_t.provenance_id` of a blob without provenance (formats 2
+ and 3, written before blobs carried one) or of a state without a model;
+ `has_provenance` is then 0.
+ */
+#define RBF_PROVENANCE_NONE 0
 
 /*
  Flag bit: an input lay outside the training range and was clamped.
@@ -271,18 +278,31 @@ typedef struct {
    */
   uint32_t crc32;
   /*
+   The blob's provenance id: the short model id `trainer fit` wrote
+   into its provenance section, which finds the calibration record
+   again (`trainer inspect` shows it as `model_id`, eight hex digits,
+   as does `trainer device status` for a board). `RBF_PROVENANCE_NONE`
+   (0) when `has_provenance` is 0.
+   */
+  uint32_t provenance_id;
+  /*
    Axes with a model: bit 0 x, bit 1 y, bit 2 z (a single gyro: 1); 0 without a model.
    */
   uint8_t axis_mask;
   /*
-   Bytes of `provenance_id` in use: 0 until blobs carry the id that
-   finds the calibration record again (the blob provenance work).
+   1 when the loaded blob carries a provenance section (formats 4 and
+   5); 0 for an older blob or without a model.
    */
-  uint8_t provenance_id_len;
+  uint8_t has_provenance;
   /*
-   The blob's provenance id (reserved: all zero today).
+   Bytes of `serial` in use: 0 when the provenance names no serial.
    */
-  uint8_t provenance_id[RBF_PROVENANCE_ID_CAPACITY];
+  uint8_t serial_len;
+  /*
+   The unit serial the provenance names, UTF-8, zero-padded (not
+   NUL-terminated when all `RBF_SERIAL_CAPACITY` bytes are used).
+   */
+  uint8_t serial[RBF_SERIAL_CAPACITY];
 } rbf_model_info_t;
 
 #ifdef __cplusplus
@@ -355,8 +375,8 @@ int32_t rbf_imu_step(void *state,
                      rbf_imu_output_t *out);
 
 /*
- What a single gyro's state runs: `*out` gets the model's CRC-32 and
- axes (0 without a model) and the place of its provenance id. Returns
+ What a single gyro's state runs: `*out` gets the model's CRC-32, axes
+ and provenance id and serial (0 and none without a model). Returns
  `RBF_OK`, or the code of a NULL pointer or a state not set up by a load.
 
  # Safety

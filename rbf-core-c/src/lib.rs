@@ -15,7 +15,8 @@
 //!   rbf-core's own compensator step (the one `trainer compensate` runs, so
 //!   the bits agree);
 //! - `rbf_gyro_model_info` / `rbf_imu_model_info`: the loaded blob's CRC-32
-//!   (and the place of its provenance id).
+//!   and its provenance id and serial (`RBF_PROVENANCE_NONE` for a blob
+//!   without provenance).
 //!
 //! Every pointer and length is checked; no panic is reachable from any
 //! exported function (on the target the link-time check of the
@@ -30,7 +31,7 @@ use core::ffi::{c_char, c_void};
 use rbf_core::axis::MAX_AXES;
 use rbf_core::blob::MAX_BLOB_LEN;
 use rbf_core::features::THERMOMETERS;
-use rbf_core::{CompensatedSample, CompensatorConfig, Flags, GyroSample};
+use rbf_core::{CompensatedSample, CompensatorConfig, Flags};
 
 pub mod state;
 pub mod status;
@@ -41,12 +42,12 @@ use state::{Gyro, Imu, Loaded, LoopState};
 
 /// Bytes of memory a single gyro's state needs (`rbf_gyro_*`): the largest
 /// over the targets (the thumbv7em state is 24 B smaller than the host's).
-pub const RBF_GYRO_STATE_SIZE: usize = 5216;
+pub const RBF_GYRO_STATE_SIZE: usize = 5336;
 /// Alignment, bytes, a single gyro's state needs.
 pub const RBF_GYRO_STATE_ALIGN: usize = 8;
 /// Bytes of memory a three-axis IMU's state needs (`rbf_imu_*`): the
 /// largest over the targets (the thumbv7em state is 72 B smaller).
-pub const RBF_IMU_STATE_SIZE: usize = 6928;
+pub const RBF_IMU_STATE_SIZE: usize = 6968;
 /// Alignment, bytes, a three-axis IMU's state needs.
 pub const RBF_IMU_STATE_ALIGN: usize = 8;
 /// Thermometers a sample carries: `temp_a` … `temp_h` of the recorded-run format.
@@ -55,8 +56,12 @@ pub const RBF_THERMOMETERS: usize = 8;
 pub const RBF_LOOP_THERMOMETER: usize = 2;
 /// Axes of an IMU: x, y, z.
 pub const RBF_AXES: usize = 3;
-/// Bytes reserved for a model's provenance id in `rbf_model_info_t`.
-pub const RBF_PROVENANCE_ID_CAPACITY: usize = 32;
+/// Bytes of the unit serial in `rbf_model_info_t` (a provenance names at most this many).
+pub const RBF_SERIAL_CAPACITY: usize = 32;
+/// `rbf_model_info_t.provenance_id` of a blob without provenance (formats 2
+/// and 3, written before blobs carried one) or of a state without a model;
+/// `has_provenance` is then 0.
+pub const RBF_PROVENANCE_NONE: u32 = 0;
 /// Flag bit: an input lay outside the training range and was clamped.
 pub const RBF_FLAG_INPUT_CLAMPED: u8 = 1;
 /// Flag bit: a thermometer failed or read implausibly; its last good value is held.
@@ -78,6 +83,7 @@ const _: () = {
     assert!(RBF_THERMOMETERS == THERMOMETERS);
     assert!(RBF_LOOP_THERMOMETER == rbf_core::features::LOOP_THERMOMETER);
     assert!(RBF_AXES == MAX_AXES);
+    assert!(RBF_SERIAL_CAPACITY == rbf_core::model::SERIAL_CAPACITY);
     assert!(RBF_FLAG_INPUT_CLAMPED == Flags::INPUT_CLAMPED.bits());
     assert!(RBF_FLAG_TEMP_SENSOR_FAULT == Flags::TEMP_SENSOR_FAULT.bits());
     assert!(RBF_FLAG_NO_VALID_MODEL == Flags::NO_VALID_MODEL.bits());
@@ -148,13 +154,22 @@ pub struct RbfModelInfo {
     /// The loaded blob's CRC-32 (ISO-HDLC, its trailer), 0 without a model:
     /// what `trainer inspect` and `trainer device status` show as `crc32`.
     pub crc32: u32,
+    /// The blob's provenance id: the short model id `trainer fit` wrote
+    /// into its provenance section, which finds the calibration record
+    /// again (`trainer inspect` shows it as `model_id`, eight hex digits,
+    /// as does `trainer device status` for a board). `RBF_PROVENANCE_NONE`
+    /// (0) when `has_provenance` is 0.
+    pub provenance_id: u32,
     /// Axes with a model: bit 0 x, bit 1 y, bit 2 z (a single gyro: 1); 0 without a model.
     pub axis_mask: u8,
-    /// Bytes of `provenance_id` in use: 0 until blobs carry the id that
-    /// finds the calibration record again (the blob provenance work).
-    pub provenance_id_len: u8,
-    /// The blob's provenance id (reserved: all zero today).
-    pub provenance_id: [u8; RBF_PROVENANCE_ID_CAPACITY],
+    /// 1 when the loaded blob carries a provenance section (formats 4 and
+    /// 5); 0 for an older blob or without a model.
+    pub has_provenance: u8,
+    /// Bytes of `serial` in use: 0 when the provenance names no serial.
+    pub serial_len: u8,
+    /// The unit serial the provenance names, UTF-8, zero-padded (not
+    /// NUL-terminated when all `RBF_SERIAL_CAPACITY` bytes are used).
+    pub serial: [u8; RBF_SERIAL_CAPACITY],
 }
 
 impl From<CompensatedSample> for RbfOutput {
@@ -172,15 +187,23 @@ impl From<CompensatedSample> for RbfOutput {
 /// The state at `state`, checked to be there, long enough and aligned for `T`.
 fn storage<T>(state: *mut c_void, state_len: usize) -> Result<*mut T, i32> {
     if state.is_null() {
-        return Err(RBF_ERR_NULL_POINTER);
+        return Err(refused(RBF_ERR_NULL_POINTER));
     }
     if state_len < core::mem::size_of::<T>() {
-        return Err(RBF_ERR_STATE_TOO_SMALL);
+        return Err(refused(RBF_ERR_STATE_TOO_SMALL));
     }
     if !(state as usize).is_multiple_of(core::mem::align_of::<T>()) {
-        return Err(RBF_ERR_STATE_MISALIGNED);
+        return Err(refused(RBF_ERR_STATE_MISALIGNED));
     }
     Ok(state.cast())
+}
+
+/// `code`, on the path of a refused call: out of line, so that the checks
+/// of every step cost their compares and nothing more.
+#[cold]
+#[inline(never)]
+fn refused(code: i32) -> i32 {
+    code
 }
 
 /// The loaded state at `state` ([`storage`], and its tag says a load set it up).
@@ -195,7 +218,7 @@ unsafe fn loaded_state<'s, T: LoopState>(state: *mut c_void, state_len: usize) -
     // with its u32 tag, and any bytes are a valid u32.
     let tag = unsafe { p.cast::<u32>().read() };
     if tag != T::TAG {
-        return Err(RBF_ERR_STATE_NOT_LOADED);
+        return Err(refused(RBF_ERR_STATE_NOT_LOADED));
     }
     // SAFETY: the tag is written last by `LoopState::init`, so the memory
     // holds a state that a load set up; the caller's promise makes the
@@ -288,6 +311,46 @@ pub unsafe extern "C" fn rbf_imu_load(
     unsafe { load::<Imu>(state, state_len, blob, blob_len, sample_rate_hz, Imu::axis_mask) }
 }
 
+/// An output a step writes into the caller's memory (any alignment).
+trait CallerOutput: Sized {
+    /// Writes `self` to `out`.
+    ///
+    /// # Safety
+    /// `out` is non-null and writable for the call.
+    unsafe fn write_to(self, out: *mut Self);
+}
+
+impl CallerOutput for RbfOutput {
+    /// Field by field as words (unaligned word stores straight from the
+    /// step's result, not through the FPU's registers).
+    #[inline(always)]
+    unsafe fn write_to(self, out: *mut Self) {
+        // SAFETY: the caller's promise; each field inside `*out`.
+        unsafe {
+            (&raw mut (*out).bias_dph)
+                .cast::<u32>()
+                .write_unaligned(self.bias_dph.to_bits());
+            (&raw mut (*out).rate_comp_dph)
+                .cast::<u32>()
+                .write_unaligned(self.rate_comp_dph.to_bits());
+            (&raw mut (*out).temp_c)
+                .cast::<u32>()
+                .write_unaligned(self.temp_c.to_bits());
+            (&raw mut (*out).flags).write(self.flags);
+        }
+    }
+}
+
+impl CallerOutput for RbfImuOutput {
+    #[inline(always)]
+    unsafe fn write_to(self, out: *mut Self) {
+        for (a, axis) in self.axes.into_iter().enumerate() {
+            // SAFETY: the caller's promise; axis `a` inside `*out`.
+            unsafe { axis.write_to((&raw mut (*out).axes).cast::<RbfOutput>().add(a)) };
+        }
+    }
+}
+
 /// The rate of a sample passed through uncompensated (flag 4), for a
 /// state that cannot run.
 fn passed_through(rate_dph: f32) -> RbfOutput {
@@ -299,6 +362,44 @@ fn passed_through(rate_dph: f32) -> RbfOutput {
     }
 }
 
+/// A sample in the caller's memory (any alignment), read field by field
+/// where a step needs it: a whole copy of it would cost a `memcpy` per
+/// sample. Made only by [`step`], from a non-null pointer the caller
+/// promises readable for the call.
+#[derive(Clone, Copy)]
+struct CallerSample<S>(*const S);
+
+impl CallerSample<RbfGyroSample> {
+    #[inline(always)]
+    fn dt_s(self) -> f32 {
+        // SAFETY: non-null and readable during the call ([`CallerSample`]).
+        unsafe { (&raw const (*self.0).dt_s).read_unaligned() }
+    }
+    #[inline(always)]
+    fn rate_dph(self) -> f32 {
+        // SAFETY: as above.
+        unsafe { (&raw const (*self.0).rate_dph).read_unaligned() }
+    }
+    /// Thermometer `i` (`i` < `RBF_THERMOMETERS`; NaN past them).
+    #[inline(always)]
+    fn temp_c(self, i: usize) -> f32 {
+        if i >= RBF_THERMOMETERS {
+            return f32::NAN;
+        }
+        // SAFETY: as above; `i` is inside the array.
+        unsafe { (&raw const (*self.0).temps_c).cast::<f32>().add(i).read_unaligned() }
+    }
+}
+
+impl CallerSample<RbfImuSample> {
+    /// The whole sample (an IMU's step reads every field).
+    #[inline(always)]
+    fn read(self) -> RbfImuSample {
+        // SAFETY: as above.
+        unsafe { self.0.read_unaligned() }
+    }
+}
+
 /// The step of either kind of state: `run` on the loaded state and the
 /// sample, or `pass` (the rate passed through with flag 4) when the state
 /// cannot run; the result into `*out`.
@@ -306,27 +407,34 @@ fn passed_through(rate_dph: f32) -> RbfOutput {
 /// # Safety
 /// As [`rbf_gyro_step`].
 #[inline(always)]
-unsafe fn step<T: LoopState, S, O>(
+unsafe fn step<T: LoopState, S, O: CallerOutput>(
     state: *mut c_void,
     state_len: usize,
     sample: *const S,
     out: *mut O,
-    run: impl FnOnce(&mut T, &S) -> O,
-    pass: impl FnOnce(&S) -> O,
+    run: impl FnOnce(&mut T, CallerSample<S>) -> O,
+    pass: impl FnOnce(CallerSample<S>) -> O,
 ) -> i32 {
     if sample.is_null() || out.is_null() {
-        return RBF_ERR_NULL_POINTER;
+        return refused(RBF_ERR_NULL_POINTER);
     }
-    // SAFETY: non-null and readable (the caller's promise); read unaligned.
-    let sample = unsafe { sample.read_unaligned() };
+    // Non-null and readable for the call (the caller's promise).
+    let sample = CallerSample(sample);
+    // Each arm writes its own output (one write after the match would
+    // send the step's result through the FPU's registers to meet the other's).
     // SAFETY: the caller's promise, passed on.
-    let (code, output) = match unsafe { loaded_state::<T>(state, state_len) } {
-        Ok(loaded) => (RBF_OK, run(loaded, &sample)),
-        Err(code) => (code, pass(&sample)),
-    };
-    // SAFETY: non-null and writable (the caller's promise); written unaligned.
-    unsafe { out.write_unaligned(output) };
-    code
+    match unsafe { loaded_state::<T>(state, state_len) } {
+        Ok(loaded) => {
+            // SAFETY: `out` is non-null and writable (the caller's promise).
+            unsafe { run(loaded, sample).write_to(out) };
+            RBF_OK
+        }
+        Err(code) => {
+            // SAFETY: as above.
+            unsafe { pass(sample).write_to(out) };
+            code
+        }
+    }
 }
 
 /// Compensates one sample of a single gyro: `*out` gets the bias, the
@@ -346,16 +454,10 @@ pub unsafe extern "C" fn rbf_gyro_step(
     sample: *const RbfGyroSample,
     out: *mut RbfOutput,
 ) -> i32 {
-    let run = |gyro: &mut Gyro, sample: &RbfGyroSample| {
-        let sample = GyroSample {
-            dt_s: sample.dt_s,
-            rate_dph: sample.rate_dph,
-            temps_c: state::readings(&sample.temps_c),
-        };
-        gyro.step(&sample).into()
-    };
+    let run =
+        |gyro: &mut Gyro, s: CallerSample<RbfGyroSample>| gyro.step(s.dt_s(), s.rate_dph(), |i| s.temp_c(i)).into();
     // SAFETY: the caller's promise, passed on.
-    unsafe { step(state, state_len, sample, out, run, |s| passed_through(s.rate_dph)) }
+    unsafe { step(state, state_len, sample, out, run, |s| passed_through(s.rate_dph())) }
 }
 
 /// Compensates one sample of every axis of a three-axis IMU: `out->axes[a]`
@@ -372,13 +474,16 @@ pub unsafe extern "C" fn rbf_imu_step(
     sample: *const RbfImuSample,
     out: *mut RbfImuOutput,
 ) -> i32 {
-    let run = |imu: &mut Imu, s: &RbfImuSample| RbfImuOutput {
-        axes: imu
-            .step(s.dt_s, &s.rates_dph, &s.temps_c, &s.loop_temps_c)
-            .map(RbfOutput::from),
+    let run = |imu: &mut Imu, s: CallerSample<RbfImuSample>| {
+        let s = s.read();
+        RbfImuOutput {
+            axes: imu
+                .step(s.dt_s, &s.rates_dph, &s.temps_c, &s.loop_temps_c)
+                .map(RbfOutput::from),
+        }
     };
-    let pass = |s: &RbfImuSample| RbfImuOutput {
-        axes: s.rates_dph.map(passed_through),
+    let pass = |s: CallerSample<RbfImuSample>| RbfImuOutput {
+        axes: s.read().rates_dph.map(passed_through),
     };
     // SAFETY: the caller's promise, passed on.
     unsafe { step(state, state_len, sample, out, run, pass) }
@@ -398,20 +503,23 @@ unsafe fn model_info<T: LoopState>(state: *mut c_void, state_len: usize, out: *m
         Err(code) => (code, Err(code)),
     };
     let loaded = load.ok();
+    let provenance = loaded.and_then(|l| l.provenance);
     let info = RbfModelInfo {
         load_status: load.err().unwrap_or(RBF_OK),
         crc32: loaded.map_or(0, |l| l.crc32),
+        provenance_id: provenance.map_or(RBF_PROVENANCE_NONE, |p| p.model_id),
         axis_mask: loaded.map_or(0, |l| l.axis_mask),
-        provenance_id_len: 0,
-        provenance_id: [0; RBF_PROVENANCE_ID_CAPACITY],
+        has_provenance: u8::from(provenance.is_some()),
+        serial_len: provenance.map_or(0, |p| p.serial_len),
+        serial: provenance.map_or([0; RBF_SERIAL_CAPACITY], |p| p.serial),
     };
     // SAFETY: non-null and writable (the caller's promise); written unaligned.
     unsafe { out.write_unaligned(info) };
     code
 }
 
-/// What a single gyro's state runs: `*out` gets the model's CRC-32 and
-/// axes (0 without a model) and the place of its provenance id. Returns
+/// What a single gyro's state runs: `*out` gets the model's CRC-32, axes
+/// and provenance id and serial (0 and none without a model). Returns
 /// `RBF_OK`, or the code of a NULL pointer or a state not set up by a load.
 ///
 /// # Safety
@@ -462,7 +570,7 @@ mod tests {
     use super::*;
     use rbf_core::model::{ModelBody, ModelInfo};
     use rbf_core::poly::Poly3;
-    use rbf_core::{FeatureConfig, FeatureSet, Model};
+    use rbf_core::{FeatureConfig, FeatureSet, GyroSample, Model};
 
     /// Caller-owned state memory, aligned as the header asks.
     #[repr(C, align(8))]
@@ -470,6 +578,11 @@ mod tests {
 
     /// A blob of a model whose bias is 2 °/h per °C.
     fn blob() -> Vec<u8> {
+        blob_with(None)
+    }
+
+    /// The same model's blob with `provenance` (format 4) or without (format 2).
+    fn blob_with(provenance: Option<&rbf_core::blob::Provenance<'_>>) -> Vec<u8> {
         let body = ModelBody::Poly3(Poly3::new(0.0, [0.0, 2.0, 0.0, 0.0]).unwrap());
         let model = Model::new(
             FeatureConfig::single(FeatureSet::Temp, 0.0),
@@ -479,9 +592,44 @@ mod tests {
         )
         .unwrap();
         let mut out = vec![0u8; rbf_core::blob::MAX_BLOB_LEN];
-        let n = rbf_core::blob::encode(&model, &mut out).unwrap();
+        let n = rbf_core::blob::encode_with(&model, provenance, &mut out).unwrap();
         out.truncate(n);
         out
+    }
+
+    /// The info of a gyro state after loading `blob`.
+    fn info_after_loading(blob: &[u8]) -> RbfModelInfo {
+        let mut state = Buffer([0; RBF_IMU_STATE_SIZE + 8]);
+        let p = state.0.as_mut_ptr().cast();
+        // SAFETY: a live, aligned buffer and the blob.
+        let code = unsafe { rbf_gyro_load(p, RBF_GYRO_STATE_SIZE, blob.as_ptr(), blob.len(), 1000.0) };
+        assert_eq!(code, RBF_OK);
+        let mut info = core::mem::MaybeUninit::<RbfModelInfo>::uninit();
+        // SAFETY: a loaded state and a writable info.
+        assert_eq!(
+            unsafe { rbf_gyro_model_info(p, RBF_GYRO_STATE_SIZE, info.as_mut_ptr()) },
+            RBF_OK
+        );
+        // SAFETY: written by the call.
+        unsafe { info.assume_init() }
+    }
+
+    #[test]
+    fn a_blob_with_provenance_gives_its_model_id_and_serial_and_one_without_gives_none() {
+        let provenance = rbf_core::blob::Provenance {
+            model_id: 0x6e48_3868,
+            serial: "FOG-0001",
+            record: b"{}",
+        };
+        let info = info_after_loading(&blob_with(Some(&provenance)));
+        assert_eq!((info.has_provenance, info.provenance_id), (1, 0x6e48_3868));
+        assert_eq!(&info.serial[..usize::from(info.serial_len)], b"FOG-0001");
+        assert!(info.serial[8..].iter().all(|&b| b == 0), "zero-padded");
+        let info = info_after_loading(&blob());
+        assert_eq!(
+            (info.has_provenance, info.provenance_id, info.serial_len, info.serial),
+            (0, RBF_PROVENANCE_NONE, 0, [0; RBF_SERIAL_CAPACITY])
+        );
     }
 
     fn sample(temp_c: f32) -> RbfGyroSample {
@@ -521,7 +669,48 @@ mod tests {
             (code, info.load_status, info.crc32, info.axis_mask),
             (RBF_OK, RBF_OK, trailer, 1)
         );
-        assert_eq!(info.provenance_id_len, 0);
+        assert_eq!(
+            (info.has_provenance, info.provenance_id, info.serial_len),
+            (0, RBF_PROVENANCE_NONE, 0),
+            "a blob without provenance: none"
+        );
+    }
+
+    #[test]
+    fn a_nan_thermometer_gives_the_bits_of_a_missing_reading_in_rbf_core() {
+        // The C step passes NaN as `Some(NaN)` (state::readings); rbf-core
+        // must judge it exactly as `None`: held, then expired, then restarted.
+        let blob = blob();
+        let model = rbf_core::blob::decode(&blob).unwrap().model;
+        let config = CompensatorConfig::for_sample_rate(1000.0);
+        let (mut nan, mut none) = (rbf_core::Compensator::new(), rbf_core::Compensator::new());
+        for i in 0..12_000u32 {
+            let fault = (100..11_200).contains(&i);
+            let temp_c = 25.0 + i as f32 * 1e-4;
+            let mut a = GyroSample::new(0.001, 100.0, Some(if fault { f32::NAN } else { temp_c }));
+            let mut b = GyroSample::new(0.001, 100.0, (!fault).then_some(temp_c));
+            a.temps_c[0] = Some(f32::NAN);
+            b.temps_c[0] = None;
+            let (x, y) = (
+                nan.process(Some(&model), &config, &a),
+                none.process(Some(&model), &config, &b),
+            );
+            assert_eq!(
+                (
+                    x.bias_dph.to_bits(),
+                    x.rate_comp_dph.to_bits(),
+                    x.temp_c.to_bits(),
+                    x.flags
+                ),
+                (
+                    y.bias_dph.to_bits(),
+                    y.rate_comp_dph.to_bits(),
+                    y.temp_c.to_bits(),
+                    y.flags
+                ),
+                "sample {i}"
+            );
+        }
     }
 
     #[test]

@@ -11,6 +11,7 @@ use rbf_core::blob::axes::{AxisModels, decode_any_into};
 use rbf_core::blob::shared_layout::decode_shared_into;
 use rbf_core::blob::{self, BlobKind, CRC_LEN, DecodeError};
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
+use rbf_core::model::SERIAL_CAPACITY;
 use rbf_core::shared_basis::SharedAxisModels;
 use rbf_core::{
     CompensatedSample, Compensator, CompensatorConfig, GyroSample, MAX_AXIS_CENTERS, MAX_SHARED_AXIS_CENTERS, Model,
@@ -20,6 +21,8 @@ use rbf_core::{
 /// are written once over it).
 pub trait LoopState {
     /// First word of a state set up by a load (any other value: not loaded).
+    /// A byte repeated four times: a Thumb-2 immediate, so the check that
+    /// every step makes is one compare.
     const TAG: u32;
 
     /// Sets up the state at `p` without a model, for the deployment
@@ -48,30 +51,65 @@ pub struct Loaded {
     pub crc32: u32,
     /// Axes the model compensates: bit 0 x, bit 1 y, bit 2 z (a single gyro: 1).
     pub axis_mask: u8,
+    /// The blob's provenance section (formats 4 and 5), `None` for a blob
+    /// written before provenance existed (formats 2 and 3).
+    pub provenance: Option<LoadedProvenance>,
+}
+
+/// What the state keeps of a loaded blob's provenance: the id that finds
+/// the calibration record again and the unit serial it names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C)]
+pub struct LoadedProvenance {
+    /// The short model id (`trainer inspect`'s `model_id`).
+    pub model_id: u32,
+    /// Bytes of `serial` in use.
+    pub serial_len: u8,
+    /// The serial, UTF-8, zero-padded.
+    pub serial: [u8; SERIAL_CAPACITY],
 }
 
 impl Loaded {
-    /// The CRC-32 trailer of the `len`-byte blob at the start of `bytes`
-    /// (the decoder checked it), with `axis_mask`.
+    /// What the state keeps of the `len`-byte blob at the start of `bytes`
+    /// (the decoder checked it): its CRC-32 trailer and its provenance, with `axis_mask`.
     pub fn of(bytes: &[u8], len: usize, axis_mask: u8) -> Loaded {
+        let blob = bytes.get(..len).unwrap_or(&[]);
         let crc = len
             .checked_sub(CRC_LEN)
-            .and_then(|at| bytes.get(at..len))
+            .and_then(|at| blob.get(at..))
             .and_then(|b| <[u8; CRC_LEN]>::try_from(b).ok())
             .map_or(0, u32::from_le_bytes);
-        Loaded { crc32: crc, axis_mask }
+        let provenance = blob::provenance(blob).ok().flatten().map(|p| {
+            let mut serial = [0u8; SERIAL_CAPACITY];
+            let bytes = p.serial.as_bytes();
+            let n = bytes.len().min(SERIAL_CAPACITY);
+            if let (Some(to), Some(from)) = (serial.get_mut(..n), bytes.get(..n)) {
+                to.copy_from_slice(from);
+            }
+            LoadedProvenance {
+                model_id: p.model_id,
+                serial_len: n as u8,
+                serial,
+            }
+        });
+        Loaded {
+            crc32: crc,
+            axis_mask,
+            provenance,
+        }
     }
 }
 
-/// A thermometer reading as rbf-core takes it: NaN (the C side's "no
-/// reading") is `None`; rbf-core treats both alike (an implausible reading
-/// is a fault), so this only names it.
+/// A thermometer reading as rbf-core takes it: the C side's NaN ("no
+/// reading") passes as it is. rbf-core judges `Some(NaN)` exactly as
+/// `None` (a NaN is not a plausible temperature, so the reading fails and
+/// the last good value is held), so no per-sample test is spent on it.
 #[inline(always)]
 fn reading(temp_c: f32) -> Option<f32> {
-    (!temp_c.is_nan()).then_some(temp_c)
+    Some(temp_c)
 }
 
-/// Every thermometer of a C sample as rbf-core takes them.
+/// Every thermometer of a C sample as rbf-core takes them ([`reading`]).
 #[inline(always)]
 pub fn readings(temps_c: &[f32; THERMOMETERS]) -> [Option<f32>; THERMOMETERS] {
     temps_c.map(reading)
@@ -84,17 +122,70 @@ pub struct Gyro {
     load: Result<Loaded, i32>,
     config: CompensatorConfig,
     compensator: Compensator,
+    /// The sample handed to rbf-core, kept here so that a step writes only
+    /// what changed: the time step, the rate and the thermometers in `reads`
+    /// (the others stay `None`; rbf-core reads no thermometer outside them).
+    sample: GyroSample,
+    /// The thermometers the step reads (bit i: `temps_c[i]`), set by the
+    /// load: the model's, or the loop thermometer without a model (as
+    /// rbf-core's step runs then).
+    reads: u8,
+    /// The index of the one thermometer in `reads`, or [`SEVERAL`] (most
+    /// models read one: their step takes no loop over `reads`).
+    only: u8,
     model: Model,
 }
 
+/// The sample of a state before its first step: no thermometer read.
+const EMPTY_SAMPLE: GyroSample = GyroSample {
+    dt_s: 0.0,
+    rate_dph: 0.0,
+    temps_c: [None; THERMOMETERS],
+};
+
+/// The thermometers rbf-core's step reads for `model` (bit i: `temps_c[i]`).
+fn thermometers_read<const K: usize>(model: Option<&Model<K>>) -> u8 {
+    model.map_or(1 << LOOP_THERMOMETER, |m| m.features().set.thermometers().bits())
+}
+
+/// `Gyro::only` of a model that reads more than one thermometer.
+const SEVERAL: u8 = u8::MAX;
+
+/// The index of the one thermometer in `reads`, or [`SEVERAL`].
+fn only_thermometer(reads: u8) -> u8 {
+    if reads.is_power_of_two() {
+        reads.trailing_zeros() as u8
+    } else {
+        SEVERAL
+    }
+}
+
+/// Writes the thermometers in `reads` into `sample`, as rbf-core takes
+/// them ([`reading`]); `temp_c(i)` reads thermometer i of the C sample.
+#[inline(always)]
+fn write_readings(sample: &mut GyroSample, reads: u8, temp_c: impl Fn(usize) -> f32) {
+    let mut unvisited = reads;
+    while unvisited != 0 {
+        let i = unvisited.trailing_zeros() as usize;
+        unvisited &= unvisited - 1;
+        if let Some(slot) = sample.temps_c.get_mut(i) {
+            *slot = reading(temp_c(i));
+        }
+    }
+}
+
 impl LoopState for Gyro {
-    const TAG: u32 = u32::from_le_bytes(*b"RBFg");
+    const TAG: u32 = 0x6767_6767; // "gggg"
 
     unsafe fn init(p: *mut Self, config: CompensatorConfig) {
         // SAFETY: the caller's promise; each field written once, in place.
         unsafe {
             (&raw mut (*p).model).write(Model::EMPTY);
             (&raw mut (*p).compensator).write(Compensator::new());
+            (&raw mut (*p).sample).write(EMPTY_SAMPLE);
+            let reads = thermometers_read::<{ rbf_core::MAX_CENTERS }>(None);
+            (&raw mut (*p).reads).write(reads);
+            (&raw mut (*p).only).write(only_thermometer(reads));
             (&raw mut (*p).config).write(config);
             (&raw mut (*p).load).write(Err(crate::RBF_ERR_STATE_NOT_LOADED));
             (&raw mut (*p).tag).write(Self::TAG);
@@ -102,7 +193,11 @@ impl LoopState for Gyro {
     }
 
     fn load(&mut self, blob: &[u8]) -> Result<usize, DecodeError> {
-        blob::decode_into(&mut self.model, blob)
+        let result = blob::decode_into(&mut self.model, blob);
+        self.sample = EMPTY_SAMPLE;
+        self.reads = thermometers_read(result.is_ok().then_some(&self.model));
+        self.only = only_thermometer(self.reads);
+        result
     }
 
     fn load_result(&self) -> Result<Loaded, i32> {
@@ -115,11 +210,19 @@ impl LoopState for Gyro {
 }
 
 impl Gyro {
-    /// One sample through [`Compensator::process`], the step `trainer compensate` runs.
+    /// One sample (`dt_s`, s; `rate_dph`, °/h; `temp_c(i)` thermometer i,
+    /// °C, NaN: no reading, read only for the thermometers the model reads)
+    /// through [`Compensator::process`], the step `trainer compensate` runs.
     #[inline(always)]
-    pub fn step(&mut self, sample: &GyroSample) -> CompensatedSample {
+    pub fn step(&mut self, dt_s: f32, rate_dph: f32, temp_c: impl Fn(usize) -> f32) -> CompensatedSample {
+        self.sample.dt_s = dt_s;
+        self.sample.rate_dph = rate_dph;
+        match self.sample.temps_c.get_mut(usize::from(self.only)) {
+            Some(slot) => *slot = reading(temp_c(usize::from(self.only))),
+            None => write_readings(&mut self.sample, self.reads, temp_c),
+        }
         let model = self.load.is_ok().then_some(&self.model);
-        self.compensator.process(model, &self.config, sample)
+        self.compensator.process(model, &self.config, &self.sample)
     }
 }
 
@@ -146,7 +249,7 @@ pub struct Imu {
 }
 
 impl LoopState for Imu {
-    const TAG: u32 = u32::from_le_bytes(*b"RBFi");
+    const TAG: u32 = 0x6969_6969; // "iiii"
 
     unsafe fn init(p: *mut Self, config: CompensatorConfig) {
         // SAFETY: the caller's promise; each field written once, in place.

@@ -147,3 +147,36 @@ fn a_corrupt_blob_is_refused_in_the_libraries_words_and_writes_nothing() {
         assert!(!out.exists(), "{target:?}: a refused replay writes no output");
     }
 }
+
+#[test]
+#[ignore = "needs a C compiler: run by `cargo xtask ci`"]
+fn from_c_a_blob_with_provenance_gives_its_model_id_and_serial_and_one_without_gives_none() {
+    let dir = TempDir::new().unwrap();
+    let (blob, slice) = single_axis(dir.path());
+    let short = first_rows(&slice, 100);
+    let (model, _) = trainer::blobfile::read_model(&blob).unwrap();
+    let record = trainer::provenance::ProvenanceRecord::for_fit(Some("FOG-0042"), &[&slice], None, None).unwrap();
+    let with = dir.path().join("with-provenance.bin");
+    std::fs::write(&with, trainer::blobfile::encode_model(&model, Some(&record)).unwrap()).unwrap();
+    let out = dir.path().join("out.csv");
+    let report = |blob: &Path| {
+        xtask::c_replay::c_replay(
+            CTarget::Host,
+            blob,
+            &short,
+            &out,
+            Existing::Replace,
+            Acceptance::default(),
+        )
+        .unwrap()
+        .report
+    };
+    let id = trainer::provenance::model_id_text(record.model_id());
+    assert!(
+        report(&with).ends_with(&format!(" provenance {id} serial \"FOG-0042\"")),
+        "{}",
+        report(&with)
+    );
+    // The fixture's blob is written without provenance (format 2).
+    assert!(report(&blob).ends_with(" provenance none"), "{}", report(&blob));
+}

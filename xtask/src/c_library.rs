@@ -78,24 +78,29 @@ const C_FLAGS: [&str; 5] = ["-std=c11", "-O2", "-Wall", "-Wextra", "-Werror"];
 /// Cortex-M4F with its FPU, hard-float ABI: what the library is built for.
 pub const ARM_FLAGS: [&str; 4] = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16"];
 
-/// Builds the static library (release) for `target` with `features`;
+/// The cargo profile the library is built with (the workspace's
+/// Cargo.toml: the release profile at opt-level 2, fewer instructions per
+/// step for a C caller; docs/decisions.md).
+pub const PROFILE: &str = "c-library";
+
+/// Builds the static library (profile [`PROFILE`]) for `target` with `features`;
 /// returns the path of `librbf_core_c.a`. In the firmware's target
 /// directory ([`crate::firmware::target_dir`]), so that a build started
 /// inside `cargo test` never waits on the outer cargo's lock.
 pub fn build_library(target: CTarget, features: &[&str]) -> anyhow::Result<PathBuf> {
     let dir = crate::firmware::target_dir();
     let mut cmd = std::process::Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
-    cmd.args(["build", "--quiet", "--release", "--package", PACKAGE])
+    cmd.args(["build", "--quiet", "--profile", PROFILE, "--package", PACKAGE])
         .env("CARGO_TARGET_DIR", &dir)
         .current_dir(workspace_root());
     if !features.is_empty() {
         cmd.args(["--features", &features.join(",")]);
     }
     let out = match target {
-        CTarget::Host => dir.join("release"),
+        CTarget::Host => dir.join(PROFILE),
         CTarget::Qemu => {
             cmd.args(["--target", crate::firmware::TARGET]);
-            dir.join(crate::firmware::TARGET).join("release")
+            dir.join(crate::firmware::TARGET).join(PROFILE)
         }
     };
     let status = cmd.status().context("cannot start cargo")?;

@@ -19,7 +19,7 @@ use crate::c_library::{self, CTarget};
 use crate::qemu;
 
 /// What a C replay printed besides the output file (its closing line:
-/// rows, the model's CRC-32 and axes).
+/// rows, the model's CRC-32, axes and provenance id).
 #[derive(Debug)]
 pub struct CReplaySummary {
     /// The program's closing line.

@@ -11,24 +11,32 @@
 
 mod sim;
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::process::ExitCode;
 use std::rc::Rc;
+use std::sync::atomic::{AtomicU32, Ordering};
 
+use firmware::bench::Bench;
+use firmware::commands::{self, Report};
 use firmware::compensation::{CompensationLoop, InPlaceModel, LoopConfig, LoopStats};
 use firmware::flash_ctl::{self, ControllerFlash};
 use firmware::frontend::FrontEnd;
 use firmware::i2c_master::{BoundedI2c, I2cCounters};
+use firmware::interrupts::{self, Transmit};
 use firmware::model_store::{ModelStore, SlotLayout};
-use firmware::pacing::{Pacer, serve_samples};
+use firmware::pacing::Pacer;
+use firmware::samples::serve_samples_timed;
 use firmware::sensors::{RateFrontEnd, RateSample, SensorFault, Thermometer};
 use firmware::tmp117::Tmp117;
-use firmware::update::{self, CommandReceiver, Received, UpdateStatus};
+use firmware::uart::{self, FrameQueue};
+use firmware::update::{self, CommandReceiver, UpdateStatus};
 use firmware::watchdog::{LSI_FASTEST_HZ, SECTOR_ERASE_WORST_MS, Watchdog, running_setting};
+use heapless::spsc::{Consumer, Producer, Queue};
 use rbf_core::axis::Axis;
+use rbf_core::frame::cobs_decode_in_place;
 use rbf_core::frame::{self, OutputFrame};
 use rbf_core::{CompensatorConfig, Flags, Model};
-use sim::{FakeI2c, FakeSpi, FlashSim, FrontEndSim, I2cSim, SimClock, SimWatchdog};
+use sim::{FakeI2c, FakeSpi, FlashSim, FrontEndSim, I2cSim, SimClock, SimWatchdog, UartRxSim, UartTxSim};
 
 /// A scenario's verdict: what happened, or why it failed.
 type Verdict = Result<String, String>;
@@ -58,6 +66,8 @@ struct Board {
     lp: BoardLoop,
     pacer: Pacer,
     watchdog: SimWatchdog,
+    /// The `bench` command's timing (never started here).
+    bench: Bench,
     /// Stalls of the loop: (from, length), µs.
     stalls: Vec<(u64, u64)>,
     /// Longest pass of the loop, µs.
@@ -85,6 +95,7 @@ impl Board {
             lp,
             pacer: Pacer::new(1_000_000, 1000, clock.now_us() as u32),
             watchdog,
+            bench: Bench::default(),
             stalls: Vec::new(),
             longest_pass_us: 0,
             boot_us: clock.now_us(),
@@ -106,15 +117,18 @@ impl Board {
             self.fe.borrow_mut().advance();
             let started = self.clock.now_us();
             let fe = &self.fe;
-            let lp = &mut self.lp;
-            let stepped = serve_samples(
+            let clock = &self.clock;
+            // The sample half of Board::run's pass, as the board runs it
+            // (the simulated µs stand in for the DWT cycle counter).
+            let stepped = serve_samples_timed(
                 &mut self.pacer,
                 || fe.borrow_mut().stamps.pop_front(),
                 started as u32,
                 &mut self.watchdog,
-                |tick| {
-                    lp.step_at(tick.seq, tick.dt_s);
-                },
+                &mut self.lp,
+                &mut self.bench,
+                || clock.now_us() as u32,
+                |_, _| {},
             );
             self.longest_pass_us = self.longest_pass_us.max(self.clock.now_us() - started);
             if !stepped {
@@ -671,80 +685,258 @@ fn flash_error() -> Verdict {
     ))
 }
 
+/// The board's receive and transmit queues' sizes (`firmware::board`'s `RX_QUEUE`, `TX_QUEUE`).
+const RX_QUEUE: usize = 256;
+const TX_QUEUE: usize = 512;
+
+/// The single-axis loop writing its frames into the board's transmit queue.
+type QueuedLoop<'m> = CompensationLoop<Steady, Steady, FrameQueue<'static, fn()>, InPlaceModel<'m, Model>>;
+
+/// The board's UART side: its queues, USART1's interrupt logic on a
+/// simulated UART, and the loop's command path, as `Board::run` and the
+/// USART1 handler wire them; a model installed at the start.
+struct UartBoard {
+    inst: Installer,
+    outgoing: Consumer<'static, u8>,
+    incoming: Producer<'static, u8>,
+    in_consumer: Consumer<'static, u8>,
+    rx: UartRxSim,
+    tx: UartTxSim,
+    rx_overruns: AtomicU32,
+    receiver: CommandReceiver,
+    bench: Bench,
+    pacer: Pacer,
+    /// A cycle counter for the `bench` command: 1,000 per read.
+    cycles: Cell<u32>,
+}
+
+impl UartBoard {
+    /// The board with a framing error on every `error_every`-th received
+    /// byte, and its loop running the cubic model (installed over the
+    /// command path's install, filters restarted once).
+    fn new(error_every: u32, storage: &mut Model) -> (UartBoard, QueuedLoop<'_>) {
+        let mut inst = Installer::new(1_000_000, 0);
+        let good = install_payload(&firmware_harness::fault_injection::cubic_model().expect("valid cubic model"));
+        let (frames_in, outgoing) = Box::leak(Box::new(Queue::<u8, TX_QUEUE>::new())).split();
+        let (incoming, in_consumer) = Box::leak(Box::new(Queue::<u8, RX_QUEUE>::new())).split();
+        let mut lp = CompensationLoop::new(
+            InPlaceModel::new(storage, false),
+            LoopConfig {
+                compensator: CompensatorConfig::for_sample_rate(1000.0),
+                temp_read_every: 125,
+            },
+            Steady,
+            Steady,
+            FrameQueue::new(frames_in, (|| {}) as fn()),
+        );
+        lp.update_model_if(|m| update::run_in_place(&mut inst.store, &good, m) == UpdateStatus::Installed);
+        let board = UartBoard {
+            inst,
+            outgoing,
+            incoming,
+            in_consumer,
+            rx: UartRxSim::with_errors_every(error_every),
+            tx: UartTxSim::default(),
+            rx_overruns: AtomicU32::new(0),
+            receiver: CommandReceiver::new(),
+            bench: Bench::default(),
+            pacer: Pacer::new(1_000_000, 1000, 0),
+            cycles: Cell::new(0),
+        };
+        (board, lp)
+    }
+
+    /// `byte` arrives on RX: USART1's interrupt takes it (and sends a
+    /// queued byte, as the same interrupt does).
+    fn receive(&mut self, byte: u8) {
+        self.rx.line.push_back(byte);
+        interrupts::serve_uart(
+            &mut self.rx,
+            &mut self.tx,
+            &mut self.outgoing,
+            &mut self.incoming,
+            &self.rx_overruns,
+        );
+    }
+
+    /// One pass of the loop for the data-ready edge of sample `seq`: the
+    /// sample half, then the command half (`report` hears `bench` and
+    /// `health` after the board's own handling of `bench`; `replied` each
+    /// reply's status), then USART1's interrupt until the transmit queue is empty.
+    fn pass(
+        &mut self,
+        lp: &mut QueuedLoop<'_>,
+        seq: u32,
+        mut report: impl FnMut(Report),
+        mut replied: impl FnMut(UpdateStatus),
+    ) {
+        let stamp = seq * 1000;
+        let mut stamps = Some(stamp);
+        let cycles = &self.cycles;
+        serve_samples_timed(
+            &mut self.pacer,
+            || stamps.take(),
+            stamp,
+            &mut self.inst.watchdog,
+            lp,
+            &mut self.bench,
+            || {
+                cycles.set(cycles.get().wrapping_add(1000));
+                cycles.get()
+            },
+            |_, _| {},
+        );
+        let bench = &mut self.bench;
+        let in_consumer = &mut self.in_consumer;
+        commands::serve_commands(
+            || uart::dequeue(in_consumer),
+            &mut self.receiver,
+            lp,
+            &mut self.inst.store,
+            &mut self.inst.watchdog,
+            |r, _, _| {
+                if r == Report::Bench {
+                    bench.start();
+                }
+                report(r);
+            },
+            |status, _| replied(status),
+        );
+        while interrupts::serve_uart(
+            &mut self.rx,
+            &mut self.tx,
+            &mut self.outgoing,
+            &mut self.incoming,
+            &self.rx_overruns,
+        ) == Transmit::Sending
+        {}
+    }
+}
+
 fn rx_noise() -> Verdict {
-    let mut inst = Installer::new(1_000_000, 0);
-    let good = install_payload(&firmware_harness::fault_injection::cubic_model().expect("valid cubic model"));
     let mut storage: Model = Model::EMPTY;
-    let mut lp = CompensationLoop::new(
-        InPlaceModel::new(&mut storage, false),
-        LoopConfig {
-            compensator: CompensatorConfig::for_sample_rate(1000.0),
-            temp_read_every: 125,
-        },
-        Steady,
-        Steady,
-        Vec::new(),
-    );
-    lp.update_model_if(|m| update::run_in_place(&mut inst.store, &good, m) == UpdateStatus::Installed);
-    let identity = inst.store.identity();
-    let mut receiver = CommandReceiver::new();
+    let (mut board, mut lp) = UartBoard::new(97, &mut storage);
+    let identity = board.inst.store.identity();
     let mut state = 0x2545_F491u32;
-    let (mut replies, mut installs, mut steps) = (0u32, 0u32, 0u32);
+    let (mut replies, mut installs, mut reports) = (0u32, 0u32, 0u32);
     for seq in 0..2000u32 {
-        lp.step_at(seq, 1e-3);
-        steps += 1;
+        // 20 noise bytes a sample: mostly non-zero, a frame end now and then.
         for _ in 0..20 {
             state ^= state << 13;
             state ^= state >> 17;
             state ^= state << 5;
-            // Noise: mostly non-zero bytes, a frame end now and then.
             let byte = if state.is_multiple_of(23) {
                 0
             } else {
                 (state >> 8) as u8
             };
-            match receiver.push(byte) {
-                None => {}
-                Some(Received::Rejected(_)) => replies += 1,
-                Some(Received::Command(payload)) => {
-                    replies += 1;
-                    lp.update_model_if(|m| {
-                        let status = update::run_in_place(&mut inst.store, payload, m);
-                        installs += u32::from(status == UpdateStatus::Installed);
-                        status == UpdateStatus::Installed
-                    });
-                }
-            }
+            board.receive(byte);
         }
+        board.pass(
+            &mut lp,
+            seq,
+            |_| reports += 1,
+            |status| {
+                replies += 1;
+                installs += u32::from(status == UpdateStatus::Installed);
+            },
+        );
     }
-    let frames = decode_frames(lp.output_mut());
+    let frames = decode_frames(&board.tx.sent);
     let stats = lp.stats();
+    let errors = board.rx_overruns.load(Ordering::Relaxed);
     ensure!(replies >= 100, "only {replies} noise frames");
     ensure!(installs == 0, "noise installed a model");
+    ensure!(
+        errors >= 400,
+        "{errors} receive errors counted of 40,000 bytes, one in 97 in error"
+    );
     ensure!(
         stats.filter_restarts == 1,
         "{} filter restarts (1 from the real install)",
         stats.filter_restarts
     );
     ensure!(
-        frames.len() as u32 == steps,
-        "{} frames for {steps} samples",
-        frames.len()
+        frames.len() as u32 == stats.samples,
+        "{} output frames through USART1 for {} samples",
+        frames.len(),
+        stats.samples
     );
-    ensure!(inst.store.identity() == identity, "the running model changed");
+    ensure!(board.inst.store.identity() == identity, "the running model changed");
     ensure!(
         frames.iter().all(|f| f.flags & Flags::NO_VALID_MODEL.bits() == 0),
         "the model stopped running"
     );
     Ok(format!(
-        "40,000 noise bytes on RX during 2,000 samples: {replies} frames refused or unknown, 0 filter restarts, {} frames, model CRC {:#010x} kept",
+        "40,000 noise bytes on RX during 2,000 samples, through USART1's interrupt logic and the loop's command path: {replies} frames refused or unknown, {reports} bench/health reports, {errors} receive errors counted, no filter restart from the noise, {} frames sent, model CRC {:#010x} kept",
         frames.len(),
         identity.blob_crc32
     ))
 }
 
+fn bench_over_the_uart() -> Verdict {
+    let mut storage: Model = Model::EMPTY;
+    let (mut board, mut lp) = UartBoard::new(0, &mut storage);
+    let (mut benches, mut healths, mut replies) = (0u32, 0u32, 0u32);
+    for seq in 0..1500u32 {
+        // `bench` at sample 10, `health` at sample 1,200: COBS with its 0x00.
+        let command = match seq {
+            10 => Some(firmware::bench::CMD_BENCH),
+            1200 => Some(firmware::health::CMD_HEALTH),
+            _ => None,
+        };
+        if let Some(c) = command {
+            let mut wire = [0u8; 4];
+            let n = rbf_core::frame::cobs_encode(&[c], &mut wire).unwrap_or(0);
+            for &b in &wire[..n] {
+                board.receive(b);
+            }
+        }
+        board.pass(
+            &mut lp,
+            seq,
+            |r| match r {
+                Report::Bench => benches += 1,
+                Report::Health => healths += 1,
+            },
+            |_| replies += 1,
+        );
+    }
+    // The bench report among the output frames: COBS([CMD_BENCH, steps, min, mean, max]).
+    let mut sent = board.tx.sent.clone();
+    let reports: Vec<[u32; 4]> = sent
+        .split_mut(|&b| b == 0)
+        .filter_map(|f| {
+            let n = cobs_decode_in_place(f)?;
+            let payload = f.get(..n)?;
+            let (&cmd, fields) = payload.split_first()?;
+            (cmd == firmware::bench::CMD_BENCH && fields.len() == 16).then(|| {
+                let word = |i: usize| u32::from_le_bytes(fields[4 * i..4 * i + 4].try_into().unwrap_or([0; 4]));
+                [word(0), word(1), word(2), word(3)]
+            })
+        })
+        .collect();
+    let frames = decode_frames(&board.tx.sent);
+    ensure!(
+        (benches, healths, replies) == (1, 1, 0),
+        "{benches} bench, {healths} health requests, {replies} replies (expected 1, 1, none: both answer with reports)"
+    );
+    ensure!(reports.len() == 1, "{} bench reports", reports.len());
+    let [steps, min, mean, max] = reports[0];
+    ensure!(
+        steps == firmware::bench::BENCH_STEPS && (min, mean, max) == (1000, 1000, 1000),
+        "bench report {:?}: expected 1000 steps of 1000 cycles",
+        reports[0]
+    );
+    ensure!(frames.len() == 1500, "{} output frames for 1,500 samples", frames.len());
+    Ok(format!(
+        "`bench` and `health` over RX through USART1's logic and the command path: one bench report after {steps} timed steps (min/mean/max {min}/{mean}/{max} cycles), the health request handed to the board, no reply frame, {} output frames",
+        frames.len()
+    ))
+}
+
 fn main() -> ExitCode {
-    let scenarios: [Scenario; 12] = [
+    let scenarios: [Scenario; 13] = [
         ("stuck SDA at boot", stuck_sda_at_boot),
         ("stuck bus at run time", stuck_bus_at_run_time),
         ("NACK storm", nack_storm),
@@ -757,6 +949,7 @@ fn main() -> ExitCode {
         ("4-s erase at 47 kHz LSI", slow_erase_at_fast_lsi),
         ("flash error", flash_error),
         ("noise on RX", rx_noise),
+        ("bench and health over RX", bench_over_the_uart),
     ];
     let mut failed = 0;
     for (name, scenario) in scenarios {

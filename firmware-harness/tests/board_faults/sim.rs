@@ -602,3 +602,64 @@ impl SpiDevice for FakeSpi {
         Ok(())
     }
 }
+
+/// USART1's receiver as the board's interrupt logic reads it
+/// (`firmware::interrupts::serve_uart`): the bytes that arrived on the
+/// line, one per read, and a framing error for every `error_every`-th.
+#[derive(Debug, Default)]
+pub struct UartRxSim {
+    /// Bytes on the line, oldest first.
+    pub line: VecDeque<u8>,
+    /// Every this many bytes arrive with a framing error (0: never).
+    pub error_every: u32,
+    received: u32,
+}
+
+impl UartRxSim {
+    /// A receiver whose every `error_every`-th byte has a framing error.
+    pub fn with_errors_every(error_every: u32) -> UartRxSim {
+        UartRxSim {
+            error_every,
+            ..UartRxSim::default()
+        }
+    }
+}
+
+impl embedded_hal_nb::serial::ErrorType for UartRxSim {
+    type Error = embedded_hal_nb::serial::ErrorKind;
+}
+
+impl embedded_hal_nb::serial::Read<u8> for UartRxSim {
+    fn read(&mut self) -> embedded_hal_nb::nb::Result<u8, Self::Error> {
+        let byte = self.line.pop_front().ok_or(embedded_hal_nb::nb::Error::WouldBlock)?;
+        self.received += 1;
+        if self.error_every != 0 && self.received.is_multiple_of(self.error_every) {
+            return Err(embedded_hal_nb::nb::Error::Other(
+                embedded_hal_nb::serial::ErrorKind::FrameFormat,
+            ));
+        }
+        Ok(byte)
+    }
+}
+
+/// USART1's transmitter: takes every byte (the wire is faster than the
+/// loop's frames), keeps what went out.
+#[derive(Debug, Default)]
+pub struct UartTxSim {
+    /// Bytes sent, in order.
+    pub sent: Vec<u8>,
+}
+
+impl embedded_hal_nb::serial::ErrorType for UartTxSim {
+    type Error = embedded_hal_nb::serial::ErrorKind;
+}
+
+impl embedded_hal_nb::serial::Write<u8> for UartTxSim {
+    fn write(&mut self, byte: u8) -> embedded_hal_nb::nb::Result<(), Self::Error> {
+        self.sent.push(byte);
+        Ok(())
+    }
+    fn flush(&mut self) -> embedded_hal_nb::nb::Result<(), Self::Error> {
+        Ok(())
+    }
+}

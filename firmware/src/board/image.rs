@@ -62,21 +62,22 @@ use super::isr::{DataReadyIsr, RX_OVERRUNS, STAMP_OVERRUNS, UartIsr, hand_over, 
 #[cfg(feature = "board-qemu")]
 use super::qemu as platform;
 use super::timing;
-use crate::bench::{Bench, CMD_BENCH};
+use crate::bench::Bench;
+use crate::commands::{self, Report};
 use crate::compensation::{CompensationLoop, InPlaceModel, LoopConfig, LoopStats, ModelHolder, write_frame};
 use crate::fault::{self, FaultRecord};
 use crate::frontend::{self, FrontEnd};
 use crate::health::{
-    BOARD_ON_HSI, CMD_HEALTH, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause,
-    brown_out_flag,
+    BOARD_ON_HSI, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause, brown_out_flag,
 };
 use crate::model_store::{MappedFlash, ModelStore, SlotLayout, StoredModel};
-use crate::pacing::{self, Pacer, PacerCounters};
+use crate::pacing::{Pacer, PacerCounters};
+use crate::samples;
 use crate::sensors::{AxisFrontEnds, AxisThermometers};
 use crate::tmp117::Tmp117;
 use crate::uart::{self, FrameQueue};
-use crate::update::{self, CommandReceiver, Received, UpdateStatus};
-use crate::watchdog::{self, Watchdog};
+use crate::update::{CommandReceiver, UpdateStatus};
+use crate::watchdog;
 
 pub use platform::I2c1;
 
@@ -574,7 +575,7 @@ impl<F: BoardFlash> Board<F> {
         }
 
         // Command bytes collect in a static of their own (4 KiB: off the stack).
-        let (Some(model), Some(commands)) = (
+        let (Some(model), Some(receiver)) = (
             M::storage(),
             cortex_m::singleton!(: CommandReceiver = CommandReceiver::new()),
         ) else {
@@ -632,15 +633,17 @@ impl<F: BoardFlash> Board<F> {
         run_forever(move || {
             // One step per pass for the newest data-ready edge (or the
             // silence); the watchdog is fed by steps only.
-            pacing::serve_samples(
+            samples::serve_samples_timed(
                 &mut pacer,
                 || uart::dequeue(&mut stamp_consumer),
                 hw::Tim2Clock::now(),
                 &mut watchdog,
-                |tick| {
-                    let started = DWT::cycle_count();
-                    compensation.step_at(tick.seq, tick.dt_s);
-                    if let Some(stats) = bench.record(timing::elapsed(started, DWT::cycle_count())) {
+                &mut compensation,
+                &mut bench,
+                DWT::cycle_count,
+                |seq, stats| {
+                    #[cfg(feature = "board-debug")]
+                    if let Some(stats) = stats {
                         log!(
                             "bench: {=u32} steps, cycles min {=u32} mean {=u32} max {=u32}",
                             stats.steps,
@@ -648,52 +651,35 @@ impl<F: BoardFlash> Board<F> {
                             stats.mean(),
                             stats.max
                         );
-                        let mut report = [0u8; 24];
-                        if let Some(n) = stats.encode_report(&mut report) {
-                            write_frame(compensation.output_mut(), report.get(..n).unwrap_or(&[]));
-                        }
                     }
-                    hooks.stepped(tick.seq);
+                    #[cfg(not(feature = "board-debug"))]
+                    let _ = stats;
+                    hooks.stepped(seq);
                 },
             );
-            // Commands between samples.
-            while let Some(byte) = uart::dequeue(&mut in_consumer) {
-                let (command, status) = match commands.push(byte) {
-                    None => continue,
-                    Some(Received::Rejected(status)) => (0, status),
+            // Commands between samples (crate::commands, as the fault campaign runs it).
+            commands::serve_commands(
+                || uart::dequeue(&mut in_consumer),
+                receiver,
+                &mut compensation,
+                &mut store,
+                &mut watchdog,
+                |report, compensation, store| match report {
                     // Answered by its report after the timed steps.
-                    Some(Received::Command(&[CMD_BENCH])) => {
-                        bench.start();
-                        continue;
-                    }
-                    Some(Received::Command(&[CMD_HEALTH])) => {
-                        send_health(&boot, &mut compensation, &store, &pacer);
-                        continue;
-                    }
-                    Some(Received::Command(payload)) => {
-                        // The flash driver runs the watchdog at its install period around the erase.
-                        watchdog.feed();
-                        let mut status = UpdateStatus::UnknownCommand;
-                        // The filters restart only for a model actually installed.
-                        compensation.update_model_if(|model| {
-                            status = update::run_in_place(&mut store, payload, model);
-                            status == UpdateStatus::Installed
-                        });
-                        watchdog.feed();
-                        log!(
-                            "update: status {=u8}, model loaded {=bool}",
-                            status as u8,
-                            store.model_loaded()
-                        );
-                        (payload.first().copied().unwrap_or(0), status)
-                    }
-                };
-                let mut reply = [0u8; 8];
-                if let Some(n) = update::encode_reply(command, status, &mut reply) {
-                    write_frame(compensation.output_mut(), reply.get(..n).unwrap_or(&[]));
-                }
-                hooks.replied(status);
-            }
+                    Report::Bench => bench.start(),
+                    Report::Health => send_health(&boot, compensation, store, &pacer),
+                },
+                |status, store| {
+                    #[cfg(not(feature = "board-debug"))]
+                    let _ = store;
+                    log!(
+                        "command: status {=u8}, model loaded {=bool}",
+                        status as u8,
+                        store.model_loaded()
+                    );
+                    hooks.replied(status);
+                },
+            );
             hooks.served(&compensation.stats());
             // Sleep only if no interrupt queued work since the checks above:
             // with interrupts masked, an edge or byte that arrives now stays

@@ -2,7 +2,9 @@
 //! the run loop: USART1's (bytes between the UART and the frame and
 //! command queues), EXTI0's (data-ready stamps), SysTick's (the loop's
 //! wake-up) and HardFault's (on a fresh stack: the cause recorded, a stack
-//! overflow included, then a reset).
+//! overflow included, then a reset). What USART1's and EXTI0's do is
+//! `crate::interrupts` (host-tested, and run by the fault campaign); here
+//! they only fetch their state and wire the registers to it.
 #![allow(unsafe_code)]
 
 use core::sync::atomic::{AtomicPtr, AtomicU32, Ordering};
@@ -11,7 +13,6 @@ use cortex_m_rt::exception;
 use heapless::spsc::{Consumer, Producer};
 use stm32f4xx_hal::gpio::{ExtiPin, Input, PB0};
 use stm32f4xx_hal::pac::{self, interrupt};
-use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::serial::{Rx, Tx, TxListen};
 
 #[cfg(not(feature = "board-qemu"))]
@@ -19,7 +20,7 @@ use super::chip as platform;
 use super::hw;
 #[cfg(feature = "board-qemu")]
 use super::qemu as platform;
-use crate::uart;
+use crate::interrupts::{self, Transmit};
 
 /// USART1's halves and the queue ends its interrupt serves.
 pub(super) struct UartIsr {
@@ -108,29 +109,9 @@ fn SysTick() {}
 fn USART1() {
     // SAFETY: USART1's own state, in USART1's handler.
     let Some(u) = (unsafe { owned(&UART) }) else { return };
-    // The byte the receiver holds (an error read clears its flag;
-    // bounded, so a line full of errors cannot hold the handler).
-    for _ in 0..4 {
-        match u.rx.read() {
-            Ok(byte) => {
-                if uart::enqueue(&mut u.incoming, byte).is_err() {
-                    RX_OVERRUNS.fetch_add(1, Ordering::Relaxed);
-                }
-            }
-            Err(stm32f4xx_hal::nb::Error::WouldBlock) => break,
-            Err(stm32f4xx_hal::nb::Error::Other(_)) => {
-                RX_OVERRUNS.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-    }
-    match u.outgoing.peek().copied() {
-        Some(byte) => {
-            if u.tx.write(byte).is_ok() {
-                let _ = uart::dequeue(&mut u.outgoing);
-            }
-            platform::pend_tx();
-        }
-        None => u.tx.unlisten(),
+    match interrupts::serve_uart(&mut u.rx, &mut u.tx, &mut u.outgoing, &mut u.incoming, &RX_OVERRUNS) {
+        Transmit::Sending => platform::pend_tx(),
+        Transmit::Idle => u.tx.unlisten(),
     }
 }
 
@@ -140,9 +121,7 @@ fn EXTI0() {
     // SAFETY: EXTI0's own state, in EXTI0's handler.
     if let Some(d) = unsafe { owned(&DATA_READY) } {
         d.pin.clear_interrupt_pending_bit();
-        if uart::enqueue(&mut d.stamps, stamp).is_err() {
-            STAMP_OVERRUNS.fetch_add(1, Ordering::Relaxed);
-        }
+        interrupts::stamp_data_ready(stamp, &mut d.stamps, &STAMP_OVERRUNS);
     }
 }
 
