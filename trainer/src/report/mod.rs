@@ -229,7 +229,7 @@ fn model_markdown(model: &Model, model_path: &Path) -> String {
     }
     md.push_str(&format!(
         "- centres: {}\n",
-        summary::count(summary::centres(model) as u64, "centre", "centres")
+        summary::count(summary::centers(model) as u64, "centre", "centres")
     ));
     md.push_str("- inputs (training range):\n");
     for (name, lo, hi) in summary::training_ranges(model) {
@@ -896,7 +896,7 @@ mod tests {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
         let run = crate::reading::run::samples::Run::load(&data).unwrap();
         let opts = crate::fit::FitOptions {
-            features: crate::fit::RbfFeatures::ResponseBank,
+            method: crate::fit::Method::ResponseBank,
             ..crate::fit::FitOptions::default()
         };
         let model = crate::fit::fit(std::slice::from_ref(&run), &[], &opts).unwrap().model;
