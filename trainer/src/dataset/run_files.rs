@@ -72,7 +72,7 @@ impl RunFiles {
         let mut reader = RunReader::open(path)?;
         match self.axis {
             Some(axis) => reader.select_axis(axis)?,
-            None => reader.require_single_axis()?,
+            None => reader.header().require_single_axis()?,
         }
         Ok(reader)
     }

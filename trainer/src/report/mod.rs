@@ -64,7 +64,7 @@ fn read_run(
     let path = reader.path().to_owned();
     let thermometers = model.features().set.thermometers();
     let mut surface = SurfaceCoordinates::of(model);
-    let named = RunDiagnosis::new(&path, 1.0).named_by(reader.header_line(), reader.columns());
+    let named = RunDiagnosis::new(&path, 1.0).named_by(reader.header().line(), reader.columns());
     let run = StreamedRun::from_reader(reader, thermometers)?;
     let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
     let config = rbf_core::CompensatorConfig::for_nominal_period_s(period_s);
@@ -307,7 +307,7 @@ pub fn write_report(
             let mut reader = RunReader::open(path)?;
             match axis {
                 Some(axis) => reader.select_axis(axis)?,
-                None => reader.require_single_axis()?,
+                None => reader.header().require_single_axis()?,
             }
             read_run(
                 model,
