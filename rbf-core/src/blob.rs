@@ -852,7 +852,7 @@ fn read_rbf_in_place(rest: &[u8], centers: usize, storage: RbfStorage<'_>) -> Re
     let RbfStorage {
         offset,
         scale,
-        centers: centre_rows,
+        centers: center_rows,
         widths,
         weights,
         linear,
@@ -871,7 +871,7 @@ fn read_rbf_in_place(rest: &[u8], centers: usize, storage: RbfStorage<'_>) -> Re
     let center_values = F32Seq {
         capacity: MAX_CENTERS * MAX_KERNEL_INPUTS,
         put: |i: usize, v: f32| {
-            if let Some(c) = centre_rows.get_mut(i / m).and_then(|row| row.get_mut(i % m)) {
+            if let Some(c) = center_rows.get_mut(i / m).and_then(|row| row.get_mut(i % m)) {
                 *c = v;
             }
         },

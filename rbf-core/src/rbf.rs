@@ -294,13 +294,13 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         check_shape::<K, D>(shape)?;
         let (d, k, m) = (shape.offsets, shape.widths, shape.kernel_inputs);
         let used = |a: &[f32], n: usize| -> bool { a.get(..n).is_some_and(all_finite) };
-        let centres_finite = self
+        let centers_finite = self
             .centers
             .get(..k)
             .is_some_and(|rows| rows.iter().all(|row| used(row, m)));
         let finite = used(&self.offset, d)
             && used(&self.scale, d)
-            && centres_finite
+            && centers_finite
             && used(&self.widths, k)
             && used(&self.weights, k)
             && used(&self.linear, shape.linear)
@@ -402,7 +402,7 @@ mod tests {
     use super::*;
 
     /// A network of one centre over two kernel inputs, with linear terms.
-    pub(super) fn one_centre() -> RbfNetwork<4, 3> {
+    pub(super) fn one_center() -> RbfNetwork<4, 3> {
         RbfNetwork::new(&RbfParams {
             offset: &[20.0, 0.0],
             scale: &[10.0, 1.0],
@@ -418,7 +418,7 @@ mod tests {
 
     #[test]
     fn refuses_shapes_over_capacity_or_inconsistent() {
-        let ok = one_centre();
+        let ok = one_center();
         assert_eq!(ok.centers_used(), 1);
         let too_many_inputs = RbfParams {
             offset: &[0.0; 4],
@@ -434,7 +434,7 @@ mod tests {
             RbfNetwork::<4, 3>::new(&too_many_inputs),
             Err(ModelError::ShapeOverCapacity)
         );
-        let bad_centres = RbfParams {
+        let bad_centers = RbfParams {
             offset: &[0.0],
             scale: &[1.0],
             kernel_inputs: 1,
@@ -444,7 +444,7 @@ mod tests {
             linear: &[],
             constant: 0.0,
         };
-        assert_eq!(RbfNetwork::<4, 3>::new(&bad_centres), Err(ModelError::ShapeMismatch));
+        assert_eq!(RbfNetwork::<4, 3>::new(&bad_centers), Err(ModelError::ShapeMismatch));
     }
 
     #[test]

@@ -35,8 +35,10 @@ pub fn model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
     chamber.hold_s = 1800.0;
     let train = recorded(dir, &chamber, "train.csv");
     let opts = FitOptions {
-        centers: Some(16),
-        rate_windows_s: vec![60.0],
+        method: fit::Method::LagBank(fit::LagBankOptions {
+            centers: Some(16),
+            structure_choice: true,
+        }),
         ..FitOptions::default()
     };
     let model = fit::fit(std::slice::from_ref(&train), &[], &opts).expect("fit").model;
@@ -46,7 +48,7 @@ pub fn model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
     )
 }
 
-/// Fits a thermal response bank (`RbfFeatures::ResponseBank`: 12 filters,
+/// Fits a thermal response bank (`Method::ResponseBank`: 12 filters,
 /// no centres) on a 1 °C/min run and writes a fault-injected slice of a
 /// 2 °C/min run into `dir`; returns (model, slice path).
 pub fn response_bank_model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
@@ -54,7 +56,7 @@ pub fn response_bank_model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, Pat
     chamber.hold_s = 1800.0;
     let train = recorded(dir, &chamber, "train_response.csv");
     let opts = FitOptions {
-        features: fit::RbfFeatures::ResponseBank,
+        method: fit::Method::ResponseBank,
         ..FitOptions::default()
     };
     let model = fit::fit(std::slice::from_ref(&train), &[], &opts).expect("fit").model;
@@ -72,14 +74,15 @@ pub fn lagged_model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBuf) {
     let mut chamber = ChamberRun::cycle(1.0, 51);
     chamber.hold_s = 1800.0;
     let train = recorded(dir, &chamber, "train_cycle.csv");
-    let opts = FitOptions {
-        centers: Some(16),
+    let search = fit::RbfSearch {
+        centers: fit::CenterBudget::Fixed(16),
         rate_windows_s: vec![15.0],
-        ..FitOptions::default()
+        ..fit::RbfSearch::default()
     };
     let set = rbf_core::FeatureSet::MultiScaleLagged { coil_lag_min: 40 };
     let progress = fit::Progress::new(false);
-    let (model, _) = fit::rbf::fit(std::slice::from_ref(&train), &[], set, &opts, &progress).expect("fit");
+    let train = std::slice::from_ref(&train);
+    let (model, _) = fit::rbf::fit(train, &[], set, &FitOptions::default(), &search, &progress).expect("fit");
     (
         model,
         faulty_slice(dir, &ChamberRun::cycle(3.0, 52).to_csv(), "slice_cycle.csv"),
@@ -98,9 +101,11 @@ pub fn multipoint_model_and_faulty_slice(dir: &Path) -> (rbf_core::Model, PathBu
     chamber.multi = true;
     let train = recorded(dir, &chamber, "train_multi.csv");
     let opts = FitOptions {
-        method: fit::Method::SvrPso,
-        centers: Some(16),
-        inputs: Some(vec![Probe::Temp(2), Probe::Gradient(0, 4), Probe::Gradient(2, 3)]),
+        method: fit::Method::SvrPso(fit::SvrOptions {
+            centers: fit::CenterBudget::Fixed(16),
+            rate_windows_s: fit::RbfSearch::default().rate_windows_s,
+            inputs: fit::SvrInputs::Named(vec![Probe::Temp(2), Probe::Gradient(0, 4), Probe::Gradient(2, 3)]),
+        }),
         ..FitOptions::default()
     };
     let model = fit::fit(std::slice::from_ref(&train), &[], &opts).expect("fit").model;
@@ -161,12 +166,13 @@ pub fn axes_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
     let train = dir.join("train_axes.csv");
     std::fs::write(&train, &train_csv).expect("write training run");
     let none: &[Run] = &[];
-    let options = [(Axis::X, 32, 60.0), (Axis::Y, 24, 60.0), (Axis::Z, 16, 15.0)];
     let mut models = Vec::new();
-    for (axis, centers, rate_window_s) in options {
+    for (axis, centers) in [(Axis::X, 32), (Axis::Y, 24), (Axis::Z, 16)] {
         let opts = FitOptions {
-            centers: Some(centers),
-            rate_windows_s: vec![rate_window_s],
+            method: fit::Method::LagBank(fit::LagBankOptions {
+                centers: Some(centers),
+                structure_choice: true,
+            }),
             ..FitOptions::default()
         };
         let runs = RunFiles::for_axis(std::slice::from_ref(&train), Some(axis));
@@ -199,12 +205,15 @@ pub fn shared_blob_and_slice(dir: &Path) -> (PathBuf, PathBuf) {
     std::fs::write(&train, &train_csv).expect("write training run");
     let none: &[Run] = &[];
     let opts = FitOptions {
-        centers: Some(16),
+        method: fit::Method::LagBank(fit::LagBankOptions {
+            centers: Some(16),
+            structure_choice: true,
+        }),
         ..FitOptions::default()
     };
     let runs = RunFiles::for_axis(std::slice::from_ref(&train), Some(Axis::X));
     let basis = fit::fit(&runs, none, &opts).expect("fit axis x");
-    let ridge = basis.choice.as_ref().expect("an RBF fit").ridge;
+    let ridge = basis.rbf_choice().expect("an RBF fit").ridge;
     let trains: Vec<RunFiles> = Axis::ALL
         .iter()
         .map(|&axis| RunFiles::for_axis(std::slice::from_ref(&train), Some(axis)))

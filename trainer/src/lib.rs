@@ -7,7 +7,7 @@
 //! Data flow of a fit, one folder a layer: [`reading`] (the run CSV, parsed
 //! on every core and checked: [`reading::run`]) → [`dataset`] (rbf-core
 //! features, 1-s block means, targets) → [`fit`] (OLS centre selection,
-//! ridge weights, validation; [`fit_axes`]: every axis of a multi-axis run
+//! ridge weights, validation; [`fit::axes`]: every axis of a multi-axis run
 //! and the joint model) → [`blobfile`] (postcard + CRC) → [`evaluation`]
 //! (streaming compensation + [`metrics`]) → [`report`] (plots and written
 //! summary; [`describe`]: a model in words). Beside them: [`plan`] designs
@@ -25,7 +25,6 @@ pub mod describe;
 pub mod device;
 pub mod evaluation;
 pub mod fit;
-pub mod fit_axes;
 pub mod metrics;
 pub mod output;
 pub mod parallel;

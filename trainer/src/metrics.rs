@@ -136,8 +136,8 @@ pub fn msd(time_s: &[f64], deviation_dph: &[f64], nominal_period_s: f64, about_m
 
 /// MSD from the 1-s means of a deviation series (see [`msd`]).
 pub fn msd_of_means(means: &[f64], about_mean: bool) -> f64 {
-    let centre = if about_mean { mean(means) } else { 0.0 };
-    mean(&means.iter().map(|m| (m - centre).powi(2)).collect::<Vec<_>>())
+    let center = if about_mean { mean(means) } else { 0.0 };
+    mean(&means.iter().map(|m| (m - center).powi(2)).collect::<Vec<_>>())
 }
 
 /// Bias STD of 100-s cluster means of a deviation series, °/h.

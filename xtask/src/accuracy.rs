@@ -125,7 +125,7 @@ const PROTOCOLS: [Protocol; 3] = [
 ];
 
 fn trainer(args: &[&str]) -> anyhow::Result<String> {
-    run_tool(&workspace_root().join("target/release/trainer"), args)
+    run_tool(&crate::release_trainer(), args)
 }
 
 /// A result line: improvement % and residual 100-s STD per verification run.
@@ -154,7 +154,7 @@ pub struct AccuracyOptions {
 /// `in_use_only`), then the in-use section.
 pub fn bench_accuracy(opts: &AccuracyOptions) -> anyhow::Result<()> {
     crate::run("cargo", &["build", "--release", "--quiet", "--package", "trainer"])?;
-    let venv_dir = workspace_root().join("target/bench-accuracy");
+    let venv_dir = crate::target_dir().join("bench-accuracy");
     std::fs::create_dir_all(&venv_dir)?;
     let python = crate::python_venv(&venv_dir, &["scikit-learn", "numpy"], "sklearn, numpy")?;
     if !opts.in_use_only {

@@ -21,7 +21,7 @@ pub const HARNESS: &str = "firmware-harness";
 /// workspace's so that a build started inside `cargo test` never waits on
 /// the outer cargo's lock.
 pub fn target_dir() -> PathBuf {
-    workspace_root().join("target").join("firmware")
+    crate::target_dir().join("firmware")
 }
 
 /// `cargo build --release ARGS` in [`target_dir`], echoed: CI builds the
@@ -187,14 +187,14 @@ pub fn build(package: &str, bin: &str, features: &[&str]) -> anyhow::Result<Path
 pub fn trainer_cli() -> anyhow::Result<PathBuf> {
     let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
         .args(["test", "--quiet", "--workspace", "--no-run"])
-        .env("CARGO_TARGET_DIR", workspace_root().join("target"))
+        .env("CARGO_TARGET_DIR", crate::target_dir())
         .current_dir(workspace_root())
         .status()
         .context("cannot start cargo")?;
     if !status.success() {
         bail!("building the trainer CLI failed");
     }
-    Ok(workspace_root().join("target").join("debug").join("trainer"))
+    Ok(crate::target_dir().join("debug").join("trainer"))
 }
 
 /// The symbol the panic handler of the `panic-free-check` build calls and

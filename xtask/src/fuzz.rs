@@ -17,7 +17,7 @@ use rbf_core::frame::{self, MAX_FRAME_LEN, OutputFrame};
 use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::poly::Poly3;
 use rbf_core::{FeatureConfig, FeatureSet, Model};
-use trainer::fit::{self, FitOptions};
+use trainer::fit::{self, CenterBudget, FitOptions, LagBankOptions, Method, RbfInputs, RbfSearch};
 use trainer::reading::run::samples::Run;
 
 use crate::{output, run, workspace_root};
@@ -76,7 +76,7 @@ pub fn build_targets(priority: Priority) -> anyhow::Result<()> {
 /// Runs every target (built by [`build_targets`]) for `seconds`, all at once, from a fresh
 /// seed corpus; prints a table and fails on any finding.
 pub fn run_targets(seconds: u32) -> anyhow::Result<Vec<FuzzOutcome>> {
-    let work = workspace_root().join("target/fuzz");
+    let work = crate::target_dir().join("fuzz");
     write_seeds(&work.join("seeds"))?;
     // The targets side by side: each is one libFuzzer process, and CI waits
     // for `seconds` once rather than once per target.
@@ -180,11 +180,14 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
     // Model blobs: a fitted default (lag-bank) and multiscale model, the paper's network, a cubic; each
     // also in the target's "sealed" form (header fields from byte 6, then payload).
     let run = Run::load(&data.join("ifog_verify_3cpm.csv"))?;
-    let fitted = |features| -> anyhow::Result<Model> {
+    let search = RbfSearch {
+        centers: CenterBudget::Fixed(8),
+        rate_windows_s: vec![60.0],
+        ..RbfSearch::default()
+    };
+    let fitted = |method| -> anyhow::Result<Model> {
         let opts = FitOptions {
-            centers: Some(8),
-            rate_windows_s: vec![60.0],
-            features,
+            method,
             ..FitOptions::default()
         };
         Ok(fit::fit(std::slice::from_ref(&run), &[], &opts)?.model)
@@ -197,9 +200,21 @@ pub fn write_seeds(dir: &Path) -> anyhow::Result<()> {
     )
     .context("cubic model")?;
     let models = [
-        ("default", fitted(trainer::fit::RbfFeatures::LagBank)?),
-        ("multiscale", fitted(trainer::fit::RbfFeatures::MultiscaleValidated)?),
-        ("paper", fitted(trainer::fit::RbfFeatures::Paper)?),
+        (
+            "default",
+            fitted(Method::LagBank(LagBankOptions {
+                centers: Some(8),
+                structure_choice: false,
+            }))?,
+        ),
+        ("multiscale", fitted(Method::MultiscaleValidated(search.clone()))?),
+        (
+            "paper",
+            fitted(Method::Rbf {
+                inputs: RbfInputs::Paper,
+                search,
+            })?,
+        ),
         ("cubic", cubic),
     ];
     for (name, model) in &models {

@@ -23,10 +23,10 @@ pub const SHORT_HOURS: &str = "2";
 /// (and, `repeat` above 0, the trainer's jobs `repeat` more times each).
 pub fn bench_large_run(repeat: u32) -> anyhow::Result<()> {
     let root = workspace_root();
-    let dir = root.join("target/bench-large-run");
+    let dir = crate::target_dir().join("bench-large-run");
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     run("cargo", &["build", "--release", "--quiet", "--package", "trainer"])?;
-    let trainer = root.join("target/release/trainer");
+    let trainer = crate::release_trainer();
     let csv = dir.join("run_20h_100hz.csv");
     let short = dir.join("run_2h_100hz.csv");
     for (path, hours) in [(&csv, HOURS), (&short, SHORT_HOURS)] {

@@ -46,6 +46,55 @@ pub fn workspace_root() -> PathBuf {
         .to_owned()
 }
 
+/// The workspace's target directory, where cargo puts what it builds:
+/// `CARGO_TARGET_DIR` when set (relative to the current directory, as cargo
+/// reads it), else `cargo metadata`'s `target_directory` (which follows
+/// `build.target-dir` in a cargo config), else `<workspace>/target`. Every
+/// path to a built binary or image starts here; resolved once per process.
+pub fn target_dir() -> PathBuf {
+    static DIR: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        target_dir_from(
+            std::env::var_os("CARGO_TARGET_DIR"),
+            std::env::current_dir().ok(),
+            metadata_target_dir,
+        )
+    })
+    .clone()
+}
+
+/// [`target_dir`] from the variable's value, the current directory and `cargo metadata`.
+fn target_dir_from(
+    variable: Option<std::ffi::OsString>,
+    cwd: Option<PathBuf>,
+    metadata: impl FnOnce() -> Option<PathBuf>,
+) -> PathBuf {
+    match variable.filter(|d| !d.is_empty()).map(PathBuf::from) {
+        Some(dir) => match cwd {
+            Some(cwd) if dir.is_relative() => cwd.join(dir),
+            _ => dir,
+        },
+        None => metadata().unwrap_or_else(|| workspace_root().join("target")),
+    }
+}
+
+/// `target_directory` as `cargo metadata` reports it for the workspace.
+fn metadata_target_dir() -> Option<PathBuf> {
+    let out = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
+        .args(["metadata", "--format-version", "1", "--no-deps", "--offline"])
+        .current_dir(workspace_root())
+        .output()
+        .ok()
+        .filter(|o| o.status.success())?;
+    let metadata: serde_json::Value = serde_json::from_slice(&out.stdout).ok()?;
+    Some(PathBuf::from(metadata["target_directory"].as_str()?))
+}
+
+/// The release trainer binary in [`target_dir`] (what the benches run).
+pub fn release_trainer() -> PathBuf {
+    target_dir().join("release").join("trainer")
+}
+
 /// Runs a command in the workspace root, echoing it, failing if it fails.
 pub fn run(program: &str, args: &[&str]) -> anyhow::Result<()> {
     run_with_env(program, args, &[])
@@ -107,4 +156,38 @@ pub fn python_venv(dir: &Path, packages: &[&str], modules: &str) -> anyhow::Resu
         bail!("could not make the venv with {}", packages.join(", "));
     }
     Ok(python)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::{Path, PathBuf};
+
+    use super::{metadata_target_dir, target_dir_from, workspace_root};
+
+    #[test]
+    fn the_target_dir_is_cargo_target_dir_else_what_cargo_metadata_says() {
+        let cwd = || Some(PathBuf::from("/work/here"));
+        let unused = || -> Option<PathBuf> { panic!("cargo metadata asked although CARGO_TARGET_DIR is set") };
+        assert_eq!(
+            target_dir_from(Some("/tmp/t".into()), cwd(), unused),
+            Path::new("/tmp/t")
+        );
+        assert_eq!(
+            target_dir_from(Some("rel/t".into()), cwd(), unused),
+            Path::new("/work/here/rel/t")
+        );
+        let from_metadata = || Some(PathBuf::from("/elsewhere/target"));
+        assert_eq!(
+            target_dir_from(None, cwd(), from_metadata),
+            Path::new("/elsewhere/target")
+        );
+        assert_eq!(
+            target_dir_from(Some("".into()), cwd(), from_metadata),
+            Path::new("/elsewhere/target"),
+            "an empty variable is unset, as cargo reads it"
+        );
+        assert_eq!(target_dir_from(None, cwd(), || None), workspace_root().join("target"));
+        // cargo itself answers for this workspace with an absolute directory.
+        assert!(metadata_target_dir().is_some_and(|d| d.is_absolute()));
+    }
 }

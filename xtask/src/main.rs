@@ -321,7 +321,7 @@ fn main() -> anyhow::Result<()> {
                 Some(t) => std::path::absolute(t)?,
                 None => {
                     xtask::run("cargo", &["build", "--release", "--quiet", "--package", "trainer"])?;
-                    xtask::workspace_root().join("target/release/trainer")
+                    xtask::release_trainer()
                 }
             };
             let fit_args: Vec<String> = fit_args

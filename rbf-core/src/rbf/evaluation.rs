@@ -40,16 +40,16 @@ fn exp2_sums<const M: usize, const ADD_Q: bool>(
 /// instruction) keeps it from unrolling this loop further. With fewer
 /// kernel inputs the registers suffice and LLVM's unrolling is left alone.
 #[inline(always)]
-fn exp2_sum<const M: usize, const ADD_Q: bool>(centres: &[[u64; 2]], q: [i32; TABLE_MAX_INPUTS], shared: i32) -> f32 {
+fn exp2_sum<const M: usize, const ADD_Q: bool>(centers: &[[u64; 2]], q: [i32; TABLE_MAX_INPUTS], shared: i32) -> f32 {
     let table = &crate::fastmath::EXP2_OCTAVE_BITS;
     let mut sum = 0.0f32;
     if M < 3 {
-        for centre in centres {
-            sum += exp2_term::<M, ADD_Q>(table, centre, q, shared);
+        for center in centers {
+            sum += exp2_term::<M, ADD_Q>(table, center, q, shared);
         }
         return sum;
     }
-    let mut pairs = centres.chunks_exact(2);
+    let mut pairs = centers.chunks_exact(2);
     for pair in &mut pairs {
         if let [first, second] = pair {
             sum += exp2_term::<M, ADD_Q>(table, first, q, shared);
@@ -57,8 +57,8 @@ fn exp2_sum<const M: usize, const ADD_Q: bool>(centres: &[[u64; 2]], q: [i32; TA
             sum += exp2_term::<M, ADD_Q>(table, second, q, shared);
         }
     }
-    for centre in pairs.remainder() {
-        sum += exp2_term::<M, ADD_Q>(table, centre, q, shared);
+    for center in pairs.remainder() {
+        sum += exp2_term::<M, ADD_Q>(table, center, q, shared);
     }
     sum
 }
@@ -68,15 +68,15 @@ fn exp2_sum<const M: usize, const ADD_Q: bool>(centres: &[[u64; 2]], q: [i32; TA
 /// three multiply-adds per centre.
 #[inline(always)]
 fn exp2_dots<const M: usize, const ADD_Q: bool>(
-    centres: &[[u64; 2]],
+    centers: &[[u64; 2]],
     weights: &[[f32; 3]],
     q: [i32; TABLE_MAX_INPUTS],
     shared: i32,
 ) -> [f32; 3] {
     let table = &crate::fastmath::EXP2_OCTAVE_BITS;
     let (mut x, mut y, mut z) = (0.0f32, 0.0f32, 0.0f32);
-    for (centre, &[wx, wy, wz]) in centres.iter().zip(weights) {
-        let g = exp2_term::<M, ADD_Q>(table, centre, q, shared);
+    for (center, &[wx, wy, wz]) in centers.iter().zip(weights) {
+        let g = exp2_term::<M, ADD_Q>(table, center, q, shared);
         x += wx * g;
         y += wy * g;
         z += wz * g;
@@ -259,12 +259,12 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
         for (qi, h) in q.iter().zip(&self.shared_coeff).take(M) {
             shared = shared.wrapping_add(mul_hi(*qi, mul_hi(*qi, *h)));
         }
-        let centres = self.exponent.get(..self.positive.min(K)).unwrap_or(&[]);
+        let centers = self.exponent.get(..self.positive.min(K)).unwrap_or(&[]);
         let (sums, factor) = if self.q_in_sum {
-            (exp2_dots::<M, true>(centres, weights, q, shared), self.weight_scale)
+            (exp2_dots::<M, true>(centers, weights, q, shared), self.weight_scale)
         } else {
             let factor = crate::fastmath::exp2_neg_q16(&crate::fastmath::EXP2_OCTAVE_BITS, shared) * self.weight_scale;
-            (exp2_dots::<M, false>(centres, weights, q, 0), factor)
+            (exp2_dots::<M, false>(centers, weights, q, 0), factor)
         };
         sums.map(|s| s * factor)
     }
@@ -366,7 +366,7 @@ impl<const K: usize, const D: usize> RbfNetwork<K, D> {
 mod tests {
     use super::*;
     use crate::rbf::RbfParams;
-    use crate::rbf::tests::one_centre;
+    use crate::rbf::tests::one_center;
 
     /// Kernel inputs as a feature vector's slots (the rest 0).
     fn slots(x: &[f32]) -> [f32; MAX_INPUTS_ALL] {
@@ -375,8 +375,8 @@ mod tests {
 
     #[test]
     fn both_paths_evaluate_the_documented_formula() {
-        let poly = one_centre();
-        let mut table = one_centre();
+        let poly = one_center();
+        let mut table = one_center();
         table.prepare_table(&[0.0, -5.0], &[40.0, 5.0]);
         assert!(table.table_ready() && !poly.table_ready());
         // The table path: each Gaussian within the table exponential's bound,
@@ -406,7 +406,7 @@ mod tests {
 
     #[test]
     fn the_table_path_clamps_kernel_inputs_to_its_box() {
-        let mut table = one_centre();
+        let mut table = one_center();
         table.prepare_table(&[0.0, -5.0], &[40.0, 5.0]);
         let at = |t: f32, r: f32| table.eval_table(&slots(&[t, r]), &[20.0, 0.0]).to_bits();
         assert_eq!(at(55.0, 0.0), at(40.0, 0.0), "above the box: its edge");

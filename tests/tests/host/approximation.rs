@@ -6,7 +6,7 @@
 
 use e2e_tests::example;
 use rbf_core::{Compensator, Flags};
-use trainer::fit::{self, FitOptions, RbfFeatures};
+use trainer::fit::{self, CenterBudget, FitOptions, LagBankOptions, Method, RbfInputs, RbfSearch};
 use trainer::metrics::cluster_std;
 use trainer::reading::run::samples::Run;
 
@@ -45,14 +45,21 @@ fn table_evaluation_changes_the_residual_std_by_under_one_percent() {
         Run::load(&example("ifog_verify_3cpm.csv")).unwrap(),
     ];
     let paper = FitOptions {
-        features: RbfFeatures::Paper,
-        centers: Some(32),
-        rate_windows_s: vec![60.0],
+        method: Method::Rbf {
+            inputs: RbfInputs::Paper,
+            search: RbfSearch {
+                centers: CenterBudget::Fixed(32),
+                rate_windows_s: vec![60.0],
+                ..RbfSearch::default()
+            },
+        },
         ..FitOptions::default()
     };
     let bank = FitOptions {
-        rate_windows_s: vec![60.0],
-        centers: Some(8),
+        method: Method::LagBank(LagBankOptions {
+            centers: Some(8),
+            structure_choice: true,
+        }),
         ..FitOptions::default()
     };
     for (name, opts) in [("paper K=32", paper), ("lag bank K=8", bank)] {

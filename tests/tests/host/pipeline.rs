@@ -7,7 +7,7 @@ use tempfile::TempDir;
 use trainer::blobfile::{read_model, write_model};
 use trainer::evaluation::compensate::compensate_file;
 use trainer::evaluation::evaluate::{compensate_run, evaluate_run};
-use trainer::fit::{self, FitOptions, Method};
+use trainer::fit::{self, CenterBudget, FitOptions, FitReport, LagBankOptions, Method, RbfInputs, RbfSearch};
 use trainer::output::Existing;
 use trainer::reading::run::samples::Run;
 use trainer::simulate::ChamberRun;
@@ -80,7 +80,7 @@ fn the_temperature_rate_model_beats_the_cubic_in_t_on_ramps() {
         };
         fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap().model
     };
-    let (rbf, poly3) = (fit_with(Method::Rbf), fit_with(Method::Poly3));
+    let (rbf, poly3) = (fit_with(Method::default()), fit_with(Method::Poly3));
     for run in &verify {
         let (a, b) = (evaluate_run(&rbf, run), evaluate_run(&poly3, run));
         assert!(
@@ -93,11 +93,30 @@ fn the_temperature_rate_model_beats_the_cubic_in_t_on_ramps() {
     }
 }
 
-/// A quick 8-centre model (fixed ΔT window) for tests about the plumbing.
+/// `svr-pso` with the default budget and windows, its inputs picked by `inputs`.
+fn svr_pso(inputs: fit::SvrInputs) -> Method {
+    Method::SvrPso(fit::SvrOptions {
+        centers: CenterBudget::DEFAULT,
+        rate_windows_s: RbfSearch::default().rate_windows_s,
+        inputs,
+    })
+}
+
+/// The multi-point inputs an `svr-pso` fit selected, if it selected any.
+fn svr_selection(report: FitReport) -> Option<fit::svr_pso::InputSelection> {
+    match report {
+        FitReport::SvrPso(choice) => choice.selection,
+        _ => None,
+    }
+}
+
+/// A quick 8-centre lag-bank model for tests about the plumbing.
 fn small_model(train: &Run) -> rbf_core::Model {
     let opts = FitOptions {
-        centers: Some(8),
-        rate_windows_s: vec![60.0],
+        method: Method::LagBank(LagBankOptions {
+            centers: Some(8),
+            structure_choice: true,
+        }),
         ..FitOptions::default()
     };
     fit::fit(std::slice::from_ref(train), &[], &opts).unwrap().model
@@ -179,11 +198,13 @@ fn svr_pso_compiles_to_a_deployable_network_that_compensates_unseen_ramp_rates()
     let dir = TempDir::new().unwrap();
     let (train, verify) = chamber_set(&dir);
     let opts = FitOptions {
-        method: Method::SvrPso,
+        method: svr_pso(fit::SvrInputs::BestSubset),
         ..FitOptions::default()
     };
     let outcome = fit::fit(std::slice::from_ref(&train), &[], &opts).unwrap();
-    let choice = outcome.svr.clone().expect("svr-pso reports its choice");
+    let FitReport::SvrPso(choice) = outcome.report.clone() else {
+        panic!("svr-pso reports its choice");
+    };
     assert!(choice.centers >= 1 && choice.centers <= rbf_core::MAX_CENTERS);
     assert!(choice.centers <= choice.support_vectors);
     assert!(choice.pso_history.windows(2).all(|w| w[1] <= w[0]));
@@ -218,15 +239,11 @@ fn svr_pso_on_multi_point_runs_selects_by_correlation_or_validation_and_generali
     // Two inputs by correlation (the threshold rule is unit-tested in
     // trainer::dataset::gradients; a short selection keeps this fit quick).
     let paper = FitOptions {
-        method: Method::SvrPso,
-        selection: Some(trainer::dataset::gradients::Selection::Top(2)),
+        method: svr_pso(fit::SvrInputs::Rule(trainer::dataset::gradients::Selection::Top(2))),
         ..FitOptions::default()
     };
     let outcome = fit::fit(std::slice::from_ref(&train), &[], &paper).unwrap();
-    let selection = outcome
-        .svr
-        .and_then(|c| c.selection)
-        .expect("a multi-point run is correlated");
+    let selection = svr_selection(outcome.report.clone()).expect("a multi-point run is correlated");
     let r = |c: &trainer::dataset::gradients::Candidate| selection.table.r[c.i][c.j].abs();
     assert_eq!(selection.selected.len(), 2);
     let strongest_left_out = (0..8)
@@ -247,11 +264,11 @@ fn svr_pso_on_multi_point_runs_selects_by_correlation_or_validation_and_generali
     // better still on the loop sensor alone: `cargo xtask bench-accuracy`'s
     // multi-point table, docs/benchmarks.md.)
     let validated = FitOptions {
-        method: Method::SvrPso,
+        method: svr_pso(fit::SvrInputs::BestSubset),
         ..FitOptions::default()
     };
     let outcome = fit::fit(std::slice::from_ref(&train), &[], &validated).unwrap();
-    let selection = outcome.svr.and_then(|c| c.selection).expect("a multi-point run");
+    let selection = svr_selection(outcome.report.clone()).expect("a multi-point run");
     assert!(!selection.ranking.is_empty(), "the validated subsets are reported");
     let chosen: Vec<usize> = selection.selected.iter().map(|c| c.i).collect();
     assert!(
@@ -260,7 +277,10 @@ fn svr_pso_on_multi_point_runs_selects_by_correlation_or_validation_and_generali
     );
     assert_improves(&outcome.model, &verify, 90.0, "svr-pso, validated thermometers");
     let multiscale = FitOptions {
-        features: trainer::fit::RbfFeatures::Multiscale,
+        method: Method::Rbf {
+            inputs: RbfInputs::Multiscale,
+            search: RbfSearch::default(),
+        },
         ..FitOptions::default()
     };
     let single_point = fit::fit(std::slice::from_ref(&train), &[], &multiscale).unwrap().model;

@@ -7,7 +7,6 @@ use anyhow::Context;
 use rbf_core::FeatureSet;
 use trainer::blobfile::read_model;
 use trainer::dataset::{Blocks, RunFiles, RunSet};
-use trainer::fit::Method;
 use trainer::output::{self, Output, Transaction};
 use trainer::reading::limits::{MAX_BLOCKS_WRITTEN, check_block_s};
 use trainer::{reading::input, text};
@@ -88,7 +87,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 "--features lag-bank: a lag bank's filters, coil lags and gain are identified by `trainer fit`; \
                  pass the fitted model with --model MODEL.bin for its inputs"
             );
-            let set = match (Method::Rbf.feature_set(a.features.into()), a.coil_lag_min) {
+            let inputs = match a.features {
+                // The validated choice's second candidate, which `--coil-lag-min` lags.
+                FeaturesArg::MultiscaleValidated => Some(trainer::fit::RbfInputs::MultiscaleSecondOrder),
+                features => features.rbf_inputs(),
+            };
+            let inputs = inputs.ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--features response-bank: the response bank's weights are identified by `trainer fit`; pass the \
+                     fitted model with --model MODEL.bin for its inputs"
+                )
+            })?;
+            let set = match (inputs.feature_set(), a.coil_lag_min) {
                 (set, None) => set,
                 (FeatureSet::MultiScaleSecondOrder, Some(coil_lag_min)) => {
                     FeatureSet::MultiScaleLagged { coil_lag_min }

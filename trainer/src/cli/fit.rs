@@ -3,14 +3,13 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use rbf_core::thermometer::ThermometerSet;
 use trainer::acceptance::{self, Judged, Rejected, Spec};
 use trainer::blobfile::encode_model;
 use trainer::dataset::RunFiles;
 use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader, only_axis};
 use trainer::evaluation::table::print_table;
+use trainer::fit;
 use trainer::fit::coverage::InUse;
-use trainer::fit::{self, FitOptions};
 use trainer::output::{self, Output, StagedDir, Transaction};
 use trainer::provenance::ProvenanceRecord;
 use trainer::reading::plausible;
@@ -19,7 +18,6 @@ use trainer::text;
 use trainer::{evaluation::diagnose, reading::input};
 
 use super::common::{JsonSink, print_and_commit};
-use super::values::{FeaturesArg, MethodArg};
 
 mod args;
 mod axes;
@@ -28,7 +26,6 @@ pub(super) mod json;
 mod summary;
 
 pub use self::args::Args;
-use self::args::check_distinct_inputs;
 use self::blob_out::write_blob;
 use self::json::{outcome_json, runs_json};
 use self::summary::{FitHow, training_loop_range_c, write_summary};
@@ -47,8 +44,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .collect();
     input::require_seekable(all_runs.iter().copied(), "`trainer fit` reads its runs several times")?;
     let in_use = a.in_use()?;
-    check_distinct_inputs(a.inputs.as_deref().unwrap_or_default())?;
-    a.check_applicable()?;
+    let opts = a.fit_options()?;
     let existing = a.force.existing();
     let json_file = a.json.json.as_deref().filter(|p| !input::is_stdin(p));
     let outputs: Vec<&Path> = std::iter::once(a.output.as_path()).chain(json_file).collect();
@@ -70,39 +66,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ("--validate", &a.validate),
         ("--holdout", &a.holdout),
     ])?;
-    trainer::reading::limits::check_block_s(a.block_s)?;
-    anyhow::ensure!(
-        a.method != MethodArg::SvrPso || a.validate.is_empty(),
-        "--method svr-pso validates on contiguous folds of the training runs; drop --validate"
-    );
     let spec = a.spec.as_deref().map(Spec::read).transpose()?;
     // Digests and the fit time, taken before the fit reads the runs.
     let provenance = ProvenanceRecord::for_fit(a.serial.as_deref(), &a.runs, a.spec.as_deref(), a.batch.as_deref())?;
     let train = RunFiles::new(&a.runs);
     let validate = RunFiles::new(&a.validate);
-    let mut opts = FitOptions {
-        method: a.method.into(),
-        features: a.features.unwrap_or(FeaturesArg::LagBank).into(),
-        structure_choice: a.features.is_none(),
-        block_s: a.block_s,
-        centers: a.centers,
-        max_centers: a.max_centers.unwrap_or(self::args::DEFAULT_MAX_CENTERS),
-        folds: a.folds,
-        serial: a.serial.clone(),
-        progress: !a.quiet,
-        selection: a.select.selection()?,
-        inputs: a.inputs.clone(),
-        ..FitOptions::default()
-    };
-    if !a.dt_window_s.is_empty() {
-        anyhow::ensure!(
-            a.dt_window_s
-                .iter()
-                .all(|w| w.is_finite() && (0.0..=86_400.0).contains(w)),
-            "--dt-window-s values must be 0 … 86400 s"
-        );
-        opts.rate_windows_s = a.dt_window_s.clone();
-    }
     let axes = trainer::evaluation::axes::common_axes(&all_runs)?;
     let model_out = targets.next().map(Output::open).transpose()?;
     let json_out = match targets.next() {
@@ -115,12 +83,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             spec.is_none(),
             "--spec judges single-axis fits for now; judge each axis's holdout with `trainer eval --json`"
         );
-        let how = FitHow {
-            with_validate_runs: !a.validate.is_empty(),
-            folds: opts.folds,
-            named_inputs: opts.inputs.is_some(),
-            selection: opts.selection,
-        };
+        let how = FitHow::new(&opts, !a.validate.is_empty());
         return axes::run(&a, &opts, &how, &axes, model_out, json_out, &provenance);
     }
     let started = std::time::Instant::now();
@@ -130,12 +93,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if !short.is_empty() {
             anyhow::anyhow!("{}", short.join("; "))
         } else if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
-            let thermometers = opts
-                .method
-                .feature_set(opts.features)
-                .thermometers()
-                .union(ThermometerSet::LOOP);
-            diagnose::with_causes(e, &a.runs, thermometers)
+            diagnose::with_causes(e, &a.runs, opts.method.thermometers())
         } else {
             e
         }
@@ -174,17 +132,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 
     // Printed once everything is written.
     let mut out: Vec<u8> = Vec::new();
-    let how = FitHow {
-        with_validate_runs: !a.validate.is_empty(),
-        folds: opts.folds,
-        named_inputs: opts.inputs.is_some(),
-        selection: opts.selection,
-    };
+    let how = FitHow::new(&opts, !a.validate.is_empty());
     write_summary(&mut out, &outcome, &how)?;
     writeln!(out, "fit took {fit_s:.1} s\n")?;
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
-    if let Some(search) = &outcome.bank {
+    if let Some(search) = outcome.bank_search() {
         writeln!(out)?;
         for line in search
             .coverage
@@ -203,7 +156,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             &Judged {
                 holdout: evals.iter().filter(|(r, _)| *r == "holdout").map(|(_, e)| e).collect(),
                 forecast_in_use_std100_dph: outcome.predicted_in_use_std100_dph(),
-                missing: outcome.bank.as_ref().map(|b| {
+                missing: outcome.bank_search().map(|b| {
                     b.coverage
                         .missing(&missing_for, fit::coverage::model_range_c(&outcome.model))
                 }),
@@ -215,7 +168,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     writeln!(out, "\nwrote {} ({} bytes)", text::path(&a.output), blob.len())?;
     let mut json = outcome_json(&outcome, &in_use);
-    json["method"] = serde_json::json!(opts.method);
+    json["method"] = serde_json::json!(opts.method.name());
     json["fit_seconds"] = serde_json::json!(fit_s);
     json["blob_bytes"] = serde_json::json!(blob.len());
     json["runs"] = runs_json(&evals);

@@ -2,7 +2,7 @@
 //! mirror `trainer`'s types, so the library needs no clap.
 
 use clap::ValueEnum;
-use trainer::fit::{Method, RbfFeatures};
+use trainer::fit::RbfInputs;
 use trainer::simulate::Profile;
 
 /// Model forms (`--method`).
@@ -16,17 +16,6 @@ pub enum MethodArg {
     Poly3,
     /// ε-SVR tuned by particle swarm (the RLG paper's method), deployed as an RBF network.
     SvrPso,
-}
-
-impl From<MethodArg> for Method {
-    fn from(m: MethodArg) -> Method {
-        match m {
-            MethodArg::Rbf => Method::Rbf,
-            MethodArg::Rbf2 => Method::Rbf2,
-            MethodArg::Poly3 => Method::Poly3,
-            MethodArg::SvrPso => Method::SvrPso,
-        }
-    }
 }
 
 /// Inputs of the `rbf` method (`--features`).
@@ -46,15 +35,15 @@ pub enum FeaturesArg {
     ResponseBank,
 }
 
-impl From<FeaturesArg> for RbfFeatures {
-    fn from(f: FeaturesArg) -> RbfFeatures {
-        match f {
-            FeaturesArg::LagBank => RbfFeatures::LagBank,
-            FeaturesArg::Multiscale => RbfFeatures::Multiscale,
-            FeaturesArg::MultiscaleSecondOrder => RbfFeatures::MultiscaleSecondOrder,
-            FeaturesArg::MultiscaleValidated => RbfFeatures::MultiscaleValidated,
-            FeaturesArg::Paper => RbfFeatures::Paper,
-            FeaturesArg::ResponseBank => RbfFeatures::ResponseBank,
+impl FeaturesArg {
+    /// The fixed inputs these features are; `None` for the banks (their
+    /// filters are identified by the fit) and for multiscale-validated (two sets).
+    pub fn rbf_inputs(self) -> Option<RbfInputs> {
+        match self {
+            FeaturesArg::Multiscale => Some(RbfInputs::Multiscale),
+            FeaturesArg::MultiscaleSecondOrder => Some(RbfInputs::MultiscaleSecondOrder),
+            FeaturesArg::Paper => Some(RbfInputs::Paper),
+            FeaturesArg::LagBank | FeaturesArg::ResponseBank | FeaturesArg::MultiscaleValidated => None,
         }
     }
 }
@@ -107,14 +96,6 @@ mod tests {
 
     #[test]
     fn every_choice_maps_to_the_library_value_of_the_same_name() {
-        for m in MethodArg::value_variants() {
-            let name = m.to_possible_value().unwrap().get_name().replace('-', "");
-            assert_eq!(format!("{:?}", Method::from(*m)).to_lowercase(), name);
-        }
-        for f in FeaturesArg::value_variants() {
-            let name = f.to_possible_value().unwrap().get_name().replace('-', "");
-            assert_eq!(format!("{:?}", RbfFeatures::from(*f)).to_lowercase(), name);
-        }
         for p in ProfileArg::value_variants() {
             let name = p.to_possible_value().unwrap().get_name().replace('-', "");
             assert_eq!(format!("{:?}", Profile::from(*p)).to_lowercase(), name);

@@ -68,7 +68,7 @@ pub fn row_block_means(paths: &[PathBuf], block_samples: usize) -> Result<MultiB
     let mut out = MultiBlocks::default();
     for (n, path) in paths.iter().enumerate() {
         let mut reader = RunReader::open(path)?;
-        reader.require_single_axis()?;
+        reader.header().require_single_axis()?;
         let sensors: Vec<usize> = reader.columns().thermometers().iter().collect();
         let header_error = |message: String| RunError::Format {
             path: path.clone(),

@@ -72,7 +72,7 @@ impl RunFiles {
         let mut reader = RunReader::open(path)?;
         match self.axis {
             Some(axis) => reader.select_axis(axis)?,
-            None => reader.require_single_axis()?,
+            None => reader.header().require_single_axis()?,
         }
         Ok(reader)
     }
@@ -360,7 +360,10 @@ mod tests {
         let runs = [Run::load(&path).unwrap()];
         let no_runs: [Run; 0] = [];
         let in_memory = crate::fit::fit(&runs[..], &no_runs[..], &opts).unwrap();
-        assert!(from_files.bank.is_some(), "the default is the lag bank");
+        assert!(
+            matches!(from_files.report, crate::fit::FitReport::Bank(_)),
+            "the default is the lag bank"
+        );
         assert_eq!(
             crate::blobfile::encode_model(&from_files.model, None).unwrap(),
             crate::blobfile::encode_model(&in_memory.model, None).unwrap()

@@ -32,7 +32,7 @@ pub fn sig(x: f64, digits: usize) -> String {
 }
 
 /// Centres the model uses (0 for a polynomial).
-pub fn centres(model: &Model) -> usize {
+pub fn centers(model: &Model) -> usize {
     match model.body() {
         ModelBody::Rbf(net) => net.centers_used(),
         ModelBody::Poly3(_) => 0,

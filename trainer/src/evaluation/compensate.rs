@@ -53,7 +53,7 @@ fn refuse_columns_compensate_writes(reader: &RunReader) -> anyhow::Result<()> {
     let mut appended = String::new();
     record::write_compensated_header(&mut appended, "", reader.columns())?;
     let appended: Vec<&str> = appended.trim_end().split(',').filter(|n| !n.is_empty()).collect();
-    for (i, name) in reader.header_line().split(',').enumerate() {
+    for (i, name) in reader.header().line().split(',').enumerate() {
         let name = record::trim_field(name);
         anyhow::ensure!(
             !appended.contains(&name),
@@ -83,17 +83,17 @@ pub(super) fn compensate_stepped(
             flagged: FlagCounts::default(),
             compensated: 0,
             diagnosis: RunDiagnosis::new(reader.path(), reader.nominal_period_s())
-                .named_by(reader.header_line(), columns),
+                .named_by(reader.header().line(), columns),
         })
         .collect();
     let io = |e: std::io::Error| anyhow::Error::new(e).context("write failed");
-    for line in reader.preamble() {
+    for line in reader.header().preamble() {
         writeln!(out, "{line}").map_err(io)?;
     }
     let mut header = String::new();
-    record::write_compensated_header(&mut header, reader.header_line(), reader.columns())?;
+    record::write_compensated_header(&mut header, reader.header().line(), reader.columns())?;
     out.write_all(header.as_bytes()).map_err(io)?;
-    let parser = reader.row_parser();
+    let parser = reader.header().row_parser();
     let mut rows = Vec::with_capacity(n);
     let mut step = Vec::with_capacity(n);
     let mut refused: Option<crate::reading::run::rows::RunError> = None;

@@ -274,7 +274,7 @@ pub fn implausible_runs(paths: &[PathBuf]) -> Result<Vec<String>, RunError> {
     for path in paths {
         let mut reader = RunReader::open(path)?;
         let mut diagnosis =
-            RunDiagnosis::new(path, reader.nominal_period_s()).named_by(reader.header_line(), reader.columns());
+            RunDiagnosis::new(path, reader.nominal_period_s()).named_by(reader.header().line(), reader.columns());
         while let Some((line, row)) = reader.next_parsed()? {
             diagnosis.push(line, &row);
         }

@@ -327,7 +327,7 @@ impl<'m> RunModels<'m> {
             RunModels::PerAxis(axes) => {
                 for (model, columns) in axes {
                     let thermometers = model.map_or(ThermometerSet::LOOP, |m| m.features().set.thermometers());
-                    reader.require_thermometers_of(columns, thermometers)?;
+                    reader.header().require_thermometers(columns, thermometers)?;
                 }
                 Ok(())
             }
@@ -370,7 +370,7 @@ pub fn require_shared_thermometer(
     thermometers: ThermometerSet,
 ) -> anyhow::Result<()> {
     if let Some(first) = columns.first() {
-        reader.require_thermometers_of(first, thermometers)?;
+        reader.header().require_thermometers(first, thermometers)?;
         if columns.iter().any(|c| c.temps != first.temps) {
             anyhow::bail!(
                 "{}: its axes have their own thermometers (temp_x_c …); a shared-basis model reads one thermometer \
@@ -450,12 +450,12 @@ fn evaluate_stepped(
         .map(|columns| {
             (
                 Evaluator::new(&path, period_s, columns.ref_dph.is_some()),
-                RunDiagnosis::new(&path, period_s).named_by(reader.header_line(), columns),
+                RunDiagnosis::new(&path, period_s).named_by(reader.header().line(), columns),
                 0,
             )
         })
         .collect();
-    let parser = reader.row_parser();
+    let parser = reader.header().row_parser();
     let mut rows = Vec::with_capacity(columns.len());
     let mut outputs = Vec::with_capacity(columns.len());
     let mut refused: Option<crate::reading::run::rows::RunError> = None;

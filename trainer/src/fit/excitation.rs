@@ -3,7 +3,6 @@
 
 use rbf_core::FeatureSet;
 
-use super::FitOptions;
 use crate::dataset::Blocks;
 
 /// Least usable recording, s: a thermal model needs at least ten minutes.
@@ -24,8 +23,15 @@ pub struct Unidentifiable(pub String);
 /// column carries no gyro signal (a real gyro's noise alone is larger).
 pub const MIN_TARGET_SPREAD_DPH: f64 = 1e-9;
 
-/// Refuses training data that cannot identify a model of `set`, saying what is missing.
-pub fn check_excitation(blocks: &Blocks, set: FeatureSet, opts: &FitOptions) -> anyhow::Result<()> {
+/// Refuses training data that cannot identify a model of `set` with
+/// `fixed_centers` Gaussians (one when they are searched), from blocks of
+/// `block_s`, saying what is missing.
+pub fn check_excitation(
+    blocks: &Blocks,
+    set: FeatureSet,
+    fixed_centers: Option<usize>,
+    block_s: f64,
+) -> anyhow::Result<()> {
     let mut missing = Vec::new();
     if blocks.usable_s < MIN_USABLE_S {
         missing.push(format!(
@@ -70,12 +76,12 @@ pub fn check_excitation(blocks: &Blocks, set: FeatureSet, opts: &FitOptions) -> 
             ));
         }
     }
-    let parameters = 1 + set.dims() + opts.centers.unwrap_or(1);
+    let parameters = 1 + set.dims() + fixed_centers.unwrap_or(1);
     if blocks.len() < 10 * parameters {
         missing.push(format!(
             "{} blocks of {} s is too few for {parameters} parameters",
             blocks.len(),
-            blocks.length_s(opts.block_s)
+            blocks.length_s(block_s)
         ));
     }
     if missing.is_empty() {

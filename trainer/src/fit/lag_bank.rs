@@ -23,7 +23,7 @@ use rbf_core::lag_bank::{BANK_FILTERS, GainOf, LagBank};
 
 use super::coverage::{Coverage, settled_levels_c};
 use super::events::{FoldKind, Folds, thermal_folds};
-use super::{FitOptions, Progress};
+use super::{FitOptions, LagBankOptions, Progress};
 use crate::dataset::{Blocks, RunSet};
 use crate::parallel::parallel_map;
 
@@ -485,6 +485,7 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     train: &T,
     validate: &V,
     opts: &FitOptions,
+    own: &LagBankOptions,
     progress: &Progress,
 ) -> anyhow::Result<(LagBank, BankSearch)> {
     let configs = ladder_configs();
@@ -493,7 +494,7 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     let mut ladders = Vec::new();
     for (config, taus) in configs.iter().zip(LADDERS_S) {
         let blocks = train.block_means(config, opts.block_s)?;
-        super::check_excitation(&blocks, config.set, opts)?;
+        super::check_excitation(&blocks, config.set, own.centers, opts.block_s)?;
         let data = LadderData::from_blocks(&blocks, taus.len(), opts.block_s);
         let val = if validate.count() > 0 {
             let b = validate.block_means(config, opts.block_s)?;

@@ -147,8 +147,8 @@ pub fn cluster_design(
             for c in 1..fixed {
                 am[(k, c)] += zr[c - 1];
             }
-            for (j, centre) in centers.iter().enumerate() {
-                am[(k, fixed + j)] += gaussian(zr, centre, shape.kernel, width);
+            for (j, center) in centers.iter().enumerate() {
+                am[(k, fixed + j)] += gaussian(zr, center, shape.kernel, width);
             }
             ym[k] += y[r];
         }

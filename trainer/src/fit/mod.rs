@@ -1,6 +1,7 @@
 //! Model fitting: the methods `trainer fit` offers and the checks that a
 //! recording can identify them at all.
 
+pub mod axes;
 pub mod coverage;
 pub mod events;
 pub mod excitation;
@@ -11,6 +12,7 @@ pub mod lag_bank;
 pub mod linalg;
 pub mod ols;
 pub mod options;
+mod outcome;
 pub mod poly;
 pub mod progress;
 pub(crate) mod ranges;
@@ -21,13 +23,16 @@ pub(crate) mod svr_data;
 pub mod svr_pso;
 pub mod thermometer_search;
 
-use rbf_core::{FeatureSet, Model};
+use rbf_core::{FeatureConfig, FeatureSet, Model};
 
 pub use self::excitation::{
     MIN_RATE_SPAN_C_PER_MIN, MIN_TARGET_SPREAD_DPH, MIN_TEMP_SPAN_C, MIN_USABLE_S, Unidentifiable, check_excitation,
 };
 pub(crate) use self::options::serial;
-pub use self::options::{FitOptions, Method, RbfFeatures};
+pub use self::options::{
+    CenterBudget, FitOptions, LagBankOptions, Method, RbfInputs, RbfSearch, SvrInputs, SvrOptions,
+};
+pub use self::outcome::{BankReport, FitOutcome, FitReport, SetComparison};
 pub use self::progress::Progress;
 pub(crate) use self::ranges::deploy_ranges;
 pub use self::svr_pso::{pso, svr};
@@ -61,6 +66,7 @@ fn best_second_order_variant<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     second: (Model, rbf::RbfChoice),
     first_order_rms_dph: f64,
     opts: &FitOptions,
+    search: &RbfSearch,
     progress: &Progress,
 ) -> anyhow::Result<(Model, rbf::RbfChoice)> {
     // One width: all six make the 20-h run's fit noticeably slower (`cargo
@@ -72,7 +78,7 @@ fn best_second_order_variant<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     };
     let mut best = second;
     for slowest_window_factor in rbf::SLOWEST_WINDOW_FACTORS {
-        let searched = slowest_window_factor.to_bits() == opts.slowest_window_factor.to_bits();
+        let searched = slowest_window_factor.to_bits() == search.slowest_window_factor.to_bits();
         let leads = best.1.validation_rms_dph < first_order_rms_dph;
         // A slowest window past the firmware's limit (1 day) is not offered.
         let usable = rbf::feature_config(FeatureSet::MultiScaleSecondOrder, window, slowest_window_factor).is_valid();
@@ -80,14 +86,14 @@ fn best_second_order_variant<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         if !offered {
             continue;
         }
-        let at_window = FitOptions {
+        let at_window = RbfSearch {
             rate_windows_s: vec![window],
             slowest_window_factor,
-            ..opts.clone()
+            ..search.clone()
         };
         // The plain set at the searched factor is `second` itself.
         for set in plain_and_lagged().skip(usize::from(searched)) {
-            let variant = rbf::fit_with_widths(train, validate, set, &at_window, &width, progress)?;
+            let variant = rbf::fit_with_widths(train, validate, set, opts, &at_window, &width, progress)?;
             if variant.1.validation_rms_dph < best.1.validation_rms_dph {
                 best = variant;
             }
@@ -96,195 +102,143 @@ fn best_second_order_variant<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     Ok(best)
 }
 
-/// How `--features multiscale-validated` chose between the multi-scale sets
-/// (the set kept is the model's, [`FitOutcome::model`]).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct SetComparison {
-    /// Validation RMS of the first-order set, °/h.
-    pub first_order_rms_dph: f64,
-    /// Validation RMS of the second-order set or, when one validates better,
-    /// its best variant (lagged, [`COIL_LAGS_MIN`], or with a longer slowest
-    /// window, [`rbf::SLOWEST_WINDOW_FACTORS`]), °/h.
-    pub second_order_rms_dph: f64,
-}
-
-/// What was fitted and how it was chosen.
-#[derive(Clone, Debug)]
-pub struct FitOutcome {
-    /// The deployable model.
-    pub model: Model,
-    /// The RBF hyper-parameters chosen (`rbf`, `rbf2`).
-    pub choice: Option<rbf::RbfChoice>,
-    /// The choice between the multi-scale sets (`--features multiscale-validated`).
-    pub sets: Option<SetComparison>,
-    /// The SVR's hyper-parameters and deployment (`svr-pso`).
-    pub svr: Option<svr_pso::SvrChoice>,
-    /// How the lag bank's structure was chosen (`--features lag-bank`).
-    pub bank: Option<lag_bank::BankSearch>,
-    /// The default's choice between the lag bank and the response bank.
-    pub structure: Option<response::StructureChoice>,
-    /// The deployed lag or response bank's residual 100-s cluster STD on the
-    /// training runs, °/h (`None` for the other methods).
-    pub training_std100_dph: Option<f64>,
-}
-
-impl FitOutcome {
-    /// The residual 100-s cluster STD the fit forecasts for in-use histories
-    /// unlike its training runs, °/h: the deployed bank's training residual
-    /// times its structure's factor ([`forecast`]); `None` for the other methods.
-    pub fn predicted_in_use_std100_dph(&self) -> Option<f64> {
-        Some(self.forecast_factor()? * self.training_std100_dph?).filter(|v| v.is_finite())
-    }
-
-    /// The factor [`Self::predicted_in_use_std100_dph`] applies to the
-    /// training residual; `None` for the methods it does not forecast.
-    pub fn forecast_factor(&self) -> Option<f64> {
-        match (&self.structure, &self.bank) {
-            (Some(s), _) if s.response_bank => Some(forecast::RESPONSE_BANK_FORECAST_FACTOR),
-            (_, Some(_)) => Some(forecast::LAG_BANK_FORECAST_FACTOR),
-            _ => None,
-        }
-    }
-}
-
 /// Fits `opts.method` on `train`, validating on `validate` (or k-fold when empty).
 pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     train: &T,
     validate: &V,
     opts: &FitOptions,
 ) -> anyhow::Result<FitOutcome> {
-    if let Some(k) = opts.centers
-        && !(1..=rbf_core::MAX_CENTERS).contains(&k)
-    {
-        anyhow::bail!(
-            "{k} centres asked for: must be 1 ..= {} (firmware capacity)",
-            rbf_core::MAX_CENTERS
-        );
-    }
     let progress = Progress::new(opts.progress);
-    match opts.method {
+    match &opts.method {
+        Method::LagBank(bank) => fit_lag_bank(train, validate, opts, bank, &progress),
+        Method::ResponseBank => Ok(FitOutcome {
+            model: response::identify(train, opts)?,
+            report: FitReport::ResponseBank,
+        }),
+        Method::Rbf { inputs, search } => {
+            let (model, choice) = rbf::fit(train, validate, inputs.feature_set(), opts, search, &progress)?;
+            Ok(FitOutcome {
+                model,
+                report: FitReport::Rbf(choice),
+            })
+        }
+        Method::MultiscaleValidated(search) => fit_multiscale_validated(train, validate, opts, search, &progress),
         Method::Poly3 => Ok(FitOutcome {
             model: poly::fit(train, opts)?,
-            choice: None,
-            sets: None,
-            svr: None,
-            bank: None,
-            structure: None,
-            training_std100_dph: None,
+            report: FitReport::Poly3,
         }),
-        Method::SvrPso => {
-            if validate.count() > 0 {
-                anyhow::bail!(
-                    "svr-pso validates on contiguous folds of the training runs; it takes no validation runs"
-                );
-            }
-            let (model, choice) = svr_pso::fit(train, opts, &progress)?;
+        Method::SvrPso(svr) => {
+            anyhow::ensure!(
+                validate.count() == 0,
+                "--method svr-pso validates on contiguous folds of the training runs; drop --validate"
+            );
+            let (model, choice) = svr_pso::fit(train, opts, svr, &progress)?;
             Ok(FitOutcome {
                 model,
-                choice: None,
-                sets: None,
-                svr: Some(choice),
-                bank: None,
-                structure: None,
-                training_std100_dph: None,
-            })
-        }
-        Method::Rbf if opts.features == RbfFeatures::MultiscaleValidated => {
-            // Both sets' blocks for every window in one pass over the data.
-            let configs: Vec<_> = [FeatureSet::MultiScale, FeatureSet::MultiScaleSecondOrder]
-                .into_iter()
-                .flat_map(|set| {
-                    let factor = opts.slowest_window_factor;
-                    opts.rate_windows_s
-                        .iter()
-                        .map(move |&w| rbf::feature_config(set, w, factor))
-                })
-                .collect();
-            train.prepare(&configs, opts.block_s)?;
-            validate.prepare(&configs, opts.block_s)?;
-            let first = rbf::fit(train, validate, FeatureSet::MultiScale, opts, &progress)?;
-            // Searched in full: at the first set's width the second lost its
-            // gain on the third gyro's cycle run (validation ratio above 0.9).
-            let second = rbf::fit(train, validate, FeatureSet::MultiScaleSecondOrder, opts, &progress)?;
-            let first_rms = first.1.validation_rms_dph;
-            let second = best_second_order_variant(train, validate, second, first_rms, opts, &progress)?;
-            let second_rms = second.1.validation_rms_dph;
-            let keep_second = second_rms < SECOND_ORDER_GAIN * first_rms;
-            let (model, choice) = if keep_second { second } else { first };
-            Ok(FitOutcome {
-                sets: Some(SetComparison {
-                    first_order_rms_dph: first_rms,
-                    second_order_rms_dph: second_rms,
-                }),
-                model,
-                choice: Some(choice),
-                svr: None,
-                bank: None,
-                structure: None,
-                training_std100_dph: None,
-            })
-        }
-        Method::Rbf if opts.features == RbfFeatures::ResponseBank => Ok(FitOutcome {
-            model: response::identify(train, opts)?,
-            choice: None,
-            sets: None,
-            svr: None,
-            bank: None,
-            structure: None,
-            training_std100_dph: None,
-        }),
-        Method::Rbf if opts.features == RbfFeatures::LagBank => {
-            let choose_structure = opts.centers.is_none() && opts.structure_choice;
-            let (bank, search) = lag_bank::search(train, validate, opts, &progress)?;
-            let config = rbf_core::FeatureConfig::lag_bank(bank);
-            let (lag_model, choice) = rbf::fit_configs(train, validate, &[config], opts, &rbf::WIDTHS, &progress)?;
-            // The default: the response bank where the lag bank cannot follow
-            // the training runs ([`response::StructureChoice`]).
-            // Runs too short for a 100-s cluster STD: no forecast, no comparison.
-            let lag = forecast::training_residual(train, &lag_model, opts.block_s).ok();
-            let lag_std100 = lag.map(|l| l.std100_dph);
-            // A response bank that cannot be identified leaves no choice to report.
-            let structure = lag.filter(|_| choose_structure).and_then(|lag| {
-                let floor = lag.noise_floor_std100_dph;
-                let response = if response::StructureChoice::worth_trying(lag.std100_dph, floor) {
-                    Some(response::identify_with_residual(train, opts).ok()?)
-                } else {
-                    None
-                };
-                let scores = [lag.std100_dph, search.held_out_rms_dph()];
-                Some((
-                    response::StructureChoice::between(scores, floor, response.as_ref()),
-                    response,
-                ))
-            });
-            let (model, training_std100_dph, structure) = match structure {
-                Some((c, Some(response))) if c.response_bank => {
-                    (response.model, Some(response.training_std100_dph), Some(c))
-                }
-                Some((c, _)) => (lag_model, lag_std100, Some(c)),
-                None => (lag_model, lag_std100, None),
-            };
-            Ok(FitOutcome {
-                model,
-                choice: Some(choice),
-                sets: None,
-                svr: None,
-                bank: Some(search),
-                structure,
-                training_std100_dph,
-            })
-        }
-        method => {
-            let (model, choice) = rbf::fit(train, validate, method.feature_set(opts.features), opts, &progress)?;
-            Ok(FitOutcome {
-                model,
-                choice: Some(choice),
-                sets: None,
-                svr: None,
-                bank: None,
-                structure: None,
-                training_std100_dph: None,
+                report: FitReport::SvrPso(choice),
             })
         }
     }
+}
+
+/// [`Method::MultiscaleValidated`]: both multi-scale sets fitted, the
+/// second-order family kept when it validates clearly better.
+fn fit_multiscale_validated<T: RunSet + ?Sized, V: RunSet + ?Sized>(
+    train: &T,
+    validate: &V,
+    opts: &FitOptions,
+    search: &RbfSearch,
+    progress: &Progress,
+) -> anyhow::Result<FitOutcome> {
+    // Both sets' blocks for every window in one pass over the data.
+    let configs: Vec<_> = [FeatureSet::MultiScale, FeatureSet::MultiScaleSecondOrder]
+        .into_iter()
+        .flat_map(|set| {
+            let factor = search.slowest_window_factor;
+            search
+                .rate_windows_s
+                .iter()
+                .map(move |&w| rbf::feature_config(set, w, factor))
+        })
+        .collect();
+    train.prepare(&configs, opts.block_s)?;
+    validate.prepare(&configs, opts.block_s)?;
+    let first = rbf::fit(train, validate, FeatureSet::MultiScale, opts, search, progress)?;
+    // Searched in full: at the first set's width the second lost its
+    // gain on the third gyro's cycle run (validation ratio above 0.9).
+    let second = rbf::fit(
+        train,
+        validate,
+        FeatureSet::MultiScaleSecondOrder,
+        opts,
+        search,
+        progress,
+    )?;
+    let first_rms = first.1.validation_rms_dph;
+    let second = best_second_order_variant(train, validate, second, first_rms, opts, search, progress)?;
+    let second_rms = second.1.validation_rms_dph;
+    let keep_second = second_rms < SECOND_ORDER_GAIN * first_rms;
+    let (model, choice) = if keep_second { second } else { first };
+    Ok(FitOutcome {
+        model,
+        report: FitReport::MultiscaleValidated {
+            choice,
+            sets: SetComparison {
+                first_order_rms_dph: first_rms,
+                second_order_rms_dph: second_rms,
+            },
+        },
+    })
+}
+
+/// [`Method::LagBank`]: the bank's structure searched, its network fitted,
+/// and (the default) the response bank taken instead where the lag bank
+/// cannot follow the training runs ([`response::StructureChoice`]).
+fn fit_lag_bank<T: RunSet + ?Sized, V: RunSet + ?Sized>(
+    train: &T,
+    validate: &V,
+    opts: &FitOptions,
+    own: &LagBankOptions,
+    progress: &Progress,
+) -> anyhow::Result<FitOutcome> {
+    let choose_structure = own.centers.is_none() && own.structure_choice;
+    let (bank, search) = lag_bank::search(train, validate, opts, own, progress)?;
+    let config = FeatureConfig::lag_bank(bank);
+    // No Gaussians over T̂ unless asked for ([`rbf`]'s budget for the bank).
+    let network = RbfSearch {
+        centers: own.centers.map_or(CenterBudget::UpTo(0), CenterBudget::Fixed),
+        ..RbfSearch::default()
+    };
+    let (lag_model, choice) = rbf::fit_configs(train, validate, &[config], opts, &network, &rbf::WIDTHS, progress)?;
+    // Runs too short for a 100-s cluster STD: no forecast, no comparison.
+    let lag = forecast::training_residual(train, &lag_model, opts.block_s).ok();
+    let lag_std100 = lag.map(|l| l.std100_dph);
+    // A response bank that cannot be identified leaves no choice to report.
+    let structure = lag.filter(|_| choose_structure).and_then(|lag| {
+        let floor = lag.noise_floor_std100_dph;
+        let response = if response::StructureChoice::worth_trying(lag.std100_dph, floor) {
+            Some(response::identify_with_residual(train, opts).ok()?)
+        } else {
+            None
+        };
+        let scores = [lag.std100_dph, search.held_out_rms_dph()];
+        Some((
+            response::StructureChoice::between(scores, floor, response.as_ref()),
+            response,
+        ))
+    });
+    let (model, training_std100_dph, structure) = match structure {
+        Some((c, Some(response))) if c.response_bank => (response.model, Some(response.training_std100_dph), Some(c)),
+        Some((c, _)) => (lag_model, lag_std100, Some(c)),
+        None => (lag_model, lag_std100, None),
+    };
+    Ok(FitOutcome {
+        model,
+        report: FitReport::Bank(BankReport {
+            choice,
+            search,
+            structure,
+            training_std100_dph,
+        }),
+    })
 }

@@ -165,17 +165,17 @@ mod tests {
     }
 
     #[test]
-    fn recovers_the_centres_of_a_known_network_from_noiseless_data() {
+    fn recovers_the_centers_of_a_known_network_from_noiseless_data() {
         // y = 2 φ(x; −2) − 1.5 φ(x; 0.5) + 0.7 φ(x; 2.25), width 0.4: centres ≥ 4σ
         // apart (greedy selection cannot untangle heavily overlapping Gaussians).
         let width = 0.4;
-        let true_centres = [(-2.0, 2.0), (0.5, -1.5), (2.25, 0.7)];
+        let true_centers = [(-2.0, 2.0), (0.5, -1.5), (2.25, 0.7)];
         let xs: Vec<f64> = (0..400).map(|i| -3.0 + 6.0 * i as f64 / 399.0).collect();
         let grid: Vec<f64> = (0..25).map(|i| -3.0 + 0.25 * i as f64).collect();
         let y = DVector::from_iterator(
             xs.len(),
             xs.iter().map(|&x| {
-                true_centres
+                true_centers
                     .iter()
                     .map(|&(c, w)| w * gaussian(x, c, width))
                     .sum::<f64>()
@@ -196,7 +196,7 @@ mod tests {
         let a = candidates.select_columns(&sel.order);
         let w = a.svd(true, true).solve(&y, 1e-12).unwrap();
         for (k, &m) in sel.order.iter().enumerate() {
-            let truth = true_centres.iter().find(|c| c.0 == grid[m]).unwrap().1;
+            let truth = true_centers.iter().find(|c| c.0 == grid[m]).unwrap().1;
             assert!(
                 (w[k] - truth).abs() < 1e-9,
                 "weight of centre {}: {} vs {truth}",

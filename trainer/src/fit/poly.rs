@@ -12,7 +12,7 @@ use crate::dataset::RunSet;
 pub fn fit<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) -> anyhow::Result<Model> {
     let features = FeatureConfig::single(FeatureSet::Temp, 0.0);
     let blocks = train.block_means(&features, opts.block_s)?;
-    super::check_excitation(&blocks, FeatureSet::Temp, opts)?;
+    super::check_excitation(&blocks, FeatureSet::Temp, None, opts.block_s)?;
     let (lo, hi) = blocks.sample_range[0];
     let ref_temp_c = (0.5 * (lo + hi)) as f32;
     let u: Vec<f64> = blocks.x.iter().map(|r| r[0] - ref_temp_c as f64).collect();

@@ -12,7 +12,7 @@ use super::linalg::{
     thin,
 };
 use super::ols::forward_select;
-use super::{FitOptions, Progress};
+use super::{CenterBudget, FitOptions, Progress, RbfSearch};
 use crate::parallel::parallel_map;
 
 use crate::dataset::{Blocks, RunSet};
@@ -102,10 +102,10 @@ pub fn kernel_inputs(set: FeatureSet) -> usize {
 /// past the range a chamber run covered, they lost more than they gained
 /// anywhere (docs/decisions.md, "Measurements behind design choices";
 /// docs/methods.md).
-fn default_max_centers(set: FeatureSet, opts: &FitOptions) -> usize {
+fn default_max_centers(set: FeatureSet, max_centers: usize) -> usize {
     match set {
         FeatureSet::LagBank(_) => 0,
-        _ => opts.max_centers,
+        _ => max_centers,
     }
 }
 
@@ -153,9 +153,10 @@ pub fn fit<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     validate: &V,
     set: FeatureSet,
     opts: &FitOptions,
+    search: &RbfSearch,
     progress: &Progress,
 ) -> anyhow::Result<(Model, RbfChoice)> {
-    fit_with_widths(train, validate, set, opts, &WIDTHS, progress)
+    fit_with_widths(train, validate, set, opts, search, &WIDTHS, progress)
 }
 
 /// [`fit`] choosing the Gaussian width among `widths` (normalised units).
@@ -164,20 +165,21 @@ pub fn fit_with_widths<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     validate: &V,
     set: FeatureSet,
     opts: &FitOptions,
+    search: &RbfSearch,
     widths: &[f64],
     progress: &Progress,
 ) -> anyhow::Result<(Model, RbfChoice)> {
     let windows = if set == FeatureSet::Temp {
         vec![0.0]
     } else {
-        opts.rate_windows_s.clone()
+        search.rate_windows_s.clone()
     };
     // Every window's blocks in one pass over the data (streamed runs).
     let configs: Vec<FeatureConfig> = windows
         .iter()
-        .map(|&w| feature_config(set, w, opts.slowest_window_factor))
+        .map(|&w| feature_config(set, w, search.slowest_window_factor))
         .collect();
-    fit_configs(train, validate, &configs, opts, widths, progress)
+    fit_configs(train, validate, &configs, opts, search, widths, progress)
 }
 
 /// [`fit_with_widths`] over given feature configurations of one set (the
@@ -187,6 +189,7 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     validate: &V,
     configs: &[FeatureConfig],
     opts: &FitOptions,
+    search: &RbfSearch,
     widths: &[f64],
     progress: &Progress,
 ) -> anyhow::Result<(Model, RbfChoice)> {
@@ -194,8 +197,10 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         .first()
         .ok_or_else(|| anyhow::anyhow!("no feature configuration to fit"))?
         .set;
-    let k_max = opts.centers.unwrap_or(default_max_centers(set, opts));
-    let k_min = opts.centers.unwrap_or(min_centers(set));
+    let (k_min, k_max) = match search.centers {
+        CenterBudget::Fixed(k) => (k, k),
+        CenterBudget::UpTo(max) => (min_centers(set), default_max_centers(set, max)),
+    };
     let folds = if validate.count() == 0 { opts.folds.max(2) } else { 1 };
     train.prepare(configs, opts.block_s)?;
     validate.prepare(configs, opts.block_s)?;
@@ -210,7 +215,7 @@ pub fn fit_configs<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     for (ci, features) in configs.iter().enumerate() {
         let window = features.rate_window_s;
         let train_blocks = train.block_means(features, opts.block_s)?;
-        super::check_excitation(&train_blocks, set, opts)?;
+        super::check_excitation(&train_blocks, set, search.centers.fixed(), opts.block_s)?;
         let norm = Normaliser::fit(&train_blocks);
         let (mut all, splits) = splits(train_blocks, validate, features, opts, folds)?;
         let score_rows = score_cluster_rows(&splits, all.length_s(opts.block_s));

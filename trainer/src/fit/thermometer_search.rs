@@ -33,7 +33,7 @@ use super::svr_data::SvrData;
 use crate::parallel::parallel_map;
 
 /// Gaussian centres of the stand-in network.
-const CENTRES: usize = 32;
+const CENTERS: usize = 32;
 /// Widths (normalised units) and ridge strengths the stand-in tries.
 const WIDTHS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
 const RIDGES: [f64; 2] = [1e-6, 1e-4];
@@ -106,14 +106,14 @@ fn score(data: &SvrData, columns: &[usize]) -> f64 {
     let settings = WIDTHS.len() * RIDGES.len();
     let mut totals = vec![0.0; settings];
     for fold in &data.folds {
-        let centres: Vec<FeatureRow> = farthest_points(&z, &fold.train, dims, CENTRES)
+        let centers: Vec<FeatureRow> = farthest_points(&z, &fold.train, dims, CENTERS)
             .into_iter()
             .map(|i| z[i])
             .collect();
         let target = DVector::from_iterator(fold.train.len(), fold.train.iter().map(|&i| data.y[i]));
         for (w, &width) in WIDTHS.iter().enumerate() {
-            let stats = GramStats::new(&design(&z, &fold.train, shape, &centres, width), &target);
-            let held_out = design(&z, &fold.validate, shape, &centres, width);
+            let stats = GramStats::new(&design(&z, &fold.train, shape, &centers, width), &target);
+            let held_out = design(&z, &fold.validate, shape, &centers, width);
             for (r, &ridge) in RIDGES.iter().enumerate() {
                 let rms = match ridge_solve(&stats, held_out.ncols(), ridge) {
                     Some(weights) => {

@@ -36,14 +36,14 @@ impl Builder<'_> {
         if kind <= 1 {
             let legs = rng.random_range(2..=4);
             let reach = span * SWING_AMPLITUDE.1;
-            let centre = self.now_c.clamp(l.min_c + reach, l.max_c - reach);
+            let center = self.now_c.clamp(l.min_c + reach, l.max_c - reach);
             let mut side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
             for _ in 0..legs {
                 let amp = span * rng.random_range(SWING_AMPLITUDE.0..=SWING_AMPLITUDE.1);
-                self.ramp_hold(centre + side * amp, r, rng.random_range(0.0..=300.0));
+                self.ramp_hold(center + side * amp, r, rng.random_range(0.0..=300.0));
                 side = -side;
             }
-            self.ramp_hold(centre, r, hold_s);
+            self.ramp_hold(center, r, hold_s);
             return;
         }
         let target = loop {

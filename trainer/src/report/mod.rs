@@ -64,7 +64,7 @@ fn read_run(
     let path = reader.path().to_owned();
     let thermometers = model.features().set.thermometers();
     let mut surface = SurfaceCoordinates::of(model);
-    let named = RunDiagnosis::new(&path, 1.0).named_by(reader.header_line(), reader.columns());
+    let named = RunDiagnosis::new(&path, 1.0).named_by(reader.header().line(), reader.columns());
     let run = StreamedRun::from_reader(reader, thermometers)?;
     let (period_s, has_ref) = (run.nominal_period_s, run.has_ref);
     let config = rbf_core::CompensatorConfig::for_nominal_period_s(period_s);
@@ -229,7 +229,7 @@ fn model_markdown(model: &Model, model_path: &Path) -> String {
     }
     md.push_str(&format!(
         "- centres: {}\n",
-        summary::count(summary::centres(model) as u64, "centre", "centres")
+        summary::count(summary::centers(model) as u64, "centre", "centres")
     ));
     md.push_str("- inputs (training range):\n");
     for (name, lo, hi) in summary::training_ranges(model) {
@@ -307,7 +307,7 @@ pub fn write_report(
             let mut reader = RunReader::open(path)?;
             match axis {
                 Some(axis) => reader.select_axis(axis)?,
-                None => reader.require_single_axis()?,
+                None => reader.header().require_single_axis()?,
             }
             read_run(
                 model,
@@ -896,7 +896,7 @@ mod tests {
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/ifog_train_1cpm.csv");
         let run = crate::reading::run::samples::Run::load(&data).unwrap();
         let opts = crate::fit::FitOptions {
-            features: crate::fit::RbfFeatures::ResponseBank,
+            method: crate::fit::Method::ResponseBank,
             ..crate::fit::FitOptions::default()
         };
         let model = crate::fit::fit(std::slice::from_ref(&run), &[], &opts).unwrap().model;

@@ -309,11 +309,11 @@ fn cold_start(k: &mut Knots, rng: &mut impl Rng) {
 }
 
 /// `legs` swings about `centre`, alternating sides.
-fn swings(k: &mut Knots, rng: &mut impl Rng, centre: f64, legs: usize) {
+fn swings(k: &mut Knots, rng: &mut impl Rng, center: f64, legs: usize) {
     let mut side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
     let (lo, hi) = limits::AMBIENT_C;
     for _ in 0..legs {
-        let target = (centre + side * uniform(rng, limits::SWING_AMPLITUDE_C)).clamp(lo, hi);
+        let target = (center + side * uniform(rng, limits::SWING_AMPLITUDE_C)).clamp(lo, hi);
         k.ramp_to(target, uniform(rng, limits::SWING_C_PER_MIN));
         k.hold(uniform(rng, limits::SWING_DWELL_MIN) * 60.0);
         side = -side;
@@ -342,11 +342,11 @@ fn ambient_steps(end_s: f64, rng: &mut impl Rng) -> Vec<(f64, f64)> {
 }
 
 fn swings_history(end_s: f64, rng: &mut impl Rng) -> Vec<(f64, f64)> {
-    let centre = uniform(rng, limits::MEAN_C);
-    let mut k = Knots::start(centre);
+    let center = uniform(rng, limits::MEAN_C);
+    let mut k = Knots::start(center);
     k.hold(uniform(rng, limits::WARM_UP_MIN) * 60.0);
     while k.now().0 < end_s {
-        swings(&mut k, rng, centre, 2);
+        swings(&mut k, rng, center, 2);
     }
     k.done()
 }
@@ -378,8 +378,8 @@ fn field(end_s: f64, rng: &mut impl Rng) -> Vec<(f64, f64)> {
             }
             1 => {
                 let legs = rng.random_range(2..=6);
-                let centre = k.now().1;
-                swings(&mut k, rng, centre, legs);
+                let center = k.now().1;
+                swings(&mut k, rng, center, legs);
                 k.hold(uniform(rng, limits::DWELL_MIN) * 60.0);
             }
             _ => {
@@ -518,9 +518,9 @@ mod tests {
                                 "{what}: {rate} °C/min"
                             );
                         }
-                        let centre = knots[0].1;
+                        let center = knots[0].1;
                         let amplitude = limits::SWING_AMPLITUDE_C.1;
-                        assert!(knots.iter().all(|k| (k.1 - centre).abs() <= amplitude + 1e-9));
+                        assert!(knots.iter().all(|k| (k.1 - center).abs() <= amplitude + 1e-9));
                     }
                     Profile::DayCycle => {
                         let fastest = 2.0 * PI * limits::DAY_AMPLITUDE_C.1 / limits::DAY_S * 60.0;

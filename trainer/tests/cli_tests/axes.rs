@@ -329,7 +329,7 @@ fn models_and_runs_of_different_axes_are_refused_naming_both() {
 }
 
 #[test]
-fn a_multi_axis_fit_keeps_every_axis_within_the_three_axis_firmware_s_centres() {
+fn a_multi_axis_fit_keeps_every_axis_within_the_three_axis_firmware_s_centers() {
     let dir = TempDir::new().unwrap();
     let imu = dir.path().join("imu.csv");
     let o = trainer(&["simulate", "--axes", "2", "--hours", "2", "-o", imu.to_str().unwrap()]);

@@ -244,7 +244,7 @@ fn residual_std(columns: &[Vec<f64>]) -> f64 {
 /// tables and returns its results as JSON.
 pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::Result<Value> {
     let started = Instant::now();
-    let simulator = workspace_root().join("target/release/trainer");
+    let simulator = crate::release_trainer();
     let judged = opts.trainer.clone().unwrap_or_else(|| simulator.clone());
     let dir = dir.join("in-use");
     // A fresh directory each time: the trainer refuses to replace outputs

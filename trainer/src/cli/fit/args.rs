@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use clap::builder::RangedU64ValueParser;
 use rbf_core::features::Probe;
 use trainer::fit::coverage::InUse;
+use trainer::fit::{CenterBudget, FitOptions, LagBankOptions, Method, RbfInputs, RbfSearch, SvrInputs, SvrOptions};
 use trainer::reading::limits::MAX_FOLDS;
 
 use super::super::common::{ForceArg, JsonArg, SelectArgs};
@@ -118,13 +119,13 @@ pub struct Args {
     ///
     /// Fewer if OLS finds fewer independent ones; without it K ≤ --max-centers is chosen
     /// on validation, except for the lag bank, which has none unless asked.
-    #[arg(long, value_name = "K", value_parser = centres_parser(), help_heading = "Model")]
+    #[arg(long, value_name = "K", value_parser = centers_parser(), help_heading = "Model")]
     pub(super) centers: Option<usize>,
     /// Most centres tried (1–64, default 32; 16 per axis on IMUs).
     ///
     /// The firmware's evaluation cost grows with K; the three-axis firmware holds 16
     /// centres per axis. Not with --centers, which fixes K.
-    #[arg(long, value_name = "K", value_parser = centres_parser(), help_heading = "Search")]
+    #[arg(long, value_name = "K", value_parser = centers_parser(), help_heading = "Search")]
     pub(super) max_centers: Option<usize>,
     /// ΔT filter time constants to choose from, s.
     ///
@@ -217,21 +218,26 @@ pub struct Args {
     pub(super) use_rate_c_per_min: Option<f64>,
 }
 
-/// Most centres a search tries without `--max-centers`.
-pub(super) const DEFAULT_MAX_CENTERS: usize = 32;
-
 impl Args {
-    /// Refuses an option the fit asked for would ignore, naming why:
-    /// `--max-centers` beside `--centers`, `--dt-window-s` with a model
-    /// whose rate filters are fixed (the lag bank, the response bank, a
-    /// cubic in T), `--inputs` with a method other than svr-pso.
-    pub(super) fn check_applicable(&self) -> anyhow::Result<()> {
-        if let (Some(k), Some(max)) = (self.centers, self.max_centers) {
-            anyhow::bail!(
+    /// The fit's options from the arguments, refusing what the method asked
+    /// for would ignore, naming why: `--max-centers` beside `--centers`,
+    /// `--dt-window-s` with a model whose rate filters are fixed (the lag
+    /// bank, the response bank, a cubic in T) or outside 0 … 86400 s,
+    /// `--inputs` with a method other than svr-pso or naming an input twice,
+    /// a block length or a correlation rule out of range.
+    pub(super) fn fit_options(&self) -> anyhow::Result<FitOptions> {
+        trainer::reading::limits::check_block_s(self.block_s)?;
+        let selection = self.select.selection()?;
+        check_distinct_inputs(self.inputs.as_deref().unwrap_or_default())?;
+        let centers = match (self.centers, self.max_centers) {
+            (Some(k), Some(max)) => anyhow::bail!(
                 "--centers {k} with --max-centers {max}: --max-centers bounds the search for K, which --centers \
                  fixes; give one of them"
-            );
-        }
+            ),
+            (Some(k), None) => CenterBudget::Fixed(k),
+            (None, Some(max)) => CenterBudget::UpTo(max),
+            (None, None) => CenterBudget::DEFAULT,
+        };
         let fixed_filters = match (self.method, self.features) {
             (MethodArg::Poly3, _) => Some("--method poly3 is a cubic in T, with no ΔT filter"),
             (MethodArg::Rbf, None | Some(FeaturesArg::LagBank)) => Some(
@@ -255,7 +261,53 @@ impl Args {
              inputs from --features",
             clap::ValueEnum::to_possible_value(&self.method).map_or_else(String::new, |v| v.get_name().to_owned())
         );
-        Ok(())
+        anyhow::ensure!(
+            self.dt_window_s
+                .iter()
+                .all(|w| w.is_finite() && (0.0..=86_400.0).contains(w)),
+            "--dt-window-s values must be 0 … 86400 s"
+        );
+        let search = RbfSearch {
+            centers,
+            rate_windows_s: if self.dt_window_s.is_empty() {
+                RbfSearch::default().rate_windows_s
+            } else {
+                self.dt_window_s.clone()
+            },
+            ..RbfSearch::default()
+        };
+        let rbf = |inputs| Method::Rbf {
+            inputs,
+            search: search.clone(),
+        };
+        let method = match (self.method, self.features.map(|f| (f, f.rbf_inputs()))) {
+            (MethodArg::Rbf, Some((_, Some(inputs)))) => rbf(inputs),
+            (MethodArg::Rbf, Some((FeaturesArg::ResponseBank, _))) => Method::ResponseBank,
+            (MethodArg::Rbf, Some((FeaturesArg::MultiscaleValidated, _))) => Method::MultiscaleValidated(search),
+            // The lag bank; by default choosing between it and the response bank.
+            (MethodArg::Rbf, _) => Method::LagBank(LagBankOptions {
+                centers: centers.fixed(),
+                structure_choice: self.features.is_none(),
+            }),
+            (MethodArg::Rbf2, _) => rbf(RbfInputs::TempRate),
+            (MethodArg::Poly3, _) => Method::Poly3,
+            (MethodArg::SvrPso, _) => Method::SvrPso(SvrOptions {
+                centers,
+                rate_windows_s: search.rate_windows_s,
+                inputs: match (&self.inputs, selection) {
+                    (Some(named), _) => SvrInputs::Named(named.clone()),
+                    (None, Some(rule)) => SvrInputs::Rule(rule),
+                    (None, None) => SvrInputs::BestSubset,
+                },
+            }),
+        };
+        Ok(FitOptions {
+            method,
+            block_s: self.block_s,
+            folds: self.folds,
+            serial: self.serial.clone(),
+            progress: !self.quiet,
+        })
     }
 
     /// The range and rates of use given, checked.
@@ -279,7 +331,7 @@ impl Args {
 }
 
 /// Centre counts the firmware holds: 1 … [`rbf_core::MAX_CENTERS`].
-fn centres_parser() -> RangedU64ValueParser<usize> {
+fn centers_parser() -> RangedU64ValueParser<usize> {
     RangedU64ValueParser::<usize>::new().range(1..=rbf_core::MAX_CENTERS as u64)
 }
 
@@ -305,7 +357,7 @@ fn parse_probe(text: &str) -> Result<Probe, String> {
 
 /// Refuses an input named twice in `--inputs`, a gradient in either order
 /// included (`temp_a-temp_b` and `temp_b-temp_a` carry the same information).
-pub(super) fn check_distinct_inputs(inputs: &[Probe]) -> anyhow::Result<()> {
+fn check_distinct_inputs(inputs: &[Probe]) -> anyhow::Result<()> {
     let key = |p: &Probe| match *p {
         Probe::Temp(i) => (i, i),
         Probe::Gradient(i, j) => (i.min(j), i.max(j)),
@@ -334,7 +386,77 @@ pub(super) fn check_distinct_inputs(inputs: &[Probe]) -> anyhow::Result<()> {
 
 #[cfg(test)]
 mod tests {
+    use clap::{Parser, ValueEnum};
+
     use super::*;
+
+    /// `trainer fit`'s arguments alone, for parsing tests.
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn options(extra: &[&str]) -> anyhow::Result<FitOptions> {
+        let argv = ["fit", "run.csv", "-o", "model.bin"]
+            .into_iter()
+            .chain(extra.iter().copied());
+        Cli::try_parse_from(argv)?.args.fit_options()
+    }
+
+    #[test]
+    fn each_method_and_feature_set_parses_to_its_own_variant() {
+        let method = |extra: &[&str]| options(extra).unwrap().method;
+        assert_eq!(method(&[]), Method::default());
+        assert!(matches!(
+            method(&["--features", "lag-bank"]),
+            Method::LagBank(LagBankOptions {
+                structure_choice: false,
+                ..
+            })
+        ));
+        assert_eq!(method(&["--features", "response-bank"]), Method::ResponseBank);
+        assert!(matches!(
+            method(&["--features", "paper", "--centers", "8"]),
+            Method::Rbf {
+                inputs: RbfInputs::Paper,
+                search: RbfSearch {
+                    centers: CenterBudget::Fixed(8),
+                    ..
+                }
+            }
+        ));
+        assert!(matches!(
+            method(&["--features", "multiscale-validated", "--dt-window-s", "60"]),
+            Method::MultiscaleValidated(RbfSearch { rate_windows_s, .. }) if rate_windows_s == [60.0]
+        ));
+        assert_eq!(method(&["--method", "poly3"]), Method::Poly3);
+        assert!(matches!(
+            method(&["--method", "svr-pso", "--select-top", "3", "--max-centers", "12"]),
+            Method::SvrPso(SvrOptions {
+                centers: CenterBudget::UpTo(12),
+                inputs: SvrInputs::Rule(trainer::dataset::gradients::Selection::Top(3)),
+                ..
+            })
+        ));
+        // The name `--json` reports is the --method given.
+        for m in MethodArg::value_variants() {
+            let name = m.to_possible_value().unwrap().get_name().to_owned();
+            assert_eq!(
+                method(&["--method", &name]).name().to_lowercase(),
+                name.replace('-', "")
+            );
+        }
+    }
+
+    #[test]
+    fn options_a_method_would_ignore_are_refused_where_they_are_parsed() {
+        let refused = |extra: &[&str]| format!("{:#}", options(extra).unwrap_err());
+        assert!(refused(&["--dt-window-s", "60"]).contains("--dt-window-s would be ignored"));
+        assert!(refused(&["--features", "paper", "--dt-window-s", "90000"]).contains("must be 0 … 86400 s"));
+        assert!(refused(&["--inputs", "temp_a"]).contains("--inputs would be ignored"));
+        assert!(refused(&["--centers", "4", "--max-centers", "8"]).contains("give one of them"));
+    }
 
     #[test]
     fn probes_are_read_by_column_name() {

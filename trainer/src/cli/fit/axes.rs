@@ -1,5 +1,5 @@
 //! `trainer fit` on multi-axis runs: the arguments into
-//! [`trainer::fit_axes`] (the per-axis fits and the joint-model policy), then
+//! [`trainer::fit::axes`] (the per-axis fits and the joint-model policy), then
 //! one multi-axis blob, the summary per axis and the accuracy table per run
 //! and axis, printed and written.
 
@@ -12,7 +12,7 @@ use trainer::blobfile::{encode_axis_models, encode_shared_models};
 use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader};
 use trainer::evaluation::table::print_table;
 use trainer::fit::FitOptions;
-use trainer::fit_axes::{AxisRuns, JointMode, fit_axes, try_joint};
+use trainer::fit::axes::{AxisRuns, JointMode, fit_axes, try_joint};
 use trainer::output::{Output, Transaction};
 use trainer::provenance::ProvenanceRecord;
 use trainer::reading::run::RunReader;
@@ -50,17 +50,13 @@ pub(super) fn run(
         }
     }
     // Every axis within what a three-axis firmware holds per axis.
-    if let Some(k) = opts.centers {
-        anyhow::ensure!(
-            k <= MAX_AXIS_CENTERS,
+    let method = opts.method.clone().with_center_cap(MAX_AXIS_CENTERS).map_err(|k| {
+        anyhow::anyhow!(
             "--centers {k}: a multi-axis model holds at most {MAX_AXIS_CENTERS} centres per axis (the three-axis \
              firmware's capacity)"
-        );
-    }
-    let opts = &FitOptions {
-        max_centers: opts.max_centers.min(MAX_AXIS_CENTERS),
-        ..opts.clone()
-    };
+        )
+    })?;
+    let opts = &FitOptions { method, ..opts.clone() };
     let started = std::time::Instant::now();
     let runs = AxisRuns {
         train: &a.runs,
@@ -132,7 +128,7 @@ pub(super) fn run(
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
     for (axis, (outcome, _)) in axes.iter().zip(&outcomes) {
-        if let Some(search) = &outcome.bank {
+        if let Some(search) = outcome.bank_search() {
             writeln!(out, "\naxis {}:", axis.name())?;
             for line in search
                 .coverage
@@ -151,7 +147,7 @@ pub(super) fn run(
     )?;
     let in_use = a.in_use()?;
     let json = serde_json::json!({
-        "method": opts.method,
+        "method": opts.method.name(),
         "axes": axes.iter().zip(&outcomes).map(|(axis, (o, _))| {
             let mut axis_json = outcome_json(o, &in_use);
             axis_json["axis"] = serde_json::json!(axis.name());

@@ -4,25 +4,40 @@
 use rbf_core::{FeatureConfig, FeatureSet};
 use trainer::describe::gain_symbol;
 use trainer::evaluation::evaluate::RunEvaluation;
-use trainer::fit::FitOutcome;
 use trainer::fit::coverage::InUse;
+use trainer::fit::{FitOutcome, FitReport};
 
 use super::super::common::input_names;
 
 /// What a fit chose, as `trainer fit --json` writes it (one axis), for use
 /// over `in_use`.
 pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse) -> serde_json::Value {
+    // Every key for every method (docs/cli.md), `null` where the method has no such figure.
+    let (mut choice, mut sets, mut bank, mut structure, mut training_std100, mut svr) =
+        (None, None, None, None, None, None);
+    match &o.report {
+        FitReport::Bank(b) => {
+            choice = Some(&b.choice);
+            bank = Some(&b.search);
+            structure = b.structure.as_ref();
+            training_std100 = b.training_std100_dph;
+        }
+        FitReport::Rbf(c) => choice = Some(c),
+        FitReport::MultiscaleValidated { choice: c, sets: s } => (choice, sets) = (Some(c), Some(s)),
+        FitReport::SvrPso(c) => svr = Some(c),
+        FitReport::ResponseBank | FitReport::Poly3 => {}
+    }
     serde_json::json!({
-        "choice": o.choice,
-        "feature_sets": o.sets,
-        "lag_bank_search": o.bank,
-        "structure": o.structure,
+        "choice": choice,
+        "feature_sets": sets,
+        "lag_bank_search": bank,
+        "structure": structure,
         "predicted_in_use_std100_dph": o.predicted_in_use_std100_dph(),
         "predicted_settled_spread_dph": serde_json::Value::Null,
         "settled_forecast": settled_forecast(o, in_use),
-        "training_std100_dph": o.training_std100_dph,
+        "training_std100_dph": training_std100,
         "features": features_json(o.model.features()),
-        "svr": o.svr,
+        "svr": svr,
     })
 }
 
@@ -30,7 +45,7 @@ pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse) -> serde_json::Value 
 /// bias it cannot vouch for (docs/decisions.md, "The settled curve after a
 /// planned run": no forecast of the soak spread has been validated yet).
 fn settled_forecast(o: &FitOutcome, in_use: &InUse) -> String {
-    let Some(search) = &o.bank else {
+    let Some(search) = o.bank_search() else {
         return "not forecast: this method's fit does not read the runs' settled levels".to_owned();
     };
     let unsettled = search.coverage.unsettled_bands_c(in_use);

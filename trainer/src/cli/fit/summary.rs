@@ -5,7 +5,7 @@ use std::io::Write;
 
 use rbf_core::{FeatureSet, Model};
 use trainer::describe::gain_text;
-use trainer::fit::{self, FitOutcome};
+use trainer::fit::{self, BankReport, FitOptions, FitOutcome, FitReport, Method, SvrInputs};
 
 use super::super::common::{describe_selection, rule_name};
 
@@ -15,10 +15,22 @@ pub struct FitHow {
     pub with_validate_runs: bool,
     /// Contiguous folds per run otherwise.
     pub folds: usize,
-    /// Whether the multi-point inputs were named (--inputs).
-    pub named_inputs: bool,
-    /// The correlation rule asked for, if any.
-    pub selection: Option<trainer::dataset::gradients::Selection>,
+    /// How svr-pso was asked to pick multi-point inputs.
+    pub svr_inputs: Option<SvrInputs>,
+}
+
+impl FitHow {
+    /// How `opts` asks to choose, with or without --validate runs.
+    pub fn new(opts: &FitOptions, with_validate_runs: bool) -> FitHow {
+        FitHow {
+            with_validate_runs,
+            folds: opts.folds,
+            svr_inputs: match &opts.method {
+                Method::SvrPso(svr) => Some(svr.inputs.clone()),
+                _ => None,
+            },
+        }
+    }
 }
 
 /// The default's structure choice, as `trainer fit` prints it: both
@@ -56,115 +68,150 @@ pub(super) fn write_structure(out: &mut impl Write, s: &fit::response::Structure
 /// The fit's choices as `trainer fit` prints them above its accuracy table.
 pub fn write_summary(out: &mut impl Write, outcome: &FitOutcome, how: &FitHow) -> anyhow::Result<()> {
     writeln!(out, "model: {}", describe(&outcome.model))?;
-    if let Some(s) = &outcome.structure {
+    match &outcome.report {
+        FitReport::Bank(bank) => write_bank_report(out, outcome, bank, how)?,
+        FitReport::Rbf(choice) => write_choice(out, choice, how)?,
+        FitReport::MultiscaleValidated { choice, sets } => {
+            write_choice(out, choice, how)?;
+            write_sets(out, &outcome.model, sets)?;
+        }
+        FitReport::SvrPso(choice) => write_svr(out, choice, how)?,
+        FitReport::ResponseBank | FitReport::Poly3 => {}
+    }
+    Ok(())
+}
+
+/// The hyper-parameters a Gaussian RBF search chose over fixed inputs.
+fn write_choice(out: &mut impl Write, c: &fit::rbf::RbfChoice, how: &FitHow) -> anyhow::Result<()> {
+    writeln!(
+        out,
+        "chosen on {}: ΔT window {} s, {}ridge λ {:e}, {} centres; validation RMS {:.4e} °/h",
+        if how.with_validate_runs {
+            "--validate runs".into()
+        } else {
+            format!("{}-fold contiguous validation", how.folds.max(2))
+        },
+        c.rate_window_s,
+        width_text(c),
+        c.ridge,
+        c.centers,
+        c.validation_rms_dph
+    )?;
+    Ok(())
+}
+
+/// The Gaussian width, where there are Gaussians to speak of.
+fn width_text(c: &fit::rbf::RbfChoice) -> String {
+    if c.centers == 0 {
+        String::new()
+    } else {
+        format!("width σ {} (normalised), ", c.width)
+    }
+}
+
+/// The lag bank's fit: the structure choice, the forecast, the network
+/// (unless the response bank replaced it) and the bank itself.
+fn write_bank_report(
+    out: &mut impl Write,
+    outcome: &FitOutcome,
+    bank: &BankReport,
+    how: &FitHow,
+) -> anyhow::Result<()> {
+    if let Some(s) = &bank.structure {
         write_structure(out, s)?;
     }
     if let (Some(predicted), Some(factor), Some(training)) = (
         outcome.predicted_in_use_std100_dph(),
         outcome.forecast_factor(),
-        outcome.training_std100_dph,
+        bank.training_std100_dph,
     ) {
         writeln!(
             out,
             "predicted residual STD100 in use {predicted:.4e} °/h ({factor}× the training residual {training:.4e} °/h on the fit's block means, warm-up left out)"
         )?;
     }
-    let response_chosen = outcome.structure.as_ref().is_some_and(|s| s.response_bank);
-    if let Some(c) = outcome.choice.as_ref().filter(|_| !response_chosen) {
+    if !bank.response_bank_chosen() {
+        // The bank's filters are its structure and its held-out figure is the
+        // structure's, both printed below, not one window and one RMS.
+        let c = &bank.choice;
         writeln!(
             out,
-            "chosen on {}: {}{}ridge λ {:e}, {} centres{}",
+            "chosen on {}: {}ridge λ {:e}, {} centres",
             if how.with_validate_runs {
                 "--validate runs".into()
-            } else if let Some(search) = &outcome.bank {
-                format!("the same {} folds as the bank's structure", search.fold_count)
             } else {
-                format!("{}-fold contiguous validation", how.folds.max(2))
+                format!("the same {} folds as the bank's structure", bank.search.fold_count)
             },
-            // The lag bank's filters are its structure (printed below), not one window.
-            if outcome.bank.is_some() {
-                String::new()
-            } else {
-                format!("ΔT window {} s, ", c.rate_window_s)
-            },
-            // No Gaussians (the lag bank's default): no width to speak of.
-            if c.centers == 0 {
-                String::new()
-            } else {
-                format!("width σ {} (normalised), ", c.width)
-            },
+            width_text(c),
             c.ridge,
             c.centers,
-            // The lag bank's held-out figure is its structure's, printed once below.
-            if outcome.bank.is_some() {
-                String::new()
-            } else {
-                format!("; validation RMS {:.4e} °/h", c.validation_rms_dph)
-            }
         )?;
     }
-    if let Some(search) = &outcome.bank {
-        write_bank(out, &outcome.model, search)?;
-    }
-    if let Some(s) = &outcome.sets {
-        let kept = outcome.model.features();
-        let slowest_s = kept.windows_s()[2];
-        let kept = match kept.set {
-            FeatureSet::MultiScale => "first-order".to_owned(),
-            FeatureSet::MultiScaleLagged { coil_lag_min } => {
-                format!("second-order, coil lag {coil_lag_min} min, slowest window {slowest_s} s")
-            }
-            _ => format!("second-order, slowest window {slowest_s} s"),
+    write_bank(out, &outcome.model, &bank.search)
+}
+
+/// How `--features multiscale-validated` chose between the multi-scale sets.
+fn write_sets(out: &mut impl Write, model: &Model, s: &fit::SetComparison) -> anyhow::Result<()> {
+    let kept = model.features();
+    let slowest_s = kept.windows_s()[2];
+    let kept = match kept.set {
+        FeatureSet::MultiScale => "first-order".to_owned(),
+        FeatureSet::MultiScaleLagged { coil_lag_min } => {
+            format!("second-order, coil lag {coil_lag_min} min, slowest window {slowest_s} s")
+        }
+        _ => format!("second-order, slowest window {slowest_s} s"),
+    };
+    writeln!(
+        out,
+        "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃², coil lags {:?} min and slowest window ×{:?} tried) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
+        s.first_order_rms_dph,
+        fit::COIL_LAGS_MIN,
+        fit::rbf::SLOWEST_WINDOW_FACTORS,
+        s.second_order_rms_dph,
+        s.second_order_rms_dph / s.first_order_rms_dph,
+        fit::SECOND_ORDER_GAIN,
+        kept
+    )?;
+    Ok(())
+}
+
+/// The SVR's inputs, its swarm's choice and its deployment.
+fn write_svr(out: &mut impl Write, c: &fit::svr_pso::SvrChoice, how: &FitHow) -> anyhow::Result<()> {
+    if let Some(sel) = &c.selection {
+        let rule = match &how.svr_inputs {
+            Some(SvrInputs::Named(_)) => "--inputs".to_owned(),
+            Some(SvrInputs::Rule(rule)) => rule_name(*rule),
+            Some(SvrInputs::BestSubset) | None => format!(
+                "the best of {} subsets of thermometers on 3-fold contiguous validation",
+                (1u32 << sel.table.names.len()) - 1
+            ),
         };
-        writeln!(
-            out,
-            "feature sets: first-order validation RMS {:.4e} °/h, second-order (ΔT₃², coil lags {:?} min and slowest window ×{:?} tried) {:.4e} °/h (ratio {:.3}; kept when < {}): {}",
-            s.first_order_rms_dph,
-            fit::COIL_LAGS_MIN,
-            fit::rbf::SLOWEST_WINDOW_FACTORS,
-            s.second_order_rms_dph,
-            s.second_order_rms_dph / s.first_order_rms_dph,
-            fit::SECOND_ORDER_GAIN,
-            kept
-        )?;
-    }
-    if let Some(c) = &outcome.svr {
-        if let Some(sel) = &c.selection {
-            let rule = match (how.named_inputs, how.selection) {
-                (true, _) => "--inputs".to_owned(),
-                (false, Some(rule)) => rule_name(rule),
-                (false, None) => format!(
-                    "the best of {} subsets of thermometers on 3-fold contiguous validation",
-                    (1u32 << sel.table.names.len()) - 1
-                ),
-            };
-            write!(out, "{}", describe_selection(&sel.table, &sel.selected, &rule))?;
-            if !sel.ranking.is_empty() {
-                writeln!(out, "validation RMS of the best subsets (°/h):")?;
-                for s in &sel.ranking {
-                    let names: Vec<&str> = s.sensors.iter().map(|&k| sel.table.names[k].as_str()).collect();
-                    writeln!(out, "  {:.4e}  {}", s.validation_rms_dph, names.join(", "))?;
-                }
+        write!(out, "{}", describe_selection(&sel.table, &sel.selected, &rule))?;
+        if !sel.ranking.is_empty() {
+            writeln!(out, "validation RMS of the best subsets (°/h):")?;
+            for s in &sel.ranking {
+                let names: Vec<&str> = s.sensors.iter().map(|&k| sel.table.names[k].as_str()).collect();
+                writeln!(out, "  {:.4e}  {}", s.validation_rms_dph, names.join(", "))?;
             }
         }
-        writeln!(out, "inputs: {}", c.inputs.join(", "))?;
-        writeln!(
-            out,
-            "PSO on 3-fold contiguous validation of the deployed network ({} particles × {} iterations): ΔT window {} s, σ {:.4} (normalised), C {:.4e}, ε {:.3e} °/h; the SVR's own validation RMS {:.4e} °/h",
-            c.pso.particles,
-            c.pso.iterations,
-            c.rate_window_s,
-            c.params.sigma,
-            c.params.c,
-            c.params.epsilon,
-            c.validation_rms_dph
-        )?;
-        writeln!(
-            out,
-            "{} support vectors → {} centres deployed (OLS, weights refitted); validation RMS of the deployed network {:.4e} °/h (the swarm's fitness)",
-            c.support_vectors, c.centers, c.deployed_validation_rms_dph
-        )?;
     }
+    writeln!(out, "inputs: {}", c.inputs.join(", "))?;
+    writeln!(
+        out,
+        "PSO on 3-fold contiguous validation of the deployed network ({} particles × {} iterations): ΔT window {} s, σ {:.4} (normalised), C {:.4e}, ε {:.3e} °/h; the SVR's own validation RMS {:.4e} °/h",
+        c.pso.particles,
+        c.pso.iterations,
+        c.rate_window_s,
+        c.params.sigma,
+        c.params.c,
+        c.params.epsilon,
+        c.validation_rms_dph
+    )?;
+    writeln!(
+        out,
+        "{} support vectors → {} centres deployed (OLS, weights refitted); validation RMS of the deployed network {:.4e} °/h (the swarm's fitness)",
+        c.support_vectors, c.centers, c.deployed_validation_rms_dph
+    )?;
     Ok(())
 }
 
@@ -270,7 +317,7 @@ pub(super) fn describe(model: &Model) -> String {
 /// search's coverage (10-s means), or the model's first input's training
 /// range where that input is the loop temperature; `None` otherwise.
 pub(super) fn training_loop_range_c(outcome: &FitOutcome) -> Option<(f64, f64)> {
-    if let Some(search) = &outcome.bank {
+    if let Some(search) = outcome.bank_search() {
         return Some(search.coverage.temp_range_c);
     }
     match outcome.model.features().set {

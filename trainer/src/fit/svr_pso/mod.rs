@@ -37,13 +37,13 @@ use super::linalg::{FeatureRow, GramStats, InputShape, design, ridge_solve};
 use super::scoring::cluster_rms;
 use super::svr_data::SvrData;
 use super::thermometer_search::{self, SubsetScore};
-use super::{FitOptions, Progress, check_excitation, deploy_ranges, rbf, serial};
+use super::{FitOptions, Progress, SvrInputs, SvrOptions, check_excitation, deploy_ranges, rbf, serial};
 use crate::dataset::RunSet;
 use crate::dataset::gradients::{self, Candidate, CorrelationTable, MultiBlocks};
 
 /// The deployed network's centre budget.
-fn centre_budget(opts: &FitOptions) -> usize {
-    opts.centers.unwrap_or(opts.max_centers).clamp(1, MAX_CENTERS)
+fn center_budget(svr: &SvrOptions) -> usize {
+    svr.centers.most().clamp(1, MAX_CENTERS)
 }
 
 /// SMO steps per solve before it settles for the best reached.
@@ -104,9 +104,10 @@ pub struct SvrChoice {
 pub fn fit<T: RunSet + ?Sized>(
     train: &T,
     opts: &FitOptions,
+    svr: &SvrOptions,
     progress: &Progress,
 ) -> anyhow::Result<(Model, SvrChoice)> {
-    let (features, selection) = choose_inputs(train, opts, progress)?;
+    let (features, selection) = choose_inputs(train, opts, svr, progress)?;
     // Multi-point inputs get a linear part: gradients grow in proportion to
     // the ramp rate, and it carries the model past the training ramps. On the
     // single-point (T, ΔT, T×ΔT) it extrapolates worse than the paper's pure
@@ -117,7 +118,7 @@ pub fn fit<T: RunSet + ?Sized>(
     let window = features.rate_window_s;
     let blocks = train.block_means(&features, opts.block_s)?;
     if selection.is_none() {
-        check_excitation(&blocks, set, opts)?;
+        check_excitation(&blocks, set, svr.centers.fixed(), opts.block_s)?;
     }
     let data = SvrData::new(&blocks, opts.block_s)?;
     let SvrData { norm, x, y, dims, .. } = &data;
@@ -127,7 +128,7 @@ pub fn fit<T: RunSet + ?Sized>(
         c: 10f64.powf(p[1]),
         epsilon: 10f64.powf(p[2]) * data.y_std,
     };
-    let budget = centre_budget(opts);
+    let budget = center_budget(svr);
     // The swarm tunes what is deployed: the network within the firmware's
     // centre budget. Tuned on the SVR alone it drifted to wide kernels and
     // C at the box edge, whose hundreds of near-dependent support vectors
@@ -238,16 +239,17 @@ fn fit_svr(x: &[FeatureRow], y: &[f64], dims: usize, params: SvrParams, partiall
 fn choose_inputs<T: RunSet + ?Sized>(
     train: &T,
     opts: &FitOptions,
+    svr: &SvrOptions,
     progress: &Progress,
 ) -> anyhow::Result<(FeatureConfig, Option<InputSelection>)> {
     let thermometers = train.thermometers()?;
     if thermometers.len() < 2 {
         anyhow::ensure!(
-            opts.inputs.is_none(),
+            !matches!(svr.inputs, SvrInputs::Named(_)),
             "named multi-point inputs given, but the training runs do not all have two or more \
              of the thermometer columns temp_a … temp_h"
         );
-        let windows = &opts.rate_windows_s;
+        let windows = &svr.rate_windows_s;
         let window = windows.get(windows.len() / 2).copied().unwrap_or(60.0);
         let features = rbf::feature_config(FeatureSet::TempRateProduct, window, 1.0);
         train.prepare(&[features], opts.block_s)?;
@@ -261,12 +263,12 @@ fn choose_inputs<T: RunSet + ?Sized>(
         FeatureConfig::multipoint(Probes::new(&all_temps).ok_or_else(|| anyhow::anyhow!("no thermometer to read"))?);
     train.prepare(&[temps_config], opts.block_s)?;
     let temps = train.block_means(&temps_config, opts.block_s)?;
-    check_excitation(&temps, FeatureSet::Temp, opts)?;
+    check_excitation(&temps, FeatureSet::Temp, svr.centers.fixed(), opts.block_s)?;
     let group = (CORRELATION_BLOCK_S / temps.length_s(opts.block_s)).round().max(1.0) as usize;
     let table = gradients::correlations(&MultiBlocks::from_blocks(&temps, &sensors, group));
     let mut ranking = Vec::new();
-    let (selected, probes) = match (&opts.inputs, opts.selection) {
-        (Some(given), _) => {
+    let (selected, probes) = match &svr.inputs {
+        SvrInputs::Named(given) => {
             for p in given {
                 anyhow::ensure!(
                     p.thermometers().is_subset(thermometers),
@@ -276,7 +278,7 @@ fn choose_inputs<T: RunSet + ?Sized>(
             let selected = given.iter().filter_map(|p| Candidate::of_probe(*p, &sensors)).collect();
             (selected, given.clone())
         }
-        (None, None) => {
+        SvrInputs::BestSubset => {
             let all = thermometer_search::rank(&SvrData::new(&temps, opts.block_s)?, progress);
             let best = thermometer_search::choose(&all)
                 .ok_or_else(|| anyhow::anyhow!("no subset of the thermometers predicts the bias (singular data)"))?;
@@ -285,7 +287,7 @@ fn choose_inputs<T: RunSet + ?Sized>(
             ranking = all.into_iter().take(REPORTED_SUBSETS).collect();
             (selected, probes)
         }
-        (None, Some(rule)) => {
+        &SvrInputs::Rule(rule) => {
             let mut selected = gradients::select(&table, rule);
             selected.truncate(MAX_INPUTS);
             anyhow::ensure!(

@@ -12,57 +12,52 @@
 //! (the nominal period needs them) and hands those rows out again first, so
 //! pipes and FIFOs read like files.
 //!
-//! Three layers, each importing only the ones below: [`rows`] (the lines,
-//! the batch row parser and [`RunError`]), this module ([`RunReader`]), and
-//! [`samples`] (a whole run in memory, [`samples::Run`], or streamed,
-//! [`samples::StreamedRun`]).
+//! The reader is cut by job, each module importing only the ones below it:
+//! [`rows`] (the lines, the batch row parser and [`RunError`]); [`header`]
+//! (the preamble and the header, [`RunHeader`]) and `columns` (its column
+//! mapping: axes, thermometers);
+//! `source` (row decoding, one line at a time); `timing` (the time column's
+//! checks); this module ([`RunReader`]: the rows read ahead, the axis
+//! selected, line by line or in parallel batches); and [`samples`] (a whole
+//! run in memory, [`samples::Run`], or streamed, [`samples::StreamedRun`]).
 
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use rbf_core::axis::Axis;
-use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
-use rbf_core::record::{self, Columns, HeaderError, PERIOD_ESTIMATE_STEPS, PeriodEstimator, Row};
+use rbf_core::record::{Columns, PERIOD_ESTIMATE_STEPS, Row};
 use rbf_core::thermometer::ThermometerSet;
-use rbf_core::{CompensatorConfig, GyroSample};
 
+use self::header::ReadHeader;
+use self::source::LineSource;
+use self::timing::TimeCheck;
 use crate::reading::chunked::{self, Batch, Defect};
-use crate::reading::limits::{MAX_COLUMNS, MAX_LINE_BYTES, MAX_PREAMBLE_BYTES, bytes};
-use crate::reading::sampling::{self, PeriodSource, PeriodWatch};
-use crate::{reading::input, text};
+use crate::reading::input;
 
+mod columns;
+pub mod header;
 pub mod rows;
 pub mod samples;
+mod source;
+mod timing;
 
-use self::rows::*;
+pub use self::header::RunHeader;
+pub use self::rows::{RawRow, RowParser, RunError};
+use self::rows::{io_or_utf8, parse_workers, too_long};
 
 /// Streams the rows of one run file, checking them as it goes.
 pub struct RunReader {
-    path: PathBuf,
-    source: Box<dyn BufRead + Send>,
-    /// The current line's text when it is kept or refused (reused: no
-    /// allocation per row).
-    line: String,
-    /// Bytes of a line that did not lie whole in the read buffer (reused).
-    line_bytes: Vec<u8>,
-    /// Lines read from the source so far.
-    line_no: usize,
+    header: RunHeader,
+    /// The selected axis's columns (the header's for a single-axis run).
+    columns: Columns,
+    lines: LineSource,
+    time: TimeCheck,
     /// Line of the last row handed out (the header's before any).
     last_line_out: usize,
-    header_line_no: usize,
-    header_line: String,
-    column_names: Vec<String>,
-    columns: Columns,
-    /// The header's columns before an axis was selected.
-    header_columns: Columns,
-    preamble: Vec<String>,
-    last_time_s: Option<f64>,
     /// Rows read ahead at opening, handed out first.
     ahead: VecDeque<RawRow>,
     nominal_period_s: f64,
-    /// Checks the steps of rows read after the look-ahead.
-    watch: Option<PeriodWatch>,
     /// Text per parsing job of [`RunReader::for_each_batch`].
     chunk_bytes: usize,
 }
@@ -70,8 +65,8 @@ pub struct RunReader {
 impl std::fmt::Debug for RunReader {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RunReader")
-            .field("path", &self.path)
-            .field("line", &self.line_no)
+            .field("path", &self.header.path())
+            .field("line", &self.lines.line_number())
             .finish()
     }
 }
@@ -92,180 +87,40 @@ impl RunReader {
     pub fn from_reader(path: &Path, source: impl BufRead + Send + 'static) -> Result<RunReader, RunError> {
         let mut source: Box<dyn BufRead + Send> = Box::new(source);
         let mut buf = Vec::new();
-        let mut line_no = 0;
-        let mut preamble = Vec::new();
-        let mut preamble_bytes = 0usize;
-        let mut metadata_rates: Vec<(usize, f64)> = Vec::new();
-        let format_error = |line: usize, message: String| RunError::Format {
-            path: path.to_owned(),
-            line,
-            message,
-        };
-        let header_line = loop {
-            line_no += 1;
-            let read = read_line_bounded(source.as_mut(), &mut buf).map_err(|e| io_or_utf8(path, line_no, e))?;
-            // A compressed file holds any bytes, a carriage return among them:
-            // named for what it is before the line ends are judged.
-            if line_no == 1
-                && let Some((format, tool)) = compressed_format(&buf)
-            {
-                return Err(format_error(
-                    line_no,
-                    format!("the file is {format}-compressed, not CSV text; decompress it first ({tool})"),
-                ));
-            }
-            // A file with CR-only line ends reads as one line: it would
-            // otherwise be "no header", "too long" or thousands of columns.
-            if has_inner_cr(&buf) {
-                return Err(format_error(line_no, CR_ONLY.into()));
-            }
-            match read {
-                Bounded::End => {
-                    return Err(format_error(line_no, "no header line: the file has no columns".into()));
-                }
-                Bounded::TooLong => return Err(format_error(line_no, too_long())),
-                Bounded::Line => {}
-            }
-            let Ok(line) = std::str::from_utf8(&buf) else {
-                return Err(format_error(line_no, "line is not valid UTF-8 text".into()));
-            };
-            let line = if line_no == 1 {
-                line.trim_start_matches('\u{feff}')
-            } else {
-                line
-            };
-            let line = line.trim_end_matches('\r');
-            if !record::is_comment_or_blank(line) {
-                break line.to_owned();
-            }
-            preamble_bytes += line.len() + 1;
-            if preamble_bytes > MAX_PREAMBLE_BYTES {
-                return Err(format_error(
-                    line_no,
-                    format!(
-                        "more than {} of metadata, comment and blank lines before the header (the limit)",
-                        bytes(MAX_PREAMBLE_BYTES as u64)
-                    ),
-                ));
-            }
-            if let Some(value) = record::metadata(line)
-                .filter(|(key, _)| *key == "sample_rate_hz")
-                .map(|(_, value)| value)
-                && let Some(hz) = sampling::metadata_rate_hz(value).map_err(|m| format_error(line_no, m))?
-            {
-                metadata_rates.push((line_no, hz));
-            }
-            preamble.push(line.to_owned());
-        };
-        let columns_count = memchr::memchr_iter(b',', header_line.as_bytes()).count() + 1;
-        if columns_count > MAX_COLUMNS {
-            return Err(format_error(
-                line_no,
-                format!("header has {columns_count} columns; at most {MAX_COLUMNS} are read (the limit)"),
-            ));
-        }
-        let column_names: Vec<String> = header_line
-            .split(',')
-            .map(|s| record::trim_field(s).to_owned())
-            .collect();
-        let columns = Columns::from_header(&header_line).map_err(|e| match e {
-            HeaderError::MissingColumn(_) => format_error(line_no, missing_columns(&header_line, &column_names)),
-            HeaderError::DuplicateColumn(i) => format_error(
-                line_no,
-                format!(
-                    "column {} appears twice in the header",
-                    text::escape_controls(&column_names[i])
-                ),
-            ),
-            HeaderError::MixedAxes(i) => format_error(
-                line_no,
-                format!(
-                    "column {} (field {}): a run has rate_dph (one axis) or rate_x_dph, rate_y_dph, \
-                     rate_z_dph (one to three axes), not both",
-                    text::escape_controls(&column_names[i]),
-                    i + 1
-                ),
-            ),
-            _ => format_error(line_no, "unusable header".into()),
-        })?;
+        let ReadHeader { header, metadata_rates } = RunHeader::read(path, source.as_mut(), &mut buf)?;
+        let line_no = header.line_number();
+        let columns = *header.columns();
         let mut reader = RunReader {
-            path: path.to_owned(),
-            source,
-            line: String::new(),
-            line_bytes: buf,
-            line_no,
-            last_line_out: line_no,
-            header_line_no: line_no,
-            header_line,
-            column_names,
+            header,
             columns,
-            header_columns: columns,
-            preamble,
-            last_time_s: None,
+            lines: LineSource::new(source, line_no, buf),
+            time: TimeCheck::default(),
+            last_line_out: line_no,
             ahead: VecDeque::new(),
             nominal_period_s: 1.0,
-            watch: None,
             chunk_bytes: chunked::CHUNK_BYTES,
         };
         reader.read_ahead(&metadata_rates)?;
         Ok(reader)
     }
 
-    /// Reads the first [`PERIOD_ESTIMATE_STEPS`] + 1 rows, settles the
-    /// nominal period, checks every stated rate (line, Hz) against the time
-    /// column and the rows against the period.
+    /// Reads the first [`PERIOD_ESTIMATE_STEPS`] + 1 rows and settles the
+    /// nominal period on them ([`TimeCheck::settle`]).
     fn read_ahead(&mut self, metadata_rates: &[(usize, f64)]) -> Result<(), RunError> {
         while self.ahead.len() <= PERIOD_ESTIMATE_STEPS {
-            match self.read_source_row(true)? {
+            match self.read_checked(true)? {
                 Some((line, row)) => self.ahead.push_back(RawRow {
                     line,
                     row,
-                    text: self.line.clone(),
+                    text: self.lines.text().to_owned(),
                 }),
                 None => break,
             }
         }
-        let mut estimator = self.period_estimator();
-        let mut steps: Vec<f64> = Vec::with_capacity(self.ahead.len());
-        let mut prev: Option<f64> = None;
-        for raw in &self.ahead {
-            if !estimator.is_complete() {
-                estimator.push_time(raw.row.time_s);
-            }
-            if let Some(p) = prev {
-                steps.push(raw.row.time_s - p);
-            }
-            prev = Some(raw.row.time_s);
-        }
-        self.nominal_period_s = estimator.period_s();
-        let count = steps.len();
-        let median = record::nominal_period_s(None, &mut steps);
-        let lines = (
-            self.ahead.front().map_or(0, |r| r.line),
-            self.ahead.back().map_or(0, |r| r.line),
-        );
-        for &(line, hz) in metadata_rates {
-            sampling::check_agreement(hz, median, count, lines).map_err(|m| self.error_at(line, m))?;
-        }
-        if metadata_rates.is_empty() {
-            sampling::check_unstated_period(median, count, lines).map_err(|m| self.error_at(lines.0, m))?;
-        }
-        let source = if metadata_rates.is_empty() {
-            PeriodSource::Median
-        } else {
-            PeriodSource::Metadata
-        };
-        let mut watch = PeriodWatch::new(self.nominal_period_s, source);
-        let mut prev: Option<f64> = None;
-        for raw in &self.ahead {
-            if let Some(p) = prev {
-                watch
-                    .push(raw.row.time_s - p, raw.line)
-                    .map_err(|(line, m)| self.error_at(line, m))?;
-            }
-            prev = Some(raw.row.time_s);
-        }
-        self.watch = Some(watch);
+        self.nominal_period_s = self
+            .time
+            .settle(&self.ahead, metadata_rates, self.header.period_estimator())
+            .map_err(|(line, m)| self.header.error_at(line, m))?;
         Ok(())
     }
 
@@ -275,19 +130,14 @@ impl RunReader {
         self.chunk_bytes = bytes.max(1);
     }
 
+    /// What the run says before its data: preamble, header, column mapping.
+    pub fn header(&self) -> &RunHeader {
+        &self.header
+    }
+
     /// The file being read (`-`: standard input).
     pub fn path(&self) -> &Path {
-        &self.path
-    }
-
-    /// The header line as read (without line end).
-    pub fn header_line(&self) -> &str {
-        &self.header_line
-    }
-
-    /// Line number of the header, 1-based.
-    pub fn header_line_number(&self) -> usize {
-        self.header_line_no
+        self.header.path()
     }
 
     /// Number of the last row handed out, 1-based: the header's until a row is.
@@ -302,40 +152,12 @@ impl RunReader {
 
     /// The axes of a multi-axis run, in x, y, z order; empty for a single-axis run.
     pub fn axes(&self) -> Vec<Axis> {
-        self.header_columns.axes_present().collect()
+        self.header.axes()
     }
 
-    /// The columns that read `axis` ([`Columns::for_axis`]), or an error at
-    /// the header naming the missing rate column.
+    /// The columns that read `axis` ([`RunHeader::axis_columns`]).
     pub fn axis_columns(&self, axis: Axis) -> Result<Columns, RunError> {
-        self.header_columns.for_axis(axis).ok_or_else(|| {
-            self.error_at(
-                self.header_line_no,
-                format!(
-                    "header has no column {} (header: {})",
-                    axis.rate_column(),
-                    short(&self.header_line)
-                ),
-            )
-        })
-    }
-
-    /// Fails on a multi-axis run, for commands that read one axis
-    /// (`rate_dph`): the message names the axes and the commands that read them.
-    pub fn require_single_axis(&self) -> Result<(), RunError> {
-        let axes = self.axes();
-        if axes.is_empty() {
-            return Ok(());
-        }
-        let names: Vec<&str> = axes.iter().map(|a| a.name()).collect();
-        Err(self.error_at(
-            self.header_line_no,
-            format!(
-                "a multi-axis run (axes {}): this reads single-axis runs (rate_dph); fit, compensate, \
-                 eval and inspect read each axis",
-                names.join(", ")
-            ),
-        ))
+        self.header.axis_columns(axis)
     }
 
     /// Reads `axis` of a multi-axis run from here on, as a single-axis run
@@ -343,39 +165,19 @@ impl RunReader {
     /// reference as `ref_dph`); the rows already read ahead are parsed again.
     pub fn select_axis(&mut self, axis: Axis) -> Result<(), RunError> {
         let columns = self.axis_columns(axis)?;
-        let mut ahead = std::mem::take(&mut self.ahead);
-        for raw in &mut ahead {
-            raw.row = self.parse_with(&columns, raw.line, &raw.text)?;
+        let parser = self.header.row_parser();
+        for raw in &mut self.ahead {
+            raw.row = parser.parse(&columns, raw.line, &raw.text)?;
         }
-        self.ahead = ahead;
         self.columns = columns;
         Ok(())
     }
 
-    /// Parses the text of data line `line` with `columns` (another axis's
-    /// columns of this run, see [`RunReader::axis_columns`]); a refused
-    /// row's error names this file, the line and the column.
-    pub fn parse_with(&self, columns: &Columns, line: usize, text: &str) -> Result<Row, RunError> {
-        self.row_parser().parse(columns, line, text)
-    }
-
-    /// The lines before the header (metadata, blank lines) as read, without line ends.
-    pub fn preamble(&self) -> &[String] {
-        &self.preamble
-    }
-
     /// The run's nominal sample period, s: `# sample_rate_hz`, else the
-    /// median of the first steps ([`record::nominal_period_s`], the rule the
+    /// median of the first steps ([`rbf_core::record::nominal_period_s`], the rule the
     /// firmware replay follows too).
     pub fn nominal_period_s(&self) -> f64 {
         self.nominal_period_s
-    }
-
-    /// A period estimator primed with this run's metadata (see [`PeriodEstimator`]).
-    pub fn period_estimator(&self) -> PeriodEstimator {
-        let mut estimator = PeriodEstimator::new();
-        self.preamble.iter().for_each(|line| estimator.note_preamble_line(line));
-        estimator
     }
 
     /// Fails unless the run has a `temp_c` column (single-point models need it).
@@ -383,45 +185,10 @@ impl RunReader {
         self.require_thermometers(ThermometerSet::LOOP)
     }
 
-    /// Fails unless the run has the columns of `thermometers`, naming the
-    /// missing ones.
+    /// Fails unless the selected axis's columns include `thermometers`,
+    /// naming the missing ones ([`RunHeader::require_thermometers`]).
     pub fn require_thermometers(&self, thermometers: ThermometerSet) -> Result<(), RunError> {
-        self.require_thermometers_of(&self.columns, thermometers)
-    }
-
-    /// [`RunReader::require_thermometers`] for `columns` (another axis's).
-    pub fn require_thermometers_of(&self, columns: &Columns, thermometers: ThermometerSet) -> Result<(), RunError> {
-        let absent = thermometers.difference(columns.thermometers());
-        let missing: Vec<&str> = record::column::THERMOMETERS
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| absent.contains(*i))
-            .map(|(_, name)| *name)
-            .collect();
-        if missing.is_empty() {
-            return Ok(());
-        }
-        let what = if thermometers == ThermometerSet::LOOP {
-            "which single-point models need"
-        } else {
-            "which the model's inputs need"
-        };
-        Err(self.error_at(
-            self.header_line_no,
-            format!(
-                "header has no column {}, {what} (header: {})",
-                missing.join(", "),
-                short(&self.header_line)
-            ),
-        ))
-    }
-
-    fn error_at(&self, line: usize, message: String) -> RunError {
-        RunError::Format {
-            path: self.path.clone(),
-            line,
-            message,
-        }
+        self.header.require_thermometers(&self.columns, thermometers)
     }
 
     /// Reads the next data row; `Ok(None)` at the end of the file.
@@ -433,7 +200,7 @@ impl RunReader {
         Ok(self.read_row(true)?.map(|(line, row)| RawRow {
             line,
             row,
-            text: self.line.clone(),
+            text: self.lines.text().to_owned(),
         }))
     }
 
@@ -448,91 +215,24 @@ impl RunReader {
         self.read_row(false)
     }
 
-    /// The next row from the source, its time step watched for a change of rate.
+    /// The next row from the source, handed out ([`Self::line_number`] moves to it).
     fn read_row(&mut self, keep_text: bool) -> Result<Option<(usize, Row)>, RunError> {
-        let previous_s = self.last_time_s;
-        let Some((line, row)) = self.read_source_row(keep_text)? else {
-            return Ok(None);
-        };
-        if let (Some(watch), Some(p)) = (&mut self.watch, previous_s) {
-            let checked = watch.push(row.time_s - p, line);
-            checked.map_err(|(start, m)| self.error_at(start, m))?;
+        let read = self.read_checked(keep_text)?;
+        if let Some((line, _)) = read {
+            self.last_line_out = line;
         }
-        self.last_line_out = line;
-        Ok(Some((line, row)))
+        Ok(read)
     }
 
-    /// The next data row read from the source; its text (without line end)
-    /// in `self.line` when `keep_text` or when it is refused (the error
-    /// message quotes it).
-    fn read_source_row(&mut self, keep_text: bool) -> Result<Option<(usize, Row)>, RunError> {
-        loop {
-            self.line_no += 1;
-            let buf = self
-                .source
-                .fill_buf()
-                .map_err(|e| io_or_utf8(&self.path, self.line_no, e))?;
-            let outcome = match memchr::memchr(b'\n', buf) {
-                Some(end) if end <= MAX_LINE_BYTES => {
-                    let outcome = classify(&self.columns, buf.get(..end).unwrap_or(&[]), &mut self.line, keep_text);
-                    self.source.consume(end + 1);
-                    outcome
-                }
-                Some(_) => {
-                    let message = if has_inner_cr(buf.get(..MAX_LINE_BYTES).unwrap_or(buf)) {
-                        CR_ONLY.into()
-                    } else {
-                        too_long()
-                    };
-                    return Err(self.error_at(self.line_no, message));
-                }
-                None => {
-                    // The line runs past the buffer or ends the file without
-                    // a line end: the copying path.
-                    let mut bytes = std::mem::take(&mut self.line_bytes);
-                    let read = read_line_bounded(self.source.as_mut(), &mut bytes)
-                        .map_err(|e| io_or_utf8(&self.path, self.line_no, e));
-                    let outcome = match read {
-                        Ok(Bounded::End) => {
-                            self.line_no -= 1;
-                            self.line_bytes = bytes;
-                            return Ok(None);
-                        }
-                        Ok(_) if has_inner_cr(&bytes) => Err(self.error_at(self.line_no, CR_ONLY.into())),
-                        Ok(Bounded::TooLong) => Err(self.error_at(self.line_no, too_long())),
-                        Ok(Bounded::Line) => Ok(classify(&self.columns, &bytes, &mut self.line, keep_text)),
-                        Err(e) => Err(e),
-                    };
-                    self.line_bytes = bytes;
-                    outcome?
-                }
-            };
-            let row = match outcome {
-                Line::Skip => continue,
-                Line::NotUtf8 => {
-                    return Err(self.error_at(self.line_no, "line is not valid UTF-8 text".into()));
-                }
-                Line::Refused(_) if has_inner_cr(self.line.as_bytes()) => {
-                    return Err(self.error_at(self.line_no, CR_ONLY.into()));
-                }
-                Line::Refused(e) => return Err(self.row_error(e)),
-                Line::Row(row) => row,
-            };
-            if let Some(last) = self.last_time_s
-                && row.time_s <= last
-            {
-                return Err(self.error_at(
-                    self.line_no,
-                    format!(
-                        "column time_s (field {}): {} does not increase (previous row {last})",
-                        self.columns.time_s + 1,
-                        row.time_s
-                    ),
-                ));
-            }
-            self.last_time_s = Some(row.time_s);
-            return Ok(Some((self.line_no, row)));
-        }
+    /// The next row from the source, its time checked ([`TimeCheck::step`]).
+    fn read_checked(&mut self, keep_text: bool) -> Result<Option<(usize, Row)>, RunError> {
+        let Some((line, row)) = self.lines.next_row(&self.header, &self.columns, keep_text)? else {
+            return Ok(None);
+        };
+        self.time
+            .step(row.time_s, line, self.columns.time_s)
+            .map_err(|(start, m)| self.header.error_at(start, m))?;
+        Ok(Some((line, row)))
     }
 
     /// Hands every remaining data row to `consume` in batches, in file
@@ -552,11 +252,10 @@ impl RunReader {
             rows += first.len();
             consume(first);
         }
-        let mut source: Box<dyn BufRead + Send> = Box::new(std::io::empty());
-        std::mem::swap(&mut source, &mut self.source);
-        let first_line = self.line_no + 1;
+        let mut source = self.lines.take_source();
+        let first_line = self.lines.line_number() + 1;
         let columns = self.columns;
-        let path = self.path.clone();
+        let path = self.header.path().to_owned();
         chunked::for_each_batch(
             source.as_mut(),
             &columns,
@@ -564,7 +263,7 @@ impl RunReader {
             self.chunk_bytes,
             parse_workers(),
             |mut batch| {
-                batch.set_previous_time(self.last_time_s);
+                batch.set_previous_time(self.time.last_time_s());
                 let failed = self.check_batch(&batch);
                 let defect = batch.take_defect();
                 if let Some((k, _)) = failed {
@@ -580,15 +279,11 @@ impl RunReader {
                 }
                 match defect {
                     None => Ok(()),
-                    Some((line, defect, text)) => {
-                        self.line_no = line;
-                        self.line = text;
-                        Err(match defect {
-                            Defect::TooLong => self.error_at(line, too_long()),
-                            Defect::NotUtf8 => self.error_at(line, "line is not valid UTF-8 text".into()),
-                            Defect::Refused(e) => self.row_error(e),
-                        })
-                    }
+                    Some((line, defect, text)) => Err(match defect {
+                        Defect::TooLong => self.header.error_at(line, too_long()),
+                        Defect::NotUtf8 => self.header.error_at(line, "line is not valid UTF-8 text".into()),
+                        Defect::Refused(e) => self.header.row_parser().error(line, &text, e),
+                    }),
                 }
             },
             |line, error| io_or_utf8(&path, line, error),
@@ -596,69 +291,16 @@ impl RunReader {
         Ok(rows)
     }
 
-    /// The first row of `batch` that breaks the strictly increasing time or
-    /// the sample-rate watch, with its error; the time of the last good row
-    /// is kept for the next batch.
+    /// The first row of `batch` that breaks the time checks, with its
+    /// error; the time of the last good row is kept for the next batch.
     fn check_batch(&mut self, batch: &Batch) -> Option<(usize, RunError)> {
         for k in 0..batch.len() {
-            let time_s = batch.time_s(k);
-            let line = batch.line(k);
-            if let Some(last) = self.last_time_s {
-                if time_s <= last {
-                    let message = format!(
-                        "column time_s (field {}): {} does not increase (previous row {last})",
-                        self.columns.time_s + 1,
-                        time_s
-                    );
-                    return Some((k, self.error_at(line, message)));
-                }
-                if let Some(watch) = &mut self.watch
-                    && let Err((start, m)) = watch.push(time_s - last, line)
-                {
-                    return Some((k, self.error_at(start, m)));
-                }
+            if let Err((line, m)) = self.time.step(batch.time_s(k), batch.line(k), self.columns.time_s) {
+                return Some((k, self.header.error_at(line, m)));
             }
-            self.last_time_s = Some(time_s);
         }
         None
     }
-
-    /// The error for a refused row, naming its column and quoting its field
-    /// (the row's text is in `self.line`).
-    fn row_error(&self, e: record::RowError) -> RunError {
-        self.row_error_in(self.line_no, &self.line, e)
-    }
-
-    /// The error for row `text` of line `line`, refused by the row parser.
-    fn row_error_in(&self, line: usize, text: &str, e: record::RowError) -> RunError {
-        self.row_parser().error(line, text, e)
-    }
-
-    /// A parser of this run's lines by other columns (another axis's, see
-    /// [`RunReader::axis_columns`]) that outlives the reader: its errors
-    /// name this file, the line and the column.
-    pub fn row_parser(&self) -> RowParser {
-        RowParser {
-            path: self.path.clone(),
-            column_names: self.column_names.clone(),
-        }
-    }
-}
-
-/// The compression format whose magic bytes `head` (a file's first bytes)
-/// starts with, and the command that undoes it.
-fn compressed_format(head: &[u8]) -> Option<(&'static str, &'static str)> {
-    const MAGIC: [(&[u8], &str, &str); 5] = [
-        (&[0x1f, 0x8b], "gzip", "gunzip FILE"),
-        (&[0x28, 0xb5, 0x2f, 0xfd], "zstd", "unzstd FILE"),
-        (&[0xfd, b'7', b'z', b'X', b'Z', 0x00], "xz", "unxz FILE"),
-        (b"BZh", "bzip2", "bunzip2 FILE"),
-        (b"PK\x03\x04", "zip", "unzip FILE"),
-    ];
-    MAGIC
-        .iter()
-        .find(|(magic, _, _)| head.starts_with(magic))
-        .map(|&(_, format, tool)| (format, tool))
 }
 
 #[cfg(test)]
@@ -668,6 +310,7 @@ fn compressed_format(head: &[u8]) -> Option<(&'static str, &'static str)> {
 )]
 mod tests {
     use super::*;
+    use crate::reading::limits::MAX_LINE_BYTES;
 
     const TEXT: &str = "# sample_rate_hz: 100\r\ntime_s,rate_dph,temp_c\r\n0.00,1.5,20.0\r\n# a comment\n\n0.01, 2.5 ,20.25\n0.02,3.5,20.5";
 
@@ -911,6 +554,7 @@ mod tests {
         assert!(err.starts_with("run.csv:1: header has no column rate_y_dph"), "{err}");
         let err = open_axis(text, None)
             .unwrap()
+            .header()
             .require_single_axis()
             .unwrap_err()
             .to_string();
@@ -918,7 +562,13 @@ mod tests {
             err.starts_with("run.csv:1: a multi-axis run (axes x): this reads single-axis runs"),
             "{err}"
         );
-        assert!(open_axis(TEXT.as_bytes(), None).unwrap().require_single_axis().is_ok());
+        assert!(
+            open_axis(TEXT.as_bytes(), None)
+                .unwrap()
+                .header()
+                .require_single_axis()
+                .is_ok()
+        );
         let text = b"time_s,rate_x_dph,temp_c,rate_y_dph\n0,1,20,2\n0.1,2,20,oops\n";
         let err = open_axis(text, Some(Axis::Y)).unwrap_err().to_string();
         assert_eq!(err, "run.csv:3: column rate_y_dph (field 4): \"oops\" is not a number");

@@ -2,7 +2,15 @@
 //! once from a [`RunReader`] ([`StreamedRun`]), with the reference rate
 //! ([`Reference`]) and each row's thermometer readings.
 
-use super::*;
+use std::path::{Path, PathBuf};
+
+use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
+use rbf_core::record::Row;
+use rbf_core::thermometer::ThermometerSet;
+use rbf_core::{CompensatorConfig, GyroSample};
+
+use super::{RawRow, RunError, RunReader};
+use crate::reading::chunked::Batch;
 
 /// A whole run in memory, column-wise.
 #[derive(Clone, Debug)]

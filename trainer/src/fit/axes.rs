@@ -1,8 +1,9 @@
 //! The fit of multi-axis runs: every axis fitted by the single-axis fit (its
 //! full model search, the axes in parallel) and the joint three-axis policy,
 //! which tries one shared basis for every axis and chooses it or a model per
-//! axis. It sits above [`crate::fit`] and [`crate::evaluation::evaluate`] (it scores the
-//! fits on their block means); `trainer fit` prints and writes what it gives.
+//! axis. It uses the single-axis [`fit`](super::fit()) and
+//! [`crate::evaluation::evaluate`] (it scores the fits on their block means);
+//! `trainer fit` prints and writes what it gives.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -105,7 +106,7 @@ pub fn try_joint(
             }
         }
     }
-    let Some(ridge) = first.choice.as_ref().map(|c| c.ridge) else {
+    let Some(ridge) = first.rbf_choice().map(|c| c.ridge) else {
         return Ok(not_tried(format!(
             "the fit of axis {} is not a Gaussian RBF network",
             first_axis.name()
