@@ -96,6 +96,7 @@ impl RunReader {
         let mut preamble = Vec::new();
         let mut preamble_bytes = 0usize;
         let mut metadata_rates: Vec<(usize, f64)> = Vec::new();
+        let mut counted_time_base = false;
         let format_error = |line: usize, message: String| RunError::Format {
             path: path.to_owned(),
             line,
@@ -148,6 +149,7 @@ impl RunReader {
                     ),
                 ));
             }
+            counted_time_base |= record::metadata(line).is_some_and(|(k, v)| sampling::is_counted_time_base(k, v));
             if let Some(value) = record::metadata(line)
                 .filter(|(key, _)| *key == "sample_rate_hz")
                 .map(|(_, value)| value)
@@ -207,14 +209,14 @@ impl RunReader {
             watch: None,
             chunk_bytes: chunked::CHUNK_BYTES,
         };
-        reader.read_ahead(&metadata_rates)?;
+        reader.read_ahead(&metadata_rates, counted_time_base)?;
         Ok(reader)
     }
 
     /// Reads the first [`PERIOD_ESTIMATE_STEPS`] + 1 rows, settles the
     /// nominal period, checks every stated rate (line, Hz) against the time
     /// column and the rows against the period.
-    fn read_ahead(&mut self, metadata_rates: &[(usize, f64)]) -> Result<(), RunError> {
+    fn read_ahead(&mut self, metadata_rates: &[(usize, f64)], counted_time_base: bool) -> Result<(), RunError> {
         while self.ahead.len() <= PERIOD_ESTIMATE_STEPS {
             match self.read_source_row(true)? {
                 Some((line, row)) => self.ahead.push_back(RawRow {
@@ -244,7 +246,9 @@ impl RunReader {
             self.ahead.front().map_or(0, |r| r.line),
             self.ahead.back().map_or(0, |r| r.line),
         );
-        for &(line, hz) in metadata_rates {
+        // A counted time base steps long only where samples were missed:
+        // its stated rate is the unit's, whatever was lost at the start.
+        for &(line, hz) in metadata_rates.iter().filter(|_| !counted_time_base) {
             sampling::check_agreement(hz, median, count, lines).map_err(|m| self.error_at(line, m))?;
         }
         if metadata_rates.is_empty() {
@@ -256,6 +260,9 @@ impl RunReader {
             PeriodSource::Metadata
         };
         let mut watch = PeriodWatch::new(self.nominal_period_s, source);
+        if counted_time_base {
+            watch = watch.counted();
+        }
         let mut prev: Option<f64> = None;
         for raw in &self.ahead {
             if let Some(p) = prev {
