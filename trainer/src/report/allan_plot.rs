@@ -131,7 +131,8 @@ where
             .label(format!("τ^−½: ARW {arw:.2e} °/√h"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], guide));
     }
-    let floor = a.bias_instability_dph * crate::evaluation::allan::FLICKER_FLOOR;
+    // The line sits at the bias instability its label gives (σ/0.664), not at σ.
+    let floor = a.bias_instability_dph;
     if floor.is_finite() && floor > 0.0 {
         let orange = RGBColor(230, 140, 20);
         chart
@@ -148,7 +149,7 @@ where
                 )
             } else {
                 format!(
-                    "no floor by τ {:.0} s (T/10): bias instability ≤ {:.2e} °/h",
+                    "no floor above the white noise by τ {:.0} s (T/10): bias instability ≤ {:.2e} °/h",
                     a.confident_tau_max_s, a.bias_instability_dph
                 )
             })
