@@ -26,6 +26,9 @@ struct Cli {
 }
 
 fn main() -> ExitCode {
+    // First, before any other thread: every terminating signal cleans up,
+    // and SIGXFSZ makes a write fail instead of killing a command mid-print.
+    trainer::output::catch_signals();
     // A command line clap refuses exits 1 like every other error (--help and
     // --version print to stdout and exit 0).
     let cli = match Cli::try_parse() {

@@ -40,7 +40,7 @@ mod cleanup;
 mod dir;
 mod transaction;
 
-pub use cleanup::{GracefulStop, stop_gracefully};
+pub use cleanup::{FROM_OUTSIDE_ONLY, GracefulStop, install as catch_signals, stop_gracefully, terminating};
 pub use dir::{DirTarget, StagedDir, check_dir_target};
 pub(crate) use transaction::Installed;
 pub use transaction::Transaction;

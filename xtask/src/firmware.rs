@@ -160,6 +160,8 @@ pub fn build(package: &str, bin: &str, features: &[&str]) -> anyhow::Result<Path
     static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
     ensure_flip_link()?;
     let _building = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    // cargo runs quietly: say what the wait is for (a first build takes minutes).
+    eprintln!("==> building firmware binary {bin} for {TARGET} (release; minutes the first time, a no-op once built)");
     let status = build_command(package, bin, features)
         .status()
         .context("cannot start cargo")?;
@@ -185,6 +187,10 @@ pub fn build(package: &str, bin: &str, features: &[&str]) -> anyhow::Result<Path
 /// time. After `cargo xtask ci`'s host tests every target is fresh and this
 /// costs a no-op; run alone it builds the workspace's tests once.
 pub fn trainer_cli() -> anyhow::Result<PathBuf> {
+    eprintln!(
+        "==> building the trainer CLI with the workspace's tests (cargo test --workspace --no-run; minutes the first time, \
+         a no-op once built)"
+    );
     let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
         .args(["test", "--quiet", "--workspace", "--no-run"])
         .env("CARGO_TARGET_DIR", crate::target_dir())

@@ -106,23 +106,21 @@ impl JsonSink {
         matches!(self, JsonSink::Stdout)
     }
 
-    /// Writes `value` pretty-printed: to standard output now (flushed, so
-    /// a closed pipe fails the command here), or into its file, staged in
-    /// `transaction` with the command's other outputs.
-    pub fn write(self, value: &serde_json::Value, transaction: &mut Transaction) -> anyhow::Result<()> {
+    /// Writes `value` pretty-printed: into its file, staged in
+    /// `transaction` with the command's other outputs; for standard output,
+    /// returns the text, which [`print_json_and_commit`] prints after the
+    /// human-readable text (on standard error), so a reader that stops
+    /// early (`| head -c 100`) cannot cost the table.
+    pub fn write(self, value: &serde_json::Value, transaction: &mut Transaction) -> anyhow::Result<Option<String>> {
         let json = serde_json::to_string_pretty(value)?;
         match self {
-            JsonSink::None => Ok(()),
-            JsonSink::Stdout => {
-                let mut out = stdout();
-                writeln!(out, "{json}")?;
-                Ok(out.flush()?)
-            }
+            JsonSink::None => Ok(None),
+            JsonSink::Stdout => Ok(Some(json)),
             JsonSink::File(mut out) => {
                 out.write_all(json.as_bytes())
                     .with_context(|| format!("{}: write failed", text::path(out.path())))?;
                 transaction.add(out);
-                Ok(())
+                Ok(None)
             }
         }
     }
@@ -142,13 +140,46 @@ pub fn print_text(text: &[u8], json_on_stdout: bool) -> std::io::Result<()> {
     }
 }
 
+/// The one line a failed print becomes: a reader that stopped early (a
+/// broken pipe, `| head`) is named as such, not as an I/O error.
+fn print_failed(stream: &str, e: std::io::Error) -> anyhow::Error {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        anyhow::anyhow!("{stream}: closed by its reader before the output was whole (broken pipe); nothing written")
+    } else {
+        anyhow::anyhow!("{stream}: write failed ({e}); nothing written")
+    }
+}
+
 /// How every command that writes files ends: `text` printed ([`print_text`]),
 /// then every output staged in `transaction` committed together. A print
 /// that fails (a closed pipe, a full disk behind a redirection) fails the
 /// command before anything is committed; `text` may say "wrote": a commit
 /// that fails after it makes the command exit 1 with the cause.
 pub fn print_and_commit(text: &[u8], json_on_stdout: bool, transaction: Transaction) -> anyhow::Result<()> {
-    print_text(text, json_on_stdout).context("standard output: write failed; nothing written")?;
+    print_json_and_commit(text, json_on_stdout, None, transaction)
+}
+
+/// [`print_and_commit`], with the JSON document for standard output
+/// (`--json -`, [`JsonSink::write`]) printed after `text`: the text is
+/// whole on standard error whatever becomes of standard output.
+pub fn print_json_and_commit(
+    text: &[u8],
+    text_to_stderr: bool,
+    stdout_json: Option<String>,
+    transaction: Transaction,
+) -> anyhow::Result<()> {
+    let stream = if text_to_stderr {
+        "standard error"
+    } else {
+        "standard output"
+    };
+    print_text(text, text_to_stderr).map_err(|e| print_failed(stream, e))?;
+    if let Some(json) = stdout_json {
+        let mut out = stdout();
+        writeln!(out, "{json}")
+            .and_then(|()| out.flush())
+            .map_err(|e| print_failed("standard output", e))?;
+    }
     transaction.commit()
 }
 

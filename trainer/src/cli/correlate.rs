@@ -8,7 +8,7 @@ use trainer::output::Existing;
 use trainer::reading::input;
 use trainer::reading::limits::MAX_BLOCK_SAMPLES;
 
-use super::common::{JsonArg, PAPER_THRESHOLD, SelectArgs, describe_selection, print_and_commit, rule_name};
+use super::common::{JsonArg, PAPER_THRESHOLD, SelectArgs, describe_selection, print_json_and_commit, rule_name};
 use trainer::output::Transaction;
 
 /// Which temperatures and gradients explain the bias: the RLG paper's input selection.
@@ -56,10 +56,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let names: Vec<String> = selected.iter().map(|&c| candidate_name(&table, c)).collect();
     let json_on_stdout = json_out.is_stdout();
     let mut transaction = Transaction::new();
-    json_out.write(
+    let json = json_out.write(
         &serde_json::json!({ "table": table, "selected": selected, "selected_names": names }),
         &mut transaction,
     )?;
     let text = describe_selection(&table, &selected, &rule_name(selection));
-    print_and_commit(text.as_bytes(), json_on_stdout, transaction)
+    print_json_and_commit(text.as_bytes(), json_on_stdout, json, transaction)
 }

@@ -17,7 +17,7 @@ use trainer::reading::limits::{
 };
 use trainer::text;
 
-use super::common::{ForceArg, JsonArg, print_and_commit, print_text, stderr};
+use super::common::{ForceArg, JsonArg, print_and_commit, print_json_and_commit, print_text, stderr};
 use super::model_arg::ModelArg;
 
 /// Talk to a running unit over its serial port: health, model update, recording.
@@ -193,10 +193,11 @@ fn status_command(a: StatusArgs) -> anyhow::Result<()> {
     let unit = status::query(&mut link, timeout)?;
     let on_stdout = sink.is_stdout();
     let mut transaction = Transaction::new();
-    sink.write(&status::to_json(&a.port.port, &unit), &mut transaction)?;
-    print_and_commit(
+    let json = sink.write(&status::to_json(&a.port.port, &unit), &mut transaction)?;
+    print_json_and_commit(
         status::describe(&text::terminal_safe(&a.port.port), &unit).as_bytes(),
         on_stdout,
+        json,
         transaction,
     )
 }

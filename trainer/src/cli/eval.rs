@@ -9,7 +9,7 @@ use trainer::evaluation::evaluate::RunEvaluation;
 use trainer::evaluation::table::{print_allan_table, print_settled_table, print_table};
 use trainer::reading::input;
 
-use super::common::{AllowUncompensated, ForceArg, JsonArg, print_and_commit};
+use super::common::{AllowUncompensated, ForceArg, JsonArg, print_json_and_commit};
 use super::model_arg::ModelArg;
 use trainer::output::Transaction;
 
@@ -51,10 +51,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let evals = evaluate_files(&model, model_path, &a.runs, a.uncompensated.acceptance())?;
     let json_on_stdout = json_out.is_stdout();
     let mut transaction = Transaction::new();
-    json_out.write(&serde_json::to_value(&evals)?, &mut transaction)?;
+    let json = json_out.write(&serde_json::to_value(&evals)?, &mut transaction)?;
     let mut text = Vec::new();
     write_tables(&mut text, &evals)?;
-    print_and_commit(&text, json_on_stdout, transaction)
+    print_json_and_commit(&text, json_on_stdout, json, transaction)
 }
 
 /// The accuracy and Allan tables `trainer eval` prints.

@@ -17,7 +17,7 @@ use trainer::reading::run::RunReader;
 use trainer::text;
 use trainer::{evaluation::diagnose, reading::input};
 
-use super::common::{JsonSink, print_and_commit};
+use super::common::{JsonSink, print_json_and_commit};
 
 mod args;
 mod axes;
@@ -206,8 +206,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     write_blob(model_out, &blob, &mut transaction)?;
     let json_on_stdout = json_out.is_stdout();
-    json_out.write(&json, &mut transaction)?;
-    print_and_commit(&out, json_on_stdout, transaction)?;
+    let json = json_out.write(&json, &mut transaction)?;
+    print_json_and_commit(&out, json_on_stdout, json, transaction)?;
     match verdict {
         Some(v) if !v.passed() => {
             Err(Rejected(format!("the unit missed its acceptance spec: {}", v.reasons.join("; "))).into())

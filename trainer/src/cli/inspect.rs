@@ -11,7 +11,7 @@ use trainer::describe::summary::{count, sig};
 use trainer::output::Existing;
 use trainer::text;
 
-use super::common::{JsonArg, print_and_commit};
+use super::common::{JsonArg, print_json_and_commit};
 use super::fit::json::features_json;
 use super::toml;
 use trainer::output::Transaction;
@@ -84,15 +84,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let json_on_stdout = json_out.is_stdout();
     let mut transaction = Transaction::new();
-    json_out.write(&info, &mut transaction)?;
+    let json = json_out.write(&info, &mut transaction)?;
     let printed = match a.format {
         Format::Text => summary(&info),
         Format::Toml => toml::to_toml(&info),
         Format::Json => format!("{}\n", serde_json::to_string_pretty(&info)?),
     };
-    print_and_commit(
+    print_json_and_commit(
         printed.as_bytes(),
         json_on_stdout && a.format == Format::Text,
+        json,
         transaction,
     )?;
     match (decoded, problem) {
@@ -233,7 +234,7 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
     add_provenance_json(&mut info, bytes, header.blob_len());
     let json_on_stdout = json_out.is_stdout();
     let mut transaction = Transaction::new();
-    json_out.write(&info, &mut transaction)?;
+    let json = json_out.write(&info, &mut transaction)?;
     let printed = match format {
         Format::Text => {
             let mut text = summary(&info)
@@ -262,9 +263,10 @@ fn inspect_axes(path: &Path, bytes: &[u8], format: Format, json_out: super::comm
         Format::Toml => toml::to_toml(&info),
         Format::Json => format!("{}\n", serde_json::to_string_pretty(&info)?),
     };
-    print_and_commit(
+    print_json_and_commit(
         printed.as_bytes(),
         json_on_stdout && format == Format::Text,
+        json,
         transaction,
     )?;
     match problem {

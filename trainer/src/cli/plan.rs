@@ -8,7 +8,7 @@ use clap::builder::RangedU64ValueParser;
 use trainer::output::{self, Output, Transaction};
 use trainer::text;
 
-use super::common::{ForceArg, JsonArg, print_and_commit};
+use super::common::{ForceArg, JsonArg, print_json_and_commit};
 
 /// Design the chamber run to calibrate on: a profile the default model can be identified from.
 ///
@@ -187,8 +187,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         writeln!(out, "wrote {}", text::path(p))?;
     }
     let json_on_stdout = json_out.is_stdout();
-    json_out.write(&json_report(&plan, spec.as_ref()), &mut transaction)?;
-    print_and_commit(&out, json_on_stdout, transaction)
+    let json = json_out.write(&json_report(&plan, spec.as_ref()), &mut transaction)?;
+    print_json_and_commit(&out, json_on_stdout, json, transaction)
 }
 
 /// The plan to write, with its prediction: designed within `limits` as

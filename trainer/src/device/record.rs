@@ -164,6 +164,8 @@ fn write_header(
     writeln!(out, "# model_blob_crc32: {:#010x}", m.blob_crc32)?;
     writeln!(out, "# model_sequence: {}", m.sequence)?;
     writeln!(out, "# sample_rate_hz: {rate_hz}")?;
+    // time_s counts the unit's samples: the reader takes frames missed as gaps.
+    writeln!(out, "{}", crate::reading::sampling::counted_time_base_line())?;
     let header = format!("time_s,{}", frames::recording_header(kind));
     writeln!(out, "{header}")?;
     Ok(header)
@@ -558,6 +560,42 @@ mod tests {
         }
         assert_eq!(times.len(), 9);
         assert_eq!(times[..3], [0.0, 0.004, 0.005]);
+    }
+
+    #[test]
+    fn a_recording_with_frames_dropped_in_stretches_is_read_whole() {
+        // 1200 samples at 1 kHz; frames 300 … 899 arrive only one in three
+        // (a congested line), then 100 are lost at once.
+        let kept = |seq: &u32| !(300..900).contains(seq) || seq.is_multiple_of(3);
+        let frames: Vec<_> = (1..=1200)
+            .filter(kept)
+            .filter(|seq| !(1000..1100).contains(seq))
+            .map(sample)
+            .collect();
+        let (text, progress) = recording_of(&frames, |b| b.to_vec());
+        assert_eq!(progress.rows, frames.len() as u64);
+        assert_eq!(progress.missed, 400 + 100);
+        let path = std::path::Path::new("rec.csv");
+        let mut reader =
+            crate::reading::run::RunReader::from_reader(path, std::io::Cursor::new(text.clone().into_bytes())).unwrap();
+        let mut rows = 0;
+        while let Some(row) = reader.next_row().unwrap() {
+            rows += 1;
+            let from_seq_s = (row.row.rate_dph - 11.0) / 1000.0;
+            assert!((row.row.time_s - from_seq_s).abs() < 1e-9, "time_s from seq");
+        }
+        assert_eq!(rows, frames.len(), "every row read");
+        // The same rows without the time-base line: the reader would call it a change of rate.
+        let plain = text.replace(
+            &crate::reading::sampling::counted_time_base_line(),
+            "# time_base: other",
+        );
+        let refused = crate::reading::run::RunReader::from_reader(path, std::io::Cursor::new(plain.into_bytes()))
+            .and_then(|mut r| {
+                while r.next_row()?.is_some() {}
+                Ok(())
+            });
+        assert!(refused.is_err());
     }
 
     #[test]

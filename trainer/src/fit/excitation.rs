@@ -40,9 +40,20 @@ pub fn check_excitation(
         ));
     }
     if blocks.is_empty() {
-        return Err(
-            Unidentifiable("no usable samples in the training runs (all warming up or sensor faults)".into()).into(),
-        );
+        // Usable samples but no whole block: the block is the cause, not the run.
+        let why = if blocks.usable_s > 0.0 {
+            format!(
+                "no block of {} s is whole: the training runs hold {:.0} s ({:.2} h) of usable samples, less than one block; \
+                 --block-s {} is longer than the runs: use a shorter block",
+                crate::reading::sampling::sig(block_s),
+                blocks.usable_s,
+                blocks.usable_s / 3600.0,
+                crate::reading::sampling::sig(block_s)
+            )
+        } else {
+            "no usable samples in the training runs (all warming up or sensor faults)".to_owned()
+        };
+        return Err(Unidentifiable(why).into());
     }
     let (y_lo, y_hi) = blocks
         .y

@@ -7,17 +7,50 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard, Once};
 
+use nix::sys::signal::{SigSet, Signal};
 use signal_hook::consts::signal::{
-    SIGABRT, SIGALRM, SIGHUP, SIGINT, SIGPROF, SIGQUIT, SIGTERM, SIGTRAP, SIGUSR1, SIGUSR2, SIGVTALRM, SIGXCPU, SIGXFSZ,
+    SIGABRT, SIGALRM, SIGHUP, SIGINT, SIGIO, SIGPROF, SIGQUIT, SIGSYS, SIGTERM, SIGTRAP, SIGUSR1, SIGUSR2, SIGVTALRM,
+    SIGXCPU, SIGXFSZ,
 };
 
-/// Every signal whose default action ends the process and that a process
-/// may catch, except SIGPIPE: the Rust runtime ignores it, so a write to a
-/// closed pipe fails with an error the command reports (before it commits
-/// anything), and a SIGPIPE sent from outside changes nothing.
-pub const TERMINATING: [i32; 12] = [
-    SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGXCPU, SIGTRAP, SIGABRT,
-];
+/// Every signal whose default action ends the process and that a handler
+/// may catch, but SIGPIPE and the faults: the classic ones, Linux's SIGPWR,
+/// SIGIO, SIGSYS and SIGSTKFLT, and the real-time signals SIGRTMIN …
+/// SIGRTMAX. SIGPIPE is left out: the Rust runtime ignores it, so a write
+/// to a closed pipe fails with an error the command reports (before it
+/// commits anything), and a SIGPIPE sent from outside changes nothing.
+/// The faults SIGILL and SIGFPE are [`FROM_OUTSIDE_ONLY`]; SIGSEGV and
+/// SIGBUS stay the runtime's (its stack-overflow report).
+pub fn terminating() -> Vec<i32> {
+    let mut signals = vec![
+        SIGINT,
+        SIGTERM,
+        SIGHUP,
+        SIGQUIT,
+        SIGUSR1,
+        SIGUSR2,
+        SIGALRM,
+        SIGVTALRM,
+        SIGPROF,
+        SIGXCPU,
+        SIGTRAP,
+        SIGABRT,
+        SIGIO,
+        SIGSYS,
+        nix::libc::SIGPWR,
+        nix::libc::SIGSTKFLT,
+    ];
+    signals.extend(nix::libc::SIGRTMIN()..=nix::libc::SIGRTMAX());
+    signals
+}
+
+/// Fault signals that no handler may catch (a handler returning would
+/// re-run the faulting instruction), so they are blocked in every thread
+/// and waited for by one: sent from outside (`kill -ILL`), they clean up
+/// like any other terminating signal. A real fault of the process still
+/// ends it at once: the kernel delivers a synchronous SIGILL or SIGFPE
+/// even when it is blocked.
+pub const FROM_OUTSIDE_ONLY: [Signal; 2] = [Signal::SIGILL, Signal::SIGFPE];
 
 /// Signals that, once [`stop_gracefully`] was called, end the command's
 /// work instead of the process (the first of them; a second one ends the
@@ -86,17 +119,35 @@ impl Pending {
     }
 }
 
-/// Starts, once per process, the thread that removes the staged paths on a
-/// terminating signal ([`TERMINATING`]) and ends the process as the signal
-/// would have. SIGXFSZ (past `ulimit -f`) is caught and does nothing, so the
-/// write that crossed the limit fails with "File too large" and the command
-/// reports it like any failed write.
-pub(crate) fn install() {
+/// Starts, once per process, the threads that remove the staged paths on
+/// a terminating signal ([`terminating`], [`FROM_OUTSIDE_ONLY`]) and end
+/// the process as the signal would have. SIGXFSZ (past `ulimit -f`) is
+/// caught and does nothing, so the write that crossed the limit fails with
+/// "File too large" and the command reports it like any failed write.
+///
+/// `main` calls it first, before any other thread exists: the blocked
+/// [`FROM_OUTSIDE_ONLY`] signals are blocked in every thread started
+/// after it, and every command, even one that only prints, is covered.
+pub fn install() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         let xfsz = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
         let _ = signal_hook::flag::register(SIGXFSZ, xfsz);
-        let Ok(mut signals) = signal_hook::iterator::Signals::new(TERMINATING) else {
+        let mut faults = SigSet::empty();
+        for signal in FROM_OUTSIDE_ONLY {
+            faults.add(signal);
+        }
+        if faults.thread_block().is_ok() {
+            let spawned = std::thread::Builder::new()
+                .name("output-cleanup-faults".into())
+                .spawn(move || {
+                    if let Ok(signal) = faults.wait() {
+                        remove_staged_and_end(signal as i32);
+                    }
+                });
+            drop(spawned);
+        }
+        let Ok(mut signals) = signal_hook::iterator::Signals::new(terminating()) else {
             return;
         };
         let spawned = std::thread::Builder::new()
@@ -109,19 +160,31 @@ pub(crate) fn install() {
                     {
                         continue;
                     }
-                    // The lock is never released.
-                    let staged = pending();
-                    for s in staged.0.iter() {
-                        let _ = if s.dir {
-                            std::fs::remove_dir_all(&s.path)
-                        } else {
-                            std::fs::remove_file(&s.path)
-                        };
-                    }
-                    let _ = signal_hook::low_level::emulate_default_handler(signal);
-                    std::process::exit(128 + signal);
+                    remove_staged_and_end(signal);
                 }
             });
         drop(spawned);
     });
+}
+
+/// Removes every staged path and ends the process as `signal` would have.
+/// The registry's lock is taken and never released: a commit in progress
+/// (which holds it through its renames and the removal of what they
+/// replaced) ends first, and none starts after.
+fn remove_staged_and_end(signal: i32) -> ! {
+    let staged = pending();
+    for s in staged.0.iter() {
+        let _ = if s.dir {
+            std::fs::remove_dir_all(&s.path)
+        } else {
+            std::fs::remove_file(&s.path)
+        };
+    }
+    if let Ok(blocked) = Signal::try_from(signal) {
+        let mut this = SigSet::empty();
+        this.add(blocked);
+        let _ = this.thread_unblock();
+    }
+    let _ = signal_hook::low_level::emulate_default_handler(signal);
+    std::process::exit(128 + signal);
 }

@@ -202,6 +202,10 @@ impl StagedDir {
             .as_deref()
             .with_context(|| format!("{shown}: already committed"))?;
         let path = staged.join(rel);
+        // With the registry locked: a stopping signal's cleanup, which
+        // holds it to the end, never meets a write that would recreate the
+        // directory it removes.
+        let _no_cleanup_meanwhile = cleanup::pending();
         if let Some(parent) = path.parent() {
             std::fs::create_dir_all(parent).with_context(|| format!("{shown}: cannot create its directory"))?;
         }

@@ -103,10 +103,16 @@ impl Transaction {
             dir.finish()?;
         }
         let mut staged = cleanup::pending();
-        let result = self.install_all(&mut staged);
-        // The outputs are dropped (their leftovers removed) after the lock is released.
-        drop(staged);
-        let installed = result?;
+        let installed = match self.install_all(&mut staged) {
+            Ok(installed) => installed,
+            Err(e) => {
+                // The outputs are dropped (their leftovers removed) after the lock is released.
+                drop(staged);
+                return Err(e);
+            }
+        };
+        // The replaced content is removed with the lock still held: a
+        // stopping signal waits until no second name of it is left.
         let mut dirs: Vec<PathBuf> = Vec::new();
         for i in installed {
             let parent = match i.path().parent().filter(|p| !p.as_os_str().is_empty()) {
@@ -118,6 +124,7 @@ impl Transaction {
             }
             i.settle();
         }
+        drop(staged);
         // The renames are durable once their directories are.
         for dir in dirs {
             std::fs::File::open(&dir)

@@ -40,6 +40,15 @@ const REFERENCE_RATIO: f64 = 100.0;
 /// alone spreads 1-s samples over more than 1e-2 °/h; rad/s or °/s readings
 /// of any gyro spread less than this.
 pub const MIN_RATE_SPREAD_DPH: f64 = 1e-4;
+/// Room temperature written in °F, the start of a chamber run logged in °F:
+/// 15 … 30 °C is 59 … 86 °F.
+const ROOM_IN_FAHRENHEIT: (f64, f64) = (59.0, 86.0);
+/// 0 °C in °F: a run logged in °F whose loop never froze never reads below it.
+const FREEZING_IN_FAHRENHEIT: f64 = 32.0;
+/// Least span of a run read for the °F hint, degrees: a chamber run's ramps,
+/// not a soak at one temperature.
+const FAHRENHEIT_MIN_SPAN: f64 = 10.0;
+
 /// Units a rate column is often in, with their size in °/h.
 const RATE_UNITS: [(&str, f64); 3] = [
     ("rad/s", 3600.0 * 180.0 / std::f64::consts::PI),
@@ -53,6 +62,8 @@ pub struct Plausibility {
     temp_name: String,
     min_c: f64,
     max_c: f64,
+    /// The first reading, °C (as read).
+    first_c: Option<f64>,
     first_outside_line: Option<usize>,
     outside: usize,
     readings: usize,
@@ -78,6 +89,7 @@ impl Plausibility {
             temp_name: temp_name.to_owned(),
             min_c: f64::INFINITY,
             max_c: f64::NEG_INFINITY,
+            first_c: None,
             first_outside_line: None,
             outside: 0,
             readings: 0,
@@ -124,6 +136,7 @@ impl Plausibility {
         self.last_time_s = time_s;
         let Some(t) = loop_c else { return };
         self.readings += 1;
+        self.first_c.get_or_insert(t);
         self.min_c = self.min_c.min(t);
         self.max_c = self.max_c.max(t);
         if !(LOOP_MIN_C..=LOOP_MAX_C).contains(&t) {
@@ -173,6 +186,20 @@ impl Plausibility {
         probe.fastest_c_per_min.max(whole)
     }
 
+    /// A loop temperature in °F that stays inside the °C range: the run
+    /// starts at room temperature written in °F ([`ROOM_IN_FAHRENHEIT`]: in
+    /// °C that is a loop starting at 59 … 86 °C, above any room), never reads
+    /// below [`FREEZING_IN_FAHRENHEIT`], and spans at least
+    /// [`FAHRENHEIT_MIN_SPAN`] (a chamber run's ramps). A run in °C that
+    /// starts hot and stays above 32 °C (a slice of a hot test) is the one
+    /// false alarm, and `--allow-implausible` takes it.
+    fn looks_fahrenheit(&self) -> bool {
+        self.first_c
+            .is_some_and(|first| (ROOM_IN_FAHRENHEIT.0..=ROOM_IN_FAHRENHEIT.1).contains(&first))
+            && self.min_c >= FREEZING_IN_FAHRENHEIT
+            && self.max_c - self.min_c >= FAHRENHEIT_MIN_SPAN
+    }
+
     /// What is implausible about the run at `path`, one sentence each with
     /// the likely cause; empty for a plausible run.
     pub fn findings(&self, path: &Path) -> Vec<String> {
@@ -192,6 +219,20 @@ impl Plausibility {
                 self.readings,
                 sig(self.min_c),
                 sig(self.max_c),
+            ));
+        }
+        if self.first_outside_line.is_none() && self.looks_fahrenheit() {
+            found.push(format!(
+                "{name}: {}: starts at {} and reads {} … {}: °F? A chamber run starts at room temperature (15 … 30 °C); \
+                 this one starts where room temperature lies in °F ({} … {} °F) and never reads below {} (0 °C in °F); \
+                 temperatures are °C ((F − 32)/1.8)",
+                self.temp_name,
+                sig(self.first_c.unwrap_or(f64::NAN)),
+                sig(self.min_c),
+                sig(self.max_c),
+                ROOM_IN_FAHRENHEIT.0,
+                ROOM_IN_FAHRENHEIT.1,
+                FREEZING_IN_FAHRENHEIT
             ));
         }
         let fastest = self.fastest_c_per_min();
@@ -306,6 +347,51 @@ mod tests {
             (f64::from(i), -40.0 + if x < 100.0 { x } else { 200.0 - x })
         });
         assert_eq!(findings(ramp), Vec::<String>::new());
+    }
+
+    #[test]
+    fn fahrenheit_inside_the_celsius_range_is_named_and_no_shipped_run_is_taken_for_it() {
+        // A chamber run 25 → 10 → 35 °C at 1 °C/min logged in °F: 77 → 50 → 95 °F,
+        // inside the range a loop may read in °C.
+        let protocol_c = |i: u32| {
+            let m = f64::from(i) / 60.0;
+            if m < 15.0 {
+                25.0 - m
+            } else if m < 40.0 {
+                10.0 + (m - 15.0)
+            } else {
+                35.0
+            }
+        };
+        let in_f = findings((0..4 * 3600).map(|i| (f64::from(i), 32.0 + 1.8 * protocol_c(i))));
+        assert!(
+            in_f.len() == 1 && in_f[0].contains("°F?") && in_f[0].contains("starts at 77"),
+            "{in_f:?}"
+        );
+        // The same run in °C, and every run shipped or shared: no hint.
+        assert!(findings((0..4 * 3600).map(|i| (f64::from(i), protocol_c(i)))).is_empty());
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let shared = root.join("../shared/data");
+        let dirs = [
+            root.join("examples/data"),
+            shared.join("other-designs"),
+            shared.join("bmi270"),
+        ];
+        let mut read = 0;
+        for entry in dirs.iter().filter_map(|d| std::fs::read_dir(d).ok()).flatten() {
+            let path = entry.unwrap().path();
+            let Ok(mut reader) = crate::reading::run::RunReader::open(&path) else {
+                continue;
+            };
+            let mut p = Plausibility::new("temp_c");
+            while let Some(row) = reader.next_row().unwrap() {
+                p.push(row.line, row.row.time_s, row.row.temps_c[0]);
+            }
+            let found = p.findings(&path);
+            assert!(found.iter().all(|f| !f.contains("°F?")), "{found:?}");
+            read += 1;
+        }
+        assert!(read >= 6, "the shipped runs were read ({read})");
     }
 
     #[test]

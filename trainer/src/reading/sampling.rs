@@ -91,6 +91,28 @@ pub fn check_unstated_period(
     ))
 }
 
+/// The metadata key of a run's time base.
+pub const TIME_BASE_KEY: &str = "time_base";
+
+/// The [`TIME_BASE_KEY`] value of a run whose `time_s` counts the unit's
+/// samples (`trainer device record`: the frames' sequence numbers at the
+/// unit's rate). Its rate cannot change, so a long step there is samples
+/// missed (frames lost on the line, frames the reader would refuse, a
+/// reset): a gap, never a change of rate, however many come in a row.
+pub const COUNTED_TIME_BASE: &str = "sample counter";
+
+/// The metadata line a run with a counted time base carries: what the
+/// recorder writes and the reader recognises ([`is_counted_time_base`]),
+/// so the two agree by construction.
+pub fn counted_time_base_line() -> String {
+    format!("# {TIME_BASE_KEY}: {COUNTED_TIME_BASE}")
+}
+
+/// Whether the metadata `key: value` states a counted time base.
+pub fn is_counted_time_base(key: &str, value: &str) -> bool {
+    key == TIME_BASE_KEY && value == COUNTED_TIME_BASE
+}
+
 /// Where the nominal period came from, for messages.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PeriodSource {
@@ -110,6 +132,8 @@ pub struct PeriodWatch {
     /// Line of the first step of the current streak, its length, the sum of
     /// its steps, and whether they are long ones.
     streak: Option<(usize, usize, f64, bool)>,
+    /// The time base counts samples ([`COUNTED_TIME_BASE`]): long steps are gaps.
+    counted: bool,
 }
 
 impl PeriodWatch {
@@ -119,7 +143,16 @@ impl PeriodWatch {
             period_s,
             source,
             streak: None,
+            counted: false,
         }
+    }
+
+    /// The watch of a run whose time base counts samples
+    /// ([`COUNTED_TIME_BASE`]): a step over twice the period is samples
+    /// missed, never part of a change of rate; a step under half of it
+    /// (which no counter makes) still is.
+    pub fn counted(self) -> Self {
+        PeriodWatch { counted: true, ..self }
     }
 
     /// Takes the step `step_s` that ends at line `line`; on a change of rate,
@@ -130,6 +163,10 @@ impl PeriodWatch {
             return Ok(());
         }
         let longer = step_s > self.period_s;
+        if longer && self.counted {
+            self.streak = None;
+            return Ok(());
+        }
         let (start, count, sum, _) = match self.streak {
             Some((start, count, sum, was_longer)) if was_longer == longer => (start, count + 1, sum + step_s, longer),
             _ => (line, 1, step_s, longer),
@@ -194,6 +231,22 @@ mod tests {
             "{err}"
         );
         assert!(check_agreement(0.1, 1.0, 1000, (3, 1003)).is_err());
+    }
+
+    #[test]
+    fn a_counted_time_base_takes_any_run_of_missed_samples_as_gaps() {
+        let mut counted = PeriodWatch::new(0.001, PeriodSource::Metadata).counted();
+        let mut plain = PeriodWatch::new(0.001, PeriodSource::Metadata);
+        // Two frames of three lost for 50 frames: a counter's gaps, else a change to 333 Hz.
+        let plain_err = (0..50).find_map(|k| plain.push(0.003, 100 + k).err());
+        assert_eq!(plain_err.map(|(line, _)| line), Some(100));
+        for k in 0..50 {
+            assert!(counted.push(0.003, 100 + k).is_ok(), "step {k}");
+        }
+        // A counter never steps short: ten in a row are still refused.
+        let short = (0..10).find_map(|k| counted.push(0.0001, 200 + k).err());
+        assert_eq!(short.map(|(line, _)| line), Some(200));
+        assert!(counted_time_base_line().ends_with(&format!("{TIME_BASE_KEY}: {COUNTED_TIME_BASE}")));
     }
 
     #[test]

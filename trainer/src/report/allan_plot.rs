@@ -91,8 +91,8 @@ where
         .y_desc("Allan deviation [°/h]")
         .draw()?;
     for (series, band, label, color) in [
-        (&before, &bands[0], "before", RGBColor(200, 60, 40)),
-        (&after, &bands[1], "after", RGBColor(30, 90, 200)),
+        (&before, &bands[0], "before", super::palette::BEFORE),
+        (&after, &bands[1], "after", super::palette::AFTER),
     ] {
         // The ±1-σ confidence band as a shaded area: the upper edge left to
         // right, the lower edge back.
@@ -117,7 +117,7 @@ where
     // walk, the floor that gives its bias instability, a τ^+½ guide through
     // its last point (rate random walk or a residual ramp rises that way).
     let a = &e.allan_after;
-    let guide = RGBColor(90, 90, 90);
+    let guide = super::palette::GUIDE;
     let in_box = |d: f64| d.is_finite() && d >= d_lo && d <= d_hi;
     let taus = |from: f64, to: f64| (0..=40).map(move |k| from * (to / from).powf(f64::from(k) / 40.0));
     if a.arw_deg_per_sqrt_h.is_finite() && a.arw_deg_per_sqrt_h > 0.0 {
@@ -131,9 +131,10 @@ where
             .label(format!("τ^−½: ARW {arw:.2e} °/√h"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], guide));
     }
-    let floor = a.bias_instability_dph * crate::evaluation::allan::FLICKER_FLOOR;
+    // The line sits at the bias instability its label gives (σ/0.664), not at σ.
+    let floor = a.bias_instability_dph;
     if floor.is_finite() && floor > 0.0 {
-        let orange = RGBColor(230, 140, 20);
+        let orange = super::palette::FLOOR;
         chart
             .draw_series(DashedLineSeries::new(
                 [(t_lo, floor), (t_hi, floor)],
@@ -148,7 +149,7 @@ where
                 )
             } else {
                 format!(
-                    "no floor by τ {:.0} s (T/10): bias instability ≤ {:.2e} °/h",
+                    "no floor above the white noise by τ {:.0} s (T/10): bias instability ≤ {:.2e} °/h",
                     a.confident_tau_max_s, a.bias_instability_dph
                 )
             })

@@ -35,9 +35,9 @@ impl Ramp {
 
     pub(super) fn colour(self) -> RGBColor {
         match self {
-            Ramp::Heating => RGBColor(210, 60, 40),
-            Ramp::Cooling => RGBColor(30, 90, 210),
-            Ramp::Steady => RGBColor(150, 150, 150),
+            Ramp::Heating => super::palette::HEATING,
+            Ramp::Cooling => super::palette::COOLING,
+            Ramp::Steady => super::palette::STEADY,
         }
     }
 

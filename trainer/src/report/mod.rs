@@ -34,6 +34,7 @@ use rbf_core::axis::Axis;
 mod allan_plot;
 mod bias_temp;
 mod canvas;
+mod palette;
 mod rate;
 mod settled;
 mod surface;
@@ -71,6 +72,7 @@ fn read_run(
     let mut compensator = rbf_core::Compensator::new();
     let mut evaluator = Evaluator::new(&path, period_s, has_ref);
     let mut diagnosis = RunDiagnosis::new(&path, period_s).named_like(&named);
+    let mut clamped = BlockMeans::new(PLOT_MEAN_S);
     let (mut raw, mut comp, mut temp, mut bias) = (
         BlockMeans::new(PLOT_MEAN_S),
         BlockMeans::new(PLOT_MEAN_S),
@@ -95,6 +97,10 @@ fn read_run(
         comp_sum += f64::from(out.rate_comp_dph);
         raw.push(row.time_s, row.rate_dph - r);
         comp.push(row.time_s, out.rate_comp_dph as f64 - r);
+        clamped.push(
+            row.time_s,
+            f64::from(u8::from(out.flags.contains(rbf_core::Flags::INPUT_CLAMPED))),
+        );
         bias.push(row.time_s, out.bias_dph as f64);
         temp.push(
             row.time_s,
@@ -123,6 +129,13 @@ fn read_run(
         temp.finish(),
     );
     let points = bias_points(&temp, &raw, &bias.finish(), &comp);
+    // The same blocks as `comp` (the same times pushed): those holding a clamped sample.
+    let clamped: Vec<(f64, f64)> = comp
+        .iter()
+        .zip(clamped.finish())
+        .filter(|(_, (_, share))| *share > 0.0)
+        .map(|(&point, _)| point)
+        .collect();
     Ok(RunPlots {
         stem: stem.to_owned(),
         duration_s: rows as f64 * period_s,
@@ -145,6 +158,7 @@ fn read_run(
             },
             raw,
             comp,
+            clamped,
             temp,
         },
         evaluation,
@@ -676,6 +690,40 @@ mod tests {
     }
 
     #[test]
+    fn clamped_samples_are_marked_on_the_compensated_rate_in_their_own_colour() {
+        let series = |f: &dyn Fn(usize) -> f64| (0..200).map(|k| (10.0 * k as f64, f(k))).collect::<Vec<_>>();
+        let comp = series(&|k| 1e-3 * (k as f64 / 9.0).sin());
+        let plot = RatePlot {
+            title: "r".into(),
+            y_desc: "rate − ref_dph [°/h] (10-s means)",
+            raw: series(&|k| 1e-3 * k as f64),
+            clamped: comp[150..].to_vec(),
+            comp,
+            temp: series(&|k| 20.0 + k as f64 / 40.0),
+        };
+        let colour = |c: plotters::style::RGBColor| format!("#{:02X}{:02X}{:02X}", c.0, c.1, c.2);
+        let (svg, _) = render(&plot).unwrap();
+        assert!(
+            svg.contains(&colour(palette::CLAMPED)),
+            "the clamped samples are marked"
+        );
+        assert!(
+            svg.contains("inputs clamped to the training range (flag 1)"),
+            "and named"
+        );
+        assert!(
+            !svg.contains(&colour(palette::OUTSIDE_TRAINING)),
+            "grey means only outside the range"
+        );
+        let unclamped = RatePlot {
+            clamped: Vec::new(),
+            ..plot
+        };
+        let (svg, _) = render(&unclamped).unwrap();
+        assert!(!svg.contains(&colour(palette::CLAMPED)));
+    }
+
+    #[test]
     fn long_y_tick_labels_widen_their_label_area_rather_than_run_into_the_axis_description() {
         // A rate about -1.2e-4 °/h that varies by 1e-6: labels such as -0.0001202.
         let wave = |k: usize| -1.2e-4 + 1e-6 * (k as f64 / 9.0).sin();
@@ -685,6 +733,7 @@ mod tests {
             y_desc: "rate − ref_dph [°/h] (10-s means)",
             raw: series(&wave),
             comp: series(&|k| wave(k) + 2e-7),
+            clamped: Vec::new(),
             temp: series(&|k| 20.0 + k as f64 / 40.0),
         };
         let (svg, _) = render(&plot).unwrap();

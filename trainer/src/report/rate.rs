@@ -4,6 +4,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::canvas::{DrawResult, Figure, plot_height_px, range};
+use super::palette;
 use crate::plotting::axes::{
     TICK_LABEL_PX, draw_legend, linear_mesh, linear_tick_labels, padded, tick_label, title_font_px, with_legend_room,
     y_label_area_px,
@@ -15,6 +16,8 @@ pub(super) struct RatePlot {
     pub(super) y_desc: &'static str,
     pub(super) raw: Vec<(f64, f64)>,
     pub(super) comp: Vec<(f64, f64)>,
+    /// The compensated 10-s means holding a sample clamped to the training range (flag 1).
+    pub(super) clamped: Vec<(f64, f64)>,
     pub(super) temp: Vec<(f64, f64)>,
 }
 
@@ -65,17 +68,27 @@ where
         .draw()?;
     let hours = |v: &Vec<(f64, f64)>| v.iter().map(|&(t, y)| (t / 3600.0, y)).collect::<Vec<_>>();
     chart
-        .draw_series(LineSeries::new(hours(&p.raw), RGBColor(200, 60, 40)))?
+        .draw_series(LineSeries::new(hours(&p.raw), palette::BEFORE))?
         .label("raw")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(200, 60, 40)));
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], palette::BEFORE));
     chart
-        .draw_series(LineSeries::new(hours(&p.comp), RGBColor(30, 90, 200)))?
+        .draw_series(LineSeries::new(hours(&p.comp), palette::AFTER))?
         .label("compensated")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(30, 90, 200)));
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], palette::AFTER));
+    if !p.clamped.is_empty() {
+        chart
+            .draw_series(
+                hours(&p.clamped)
+                    .into_iter()
+                    .map(|point| Cross::new(point, 3, palette::CLAMPED)),
+            )?
+            .label("compensated, inputs clamped to the training range (flag 1)")
+            .legend(|(x, y)| Cross::new((x + 10, y), 3, palette::CLAMPED));
+    }
     chart
-        .draw_secondary_series(LineSeries::new(hours(&p.temp), RGBColor(120, 120, 120)))?
+        .draw_secondary_series(LineSeries::new(hours(&p.temp), palette::TEMPERATURE))?
         .label("loop temperature (right axis)")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(120, 120, 120)));
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], palette::TEMPERATURE));
     draw_legend(&mut chart)?;
     root.present()?;
     Ok(())

@@ -63,8 +63,8 @@ impl Figure for SettledPlot<'_> {
             .chain(linear_tick_labels(a_lo, a_hi));
         let y_label_px = y_label_area_px(&root, labels, TICK_LABEL_PX, 80);
         let panels = [
-            (&top, &before, (b_lo, b_hi), "before [°/h]", RGBColor(150, 150, 150), 30),
-            (&bottom, &after, (a_lo, a_hi), "after [°/h]", RGBColor(30, 90, 210), 40),
+            (&top, &before, (b_lo, b_hi), "before [°/h]", super::palette::BEFORE, 30),
+            (&bottom, &after, (a_lo, a_hi), "after [°/h]", super::palette::AFTER, 40),
         ];
         for (area, bars, (lo, hi), y_desc, colour, x_label_px) in panels {
             let mut chart = ChartBuilder::on(area)

@@ -315,11 +315,7 @@ pub(super) fn loop_temperature_range(model: &Model) -> (f32, f32) {
     }
 }
 
-/// Grey of what lies outside the training data on the bias plots.
-pub(super) const OUTSIDE_TRAINING: RGBColor = RGBColor(170, 170, 170);
-/// Fill of the bias surface's cells that no sample reached (hatched in
-/// [`OUTSIDE_TRAINING`] over it): no colour, so none reads as a bias.
-pub(super) const MASKED: RGBColor = RGBColor(232, 232, 232);
+pub(super) use super::palette::{MASKED, OUTSIDE_TRAINING};
 
 /// Which cells of an `n` × `n` grid over `t` × `r` some sample of `points`
 /// (x, y) lies in or next to, row-major from (t.0, r.0).

@@ -88,3 +88,70 @@ fn a_refusal_names_the_cause_it_has() {
     let o = trainer(&["eval", "--model", m, restated.to_str().unwrap()]);
     assert!(stderr(&o).contains("# sample_rate_hz: 2.0001 states"), "{}", stderr(&o));
 }
+
+/// The bias-instability rule (trainer::evaluation::allan, docs/methods.md)
+/// against the truth: noise-only simulated runs of 4, 12 and 24 h, whose
+/// bias instability is the simulator's (`# bias_instability_dph`). A floor
+/// reads it within twice its stated uncertainty; a bound (no floor) is not
+/// below it by more than that.
+#[test]
+fn the_bias_instability_of_noise_only_runs_is_read_within_its_uncertainty() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    for (hours, seed) in [
+        ("4", "1"),
+        ("4", "2"),
+        ("12", "1"),
+        ("12", "2"),
+        ("24", "1"),
+        ("24", "2"),
+    ] {
+        let run = dir.path().join(format!("noise{hours}-{seed}.csv"));
+        let o = trainer(&[
+            "simulate",
+            "--noise-only",
+            "--hours",
+            hours,
+            "--seed",
+            seed,
+            "-o",
+            run.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let truth_dph: f64 = std::fs::read_to_string(&run)
+            .unwrap()
+            .lines()
+            .find_map(|l| l.strip_prefix("# bias_instability_dph: "))
+            .expect("the simulator states its bias instability")
+            .parse()
+            .unwrap();
+        let o = trainer(&[
+            "eval",
+            "--model",
+            model.to_str().unwrap(),
+            run.to_str().unwrap(),
+            "--allow-implausible",
+            "--json",
+            "-",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        let a = &json[0]["allan_before"];
+        let bi = a["bias_instability_dph"].as_f64().unwrap();
+        let u = a["floor_uncertainty_pct"].as_f64().unwrap() / 100.0;
+        let reached = a["floor_reached"].as_bool().unwrap();
+        let case = format!(
+            "{hours} h, seed {seed}: BI {bi:.3e} ±{:.0} % (floor {reached}), truth {truth_dph}",
+            100.0 * u
+        );
+        assert!(
+            a["floor_tau_s"].as_f64().unwrap() <= a["confident_tau_max_s"].as_f64().unwrap(),
+            "{case}"
+        );
+        if reached {
+            assert!((bi - truth_dph).abs() <= 2.0 * u * bi, "{case}");
+        } else {
+            assert!(truth_dph <= bi * (1.0 + 2.0 * u), "{case}");
+        }
+    }
+}

@@ -370,3 +370,76 @@ fn a_time_column_in_milliseconds_or_hours_is_suspected_by_name() {
     );
     assert!(!out.exists());
 }
+
+#[test]
+fn a_cr_only_tail_after_lf_rows_is_named_as_such_by_every_command() {
+    let dir = TempDir::new().unwrap();
+    let (model, _) = example_model(&dir);
+    let m = model.to_str().unwrap();
+    // 1500 rows ending in \n, then 600 ending in \r alone (past the reader's look-ahead).
+    let rows = example_rows(2100);
+    let lines: Vec<&str> = rows.lines().collect();
+    let text = format!("{}\n{}\r", lines[..1501].join("\n"), lines[1501..].join("\r"));
+    let run = write(&dir, "tail.csv", text.as_bytes());
+    let r = run.to_str().unwrap();
+    let out = dir.path().join("out.csv");
+    let o_ = out.to_str().unwrap();
+    for args in [
+        vec!["compensate", "--model", m, r, "-o", o_],
+        vec!["eval", "--model", m, r],
+        vec!["fit", "-q", r, "-o", o_],
+    ] {
+        let o = trainer(&args);
+        refused(
+            &o,
+            &["tail.csv:1502:", "from this line on the file uses CR-only line endings"],
+        );
+        assert!(!stderr(&o).contains("fields"), "{args:?}: {}", stderr(&o));
+    }
+}
+
+#[test]
+fn a_block_longer_than_the_run_is_named_as_the_cause() {
+    let dir = TempDir::new().unwrap();
+    // 3.5 h: a day-long block holds none of it whole.
+    let run = dir.path().join("short.csv");
+    crate::common::short_chamber_run(&run, "3");
+    let model = dir.path().join("m.bin");
+    let o = trainer(&[
+        "fit",
+        "-q",
+        "--block-s",
+        "86400",
+        run.to_str().unwrap(),
+        "-o",
+        model.to_str().unwrap(),
+    ]);
+    refused(
+        &o,
+        &[
+            "no block of 86400 s is whole",
+            "--block-s 86400 is longer than the runs",
+        ],
+    );
+    assert!(!stderr(&o).contains("warming up"), "{}", stderr(&o));
+}
+
+#[test]
+fn a_header_with_near_names_names_every_missing_column_and_what_was_meant() {
+    let dir = TempDir::new().unwrap();
+    let (model, _) = example_model(&dir);
+    let rows = example_rows(50);
+    let text = rows.replacen("time_s,rate_dph,temp_c,ref_dph", "time,rate,temperature,ref", 1);
+    assert_ne!(text, rows, "the example's header is the one replaced");
+    let run = write(&dir, "names.csv", text.as_bytes());
+    let o = trainer(&["eval", "--model", model.to_str().unwrap(), run.to_str().unwrap()]);
+    refused(
+        &o,
+        &[
+            "names.csv:1:",
+            "columns time_s and rate_dph",
+            "nor temp_c",
+            "did you mean time_s for time, rate_dph for rate, temp_c for temperature, ref_dph for ref?",
+        ],
+    );
+}

@@ -213,9 +213,22 @@ fn every_terminating_signal_leaves_the_old_output_and_no_staged_file() {
         out.to_str().unwrap(),
         "--force",
     ];
-    for signal in [
+    // The real-time signals by number (kill -s takes numbers too).
+    let realtime: Vec<String> = [
+        nix::libc::SIGRTMIN(),
+        nix::libc::SIGRTMIN() + 5,
+        nix::libc::SIGRTMAX() - 1,
+        nix::libc::SIGRTMAX(),
+    ]
+    .iter()
+    .map(|n| n.to_string())
+    .collect();
+    let named = [
         "INT", "TERM", "HUP", "QUIT", "USR1", "USR2", "ALRM", "VTALRM", "PROF", "XCPU", "TRAP", "ABRT", "PIPE",
-    ] {
+        // Linux's own, and the faults a process never catches but may be sent.
+        "PWR", "IO", "SYS", "STKFLT", "ILL", "FPE",
+    ];
+    for signal in named.into_iter().chain(realtime.iter().map(String::as_str)) {
         let status = stop_when_staged(dir.path(), &args, signal, None);
         assert!(!status.success(), "{signal}");
         assert_eq!(
@@ -274,4 +287,115 @@ fn outputs_named_with_the_longest_legal_names_are_written() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(out.is_file());
     assert!(hidden(dir.path()).is_empty());
+}
+
+/// Runs `trainer args` under `ulimit -f 0` with standard output into a
+/// file (standard error stays a pipe, which the limit does not reach).
+fn under_file_size_limit(dir: &Path, args: &[&str]) -> std::process::Output {
+    let out = std::fs::File::create(dir.join("printed.txt")).unwrap();
+    Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -f 0; exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_trainer"))
+        .args(args)
+        .stdout(out)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn commands_that_only_print_fail_with_a_message_past_a_file_size_limit() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let m = model.to_str().unwrap();
+    let run = shared_data("ifog_train_1cpm.csv");
+    let r = run.to_str().unwrap();
+    for args in [
+        vec!["eval", "--model", m, r, "--json", "-"],
+        vec!["inspect", m],
+        vec!["inspect", "--model", m, "--format", "json"],
+    ] {
+        let o = under_file_size_limit(dir.path(), &args);
+        // Not killed by SIGXFSZ (no exit code), not a panic (101).
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        let err = stderr(&o);
+        assert_eq!(
+            err.lines().filter(|l| l.starts_with("error: ")).count(),
+            1,
+            "{args:?}: {err}"
+        );
+        assert!(
+            err.contains("error: standard output: write failed (File too large"),
+            "{args:?}: {err}"
+        );
+    }
+}
+
+#[test]
+fn a_json_reader_that_stops_early_costs_neither_the_table_nor_a_clear_exit() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let run = shared_data("ifog_train_1cpm.csv");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_trainer"))
+        .args([
+            "eval",
+            "--model",
+            model.to_str().unwrap(),
+            run.to_str().unwrap(),
+            "--json",
+            "-",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // `| head -c 0`: the pipe closed before the JSON comes (a reader that
+    // took 100 bytes of a JSON the pipe's buffer holds whole would see no
+    // error at all).
+    drop(child.stdout.take());
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("Overlapping Allan deviation"), "the table is whole: {err}");
+    assert!(
+        err.contains("Settled bias of soak plateaus"),
+        "the table is whole: {err}"
+    );
+    let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error: ")).collect();
+    assert_eq!(
+        errors,
+        ["error: standard output: closed by its reader before the output was whole (broken pipe); nothing written"],
+        "{err}"
+    );
+    assert!(!err.contains("os error 32"), "{err}");
+}
+
+#[test]
+fn a_stop_at_any_moment_of_a_report_leaves_one_whole_report_and_no_hidden_copy() {
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let run = dir.path().join("train.csv");
+    let rep = dir.path().join("rep");
+    let (m, r, rp) = (model.to_str().unwrap(), run.to_str().unwrap(), rep.to_str().unwrap());
+    let o = trainer(&["report", "--model", m, r, "-o", rp]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let names = |t: Vec<(PathBuf, Vec<u8>)>| t.into_iter().map(|(p, _)| p).collect::<Vec<_>>();
+    let whole = names(tree(&rep));
+    // SIGTERM at moments spread over the whole command, the commit and the
+    // removal of the replaced report included.
+    for delay_ms in (0..25).map(|k| 30 * k) {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_trainer"))
+            .args(["report", "--model", m, r, "-o", rp, "--force"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        let _ = Command::new("kill")
+            .args(["-s", "TERM", &child.id().to_string()])
+            .status();
+        let _ = child.wait();
+        assert!(hidden(dir.path()).is_empty(), "{delay_ms} ms: {:?}", hidden(dir.path()));
+        assert_eq!(names(tree(&rep)), whole, "{delay_ms} ms: one whole report");
+    }
 }

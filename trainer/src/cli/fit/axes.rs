@@ -18,7 +18,7 @@ use trainer::provenance::ProvenanceRecord;
 use trainer::reading::run::RunReader;
 use trainer::text;
 
-use super::super::common::{JsonSink, print_and_commit};
+use super::super::common::{JsonSink, print_json_and_commit};
 use super::args::Args;
 use super::blob_out::write_blob;
 use super::json::{outcome_json, runs_json};
@@ -161,7 +161,7 @@ pub(super) fn run(
     let mut transaction = Transaction::new();
     write_blob(model_out, &blob, &mut transaction)?;
     let json_on_stdout = json_out.is_stdout();
-    json_out.write(&json, &mut transaction)?;
-    print_and_commit(&out, json_on_stdout, transaction)?;
+    let json = json_out.write(&json, &mut transaction)?;
+    print_json_and_commit(&out, json_on_stdout, json, transaction)?;
     Ok(())
 }

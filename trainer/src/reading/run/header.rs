@@ -35,6 +35,9 @@ pub(super) struct ReadHeader {
     pub header: RunHeader,
     /// The stated sample rates.
     pub metadata_rates: Vec<(usize, f64)>,
+    /// Whether the preamble says the time column counts samples
+    /// (`trainer device record`'s `# time_base`): a long step there is a gap.
+    pub counted_time_base: bool,
 }
 
 impl RunHeader {
@@ -49,6 +52,7 @@ impl RunHeader {
         let mut preamble = Vec::new();
         let mut preamble_bytes = 0usize;
         let mut metadata_rates: Vec<(usize, f64)> = Vec::new();
+        let mut counted_time_base = false;
         let format_error = |line: usize, message: String| RunError::Format {
             path: path.to_owned(),
             line,
@@ -101,6 +105,7 @@ impl RunHeader {
                     ),
                 ));
             }
+            counted_time_base |= record::metadata(line).is_some_and(|(k, v)| sampling::is_counted_time_base(k, v));
             if let Some(value) = record::metadata(line)
                 .filter(|(key, _)| *key == "sample_rate_hz")
                 .map(|(_, value)| value)
@@ -151,6 +156,7 @@ impl RunHeader {
                 preamble,
             },
             metadata_rates,
+            counted_time_base,
         })
     }
 

@@ -87,7 +87,11 @@ impl RunReader {
     pub fn from_reader(path: &Path, source: impl BufRead + Send + 'static) -> Result<RunReader, RunError> {
         let mut source: Box<dyn BufRead + Send> = Box::new(source);
         let mut buf = Vec::new();
-        let ReadHeader { header, metadata_rates } = RunHeader::read(path, source.as_mut(), &mut buf)?;
+        let ReadHeader {
+            header,
+            metadata_rates,
+            counted_time_base,
+        } = RunHeader::read(path, source.as_mut(), &mut buf)?;
         let line_no = header.line_number();
         let columns = *header.columns();
         let mut reader = RunReader {
@@ -100,13 +104,13 @@ impl RunReader {
             nominal_period_s: 1.0,
             chunk_bytes: chunked::CHUNK_BYTES,
         };
-        reader.read_ahead(&metadata_rates)?;
+        reader.read_ahead(&metadata_rates, counted_time_base)?;
         Ok(reader)
     }
 
     /// Reads the first [`PERIOD_ESTIMATE_STEPS`] + 1 rows and settles the
     /// nominal period on them ([`TimeCheck::settle`]).
-    fn read_ahead(&mut self, metadata_rates: &[(usize, f64)]) -> Result<(), RunError> {
+    fn read_ahead(&mut self, metadata_rates: &[(usize, f64)], counted_time_base: bool) -> Result<(), RunError> {
         while self.ahead.len() <= PERIOD_ESTIMATE_STEPS {
             match self.read_checked(true)? {
                 Some((line, row)) => self.ahead.push_back(RawRow {
@@ -119,7 +123,12 @@ impl RunReader {
         }
         self.nominal_period_s = self
             .time
-            .settle(&self.ahead, metadata_rates, self.header.period_estimator())
+            .settle(
+                &self.ahead,
+                metadata_rates,
+                counted_time_base,
+                self.header.period_estimator(),
+            )
             .map_err(|(line, m)| self.header.error_at(line, m))?;
         Ok(())
     }

@@ -82,6 +82,11 @@ pub(super) fn has_inner_cr(line: &[u8]) -> bool {
 pub(super) const CR_ONLY: &str = "the file uses CR-only line endings (a carriage return, \\r, ends its lines, as on classic Mac OS); \
      recorded runs end lines with \\n or \\r\\n: convert it, e.g. tr '\\r' '\\n' < in.csv > out.csv";
 
+/// The message for a row where CR-only line ends begin after rows that end in `\n`.
+pub(super) const CR_ONLY_FROM_HERE: &str = "from this line on the file uses CR-only line endings (a carriage return, \\r, ends its lines, \
+     as on classic Mac OS), after lines ending in \\n: the rows from here read as one line; recorded runs end lines with \\n or \\r\\n: \
+     convert it, e.g. tr '\\r' '\\n' < in.csv > out.csv";
+
 /// The message for a line past [`MAX_LINE_BYTES`].
 pub(super) fn too_long() -> String {
     format!(
@@ -135,6 +140,11 @@ impl RowParser {
             .and_then(|i| text.split(',').nth(i))
             .map(record::trim_field)
             .unwrap_or("");
+        // CR-only line ends after rows ending in \n: the fields of many
+        // rows on one line, whatever the parser tripped on first.
+        if has_inner_cr(text.as_bytes()) {
+            return CR_ONLY_FROM_HERE.to_owned();
+        }
         let message = match e.kind {
             RowErrorKind::FieldCount { expected, found } => {
                 format!("row has {found} fields, the header has {expected}")
@@ -231,6 +241,30 @@ pub(super) fn missing_columns(header_line: &str, names: &[String]) -> String {
         1 => format!("column {}", missing[0]),
         _ => format!("columns {}", missing.join(" and ")),
     };
+    // Every column of the format that is missing, not only the required
+    // two: a single-point model needs temp_c too.
+    let no_temp = !has(column::TEMP_C) && !names.iter().any(|n| n.starts_with("temp_") && n.len() == 6);
+    let list = if no_temp {
+        format!(
+            "{list}, nor {} (the loop temperature a single-point model needs)",
+            column::TEMP_C
+        )
+    } else {
+        list
+    };
+    let hints = near_names(names);
+    let list = if hints.is_empty() {
+        list
+    } else {
+        format!(
+            "{list}; did you mean {}? (the format's names carry their units)",
+            hints
+                .iter()
+                .map(|(found, known)| format!("{known} for {}", short(found)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
     let delimiter = [(';', "';'"), ('\t', "a tab"), ('|', "'|'")]
         .into_iter()
         .find(|(c, _)| !header_line.contains(',') && header_line.contains(*c));
@@ -244,6 +278,50 @@ pub(super) fn missing_columns(header_line: &str, names: &[String]) -> String {
         ),
         None => format!("header has no required {list} (header: {})", short(header_line)),
     }
+}
+
+/// Header names that are not the format's but look like one of its
+/// columns (`time` → `time_s`, `temperature` → `temp_c`, `Rate_DPH` →
+/// `rate_dph`): the name and the format's name. Near: the same letters
+/// but for case, the format's stem (`time`, `rate`, `temp`, `ref`) leading
+/// either, or at most two edits apart.
+pub(super) fn near_names(names: &[String]) -> Vec<(String, &'static str)> {
+    use rbf_core::record::column;
+    const KNOWN: [&str; 4] = [column::TIME_S, column::RATE_DPH, column::TEMP_C, column::REF_DPH];
+    let mut hints: Vec<(String, &'static str)> = Vec::new();
+    for name in names {
+        // The format's own multi-axis and multi-point names are not typos.
+        if KNOWN.contains(&name.as_str()) || ["rate_", "temp_", "ref_"].iter().any(|p| name.starts_with(p)) {
+            continue;
+        }
+        let lower = name.to_lowercase();
+        let near = KNOWN.iter().copied().find(|known| {
+            let stem = known.split('_').next().unwrap_or(known);
+            lower == *known
+                || (!lower.is_empty() && (lower.starts_with(stem) || stem.starts_with(lower.as_str())))
+                || edits(&lower, known) <= 2
+        });
+        if let Some(known) = near.filter(|k| !names.iter().any(|n| n == k) && !hints.iter().any(|(_, h)| h == k)) {
+            hints.push((name.clone(), known));
+        }
+    }
+    hints
+}
+
+/// The Levenshtein distance of two short names.
+fn edits(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (above + 1).min(row[j] + 1).min(diagonal + usize::from(ca != cb));
+            diagonal = above;
+        }
+    }
+    row[b.len()]
 }
 
 pub(super) fn short(s: &str) -> String {

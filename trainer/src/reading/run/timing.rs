@@ -52,10 +52,14 @@ impl TimeCheck {
     /// Settles the nominal period on the rows read ahead (`estimator`:
     /// primed with the run's metadata), checks every stated rate (line, Hz)
     /// against them, and watches every later step; the nominal period, s.
+    /// With `counted_time_base` (a sample counter: long steps are missed
+    /// samples) the stated rate is the unit's whatever was lost at the start,
+    /// and every long step is a gap, never a change of rate.
     pub(super) fn settle(
         &mut self,
         ahead: &VecDeque<RawRow>,
         metadata_rates: &[(usize, f64)],
+        counted_time_base: bool,
         mut estimator: PeriodEstimator,
     ) -> Result<f64, TimeDefect> {
         let mut steps: Vec<f64> = Vec::with_capacity(ahead.len());
@@ -73,7 +77,7 @@ impl TimeCheck {
         let count = steps.len();
         let median = record::nominal_period_s(None, &mut steps);
         let lines = (ahead.front().map_or(0, |r| r.line), ahead.back().map_or(0, |r| r.line));
-        for &(line, hz) in metadata_rates {
+        for &(line, hz) in metadata_rates.iter().filter(|_| !counted_time_base) {
             sampling::check_agreement(hz, median, count, lines).map_err(|m| (line, m))?;
         }
         if metadata_rates.is_empty() {
@@ -85,6 +89,9 @@ impl TimeCheck {
             PeriodSource::Metadata
         };
         let mut watch = PeriodWatch::new(nominal_period_s, source);
+        if counted_time_base {
+            watch = watch.counted();
+        }
         let mut prev: Option<f64> = None;
         for raw in ahead {
             if let Some(p) = prev {
