@@ -20,6 +20,7 @@
 
 pub mod acceptance;
 pub mod blobfile;
+pub mod calibration;
 pub mod dataset;
 pub mod describe;
 pub mod device;
@@ -33,6 +34,7 @@ pub mod plan;
 pub mod plotting;
 pub mod provenance;
 pub mod reading;
+pub mod records;
 pub mod refusals;
 pub mod report;
 pub mod simulate;

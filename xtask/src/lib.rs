@@ -11,6 +11,7 @@
 //! - [`import_circles`]: `cargo xtask import-circles`;
 //! - [`faults`]: `cargo xtask qemu-faults`;
 //! - [`large_run`]: `cargo xtask bench-large-run`;
+//! - [`postgres`]: the PostgreSQL server binaries the records tests start (installed by CI);
 //! - [`ci`]: `cargo xtask ci`, the whole test suite; [`build_graph`]: that xtask and the tests build one trainer.
 #![forbid(unsafe_code)]
 
@@ -28,6 +29,7 @@ pub mod fuzz;
 pub mod import_circles;
 pub mod large_run;
 pub mod panic_paths;
+pub mod postgres;
 pub mod qemu;
 pub mod qemu_board;
 pub mod replay;

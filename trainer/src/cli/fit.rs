@@ -15,6 +15,7 @@ use trainer::output::{self, Output, StagedDir, Transaction};
 use trainer::provenance::ProvenanceRecord;
 use trainer::reading::plausible;
 use trainer::reading::run::RunReader;
+use trainer::records::{Access, Store};
 use trainer::text;
 use trainer::{evaluation::diagnose, reading::input};
 
@@ -25,13 +26,23 @@ mod args;
 mod axes;
 mod blob_out;
 pub(super) mod json;
+mod record_out;
 mod summary;
 
 pub use self::args::Args;
 use self::args::check_distinct_inputs;
 use self::blob_out::write_blob;
 use self::json::{outcome_json, runs_json};
+use self::record_out::write_records;
 use self::summary::{FitHow, training_loop_range_c, write_summary};
+
+/// What a fit is calibrated with and recorded in, beside its options: its provenance, the
+/// spec it is judged against, the records store.
+pub(crate) struct Calibration<'a> {
+    provenance: &'a ProvenanceRecord,
+    spec: Option<&'a Spec>,
+    store: Option<Store>,
+}
 
 /// Runs `trainer fit`.
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -76,6 +87,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         "--method svr-pso validates on contiguous folds of the training runs; drop --validate"
     );
     let spec = a.spec.as_deref().map(Spec::read).transpose()?;
+    // The records store before the fit: one that cannot take the record fails the fit now.
+    let store = a
+        .records
+        .as_deref()
+        .map(|locator| Store::open(locator, Access::Write))
+        .transpose()?;
     // Digests and the fit time, taken before the fit reads the runs.
     let provenance = ProvenanceRecord::for_fit(a.serial.as_deref(), &a.runs, a.spec.as_deref(), a.batch.as_deref())?;
     let train = RunFiles::new(&a.runs);
@@ -111,17 +128,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None => JsonSink::None,
     };
     if !axes.is_empty() {
-        anyhow::ensure!(
-            spec.is_none(),
-            "--spec judges single-axis fits for now; judge each axis's holdout with `trainer eval --json`"
-        );
         let how = FitHow {
             with_validate_runs: !a.validate.is_empty(),
             folds: opts.folds,
             named_inputs: opts.inputs.is_some(),
             selection: opts.selection,
         };
-        return axes::run(&a, &opts, &how, &axes, model_out, json_out, &provenance);
+        let calibration = Calibration {
+            provenance: &provenance,
+            spec: spec.as_ref(),
+            store,
+        };
+        return axes::run(&a, &opts, &how, &axes, model_out, json_out, calibration);
     }
     let started = std::time::Instant::now();
     let outcome = fit::fit(&train, &validate, &opts).map_err(|e| {
@@ -193,23 +211,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             writeln!(out, "{line}")?;
         }
     }
-    let verdict = spec.as_ref().map(|spec| {
-        let missing_for = InUse {
-            range_c: spec.use_range_c().or(in_use.range_c),
-            ..in_use
-        };
-        acceptance::judge(
-            spec,
-            &Judged {
-                holdout: evals.iter().filter(|(r, _)| *r == "holdout").map(|(_, e)| e).collect(),
-                forecast_in_use_std100_dph: outcome.predicted_in_use_std100_dph(),
-                missing: outcome.bank.as_ref().map(|b| {
-                    b.coverage
-                        .missing(&missing_for, fit::coverage::model_range_c(&outcome.model))
-                }),
-            },
-        )
-    });
+    let verdict = spec
+        .as_ref()
+        .map(|spec| judge_axis(spec, &in_use, &outcome, &evals, None));
     if let Some(v) = &verdict {
         writeln!(out, "\n{}", verdict_text(v))?;
     }
@@ -255,12 +259,44 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let json_on_stdout = json_out.is_stdout();
     json_out.write(&json, &mut transaction)?;
     print_and_commit(&out, json_on_stdout, transaction)?;
+    write_records(store, a.serial.as_deref(), &json, &blob)?;
     match verdict {
         Some(v) if !v.passed() => {
             Err(Rejected(format!("the unit missed its acceptance spec: {}", v.reasons.join("; "))).into())
         }
         _ => Ok(()),
     }
+}
+
+/// The verdict of one axis's fit `outcome` (`axis`: `None` for a single-axis run) against
+/// `spec`: its holdout runs among `evals`, its forecast, what its runs lack for the spec's
+/// range of use (else `in_use`'s).
+pub(crate) fn judge_axis(
+    spec: &Spec,
+    in_use: &InUse,
+    outcome: &fit::FitOutcome,
+    evals: &[(&str, RunEvaluation)],
+    axis: Option<&str>,
+) -> acceptance::Verdict {
+    let missing_for = InUse {
+        range_c: spec.use_range_c().or(in_use.range_c),
+        ..*in_use
+    };
+    acceptance::judge(
+        spec,
+        &Judged {
+            holdout: evals
+                .iter()
+                .filter(|(r, e)| *r == "holdout" && e.axis == axis)
+                .map(|(_, e)| e)
+                .collect(),
+            forecast_in_use_std100_dph: outcome.predicted_in_use_std100_dph(),
+            missing: outcome.bank.as_ref().map(|b| {
+                b.coverage
+                    .missing(&missing_for, fit::coverage::model_range_c(&outcome.model))
+            }),
+        },
+    )
 }
 
 /// The verdict as `fit` prints it: `acceptance: pass`, or `FAIL` and a line per limit missed.
