@@ -555,7 +555,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     if bad > 0 {
         return Err(Rejected(format!(
-            "{bad} of {} units failed or could not be calibrated",
+            "{bad} of {} units (axes) failed or could not be calibrated",
             rows.len()
         ))
         .into());

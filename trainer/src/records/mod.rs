@@ -48,10 +48,11 @@ impl std::fmt::Debug for Store {
     }
 }
 
-/// The SELECT of whole records, newest first within what the WHERE clause picks.
+/// The SELECT of whole records that the WHERE clause picks: newest first; one calibration's
+/// axes (same time) by serial and axis.
 fn select(where_clause: &str) -> String {
     format!(
-        "SELECT {} FROM calibrations WHERE {where_clause} ORDER BY fitted_utc DESC, id DESC",
+        "SELECT {} FROM calibrations WHERE {where_clause} ORDER BY fitted_utc DESC, serial, axis, id DESC",
         record::COLUMNS
     )
 }
