@@ -11,6 +11,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use serde::Deserialize;
@@ -25,10 +26,13 @@ use trainer::text::{self, line_col};
 ///
 /// MANIFEST.toml names the batch, an optional acceptance spec and each unit's serial,
 /// training and holdout runs (paths relative to the manifest; docs/production.md).
-/// Every unit is fitted by `trainer fit` on its own, one per core, then judged; OUTDIR
-/// gets `<serial>/model.bin`, `<serial>/fit.json` and `summary.json`, `summary.csv`,
-/// `index.html`. Exit 0: every unit passed; 3: a unit failed or could not be calibrated
-/// (the others are written); 1: the batch could not run (nothing written).
+/// Every unit is fitted by `trainer fit` on its own, one per core, then judged (a
+/// three-axis unit axis by axis); OUTDIR gets `<serial>/model.bin`, `<serial>/fit.json`
+/// and `summary.json`, `summary.csv`, `index.html` (a row per unit and axis, failing first).
+/// Memory: at most --jobs streaming fits at once, each flat in the run's length (about
+/// 48 MB for a 17-h run at 10 Hz; docs/benchmarks.md). Exit 0: every unit passed; 3: a
+/// unit failed or could not be calibrated (the others are written); 1: the batch could
+/// not run (nothing written).
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  trainer batch batch.toml -o out/B-2026-48")]
 pub struct Args {
@@ -470,6 +474,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
         .clamp(1, units.len());
     eprintln!("batch {batch}: {} units, {workers} at a time", units.len());
+    let started = Instant::now();
+    // Time spent writing records, summed over the workers (what the records cost the batch).
+    let records_time = Mutex::new(Duration::ZERO);
     let next = Mutex::new(0usize);
     let results: Mutex<Vec<Option<Outcome>>> = Mutex::new(vec![None; units.len()]);
     let done = Mutex::new(0usize);
@@ -494,8 +501,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                         },
                     };
                     if let Some(store) = &store {
+                        let recording = Instant::now();
                         let args: Vec<String> = args.iter().map(|s| s.to_string_lossy().into_owned()).collect();
                         result = write_records(store, unit, result, &dir, spec.as_deref(), &batch, &args);
+                        if let Ok(mut t) = records_time.lock() {
+                            *t += recording.elapsed();
+                        }
                     }
                     let n = done.lock().map(|mut d| {
                         *d += 1;
@@ -535,6 +546,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     });
     let summary = serde_json::json!({"batch": batch, "units": rows});
     // The three summaries are committed together, or none changes.
+    let summarising = Instant::now();
     let mut transaction = trainer::output::Transaction::new();
     for (name, bytes) in [
         ("summary.json", serde_json::to_string_pretty(&summary)?.into_bytes()),
@@ -547,6 +559,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         transaction.add(out);
     }
     transaction.commit()?;
+    let summaries = summarising.elapsed();
+    let records = records_time.into_inner().unwrap_or_default();
+    let wall = started.elapsed();
+    eprintln!(
+        "batch {batch}: {:.1} s; summaries {:.3} s, records {:.3} s: {:.2} % of the worker time",
+        wall.as_secs_f64(),
+        summaries.as_secs_f64(),
+        records.as_secs_f64(),
+        100.0 * (summaries + records).as_secs_f64() / (wall.as_secs_f64() * workers as f64).max(1e-9)
+    );
     let bad = rows.iter().filter(|r| r["status"] != "pass").count();
     println!(
         "batch {batch}: {} pass, {bad} fail or error; wrote {}",
