@@ -13,7 +13,9 @@
 //! summary; [`describe`]: a model in words). Beside them: [`plan`] designs
 //! the chamber run, [`simulate`] synthesises runs, [`device`] talks to the
 //! unit, [`output`] writes every file through a transaction, [`refusals`]
-//! names the flag that accepts a refusal. Shared helpers sit below the
+//! names the flag that accepts a refusal; [`acceptance`] judges a unit against a spec,
+//! [`provenance`] says where a blob came from, [`calibration`] makes a unit's summary
+//! rows and [`records`] keeps each calibration in SQLite or PostgreSQL. Shared helpers sit below the
 //! features that use them: [`parallel`], [`plotting`], [`text`].
 
 #![forbid(unsafe_code)]

@@ -2,7 +2,7 @@
 //! every unit with the failing ones first, exit 0/3/1, `--resume`, and bad manifests
 //! refused with file, line and column before anything is written.
 
-use crate::common::{short_chamber_run, stderr, stdout, trainer};
+use crate::common::{inspect_json, short_chamber_run, short_chamber_run_with, stderr, stdout, trainer};
 use tempfile::TempDir;
 
 /// Two good units and one whose training run is cut short: exit 3, the good units'
@@ -45,14 +45,7 @@ fn a_batch_writes_every_good_unit_and_names_the_broken_one_first() {
         assert_eq!(u["status"], "pass", "{u}");
         let serial = u["serial"].as_str().unwrap();
         let model = out.join(serial).join("model.bin");
-        let inspected: serde_json::Value = serde_json::from_str(&stdout(&trainer(&[
-            "inspect",
-            "--model",
-            model.to_str().unwrap(),
-            "--format",
-            "json",
-        ])))
-        .unwrap();
+        let inspected = inspect_json(&model);
         let p = &inspected["provenance"];
         assert_eq!((p["serial"].as_str(), p["batch"].as_str()), (Some(serial), Some("B-T")));
         let train = runs.join(if serial == "FOG-1" { "u1.csv" } else { "u2.csv" });
@@ -131,21 +124,7 @@ fn bad_manifests_are_refused_with_file_line_and_column_and_nothing_written() {
 fn a_three_axis_unit_is_judged_and_recorded_axis_by_axis() {
     let dir = TempDir::new().unwrap();
     for (name, seed) in [("imu_t.csv", "5"), ("imu_h.csv", "6")] {
-        let path = dir.path().join(name);
-        let o = trainer(&[
-            "simulate",
-            "--axes",
-            "3",
-            "--ramp",
-            "1",
-            "--hold-min",
-            "30",
-            "--seed",
-            seed,
-            "-o",
-            path.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
+        short_chamber_run_with(&dir.path().join(name), seed, &["--axes", "3"]);
     }
     // On these seeded runs the z axis's holdout leaves its training range most often.
     std::fs::write(dir.path().join("spec.toml"), "[holdout]\nclamped_max_pct = 0.01\n").unwrap();

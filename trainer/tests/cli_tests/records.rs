@@ -9,7 +9,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use crate::common::postgres::PostgresServer;
-use crate::common::{short_chamber_run, stderr, stdout, trainer};
+use crate::common::{inspect_json, short_chamber_run, stderr, stdout, trainer};
 use tempfile::TempDir;
 
 /// A batch directory: `n` units FOG-1 … FOG-n (a training and a holdout run each, seeds
@@ -59,15 +59,7 @@ fn history(which: &[&str], store: &str) -> Vec<serde_json::Value> {
 
 /// `trainer inspect --model MODEL --format json`'s `crc32`.
 fn inspected_crc(model: &Path) -> String {
-    let v: serde_json::Value = serde_json::from_str(&stdout(&trainer(&[
-        "inspect",
-        "--model",
-        model.to_str().unwrap(),
-        "--format",
-        "json",
-    ])))
-    .unwrap();
-    v["crc32"].as_str().unwrap().to_owned()
+    inspect_json(model)["crc32"].as_str().unwrap().to_owned()
 }
 
 /// Every record of a batch is whole: a passing unit's blob is the model its CRC names.
