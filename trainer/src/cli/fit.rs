@@ -4,12 +4,11 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use rbf_core::thermometer::ThermometerSet;
-use trainer::acceptance::{self, Judged, Rejected, Spec};
+use trainer::acceptance::{Rejected, Spec};
 use trainer::blobfile::encode_model;
 use trainer::dataset::RunFiles;
 use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader, only_axis};
 use trainer::evaluation::table::print_table;
-use trainer::fit::coverage::InUse;
 use trainer::fit::{self, FitOptions};
 use trainer::output::{self, Output, StagedDir, Transaction};
 use trainer::provenance::ProvenanceRecord;
@@ -26,6 +25,7 @@ mod args;
 mod axes;
 mod blob_out;
 pub(super) mod json;
+mod judging;
 mod record_out;
 mod summary;
 
@@ -33,16 +33,9 @@ pub use self::args::Args;
 use self::args::check_distinct_inputs;
 use self::blob_out::write_blob;
 use self::json::{outcome_json, runs_json};
+use self::judging::{Calibration, judge_axis, verdict_text};
 use self::record_out::write_records;
 use self::summary::{FitHow, training_loop_range_c, write_summary};
-
-/// What a fit is calibrated with and recorded in, beside its options: its provenance, the
-/// spec it is judged against, the records store.
-pub(crate) struct Calibration<'a> {
-    provenance: &'a ProvenanceRecord,
-    spec: Option<&'a Spec>,
-    store: Option<Store>,
-}
 
 /// Runs `trainer fit`.
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -265,51 +258,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             Err(Rejected(format!("the unit missed its acceptance spec: {}", v.reasons.join("; "))).into())
         }
         _ => Ok(()),
-    }
-}
-
-/// The verdict of one axis's fit `outcome` (`axis`: `None` for a single-axis run) against
-/// `spec`: its holdout runs among `evals`, its forecast, what its runs lack for the spec's
-/// range of use (else `in_use`'s).
-pub(crate) fn judge_axis(
-    spec: &Spec,
-    in_use: &InUse,
-    outcome: &fit::FitOutcome,
-    evals: &[(&str, RunEvaluation)],
-    axis: Option<&str>,
-) -> acceptance::Verdict {
-    let missing_for = InUse {
-        range_c: spec.use_range_c().or(in_use.range_c),
-        ..*in_use
-    };
-    acceptance::judge(
-        spec,
-        &Judged {
-            holdout: evals
-                .iter()
-                .filter(|(r, e)| *r == "holdout" && e.axis == axis)
-                .map(|(_, e)| e)
-                .collect(),
-            forecast_in_use_std100_dph: outcome.predicted_in_use_std100_dph(),
-            missing: outcome.bank.as_ref().map(|b| {
-                b.coverage
-                    .missing(&missing_for, fit::coverage::model_range_c(&outcome.model))
-            }),
-        },
-    )
-}
-
-/// The verdict as `fit` prints it: `acceptance: pass`, or `FAIL` and a line per limit missed.
-pub(crate) fn verdict_text(v: &acceptance::Verdict) -> String {
-    if v.passed() {
-        "acceptance: pass".to_owned()
-    } else {
-        let mut t = "acceptance: FAIL".to_owned();
-        for r in &v.reasons {
-            t.push_str("\n  ");
-            t.push_str(r);
-        }
-        t
     }
 }
 

@@ -22,6 +22,15 @@ impl SqlValue {
     }
 }
 
+/// What a command does with a store.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Access {
+    /// Writes records: created (a new SQLite file) and migrated when needed; must be writable.
+    Write,
+    /// Only reads records: must exist; never created, migrated or otherwise changed.
+    Read,
+}
+
 /// The SQL dialect of a store: the few words in which SQLite and PostgreSQL differ.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Dialect {

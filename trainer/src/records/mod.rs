@@ -16,17 +16,9 @@ pub mod record;
 pub mod schema;
 pub mod sqlite;
 
+pub use backend::Access;
 use backend::{Backend, SqlValue, in_write_transaction};
 pub use record::Record;
-
-/// What a command does with a store.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Access {
-    /// Writes records: created (a new SQLite file) and migrated when needed; must be writable.
-    Write,
-    /// Only reads records: must exist; never created, migrated or otherwise changed.
-    Read,
-}
 
 /// True when `locator` names a PostgreSQL database (`postgres://…`, `postgresql://…`).
 pub fn is_postgres_url(locator: &str) -> bool {

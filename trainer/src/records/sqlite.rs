@@ -11,8 +11,7 @@ use std::time::Duration;
 use rusqlite::types::{Value, ValueRef};
 use rusqlite::{Connection, OpenFlags};
 
-use super::Access;
-use super::backend::{Backend, Dialect, SqlValue};
+use super::backend::{Access, Backend, Dialect, SqlValue};
 
 /// How long a writer waits for another's transaction to end before it gives up.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(60);

@@ -22,6 +22,8 @@ use super::super::common::{JsonSink, print_and_commit};
 use super::args::Args;
 use super::blob_out::write_blob;
 use super::json::{outcome_json, runs_json};
+use super::judging::{Calibration, judge_axis, verdict_text};
+use super::record_out::write_records;
 use super::summary::{FitHow, write_summary};
 
 /// Fits every axis of `axes` on the runs of `a` with `opts`, writes the
@@ -35,7 +37,7 @@ pub(super) fn run(
     axes: &[Axis],
     model_out: Option<Output>,
     json_out: JsonSink,
-    calibration: super::Calibration<'_>,
+    calibration: Calibration<'_>,
 ) -> anyhow::Result<()> {
     anyhow::ensure!(
         a.report.is_none(),
@@ -151,12 +153,12 @@ pub(super) fn run(
         .map(|(axis, (o, _))| {
             calibration
                 .spec
-                .map(|spec| super::judge_axis(spec, &in_use, o, &evals, Some(axis.name())))
+                .map(|spec| judge_axis(spec, &in_use, o, &evals, Some(axis.name())))
         })
         .collect();
     for (axis, verdict) in axes.iter().zip(&verdicts) {
         if let Some(v) = verdict {
-            writeln!(out, "\naxis {}: {}", axis.name(), super::verdict_text(v))?;
+            writeln!(out, "\naxis {}: {}", axis.name(), verdict_text(v))?;
         }
     }
     writeln!(
@@ -198,7 +200,7 @@ pub(super) fn run(
     let json_on_stdout = json_out.is_stdout();
     json_out.write(&json, &mut transaction)?;
     print_and_commit(&out, json_on_stdout, transaction)?;
-    super::write_records(calibration.store, a.serial.as_deref(), &json, &blob)?;
+    write_records(calibration.store, a.serial.as_deref(), &json, &blob)?;
     if unit_reasons.is_empty() {
         Ok(())
     } else {
