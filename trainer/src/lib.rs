@@ -13,13 +13,16 @@
 //! summary; [`describe`]: a model in words). Beside them: [`plan`] designs
 //! the chamber run, [`simulate`] synthesises runs, [`device`] talks to the
 //! unit, [`output`] writes every file through a transaction, [`refusals`]
-//! names the flag that accepts a refusal. Shared helpers sit below the
+//! names the flag that accepts a refusal; [`acceptance`] judges a unit against a spec,
+//! [`provenance`] says where a blob came from, [`calibration`] makes a unit's summary
+//! rows and [`records`] keeps each calibration in SQLite or PostgreSQL. Shared helpers sit below the
 //! features that use them: [`parallel`], [`plotting`], [`text`].
 
 #![forbid(unsafe_code)]
 
 pub mod acceptance;
 pub mod blobfile;
+pub mod calibration;
 pub mod dataset;
 pub mod describe;
 pub mod device;
@@ -32,6 +35,7 @@ pub mod plan;
 pub mod plotting;
 pub mod provenance;
 pub mod reading;
+pub mod records;
 pub mod refusals;
 pub mod report;
 pub mod simulate;

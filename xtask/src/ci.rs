@@ -66,6 +66,8 @@ fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
     eprintln!("\n==> cargo {}", args.join(" "));
     let output = Command::new("cargo")
         .args(args)
+        // Tests that need an installed server (PostgreSQL) fail here instead of skipping.
+        .env("CI", "true")
         .current_dir(workspace_root())
         .stderr(Stdio::inherit())
         .output()
@@ -105,7 +107,8 @@ pub fn ci() -> anyhow::Result<()> {
     crate::firmware::ensure_flip_link()?;
     qemu::ensure_installed()?;
     crate::c_library::ensure_arm_toolchain()?;
-    clock.lap("toolchain, flip-link, QEMU and the ARM C toolchain present");
+    crate::postgres::ensure_installed()?;
+    clock.lap("toolchain, flip-link, QEMU, the ARM C toolchain and PostgreSQL present");
     run("cargo", &["fmt", "--all", "--check"])?;
     run("cargo", &["fmt", "--manifest-path", "fuzz/Cargo.toml", "--check"])?;
     crate::import_circles::import_circles()?;

@@ -10,12 +10,14 @@
 //! - [`fuzz`]: `cargo xtask fuzz`;
 //! - [`import_circles`]: `cargo xtask import-circles`;
 //! - [`faults`]: `cargo xtask qemu-faults`;
-//! - [`large_run`]: `cargo xtask bench-large-run`;
+//! - [`large_run`]: `cargo xtask bench-large-run`; [`bench_batch`]: `cargo xtask bench-batch`;
+//! - [`postgres`]: the PostgreSQL server binaries the records tests start (installed by CI);
 //! - [`ci`]: `cargo xtask ci`, the whole test suite; [`build_graph`]: that xtask and the tests build one trainer.
 #![forbid(unsafe_code)]
 
 pub mod accuracy;
 pub mod bench;
+pub mod bench_batch;
 pub mod board_faults;
 pub mod board_stack;
 pub mod build_graph;
@@ -28,6 +30,7 @@ pub mod fuzz;
 pub mod import_circles;
 pub mod large_run;
 pub mod panic_paths;
+pub mod postgres;
 pub mod qemu;
 pub mod qemu_board;
 pub mod replay;

@@ -226,6 +226,16 @@ enum Cmd {
         #[arg(long, value_name = "N", default_value_t = 0)]
         repeat: u32,
     },
+    /// Production-batch throughput: 32 simulated units of four designs (a 17-h planned
+    /// run at 10 Hz each to train on, a 4-h cycle to hold out; generated once under
+    /// target/bench-batch/), one `trainer batch` without records and one with records in
+    /// SQLite; prints units per minute, peak memory and the time the summaries and
+    /// records take.
+    BenchBatch {
+        /// The trainer to time (default: a release build).
+        #[arg(long, value_name = "PATH")]
+        trainer: Option<PathBuf>,
+    },
     /// Fuzz everything that reads outside input (model blobs, recorded runs,
     /// output frames) with libFuzzer via cargo fuzz (installed when missing),
     /// each target for --seconds, from a seed corpus written by the current
@@ -368,6 +378,7 @@ fn main() -> anyhow::Result<()> {
             Ok(())
         }
         Cmd::BenchLargeRun { repeat } => xtask::large_run::bench_large_run(repeat),
+        Cmd::BenchBatch { trainer } => xtask::bench_batch::bench_batch(trainer.as_deref()),
         Cmd::Fuzz { seconds } => xtask::fuzz::fuzz(seconds).map(|_| ()),
     }
 }

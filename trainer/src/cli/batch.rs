@@ -11,22 +11,28 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use serde::Deserialize;
 use toml::Spanned;
 use trainer::acceptance::{Rejected, Spec};
+use trainer::calibration::{Outcome, Status, rows};
 use trainer::provenance::sha256_file;
+use trainer::records::{Access, Record, Store};
 use trainer::text::{self, line_col};
 
 /// Fit and judge every unit of a production batch.
 ///
 /// MANIFEST.toml names the batch, an optional acceptance spec and each unit's serial,
 /// training and holdout runs (paths relative to the manifest; docs/production.md).
-/// Every unit is fitted by `trainer fit` on its own, one per core, then judged; OUTDIR
-/// gets `<serial>/model.bin`, `<serial>/fit.json` and `summary.json`, `summary.csv`,
-/// `index.html`. Exit 0: every unit passed; 3: a unit failed or could not be calibrated
-/// (the others are written); 1: the batch could not run (nothing written).
+/// Every unit is fitted by `trainer fit` on its own, one per core, then judged (a
+/// three-axis unit axis by axis); OUTDIR gets `<serial>/model.bin`, `<serial>/fit.json`
+/// and `summary.json`, `summary.csv`, `index.html` (a row per unit and axis, failing first).
+/// Memory: at most --jobs streaming fits at once, each flat in the run's length (about
+/// 48 MB for a 17-h run at 10 Hz; docs/benchmarks.md). Exit 0: every unit passed; 3: a
+/// unit failed or could not be calibrated (the others are written); 1: the batch could
+/// not run (nothing written).
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  trainer batch batch.toml -o out/B-2026-48")]
 pub struct Args {
@@ -43,6 +49,16 @@ pub struct Args {
     /// or whose outputs are missing or damaged.
     #[arg(long)]
     resume: bool,
+    /// Also record each calibration in STORE (a SQLite file, or postgres://…).
+    ///
+    /// One record per unit and axis (serial, batch, time, trainer version, run digests, fit
+    /// options, spec digest, model CRC-32 and id, the blob, every figure of its summary row,
+    /// status and reasons), each written in one transaction after the unit's blob. A SQLite
+    /// file is created when missing; a store that cannot be written, is damaged or has a
+    /// newer schema fails the batch before any fit. `trainer history` reads it back
+    /// (docs/production.md, "Calibration records").
+    #[arg(long, value_name = "STORE")]
+    records: Option<String>,
     /// Parallel fits (default: the number of cores).
     #[arg(long, value_name = "N")]
     jobs: Option<usize>,
@@ -200,16 +216,6 @@ fn read_manifest(path: &Path) -> anyhow::Result<(String, Option<PathBuf>, Vec<Un
     Ok((m.batch, spec, units))
 }
 
-/// What became of one unit.
-#[derive(Debug, Clone)]
-struct UnitResult {
-    serial: String,
-    status: &'static str,
-    reasons: Vec<String>,
-    fit: Option<serde_json::Value>,
-    resumed: bool,
-}
-
 /// The digest of everything a unit's result depends on: its runs, options, spec, batch
 /// and this trainer's version (`--resume` redoes a unit whose digest changed).
 fn inputs_digest(unit: &Unit, spec: Option<&Path>, batch: &str) -> anyhow::Result<String> {
@@ -224,32 +230,41 @@ fn inputs_digest(unit: &Unit, spec: Option<&Path>, batch: &str) -> anyhow::Resul
     Ok(trainer::provenance::sha256_bytes(s.as_bytes()))
 }
 
-/// Fits one unit with `trainer fit` into `dir`.
-fn fit_unit(unit: &Unit, spec: Option<&Path>, batch: &str, dir: &Path, digest: &str) -> UnitResult {
+/// The `trainer fit` arguments of `unit` into `dir`.
+fn fit_arguments(unit: &Unit, spec: Option<&Path>, batch: &str, dir: &Path) -> Vec<std::ffi::OsString> {
+    let mut args: Vec<std::ffi::OsString> = vec!["fit".into(), "-q".into()];
+    args.extend(unit.train.iter().map(|p| p.as_os_str().to_owned()));
+    for h in &unit.holdout {
+        args.extend(["--holdout".into(), h.as_os_str().to_owned()]);
+    }
+    args.extend(["--serial", &unit.serial, "--batch", batch, "--force"].map(Into::into));
+    if let Some(spec) = spec {
+        args.extend(["--spec".into(), spec.as_os_str().to_owned()]);
+    }
+    args.extend(unit.options.iter().map(Into::into));
+    args.extend([
+        "-o".into(),
+        dir.join("model.bin").into_os_string(),
+        "--json".into(),
+        dir.join("fit.json").into_os_string(),
+    ]);
+    args
+}
+
+/// Fits one unit with `trainer fit` (`args`, [`fit_arguments`]) into `dir`.
+fn fit_unit(unit: &Unit, args: &[std::ffi::OsString], dir: &Path, digest: &str) -> Outcome {
     let mut cmd = match std::env::current_exe() {
         Ok(exe) => Command::new(exe),
-        Err(e) => return error(unit, format!("cannot find the trainer binary: {e}")),
+        Err(e) => return Outcome::error(&unit.serial, format!("cannot find the trainer binary: {e}")),
     };
-    cmd.arg("fit").arg("-q").args(&unit.train);
-    for h in &unit.holdout {
-        cmd.arg("--holdout").arg(h);
-    }
-    cmd.args(["--serial", &unit.serial, "--batch", batch, "--force"]);
-    if let Some(spec) = spec {
-        cmd.arg("--spec").arg(spec);
-    }
-    cmd.args(&unit.options);
-    cmd.arg("-o")
-        .arg(dir.join("model.bin"))
-        .arg("--json")
-        .arg(dir.join("fit.json"));
+    cmd.args(args);
     if let Err(e) = std::fs::create_dir_all(dir) {
-        return error(unit, format!("{}: cannot create: {e}", text::path(dir)));
+        return Outcome::error(&unit.serial, format!("{}: cannot create: {e}", text::path(dir)));
     }
     let _ = std::fs::remove_file(dir.join(DIGEST_FILE));
     let out = match cmd.output() {
         Ok(o) => o,
-        Err(e) => return error(unit, format!("cannot run trainer fit: {e}")),
+        Err(e) => return Outcome::error(&unit.serial, format!("cannot run trainer fit: {e}")),
     };
     let stderr = String::from_utf8_lossy(&out.stderr);
     let fit = std::fs::read(dir.join("fit.json"))
@@ -258,17 +273,7 @@ fn fit_unit(unit: &Unit, spec: Option<&Path>, batch: &str, dir: &Path, digest: &
     match (out.status.code(), fit) {
         (Some(0 | 3), Some(fit)) => {
             let _ = std::fs::write(dir.join(DIGEST_FILE), digest);
-            let reasons: Vec<String> = fit["acceptance"]["reasons"]
-                .as_array()
-                .map(|r| r.iter().filter_map(|x| x.as_str().map(str::to_owned)).collect())
-                .unwrap_or_default();
-            UnitResult {
-                serial: unit.serial.clone(),
-                status: if reasons.is_empty() { "pass" } else { "fail" },
-                reasons,
-                fit: Some(fit),
-                resumed: false,
-            }
+            Outcome::fitted(&unit.serial, fit, false)
         }
         _ => {
             let why = stderr
@@ -278,18 +283,8 @@ fn fit_unit(unit: &Unit, spec: Option<&Path>, batch: &str, dir: &Path, digest: &
                 .unwrap_or("trainer fit failed without a message")
                 .trim_start_matches("error: ")
                 .to_owned();
-            error(unit, why)
+            Outcome::error(&unit.serial, why)
         }
-    }
-}
-
-fn error(unit: &Unit, why: String) -> UnitResult {
-    UnitResult {
-        serial: unit.serial.clone(),
-        status: "error",
-        reasons: vec![why],
-        fit: None,
-        resumed: false,
     }
 }
 
@@ -297,7 +292,7 @@ fn error(unit: &Unit, why: String) -> UnitResult {
 const DIGEST_FILE: &str = "inputs.sha256";
 
 /// A resumed unit's earlier result, if its inputs are unchanged and its outputs whole.
-fn earlier(unit: &Unit, dir: &Path, digest: &str) -> Option<UnitResult> {
+fn earlier(unit: &Unit, dir: &Path, digest: &str) -> Option<Outcome> {
     let stored = std::fs::read_to_string(dir.join(DIGEST_FILE)).ok()?;
     if stored.trim() != digest {
         return None;
@@ -307,69 +302,15 @@ fn earlier(unit: &Unit, dir: &Path, digest: &str) -> Option<UnitResult> {
         return None;
     }
     let fit: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("fit.json")).ok()?).ok()?;
-    let reasons: Vec<String> = fit["acceptance"]["reasons"]
-        .as_array()
-        .map(|r| r.iter().filter_map(|x| x.as_str().map(str::to_owned)).collect())
-        .unwrap_or_default();
-    Some(UnitResult {
-        serial: unit.serial.clone(),
-        status: if reasons.is_empty() { "pass" } else { "fail" },
-        reasons,
-        fit: Some(fit),
-        resumed: true,
-    })
+    Some(Outcome::fitted(&unit.serial, fit, true))
 }
 
-/// The summary row of one unit: every figure of its fit that a batch is judged on.
-fn row(r: &UnitResult) -> serde_json::Value {
-    let fit = r.fit.as_ref();
-    let holdouts: Vec<&serde_json::Value> = fit
-        .and_then(|f| f["runs"].as_array())
-        .map(|runs| {
-            runs.iter()
-                .filter(|x| x["role"] == "holdout")
-                .map(|x| &x["evaluation"])
-                .collect()
-        })
-        .unwrap_or_default();
-    let worst = |key: &str, max: bool| {
-        let values = holdouts.iter().filter_map(|e| e[key].as_f64());
-        if max {
-            values.reduce(f64::max)
-        } else {
-            values.reduce(f64::min)
-        }
-    };
-    let clamped = holdouts
-        .iter()
-        .filter_map(|e| Some(100.0 * e["flagged"]["input_clamped"].as_f64()? / e["samples"].as_f64()?))
-        .reduce(f64::max);
-    let bias_instability = holdouts
-        .iter()
-        .filter_map(|e| e["allan_after"]["bias_instability_dph"].as_f64())
-        .reduce(f64::max);
-    serde_json::json!({
-        "serial": r.serial,
-        "status": r.status,
-        "reasons": r.reasons,
-        "model_kind": fit.map(|f| f["method"].clone()),
-        "training_std100_dph": fit.map(|f| f["training_std100_dph"].clone()),
-        "holdout_std100_before_dph": worst("cluster_std_before_dph", true),
-        "holdout_std100_after_dph": worst("cluster_std_after_dph", true),
-        "holdout_std100_gain_pct": worst("cluster_std_improvement_pct", false),
-        "forecast_in_use_std100_dph": fit.map(|f| f["predicted_in_use_std100_dph"].clone()),
-        "clamped_pct": clamped,
-        "bias_instability_after_dph": bias_instability,
-        "settled_forecast": fit.map(|f| f["settled_forecast"].clone()),
-        "blob_bytes": fit.map(|f| f["blob_bytes"].clone()),
-        "resumed": r.resumed,
-    })
-}
-
-/// The columns of summary.csv and of the HTML table, in order.
-const COLUMNS: [&str; 11] = [
+/// The columns of summary.csv and of the HTML table, in order: every figure of the row.
+const COLUMNS: [&str; 16] = [
     "serial",
+    "axis",
     "status",
+    "reasons",
     "model_kind",
     "training_std100_dph",
     "holdout_std100_before_dph",
@@ -378,7 +319,10 @@ const COLUMNS: [&str; 11] = [
     "forecast_in_use_std100_dph",
     "clamped_pct",
     "bias_instability_after_dph",
-    "reasons",
+    "missing",
+    "settled_forecast",
+    "blob_bytes",
+    "resumed",
 ];
 
 fn cell(v: &serde_json::Value) -> String {
@@ -450,6 +394,63 @@ fn summary_html(batch: &str, rows: &[serde_json::Value]) -> String {
     h
 }
 
+/// Writes `outcome`'s calibration records into `store`, its blob in `dir` already committed:
+/// one per summary row (per axis); a fitted unit's from its blob; a kept unit's (`--resume`)
+/// only where the store lacks it (a batch killed before writing it); an error's with what
+/// its fit would have recorded. A record that cannot be written makes the unit an error
+/// that says so.
+fn write_records(
+    store: &Mutex<Store>,
+    unit: &Unit,
+    mut outcome: Outcome,
+    dir: &Path,
+    spec: Option<&Path>,
+    batch: &str,
+    args: &[String],
+) -> Outcome {
+    let written = (|| -> anyhow::Result<()> {
+        let mut store = store
+            .lock()
+            .map_err(|_| anyhow::anyhow!("another unit's record write failed"))?;
+        let blob = match outcome.status {
+            Status::Error => None,
+            _ => Some(
+                std::fs::read(dir.join("model.bin"))
+                    .with_context(|| format!("{}: cannot read", text::path(&dir.join("model.bin"))))?,
+            ),
+        };
+        for row in rows(&outcome) {
+            let record = match &blob {
+                None => {
+                    let provenance = trainer::provenance::ProvenanceRecord::for_fit(
+                        Some(&unit.serial),
+                        &unit.train,
+                        spec,
+                        Some(batch),
+                    )?;
+                    Record::new(&row, &provenance, args)?
+                }
+                Some(blob) => Record::fitted(&row, blob, args)?,
+            };
+            if outcome.resumed
+                && let Some(id) = record.model_id
+                && store.has_model(&record.serial, &record.axis, id)?
+            {
+                continue;
+            }
+            store.insert(&record)?;
+        }
+        Ok(())
+    })();
+    if let Err(e) = written {
+        outcome.status = Status::Error;
+        outcome
+            .reasons
+            .push(format!("its calibration record was not written: {e:#}"));
+    }
+    outcome
+}
+
 /// Runs `trainer batch`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let (batch, spec, units) = read_manifest(&a.manifest)?;
@@ -460,14 +461,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             text::path(&a.output)
         );
     }
+    // The store before any fit: one that cannot take the records fails the batch now.
+    let store = a
+        .records
+        .as_deref()
+        .map(|locator| Store::open(locator, Access::Write))
+        .transpose()?
+        .map(Mutex::new);
     std::fs::create_dir_all(&a.output).with_context(|| format!("{}: cannot create", text::path(&a.output)))?;
     let workers = a
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
         .clamp(1, units.len());
     eprintln!("batch {batch}: {} units, {workers} at a time", units.len());
+    let started = Instant::now();
+    // Time spent writing records, summed over the workers (what the records cost the batch).
+    let records_time = Mutex::new(Duration::ZERO);
     let next = Mutex::new(0usize);
-    let results: Mutex<Vec<Option<UnitResult>>> = Mutex::new(vec![None; units.len()]);
+    let results: Mutex<Vec<Option<Outcome>>> = Mutex::new(vec![None; units.len()]);
     let done = Mutex::new(0usize);
     std::thread::scope(|s| {
         for _ in 0..workers {
@@ -481,13 +492,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     };
                     let Some(unit) = units.get(i) else { return };
                     let dir = a.output.join(&unit.serial);
-                    let result = match inputs_digest(unit, spec.as_deref(), &batch) {
-                        Err(e) => error(unit, format!("{e:#}")),
+                    let args = fit_arguments(unit, spec.as_deref(), &batch, &dir);
+                    let mut result = match inputs_digest(unit, spec.as_deref(), &batch) {
+                        Err(e) => Outcome::error(&unit.serial, format!("{e:#}")),
                         Ok(digest) => match a.resume.then(|| earlier(unit, &dir, &digest)).flatten() {
                             Some(r) => r,
-                            None => fit_unit(unit, spec.as_deref(), &batch, &dir, &digest),
+                            None => fit_unit(unit, &args, &dir, &digest),
                         },
                     };
+                    if let Some(store) = &store {
+                        let recording = Instant::now();
+                        let args: Vec<String> = args.iter().map(|s| s.to_string_lossy().into_owned()).collect();
+                        result = write_records(store, unit, result, &dir, spec.as_deref(), &batch, &args);
+                        if let Ok(mut t) = records_time.lock() {
+                            *t += recording.elapsed();
+                        }
+                    }
                     let n = done.lock().map(|mut d| {
                         *d += 1;
                         *d
@@ -498,7 +518,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                         n.unwrap_or(0),
                         units.len(),
                         unit.serial,
-                        result.status,
+                        result.status.as_str(),
                         if result.resumed { " (unchanged, kept)" } else { "" },
                         first
                     );
@@ -511,26 +531,44 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             });
         }
     });
-    let results: Vec<UnitResult> = results
+    let results: Vec<Outcome> = results
         .into_inner()
         .map_err(|_| anyhow::anyhow!("a worker failed"))?
         .into_iter()
         .flatten()
         .collect();
     // Failing units first (errors, then fails), each group in manifest order.
-    let mut rows: Vec<serde_json::Value> = results.iter().map(row).collect();
+    let mut rows: Vec<serde_json::Value> = results.iter().flat_map(rows).collect();
     rows.sort_by_key(|r| match r["status"].as_str() {
         Some("error") => 0,
         Some("fail") => 1,
         _ => 2,
     });
     let summary = serde_json::json!({"batch": batch, "units": rows});
-    let write = |name: &str, bytes: &[u8]| {
-        trainer::output::write_bytes_with(&a.output.join(name), &[], trainer::output::Existing::Replace, bytes)
-    };
-    write("summary.json", serde_json::to_string_pretty(&summary)?.as_bytes())?;
-    write("summary.csv", summary_csv(&rows).as_bytes())?;
-    write("index.html", summary_html(&batch, &rows).as_bytes())?;
+    // The three summaries are committed together, or none changes.
+    let summarising = Instant::now();
+    let mut transaction = trainer::output::Transaction::new();
+    for (name, bytes) in [
+        ("summary.json", serde_json::to_string_pretty(&summary)?.into_bytes()),
+        ("summary.csv", summary_csv(&rows).into_bytes()),
+        ("index.html", summary_html(&batch, &rows).into_bytes()),
+    ] {
+        let path = a.output.join(name);
+        let mut out = trainer::output::Output::create(&path, &[], trainer::output::Existing::Replace)?;
+        std::io::Write::write_all(&mut out, &bytes).with_context(|| format!("{}: write failed", text::path(&path)))?;
+        transaction.add(out);
+    }
+    transaction.commit()?;
+    let summaries = summarising.elapsed();
+    let records = records_time.into_inner().unwrap_or_default();
+    let wall = started.elapsed();
+    eprintln!(
+        "batch {batch}: {:.1} s; summaries {:.3} s, records {:.3} s: {:.2} % of the worker time",
+        wall.as_secs_f64(),
+        summaries.as_secs_f64(),
+        records.as_secs_f64(),
+        100.0 * (summaries + records).as_secs_f64() / (wall.as_secs_f64() * workers as f64).max(1e-9)
+    );
     let bad = rows.iter().filter(|r| r["status"] != "pass").count();
     println!(
         "batch {batch}: {} pass, {bad} fail or error; wrote {}",
@@ -539,10 +577,25 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     if bad > 0 {
         return Err(Rejected(format!(
-            "{bad} of {} units failed or could not be calibrated",
+            "{bad} of {} units (axes) failed or could not be calibrated",
             rows.len()
         ))
         .into());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// summary.csv and index.html show every figure the summary row holds.
+    #[test]
+    fn every_figure_of_the_summary_row_is_a_column() {
+        let r = rows(&Outcome::error("FOG-1", "broken.csv:3:1: not a number".to_owned())).remove(0);
+        for key in r.as_object().unwrap().keys() {
+            assert!(COLUMNS.contains(&key.as_str()), "{key} is not a column");
+        }
+        assert_eq!(r.as_object().unwrap().len(), COLUMNS.len());
+    }
 }

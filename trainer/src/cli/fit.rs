@@ -3,17 +3,17 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use trainer::acceptance::{self, Judged, Rejected, Spec};
+use trainer::acceptance::{Rejected, Spec};
 use trainer::blobfile::encode_model;
 use trainer::dataset::RunFiles;
 use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader, only_axis};
 use trainer::evaluation::table::print_table;
 use trainer::fit;
-use trainer::fit::coverage::InUse;
 use trainer::output::{self, Output, StagedDir, Transaction};
 use trainer::provenance::ProvenanceRecord;
 use trainer::reading::plausible;
 use trainer::reading::run::RunReader;
+use trainer::records::{Access, Store};
 use trainer::text;
 use trainer::{evaluation::diagnose, reading::input};
 
@@ -23,11 +23,15 @@ mod args;
 mod axes;
 mod blob_out;
 pub(super) mod json;
+mod judging;
+mod record_out;
 mod summary;
 
 pub use self::args::Args;
 use self::blob_out::write_blob;
 use self::json::{outcome_json, runs_json};
+use self::judging::{Calibration, judge_axis, verdict_text};
+use self::record_out::write_records;
 use self::summary::{FitHow, training_loop_range_c, write_summary};
 
 /// Runs `trainer fit`.
@@ -67,6 +71,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ("--holdout", &a.holdout),
     ])?;
     let spec = a.spec.as_deref().map(Spec::read).transpose()?;
+    // The records store before the fit: one that cannot take the record fails the fit now.
+    let store = a
+        .records
+        .as_deref()
+        .map(|locator| Store::open(locator, Access::Write))
+        .transpose()?;
     // Digests and the fit time, taken before the fit reads the runs.
     let provenance = ProvenanceRecord::for_fit(a.serial.as_deref(), &a.runs, a.spec.as_deref(), a.batch.as_deref())?;
     let train = RunFiles::new(&a.runs);
@@ -79,12 +89,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None => JsonSink::None,
     };
     if !axes.is_empty() {
-        anyhow::ensure!(
-            spec.is_none(),
-            "--spec judges single-axis fits for now; judge each axis's holdout with `trainer eval --json`"
-        );
         let how = FitHow::new(&opts, !a.validate.is_empty());
-        return axes::run(&a, &opts, &how, &axes, model_out, json_out, &provenance);
+        let calibration = Calibration {
+            provenance: &provenance,
+            spec: spec.as_ref(),
+            store,
+        };
+        return axes::run(&a, &opts, &how, &axes, model_out, json_out, calibration);
     }
     let started = std::time::Instant::now();
     let outcome = fit::fit(&train, &validate, &opts).map_err(|e| {
@@ -146,23 +157,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             writeln!(out, "{line}")?;
         }
     }
-    let verdict = spec.as_ref().map(|spec| {
-        let missing_for = InUse {
-            range_c: spec.use_range_c().or(in_use.range_c),
-            ..in_use
-        };
-        acceptance::judge(
-            spec,
-            &Judged {
-                holdout: evals.iter().filter(|(r, _)| *r == "holdout").map(|(_, e)| e).collect(),
-                forecast_in_use_std100_dph: outcome.predicted_in_use_std100_dph(),
-                missing: outcome.bank_search().map(|b| {
-                    b.coverage
-                        .missing(&missing_for, fit::coverage::model_range_c(&outcome.model))
-                }),
-            },
-        )
-    });
+    let verdict = spec
+        .as_ref()
+        .map(|spec| judge_axis(spec, &in_use, &outcome, &evals, None));
     if let Some(v) = &verdict {
         writeln!(out, "\n{}", verdict_text(v))?;
     }
@@ -206,27 +203,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     write_blob(model_out, &blob, &mut transaction)?;
     let json_on_stdout = json_out.is_stdout();
-    let json = json_out.write(&json, &mut transaction)?;
+    let json_doc = json;
+    let json = json_out.write(&json_doc, &mut transaction)?;
     print_json_and_commit(&out, json_on_stdout, json, transaction)?;
+    write_records(store, a.serial.as_deref(), &json_doc, &blob)?;
     match verdict {
         Some(v) if !v.passed() => {
             Err(Rejected(format!("the unit missed its acceptance spec: {}", v.reasons.join("; "))).into())
         }
         _ => Ok(()),
-    }
-}
-
-/// The verdict as `fit` prints it: `acceptance: pass`, or `FAIL` and a line per limit missed.
-pub(crate) fn verdict_text(v: &acceptance::Verdict) -> String {
-    if v.passed() {
-        "acceptance: pass".to_owned()
-    } else {
-        let mut t = "acceptance: FAIL".to_owned();
-        for r in &v.reasons {
-            t.push_str("\n  ");
-            t.push_str(r);
-        }
-        t
     }
 }
 

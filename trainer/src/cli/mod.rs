@@ -13,6 +13,7 @@ mod decode;
 mod device;
 mod eval;
 mod fit;
+mod history;
 mod inspect;
 mod model_arg;
 mod plan;
@@ -63,4 +64,5 @@ commands! {
     plan => Plan,
     device => Device,
     batch => Batch,
+    history => History,
 }

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use crate::common::{
-    compensate, fitted_model, shared_data, short_chamber_run, stderr, stdout, trainer, with_model, write,
+    compensate, fitted_model, inspect_json, shared_data, short_chamber_run, stderr, stdout, trainer, with_model, write,
 };
 use tempfile::TempDir;
 
@@ -559,14 +559,7 @@ fn a_fitted_blob_carries_its_provenance_and_inspect_shows_it_with_the_crc() {
     let expected = ::trainer::provenance::sha256_file(&run).unwrap();
     let blob = std::fs::read(&model).unwrap();
     let crc = u32::from_le_bytes(blob[blob.len() - 4..].try_into().unwrap());
-    let json: serde_json::Value = serde_json::from_str(&stdout(&trainer(&[
-        "inspect",
-        "--model",
-        model.to_str().unwrap(),
-        "--format",
-        "json",
-    ])))
-    .unwrap();
+    let json = inspect_json(&model);
     assert_eq!(json["format_version"], 4);
     assert_eq!(json["crc32"], format!("{crc:#010x}"));
     let p = &json["provenance"];

@@ -13,6 +13,7 @@ mod messages;
 mod plan;
 mod reading;
 mod recordings;
+mod records;
 mod response_bank;
 mod robustness;
 mod soak;

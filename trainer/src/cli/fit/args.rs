@@ -157,6 +157,13 @@ pub struct Args {
     /// exits 3.
     #[arg(long, value_name = "SPEC.toml", help_heading = "Model")]
     pub(super) spec: Option<PathBuf>,
+    /// Also record this calibration in STORE (SQLite file or postgres://…).
+    ///
+    /// Needs --serial. One record (per axis) with the blob, its provenance, the figures and the verdict,
+    /// written after the blob; a store that cannot be written fails the fit before it
+    /// starts. `trainer history SERIAL --records STORE` lists them (docs/production.md).
+    #[arg(long, value_name = "STORE", requires = "serial", help_heading = "Output")]
+    pub(super) records: Option<String>,
     /// Batch id recorded in the blob's provenance (`trainer batch` passes it).
     #[arg(long, value_name = "ID", hide = true)]
     pub(super) batch: Option<String>,

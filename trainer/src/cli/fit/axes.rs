@@ -8,13 +8,13 @@ use std::path::PathBuf;
 
 use rbf_core::MAX_AXIS_CENTERS;
 use rbf_core::axis::Axis;
+use trainer::acceptance::{Rejected, Verdict};
 use trainer::blobfile::{encode_axis_models, encode_shared_models};
 use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader};
 use trainer::evaluation::table::print_table;
 use trainer::fit::FitOptions;
 use trainer::fit::axes::{AxisRuns, JointMode, fit_axes, try_joint};
 use trainer::output::{Output, Transaction};
-use trainer::provenance::ProvenanceRecord;
 use trainer::reading::run::RunReader;
 use trainer::text;
 
@@ -22,11 +22,14 @@ use super::super::common::{JsonSink, print_json_and_commit};
 use super::args::Args;
 use super::blob_out::write_blob;
 use super::json::{outcome_json, runs_json};
+use super::judging::{Calibration, judge_axis, verdict_text};
+use super::record_out::write_records;
 use super::summary::{FitHow, write_summary};
 
 /// Fits every axis of `axes` on the runs of `a` with `opts`, writes the
 /// blob into `model_out` and the JSON report into `json_out`, and prints
-/// what `trainer fit` prints.
+/// what `trainer fit` prints; judges each axis against the spec and records each axis's
+/// calibration in the store of `calibration`.
 pub(super) fn run(
     a: &Args,
     opts: &FitOptions,
@@ -34,7 +37,7 @@ pub(super) fn run(
     axes: &[Axis],
     model_out: Option<Output>,
     json_out: JsonSink,
-    provenance: &ProvenanceRecord,
+    calibration: Calibration<'_>,
 ) -> anyhow::Result<()> {
     anyhow::ensure!(
         a.report.is_none(),
@@ -74,7 +77,7 @@ pub(super) fn run(
     let joint = try_joint(&runs, opts, axes, &outcomes, mode)?;
     let fit_s = started.elapsed().as_secs_f64();
     let models: Vec<(Axis, &rbf_core::Model)> = axes.iter().copied().zip(outcomes.iter().map(|o| &o.0.model)).collect();
-    let provenance = Some(provenance);
+    let provenance = Some(calibration.provenance);
     let blob = match &joint.chosen {
         Some(shared) => encode_shared_models(shared, provenance)?,
         None => encode_axis_models(&models, provenance)?,
@@ -138,6 +141,22 @@ pub(super) fn run(
             }
         }
     }
+    let in_use = a.in_use()?;
+    // Each axis judged on its own holdout evaluations, forecast and coverage.
+    let verdicts: Vec<Option<Verdict>> = axes
+        .iter()
+        .zip(&outcomes)
+        .map(|(axis, (o, _))| {
+            calibration
+                .spec
+                .map(|spec| judge_axis(spec, &in_use, o, &evals, Some(axis.name())))
+        })
+        .collect();
+    for (axis, verdict) in axes.iter().zip(&verdicts) {
+        if let Some(v) = verdict {
+            writeln!(out, "\naxis {}: {}", axis.name(), verdict_text(v))?;
+        }
+    }
     writeln!(
         out,
         "\nwrote {} ({} bytes, axes {})",
@@ -145,23 +164,47 @@ pub(super) fn run(
         blob.len(),
         trainer::evaluation::axes::names(axes)
     )?;
-    let in_use = a.in_use()?;
+    let acceptance =
+        |v: &Verdict| serde_json::json!({"status": if v.passed() { "pass" } else { "fail" }, "reasons": v.reasons});
+    let unit_reasons: Vec<String> = axes
+        .iter()
+        .zip(&verdicts)
+        .flat_map(|(axis, v)| {
+            v.iter()
+                .flat_map(move |v| v.reasons.iter().map(move |r| format!("axis {}: {r}", axis.name())))
+        })
+        .collect();
     let json = serde_json::json!({
         "method": opts.method.name(),
-        "axes": axes.iter().zip(&outcomes).map(|(axis, (o, _))| {
+        "axes": axes.iter().zip(&outcomes).zip(&verdicts).map(|((axis, (o, _)), v)| {
             let mut axis_json = outcome_json(o, &in_use);
             axis_json["axis"] = serde_json::json!(axis.name());
+            axis_json["acceptance"] = v.as_ref().map_or(serde_json::Value::Null, acceptance);
             axis_json
         }).collect::<Vec<_>>(),
         "joint": joint.json,
         "fit_seconds": fit_s,
         "blob_bytes": blob.len(),
         "runs": runs_json(&evals),
+        "acceptance": match calibration.spec {
+            Some(_) => acceptance(&Verdict { reasons: unit_reasons.clone() }),
+            None => serde_json::Value::Null,
+        },
     });
     let mut transaction = Transaction::new();
     write_blob(model_out, &blob, &mut transaction)?;
     let json_on_stdout = json_out.is_stdout();
-    let json = json_out.write(&json, &mut transaction)?;
+    let json_doc = json;
+    let json = json_out.write(&json_doc, &mut transaction)?;
     print_json_and_commit(&out, json_on_stdout, json, transaction)?;
-    Ok(())
+    write_records(calibration.store, a.serial.as_deref(), &json_doc, &blob)?;
+    if unit_reasons.is_empty() {
+        Ok(())
+    } else {
+        Err(Rejected(format!(
+            "the unit missed its acceptance spec: {}",
+            unit_reasons.join("; ")
+        ))
+        .into())
+    }
 }

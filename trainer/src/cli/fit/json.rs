@@ -35,6 +35,8 @@ pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse) -> serde_json::Value 
         "predicted_in_use_std100_dph": o.predicted_in_use_std100_dph(),
         "predicted_settled_spread_dph": serde_json::Value::Null,
         "settled_forecast": settled_forecast(o, in_use),
+        // What the runs lacked for `in_use` (the `missing:` lines); null for a method that does not say.
+        "missing": o.bank_search().map(|b| b.coverage.missing(in_use, trainer::fit::coverage::model_range_c(&o.model))),
         "training_std100_dph": training_std100,
         "features": features_json(o.model.features()),
         "svr": svr,

@@ -7,6 +7,8 @@ use std::process::{Command, Output, Stdio};
 
 use tempfile::TempDir;
 
+pub mod postgres;
+
 /// Runs `trainer` with `args`.
 pub fn trainer(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_trainer"))
@@ -76,7 +78,12 @@ pub fn write(dir: &TempDir, name: &str, content: &[u8]) -> PathBuf {
 /// Simulates into `path` a short chamber run (the IFOG protocol at
 /// 1 °C/min, 30-min holds, 1 Hz, 12,600 rows) of noise seed `seed`.
 pub fn short_chamber_run(path: &Path, seed: &str) {
-    let o = trainer(&[
+    short_chamber_run_with(path, seed, &[]);
+}
+
+/// [`short_chamber_run`] with `extra` simulate options (`--axes 3`: a three-axis IMU's run).
+pub fn short_chamber_run_with(path: &Path, seed: &str, extra: &[&str]) {
+    let args = [
         "simulate",
         "--ramp",
         "1",
@@ -86,8 +93,16 @@ pub fn short_chamber_run(path: &Path, seed: &str) {
         seed,
         "-o",
         path.to_str().unwrap(),
-    ]);
+    ];
+    let o = trainer(&[&args[..], extra].concat());
     assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// What `trainer inspect --model MODEL --format json` prints, parsed.
+pub fn inspect_json(model: &Path) -> serde_json::Value {
+    let o = trainer(&["inspect", "--model", model.to_str().unwrap(), "--format", "json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_str(&stdout(&o)).unwrap()
 }
 
 /// A model fitted on a short simulated chamber run (`train.csv` in `dir`,
