@@ -130,24 +130,17 @@ fn a_closed_standard_output_fails_the_command_before_anything_is_written() {
     let run = shared_data("ifog_train_1cpm.csv");
     let (model, json, _) = old_outputs(&dir);
     let before = tree(dir.path());
-    let mut child = Command::new(env!("CARGO_BIN_EXE_trainer"))
-        .args(fit_args(
-            run.to_str().unwrap(),
-            &[
-                "-o",
-                model.to_str().unwrap(),
-                "--json",
-                json.to_str().unwrap(),
-                "--force",
-            ],
-        ))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
     // The reader goes away before the command prints: `trainer fit … | true`.
-    drop(child.stdout.take());
-    let o = child.wait_with_output().unwrap();
+    let o = with_stdout_closed(&fit_args(
+        run.to_str().unwrap(),
+        &[
+            "-o",
+            model.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+            "--force",
+        ],
+    ));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("standard output"), "{}", stderr(&o));
     assert_eq!(tree(dir.path()), before, "nothing committed");
@@ -336,24 +329,17 @@ fn a_json_reader_that_stops_early_costs_neither_the_table_nor_a_clear_exit() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
     let run = shared_data("ifog_train_1cpm.csv");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_trainer"))
-        .args([
-            "eval",
-            "--model",
-            model.to_str().unwrap(),
-            run.to_str().unwrap(),
-            "--json",
-            "-",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
     // `| head -c 0`: the pipe closed before the JSON comes (a reader that
     // took 100 bytes of a JSON the pipe's buffer holds whole would see no
     // error at all).
-    drop(child.stdout.take());
-    let o = child.wait_with_output().unwrap();
+    let o = with_stdout_closed(&[
+        "eval",
+        "--model",
+        model.to_str().unwrap(),
+        run.to_str().unwrap(),
+        "--json",
+        "-",
+    ]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("Overlapping Allan deviation"), "the table is whole: {err}");
@@ -398,4 +384,17 @@ fn a_stop_at_any_moment_of_a_report_leaves_one_whole_report_and_no_hidden_copy()
         assert!(hidden(dir.path()).is_empty(), "{delay_ms} ms: {:?}", hidden(dir.path()));
         assert_eq!(names(tree(&rep)), whole, "{delay_ms} ms: one whole report");
     }
+}
+
+/// `trainer ARGS` with its standard output's reader gone before it prints
+/// (`trainer … | true`): its output and exit status.
+fn with_stdout_closed<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> std::process::Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_trainer"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    child.wait_with_output().unwrap()
 }
