@@ -390,8 +390,69 @@ fn summary_html(batch: &str, rows: &[serde_json::Value]) -> String {
         }
         h += "</tr>\n";
     }
-    h += "</table></body></html>\n";
+    h += "</table>\n";
+    h += &gain_chart_svg(rows);
+    h += "</body></html>\n";
     h
+}
+
+/// Height of one bar of [`gain_chart_svg`] and the gap below it, px.
+const BAR_PX: (usize, usize) = (14, 4);
+/// Width of the labels' column and of the 0 … 100 % scale, px.
+const CHART_PX: (usize, usize) = (170, 400);
+
+/// An inline SVG of every row's holdout STD100 gain (the worst holdout run), one bar per
+/// unit and axis in the summary's order, coloured by its status; a row without a holdout
+/// figure (an error, or no holdout run) has its label and no bar. Empty without rows.
+fn gain_chart_svg(rows: &[serde_json::Value]) -> String {
+    if rows.is_empty() {
+        return String::new();
+    }
+    let (bar, gap) = BAR_PX;
+    let (label_w, scale_w) = CHART_PX;
+    let height = rows.len() * (bar + gap) + 24;
+    let mut svg = format!(
+        "<h2>Holdout STD100 gain, worst holdout run [%]</h2>\n<svg xmlns=\"http://www.w3.org/2000/svg\" \
+         width=\"{w}\" height=\"{height}\" font-family=\"sans-serif\" font-size=\"11\">\n",
+        w = label_w + scale_w + 60
+    );
+    for (i, r) in rows.iter().enumerate() {
+        let y = i * (bar + gap);
+        let label = format!("{} {}", cell(&r["serial"]), cell(&r["axis"]));
+        let _ = writeln!(
+            svg,
+            "<text x=\"{}\" y=\"{}\" text-anchor=\"end\">{}</text>",
+            label_w - 6,
+            y + bar - 3,
+            html_escape(label.trim())
+        );
+        let Some(gain) = r["holdout_std100_gain_pct"].as_f64() else {
+            continue;
+        };
+        let colour = match r["status"].as_str() {
+            Some("pass") => "#4a4",
+            Some("fail") => "#c33",
+            _ => "#999",
+        };
+        let width = (gain.clamp(0.0, 100.0) / 100.0 * scale_w as f64).round();
+        let _ = writeln!(
+            svg,
+            "<rect x=\"{label_w}\" y=\"{y}\" width=\"{width}\" height=\"{bar}\" fill=\"{colour}\"/>\
+             <text x=\"{}\" y=\"{}\">{gain:.1}</text>",
+            label_w as f64 + width + 4.0,
+            y + bar - 3
+        );
+    }
+    let axis_y = rows.len() * (bar + gap) + 12;
+    for pct in [0, 50, 100] {
+        let _ = writeln!(
+            svg,
+            "<text x=\"{}\" y=\"{axis_y}\" text-anchor=\"middle\">{pct}</text>",
+            label_w + scale_w * pct / 100
+        );
+    }
+    svg += "</svg>\n";
+    svg
 }
 
 /// Writes `outcome`'s calibration records into `store`, its blob in `dir` already committed:
@@ -597,5 +658,33 @@ mod tests {
             assert!(COLUMNS.contains(&key.as_str()), "{key} is not a column");
         }
         assert_eq!(r.as_object().unwrap().len(), COLUMNS.len());
+    }
+
+    /// The page's chart has a bar per row with a holdout gain, as long as its share of the
+    /// scale and coloured by its status, in the summary's order; a row without one keeps its
+    /// label and has no bar.
+    #[test]
+    fn the_gain_chart_draws_a_bar_per_judged_row_in_order_coloured_by_status() {
+        let rows = [
+            serde_json::json!({"serial": "FOG-2", "axis": "", "status": "fail", "holdout_std100_gain_pct": 50.0}),
+            serde_json::json!({"serial": "FOG-3", "axis": "", "status": "error", "holdout_std100_gain_pct": null}),
+            serde_json::json!({"serial": "FOG-1", "axis": "", "status": "pass", "holdout_std100_gain_pct": 95.5}),
+        ];
+        let svg = gain_chart_svg(&rows);
+        let bars: Vec<&str> = svg.lines().filter(|l| l.starts_with("<rect")).collect();
+        assert_eq!(bars.len(), 2, "{svg}");
+        let half = CHART_PX.1 / 2;
+        assert!(
+            bars[0].contains(&format!("width=\"{half}\"")) && bars[0].contains("#c33"),
+            "{}",
+            bars[0]
+        );
+        assert!(bars[1].contains("#4a4") && bars[1].contains(">95.5<"), "{}", bars[1]);
+        let order: Vec<usize> = ["FOG-2", "FOG-3", "FOG-1"]
+            .iter()
+            .map(|s| svg.find(s).unwrap())
+            .collect();
+        assert!(order.windows(2).all(|w| w[0] < w[1]), "{svg}");
+        assert!(gain_chart_svg(&[]).is_empty());
     }
 }
