@@ -228,6 +228,7 @@ pub struct Args {
 impl Args {
     /// The fit's options from the arguments, refusing what the method asked
     /// for would ignore, naming why: `--max-centers` beside `--centers`,
+    /// either of them with a model without Gaussians (a cubic in T, the response bank),
     /// `--dt-window-s` with a model whose rate filters are fixed (the lag
     /// bank, the response bank, a cubic in T) or outside 0 … 86400 s,
     /// `--inputs` with a method other than svr-pso or naming an input twice,
@@ -252,11 +253,23 @@ impl Args {
                  --features multiscale…, paper, --method rbf2 or svr-pso",
             ),
             (MethodArg::Rbf, Some(FeaturesArg::ResponseBank)) => Some(
-                "the response bank has its 12 filters fixed (10 s … 11 h); --dt-window-s is for --features \
+                "the response bank has its 12 filters fixed (10 s … 1.1 h); --dt-window-s is for --features \
                  multiscale…, paper, --method rbf2 or svr-pso",
             ),
             _ => None,
         };
+        let no_gaussians = match (self.method, self.features) {
+            (MethodArg::Poly3, _) => Some("--method poly3 is a cubic in T, with no Gaussians"),
+            (MethodArg::Rbf, Some(FeaturesArg::ResponseBank)) => {
+                Some("the response bank is linear in its filters, with no Gaussians")
+            }
+            _ => None,
+        };
+        if let Some(why) = no_gaussians
+            && (self.centers.is_some() || self.max_centers.is_some())
+        {
+            anyhow::bail!("--centers and --max-centers would be ignored: {why}");
+        }
         if let Some(why) = fixed_filters
             && !self.dt_window_s.is_empty()
         {
@@ -463,6 +476,13 @@ mod tests {
         assert!(refused(&["--features", "paper", "--dt-window-s", "90000"]).contains("must be 0 … 86400 s"));
         assert!(refused(&["--inputs", "temp_a"]).contains("--inputs would be ignored"));
         assert!(refused(&["--centers", "4", "--max-centers", "8"]).contains("give one of them"));
+        assert!(
+            refused(&["--method", "poly3", "--centers", "4"]).contains("--centers and --max-centers would be ignored")
+        );
+        assert!(
+            refused(&["--features", "response-bank", "--max-centers", "4"])
+                .contains("--centers and --max-centers would be ignored")
+        );
     }
 
     #[test]
