@@ -105,8 +105,9 @@ impl RunHeader {
                     ),
                 ));
             }
-            counted_time_base |= record::metadata(line).is_some_and(|(k, v)| sampling::is_counted_time_base(k, v));
-            if let Some(value) = record::metadata(line)
+            let metadata = record::metadata(line);
+            counted_time_base |= metadata.is_some_and(|(k, v)| sampling::is_counted_time_base(k, v));
+            if let Some(value) = metadata
                 .filter(|(key, _)| *key == "sample_rate_hz")
                 .map(|(_, value)| value)
                 && let Some(hz) = sampling::metadata_rate_hz(value).map_err(|m| format_error(line_no, m))?
