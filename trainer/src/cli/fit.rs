@@ -32,7 +32,7 @@ use self::blob_out::write_blob;
 use self::json::{outcome_json, runs_json};
 use self::judging::{Calibration, judge_axis, verdict_text};
 use self::record_out::write_records;
-use self::summary::{FitHow, training_loop_range_c, write_summary};
+use self::summary::{FitHow, training_loop_range_c, training_settled_floor, write_summary, write_vouching};
 
 /// Runs `trainer fit`.
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -157,6 +157,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             writeln!(out, "{line}")?;
         }
     }
+    let settled_floor = training_settled_floor(&evals, None);
+    write_vouching(&mut out, &outcome, settled_floor.as_ref())?;
     let verdict = spec
         .as_ref()
         .map(|spec| judge_axis(spec, &in_use, &outcome, &evals, None));
@@ -164,7 +166,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         writeln!(out, "\n{}", verdict_text(v))?;
     }
     writeln!(out, "\nwrote {} ({} bytes)", text::path(&a.output), blob.len())?;
-    let mut json = outcome_json(&outcome, &in_use);
+    let mut json = outcome_json(&outcome, &in_use, settled_floor.as_ref());
     json["method"] = serde_json::json!(opts.method.name());
     json["fit_seconds"] = serde_json::json!(fit_s);
     json["blob_bytes"] = serde_json::json!(blob.len());

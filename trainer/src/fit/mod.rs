@@ -22,6 +22,7 @@ pub(crate) mod scoring;
 pub(crate) mod svr_data;
 pub mod svr_pso;
 pub mod thermometer_search;
+pub mod vouch;
 
 use rbf_core::{FeatureConfig, FeatureSet, Model};
 

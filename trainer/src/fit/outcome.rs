@@ -81,6 +81,17 @@ impl FitOutcome {
         Some(self.forecast_factor()? * bank.training_std100_dph?).filter(|v| v.is_finite())
     }
 
+    /// The deployed bank's residual 100-s cluster STD on its training runs
+    /// over the runs' white-noise floor ([`super::vouch`]); `None` for the
+    /// other methods and where the runs were too short to tell the floor.
+    pub fn residual_over_noise_floor(&self) -> Option<f64> {
+        let FitReport::Bank(bank) = &self.report else {
+            return None;
+        };
+        let floor = bank.structure.as_ref()?.noise_floor_std100_dph?;
+        Some(bank.training_std100_dph? / floor).filter(|r| r.is_finite())
+    }
+
     /// The factor [`Self::predicted_in_use_std100_dph`] applies to the
     /// training residual; `None` for the methods it does not forecast.
     pub fn forecast_factor(&self) -> Option<f64> {

@@ -254,3 +254,55 @@ fn soak_levels_and_hold_set_the_plateaus_and_need_the_soak_profile() {
         "{temps:?}"
     );
 }
+
+#[test]
+fn a_fit_on_a_run_with_settled_levels_states_their_spread_as_a_floor_under_the_soak_and_eval_agrees() {
+    let dir = TempDir::new().unwrap();
+    let run = dir.path().join("soak3.csv");
+    let path = run.to_str().unwrap();
+    let o = trainer(&[
+        "simulate",
+        "--profile",
+        "soak",
+        "--soak-levels-c",
+        "30,0,50",
+        "--soak-hold-h",
+        "2",
+        "--sample-rate-hz",
+        "1",
+        "-o",
+        path,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let model = dir.path().join("soak3.bin");
+    let fit_json = dir.path().join("fit.json");
+    let o = trainer(&[
+        "fit",
+        path,
+        "-o",
+        model.to_str().unwrap(),
+        "--json",
+        fit_json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        printed.contains("settled: the training run's own 3 settled levels"),
+        "{printed}"
+    );
+    let fit: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&fit_json).unwrap()).unwrap();
+    assert_eq!(fit["training_settled_levels"], 3, "{fit}");
+    let floor = fit["training_settled_spread_dph"].as_f64().unwrap();
+    assert!(
+        fit["settled_forecast"].as_str().unwrap().contains("reads at least"),
+        "{fit}"
+    );
+    assert!(fit["residual_over_noise_floor"].as_f64().unwrap() > 0.0, "{fit}");
+
+    // `eval` of the same model on the same run reads the same spread.
+    let o = trainer(&["eval", "--model", model.to_str().unwrap(), path, "--json", "-"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let eval_spread = v[0]["settled_spread_dph"].as_f64().unwrap();
+    assert!((eval_spread - floor).abs() < 1e-12, "fit {floor}, eval {eval_spread}");
+}

@@ -24,7 +24,7 @@ use super::blob_out::write_blob;
 use super::json::{outcome_json, runs_json};
 use super::judging::{Calibration, judge_axis, verdict_text};
 use super::record_out::write_records;
-use super::summary::{FitHow, write_summary};
+use super::summary::{FitHow, training_settled_floor, write_summary, write_vouching};
 
 /// Fits every axis of `axes` on the runs of `a` with `opts`, writes the
 /// blob into `model_out` and the JSON report into `json_out`, and prints
@@ -139,6 +139,11 @@ pub(super) fn run(
             {
                 writeln!(out, "{line}")?;
             }
+            write_vouching(
+                &mut out,
+                outcome,
+                training_settled_floor(&evals, Some(axis.name())).as_ref(),
+            )?;
         }
     }
     let in_use = a.in_use()?;
@@ -177,7 +182,7 @@ pub(super) fn run(
     let json = serde_json::json!({
         "method": opts.method.name(),
         "axes": axes.iter().zip(&outcomes).zip(&verdicts).map(|((axis, (o, _)), v)| {
-            let mut axis_json = outcome_json(o, &in_use);
+            let mut axis_json = outcome_json(o, &in_use, training_settled_floor(&evals, Some(axis.name())).as_ref());
             axis_json["axis"] = serde_json::json!(axis.name());
             axis_json["acceptance"] = v.as_ref().map_or(serde_json::Value::Null, acceptance);
             axis_json

@@ -5,13 +5,15 @@ use rbf_core::{FeatureConfig, FeatureSet};
 use trainer::describe::gain_symbol;
 use trainer::evaluation::evaluate::RunEvaluation;
 use trainer::fit::coverage::InUse;
+use trainer::fit::vouch::SettledFloor;
 use trainer::fit::{FitOutcome, FitReport};
 
 use super::super::common::input_names;
 
 /// What a fit chose, as `trainer fit --json` writes it (one axis), for use
 /// over `in_use`.
-pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse) -> serde_json::Value {
+/// `floor`: the training runs' settled floor ([`trainer::fit::vouch`]).
+pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse, floor: Option<&SettledFloor>) -> serde_json::Value {
     // Every key for every method (docs/cli.md), `null` where the method has no such figure.
     let (mut choice, mut sets, mut bank, mut structure, mut training_std100, mut svr) =
         (None, None, None, None, None, None);
@@ -34,7 +36,12 @@ pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse) -> serde_json::Value 
         "structure": structure,
         "predicted_in_use_std100_dph": o.predicted_in_use_std100_dph(),
         "predicted_settled_spread_dph": serde_json::Value::Null,
-        "settled_forecast": settled_forecast(o, in_use),
+        "settled_forecast": settled_forecast(o, in_use, floor),
+        // A floor under what a soak test of the unit reads, from the training runs' own settled levels.
+        "training_settled_spread_dph": floor.map(|f| f.spread_dph),
+        "training_settled_levels": floor.map(|f| f.levels),
+        "residual_over_noise_floor": o.residual_over_noise_floor(),
+        "unmodelled_dynamics": o.residual_over_noise_floor().map(trainer::fit::vouch::unmodelled),
         // What the runs lacked for `in_use` (the `missing:` lines); null for a method that does not say.
         "missing": o.bank_search().map(|b| b.coverage.missing(in_use, trainer::fit::coverage::model_range_c(&o.model))),
         "training_std100_dph": training_std100,
@@ -45,20 +52,30 @@ pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse) -> serde_json::Value 
 
 /// Why `predicted_settled_spread_dph` is null: the fit names the settled
 /// bias it cannot vouch for (docs/decisions.md, "The settled curve after a
-/// planned run": no forecast of the soak spread has been validated yet).
-fn settled_forecast(o: &FitOutcome, in_use: &InUse) -> String {
+/// planned run": no forecast of the soak spread has been validated yet), and
+/// the floor under it where the training runs give one.
+fn settled_forecast(o: &FitOutcome, in_use: &InUse, floor: Option<&SettledFloor>) -> String {
+    let at_least = floor
+        .map(|f| {
+            format!(
+                "; a soak test reads at least the training run's own settled spread, {:.4e} °/h over {} levels",
+                f.spread_dph, f.levels
+            )
+        })
+        .unwrap_or_default();
     let Some(search) = o.bank_search() else {
-        return "not forecast: this method's fit does not read the runs' settled levels".to_owned();
+        return format!("not forecast: this method's fit does not read the runs' settled levels{at_least}");
     };
     let unsettled = search.coverage.unsettled_bands_c(in_use);
     if unsettled.is_empty() {
-        "not forecast: the runs hold a settled level in every 20-°C band, but no forecast of the soak spread has been \
-         validated; measure it with `trainer eval` on a soak run"
-            .to_owned()
+        format!(
+            "not forecast: the runs hold a settled level in every 20-°C band, but no forecast of the soak spread has \
+             been validated; measure it with `trainer eval` on a soak run{at_least}"
+        )
     } else {
         let bands: Vec<String> = unsettled.iter().map(|b| format!("{b:.0}")).collect();
         format!(
-            "not forecast: no settled level in the 20-°C bands from {} °C (`missing:` says where to hold)",
+            "not forecast: no settled level in the 20-°C bands from {} °C (`missing:` says where to hold){at_least}",
             bands.join(", ")
         )
     }

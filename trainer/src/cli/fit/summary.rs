@@ -5,6 +5,7 @@ use std::io::Write;
 
 use rbf_core::{FeatureSet, Model};
 use trainer::describe::gain_text;
+use trainer::evaluation::evaluate::RunEvaluation;
 use trainer::fit::{self, BankReport, FitOptions, FitOutcome, FitReport, Method, SvrInputs};
 
 use super::super::common::{describe_selection, rule_name};
@@ -37,10 +38,16 @@ impl FitHow {
 /// structures' training residuals and held-out scores beside the runs'
 /// noise floor, or why the response bank was not tried.
 pub(super) fn write_structure(out: &mut impl Write, s: &fit::response::StructureChoice) -> anyhow::Result<()> {
+    // What the structure taken leaves, over the floor (the lag bank's where the response bank was not taken).
+    let taken_std100_dph = match s.response_bank_std100_dph {
+        Some(response) if s.response_bank => response,
+        _ => s.lag_bank_std100_dph,
+    };
     let floor = match s.noise_floor_std100_dph {
         Some(floor) => format!(
-            "; the runs' noise floor {floor:.4e} °/h ({:.2}× of it left)",
-            s.lag_bank_std100_dph / floor
+            "; the runs' noise floor {floor:.4e} °/h ({:.2}× of it left by the {})",
+            taken_std100_dph / floor,
+            if s.response_bank { "response bank" } else { "lag bank" }
         ),
         None => String::new(),
     };
@@ -333,4 +340,32 @@ pub(super) fn training_loop_range_c(outcome: &FitOutcome) -> Option<(f64, f64)> 
         FeatureSet::ResponseBank(b) => Some((f64::from(b.range_min_c), f64::from(b.range_max_c))),
         _ => None,
     }
+}
+
+/// The floor under a soak test's settled spread from the training runs'
+/// evaluations in `evals` (those of `axis`, for a multi-axis fit;
+/// [`fit::vouch::settled_floor`]).
+pub(super) fn training_settled_floor(
+    evals: &[(&str, RunEvaluation)],
+    axis: Option<&'static str>,
+) -> Option<fit::vouch::SettledFloor> {
+    fit::vouch::settled_floor(
+        evals
+            .iter()
+            .filter(|(role, e)| *role == "train" && e.axis == axis)
+            .filter_map(|(_, e)| e.settled.as_ref()),
+    )
+}
+
+/// What the fit vouches for, as `trainer fit` prints it below the coverage
+/// lines ([`fit::vouch::lines`]).
+pub(super) fn write_vouching(
+    out: &mut impl Write,
+    outcome: &FitOutcome,
+    floor: Option<&fit::vouch::SettledFloor>,
+) -> anyhow::Result<()> {
+    for line in fit::vouch::lines(floor, outcome.residual_over_noise_floor()) {
+        writeln!(out, "{line}")?;
+    }
+    Ok(())
 }
