@@ -149,7 +149,10 @@ mod tests {
         assert!((floor.spread_dph - 0.010).abs() < 1e-12, "{floor:?}");
         assert_eq!(floor.levels, 3);
         let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
-        assert!(close(floor.range_c[0], -20.0) && close(floor.range_c[1], 40.0), "{floor:?}");
+        assert!(
+            close(floor.range_c[0], -20.0) && close(floor.range_c[1], 40.0),
+            "{floor:?}"
+        );
         assert!(close(floor.noise_dph, 0.003), "{floor:?}");
     }
 
