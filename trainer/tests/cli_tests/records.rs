@@ -169,6 +169,65 @@ fn a_batch_records_every_unit_in_postgresql() {
     a_batch_records_every_unit(&server.url());
 }
 
+/// A PostgreSQL store of a newer schema than this trainer knows: `fit`, `batch` and
+/// `history` refuse it by name, and no table of it is touched (its rows stay as they were).
+#[test]
+fn a_postgresql_store_of_a_newer_schema_is_refused_and_left_unchanged() {
+    let Some(server) =
+        PostgresServer::start_or_skip("a_postgresql_store_of_a_newer_schema_is_refused_and_left_unchanged")
+    else {
+        return;
+    };
+    let url = server.url();
+    drop(::trainer::records::Store::open(&url, ::trainer::records::Access::Write).unwrap());
+    let mut client = postgres::Client::connect(&url, postgres::NoTls).unwrap();
+    client
+        .execute(
+            "INSERT INTO schema_version (version, applied_utc) VALUES (99, '2030-01-01T00:00:00Z')",
+            &[],
+        )
+        .unwrap();
+    let snapshot = |client: &mut postgres::Client| -> Vec<String> {
+        let mut rows: Vec<String> = client
+            .query("SELECT version::text || ' ' || applied_utc FROM schema_version", &[])
+            .unwrap()
+            .iter()
+            .map(|r| r.get::<_, String>(0))
+            .collect();
+        rows.sort();
+        rows
+    };
+    let before = snapshot(&mut client);
+
+    let dir = TempDir::new().unwrap();
+    let manifest = batch_dir(dir.path(), "B-N", 1, 40, false);
+    let out = dir.path().join("out");
+    let needle = "schema is version 99, newer than this trainer knows";
+    let o = batch(&manifest, &out, &url, &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains(needle), "{}", stderr(&o));
+    assert!(!out.exists(), "no fit ran");
+    let model = dir.path().join("single.bin");
+    let train = dir.path().join("runs-B-N").join("u1.csv");
+    let o = trainer(&[
+        "fit",
+        train.to_str().unwrap(),
+        "--serial",
+        "FOG-1",
+        "-o",
+        model.to_str().unwrap(),
+        "--records",
+        &url,
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains(needle), "{}", stderr(&o));
+    assert!(!model.exists(), "no model written");
+    let o = trainer(&["history", "FOG-1", "--records", &url]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains(needle), "{}", stderr(&o));
+    assert_eq!(snapshot(&mut client), before, "the store is left as it was");
+}
+
 /// Two batches writing one SQLite file at the same time: every record of both is there.
 #[test]
 fn two_batches_writing_one_sqlite_store_at_once_lose_no_record() {
