@@ -158,6 +158,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     let settled_floor = training_settled_floor(&evals, None);
+    if outcome.bank_search().is_none() && settled_floor.is_some() {
+        writeln!(out)?;
+    }
     write_vouching(&mut out, &outcome, settled_floor.as_ref())?;
     let verdict = spec
         .as_ref()
