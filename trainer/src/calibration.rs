@@ -163,6 +163,8 @@ fn row(
         "bias_instability_after_dph": bias_instability,
         "missing": figure("missing"),
         "settled_forecast": figure("settled_forecast"),
+        "training_settled_spread_dph": figure("training_settled_spread_dph"),
+        "unmodelled_dynamics": figure("unmodelled_dynamics"),
         "blob_bytes": fit.map(|f| f["blob_bytes"].clone()),
         "resumed": r.resumed,
     })

@@ -306,7 +306,7 @@ fn earlier(unit: &Unit, dir: &Path, digest: &str) -> Option<Outcome> {
 }
 
 /// The columns of summary.csv and of the HTML table, in order: every figure of the row.
-const COLUMNS: [&str; 16] = [
+const COLUMNS: [&str; 18] = [
     "serial",
     "axis",
     "status",
@@ -321,6 +321,8 @@ const COLUMNS: [&str; 16] = [
     "bias_instability_after_dph",
     "missing",
     "settled_forecast",
+    "training_settled_spread_dph",
+    "unmodelled_dynamics",
     "blob_bytes",
     "resumed",
 ];

@@ -57,6 +57,13 @@ fn a_batch_writes_every_good_unit_and_names_the_broken_one_first() {
     }
     let csv = std::fs::read_to_string(out.join("summary.csv")).unwrap();
     assert_eq!(csv.lines().count(), 4, "{csv}");
+    assert!(
+        csv.lines()
+            .next()
+            .unwrap()
+            .contains(",settled_forecast,training_settled_spread_dph,unmodelled_dynamics,"),
+        "what the fit vouches for, per unit: {csv}"
+    );
     let html = std::fs::read_to_string(out.join("index.html")).unwrap();
     assert!(
         html.find("FOG-3").unwrap() < html.find("FOG-1").unwrap(),
