@@ -13,6 +13,24 @@ struct Cli {
     command: Cmd,
 }
 
+/// What every replay takes: the model, the run and where its compensated copy goes.
+#[derive(clap::Args)]
+struct ReplayArgs {
+    /// Model blob written by `trainer fit`.
+    #[arg(long, value_name = "MODEL.bin")]
+    model: PathBuf,
+    /// Recorded run (single- or multi-axis; temp_fault = 1 rows are replayed as a failed
+    /// thermometer: the board image's emulated TMP117 NACKs, the C loop reports the fault).
+    #[arg(value_name = "RUN.csv")]
+    run: PathBuf,
+    /// Compensated run to write.
+    #[arg(short, long, value_name = "OUT.csv")]
+    output: PathBuf,
+    /// Replace outputs that exist (as `trainer compensate --force`).
+    #[arg(long)]
+    force: bool,
+}
+
 #[derive(Subcommand)]
 enum Cmd {
     /// Run the whole test suite as CI does: fmt check, import circles, the C header's drift,
@@ -27,21 +45,11 @@ enum Cmd {
     /// byte-identical to `trainer compensate --model MODEL.bin RUN.csv -o OUT.csv`,
     /// and what compensate refuses, the replay refuses (it runs compensate's checks first).
     QemuReplay {
-        /// Model blob written by `trainer fit`.
-        #[arg(long, value_name = "MODEL.bin")]
-        model: PathBuf,
-        /// Recorded run (temp_fault = 1 rows make the emulated TMP117 NACK).
-        #[arg(value_name = "RUN.csv")]
-        run: PathBuf,
-        /// Compensated run to write.
-        #[arg(short, long, value_name = "OUT.csv")]
-        output: PathBuf,
+        #[command(flatten)]
+        replay: ReplayArgs,
         /// Also write the UART output frames (decode with `trainer decode`).
         #[arg(long, value_name = "FRAMES.bin")]
         frames: Option<PathBuf>,
-        /// Replace outputs that exist (as `trainer compensate --force`).
-        #[arg(long)]
-        force: bool,
         /// Accept a run where no row could be compensated (as `trainer compensate`).
         #[arg(long)]
         allow_uncompensated: bool,
@@ -62,18 +70,8 @@ enum Cmd {
         /// gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm when missing).
         #[arg(long)]
         qemu: bool,
-        /// Model blob written by `trainer fit`.
-        #[arg(long, value_name = "MODEL.bin")]
-        model: PathBuf,
-        /// Recorded run (single- or multi-axis).
-        #[arg(value_name = "RUN.csv")]
-        run: PathBuf,
-        /// Compensated run to write.
-        #[arg(short, long, value_name = "OUT.csv")]
-        output: PathBuf,
-        /// Replace an output that exists (as `trainer compensate --force`).
-        #[arg(long)]
-        force: bool,
+        #[command(flatten)]
+        replay: ReplayArgs,
     },
     /// Write rbf-core-c/include/rbf_core.h, the C library's header, from the
     /// crate's source with cbindgen (CI fails when the checked-in one drifts).
@@ -252,11 +250,14 @@ fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
         Cmd::Ci => xtask::ci::ci(),
         Cmd::QemuReplay {
-            model,
-            run,
-            output,
+            replay:
+                ReplayArgs {
+                    model,
+                    run,
+                    output,
+                    force,
+                },
             frames,
-            force,
             allow_uncompensated,
             allow_implausible,
         } => {
@@ -294,10 +295,13 @@ fn main() -> anyhow::Result<()> {
         }
         Cmd::CReplay {
             qemu,
-            model,
-            run,
-            output,
-            force,
+            replay:
+                ReplayArgs {
+                    model,
+                    run,
+                    output,
+                    force,
+                },
         } => {
             let target = if qemu {
                 xtask::c_library::CTarget::Qemu
