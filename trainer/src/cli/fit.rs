@@ -98,17 +98,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         return axes::run(&a, &opts, &how, &axes, model_out, json_out, calibration);
     }
     let started = std::time::Instant::now();
-    let outcome = fit::fit(&train, &validate, &opts).map_err(|e| {
-        // A validation run too short to score blames itself, not the training runs.
-        let short = diagnose::short_runs(&a.validate, "--validate", fit::excitation::MIN_USABLE_S);
-        if !short.is_empty() {
-            anyhow::anyhow!("{}", short.join("; "))
-        } else if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
-            diagnose::with_causes(e, &a.runs, opts.method.thermometers())
-        } else {
-            e
-        }
-    })?;
+    let outcome = fit_diagnosed(&a, &train, &validate, &opts)?;
     let fit_s = started.elapsed().as_secs_f64();
     // The checks `eval` and `compensate` make (units of time, rate and
     // temperature), on the runs the fit read only in blocks; after the fit,
@@ -126,19 +116,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // sample, MSD of 1-s means, warm-up included (one convention: a run gets
     // the same figures whichever command reports it).
     drop((train, validate));
-    let mut evals: Vec<(&str, RunEvaluation)> = Vec::new();
-    for (role, paths) in [("train", &a.runs), ("validate", &a.validate)] {
-        for path in paths {
-            evals.push((role, evaluate_file(&outcome.model, path, None)?));
-        }
-    }
-    for path in &a.holdout {
-        let reader = RunReader::open(path)?;
-        let models = RunModels::one(Some(&outcome.model), &reader);
-        let (evaluation, diagnosis, _) = only_axis(evaluate_reader(&models, reader)?)?;
-        plausible::require_plausible(&diagnosis.implausible(), a.allow_implausible)?;
-        evals.push(("holdout", evaluation));
-    }
+    let evals = score_runs(&a, &outcome.model)?;
     let blob = encode_model(&outcome.model, Some(&provenance))?;
 
     // Printed once everything is written.
@@ -181,29 +159,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // Every output staged, then printed, then committed together.
     let mut transaction = Transaction::new();
     if let Some(target) = report_target {
-        let staged = StagedDir::create(target)?;
-        let files = {
-            // The fit has checked its runs; the report takes them as they are.
-            let accept = trainer::evaluation::axes::Acceptance {
-                uncompensated: true,
-                implausible: true,
-            };
-            trainer::report::write_report(
-                &outcome.model,
-                &a.output,
-                trainer::report::ReportRuns {
-                    paths: &report_runs,
-                    trained_on: Some(a.runs.len()),
-                },
-                &staged,
-                Path::new(""),
-                accept,
-                None,
-            )?
-            .0
-        };
-        staged.write(Path::new(FIT_TEXT), &out)?;
-        writeln!(out, "wrote {} files into {}", files + 1, text::path(staged.target()))?;
+        let staged = stage_report(&a, &outcome.model, &report_runs, target, &mut out)?;
         transaction.add_dir(staged);
     }
     write_blob(model_out, &blob, &mut transaction)?;
@@ -218,6 +174,80 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         _ => Ok(()),
     }
+}
+
+/// The single-axis fit of `train` (validated on `validate`) with `opts`; a
+/// refusal names its cause: a validation run too short to score blames
+/// itself, an unidentifiable fit the runs' shortcomings.
+fn fit_diagnosed(
+    a: &Args,
+    train: &RunFiles,
+    validate: &RunFiles,
+    opts: &fit::FitOptions,
+) -> anyhow::Result<fit::FitOutcome> {
+    fit::fit(train, validate, opts).map_err(|e| {
+        let short = diagnose::short_runs(&a.validate, "--validate", fit::excitation::MIN_USABLE_S);
+        if !short.is_empty() {
+            anyhow::anyhow!("{}", short.join("; "))
+        } else if e.chain().any(|c| c.is::<fit::Unidentifiable>()) {
+            diagnose::with_causes(e, &a.runs, opts.method.thermometers())
+        } else {
+            e
+        }
+    })
+}
+
+/// Every run of the fit scored with `model` as `trainer eval` scores it, by
+/// role (train, validate, holdout); a holdout run implausible as a gyro
+/// recording is refused unless allowed.
+fn score_runs(a: &Args, model: &rbf_core::Model) -> anyhow::Result<Vec<(&'static str, RunEvaluation)>> {
+    let mut evals: Vec<(&'static str, RunEvaluation)> = Vec::new();
+    for (role, paths) in [("train", &a.runs), ("validate", &a.validate)] {
+        for path in paths {
+            evals.push((role, evaluate_file(model, path, None)?));
+        }
+    }
+    for path in &a.holdout {
+        let reader = RunReader::open(path)?;
+        let models = RunModels::one(Some(model), &reader);
+        let (evaluation, diagnosis, _) = only_axis(evaluate_reader(&models, reader)?)?;
+        plausible::require_plausible(&diagnosis.implausible(), a.allow_implausible)?;
+        evals.push(("holdout", evaluation));
+    }
+    Ok(evals)
+}
+
+/// `--report DIR`, staged: what `trainer report` writes for every run of the
+/// fit, and fit.txt (`out`, what the command printed, to which the line
+/// saying so is then added).
+fn stage_report(
+    a: &Args,
+    model: &rbf_core::Model,
+    report_runs: &[PathBuf],
+    target: output::DirTarget,
+    out: &mut Vec<u8>,
+) -> anyhow::Result<StagedDir> {
+    let staged = StagedDir::create(target)?;
+    // The fit has checked its runs; the report takes them as they are.
+    let accept = trainer::evaluation::axes::Acceptance {
+        uncompensated: true,
+        implausible: true,
+    };
+    let (files, ..) = trainer::report::write_report(
+        model,
+        &a.output,
+        trainer::report::ReportRuns {
+            paths: report_runs,
+            trained_on: Some(a.runs.len()),
+        },
+        &staged,
+        Path::new(""),
+        accept,
+        None,
+    )?;
+    staged.write(Path::new(FIT_TEXT), out)?;
+    writeln!(out, "wrote {} files into {}", files + 1, text::path(staged.target()))?;
+    Ok(staged)
 }
 
 /// The file in `--report DIR` that holds what `fit` prints.
