@@ -13,31 +13,18 @@ pub const BOOT_REPORT_TAG: u8 = 0xFB;
 /// Payload bytes of a boot report frame.
 pub const BOOT_REPORT_LEN: usize = 11;
 
-/// Why the firmware stopped (the boot report's second byte).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum FaultReason {
-    /// No fault recorded (a power-on or a reset by the debugger).
-    None = 0,
-    /// A Rust panic (a bug: the panic-free check says none is reachable after init).
-    Panic = 1,
-    /// A HardFault (bus, memory or usage fault escalated): PC and LR of the faulting code.
-    HardFault = 2,
-    /// No record, but the independent watchdog reset the chip (a hang, or a
-    /// lockup such as a stack overflow fault with no stack left to report it).
-    Watchdog = 3,
-}
-
-impl FaultReason {
-    /// The reason with wire value `value`; `None` for any other byte.
-    pub const fn from_u8(value: u8) -> Option<FaultReason> {
-        Some(match value {
-            0 => FaultReason::None,
-            1 => FaultReason::Panic,
-            2 => FaultReason::HardFault,
-            3 => FaultReason::Watchdog,
-            _ => return None,
-        })
+byte_enum! {
+    /// Why the firmware stopped (the boot report's second byte).
+    pub enum FaultReason {
+        /// No fault recorded (a power-on or a reset by the debugger).
+        None = 0,
+        /// A Rust panic (a bug: the panic-free check says none is reachable after init).
+        Panic = 1,
+        /// A HardFault (bus, memory or usage fault escalated): PC and LR of the faulting code.
+        HardFault = 2,
+        /// No record, but the independent watchdog reset the chip (a hang, or a
+        /// lockup such as a stack overflow fault with no stack left to report it).
+        Watchdog = 3,
     }
 }
 

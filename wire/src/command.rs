@@ -27,37 +27,21 @@ pub const REPLY_LEN: usize = 2;
 /// Bytes of a COBS-framed reply with its 0x00.
 pub const REPLY_FRAME_LEN: usize = max_encoded_len(REPLY_LEN);
 
-/// Outcome of a command, sent back as the reply's second byte.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum UpdateStatus {
-    /// The model is installed and running.
-    Installed = 0,
-    /// The command byte is not known.
-    UnknownCommand = 1,
-    /// The frame is not valid COBS or is empty.
-    Malformed = 2,
-    /// The frame is longer than [`MAX_COMMAND_FRAME_LEN`].
-    TooLong = 3,
-    /// The blob was refused (CRC, shape or parameters); the old model runs on.
-    Refused = 4,
-    /// Writing or verifying the flash failed; the old model runs on.
-    FlashFailed = 5,
-}
-
-impl UpdateStatus {
-    /// The status with wire value `value` (a reply's second byte); `None`
-    /// for a value this side does not know (a newer unit's).
-    pub const fn from_u8(value: u8) -> Option<UpdateStatus> {
-        Some(match value {
-            0 => UpdateStatus::Installed,
-            1 => UpdateStatus::UnknownCommand,
-            2 => UpdateStatus::Malformed,
-            3 => UpdateStatus::TooLong,
-            4 => UpdateStatus::Refused,
-            5 => UpdateStatus::FlashFailed,
-            _ => return None,
-        })
+byte_enum! {
+    /// Outcome of a command, sent back as the reply's second byte.
+    pub enum UpdateStatus {
+        /// The model is installed and running.
+        Installed = 0,
+        /// The command byte is not known.
+        UnknownCommand = 1,
+        /// The frame is not valid COBS or is empty.
+        Malformed = 2,
+        /// The frame is longer than [`MAX_COMMAND_FRAME_LEN`].
+        TooLong = 3,
+        /// The blob was refused (CRC, shape or parameters); the old model runs on.
+        Refused = 4,
+        /// Writing or verifying the flash failed; the old model runs on.
+        FlashFailed = 5,
     }
 }
 

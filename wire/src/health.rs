@@ -42,43 +42,26 @@ pub const REPORT_SERIAL_LEN: usize = rbf_core::model::SERIAL_CAPACITY;
 /// Bytes of a COBS-framed health report with its terminator, at most.
 pub const HEALTH_FRAME_LEN: usize = max_encoded_len(HEALTH_REPORT_LEN);
 
-/// Why the board last reset (the report's byte 2; the firmware tells it from
-/// its fault record and RCC_CSR).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum ResetCause {
-    /// Power-on (or a brown-out reset at power-on).
-    PowerOn = 0,
-    /// The NRST pin (a debugger, a button).
-    Pin = 1,
-    /// Brown-out without power-on.
-    BrownOut = 2,
-    /// A software reset (SYSRESETREQ) without a fault record.
-    Software = 3,
-    /// The independent watchdog.
-    Watchdog = 4,
-    /// A panic (PC and LR in the report).
-    Panic = 5,
-    /// A HardFault (PC and LR in the report).
-    HardFault = 6,
-    /// Low-power management or the window watchdog.
-    Other = 7,
-}
-
-impl ResetCause {
-    /// The cause with wire value `value` (the report's byte 2).
-    pub fn from_u8(value: u8) -> Option<ResetCause> {
-        Some(match value {
-            0 => ResetCause::PowerOn,
-            1 => ResetCause::Pin,
-            2 => ResetCause::BrownOut,
-            3 => ResetCause::Software,
-            4 => ResetCause::Watchdog,
-            5 => ResetCause::Panic,
-            6 => ResetCause::HardFault,
-            7 => ResetCause::Other,
-            _ => return None,
-        })
+byte_enum! {
+    /// Why the board last reset (the report's byte 2; the firmware tells it from
+    /// its fault record and RCC_CSR).
+    pub enum ResetCause {
+        /// Power-on (or a brown-out reset at power-on).
+        PowerOn = 0,
+        /// The NRST pin (a debugger, a button).
+        Pin = 1,
+        /// Brown-out without power-on.
+        BrownOut = 2,
+        /// A software reset (SYSRESETREQ) without a fault record.
+        Software = 3,
+        /// The independent watchdog.
+        Watchdog = 4,
+        /// A panic (PC and LR in the report).
+        Panic = 5,
+        /// A HardFault (PC and LR in the report).
+        HardFault = 6,
+        /// Low-power management or the window watchdog.
+        Other = 7,
     }
 }
 

@@ -25,6 +25,35 @@
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![forbid(unsafe_code)]
 
+/// A message byte's meanings: a `#[repr(u8)]` enum whose variants are the
+/// byte's values, and its decoder `from_u8` (`None` for a byte no variant
+/// has, e.g. a newer unit's), written once for every such byte.
+macro_rules! byte_enum {
+    (
+        $(#[$meta:meta])*
+        pub enum $name:ident {
+            $($(#[$variant_meta:meta])* $variant:ident = $value:literal,)+
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        #[repr(u8)]
+        pub enum $name {
+            $($(#[$variant_meta])* $variant = $value,)+
+        }
+
+        impl $name {
+            /// The value with wire byte `value`; `None` for any other byte.
+            pub const fn from_u8(value: u8) -> Option<$name> {
+                match value {
+                    $($value => Some($name::$variant),)+
+                    _ => None,
+                }
+            }
+        }
+    };
+}
+
 pub mod bench;
 pub mod boot;
 pub mod cobs;

@@ -174,20 +174,18 @@ pub fn check_serial(blob_serial: Option<&str>, unit_serial: Option<&str>, force:
 
 /// The install reply's status in words.
 pub fn status_words(status: u8) -> String {
-    let words = match status {
-        s if s == UpdateStatus::Installed as u8 => "installed: the new model runs",
-        s if s == UpdateStatus::UnknownCommand as u8 => "unknown command (firmware too old for model updates?)",
-        s if s == UpdateStatus::Malformed as u8 => {
-            "the command frame arrived damaged (line noise?); the old model runs on"
-        }
-        s if s == UpdateStatus::TooLong as u8 => "the command was longer than the unit's buffer; the old model runs on",
-        s if s == UpdateStatus::Refused as u8 => {
+    let words = match UpdateStatus::from_u8(status) {
+        Some(UpdateStatus::Installed) => "installed: the new model runs",
+        Some(UpdateStatus::UnknownCommand) => "unknown command (firmware too old for model updates?)",
+        Some(UpdateStatus::Malformed) => "the command frame arrived damaged (line noise?); the old model runs on",
+        Some(UpdateStatus::TooLong) => "the command was longer than the unit's buffer; the old model runs on",
+        Some(UpdateStatus::Refused) => {
             "the unit refused the blob (CRC, shape or parameters, or a blob for another image); the old model runs on"
         }
-        s if s == UpdateStatus::FlashFailed as u8 => {
+        Some(UpdateStatus::FlashFailed) => {
             "writing or verifying the flash failed; the old model runs on (the health report counts flash errors)"
         }
-        _ => "a status this trainer does not know",
+        None => "a status this trainer does not know",
     };
     format!("status {status}: {words}")
 }
