@@ -8,6 +8,7 @@
 //! [`CMD_HEALTH`] over the command channel:
 //! `COBS(payload) 0x00`, payload [`HEALTH_REPORT_LEN`] bytes, integers
 //! little-endian (docs/firmware.md, "Health report"):
+//!
 //! | offset | bytes | field |
 //! |---|---|---|
 //! | 0 | 1 | tag [`HEALTH_REPORT_TAG`] (0xFC) |
