@@ -11,9 +11,9 @@
 use core::cell::Cell;
 
 use embedded_hal::spi::{self, SpiDevice};
+use gyro_wire::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN};
 use rbf_core::axis::{Axis, MAX_AXES};
 use rbf_core::blob;
-use rbf_core::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN};
 use rbf_core::{CompensatorConfig, Flags, Model};
 
 use crate::emulated_flash::{EmulatedFlash, PAGE};
@@ -23,6 +23,7 @@ use firmware::frontend::FrontEnd;
 use firmware::model_store::{COMMIT_LEN, ModelStore, SlotLayout};
 use firmware::tmp117::{self, Tmp117};
 use firmware::update::{self, CommandReceiver, Received, UpdateStatus};
+use gyro_wire::command;
 
 /// A model any board test can install: a static cubic in the loop
 /// temperature about 25 °C, trained range 10 … 40 °C, no filters (so no
@@ -658,8 +659,8 @@ pub fn command_campaign(old: &[u8], new: &[u8]) -> CommandCampaign {
     }
     let mut store = ModelStore::open(flash, EMULATED_LAYOUT);
     let mut receiver = CommandReceiver::new();
-    let mut frame = [0u8; update::MAX_COMMAND_FRAME_LEN];
-    let Some(n) = update::encode_install_command(new, &mut frame) else {
+    let mut frame = [0u8; command::MAX_COMMAND_FRAME_LEN];
+    let Some(n) = command::encode_install_command(new, &mut frame) else {
         return report;
     };
     let intact = frame.get(..n).unwrap_or(&[]);
@@ -672,12 +673,12 @@ pub fn command_campaign(old: &[u8], new: &[u8]) -> CommandCampaign {
     if let Some(b) = damaged.get_mut(new.len() / 2) {
         *b ^= 0x04;
     }
-    let mut corrupt = [0u8; update::MAX_COMMAND_FRAME_LEN];
-    let Some(m) = update::encode_install_command(damaged, &mut corrupt) else {
+    let mut corrupt = [0u8; command::MAX_COMMAND_FRAME_LEN];
+    let Some(m) = command::encode_install_command(damaged, &mut corrupt) else {
         return report;
     };
     let corrupt = corrupt.get(..m).unwrap_or(&[]);
-    let oversized = [0x11u8; update::MAX_COMMAND_FRAME_LEN + 8];
+    let oversized = [0x11u8; command::MAX_COMMAND_FRAME_LEN + 8];
     let sends: [(&[u8], UpdateStatus); 5] = [
         (&[0x05, 0x00], UpdateStatus::Malformed),
         (&[0x02, 0x7E, 0x00], UpdateStatus::UnknownCommand),
@@ -704,7 +705,7 @@ pub fn command_campaign(old: &[u8], new: &[u8]) -> CommandCampaign {
             }
         }
         let mut reply = [0u8; 8];
-        if got == Some(want) && update::encode_reply(0, want, &mut reply).is_some() {
+        if got == Some(want) && command::encode_reply(0, want, &mut reply).is_some() {
             report.expected_replies += 1;
         }
     }

@@ -245,7 +245,7 @@ pub type ReplayLoop<'c, W, M, const K: usize = MAX_CENTERS, const N: usize = 1> 
 /// (`rate_dph`; `bias_dph`, `rate_comp_dph`, `flags` appended, single-axis
 /// frames), [`rbf_core::axis::MAX_AXES`] for a multi-axis run (`rate_x_dph` …; per axis
 /// present `bias_<axis>_dph`, `rate_comp_<axis>_dph`, `flags_<axis>`,
-/// [`rbf_core::frame::AxesFrame`]s).
+/// [`gyro_wire::frame::AxesFrame`]s).
 ///
 /// Each axis's devices answer from the row as that axis reads it
 /// ([`Columns::for_axis`]): its rate, `temp_<axis>_c` (else `temp_c`) as

@@ -3,21 +3,18 @@
 //! Host → gyro: `COBS([CMD_BENCH]) 0x00`. The board then times its next
 //! [`BENCH_STEPS`] sample steps (front-end read, thermometer reads when due,
 //! the compensation, framing and queueing the output frame) with the
-//! Cortex-M DWT cycle counter and answers
-//! `COBS([CMD_BENCH, steps u32, min u32, mean u32, max u32]) 0x00`
-//! (little-endian, CPU cycles at the core clock), so a user with a board
+//! Cortex-M DWT cycle counter and answers with the bench report
+//! ([`gyro_wire::bench`]: steps, min, mean, max, CPU cycles at the core
+//! clock), so a user with a board
 //! measures real cycles: flash wait states, bus transfers and interrupts
 //! included, which QEMU's instruction counts (`cargo xtask bench-fw`) leave
 //! out. The debug image (`board-debug`) logs the same figures over RTT.
 
-use rbf_core::frame::cobs_encode;
+use gyro_wire::bench::BenchReport;
+use gyro_wire::cobs::cobs_encode;
 
-/// Command: time the next [`BENCH_STEPS`] sample steps.
-pub const CMD_BENCH: u8 = 0x02;
-/// Sample steps one bench command times (one second at 1 kHz).
+/// Sample steps one bench command (`gyro_wire::command::CMD_BENCH`) times (one second at 1 kHz).
 pub const BENCH_STEPS: u32 = 1000;
-/// Payload bytes of the bench report: command byte and four u32.
-pub const REPORT_LEN: usize = 1 + 4 * 4;
 
 /// Cycle counts of timed steps.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -67,16 +64,15 @@ impl CycleStats {
 
     /// Encodes the report frame into `out`; the bytes used.
     pub fn encode_report(&self, out: &mut [u8]) -> Option<usize> {
-        let mut payload = [0u8; REPORT_LEN];
-        let (command, fields) = payload.split_first_mut()?;
-        *command = CMD_BENCH;
-        for (chunk, value) in fields
-            .chunks_exact_mut(4)
-            .zip([self.steps, self.min, self.mean(), self.max])
-        {
-            chunk.copy_from_slice(&value.to_le_bytes());
-        }
-        cobs_encode(&payload, out)
+        let report = BenchReport {
+            steps: self.steps,
+            min: self.min,
+            mean: self.mean(),
+            max: self.max,
+        };
+        // Framed here, not by `BenchReport::encode`: compiled inside gyro-wire,
+        // that unrolls the COBS loop over the 17 bytes (584 B more flash).
+        cobs_encode(&report.to_bytes(), out)
     }
 }
 
@@ -118,7 +114,7 @@ impl Bench {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::update::cobs_decode_in_place;
+    use gyro_wire::cobs::cobs_decode_in_place;
 
     #[test]
     fn a_bench_times_its_steps_then_reports_min_mean_max_once() {
@@ -139,10 +135,11 @@ mod tests {
         let n = stats.encode_report(&mut out).unwrap();
         let frame = &mut out[..n - 1];
         let len = cobs_decode_in_place(frame).unwrap();
-        let word = |i: usize| u32::from_le_bytes(frame[1 + 4 * i..5 + 4 * i].try_into().unwrap());
-        assert_eq!(len, REPORT_LEN);
-        assert_eq!(frame[0], CMD_BENCH);
-        assert_eq!([word(0), word(1), word(2), word(3)], [BENCH_STEPS, 1000, 1000, 1002]);
+        let sent = BenchReport::from_bytes(&frame[..len]).unwrap();
+        assert_eq!(
+            [sent.steps, sent.min, sent.mean, sent.max],
+            [BENCH_STEPS, 1000, 1000, 1002]
+        );
     }
 
     #[test]

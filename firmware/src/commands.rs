@@ -9,10 +9,9 @@
 //! (`firmware-harness/tests/board_faults`) on the host.
 
 use embedded_io::Write;
+use gyro_wire::command::{CMD_BENCH, CMD_HEALTH, REPLY_FRAME_LEN, encode_reply};
 
-use crate::bench::CMD_BENCH;
 use crate::compensation::{CompensationLoop, InPlaceModel, ModelHolder, write_frame};
-use crate::health::CMD_HEALTH;
 use crate::model_store::{MappedFlash, ModelStore, StoredModel};
 use crate::sensors::{AxisFrontEnds, AxisThermometers};
 use crate::update::{self, CommandReceiver, Received, UpdateStatus};
@@ -73,8 +72,8 @@ pub fn serve_commands<'m, T, R, W, M, F, D, const K: usize, const N: usize>(
                 (payload.first().copied().unwrap_or(0), status)
             }
         };
-        let mut reply = [0u8; 8];
-        if let Some(n) = update::encode_reply(command, status, &mut reply) {
+        let mut reply = [0u8; REPLY_FRAME_LEN];
+        if let Some(n) = encode_reply(command, status, &mut reply) {
             write_frame(compensation.output_mut(), reply.get(..n).unwrap_or(&[]));
         }
         replied(status, store);

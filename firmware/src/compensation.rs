@@ -23,10 +23,10 @@
 //! dropped frame, missed samples, a fault reset) flags every axis.
 
 use embedded_io::Write;
+use gyro_wire::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
 use rbf_core::axis::{Axis, MAX_AXES};
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::features::{THERMOMETERS, ThermometerSet};
-use rbf_core::frame::{self, AXES_FRAME_TAG, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
 use rbf_core::shared_basis::SharedAxisModels;
 use rbf_core::{CompensatedSample, Compensator, CompensatorConfig, Flags, GyroSample, MAX_CENTERS, Model};
 

@@ -8,35 +8,16 @@
 //! makes the board send a boot report frame before its first output frame,
 //! and flag that frame ([`rbf_core::Flags::FAULT_RESET`]).
 //!
-//! Boot report on the wire: `COBS([0xFB, reason, pc (u32 LE), lr (u32 LE),
-//! reset flags]) 0x00`, 11 payload bytes: told from an output frame (at
-//! least 18) and an update reply (2) by its length.
+//! The boot report's layout on the wire is [`gyro_wire::boot`]'s.
 
-use rbf_core::frame::cobs_encode;
+use gyro_wire::boot::BootReport;
+/// Why the firmware stopped: the record's reason, the boot report's second byte.
+pub use gyro_wire::boot::FaultReason;
 
-/// First payload byte of a boot report frame.
-pub const BOOT_REPORT_TAG: u8 = 0xFB;
-/// Payload bytes of a boot report frame.
-pub const BOOT_REPORT_LEN: usize = 11;
 /// Words the record occupies in RAM.
 pub const RECORD_WORDS: usize = 4;
 /// Marks a written record (a cold start leaves random RAM, which the check word rejects).
 const MAGIC: u32 = 0xFA17_5AFE;
-
-/// Why the firmware stopped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum FaultReason {
-    /// No fault recorded (a power-on or a reset by the debugger).
-    None = 0,
-    /// A Rust panic (a bug: the panic-free check says none is reachable after init).
-    Panic = 1,
-    /// A HardFault (bus, memory or usage fault escalated): PC and LR of the faulting code.
-    HardFault = 2,
-    /// No record, but the independent watchdog reset the chip (a hang, or a
-    /// lockup such as a stack overflow fault with no stack left to report it).
-    Watchdog = 3,
-}
 
 /// A fault as the handler recorded it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -124,13 +105,13 @@ pub fn hard_fault_record(
 /// Encodes the boot report for `cause` and the raw reset flags
 /// (RCC_CSR bits 24..31 on the STM32F4) into `out`; the bytes used.
 pub fn encode_boot_report(cause: FaultRecord, reset_flags: u8, out: &mut [u8]) -> Option<usize> {
-    let mut payload = [0u8; BOOT_REPORT_LEN];
-    payload[0] = BOOT_REPORT_TAG;
-    payload[1] = cause.reason as u8;
-    payload[2..6].copy_from_slice(&cause.pc.to_le_bytes());
-    payload[6..10].copy_from_slice(&cause.lr.to_le_bytes());
-    payload[10] = reset_flags;
-    cobs_encode(&payload, out)
+    BootReport {
+        reason: cause.reason,
+        pc: cause.pc,
+        lr: cause.lr,
+        reset_flags,
+    }
+    .encode(out)
 }
 
 #[cfg(test)]
@@ -200,11 +181,15 @@ mod tests {
         let mut out = [0u8; 16];
         let n = encode_boot_report(panic, 0x24, &mut out).unwrap();
         let mut frame = out[..n].to_vec();
-        let len = crate::update::cobs_decode_in_place(&mut frame[..n - 1]).unwrap();
-        assert_eq!(len, BOOT_REPORT_LEN);
-        assert_eq!(frame[0], BOOT_REPORT_TAG);
-        assert_eq!(frame[1], FaultReason::Panic as u8);
-        assert_eq!(u32::from_le_bytes(frame[2..6].try_into().unwrap()), 0x0800_4321);
-        assert_eq!(frame[10], 0x24);
+        let len = gyro_wire::cobs::cobs_decode_in_place(&mut frame[..n - 1]).unwrap();
+        assert_eq!(
+            BootReport::from_bytes(&frame[..len]),
+            Some(BootReport {
+                reason: FaultReason::Panic,
+                pc: 0x0800_4321,
+                lr: 0x0800_1111,
+                reset_flags: 0x24
+            })
+        );
     }
 }

@@ -10,7 +10,8 @@
 //!   [`interrupts`]: what the board's UART and data-ready interrupt handlers do;
 //! - [`model_store`]: two flash slots with power-safe model updates; [`update`]: the UART command that delivers one;
 //!   [`commands`]: the loop's command path (installs, replies, the board's reports);
-//! - [`fault`]: the fault record kept across a reset and the boot report frame; [`health`]: the health report;
+//! - [`fault`]: the fault record kept across a reset and the boot report frame; [`health`]: the health report's
+//!   reset cause and board flags;
 //! - the board's peripherals, bounded and host-tested (`cargo xtask board-faults`): [`clock`] (deadlines),
 //!   [`i2c_master`] (I2C with timeouts and bus recovery), [`flash_ctl`] (the flash controller),
 //!   [`watchdog`] (IWDG periods), [`pacing`] (data-ready stamps to sample steps);
@@ -20,6 +21,9 @@
 //!
 //! - [`board`]: the board's timer arithmetic (host-tested) and, on the MCU, its setup,
 //!   handlers and run loop; one small binary per board image in `src/bin/` wires its sensors to it.
+//!
+//! What goes on the wire (output frames, COBS, commands and replies, the boot, bench and
+//! health reports) is the crate `gyro-wire`'s, which the host decodes with.
 //!
 //! The test harnesses (emulated devices and flash, the recorded-run replayer, fault
 //! injection, semihosting files) and the QEMU images built on them are the crate

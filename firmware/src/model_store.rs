@@ -41,59 +41,18 @@
 //! IMU's axis models (format 3). The `_into` methods decode into whichever
 //! the firmware runs ([`StoredModel`]): a single-axis firmware's [`Model`]
 //! refuses a format-3 blob with its reason; a multi-axis firmware's
-//! [`AxisModels`] takes both (a format-2 blob as axis x alone); a
-//! shared-basis firmware's [`SharedAxisModels`] takes a shared-basis blob
+//! [`AxisModels`](rbf_core::blob::axes::AxisModels) takes both (a format-2 blob as axis x alone); a
+//! shared-basis firmware's [`SharedAxisModels`](rbf_core::shared_basis::SharedAxisModels) takes a shared-basis blob
 //! alone.
 
 use embedded_storage::nor_flash::NorFlash;
 use rbf_core::Model;
-use rbf_core::blob::axes::{AxisModels, blob_len, decode_any_into};
-use rbf_core::blob::shared_layout::decode_shared_into;
+use rbf_core::blob::axes::blob_len;
 use rbf_core::blob::{self, DecodeError, HEADER_LEN, MAX_BLOB_LEN};
-use rbf_core::shared_basis::SharedAxisModels;
 
-/// What a slot's blob decodes into, in place: a single-axis [`Model`], the
-/// [`AxisModels`] of a multi-axis IMU or its [`SharedAxisModels`], each
-/// with its centre capacity `K`.
-pub trait StoredModel {
-    /// Decodes and validates the blob at the start of `bytes` into `self`;
-    /// the bytes it occupies. On error `self` holds no usable model.
-    fn decode_from(&mut self, bytes: &[u8]) -> Result<usize, DecodeError>;
-    /// Leaves no model behind.
-    fn clear(&mut self);
-}
-
-impl<const K: usize> StoredModel for Model<K> {
-    fn decode_from(&mut self, bytes: &[u8]) -> Result<usize, DecodeError> {
-        blob::decode_into_capacity(self, bytes)
-    }
-    fn clear(&mut self) {
-        *self = Model::EMPTY;
-    }
-}
-
-/// A multi-axis blob, or a single-axis one as axis x alone.
-impl<const K: usize> StoredModel for AxisModels<K> {
-    fn decode_from(&mut self, bytes: &[u8]) -> Result<usize, DecodeError> {
-        decode_any_into(self, bytes)
-    }
-    fn clear(&mut self) {
-        *self = AxisModels::EMPTY;
-    }
-}
-
-/// A shared-basis blob (format 3 with the shared-basis flag) alone: a
-/// model per axis or a single-axis blob is refused with its reason
-/// ([`DecodeError::NotSharedBasis`]), as the per-axis reader refuses this
-/// one ([`DecodeError::SharedBasis`]).
-impl<const K: usize> StoredModel for SharedAxisModels<K> {
-    fn decode_from(&mut self, bytes: &[u8]) -> Result<usize, DecodeError> {
-        decode_shared_into(self, bytes)
-    }
-    fn clear(&mut self) {
-        *self = SharedAxisModels::EMPTY;
-    }
-}
+/// What a slot's blob decodes into, in place (rbf-core's, which the host's
+/// blob checks use too).
+pub use rbf_core::stored_model::StoredModel;
 
 /// A NOR flash whose contents can also be read in place, as the STM32's
 /// memory-mapped flash can: blobs are checked and decoded where they lie.
@@ -371,21 +330,21 @@ impl<F: MappedFlash> ModelStore<F> {
 
     /// The running model's identity: its blob's CRC-32 (the blob's trailer) and its commit
     /// sequence number (0 for a blob without a record); zeros when none runs.
-    pub fn identity(&self) -> crate::health::ModelIdentity {
+    pub fn identity(&self) -> gyro_wire::health::ModelIdentity {
         let Some(slot) = self.active.filter(|_| self.loaded) else {
-            return crate::health::ModelIdentity::default();
+            return gyro_wire::health::ModelIdentity::default();
         };
         // The blob's own trailer: the CRC-32 over its header and payload,
         // checked when it was loaded.
         let bytes = self.blob(slot).ok();
         let trailer = bytes.and_then(|b| b.last_chunk::<4>().copied());
-        let mut identity = crate::health::ModelIdentity {
+        let mut identity = gyro_wire::health::ModelIdentity {
             blob_crc32: trailer.map_or(0, u32::from_le_bytes),
             sequence: match self.states[slot & 1] {
                 SlotState::Committed(sequence) => sequence,
                 _ => 0,
             },
-            ..crate::health::ModelIdentity::default()
+            ..gyro_wire::health::ModelIdentity::default()
         };
         // The provenance section (formats 4 and 5): its id and serial, read where they lie.
         if let Some(Ok(Some(provenance))) = bytes.map(blob::provenance) {

@@ -7,41 +7,17 @@
 //!
 //! Gyro → host: `COBS([command, status]) 0x00` ([`UpdateStatus`]) on the same
 //! UART as the output frames; a reply is told from an output frame by its
-//! length (2 payload bytes, an output frame has at least 18).
+//! length (2 payload bytes, an output frame has at least 18). The command
+//! and reply formats are the wire protocol's ([`gyro_wire::command`]).
 
+use gyro_wire::cobs::cobs_decode_in_place;
+/// A command's outcome, the reply's second byte (the wire protocol's).
+pub use gyro_wire::command::UpdateStatus;
+use gyro_wire::command::{MAX_COMMAND_FRAME_LEN, decode_install_command};
 use rbf_core::Model;
-use rbf_core::blob::MAX_BLOB_LEN;
-use rbf_core::frame::cobs_encode;
 
 use crate::compensation::InPlaceModel;
 use crate::model_store::{InstallError, MappedFlash, ModelStore, StoredModel};
-
-/// Command: install the model blob that follows.
-pub const CMD_INSTALL_MODEL: u8 = 0x01;
-/// Longest command payload (command byte + largest blob), bytes.
-pub const MAX_COMMAND_LEN: usize = 1 + MAX_BLOB_LEN;
-/// Longest COBS-framed command on the wire, bytes.
-pub const MAX_COMMAND_FRAME_LEN: usize = MAX_COMMAND_LEN + MAX_COMMAND_LEN / 254 + 2;
-/// Payload bytes of a reply frame.
-pub const REPLY_LEN: usize = 2;
-
-/// Outcome of a command, sent back as the reply's second byte.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum UpdateStatus {
-    /// The model is installed and running.
-    Installed = 0,
-    /// The command byte is not known.
-    UnknownCommand = 1,
-    /// The frame is not valid COBS or is empty.
-    Malformed = 2,
-    /// The frame is longer than [`MAX_COMMAND_FRAME_LEN`].
-    TooLong = 3,
-    /// The blob was refused (CRC, shape or parameters); the old model runs on.
-    Refused = 4,
-    /// Writing or verifying the flash failed; the old model runs on.
-    FlashFailed = 5,
-}
 
 /// Collects UART bytes into command frames.
 #[derive(Debug)]
@@ -102,10 +78,6 @@ impl CommandReceiver {
     }
 }
 
-/// COBS decoding in place, rbf-core's: one decoder for commands and
-/// output frames, every access checked (it links in the panic-free image).
-pub use rbf_core::frame::cobs_decode_in_place;
-
 /// Carries out one command payload on `store`; the status and, when a model
 /// was installed, the model to switch the loop to (host tools and tests).
 pub fn execute<F: MappedFlash>(store: &mut ModelStore<F>, payload: &[u8]) -> (UpdateStatus, Option<Model>) {
@@ -125,8 +97,8 @@ pub fn execute_into<F: MappedFlash, M: StoredModel>(
     payload: &[u8],
     model: &mut M,
 ) -> UpdateStatus {
-    match payload.split_first() {
-        Some((&CMD_INSTALL_MODEL, blob)) => match store.install_into(blob, model) {
+    match decode_install_command(payload) {
+        Some(blob) => match store.install_into(blob, model) {
             Ok(()) => UpdateStatus::Installed,
             Err(InstallError::Refused(_)) => UpdateStatus::Refused,
             Err(InstallError::Flash(_) | InstallError::Verify) => UpdateStatus::FlashFailed,
@@ -151,48 +123,4 @@ pub fn run_in_place<F: MappedFlash, M: StoredModel>(
         store.model_loaded()
     });
     status
-}
-
-/// Encodes the reply to `command` into `out`; the bytes used.
-pub fn encode_reply(command: u8, status: UpdateStatus, out: &mut [u8]) -> Option<usize> {
-    cobs_encode(&[command, status as u8], out)
-}
-
-/// Encodes an install command for `blob` into `out` (host side and tests); the bytes used.
-pub fn encode_install_command(blob: &[u8], out: &mut [u8]) -> Option<usize> {
-    let mut payload = [0u8; MAX_COMMAND_LEN];
-    let (command, rest) = payload.split_first_mut()?;
-    *command = CMD_INSTALL_MODEL;
-    let body = rest.get_mut(..blob.len())?;
-    body.copy_from_slice(blob);
-    cobs_encode(payload.get(..1 + blob.len())?, out)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn cobs_decoding_inverts_the_encoder_and_refuses_what_is_not_cobs() {
-        // Payloads with zeros in every position and runs past 254 bytes.
-        let mut state = 0x1234_5678u32;
-        for len in (0..600).step_by(7) {
-            let payload: std::vec::Vec<u8> = (0..len)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 17;
-                    state ^= state << 5;
-                    if state.is_multiple_of(5) { 0 } else { state as u8 }
-                })
-                .collect();
-            let mut out = std::vec![0u8; len + len / 254 + 2];
-            let n = cobs_encode(&payload, &mut out).unwrap();
-            let frame = &mut out[..n - 1];
-            let decoded = cobs_decode_in_place(frame).unwrap();
-            assert_eq!(&frame[..decoded], &payload[..], "length {len}");
-        }
-        assert_eq!(cobs_decode_in_place(&mut [3, 1, 0, 2]), None, "a zero inside");
-        assert_eq!(cobs_decode_in_place(&mut [5, 1, 2]), None, "a block past the end");
-        assert_eq!(cobs_decode_in_place(&mut []), Some(0));
-    }
 }

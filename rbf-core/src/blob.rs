@@ -61,8 +61,8 @@ pub mod axes;
 mod damage;
 pub mod shared_layout;
 
-/// CRC-32 (ISO-HDLC) of blobs and of output frames (format 2): one table in flash.
-pub(crate) const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+/// CRC-32 (ISO-HDLC) of blobs and of output frames (format 2, `gyro-wire`): one table in flash.
+pub const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// Physical unit of the model output; stored so a reader can refuse surprises.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

@@ -14,8 +14,8 @@
 //! - [`model`]: a deployable model (either kind + feature configuration + ranges).
 //! - [`compensator`]: the per-sample loop state (sensor-fault hold, gaps, flags).
 //! - [`blob`]: the model blob format (header, postcard payload, CRC-32) and its decoder.
-//! - [`frame`]: the firmware's per-sample output frames (postcard + COBS).
 //! - [`shared_basis`]: shared-basis multi-axis models (one basis, an output layer per axis).
+//! - [`stored_model`]: a model of any kind decoded in place from its blob ([`stored_model::StoredModel`]).
 //! - [`record`]: row parsing of recorded runs; [`sensor`]: TMP117 conversions;
 //!   [`axis`]: the axes of a multi-axis IMU ([`axis::Axis`], [`axis::MAX_AXES`]);
 //!   [`thermometer`]: the thermometers a run provides and a model reads ([`thermometer::ThermometerSet`]).
@@ -32,7 +32,6 @@ pub mod fastmath;
 pub mod features;
 pub mod filter;
 pub mod flags;
-pub mod frame;
 pub mod lag_bank;
 pub mod model;
 pub mod poly;
@@ -41,6 +40,7 @@ pub mod record;
 pub mod response_bank;
 pub mod sensor;
 pub mod shared_basis;
+pub mod stored_model;
 pub mod thermometer;
 
 /// Most Gaussian centres a deployable model may hold (firmware RAM is sized for it).

@@ -6,8 +6,8 @@
 use std::io::Cursor;
 use std::path::Path;
 
+use gyro_wire::frame::{self, MAX_FRAME_LEN};
 use rbf_core::blob::{self, FORMAT_VERSION, HEADER_LEN, MAGIC, MAX_BLOB_LEN, axes};
-use rbf_core::frame::{self, MAX_FRAME_LEN};
 use rbf_core::{Compensator, CompensatorConfig, GyroSample};
 use trainer::reading::run::RunReader;
 use trainer::reading::run::rows::RunError;

@@ -6,7 +6,8 @@
 use std::path::Path;
 
 use e2e_tests::fixtures;
-use rbf_core::{Flags, frame};
+use gyro_wire::frame;
+use rbf_core::Flags;
 use tempfile::TempDir;
 use trainer::blobfile::write_model;
 use trainer::evaluation::compensate::compensate_file;

@@ -229,11 +229,11 @@ fn measure_image(image: firmware::BoardImage, boot: Vec<u8>, update: Vec<u8>) ->
     let elf = dir.path().join(image.bin);
     std::fs::copy(&built, &elf).context("copy the QEMU board image")?;
     std::fs::write(dir.path().join("boot.bin"), boot)?;
-    let mut commands = vec![0u8; firmware_lib::update::MAX_COMMAND_FRAME_LEN];
-    let n = firmware_lib::update::encode_install_command(&update, &mut commands).context("encode the command")?;
+    let mut commands = vec![0u8; gyro_wire::command::MAX_COMMAND_FRAME_LEN];
+    let n = gyro_wire::command::encode_install_command(&update, &mut commands).context("encode the command")?;
     commands.truncate(n);
     let mut bench = [0u8; 4];
-    let n = rbf_core::frame::cobs_encode(&[firmware_lib::bench::CMD_BENCH], &mut bench).context("bench command")?;
+    let n = gyro_wire::cobs::cobs_encode(&[gyro_wire::command::CMD_BENCH], &mut bench).context("bench command")?;
     commands.extend_from_slice(&bench[..n]);
     run(&elf, dir.path(), &commands)
 }
@@ -327,7 +327,9 @@ struct Heard {
 /// keeps the status of an install reply (`[0x01, status]`) and the step
 /// count of a bench report.
 fn read_frames(uart: &mut UnixStream, heard: &Heard) {
-    use firmware_lib::{bench, update};
+    use gyro_wire::bench::{BENCH_REPORT_LEN, BenchReport};
+    use gyro_wire::cobs::cobs_decode_in_place;
+    use gyro_wire::command::{CMD_INSTALL_MODEL, REPLY_LEN};
     let mut frame = Vec::new();
     let mut buf = [0u8; 4096];
     while let Ok(n) = uart.read(&mut buf) {
@@ -340,13 +342,14 @@ fn read_frames(uart: &mut UnixStream, heard: &Heard) {
                 continue;
             }
             heard.frames.fetch_add(1, Ordering::Relaxed);
-            match update::cobs_decode_in_place(&mut frame) {
-                Some(update::REPLY_LEN) if frame[0] == update::CMD_INSTALL_MODEL => {
+            match cobs_decode_in_place(&mut frame) {
+                Some(REPLY_LEN) if frame[0] == CMD_INSTALL_MODEL => {
                     heard.reply.store(frame[1], Ordering::Relaxed);
                 }
-                Some(bench::REPORT_LEN) if frame[0] == bench::CMD_BENCH => {
-                    let steps = u32::from_le_bytes([frame[1], frame[2], frame[3], frame[4]]);
-                    heard.bench_steps.store(steps, Ordering::Relaxed);
+                Some(BENCH_REPORT_LEN) => {
+                    if let Some(report) = BenchReport::from_bytes(&frame[..BENCH_REPORT_LEN]) {
+                        heard.bench_steps.store(report.steps, Ordering::Relaxed);
+                    }
                 }
                 _ => {}
             }

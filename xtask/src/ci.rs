@@ -155,9 +155,9 @@ pub fn ci() -> anyhow::Result<()> {
             image.bin,
         ]
     };
-    // The no_std check of rbf-core (without its default `std`, for the target) in the same
-    // run as the QEMU test images: one feature resolution, so the proc macros both use
-    // compile once.
+    // The no_std check of rbf-core and gyro-wire (without their default `std`, for the
+    // target) in the same run as the QEMU test images: one feature resolution, so the proc
+    // macros both use compile once.
     run(
         "cargo",
         &[
@@ -165,6 +165,8 @@ pub fn ci() -> anyhow::Result<()> {
                 "clippy",
                 "--package",
                 "rbf-core",
+                "--package",
+                "gyro-wire",
                 "--no-default-features",
                 "--package",
                 crate::c_library::PACKAGE,
@@ -185,7 +187,7 @@ pub fn ci() -> anyhow::Result<()> {
             &[&["clippy"][..], &args[..], &["--", "-D", "warnings"]].concat(),
         )?;
     }
-    clock.lap("clippy, firmware feature sets and the rbf-core no_std check");
+    clock.lap("clippy, firmware feature sets and the rbf-core and gyro-wire no_std check");
     // The QEMU test images, then the images that are flashed (the QEMU board
     // images are built by the tests that run them).
     crate::firmware::build_release(&qemu_boards)?;

@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, bail};
+use gyro_wire::frame::{self, MAX_FRAME_LEN, OutputFrame};
 use rbf_core::blob::{self, HEADER_LEN, MAX_BLOB_LEN};
-use rbf_core::frame::{self, MAX_FRAME_LEN, OutputFrame};
 use rbf_core::model::{ModelBody, ModelInfo};
 use rbf_core::poly::Poly3;
 use rbf_core::{FeatureConfig, FeatureSet, Model};

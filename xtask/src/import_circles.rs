@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 
 /// The crates whose modules are checked, relative to the workspace root.
-pub const CRATES: [&str; 5] = ["rbf-core", "firmware", "firmware-harness", "trainer", "xtask"];
+pub const CRATES: [&str; 6] = ["rbf-core", "wire", "firmware", "firmware-harness", "trainer", "xtask"];
 
 /// One module of a crate's tree: its path from the root and its file.
 #[derive(Clone, Debug)]

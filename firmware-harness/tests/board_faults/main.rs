@@ -31,10 +31,10 @@ use firmware::tmp117::Tmp117;
 use firmware::uart::{self, FrameQueue};
 use firmware::update::{self, CommandReceiver, UpdateStatus};
 use firmware::watchdog::{LSI_FASTEST_HZ, SECTOR_ERASE_WORST_MS, Watchdog, running_setting};
+use gyro_wire::cobs::cobs_decode_in_place;
+use gyro_wire::frame::{self, OutputFrame};
 use heapless::spsc::{Consumer, Producer, Queue};
 use rbf_core::axis::Axis;
-use rbf_core::frame::cobs_decode_in_place;
-use rbf_core::frame::{self, OutputFrame};
 use rbf_core::{CompensatorConfig, Flags, Model};
 use sim::{FakeI2c, FakeSpi, FlashSim, FrontEndSim, I2cSim, SimClock, SimWatchdog, UartRxSim, UartTxSim};
 
@@ -580,7 +580,7 @@ impl Installer {
 fn install_payload(model: &Model) -> Vec<u8> {
     let mut blob = vec![0u8; rbf_core::blob::MAX_BLOB_LEN];
     let n = rbf_core::blob::encode(model, &mut blob).unwrap_or(0);
-    let mut payload = vec![update::CMD_INSTALL_MODEL];
+    let mut payload = vec![gyro_wire::command::CMD_INSTALL_MODEL];
     payload.extend_from_slice(&blob[..n]);
     payload
 }
@@ -881,13 +881,13 @@ fn bench_over_the_uart() -> Verdict {
     for seq in 0..1500u32 {
         // `bench` at sample 10, `health` at sample 1,200: COBS with its 0x00.
         let command = match seq {
-            10 => Some(firmware::bench::CMD_BENCH),
-            1200 => Some(firmware::health::CMD_HEALTH),
+            10 => Some(gyro_wire::command::CMD_BENCH),
+            1200 => Some(gyro_wire::command::CMD_HEALTH),
             _ => None,
         };
         if let Some(c) = command {
             let mut wire = [0u8; 4];
-            let n = rbf_core::frame::cobs_encode(&[c], &mut wire).unwrap_or(0);
+            let n = gyro_wire::cobs::cobs_encode(&[c], &mut wire).unwrap_or(0);
             for &b in &wire[..n] {
                 board.receive(b);
             }
@@ -910,7 +910,7 @@ fn bench_over_the_uart() -> Verdict {
             let n = cobs_decode_in_place(f)?;
             let payload = f.get(..n)?;
             let (&cmd, fields) = payload.split_first()?;
-            (cmd == firmware::bench::CMD_BENCH && fields.len() == 16).then(|| {
+            (cmd == gyro_wire::command::CMD_BENCH && fields.len() == 16).then(|| {
                 let word = |i: usize| u32::from_le_bytes(fields[4 * i..4 * i + 4].try_into().unwrap_or([0; 4]));
                 [word(0), word(1), word(2), word(3)]
             })

@@ -232,7 +232,7 @@ mod board {
             };
             if let Some((command, status)) = reply {
                 let mut bytes = [0u8; 8];
-                if let Some(n) = update::encode_reply(command, status, &mut bytes) {
+                if let Some(n) = gyro_wire::command::encode_reply(command, status, &mut bytes) {
                     write_frame(compensation.output_mut(), bytes.get(..n).unwrap_or(&[]));
                 }
             }

@@ -297,7 +297,7 @@ mod board {
     /// CRC-32 of format 2 and COBS, for each frame kind, and the CRC-32 alone
     /// over as many bytes (what format 2 added to format 1).
     fn frame_instructions() {
-        use rbf_core::frame::{self, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
+        use gyro_wire::frame::{self, AxesFrame, AxisOutput, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
         const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
         let sample = |seq: u32| OutputFrame {
             seq,

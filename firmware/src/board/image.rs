@@ -44,6 +44,7 @@ use embedded_hal::i2c::I2c;
 use embedded_hal::spi::SpiDevice;
 use embedded_hal_bus::spi::{AtomicDevice, ExclusiveDevice};
 use embedded_hal_bus::util::AtomicCell;
+use gyro_wire::health::{BOARD_ON_HSI, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause};
 use heapless::spsc::{Consumer, Producer, Queue};
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::shared_basis::SharedAxisModels;
@@ -67,9 +68,7 @@ use crate::commands::{self, Report};
 use crate::compensation::{CompensationLoop, InPlaceModel, LoopConfig, LoopStats, ModelHolder, write_frame};
 use crate::fault::{self, FaultRecord};
 use crate::frontend::{self, FrontEnd};
-use crate::health::{
-    BOARD_ON_HSI, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause, brown_out_flag,
-};
+use crate::health::{brown_out_flag, reset_cause_at_boot};
 use crate::model_store::{MappedFlash, ModelStore, SlotLayout, StoredModel};
 use crate::pacing::{Pacer, PacerCounters};
 use crate::samples;
@@ -411,7 +410,7 @@ impl<F: BoardFlash> Board<F> {
         let watchdog_reset = dp.RCC.csr().read().wdgrstf().bit_is_set();
         dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
         let fault_record = super::take_fault();
-        let reset_cause = ResetCause::from_boot(fault_record, rcc_csr);
+        let reset_cause = reset_cause_at_boot(fault_record, rcc_csr);
         let boot_cause = fault::boot_cause(fault_record, watchdog_reset);
 
         // The board's own clock setup, every wait bounded (a dead crystal:

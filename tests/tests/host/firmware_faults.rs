@@ -163,7 +163,8 @@ fn one_axis_thermometer_failing_flags_that_axis_while_the_others_keep_compensati
 
 #[test]
 fn the_store_and_the_uart_update_carry_either_blob_format_and_refuse_what_the_board_cannot_hold() {
-    use firmware::update::{CMD_INSTALL_MODEL, UpdateStatus, execute_into};
+    use firmware::update::{UpdateStatus, execute_into};
+    use gyro_wire::command::CMD_INSTALL_MODEL;
     let (board_models, axes_blob) = axis_models();
     let (_, single_blob, _) = models();
     let mut running = Box::new(AxisModels::<{ firmware::AXIS_CENTERS }>::EMPTY);
@@ -308,7 +309,8 @@ fn under_a_shared_basis_the_one_thermometer_failing_flags_every_axis_and_the_oth
 
 #[test]
 fn the_store_and_the_uart_update_carry_a_shared_basis_blob_and_refuse_the_other_layouts() {
-    use firmware::update::{CMD_INSTALL_MODEL, UpdateStatus, execute_into};
+    use firmware::update::{UpdateStatus, execute_into};
+    use gyro_wire::command::CMD_INSTALL_MODEL;
     use rbf_core::shared_basis::SharedAxisModels;
     let (board_models, shared_blob) = shared_models();
     let (_, axes_blob) = axis_models();

@@ -10,7 +10,7 @@ use embedded_hal_mock::eh1::spi::{Mock as SpiMock, Transaction as SpiTransaction
 use firmware::compensation::{CompensationLoop, LoopConfig};
 use firmware::frontend::{self, FrontEnd};
 use firmware::tmp117::{self, Tmp117};
-use rbf_core::frame::{self, OutputFrame};
+use gyro_wire::frame::{self, OutputFrame};
 use rbf_core::sensor::tmp117_raw;
 use rbf_core::{CompensatorConfig, Flags, Model};
 use trainer::evaluation::evaluate::compensate_run;
@@ -287,7 +287,7 @@ fn an_output_that_takes_nothing_drops_the_frame_and_flags_the_next_one_without_p
         .map(|f| {
             let mut f = f.to_vec();
             f.push(0);
-            rbf_core::frame::decode(&mut f).unwrap()
+            gyro_wire::frame::decode(&mut f).unwrap()
         })
         .collect();
     assert_eq!(frames.len(), 2, "two frames sent, two dropped");

@@ -7,8 +7,8 @@ use e2e_tests::fixtures as common;
 use std::cell::Cell;
 
 use firmware_harness::replay::{self, ReplaySample, Replayer};
+use gyro_wire::frame;
 use rbf_core::Flags;
-use rbf_core::frame;
 use trainer::evaluation::compensate::compensate_file;
 
 #[test]

@@ -2,10 +2,12 @@
 //! sent as the firmware's install command, its reply put in words, and the
 //! new model confirmed from the unit's health report.
 //!
-//! The checks are the firmware's own: `firmware::model_store::StoredModel`
-//! decodes the blob into the very types the board images run (a single-axis
-//! `Model`, the three-axis board's `AxisModels<AXIS_CENTERS>`, the
-//! shared-basis board's `SharedAxisModels<SHARED_AXIS_CENTERS>`). Before the
+//! The checks are the firmware's own: [`StoredModel`], through which the
+//! board's model store decodes every slot, decodes the blob into the very
+//! types the board images run (a single-axis `Model`, the three-axis
+//! board's `AxisModels<MAX_AXIS_CENTERS>`, the shared-basis board's
+//! `SharedAxisModels<MAX_SHARED_AXIS_CENTERS>`: the capacities the firmware's
+//! `AXIS_CENTERS` and `SHARED_AXIS_CENTERS` are). Before the
 //! port is opened the blob must suit one of the images; once the unit's
 //! frames have said which kind it is, it must suit that kind. The two
 //! three-axis images send the same frames, so for a three-axis unit a blob
@@ -15,14 +17,13 @@ use std::io::{Read, Write};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use firmware::model_store::StoredModel;
-use firmware::update::{CMD_INSTALL_MODEL, MAX_COMMAND_FRAME_LEN, UpdateStatus, encode_install_command};
-use firmware::{AXIS_CENTERS, SHARED_AXIS_CENTERS};
-use rbf_core::Model;
+use gyro_wire::command::{CMD_INSTALL_MODEL, MAX_COMMAND_FRAME_LEN, UpdateStatus, encode_install_command};
 use rbf_core::axis::{Axis, AxisSet};
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::blob::{DecodeError, MAX_BLOB_LEN};
 use rbf_core::shared_basis::SharedAxisModels;
+use rbf_core::stored_model::StoredModel;
+use rbf_core::{MAX_AXIS_CENTERS, MAX_SHARED_AXIS_CENTERS, Model};
 
 use super::link::{Link, Message};
 use super::status::{self, UnitStatus};
@@ -81,9 +82,9 @@ fn other_image(e: &DecodeError) -> bool {
 /// it, else the reason the most fitting image gives.
 pub fn check_blob(bytes: &[u8]) -> Result<CheckedBlob, DecodeError> {
     let single = check_as(&mut *Box::new(Model::<{ rbf_core::MAX_CENTERS }>::EMPTY), bytes);
-    let mut per_axis_models = Box::new(AxisModels::<AXIS_CENTERS>::EMPTY);
+    let mut per_axis_models = Box::new(AxisModels::<MAX_AXIS_CENTERS>::EMPTY);
     let per_axis = check_as(&mut *per_axis_models, bytes);
-    let mut shared_models = Box::new(SharedAxisModels::<SHARED_AXIS_CENTERS>::EMPTY);
+    let mut shared_models = Box::new(SharedAxisModels::<MAX_SHARED_AXIS_CENTERS>::EMPTY);
     let shared = check_as(&mut *shared_models, bytes);
     let axes = match (&single, &per_axis, &shared) {
         (Ok(_), _, _) => AxisSet::from_bits(1 << Axis::X.index()),
@@ -145,8 +146,8 @@ pub fn check_for_unit(blob: &CheckedBlob, kind: Kind, force: bool) -> Result<(),
             Err("a single-axis unit takes a single-axis blob (format 2); this one is for a three-axis unit".into())
         }
         Kind::Axes(_) if !(blob.suits.per_axis || blob.suits.shared) => Err(format!(
-            "a three-axis unit takes a blob with a model per axis of at most {AXIS_CENTERS} centres, or a shared basis \
-             of at most {SHARED_AXIS_CENTERS}; this one is neither"
+            "a three-axis unit takes a blob with a model per axis of at most {MAX_AXIS_CENTERS} centres, or a shared basis \
+             of at most {MAX_SHARED_AXIS_CENTERS}; this one is neither"
         )),
         Kind::Axes(unit) if blob.axes != unit && !force => Err(format!(
             "the unit's frames carry the axes {} but the blob has a model for {} alone{}; the unit would run \
@@ -173,20 +174,18 @@ pub fn check_serial(blob_serial: Option<&str>, unit_serial: Option<&str>, force:
 
 /// The install reply's status in words.
 pub fn status_words(status: u8) -> String {
-    let words = match status {
-        s if s == UpdateStatus::Installed as u8 => "installed: the new model runs",
-        s if s == UpdateStatus::UnknownCommand as u8 => "unknown command (firmware too old for model updates?)",
-        s if s == UpdateStatus::Malformed as u8 => {
-            "the command frame arrived damaged (line noise?); the old model runs on"
-        }
-        s if s == UpdateStatus::TooLong as u8 => "the command was longer than the unit's buffer; the old model runs on",
-        s if s == UpdateStatus::Refused as u8 => {
+    let words = match UpdateStatus::from_u8(status) {
+        Some(UpdateStatus::Installed) => "installed: the new model runs",
+        Some(UpdateStatus::UnknownCommand) => "unknown command (firmware too old for model updates?)",
+        Some(UpdateStatus::Malformed) => "the command frame arrived damaged (line noise?); the old model runs on",
+        Some(UpdateStatus::TooLong) => "the command was longer than the unit's buffer; the old model runs on",
+        Some(UpdateStatus::Refused) => {
             "the unit refused the blob (CRC, shape or parameters, or a blob for another image); the old model runs on"
         }
-        s if s == UpdateStatus::FlashFailed as u8 => {
+        Some(UpdateStatus::FlashFailed) => {
             "writing or verifying the flash failed; the old model runs on (the health report counts flash errors)"
         }
-        _ => "a status this trainer does not know",
+        None => "a status this trainer does not know",
     };
     format!("status {status}: {words}")
 }
@@ -292,21 +291,21 @@ mod tests {
 
     /// The framed health report of a unit with `samples` since its reset.
     fn health(samples: u32) -> Vec<u8> {
-        let report = firmware::health::HealthReport {
-            reset_cause: firmware::health::ResetCause::PowerOn,
+        let report = gyro_wire::health::HealthReport {
+            reset_cause: gyro_wire::health::ResetCause::PowerOn,
             reset_flags: 0,
             fault_pc: 0,
             fault_lr: 0,
-            counters: firmware::health::HealthCounters {
+            counters: gyro_wire::health::HealthCounters {
                 samples,
                 ..Default::default()
             },
             model: Default::default(),
             board_flags: 0,
-            firmware_version: firmware::health::FirmwareVersion::CURRENT,
+            firmware_version: gyro_wire::health::FirmwareVersion::CURRENT,
             stack_peak_bytes: 0,
         };
-        let mut buf = [0u8; firmware::health::HEALTH_FRAME_LEN];
+        let mut buf = [0u8; gyro_wire::health::HEALTH_FRAME_LEN];
         let n = report.encode(&mut buf).unwrap();
         buf[..n].to_vec()
     }
@@ -338,7 +337,7 @@ mod tests {
         assert!(err.starts_with("/dev/fake: the unit reset during the update"), "{err}");
         // A second answer to the health command, counters on: no reset; then a refusal.
         let mut reply = [0u8; 8];
-        let n = firmware::update::encode_reply(CMD_INSTALL_MODEL, UpdateStatus::Refused, &mut reply).unwrap();
+        let n = gyro_wire::command::encode_reply(CMD_INSTALL_MODEL, UpdateStatus::Refused, &mut reply).unwrap();
         let mut link = answer([health(150), reply[..n].to_vec()].concat());
         let err = install(&mut link, &blob, Duration::from_millis(300), false)
             .unwrap_err()

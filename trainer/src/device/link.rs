@@ -1,28 +1,29 @@
 //! The unit's UART as messages: `COBS(payload) 0x00` in both directions.
 //!
-//! In: output frames (single- or three-axis, either format, rbf-core's decoders via
+//! In: output frames (single- or three-axis, either format, gyro-wire's decoders via
 //! [`crate::reading::frames::Frame`]), command replies (2 bytes), the boot report of
 //! a fault or watchdog reset (11 bytes, tag 0xFB), the bench report (17
-//! bytes, tag 0x02) and the health report (116 bytes, tag 0xFC; the
-//! firmware's own [`HealthReport::from_bytes`]). Anything else is damage:
+//! bytes, tag 0x02) and the health report (116 bytes, tag 0xFC;
+//! [`HealthReport::from_bytes`]), each read with the wire protocol's code
+//! the firmware encodes with ([`gyro_wire`]). Anything else is damage:
 //! counted, and reading goes on at the next 0x00. Out: a command payload,
-//! COBS-framed by rbf-core's encoder. Every wait ends at a deadline.
+//! COBS-framed by the same crate's encoder. Every wait ends at a deadline.
 
 use std::io::{Read, Write};
 use std::time::Instant;
 
-use firmware::bench;
-use firmware::fault::{BOOT_REPORT_LEN, BOOT_REPORT_TAG};
-use firmware::health::{HEALTH_REPORT_LEN, HEALTH_REPORT_TAG, HealthReport};
-use firmware::update::{MAX_COMMAND_FRAME_LEN, REPLY_LEN, cobs_decode_in_place};
-
-use rbf_core::frame::FrameFormat;
+use gyro_wire::bench::{BENCH_REPORT_LEN, CMD_BENCH};
+use gyro_wire::boot::{BOOT_REPORT_LEN, BOOT_REPORT_TAG};
+use gyro_wire::cobs::{cobs_decode_in_place, cobs_encode, max_encoded_len};
+use gyro_wire::command::{MAX_COMMAND_FRAME_LEN, REPLY_LEN};
+use gyro_wire::frame::FrameFormat;
+use gyro_wire::health::{HEALTH_FRAME_LEN, HEALTH_REPORT_LEN, HEALTH_REPORT_TAG, HealthReport};
 
 use crate::reading::frames::Frame;
 
 /// Longest message the unit sends on the wire, COBS bytes without the 0x00
-/// (the health report: 72 payload bytes); anything longer is damage.
-pub const MAX_MESSAGE_LEN: usize = HEALTH_REPORT_LEN + 2;
+/// (the health report's frame, one byte spare); anything longer is damage.
+pub const MAX_MESSAGE_LEN: usize = HEALTH_FRAME_LEN;
 
 /// One message from the unit.
 #[derive(Clone, Debug, PartialEq)]
@@ -35,7 +36,7 @@ pub enum Message {
     Reply {
         /// The command answered (0 for a frame that was no command).
         command: u8,
-        /// Its status (`firmware::update::UpdateStatus` for an install).
+        /// Its status (`gyro_wire::command::UpdateStatus` for an install).
         status: u8,
     },
     /// The boot report of a fault or watchdog reset (the unit just restarted).
@@ -68,7 +69,7 @@ pub fn classify(chunk: &[u8]) -> Option<Message> {
         },
         (HEALTH_REPORT_LEN, Some(HEALTH_REPORT_TAG)) => Message::Health(HealthReport::from_bytes(payload)?),
         (BOOT_REPORT_LEN, Some(BOOT_REPORT_TAG)) => Message::BootReport,
-        (bench::REPORT_LEN, Some(bench::CMD_BENCH)) => Message::BenchReport,
+        (BENCH_REPORT_LEN, Some(CMD_BENCH)) => Message::BenchReport,
         _ => {
             let (frame, format) = Frame::decode(&mut chunk.to_vec())?;
             Message::Output(frame, format)
@@ -116,8 +117,8 @@ impl<P: Read + Write> Link<P> {
 
     /// Sends `payload` as one COBS frame.
     pub fn send(&mut self, payload: &[u8]) -> anyhow::Result<()> {
-        let mut frame = vec![0u8; MAX_COMMAND_FRAME_LEN.max(payload.len() + payload.len() / 254 + 2)];
-        let n = rbf_core::frame::cobs_encode(payload, &mut frame)
+        let mut frame = vec![0u8; MAX_COMMAND_FRAME_LEN.max(max_encoded_len(payload.len()))];
+        let n = cobs_encode(payload, &mut frame)
             .ok_or_else(|| anyhow::anyhow!("{}: command too long to frame", self.name))?;
         self.send_encoded(&frame[..n])
     }
@@ -218,7 +219,7 @@ pub(crate) mod tests {
     use std::time::Duration;
 
     use super::*;
-    use rbf_core::frame::{self, OutputFrame};
+    use gyro_wire::frame::{self, OutputFrame};
 
     /// A port that hands out `input` in reads of at most `slice` bytes and
     /// then times out; keeps what is written.
@@ -282,7 +283,7 @@ pub(crate) mod tests {
         input.extend_from_slice(&[0x03, 0x99, 0x00]); // a short stretch that is no message
         input.extend_from_slice(&output_frame(2));
         let mut reply = [0u8; 8];
-        let n = firmware::update::encode_reply(1, firmware::update::UpdateStatus::Refused, &mut reply).unwrap();
+        let n = gyro_wire::command::encode_reply(1, gyro_wire::command::UpdateStatus::Refused, &mut reply).unwrap();
         input.extend_from_slice(&reply[..n]);
         let port = FakePort {
             input: Cursor::new(input),
@@ -308,22 +309,22 @@ pub(crate) mod tests {
     #[test]
     fn a_health_report_is_read_with_the_firmware_s_layout() {
         let report = HealthReport {
-            reset_cause: firmware::health::ResetCause::Watchdog,
+            reset_cause: gyro_wire::health::ResetCause::Watchdog,
             reset_flags: 0x24,
             fault_pc: 0,
             fault_lr: 0,
             counters: Default::default(),
-            model: firmware::health::ModelIdentity {
+            model: gyro_wire::health::ModelIdentity {
                 blob_crc32: 0xDEAD_BEEF,
                 sequence: 2,
                 model_id: 0x0102_0304,
                 serial: [b'S'; 32],
             },
             board_flags: 0,
-            firmware_version: firmware::health::FirmwareVersion::CURRENT,
+            firmware_version: gyro_wire::health::FirmwareVersion::CURRENT,
             stack_peak_bytes: 0,
         };
-        let mut buf = [0u8; firmware::health::HEALTH_FRAME_LEN];
+        let mut buf = [0u8; HEALTH_FRAME_LEN];
         let n = report.encode(&mut buf).unwrap();
         assert_eq!(classify(&buf[..n - 1]), Some(Message::Health(report)));
         assert_eq!(classify(&[0x02, 0xFB]), None, "one byte is no message");

@@ -5,10 +5,11 @@
 //! commands on USART1"): every message is `COBS(payload) 0x00`; the unit
 //! sends output frames, command replies, the boot report and the health
 //! report on one line, told apart by payload length and tag ([`link`]).
-//! The host frames its commands and checks model blobs with the firmware
-//! library's own code (`firmware::update`, `firmware::health`,
-//! `firmware::model_store`), and decodes output frames with rbf-core's, so
-//! both ends read every byte the same way.
+//! The host frames its commands, reads the unit's frames and reports with
+//! the wire protocol's crate the firmware encodes with (`gyro-wire`), and
+//! checks model blobs as the unit's model store does
+//! (`rbf_core::stored_model`), so both ends read every byte the same way
+//! without the trainer linking the firmware library.
 //!
 //! - [`port`]: opening a serial port, errors that name it;
 //! - [`link`]: messages in (resynchronised on the next delimiter after

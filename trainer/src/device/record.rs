@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 
 use rbf_core::Flags;
 
-use rbf_core::frame::FrameFormat;
+use gyro_wire::frame::FrameFormat;
 use rbf_core::record::Columns;
 
 use super::link::{Link, Message};
@@ -389,7 +389,7 @@ mod tests {
     use super::*;
 
     fn frame(seq: u32) -> Frame {
-        Frame::Single(rbf_core::frame::OutputFrame {
+        Frame::Single(gyro_wire::frame::OutputFrame {
             seq,
             rate_dph: 1.0,
             bias_dph: 0.0,
@@ -457,25 +457,25 @@ mod tests {
     }
 
     /// What `record` writes of a unit that sends `frames` (then falls silent).
-    fn recording_of(frames: &[rbf_core::frame::OutputFrame], wire: impl Fn(&[u8]) -> Vec<u8>) -> (String, Progress) {
+    fn recording_of(frames: &[gyro_wire::frame::OutputFrame], wire: impl Fn(&[u8]) -> Vec<u8>) -> (String, Progress) {
         use super::super::link::tests::FakePort;
         let mut input = Vec::new();
         for f in frames {
-            let mut buf = [0u8; rbf_core::frame::MAX_FRAME_LEN];
-            let n = rbf_core::frame::encode(f, &mut buf).unwrap();
+            let mut buf = [0u8; gyro_wire::frame::MAX_FRAME_LEN];
+            let n = gyro_wire::frame::encode(f, &mut buf).unwrap();
             input.extend(wire(&buf[..n]));
         }
         let mut link = Link::new(FakePort::answering(input), "/dev/fake");
         let status = UnitStatus {
-            report: firmware::health::HealthReport {
-                reset_cause: firmware::health::ResetCause::PowerOn,
+            report: gyro_wire::health::HealthReport {
+                reset_cause: gyro_wire::health::ResetCause::PowerOn,
                 reset_flags: 0,
                 fault_pc: 0,
                 fault_lr: 0,
                 counters: Default::default(),
                 model: Default::default(),
                 board_flags: 0,
-                firmware_version: firmware::health::FirmwareVersion::CURRENT,
+                firmware_version: gyro_wire::health::FirmwareVersion::CURRENT,
                 stack_peak_bytes: 0,
             },
             kind: Some(Kind::Single),
@@ -492,8 +492,8 @@ mod tests {
         (String::from_utf8(out).unwrap(), progress)
     }
 
-    fn sample(seq: u32) -> rbf_core::frame::OutputFrame {
-        rbf_core::frame::OutputFrame {
+    fn sample(seq: u32) -> gyro_wire::frame::OutputFrame {
+        gyro_wire::frame::OutputFrame {
             seq,
             rate_dph: 10.0 + seq as f32,
             bias_dph: 0.5,
@@ -508,18 +508,18 @@ mod tests {
         let over_range = rbf_core::record::MAX_ABS_RATE_DPH as f32 * 1.5;
         let frames = [
             sample(1),
-            rbf_core::frame::OutputFrame {
+            gyro_wire::frame::OutputFrame {
                 rate_dph: over_range,
                 rate_comp_dph: over_range,
                 flags: 16,
                 ..sample(2)
             },
-            rbf_core::frame::OutputFrame {
+            gyro_wire::frame::OutputFrame {
                 temp_c: f32::NAN,
                 flags: 2,
                 ..sample(3)
             },
-            rbf_core::frame::OutputFrame {
+            gyro_wire::frame::OutputFrame {
                 rate_dph: f32::INFINITY,
                 flags: 16,
                 ..sample(4)
@@ -605,7 +605,7 @@ mod tests {
         let (text, progress) = recording_of(&frames, |b| {
             let mut b = b.to_vec();
             let n = b.len() - 1; // without the 0x00
-            if rbf_core::frame::decode(&mut b.clone()[..n]).unwrap().seq == 3 {
+            if gyro_wire::frame::decode(&mut b.clone()[..n]).unwrap().seq == 3 {
                 b[3] ^= 0x10;
             }
             b

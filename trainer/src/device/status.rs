@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
-use firmware::health::{BOARD_BROWN_OUT_BELOW_2V7, BOARD_ON_HSI, CMD_HEALTH, HealthReport, ResetCause};
+use gyro_wire::health::{BOARD_BROWN_OUT_BELOW_2V7, BOARD_ON_HSI, CMD_HEALTH, HealthReport, ResetCause};
 
 use super::link::{Link, Message};
 use crate::reading::frames::{FrameSync, Kind};
@@ -260,7 +260,7 @@ pub fn to_json(port: &str, status: &UnitStatus) -> serde_json::Value {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firmware::health::{HealthCounters, ModelIdentity};
+    use gyro_wire::health::{FirmwareVersion, HealthCounters, ModelIdentity};
 
     fn report(crc: u32, sequence: u32) -> HealthReport {
         HealthReport {
@@ -283,7 +283,7 @@ mod tests {
                 model
             },
             board_flags: BOARD_ON_HSI,
-            firmware_version: firmware::health::FirmwareVersion {
+            firmware_version: FirmwareVersion {
                 major: 0,
                 minor: 4,
                 patch: 1,

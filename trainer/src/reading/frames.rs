@@ -6,8 +6,8 @@
 
 use std::io::{BufRead, BufReader, Read, Write};
 
+use gyro_wire::frame::{self, AxesFrame, FrameFormat, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
 use rbf_core::axis::AxisSet;
-use rbf_core::frame::{self, AxesFrame, FrameFormat, MAX_AXES_FRAME_LEN, MAX_FRAME_LEN, OutputFrame};
 
 use crate::reading::limits::{MAX_FRAME_SEARCH_BYTES, bytes};
 
@@ -332,7 +332,7 @@ mod tests {
 
     #[test]
     fn a_three_axis_firmware_s_frames_give_each_axis_s_columns_and_other_frames_count_as_damage() {
-        use rbf_core::frame::{AXES_FRAME_TAG, AxisOutput, MAX_AXES_FRAME_LEN};
+        use gyro_wire::frame::{AXES_FRAME_TAG, AxisOutput, MAX_AXES_FRAME_LEN};
         let axis = |v: f32, flags: u8| AxisOutput {
             rate_dph: v,
             bias_dph: v / 2.0,

@@ -663,7 +663,7 @@ fn fit_rejects_bad_options_and_writes_nothing() {
 
 #[test]
 fn decode_turns_a_uart_capture_into_csv_and_reports_damage() {
-    use rbf_core::frame::{self, MAX_FRAME_LEN, OutputFrame};
+    use gyro_wire::frame::{self, MAX_FRAME_LEN, OutputFrame};
     let dir = TempDir::new().unwrap();
     let mut capture = vec![0x42, 0x17]; // the capture started mid-frame: a partial frame first
     for seq in 0..5u32 {

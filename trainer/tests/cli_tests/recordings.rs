@@ -5,7 +5,7 @@
 use std::fs::File;
 use std::process::{Command, Stdio};
 
-use rbf_core::frame::{self, MAX_FRAME_LEN, OutputFrame};
+use gyro_wire::frame::{self, MAX_FRAME_LEN, OutputFrame};
 use tempfile::TempDir;
 
 use crate::common::*;
@@ -69,7 +69,7 @@ fn decode_skips_a_frame_whose_crc_fails_and_still_reads_captures_of_older_firmwa
         }
         raw.push(f.flags);
         let mut buf = [0u8; MAX_FRAME_LEN];
-        let n = frame::cobs_encode(&raw, &mut buf).unwrap();
+        let n = gyro_wire::cobs::cobs_encode(&raw, &mut buf).unwrap();
         old.extend_from_slice(&buf[..n]);
     }
     let frames = write(&dir, "old.bin", &old);

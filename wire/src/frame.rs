@@ -11,18 +11,20 @@
 //! [`FrameFormat`] says which one a frame came in.
 //!
 //! Frame kinds share the wire with the other messages, told apart by
-//! payload length (docs/firmware.md, "Output frames"): command replies 2,
-//! boot report 11, bench report 17, single-axis frames 18 … 22 (format 1)
-//! and [`OUTPUT_FRAME_PAYLOAD_MIN`] … [`OUTPUT_FRAME_PAYLOAD_MAX`]
-//! (format 2), three-axis frames [`AXES_FRAME_PAYLOAD_MIN`] …
-//! [`AXES_FRAME_PAYLOAD_MAX`] (either format, and the tag), the health
-//! report 76.
+//! payload length (the crate docs; docs/firmware.md, "Output frames"):
+//! command replies 2, boot report 11, bench report 17, single-axis frames
+//! 18 … 22 (format 1) and [`OUTPUT_FRAME_PAYLOAD_MIN`] …
+//! [`OUTPUT_FRAME_PAYLOAD_MAX`] (format 2), three-axis frames
+//! [`AXES_FRAME_PAYLOAD_MIN`] … [`AXES_FRAME_PAYLOAD_MAX`] (either format,
+//! and the tag), the health report 116.
 
 use serde::{Deserialize, Serialize};
 
-use crate::axis::AxisSet;
-use crate::blob::CRC32;
-use crate::flags::Flags;
+use rbf_core::axis::AxisSet;
+use rbf_core::blob::CRC32;
+use rbf_core::flags::Flags;
+
+use crate::cobs::{cobs_decode_in_place, cobs_encode};
 
 /// Largest encoded single-axis frame including the 0x00 delimiter, bytes.
 pub const MAX_FRAME_LEN: usize = 32;
@@ -220,9 +222,9 @@ fn payload(bytes: &mut [u8]) -> Result<&[u8], FrameError> {
 /// This runs once per gyro sample in the firmware, so it must not be able to
 /// panic (checked at link time, firmware/src/bin/panic_free_check.rs):
 /// postcard serialises into a plain slice (returns errors, never panics) and
-/// [`cobs_encode`] frames it; postcard's own COBS flavour indexes with
+/// [`cobs_encode`](crate::cobs::cobs_encode) frames it; postcard's own COBS flavour indexes with
 /// assertions the optimiser cannot remove. The bytes are the same
-/// (`frames_match_postcards_cobs_encoding`).
+/// (`frames_round_trip_bit_for_bit_and_our_cobs_is_postcards`).
 pub fn encode(frame: &OutputFrame, out: &mut [u8]) -> Result<usize, FrameError> {
     let mut raw = [0u8; OUTPUT_FRAME_PAYLOAD_MAX];
     encode_checked(&(OUTPUT_FRAME_TAG, frame), &mut raw, out)
@@ -278,71 +280,6 @@ pub fn decode_axes_with_format(bytes: &mut [u8]) -> Result<(AxesFrame, FrameForm
     }
 }
 
-/// COBS-encodes `src` into `out` followed by the 0x00 delimiter; returns the
-/// bytes used, or `None` if `out` is too small. Never panics: every access is
-/// checked and fails as `None`.
-///
-/// Why not the `cobs` crate (0.3, the one postcard's COBS flavour uses): its
-/// frames are ours byte for byte, but `try_encode` reports a length past the
-/// end of a buffer one byte too small (it skips the last code byte it has
-/// no room for and still counts it) and encodes an empty source as nothing,
-/// and its decoder takes the bytes before a 0x00 inside a frame as the
-/// frame (`cobs_crate_frames_are_ours_but_its_edges_are_not`). Here a
-/// short buffer is `None` and a damaged frame is refused.
-pub fn cobs_encode(src: &[u8], out: &mut [u8]) -> Option<usize> {
-    // `code_at` holds the code byte of the current block: 1 + its non-zero bytes.
-    let mut code_at = 0;
-    let mut code = 1u8;
-    let mut next = 1;
-    for &byte in src {
-        if byte != 0 {
-            *out.get_mut(next)? = byte;
-            next += 1;
-            code += 1;
-        }
-        if byte == 0 || code == 0xFF {
-            *out.get_mut(code_at)? = code;
-            code_at = next;
-            next += 1;
-            code = 1;
-        }
-    }
-    *out.get_mut(code_at)? = code;
-    *out.get_mut(next)? = 0;
-    Some(next + 1)
-}
-
-/// Decodes a COBS frame (without its 0x00 delimiter) in place; returns the
-/// decoded length, or `None` if the frame is malformed (a zero inside, a
-/// block running past the end). Never panics: every access is checked (the
-/// `cobs` crate's decoder indexes its buffer), so it links in the
-/// panic-free firmware image. The decoded bytes never overtake the encoded
-/// ones: writing in place is safe.
-pub fn cobs_decode_in_place(frame: &mut [u8]) -> Option<usize> {
-    let (mut read, mut write) = (0usize, 0usize);
-    let end = frame.len();
-    while let Some(&code) = frame.get(read) {
-        if code == 0 {
-            return None;
-        }
-        read += 1;
-        for _ in 1..code {
-            let byte = *frame.get(read)?;
-            if byte == 0 {
-                return None;
-            }
-            *frame.get_mut(write)? = byte;
-            read += 1;
-            write += 1;
-        }
-        if code != 0xFF && read < end {
-            *frame.get_mut(write)? = 0;
-            write += 1;
-        }
-    }
-    Some(write)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -368,28 +305,6 @@ mod tests {
         assert_eq!(back.flags(), Flags::TEMP_SENSOR_FAULT | Flags::WARMING_UP);
         let mut garbage = [1u8, 2, 3, 0];
         assert_eq!(decode(&mut garbage), Err(FrameError::Malformed));
-    }
-
-    /// Why frame.rs keeps its own COBS (see [`cobs_encode`]): the crate's
-    /// bytes are ours, its edges are not what a panic-free receiver needs.
-    #[test]
-    fn cobs_crate_frames_are_ours_but_its_edges_are_not() {
-        for src in [&[0x11, 0, 0x22, 0x33][..], &[0u8; 3], &[7u8; 300], &[0, 1, 2, 0]] {
-            let mut ours = [0u8; 400];
-            let n = cobs_encode(src, &mut ours).unwrap();
-            let mut theirs = [0u8; 400];
-            let m = cobs::try_encode(src, &mut theirs).unwrap();
-            assert_eq!(ours[..n - 1], theirs[..m], "the same frame, ours with its 0x00");
-        }
-        // A buffer one byte short: the crate says it wrote 2 bytes into 1.
-        assert_eq!(cobs::try_encode(&[0], &mut [0u8; 1]).ok(), Some(2));
-        assert_eq!(cobs_encode(&[0], &mut [0u8; 2]), None);
-        // An empty source: nothing from the crate, a frame from ours.
-        assert_eq!(cobs::try_encode(&[], &mut [0u8; 4]).ok(), Some(0));
-        assert_eq!(cobs_encode(&[], &mut [0u8; 4]), Some(2));
-        // A 0x00 inside a frame: the crate decodes what lies before it.
-        assert_eq!(cobs::decode_in_place(&mut [2, 7, 0, 9, 9]).ok(), Some(1));
-        assert_eq!(cobs_decode_in_place(&mut [2, 7, 0, 9, 9]), None);
     }
 
     #[test]
@@ -588,21 +503,5 @@ mod tests {
                 assert!(decode_axes(&mut damaged[..n - 1]).is_err(), "bit {bit}");
             }
         }
-    }
-
-    #[test]
-    fn cobs_encoding_refuses_small_buffers_and_handles_long_runs() {
-        assert_eq!(cobs_encode(&[1, 2, 3], &mut [0u8; 4]), None);
-        let mut out = [0u8; 5];
-        assert_eq!(cobs_encode(&[1, 2, 3], &mut out), Some(5));
-        assert_eq!(out, [4, 1, 2, 3, 0]);
-        assert_eq!(cobs_encode(&[0, 0], &mut out), Some(4));
-        assert_eq!(&out[..4], [1, 1, 1, 0]);
-        // 254 non-zero bytes fill a block: a new code byte follows.
-        let src = [7u8; 300];
-        let mut out = [0u8; 310];
-        let n = cobs_encode(&src, &mut out).unwrap();
-        assert_eq!((out[0], out[255], n), (0xFF, 47, 303));
-        assert!(!out[..n - 1].contains(&0));
     }
 }
