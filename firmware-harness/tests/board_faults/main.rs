@@ -53,6 +53,9 @@ macro_rules! ensure {
     };
 }
 
+// After `ensure!`, which it uses: the board's own loop (`BoardLoop`) on the simulations.
+mod real_loop;
+
 /// 25 °C as the TMP117 codes it.
 const TEMP_25C_RAW: i16 = 3200;
 
@@ -936,7 +939,7 @@ fn bench_over_the_uart() -> Verdict {
 }
 
 fn main() -> ExitCode {
-    let scenarios: [Scenario; 13] = [
+    let scenarios: [Scenario; 17] = [
         ("stuck SDA at boot", stuck_sda_at_boot),
         ("stuck bus at run time", stuck_bus_at_run_time),
         ("NACK storm", nack_storm),
@@ -950,6 +953,16 @@ fn main() -> ExitCode {
         ("flash error", flash_error),
         ("noise on RX", rx_noise),
         ("bench and health over RX", bench_over_the_uart),
+        ("board loop: boot after a HardFault", real_loop::boot_after_a_fault),
+        (
+            "board loop: UART storm while sampling",
+            real_loop::uart_storm_while_sampling,
+        ),
+        (
+            "board loop: thermometer fails mid-run",
+            real_loop::thermometer_fails_mid_run,
+        ),
+        ("board loop: install over RX", real_loop::install_through_the_loop),
     ];
     let mut failed = 0;
     for (name, scenario) in scenarios {
