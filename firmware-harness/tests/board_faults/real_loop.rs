@@ -80,6 +80,8 @@ pub struct Heard {
     pub steps: u32,
     /// Replies: status and whether a model ran after it.
     pub replies: Vec<(UpdateStatus, bool)>,
+    /// The `bench` command's statistics, each time it ended.
+    pub benched: Vec<firmware::bench::CycleStats>,
     /// Passes of the loop.
     pub passes: u32,
     /// The loop's counters after the last pass.
@@ -89,6 +91,9 @@ pub struct Heard {
 impl LoopHooks for Heard {
     fn stepped(&mut self, _seq: u32) {
         self.steps += 1;
+    }
+    fn benched(&mut self, stats: &firmware::bench::CycleStats) {
+        self.benched.push(*stats);
     }
     fn replied(&mut self, status: UpdateStatus, model_loaded: bool) {
         self.replies.push((status, model_loaded));
@@ -135,6 +140,10 @@ pub struct SimBoard {
     pub rx_line: VecDeque<(u64, u8)>,
     /// Longest pass of the loop, µs.
     pub longest_pass_us: u64,
+    /// Stalls of the loop (the interrupts still served): (from, length), µs.
+    pub stalls: Vec<(u64, u64)>,
+    /// When the loop's start was done, µs.
+    pub boot_us: u64,
 }
 
 /// How the board boots.
@@ -145,6 +154,8 @@ pub struct BootWith {
     pub tree: timing::ClockTree,
     /// A fault record from before the reset.
     pub fault: Option<firmware::fault::FaultRecord>,
+    /// A data-ready line high at boot is taken as an edge (`Board::run` pends EXTI0).
+    pub pend_high_data_ready: bool,
 }
 
 impl Default for BootWith {
@@ -153,6 +164,7 @@ impl Default for BootWith {
             erase_us: 1_000_000,
             tree: timing::pll_tree(true),
             fault: None,
+            pend_high_data_ready: true,
         }
     }
 }
@@ -165,11 +177,22 @@ pub const SLOTS: firmware::model_store::SlotLayout = firmware::model_store::Slot
 
 impl SimBoard {
     /// Boots the board's loop ([`BoardLoop::start`]) on fresh simulated
-    /// peripherals: the TMP117 reading `temp_raw`, the front end sampling from boot.
+    /// peripherals: the TMP117 at 25 °C, the front end sampling from boot.
     pub fn boot(with: BootWith) -> SimBoard {
-        let clock = SimClock::default();
-        let i2c = Rc::new(RefCell::new(I2cSim::new(&clock, crate::TEMP_25C_RAW)));
-        let fe = Rc::new(RefCell::new(FrontEndSim::new(&clock, 0)));
+        let (clock, i2c, fe) = crate::setup(0);
+        SimBoard::boot_on(&clock, &i2c, &fe, with)
+    }
+
+    /// Boots the board's loop ([`BoardLoop::start`]) on the TMP117 `i2c`
+    /// and the front end `fe`, on `clock`. A data-ready line high at boot
+    /// is taken as an edge, as `Board::run` pends EXTI0 for it.
+    pub fn boot_on(
+        clock: &SimClock,
+        i2c: &Rc<RefCell<I2cSim>>,
+        fe: &Rc<RefCell<FrontEndSim>>,
+        with: BootWith,
+    ) -> SimBoard {
+        let (clock, i2c, fe) = (clock.clone(), i2c.clone(), fe.clone());
         let watchdog = SimWatchdog::new(&clock, LSI_FASTEST_HZ);
         let counters: &'static HandlerCounters = Box::leak(Box::default());
         let (frames_in, outgoing) = Box::leak(Box::new(Queue::<u8, TX_QUEUE>::new())).split();
@@ -206,7 +229,13 @@ impl SimBoard {
             timer_hz: 1_000_000,
             hooks: Heard::default(),
         });
+        let data_ready_high = fe.borrow().level_high && with.pend_high_data_ready;
+        let mut stamps = stamps;
+        if data_ready_high {
+            interrupts::stamp_data_ready(clock.now_us() as u32, &mut stamps, &counters.stamp_overruns);
+        }
         SimBoard {
+            boot_us: clock.now_us(),
             clock,
             i2c,
             fe,
@@ -220,6 +249,7 @@ impl SimBoard {
             tx: UartTxSim::default(),
             rx_line: VecDeque::new(),
             longest_pass_us: 0,
+            stalls: Vec::new(),
         }
     }
 
@@ -266,6 +296,18 @@ impl SimBoard {
     /// SysTick (every millisecond).
     pub fn run_until(&mut self, end_us: u64) {
         while self.clock.now_us() < end_us {
+            if let Some(&(at, len)) = self.stalls.first()
+                && self.clock.now_us() >= at
+            {
+                // The loop is held up; the interrupts are not.
+                self.stalls.remove(0);
+                let until = self.clock.now_us() + len;
+                while self.clock.now_us() < until {
+                    self.clock.set_us((self.clock.now_us() + 100).min(until));
+                    self.interrupts();
+                }
+                continue;
+            }
             self.interrupts();
             let started = self.clock.now_us();
             self.board.serve_once();
@@ -320,6 +362,23 @@ impl SimBoard {
     pub fn stats(&mut self) -> LoopStats {
         self.board.compensation().stats()
     }
+
+    /// The pacer's counters.
+    pub fn pacer_counters(&self) -> firmware::pacing::PacerCounters {
+        self.board.pacer_counters()
+    }
+
+    /// Data-ready stamps lost: to a full stamp queue (EXTI0's count) or
+    /// while the loop stalled the front end's own (the simulation's).
+    pub fn stamp_overruns(&self) -> u32 {
+        self.counters.stamp_overruns.load(Ordering::Relaxed) + self.fe.borrow().stamp_overruns
+    }
+
+    /// Ends the run: the I2C master's counters, the front end's inits, the watchdog.
+    pub fn finish(self) -> (firmware::i2c_master::I2cCounters, u32, SimWatchdog) {
+        let (thermometer, front_end, _, _) = self.board.destroy();
+        (thermometer.destroy().counters(), front_end.inits(), self.watchdog)
+    }
 }
 
 /// A COBS-framed command with `payload`, as the host sends it.
@@ -331,7 +390,7 @@ pub fn command_frame(payload: &[u8]) -> Vec<u8> {
 }
 
 /// Noise bytes (a frame end now and then) from a xorshift seeded with `state`.
-fn noise(state: &mut u32, n: usize) -> Vec<u8> {
+pub fn noise(state: &mut u32, n: usize) -> Vec<u8> {
     (0..n)
         .map(|_| {
             *state ^= *state << 13;

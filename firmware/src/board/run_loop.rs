@@ -389,9 +389,10 @@ where
         &self.watchdog
     }
 
-    /// The platform.
-    pub fn platform_mut(&mut self) -> &mut P {
-        &mut self.platform
+    /// Ends the loop (the fault campaign's runs): its sensors, output and model store.
+    pub fn destroy(self) -> (T, R, W, ModelStore<F>) {
+        let (thermometers, front_ends, output) = self.compensation.destroy();
+        (thermometers, front_ends, output, self.store)
     }
 }
 
