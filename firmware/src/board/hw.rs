@@ -168,9 +168,7 @@ pub fn setup_clocks() -> ClockTree {
 /// Sets SPI1's clock divider for `tree` (the HAL computed one for the
 /// reset clocks it believes in): at most the front end's `max_hz`.
 pub fn set_spi1_divider(tree: &ClockTree, max_hz: u32) {
-    let divider = crate::frontend::spi_divider(tree.pclk2_hz, max_hz);
-    // BR: ÷2^(BR+1).
-    let code = (divider.trailing_zeros().saturating_sub(1) & 0b111) as u8;
+    let code = super::timing::spi_baud_code(crate::frontend::spi_divider(tree.pclk2_hz, max_hz));
     // SAFETY: SPI1's CR1, disabled while BR changes.
     let spi = unsafe { &*pac::SPI1::ptr() };
     spi.cr1().modify(|_, w| w.spe().clear_bit());
@@ -179,13 +177,13 @@ pub fn set_spi1_divider(tree: &ClockTree, max_hz: u32) {
 
 /// Sets USART1's baud rate for `tree` (16× oversampling, [`super::timing::usart_brr`]).
 pub fn set_usart1_baud(tree: &ClockTree, baud: u32) {
-    let brr = super::timing::usart_brr(tree.pclk2_hz, baud);
+    let (mantissa, fraction) = super::timing::usart_brr_fields(super::timing::usart_brr(tree.pclk2_hz, baud));
     // SAFETY: USART1's CR1 and BRR, the UART disabled while BRR changes.
     let usart = unsafe { &*pac::USART1::ptr() };
     usart.cr1().modify(|_, w| w.ue().clear_bit().over8().clear_bit());
     usart
         .brr()
-        .write(|w| w.div_mantissa().set(brr >> 4).div_fraction().set((brr & 0xF) as u8));
+        .write(|w| w.div_mantissa().set(mantissa).div_fraction().set(fraction));
     usart.cr1().modify(|_, w| w.ue().set_bit());
 }
 
@@ -254,7 +252,8 @@ impl I2cRegisters for I2c1Regs {
         let ccr = super::timing::i2c_fast_mode_ccr(u32::from(mhz) * 1_000_000);
         // SAFETY: FREQ 2 … 42 (MHz), CCR 1 … 0xFFF.
         i2c.cr2().write(|w| unsafe { w.freq().bits(mhz as u8) });
-        i2c.trise().write(|w| w.trise().set((mhz * 300 / 1000 + 1) as u8));
+        i2c.trise()
+            .write(|w| w.trise().set(super::timing::i2c_fast_mode_trise(mhz)));
         i2c.ccr()
             .write(|w| unsafe { w.f_s().fast().duty().duty2_1().ccr().bits(ccr) });
         i2c.cr1().write(|w| w.pe().set_bit());

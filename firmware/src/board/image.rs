@@ -237,8 +237,10 @@ impl embedded_hal::delay::DelayNs for CycleDelay {
 /// forever. Its own function (never inlined), so that `cargo xtask
 /// check-board-panics` can prove from the image that no panic is
 /// reachable from here or from the interrupt handlers.
+/// The loop's state stays where `run` built it (`serve` borrows it: no
+/// second copy of it on the stack).
 #[inline(never)]
-fn run_forever(mut serve: impl FnMut()) -> ! {
+fn run_forever(serve: &mut impl FnMut()) -> ! {
     loop {
         serve();
     }
@@ -597,7 +599,7 @@ impl<F: BoardFlash> Board<F> {
         board_loop.hooks_mut().0.start(&mut core.NVIC, period_ticks);
         #[cfg(not(feature = "board-debug"))]
         board_loop.hooks_mut().start(&mut core.NVIC, period_ticks);
-        run_forever(move || {
+        run_forever(&mut || {
             board_loop.serve_once();
             // Sleep only if no interrupt queued work since the checks above:
             // with interrupts masked, an edge or byte that arrives now stays
