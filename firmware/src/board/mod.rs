@@ -32,10 +32,16 @@ pub use rt::*;
 pub mod chip;
 #[cfg(all(target_os = "none", feature = "board-stm32f405"))]
 pub mod hw;
+// On the MCU with the board; on the host in the tests, over zeroed register blocks.
 #[cfg(all(target_os = "none", feature = "board-stm32f405"))]
 mod image;
 #[cfg(all(target_os = "none", feature = "board-stm32f405"))]
 mod isr;
+#[cfg(any(
+    all(target_os = "none", feature = "board-stm32f405"),
+    all(test, not(target_os = "none"))
+))]
+pub mod registers;
 #[cfg(all(target_os = "none", feature = "board-stm32f405"))]
 pub use image::*;
 #[cfg(all(target_os = "none", feature = "board-qemu"))]
