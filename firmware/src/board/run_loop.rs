@@ -384,11 +384,6 @@ where
         self.pacer.counters()
     }
 
-    /// The watchdog.
-    pub fn watchdog(&self) -> &D {
-        &self.watchdog
-    }
-
     /// Ends the loop (the fault campaign's runs): its sensors, output and model store.
     pub fn destroy(self) -> (T, R, W, ModelStore<F>) {
         let (thermometers, front_ends, output) = self.compensation.destroy();
