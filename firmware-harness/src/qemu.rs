@@ -9,7 +9,7 @@
 use core::cell::Cell;
 
 use cortex_m_semihosting::{debug, hprintln};
-use firmware::board::{Board, BoardFlash, Hooks, Wiring, hw::Tim2Clock};
+use firmware::board::{Board, BoardFlash, FlashHealth, Hooks, LoopHooks, Wiring, hw::Tim2Clock};
 use firmware::compensation::LoopStats;
 use firmware::model_store::SlotLayout;
 use firmware::tmp117::Tmp117;
@@ -46,7 +46,9 @@ impl BoardFlash for SlotFlash {
     fn open(_tim2: Tim2Clock) -> Self {
         emulated_model_flash()
     }
+}
 
+impl FlashHealth for SlotFlash {
     /// Its slots are emulated: no flash operation fails.
     #[inline(always)]
     fn errors(&self) -> u32 {
@@ -310,14 +312,16 @@ impl<S: Source<AXES>, const AXES: usize> Hooks for Emulation<'_, S, AXES> {
     fn start(&mut self, nvic: &mut cortex_m::peripheral::NVIC, period_ticks: u32) {
         self.run.start(nvic, period_ticks);
     }
+}
 
+impl<S: Source<AXES>, const AXES: usize> LoopHooks for Emulation<'_, S, AXES> {
     fn stepped(&mut self, seq: u32) {
         for (cell, sample) in self.readings.iter().zip(self.source.next(seq)) {
             cell.set(sample);
         }
     }
 
-    fn replied(&mut self, status: UpdateStatus) {
+    fn replied(&mut self, status: UpdateStatus, _model_loaded: bool) {
         self.run.replied(status);
     }
 

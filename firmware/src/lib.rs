@@ -15,12 +15,14 @@
 //! - the board's peripherals, bounded and host-tested (`cargo xtask board-faults`): [`clock`] (deadlines),
 //!   [`i2c_master`] (I2C with timeouts and bus recovery), [`flash_ctl`] (the flash controller),
 //!   [`watchdog`] (IWDG periods), [`pacing`] (data-ready stamps to sample steps);
-//! - the board loop's pass as host code: [`samples`] (a paced, timed step) and [`commands`];
+//! - the board loop's pass as host code: [`samples`] (a paced, timed step) and [`commands`],
+//!   which the board's run loop ([`board::run_loop`]) runs;
 //! - [`bench`](mod@bench): the board's `bench` command (DWT cycle counts of its sample steps);
 //! - [`load_model`]: boot-time validation of the model flash slot.
 //!
-//! - [`board`]: the board's timer arithmetic (host-tested) and, on the MCU, its setup,
-//!   handlers and run loop; one small binary per board image in `src/bin/` wires its sensors to it.
+//! - [`board`]: the board's timer arithmetic and run loop ([`board::run_loop`], host-tested
+//!   and run by the fault campaign) and, on the MCU, its setup, handlers and register glue;
+//!   one small binary per board image in `src/bin/` wires its sensors to it.
 //!
 //! What goes on the wire (output frames, COBS, commands and replies, the boot, bench and
 //! health reports) is the crate `gyro-wire`'s, which the host decodes with.

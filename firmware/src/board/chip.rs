@@ -45,12 +45,6 @@ impl super::BoardFlash for SlotFlash {
     fn open(tim2: Tim2Clock) -> Self {
         ControllerFlash::new(hw::FlashRegs, tim2, hw::Iwdg)
     }
-
-    /// Flash operations that failed so far.
-    #[inline(always)]
-    fn errors(&self) -> u32 {
-        ControllerFlash::errors(self)
-    }
 }
 
 /// After a byte was written or a frame queued: the transmit-empty

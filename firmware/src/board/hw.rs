@@ -2,7 +2,8 @@
 //! TIM2 as the [`Clock`] of every bounded wait, the IWDG as the
 //! [`Watchdog`], I2C1 on PB6/PB7 as [`I2cRegisters`], the flash controller
 //! as [`FlashRegisters`], and the bounded HSE start. Fields are written by
-//! the PAC's field writers; the I2C and flash registers pass whole words to
+//! the PAC's field writers, in `registers` where a write can be checked
+//! on the host (over a zeroed register block); the I2C and flash registers pass whole words to
 //! the drivers, which name their bits (`i2c_master`, `flash_ctl`). What runs
 //! on these is library code (`cargo xtask board-faults` runs it against
 //! simulations).
@@ -11,6 +12,7 @@
 use core::sync::atomic::AtomicU32;
 use core::sync::atomic::Ordering;
 
+use super::registers::{self, poll};
 use crate::clock::Clock;
 use crate::flash_ctl::FlashRegisters;
 use crate::i2c_master::I2cRegisters;
@@ -47,15 +49,6 @@ impl Clock for Tim2Clock {
     }
 }
 
-/// Register polls a setup wait may take before it gives up (before the
-/// clock tree and TIM2 run there is no timer: a count of polls bounds it).
-const SETUP_POLLS: u32 = 200_000;
-
-/// Polls `done` at most [`SETUP_POLLS`] times; whether it came true.
-fn poll(mut done: impl FnMut() -> bool) -> bool {
-    (0..SETUP_POLLS).any(|_| done())
-}
-
 /// The independent watchdog (RM0090 §21): the key register's start,
 /// unlock (PR, RLR) and feed keys, by the PAC's names.
 #[derive(Clone, Copy, Debug)]
@@ -81,28 +74,13 @@ impl Iwdg {
 impl Watchdog for Iwdg {
     fn feed(&mut self) {
         // SAFETY: the reload key.
-        unsafe { (*pac::IWDG::ptr()).kr().write(|w| w.key().feed()) };
+        registers::feed_iwdg(unsafe { &*pac::IWDG::ptr() });
     }
 
     #[inline(never)]
     fn set_period(&mut self, setting: IwdgSetting) -> bool {
-        // SAFETY: IWDG accesses as RM0090 §21.3 describes; PR and RLR
-        // take new values only while SR shows no update in progress.
-        let iwdg = unsafe { &*pac::IWDG::ptr() };
-        let idle = || {
-            let sr = iwdg.sr().read();
-            sr.pvu().bit_is_clear() && sr.rvu().bit_is_clear()
-        };
-        if !poll(idle) {
-            self.feed();
-            return false;
-        }
-        iwdg.kr().write(|w| w.key().unlock());
-        iwdg.pr().write(|w| w.pr().set(setting.prescaler_code & 0b111));
-        iwdg.rlr().write(|w| w.rl().set(setting.reload & 0xFFF));
-        let taken = poll(idle);
-        self.feed();
-        taken
+        // SAFETY: IWDG accesses as RM0090 §21.3 describes (`registers`).
+        registers::write_iwdg_period(unsafe { &*pac::IWDG::ptr() }, setting)
     }
 }
 
@@ -138,18 +116,7 @@ pub fn setup_clocks() -> ClockTree {
         return HSI_TREE;
     }
     // Five wait states for 168 MHz at 2.7–3.6 V, before the switch.
-    const WAIT_STATES_168_MHZ: u8 = 5;
-    flash.acr().modify(|_, w| {
-        w.latency()
-            .set(WAIT_STATES_168_MHZ)
-            .prften()
-            .set_bit()
-            .icen()
-            .set_bit()
-            .dcen()
-            .set_bit()
-    });
-    if flash.acr().read().latency().bits() != WAIT_STATES_168_MHZ {
+    if !registers::write_flash_wait_states(flash) {
         return HSI_TREE;
     }
     rcc.cfgr()
@@ -168,25 +135,14 @@ pub fn setup_clocks() -> ClockTree {
 /// Sets SPI1's clock divider for `tree` (the HAL computed one for the
 /// reset clocks it believes in): at most the front end's `max_hz`.
 pub fn set_spi1_divider(tree: &ClockTree, max_hz: u32) {
-    let divider = crate::frontend::spi_divider(tree.pclk2_hz, max_hz);
-    // BR: ÷2^(BR+1).
-    let code = (divider.trailing_zeros().saturating_sub(1) & 0b111) as u8;
-    // SAFETY: SPI1's CR1, disabled while BR changes.
-    let spi = unsafe { &*pac::SPI1::ptr() };
-    spi.cr1().modify(|_, w| w.spe().clear_bit());
-    spi.cr1().modify(|_, w| w.br().set(code).spe().set_bit());
+    // SAFETY: SPI1's CR1, disabled while BR changes (`registers`).
+    registers::write_spi_divider(unsafe { &*pac::SPI1::ptr() }, tree, max_hz);
 }
 
 /// Sets USART1's baud rate for `tree` (16× oversampling, [`super::timing::usart_brr`]).
 pub fn set_usart1_baud(tree: &ClockTree, baud: u32) {
-    let brr = super::timing::usart_brr(tree.pclk2_hz, baud);
-    // SAFETY: USART1's CR1 and BRR, the UART disabled while BRR changes.
-    let usart = unsafe { &*pac::USART1::ptr() };
-    usart.cr1().modify(|_, w| w.ue().clear_bit().over8().clear_bit());
-    usart
-        .brr()
-        .write(|w| w.div_mantissa().set(brr >> 4).div_fraction().set((brr & 0xF) as u8));
-    usart.cr1().modify(|_, w| w.ue().set_bit());
+    // SAFETY: USART1's CR1 and BRR, the UART disabled while BRR changes (`registers`).
+    registers::write_usart_baud(unsafe { &*pac::USART1::ptr() }, tree, baud);
 }
 
 /// Enables USART1's transmit-empty interrupt (TXEIE) from the main loop:
@@ -248,16 +204,8 @@ impl I2cRegisters for I2c1Regs {
         let rcc = unsafe { &*pac::RCC::ptr() };
         rcc.apb1rstr().modify(|_, w| w.i2c1rst().set_bit());
         rcc.apb1rstr().modify(|_, w| w.i2c1rst().clear_bit());
-        let i2c = Self::i2c();
-        let mhz = self.pclk1_mhz.clamp(2, 42);
         // Fast mode, at most 400 kHz, duty 2:1, rise time 300 ns.
-        let ccr = super::timing::i2c_fast_mode_ccr(u32::from(mhz) * 1_000_000);
-        // SAFETY: FREQ 2 … 42 (MHz), CCR 1 … 0xFFF.
-        i2c.cr2().write(|w| unsafe { w.freq().bits(mhz as u8) });
-        i2c.trise().write(|w| w.trise().set((mhz * 300 / 1000 + 1) as u8));
-        i2c.ccr()
-            .write(|w| unsafe { w.f_s().fast().duty().duty2_1().ccr().bits(ccr) });
-        i2c.cr1().write(|w| w.pe().set_bit());
+        registers::write_i2c_fast_mode(Self::i2c(), self.pclk1_mhz);
         I2C_RECOVERIES.fetch_add(1, Ordering::Relaxed);
     }
     fn lines_as_gpio(&mut self, gpio: bool) {

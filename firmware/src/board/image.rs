@@ -41,14 +41,12 @@ use cortex_m::peripheral::DWT;
 #[cfg(feature = "board-debug")]
 use defmt_rtt as _;
 use embedded_hal::i2c::I2c;
-use embedded_hal::spi::SpiDevice;
 use embedded_hal_bus::spi::{AtomicDevice, ExclusiveDevice};
 use embedded_hal_bus::util::AtomicCell;
-use gyro_wire::health::{BOARD_ON_HSI, FirmwareVersion, HEALTH_FRAME_LEN, HealthCounters, HealthReport, ResetCause};
 use heapless::spsc::{Consumer, Producer, Queue};
+use rbf_core::Model;
 use rbf_core::blob::axes::AxisModels;
 use rbf_core::shared_basis::SharedAxisModels;
-use rbf_core::{CompensatorConfig, Flags, Model};
 use stm32f4xx_hal::gpio::{Edge, ErasedPin, ExtiPin, Output, PA2, PA3, PA4, PinState, Speed};
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
@@ -62,20 +60,21 @@ use super::hw;
 use super::isr::{DataReadyIsr, RX_OVERRUNS, STAMP_OVERRUNS, UartIsr, hand_over, start_tx};
 #[cfg(feature = "board-qemu")]
 use super::qemu as platform;
+pub use super::run_loop::{BoardFrontEnds, BoardThermometers, FlashHealth, GYRO_RATE_HZ, LoopHooks};
+use super::run_loop::{BoardLoop, BootState, LoopParts, LoopPlatform};
 use super::timing;
-use crate::bench::Bench;
-use crate::commands::{self, Report};
-use crate::compensation::{CompensationLoop, InPlaceModel, LoopConfig, LoopStats, ModelHolder, write_frame};
+#[cfg(feature = "board-debug")]
+use crate::compensation::LoopStats;
+use crate::compensation::{InPlaceModel, ModelHolder};
 use crate::fault::{self, FaultRecord};
 use crate::frontend::{self, FrontEnd};
-use crate::health::{brown_out_flag, reset_cause_at_boot};
-use crate::model_store::{MappedFlash, ModelStore, SlotLayout, StoredModel};
-use crate::pacing::{Pacer, PacerCounters};
-use crate::samples;
-use crate::sensors::{AxisFrontEnds, AxisThermometers};
+use crate::health::reset_cause_at_boot;
+use crate::model_store::{MappedFlash, SlotLayout, StoredModel};
 use crate::tmp117::Tmp117;
-use crate::uart::{self, FrameQueue};
-use crate::update::{CommandReceiver, UpdateStatus};
+use crate::uart::FrameQueue;
+use crate::update::CommandReceiver;
+#[cfg(feature = "board-debug")]
+use crate::update::UpdateStatus;
 use crate::watchdog;
 
 pub use platform::I2c1;
@@ -83,13 +82,12 @@ pub use platform::I2c1;
 /// The flash an image keeps its two model slots in: the chip's flash
 /// through its controller ([`super::chip::SlotFlash`]), or what a test
 /// image emulates (the QEMU images' NOR flash in RAM, `firmware-harness`).
-pub trait BoardFlash: MappedFlash + Sized {
+/// Its failed operations count in the health report ([`FlashHealth`]).
+pub trait BoardFlash: MappedFlash + FlashHealth + Sized {
     /// Where the two slots lie in it.
     const SLOTS: SlotLayout;
     /// The flash, ready for the model store; `tim2` bounds its waits.
     fn open(tim2: hw::Tim2Clock) -> Self;
-    /// Flash operations that failed so far (the health report).
-    fn errors(&self) -> u32;
 }
 
 /// Logs over RTT in the debug image (`board-debug`); nothing otherwise.
@@ -100,10 +98,6 @@ macro_rules! log {
     };
 }
 
-/// Front-end output data rate, Hz (paced by its crystal; data-ready marks each sample).
-pub const GYRO_RATE_HZ: f32 = 1000.0;
-/// Read the TMP117 every 125th sample: 8 Hz, its conversion rate at 8 averages.
-const TEMP_READ_EVERY: u32 = 125;
 /// The front end's fastest SPI clock, Hz (docs/frontend.md).
 const SPI_MAX_HZ: u32 = 10_000_000;
 /// Bytes of the transmit queue: 24 output frames (≤ 21 B each at 1 kHz
@@ -146,89 +140,85 @@ impl BoardModel for SharedAxisModels<{ crate::SHARED_AXIS_CENTERS }> {
     }
 }
 
-/// An image's thermometers: one TMP117, or one per coil.
-pub trait BoardThermometers: AxisThermometers {
-    /// Tries each thermometer's init once (a failure is not fatal: the
-    /// driver retries on each read, and the frames are flagged meanwhile).
-    fn init_all(&mut self);
-}
-
-impl<I: I2c> BoardThermometers for Tmp117<I> {
-    #[inline(always)]
-    fn init_all(&mut self) {
-        let _ = self.init();
-    }
-}
-
-impl<I: I2c, const N: usize> BoardThermometers for [Tmp117<I>; N] {
-    #[inline(always)]
-    fn init_all(&mut self) {
-        for t in self {
-            let _ = t.init();
-        }
-    }
-}
-
-/// An image's rate front ends: one, or one per axis.
-pub trait BoardFrontEnds: AxisFrontEnds {
-    /// Tries each front end's init once (retried on reads, as the thermometers').
-    fn init_all(&mut self);
-    /// Initialisations so far, every front end's (the health report).
-    fn inits(&self) -> u32;
-}
-
-impl<S: SpiDevice> BoardFrontEnds for FrontEnd<S> {
-    #[inline(always)]
-    fn init_all(&mut self) {
-        let _ = self.init();
-    }
-    #[inline(always)]
-    fn inits(&self) -> u32 {
-        FrontEnd::inits(self)
-    }
-}
-
-impl<S: SpiDevice, const N: usize> BoardFrontEnds for [FrontEnd<S>; N] {
-    #[inline(always)]
-    fn init_all(&mut self) {
-        for f in self {
-            let _ = f.init();
-        }
-    }
-    #[inline(always)]
-    fn inits(&self) -> u32 {
-        self.iter().map(FrontEnd::inits).sum::<u32>()
-    }
-}
-
 /// What an image adds to the board's loop (none on the chip: `()`; the
-/// QEMU images' sensors and data-ready source, `firmware_harness::qemu`).
-pub trait Hooks {
+/// QEMU images' sensors and data-ready source, `firmware_harness::qemu`):
+/// its start, and what it adds pass by pass ([`LoopHooks`]).
+pub trait Hooks: LoopHooks {
     /// The interrupts are enabled, the loop is about to start; samples
     /// come every `period_ticks` TIM2 ticks.
     #[inline(always)]
     fn start(&mut self, nvic: &mut cortex_m::peripheral::NVIC, period_ticks: u32) {
         let _ = (nvic, period_ticks);
     }
-    /// Sample `seq` was compensated and its frame queued.
-    #[inline(always)]
-    fn stepped(&mut self, seq: u32) {
-        let _ = seq;
-    }
-    /// A command was answered with `status`.
-    #[inline(always)]
-    fn replied(&mut self, status: UpdateStatus) {
-        let _ = status;
-    }
-    /// One pass of the loop is done; `stats` are the loop's counters.
-    #[inline(always)]
-    fn served(&mut self, stats: &LoopStats) {
-        let _ = stats;
-    }
 }
 
 /// The gyro board's own image: nothing added.
 impl Hooks for () {}
+
+/// The debug image's hooks: the image's, and the bench statistics and
+/// command statuses logged over RTT.
+#[cfg(feature = "board-debug")]
+struct Logged<H>(H);
+
+#[cfg(feature = "board-debug")]
+impl<H: LoopHooks> LoopHooks for Logged<H> {
+    fn stepped(&mut self, seq: u32) {
+        self.0.stepped(seq);
+    }
+    fn benched(&mut self, stats: &crate::bench::CycleStats) {
+        log!(
+            "bench: {=u32} steps, cycles min {=u32} mean {=u32} max {=u32}",
+            stats.steps,
+            stats.min,
+            stats.mean(),
+            stats.max
+        );
+        self.0.benched(stats);
+    }
+    fn replied(&mut self, status: UpdateStatus, model_loaded: bool) {
+        log!(
+            "command: status {=u8}, model loaded {=bool}",
+            status as u8,
+            model_loaded
+        );
+        self.0.replied(status, model_loaded);
+    }
+    fn served(&mut self, stats: &LoopStats) {
+        self.0.served(stats);
+    }
+}
+
+/// The chip under the loop: TIM2, the DWT cycle counter, the stack's
+/// painted peak, and the counters of the interrupt handlers and of I2C1's
+/// bus recovery.
+struct Chip;
+
+impl LoopPlatform for Chip {
+    #[inline(always)]
+    fn now_ticks(&mut self) -> u32 {
+        hw::Tim2Clock::now()
+    }
+    #[inline(always)]
+    fn cycles(&mut self) -> u32 {
+        DWT::cycle_count()
+    }
+    #[inline(always)]
+    fn stack_peak_bytes(&self) -> u32 {
+        super::stack_peak_bytes() as u32
+    }
+    #[inline(always)]
+    fn i2c_recoveries(&self) -> u32 {
+        hw::I2C_RECOVERIES.load(Ordering::Relaxed)
+    }
+    #[inline(always)]
+    fn rx_overruns(&self) -> u32 {
+        RX_OVERRUNS.load(Ordering::Relaxed)
+    }
+    #[inline(always)]
+    fn stamp_overruns(&self) -> u32 {
+        STAMP_OVERRUNS.load(Ordering::Relaxed)
+    }
+}
 
 /// Busy-waits on the core clock: the SPI devices' delay (embedded-hal-bus's
 /// `NoDelay` would link a panic for a delay operation).
@@ -247,8 +237,10 @@ impl embedded_hal::delay::DelayNs for CycleDelay {
 /// forever. Its own function (never inlined), so that `cargo xtask
 /// check-board-panics` can prove from the image that no panic is
 /// reachable from here or from the interrupt handlers.
+/// The loop's state stays where `run` built it (`serve` borrows it: no
+/// second copy of it on the stack).
 #[inline(never)]
-fn run_forever(mut serve: impl FnMut()) -> ! {
+fn run_forever(serve: &mut impl FnMut()) -> ! {
     loop {
         serve();
     }
@@ -269,18 +261,6 @@ pub fn halt() -> ! {
     loop {
         cortex_m::asm::wfi();
     }
-}
-
-/// What the boot found out about the last reset.
-#[derive(Clone, Copy)]
-struct Boot {
-    cause: ResetCause,
-    flags: u8,
-    fault: Option<FaultRecord>,
-    /// The clock tree the setup ended in.
-    tree: hw::ClockTree,
-    /// FLASH_OPTCR at boot (its brown-out level).
-    option_bytes: u32,
 }
 
 /// The front ends' chip selects on SPI1 (x, y, z of a three-axis IMU;
@@ -318,7 +298,7 @@ pub struct Board<F = super::chip::SlotFlash> {
     core_hz: u32,
     core: cortex_m::Peripherals,
     watchdog: hw::Iwdg,
-    boot: Boot,
+    boot: BootState,
     boot_cause: Option<FaultRecord>,
     out_producer: Producer<'static, u8>,
     in_consumer: Consumer<'static, u8>,
@@ -520,7 +500,7 @@ impl<F: BoardFlash> Board<F> {
             timer_hz,
             core,
             watchdog,
-            boot: Boot {
+            boot: BootState {
                 cause: reset_cause,
                 flags: reset_flags,
                 fault: fault_record,
@@ -540,10 +520,11 @@ impl<F: BoardFlash> Board<F> {
     /// Runs the board for good: the boot report, the model of kind `M`
     /// from its flash slots, the sensors' init, the health report, the
     /// interrupts, then one compensation step per data-ready edge and the
-    /// commands between them (see the module docs). `hooks` adds what an
-    /// image needs around that (none on the chip).
+    /// commands between them (see the module docs), each pass
+    /// [`BoardLoop::serve_once`], the host-tested loop. `hooks` adds what
+    /// an image needs around that (none on the chip).
     #[inline(always)]
-    pub fn run<M, T, R, H, const K: usize, const N: usize>(self, thermometers: T, front_ends: R, mut hooks: H) -> !
+    pub fn run<M, T, R, H, const K: usize, const N: usize>(self, thermometers: T, front_ends: R, hooks: H) -> !
     where
         M: BoardModel,
         for<'m> InPlaceModel<'m, M>: ModelHolder<K, N>,
@@ -555,24 +536,15 @@ impl<F: BoardFlash> Board<F> {
             timer_hz,
             core_hz,
             mut core,
-            mut watchdog,
+            watchdog,
             boot,
             boot_cause,
             out_producer,
-            mut in_consumer,
-            mut stamp_consumer,
+            in_consumer,
+            stamp_consumer,
             data_ready_high,
             flash,
         } = self;
-        let mut output = FrameQueue::new(out_producer, start_tx);
-        // The boot report goes out first (a fault or watchdog reset before this boot).
-        if let Some(cause) = boot_cause {
-            let mut report = [0u8; 16];
-            if let Some(n) = fault::encode_boot_report(cause, boot.flags, &mut report) {
-                write_frame(&mut output, report.get(..n).unwrap_or(&[]));
-            }
-        }
-
         // Command bytes collect in a static of their own (4 KiB: off the stack).
         let (Some(model), Some(receiver)) = (
             M::storage(),
@@ -580,37 +552,31 @@ impl<F: BoardFlash> Board<F> {
         ) else {
             halt()
         };
-        // An invalid or absent model is not fatal: every frame then carries flag 4.
-        let mut store = ModelStore::open_with(flash, F::SLOTS, model);
-        let loaded = store.load_into(model).is_ok();
-        let model = InPlaceModel::new(model, loaded);
+        #[cfg(feature = "board-debug")]
+        let hooks = Logged(hooks);
+        let mut board_loop: BoardLoop<'static, M, T, R, _, F, _, _, _, K, N> = BoardLoop::start(LoopParts {
+            boot,
+            boot_cause,
+            model,
+            receiver,
+            flash,
+            slots: F::SLOTS,
+            thermometers,
+            front_ends,
+            output: FrameQueue::new(out_producer, start_tx),
+            stamps: stamp_consumer,
+            commands: in_consumer,
+            watchdog,
+            platform: Chip,
+            timer_hz,
+            hooks,
+        });
         log!(
             "boot: reset flags {=u8:#x}, fault or watchdog reset {=bool}, model loaded {=bool}",
             boot.flags,
             boot_cause.is_some(),
-            loaded
+            board_loop.store().model_loaded()
         );
-        let config = LoopConfig {
-            compensator: CompensatorConfig::for_sample_rate(GYRO_RATE_HZ),
-            temp_read_every: TEMP_READ_EVERY,
-        };
-        // Sensor init failures are not fatal either: the drivers retry on
-        // each read until the sensors answer, and the frames are flagged meanwhile.
-        let mut compensation = {
-            let mut thermometers = thermometers;
-            thermometers.init_all();
-            let mut front_ends = front_ends;
-            front_ends.init_all();
-            CompensationLoop::new(model, config, thermometers, front_ends, output)
-        };
-        if boot_cause.is_some() {
-            compensation.flag_next_frame(Flags::FAULT_RESET);
-        }
-        let period_ticks = timing::sample_period_ticks(timer_hz, GYRO_RATE_HZ);
-        let mut pacer = timing::sample_pacer(&boot.tree, timer_hz, period_ticks, hw::Tim2Clock::now());
-        // The health report after every reset, before the first output frame.
-        send_health(&boot, &mut compensation, &store, &pacer);
-        let mut bench = Bench::default();
         // SysTick wakes the loop every millisecond (a silent data-ready line is noticed).
         core.SYST
             .set_clock_source(cortex_m::peripheral::syst::SystClkSource::Core);
@@ -628,58 +594,13 @@ impl<F: BoardFlash> Board<F> {
         if data_ready_high {
             cortex_m::peripheral::NVIC::pend(pac::Interrupt::EXTI0);
         }
-        hooks.start(&mut core.NVIC, period_ticks);
-        run_forever(move || {
-            // One step per pass for the newest data-ready edge (or the
-            // silence); the watchdog is fed by steps only.
-            samples::serve_samples_timed(
-                &mut pacer,
-                || uart::dequeue(&mut stamp_consumer),
-                hw::Tim2Clock::now(),
-                &mut watchdog,
-                &mut compensation,
-                &mut bench,
-                DWT::cycle_count,
-                |seq, stats| {
-                    #[cfg(feature = "board-debug")]
-                    if let Some(stats) = stats {
-                        log!(
-                            "bench: {=u32} steps, cycles min {=u32} mean {=u32} max {=u32}",
-                            stats.steps,
-                            stats.min,
-                            stats.mean(),
-                            stats.max
-                        );
-                    }
-                    #[cfg(not(feature = "board-debug"))]
-                    let _ = stats;
-                    hooks.stepped(seq);
-                },
-            );
-            // Commands between samples (crate::commands, as the fault campaign runs it).
-            commands::serve_commands(
-                || uart::dequeue(&mut in_consumer),
-                receiver,
-                &mut compensation,
-                &mut store,
-                &mut watchdog,
-                |report, compensation, store| match report {
-                    // Answered by its report after the timed steps.
-                    Report::Bench => bench.start(),
-                    Report::Health => send_health(&boot, compensation, store, &pacer),
-                },
-                |status, store| {
-                    #[cfg(not(feature = "board-debug"))]
-                    let _ = store;
-                    log!(
-                        "command: status {=u8}, model loaded {=bool}",
-                        status as u8,
-                        store.model_loaded()
-                    );
-                    hooks.replied(status);
-                },
-            );
-            hooks.served(&compensation.stats());
+        let period_ticks = board_loop.period_ticks();
+        #[cfg(feature = "board-debug")]
+        board_loop.hooks_mut().0.start(&mut core.NVIC, period_ticks);
+        #[cfg(not(feature = "board-debug"))]
+        board_loop.hooks_mut().start(&mut core.NVIC, period_ticks);
+        run_forever(&mut || {
+            board_loop.serve_once();
             // Sleep only if no interrupt queued work since the checks above:
             // with interrupts masked, an edge or byte that arrives now stays
             // pending and ends the WFI at once (unmasked, its handler could
@@ -687,71 +608,10 @@ impl<F: BoardFlash> Board<F> {
             // whole sample period for the next wake-up). SysTick ends it
             // within a millisecond in any case.
             cortex_m::interrupt::free(|_| {
-                if !stamp_consumer.ready() && !in_consumer.ready() {
+                if board_loop.idle() {
                     sleep_until_interrupt();
                 }
             });
         })
-    }
-}
-
-/// Sends the health report: `boot`, then the counters of the loop
-/// `compensation`, the model store `store` and the pacer `pacer`.
-#[inline(never)]
-fn send_health<F: BoardFlash, T, R: BoardFrontEnds, W: embedded_io::Write, MH, const K: usize, const N: usize>(
-    boot: &Boot,
-    compensation: &mut CompensationLoop<T, R, W, MH, K, N>,
-    store: &ModelStore<F>,
-    pacer: &Pacer,
-) where
-    T: AxisThermometers,
-    MH: ModelHolder<K, N>,
-{
-    let report = HealthReport {
-        reset_cause: boot.cause,
-        reset_flags: boot.flags,
-        fault_pc: boot.fault.map_or(0, |r| r.pc),
-        fault_lr: boot.fault.map_or(0, |r| r.lr),
-        counters: health_counters(
-            &compensation.stats(),
-            &pacer.counters(),
-            compensation.sensors().1.inits(),
-            store.flash().errors(),
-        ),
-        model: store.identity(),
-        board_flags: if boot.tree.on_crystal { 0 } else { BOARD_ON_HSI } | brown_out_flag(boot.option_bytes),
-        firmware_version: FirmwareVersion::CURRENT,
-        stack_peak_bytes: super::stack_peak_bytes() as u32,
-    };
-    let mut frame = [0u8; HEALTH_FRAME_LEN];
-    if let Some(n) = report.encode(&mut frame) {
-        write_frame(compensation.output_mut(), frame.get(..n).unwrap_or(&[]));
-    }
-}
-
-/// The counters of the health report, gathered from their owners.
-fn health_counters(
-    stats: &LoopStats,
-    pacer: &PacerCounters,
-    front_end_inits: u32,
-    flash_errors: u32,
-) -> HealthCounters {
-    let recoveries = hw::I2C_RECOVERIES.load(Ordering::Relaxed);
-    HealthCounters {
-        samples: stats.samples,
-        samples_missed: stats.samples_missed,
-        rate_read_faults: stats.rate_read_faults,
-        temp_read_faults: stats.temp_read_faults,
-        // Every recovery after the one at boot ends a timed-out transaction.
-        sensor_timeouts: recoveries.saturating_sub(1),
-        bus_recoveries: recoveries,
-        front_end_inits,
-        data_ready_glitches: pacer.glitches,
-        synthetic_steps: pacer.synthetic,
-        overruns: RX_OVERRUNS
-            .load(Ordering::Relaxed)
-            .wrapping_add(STAMP_OVERRUNS.load(Ordering::Relaxed)),
-        output_dropped: stats.output_errors,
-        flash_errors,
     }
 }

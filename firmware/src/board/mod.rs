@@ -4,6 +4,10 @@
 //!
 //! - [`timing`]: the timer arithmetic (TIM2 rates, the SysTick reload,
 //!   delays, elapsed ticks on wrapping counters), host-tested;
+//! - [`run_loop`]: the run loop itself (its start, one pass, the health
+//!   report), over the library's traits: `Board::run` wires the chip to it
+//!   and the fault campaign (`firmware-harness/tests/board_faults`) runs it
+//!   on the host against simulated peripherals;
 //! - on the MCU (`target_os = "none"`), for every image including the QEMU
 //!   test images: the model flash slots, the fault record kept across a
 //!   reset, the stack painting and the panic handler;
@@ -16,6 +20,7 @@
 //!   lacks (`qemu`).
 #![allow(unsafe_code)]
 
+pub mod run_loop;
 pub mod timing;
 
 #[cfg(target_os = "none")]
@@ -27,10 +32,16 @@ pub use rt::*;
 pub mod chip;
 #[cfg(all(target_os = "none", feature = "board-stm32f405"))]
 pub mod hw;
+// On the MCU with the board; on the host in the tests, over zeroed register blocks.
 #[cfg(all(target_os = "none", feature = "board-stm32f405"))]
 mod image;
 #[cfg(all(target_os = "none", feature = "board-stm32f405"))]
 mod isr;
+#[cfg(any(
+    all(target_os = "none", feature = "board-stm32f405"),
+    all(test, not(target_os = "none"))
+))]
+pub mod registers;
 #[cfg(all(target_os = "none", feature = "board-stm32f405"))]
 pub use image::*;
 #[cfg(all(target_os = "none", feature = "board-qemu"))]

@@ -92,6 +92,31 @@ pub const fn usart_brr(pclk_hz: u32, baud: u32) -> u16 {
     }
 }
 
+/// I2C TRISE in fast mode (RM0090 §27.6.9: the 300-ns maximum rise time in
+/// PCLK1 periods, plus 1) for an APB1 clock of `pclk1_mhz` MHz (2 … 42).
+pub const fn i2c_fast_mode_trise(pclk1_mhz: u16) -> u8 {
+    let mhz = if pclk1_mhz < 2 {
+        2
+    } else if pclk1_mhz > 42 {
+        42
+    } else {
+        pclk1_mhz
+    };
+    (mhz * 300 / 1000 + 1) as u8
+}
+
+/// USART BRR split into its DIV_Mantissa (bits 4–15) and DIV_Fraction
+/// (bits 0–3) fields, as the PAC's field writers take them.
+pub const fn usart_brr_fields(brr: u16) -> (u16, u8) {
+    (brr >> 4, (brr & 0xF) as u8)
+}
+
+/// SPI CR1's BR code for a clock `divider` (a power of two, 2 … 256:
+/// f_PCLK / 2^(BR+1), RM0090 §28.5.1).
+pub const fn spi_baud_code(divider: u32) -> u8 {
+    (divider.trailing_zeros().saturating_sub(1) & 0b111) as u8
+}
+
 /// Ticks per µs of a timer at `timer_hz` (≥ 1: the [`crate::clock::Clock`] contract).
 #[inline]
 pub const fn ticks_per_us(timer_hz: u32) -> u32 {
@@ -173,6 +198,30 @@ mod tests {
         assert!(
             (tick.dt_s - 1.01e-3).abs() < 1e-7,
             "on the crystal the stamps are the time"
+        );
+    }
+
+    #[test]
+    fn the_register_fields_hw_writes_are_rm0090s() {
+        // TRISE: 300 ns at 42 MHz is 12.6 periods (13), at the HSI's 16 MHz 4.8 (5).
+        assert_eq!(i2c_fast_mode_trise(42), 13);
+        assert_eq!(i2c_fast_mode_trise(16), 5);
+        assert_eq!(i2c_fast_mode_trise(0), 1, "clamped to the 2-MHz minimum");
+        // BRR: RM0090's table for 84 MHz at 921.6 kBd and 16× oversampling:
+        // USARTDIV 5.6875, mantissa 5, fraction 11; on the HSI, 17.36: 17, 6 (rounded).
+        assert_eq!(usart_brr_fields(usart_brr(84_000_000, 921_600)), (5, 11));
+        assert_eq!(usart_brr_fields(usart_brr(16_000_000, 921_600)), (1, 1));
+        // SPI: ÷2 … ÷256 are BR 0 … 7; the board's 84 MHz APB2 and the
+        // front end's 10 MHz give ÷16 (BR 3, 5.25 MHz), the HSI ÷2 (8 MHz).
+        assert_eq!(
+            [2, 4, 8, 16, 32, 64, 128, 256].map(spi_baud_code),
+            [0, 1, 2, 3, 4, 5, 6, 7]
+        );
+        let pll = pll_tree(true);
+        assert_eq!(spi_baud_code(crate::frontend::spi_divider(pll.pclk2_hz, 10_000_000)), 3);
+        assert_eq!(
+            spi_baud_code(crate::frontend::spi_divider(HSI_TREE.pclk2_hz, 10_000_000)),
+            0
         );
     }
 
