@@ -75,6 +75,12 @@ pub fn write(dir: &TempDir, name: &str, content: &[u8]) -> PathBuf {
     p
 }
 
+/// Simulates into `path` a run of `args` (`trainer simulate ARGS -o PATH`), which must succeed.
+pub fn simulated(path: &Path, args: &[&str]) {
+    let o = trainer(&[&["simulate"][..], args, &["-o", path.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// Simulates into `path` a short chamber run (the IFOG protocol at
 /// 1 °C/min, 30-min holds, 1 Hz, 12,600 rows) of noise seed `seed`.
 pub fn short_chamber_run(path: &Path, seed: &str) {
