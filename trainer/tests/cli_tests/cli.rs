@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use crate::common::{
-    compensate, fitted_model, inspect_json, shared_data, short_chamber_run, simulated, stderr, stdout, trainer,
+    compensate, fit_ok, fitted_model, inspect_json, shared_data, short_chamber_run, simulated, stderr, stdout, trainer,
     with_model, write,
 };
 use tempfile::TempDir;
@@ -346,16 +346,7 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(&v["features"], chosen, "the blob holds the chosen set, lag and windows");
     // An explicit set is fitted alone.
-    let o = trainer(&[
-        "fit",
-        "--force",
-        "--features",
-        "multiscale-second-order",
-        run.to_str().unwrap(),
-        "-o",
-        model.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let o = fit_ok(&["--force", "--features", "multiscale-second-order"], &run, &model);
     assert!(!stdout(&o).contains("feature sets:"));
     let o = trainer(&["inspect", "--json", "-", model.to_str().unwrap()]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::common::{compensate, shared_data, simulated, stderr, stdout, trainer, write};
+use crate::common::{compensate, fit_ok, shared_data, simulated, stderr, stdout, trainer, write};
 use tempfile::TempDir;
 
 /// Fails unless `o` exited 1 with a message containing every one of
@@ -182,16 +182,7 @@ fn multi_axis_diagnostics_name_the_axis_columns() {
     let run = dir.path().join("imu.csv");
     simulated(&run, &["--axes", "2", "--ramp", "1", "--hold-min", "30"]);
     let model = dir.path().join("imu.bin");
-    let o = trainer(&[
-        "fit",
-        "-q",
-        "--method",
-        "poly3",
-        run.to_str().unwrap(),
-        "-o",
-        model.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    fit_ok(&["-q", "--method", "poly3"], &run, &model);
     // The y coil's thermometer in kelvin.
     let text = std::fs::read_to_string(&run).unwrap();
     let mut header: Option<Vec<String>> = None;
