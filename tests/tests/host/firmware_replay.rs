@@ -120,25 +120,15 @@ fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_ev
     assert_same_run(&out, expected);
 
     // One frame per row carrying x, y and z, flags as in the CSV's flags_<axis>.
-    let rows = data_rows(&out);
-    let mut seq = 0u32;
-    for chunk in frames.split_mut(|&b| b == 0).filter(|c| !c.is_empty()) {
-        let f = frame::decode_axes(chunk).unwrap();
-        assert_eq!((f.seq, f.axis_mask), (seq, 0b111));
-        let fields: Vec<&str> = rows[seq as usize].split(',').collect();
+    for (seq, f) in axes_frames_matching_rows(&mut frames, &out).iter().enumerate() {
         for (i, axis) in f.axes.iter().enumerate() {
-            let csv_flags: u8 = fields[fields.len() - 7 + 3 * i].parse().unwrap();
-            let csv_bias: f32 = fields[fields.len() - 9 + 3 * i].parse().unwrap();
-            assert_eq!((axis.flags, axis.bias_dph), (csv_flags, csv_bias), "row {seq} axis {i}");
             assert_eq!(
                 axis.flags().contains(Flags::TEMP_SENSOR_FAULT),
-                common::axes_faulty(seq as usize),
+                common::axes_faulty(seq),
                 "row {seq} axis {i}"
             );
         }
-        seq += 1;
     }
-    assert_eq!(seq as usize, common::AXES_ROWS);
 }
 
 #[test]
@@ -173,19 +163,11 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
     // One frame per row carrying x, y and z; flag 2 on every axis while the
     // one thermometer fails, flag 4 as well once its hold runs out, and
     // compensated (no flag 4) otherwise.
-    let rows = data_rows(&out);
-    let mut seq = 0u32;
     let mut held_out = 0;
-    for chunk in frames.split_mut(|&b| b == 0).filter(|c| !c.is_empty()) {
-        let f = frame::decode_axes(chunk).unwrap();
-        assert_eq!((f.seq, f.axis_mask), (seq, 0b111));
-        let fields: Vec<&str> = rows[seq as usize].split(',').collect();
-        let faulty = common::axes_faulty(seq as usize);
+    for (seq, f) in axes_frames_matching_rows(&mut frames, &out).iter().enumerate() {
+        let faulty = common::axes_faulty(seq);
         let first = f.axes[0].flags();
         for (i, axis) in f.axes.iter().enumerate() {
-            let csv_flags: u8 = fields[fields.len() - 7 + 3 * i].parse().unwrap();
-            let csv_bias: f32 = fields[fields.len() - 9 + 3 * i].parse().unwrap();
-            assert_eq!((axis.flags, axis.bias_dph), (csv_flags, csv_bias), "row {seq} axis {i}");
             assert_eq!(
                 axis.flags().contains(Flags::TEMP_SENSOR_FAULT),
                 faulty,
@@ -197,9 +179,7 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
             }
         }
         held_out += usize::from(first.contains(Flags::NO_VALID_MODEL));
-        seq += 1;
     }
-    assert_eq!(seq as usize, common::AXES_ROWS);
     assert!(held_out > 0, "the outage outlasts the hold: flag 4 on every axis");
 }
 
@@ -225,6 +205,28 @@ fn assert_same_run(out: &str, expected: &str) {
     let differing = out.lines().zip(expected.lines()).filter(|(a, b)| a != b).count();
     assert_eq!(differing, 0, "rows differ from trainer compensate");
     assert_eq!(out, expected, "replay output differs from trainer compensate");
+}
+
+/// The three-axis frames in `frames`, checked against the replay's run
+/// `out`: one per row, in order, each carrying x, y and z with the flags
+/// and bias of its row's columns.
+fn axes_frames_matching_rows(frames: &mut [u8], out: &str) -> Vec<frame::AxesFrame> {
+    let rows = data_rows(out);
+    let mut decoded = Vec::new();
+    for chunk in frames.split_mut(|&b| b == 0).filter(|c| !c.is_empty()) {
+        let f = frame::decode_axes(chunk).unwrap();
+        let seq = decoded.len() as u32;
+        assert_eq!((f.seq, f.axis_mask), (seq, 0b111));
+        let fields: Vec<&str> = rows[seq as usize].split(',').collect();
+        for (i, axis) in f.axes.iter().enumerate() {
+            let csv_flags: u8 = fields[fields.len() - 7 + 3 * i].parse().unwrap();
+            let csv_bias: f32 = fields[fields.len() - 9 + 3 * i].parse().unwrap();
+            assert_eq!((axis.flags, axis.bias_dph), (csv_flags, csv_bias), "row {seq} axis {i}");
+        }
+        decoded.push(f);
+    }
+    assert_eq!(decoded.len(), common::AXES_ROWS);
+    decoded
 }
 
 /// `trainer compensate` of a multi-axis blob on `slice`, written in `dir`,
