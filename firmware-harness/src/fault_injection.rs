@@ -44,6 +44,18 @@ pub fn cubic_model() -> Option<Model> {
 /// The loop sensor (`temp_c`) sits at its multi-point-board address: bus 1, third address.
 const LOOP_SENSOR_ADDRESS: u8 = tmp117::ADDRESSES[rbf_core::features::LOOP_THERMOMETER];
 
+/// The sample period of the sensor campaigns' loops, s.
+const CAMPAIGN_PERIOD_S: f32 = 0.1;
+
+/// The sensor campaigns' loop: filters for [`CAMPAIGN_PERIOD_S`], every
+/// sample's thermometers read.
+fn campaign_loop_config() -> LoopConfig {
+    LoopConfig {
+        compensator: CompensatorConfig::for_sample_rate(1.0 / CAMPAIGN_PERIOD_S),
+        temp_read_every: 1,
+    }
+}
+
 /// The kinds of sensor and bus fault the campaign injects.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FaultKind {
@@ -331,11 +343,7 @@ pub fn sensor_campaign(model: Option<Model>, samples: u32, seed: u32) -> SensorC
         report.samples_lost = samples;
         return report;
     }
-    let period_s = 0.1f32;
-    let config = LoopConfig {
-        compensator: CompensatorConfig::for_sample_rate(1.0 / period_s),
-        temp_read_every: 1,
-    };
+    let (period_s, config) = (CAMPAIGN_PERIOD_S, campaign_loop_config());
     let checker = FrameChecker::<1>::new(&expected);
     let mut compensation = CompensationLoop::new(model, config, thermometer, front_end, checker);
     let mut rng = Rng(seed | 1);
@@ -454,11 +462,7 @@ pub fn axis_thermometer_campaign<M: ModelHolder<K, MAX_AXES>, const K: usize>(
             return report;
         }
     }
-    let period_s = 0.1f32;
-    let config = LoopConfig {
-        compensator: CompensatorConfig::for_sample_rate(1.0 / period_s),
-        temp_read_every: 1,
-    };
+    let (period_s, config) = (CAMPAIGN_PERIOD_S, campaign_loop_config());
     let no_expected_flag = Cell::new(None);
     let checker = FrameChecker::<MAX_AXES>::new(&no_expected_flag);
     let has_models = models.loaded();

@@ -9,8 +9,9 @@
 use core::cell::Cell;
 
 use cortex_m_semihosting::{debug, hprintln};
-use firmware::board::{Board, BoardFlash, FlashHealth, Hooks, LoopHooks, Wiring, hw::Tim2Clock};
-use firmware::compensation::LoopStats;
+use embedded_hal_bus::util::AtomicCell;
+use firmware::board::{Board, BoardFlash, BoardModel, FlashHealth, Hooks, LoopHooks, Wiring, hw::Tim2Clock};
+use firmware::compensation::{InPlaceModel, LoopStats, ModelHolder};
 use firmware::model_store::SlotLayout;
 use firmware::tmp117::Tmp117;
 use firmware::update::UpdateStatus;
@@ -61,6 +62,36 @@ impl FlashHealth for SlotFlash {
 #[inline(always)]
 pub fn setup() -> (Board<SlotFlash>, Wiring) {
     Board::setup_with_slots()
+}
+
+/// The serving images' board, run source and first readings: TIM2 taken
+/// at QEMU's timer clock (samples at 1 kHz of real time, no -icount), the
+/// sensors answering from `run.csv` or the built-in ramp ([`RunSource`]).
+/// SPI1 stays set up and unused: QEMU has no front end on it.
+#[inline(always)]
+pub fn serving<const AXES: usize>() -> (Board<SlotFlash>, RunSource<AXES>, Readings<AXES>) {
+    let (mut board, _wiring) = setup();
+    board.timer_hz = TIMER_HZ;
+    let mut source = RunSource::<AXES>::open();
+    let readings = source.next(0).map(Cell::new);
+    (board, source, readings)
+}
+
+/// Runs the three-axis board image holding models `M` on the built-in ramp
+/// (`stm32f405-axes-qemu`, `stm32f405-axes-shared-qemu`): three coils, each
+/// half a degree warmer than the last, the board's own front ends on SPI1.
+#[inline(always)]
+pub fn run_axes_on_ramp<M, const K: usize>() -> !
+where
+    M: BoardModel,
+    for<'m> InPlaceModel<'m, M>: ModelHolder<K, 3>,
+{
+    let (board, wiring) = setup();
+    let readings = ramp::<3>();
+    let thermometers = coil_thermometers(&readings);
+    let spi = AtomicCell::new(wiring.spi);
+    let front_ends = firmware::board::axis_front_ends(&spi, wiring.cs, wiring.delay);
+    board.run::<M, _, _, _, K, 3>(thermometers, front_ends, Emulation::new(&readings, Ramp))
 }
 
 /// The emulated model flash, slot A seeded from the real slot A.

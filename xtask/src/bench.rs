@@ -30,6 +30,26 @@ pub fn budget_for(image: firmware::BoardImage) -> Budget {
     let _ = image;
     BOARD_BUDGET
 }
+/// Prints a board image's stack peak under QEMU (as `stack_key N`) and its
+/// flash and RAM against [`BOARD_BUDGET`]; `label` starts the budget line,
+/// `stack` names the stack peak in it.
+fn print_stack_and_budget(
+    stack_key: &str,
+    label: &str,
+    stack: &str,
+    size: &firmware::ImageSize,
+    run: &crate::board_stack::BoardRun,
+) {
+    println!("  {stack_key} {}", run.stack_peak_bytes);
+    println!(
+        "  {label}flash {} B (budget {} B), static RAM + {stack}: {} B (budget {} B)",
+        size.flash,
+        BOARD_BUDGET.flash_bytes,
+        size.static_ram + run.stack_peak_bytes,
+        BOARD_BUDGET.ram_bytes
+    );
+}
+
 /// Instructions the K = 32, D = 3 model evaluation may take per sample (issue budget).
 const EVAL_BUDGET_INSTRUCTIONS: u64 = 600;
 /// Instructions the whole single-axis step (K = 32, D = 3) may take per sample (issue budget).
@@ -238,13 +258,12 @@ pub fn bench_fw() -> anyhow::Result<()> {
          over the UART ({} steps reported), {} frames received; {})",
         board_run.bench_steps, board_run.frames, board_run.summary
     );
-    println!("  board_stack_peak_bytes {}", board_run.stack_peak_bytes);
-    println!(
-        "  flash {} B (budget {} B), static RAM + board stack peak: {} B (budget {} B)",
-        board_size.flash,
-        BOARD_BUDGET.flash_bytes,
-        board_size.static_ram + board_run.stack_peak_bytes,
-        BOARD_BUDGET.ram_bytes
+    print_stack_and_budget(
+        "board_stack_peak_bytes",
+        "",
+        "board stack peak",
+        &board_size,
+        &board_run,
     );
     let axes_size = firmware::image_size(&axes_board)?;
     println!(
@@ -255,13 +274,12 @@ pub fn bench_fw() -> anyhow::Result<()> {
         axes_run.frames,
         axes_run.summary
     );
-    println!("  board_axes_stack_peak_bytes {}", axes_run.stack_peak_bytes);
-    println!(
-        "  three-axis board: flash {} B (budget {} B), static RAM + stack peak: {} B (budget {} B)",
-        axes_size.flash,
-        BOARD_BUDGET.flash_bytes,
-        axes_size.static_ram + axes_run.stack_peak_bytes,
-        BOARD_BUDGET.ram_bytes
+    print_stack_and_budget(
+        "board_axes_stack_peak_bytes",
+        "three-axis board: ",
+        "stack peak",
+        &axes_size,
+        &axes_run,
     );
     let shared_size = firmware::image_size(&shared_board)?;
     println!(
@@ -272,13 +290,12 @@ pub fn bench_fw() -> anyhow::Result<()> {
         shared_run.frames,
         shared_run.summary
     );
-    println!("  board_axes_shared_stack_peak_bytes {}", shared_run.stack_peak_bytes);
-    println!(
-        "  shared-basis three-axis board: flash {} B (budget {} B), static RAM + stack peak: {} B (budget {} B)",
-        shared_size.flash,
-        BOARD_BUDGET.flash_bytes,
-        shared_size.static_ram + shared_run.stack_peak_bytes,
-        BOARD_BUDGET.ram_bytes
+    print_stack_and_budget(
+        "board_axes_shared_stack_peak_bytes",
+        "shared-basis three-axis board: ",
+        "stack peak",
+        &shared_size,
+        &shared_run,
     );
     let rust_steps = [(1u8, step), (3, three_axes)];
     let c_library_over = print_c_library(dir.path(), &rust_steps)?;

@@ -73,6 +73,24 @@ pub struct BoardImage {
 }
 
 impl BoardImage {
+    /// A real board's image `bin` in [`FIRMWARE`], built with `feature`.
+    const fn board(bin: &'static str, feature: &'static str) -> Self {
+        BoardImage {
+            package: FIRMWARE,
+            bin,
+            feature,
+        }
+    }
+
+    /// A QEMU image `bin` in [`HARNESS`] (feature `board-qemu`).
+    const fn qemu(bin: &'static str) -> Self {
+        BoardImage {
+            package: HARNESS,
+            bin,
+            feature: "board-qemu",
+        }
+    }
+
     /// Builds the image (release) and returns its ELF path.
     pub fn build(self) -> anyhow::Result<PathBuf> {
         build(self.package, self.bin, &[self.feature])
@@ -85,59 +103,23 @@ impl BoardImage {
 }
 
 /// The single-axis gyro board (what `cargo flash-board` flashes).
-pub const BOARD: BoardImage = BoardImage {
-    package: FIRMWARE,
-    bin: "stm32f405",
-    feature: "board-stm32f405",
-};
+pub const BOARD: BoardImage = BoardImage::board("stm32f405", "board-stm32f405");
 /// The single-axis board with defmt logging over RTT.
-pub const BOARD_DEBUG: BoardImage = BoardImage {
-    package: FIRMWARE,
-    bin: "stm32f405-debug",
-    feature: "board-debug",
-};
+pub const BOARD_DEBUG: BoardImage = BoardImage::board("stm32f405-debug", "board-debug");
 /// The three-axis board, a model per axis.
-pub const BOARD_AXES: BoardImage = BoardImage {
-    package: FIRMWARE,
-    bin: "stm32f405-axes",
-    feature: "board-stm32f405",
-};
+pub const BOARD_AXES: BoardImage = BoardImage::board("stm32f405-axes", "board-stm32f405");
 /// The three-axis board for a shared-basis blob.
-pub const BOARD_AXES_SHARED: BoardImage = BoardImage {
-    package: FIRMWARE,
-    bin: "stm32f405-axes-shared",
-    feature: "board-stm32f405",
-};
+pub const BOARD_AXES_SHARED: BoardImage = BoardImage::board("stm32f405-axes-shared", "board-stm32f405");
 /// [`BOARD`] under QEMU (stack peak measured, exits when done).
-pub const BOARD_QEMU: BoardImage = BoardImage {
-    package: HARNESS,
-    bin: "stm32f405-qemu",
-    feature: "board-qemu",
-};
+pub const BOARD_QEMU: BoardImage = BoardImage::qemu("stm32f405-qemu");
 /// [`BOARD_AXES`] under QEMU.
-pub const BOARD_AXES_QEMU: BoardImage = BoardImage {
-    package: HARNESS,
-    bin: "stm32f405-axes-qemu",
-    feature: "board-qemu",
-};
+pub const BOARD_AXES_QEMU: BoardImage = BoardImage::qemu("stm32f405-axes-qemu");
 /// [`BOARD_AXES_SHARED`] under QEMU.
-pub const BOARD_AXES_SHARED_QEMU: BoardImage = BoardImage {
-    package: HARNESS,
-    bin: "stm32f405-axes-shared-qemu",
-    feature: "board-qemu",
-};
+pub const BOARD_AXES_SHARED_QEMU: BoardImage = BoardImage::qemu("stm32f405-axes-shared-qemu");
 /// [`BOARD_QEMU`] serving until stopped (`cargo xtask qemu-board --pty`).
-pub const BOARD_QEMU_SERVE: BoardImage = BoardImage {
-    package: HARNESS,
-    bin: "stm32f405-qemu-serve",
-    feature: "board-qemu",
-};
+pub const BOARD_QEMU_SERVE: BoardImage = BoardImage::qemu("stm32f405-qemu-serve");
 /// [`BOARD_AXES_QEMU`] serving until stopped (`cargo xtask qemu-board --axes 3 --pty`).
-pub const BOARD_AXES_QEMU_SERVE: BoardImage = BoardImage {
-    package: HARNESS,
-    bin: "stm32f405-axes-qemu-serve",
-    feature: "board-qemu",
-};
+pub const BOARD_AXES_QEMU_SERVE: BoardImage = BoardImage::qemu("stm32f405-axes-qemu-serve");
 
 /// Every board image, as CI builds and lints them.
 pub const BOARD_IMAGES: [BoardImage; 9] = [

@@ -31,6 +31,13 @@ struct ReplayArgs {
     force: bool,
 }
 
+impl ReplayArgs {
+    /// What `--force` makes of outputs that exist.
+    fn existing(&self) -> trainer::output::Existing {
+        trainer::output::Existing::from_force(self.force)
+    }
+}
+
 #[derive(Subcommand)]
 enum Cmd {
     /// Run the whole test suite as CI does: fmt check, import circles, the C header's drift,
@@ -250,13 +257,7 @@ fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
         Cmd::Ci => xtask::ci::ci(),
         Cmd::QemuReplay {
-            replay:
-                ReplayArgs {
-                    model,
-                    run,
-                    output,
-                    force,
-                },
+            replay,
             frames,
             allow_uncompensated,
             allow_implausible,
@@ -266,13 +267,18 @@ fn main() -> anyhow::Result<()> {
                 uncompensated: allow_uncompensated,
                 implausible: allow_implausible,
             };
-            let existing = trainer::output::Existing::from_force(force);
-            let summary =
-                xtask::replay::qemu_replay_checked(&model, &run, &output, frames.as_deref(), existing, accept)
-                    .map_err(xtask::replay::with_flag_hint)?;
+            let summary = xtask::replay::qemu_replay_checked(
+                &replay.model,
+                &replay.run,
+                &replay.output,
+                frames.as_deref(),
+                replay.existing(),
+                accept,
+            )
+            .map_err(xtask::replay::with_flag_hint)?;
             println!(
                 "wrote {} ({} rows); firmware: {}",
-                output.display(),
+                replay.output.display(),
                 summary.samples,
                 summary.report
             );
@@ -293,32 +299,22 @@ fn main() -> anyhow::Result<()> {
                 limit: None,
             })
         }
-        Cmd::CReplay {
-            qemu,
-            replay:
-                ReplayArgs {
-                    model,
-                    run,
-                    output,
-                    force,
-                },
-        } => {
+        Cmd::CReplay { qemu, replay } => {
             let target = if qemu {
                 xtask::c_library::CTarget::Qemu
             } else {
                 xtask::c_library::CTarget::Host
             };
-            let existing = trainer::output::Existing::from_force(force);
             let summary = xtask::c_replay::c_replay(
                 target,
-                &model,
-                &run,
-                &output,
-                existing,
+                &replay.model,
+                &replay.run,
+                &replay.output,
+                replay.existing(),
                 trainer::evaluation::axes::Acceptance::default(),
             )
             .map_err(xtask::replay::with_flag_hint)?;
-            println!("wrote {}; {}", output.display(), summary.report);
+            println!("wrote {}; {}", replay.output.display(), summary.report);
             Ok(())
         }
         Cmd::CHeader => {

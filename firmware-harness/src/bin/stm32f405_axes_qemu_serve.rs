@@ -6,19 +6,13 @@
 #[cfg(target_os = "none")]
 #[cortex_m_rt::entry]
 fn main() -> ! {
-    use core::cell::Cell;
     use firmware::AXIS_CENTERS;
     use firmware::frontend::FrontEnd;
     use firmware_harness::qemu::{self, Emulation};
     use firmware_harness::replay::EmulatedFrontEnd;
     use rbf_core::blob::axes::AxisModels;
 
-    // SPI1 stays set up and unused: QEMU has no front end on it.
-    let (mut board, _wiring) = qemu::setup();
-    // TIM2 at QEMU's timer clock: samples at 1 kHz of real time (no -icount).
-    board.timer_hz = qemu::TIMER_HZ;
-    let mut source = qemu::RunSource::<3>::open();
-    let readings = source.next(0).map(Cell::new);
+    let (board, source, readings) = qemu::serving::<3>();
     let thermometers = qemu::coil_thermometers(&readings);
     let front_ends = [0, 1, 2].map(|axis| FrontEnd::new(EmulatedFrontEnd::new(&readings[axis])));
     board.run::<AxisModels<AXIS_CENTERS>, _, _, _, _, _>(thermometers, front_ends, Emulation::new(&readings, source))

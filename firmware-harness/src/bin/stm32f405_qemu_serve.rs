@@ -8,18 +8,12 @@
 #[cfg(target_os = "none")]
 #[cortex_m_rt::entry]
 fn main() -> ! {
-    use core::cell::Cell;
     use firmware::frontend::FrontEnd;
     use firmware_harness::qemu::{self, Emulation};
     use firmware_harness::replay::EmulatedFrontEnd;
     use rbf_core::Model;
 
-    // SPI1 stays set up and unused: QEMU has no front end on it.
-    let (mut board, _wiring) = qemu::setup();
-    // TIM2 at QEMU's timer clock: samples at 1 kHz of real time (no -icount).
-    board.timer_hz = qemu::TIMER_HZ;
-    let mut source = qemu::RunSource::<1>::open();
-    let readings = source.next(0).map(Cell::new);
+    let (board, source, readings) = qemu::serving::<1>();
     let thermometer = qemu::thermometer(&readings[0]);
     let front_end = FrontEnd::new(EmulatedFrontEnd::new(&readings[0]));
     board.run::<Model, _, _, _, _, _>(thermometer, front_end, Emulation::new(&readings, source))

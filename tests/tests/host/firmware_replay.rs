@@ -6,6 +6,7 @@ use e2e_tests::fixtures as common;
 
 use std::cell::Cell;
 
+use firmware::compensation::ModelHolder;
 use firmware_harness::replay::{self, ReplaySample, Replayer};
 use gyro_wire::frame;
 use rbf_core::Flags;
@@ -23,11 +24,8 @@ fn replay_is_byte_identical_to_trainer_compensate() {
     let period_s = replay::probe_period(input.lines()).unwrap();
     let current: [Cell<ReplaySample>; 1] = Default::default();
     let mut frames: Vec<u8> = Vec::new();
-    let mut out = String::new();
     let mut replayer = Replayer::new(Some(&model), period_s, &current, &mut frames).unwrap();
-    for line in input.lines() {
-        replayer.feed_line(line, &mut out).unwrap();
-    }
+    let out = replay_all(&mut replayer, &input);
     let stats = replayer.stats();
     assert_eq!(stats.samples as usize, common::ROWS);
     assert_eq!(stats.temp_read_faults, common::FAULTY_ROWS);
@@ -35,7 +33,7 @@ fn replay_is_byte_identical_to_trainer_compensate() {
     assert_eq!(out, expected, "replay output differs from trainer compensate");
 
     // Flag 2 on exactly the faulted rows; one frame per row, in order.
-    let rows: Vec<&str> = out.lines().filter(|l| !l.starts_with('#')).skip(1).collect();
+    let rows = data_rows(&out);
     let mut seq = 0;
     for chunk in frames.split_mut(|&b| b == 0).filter(|c| !c.is_empty()) {
         let f = frame::decode(chunk).unwrap();
@@ -59,12 +57,9 @@ fn replay_without_a_model_passes_every_sample_through_with_flag_4() {
     let input = std::fs::read_to_string(&slice).unwrap();
     let current: [Cell<ReplaySample>; 1] = Default::default();
     let mut replayer = Replayer::new(None::<&rbf_core::Model>, 1.0, &current, Vec::new()).unwrap();
-    let mut out = String::new();
-    for line in input.lines() {
-        replayer.feed_line(line, &mut out).unwrap();
-    }
+    let out = replay_all(&mut replayer, &input);
     let mut rows = 0;
-    for line in out.lines().filter(|l| !l.starts_with('#')).skip(1) {
+    for line in data_rows(&out) {
         let mut f = line.rsplit(',');
         let flags: u8 = f.next().unwrap().parse().unwrap();
         let comp: f32 = f.next().unwrap().parse().unwrap();
@@ -93,11 +88,8 @@ fn replay_and_trainer_agree_on_the_period_when_metadata_repeats_or_is_bad() {
     let period_s = replay::probe_period(input.lines()).unwrap();
     assert_eq!(period_s.to_bits(), 0.5f64.to_bits());
     let current: [Cell<ReplaySample>; 1] = Default::default();
-    let mut out = String::new();
     let mut replayer = Replayer::new(Some(&model), period_s, &current, Vec::new()).unwrap();
-    for line in input.lines() {
-        replayer.feed_line(line, &mut out).unwrap();
-    }
+    let out = replay_all(&mut replayer, &input);
     assert_eq!(out, std::fs::read_to_string(&expected_path).unwrap());
 }
 
@@ -120,38 +112,23 @@ fn three_axis_replay_is_byte_identical_to_trainer_compensate_and_frames_carry_ev
     let period_s = replay::probe_period(input.lines()).unwrap();
     let current: [Cell<ReplaySample>; 3] = Default::default();
     let mut frames: Vec<u8> = Vec::new();
-    let mut out = String::new();
     let mut replayer = Replayer::new(Some(&*models), period_s, &current, &mut frames).unwrap();
-    for line in input.lines() {
-        replayer.feed_line(line, &mut out).unwrap();
-    }
+    let out = replay_all(&mut replayer, &input);
     let stats = replayer.stats();
     assert_eq!(stats.samples as usize, common::AXES_ROWS);
     assert_eq!(stats.output_errors, 0);
-    let differing = out.lines().zip(expected.lines()).filter(|(a, b)| a != b).count();
-    assert_eq!(differing, 0, "rows differ from trainer compensate");
-    assert_eq!(out, expected, "replay output differs from trainer compensate");
+    assert_same_run(&out, expected);
 
     // One frame per row carrying x, y and z, flags as in the CSV's flags_<axis>.
-    let rows: Vec<&str> = out.lines().filter(|l| !l.starts_with('#')).skip(1).collect();
-    let mut seq = 0u32;
-    for chunk in frames.split_mut(|&b| b == 0).filter(|c| !c.is_empty()) {
-        let f = frame::decode_axes(chunk).unwrap();
-        assert_eq!((f.seq, f.axis_mask), (seq, 0b111));
-        let fields: Vec<&str> = rows[seq as usize].split(',').collect();
+    for (seq, f) in axes_frames_matching_rows(&mut frames, &out).iter().enumerate() {
         for (i, axis) in f.axes.iter().enumerate() {
-            let csv_flags: u8 = fields[fields.len() - 7 + 3 * i].parse().unwrap();
-            let csv_bias: f32 = fields[fields.len() - 9 + 3 * i].parse().unwrap();
-            assert_eq!((axis.flags, axis.bias_dph), (csv_flags, csv_bias), "row {seq} axis {i}");
             assert_eq!(
                 axis.flags().contains(Flags::TEMP_SENSOR_FAULT),
-                common::axes_faulty(seq as usize),
+                common::axes_faulty(seq),
                 "row {seq} axis {i}"
             );
         }
-        seq += 1;
     }
-    assert_eq!(seq as usize, common::AXES_ROWS);
 }
 
 #[test]
@@ -172,11 +149,8 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
     let period_s = replay::probe_period(input.lines()).unwrap();
     let current: [Cell<ReplaySample>; 3] = Default::default();
     let mut frames: Vec<u8> = Vec::new();
-    let mut out = String::new();
     let mut replayer = Replayer::new(Some(&*models), period_s, &current, &mut frames).unwrap();
-    for line in input.lines() {
-        replayer.feed_line(line, &mut out).unwrap();
-    }
+    let out = replay_all(&mut replayer, &input);
     let stats = replayer.stats();
     assert_eq!(stats.samples as usize, common::AXES_ROWS);
     assert_eq!(stats.output_errors, 0);
@@ -184,26 +158,16 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
     // One thermometer set read per sample; its failure is every axis's.
     assert_eq!(stats.temp_read_faults, faulty_rows);
     assert_eq!(replayer.temp_read_faults_per_axis(), [faulty_rows; 3]);
-    let differing = out.lines().zip(expected.lines()).filter(|(a, b)| a != b).count();
-    assert_eq!(differing, 0, "rows differ from trainer compensate");
-    assert_eq!(out, expected, "replay output differs from trainer compensate");
+    assert_same_run(&out, expected);
 
     // One frame per row carrying x, y and z; flag 2 on every axis while the
     // one thermometer fails, flag 4 as well once its hold runs out, and
     // compensated (no flag 4) otherwise.
-    let rows: Vec<&str> = out.lines().filter(|l| !l.starts_with('#')).skip(1).collect();
-    let mut seq = 0u32;
     let mut held_out = 0;
-    for chunk in frames.split_mut(|&b| b == 0).filter(|c| !c.is_empty()) {
-        let f = frame::decode_axes(chunk).unwrap();
-        assert_eq!((f.seq, f.axis_mask), (seq, 0b111));
-        let fields: Vec<&str> = rows[seq as usize].split(',').collect();
-        let faulty = common::axes_faulty(seq as usize);
+    for (seq, f) in axes_frames_matching_rows(&mut frames, &out).iter().enumerate() {
+        let faulty = common::axes_faulty(seq);
         let first = f.axes[0].flags();
         for (i, axis) in f.axes.iter().enumerate() {
-            let csv_flags: u8 = fields[fields.len() - 7 + 3 * i].parse().unwrap();
-            let csv_bias: f32 = fields[fields.len() - 9 + 3 * i].parse().unwrap();
-            assert_eq!((axis.flags, axis.bias_dph), (csv_flags, csv_bias), "row {seq} axis {i}");
             assert_eq!(
                 axis.flags().contains(Flags::TEMP_SENSOR_FAULT),
                 faulty,
@@ -215,10 +179,54 @@ fn shared_basis_replay_is_byte_identical_to_trainer_compensate_and_a_thermometer
             }
         }
         held_out += usize::from(first.contains(Flags::NO_VALID_MODEL));
-        seq += 1;
     }
-    assert_eq!(seq as usize, common::AXES_ROWS);
     assert!(held_out > 0, "the outage outlasts the hold: flag 4 on every axis");
+}
+
+/// Feeds every line of `input` to `replayer`; returns the run it wrote.
+fn replay_all<W: embedded_io::Write, M: ModelHolder<K, N>, const K: usize, const N: usize>(
+    replayer: &mut Replayer<'_, W, M, K, N>,
+    input: &str,
+) -> String {
+    let mut out = String::new();
+    for line in input.lines() {
+        replayer.feed_line(line, &mut out).unwrap();
+    }
+    out
+}
+
+/// The data rows of a written run: after its comment lines and its header.
+fn data_rows(run: &str) -> Vec<&str> {
+    run.lines().filter(|l| !l.starts_with('#')).skip(1).collect()
+}
+
+/// The replay's run is `trainer compensate`'s, row for row and byte for byte.
+fn assert_same_run(out: &str, expected: &str) {
+    let differing = out.lines().zip(expected.lines()).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "rows differ from trainer compensate");
+    assert_eq!(out, expected, "replay output differs from trainer compensate");
+}
+
+/// The three-axis frames in `frames`, checked against the replay's run
+/// `out`: one per row, in order, each carrying x, y and z with the flags
+/// and bias of its row's columns.
+fn axes_frames_matching_rows(frames: &mut [u8], out: &str) -> Vec<frame::AxesFrame> {
+    let rows = data_rows(out);
+    let mut decoded = Vec::new();
+    for chunk in frames.split_mut(|&b| b == 0).filter(|c| !c.is_empty()) {
+        let f = frame::decode_axes(chunk).unwrap();
+        let seq = decoded.len() as u32;
+        assert_eq!((f.seq, f.axis_mask), (seq, 0b111));
+        let fields: Vec<&str> = rows[seq as usize].split(',').collect();
+        for (i, axis) in f.axes.iter().enumerate() {
+            let csv_flags: u8 = fields[fields.len() - 7 + 3 * i].parse().unwrap();
+            let csv_bias: f32 = fields[fields.len() - 9 + 3 * i].parse().unwrap();
+            assert_eq!((axis.flags, axis.bias_dph), (csv_flags, csv_bias), "row {seq} axis {i}");
+        }
+        decoded.push(f);
+    }
+    assert_eq!(decoded.len(), common::AXES_ROWS);
+    decoded
 }
 
 /// `trainer compensate` of a multi-axis blob on `slice`, written in `dir`,

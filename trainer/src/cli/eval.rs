@@ -1,13 +1,12 @@
 //! `trainer eval`: before/after accuracy of a model on runs.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use trainer::blobfile::read_model_file;
 use trainer::evaluation::axes::evaluate_files;
 use trainer::evaluation::evaluate::RunEvaluation;
 use trainer::evaluation::table::{print_allan_table, print_settled_table, print_table};
-use trainer::reading::input;
 
 use super::common::{AllowUncompensated, ForceArg, JsonArg, print_json_and_commit};
 use super::model_arg::ModelArg;
@@ -43,9 +42,7 @@ pub struct Args {
 /// Runs `trainer eval`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let model_path = a.model.path.as_path();
-    let inputs: Vec<&Path> = a.runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
-    input::check_stdin_once(inputs.iter().copied())?;
-    trainer::reading::distinct::require_distinct_runs(&[("evaluated", &a.runs)])?;
+    let inputs = a.model.with_evaluated_runs(&a.runs)?;
     let json_out = a.json.sink(&inputs, a.force.existing())?;
     let (model, _) = read_model_file(model_path)?;
     let evals = evaluate_files(&model, model_path, &a.runs, a.uncompensated.acceptance())?;

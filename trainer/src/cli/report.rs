@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use trainer::blobfile::read_model_file;
 use trainer::output::{StagedDir, Transaction};
-use trainer::{reading::input, text};
+use trainer::text;
 
 use super::common::{AllowUncompensated, ForceArg, print_and_commit};
 use super::model_arg::ModelArg;
@@ -42,9 +42,7 @@ pub struct Args {
 /// Runs `trainer report`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let model_path = a.model.path.as_path();
-    let inputs: Vec<&Path> = a.runs.iter().map(|p| p.as_path()).chain([model_path]).collect();
-    input::check_stdin_once(inputs.iter().copied())?;
-    trainer::reading::distinct::require_distinct_runs(&[("evaluated", &a.runs)])?;
+    let inputs = a.model.with_evaluated_runs(&a.runs)?;
     let (_, target) = trainer::report::check_report_targets(&a.runs, &a.output, &inputs, &[], a.force.existing())?;
     let (file, _) = read_model_file(model_path)?;
     // Written into a hidden directory beside DIR, which replaces DIR as a whole at the end.

@@ -3,6 +3,7 @@
 //! over the loop temperature and a steady ramp rate, greyed where no training sample lay.
 
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use rbf_core::{FeatureSet, FeatureVector, Model};
 
@@ -147,6 +148,30 @@ pub(super) const COLOUR_BAR_PX: u32 = 120;
 /// Font size of the colour bar's tick labels, px.
 pub(super) const BAR_LABEL_PX: f64 = 13.0;
 
+/// The chart of a bias map on `plot` (the area beside its colour bar):
+/// titled `caption`, over inputs `x` (horizontal) and `y`.
+fn plane_chart<'a, DB: DrawingBackend>(
+    plot: &'a DrawingArea<DB, Shift>,
+    caption: &str,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+) -> Result<ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>, Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    Ok(ChartBuilder::on(plot)
+        .caption(caption, ("sans-serif", title_font_px(plot, caption)))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(y_label_area_px(
+            plot,
+            linear_tick_labels(y.start, y.end),
+            TICK_LABEL_PX,
+            70,
+        ))
+        .build_cartesian_2d(x, y)?)
+}
+
 /// Splits `root` into the plot's area and the colour bar's, draws the bar
 /// (the [`colour`] scale from `lo` at the bottom to `hi` at the top, with an
 /// axis labelled `label`) and returns the plot's area.
@@ -228,17 +253,7 @@ where
     let (r_lo, r_hi) = (r_lo.min(tr_lo), r_hi.max(tr_hi));
     let caption = "model bias where the runs went; dashed: training range, grey: outside it".to_owned();
     let plot = with_colour_bar(&root, b_lo, b_hi, "model bias [°/h]")?;
-    let mut chart = ChartBuilder::on(&plot)
-        .caption(&caption, ("sans-serif", title_font_px(&plot, &caption)))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(y_label_area_px(
-            &plot,
-            linear_tick_labels(r_lo, r_hi),
-            TICK_LABEL_PX,
-            70,
-        ))
-        .build_cartesian_2d(t_lo..t_hi, r_lo..r_hi)?;
+    let mut chart = plane_chart(&plot, &caption, t_lo..t_hi, r_lo..r_hi)?;
     linear_mesh(&mut chart)
         .x_desc(drawable(x_desc))
         .y_desc(drawable(y_desc))
@@ -410,17 +425,7 @@ where
     // The cells reach half a cell past the box; the margins keep them off the frame.
     let (x_lo, x_hi) = padded(t_lo as f64, t_hi as f64);
     let (y_lo, y_hi) = padded(r_lo as f64, r_hi as f64);
-    let mut chart = ChartBuilder::on(&plot)
-        .caption(&caption, ("sans-serif", title_font_px(&plot, &caption)))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(y_label_area_px(
-            &plot,
-            linear_tick_labels(y_lo, y_hi),
-            TICK_LABEL_PX,
-            70,
-        ))
-        .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
+    let mut chart = plane_chart(&plot, &caption, x_lo..x_hi, y_lo..y_hi)?;
     chart
         .configure_mesh()
         .x_label_formatter(&tick_label)

@@ -184,9 +184,7 @@ impl ChamberRun {
         }
         let reference = gyro::earth_rate_projection_dph();
         let steps = (duration_s * self.sample_rate_hz).floor() as u64;
-        // Internal thermal step: at most 1 s (explicit Euler, every τ ≥ plant::MIN_TAU_S).
-        let substeps = dt.ceil().max(1.0) as u32;
-        let h = dt / substeps as f64;
+        let (substeps, h) = plant::substeps(dt);
         let mut line = String::with_capacity(160);
         for i in 0..steps {
             let t = i as f64 * dt;

@@ -179,6 +179,14 @@ impl PlantParams {
 /// Shortest time constant the integrator accepts, s (its step is ≤ 1 s).
 pub const MIN_TAU_S: f64 = 5.0;
 
+/// The integrator's internal thermal step for samples `dt` s apart: the
+/// substeps per sample and their length, s (at most 1 s: explicit Euler,
+/// every τ ≥ [`MIN_TAU_S`]).
+pub fn substeps(dt: f64) -> (u32, f64) {
+    let substeps = dt.ceil().max(1.0) as u32;
+    (substeps, dt / substeps as f64)
+}
+
 /// Temperatures of the plant's nodes, °C.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plant {

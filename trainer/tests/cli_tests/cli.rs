@@ -4,7 +4,8 @@
 use std::path::Path;
 
 use crate::common::{
-    compensate, fitted_model, inspect_json, shared_data, short_chamber_run, stderr, stdout, trainer, with_model, write,
+    compensate, fit_ok, fitted_model, inspect_json, shared_data, short_chamber_run, simulated, stderr, stdout, trainer,
+    with_model, write,
 };
 use tempfile::TempDir;
 
@@ -345,16 +346,7 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(&v["features"], chosen, "the blob holds the chosen set, lag and windows");
     // An explicit set is fitted alone.
-    let o = trainer(&[
-        "fit",
-        "--force",
-        "--features",
-        "multiscale-second-order",
-        run.to_str().unwrap(),
-        "-o",
-        model.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let o = fit_ok(&["--force", "--features", "multiscale-second-order"], &run, &model);
     assert!(!stdout(&o).contains("feature sets:"));
     let o = trainer(&["inspect", "--json", "-", model.to_str().unwrap()]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
@@ -1045,18 +1037,7 @@ fn samples_whose_rates_leave_the_training_range_are_flagged_clamped() {
     // Trained on 1 °C/min ramps.
     let model = fitted_model(&dir);
     let fast = dir.path().join("fast.csv");
-    let o = trainer(&[
-        "simulate",
-        "--ramp",
-        "4",
-        "--hold-min",
-        "30",
-        "--seed",
-        "8",
-        "-o",
-        fast.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    simulated(&fast, &["--ramp", "4", "--hold-min", "30", "--seed", "8"]);
     let compensated = |run: &Path, out: &str| {
         let out = dir.path().join(out);
         let o = compensate(&model, run, &out, &[]);
@@ -1190,19 +1171,8 @@ fn fit_with_report_writes_the_model_the_table_and_the_bias_against_temperature()
 fn a_compensated_run_names_the_model_that_compensated_it_and_reads_as_a_run() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
-    let (m, run, out) = (
-        model.to_str().unwrap(),
-        dir.path().join("train.csv"),
-        dir.path().join("out.csv"),
-    );
-    let o = trainer(&[
-        "compensate",
-        "--model",
-        m,
-        run.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let (run, out) = (dir.path().join("train.csv"), dir.path().join("out.csv"));
+    let o = compensate(&model, &run, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     // The file's name and the blob's CRC-32 trailer (what `trainer device
     // status` names as a unit's running model), before the run's own lines.
@@ -1216,7 +1186,7 @@ fn a_compensated_run_names_the_model_that_compensated_it_and_reads_as_a_run() {
         "{head}"
     );
     // Still a recorded run: eval reads it.
-    let o = trainer(&["eval", "--model", m, out.to_str().unwrap()]);
+    let o = trainer(&["eval", "--model", model.to_str().unwrap(), out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
 

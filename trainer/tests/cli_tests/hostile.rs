@@ -6,7 +6,7 @@ use std::os::unix::fs::{PermissionsExt, symlink};
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use crate::common::{compensate, fitted_model, stderr, stdout, trainer, trainer_with_stdin, write};
+use crate::common::{compensate, fit_ok, fitted_model, stderr, stdout, trainer, trainer_with_stdin, write};
 use tempfile::TempDir;
 
 /// Fails unless `o` exited 1 with a message containing `expected` and no panic.
@@ -507,18 +507,7 @@ fn control_characters_from_files_are_printed_escaped() {
     fitted_model(&dir);
     let model = dir.path().join("serial.bin");
     let serial = "SN\x1b[2J\nforged";
-    let o = trainer(&[
-        "fit",
-        "-q",
-        "--block-s",
-        "1",
-        "--serial",
-        serial,
-        run.to_str().unwrap(),
-        "-o",
-        model.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    fit_ok(&["-q", "--block-s", "1", "--serial", serial], &run, &model);
     let o = trainer(&["inspect", model.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let printed = stdout(&o);

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::common::{shared_data, stderr, stdout, trainer, write};
+use crate::common::{compensate, fit_ok, shared_data, simulated, stderr, stdout, trainer, write};
 use tempfile::TempDir;
 
 /// Fails unless `o` exited 1 with a message containing every one of
@@ -72,14 +72,7 @@ fn cr_only_line_endings_are_named_whatever_the_file_size() {
         ] {
             let run = write(&dir, "cr.csv", text.as_bytes());
             let out = dir.path().join("out.csv");
-            let o = trainer(&[
-                "compensate",
-                "--model",
-                model.to_str().unwrap(),
-                run.to_str().unwrap(),
-                "-o",
-                out.to_str().unwrap(),
-            ]);
+            let o = compensate(&model, &run, &out, &[]);
             refused(&o, &["cr.csv:", "CR-only line endings"]);
             assert!(!out.exists());
         }
@@ -148,16 +141,7 @@ fn blocks_refuses_more_blocks_than_it_holds_naming_the_limit() {
     // 3.5 h at 100 Hz: 1,260,000 samples, each its own block at --block-s 0.01
     // (the paper's inputs: a short warm-up).
     let run = dir.path().join("fast.csv");
-    let o = trainer(&[
-        "simulate",
-        "--hours",
-        "3.5",
-        "--sample-rate-hz",
-        "100",
-        "-o",
-        run.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    simulated(&run, &["--hours", "3.5", "--sample-rate-hz", "100"]);
     let out = dir.path().join("b.csv");
     let o = trainer(&[
         "blocks",
@@ -196,29 +180,9 @@ fn a_validation_run_too_short_is_blamed_by_name() {
 fn multi_axis_diagnostics_name_the_axis_columns() {
     let dir = TempDir::new().unwrap();
     let run = dir.path().join("imu.csv");
-    let o = trainer(&[
-        "simulate",
-        "--axes",
-        "2",
-        "--ramp",
-        "1",
-        "--hold-min",
-        "30",
-        "-o",
-        run.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    simulated(&run, &["--axes", "2", "--ramp", "1", "--hold-min", "30"]);
     let model = dir.path().join("imu.bin");
-    let o = trainer(&[
-        "fit",
-        "-q",
-        "--method",
-        "poly3",
-        run.to_str().unwrap(),
-        "-o",
-        model.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    fit_ok(&["-q", "--method", "poly3"], &run, &model);
     // The y coil's thermometer in kelvin.
     let text = std::fs::read_to_string(&run).unwrap();
     let mut header: Option<Vec<String>> = None;
@@ -249,14 +213,7 @@ fn compensate_says_what_it_does_with_comment_lines_between_rows() {
     text.insert_str(text.find("\n5.").unwrap() + 1, "# a note between rows\n");
     let run = write(&dir, "noted.csv", text.as_bytes());
     let out = dir.path().join("out.csv");
-    let o = trainer(&[
-        "compensate",
-        "--model",
-        model.to_str().unwrap(),
-        run.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = compensate(&model, &run, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let written = std::fs::read_to_string(&out).unwrap();
     assert!(!written.contains("a note"), "{written}");
@@ -343,14 +300,7 @@ fn a_time_column_in_milliseconds_or_hours_is_suspected_by_name() {
     let out = dir.path().join("out.csv");
     let ms = retimed(&dir, "ms.csv", 1000.0);
     for o in [
-        trainer(&[
-            "compensate",
-            "--model",
-            model.to_str().unwrap(),
-            ms.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-        ]),
+        compensate(&model, &ms, &out, &[]),
         trainer(&["eval", "--model", model.to_str().unwrap(), ms.to_str().unwrap()]),
         trainer(&["fit", "-q", ms.to_str().unwrap(), "-o", out.to_str().unwrap()]),
     ] {

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use crate::common::{stderr, stdout, trainer};
+use crate::common::{simulated, stderr, stdout, trainer};
 use tempfile::TempDir;
 
 /// Set points (time s, °C) of a plan file, and its `#` metadata lines.
@@ -261,16 +261,7 @@ fn a_plan_runs_through_the_simulator_and_a_fit_reports_its_coverage() {
     assert!(o.status.success(), "{}", stderr(&o));
     let p = dir.path().join("p.csv");
     let run = dir.path().join("run.csv");
-    let o = trainer(&[
-        "simulate",
-        "--chamber-profile",
-        p.to_str().unwrap(),
-        "--rate-hz",
-        "0.2",
-        "-o",
-        run.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    simulated(&run, &["--chamber-profile", p.to_str().unwrap(), "--rate-hz", "0.2"]);
     let (knots, _) = read_plan(&p);
     let text = std::fs::read_to_string(&run).unwrap();
     assert!(
@@ -318,18 +309,7 @@ fn a_plan_runs_through_the_simulator_and_a_fit_reports_its_coverage() {
         "{why}"
     );
     let cycle = dir.path().join("cycle.csv");
-    let o = trainer(&[
-        "simulate",
-        "--profile",
-        "cycle",
-        "--ramp",
-        "1",
-        "--rate-hz",
-        "0.2",
-        "-o",
-        cycle.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    simulated(&cycle, &["--profile", "cycle", "--ramp", "1", "--rate-hz", "0.2"]);
     let o = trainer(&[
         "fit",
         "-q",
@@ -441,16 +421,7 @@ fn a_fit_on_a_short_hold_run_says_the_range_of_use_is_not_covered() {
     // reads −20 … 40 °C and turns at its top still rising.
     let dir = TempDir::new().unwrap();
     let run = dir.path().join("designed.csv");
-    let o = trainer(&[
-        "simulate",
-        "--profile",
-        "designed",
-        "--rate-hz",
-        "0.2",
-        "-o",
-        run.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    simulated(&run, &["--profile", "designed", "--rate-hz", "0.2"]);
     let fit = |extra: &[&str]| {
         let model = dir.path().join("m.bin");
         let o = trainer(

@@ -2,7 +2,7 @@
 //! are, clamped shares in the tables, plausibility checks that name the
 //! mistake and the way around it.
 
-use crate::common::{fitted_model, stderr, stdout, trainer, with_model, write};
+use crate::common::{fitted_model, simulated, stderr, stdout, trainer, with_model, write};
 use tempfile::TempDir;
 
 #[test]
@@ -112,18 +112,10 @@ fn runs_in_fahrenheit_or_with_time_in_hours_are_refused_with_the_reason_and_a_wa
     }
     // fit: a simulated chamber cycle (−40 … 60 °C) in °F.
     let cycle = dir.path().join("cycle.csv");
-    let o = trainer(&[
-        "simulate",
-        "--profile",
-        "cycle",
-        "--hold-min",
-        "30",
-        "--sample-rate-hz",
-        "0.2",
-        "-o",
-        cycle.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    simulated(
+        &cycle,
+        &["--profile", "cycle", "--hold-min", "30", "--sample-rate-hz", "0.2"],
+    );
     let train = std::fs::read_to_string(&cycle).unwrap();
     let in_fahrenheit: String = train
         .lines()

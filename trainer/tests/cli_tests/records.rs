@@ -12,6 +12,27 @@ use crate::common::postgres::PostgresServer;
 use crate::common::{inspect_json, short_chamber_run, stderr, stdout, trainer};
 use tempfile::TempDir;
 
+/// A single `trainer fit` of unit FOG-1 (the first run of batch directory
+/// `runs`, written beside it) with `--records store` exits 1 naming `needle`
+/// and writes no model (`what`: the case, for the messages).
+fn single_fit_refuses(runs: &Path, store: &str, needle: &str, what: &str) {
+    let model = runs.with_file_name("single.bin");
+    let train = runs.join("u1.csv");
+    let o = trainer(&[
+        "fit",
+        train.to_str().unwrap(),
+        "--serial",
+        "FOG-1",
+        "-o",
+        model.to_str().unwrap(),
+        "--records",
+        store,
+    ]);
+    assert_eq!(o.status.code(), Some(1), "fit, {what}: {}", stderr(&o));
+    assert!(stderr(&o).contains(needle), "fit, {what}: {}", stderr(&o));
+    assert!(!model.exists(), "fit, {what}: no model written");
+}
+
 /// A batch directory: `n` units FOG-1 … FOG-n (a training and a holdout run each, seeds
 /// from `seed`), an optional broken unit FOG-X (its training run cut short), a spec any fit
 /// passes; returns the manifest.
@@ -207,21 +228,7 @@ fn a_postgresql_store_of_a_newer_schema_is_refused_and_left_unchanged() {
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains(needle), "{}", stderr(&o));
     assert!(!out.exists(), "no fit ran");
-    let model = dir.path().join("single.bin");
-    let train = dir.path().join("runs-B-N").join("u1.csv");
-    let o = trainer(&[
-        "fit",
-        train.to_str().unwrap(),
-        "--serial",
-        "FOG-1",
-        "-o",
-        model.to_str().unwrap(),
-        "--records",
-        &url,
-    ]);
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(stderr(&o).contains(needle), "{}", stderr(&o));
-    assert!(!model.exists(), "no model written");
+    single_fit_refuses(&dir.path().join("runs-B-N"), &url, needle, "newer schema");
     let o = trainer(&["history", "FOG-1", "--records", &url]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains(needle), "{}", stderr(&o));
@@ -326,21 +333,7 @@ fn a_store_that_cannot_take_records_fails_the_batch_before_any_fit_and_is_left_u
             "{what}: the store is left as it was"
         );
         // A single fit refuses the store the same way, before it fits.
-        let model = dir.path().join("single.bin");
-        let train = dir.path().join("runs-B-S").join("u1.csv");
-        let o = trainer(&[
-            "fit",
-            train.to_str().unwrap(),
-            "--serial",
-            "FOG-1",
-            "-o",
-            model.to_str().unwrap(),
-            "--records",
-            &store,
-        ]);
-        assert_eq!(o.status.code(), Some(1), "fit, {what}: {}", stderr(&o));
-        assert!(stderr(&o).contains(needle), "fit, {what}: {}", stderr(&o));
-        assert!(!model.exists(), "fit, {what}: no model written");
+        single_fit_refuses(&dir.path().join("runs-B-S"), &store, needle, what);
         if what == "newer schema" {
             let o = trainer(&["history", "FOG-1", "--records", &store]);
             assert_eq!(o.status.code(), Some(1), "history refuses it too");

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 
 use tempfile::TempDir;
 
-use crate::common::{compensate, fitted_model, stderr, trainer};
+use crate::common::{compensate, fitted_model, simulated, stderr, trainer};
 
 /// The soak profile's default levels, °C.
 const LEVELS_C: [f64; 8] = [25.0, 0.0, 40.0, -20.0, 60.0, 20.0, -40.0, 10.0];
@@ -97,16 +97,7 @@ fn a_soak_run_has_8_plateaus_at_its_levels_and_eval_s_settled_spread_is_the_arit
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
     let soak = dir.path().join("soak.csv");
-    let o = trainer(&[
-        "simulate",
-        "--profile",
-        "soak",
-        "--seed",
-        "3",
-        "-o",
-        soak.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    simulated(&soak, &["--profile", "soak", "--seed", "3"]);
     let out = dir.path().join("soak-comp.csv");
     let o = compensate(&model, &soak, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -182,16 +173,7 @@ fn a_run_without_holds_has_a_null_spread_and_says_so() {
     let dir = TempDir::new().unwrap();
     let model = fitted_model(&dir);
     let run = dir.path().join("swings.csv");
-    let o = trainer(&[
-        "simulate",
-        "--profile",
-        "swings",
-        "--hours",
-        "2",
-        "-o",
-        run.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    simulated(&run, &["--profile", "swings", "--hours", "2"]);
     let o = trainer(&[
         "eval",
         "--model",

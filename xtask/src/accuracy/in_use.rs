@@ -234,6 +234,18 @@ struct ModelScores {
     fit_report: Option<Value>,
 }
 
+impl ModelScores {
+    /// The improvement on each in-use run over `before` (the uncompensated
+    /// residual per run, °/h), %.
+    fn improvement_pcts(&self, before: &[f64]) -> Vec<f64> {
+        self.after_dph
+            .iter()
+            .zip(before)
+            .map(|(a, b)| improvement_pct(*b, *a))
+            .collect()
+    }
+}
+
 /// 100-s cluster STD of `rate − ref` (`time_s`, `rate`, `ref` columns), °/h.
 fn residual_std(columns: &[Vec<f64>]) -> f64 {
     let deviation: Vec<f64> = columns[1].iter().zip(&columns[2]).map(|(r, q)| r - q).collect();
@@ -578,12 +590,7 @@ fn model_row(
             cell(before)
         );
     }
-    let pct: Vec<f64> = scores
-        .after_dph
-        .iter()
-        .zip(before)
-        .map(|(a, b)| improvement_pct(*b, *a))
-        .collect();
+    let pct = scores.improvement_pcts(before);
     let (mean, worst) = mean_and_worst(&pct);
     let forecast = worst_forecast_factor(scores.forecast_dph, &scores.after_dph);
     if scores.model == DEFAULT_MODEL {
@@ -793,12 +800,7 @@ fn print_model(scores: &ModelScores, before: &[f64]) {
         println!("{label:<LABEL_WIDTH$} fit refused: {reason}");
         return;
     }
-    let pct: Vec<f64> = scores
-        .after_dph
-        .iter()
-        .zip(before)
-        .map(|(a, b)| improvement_pct(*b, *a))
-        .collect();
+    let pct = scores.improvement_pcts(before);
     print_cells(
         &label,
         pct.iter()

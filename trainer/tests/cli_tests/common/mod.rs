@@ -75,6 +75,12 @@ pub fn write(dir: &TempDir, name: &str, content: &[u8]) -> PathBuf {
     p
 }
 
+/// Simulates into `path` a run of `args` (`trainer simulate ARGS -o PATH`), which must succeed.
+pub fn simulated(path: &Path, args: &[&str]) {
+    let o = trainer(&[&["simulate"][..], args, &["-o", path.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// Simulates into `path` a short chamber run (the IFOG protocol at
 /// 1 °C/min, 30-min holds, 1 Hz, 12,600 rows) of noise seed `seed`.
 pub fn short_chamber_run(path: &Path, seed: &str) {
@@ -105,6 +111,20 @@ pub fn inspect_json(model: &Path) -> serde_json::Value {
     serde_json::from_str(&stdout(&o)).unwrap()
 }
 
+/// `trainer fit OPTIONS RUN -o MODEL`, which must succeed.
+pub fn fit_ok(options: &[&str], run: &Path, model: &Path) -> Output {
+    let o = trainer(
+        &[
+            &["fit"][..],
+            options,
+            &[run.to_str().unwrap(), "-o", model.to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    o
+}
+
 /// A model fitted on a short simulated chamber run (`train.csv` in `dir`,
 /// 1 Hz, 12,600 rows), for the tests that need any valid model.
 pub fn fitted_model(dir: &TempDir) -> PathBuf {
@@ -112,15 +132,6 @@ pub fn fitted_model(dir: &TempDir) -> PathBuf {
     short_chamber_run(&run, "7");
     let model = dir.path().join("model.bin");
     // The option before the run file: it must not swallow it.
-    let o = trainer(&[
-        "fit",
-        "-q",
-        "--block-s",
-        "1",
-        run.to_str().unwrap(),
-        "-o",
-        model.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    fit_ok(&["-q", "--block-s", "1"], &run, &model);
     model
 }
