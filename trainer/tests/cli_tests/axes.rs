@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::common::{compensate, stderr, stdout, trainer, with_model};
+use crate::common::{compensate, eval_json, stderr, stdout, trainer, with_model};
 use tempfile::TempDir;
 
 /// `trainer simulate --axes 3` of `profile` with `seed` into `dir/name`.
@@ -86,16 +86,7 @@ fn msd_gains(model: &Path, run: &Path) -> Vec<(Option<String>, f64)> {
 
 /// The improvement `key` (%) `trainer eval --json` gives for `run`, per row.
 fn gains(model: &Path, run: &Path, key: &str) -> Vec<(Option<String>, f64)> {
-    let o = trainer(&[
-        "eval",
-        "--model",
-        model.to_str().unwrap(),
-        run.to_str().unwrap(),
-        "--json",
-        "-",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let json = eval_json(model.to_str().unwrap(), run.to_str().unwrap());
     json.as_array()
         .unwrap()
         .iter()

@@ -1,7 +1,7 @@
 //! `trainer fit --features response-bank` as a user meets it: a blob that
 //! inspects, compensates and evaluates, and improves a run it never saw.
 
-use crate::common::{compensate, stderr, stdout, trainer};
+use crate::common::{compensate, eval_json, stderr, stdout, trainer};
 use tempfile::TempDir;
 
 #[test]
@@ -45,9 +45,7 @@ fn a_response_bank_fitted_on_one_simulated_run_improves_the_cluster_std_of_anoth
     let rows = std::fs::read_to_string(dir.path().join("out.csv")).unwrap();
     assert!(rows.lines().filter(|l| !l.starts_with('#')).count() > 10_000);
 
-    let o = trainer(&["eval", "--model", &path("rb.bin"), &path("unseen.csv"), "--json", "-"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let v = eval_json(&path("rb.bin"), &path("unseen.csv"));
     let before = v[0]["cluster_std_before_dph"].as_f64().unwrap();
     let after = v[0]["cluster_std_after_dph"].as_f64().unwrap();
     assert!(after < 0.25 * before, "100-s cluster STD {before} → {after} °/h");

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 
 use tempfile::TempDir;
 
-use crate::common::{compensate, fitted_model, simulated, stderr, trainer};
+use crate::common::{compensate, eval_json, fitted_model, simulated, stderr, trainer};
 
 /// The soak profile's default levels, °C.
 const LEVELS_C: [f64; 8] = [25.0, 0.0, 40.0, -20.0, 60.0, 20.0, -40.0, 10.0];
@@ -214,9 +214,7 @@ fn soak_levels_and_hold_set_the_plateaus_and_need_the_soak_profile() {
         path,
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let o = trainer(&["eval", "--model", model.to_str().unwrap(), path, "--json", "-"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let v = eval_json(model.to_str().unwrap(), path);
     let temps: Vec<f64> = v[0]["plateaus"]
         .as_array()
         .unwrap()
@@ -282,9 +280,7 @@ fn a_fit_on_a_run_with_settled_levels_states_their_spread_as_a_floor_under_the_s
     assert!(fit["residual_over_noise_floor"].as_f64().unwrap() > 0.0, "{fit}");
 
     // `eval` of the same model on the same run reads the same spread.
-    let o = trainer(&["eval", "--model", model.to_str().unwrap(), path, "--json", "-"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let v = eval_json(model.to_str().unwrap(), path);
     let eval_spread = v[0]["settled_spread_dph"].as_f64().unwrap();
     assert!((eval_spread - floor).abs() < 1e-12, "fit {floor}, eval {eval_spread}");
 }

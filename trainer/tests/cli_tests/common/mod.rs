@@ -81,6 +81,13 @@ pub fn simulated(path: &Path, args: &[&str]) {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
+/// What `trainer eval --model MODEL RUN --json -` prints, parsed; the command must succeed.
+pub fn eval_json(model: &str, run: &str) -> serde_json::Value {
+    let o = trainer(&["eval", "--model", model, run, "--json", "-"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
 /// Simulates into `path` a short chamber run (the IFOG protocol at
 /// 1 °C/min, 30-min holds, 1 Hz, 12,600 rows) of noise seed `seed`.
 pub fn short_chamber_run(path: &Path, seed: &str) {
