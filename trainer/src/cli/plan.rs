@@ -63,17 +63,26 @@ pub struct Args {
     /// gyro and on slower designs. What it costs: the soaks take hours the steps, swings and
     /// ramps would have used, so the run excites the lags less, and on some plants the fit
     /// after it is less accurate in use (measured in docs/decisions.md). Refuses --hours too
-    /// short for the soaks, saying how long they need. Without it the plan is the one drawn
-    /// before end soaks existed.
-    #[arg(long)]
+    /// short for the soaks, saying how long they need. Without it (and without --plain), a run
+    /// that keeps 12 h besides them soaks each end 2 h (docs/plan.md, "End soaks"), a shorter
+    /// one not at all: the plan drawn before end soaks existed.
+    #[arg(long, conflicts_with = "plain")]
     soak_ends: bool,
+    /// No end soaks, whatever --hours: the plan drawn before end soaks existed.
+    ///
+    /// The default soaks each end of the range 2 h when the run keeps 12 h besides: after a
+    /// 24-h plan that lowered the soak test's settled spread on 9 of 10 simulated gyros at the
+    /// same in-use accuracy (docs/decisions.md). --plain gives the dynamics those 4 h instead.
+    #[arg(long, conflicts_with = "settled_spread_dph")]
+    plain: bool,
     /// Design the shortest run predicted to meet this settled spread on both plants, °/h.
     ///
     /// The spread of settled bias a soak test reads after the default fit on the run (3-h
     /// holds at 25, 0, 40, -20, 60, 20, -40, 10 °C and at 10, -40, 50, -10, 30, 60, -30,
     /// 0 °C, the worse), on the documented gyro and on one 1.5× as slow. Tries whole hours from
-    /// the shortest the limits allow, up to --hours, each as a plain and, where the end soaks
-    /// fit, a --soak-ends plan; writes the first length that meets it and says which family.
+    /// the shortest the limits allow, up to --hours, each as a plain plan, with 2-h end soaks
+    /// where the length keeps 12 h besides them and, where its end soaks fit, as a --soak-ends
+    /// plan; writes the first length that meets it and says which family.
     /// When none within --hours does: exit 1, nothing written, the best length's figures in
     /// the message. About 10–20 s a length in a release build.
     #[arg(long, value_name = "DPH", conflicts_with = "soak_ends", help_heading = "Spec")]
@@ -224,7 +233,13 @@ fn designed(
             }
         }
         None => {
-            let mut plan = trainer::plan::design(limits, a.seed, a.candidates, a.soak_ends)
+            use trainer::plan::ends::Ends;
+            let ends = match (a.soak_ends, a.plain) {
+                (true, _) => Ends::SlowPlant,
+                (false, true) => Ends::Plain,
+                (false, false) => Ends::Default,
+            };
+            let mut plan = trainer::plan::design(limits, a.seed, a.candidates, ends)
                 .map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
             progress.start("predicting", 2);
             // A plan the default fit cannot learn from is still a plan: written, with the reason.
@@ -255,6 +270,8 @@ fn json_report(plan: &trainer::plan::Plan, spec: Option<&trainer::plan::spec::Sp
         "hours": plan.limits.hours,
         "duration_h": plan.duration_s() / 3600.0,
         "soak_ends": plan.end_soak_s.is_some(),
+        "family": plan.ends.name(plan.end_soak_s),
+        "end_soak_min": plan.end_soak_s.map(|s| s / 60.0),
         "seed": plan.seed,
         "criterion": plan.criterion,
         "predicted": plan.prediction,

@@ -6,18 +6,20 @@
 //! self-heating transient is recorded, levels across the range, full-rate
 //! steps, bursts of swings, slow ramps, holds as long as the slowest coil
 //! mode) and the one whose lag-bank regression on a nominal plant has the
-//! largest D-criterion ([`d_criterion`]) is kept. On request
-//! (`trainer plan --soak-ends`, [`candidate_soaking_ends`]) every candidate
-//! also soaks at both ends of the range long enough for a loop
-//! [`SLOW_PLANT_FACTOR`] times slower than nominal to settle there
-//! ([`end_soak_s`]), so the run reaches the asked range at the loop on plants
-//! other than the nominal one, at the cost of dynamic excitation. Either
-//! way the plan predicts the loop range on both plants. docs/plan.md argues
-//! the choice. Deterministic for a given seed.
+//! largest D-criterion ([`d_criterion`]) is kept. A run long enough to keep
+//! 12 h besides them soaks 2 h at each end of the range by default
+//! ([`ends`], [`candidate_soaking_ends`]); on request (`trainer plan
+//! --soak-ends`) every candidate soaks there long enough for a loop
+//! [`SLOW_PLANT_FACTOR`] times slower than nominal to settle ([`end_soak_s`]),
+//! so the run reaches the asked range at the loop on plants other than the
+//! nominal one, at the cost of dynamic excitation; `--plain` never soaks
+//! the ends. Every way the plan predicts the loop range on both plants.
+//! docs/plan.md argues the choice. Deterministic for a given seed.
 //!
 //! One module a job, each importing only those below it: [`limits`] (the
 //! limits, segments and time arithmetic), [`candidates`], [`criterion`] (the
-//! plan on the plant), this module ([`Plan`], [`design`]) and [`plot`].
+//! plan on the plant), [`ends`] (the end-soak family), this module ([`Plan`],
+//! [`design`]) and [`plot`].
 
 use std::fmt::Write as _;
 
@@ -28,13 +30,14 @@ use crate::simulate::SimParams;
 
 pub mod candidates;
 pub mod criterion;
+pub mod ends;
 pub mod limits;
 pub mod plot;
 pub mod predict;
 pub mod prediction;
 pub mod spec;
 
-use self::{candidates::*, criterion::*, limits::*};
+use self::{candidates::*, criterion::*, ends::Ends, limits::*};
 
 /// A designed profile: the segments, the score of the criterion and what it was chosen among.
 #[derive(Clone, Debug, PartialEq)]
@@ -60,8 +63,10 @@ pub struct Plan {
     pub settled_c: Vec<f64>,
     /// The same on the slow plant, °C.
     pub slow_settled_c: Vec<f64>,
-    /// With `--soak-ends`, each end soak lasts at least this, s
-    /// ([`end_soak_s`]); `None` without (the plan as before the end soaks).
+    /// The end-soak family asked for.
+    pub ends: Ends,
+    /// Each end soak lasts at least this, s ([`Ends::end_soak_s`]); `None`
+    /// without end soaks (the plan as before the end soaks).
     pub end_soak_s: Option<f64>,
     /// The figures predicted after the default fit on the plan's run;
     /// `None` until predicted.
@@ -122,9 +127,9 @@ impl Plan {
         if let Some(end_soak_s) = self.end_soak_s {
             let _ = writeln!(
                 s,
-                "# end_soak_min: {:.1} (at each end of the range: a loop {SLOW_PLANT_FACTOR}× slower than nominal comes within {:.1} °C of where it settles)",
+                "# end_soak_min: {:.1} (at each end of the range: {})",
                 end_soak_s / 60.0,
-                self.limits.reach_c()
+                self.ends.reason(&self.limits)
             );
         }
         let levels = |l: &[f64]| l.iter().map(|t| format!("{t:.1}")).collect::<Vec<_>>().join(",");
@@ -163,6 +168,7 @@ impl Plan {
             Some(s) => format!("soaks of {:.1} min or more at each end", s / 60.0),
             None => "no end soaks: --soak-ends adds them".to_owned(),
         };
+        let slow_soak_min = end_soak_s(&self.limits) / 60.0;
         let mut out = vec![format!(
             "predicted loop range: {lo:.1} … {hi:.1} °C on the nominal plant, {slo:.1} … {shi:.1} °C with every time constant {SLOW_PLANT_FACTOR}× nominal (asked {min_c} … {max_c} °C; {soaks})"
         )];
@@ -179,15 +185,19 @@ impl Plan {
                 .filter(|&(gap, _)| gap > self.limits.reach_c())
                 .map(|(gap, end)| format!("{gap:.1} °C short of {end} °C"))
                 .collect();
-            let remedy = match self.end_soak_s {
-                None => format!(
-                    "--soak-ends closes the gap, at a cost: it holds each end {:.0} min or more out of the {} h, time \
+            let remedy = match (self.ends, self.end_soak_s) {
+                (_, None) => format!(
+                    "--soak-ends closes the gap, at a cost: it holds each end {slow_soak_min:.0} min or more out of the {} h, time \
                      the other ramps and steps no longer get (fewer thermal events to fit the lags on); more --hours \
                      may close it too",
-                    end_soak_s(&self.limits) / 60.0,
                     self.limits.hours
                 ),
-                Some(_) => "its self-heating or lags keep it from the ends; more --hours may close the gap".to_owned(),
+                (Ends::SlowPlant, Some(_)) => {
+                    "its self-heating or lags keep it from the ends; more --hours may close the gap".to_owned()
+                }
+                (_, Some(_)) => format!(
+                    "--soak-ends holds each end {slow_soak_min:.0} min instead, at a cost in dynamic excitation; more --hours may close it too"
+                ),
             };
             out.push(format!(
                 "warning: on {name} the loop is predicted to reach only {:.1} … {:.1} °C, {} (more than the {:.1} °C a fit counts as reached): {remedy}",
@@ -278,17 +288,12 @@ fn ramp_minutes(s: f64) -> String {
 }
 
 /// Designs a plan within `limits`: the best of `candidates` draws from
-/// `seed` by the D-criterion on the documented gyro's plant; with
-/// `soak_ends`, drawn by [`candidate_soaking_ends`], else by [`candidate`]
-/// (the draws are then the same as before end soaks existed).
-pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, soak_ends: bool) -> Result<Plan, String> {
-    let end_soak_s = if soak_ends {
-        limits.check_soaking_ends()?;
-        Some(end_soak_s(limits))
-    } else {
-        limits.check()?;
-        None
-    };
+/// `seed` by the D-criterion on the documented gyro's plant; where `ends`
+/// resolves to end soaks ([`Ends::end_soak_s`]), drawn by
+/// [`candidate_soaking_ends`], else by [`candidate`] (the draws are then the
+/// same as before end soaks existed).
+pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, ends: Ends) -> Result<Plan, String> {
+    let end_soak_s = ends.end_soak_s(limits)?;
     let plant = SimParams::default().plant;
     let indices: Vec<u64> = (0..candidates.max(1) as u64).collect();
     let scored = crate::parallel::parallel_map(&indices, |&i| {
@@ -328,6 +333,7 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, soak_ends: bool
         slow_loop_range_c,
         settled_c: settled(&nominal),
         slow_settled_c: settled(&slow),
+        ends,
         end_soak_s,
         prediction: None,
     })
@@ -392,28 +398,28 @@ mod tests {
             },
         ];
         let slow = d_criterion(&loop_temps(&cycle, &plant), &LIMITS);
-        let plan = design(&LIMITS, 1, 8, false).unwrap();
+        let plan = design(&LIMITS, 1, 8, Ends::Default).unwrap();
         assert!(plan.criterion > slow + 1.0, "plan {} vs cycle {slow}", plan.criterion);
         assert!(plan.criterion >= plan.median_criterion);
     }
 
     #[test]
     fn the_same_seed_gives_the_same_plan() {
-        for soak_ends in [false, true] {
-            let a = design(&LIMITS, 7, 6, soak_ends).unwrap();
-            let b = design(&LIMITS, 7, 6, soak_ends).unwrap();
+        for ends in [Ends::Default, Ends::SlowPlant] {
+            let a = design(&LIMITS, 7, 6, ends).unwrap();
+            let b = design(&LIMITS, 7, 6, ends).unwrap();
             assert_eq!(a.set_points_csv(), b.set_points_csv());
             assert_ne!(
                 a.set_points_csv(),
-                design(&LIMITS, 8, 6, soak_ends).unwrap().set_points_csv()
+                design(&LIMITS, 8, 6, ends).unwrap().set_points_csv()
             );
         }
     }
 
     #[test]
     fn segment_tables_hold_whole_degrees_and_whole_minutes_of_hold_after_a_stated_pre_soak() {
-        for (seed, soak_ends) in [(1, false), (3, false), (7, true)] {
-            let plan = design(&LIMITS, seed, 4, soak_ends).unwrap();
+        for (seed, ends) in [(1, Ends::Default), (3, Ends::Plain), (7, Ends::SlowPlant)] {
+            let plan = design(&LIMITS, seed, 4, ends).unwrap();
             let table = plan.segments_csv();
             for row in table.lines().filter(|l| !l.starts_with('#')).skip(1) {
                 let f: Vec<&str> = row.split(',').collect();
@@ -439,8 +445,14 @@ mod tests {
     fn the_designed_segments_themselves_hold_whole_degrees_and_minutes_within_the_checks() {
         // The plan's values, not only their printing: a hold of 1.3 min
         // printed as 1 would put the table and the set points at odds.
-        for (seed, soak_ends) in [(1, false), (2, false), (5, false), (7, true), (9, true)] {
-            let plan = design(&LIMITS, seed, 4, soak_ends).unwrap();
+        for (seed, ends) in [
+            (1, Ends::Default),
+            (2, Ends::Default),
+            (5, Ends::Plain),
+            (7, Ends::SlowPlant),
+            (9, Ends::SlowPlant),
+        ] {
+            let plan = design(&LIMITS, seed, 4, ends).unwrap();
             for g in &plan.segments {
                 assert!(g.target_c.fract() == 0.0, "seed {seed}: set point {}", g.target_c);
                 assert!(g.hold_s % 60.0 == 0.0, "seed {seed}: hold {} s", g.hold_s);
@@ -459,6 +471,38 @@ mod tests {
             assert!(plan.duration_s() <= LIMITS.hours * 3600.0, "seed {seed}");
             assert!(plan.pre_soak_s() % 60.0 == 0.0 && plan.pre_soak_s() > 0.0);
         }
+    }
+
+    #[test]
+    fn a_long_default_plan_soaks_both_ends_two_hours_and_a_short_one_is_the_plain_draw() {
+        let long = PlanLimits { hours: 24.0, ..LIMITS };
+        let plan = design(&long, 1, 4, Ends::Default).unwrap();
+        assert_eq!(plan.end_soak_s, Some(ends::DEFAULT_END_SOAK_S));
+        let held_at = |end_c: f64| {
+            plan.segments
+                .iter()
+                .filter(|g| g.target_c == end_c)
+                .map(|g| g.hold_s)
+                .fold(0.0, f64::max)
+        };
+        // The cold end's soak may be the power-on soak: the unit is soaked there before it.
+        let cold_start = plan.segments[0].target_c == long.min_c;
+        assert!(
+            cold_start || held_at(long.min_c) >= ends::DEFAULT_END_SOAK_S,
+            "{:?}",
+            plan.segments
+        );
+        assert!(held_at(long.max_c) >= ends::DEFAULT_END_SOAK_S, "{:?}", plan.segments);
+        assert!(
+            plan.set_points_csv()
+                .contains("# end_soak_min: 120.0 (at each end of the range: the default")
+        );
+        // 12 h keep no room besides the soaks: the default is the plain draw.
+        assert_eq!(
+            design(&LIMITS, 1, 4, Ends::Default).unwrap().segments,
+            design(&LIMITS, 1, 4, Ends::Plain).unwrap().segments
+        );
+        assert_eq!(design(&long, 1, 4, Ends::Plain).unwrap().end_soak_s, None);
     }
 
     #[test]

@@ -179,7 +179,7 @@ mod tests {
             max_rate_c_per_min: 5.0,
             hours: 6.0,
         };
-        let plan = super::super::design(&limits, 1, 4, false).unwrap();
+        let plan = super::super::design(&limits, 1, 4, super::super::ends::Ends::Default).unwrap();
         let bench = TestBench::new(PlantKind::Nominal).unwrap();
         let a = bench.judge(&plan).unwrap();
         let b = bench.judge(&plan).unwrap();

@@ -3,7 +3,8 @@
 //!
 //! The lengths tried are whole hours from the shortest the limits allow up
 //! to `--hours` (and `--hours` itself when it is not whole). At each length
-//! the plain plan and, where the length holds its end soaks, the
+//! the plain plan, the default's 2-h end soaks where the length keeps 12 h
+//! besides them ([`Ends::Default`]) and, where the length holds them, the
 //! `--soak-ends` plan are designed and predicted; the length's pick is the
 //! family that meets the spec (the better in use when both do), else the one
 //! of lower settled spread. The lengths are scanned from the shortest up and
@@ -13,6 +14,7 @@
 //! bisection could skip the shortest length that meets it. The price: a
 //! spec that cannot be met is known only after every length up to `--hours`.
 
+use super::ends::Ends;
 use super::limits::PlanLimits;
 use super::predict::{Prediction, TestBench, predict};
 use super::{Plan, design};
@@ -21,7 +23,7 @@ use crate::fit::Progress;
 /// One length's plan, as the search chose its family, and its prediction.
 #[derive(Clone, Debug)]
 pub struct Tried {
-    /// The plan (its `end_soak_s` says the family: `Some` with end soaks).
+    /// The plan (its `ends` and `end_soak_s` say the family).
     pub plan: Plan,
     /// Its figures on both plants.
     pub prediction: Prediction,
@@ -30,10 +32,7 @@ pub struct Tried {
 impl Tried {
     /// The family, as the output names it.
     pub fn family(&self) -> &'static str {
-        match self.plan.end_soak_s {
-            Some(_) => "--soak-ends",
-            None => "plain",
-        }
+        self.plan.ends.name(self.plan.end_soak_s)
     }
 }
 
@@ -104,8 +103,8 @@ pub fn lengths_h(limits: &PlanLimits) -> Vec<f64> {
     out
 }
 
-/// Designs and predicts the plans of one length, both families where the
-/// length allows, and keeps the one the spec prefers.
+/// Designs and predicts the plans of one length, every family the length
+/// allows, and keeps the one the spec prefers.
 fn try_length(
     limits: &PlanLimits,
     hours: f64,
@@ -116,13 +115,16 @@ fn try_length(
     progress: &Progress,
 ) -> anyhow::Result<Tried> {
     let at = PlanLimits { hours, ..*limits };
-    let mut families = vec![false];
+    let mut families = vec![Ends::Plain];
+    if matches!(Ends::Default.end_soak_s(&at), Ok(Some(_))) {
+        families.push(Ends::Default);
+    }
     if at.check_soaking_ends().is_ok() {
-        families.push(true);
+        families.push(Ends::SlowPlant);
     }
     let mut tried = Vec::new();
-    for soak_ends in families {
-        let mut plan = design(&at, seed, candidates, soak_ends).map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
+    for ends in families {
+        let mut plan = design(&at, seed, candidates, ends).map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
         let prediction = predict(&plan, benches, progress)?;
         plan.prediction = Some(prediction);
         tried.push(Tried { plan, prediction });
@@ -167,8 +169,8 @@ pub fn design_for_settled_spread(
     );
     limits.check().map_err(|e| anyhow::anyhow!("cannot plan: {e}"))?;
     let lengths = lengths_h(limits);
-    // Up to two families and two plants a length.
-    progress.start("plan for the spec", 4 * lengths.len() as u64);
+    // Up to three families and two plants a length.
+    progress.start("plan for the spec", 6 * lengths.len() as u64);
     let mut tried: Vec<(usize, Tried)> = Vec::new();
     let mut met = None;
     for (i, &hours) in lengths.iter().enumerate() {

@@ -669,12 +669,18 @@ fn a_settled_spread_spec_gives_the_shortest_plan_predicted_to_meet_it_or_says_it
     let hours = report["hours"].as_f64().unwrap();
     assert_eq!(last["hours"].as_f64().unwrap().to_bits(), hours.to_bits());
     assert!(knots.last().unwrap().0 <= hours * 3600.0, "within the chosen length");
-    // The search picks the family itself.
-    let o = plan(&dir, "c.csv", limits, &["--settled-spread-dph", "0.5", "--soak-ends"]);
-    assert!(
-        !o.status.success() && stderr(&o).contains("cannot be used with"),
-        "{}",
-        stderr(&o)
-    );
-    assert!(!dir.path().join("c.csv").exists());
+    // The search picks the family itself; --plain and --soak-ends are two families.
+    for extra in [
+        &["--settled-spread-dph", "0.5", "--soak-ends"][..],
+        &["--settled-spread-dph", "0.5", "--plain"],
+        &["--plain", "--soak-ends"],
+    ] {
+        let o = plan(&dir, "c.csv", limits, extra);
+        assert!(
+            !o.status.success() && stderr(&o).contains("cannot be used with"),
+            "{extra:?}: {}",
+            stderr(&o)
+        );
+        assert!(!dir.path().join("c.csv").exists());
+    }
 }

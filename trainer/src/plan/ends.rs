@@ -1,0 +1,114 @@
+//! What a plan does at the ends of the range ([`Ends`]): the default soaks
+//! a long run at both ends for [`DEFAULT_END_SOAK_S`], a short one not at
+//! all; `--plain` never; `--soak-ends` as long as a loop
+//! [`SLOW_PLANT_FACTOR`] times slower than nominal needs to settle there.
+//!
+//! Why (docs/decisions.md, "End soaks of 2 h in the default plan of a long
+//! run"): after a 24-h plan the soak test's settled spread fell on 9 of the
+//! simulator's 10 one-unit gyros (geometric mean 0.039 → 0.025 °/h over six
+//! plan draws) with 2-h end soaks, while the in-use mean held (95.8 →
+//! 95.7 %); after a 12-h plan, end soaks of 1–2 h raised it on the
+//! design-1 gyros (0.43 → 0.78 °/h) and fast design 4, and the slow plant's
+//! soaks (4.5 h of the 12) cost up to 25 points in use.
+
+use super::criterion::end_soak_s;
+use super::limits::{PlanLimits, SLOW_PLANT_FACTOR};
+
+/// Each end's soak in the default plan of a long run, s (2 h).
+pub const DEFAULT_END_SOAK_S: f64 = 7200.0;
+
+/// What the default keeps for the rest of the run besides its two end
+/// soaks, s: the 12 h the plain plan's dynamics were validated on. A
+/// shorter budget gets the plain plan.
+pub const DYNAMICS_S: f64 = 12.0 * 3600.0;
+
+/// The end-soak family of a plan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ends {
+    /// `trainer plan`'s default: [`DEFAULT_END_SOAK_S`] at each end when the
+    /// run keeps [`DYNAMICS_S`] besides them, else no end soaks.
+    Default,
+    /// No end soaks (`--plain`): the draws as before end soaks existed.
+    Plain,
+    /// `--soak-ends`: soaks a loop [`SLOW_PLANT_FACTOR`] times slower than
+    /// nominal settles in ([`end_soak_s`]).
+    SlowPlant,
+}
+
+impl Ends {
+    /// Each end's soak under `limits`, s, `None` for none, once the limits
+    /// are checked for this family (the slow plant's soaks need hours).
+    pub fn end_soak_s(self, limits: &PlanLimits) -> Result<Option<f64>, String> {
+        match self {
+            Ends::Plain => limits.check().map(|()| None),
+            Ends::Default => limits.check().map(|()| default_end_soak_s(limits)),
+            Ends::SlowPlant => limits.check_soaking_ends().map(|()| Some(end_soak_s(limits))),
+        }
+    }
+
+    /// The family as `trainer plan` names it, given the soak it resolved to.
+    pub fn name(self, end_soak_s: Option<f64>) -> &'static str {
+        match (self, end_soak_s) {
+            (_, None) => "plain",
+            (Ends::SlowPlant, Some(_)) => "--soak-ends",
+            (_, Some(_)) => "2-h end soaks",
+        }
+    }
+
+    /// Why each end holds as long as it does, for the plan's metadata.
+    pub fn reason(self, limits: &PlanLimits) -> String {
+        match self {
+            Ends::SlowPlant => format!(
+                "a loop {SLOW_PLANT_FACTOR}× slower than nominal comes within {:.1} °C of where it settles",
+                limits.reach_c()
+            ),
+            _ => format!(
+                "the default of a run that keeps {:.0} h besides its end soaks",
+                DYNAMICS_S / 3600.0
+            ),
+        }
+    }
+}
+
+/// The default's soak at each end under `limits`, s: [`DEFAULT_END_SOAK_S`]
+/// when the run keeps [`DYNAMICS_S`] besides the two soaks, else `None`.
+pub fn default_end_soak_s(limits: &PlanLimits) -> Option<f64> {
+    (limits.hours * 3600.0 - 2.0 * DEFAULT_END_SOAK_S >= DYNAMICS_S).then_some(DEFAULT_END_SOAK_S)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIMITS: PlanLimits = PlanLimits {
+        min_c: -40.0,
+        max_c: 60.0,
+        max_rate_c_per_min: 5.0,
+        hours: 12.0,
+    };
+
+    #[test]
+    fn the_default_soaks_the_ends_only_when_twelve_hours_remain_besides() {
+        assert_eq!(Ends::Default.end_soak_s(&LIMITS), Ok(None));
+        let at = |hours: f64| Ends::Default.end_soak_s(&PlanLimits { hours, ..LIMITS });
+        assert_eq!(at(15.9), Ok(None));
+        assert_eq!(at(16.0), Ok(Some(DEFAULT_END_SOAK_S)));
+        assert_eq!(at(24.0), Ok(Some(DEFAULT_END_SOAK_S)));
+        assert_eq!(Ends::Plain.end_soak_s(&PlanLimits { hours: 24.0, ..LIMITS }), Ok(None));
+        // The slow plant's soak is longer than the default's on these limits.
+        let slow = Ends::SlowPlant.end_soak_s(&LIMITS).unwrap().unwrap();
+        assert!(slow > DEFAULT_END_SOAK_S, "{slow}");
+        // Limits no plan meets are refused by every family.
+        let bad = PlanLimits { hours: 1.0, ..LIMITS };
+        for ends in [Ends::Default, Ends::Plain, Ends::SlowPlant] {
+            assert!(ends.end_soak_s(&bad).is_err(), "{ends:?}");
+        }
+    }
+
+    #[test]
+    fn families_are_named_by_what_they_resolved_to() {
+        assert_eq!(Ends::Default.name(None), "plain");
+        assert_eq!(Ends::Default.name(Some(DEFAULT_END_SOAK_S)), "2-h end soaks");
+        assert_eq!(Ends::SlowPlant.name(Some(16_000.0)), "--soak-ends");
+    }
+}
