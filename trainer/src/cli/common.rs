@@ -140,6 +140,19 @@ pub fn print_text(text: &[u8], json_on_stdout: bool) -> std::io::Result<()> {
     }
 }
 
+/// Prints each of `notices` on standard error as a `note:` line, before
+/// the command's own output. A note that cannot be written (standard
+/// error closed) is dropped: it is no reason to fail the command.
+pub fn print_notes(notices: &[String]) {
+    let mut err = stderr();
+    for notice in notices {
+        if writeln!(err, "note: {notice}").is_err() {
+            return;
+        }
+    }
+    let _ = err.flush();
+}
+
 /// The one line a failed print becomes: a reader that stopped early (a
 /// broken pipe, `| head`) is named as such, not as an I/O error.
 fn print_failed(stream: &str, e: std::io::Error) -> anyhow::Error {

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use trainer::evaluation::axes::{self, compensate_command};
 use trainer::text;
 
-use super::common::{AllowUncompensated, ForceArg, print_and_commit};
+use super::common::{AllowUncompensated, ForceArg, print_and_commit, print_notes};
 use super::model_arg::ModelArg;
 use trainer::output::Transaction;
 
@@ -47,6 +47,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.force.existing(),
         a.uncompensated.acceptance(),
     )?;
+    print_notes(axes::gap_notice(&c).as_slice());
     let rows = c.first().map_or(0, |(_, c)| c.rows);
     let flagged = match c.as_slice() {
         [(None, single)] => single.flagged.summary(),

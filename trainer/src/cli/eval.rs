@@ -8,7 +8,7 @@ use trainer::evaluation::axes::evaluate_files;
 use trainer::evaluation::evaluate::RunEvaluation;
 use trainer::evaluation::table::{print_allan_table, print_settled_table, print_table};
 
-use super::common::{AllowUncompensated, ForceArg, JsonArg, print_json_and_commit};
+use super::common::{AllowUncompensated, ForceArg, JsonArg, print_json_and_commit, print_notes};
 use super::model_arg::ModelArg;
 use trainer::output::Transaction;
 
@@ -45,7 +45,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let inputs = a.model.with_evaluated_runs(&a.runs)?;
     let json_out = a.json.sink(&inputs, a.force.existing())?;
     let (model, _) = read_model_file(model_path)?;
-    let evals = evaluate_files(&model, model_path, &a.runs, a.uncompensated.acceptance())?;
+    let (evals, notices) = evaluate_files(&model, model_path, &a.runs, a.uncompensated.acceptance())?;
+    print_notes(&notices);
     let json_on_stdout = json_out.is_stdout();
     let mut transaction = Transaction::new();
     let json = json_out.write(&serde_json::to_value(&evals)?, &mut transaction)?;

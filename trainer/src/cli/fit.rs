@@ -17,7 +17,7 @@ use trainer::records::{Access, Store};
 use trainer::text;
 use trainer::{evaluation::diagnose, reading::input};
 
-use super::common::{JsonSink, print_json_and_commit};
+use super::common::{JsonSink, print_json_and_commit, print_notes};
 
 mod args;
 mod axes;
@@ -103,11 +103,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // The checks `eval` and `compensate` make (units of time, rate and
     // temperature), on the runs the fit read only in blocks; after the fit,
     // whose own refusal names the cause better when nothing was usable.
+    // Their gaps are named as `eval` and `compensate` name them.
     let training_and_validation: Vec<PathBuf> = a.runs.iter().chain(&a.validate).cloned().collect();
-    plausible::require_plausible(
-        &diagnose::implausible_runs(&training_and_validation)?,
-        a.allow_implausible,
-    )?;
+    let findings = diagnose::run_findings(&training_and_validation)?;
+    plausible::require_plausible(&findings.implausible, a.allow_implausible)?;
+    print_notes(&findings.gap_notices);
     if let Some((lo, hi)) = training_loop_range_c(&outcome) {
         let finding = plausible::range_finding("the training runs' loop temperature", lo, hi);
         plausible::require_plausible(finding.as_slice(), a.allow_implausible)?;
@@ -212,6 +212,7 @@ fn score_runs(a: &Args, model: &rbf_core::Model) -> anyhow::Result<Vec<(&'static
         let models = RunModels::one(Some(model), &reader);
         let (evaluation, diagnosis, _) = only_axis(evaluate_reader(&models, reader)?)?;
         plausible::require_plausible(&diagnosis.implausible(), a.allow_implausible)?;
+        print_notes(diagnosis.gap_notice().as_slice());
         evals.push(("holdout", evaluation));
     }
     Ok(evals)

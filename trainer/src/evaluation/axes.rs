@@ -236,7 +236,8 @@ fn on_axis(e: anyhow::Error, axis: Option<Axis>) -> anyhow::Error {
 /// One axis's evaluation of run `path` as `trainer eval` reports it: refused
 /// (naming the axis) when it cannot be evaluated or, unless
 /// `accept`, when no row was compensated (`thermometers`: those the
-/// model reads) or the run is implausible; labelled with its axis.
+/// model reads) or the run is implausible; labelled with its axis and the
+/// run's gaps.
 fn accept_evaluation(
     path: &Path,
     axis: Option<Axis>,
@@ -248,8 +249,14 @@ fn accept_evaluation(
     require_usable(path, evaluation.samples, compensated, &diagnosis, thermometers, accept)
         .map_err(|e| on_axis(e, axis))?;
     evaluation.axis = axis.map(Axis::name);
+    evaluation.gaps = Some(diagnosis.gaps());
     Ok(evaluation)
 }
+
+/// What `trainer eval` found: the evaluations, and the notices of runs
+/// with gaps in their time column ([`RunDiagnosis::gap_notice`]), one per
+/// run file, in the runs' order.
+pub type Evaluated = (Vec<RunEvaluation>, Vec<String>);
 
 /// `trainer eval`: before/after accuracy of the model file on each run (`-`:
 /// standard input), per axis for a multi-axis run, each run read once. A run
@@ -261,17 +268,26 @@ pub fn evaluate_files(
     model_path: &Path,
     paths: &[PathBuf],
     accept: impl Into<Acceptance>,
-) -> anyhow::Result<Vec<RunEvaluation>> {
+) -> anyhow::Result<Evaluated> {
     let accept = accept.into();
     input::check_stdin_once(paths.iter().map(|p| p.as_path()))?;
     let mut evaluations = Vec::new();
+    let mut notices = Vec::new();
     for path in paths {
         let reader = RunReader::open(path)?;
         let (models, labels) = run_models(file, model_path, &reader)?;
         let done = evaluate_reader(&models, reader)?;
+        // Every axis reads the one time column: its gaps are the run's.
+        notices.extend(done.first().and_then(|(_, diagnosis, _)| diagnosis.gap_notice()));
         for ((axis, thermometers), done) in labels.into_iter().zip(done) {
             evaluations.push(accept_evaluation(path, axis, thermometers, done, accept)?);
         }
     }
-    Ok(evaluations)
+    Ok((evaluations, notices))
+}
+
+/// The gap notice of a compensated run ([`RunDiagnosis::gap_notice`]):
+/// its first axis's (every axis reads the one time column).
+pub fn gap_notice(compensations: &AxisCompensations) -> Option<String> {
+    compensations.first().and_then(|(_, c)| c.diagnosis.gap_notice())
 }

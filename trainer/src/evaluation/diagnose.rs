@@ -2,7 +2,8 @@
 //! be compensated or trained on, the message names the cause found in the
 //! rows (temperatures outside the sensor's range, with a units hint; a
 //! sensor fault on every row; a gap at every step; a rate that never
-//! varies) instead of only the flag counts.
+//! varies) instead of only the flag counts. A run that was usable but has
+//! gaps gets a notice naming them ([`RunDiagnosis::gap_notice`]).
 
 use std::path::{Path, PathBuf};
 
@@ -44,6 +45,35 @@ impl Spread {
     }
 }
 
+/// The gaps in a run's time column: time steps over twice the nominal
+/// period, after each of which the compensator's features restart (flag 8
+/// on the rows that follow while they warm up). Four numbers, whatever the
+/// run's length; `trainer eval --json` gives them per run as `gaps`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Gaps {
+    /// Number of gaps.
+    pub count: usize,
+    /// The longest gap's time step (from the row before it to the row after it), s; 0 without gaps.
+    pub longest_s: f64,
+    /// The file line (1-based) of the row right after the longest gap.
+    pub longest_line: Option<usize>,
+    /// The file line (1-based) of the row right after the first gap.
+    pub first_line: Option<usize>,
+}
+
+impl Gaps {
+    /// Takes a gap of `step_s` seconds before the row at `line`; of gaps
+    /// equally long, the first is the longest.
+    fn push(&mut self, line: usize, step_s: f64) {
+        self.count += 1;
+        self.first_line.get_or_insert(line);
+        if self.longest_line.is_none() || step_s > self.longest_s {
+            self.longest_s = step_s;
+            self.longest_line = Some(line);
+        }
+    }
+}
+
 /// A run spanning less than this, s, is named as too short when nothing of
 /// it was usable (ten minutes: the least a fit takes).
 const SHORT_SPAN_S: f64 = 600.0;
@@ -58,7 +88,7 @@ pub struct RunDiagnosis {
     rows: usize,
     first_time_s: Option<f64>,
     prev_time_s: Option<f64>,
-    gaps: usize,
+    gaps: Gaps,
     temp_fault_rows: usize,
     temps: [Spread; THERMOMETERS],
     target_dph: Spread,
@@ -84,7 +114,7 @@ impl RunDiagnosis {
             rows: 0,
             first_time_s: None,
             prev_time_s: None,
-            gaps: 0,
+            gaps: Gaps::default(),
             temp_fault_rows: 0,
             temps: [Spread::EMPTY; THERMOMETERS],
             target_dph: Spread::EMPTY,
@@ -132,7 +162,7 @@ impl RunDiagnosis {
         if let Some(prev) = self.prev_time_s
             && row.time_s - prev > 2.0 * self.nominal_period_s
         {
-            self.gaps += 1;
+            self.gaps.push(line, row.time_s - prev);
         }
         self.prev_time_s = Some(row.time_s);
         self.first_time_s.get_or_insert(row.time_s);
@@ -176,6 +206,39 @@ impl RunDiagnosis {
         )
     }
 
+    /// The gaps seen in the run's time column so far.
+    pub fn gaps(&self) -> Gaps {
+        self.gaps
+    }
+
+    /// The notice of a run with gaps in its time column: how many, the
+    /// longest and the first, each by the file line of the row after it;
+    /// `None` for a run without gaps. A run of gaps only is rather a
+    /// cause of nothing usable ([`RunDiagnosis::causes`]).
+    pub fn gap_notice(&self) -> Option<String> {
+        let gaps = &self.gaps;
+        let first = gaps.first_line?;
+        let longest = gaps.longest_line.unwrap_or(first);
+        let name = text::path(&self.path);
+        let period = sig(self.nominal_period_s);
+        let length = sig(gaps.longest_s);
+        Some(if gaps.count == 1 {
+            format!(
+                "{name}: 1 gap in {TIME} (a time step over twice the nominal period of {period} s): {length} s before line {first}; \
+                 the features restart after it, and the rows that follow warm up (flag 8)",
+                TIME = column::TIME_S
+            )
+        } else {
+            format!(
+                "{name}: {} gaps in {TIME} (time steps over twice the nominal period of {period} s), the longest {length} s \
+                 before line {longest}, the first before line {first}; the features restart after each, and the rows \
+                 that follow warm up (flag 8)",
+                gaps.count,
+                TIME = column::TIME_S
+            )
+        })
+    }
+
     /// What in this run keeps samples from being compensated or trained on,
     /// for `thermometers`; empty when the rows show nothing wrong.
     pub fn causes(&self, thermometers: ThermometerSet) -> Vec<String> {
@@ -208,10 +271,10 @@ impl RunDiagnosis {
                 "{name}: temp_fault is 1 on every row: the temperature sensor never answers"
             ));
         }
-        if self.rows > 1 && 2 * self.gaps >= self.rows - 1 {
+        if self.rows > 1 && 2 * self.gaps.count >= self.rows - 1 {
             causes.push(format!(
                 "{name}: {} of {} time steps are gaps (over twice the nominal period of {} s); each gap restarts the features",
-                self.gaps,
+                self.gaps.count,
                 self.rows - 1,
                 sig(self.nominal_period_s)
             ));
@@ -265,12 +328,22 @@ pub fn with_causes(error: anyhow::Error, paths: &[PathBuf], thermometers: Thermo
     }
 }
 
+/// What [`run_findings`] found in a fit's runs.
+#[derive(Clone, Debug, Default)]
+pub struct RunFindings {
+    /// What is implausible about the runs as gyro recordings ([`RunDiagnosis::implausible`]).
+    pub implausible: Vec<String>,
+    /// The notices of runs with gaps ([`RunDiagnosis::gap_notice`]), one per run.
+    pub gap_notices: Vec<String>,
+}
+
 /// What is implausible about each single-axis run of `paths` as a gyro
-/// recording ([`RunDiagnosis::implausible`]), read through once: the check
+/// recording ([`RunDiagnosis::implausible`]) and which have gaps
+/// ([`RunDiagnosis::gap_notice`]), each read through once: the checks
 /// `eval` and `compensate` make as they go, for the runs a fit reads in
 /// blocks.
-pub fn implausible_runs(paths: &[PathBuf]) -> Result<Vec<String>, RunError> {
-    let mut found = Vec::new();
+pub fn run_findings(paths: &[PathBuf]) -> Result<RunFindings, RunError> {
+    let mut found = RunFindings::default();
     for path in paths {
         let mut reader = RunReader::open(path)?;
         let mut diagnosis =
@@ -278,7 +351,8 @@ pub fn implausible_runs(paths: &[PathBuf]) -> Result<Vec<String>, RunError> {
         while let Some((line, row)) = reader.next_parsed()? {
             diagnosis.push(line, &row);
         }
-        found.extend(diagnosis.implausible());
+        found.implausible.extend(diagnosis.implausible());
+        found.gap_notices.extend(diagnosis.gap_notice());
     }
     Ok(found)
 }
@@ -379,5 +453,68 @@ mod tests {
         );
         let gaps = diagnose((0..10).map(|i| row(10.0 * i as f64, i as f64, 25.0)));
         assert!(gaps[0].contains("9 of 9 time steps are gaps"), "{gaps:?}");
+    }
+
+    #[test]
+    fn gaps_are_counted_and_the_first_and_longest_named_by_line() {
+        // 1 Hz, rows at lines 3 …: a 4.1-s step before the row at line 103
+        // (time 104), a 601-s step before line 203 (time 804), a step of
+        // 1.9 s (jitter, no gap) before line 53.
+        let times = (0..300).map(|i| match i {
+            0..50 => i as f64,
+            50..100 => i as f64 + 0.9,
+            100..200 => i as f64 + 4.0,
+            _ => i as f64 + 604.0,
+        });
+        let mut d = RunDiagnosis::new(Path::new("run.csv"), 1.0);
+        for (i, t) in times.enumerate() {
+            d.push(i + 3, &row(t, i as f64, 25.0));
+        }
+        assert_eq!(
+            d.gaps(),
+            Gaps {
+                count: 2,
+                longest_s: 601.0,
+                longest_line: Some(203),
+                first_line: Some(103),
+            }
+        );
+        assert_eq!(
+            d.gap_notice().as_deref(),
+            Some(
+                "run.csv: 2 gaps in time_s (time steps over twice the nominal period of 1 s), the longest 601 s before \
+                 line 203, the first before line 103; the features restart after each, and the rows that follow warm \
+                 up (flag 8)"
+            )
+        );
+        assert!(
+            d.causes(ThermometerSet::ALL).is_empty(),
+            "{:?}",
+            d.causes(ThermometerSet::ALL)
+        );
+
+        let mut one = RunDiagnosis::new(Path::new("run.csv"), 0.01);
+        for (i, t) in [0.0, 0.01, 0.02, 0.5, 0.51].into_iter().enumerate() {
+            one.push(i + 2, &row(t, i as f64, 25.0));
+        }
+        assert_eq!(one.gaps().count, 1);
+        assert_eq!(
+            one.gap_notice().as_deref(),
+            Some(
+                "run.csv: 1 gap in time_s (a time step over twice the nominal period of 0.01 s): 0.48 s before line 5; \
+                 the features restart after it, and the rows that follow warm up (flag 8)"
+            )
+        );
+    }
+
+    #[test]
+    fn a_run_without_gaps_has_no_gap_notice() {
+        let mut d = RunDiagnosis::new(Path::new("run.csv"), 1.0);
+        for i in 0..700 {
+            d.push(i + 3, &row(i as f64 + 0.4 * (i % 2) as f64, i as f64, 25.0));
+        }
+        assert_eq!(d.gaps(), Gaps::default());
+        assert_eq!(d.gap_notice(), None);
+        assert_eq!(RunDiagnosis::new(Path::new("run.csv"), 1.0).gap_notice(), None);
     }
 }

@@ -14,7 +14,7 @@ use serde::Serialize;
 use crate::dataset::Blocks;
 use crate::dataset::plateaus::{MinuteBlocker, SettledBias};
 use crate::evaluation::allan::{self, AllanDeviation};
-use crate::evaluation::diagnose::RunDiagnosis;
+use crate::evaluation::diagnose::{Gaps, RunDiagnosis};
 use crate::metrics::{BinMeans, CLUSTER_S, MSD_WINDOW_S, improvement_pct, msd_of_means, sample_std};
 use crate::reading::chunked::Batch;
 use crate::reading::run::RunReader;
@@ -109,6 +109,11 @@ pub struct RunEvaluation {
     /// fit's block means, which do not keep the loop temperature.
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     pub settled: Option<SettledBias>,
+    /// The gaps in the run's time column, as `trainer eval` reports them
+    /// ([`crate::evaluation::diagnose::Gaps`]); `None` (absent from the
+    /// JSON) where another command scored the run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gaps: Option<Gaps>,
 }
 
 /// [`RunEvaluation::reference`] of a run without `ref_dph`.
@@ -669,6 +674,7 @@ impl Evaluator {
             allan_before,
             allan_after,
             settled,
+            gaps: None,
         }
     }
 }

@@ -625,6 +625,7 @@ mod tests {
             allan_before: curve(hi),
             allan_after: curve(hi * 0.9),
             settled: None,
+            gaps: None,
         }
     }
 

@@ -393,3 +393,64 @@ fn a_header_with_near_names_names_every_missing_column_and_what_was_meant() {
         ],
     );
 }
+
+#[test]
+fn eval_compensate_and_fit_name_the_gaps_of_a_run_by_line() {
+    let dir = TempDir::new().unwrap();
+    let (model, _) = example_model(&dir);
+    // The 0.2-Hz example (data row k at line k + 2) with 100 s lost before
+    // row 1000 and 600 s before row 1500: steps of 105 s and 605 s.
+    let whole = example_rows(2000);
+    let mut lines = whole.lines();
+    let mut gapped = format!("{}\n", lines.next().unwrap());
+    for (k, line) in lines.enumerate() {
+        let (time, rest) = line.split_once(',').unwrap();
+        let lost = match k {
+            0..1000 => 0.0,
+            1000..1500 => 100.0,
+            _ => 700.0,
+        };
+        gapped.push_str(&format!("{:.4},{rest}\n", time.parse::<f64>().unwrap() + lost));
+    }
+    let run = write(&dir, "gapped.csv", gapped.as_bytes());
+    let notice = format!(
+        "note: {}: 2 gaps in time_s (time steps over twice the nominal period of 5 s), the longest 605 s before line \
+         1502, the first before line 1002; the features restart after each, and the rows that follow warm up (flag 8)\n",
+        run.display()
+    );
+    let m = model.to_str().unwrap();
+    let o = trainer(&["eval", "--model", m, run.to_str().unwrap(), "--json", "-"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).starts_with(&notice), "{}", stderr(&o));
+    assert_eq!(stderr(&o).matches("note:").count(), 1, "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        json[0]["gaps"],
+        serde_json::json!({"count": 2, "longest_s": 605.0, "longest_line": 1502, "first_line": 1002})
+    );
+    assert!(json[0]["msd_improvement_pct"].is_number(), "{json}");
+
+    let out = dir.path().join("out.csv");
+    let o = compensate(&model, &run, &out, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stderr(&o), notice);
+    assert!(stdout(&o).starts_with("wrote "), "{}", stdout(&o));
+    // A single-axis fit names the gaps of its runs as well.
+    let o = fit_ok(&["-q"], &run, &dir.path().join("gapped.bin"));
+    assert_eq!(stderr(&o), notice);
+
+    // Without gaps: no note, and the JSON says none.
+    let whole = write(&dir, "whole.csv", whole.as_bytes());
+    let o = trainer(&["eval", "--model", m, whole.to_str().unwrap(), "--json", "-"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("note:"), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        json[0]["gaps"],
+        serde_json::json!({"count": 0, "longest_s": 0.0, "longest_line": null, "first_line": null})
+    );
+    let out = dir.path().join("whole-out.csv");
+    let o = compensate(&model, &whole, &out, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stderr(&o), "");
+}
