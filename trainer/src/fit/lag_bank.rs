@@ -431,6 +431,21 @@ pub struct BankSearch {
     /// How far past each end of the covered range of T̂ the static cubic is
     /// followed before it continues along its tangent.
     pub extrapolation: Extrapolation,
+    /// Whether, and why, the soft prior held the coil lags ([`prior`]).
+    pub lag_prior: LagPrior,
+}
+
+/// Whether the soft prior on the coil lags and the gain ([`prior`]) was applied.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LagPrior {
+    /// Not applied: validation on held-out events or runs judged the lags.
+    None,
+    /// The runs hold too few thermal events to validate the lags on.
+    FewEvents,
+    /// Without it no candidate's lags were ones the blob carries (hours of
+    /// opposite sign, or over a day per °C/min), so the search ran again with it.
+    NoBankWithout,
 }
 
 /// The edge test's verdict at both ends of the covered range of T̂.
@@ -526,9 +541,11 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
         coverage.settled_c = settled_levels_c(&data.time_s, &data.temp_c, &data.run, data.row_s);
         coverage
     };
+    let mut lag_prior = LagPrior::None;
     for ((data, val), f) in ladders.iter_mut().zip(&folds) {
         if val.is_none() && f.kind == FoldKind::Contiguous {
             data.lag_prior_dph = LAG_PRIOR_DPH;
+            lag_prior = LagPrior::FewEvents;
         }
     }
     let structures: Vec<Structure> = CANDIDATES
@@ -542,48 +559,68 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             })
         })
         .collect();
-    progress.start("lag-bank structure", structures.len() as u64);
-    let results = parallel_map(&structures, |s| {
-        let (data, val) = &ladders[s.ladder];
-        let all: Vec<usize> = (0..data.len()).collect();
-        let full = fit_structure(s, t0, data, &all, &START_LAGS_MIN);
-        let score = match (&full, val) {
-            (None, _) => f64::INFINITY,
-            (Some(full), Some(val)) => {
-                let rows: Vec<usize> = (0..val.len()).collect();
-                score(s, &[(full.clone(), rows)], t0, val)
-            }
-            (Some(full), None) => {
-                // Each fold starts from the full fit's solution (one start).
-                let f = &folds[s.ladder];
-                let fits: Vec<(Fitted, Vec<usize>)> = (0..f.held_out.len())
-                    .filter_map(|k| {
-                        let rows = f.train_rows(k, data.len());
-                        let (p, c) = levenberg_marquardt(s, full.p.clone(), t0, data, &rows);
-                        c.is_finite()
-                            .then(|| (Fitted::new(s, p, data, &rows), f.held_out[k].clone()))
-                    })
-                    .collect();
-                score(s, &fits, t0, data)
-            }
-        };
-        progress.inc();
-        (full, score)
-    });
-    progress.finish();
-    let chosen = results
-        .iter()
-        .enumerate()
-        // Only banks the blob can carry: a candidate whose identified coil
-        // lags exceed a day per °C/min is passed over, not deployed.
-        .filter(|(i, (f, sc))| sc.is_finite() && f.as_ref().is_some_and(|f| to_bank(&structures[*i], f, t0).is_some()))
-        .min_by(|a, b| a.1.1.total_cmp(&b.1.1))
-        .map(|(i, _)| i)
-        .ok_or_else(|| {
-            anyhow::anyhow!(
-                "no lag-bank structure could be identified from the training runs (singular data, or coil lags over a day)"
-            )
-        })?;
+    // Every candidate fitted and scored on `ladders`, and the best the blob can carry.
+    let identify = |ladders: &[(LadderData, Option<LadderData>)]| {
+        progress.start("lag-bank structure", structures.len() as u64);
+        let results = parallel_map(&structures, |s| {
+            let (data, val) = &ladders[s.ladder];
+            let all: Vec<usize> = (0..data.len()).collect();
+            let full = fit_structure(s, t0, data, &all, &START_LAGS_MIN);
+            let score = match (&full, val) {
+                (None, _) => f64::INFINITY,
+                (Some(full), Some(val)) => {
+                    let rows: Vec<usize> = (0..val.len()).collect();
+                    score(s, &[(full.clone(), rows)], t0, val)
+                }
+                (Some(full), None) => {
+                    // Each fold starts from the full fit's solution (one start).
+                    let f = &folds[s.ladder];
+                    let fits: Vec<(Fitted, Vec<usize>)> = (0..f.held_out.len())
+                        .filter_map(|k| {
+                            let rows = f.train_rows(k, data.len());
+                            let (p, c) = levenberg_marquardt(s, full.p.clone(), t0, data, &rows);
+                            c.is_finite()
+                                .then(|| (Fitted::new(s, p, data, &rows), f.held_out[k].clone()))
+                        })
+                        .collect();
+                    score(s, &fits, t0, data)
+                }
+            };
+            progress.inc();
+            (full, score)
+        });
+        progress.finish();
+        let chosen = results
+            .iter()
+            .enumerate()
+            // Only banks the blob can carry: a candidate whose identified coil
+            // lags exceed a day per °C/min is passed over, not deployed.
+            .filter(|(i, (f, sc))| {
+                sc.is_finite() && f.as_ref().is_some_and(|f| to_bank(&structures[*i], f, t0).is_some())
+            })
+            .min_by(|a, b| a.1.1.total_cmp(&b.1.1))
+            .map(|(i, _)| i);
+        (results, chosen)
+    };
+    let (mut results, mut chosen) = identify(&ladders);
+    if chosen.is_none() && ladders.iter().any(|(d, _)| d.lag_prior_dph == 0.0) {
+        // Without the prior every candidate's lags ran to hours of opposite
+        // sign or past what the blob carries (a loop sensor deep in the coil,
+        // design 1 of the simulator, after some plans): the soft prior holds
+        // each lag near its filter's time constant, as for runs too short to
+        // validate on, and the structure choice below still weighs the
+        // response bank against it.
+        for (data, _) in &mut ladders {
+            data.lag_prior_dph = LAG_PRIOR_DPH;
+        }
+        lag_prior = LagPrior::NoBankWithout;
+        (results, chosen) = identify(&ladders);
+    }
+    let chosen = chosen.ok_or_else(|| {
+        anyhow::anyhow!(
+            "no lag-bank structure could be identified from the training runs (singular data, or coil lags over a day)"
+        )
+    })?;
     let s = structures[chosen];
     // The chosen bank's blocks are cut from its ladder's; the other ladder's
     // are not read again.
@@ -624,6 +661,7 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             events: folds[s.ladder].events,
             coverage,
             extrapolation,
+            lag_prior,
         },
     ))
 }

@@ -258,6 +258,13 @@ pub(super) fn write_bank(
         search.candidates.len(),
         search.held_out_rms_dph()
     )?;
+    if search.lag_prior == fit::lag_bank::LagPrior::NoBankWithout {
+        writeln!(
+            out,
+            "coil lags held near their filters' time constants by the soft prior: without it no candidate's lags \
+             were ones the blob carries (hours of opposite sign, or over a day per °C/min)"
+        )?;
+    }
     let dims = model.features().dims();
     let mut covered = Vec::new();
     for i in 0..dims {
