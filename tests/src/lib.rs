@@ -1,5 +1,6 @@
 //! Shared helpers of the cross-crate end-to-end tests.
 
+#[cfg(feature = "full")]
 pub mod fixtures;
 pub mod robustness;
 

@@ -20,23 +20,41 @@
 
 #![forbid(unsafe_code)]
 
+#[cfg(feature = "full")]
 pub mod acceptance;
+#[cfg(feature = "full")]
 pub mod blobfile;
+#[cfg(feature = "full")]
 pub mod calibration;
+#[cfg(feature = "full")]
 pub mod dataset;
+#[cfg(feature = "full")]
 pub mod describe;
+#[cfg(feature = "full")]
 pub mod device;
+#[cfg(feature = "full")]
 pub mod evaluation;
+#[cfg(feature = "full")]
 pub mod fit;
+#[cfg(feature = "full")]
 pub mod metrics;
+#[cfg(feature = "full")]
 pub mod output;
+#[cfg(feature = "full")]
 pub mod parallel;
+#[cfg(feature = "full")]
 pub mod plan;
+#[cfg(feature = "full")]
 pub mod plotting;
+#[cfg(feature = "full")]
 pub mod provenance;
 pub mod reading;
+#[cfg(feature = "full")]
 pub mod records;
+#[cfg(feature = "full")]
 pub mod refusals;
+#[cfg(feature = "full")]
 pub mod report;
+#[cfg(feature = "full")]
 pub mod simulate;
 pub mod text;

@@ -26,14 +26,11 @@ pub fn parse_summary(line: &str) -> Option<(u32, u32)> {
 /// summary is missing.
 pub fn board_faults() -> anyhow::Result<()> {
     let output = Command::new("cargo")
-        .args([
-            "test",
-            "--quiet",
-            "--package",
-            "firmware-harness",
-            "--test",
-            "board_faults",
-        ])
+        // `--workspace` rather than `--package firmware-harness`: the workspace's feature
+        // resolution, so that the test builds from (and leaves for) the crates `cargo test
+        // --workspace` builds; the package alone resolved other features and compiled
+        // rbf-core, gyro-wire, firmware and the harness a second time.
+        .args(["test", "--quiet", "--workspace", "--test", "board_faults"])
         .current_dir(workspace_root())
         .output()
         .context("cannot start cargo test")?;

@@ -31,7 +31,7 @@ fn ensure_toolchain() -> anyhow::Result<()> {
 /// Wall time per CI step, printed at the end: where CI's minutes go.
 struct StepClock {
     last: Instant,
-    laps: Vec<(&'static str, f64)>,
+    laps: Vec<(String, f64)>,
 }
 
 impl StepClock {
@@ -43,9 +43,9 @@ impl StepClock {
     }
 
     /// Ends the step `name`, begun when the last one ended.
-    fn lap(&mut self, name: &'static str) {
+    fn lap(&mut self, name: impl Into<String>) {
         let now = Instant::now();
-        self.laps.push((name, (now - self.last).as_secs_f64()));
+        self.laps.push((name.into(), (now - self.last).as_secs_f64()));
         self.last = now;
     }
 
@@ -96,9 +96,54 @@ fn run_tests(args: &[&str]) -> anyhow::Result<(u64, u64)> {
     Ok((passed, failed))
 }
 
+/// Clippy with `-D warnings`: the host workspace (every target), then the firmware's
+/// feature sets for the target, with the no_std check of rbf-core and gyro-wire.
+fn clippy(
+    qemu_boards: &[&str],
+    panic_check: &[&str],
+    image_args: impl Fn(&crate::firmware::BoardImage) -> [&'static str; 8],
+) -> anyhow::Result<()> {
+    run(
+        "cargo",
+        &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
+    )?;
+    // The no_std check of rbf-core and gyro-wire (without their default `std`, for the
+    // target) in the same run as the QEMU test images: one feature resolution, so the proc
+    // macros both use compile once.
+    run(
+        "cargo",
+        &[
+            &[
+                "clippy",
+                "--package",
+                "rbf-core",
+                "--package",
+                "gyro-wire",
+                "--no-default-features",
+                "--package",
+                crate::c_library::PACKAGE,
+                "--lib",
+            ][..],
+            qemu_boards,
+            &["--", "-D", "warnings"],
+        ]
+        .concat(),
+    )?;
+    for args in crate::firmware::BOARD_IMAGES.iter().map(image_args) {
+        run(
+            "cargo",
+            &[&["clippy"][..], &args[..], &["--", "-D", "warnings"]].concat(),
+        )?;
+    }
+    run(
+        "cargo",
+        &[&["clippy"][..], panic_check, &["--", "-D", "warnings"]].concat(),
+    )
+}
+
 /// fmt, the import circles and the C header's drift, clippy (host and firmware) with the no_std
-/// check, firmware builds, the panic-free checks (firmware and C library), host tests beside the
-/// fuzz build, the tests needing QEMU (and the C library's replays), then 20 s of fuzzing (the targets
+/// check and the board faults beside the firmware builds and the panic-free checks (firmware and
+/// C library), host tests beside the fuzz build, the tests needing QEMU (and the C library's replays), then 20 s of fuzzing (the targets
 /// side by side) beside the test needing PyPI; ends with `N passed, N failed`.
 pub fn ci() -> anyhow::Result<()> {
     let started = Instant::now();
@@ -114,11 +159,6 @@ pub fn ci() -> anyhow::Result<()> {
     crate::import_circles::import_circles()?;
     crate::c_library::check_header()?;
     clock.lap("fmt, import circles and the C header");
-    run(
-        "cargo",
-        &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
-    )?;
-    clock.lap("clippy, host workspace");
     // The QEMU test images (qemu-bench, and qemu-replay and qemu-faults on
     // the test harnesses), then each board image on its own: its HAL
     // switches cortex-m-rt to device mode, whose vector table the QEMU test
@@ -155,59 +195,50 @@ pub fn ci() -> anyhow::Result<()> {
             image.bin,
         ]
     };
-    // The no_std check of rbf-core and gyro-wire (without their default `std`, for the
-    // target) in the same run as the QEMU test images: one feature resolution, so the proc
-    // macros both use compile once.
-    run(
-        "cargo",
-        &[
-            &[
-                "clippy",
-                "--package",
-                "rbf-core",
-                "--package",
-                "gyro-wire",
-                "--no-default-features",
-                "--package",
-                crate::c_library::PACKAGE,
-                "--lib",
-            ][..],
-            &qemu_boards[..],
-            &["--", "-D", "warnings"],
-        ]
-        .concat(),
-    )?;
-    for args in crate::firmware::BOARD_IMAGES
-        .iter()
-        .map(image_args)
-        .chain([panic_check])
-    {
-        run(
-            "cargo",
-            &[&["clippy"][..], &args[..], &["--", "-D", "warnings"]].concat(),
-        )?;
-    }
-    clock.lap("clippy, firmware feature sets and the rbf-core and gyro-wire no_std check");
-    // The QEMU test images, then the images that are flashed (the QEMU board
-    // images are built by the tests that run them).
-    crate::firmware::build_release(&qemu_boards)?;
-    for image in crate::firmware::BOARD_IMAGES
-        .iter()
-        .filter(|i| i.feature != "board-qemu")
-    {
-        crate::firmware::build_release(&image_args(image))?;
-    }
-    clock.lap("firmware release images");
-    crate::firmware::check_panic_free()?;
-    crate::c_library::check_panic_free()?;
-    crate::board_faults::board_faults()?;
-    clock.lap("panic-free check and board faults");
-    // Beside the host tests, at the lowest CPU priority, the fuzz targets'
-    // instrumented build (its own target folder). Not beside the QEMU tests:
-    // their boards run in real time, and on a loaded machine a board that
-    // falls behind drops samples, which its recordings then show.
+    // Two sides at once, each in a target folder of its own (so neither waits on the
+    // other's cargo lock, and the core one side's single-threaded stretches leave
+    // idle, such as the images' LTO, works for the other): clippy and the board-fault
+    // scenarios in `target/`, the release builds in `target/firmware/`.
+    let (clippy, firmware) = std::thread::scope(|scope| {
+        let firmware = scope.spawn(|| {
+            let started = Instant::now();
+            // The QEMU test images, then every board image (the QEMU ones too, which
+            // the QEMU tests would otherwise build then, alone), then the panic-free
+            // checks of the firmware and of the C library, then the C library builds
+            // the C library tests link (host, and the Cortex-M4F under QEMU).
+            crate::firmware::build_release(&qemu_boards)?;
+            for image in &crate::firmware::BOARD_IMAGES {
+                crate::firmware::build_release(&image_args(image))?;
+            }
+            crate::firmware::check_panic_free()?;
+            crate::c_library::check_panic_free()?;
+            for target in [crate::c_library::CTarget::Host, crate::c_library::CTarget::Qemu] {
+                crate::c_library::build_library(target, &[])?;
+            }
+            anyhow::Ok(started.elapsed().as_secs_f64())
+        });
+        let started = Instant::now();
+        let clippy = clippy(&qemu_boards, &panic_check, image_args)
+            .and_then(|()| crate::board_faults::board_faults())
+            .map(|()| started.elapsed().as_secs_f64());
+        let firmware = firmware
+            .join()
+            .unwrap_or_else(|_| Err(anyhow::anyhow!("the firmware builds' thread panicked")));
+        (clippy, firmware)
+    });
+    let (clippy, firmware) = (clippy?, firmware?);
+    clock.lap(format!(
+        "clippy (host, firmware feature sets, no_std check) and board faults ({clippy:.0} s) \
+         beside the firmware images, panic-free checks and C library builds ({firmware:.0} s)"
+    ));
+    // Beside the host tests, the fuzz targets' instrumented build (its own target
+    // folder). Not beside the QEMU tests: their boards run in real time, and on a
+    // loaded machine a board that falls behind drops samples, which its recordings
+    // then show. At the normal CPU priority: it is ~1 min of CPU now that it builds
+    // the run reader without the rest of the trainer, and under `nice -n 19` on a
+    // machine others loaded it got no CPU and outlasted the host tests (6–8 min).
     let (mut passed, mut failed) = std::thread::scope(|scope| {
-        let fuzz_build = scope.spawn(|| crate::fuzz::build_targets(crate::fuzz::Priority::Background));
+        let fuzz_build = scope.spawn(|| crate::fuzz::build_targets(crate::fuzz::Priority::Normal));
         let host = run_tests(&["test", "--workspace"]);
         let fuzz_build = fuzz_build
             .join()
