@@ -80,12 +80,7 @@ pub fn default_end_soak_s(limits: &PlanLimits) -> Option<f64> {
 mod tests {
     use super::*;
 
-    const LIMITS: PlanLimits = PlanLimits {
-        min_c: -40.0,
-        max_c: 60.0,
-        max_rate_c_per_min: 5.0,
-        hours: 12.0,
-    };
+    use crate::plan::limits::TEST_LIMITS as LIMITS;
 
     #[test]
     fn the_default_soaks_the_ends_only_when_twelve_hours_remain_besides() {

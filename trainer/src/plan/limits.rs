@@ -41,6 +41,16 @@ pub const MAX_HOURS: f64 = 168.0;
 /// Candidates drawn unless `--candidates` says otherwise.
 pub const DEFAULT_CANDIDATES: usize = 96;
 
+/// The limits the plan's tests design within: the chamber, −40 …
+/// 60 °C at 5 °C/min, for 12 h.
+#[cfg(test)]
+pub(super) const TEST_LIMITS: PlanLimits = PlanLimits {
+    min_c: -40.0,
+    max_c: 60.0,
+    max_rate_c_per_min: 5.0,
+    hours: 12.0,
+};
+
 /// What the chamber allows and how long the run may take.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlanLimits {

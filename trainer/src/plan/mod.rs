@@ -343,12 +343,7 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, ends: Ends) -> 
 mod tests {
     use super::*;
 
-    const LIMITS: PlanLimits = PlanLimits {
-        min_c: -40.0,
-        max_c: 60.0,
-        max_rate_c_per_min: 5.0,
-        hours: 12.0,
-    };
+    use super::limits::TEST_LIMITS as LIMITS;
 
     #[test]
     fn candidates_keep_every_limit_and_end_within_the_budget() {
