@@ -234,11 +234,10 @@ pub fn ci() -> anyhow::Result<()> {
     // Beside the host tests, the fuzz targets' instrumented build (its own target
     // folder). Not beside the QEMU tests: their boards run in real time, and on a
     // loaded machine a board that falls behind drops samples, which its recordings
-    // then show. At the normal CPU priority: it is ~1 min of CPU now that it builds
-    // the run reader without the rest of the trainer, and under `nice -n 19` on a
-    // machine others loaded it got no CPU and outlasted the host tests (6–8 min).
+    // then show. At the normal CPU priority: it builds the run reader alone, and at
+    // the lowest one a machine others load starves it past the host tests' end.
     let (mut passed, mut failed) = std::thread::scope(|scope| {
-        let fuzz_build = scope.spawn(|| crate::fuzz::build_targets(crate::fuzz::Priority::Normal));
+        let fuzz_build = scope.spawn(crate::fuzz::build_targets);
         let host = run_tests(&["test", "--workspace"]);
         let fuzz_build = fuzz_build
             .join()

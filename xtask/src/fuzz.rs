@@ -49,28 +49,14 @@ pub fn ensure_cargo_fuzz() -> anyhow::Result<()> {
 /// Builds every target and runs each for `seconds`, all at once; prints a table and fails on
 /// any finding.
 pub fn fuzz(seconds: u32) -> anyhow::Result<Vec<FuzzOutcome>> {
-    build_targets(Priority::Normal)?;
+    build_targets()?;
     run_targets(seconds)
 }
 
-/// The CPU priority of the fuzz build.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Priority {
-    /// As any other command.
-    Normal,
-    /// The lowest (`nice -n 19`): the build takes only the cores that what runs beside
-    /// it leaves idle (CI's QEMU boards, which run in real time).
-    Background,
-}
-
 /// Installs cargo-fuzz when missing and builds every target (`--dev`, no sanitizer).
-pub fn build_targets(priority: Priority) -> anyhow::Result<()> {
+pub fn build_targets() -> anyhow::Result<()> {
     ensure_cargo_fuzz()?;
-    let build = ["fuzz", "build", "--dev", "--fuzz-dir", "fuzz", "-s", "none"];
-    match priority {
-        Priority::Normal => run("cargo", &build),
-        Priority::Background => run("nice", &[&["-n", "19", "cargo"][..], &build[..]].concat()),
-    }
+    run("cargo", &["fuzz", "build", "--dev", "--fuzz-dir", "fuzz", "-s", "none"])
 }
 
 /// Runs every target (built by [`build_targets`]) for `seconds`, all at once, from a fresh

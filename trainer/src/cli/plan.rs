@@ -71,8 +71,8 @@ pub struct Args {
     /// No end soaks, whatever --hours: the plan drawn before end soaks existed.
     ///
     /// The default soaks each end of the range 2 h when the run keeps 12 h besides: after a
-    /// 24-h plan that lowered the soak test's settled spread on 9 of 10 simulated gyros at the
-    /// same in-use accuracy (docs/decisions.md). --plain gives the dynamics those 4 h instead.
+    /// 24-h plan that lowered the soak test's settled spread at the same in-use accuracy
+    /// (measured in docs/decisions.md). --plain gives the dynamics those 4 h instead.
     #[arg(long, conflicts_with = "settled_spread_dph")]
     plain: bool,
     /// Design the shortest run predicted to meet this settled spread on both plants, °/h.

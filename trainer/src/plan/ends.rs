@@ -4,12 +4,10 @@
 //! [`SLOW_PLANT_FACTOR`] times slower than nominal needs to settle there.
 //!
 //! Why (docs/decisions.md, "End soaks of 2 h in the default plan of a long
-//! run"): after a 24-h plan the soak test's settled spread fell on 9 of the
-//! simulator's 10 one-unit gyros (geometric mean 0.039 → 0.025 °/h over six
-//! plan draws) with 2-h end soaks, while the in-use mean held (95.8 →
-//! 95.7 %); after a 12-h plan, end soaks of 1–2 h raised it on the
-//! design-1 gyros (0.43 → 0.78 °/h) and fast design 4, and the slow plant's
-//! soaks (4.5 h of the 12) cost up to 25 points in use.
+//! run"): a fit identifies the settled bias at the ends from holds there, so
+//! after a 24-h plan 2-h end soaks lowered the soak test's settled spread at
+//! the same in-use accuracy; a 12-h plan cannot spare those hours from the
+//! dynamics, and the slow plant's longer soaks cost accuracy in use.
 
 use super::criterion::end_soak_s;
 use super::limits::{PlanLimits, SLOW_PLANT_FACTOR};

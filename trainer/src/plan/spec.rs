@@ -14,7 +14,7 @@
 //! bisection could skip the shortest length that meets it. The price: a
 //! spec that cannot be met is known only after every length up to `--hours`.
 
-use super::ends::Ends;
+use super::ends::{Ends, default_end_soak_s};
 use super::limits::PlanLimits;
 use super::predict::{Prediction, TestBench, predict};
 use super::{Plan, design};
@@ -116,7 +116,7 @@ fn try_length(
 ) -> anyhow::Result<Tried> {
     let at = PlanLimits { hours, ..*limits };
     let mut families = vec![Ends::Plain];
-    if matches!(Ends::Default.end_soak_s(&at), Ok(Some(_))) {
+    if default_end_soak_s(&at).is_some() {
         families.push(Ends::Default);
     }
     if at.check_soaking_ends().is_ok() {
