@@ -52,7 +52,7 @@ const MAX_TAU_S: f32 = 86_400.0;
 /// Largest |a_k|, minutes: a coil cannot lag its sensor by more than a day per °C/min.
 const MAX_COIL_LAG_MIN: f32 = 1440.0;
 /// Largest |temperature| a bank's reference and range may name, °C.
-const MAX_TEMP_C: f32 = 1000.0;
+pub const MAX_TEMP_C: f32 = 1000.0;
 
 /// The temperature the Shupe gain g is a polynomial in.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

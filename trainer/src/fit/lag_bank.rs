@@ -632,12 +632,16 @@ pub fn search<T: RunSet + ?Sized, V: RunSet + ?Sized>(
     validate.release(&unused, opts.block_s);
     let mut fitted = results[chosen].0.clone().expect("chosen among fitted candidates");
     let extrapolation = edge_test(&s, &fitted, t0, &ladders[s.ladder].0);
+    // Followed past the covered range at most to the blob's limit: with coil
+    // lags of hours the estimated coil temperature spans hundreds of °C, and
+    // a band's width past it would leave a bank no blob carries.
+    let limit_c = f64::from(rbf_core::lag_bank::MAX_TEMP_C);
     fitted.range = (
-        fitted.range.0 - extrapolation.lower.reach_c,
-        fitted.range.1 + extrapolation.upper.reach_c,
+        (fitted.range.0 - extrapolation.lower.reach_c).max(-limit_c),
+        (fitted.range.1 + extrapolation.upper.reach_c).min(limit_c),
     );
     let bank = to_bank(&s, &fitted, t0).ok_or_else(|| {
-        anyhow::anyhow!("the identified lag bank is out of the firmware's range (coil lags over a day)")
+        anyhow::anyhow!("the identified lag bank is out of the firmware's range (coil lags over a day per °C/min)")
     })?;
     let (fold_kind, fold_count) = if validate.count() > 0 {
         (FoldKind::Runs, validate.count())
