@@ -18,6 +18,7 @@
 //! and each run's noise ceiling (the same run with `--noise-only`);
 //! `summary`: the forecasts' factors and each plant against the targets.
 
+mod settled;
 mod summary;
 
 use std::path::{Path, PathBuf};
@@ -57,6 +58,9 @@ pub struct InUseOptions {
     /// Without `plan`: the plans of [`DEFAULT_PLAN`] with seeds 1 … this
     /// (at least 1), each a planned training of its own.
     pub plan_seeds: u64,
+    /// Without `plan`: the lengths of those plans, h, each with every seed
+    /// (empty: [`DEFAULT_PLAN_HOURS`]). Issue 48 judges 12 and 24.
+    pub plan_hours: Vec<f64>,
 }
 
 /// A simulated gyro: label, `trainer simulate` options, whether `--quick` keeps it.
@@ -137,24 +141,30 @@ const PLANT_SEED_STEP: u64 = 1000;
 /// Sample rate of every run, Hz: one 100-s cluster is 100 samples.
 const RATE_HZ: f64 = 1.0;
 
-/// `trainer plan` options of the planned run every plant is trained on
-/// unless `--plan` names another: the 12-h −40 … 60 °C plan at 5 °C/min,
-/// the command the handed-out designs' planned runs name.
-pub const DEFAULT_PLAN: [&str; 8] = [
-    "--min-c",
-    "-40",
-    "--max-c",
-    "60",
-    "--max-rate-c-per-min",
-    "5",
-    "--hours",
-    "12",
-];
+/// `trainer plan` limits of the planned runs every plant is trained on
+/// unless `--plan` names another: −40 … 60 °C at 5 °C/min, the command the
+/// handed-out designs' planned runs name, for `--hours` of
+/// [`InUseOptions::plan_hours`].
+pub const DEFAULT_PLAN: [&str; 6] = ["--min-c", "-40", "--max-c", "60", "--max-rate-c-per-min", "5"];
+
+/// The default plan's length, h: the 12-h plan of the handed-out designs.
+pub const DEFAULT_PLAN_HOURS: f64 = 12.0;
+
+/// One planned training run's plan.
+#[derive(Clone, Debug)]
+struct PlannedRun {
+    /// The set-point file (`trainer simulate --chamber-profile`).
+    plan: PathBuf,
+    /// How the tables name it.
+    name: String,
+    /// The plan's length, h (`None`: a `--plan` file, not designed here).
+    hours: Option<f64>,
+}
 
 /// The training runs, in print order: a planned run per plan of `plans`
 /// (path, name), the cycle, the designed run.
-fn training_runs(plans: &[(PathBuf, String)]) -> Vec<(Training, RunSpec)> {
-    let planned = plans.iter().map(|(plan, name)| {
+fn training_runs(plans: &[PlannedRun]) -> Vec<(Training, RunSpec)> {
+    let planned = plans.iter().map(|PlannedRun { plan, name, .. }| {
         let plan = plan.to_str().expect("a UTF-8 path for the plan");
         // The same run seed: only the plan differs between the planned runs.
         (
@@ -289,6 +299,8 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
     let mut plants_json = Vec::new();
     let mut summary = Vec::new();
     let mut soak_table: Vec<(String, Vec<Option<f64>>)> = Vec::new();
+    let mut settled_rows = Vec::new();
+    let plan_hours: Vec<Option<f64>> = plans.iter().map(|p| p.hours).collect();
     for (p, plant) in plants(opts).iter().enumerate() {
         let runs = PlantRuns {
             bench: &bench,
@@ -296,26 +308,36 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             index: p,
         };
         let (plant_json, plant_summary, soak_spreads) = runs.bench_plant(&training, &in_use)?;
+        let verdicts = settled::verdicts(&plant_summary, &soak_spreads, &plan_hours);
+        let mut plant_json = plant_json;
+        plant_json["settled_summary"] = json!(verdicts.iter().map(settled::LengthVerdict::to_json).collect::<Vec<_>>());
         plants_json.push(plant_json);
+        settled_rows.push((plant.name.clone(), verdicts));
         soak_table.push((plant.name.clone(), soak_spreads));
         summary.push(plant_summary);
     }
     let columns: Vec<(Training, &str)> = training.iter().map(|(kind, run)| (*kind, run.name.as_str())).collect();
     print!("{}", summary_table(&summary, &columns));
     print_soak_table(&soak_table, &training);
+    print!("{}", settled::settled_table(&settled_rows));
     let runtime_s = started.elapsed().as_secs_f64();
     println!("in-use section: {runtime_s:.0} s");
     Ok(json!({
         "judged_trainer": judged.display().to_string(),
         "fit_args": opts.fit_args,
-        "plan": plans.first().map(|p| p.0.display().to_string()),
-        "plans": plans.iter().map(|p| p.0.display().to_string()).collect::<Vec<_>>(),
+        "plan": plans.first().map(|p| p.plan.display().to_string()),
+        "plans": plans.iter().map(|p| p.plan.display().to_string()).collect::<Vec<_>>(),
+        "plan_hours": plan_hours,
         "rate_hz": RATE_HZ,
         "targets": {
             "planned_mean_pct": TARGET_PLANNED_MEAN_PCT,
             "planned_worst_pct": TARGET_PLANNED_WORST_PCT,
             "cycle_mean_pct": TARGET_CYCLE_MEAN_PCT,
             "forecast_factor": TARGET_FORECAST_FACTOR,
+            "settled_spread_dph": settled::SOAK_TARGETS_DPH
+                .iter()
+                .map(|(hours, dph)| json!({ "plan_hours": hours, "max_dph": dph }))
+                .collect::<Vec<_>>(),
         },
         "plants": plants_json,
         "runtime_s": runtime_s,
@@ -336,29 +358,47 @@ struct Bench<'a> {
     dir: &'a Path,
 }
 
-/// The planned training runs: `--plan`'s, or the default plan of seeds 1 …
-/// `--plan-seeds`, made by `simulator` (the plan is part of the protocol,
-/// not of the judged model); (path, name) each.
-fn planned_runs(opts: &InUseOptions, simulator: &Path, dir: &Path) -> anyhow::Result<Vec<(PathBuf, String)>> {
-    Ok(match &opts.plan {
-        Some(plan) => vec![(
-            plan.clone(),
-            plan.file_name()
+/// The planned training runs: `--plan`'s, or the default plan of each length
+/// of `--plan-hours` and seeds 1 … `--plan-seeds`, made by `simulator` (the
+/// plan is part of the protocol, not of the judged model).
+fn planned_runs(opts: &InUseOptions, simulator: &Path, dir: &Path) -> anyhow::Result<Vec<PlannedRun>> {
+    if let Some(plan) = &opts.plan {
+        return Ok(vec![PlannedRun {
+            plan: plan.clone(),
+            name: plan
+                .file_name()
                 .map_or("plan".into(), |n| n.to_string_lossy().into_owned()),
-        )],
-        None => (1..=opts.plan_seeds.max(1))
-            .map(|seed| {
-                let plan = dir.join(format!("plan_seed{seed}.csv"));
-                let seed_text = seed.to_string();
-                let mut args = vec!["plan"];
-                args.extend(DEFAULT_PLAN);
-                args.extend(["--seed", &seed_text, "-o", path(&plan)]);
-                run_tool(simulator, &args)?;
-                let name = format!("trainer plan {} --seed {seed}", DEFAULT_PLAN.join(" "));
-                Ok((plan, name))
-            })
-            .collect::<anyhow::Result<_>>()?,
-    })
+            hours: None,
+        }]);
+    }
+    let lengths = if opts.plan_hours.is_empty() {
+        vec![DEFAULT_PLAN_HOURS]
+    } else {
+        opts.plan_hours.clone()
+    };
+    let mut runs = Vec::new();
+    for hours in lengths {
+        for seed in 1..=opts.plan_seeds.max(1) {
+            // 12-h plans keep the file name of the figures measured before lengths were asked.
+            let plan = if hours == DEFAULT_PLAN_HOURS {
+                dir.join(format!("plan_seed{seed}.csv"))
+            } else {
+                dir.join(format!("plan_{hours}h_seed{seed}.csv"))
+            };
+            let (seed_text, hours_text) = (seed.to_string(), hours.to_string());
+            let mut args = vec!["plan"];
+            args.extend(DEFAULT_PLAN);
+            args.extend(["--hours", &hours_text, "--seed", &seed_text, "-o", path(&plan)]);
+            run_tool(simulator, &args)?;
+            let name = format!("trainer plan {} --hours {hours} --seed {seed}", DEFAULT_PLAN.join(" "));
+            runs.push(PlannedRun {
+                plan,
+                name,
+                hours: Some(hours),
+            });
+        }
+    }
+    Ok(runs)
 }
 
 /// The in-use histories of one plant, simulated, and what they measure
@@ -872,7 +912,12 @@ mod tests {
 
     #[test]
     fn every_plant_trains_on_the_planned_run_first_and_the_cycle_keeps_its_seed() {
-        let runs = training_runs(&[(PathBuf::from("/tmp/p.csv"), "p.csv".to_owned())]);
+        let planned = |plan: &str, name: &str| PlannedRun {
+            plan: PathBuf::from(plan),
+            name: name.to_owned(),
+            hours: None,
+        };
+        let runs = training_runs(&[planned("/tmp/p.csv", "p.csv")]);
         let kinds: Vec<Training> = runs.iter().map(|(k, _)| *k).collect();
         assert_eq!(kinds, [Training::Planned, Training::Cycle, Training::Designed]);
         assert_eq!(runs[0].1.args, ["--chamber-profile", "/tmp/p.csv"]);
@@ -887,7 +932,7 @@ mod tests {
                 .contains("--profile cycle --ramp 1 --hold-min 120")
         );
         // Several plans: one planned run each, first, on the same run seed.
-        let plans = [1, 2].map(|k| (PathBuf::from(format!("/tmp/p{k}.csv")), format!("seed {k}")));
+        let plans = [1, 2].map(|k| planned(&format!("/tmp/p{k}.csv"), &format!("seed {k}")));
         let seeded = training_runs(&plans);
         let kinds: Vec<Training> = seeded.iter().map(|(k, _)| *k).collect();
         assert_eq!(
