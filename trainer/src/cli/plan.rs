@@ -64,15 +64,16 @@ pub struct Args {
     /// ramps would have used, so the run excites the lags less, and on some plants the fit
     /// after it is less accurate in use (measured in docs/decisions.md). Refuses --hours too
     /// short for the soaks, saying how long they need. Without it (and without --plain), a run
-    /// that keeps 12 h besides them soaks each end 2 h (docs/plan.md, "End soaks"), a shorter
-    /// one not at all: the plan drawn before end soaks existed.
+    /// of 12 h or more soaks each end 1.5 h, one that keeps 12 h besides them 2 h (docs/plan.md,
+    /// "End soaks"), a shorter one not at all: the plan drawn before end soaks existed.
     #[arg(long, conflicts_with = "plain")]
     soak_ends: bool,
     /// No end soaks, whatever --hours: the plan drawn before end soaks existed.
     ///
-    /// The default soaks each end of the range 2 h when the run keeps 12 h besides: after a
-    /// 24-h plan that lowered the soak test's settled spread at the same in-use accuracy
-    /// (measured in docs/decisions.md). --plain gives the dynamics those 4 h instead.
+    /// The default soaks each end of the range 1.5 h in a run of 12 h or more, 2 h when the
+    /// run keeps 12 h besides: over plan draws that lowered the soak test's settled spread at
+    /// about the same in-use accuracy (measured in docs/decisions.md). --plain gives the
+    /// dynamics those hours instead; the handed-out designs' 12-h planned runs are --plain.
     #[arg(long, conflicts_with = "settled_spread_dph")]
     plain: bool,
     /// Design the shortest run predicted to meet this settled spread on both plants, °/h.
@@ -80,8 +81,8 @@ pub struct Args {
     /// The spread of settled bias a soak test reads after the default fit on the run (3-h
     /// holds at 25, 0, 40, -20, 60, 20, -40, 10 °C and at 10, -40, 50, -10, 30, 60, -30,
     /// 0 °C, the worse), on the documented gyro and on one 1.5× as slow. Tries whole hours from
-    /// the shortest the limits allow, up to --hours, each as a plain plan, with 2-h end soaks
-    /// where the length keeps 12 h besides them and, where its end soaks fit, as a --soak-ends
+    /// the shortest the limits allow, up to --hours, each as a plain plan, from 12 h with the
+    /// default's end soaks and, where its end soaks fit, as a --soak-ends
     /// plan; writes the first length that meets it and says which family.
     /// When none within --hours does: exit 1, nothing written, the best length's figures in
     /// the message. About 10–20 s a length in a release build.

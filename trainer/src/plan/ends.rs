@@ -1,19 +1,31 @@
 //! What a plan does at the ends of the range ([`Ends`]): the default soaks
-//! a long run at both ends for [`DEFAULT_END_SOAK_S`], a short one not at
-//! all; `--plain` never; `--soak-ends` as long as a loop
+//! both ends of a run of [`SHORT_RUN_S`] or more for [`SHORT_END_SOAK_S`],
+//! of a run that keeps [`DYNAMICS_S`] besides for [`DEFAULT_END_SOAK_S`], a
+//! shorter run not at all; `--plain` never; `--soak-ends` as long as a loop
 //! [`SLOW_PLANT_FACTOR`] times slower than nominal needs to settle there.
 //!
-//! Why (docs/decisions.md, "End soaks of 2 h in the default plan of a long
-//! run"): a fit identifies the settled bias at the ends from holds there, so
-//! after a 24-h plan 2-h end soaks lowered the soak test's settled spread at
-//! the same in-use accuracy; a 12-h plan cannot spare those hours from the
-//! dynamics, and the slow plant's longer soaks cost accuracy in use.
+//! Why (docs/decisions.md, "End soaks in the default plan"): a fit
+//! identifies the settled bias at the ends from holds there, and a plan
+//! that turns back before the loop gets there leaves the soak test's
+//! extreme levels to the static curve's extrapolation. Measured over plan
+//! draws on the simulator's gyros, 2-h soaks lowered the soak test's settled
+//! spread after 24 h at the same in-use accuracy and 1.5-h soaks after 12 h;
+//! the slow plant's longer soaks cost accuracy in use.
 
 use super::criterion::end_soak_s;
 use super::limits::{PlanLimits, SLOW_PLANT_FACTOR};
 
 /// Each end's soak in the default plan of a long run, s (2 h).
 pub const DEFAULT_END_SOAK_S: f64 = 7200.0;
+
+/// Each end's soak in the default plan of a run of [`SHORT_RUN_S`] up to
+/// [`DYNAMICS_S`] besides the long soaks, s (1.5 h).
+pub const SHORT_END_SOAK_S: f64 = 5400.0;
+
+/// The shortest run the default soaks the ends of, s (12 h: the length the
+/// 1.5-h soaks were measured at; shorter runs keep their hours for the
+/// dynamics).
+pub const SHORT_RUN_S: f64 = 12.0 * 3600.0;
 
 /// What the default keeps for the rest of the run besides its two end
 /// soaks, s: the 12 h the plain plan's dynamics were validated on. A
@@ -23,8 +35,9 @@ pub const DYNAMICS_S: f64 = 12.0 * 3600.0;
 /// The end-soak family of a plan.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Ends {
-    /// `trainer plan`'s default: [`DEFAULT_END_SOAK_S`] at each end when the
-    /// run keeps [`DYNAMICS_S`] besides them, else no end soaks.
+    /// `trainer plan`'s default ([`default_end_soak_s`]): [`DEFAULT_END_SOAK_S`]
+    /// at each end when the run keeps [`DYNAMICS_S`] besides them,
+    /// [`SHORT_END_SOAK_S`] in a run of [`SHORT_RUN_S`] or more, else none.
     Default,
     /// No end soaks (`--plain`): the draws as before end soaks existed.
     Plain,
@@ -49,6 +62,7 @@ impl Ends {
         match (self, end_soak_s) {
             (_, None) => "plain",
             (Ends::SlowPlant, Some(_)) => "--soak-ends",
+            (_, Some(s)) if s == SHORT_END_SOAK_S => "1.5-h end soaks",
             (_, Some(_)) => "2-h end soaks",
         }
     }
@@ -60,18 +74,27 @@ impl Ends {
                 "a loop {SLOW_PLANT_FACTOR}× slower than nominal comes within {:.1} °C of where it settles",
                 limits.reach_c()
             ),
-            _ => format!(
-                "the default of a run that keeps {:.0} h besides its end soaks",
-                DYNAMICS_S / 3600.0
-            ),
+            _ => match default_end_soak_s(limits) {
+                Some(s) if s == DEFAULT_END_SOAK_S => format!(
+                    "the default of a run that keeps {:.0} h besides its end soaks",
+                    DYNAMICS_S / 3600.0
+                ),
+                _ => format!("the default of a run of {:.0} h or more", SHORT_RUN_S / 3600.0),
+            },
         }
     }
 }
 
 /// The default's soak at each end under `limits`, s: [`DEFAULT_END_SOAK_S`]
-/// when the run keeps [`DYNAMICS_S`] besides the two soaks, else `None`.
+/// when the run keeps [`DYNAMICS_S`] besides the two soaks,
+/// [`SHORT_END_SOAK_S`] when it lasts [`SHORT_RUN_S`] or more, else `None`.
 pub fn default_end_soak_s(limits: &PlanLimits) -> Option<f64> {
-    (limits.hours * 3600.0 - 2.0 * DEFAULT_END_SOAK_S >= DYNAMICS_S).then_some(DEFAULT_END_SOAK_S)
+    let run_s = limits.hours * 3600.0;
+    if run_s - 2.0 * DEFAULT_END_SOAK_S >= DYNAMICS_S {
+        Some(DEFAULT_END_SOAK_S)
+    } else {
+        (run_s >= SHORT_RUN_S).then_some(SHORT_END_SOAK_S)
+    }
 }
 
 #[cfg(test)]
@@ -81,10 +104,11 @@ mod tests {
     use crate::plan::limits::TEST_LIMITS as LIMITS;
 
     #[test]
-    fn the_default_soaks_the_ends_only_when_twelve_hours_remain_besides() {
-        assert_eq!(Ends::Default.end_soak_s(&LIMITS), Ok(None));
+    fn the_default_soaks_the_ends_of_a_twelve_hour_run_and_longer_where_twelve_hours_remain_besides() {
         let at = |hours: f64| Ends::Default.end_soak_s(&PlanLimits { hours, ..LIMITS });
-        assert_eq!(at(15.9), Ok(None));
+        assert_eq!(at(11.9), Ok(None));
+        assert_eq!(at(12.0), Ok(Some(SHORT_END_SOAK_S)));
+        assert_eq!(at(15.9), Ok(Some(SHORT_END_SOAK_S)));
         assert_eq!(at(16.0), Ok(Some(DEFAULT_END_SOAK_S)));
         assert_eq!(at(24.0), Ok(Some(DEFAULT_END_SOAK_S)));
         assert_eq!(Ends::Plain.end_soak_s(&PlanLimits { hours: 24.0, ..LIMITS }), Ok(None));
@@ -102,6 +126,7 @@ mod tests {
     fn families_are_named_by_what_they_resolved_to() {
         assert_eq!(Ends::Default.name(None), "plain");
         assert_eq!(Ends::Default.name(Some(DEFAULT_END_SOAK_S)), "2-h end soaks");
+        assert_eq!(Ends::Default.name(Some(SHORT_END_SOAK_S)), "1.5-h end soaks");
         assert_eq!(Ends::SlowPlant.name(Some(16_000.0)), "--soak-ends");
     }
 }

@@ -6,9 +6,9 @@
 //! self-heating transient is recorded, levels across the range, full-rate
 //! steps, bursts of swings, slow ramps, holds as long as the slowest coil
 //! mode) and the one whose lag-bank regression on a nominal plant has the
-//! largest D-criterion ([`d_criterion`]) is kept. A run long enough to keep
-//! 12 h besides them soaks 2 h at each end of the range by default
-//! ([`ends`], [`candidate_soaking_ends`]); on request (`trainer plan
+//! largest D-criterion ([`d_criterion`]) is kept. By default a run of 12 h
+//! or more soaks each end of the range 1.5 h, one long enough to keep 12 h
+//! besides its soaks 2 h ([`ends`], [`candidate_soaking_ends`]); on request (`trainer plan
 //! --soak-ends`) every candidate soaks there long enough for a loop
 //! [`SLOW_PLANT_FACTOR`] times slower than nominal to settle ([`end_soak_s`]),
 //! so the run reaches the asked range at the loop on plants other than the
@@ -469,35 +469,42 @@ mod tests {
     }
 
     #[test]
-    fn a_long_default_plan_soaks_both_ends_two_hours_and_a_short_one_is_the_plain_draw() {
-        let long = PlanLimits { hours: 24.0, ..LIMITS };
-        let plan = design(&long, 1, 4, Ends::Default).unwrap();
-        assert_eq!(plan.end_soak_s, Some(ends::DEFAULT_END_SOAK_S));
-        let held_at = |end_c: f64| {
-            plan.segments
-                .iter()
-                .filter(|g| (g.target_c - end_c).abs() < 0.006)
-                .map(|g| g.hold_s)
-                .fold(0.0, f64::max)
-        };
-        // The cold end's soak may be the power-on soak: the unit is soaked there before it.
-        let cold_start = (plan.segments[0].target_c - long.min_c).abs() < 0.006;
-        assert!(
-            cold_start || held_at(long.min_c) >= ends::DEFAULT_END_SOAK_S,
-            "{:?}",
-            plan.segments
-        );
-        assert!(held_at(long.max_c) >= ends::DEFAULT_END_SOAK_S, "{:?}", plan.segments);
-        assert!(
-            plan.set_points_csv()
-                .contains("# end_soak_min: 120.0 (at each end of the range: the default")
-        );
-        // 12 h keep no room besides the soaks: the default is the plain draw.
+    fn the_default_plan_soaks_both_ends_two_hours_in_a_long_run_and_one_and_a_half_in_twelve() {
+        for (hours, soak_s, written) in [
+            (
+                24.0,
+                ends::DEFAULT_END_SOAK_S,
+                "# end_soak_min: 120.0 (at each end of the range: the default",
+            ),
+            (
+                12.0,
+                ends::SHORT_END_SOAK_S,
+                "# end_soak_min: 90.0 (at each end of the range: the default",
+            ),
+        ] {
+            let limits = PlanLimits { hours, ..LIMITS };
+            let plan = design(&limits, 1, 4, Ends::Default).unwrap();
+            assert_eq!(plan.end_soak_s, Some(soak_s));
+            let held_at = |end_c: f64| {
+                plan.segments
+                    .iter()
+                    .filter(|g| (g.target_c - end_c).abs() < 0.006)
+                    .map(|g| g.hold_s)
+                    .fold(0.0, f64::max)
+            };
+            // The cold end's soak may be the power-on soak: the unit is soaked there before it.
+            let cold_start = (plan.segments[0].target_c - limits.min_c).abs() < 0.006;
+            assert!(cold_start || held_at(limits.min_c) >= soak_s, "{:?}", plan.segments);
+            assert!(held_at(limits.max_c) >= soak_s, "{:?}", plan.segments);
+            assert!(plan.set_points_csv().contains(written), "{hours} h");
+            assert_eq!(design(&limits, 1, 4, Ends::Plain).unwrap().end_soak_s, None);
+        }
+        // Under 12 h the default is the plain draw.
+        let short = PlanLimits { hours: 10.0, ..LIMITS };
         assert_eq!(
-            design(&LIMITS, 1, 4, Ends::Default).unwrap().segments,
-            design(&LIMITS, 1, 4, Ends::Plain).unwrap().segments
+            design(&short, 1, 4, Ends::Default).unwrap().segments,
+            design(&short, 1, 4, Ends::Plain).unwrap().segments
         );
-        assert_eq!(design(&long, 1, 4, Ends::Plain).unwrap().end_soak_s, None);
     }
 
     #[test]

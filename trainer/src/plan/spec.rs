@@ -3,8 +3,7 @@
 //!
 //! The lengths tried are whole hours from the shortest the limits allow up
 //! to `--hours` (and `--hours` itself when it is not whole). At each length
-//! the plain plan, the default's 2-h end soaks where the length keeps 12 h
-//! besides them ([`Ends::Default`]) and, where the length holds them, the
+//! the plain plan, from 12 h the default's end soaks ([`Ends::Default`]) and, where the length holds them, the
 //! `--soak-ends` plan are designed and predicted; the length's pick is the
 //! family that meets the spec (the better in use when both do), else the one
 //! of lower settled spread. The lengths are scanned from the shortest up and

@@ -485,13 +485,18 @@ fn data_lines(path: &Path) -> String {
 }
 
 #[test]
-fn the_default_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_short() {
-    // Without --soak-ends the plan is the one b8dee8a (before end soaks
-    // existed) drew for the same arguments, segment for segment, written
-    // with whole-degree set points and whole-minute holds as segment tables
-    // are since (issue 34).
+fn the_plain_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_short() {
+    // With --plain the plan is the one b8dee8a (before end soaks existed)
+    // drew for the same arguments, segment for segment, written with
+    // whole-degree set points and whole-minute holds as segment tables are
+    // since (issue 34): the handed-out designs' 12-h planned runs.
     let dir = TempDir::new().unwrap();
-    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--format", "segments"]);
+    let o = plan(
+        &dir,
+        "p.csv",
+        ["-40", "60", "5", "12"],
+        &["--format", "segments", "--plain"],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
         data_lines(&dir.path().join("p.csv")),
@@ -515,6 +520,7 @@ fn the_default_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_sh
 17,60,86.9,9
 "
     );
+    // Under 12 h the default is that draw too.
     let o = plan(
         &dir,
         "q.csv",
@@ -537,7 +543,7 @@ fn the_default_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_sh
     );
     // It turns back from 60 °C before the loop gets there, and says so: the
     // predicted range on both plants, a warning for each naming the gap and the flag.
-    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--force"]);
+    let o = plan(&dir, "p.csv", ["-40", "60", "5", "12"], &["--force", "--plain"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let printed = stdout(&o);
     let [nominal, slow] = predicted_ranges(&printed);
@@ -567,6 +573,17 @@ fn the_default_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_sh
         "{written:?} not in {meta:?}"
     );
     assert!(!meta.iter().any(|m| m.starts_with("# end_soak_min")), "{meta:?}");
+    // The default 12-h plan soaks each end 1.5 h and gets the loop nearer the hot end.
+    let o = plan(&dir, "d.csv", ["-40", "60", "5", "12"], &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let [soaked, _] = predicted_ranges(&stdout(&o));
+    assert!(soaked.1 > nominal.1 + 5.0, "{soaked:?} against {nominal:?}");
+    let (_, meta) = read_plan(&dir.path().join("d.csv"));
+    assert!(
+        meta.iter()
+            .any(|m| m.starts_with("# end_soak_min: 90.0 (at each end of the range: the default of a run of 12 h")),
+        "{meta:?}"
+    );
 }
 
 /// The two `# predicted_settled_spread_dph:` figures (nominal, slow plant) of a plan file, °/h.

@@ -14,7 +14,10 @@ pub(super) const SOAK_TARGETS_DPH: [(f64, f64); 2] = [(12.0, 0.03), (24.0, 0.01)
 /// The settled-spread target after a plan of `hours`, °/h; `None` for the
 /// lengths issue 48 names no target for.
 pub(super) fn soak_target_dph(hours: f64) -> Option<f64> {
-    SOAK_TARGETS_DPH.iter().find(|(h, _)| (h - hours).abs() < 1e-9).map(|(_, dph)| *dph)
+    SOAK_TARGETS_DPH
+        .iter()
+        .find(|(h, _)| (h - hours).abs() < 1e-9)
+        .map(|(_, dph)| *dph)
 }
 
 /// One plant's figures after the planned runs of one length (over the plan
