@@ -7,7 +7,7 @@ use trainer::blobfile::read_model_file;
 use trainer::output::{StagedDir, Transaction};
 use trainer::text;
 
-use super::common::{AllowUncompensated, ForceArg, print_and_commit};
+use super::common::{AllowUncompensated, ForceArg, print_and_commit, print_notes};
 use super::model_arg::ModelArg;
 
 /// Plots and a written summary of a model on runs, for people who would rather look.
@@ -54,12 +54,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         trained_on: None,
     };
     let mut printed = Vec::new();
+    // The runs' gap notices: every axis reads the one time column, so the first axis's.
+    let mut notices = Vec::new();
     let axes = file.axes();
     if axes.is_empty() {
         let model = file
             .model(None)
             .ok_or_else(|| anyhow::anyhow!("the model file holds no model"))?;
-        let (files, _) = trainer::report::write_report(model, model_path, runs, &staged, Path::new(""), allow, None)?;
+        let (files, _, gaps) =
+            trainer::report::write_report(model, model_path, runs, &staged, Path::new(""), allow, None)?;
+        notices = gaps;
         writeln!(printed, "wrote {files} files into {}", text::path(&a.output))?;
     }
     // A multi-axis model: a whole report per axis, in DIR/axis-<axis>.
@@ -81,9 +85,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .or_else(|| file.model(Some(axis)))
             .ok_or_else(|| anyhow::anyhow!("axis {} has no model", axis.name()))?;
         let sub = PathBuf::from(format!("axis-{}", axis.name()));
-        let (files, evaluations) =
+        let (files, evaluations, gaps) =
             trainer::report::write_report(model, model_path, runs, &staged, &sub, allow, Some(axis))
                 .map_err(|e| e.context(format!("axis {}", axis.name())))?;
+        if summary.is_empty() {
+            notices = gaps;
+        }
         writeln!(printed, "wrote {files} files into {}", text::path(&a.output.join(&sub)))?;
         summary.push((axis, evaluations));
     }
@@ -92,6 +99,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         staged.write(Path::new("report.md"), md.as_bytes())?;
         writeln!(printed, "wrote {}", text::path(&a.output.join("report.md")))?;
     }
+    print_notes(&notices);
     let mut transaction = Transaction::new();
     transaction.add_dir(staged);
     print_and_commit(&printed, false, transaction)

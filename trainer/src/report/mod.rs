@@ -49,6 +49,8 @@ struct RunPlots {
     evaluation: RunEvaluation,
     rate: RatePlot,
     bias_temp: BiasTempPlot,
+    /// The run's gaps in words ([`RunDiagnosis::gap_notice`]), `None` without any.
+    gap_notice: Option<String>,
 }
 
 /// One pass over the run of `reader`: evaluation, 10-s means for the rate
@@ -138,6 +140,7 @@ fn read_run(
         .collect();
     Ok(RunPlots {
         stem: stem.to_owned(),
+        gap_notice: diagnosis.gap_notice(),
         duration_s: rows as f64 * period_s,
         bias_temp: BiasTempPlot {
             title: format!(
@@ -283,6 +286,8 @@ pub struct ReportRuns<'a> {
 /// subdirectory `sub` (empty: at the top); returns how many files it wrote
 /// and the runs' evaluations.
 /// `axis` picks that axis of multi-axis runs (`None`: single-axis runs).
+/// Returns the files written, each run's evaluation and the notices of runs
+/// with gaps ([`RunDiagnosis::gap_notice`]), which `report.md` lists too.
 ///
 /// Every run is read once, streaming (memory: 10-s means and a bounded
 /// trajectory, whatever the run's length), before any file is written.
@@ -297,7 +302,7 @@ pub fn write_report(
     sub: &Path,
     accept: crate::evaluation::axes::Acceptance,
     axis: Option<Axis>,
-) -> anyhow::Result<(usize, Vec<RunEvaluation>)> {
+) -> anyhow::Result<(usize, Vec<RunEvaluation>, Vec<String>)> {
     let (trained_on, runs) = (runs.trained_on, runs.paths);
     input::check_stdin_once(runs.iter().map(|p| p.as_path()).chain([model_path]))?;
     let stems: Vec<String> = runs.iter().map(|p| run_stem(p)).collect();
@@ -397,6 +402,13 @@ pub fn write_report(
          (flag 1).\n",
     );
     md.push_str(&format!("{}.\n", crate::evaluation::allan::FLOOR_RULE));
+    let gap_notices: Vec<String> = plots.iter().filter_map(|p| p.gap_notice.clone()).collect();
+    if !gap_notices.is_empty() {
+        md.push_str("\n## Gaps in the runs\n\n");
+        for notice in &gap_notices {
+            md.push_str(&format!("- {}\n", text::escape_controls(notice)));
+        }
+    }
     md.push_str(&settled_markdown(&plots));
     let trained_end_index = trained_end_index.or(trained_on.map(|_| first_index));
     let surface = SurfacePlot::new(model, trajectory.points, trained_end_index);
@@ -414,7 +426,11 @@ pub fn write_report(
         serde_json::to_string_pretty(&serde_json::json!({"model": text::path(model_path), "runs": evaluations}))?;
     write("report.json", json.as_bytes())?;
     write("report.md", md.as_bytes())?;
-    Ok((written.get(), plots.into_iter().map(|p| p.evaluation).collect()))
+    Ok((
+        written.get(),
+        plots.into_iter().map(|p| p.evaluation).collect(),
+        gap_notices,
+    ))
 }
 
 /// The settled-bias section of report.md: per run its spread (or why none)

@@ -395,7 +395,7 @@ fn a_header_with_near_names_names_every_missing_column_and_what_was_meant() {
 }
 
 #[test]
-fn eval_compensate_and_fit_name_the_gaps_of_a_run_by_line() {
+fn eval_compensate_fit_and_report_name_the_gaps_of_a_run_by_line() {
     let dir = TempDir::new().unwrap();
     let (model, _) = example_model(&dir);
     // The 0.2-Hz example (data row k at line k + 2) with 100 s lost before
@@ -438,6 +438,21 @@ fn eval_compensate_and_fit_name_the_gaps_of_a_run_by_line() {
     // A single-axis fit names the gaps of its runs as well.
     let o = fit_ok(&["-q"], &run, &dir.path().join("gapped.bin"));
     assert_eq!(stderr(&o), notice);
+    // So does a report, on its terminal and in report.md.
+    let report = dir.path().join("report");
+    let o = trainer(&[
+        "report",
+        "--model",
+        m,
+        run.to_str().unwrap(),
+        "-o",
+        report.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stderr(&o), notice);
+    let md = std::fs::read_to_string(report.join("report.md")).unwrap();
+    let listed = format!("## Gaps in the runs\n\n- {}", notice.trim_start_matches("note: "));
+    assert!(md.contains(&listed), "{md}");
 
     // Without gaps: no note, and the JSON says none.
     let whole = write(&dir, "whole.csv", whole.as_bytes());
@@ -453,4 +468,20 @@ fn eval_compensate_and_fit_name_the_gaps_of_a_run_by_line() {
     let o = compensate(&model, &whole, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(stderr(&o), "");
+    let report = dir.path().join("whole-report");
+    let o = trainer(&[
+        "report",
+        "--model",
+        m,
+        whole.to_str().unwrap(),
+        "-o",
+        report.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stderr(&o), "");
+    assert!(
+        !std::fs::read_to_string(report.join("report.md"))
+            .unwrap()
+            .contains("## Gaps")
+    );
 }
