@@ -394,6 +394,20 @@ fn a_header_with_near_names_names_every_missing_column_and_what_was_meant() {
     );
 }
 
+/// `trainer report` of `run` with `model` into `out`: its standard error and `report.md`.
+fn report_of(model: &str, run: &Path, out: &Path) -> (String, String) {
+    let o = trainer(&[
+        "report",
+        "--model",
+        model,
+        run.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    (stderr(&o), std::fs::read_to_string(out.join("report.md")).unwrap())
+}
+
 #[test]
 fn eval_compensate_fit_and_report_name_the_gaps_of_a_run_by_line() {
     let dir = TempDir::new().unwrap();
@@ -439,18 +453,8 @@ fn eval_compensate_fit_and_report_name_the_gaps_of_a_run_by_line() {
     let o = fit_ok(&["-q"], &run, &dir.path().join("gapped.bin"));
     assert_eq!(stderr(&o), notice);
     // So does a report, on its terminal and in report.md.
-    let report = dir.path().join("report");
-    let o = trainer(&[
-        "report",
-        "--model",
-        m,
-        run.to_str().unwrap(),
-        "-o",
-        report.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(stderr(&o), notice);
-    let md = std::fs::read_to_string(report.join("report.md")).unwrap();
+    let (errors, md) = report_of(m, &run, &dir.path().join("report"));
+    assert_eq!(errors, notice);
     let listed = format!("## Gaps in the runs\n\n- {}", notice.trim_start_matches("note: "));
     assert!(md.contains(&listed), "{md}");
 
@@ -468,20 +472,7 @@ fn eval_compensate_fit_and_report_name_the_gaps_of_a_run_by_line() {
     let o = compensate(&model, &whole, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(stderr(&o), "");
-    let report = dir.path().join("whole-report");
-    let o = trainer(&[
-        "report",
-        "--model",
-        m,
-        whole.to_str().unwrap(),
-        "-o",
-        report.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(stderr(&o), "");
-    assert!(
-        !std::fs::read_to_string(report.join("report.md"))
-            .unwrap()
-            .contains("## Gaps")
-    );
+    let (errors, md) = report_of(m, &whole, &dir.path().join("whole-report"));
+    assert_eq!(errors, "");
+    assert!(!md.contains("## Gaps"), "{md}");
 }

@@ -60,14 +60,7 @@ fn a_response_bank_fitted_on_one_simulated_run_improves_the_cluster_std_of_anoth
 /// structure choice takes the response bank.
 #[test]
 fn a_run_whose_coil_lags_run_away_is_fitted_with_the_prior_instead_of_refused() {
-    let (dir, v) = fitted_on(PLAN_CSV);
-    let o = trainer(&[
-        "eval",
-        "--model",
-        &dir.path().join("m.bin").to_string_lossy(),
-        &dir.path().join("run.csv").to_string_lossy(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let v = fitted_on(PLAN_CSV);
     assert_eq!(
         v["lag_bank_search"]["lag_prior"], "no_bank_without",
         "{:#}",
@@ -84,21 +77,14 @@ fn a_run_whose_coil_lags_run_away_is_fitted_with_the_prior_instead_of_refused() 
 /// stops at the blob's limit and the fit writes a model.
 #[test]
 fn a_lag_bank_whose_coil_range_is_extended_past_the_blobs_limit_is_cut_to_it_instead_of_refused() {
-    let (dir, v) = fitted_on(PLAN_SEED_13_CSV);
-    let o = trainer(&[
-        "eval",
-        "--model",
-        &dir.path().join("m.bin").to_string_lossy(),
-        &dir.path().join("run.csv").to_string_lossy(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let v = fitted_on(PLAN_SEED_13_CSV);
     assert!(v["predicted_in_use_std100_dph"].as_f64().is_some(), "{v:#}");
 }
 
-/// `PLANT_JSON`'s gyro simulated at 1 Hz on `plan_csv` (seed 501) and
-/// fitted by the default `trainer fit`: the directory (`run.csv`, `m.bin`)
-/// and the fit's `--json` report.
-fn fitted_on(plan_csv: &str) -> (TempDir, serde_json::Value) {
+/// `PLANT_JSON`'s gyro simulated at 1 Hz on `plan_csv` (seed 501), fitted
+/// by the default `trainer fit`, and the model evaluated on that run (a blob
+/// the trainer reads back): the fit's `--json` report.
+fn fitted_on(plan_csv: &str) -> serde_json::Value {
     let dir = TempDir::new().unwrap();
     let path = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
     std::fs::write(path("plant.json"), PLANT_JSON).unwrap();
@@ -125,8 +111,9 @@ fn fitted_on(plan_csv: &str) -> (TempDir, serde_json::Value) {
         &path("fit.json"),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let v = serde_json::from_str(&std::fs::read_to_string(path("fit.json")).unwrap()).unwrap();
-    (dir, v)
+    let o = trainer(&["eval", "--model", &path("m.bin"), &path("run.csv")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_str(&std::fs::read_to_string(path("fit.json")).unwrap()).unwrap()
 }
 
 /// The simulated plant and gyro of the tests above (`trainer simulate`'s `# simulator_params`).
