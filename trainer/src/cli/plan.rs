@@ -64,15 +64,15 @@ pub struct Args {
     /// ramps would have used, so the run excites the lags less, and on some plants the fit
     /// after it is less accurate in use (measured in docs/decisions.md). Refuses --hours too
     /// short for the soaks, saying how long they need. Without it (and without --plain), a run
-    /// of 12 h or more soaks each end 1.5 h, one that keeps 12 h besides them 2 h (docs/plan.md,
+    /// of 12 h or more soaks each end as long as leaves 12 h for the rest, 1.5 … 3 h (docs/plan.md,
     /// "End soaks"), a shorter one not at all: the plan drawn before end soaks existed.
     #[arg(long, conflicts_with = "plain")]
     soak_ends: bool,
     /// No end soaks, whatever --hours: the plan drawn before end soaks existed.
     ///
-    /// The default soaks each end of the range 1.5 h in a run of 12 h or more, 2 h when the
-    /// run keeps 12 h besides: over plan draws that lowered the soak test's settled spread at
-    /// about the same in-use accuracy (measured in docs/decisions.md). --plain gives the
+    /// The default soaks each end of the range in a run of 12 h or more, as long as leaves 12 h
+    /// for the rest, 1.5 h at least and 3 h at most: over plan draws that lowered the soak
+    /// test's settled spread at about the same in-use accuracy (measured in docs/decisions.md). --plain gives the
     /// dynamics those hours instead; the handed-out designs' 12-h planned runs are --plain.
     #[arg(long, conflicts_with = "settled_spread_dph")]
     plain: bool,

@@ -1,25 +1,26 @@
 //! What a plan does at the ends of the range ([`Ends`]): the default soaks
-//! both ends of a run of [`SHORT_RUN_S`] or more for [`SHORT_END_SOAK_S`],
-//! of a run that keeps [`DYNAMICS_S`] besides for [`DEFAULT_END_SOAK_S`], a
-//! shorter run not at all; `--plain` never; `--soak-ends` as long as a loop
+//! both ends of a run of [`SHORT_RUN_S`] or more as long as leaves
+//! [`DYNAMICS_S`] for the rest, within [`SHORT_END_SOAK_S`] …
+//! [`MAX_END_SOAK_S`] ([`default_end_soak_s`]), a shorter run not at all; `--plain` never; `--soak-ends` as long as a loop
 //! [`SLOW_PLANT_FACTOR`] times slower than nominal needs to settle there.
 //!
 //! Why (docs/decisions.md, "End soaks in the default plan"): a fit
 //! identifies the settled bias at the ends from holds there, and a plan
 //! that turns back before the loop gets there leaves the soak test's
 //! extreme levels to the static curve's extrapolation. Measured over plan
-//! draws on the simulator's gyros, 2-h soaks lowered the soak test's settled
-//! spread after 24 h at the same in-use accuracy and 1.5-h soaks after 12 h;
-//! the slow plant's longer soaks cost accuracy in use.
+//! draws on the simulator's gyros, 1.5-h soaks lowered the soak test's
+//! settled spread after 12 h, 2-h soaks after 24 h and 3-h soaks lower still,
+//! at about the same in-use accuracy; the slow plant's soaks of 4.5 h cost
+//! accuracy in use.
 
 use super::criterion::end_soak_s;
 use super::limits::{PlanLimits, SLOW_PLANT_FACTOR};
 
-/// Each end's soak in the default plan of a long run, s (2 h).
-pub const DEFAULT_END_SOAK_S: f64 = 7200.0;
+/// Each end's longest soak in the default plan, s (3 h: the longest measured
+/// to gain on the soak test without costing more in use).
+pub const MAX_END_SOAK_S: f64 = 10_800.0;
 
-/// Each end's soak in the default plan of a run of [`SHORT_RUN_S`] up to
-/// [`DYNAMICS_S`] besides the long soaks, s (1.5 h).
+/// Each end's shortest soak in the default plan, s (1.5 h: measured at 12 h).
 pub const SHORT_END_SOAK_S: f64 = 5400.0;
 
 /// The shortest run the default soaks the ends of, s (12 h: the length the
@@ -28,16 +29,16 @@ pub const SHORT_END_SOAK_S: f64 = 5400.0;
 pub const SHORT_RUN_S: f64 = 12.0 * 3600.0;
 
 /// What the default keeps for the rest of the run besides its two end
-/// soaks, s: the 12 h the plain plan's dynamics were validated on. A
-/// shorter budget gets the plain plan.
+/// soaks where the run is long enough, s: the 12 h the plain plan's dynamics
+/// were validated on.
 pub const DYNAMICS_S: f64 = 12.0 * 3600.0;
 
 /// The end-soak family of a plan.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Ends {
-    /// `trainer plan`'s default ([`default_end_soak_s`]): [`DEFAULT_END_SOAK_S`]
-    /// at each end when the run keeps [`DYNAMICS_S`] besides them,
-    /// [`SHORT_END_SOAK_S`] in a run of [`SHORT_RUN_S`] or more, else none.
+    /// `trainer plan`'s default ([`default_end_soak_s`]): from
+    /// [`SHORT_RUN_S`] on, soaks that leave [`DYNAMICS_S`] for the rest,
+    /// within [`SHORT_END_SOAK_S`] … [`MAX_END_SOAK_S`]; else none.
     Default,
     /// No end soaks (`--plain`): the draws as before end soaks existed.
     Plain,
@@ -58,12 +59,11 @@ impl Ends {
     }
 
     /// The family as `trainer plan` names it, given the soak it resolved to.
-    pub fn name(self, end_soak_s: Option<f64>) -> &'static str {
+    pub fn name(self, end_soak_s: Option<f64>) -> String {
         match (self, end_soak_s) {
-            (_, None) => "plain",
-            (Ends::SlowPlant, Some(_)) => "--soak-ends",
-            (_, Some(s)) if s == SHORT_END_SOAK_S => "1.5-h end soaks",
-            (_, Some(_)) => "2-h end soaks",
+            (_, None) => "plain".to_owned(),
+            (Ends::SlowPlant, Some(_)) => "--soak-ends".to_owned(),
+            (_, Some(s)) => format!("{}-h end soaks", s / 3600.0),
         }
     }
 
@@ -74,27 +74,28 @@ impl Ends {
                 "a loop {SLOW_PLANT_FACTOR}× slower than nominal comes within {:.1} °C of where it settles",
                 limits.reach_c()
             ),
-            _ => match default_end_soak_s(limits) {
-                Some(s) if s == DEFAULT_END_SOAK_S => format!(
-                    "the default of a run that keeps {:.0} h besides its end soaks",
-                    DYNAMICS_S / 3600.0
-                ),
-                _ => format!("the default of a run of {:.0} h or more", SHORT_RUN_S / 3600.0),
-            },
+            _ => format!(
+                "the default of a run of {:.0} h or more: as long as leaves {:.0} h for the rest, {} … {} h",
+                SHORT_RUN_S / 3600.0,
+                DYNAMICS_S / 3600.0,
+                SHORT_END_SOAK_S / 3600.0,
+                MAX_END_SOAK_S / 3600.0
+            ),
         }
     }
 }
 
-/// The default's soak at each end under `limits`, s: [`DEFAULT_END_SOAK_S`]
-/// when the run keeps [`DYNAMICS_S`] besides the two soaks,
-/// [`SHORT_END_SOAK_S`] when it lasts [`SHORT_RUN_S`] or more, else `None`.
+/// The default's soak at each end under `limits`, s, in whole minutes: in a
+/// run of [`SHORT_RUN_S`] or more, as long as leaves [`DYNAMICS_S`] for the
+/// rest of the run, at least [`SHORT_END_SOAK_S`] and at most
+/// [`MAX_END_SOAK_S`] (1.5 h up to 15 h, 2 h at 16 h, 3 h from 18 h);
+/// `None` in a shorter run.
 pub fn default_end_soak_s(limits: &PlanLimits) -> Option<f64> {
     let run_s = limits.hours * 3600.0;
-    if run_s - 2.0 * DEFAULT_END_SOAK_S >= DYNAMICS_S {
-        Some(DEFAULT_END_SOAK_S)
-    } else {
-        (run_s >= SHORT_RUN_S).then_some(SHORT_END_SOAK_S)
-    }
+    (run_s >= SHORT_RUN_S).then(|| {
+        let leaving_dynamics_s = ((run_s - DYNAMICS_S) / 2.0 / 60.0).floor() * 60.0;
+        leaving_dynamics_s.clamp(SHORT_END_SOAK_S, MAX_END_SOAK_S)
+    })
 }
 
 #[cfg(test)]
@@ -108,13 +109,16 @@ mod tests {
         let at = |hours: f64| Ends::Default.end_soak_s(&PlanLimits { hours, ..LIMITS });
         assert_eq!(at(11.9), Ok(None));
         assert_eq!(at(12.0), Ok(Some(SHORT_END_SOAK_S)));
-        assert_eq!(at(15.9), Ok(Some(SHORT_END_SOAK_S)));
-        assert_eq!(at(16.0), Ok(Some(DEFAULT_END_SOAK_S)));
-        assert_eq!(at(24.0), Ok(Some(DEFAULT_END_SOAK_S)));
+        assert_eq!(at(15.0), Ok(Some(SHORT_END_SOAK_S)));
+        // Between, what leaves 12 h, in whole minutes.
+        assert_eq!(at(16.0), Ok(Some(7200.0)));
+        assert_eq!(at(17.01), Ok(Some(150.0 * 60.0)));
+        assert_eq!(at(18.0), Ok(Some(MAX_END_SOAK_S)));
+        assert_eq!(at(24.0), Ok(Some(MAX_END_SOAK_S)));
         assert_eq!(Ends::Plain.end_soak_s(&PlanLimits { hours: 24.0, ..LIMITS }), Ok(None));
         // The slow plant's soak is longer than the default's on these limits.
         let slow = Ends::SlowPlant.end_soak_s(&LIMITS).unwrap().unwrap();
-        assert!(slow > DEFAULT_END_SOAK_S, "{slow}");
+        assert!(slow > MAX_END_SOAK_S, "{slow}");
         // Limits no plan meets are refused by every family.
         let bad = PlanLimits { hours: 1.0, ..LIMITS };
         for ends in [Ends::Default, Ends::Plain, Ends::SlowPlant] {
@@ -125,8 +129,9 @@ mod tests {
     #[test]
     fn families_are_named_by_what_they_resolved_to() {
         assert_eq!(Ends::Default.name(None), "plain");
-        assert_eq!(Ends::Default.name(Some(DEFAULT_END_SOAK_S)), "2-h end soaks");
+        assert_eq!(Ends::Default.name(Some(MAX_END_SOAK_S)), "3-h end soaks");
         assert_eq!(Ends::Default.name(Some(SHORT_END_SOAK_S)), "1.5-h end soaks");
+        assert_eq!(Ends::Default.name(Some(9000.0)), "2.5-h end soaks");
         assert_eq!(Ends::SlowPlant.name(Some(16_000.0)), "--soak-ends");
     }
 }

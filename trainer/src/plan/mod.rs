@@ -7,8 +7,8 @@
 //! steps, bursts of swings, slow ramps, holds as long as the slowest coil
 //! mode) and the one whose lag-bank regression on a nominal plant has the
 //! largest D-criterion ([`d_criterion`]) is kept. By default a run of 12 h
-//! or more soaks each end of the range 1.5 h, one long enough to keep 12 h
-//! besides its soaks 2 h ([`ends`], [`candidate_soaking_ends`]); on request (`trainer plan
+//! or more soaks each end of the range as long as leaves 12 h for the rest,
+//! 1.5 … 3 h ([`ends`], [`candidate_soaking_ends`]); on request (`trainer plan
 //! --soak-ends`) every candidate soaks there long enough for a loop
 //! [`SLOW_PLANT_FACTOR`] times slower than nominal to settle ([`end_soak_s`]),
 //! so the run reaches the asked range at the loop on plants other than the
@@ -469,12 +469,12 @@ mod tests {
     }
 
     #[test]
-    fn the_default_plan_soaks_both_ends_two_hours_in_a_long_run_and_one_and_a_half_in_twelve() {
+    fn the_default_plan_soaks_both_ends_three_hours_in_a_long_run_and_one_and_a_half_in_twelve() {
         for (hours, soak_s, written) in [
             (
                 24.0,
-                ends::DEFAULT_END_SOAK_S,
-                "# end_soak_min: 120.0 (at each end of the range: the default",
+                ends::MAX_END_SOAK_S,
+                "# end_soak_min: 180.0 (at each end of the range: the default",
             ),
             (
                 12.0,

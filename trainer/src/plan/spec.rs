@@ -30,7 +30,7 @@ pub struct Tried {
 
 impl Tried {
     /// The family, as the output names it.
-    pub fn family(&self) -> &'static str {
+    pub fn family(&self) -> String {
         self.plan.ends.name(self.plan.end_soak_s)
     }
 }
@@ -45,7 +45,7 @@ pub struct SpecOutcome {
     /// Without `met`: the length of lowest predicted settled spread tried.
     pub best: Tried,
     /// Every length tried, shortest first: (hours, family, worse settled spread °/h).
-    pub tried: Vec<(f64, &'static str, Option<f64>)>,
+    pub tried: Vec<(f64, String, Option<f64>)>,
 }
 
 impl SpecOutcome {
