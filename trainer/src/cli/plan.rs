@@ -72,8 +72,9 @@ pub struct Args {
     ///
     /// The default soaks each end of the range in a run of 12 h or more, as long as leaves 12 h
     /// for the rest, 1.5 h at least and 3 h at most: over plan draws that lowered the soak
-    /// test's settled spread at about the same in-use accuracy (measured in docs/decisions.md). --plain gives the
-    /// dynamics those hours instead; the handed-out designs' 12-h planned runs are --plain.
+    /// test's settled spread at about the same in-use accuracy (measured in docs/decisions.md).
+    /// --plain gives the dynamics those hours instead; the handed-out designs' 12-h planned
+    /// runs are --plain.
     #[arg(long, conflicts_with = "settled_spread_dph")]
     plain: bool,
     /// Design the shortest run predicted to meet this settled spread on both plants, °/h.

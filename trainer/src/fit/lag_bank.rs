@@ -431,11 +431,11 @@ pub struct BankSearch {
     /// How far past each end of the covered range of T̂ the static cubic is
     /// followed before it continues along its tangent.
     pub extrapolation: Extrapolation,
-    /// Whether, and why, the soft prior held the coil lags ([`prior`]).
+    /// Whether, and why, the soft prior held the coil lags (`prior`).
     pub lag_prior: LagPrior,
 }
 
-/// Whether the soft prior on the coil lags and the gain ([`prior`]) was applied.
+/// Whether the soft prior on the coil lags and the gain (`prior`) was applied.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum LagPrior {

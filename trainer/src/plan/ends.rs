@@ -1,7 +1,8 @@
 //! What a plan does at the ends of the range ([`Ends`]): the default soaks
 //! both ends of a run of [`SHORT_RUN_S`] or more as long as leaves
 //! [`DYNAMICS_S`] for the rest, within [`SHORT_END_SOAK_S`] …
-//! [`MAX_END_SOAK_S`] ([`default_end_soak_s`]), a shorter run not at all; `--plain` never; `--soak-ends` as long as a loop
+//! [`MAX_END_SOAK_S`] ([`default_end_soak_s`]), a shorter run not at all;
+//! `--plain` never; `--soak-ends` as long as a loop
 //! [`SLOW_PLANT_FACTOR`] times slower than nominal needs to settle there.
 //!
 //! Why (docs/decisions.md, "End soaks in the default plan"): a fit

@@ -1,17 +1,18 @@
 //! `trainer plan --settled-spread-dph X`: the shortest run predicted to meet
 //! a settled-spread spec on both plants ([`predict`](super::predict)).
 //!
-//! The lengths tried are whole hours from the shortest the limits allow up
-//! to `--hours` (and `--hours` itself when it is not whole). At each length
-//! the plain plan, from 12 h the default's end soaks ([`Ends::Default`]) and, where the length holds them, the
-//! `--soak-ends` plan are designed and predicted; the length's pick is the
-//! family that meets the spec (the better in use when both do), else the one
-//! of lower settled spread. The lengths are scanned from the shortest up and
-//! the first that meets the spec is the answer: the predicted spread does
-//! not fall monotonically with the hours (docs/plan.md, "What each extra
-//! hour buys": a longer plain plan may turn back from an end sooner), so a
-//! bisection could skip the shortest length that meets it. The price: a
-//! spec that cannot be met is known only after every length up to `--hours`.
+//! The lengths tried are whole hours from the shortest the limits allow up to
+//! `--hours` (and `--hours` itself when it is not whole). At each length the
+//! plain plan, from 12 h the default's end soaks ([`Ends::Default`]) and,
+//! where the length holds them, the `--soak-ends` plan are designed and
+//! predicted; the length's pick is the family that meets the spec (the better
+//! in use when both do), else the one of lower settled spread. The lengths
+//! are scanned from the shortest up and the first that meets the spec is the
+//! answer: the predicted spread does not fall monotonically with the hours
+//! (docs/plan.md, "What each extra hour buys": a longer plain plan may turn
+//! back from an end sooner), so a bisection could skip the shortest length
+//! that meets it. The price: a spec that cannot be met is known only after
+//! every length up to `--hours`.
 
 use super::ends::{Ends, default_end_soak_s};
 use super::limits::PlanLimits;

@@ -283,11 +283,10 @@ pub struct ReportRuns<'a> {
 
 /// Writes the report of `model` (read from `model_path`) on the runs at
 /// `runs` (`-`: standard input) into the staged directory `out`, in its
-/// subdirectory `sub` (empty: at the top); returns how many files it wrote
-/// and the runs' evaluations.
+/// subdirectory `sub` (empty: at the top); returns how many files it wrote,
+/// the runs' evaluations and the notices of runs with gaps
+/// ([`RunDiagnosis::gap_notice`]), which `report.md` lists too.
 /// `axis` picks that axis of multi-axis runs (`None`: single-axis runs).
-/// Returns the files written, each run's evaluation and the notices of runs
-/// with gaps ([`RunDiagnosis::gap_notice`]), which `report.md` lists too.
 ///
 /// Every run is read once, streaming (memory: 10-s means and a bounded
 /// trajectory, whatever the run's length), before any file is written.

@@ -161,8 +161,8 @@ struct PlannedRun {
     hours: Option<f64>,
 }
 
-/// The training runs, in print order: a planned run per plan of `plans`
-/// (path, name), the cycle, the designed run.
+/// The training runs, in print order: a planned run per plan of `plans`,
+/// the cycle, the designed run.
 fn training_runs(plans: &[PlannedRun]) -> Vec<(Training, RunSpec)> {
     let planned = plans.iter().map(|PlannedRun { plan, name, .. }| {
         let plan = plan.to_str().expect("a UTF-8 path for the plan");
@@ -307,9 +307,8 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             plant,
             index: p,
         };
-        let (plant_json, plant_summary, soak_spreads) = runs.bench_plant(&training, &in_use)?;
+        let (mut plant_json, plant_summary, soak_spreads) = runs.bench_plant(&training, &in_use)?;
         let verdicts = settled::verdicts(&plant_summary, &soak_spreads, &plan_hours);
-        let mut plant_json = plant_json;
         plant_json["settled_summary"] = json!(verdicts.iter().map(settled::LengthVerdict::to_json).collect::<Vec<_>>());
         plants_json.push(plant_json);
         settled_rows.push((plant.name.clone(), verdicts));
