@@ -17,8 +17,8 @@
 use super::criterion::end_soak_s;
 use super::limits::{PlanLimits, SLOW_PLANT_FACTOR};
 
-/// Each end's longest soak in the default plan, s (3 h: the longest measured
-/// to gain on the soak test without costing more in use).
+/// Each end's longest soak in the default plan, s (3 h: longer soaks, as the
+/// slow plant's, take more hours from the dynamics than the soak test gains).
 pub const MAX_END_SOAK_S: f64 = 10_800.0;
 
 /// Each end's shortest soak in the default plan, s (1.5 h: measured at 12 h).
