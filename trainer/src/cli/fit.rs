@@ -105,7 +105,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // whose own refusal names the cause better when nothing was usable.
     // Their gaps are named as `eval` and `compensate` name them.
     let training_and_validation: Vec<PathBuf> = a.runs.iter().chain(&a.validate).cloned().collect();
-    let findings = diagnose::run_findings(&training_and_validation)?;
+    let findings = diagnose::run_findings(&training_and_validation, None)?;
     plausible::require_plausible(&findings.implausible, a.allow_implausible)?;
     print_notes(&findings.gap_notices);
     if let Some((lo, hi)) = training_loop_range_c(&outcome) {

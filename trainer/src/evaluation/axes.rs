@@ -238,7 +238,7 @@ fn on_axis(e: anyhow::Error, axis: Option<Axis>) -> anyhow::Error {
 /// `accept`, when no row was compensated (`thermometers`: those the
 /// model reads) or the run is implausible; labelled with its axis and the
 /// run's gaps.
-fn accept_evaluation(
+pub(crate) fn accept_evaluation(
     path: &Path,
     axis: Option<Axis>,
     thermometers: ThermometerSet,

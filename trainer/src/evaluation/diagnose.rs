@@ -8,6 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use rbf_core::CompensatorConfig;
+use rbf_core::axis::Axis;
 use rbf_core::features::{LOOP_THERMOMETER, THERMOMETERS};
 use rbf_core::record::{self as record, Columns, Row, column};
 use rbf_core::thermometer::ThermometerSet;
@@ -337,21 +338,31 @@ pub struct RunFindings {
     pub gap_notices: Vec<String>,
 }
 
-/// What is implausible about each single-axis run of `paths` as a gyro
-/// recording ([`RunDiagnosis::implausible`]) and which have gaps
+/// What is implausible about each run of `paths` as a gyro recording
+/// ([`RunDiagnosis::implausible`]) and which have gaps
 /// ([`RunDiagnosis::gap_notice`]), each read through once: the checks
 /// `eval` and `compensate` make as they go, for the runs a fit reads in
-/// blocks.
-pub fn run_findings(paths: &[PathBuf]) -> Result<RunFindings, RunError> {
+/// blocks. `axis`: the axis of multi-axis runs to read (`None`: single-axis
+/// runs); its findings name it.
+pub fn run_findings(paths: &[PathBuf], axis: Option<Axis>) -> Result<RunFindings, RunError> {
     let mut found = RunFindings::default();
     for path in paths {
         let mut reader = RunReader::open(path)?;
+        if let Some(axis) = axis {
+            reader.select_axis(axis)?;
+        }
         let mut diagnosis =
             RunDiagnosis::new(path, reader.nominal_period_s()).named_by(reader.header().line(), reader.columns());
         while let Some((line, row)) = reader.next_parsed()? {
             diagnosis.push(line, &row);
         }
-        found.implausible.extend(diagnosis.implausible());
+        let on_axis = |finding: String| match axis {
+            Some(axis) => format!("axis {}: {finding}", axis.name()),
+            None => finding,
+        };
+        found
+            .implausible
+            .extend(diagnosis.implausible().into_iter().map(on_axis));
         found.gap_notices.extend(diagnosis.gap_notice());
     }
     Ok(found)

@@ -306,7 +306,7 @@ impl Coverage {
         if let Some(fast) = self.rates.first() {
             if fast.max_c_per_min.max(-fast.min_c_per_min) < FAST_C_PER_MIN {
                 out.push(format!(
-                    "no fast change: the sensor never moved faster than {:.1} °C/min (τ {:.0} s); in use, steps and swings do; ramp at the chamber's full rate",
+                    "no fast change: the sensor never moved faster than {:.1} °C/min (τ {:.0} s); in use, steps and swings do, and leave more than the in-use forecast, which holds for changes this slow; ramp at the chamber's full rate",
                     fast.max_c_per_min.max(-fast.min_c_per_min),
                     fast.tau_s
                 ));

@@ -2,27 +2,51 @@
 //! (`predicted_in_use_std100_dph`): the 100-s cluster STD of the residual on
 //! temperature histories unlike the training runs.
 //!
-//! The forecast is the deployed model's residual 100-s cluster STD on its
-//! own training runs times a factor per structure
-//! ([`LAG_BANK_FORECAST_FACTOR`], [`RESPONSE_BANK_FORECAST_FACTOR`]). Held-out
-//! thermal events, the other candidate, forecast too much after a planned
-//! run: it holds each level once, so its held-out part is unlike the rest and
-//! unlike the in-use histories, which stay inside the range the run covered.
-//! They still choose between the structures ([`super::response::StructureChoice`]).
-//! The measurements behind the factors: docs/methods.md, "The forecast".
+//! The deployed model's residual 100-s cluster STD on its own training runs
+//! holds two parts: the gyro's white noise, which is the same in use, and the
+//! model's error, which grows in use as far as the histories differ from the
+//! runs. The forecast keeps the first ([`white_noise_std100`], the floor) and
+//! scales the second by a factor per structure ([`in_use_std100`],
+//! [`LAG_BANK_EXCESS_FACTOR`], [`RESPONSE_BANK_EXCESS_FACTOR`]). It is for
+//! temperature changes no faster than the runs held: a run without fast
+//! changes (`missing:`'s "no fast change") leaves more in use than forecast.
+//! Held-out thermal events, the other candidate, forecast too much after a
+//! planned run: it holds each level once, so its held-out part is unlike the
+//! rest and unlike the in-use histories, which stay inside the range the run
+//! covered. They still choose between the structures
+//! ([`super::response::StructureChoice`]). The measurements behind the
+//! factors: docs/methods.md, "The forecast".
 
 use rbf_core::model::Model;
 
 use crate::dataset::RunSet;
 
-/// The lag bank's in-use residual as a multiple of its training residual:
-/// its few parameters, tied by physics, carry to other histories about as
-/// well as they follow the training run.
-pub const LAG_BANK_FORECAST_FACTOR: f64 = 1.1;
+/// The lag bank's model error in use as a multiple of its model error on the
+/// training runs: its few parameters, tied by physics, carry to other
+/// histories about as well as they follow the training run.
+pub const LAG_BANK_EXCESS_FACTOR: f64 = 1.0;
 
-/// The response bank's in-use residual as a multiple of its training
-/// residual: its many weights follow the training run to its noise.
-pub const RESPONSE_BANK_FORECAST_FACTOR: f64 = 2.0;
+/// The response bank's model error in use as a multiple of its model error
+/// on the training runs: its many weights follow the training run closer
+/// than any other history.
+pub const RESPONSE_BANK_EXCESS_FACTOR: f64 = 2.0;
+
+/// The in-use 100-s cluster STD forecast from a training residual, °/h: the
+/// white-noise floor as it is, the rest (in quadrature) times
+/// `excess_factor`. Without a floor the whole residual is scaled. A floor
+/// above the residual (both are estimates) counts as the residual: no model
+/// error.
+pub fn in_use_std100(training: TrainingResidual, excess_factor: f64) -> f64 {
+    let total = training.std100_dph;
+    match training.noise_floor_std100_dph.filter(|f| f.is_finite()) {
+        Some(floor) => {
+            let floor = floor.min(total);
+            let excess_sq = total * total - floor * floor;
+            (floor * floor + excess_factor * excess_factor * excess_sq).sqrt()
+        }
+        None => excess_factor * total,
+    }
+}
 
 /// What a linear model leaves of its training runs, at the 100-s scale.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -127,6 +151,26 @@ fn rms_over_runs(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_forecast_keeps_the_noise_floor_and_scales_only_the_model_error() {
+        let residual = |std100_dph, noise_floor_std100_dph| TrainingResidual {
+            std100_dph,
+            noise_floor_std100_dph,
+        };
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        // 5 mdph over a 3-mdph floor: 4 mdph of model error, doubled in use.
+        let f = in_use_std100(residual(0.005, Some(0.003)), 2.0);
+        assert!(near(f, (0.003f64.powi(2) + 0.008f64.powi(2)).sqrt()), "{f}");
+        // Factor 1: the training residual itself.
+        assert!(near(in_use_std100(residual(0.005, Some(0.003)), 1.0), 0.005));
+        // At its floor the residual is white noise, whatever the factor;
+        // a floor estimated above the residual counts as the residual.
+        assert!(near(in_use_std100(residual(0.003, Some(0.003)), 2.0), 0.003));
+        assert!(near(in_use_std100(residual(0.003, Some(0.0035)), 2.0), 0.003));
+        // No floor to tell: the whole residual scaled.
+        assert!(near(in_use_std100(residual(0.003, None), 2.0), 0.006));
+    }
 
     #[test]
     fn the_noise_floor_is_the_white_noise_of_the_residual_whatever_slow_drift_rides_on_it() {

@@ -240,6 +240,7 @@ fn fit_lag_bank<T: RunSet + ?Sized, V: RunSet + ?Sized>(
             search,
             structure,
             training_std100_dph,
+            noise_floor_std100_dph: lag.and_then(|l| l.noise_floor_std100_dph),
         }),
     })
 }

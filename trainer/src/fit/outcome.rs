@@ -30,6 +30,10 @@ pub struct BankReport {
     /// The deployed bank's residual 100-s cluster STD on the training runs,
     /// °/h (`None` for runs too short for it).
     pub training_std100_dph: Option<f64>,
+    /// The part of the lag bank's training residual white noise explains,
+    /// °/h ([`forecast::white_noise_std100`]; `None` where the runs hold
+    /// too few adjacent blocks to tell): the gyro's, whichever bank deploys.
+    pub noise_floor_std100_dph: Option<f64>,
 }
 
 impl BankReport {
@@ -72,13 +76,18 @@ pub struct FitOutcome {
 
 impl FitOutcome {
     /// The residual 100-s cluster STD the fit forecasts for in-use histories
-    /// unlike its training runs, °/h: the deployed bank's training residual
-    /// times its structure's factor ([`forecast`]); `None` for the other methods.
+    /// unlike its training runs, °/h: the deployed bank's training residual,
+    /// its noise floor as it is and the rest times its structure's factor
+    /// ([`forecast::in_use_std100`]); `None` for the other methods.
     pub fn predicted_in_use_std100_dph(&self) -> Option<f64> {
         let FitReport::Bank(bank) = &self.report else {
             return None;
         };
-        Some(self.forecast_factor()? * bank.training_std100_dph?).filter(|v| v.is_finite())
+        let training = forecast::TrainingResidual {
+            std100_dph: bank.training_std100_dph?,
+            noise_floor_std100_dph: bank.noise_floor_std100_dph,
+        };
+        Some(forecast::in_use_std100(training, self.excess_factor()?)).filter(|v| v.is_finite())
     }
 
     /// The deployed bank's residual 100-s cluster STD on its training runs
@@ -88,16 +97,16 @@ impl FitOutcome {
         let FitReport::Bank(bank) = &self.report else {
             return None;
         };
-        let floor = bank.structure.as_ref()?.noise_floor_std100_dph?;
-        Some(bank.training_std100_dph? / floor).filter(|r| r.is_finite())
+        Some(bank.training_std100_dph? / bank.noise_floor_std100_dph?).filter(|r| r.is_finite())
     }
 
     /// The factor [`Self::predicted_in_use_std100_dph`] applies to the
-    /// training residual; `None` for the methods it does not forecast.
-    pub fn forecast_factor(&self) -> Option<f64> {
+    /// model error above the noise floor; `None` for the methods it does
+    /// not forecast.
+    pub fn excess_factor(&self) -> Option<f64> {
         match &self.report {
-            FitReport::Bank(bank) if bank.response_bank_chosen() => Some(forecast::RESPONSE_BANK_FORECAST_FACTOR),
-            FitReport::Bank(_) => Some(forecast::LAG_BANK_FORECAST_FACTOR),
+            FitReport::Bank(bank) if bank.response_bank_chosen() => Some(forecast::RESPONSE_BANK_EXCESS_FACTOR),
+            FitReport::Bank(_) => Some(forecast::LAG_BANK_EXCESS_FACTOR),
             _ => None,
         }
     }

@@ -22,8 +22,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use rbf_core::Model;
 
+use crate::evaluation::axes::accept_evaluation;
 use crate::evaluation::diagnose::RunDiagnosis;
-use crate::evaluation::evaluate::{Evaluator, RunEvaluation, require_compensated, require_evaluable};
+use crate::evaluation::evaluate::{Evaluator, RunEvaluation};
 use crate::evaluation::table::figure;
 use crate::output::{self, DirTarget, Existing, StagedDir};
 use crate::reading::run::RunReader;
@@ -114,9 +115,15 @@ fn read_run(
         rows += 1;
     })?;
     *first_index += rows;
-    require_evaluable(&path, rows, &diagnosis)?;
-    require_compensated(&path, rows, compensated, &diagnosis, thermometers, accept.uncompensated)?;
-    crate::reading::plausible::require_plausible(&diagnosis.implausible(), accept.implausible)?;
+    let gap_notice = diagnosis.gap_notice();
+    // The checks and the gap count `trainer eval` gives the same run.
+    let evaluation = accept_evaluation(
+        &path,
+        None,
+        thermometers,
+        (evaluator.finish(), diagnosis, compensated),
+        accept,
+    )?;
     // Without ref_dph each trace is taken about its own mean (as the
     // evaluation's figures are), known only now: a block mean of (v − m) is
     // the block mean of v, less m.
@@ -124,7 +131,6 @@ fn read_run(
     let less_mean = |blocks: BlockMeans, mean: f64| -> Vec<(f64, f64)> {
         blocks.finish().into_iter().map(|(t, v)| (t, v - mean)).collect()
     };
-    let evaluation = evaluator.finish();
     let (raw, comp, temp) = (
         less_mean(raw, mean(rate_sum)),
         less_mean(comp, mean(comp_sum)),
@@ -140,7 +146,7 @@ fn read_run(
         .collect();
     Ok(RunPlots {
         stem: stem.to_owned(),
-        gap_notice: diagnosis.gap_notice(),
+        gap_notice,
         duration_s: rows as f64 * period_s,
         bias_temp: BiasTempPlot {
             title: format!(

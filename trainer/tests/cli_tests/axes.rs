@@ -457,3 +457,51 @@ fn on_a_shared_thermometer_imu_every_axis_keeps_the_accuracy_of_its_own_fit_and_
         "{printed}"
     );
 }
+
+/// A multi-axis fit names the gaps of its runs' time column as a
+/// single-axis fit does, once for all axes (they share the column), and
+/// says nothing of a run without any.
+#[test]
+fn a_multi_axis_fit_names_the_gaps_of_its_runs_once() {
+    let dir = TempDir::new().unwrap();
+    let imu = dir.path().join("imu.csv");
+    let o = trainer(&["simulate", "--axes", "2", "--hours", "2", "-o", imu.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // 600 s lost before the 3000th data row.
+    let text = std::fs::read_to_string(&imu).unwrap();
+    let (mut gapped, mut data_rows, mut gap_line) = (String::new(), 0usize, 0usize);
+    for (k, line) in text.lines().enumerate() {
+        let is_data = !line.starts_with('#') && !line.starts_with("time_s");
+        if is_data && data_rows >= 3000 {
+            let (time, rest) = line.split_once(',').unwrap();
+            gapped.push_str(&format!("{:.4},{rest}\n", time.parse::<f64>().unwrap() + 600.0));
+            if gap_line == 0 {
+                gap_line = k + 1;
+            }
+        } else {
+            gapped.push_str(line);
+            gapped.push('\n');
+        }
+        data_rows += usize::from(is_data);
+    }
+    let gapped_path = dir.path().join("gapped.csv");
+    std::fs::write(&gapped_path, gapped).unwrap();
+    let fit = |run: &Path| {
+        let model = dir.path().join("imu.bin");
+        let o = trainer(&[
+            "fit",
+            "-q",
+            "--force",
+            run.to_str().unwrap(),
+            "-o",
+            model.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let errors = fit(&gapped_path);
+    assert_eq!(errors.matches("note:").count(), 1, "{errors}");
+    assert!(errors.contains("1 gap in time_s"), "{errors}");
+    assert!(errors.contains(&format!("before line {gap_line}")), "{errors}");
+    assert!(!fit(&imu).contains("note:"));
+}

@@ -43,7 +43,7 @@ fn a_training_run_gets_the_same_figures_from_fit_and_eval_and_one_held_out_figur
     let held_out = fitted.matches("validation RMS").count() + fitted.matches("held-out RMS").count();
     assert_eq!(held_out, 1, "{fitted}");
     assert!(
-        fitted.contains("(it chose the structure; the forecast above is the training residual times its factor"),
+        fitted.contains("(it chose the structure; the forecast above is made of the training residual"),
         "{fitted}"
     );
 }

@@ -457,6 +457,11 @@ fn eval_compensate_fit_and_report_name_the_gaps_of_a_run_by_line() {
     assert_eq!(errors, notice);
     let listed = format!("## Gaps in the runs\n\n- {}", notice.trim_start_matches("note: "));
     assert!(md.contains(&listed), "{md}");
+    // report.json counts them as eval's JSON does.
+    assert_eq!(
+        report_json(&dir.path().join("report"))["runs"][0]["gaps"],
+        json[0]["gaps"]
+    );
 
     // Without gaps: no note, and the JSON says none.
     let whole = write(&dir, "whole.csv", whole.as_bytes());
@@ -475,4 +480,13 @@ fn eval_compensate_fit_and_report_name_the_gaps_of_a_run_by_line() {
     let (errors, md) = report_of(m, &whole, &dir.path().join("whole-report"));
     assert_eq!(errors, "");
     assert!(!md.contains("## Gaps"), "{md}");
+    assert_eq!(
+        report_json(&dir.path().join("whole-report"))["runs"][0]["gaps"],
+        json[0]["gaps"]
+    );
+}
+
+/// The report.json a `trainer report` wrote into `out`.
+fn report_json(out: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
 }

@@ -67,6 +67,19 @@ fn a_run_whose_coil_lags_run_away_is_fitted_with_the_prior_instead_of_refused() 
         v["lag_bank_search"]
     );
     assert_eq!(v["structure"]["response_bank"], true, "{:#}", v["structure"]);
+    // The response bank's in-use forecast: the noise floor as it is, the
+    // model error above it doubled (docs/methods.md, "The forecast").
+    let (training, floor) = (
+        v["training_std100_dph"].as_f64().unwrap(),
+        v["structure"]["noise_floor_std100_dph"].as_f64().unwrap(),
+    );
+    let forecast = v["predicted_in_use_std100_dph"].as_f64().unwrap();
+    let expected = (floor * floor + 4.0 * (training * training - floor * floor).max(0.0)).sqrt();
+    assert!(
+        (forecast / expected - 1.0).abs() < 1e-9,
+        "{forecast} against {expected}: {v:#}"
+    );
+    assert!(forecast < 2.0 * training, "{forecast} against the residual {training}");
 }
 
 /// The same gyro on the plain 12-h plan of `trainer plan … --hours 12 --seed

@@ -10,15 +10,17 @@ use rbf_core::MAX_AXIS_CENTERS;
 use rbf_core::axis::Axis;
 use trainer::acceptance::{Rejected, Verdict};
 use trainer::blobfile::{encode_axis_models, encode_shared_models};
+use trainer::evaluation::diagnose;
 use trainer::evaluation::evaluate::{RunEvaluation, RunModels, evaluate_file, evaluate_reader};
 use trainer::evaluation::table::print_table;
 use trainer::fit::FitOptions;
 use trainer::fit::axes::{AxisRuns, JointMode, fit_axes, try_joint};
 use trainer::output::{Output, Transaction};
+use trainer::reading::plausible;
 use trainer::reading::run::RunReader;
 use trainer::text;
 
-use super::super::common::{JsonSink, print_json_and_commit};
+use super::super::common::{JsonSink, print_json_and_commit, print_notes};
 use super::args::Args;
 use super::blob_out::write_blob;
 use super::json::{outcome_json, runs_json};
@@ -76,6 +78,16 @@ pub(super) fn run(
     let outcomes = fit_axes(&runs, opts, axes)?;
     let joint = try_joint(&runs, opts, axes, &outcomes, mode)?;
     let fit_s = started.elapsed().as_secs_f64();
+    // The checks the single-axis fit makes after its fit: each axis's
+    // plausibility, and the gaps of the time column all axes share, named once.
+    let training_and_validation: Vec<PathBuf> = a.runs.iter().chain(&a.validate).cloned().collect();
+    for (k, &axis) in axes.iter().enumerate() {
+        let findings = diagnose::run_findings(&training_and_validation, Some(axis))?;
+        plausible::require_plausible(&findings.implausible, a.allow_implausible)?;
+        if k == 0 {
+            print_notes(&findings.gap_notices);
+        }
+    }
     let models: Vec<(Axis, &rbf_core::Model)> = axes.iter().copied().zip(outcomes.iter().map(|o| &o.0.model)).collect();
     let provenance = Some(calibration.provenance);
     let blob = match &joint.chosen {

@@ -129,12 +129,13 @@ fn write_bank_report(
     }
     if let (Some(predicted), Some(factor), Some(training)) = (
         outcome.predicted_in_use_std100_dph(),
-        outcome.forecast_factor(),
+        outcome.excess_factor(),
         bank.training_std100_dph,
     ) {
         writeln!(
             out,
-            "predicted residual STD100 in use {predicted:.4e} °/h ({factor}× the training residual {training:.4e} °/h on the fit's block means, warm-up left out)"
+            "predicted residual STD100 in use {predicted:.4e} °/h ({})",
+            forecast_basis(bank, training, factor)
         )?;
     }
     if !bank.response_bank_chosen() {
@@ -155,6 +156,23 @@ fn write_bank_report(
         )?;
     }
     write_bank(out, &outcome.model, &bank.search)
+}
+
+/// What the in-use forecast is made of and what it holds for: the training
+/// residual, its noise floor kept and the rest scaled by `factor`, for
+/// temperature changes no faster than the runs' fastest.
+fn forecast_basis(bank: &BankReport, training: f64, factor: f64) -> String {
+    let parts = bank.noise_floor_std100_dph.map_or_else(
+        || format!("×{factor} (the runs too short to tell its noise floor)"),
+        |floor| format!("its white-noise floor {floor:.4e} °/h as it is, the rest ×{factor}"),
+    );
+    let rates = bank.search.coverage.rates.first().map_or(String::new(), |fast| {
+        format!(
+            "; for temperature changes within the runs' {:.1} … {:+.1} °C/min (τ {:.0} s)",
+            fast.min_c_per_min, fast.max_c_per_min, fast.tau_s
+        )
+    });
+    format!("the training residual {training:.4e} °/h on the fit's block means, warm-up left out: {parts}{rates}")
 }
 
 /// How `--features multiscale-validated` chose between the multi-scale sets.
@@ -254,7 +272,7 @@ pub(super) fn write_bank(
     writeln!(
         out,
         "structure chosen on {how} among {} candidates; held-out RMS of 100-s means {:.4e} °/h (it chose the \
-         structure; the forecast above is the training residual times its factor, docs/methods.md \"The forecast\")",
+         structure; the forecast above is made of the training residual, docs/methods.md \"The forecast\")",
         search.candidates.len(),
         search.held_out_rms_dph()
     )?;
