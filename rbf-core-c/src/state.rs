@@ -109,7 +109,8 @@ fn reading(temp_c: f32) -> Option<f32> {
     Some(temp_c)
 }
 
-/// Every thermometer of a C sample as rbf-core takes them ([`reading`]).
+/// Every thermometer of a C sample as rbf-core takes it: the C side's NaN ("no
+/// reading") passes as it is, and rbf-core holds the last good value.
 #[inline(always)]
 pub fn readings(temps_c: &[f32; THERMOMETERS]) -> [Option<f32>; THERMOMETERS] {
     temps_c.map(reading)

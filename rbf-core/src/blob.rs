@@ -32,8 +32,8 @@
 //!    7+S   P-5-S  the provenance record (the trainer's: postcard; skipped here)
 //! ```
 //! A blob of format 2 or 3 still loads: it has no provenance ([`provenance`] is
-//! `Ok(None)`). The 16-byte header is written by one function ([`RawHeader::write`],
-//! through [`write_blob`]) and read by one ([`RawHeader::read`]), whatever the layout.
+//! `Ok(None)`). The 16-byte header is written by one function (`RawHeader::write`,
+//! through `write_blob`) and read by one (`RawHeader::read`), whatever the layout.
 
 use heapless::Vec;
 use serde::{Deserialize, Serialize};

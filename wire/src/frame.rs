@@ -222,7 +222,7 @@ fn payload(bytes: &mut [u8]) -> Result<&[u8], FrameError> {
 /// This runs once per gyro sample in the firmware, so it must not be able to
 /// panic (checked at link time, firmware/src/bin/panic_free_check.rs):
 /// postcard serialises into a plain slice (returns errors, never panics) and
-/// [`cobs_encode`](crate::cobs::cobs_encode) frames it; postcard's own COBS flavour indexes with
+/// [`crate::cobs::cobs_encode`] frames it; postcard's own COBS flavour indexes with
 /// assertions the optimiser cannot remove. The bytes are the same
 /// (`frames_round_trip_bit_for_bit_and_our_cobs_is_postcards`).
 pub fn encode(frame: &OutputFrame, out: &mut [u8]) -> Result<usize, FrameError> {

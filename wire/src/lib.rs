@@ -15,7 +15,7 @@
 //! |---|---|---|
 //! | [`REPLY_LEN`] (2) | the command | reply to a command ([`command`]) |
 //! | [`BOOT_REPORT_LEN`] (11) | 0xFB | boot report after a fault or watchdog reset ([`boot`]) |
-//! | [`BENCH_REPORT_LEN`] (17) | 0x02 | bench report ([`bench`]) |
+//! | [`BENCH_REPORT_LEN`] (17) | 0x02 | bench report ([`mod@bench`]) |
 //! | 18 … 22 (format 1), 23 … 27 (format 2) | 0xB2 (format 2) | single-axis output frame ([`frame`]) |
 //! | 54 … 62 | 0xA3, 0xA4 | three-axis output frame ([`frame`]) |
 //! | [`HEALTH_REPORT_LEN`] (116) | 0xFC | health report ([`health`]) |

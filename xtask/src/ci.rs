@@ -141,8 +141,18 @@ fn clippy(
     )
 }
 
+/// The workspace's documentation built with rustdoc's warnings denied: a broken
+/// link, or a public item's docs linking a private one, fails like a clippy warning.
+fn rustdoc() -> anyhow::Result<()> {
+    crate::run_with_env(
+        "cargo",
+        &["doc", "--workspace", "--no-deps"],
+        &[("RUSTDOCFLAGS", std::ffi::OsStr::new("-D warnings"))],
+    )
+}
+
 /// fmt, the import circles and the C header's drift, clippy (host and firmware) with the no_std
-/// check and the board faults beside the firmware builds and the panic-free checks (firmware and
+/// check, rustdoc and the board faults beside the firmware builds and the panic-free checks (firmware and
 /// C library), host tests beside the fuzz build, the tests needing QEMU (and the C library's replays), then 20 s of fuzzing (the targets
 /// side by side) beside the test needing PyPI; ends with `N passed, N failed`.
 pub fn ci() -> anyhow::Result<()> {
@@ -219,6 +229,7 @@ pub fn ci() -> anyhow::Result<()> {
         });
         let started = Instant::now();
         let clippy = clippy(&qemu_boards, &panic_check, image_args)
+            .and_then(|()| rustdoc())
             .and_then(|()| crate::board_faults::board_faults())
             .map(|()| started.elapsed().as_secs_f64());
         let firmware = firmware
@@ -228,7 +239,7 @@ pub fn ci() -> anyhow::Result<()> {
     });
     let (clippy, firmware) = (clippy?, firmware?);
     clock.lap(format!(
-        "clippy (host, firmware feature sets, no_std check) and board faults ({clippy:.0} s) \
+        "clippy (host, firmware feature sets, no_std check), rustdoc and board faults ({clippy:.0} s) \
          beside the firmware images, panic-free checks and C library builds ({firmware:.0} s)"
     ));
     // Beside the host tests, the fuzz targets' instrumented build (its own target

@@ -14,7 +14,7 @@
 //!               postcard(body), exactly a version-2 payload
 //!   16+N     4  CRC-32/ISO-HDLC of bytes 0 .. 16+N, u32 LE
 //! ```
-//! The whole blob stays within [`MAX_BLOB_LEN`]. Each section is encoded
+//! The whole blob stays within [`MAX_BLOB_LEN`](super::MAX_BLOB_LEN). Each section is encoded
 //! and decoded by the single-axis code ([`super::encode`], [`super::decode_into`]
 //! share it), so an axis's model is bit for bit what a single-axis blob of
 //! it would give.

@@ -18,7 +18,7 @@
 //! ```
 //! The basis goes through the single-axis decoder and validation; each
 //! layer is checked against it ([`SharedAxisModels::assign_layer`]). The
-//! whole blob stays within [`MAX_BLOB_LEN`]. A reader of one model per
+//! whole blob stays within [`MAX_BLOB_LEN`](super::MAX_BLOB_LEN). A reader of one model per
 //! axis refuses this blob with [`DecodeError::SharedBasis`], this reader
 //! refuses the others with [`DecodeError::NotSharedBasis`].
 

@@ -14,7 +14,8 @@ pub type Role<'a> = (&'a str, &'a [PathBuf]);
 /// Refuses a run that holds the same data as a run listed before it, in its
 /// own role or an earlier one of `roles` (listed from the runs that weigh
 /// most, the training runs, to those only reported), naming both runs, how
-/// they are the same ([`same_data`]) and what listing it twice would do.
+/// they are the same (the same file, a copy, or the same rows once `#` lines,
+/// blank lines and `\r` line ends are left out) and what listing it twice would do.
 /// Standard input (`-`) is never compared: it is read once and not kept.
 pub fn require_distinct_runs(roles: &[Role]) -> anyhow::Result<()> {
     let mut seen: Vec<(&str, &Path, Option<Digests>)> = Vec::new();

@@ -74,7 +74,7 @@ const CONFIRM_WITHIN: u32 = 16;
 /// Which frames of a stream are the unit's. The stream's kind and format
 /// are those of its first CRC-checked frame (format 2), or of a format-1
 /// frame that the next frame confirms (same kind and format, its sequence
-/// number 1 … [`CONFIRM_WITHIN`] on): format 1 carries no check, so the
+/// number 1 … 16 on): format 1 carries no check, so the
 /// tail of a cut frame, or a damaged format-2 frame, can pass for one.
 /// After that a frame of another kind or format is refused.
 #[derive(Debug, Default)]

@@ -10,7 +10,7 @@
 //! ([`crate::dataset::gradients`], the paper's Table 3). By default the thermometers
 //! are then chosen by validation ([`super::thermometer_search`]: correlation
 //! favours sensors whose lead over the coil does not carry to other ramp
-//! rates); with a correlation rule ([`FitOptions::selection`]) the paper's
+//! rates); with a correlation rule ([`SvrInputs::Rule`]) the paper's
 //! selection picks the inputs instead. rbf-core computes the inputs per
 //! sample ([`rbf_core::FeatureSet::MultiPoint`]). On
 //! single-thermometer runs, the IFOG paper's (T, ΔT, T×ΔT) (one ΔT window,

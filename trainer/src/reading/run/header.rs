@@ -1,6 +1,6 @@
 //! What a run says before its data: the metadata, comment and blank lines
 //! (the preamble) and the header, read and checked; the column mapping read
-//! from the header is in [`super::columns`].
+//! from the header is in the sibling module `columns`.
 
 use std::io::BufRead;
 use std::path::{Path, PathBuf};

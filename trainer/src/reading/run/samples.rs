@@ -30,7 +30,7 @@ pub struct Run {
     pub thermometers: ThermometerSet,
     /// Known true rate, °/h, if the run has the column.
     pub ref_dph: Option<Vec<f64>>,
-    /// Nominal sample period, s (see [`record::nominal_period_s`]).
+    /// Nominal sample period, s (see [`rbf_core::record::nominal_period_s`]).
     pub nominal_period_s: f64,
 }
 
