@@ -313,7 +313,7 @@ fn the_validated_choice_keeps_the_second_order_set_only_when_it_validates_clearl
         printed.contains("feature sets: first-order validation RMS"),
         "{printed}"
     );
-    let fit: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let fit = crate::common::read_json(&json);
     let sets = &fit["feature_sets"];
     let (first, second) = (
         sets["first_order_rms_dph"].as_f64().unwrap(),
@@ -714,8 +714,7 @@ fn report_writes_svg_and_png_plots_json_and_markdown() {
             "{stem}.svg draws"
         );
     }
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let json = crate::common::read_json(out.join("report.json"));
     let e = &json["runs"][0];
     assert!(e["cluster_std_improvement_pct"].as_f64().unwrap() > 50.0, "{e}");
     assert!(e["allan_after"]["adev_dph"].as_array().unwrap().len() >= 8);
@@ -1074,7 +1073,7 @@ fn cluster_std_after_dph(dir: &TempDir, model: &Path, run: &Path) -> f64 {
         "--force",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    let v = crate::common::read_json(json);
     v[0]["cluster_std_after_dph"].as_f64().unwrap()
 }
 
@@ -1206,7 +1205,7 @@ fn inspect_and_eval_take_model_and_json_file_with_dash_for_stdout() {
     let json_file = dir.path().join("inspect.json");
     let o = trainer(&["inspect", "--model", m, "--json", json_file.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json_file).unwrap()).unwrap();
+    let v = crate::common::read_json(&json_file);
     assert_eq!(v["crc"], "ok");
     let o = trainer(&["inspect", "--model", m, "--json", "-"]);
     let w: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();

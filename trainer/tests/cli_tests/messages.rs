@@ -459,7 +459,7 @@ fn eval_compensate_fit_and_report_name_the_gaps_of_a_run_by_line() {
     assert!(md.contains(&listed), "{md}");
     // report.json counts them as eval's JSON does.
     assert_eq!(
-        report_json(&dir.path().join("report"))["runs"][0]["gaps"],
+        crate::common::read_json(dir.path().join("report").join("report.json"))["runs"][0]["gaps"],
         json[0]["gaps"]
     );
 
@@ -481,12 +481,7 @@ fn eval_compensate_fit_and_report_name_the_gaps_of_a_run_by_line() {
     assert_eq!(errors, "");
     assert!(!md.contains("## Gaps"), "{md}");
     assert_eq!(
-        report_json(&dir.path().join("whole-report"))["runs"][0]["gaps"],
+        crate::common::read_json(dir.path().join("whole-report").join("report.json"))["runs"][0]["gaps"],
         json[0]["gaps"]
     );
-}
-
-/// The report.json a `trainer report` wrote into `out`.
-fn report_json(out: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
 }

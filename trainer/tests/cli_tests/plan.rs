@@ -301,7 +301,7 @@ fn a_plan_runs_through_the_simulator_and_a_fit_reports_its_coverage() {
         json.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let v = crate::common::read_json(&json);
     assert!(v["predicted_settled_spread_dph"].is_null(), "{v}");
     let why = v["settled_forecast"].as_str().unwrap();
     assert!(
@@ -614,7 +614,7 @@ fn a_plan_predicts_both_figures_on_both_plants_in_its_output_file_and_json() {
     let printed = stdout(&o);
     let (_, meta) = read_plan(&dir.path().join("p.csv"));
     let spreads = predicted_spreads(&meta);
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let report = crate::common::read_json(&json);
     for (plant, spread) in ["nominal", "slow"].iter().zip(spreads) {
         let figures = &report["predicted"][plant];
         let from_json = figures["settled_spread_dph"].as_f64().unwrap();
@@ -673,7 +673,7 @@ fn a_settled_spread_spec_gives_the_shortest_plan_predicted_to_meet_it_or_says_it
     for spread in predicted_spreads(&meta) {
         assert!(spread <= 0.5, "{spread} in {meta:?}");
     }
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let report = crate::common::read_json(&json);
     let tried = report["tried"].as_array().unwrap();
     let (last, shorter) = tried.split_last().unwrap();
     assert!(last["worse_settled_spread_dph"].as_f64().unwrap() <= 0.5, "{tried:?}");

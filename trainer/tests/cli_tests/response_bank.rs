@@ -126,7 +126,7 @@ fn fitted_on(plan_csv: &str) -> serde_json::Value {
     assert!(o.status.success(), "{}", stderr(&o));
     let o = trainer(&["eval", "--model", &path("m.bin"), &path("run.csv")]);
     assert!(o.status.success(), "{}", stderr(&o));
-    serde_json::from_str(&std::fs::read_to_string(path("fit.json")).unwrap()).unwrap()
+    crate::common::read_json(path("fit.json"))
 }
 
 /// The simulated plant and gyro of the tests above (`trainer simulate`'s `# simulator_params`).

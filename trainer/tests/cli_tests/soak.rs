@@ -133,7 +133,7 @@ fn a_soak_run_has_8_plateaus_at_its_levels_and_eval_s_settled_spread_is_the_arit
     let by_hand = plateaus_by_hand(&rows, period_s);
     assert_eq!(by_hand.len(), 8, "{by_hand:?}");
 
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    let v = crate::common::read_json(json);
     let plateaus = v[0]["plateaus"].as_array().unwrap();
     assert_eq!(plateaus.len(), 8, "{plateaus:#?}");
     for ((p, (temp_c, bias_dph)), level) in plateaus.iter().zip(&by_hand).zip(LEVELS_C) {
@@ -270,7 +270,7 @@ fn a_fit_on_a_run_with_settled_levels_states_their_spread_as_a_floor_under_the_s
         printed.contains("settled: the training run's own 3 settled levels"),
         "{printed}"
     );
-    let fit: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&fit_json).unwrap()).unwrap();
+    let fit = crate::common::read_json(&fit_json);
     assert_eq!(fit["training_settled_levels"], 3, "{fit}");
     let floor = fit["training_settled_spread_dph"].as_f64().unwrap();
     assert!(

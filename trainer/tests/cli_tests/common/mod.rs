@@ -81,6 +81,11 @@ pub fn simulated(path: &Path, args: &[&str]) {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
+/// The JSON document in the file at `path` (a report a command wrote).
+pub fn read_json(path: impl AsRef<Path>) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
 /// What `trainer eval --model MODEL RUN --json -` prints, parsed; the command must succeed.
 pub fn eval_json(model: &str, run: &str) -> serde_json::Value {
     let o = trainer(&["eval", "--model", model, run, "--json", "-"]);
