@@ -65,7 +65,8 @@ pub struct Args {
     /// after it is less accurate in use (measured in docs/decisions.md). Refuses --hours too
     /// short for the soaks, saying how long they need. Without it (and without --plain), a run
     /// of 12 h or more soaks each end as long as leaves 12 h for the rest, 1.5 … 3 h (docs/plan.md,
-    /// "End soaks"), a shorter one not at all: the plan drawn before end soaks existed.
+    /// "End soaks"), a shorter one not at all: the plan drawn before end soaks existed. Its
+    /// soaks are the slow plant's at the ends only, without the default's band soaks.
     #[arg(long, conflicts_with = "plain")]
     soak_ends: bool,
     /// No end soaks, whatever --hours: the plan drawn before end soaks existed.
@@ -73,8 +74,10 @@ pub struct Args {
     /// The default soaks each end of the range in a run of 12 h or more, as long as leaves 12 h
     /// for the rest, 1.5 h at least and 3 h at most: over plan draws that lowered the soak
     /// test's settled spread at about the same in-use accuracy (measured in docs/decisions.md).
-    /// --plain gives the dynamics those hours instead; the handed-out designs' 12-h planned
-    /// runs are --plain.
+    /// A run that keeps 12 h besides its end soaks and 1.5 h or more for each interior 20-°C
+    /// band of the range (22.5 h over −40 … 60 °C) also soaks each such band once, the spare
+    /// time shared, at most 3 h (docs/plan.md, "Band soaks"). --plain gives the dynamics
+    /// those hours instead; the handed-out designs' 12-h planned runs are --plain.
     #[arg(long, conflicts_with = "settled_spread_dph")]
     plain: bool,
     /// Design the shortest run predicted to meet this settled spread on both plants, °/h.
@@ -272,8 +275,9 @@ fn json_report(plan: &trainer::plan::Plan, spec: Option<&trainer::plan::spec::Sp
         "hours": plan.limits.hours,
         "duration_h": plan.duration_s() / 3600.0,
         "soak_ends": plan.end_soak_s.is_some(),
-        "family": plan.ends.name(plan.end_soak_s),
+        "family": plan.ends.name(plan.end_soak_s, plan.band_soak_s),
         "end_soak_min": plan.end_soak_s.map(|s| s / 60.0),
+        "band_soak_min": plan.band_soak_s.map(|s| s / 60.0),
         "seed": plan.seed,
         "criterion": plan.criterion,
         "predicted": plan.prediction,

@@ -102,6 +102,12 @@ pub fn model_range_c(model: &rbf_core::Model) -> Option<(f64, f64)> {
     Some((f64::from(lo), f64::from(hi)))
 }
 
+/// How many [`BAND_C`] bands `[edge, edge + 20)` from `lo` cover `lo … hi`
+/// (at least one; the last holds `hi`).
+pub fn band_count(lo: f64, hi: f64) -> usize {
+    ((hi - lo) / BAND_C - 1e-9).ceil().max(1.0) as usize
+}
+
 /// Lower edges of the [`BAND_C`] bands `[edge, edge + 20)` from `lo` up that
 /// hold none of `levels_c`, °C. The last band ends at `hi` + `top_slack_c`,
 /// inclusive (a range a hair over a multiple of the width is no band more).
@@ -110,7 +116,7 @@ pub fn bands_without_level_c(levels_c: &[f64], lo: f64, hi: f64, top_slack_c: f6
     if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
         return Vec::new();
     }
-    let bands = ((hi - lo) / BAND_C - 1e-9).ceil().max(1.0) as usize;
+    let bands = band_count(lo, hi);
     (0..bands)
         .map(|b| (b, lo + b as f64 * BAND_C))
         .filter(|&(b, edge)| {

@@ -1,11 +1,12 @@
 //! The candidate plans: segments drawn from the family the lag bank needs to see
-//! ([`candidate`]), or the same soaking at both ends of the range
-//! ([`candidate_soaking_ends`]), on whole minutes and reachable set points, cut to the
+//! ([`candidate`]), or the same soaking at both ends of the range and in
+//! its interior bands ([`candidate_soaking`]), on whole minutes and reachable set points, cut to the
 //! longest run the limits allow.
 
 use rand::Rng;
 
 use super::limits::*;
+use crate::fit::coverage::{BAND_C, band_count};
 
 /// Builds a segment list up to a time budget.
 #[derive(Clone)]
@@ -14,15 +15,20 @@ pub(super) struct Builder<'a> {
     pub(super) segments: Vec<Segment>,
     pub(super) now_c: f64,
     pub(super) t_s: f64,
+    /// Each end's soak: every drawn move to an end holds there at least this long.
+    pub(super) end_soak_s: Option<f64>,
+    /// The soaks still to hold ([`Station`]); a drawn move into one holds its soak.
+    pub(super) stations_left: Vec<Station>,
 }
 
 impl Builder<'_> {
     /// Draws one move of the design family with `rng` and appends it: a
     /// burst of swings at the full rate about a centre near the current
     /// level, legs alternating sides, or a move to another level, slow or
-    /// fast. With `end_soak_s` (`--soak-ends`), a move to an end of the
-    /// range holds there at least that long, for the loop to settle.
-    pub(super) fn draw_move(&mut self, rng: &mut impl Rng, end_soak_s: Option<f64>) {
+    /// fast. A move to a level a station still to hold covers
+    /// ([`Self::stations_left`]) holds there at least the station's soak, for
+    /// the loop to settle, and the station is held.
+    pub(super) fn draw_move(&mut self, rng: &mut impl Rng) {
         let l = self.limits;
         let span = l.max_c - l.min_c;
         let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
@@ -57,10 +63,14 @@ impl Builder<'_> {
             6..=7 => r * rng.random_range(0.3..=0.7),
             _ => r * rng.random_range(0.1..=0.3),
         };
-        let hold_s = match end_soak_s {
-            Some(soak_s) if is_end(set_point(target, l), l) => hold_s.max(soak_s),
+        let at = set_point(target, l);
+        let mut hold_s = match self.end_soak_s {
+            Some(soak_s) if is_end(at, l) => hold_s.max(soak_s),
             _ => hold_s,
         };
+        if let Some(i) = self.stations_left.iter().position(|s| s.covers(at, l)) {
+            hold_s = hold_s.max(self.stations_left.remove(i).soak_s);
+        }
         self.ramp_hold(target, rate, hold_s);
     }
 
@@ -95,29 +105,97 @@ pub(super) fn is_end(c: f64, l: &PlanLimits) -> bool {
     (c - l.min_c).abs() < 0.006 || (c - l.max_c).abs() < 0.006
 }
 
-/// The ends of the range still to visit from `now_c`, nearest first.
-pub(super) fn ends_left(l: &PlanLimits, now_c: f64, low_left: bool, high_left: bool) -> Vec<f64> {
-    let mut ends: Vec<f64> = [(l.min_c, low_left), (l.max_c, high_left)]
-        .into_iter()
-        .filter(|e| e.1)
-        .map(|e| e.0)
-        .collect();
-    ends.sort_by(|a, b| (a - now_c).abs().total_cmp(&(b - now_c).abs()));
-    ends
+/// A soak a candidate holds once besides its drawn moves: at an end of the
+/// range, or anywhere in an interior [`BAND_C`] band (the bands `trainer fit`
+/// asks a settled level in, `fit::coverage::bands_without_level_c`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Station {
+    /// Lowest set point that holds it, °C.
+    pub(super) lo_c: f64,
+    /// Highest set point that holds it, °C: excluded for a band; an end's
+    /// is its `lo_c`.
+    pub(super) hi_c: f64,
+    /// Whether it is an end of the range (held only there).
+    pub(super) is_end: bool,
+    /// Where the candidate goes when it has not held it by the end, °C.
+    pub(super) target_c: f64,
+    /// How long it holds there, s.
+    pub(super) soak_s: f64,
 }
 
-/// Seconds to visit `ends` from `now_c` in turn at the full rate with an
-/// `end_soak_s` soak at each.
-pub(super) fn visits_s(l: &PlanLimits, now_c: f64, ends: &[f64], end_soak_s: f64) -> f64 {
+impl Station {
+    /// An end of the range, soaked `soak_s`.
+    fn end(c: f64, soak_s: f64) -> Station {
+        Station {
+            lo_c: c,
+            hi_c: c,
+            is_end: true,
+            target_c: c,
+            soak_s,
+        }
+    }
+
+    /// Whether a hold at set point `c` holds this station.
+    pub(super) fn covers(&self, c: f64, l: &PlanLimits) -> bool {
+        if self.is_end {
+            is_end(c, l) && (c - self.lo_c).abs() < 0.006
+        } else {
+            c >= self.lo_c && c < self.hi_c
+        }
+    }
+}
+
+/// The stations of a soaking candidate under `l`: each end soaked
+/// `end_soak_s`, and with `band_soak_s` each interior [`BAND_C`] band of the
+/// range (all but the two that hold the ends) at its centre.
+pub(super) fn stations(l: &PlanLimits, end_soak_s: f64, band_soak_s: Option<f64>) -> Vec<Station> {
+    let mut out = vec![Station::end(l.min_c, end_soak_s), Station::end(l.max_c, end_soak_s)];
+    if let Some(soak_s) = band_soak_s {
+        out.extend((1..interior_bands(l) + 1).map(|b| {
+            let lo_c = l.min_c + b as f64 * BAND_C;
+            Station {
+                lo_c,
+                hi_c: lo_c + BAND_C,
+                is_end: false,
+                target_c: set_point(lo_c + 0.5 * BAND_C, l),
+                soak_s,
+            }
+        }));
+    }
+    out
+}
+
+/// Interior [`BAND_C`] bands of the range: those between the two that hold its ends.
+pub fn interior_bands(l: &PlanLimits) -> usize {
+    band_count(l.min_c, l.max_c).saturating_sub(2)
+}
+
+/// `left` in the order the candidate visits them from `now_c`: each time the
+/// nearest still left.
+pub(super) fn route(now_c: f64, left: &[Station]) -> Vec<Station> {
+    let mut left = left.to_vec();
+    let mut at = now_c;
+    let mut out = Vec::with_capacity(left.len());
+    while let Some(i) =
+        (0..left.len()).min_by(|&a, &b| (left[a].target_c - at).abs().total_cmp(&(left[b].target_c - at).abs()))
+    {
+        let s = left.remove(i);
+        at = s.target_c;
+        out.push(s);
+    }
+    out
+}
+
+/// Seconds to hold `left` from `now_c` in [`route`]'s order at the full rate.
+pub(super) fn visits_s(l: &PlanLimits, now_c: f64, left: &[Station]) -> f64 {
     let mut at = now_c;
     let mut s = 0.0;
-    for &e in ends {
-        let target = set_point(e, l);
-        if (target - at).abs() >= 0.01 {
-            s += ramp_seconds(target - at, l.max_rate_c_per_min);
+    for st in route(now_c, left) {
+        if (st.target_c - at).abs() >= 0.01 {
+            s += ramp_seconds(st.target_c - at, l.max_rate_c_per_min);
         }
-        s += whole_minutes(end_soak_s);
-        at = target;
+        s += whole_minutes(st.soak_s);
+        at = st.target_c;
     }
     s
 }
@@ -139,41 +217,52 @@ pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
         }],
         now_c: start,
         t_s: 0.0,
+        end_soak_s: None,
+        stations_left: Vec::new(),
     };
     b.t_s = b.segments[0].hold_s;
     while b.t_s < end_s {
-        b.draw_move(rng, None);
+        b.draw_move(rng);
     }
     cut(b.segments, end_s)
 }
 
 /// One candidate of the design family, drawn with `rng`, cut to the time
 /// budget, with a soak of at least `end_soak_s` at each end of the range
-/// (`trainer plan --soak-ends`; without it, [`candidate`]). The power-on
-/// soak counts for the cold end when it starts there: the unit is soaked
-/// before it. A move is drawn only while the ends not yet
-/// visited still fit in the budget after it; then they are visited, nearest
-/// first, at the full rate.
-pub fn candidate_soaking_ends(limits: &PlanLimits, end_soak_s: f64, rng: &mut impl Rng) -> Vec<Segment> {
+/// and, with `band_soak_s`, one of at least that in each interior
+/// [`BAND_C`] band (`trainer plan`'s default and
+/// `--soak-ends`; without them, [`candidate`]). The power-on soak counts for
+/// the cold end when it starts there: the unit is soaked before it. A move is
+/// drawn only while the stations not yet held still fit in the budget after
+/// it; then they are visited, nearest first, at the full rate.
+pub fn candidate_soaking(
+    limits: &PlanLimits,
+    end_soak_s: f64,
+    band_soak_s: Option<f64>,
+    rng: &mut impl Rng,
+) -> Vec<Segment> {
     let l = limits;
     let span = l.max_c - l.min_c;
     let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
-    let is_end = |c: f64| is_end(c, l);
     let r = l.max_rate_c_per_min;
     let end_s = (l.hours * 3600.0 / TENTH_MIN_S).floor() * TENTH_MIN_S;
+    let all = stations(l, end_soak_s, band_soak_s);
+    // Held by the power-on soak at `start`: the cold end, when it starts there.
+    let left_after_start = |start: f64| -> Vec<Station> {
+        all.iter()
+            .copied()
+            .filter(|s| !(s.is_end && s.covers(start, l)))
+            .collect()
+    };
     // Cold start: soaked in the lowest fifth of the range; at its bottom
     // when the budget has no room for a soak there later.
     let drawn = set_point(level(rng.random_range(0..=2)), l);
-    let fits = |start: f64| {
-        let ends = ends_left(l, start, (start - l.min_c).abs() >= 0.006, true);
-        WARM_UP_S.0 + visits_s(l, start, &ends, end_soak_s) <= end_s
-    };
+    let fits = |start: f64| WARM_UP_S.0 + visits_s(l, start, &left_after_start(start)) <= end_s;
     let start = if fits(drawn) { drawn } else { set_point(l.min_c, l) };
-    let mut low_left = (start - l.min_c).abs() >= 0.006;
-    let mut high_left = true;
-    let ends_need_s = visits_s(l, start, &ends_left(l, start, low_left, high_left), end_soak_s);
+    let stations_left = left_after_start(start);
+    let need_s = visits_s(l, start, &stations_left);
     let warm_up_s =
-        whole_minutes(rng.random_range(WARM_UP_S.0..=WARM_UP_S.1)).min(floor_minutes(end_s - ends_need_s).max(0.0));
+        whole_minutes(rng.random_range(WARM_UP_S.0..=WARM_UP_S.1)).min(floor_minutes(end_s - need_s).max(0.0));
     let mut b = Builder {
         limits: l,
         segments: vec![Segment {
@@ -183,28 +272,24 @@ pub fn candidate_soaking_ends(limits: &PlanLimits, end_soak_s: f64, rng: &mut im
         }],
         now_c: start,
         t_s: 0.0,
+        end_soak_s: Some(end_soak_s),
+        stations_left,
     };
     b.t_s = b.segments[0].hold_s;
     while b.t_s < end_s {
         let before = b.clone();
-        b.draw_move(rng, Some(end_soak_s));
-        let at_end = is_end(b.now_c);
-        let (low, high) = (
-            low_left && !(at_end && b.now_c < l.min_c + 0.5 * span),
-            high_left && !(at_end && b.now_c > l.min_c + 0.5 * span),
-        );
-        let need_s = visits_s(l, b.now_c, &ends_left(l, b.now_c, low, high), end_soak_s);
-        let visited_now = (low, high) != (low_left, high_left);
-        if b.t_s + need_s > end_s && (need_s > 0.0 || visited_now) {
-            // This move leaves no room for the ends (or its own end soak
-            // runs past the budget): drop it and visit the ends instead.
+        b.draw_move(rng);
+        let need_s = visits_s(l, b.now_c, &b.stations_left);
+        let held_now = b.stations_left.len() != before.stations_left.len();
+        if b.t_s + need_s > end_s && (need_s > 0.0 || held_now) {
+            // This move leaves no room for the stations (or its own soak
+            // runs past the budget): drop it and visit them instead.
             b = before;
             break;
         }
-        (low_left, high_left) = (low, high);
     }
-    for e in ends_left(l, b.now_c, low_left, high_left) {
-        b.ramp_hold(e, r, end_soak_s);
+    for s in route(b.now_c, &b.stations_left) {
+        b.ramp_hold(s.target_c, r, s.soak_s);
     }
     cut(b.segments, end_s)
 }

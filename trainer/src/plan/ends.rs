@@ -14,6 +14,7 @@
 //! at about the same in-use accuracy; the slow plant's soaks of 4.5 h cost
 //! accuracy in use.
 
+use super::candidates::interior_bands;
 use super::criterion::end_soak_s;
 use super::limits::{PlanLimits, SLOW_PLANT_FACTOR};
 
@@ -59,12 +60,23 @@ impl Ends {
         }
     }
 
-    /// The family as `trainer plan` names it, given the soak it resolved to.
-    pub fn name(self, end_soak_s: Option<f64>) -> String {
+    /// Each interior band's soak under `limits` once the end soak is
+    /// `end_soak_s`, s, `None` for none: the default's
+    /// ([`default_band_soak_s`]); the other families hold none.
+    pub fn band_soak_s(self, limits: &PlanLimits, end_soak_s: Option<f64>) -> Option<f64> {
+        match (self, end_soak_s) {
+            (Ends::Default, Some(end_soak_s)) => default_band_soak_s(limits, end_soak_s),
+            _ => None,
+        }
+    }
+
+    /// The family as `trainer plan` names it, given the soaks it resolved to.
+    pub fn name(self, end_soak_s: Option<f64>, band_soak_s: Option<f64>) -> String {
+        let bands = band_soak_s.map_or(String::new(), |s| format!(", {}-h band soaks", s / 3600.0));
         match (self, end_soak_s) {
             (_, None) => "plain".to_owned(),
             (Ends::SlowPlant, Some(_)) => "--soak-ends".to_owned(),
-            (_, Some(s)) => format!("{}-h end soaks", s / 3600.0),
+            (_, Some(s)) => format!("{}-h end soaks{bands}", s / 3600.0),
         }
     }
 
@@ -99,6 +111,27 @@ pub fn default_end_soak_s(limits: &PlanLimits) -> Option<f64> {
     })
 }
 
+/// The default's soak in each interior band of the range
+/// ([`interior_bands`]) once each end soaks `end_soak_s`, s, in whole
+/// minutes: what the run holds beyond [`DYNAMICS_S`] and its end soaks,
+/// shared among the bands, at most [`MAX_END_SOAK_S`]; `None` when that
+/// is shorter than [`SHORT_END_SOAK_S`] or the range has no interior band
+/// (2 h each at 24 h over −40 … 60 °C, from 26 h on 3 h).
+///
+/// Why (docs/decisions.md, "Band soaks in the default plan"): the soak test
+/// reads the settled bias across the range, and a plan whose only settled
+/// levels lie at the ends leaves the middle of the static curve to the
+/// dynamics.
+pub fn default_band_soak_s(limits: &PlanLimits, end_soak_s: f64) -> Option<f64> {
+    let bands = interior_bands(limits);
+    let spare_s = limits.hours * 3600.0 - DYNAMICS_S - 2.0 * end_soak_s;
+    if bands == 0 || spare_s <= 0.0 {
+        return None;
+    }
+    let each_s = (spare_s / bands as f64 / 60.0).floor() * 60.0;
+    (each_s >= SHORT_END_SOAK_S).then_some(each_s.min(MAX_END_SOAK_S))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -129,10 +162,41 @@ mod tests {
 
     #[test]
     fn families_are_named_by_what_they_resolved_to() {
-        assert_eq!(Ends::Default.name(None), "plain");
-        assert_eq!(Ends::Default.name(Some(MAX_END_SOAK_S)), "3-h end soaks");
-        assert_eq!(Ends::Default.name(Some(SHORT_END_SOAK_S)), "1.5-h end soaks");
-        assert_eq!(Ends::Default.name(Some(9000.0)), "2.5-h end soaks");
-        assert_eq!(Ends::SlowPlant.name(Some(16_000.0)), "--soak-ends");
+        assert_eq!(Ends::Default.name(None, None), "plain");
+        assert_eq!(Ends::Default.name(Some(MAX_END_SOAK_S), None), "3-h end soaks");
+        assert_eq!(Ends::Default.name(Some(SHORT_END_SOAK_S), None), "1.5-h end soaks");
+        assert_eq!(Ends::Default.name(Some(9000.0), None), "2.5-h end soaks");
+        assert_eq!(
+            Ends::Default.name(Some(MAX_END_SOAK_S), Some(7200.0)),
+            "3-h end soaks, 2-h band soaks"
+        );
+        assert_eq!(Ends::SlowPlant.name(Some(16_000.0), None), "--soak-ends");
+    }
+
+    #[test]
+    fn the_default_soaks_each_interior_band_where_the_run_keeps_twelve_hours_of_dynamics_and_its_end_soaks_besides() {
+        let at = |hours: f64| {
+            let limits = PlanLimits { hours, ..LIMITS };
+            let ends = Ends::Default.end_soak_s(&limits).unwrap();
+            Ends::Default.band_soak_s(&limits, ends)
+        };
+        // −40 … 60 °C: three interior bands (−20 … 0, 0 … 20, 20 … 40 °C).
+        assert_eq!(at(12.0), None);
+        assert_eq!(at(22.4), None, "less than 1.5 h a band");
+        assert_eq!(at(22.5), Some(SHORT_END_SOAK_S));
+        assert_eq!(at(24.0), Some(7200.0));
+        assert_eq!(at(36.0), Some(MAX_END_SOAK_S));
+        // A range of two bands has no interior one.
+        let narrow = PlanLimits {
+            min_c: 0.0,
+            max_c: 40.0,
+            hours: 36.0,
+            ..LIMITS
+        };
+        assert_eq!(Ends::Default.band_soak_s(&narrow, Some(MAX_END_SOAK_S)), None);
+        // Only the default holds them.
+        let long = PlanLimits { hours: 36.0, ..LIMITS };
+        assert_eq!(Ends::SlowPlant.band_soak_s(&long, Some(MAX_END_SOAK_S)), None);
+        assert_eq!(Ends::Plain.band_soak_s(&long, None), None);
     }
 }

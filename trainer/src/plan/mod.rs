@@ -8,7 +8,9 @@
 //! mode) and the one whose lag-bank regression on a nominal plant has the
 //! largest D-criterion ([`d_criterion`]) is kept. By default a run of 12 h
 //! or more soaks each end of the range as long as leaves 12 h for the rest,
-//! 1.5 … 3 h ([`ends`], [`candidate_soaking_ends`]); on request (`trainer plan
+//! 1.5 … 3 h, and a run that keeps 1.5 h or more for each interior 20-°C
+//! band of the range besides soaks each such band once
+//! ([`ends`], [`candidate_soaking`]); on request (`trainer plan
 //! --soak-ends`) every candidate soaks there long enough for a loop
 //! [`SLOW_PLANT_FACTOR`] times slower than nominal to settle ([`end_soak_s`]),
 //! so the run reaches the asked range at the loop on plants other than the
@@ -26,6 +28,7 @@ use std::fmt::Write as _;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
+use crate::fit::coverage::BAND_C;
 use crate::simulate::SimParams;
 
 pub mod candidates;
@@ -68,6 +71,8 @@ pub struct Plan {
     /// Each end soak lasts at least this, s ([`Ends::end_soak_s`]); `None`
     /// without end soaks (the plan as before the end soaks).
     pub end_soak_s: Option<f64>,
+    /// Each interior band's soak, s ([`Ends::band_soak_s`]); `None` without.
+    pub band_soak_s: Option<f64>,
     /// The figures predicted after the default fit on the plan's run;
     /// `None` until predicted.
     pub prediction: Option<prediction::Prediction>,
@@ -130,6 +135,16 @@ impl Plan {
                 "# end_soak_min: {:.1} (at each end of the range: {})",
                 end_soak_s / 60.0,
                 self.ends.reason(&self.limits)
+            );
+        }
+        if let Some(band_soak_s) = self.band_soak_s {
+            let _ = writeln!(
+                s,
+                "# band_soak_min: {:.1} (once in each interior {BAND_C:.0}-°C band of the range: what the run holds beyond {:.0} h and its end soaks, shared, {} … {} h)",
+                band_soak_s / 60.0,
+                ends::DYNAMICS_S / 3600.0,
+                ends::SHORT_END_SOAK_S / 3600.0,
+                ends::MAX_END_SOAK_S / 3600.0
             );
         }
         let levels = |l: &[f64]| l.iter().map(|t| format!("{t:.1}")).collect::<Vec<_>>().join(",");
@@ -290,16 +305,17 @@ fn ramp_minutes(s: f64) -> String {
 /// Designs a plan within `limits`: the best of `candidates` draws from
 /// `seed` by the D-criterion on the documented gyro's plant; where `ends`
 /// resolves to end soaks ([`Ends::end_soak_s`]), drawn by
-/// [`candidate_soaking_ends`], else by [`candidate`] (the draws are then the
+/// [`candidate_soaking`], else by [`candidate`] (the draws are then the
 /// same as before end soaks existed).
 pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, ends: Ends) -> Result<Plan, String> {
     let end_soak_s = ends.end_soak_s(limits)?;
+    let band_soak_s = ends.band_soak_s(limits, end_soak_s);
     let plant = SimParams::default().plant;
     let indices: Vec<u64> = (0..candidates.max(1) as u64).collect();
     let scored = crate::parallel::parallel_map(&indices, |&i| {
         let mut rng = Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(i));
         let segments = match end_soak_s {
-            Some(s) => candidate_soaking_ends(limits, s, &mut rng),
+            Some(s) => candidate_soaking(limits, s, band_soak_s, &mut rng),
             None => candidate(limits, &mut rng),
         };
         let score = d_criterion(&loop_temps(&segments, &plant), limits);
@@ -335,6 +351,7 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, ends: Ends) -> 
         slow_settled_c: settled(&slow),
         ends,
         end_soak_s,
+        band_soak_s,
         prediction: None,
     })
 }
@@ -351,7 +368,7 @@ mod tests {
         for (seed, soak_ends) in (0..40).flat_map(|seed| [(seed, false), (seed, true)]) {
             let mut rng = Pcg64::seed_from_u64(seed);
             let segments = if soak_ends {
-                candidate_soaking_ends(&LIMITS, soak_s, &mut rng)
+                candidate_soaking(&LIMITS, soak_s, None, &mut rng)
             } else {
                 candidate(&LIMITS, &mut rng)
             };
@@ -364,6 +381,43 @@ mod tests {
                 assert!(rate < 5.0, "seed {seed}: {rate} °C/min");
             }
             assert!(k.iter().all(|&(_, c)| (-40.0..=60.0).contains(&c)));
+        }
+    }
+
+    #[test]
+    fn a_long_default_candidate_soaks_each_interior_band_once_and_each_end_within_the_limits() {
+        let limits = PlanLimits { hours: 24.0, ..LIMITS };
+        let end_soak_s = Ends::Default.end_soak_s(&limits).unwrap().unwrap();
+        let band_soak_s = Ends::Default.band_soak_s(&limits, Some(end_soak_s)).unwrap();
+        for seed in 0..40 {
+            let mut rng = Pcg64::seed_from_u64(seed);
+            let segments = candidate_soaking(&limits, end_soak_s, Some(band_soak_s), &mut rng);
+            let k = knots(&segments);
+            assert!(k.last().unwrap().0 <= 24.0 * 3600.0, "seed {seed}: {:?}", k.last());
+            for w in k.windows(2) {
+                let rate = (w[1].1 - w[0].1).abs() / (w[1].0 - w[0].0) * 60.0;
+                assert!(w[1].0 > w[0].0 && rate < 5.0, "seed {seed}: {w:?}");
+            }
+            // The longest hold in each 20-°C band, s (the last hold may be cut by the budget's end).
+            let longest = |lo: f64, hi: f64| {
+                segments
+                    .iter()
+                    .filter(|g| g.target_c >= lo && g.target_c < hi)
+                    .map(|g| g.hold_s)
+                    .fold(0.0, f64::max)
+            };
+            for lo in [-20.0, 0.0, 20.0] {
+                assert!(
+                    longest(lo, lo + 20.0) >= band_soak_s,
+                    "seed {seed}: band {lo} °C: {segments:?}"
+                );
+            }
+            assert!(longest(60.0, 60.1) >= end_soak_s, "seed {seed}: hot end: {segments:?}");
+            let starts_cold = segments[0].target_c <= -39.99;
+            assert!(
+                starts_cold || longest(-40.0, -39.99) >= end_soak_s,
+                "seed {seed}: cold end: {segments:?}"
+            );
         }
     }
 

@@ -32,7 +32,7 @@ pub struct Tried {
 impl Tried {
     /// The family, as the output names it.
     pub fn family(&self) -> String {
-        self.plan.ends.name(self.plan.end_soak_s)
+        self.plan.ends.name(self.plan.end_soak_s, self.plan.band_soak_s)
     }
 }
 

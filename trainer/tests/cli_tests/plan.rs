@@ -584,6 +584,25 @@ fn the_plain_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_shor
             .any(|m| m.starts_with("# end_soak_min: 90.0 (at each end of the range: the default of a run of 12 h")),
         "{meta:?}"
     );
+    // It keeps no time for the interior bands; the 24-h plan soaks each of the three 2 h.
+    assert!(!meta.iter().any(|m| m.starts_with("# band_soak_min")), "{meta:?}");
+    let json = dir.path().join("l.json");
+    let o = plan(
+        &dir,
+        "l.csv",
+        ["-40", "60", "5", "24"],
+        &["--json", json.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, meta) = read_plan(&dir.path().join("l.csv"));
+    assert!(
+        meta.iter()
+            .any(|m| m.starts_with("# band_soak_min: 120.0 (once in each interior 20-°C band")),
+        "{meta:?}"
+    );
+    let json = crate::common::read_json(&json);
+    assert_eq!(json["family"], "3-h end soaks, 2-h band soaks", "{json}");
+    assert_eq!(json["band_soak_min"], 120.0, "{json}");
 }
 
 /// The two `# predicted_settled_spread_dph:` figures (nominal, slow plant) of a plan file, °/h.
