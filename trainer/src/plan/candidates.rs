@@ -106,8 +106,8 @@ pub(super) fn is_end(c: f64, l: &PlanLimits) -> bool {
 }
 
 /// A soak a candidate holds once besides its drawn moves: at an end of the
-/// range, or anywhere in an interior [`BAND_C`] band (the bands `trainer fit`
-/// asks a settled level in, `fit::coverage::bands_without_level_c`).
+/// range, or in the middle of an interior [`BAND_C`] band (the bands `trainer
+/// fit` asks a settled level in, `fit::coverage::bands_without_level_c`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Station {
     /// Lowest set point that holds it, °C.
@@ -145,19 +145,26 @@ impl Station {
     }
 }
 
+/// How far from a band's centre a set point holds the band's soak, °C: the
+/// middle half of the band. A soak at a band's edge can settle the loop in
+/// the band beside it (self-heating lifts the loop above the air; measured on
+/// the 24-h plan of seed 1, docs/decisions.md "Band soaks in the default plan").
+pub(super) const BAND_MIDDLE_C: f64 = 0.25 * BAND_C;
+
 /// The stations of a soaking candidate under `l`: each end soaked
 /// `end_soak_s`, and with `band_soak_s` each interior [`BAND_C`] band of the
-/// range (all but the two that hold the ends) at its centre.
+/// range (all but the two that hold the ends) in its middle half
+/// ([`BAND_MIDDLE_C`]), visited at its centre.
 pub(super) fn stations(l: &PlanLimits, end_soak_s: f64, band_soak_s: Option<f64>) -> Vec<Station> {
     let mut out = vec![Station::end(l.min_c, end_soak_s), Station::end(l.max_c, end_soak_s)];
     if let Some(soak_s) = band_soak_s {
         out.extend((1..interior_bands(l) + 1).map(|b| {
-            let lo_c = l.min_c + b as f64 * BAND_C;
+            let centre_c = l.min_c + (b as f64 + 0.5) * BAND_C;
             Station {
-                lo_c,
-                hi_c: lo_c + BAND_C,
+                lo_c: centre_c - BAND_MIDDLE_C,
+                hi_c: centre_c + BAND_MIDDLE_C,
                 is_end: false,
-                target_c: set_point(lo_c + 0.5 * BAND_C, l),
+                target_c: set_point(centre_c, l),
                 soak_s,
             }
         }));

@@ -3,7 +3,9 @@
 //! [`DYNAMICS_S`] for the rest, within [`SHORT_END_SOAK_S`] …
 //! [`MAX_END_SOAK_S`] ([`default_end_soak_s`]), a shorter run not at all;
 //! `--plain` never; `--soak-ends` as long as a loop
-//! [`SLOW_PLANT_FACTOR`] times slower than nominal needs to settle there.
+//! [`SLOW_PLANT_FACTOR`] times slower than nominal needs to settle there;
+//! `--band-soaks` as the default and each interior band of the range too
+//! ([`default_band_soak_s`]).
 //!
 //! Why (docs/decisions.md, "End soaks in the default plan"): a fit
 //! identifies the settled bias at the ends from holds there, and a plan
@@ -17,6 +19,7 @@
 use super::candidates::interior_bands;
 use super::criterion::end_soak_s;
 use super::limits::{PlanLimits, SLOW_PLANT_FACTOR};
+use crate::fit::coverage::BAND_C;
 
 /// Each end's longest soak in the default plan, s (3 h: longer soaks, as the
 /// slow plant's, take more hours from the dynamics than the soak test gains).
@@ -47,6 +50,9 @@ pub enum Ends {
     /// `--soak-ends`: soaks a loop [`SLOW_PLANT_FACTOR`] times slower than
     /// nominal settles in ([`end_soak_s`]).
     SlowPlant,
+    /// `--band-soaks`: the default's end soaks and a soak in each interior
+    /// band ([`default_band_soak_s`]); refused where the run has no time for them.
+    Bands,
 }
 
 impl Ends {
@@ -56,16 +62,24 @@ impl Ends {
         match self {
             Ends::Plain => limits.check().map(|()| None),
             Ends::Default => limits.check().map(|()| default_end_soak_s(limits)),
+            Ends::Bands => {
+                limits.check()?;
+                let end_soak_s = default_end_soak_s(limits);
+                match end_soak_s.and_then(|s| default_band_soak_s(limits, s)) {
+                    Some(_) => Ok(end_soak_s),
+                    None => Err(band_soaks_refusal(limits)),
+                }
+            }
             Ends::SlowPlant => limits.check_soaking_ends().map(|()| Some(end_soak_s(limits))),
         }
     }
 
     /// Each interior band's soak under `limits` once the end soak is
-    /// `end_soak_s`, s, `None` for none: the default's
+    /// `end_soak_s`, s, `None` for none: `--band-soaks`'
     /// ([`default_band_soak_s`]); the other families hold none.
     pub fn band_soak_s(self, limits: &PlanLimits, end_soak_s: Option<f64>) -> Option<f64> {
         match (self, end_soak_s) {
-            (Ends::Default, Some(end_soak_s)) => default_band_soak_s(limits, end_soak_s),
+            (Ends::Bands, Some(end_soak_s)) => default_band_soak_s(limits, end_soak_s),
             _ => None,
         }
     }
@@ -111,17 +125,17 @@ pub fn default_end_soak_s(limits: &PlanLimits) -> Option<f64> {
     })
 }
 
-/// The default's soak in each interior band of the range
+/// `--band-soaks`' soak in each interior band of the range
 /// ([`interior_bands`]) once each end soaks `end_soak_s`, s, in whole
 /// minutes: what the run holds beyond [`DYNAMICS_S`] and its end soaks,
 /// shared among the bands, at most [`MAX_END_SOAK_S`]; `None` when that
 /// is shorter than [`SHORT_END_SOAK_S`] or the range has no interior band
-/// (2 h each at 24 h over −40 … 60 °C, from 26 h on 3 h).
+/// (2 h each at 24 h over −40 … 60 °C, from 27 h on 3 h).
 ///
-/// Why (docs/decisions.md, "Band soaks in the default plan"): the soak test
-/// reads the settled bias across the range, and a plan whose only settled
-/// levels lie at the ends leaves the middle of the static curve to the
-/// dynamics.
+/// Why on request and not by default (docs/decisions.md, "Band soaks"): the
+/// soak test reads the settled bias across the range, and band soaks lower its
+/// spread on gyros with states the loop sensor does not show, but cost
+/// dynamics that the well-modelled gyros near the 0.01-°/h target need.
 pub fn default_band_soak_s(limits: &PlanLimits, end_soak_s: f64) -> Option<f64> {
     let bands = interior_bands(limits);
     let spare_s = limits.hours * 3600.0 - DYNAMICS_S - 2.0 * end_soak_s;
@@ -130,6 +144,25 @@ pub fn default_band_soak_s(limits: &PlanLimits, end_soak_s: f64) -> Option<f64> 
     }
     let each_s = (spare_s / bands as f64 / 60.0).floor() * 60.0;
     (each_s >= SHORT_END_SOAK_S).then_some(each_s.min(MAX_END_SOAK_S))
+}
+
+/// Why `--band-soaks` is refused under `limits`: the run is too short.
+fn band_soaks_refusal(limits: &PlanLimits) -> String {
+    let bands = interior_bands(limits);
+    if bands == 0 {
+        return format!(
+            "--band-soaks: the range {} … {} °C has no {BAND_C:.0}-°C band between the two at its ends to soak",
+            limits.min_c, limits.max_c
+        );
+    }
+    let needs_h = (DYNAMICS_S + 2.0 * MAX_END_SOAK_S + bands as f64 * SHORT_END_SOAK_S) / 3600.0;
+    format!(
+        "--band-soaks: a {} h run has no time for them: it keeps {:.0} h for the dynamics and its end soaks besides, \
+         and {} h for each of the range's {bands} interior {BAND_C:.0}-°C bands needs --hours {needs_h} or more",
+        limits.hours,
+        DYNAMICS_S / 3600.0,
+        SHORT_END_SOAK_S / 3600.0
+    )
 }
 
 #[cfg(test)]
@@ -174,11 +207,11 @@ mod tests {
     }
 
     #[test]
-    fn the_default_soaks_each_interior_band_where_the_run_keeps_twelve_hours_of_dynamics_and_its_end_soaks_besides() {
+    fn band_soaks_share_what_the_run_keeps_beyond_twelve_hours_of_dynamics_and_its_end_soaks() {
         let at = |hours: f64| {
             let limits = PlanLimits { hours, ..LIMITS };
             let ends = Ends::Default.end_soak_s(&limits).unwrap();
-            Ends::Default.band_soak_s(&limits, ends)
+            Ends::Bands.band_soak_s(&limits, ends)
         };
         // −40 … 60 °C: three interior bands (−20 … 0, 0 … 20, 20 … 40 °C).
         assert_eq!(at(12.0), None);
@@ -193,8 +226,26 @@ mod tests {
             hours: 36.0,
             ..LIMITS
         };
-        assert_eq!(Ends::Default.band_soak_s(&narrow, Some(MAX_END_SOAK_S)), None);
-        // Only the default holds them.
+        assert_eq!(Ends::Bands.band_soak_s(&narrow, Some(MAX_END_SOAK_S)), None);
+        // Only --band-soaks holds them, and it refuses a run without time for them.
+        assert_eq!(
+            Ends::Default.band_soak_s(&PlanLimits { hours: 36.0, ..LIMITS }, Some(MAX_END_SOAK_S)),
+            None
+        );
+        let refusal = Ends::Bands
+            .end_soak_s(&PlanLimits { hours: 22.0, ..LIMITS })
+            .unwrap_err();
+        assert!(refusal.contains("needs --hours 22.5 or more"), "{refusal}");
+        assert!(
+            Ends::Bands
+                .end_soak_s(&narrow)
+                .unwrap_err()
+                .contains("no 20-°C band between")
+        );
+        assert_eq!(
+            Ends::Bands.end_soak_s(&PlanLimits { hours: 24.0, ..LIMITS }),
+            Ok(Some(MAX_END_SOAK_S))
+        );
         let long = PlanLimits { hours: 36.0, ..LIMITS };
         assert_eq!(Ends::SlowPlant.band_soak_s(&long, Some(MAX_END_SOAK_S)), None);
         assert_eq!(Ends::Plain.band_soak_s(&long, None), None);

@@ -584,14 +584,22 @@ fn the_plain_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_shor
             .any(|m| m.starts_with("# end_soak_min: 90.0 (at each end of the range: the default of a run of 12 h")),
         "{meta:?}"
     );
-    // It keeps no time for the interior bands; the 24-h plan soaks each of the three 2 h.
+    // No band soaks by default; --band-soaks refuses a 12-h run, saying how long it must be,
+    // and soaks each of the three interior bands 2 h in a 24-h run.
     assert!(!meta.iter().any(|m| m.starts_with("# band_soak_min")), "{meta:?}");
+    let o = plan(&dir, "b.csv", ["-40", "60", "5", "12"], &["--band-soaks"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("needs --hours 22.5 or more"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("b.csv").exists());
     let json = dir.path().join("l.json");
     let o = plan(
         &dir,
         "l.csv",
         ["-40", "60", "5", "24"],
-        &["--json", json.to_str().unwrap()],
+        &["--band-soaks", "--json", json.to_str().unwrap()],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let (_, meta) = read_plan(&dir.path().join("l.csv"));
