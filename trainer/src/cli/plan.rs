@@ -74,7 +74,7 @@ pub struct Args {
     /// What it buys: a settled level in the middle of each band (−10, 10 and 30 °C over
     /// −40 … 60 °C), which lowers the soak test's settled spread on gyros whose bias follows
     /// a state the loop sensor does not show (the fit's `unmodelled_dynamics` warning; on the
-    /// simulator's designs 1, 3, 9, 12–14 by 0.5–0.8×). What it costs: the soaks take the
+    /// simulator's designs 1, 3, 9, 12–14 by 0.5–0.85×). What it costs: the soaks take the
     /// hours beyond 12 h of dynamics and the end soaks, and on well-modelled gyros near the
     /// 0.01-°/h aim the spread rises a little (docs/plan.md, "Band soaks"). Each band gets
     /// that spare time shared, 1.5 h at least, 3 h at most: 2 h at 24 h over −40 … 60 °C;

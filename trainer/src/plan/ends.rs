@@ -157,8 +157,8 @@ fn band_soaks_refusal(limits: &PlanLimits) -> String {
     }
     let needs_h = (DYNAMICS_S + 2.0 * MAX_END_SOAK_S + bands as f64 * SHORT_END_SOAK_S) / 3600.0;
     format!(
-        "--band-soaks: a {} h run has no time for them: it keeps {:.0} h for the dynamics and its end soaks besides, \
-         and {} h for each of the range's {bands} interior {BAND_C:.0}-°C bands needs --hours {needs_h} or more",
+        "--band-soaks: a {} h run has no time for them: {:.0} h of dynamics besides the end soaks and {} h in each \
+         of the range's {bands} interior {BAND_C:.0}-°C bands: the run needs --hours {needs_h} or more",
         limits.hours,
         DYNAMICS_S / 3600.0,
         SHORT_END_SOAK_S / 3600.0
