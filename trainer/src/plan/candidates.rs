@@ -68,7 +68,7 @@ impl Builder<'_> {
             Some(soak_s) if is_end(at, l) => hold_s.max(soak_s),
             _ => hold_s,
         };
-        if let Some(i) = self.stations_left.iter().position(|s| s.covers(at, l)) {
+        if let Some(i) = self.stations_left.iter().position(|s| s.covers(at)) {
             hold_s = hold_s.max(self.stations_left.remove(i).soak_s);
         }
         self.ramp_hold(target, rate, hold_s);
@@ -136,9 +136,9 @@ impl Station {
     }
 
     /// Whether a hold at set point `c` holds this station.
-    pub(super) fn covers(&self, c: f64, l: &PlanLimits) -> bool {
+    pub(super) fn covers(&self, c: f64) -> bool {
         if self.is_end {
-            is_end(c, l) && (c - self.lo_c).abs() < 0.006
+            (c - self.lo_c).abs() < 0.006
         } else {
             c >= self.lo_c && c < self.hi_c
         }
@@ -148,7 +148,7 @@ impl Station {
 /// How far from a band's centre a set point holds the band's soak, °C: the
 /// middle half of the band. A soak at a band's edge can settle the loop in
 /// the band beside it (self-heating lifts the loop above the air; measured on
-/// the 24-h plan of seed 1, docs/decisions.md "Band soaks in the default plan").
+/// the 24-h plan of seed 1, docs/decisions.md "Band soaks (issue 48)").
 pub(super) const BAND_MIDDLE_C: f64 = 0.25 * BAND_C;
 
 /// The stations of a soaking candidate under `l`: each end soaked
@@ -237,8 +237,8 @@ pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
 /// One candidate of the design family, drawn with `rng`, cut to the time
 /// budget, with a soak of at least `end_soak_s` at each end of the range
 /// and, with `band_soak_s`, one of at least that in each interior
-/// [`BAND_C`] band (`trainer plan`'s default and
-/// `--soak-ends`; without them, [`candidate`]). The power-on soak counts for
+/// [`BAND_C`] band (`trainer plan`'s default, `--band-soaks` and
+/// `--soak-ends`; without end soaks, [`candidate`]). The power-on soak counts for
 /// the cold end when it starts there: the unit is soaked before it. A move is
 /// drawn only while the stations not yet held still fit in the budget after
 /// it; then they are visited, nearest first, at the full rate.
@@ -255,12 +255,8 @@ pub fn candidate_soaking(
     let end_s = (l.hours * 3600.0 / TENTH_MIN_S).floor() * TENTH_MIN_S;
     let all = stations(l, end_soak_s, band_soak_s);
     // Held by the power-on soak at `start`: the cold end, when it starts there.
-    let left_after_start = |start: f64| -> Vec<Station> {
-        all.iter()
-            .copied()
-            .filter(|s| !(s.is_end && s.covers(start, l)))
-            .collect()
-    };
+    let left_after_start =
+        |start: f64| -> Vec<Station> { all.iter().copied().filter(|s| !(s.is_end && s.covers(start))).collect() };
     // Cold start: soaked in the lowest fifth of the range; at its bottom
     // when the budget has no room for a soak there later.
     let drawn = set_point(level(rng.random_range(0..=2)), l);

@@ -5,7 +5,7 @@
 //! `--plain` never; `--soak-ends` as long as a loop
 //! [`SLOW_PLANT_FACTOR`] times slower than nominal needs to settle there;
 //! `--band-soaks` as the default and each interior band of the range too
-//! ([`default_band_soak_s`]).
+//! ([`shared_band_soak_s`]).
 //!
 //! Why (docs/decisions.md, "End soaks in the default plan"): a fit
 //! identifies the settled bias at the ends from holds there, and a plan
@@ -51,7 +51,7 @@ pub enum Ends {
     /// nominal settles in ([`end_soak_s`]).
     SlowPlant,
     /// `--band-soaks`: the default's end soaks and a soak in each interior
-    /// band ([`default_band_soak_s`]); refused where the run has no time for them.
+    /// band ([`shared_band_soak_s`]); refused where the run has no time for them.
     Bands,
 }
 
@@ -63,9 +63,8 @@ impl Ends {
             Ends::Plain => limits.check().map(|()| None),
             Ends::Default => limits.check().map(|()| default_end_soak_s(limits)),
             Ends::Bands => {
-                limits.check()?;
-                let end_soak_s = default_end_soak_s(limits);
-                match end_soak_s.and_then(|s| default_band_soak_s(limits, s)) {
+                let end_soak_s = Ends::Default.end_soak_s(limits)?;
+                match end_soak_s.and_then(|s| shared_band_soak_s(limits, s)) {
                     Some(_) => Ok(end_soak_s),
                     None => Err(band_soaks_refusal(limits)),
                 }
@@ -76,10 +75,10 @@ impl Ends {
 
     /// Each interior band's soak under `limits` once the end soak is
     /// `end_soak_s`, s, `None` for none: `--band-soaks`'
-    /// ([`default_band_soak_s`]); the other families hold none.
+    /// ([`shared_band_soak_s`]); the other families hold none.
     pub fn band_soak_s(self, limits: &PlanLimits, end_soak_s: Option<f64>) -> Option<f64> {
         match (self, end_soak_s) {
-            (Ends::Bands, Some(end_soak_s)) => default_band_soak_s(limits, end_soak_s),
+            (Ends::Bands, Some(end_soak_s)) => shared_band_soak_s(limits, end_soak_s),
             _ => None,
         }
     }
@@ -136,7 +135,7 @@ pub fn default_end_soak_s(limits: &PlanLimits) -> Option<f64> {
 /// soak test reads the settled bias across the range, and band soaks lower its
 /// spread on gyros with states the loop sensor does not show, but cost
 /// dynamics that the well-modelled gyros near the 0.01-°/h target need.
-pub fn default_band_soak_s(limits: &PlanLimits, end_soak_s: f64) -> Option<f64> {
+pub fn shared_band_soak_s(limits: &PlanLimits, end_soak_s: f64) -> Option<f64> {
     let bands = interior_bands(limits);
     let spare_s = limits.hours * 3600.0 - DYNAMICS_S - 2.0 * end_soak_s;
     if bands == 0 || spare_s <= 0.0 {
