@@ -13,8 +13,8 @@ per run, then scored as `cargo xtask bench-designs` scores:
 - soak: the settled spread on `<design>_soak.csv`, °/h, by trainer's plateau
   rule (trainer/src/dataset/plateaus.rs and docs/workflow.md, "The soak
   test": 60-s means of the loop temperature, steady where it moved at most
-  1.5 °C over 10 min, the hold's end 5 min before the loop departs from its
-  line; the residual's mean over the last 30 min of each; spread = max - min);
+  1.5 °C over 10 min, the hold's end 1 min before the loop begins departing
+  from its line; the residual's mean over the last 30 min of each; spread = max - min);
 - the training residual's STD of 100-s means per run, °/h: each run alone
   fits to its noise (about 0.006 °/h); a combination that cannot is one the
   model class cannot represent.
@@ -32,10 +32,11 @@ import response_prior as rp  # noqa: E402
 
 STEADY_SPAN_MIN = 10
 STEADY_MOVE_C = 1.5
-DEPARTURE_C = 0.03
+DEPARTURE_C = 0.015
+ONSET_C = 0.003
 DEPARTURE_GROWTH = 2.0
 DEPARTURE_GROWTH_MIN = 5
-DEPARTURE_MARGIN_MIN = 5
+DEPARTURE_MARGIN_MIN = 1
 UNSEEN_DEPARTURE_MIN = 15
 MIN_STEADY_MIN = 30
 WINDOW_MIN = 30
@@ -67,7 +68,11 @@ def settled_biases(time_s, temp_c, residual_dph):
                 departure = k
                 break
         if departure is not None:
-            end = departure - 1 - DEPARTURE_MARGIN_MIN
+            onset = departure
+            while (onset - 1 > i and onset > departure - span and off[onset - 1] > ONSET_C
+                   and off[onset - 1] < off[onset]):
+                onset -= 1
+            end = onset - 1 - DEPARTURE_MARGIN_MIN
         else:
             end = j - UNSEEN_DEPARTURE_MIN if j + 1 < n else j
         if end - i + 1 >= MIN_STEADY_MIN:

@@ -18,18 +18,21 @@
 //!    slow gyro's loop still moves at the end of a long hold). A gap
 //!    therefore ends any plateau.
 //! 3. **Where the hold ends.** The loop sensor lags the chamber: it shows
-//!    the next ramp minutes after the chamber began it. Within a stretch of
-//!    steady blocks (and the [`STEADY_SPAN_S`] after it), the loop *departs*
-//!    at the first block whose mean lies more than [`DEPARTURE_C`] (0.03 °C)
-//!    off the straight line through the 10 minutes before it, and more than
-//!    [`DEPARTURE_GROWTH`] (2) times as far as the least of the
+//!    the next ramp a minute or more after the chamber began it. Within a
+//!    stretch of steady blocks (and the [`STEADY_SPAN_S`] after it), the loop
+//!    *departs* at the first block whose mean lies more than [`DEPARTURE_C`]
+//!    (0.015 °C) off the straight line through the 10 minutes before it, and
+//!    more than [`DEPARTURE_GROWTH`] (2) times as far as the least of the
 //!    [`DEPARTURE_GROWTH_S`] (5 min) before (a loop still bending towards
-//!    its level lies off its line too, less each minute). The hold is taken
-//!    to end [`DEPARTURE_MARGIN_S`] (5 min) before the departure, and the
-//!    loop may settle again after it within the same stretch. A stretch that
-//!    ends by the loop moving (not by the run's end or a gap) with no
-//!    departure read ends its hold [`UNSEEN_DEPARTURE_S`] (15 min) before its
-//!    last steady block. A ramp slower than 0.15 °C/min counts as steady.
+//!    its level lies off its line too, less each minute). The departure
+//!    *began* at the first minute of the run of minutes before it that lie
+//!    more than [`ONSET_C`] (0.003 °C) off their lines and each farther than
+//!    the one before (at most [`STEADY_SPAN_S`] back): the hold is taken to
+//!    end [`DEPARTURE_MARGIN_S`] (1 min) before that onset, and the loop may
+//!    settle again after it within the same stretch. A stretch that ends by
+//!    the loop moving (not by the run's end or a gap) with no departure read
+//!    ends its hold [`UNSEEN_DEPARTURE_S`] (15 min) before its last steady
+//!    block. A ramp slower than 0.15 °C/min counts as steady.
 //! 4. **Plateaus.** A plateau is a stretch whose steady blocks up to the
 //!    hold's end last at least [`MIN_STEADY_S`] (30 min); the *settled
 //!    window* is its last [`WINDOW_S`] (30 min) before the hold's end. How
@@ -65,15 +68,19 @@ pub const STEADY_MOVE_C: f64 = 1.5;
 /// How far a block's mean loop temperature may lie off the straight line
 /// through the [`STEADY_SPAN_S`] before it before the loop counts as
 /// departing from its hold, °C.
-pub const DEPARTURE_C: f64 = 0.03;
+pub const DEPARTURE_C: f64 = 0.015;
+/// How far off its line a minute before a departure must lie to count as
+/// part of it (its onset), °C: three times the noise of that distance for a
+/// TMP117 read at 1 Hz (minute means about 0.001 °C apart).
+pub const ONSET_C: f64 = 0.003;
 /// A departure is also that many times as far off the line as the least of
 /// the [`DEPARTURE_GROWTH_S`] before it.
 pub const DEPARTURE_GROWTH: f64 = 2.0;
 /// The span whose least distance off the line a departure must exceed
 /// [`DEPARTURE_GROWTH`] times, s.
 pub const DEPARTURE_GROWTH_S: f64 = 300.0;
-/// The hold is taken to end this long before the loop is seen departing, s.
-pub const DEPARTURE_MARGIN_S: f64 = 300.0;
+/// The hold is taken to end this long before the departure's onset, s.
+pub const DEPARTURE_MARGIN_S: f64 = 60.0;
 /// A stretch that ends by the loop moving, with no departure read, is taken
 /// to have ended its hold at least this long before its last steady block, s.
 pub const UNSEEN_DEPARTURE_S: f64 = 900.0;
@@ -101,7 +108,7 @@ const UNSEEN_BLOCKS: usize = (UNSEEN_DEPARTURE_S / BLOCK_S) as usize;
 pub fn rule_text() -> String {
     format!(
         "plateau: the loop's 60-s means moved at most {STEADY_MOVE_C} °C over {:.0} min, for at least {:.0} min up to \
-         {:.0} min before it is seen leaving its level (a gap ends it); settled bias: the mean residual over those \
+         {:.0} min before it begins leaving its level (a gap ends it); settled bias: the mean residual over those \
          last {:.0} min; noise: STD of its minute means / √n",
         STEADY_SPAN_S / 60.0,
         MIN_STEADY_S / 60.0,
@@ -318,7 +325,7 @@ pub fn settled_plateaus(blocks: &[MinuteBlock], first_time_s: f64, nominal_perio
         // Ended by the loop moving (the next minute is there but not steady)?
         let moved_on = j + 1 < minutes && whole(j + 1 - SPAN_BLOCKS, j + 1);
         let end = match departure {
-            Some(k) => k.checked_sub(1 + MARGIN_BLOCKS),
+            Some(k) => onset_of(k, i, &off_line).checked_sub(1 + MARGIN_BLOCKS),
             None if moved_on => j.checked_sub(UNSEEN_BLOCKS),
             None => Some(j),
         };
@@ -330,6 +337,20 @@ pub fn settled_plateaus(blocks: &[MinuteBlock], first_time_s: f64, nominal_perio
         i = departure.map_or(j, |k| k) + 1;
     }
     plateaus
+}
+
+/// The minute the departure at `k` began: back from `k` (not before the
+/// stretch's start `from`, nor more than [`STEADY_SPAN_S`]) while the minute
+/// before lies more than [`ONSET_C`] off its line and less far than the one after.
+fn onset_of(k: usize, from: usize, off_line: &[Option<f64>]) -> usize {
+    let mut onset = k;
+    while onset > from + 1 && onset + SPAN_BLOCKS > k {
+        match (off_line[onset - 1], off_line[onset]) {
+            (Some(before), Some(now)) if before > ONSET_C && before < now => onset -= 1,
+            _ => break,
+        }
+    }
+    onset
 }
 
 /// The figures of a settled `window` (complete blocks) of a steady stretch of `steady_blocks`.
@@ -505,6 +526,38 @@ mod tests {
     }
 
     #[test]
+    fn a_slow_loop_parts_holds_5_c_apart_and_ends_each_within_3_min_of_the_chamber_s() {
+        // The chamber's staircase seen through lags of 20 and 30 min (a slow
+        // gyro's loop): a 5-°C step moves it at most 0.025 °C off its line and
+        // never faster than 0.15 °C/min, so it stays "steady" throughout; the
+        // departure's onset still parts the holds, and each window ends
+        // within 3 min of the chamber's hold end (a minute or two into the
+        // next ramp, which the loop and the coil behind it have not felt yet).
+        let levels = [20.0, 25.0, 15.0, 35.0, 30.0];
+        let (chamber, hold_ends, end) = staircase(&levels, 3.0 * 3600.0);
+        let time = seconds(0.0, end);
+        let (mut outer, mut loop_c) = (levels[0], levels[0]);
+        let lagged: Vec<f64> = time
+            .iter()
+            .map(|&t| {
+                outer += (chamber(t) - outer) / 1200.0;
+                loop_c += (outer - loop_c) / 1800.0;
+                loop_c
+            })
+            .collect();
+        let zeros = vec![0.0; time.len()];
+        let blocks = minute_blocks(&time, &lagged, &zeros, &zeros, 1.0);
+        let plateaus = settled_plateaus(&blocks, 0.0, 1.0);
+        assert_eq!(plateaus.len(), levels.len(), "{plateaus:#?}");
+        for (p, hold_end) in plateaus.iter().zip(&hold_ends[..levels.len() - 1]) {
+            assert!(
+                (p.window_end_s - hold_end).abs() <= 3.0 * BLOCK_S,
+                "window ends within 3 min of the hold's end {hold_end} s: {p:?}"
+            );
+        }
+    }
+
+    #[test]
     fn ramps_give_no_plateau_nor_spread() {
         // 1 °C/min up and down, and 0.2 °C/min: the loop moves more than
         // 1.5 °C in every 10 min.
@@ -518,11 +571,11 @@ mod tests {
     }
 
     #[test]
-    fn a_40_min_hold_is_no_plateau_a_50_min_one_is() {
+    fn a_35_min_hold_is_no_plateau_a_45_min_one_is() {
         // After a ramp the loop is steady once its last 10 min moved ≤ 1.5 °C
-        // (8.5 min into an ideal hold); the window ends 5 min before the next
-        // ramp shows: 30 steady minutes need a hold of about 45 min.
-        for (hold_min, expected) in [(20.0, 0), (40.0, 0), (50.0, 1)] {
+        // (8.5 min into an ideal hold); the window ends a minute before the
+        // next ramp begins to show: 30 steady minutes need a hold of about 40 min.
+        for (hold_min, expected) in [(20.0, 0), (35.0, 0), (45.0, 1)] {
             let (temp, _, end) = staircase(&[0.0, 30.0, 60.0], hold_min * 60.0);
             let plateaus = run(&seconds(0.0, end), temp, |_| 0.0, |_| 0.0);
             // The last hold runs to the run's end; only the middle one counts.

@@ -53,10 +53,12 @@ fn plateaus_by_hand(rows: &[(f64, f64, f64)], period_s: f64) -> Vec<(f64, f64)> 
         while j + 1 < minutes && steady[j + 1] {
             j += 1;
         }
-        // The loop departs where it lies 0.03 °C off the line through its
-        // last 10 min and twice as far as the least of the 5 min before; the
-        // hold ends 5 min before. No departure: the stretch's end, less 15
-        // min where the loop moved on.
+        // The loop departs where it lies 0.015 °C off the line through its
+        // last 10 min and twice as far as the least of the 5 min before. It
+        // began to where the minutes before lie 0.003 °C off theirs and each
+        // farther than the last (10 min back at most); the hold ends a minute
+        // before that. No departure: the stretch's end, less 15 min where the
+        // loop moved on.
         let off = |k: usize| {
             whole(k - 11, k).then(|| {
                 (temp(k).unwrap() - (temp(k - 1).unwrap() + (temp(k - 1).unwrap() - temp(k - 11).unwrap()) / 10.0))
@@ -69,14 +71,21 @@ fn plateaus_by_hand(rows: &[(f64, f64, f64)], period_s: f64) -> Vec<(f64, f64)> 
             let Some(least) = (k - 5..k).map(off).try_fold(f64::INFINITY, |m, o| o.map(|o| m.min(o))) else {
                 break;
             };
-            if now > 0.03 && now > 2.0 * least {
+            if now > 0.015 && now > 2.0 * least {
                 departure = Some(k);
                 break;
             }
         }
+        let onset = departure.map(|k| {
+            let mut o = k;
+            while o > i + 1 && o + 10 > k && matches!((off(o - 1), off(o)), (Some(b), Some(n)) if b > 0.003 && b < n) {
+                o -= 1;
+            }
+            o
+        });
         let moved_on = j + 1 < minutes && whole(j - 9, j + 1);
-        let end = match departure {
-            Some(k) => k as i64 - 6,
+        let end = match onset {
+            Some(o) => o as i64 - 2,
             None if moved_on => j as i64 - 15,
             None => j as i64,
         };
