@@ -293,3 +293,85 @@ fn a_fit_on_a_run_with_settled_levels_states_their_spread_as_a_floor_under_the_s
     let eval_spread = v[0]["settled_spread_dph"].as_f64().unwrap();
     assert!((eval_spread - floor).abs() < 1e-12, "fit {floor}, eval {eval_spread}");
 }
+
+#[test]
+fn eval_s_settled_spread_agrees_with_the_chamber_s_clock_through_a_lagging_loop() {
+    // A soak of other levels and order on `--unit 1`, whose loop shows a
+    // ramp minutes late: each hold's window must end within a few minutes of
+    // the chamber's hold end (not in the next ramp), and the spread must be
+    // the one read over each hold's last 30 min by the chamber's clock, to
+    // within the noise of the plateaus' means.
+    const LEVELS: [f64; 4] = [15.0, 35.0, 20.0, 30.0];
+    const HOLD_S: f64 = 3.0 * 3600.0;
+    let dir = TempDir::new().unwrap();
+    let model = fitted_model(&dir);
+    let soak = dir.path().join("soak.csv");
+    simulated(
+        &soak,
+        &[
+            "--unit",
+            "1",
+            "--profile",
+            "soak",
+            "--soak-levels-c",
+            "15,35,20,30",
+            "--seed",
+            "5",
+        ],
+    );
+    let out = dir.path().join("soak-comp.csv");
+    let o = compensate(&model, &soak, &out, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (t, rate_comp, reference) = (col("time_s"), col("rate_comp_dph"), col("ref_dph"));
+    let rows: Vec<(f64, f64)> = lines
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            (f[t], f[rate_comp] - f[reference])
+        })
+        .collect();
+    // The chamber's hold ends: a hold, then 1 °C/min to the next level and its hold.
+    let mut hold_ends_s = vec![HOLD_S];
+    for pair in LEVELS.windows(2) {
+        let last = *hold_ends_s.last().unwrap();
+        hold_ends_s.push(last + (pair[1] - pair[0]).abs() * 60.0 + HOLD_S);
+    }
+    let clock: Vec<f64> = hold_ends_s
+        .iter()
+        .map(|&end| {
+            let window: Vec<f64> = rows
+                .iter()
+                .filter(|r| r.0 >= end - 1800.0 && r.0 < end)
+                .map(|r| r.1)
+                .collect();
+            window.iter().sum::<f64>() / window.len() as f64
+        })
+        .collect();
+    let spread = |v: &[f64]| {
+        v.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - v.iter().cloned().fold(f64::INFINITY, f64::min)
+    };
+
+    let v = eval_json(model.to_str().unwrap(), soak.to_str().unwrap());
+    let plateaus = v[0]["plateaus"].as_array().unwrap();
+    assert_eq!(plateaus.len(), LEVELS.len(), "{plateaus:#?}");
+    for (p, end) in plateaus.iter().zip(&hold_ends_s) {
+        let window_end = p["window_end_s"].as_f64().unwrap();
+        assert!(
+            window_end >= end - 180.0 && window_end <= end + 120.0,
+            "window ends at {window_end} s, the chamber's hold at {end} s: {p}"
+        );
+    }
+    let noise = plateaus
+        .iter()
+        .map(|p| p["noise_dph"].as_f64().unwrap())
+        .fold(0.0, f64::max);
+    let reported = v[0]["settled_spread_dph"].as_f64().unwrap();
+    let by_clock = spread(&clock);
+    assert!(
+        (reported - by_clock).abs() <= 2.0 * noise,
+        "eval {reported} °/h, the chamber's clock {by_clock} °/h, a plateau's noise up to {noise} °/h"
+    );
+}
