@@ -528,9 +528,9 @@ mod tests {
     #[test]
     fn a_slow_loop_parts_holds_5_c_apart_and_ends_each_within_3_min_of_the_chamber_s() {
         // The chamber's staircase seen through lags of 20 and 30 min (a slow
-        // gyro's loop): a 5-°C step moves it at most 0.025 °C off its line and
-        // never faster than 0.15 °C/min, so it stays "steady" throughout; the
-        // departure's onset still parts the holds, and each window ends
+        // gyro's loop): its 5-°C steps move it at most 0.025 °C off its line
+        // and never faster than 0.15 °C/min, so it stays "steady" across them;
+        // the departure's onset still parts those holds, and each window ends
         // within 3 min of the chamber's hold end (a minute or two into the
         // next ramp, which the loop and the coil behind it have not felt yet).
         let levels = [20.0, 25.0, 15.0, 35.0, 30.0];
