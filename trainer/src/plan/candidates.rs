@@ -100,9 +100,14 @@ impl Builder<'_> {
     }
 }
 
+/// Whether set point `c` is `level_c` (a set point rounds to 0.01 °C).
+fn is_at(c: f64, level_c: f64) -> bool {
+    (c - level_c).abs() < 0.006
+}
+
 /// Whether `c` is an end of the range (a set point rounds to 0.01 °C).
 pub(super) fn is_end(c: f64, l: &PlanLimits) -> bool {
-    (c - l.min_c).abs() < 0.006 || (c - l.max_c).abs() < 0.006
+    is_at(c, l.min_c) || is_at(c, l.max_c)
 }
 
 /// A soak a candidate holds once besides its drawn moves: at an end of the
@@ -138,7 +143,7 @@ impl Station {
     /// Whether a hold at set point `c` holds this station.
     pub(super) fn covers(&self, c: f64) -> bool {
         if self.is_end {
-            (c - self.lo_c).abs() < 0.006
+            is_at(c, self.lo_c)
         } else {
             c >= self.lo_c && c < self.hi_c
         }
