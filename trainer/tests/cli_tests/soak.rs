@@ -101,6 +101,26 @@ fn plateaus_by_hand(rows: &[(f64, f64, f64)], period_s: f64) -> Vec<(f64, f64)> 
     out
 }
 
+/// The rows of a compensated CSV at `path`: (time s, loop °C, rate_comp − ref °/h).
+fn compensated_rows(path: &std::path::Path) -> Vec<(f64, f64, f64)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (t, temp, rate_comp, reference) = (col("time_s"), col("temp_c"), col("rate_comp_dph"), col("ref_dph"));
+    lines
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            (f[t], f[temp], f[rate_comp] - f[reference])
+        })
+        .collect()
+}
+
+/// Max − min of `values`.
+fn spread(values: &[f64]) -> f64 {
+    values.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - values.iter().cloned().fold(f64::INFINITY, f64::min)
+}
+
 #[test]
 fn a_soak_run_has_8_plateaus_at_its_levels_and_eval_s_settled_spread_is_the_arithmetic_one() {
     let dir = TempDir::new().unwrap();
@@ -127,17 +147,7 @@ fn a_soak_run_has_8_plateaus_at_its_levels_and_eval_s_settled_spread_is_the_arit
     );
 
     // The compensated CSV, by hand.
-    let text = std::fs::read_to_string(&out).unwrap();
-    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
-    let (t, temp, rate_comp, reference) = (col("time_s"), col("temp_c"), col("rate_comp_dph"), col("ref_dph"));
-    let rows: Vec<(f64, f64, f64)> = lines
-        .map(|l| {
-            let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
-            (f[t], f[temp], f[rate_comp] - f[reference])
-        })
-        .collect();
+    let rows = compensated_rows(&out);
     let period_s = (rows.last().unwrap().0 - rows[0].0) / (rows.len() - 1) as f64;
     let by_hand = plateaus_by_hand(&rows, period_s);
     assert_eq!(by_hand.len(), 8, "{by_hand:?}");
@@ -166,10 +176,12 @@ fn a_soak_run_has_8_plateaus_at_its_levels_and_eval_s_settled_spread_is_the_arit
         assert!(p["steady_s"].as_f64().unwrap() >= 1800.0, "{p}");
     }
     let biases: Vec<f64> = by_hand.iter().map(|p| p.1).collect();
-    let spread =
-        biases.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - biases.iter().cloned().fold(f64::INFINITY, f64::min);
+    let by_hand_spread = spread(&biases);
     let reported = v[0]["settled_spread_dph"].as_f64().unwrap();
-    assert!((reported - spread).abs() < 1e-6, "eval {reported}, by hand {spread}");
+    assert!(
+        (reported - by_hand_spread).abs() < 1e-6,
+        "eval {reported}, by hand {by_hand_spread}"
+    );
     let before = v[0]["settled_spread_before_dph"].as_f64().unwrap();
     assert!(
         before > reported,
@@ -322,17 +334,7 @@ fn eval_s_settled_spread_agrees_with_the_chamber_s_clock_through_a_lagging_loop(
     let out = dir.path().join("soak-comp.csv");
     let o = compensate(&model, &soak, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let text = std::fs::read_to_string(&out).unwrap();
-    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
-    let (t, rate_comp, reference) = (col("time_s"), col("rate_comp_dph"), col("ref_dph"));
-    let rows: Vec<(f64, f64)> = lines
-        .map(|l| {
-            let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
-            (f[t], f[rate_comp] - f[reference])
-        })
-        .collect();
+    let rows = compensated_rows(&out);
     // The chamber's hold ends: a hold, then 1 °C/min to the next level and its hold.
     let mut hold_ends_s = vec![HOLD_S];
     for pair in LEVELS.windows(2) {
@@ -345,14 +347,11 @@ fn eval_s_settled_spread_agrees_with_the_chamber_s_clock_through_a_lagging_loop(
             let window: Vec<f64> = rows
                 .iter()
                 .filter(|r| r.0 >= end - 1800.0 && r.0 < end)
-                .map(|r| r.1)
+                .map(|r| r.2)
                 .collect();
             window.iter().sum::<f64>() / window.len() as f64
         })
         .collect();
-    let spread = |v: &[f64]| {
-        v.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - v.iter().cloned().fold(f64::INFINITY, f64::min)
-    };
 
     let v = eval_json(model.to_str().unwrap(), soak.to_str().unwrap());
     let plateaus = v[0]["plateaus"].as_array().unwrap();
