@@ -18,7 +18,7 @@ use anyhow::{Context, bail};
 use crate::workspace_root;
 // Re-exported for the benches below this module (`super::run_tool`), which
 // would otherwise import their parent.
-pub(crate) use self::tools::{path, read_columns, run_tool, soak_spread};
+pub(crate) use self::tools::{SoakReading, path, read_columns, run_tool, soak_spread};
 
 /// One protocol: a training run and verification runs (simulate arguments),
 /// the methods compared and whether the Python peers join.

@@ -205,7 +205,7 @@ enum Cmd {
         plan_seeds: u64,
         /// In-use section: train every plant on the default plan of each of these lengths, h
         /// (with every --plan-seeds seed), e.g. --plan-hours 12,24 for issue 48's two plans;
-        /// a table judges each length on the soak test (≤ 0.03 °/h after 12 h, ≤ 0.01 after
+        /// a table judges each length on the worse of two soak tests (≤ 0.03 °/h after 12 h, ≤ 0.01 after
         /// 24 h), in use (mean ≥ 93 %) and the forecast (within ×1.5).
         #[arg(long, value_name = "H,H…", value_delimiter = ',', default_value = "12",
               conflicts_with = "plan", value_parser = plan_hours)]

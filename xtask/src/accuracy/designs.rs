@@ -111,9 +111,9 @@ pub fn bench_designs(dir: &Path, trainer: &Path, fit_args: &[String]) -> anyhow:
             means[t].push(mean);
             let soak = if file(SOAK).exists() {
                 let json = work.path().join(format!("{design}_{training}_soak.json"));
-                let (after, before) = soak_spread(trainer, &model, &file(SOAK), &json)?;
-                soak_before = soak_before.or(before);
-                after
+                let reading = soak_spread(trainer, &model, &file(SOAK), &json)?;
+                soak_before = soak_before.or(reading.before_dph);
+                reading.after_dph
             } else {
                 None
             };

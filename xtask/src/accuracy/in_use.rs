@@ -11,14 +11,16 @@
 //! −20 … 50 °C at 0.2 … 3 °C/min, two field histories), and the output is
 //! scored by its 100-s cluster STD against the known rate (`ref_dph`), beside
 //! the fit's forecast of that figure (`predicted_in_use_std100_dph`), and on
-//! a soak test of the same plant (`trainer simulate --profile soak`: 3-h
-//! holds at eight levels across −40 … 60 °C) by the spread of its settled
-//! bias (`trainer eval --json`'s `settled_spread_dph`). Beside
+//! two soak tests of the same plant (`trainer simulate --profile soak`: 3-h
+//! holds at eight levels across −40 … 60 °C, in two orders; [`soak`]) by the
+//! worse spread of their settled bias (`trainer eval --json`'s
+//! `settled_spread_dph`), split into a static part and the order's. Beside
 //! it: the lag-bank reference (bench/accuracy/lag_bank.py) on the same runs,
 //! and each run's noise ceiling (the same run with `--noise-only`);
 //! `summary`: the forecasts' factors and each plant against the targets.
 
 mod settled;
+mod soak;
 mod summary;
 
 use std::path::{Path, PathBuf};
@@ -29,6 +31,7 @@ use anyhow::{Context, bail};
 use serde_json::{Value, json};
 use trainer::metrics::{cluster_std, improvement_pct};
 
+use self::soak::{SoakScores, soak_runs};
 use self::summary::{
     PlantSummary, TARGET_CYCLE_MEAN_PCT, TARGET_FORECAST_FACTOR, TARGET_PLANNED_MEAN_PCT, TARGET_PLANNED_WORST_PCT,
     Training, forecast_factor, summary_table, worst_forecast_factor,
@@ -208,15 +211,6 @@ fn in_use_runs() -> Vec<RunSpec> {
         RunSpec::new("field 1", &["--profile", "field"], 513),
         RunSpec::new("field 2", &["--profile", "field"], 514),
     ]
-}
-
-/// The soak test every plant's default models are also compensated on.
-fn soak_run() -> RunSpec {
-    RunSpec::new(
-        "soak 25/0/40/−20/60/20/−40/10 °C, 3-h holds",
-        &["--profile", "soak"],
-        515,
-    )
 }
 
 /// The models compared, in print order.
@@ -487,7 +481,11 @@ impl PlantRuns<'_> {
         let plant = self.plant;
         let histories = self.histories(in_use)?;
         let before = &histories.before;
-        let soak = self.simulate(&soak_run(), "soak", false)?;
+        let soaks = soak_runs()
+            .iter()
+            .enumerate()
+            .map(|(i, spec)| self.simulate(spec, &format!("soak{i}"), false))
+            .collect::<anyhow::Result<Vec<_>>>()?;
         let mut soak_spreads = Vec::new();
         let mut training_json = Vec::new();
         let mut plant_summary = PlantSummary {
@@ -502,7 +500,8 @@ impl PlantRuns<'_> {
         print_cells("no compensation (STD [°/h])", before.iter().map(|b| format!("{b:.4}")));
         println!();
         for (s, (kind, scenario)) in training.iter().enumerate() {
-            let (json, soak_spread) = self.bench_training(s, *kind, scenario, &histories, &soak, &mut plant_summary)?;
+            let (json, soak_spread) =
+                self.bench_training(s, *kind, scenario, &histories, &soaks, &mut plant_summary)?;
             soak_spreads.push((scenario.name.clone(), soak_spread));
             training_json.push(json);
         }
@@ -519,10 +518,10 @@ impl PlantRuns<'_> {
         let (mean, worst) = mean_and_worst(&ceiling_pct);
         println!(" {mean:>7.1} {worst:>7.1}");
         println!(
-            "soak test settled spread [°/h] after {}",
+            "soak tests' worse settled spread [°/h] after {}",
             soak_spreads
                 .iter()
-                .map(|(name, s)| format!("{name}: {}", s.map_or("-".into(), |s| format!("{s:.4}"))))
+                .map(|(name, s)| format!("{name}: {}", s.worst_dph().map_or("-".into(), |s| format!("{s:.4}"))))
                 .collect::<Vec<_>>()
                 .join("; ")
         );
@@ -539,30 +538,30 @@ impl PlantRuns<'_> {
                 "noise_ceiling_pct": ceiling_pct[i],
             })).collect::<Vec<_>>(),
             "training": training_json,
-            "soak_run": { "simulate_args": soak_run().args, "seed": self.seed(&soak_run()) },
+            "soak_runs": soak_runs().iter().map(|spec| json!({ "simulate_args": spec.args, "seed": self.seed(spec) })).collect::<Vec<_>>(),
             "forecast_worst_factor": plant_summary.target_forecast(),
             "targets_missed": plant_summary.missed_targets(),
         });
         Ok((
             plant_json,
             plant_summary,
-            soak_spreads.into_iter().map(|s| s.1).collect(),
+            soak_spreads.into_iter().map(|s| s.1.worst_dph()).collect(),
         ))
     }
 
     /// Training `s` of this plant (`kind`, simulated from `scenario`): the
     /// judged fit and the lag-bank reference scored on the histories, the
-    /// default's soak spread; prints their rows, adds the default's scores
-    /// to `summary` and returns the training's JSON and the soak spread.
+    /// default's soak tests read; prints their rows, adds the default's
+    /// scores to `summary` and returns the training's JSON and the soak tests' readings.
     fn bench_training(
         &self,
         s: usize,
         kind: Training,
         scenario: &RunSpec,
         histories: &Histories,
-        soak: &Path,
+        soaks: &[PathBuf],
         summary: &mut PlantSummary,
-    ) -> anyhow::Result<(Value, Option<f64>)> {
+    ) -> anyhow::Result<(Value, SoakScores)> {
         let (bench, tag) = (self.bench, format!("p{}", self.index));
         let train = self.simulate(scenario, &format!("train{s}"), false)?;
         let loop_c = loop_range_c(&train)?;
@@ -576,14 +575,18 @@ impl PlantRuns<'_> {
             &histories.raw,
         )?;
         let reference = lag_bank_scores(bench.python, &bench.lag_bank, &train, &histories.verify, &histories.raw)?;
-        let soak_spread = match default.refusal {
-            None => Some(super::soak_spread(
-                bench.judged,
-                &model,
-                soak,
-                &bench.dir.join(format!("{tag}_train{s}_soak.json")),
-            )?),
-            Some(_) => None,
+        let soak_scores = match default.refusal {
+            None => SoakScores {
+                readings: soaks
+                    .iter()
+                    .enumerate()
+                    .map(|(i, soak)| {
+                        let json = bench.dir.join(format!("{tag}_train{s}_soak{i}.json"));
+                        super::soak_spread(bench.judged, &model, soak, &json)
+                    })
+                    .collect::<anyhow::Result<_>>()?,
+            },
+            Some(_) => SoakScores::default(),
         };
         println!(
             "trained on {} (loop {:.1} … {:.1} °C):",
@@ -595,7 +598,7 @@ impl PlantRuns<'_> {
         }
         let mut models_json = Vec::new();
         for scores in [&default, &reference] {
-            models_json.push(model_row(scores, &histories.before, soak_spread, kind, summary));
+            models_json.push(model_row(scores, &histories.before, &soak_scores, kind, summary));
         }
         let json = json!({
             "training": scenario.name,
@@ -604,29 +607,41 @@ impl PlantRuns<'_> {
             "loop_c": [loop_c.0, loop_c.1],
             "models": models_json,
         });
-        Ok((json, soak_spread.and_then(|s| s.0)))
+        Ok((json, soak_scores))
     }
 }
 
 /// One model's row of a training: printed, its JSON returned, and for the
-/// default its scores and forecast added to `summary`. `soak_spread`: the
-/// default's settled spread on the soak test (after, before), °/h.
+/// default its scores and forecast added to `summary`. `soak`: the
+/// default's readings on the plant's soak tests.
 fn model_row(
     scores: &ModelScores,
     before: &[f64],
-    soak_spread: Option<(Option<f64>, Option<f64>)>,
+    soak: &SoakScores,
     kind: Training,
     summary: &mut PlantSummary,
 ) -> Value {
     print_model(scores, before);
-    if scores.model == DEFAULT_MODEL
-        && let Some((after, before)) = soak_spread
-    {
-        let cell = |s: Option<f64>| s.map_or("- (under 2 plateaus)".into(), |s| format!("{s:.4}"));
+    let default = scores.model == DEFAULT_MODEL;
+    if default && !soak.readings.is_empty() {
+        let cells = |f: &dyn Fn(&super::SoakReading) -> Option<f64>| {
+            let cells: Vec<String> = soak
+                .readings
+                .iter()
+                .map(|r| f(r).map_or("- (under 2 plateaus)".into(), |s| format!("{s:.4}")))
+                .collect();
+            cells.join(" / ")
+        };
+        let split = soak.split().map_or(String::new(), |s| {
+            format!(
+                "; a cubic in T {:.4}, off it {:.4} RMS",
+                s.static_range_dph, s.off_static_rms_dph
+            )
+        });
         println!(
-            "    soak test: settled spread {} °/h (uncompensated {})",
-            cell(after),
-            cell(before)
+            "    soak tests: settled spread {} °/h (uncompensated {}){split}",
+            cells(&|r| r.after_dph),
+            cells(&|r| r.before_dph)
         );
     }
     let pct = scores.improvement_pcts(before);
@@ -650,8 +665,15 @@ fn model_row(
         "mean_pct": finite(mean),
         "worst_pct": finite(worst),
         "forecast_worst_factor": forecast,
-        "soak_settled_spread_dph": (scores.model == DEFAULT_MODEL)
-            .then_some(soak_spread.and_then(|s| s.0).map(finite)).flatten(),
+        "soak_settled_spread_dph": default.then(|| soak.worst_dph().map(finite)).flatten(),
+        "soak_tests": default.then(|| soak.readings.iter().map(|r| json!({
+            "settled_spread_dph": r.after_dph.map(finite),
+            "settled_spread_before_dph": r.before_dph.map(finite),
+        })).collect::<Vec<_>>()),
+        "soak_split": default.then(|| soak.split().map(|s| json!({
+            "static_range_dph": finite(s.static_range_dph),
+            "off_static_rms_dph": finite(s.off_static_rms_dph),
+        }))).flatten(),
         "fit_report": scores.fit_report,
     })
 }
@@ -797,7 +819,9 @@ fn lag_bank_scores(
 /// The soak test's settled spread after the default's fit, °/h: a row per
 /// plant, a column per training run (`-`: fit refused, or under two plateaus).
 fn print_soak_table(rows: &[(String, Vec<Option<f64>>)], training: &[(Training, RunSpec)]) {
-    println!("\nsoak test (simulate --profile soak): settled spread after compensation [°/h], trained on");
+    println!(
+        "\nsoak tests (simulate --profile soak, two orders): the worse settled spread after compensation [°/h], trained on"
+    );
     print!("{:<22}", "plant");
     for (k, (kind, _)) in training.iter().enumerate() {
         print!(" {:>12}", format!("{kind:?} {}", k + 1).to_lowercase());

@@ -53,15 +53,21 @@ pub(crate) fn read_columns(file: &Path, names: &[&str]) -> anyhow::Result<Vec<Ve
     Ok(columns)
 }
 
+/// What `trainer eval --json` reads on a soak test.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct SoakReading {
+    /// Settled spread after compensation, °/h (`None`: fewer than two plateaus).
+    pub after_dph: Option<f64>,
+    /// The same uncompensated, °/h.
+    pub before_dph: Option<f64>,
+    /// Each plateau's loop temperature, °C, and settled bias after
+    /// compensation, °/h.
+    pub plateaus: Vec<(f64, f64)>,
+}
+
 /// `trainer eval --json` of `model` on the soak test `soak` (written to
-/// `json`): the settled spread after and before compensation, °/h (`None`:
-/// fewer than two plateaus).
-pub(crate) fn soak_spread(
-    trainer: &Path,
-    model: &Path,
-    soak: &Path,
-    json: &Path,
-) -> anyhow::Result<(Option<f64>, Option<f64>)> {
+/// `json`).
+pub(crate) fn soak_spread(trainer: &Path, model: &Path, soak: &Path, json: &Path) -> anyhow::Result<SoakReading> {
     run_tool(
         trainer,
         &[
@@ -76,8 +82,17 @@ pub(crate) fn soak_spread(
     )?;
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json)?)
         .with_context(|| format!("{}: trainer eval --json is not JSON", json.display()))?;
-    Ok((
-        v[0]["settled_spread_dph"].as_f64(),
-        v[0]["settled_spread_before_dph"].as_f64(),
-    ))
+    let plateaus = v[0]["plateaus"]
+        .as_array()
+        .map(|ps| {
+            ps.iter()
+                .filter_map(|p| Some((p["temp_c"].as_f64()?, p["bias_after_dph"].as_f64()?)))
+                .collect()
+        })
+        .unwrap_or_default();
+    Ok(SoakReading {
+        after_dph: v[0]["settled_spread_dph"].as_f64(),
+        before_dph: v[0]["settled_spread_before_dph"].as_f64(),
+        plateaus,
+    })
 }
