@@ -331,7 +331,7 @@ impl Coverage {
         if !unsettled.is_empty() {
             let hi = in_use.range_c.map_or(hi, |r| r.1);
             out.push(format!(
-                "no settled level in {} °C (the loop steady {:.0} min by the soak rule of `eval`): the settled bias a soak test reads there is not identified from these runs, and the fit does not forecast its spread (`predicted_settled_spread_dph` null); hold the chamber at a level in each such band until the loop settles, an hour or more",
+                "no settled level in {} °C (the loop steady {:.0} min by the soak rule of `eval`): the settled bias a soak test reads there is not identified from these runs, and the fit does not forecast its spread (`predicted_settled_spread_dph` null); hold the chamber at a level in each such band until the loop settles, an hour or more, or fit a soak test of the unit beside this run (docs/workflow.md, \"The soak test\")",
                 band_list(&unsettled, hi),
                 crate::dataset::plateaus::MIN_STEADY_S / 60.0
             ));
@@ -537,7 +537,8 @@ mod tests {
         let missing = c.missing(&InUse::default(), None).join("\n");
         assert!(
             missing.contains("no settled level in -20 … 20, 40 … 60 °C")
-                && missing.contains("predicted_settled_spread_dph"),
+                && missing.contains("predicted_settled_spread_dph")
+                && missing.contains("or fit a soak test of the unit beside this run"),
             "{missing}"
         );
         // Told a range of use, the bands are the range's.
