@@ -72,7 +72,7 @@ impl SpecOutcome {
                 t.prediction.worse_settled_spread_dph().unwrap_or(f64::NAN)
             ),
             None => format!(
-                "--settled-spread-dph {}: no plan within --hours {} is predicted to meet it on both plants; the best tried, the {} h {} plan, gives {} °/h on the nominal plant and {} °/h on the slow plant ({:.1} / {:.1} % in use) (tried, worse plant's spread in °/h: {tried})",
+                "--settled-spread-dph {}: no plan within --hours {} is predicted to meet it on both plants; the best tried, the {} h {} plan, gives {} °/h on the nominal plant and {} °/h on the slow plant ({:.1} / {:.1} % in use) (tried, worse plant's spread in °/h: {tried}); where the unit is soaked anyway, fit its soak test beside the planned run (docs/workflow.md, \"The soak test\")",
                 self.target_dph,
                 self.tried.last().map_or(0.0, |t| t.0),
                 self.best.plan.limits.hours,

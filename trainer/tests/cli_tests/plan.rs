@@ -677,7 +677,8 @@ fn a_settled_spread_spec_gives_the_shortest_plan_predicted_to_meet_it_or_says_it
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
     let err = stderr(&o);
     assert!(
-        err.contains("no plan within --hours 5 is predicted to meet it on both plants; the best tried"),
+        err.contains("no plan within --hours 5 is predicted to meet it on both plants; the best tried")
+            && err.contains("fit its soak test beside the planned run"),
         "{err}"
     );
     assert!(!dir.path().join("no.csv").exists() && !json.exists(), "nothing written");
