@@ -61,10 +61,11 @@ def one(args, plant, hours):
     scores = {}
     for label, extra in (("alone", []), ("with soak A", [runs["soakA"]])):
         model = os.path.join(args.dir, f"{plant}_{hours}h_{label.replace(' ', '_')}.bin")
-        run([args.trainer, "fit", train, *extra, "-o", model, "--force"])
+        run([args.trainer, "fit", train, *extra, "-o", model, "--force", "--json", model + ".fit.json"])
+        forecast = json.load(open(model + ".fit.json"))["predicted_settled_spread_dph"]
         soak = evaluated(args, model, runs["soakB"])["settled_spread_dph"]
         use = [evaluated(args, model, runs[h])["cluster_std_improvement_pct"] for h in ("random", "field")]
-        scores[label] = (soak, sum(use) / len(use))
+        scores[label] = (soak, sum(use) / len(use), forecast)
     return plant, hours, scores
 
 
@@ -95,6 +96,11 @@ def main():
             print(f"{h} h plan {label:11s}: soak B geometric mean {geo:.4f} deg/h, "
                   f"within 0.01 / 0.03: {sum(x <= 0.01 for x in spreads)} / {sum(x <= 0.03 for x in spreads)} "
                   f"of {len(v)}; in use mean {sum(x[1] for x in v) / len(v):.2f} %, worst {min(x[1] for x in v):.1f} %")
+    # The fit's predicted_settled_spread_dph (where its runs settle in every 20-degC band) against soak B.
+    forecasts = [s[label] for _, _, s in results for label in s if s[label][2] is not None]
+    within = sum(1 for soak, _, f in forecasts if soak is not None and soak / 1.5 <= f <= soak * 1.5)
+    print(f"predicted_settled_spread_dph given on {len(forecasts)} of {2 * len(results)} fits, "
+          f"within 1.5x of soak B on {within}")
 
 
 if __name__ == "__main__":

@@ -159,6 +159,7 @@ fn row(
         "holdout_std100_after_dph": worst("cluster_std_after_dph", true),
         "holdout_std100_gain_pct": worst("cluster_std_improvement_pct", false),
         "forecast_in_use_std100_dph": figure("predicted_in_use_std100_dph"),
+        "forecast_settled_spread_dph": figure("predicted_settled_spread_dph"),
         "clamped_pct": clamped,
         "bias_instability_after_dph": bias_instability,
         "missing": figure("missing"),

@@ -306,7 +306,7 @@ fn earlier(unit: &Unit, dir: &Path, digest: &str) -> Option<Outcome> {
 }
 
 /// The columns of summary.csv and of the HTML table, in order: every figure of the row.
-const COLUMNS: [&str; 18] = [
+const COLUMNS: [&str; 19] = [
     "serial",
     "axis",
     "status",
@@ -317,6 +317,7 @@ const COLUMNS: [&str; 18] = [
     "holdout_std100_after_dph",
     "holdout_std100_gain_pct",
     "forecast_in_use_std100_dph",
+    "forecast_settled_spread_dph",
     "clamped_pct",
     "bias_instability_after_dph",
     "missing",

@@ -139,7 +139,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if outcome.bank_search().is_none() && settled_floor.is_some() {
         writeln!(out)?;
     }
-    write_vouching(&mut out, &outcome, settled_floor.as_ref())?;
+    write_vouching(&mut out, &outcome, &in_use, settled_floor.as_ref())?;
     let verdict = spec
         .as_ref()
         .map(|spec| judge_axis(spec, &in_use, &outcome, &evals, None));

@@ -257,7 +257,11 @@ fn soak_levels_and_hold_set_the_plateaus_and_need_the_soak_profile() {
 }
 
 #[test]
-fn a_fit_on_a_run_with_settled_levels_states_their_spread_as_a_floor_under_the_soak_and_eval_agrees() {
+fn a_fit_on_a_run_settled_in_every_band_forecasts_a_soak_s_spread_as_its_own_levels_and_eval_agrees() {
+    // Three 2-h holds settle the loop in every 20-°C band the run covers: the
+    // runs' own settled spread is then the forecast of a soak test's (the
+    // planned run without it keeps it null:
+    // `plan::a_plan_runs_through_the_simulator_and_a_fit_reports_its_coverage`).
     let dir = TempDir::new().unwrap();
     let run = dir.path().join("soak3.csv");
     let path = run.to_str().unwrap();
@@ -288,14 +292,19 @@ fn a_fit_on_a_run_with_settled_levels_states_their_spread_as_a_floor_under_the_s
     assert!(o.status.success(), "{}", stderr(&o));
     let printed = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(
-        printed.contains("settled: the training run's own 3 settled levels"),
+        printed.contains("settled: the training run's own 3 settled levels")
+            && printed.contains("a soak test of this unit is forecast to read"),
         "{printed}"
     );
     let fit = crate::common::read_json(&fit_json);
     assert_eq!(fit["training_settled_levels"], 3, "{fit}");
     let floor = fit["training_settled_spread_dph"].as_f64().unwrap();
+    assert_eq!(fit["predicted_settled_spread_dph"].as_f64(), Some(floor), "{fit}");
     assert!(
-        fit["settled_forecast"].as_str().unwrap().contains("reads at least"),
+        fit["settled_forecast"]
+            .as_str()
+            .unwrap()
+            .starts_with("forecast: the runs hold a settled level in every 20-°C band"),
         "{fit}"
     );
     assert!(fit["residual_over_noise_floor"].as_f64().unwrap() > 0.0, "{fit}");

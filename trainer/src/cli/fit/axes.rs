@@ -142,23 +142,24 @@ pub(super) fn run(
     }
     let rows: Vec<(&str, &RunEvaluation)> = evals.iter().map(|(r, e)| (*r, e)).collect();
     print_table(&mut out, &rows)?;
+    let in_use = a.in_use()?;
     for (axis, (outcome, _)) in axes.iter().zip(&outcomes) {
         if let Some(search) = outcome.bank_search() {
             writeln!(out, "\naxis {}:", axis.name())?;
             for line in search
                 .coverage
-                .lines(&a.in_use()?, trainer::fit::coverage::model_range_c(&outcome.model))
+                .lines(&in_use, trainer::fit::coverage::model_range_c(&outcome.model))
             {
                 writeln!(out, "{line}")?;
             }
             write_vouching(
                 &mut out,
                 outcome,
+                &in_use,
                 training_settled_floor(&evals, Some(axis.name())).as_ref(),
             )?;
         }
     }
-    let in_use = a.in_use()?;
     // Each axis judged on its own holdout evaluations, forecast and coverage.
     let verdicts: Vec<Option<Verdict>> = axes
         .iter()

@@ -6,6 +6,7 @@ use std::io::Write;
 use rbf_core::{FeatureSet, Model};
 use trainer::describe::gain_text;
 use trainer::evaluation::evaluate::RunEvaluation;
+use trainer::fit::coverage::InUse;
 use trainer::fit::{self, BankReport, FitOptions, FitOutcome, FitReport, Method, SvrInputs};
 
 use super::super::common::{describe_selection, rule_name};
@@ -382,14 +383,24 @@ pub(super) fn training_settled_floor(
     )
 }
 
+/// Whether the runs of `outcome` hold a settled level in every 20-°C band of
+/// the range of use (`false` for a method that does not read them).
+pub(super) fn every_band_settled(outcome: &FitOutcome, in_use: &InUse) -> bool {
+    outcome
+        .bank_search()
+        .is_some_and(|s| s.coverage.unsettled_bands_c(in_use).is_empty())
+}
+
 /// What the fit vouches for, as `trainer fit` prints it below the coverage
 /// lines ([`fit::vouch::lines`]).
 pub(super) fn write_vouching(
     out: &mut impl Write,
     outcome: &FitOutcome,
+    in_use: &InUse,
     floor: Option<&fit::vouch::SettledFloor>,
 ) -> anyhow::Result<()> {
-    for line in fit::vouch::lines(floor, outcome.residual_over_noise_floor()) {
+    let forecast = fit::vouch::settled_forecast_dph(floor, every_band_settled(outcome, in_use));
+    for line in fit::vouch::lines(floor, forecast, outcome.residual_over_noise_floor()) {
         writeln!(out, "{line}")?;
     }
     Ok(())
