@@ -12,7 +12,7 @@
 //! scored by its 100-s cluster STD against the known rate (`ref_dph`), beside
 //! the fit's forecast of that figure (`predicted_in_use_std100_dph`), and on
 //! two soak tests of the same plant (`trainer simulate --profile soak`: 3-h
-//! holds at eight levels across −40 … 60 °C, in two orders; [`soak`]) by the
+//! holds at eight levels across −40 … 60 °C, in two orders; module `soak`) by the
 //! worse spread of their settled bias (`trainer eval --json`'s
 //! `settled_spread_dph`), split into a static part and the order's. Beside
 //! it: the lag-bank reference (bench/accuracy/lag_bank.py) on the same runs,
