@@ -31,7 +31,7 @@ use anyhow::{Context, bail};
 use serde_json::{Value, json};
 use trainer::metrics::{cluster_std, improvement_pct};
 
-use self::soak::{SoakScores, soak_runs};
+use self::soak::SoakScores;
 use self::summary::{
     PlantSummary, TARGET_CYCLE_MEAN_PCT, TARGET_FORECAST_FACTOR, TARGET_PLANNED_MEAN_PCT, TARGET_PLANNED_WORST_PCT,
     Training, forecast_factor, summary_table, worst_forecast_factor,
@@ -210,6 +210,24 @@ fn in_use_runs() -> Vec<RunSpec> {
         RunSpec::new("random 2", &random, 512),
         RunSpec::new("field 1", &["--profile", "field"], 513),
         RunSpec::new("field 2", &["--profile", "field"], 514),
+    ]
+}
+
+/// The plant's soak tests: issue 48's (3-h holds at 25, 0, 40, −20, 60, 20,
+/// −40, 10 °C, 1 °C/min between) and one of other levels in another order
+/// (the second of `bench/accuracy/one_unit_soak.py`).
+fn soak_runs() -> [RunSpec; 2] {
+    [
+        RunSpec::new(
+            "soak 25/0/40/−20/60/20/−40/10 °C, 3-h holds",
+            &["--profile", "soak"],
+            515,
+        ),
+        RunSpec::new(
+            "soak 10/−40/50/−10/30/60/−30/0 °C, 3-h holds",
+            &["--profile", "soak", "--soak-levels-c", "10,-40,50,-10,30,60,-30,0"],
+            516,
+        ),
     ]
 }
 

@@ -1,7 +1,7 @@
-//! The soak tests every default model of the bench is read on: two of each
-//! plant, of other levels and another order (issue 48 judges on a soak test
-//! unlike the one it describes), the worse of the two judged; and what kind of
-//! error they read. The settled biases of both after one fit are split into
+//! What the bench reads on a plant's soak tests (two, of other levels and
+//! another order: issue 48 judges on a soak test unlike the one it
+//! describes): the worse spread of the two, judged; and what kind of error
+//! they read. The settled biases of both after one fit are split into
 //!
 //! - the part a cubic in the loop temperature explains: a static curve the
 //!   fit misidentified, read alike whatever order the levels come in; more
@@ -16,28 +16,9 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::RunSpec;
 use crate::accuracy::SoakReading;
 
-/// The plant's soak tests: issue 48's (3-h holds at 25, 0, 40, −20, 60, 20,
-/// −40, 10 °C, 1 °C/min between) and one of other levels in another order
-/// (the second of `bench/accuracy/one_unit_soak.py`).
-pub(super) fn soak_runs() -> [RunSpec; 2] {
-    [
-        RunSpec::new(
-            "soak 25/0/40/−20/60/20/−40/10 °C, 3-h holds",
-            &["--profile", "soak"],
-            515,
-        ),
-        RunSpec::new(
-            "soak 10/−40/50/−10/30/60/−30/0 °C, 3-h holds",
-            &["--profile", "soak", "--soak-levels-c", "10,-40,50,-10,30,60,-30,0"],
-            516,
-        ),
-    ]
-}
-
-/// One fit's readings on the plant's soak tests, in [`soak_runs`]' order.
+/// One fit's readings on the plant's soak tests, in the bench's order of them.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(super) struct SoakScores {
     pub readings: Vec<SoakReading>,
