@@ -52,6 +52,10 @@ pub const UNMODELLED_RESIDUAL_RATIO: f64 = 3.0;
 /// every 20-°C band (see the module documentation for the measurement).
 pub const SETTLED_FORECAST_FACTOR: f64 = 1.0;
 
+/// How often the settled forecast held, as `fit` says it beside the figure
+/// (see the module documentation for the measurement).
+pub const SETTLED_FORECAST_HELD: &str = "within 1.5× on 25 of 36 fits of bench/accuracy/soak_as_training.py";
+
 /// A floor under the settled spread a soak test of the unit reads, from the
 /// training run whose settled levels spread most after compensation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -115,7 +119,7 @@ pub fn lines(floor: Option<&SettledFloor>, forecast_dph: Option<f64>, residual_o
         let reads = match forecast_dph {
             Some(dph) => format!(
                 "a soak test of this unit is forecast to read {dph:.4e} °/h (the runs hold a settled level in every \
-                 20-°C band; within 1.5× on 25 of 36 bench fits)"
+                 20-°C band; {SETTLED_FORECAST_HELD})"
             ),
             None => "a soak test of this unit reads at least that".to_owned(),
         };

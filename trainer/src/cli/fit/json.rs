@@ -9,7 +9,7 @@ use trainer::fit::vouch::SettledFloor;
 use trainer::fit::{FitOutcome, FitReport};
 
 use super::super::common::input_names;
-use super::summary::every_band_settled;
+use super::summary::settled_forecast_dph;
 
 /// What a fit chose, as `trainer fit --json` writes it (one axis), for use
 /// over `in_use`.
@@ -30,14 +30,15 @@ pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse, floor: Option<&Settle
         FitReport::SvrPso(c) => svr = Some(c),
         FitReport::ResponseBank | FitReport::Poly3 => {}
     }
+    let forecast = settled_forecast_dph(o, in_use, floor);
     serde_json::json!({
         "choice": choice,
         "feature_sets": sets,
         "lag_bank_search": bank,
         "structure": structure,
         "predicted_in_use_std100_dph": o.predicted_in_use_std100_dph(),
-        "predicted_settled_spread_dph": trainer::fit::vouch::settled_forecast_dph(floor, every_band_settled(o, in_use)),
-        "settled_forecast": settled_forecast(o, in_use, floor),
+        "predicted_settled_spread_dph": forecast,
+        "settled_forecast": settled_forecast(o, in_use, floor, forecast),
         // A floor under what a soak test of the unit reads, from the training runs' own settled levels.
         "training_settled_spread_dph": floor.map(|f| f.spread_dph),
         "training_settled_levels": floor.map(|f| f.levels),
@@ -51,11 +52,12 @@ pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse, floor: Option<&Settle
     })
 }
 
-/// What `predicted_settled_spread_dph` is made of, or why it is null: the
-/// fit names the settled bias it cannot vouch for (docs/decisions.md, "The
-/// settled curve after a planned run": no forecast from a planned run alone
-/// held), and the floor under it where the training runs give one.
-fn settled_forecast(o: &FitOutcome, in_use: &InUse, floor: Option<&SettledFloor>) -> String {
+/// What `predicted_settled_spread_dph` (`forecast`) is made of, or why it is
+/// null: the fit names the settled bias it cannot vouch for
+/// (docs/decisions.md, "The settled curve after a planned run": no forecast
+/// from a planned run alone held), and the floor under it where the training
+/// runs give one.
+fn settled_forecast(o: &FitOutcome, in_use: &InUse, floor: Option<&SettledFloor>, forecast: Option<f64>) -> String {
     let at_least = floor
         .map(|f| {
             format!(
@@ -67,17 +69,17 @@ fn settled_forecast(o: &FitOutcome, in_use: &InUse, floor: Option<&SettledFloor>
     let Some(search) = o.bank_search() else {
         return format!("not forecast: this method's fit does not read the runs' settled levels{at_least}");
     };
+    if let (Some(dph), Some(f)) = (forecast, floor) {
+        return format!(
+            "forecast: the runs hold a settled level in every 20-°C band; a soak test of other levels and order \
+             reads about the training run's own settled spread, {dph:.4e} °/h over {} levels ({}; docs/methods.md)",
+            f.levels,
+            trainer::fit::vouch::SETTLED_FORECAST_HELD
+        );
+    }
     let unsettled = search.coverage.unsettled_bands_c(in_use);
     if unsettled.is_empty() {
-        match floor {
-            Some(f) => format!(
-                "forecast: the runs hold a settled level in every 20-°C band; a soak test of other levels and order \
-                 reads about the training run's own settled spread, {:.4e} °/h over {} levels (within 1.5× on 25 of 36 \
-                 fits of bench/accuracy/soak_as_training.py; docs/methods.md)",
-                f.spread_dph, f.levels
-            ),
-            None => "not forecast: the runs hold a settled level in every 20-°C band but no run two of them".to_owned(),
-        }
+        "not forecast: the runs hold a settled level in every 20-°C band but no run two of them".to_owned()
     } else {
         let bands: Vec<String> = unsettled.iter().map(|b| format!("{b:.0}")).collect();
         format!(

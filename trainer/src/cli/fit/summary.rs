@@ -383,12 +383,19 @@ pub(super) fn training_settled_floor(
     )
 }
 
-/// Whether the runs of `outcome` hold a settled level in every 20-°C band of
-/// the range of use (`false` for a method that does not read them).
-pub(super) fn every_band_settled(outcome: &FitOutcome, in_use: &InUse) -> bool {
-    outcome
+/// The settled spread a soak test of the unit is forecast to read
+/// ([`fit::vouch::settled_forecast_dph`]): where the runs of `outcome` hold a
+/// settled level in every 20-°C band of the range of use (never for a method
+/// that does not read them).
+pub(super) fn settled_forecast_dph(
+    outcome: &FitOutcome,
+    in_use: &InUse,
+    floor: Option<&fit::vouch::SettledFloor>,
+) -> Option<f64> {
+    let every_band_settled = outcome
         .bank_search()
-        .is_some_and(|s| s.coverage.unsettled_bands_c(in_use).is_empty())
+        .is_some_and(|s| s.coverage.unsettled_bands_c(in_use).is_empty());
+    fit::vouch::settled_forecast_dph(floor, every_band_settled)
 }
 
 /// What the fit vouches for, as `trainer fit` prints it below the coverage
@@ -399,7 +406,7 @@ pub(super) fn write_vouching(
     in_use: &InUse,
     floor: Option<&fit::vouch::SettledFloor>,
 ) -> anyhow::Result<()> {
-    let forecast = fit::vouch::settled_forecast_dph(floor, every_band_settled(outcome, in_use));
+    let forecast = settled_forecast_dph(outcome, in_use, floor);
     for line in fit::vouch::lines(floor, forecast, outcome.residual_over_noise_floor()) {
         writeln!(out, "{line}")?;
     }
