@@ -105,7 +105,7 @@ def main():
                   f"of {len(v)}; in use mean {sum(x[1] for x in v) / len(v):.2f} %, worst {min(x[1] for x in v):.1f} %")
     # The fit's predicted_settled_spread_dph (where its runs settle in every 20-degC band) against soak B,
     # on the fits that did not see soak B.
-    unseen = ("alone", "with soak A")
+    unseen = [label for label, beside in BESIDE.items() if "soakB" not in beside]
     forecasts = [s[label] for _, _, s in results for label in unseen if s[label][2] is not None]
     within = sum(1 for soak, _, f in forecasts if soak is not None and soak / 1.5 <= f <= soak * 1.5)
     print(f"predicted_settled_spread_dph given on {len(forecasts)} of {len(unseen) * len(results)} fits, "
