@@ -79,7 +79,9 @@ fn settled_forecast(o: &FitOutcome, in_use: &InUse, floor: Option<&SettledFloor>
     }
     let unsettled = search.coverage.unsettled_bands_c(in_use);
     if unsettled.is_empty() {
-        "not forecast: the runs hold a settled level in every 20-°C band but no run two of them".to_owned()
+        "not forecast: the runs hold a settled level in every 20-°C band, but no one run holds two of them (the least a \
+             floor needs)"
+            .to_owned()
     } else {
         let bands: Vec<String> = unsettled.iter().map(|b| format!("{b:.0}")).collect();
         format!(
