@@ -181,12 +181,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut out = Vec::new();
     writeln!(
         out,
-        "wrote {} ({} segments, {:.2} h, D-criterion {:.4}, best of {} candidates; median {:.4})",
+        "wrote {} ({} segments, {:.2} h, D-criterion {:.4}, {}; median {:.4})",
         text::path(&a.output),
         plan.segments.len(),
         plan.duration_s() / 3600.0,
         plan.criterion,
-        plan.candidates,
+        plan.choice(),
         plan.median_criterion
     )?;
     writeln!(
@@ -291,6 +291,8 @@ fn json_report(plan: &trainer::plan::Plan, spec: Option<&trainer::plan::spec::Sp
         "band_soak_min": plan.band_soak_s.map(|s| s / 60.0),
         "seed": plan.seed,
         "criterion": plan.criterion,
+        "static_curve_variance": plan.static_curve_variance,
+        "chosen_by": if plan.chosen_by_d_alone { "d_criterion" } else { "rank_sum_d_and_static_curve" },
         "predicted": plan.prediction,
         "prediction_seeds": seeds,
         "soak_orders_c": trainer::plan::predict::SOAK_ORDERS_C,

@@ -340,6 +340,60 @@ impl ChannelBlocks {
     }
 }
 
+/// The regression's design on `blocks`: an offset column per run, then the
+/// `CHANNELS` channels centred and scaled to unit standard deviation (the
+/// penalty then weighs every dynamic column alike).
+struct Design {
+    /// Rows: the blocks; columns: the runs' offsets, then the channels.
+    a: DMatrix<f64>,
+    /// Each column's mean before centring (0 for the offsets).
+    mean: Vec<f64>,
+    /// Each column's standard deviation before scaling (1 for the offsets and constant channels).
+    scale: Vec<f64>,
+    /// Offset columns.
+    runs: usize,
+}
+
+impl Design {
+    fn of(blocks: &ChannelBlocks) -> Design {
+        let n = blocks.y.len();
+        let runs = blocks.runs.max(1);
+        let cols = runs + CHANNELS;
+        let mut a = DMatrix::<f64>::zeros(n, cols);
+        for (i, (x, &run)) in blocks.x.iter().zip(&blocks.run).enumerate() {
+            a[(i, run.min(runs - 1))] = 1.0;
+            for (c, v) in x.iter().enumerate() {
+                a[(i, runs + c)] = *v;
+            }
+        }
+        let mut mean = vec![0.0; cols];
+        let mut scale = vec![1.0; cols];
+        for c in runs..cols {
+            let col = a.column(c);
+            let m = col.mean();
+            let sd = (col.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n.max(1) as f64).sqrt();
+            mean[c] = m;
+            scale[c] = if sd > 0.0 { sd } else { 1.0 };
+            a.column_mut(c).iter_mut().for_each(|v| *v = (*v - m) / scale[c]);
+        }
+        Design { a, mean, scale, runs }
+    }
+
+    fn cols(&self) -> usize {
+        self.a.ncols()
+    }
+
+    /// The prior's penalty on column `c`, in units of λ·n: τ_k/τ₀ on a
+    /// channel of filter k, none on the offsets and the static powers.
+    fn penalty_scale(&self, c: usize) -> f64 {
+        let taus = taus_s();
+        match c.checked_sub(self.runs + STATIC_DEGREE as usize) {
+            Some(dynamic) => f64::from(taus[dynamic % FILTERS]) / PRIOR_TAU_S,
+            None => 0.0,
+        }
+    }
+}
+
 /// The weights by ridge regression of the block targets on an offset per
 /// run and the `CHANNELS` channels, the channels standardised, the
 /// penalty on the dynamic ones only: λ·n·τ_k/τ₀ on a channel of filter k
@@ -347,33 +401,12 @@ impl ChannelBlocks {
 pub fn solve_weights(blocks: &ChannelBlocks) -> anyhow::Result<Weights> {
     let statics = STATIC_DEGREE as usize;
     let n = blocks.y.len();
-    let runs = blocks.runs.max(1);
-    let cols = runs + CHANNELS;
-    let mut a = DMatrix::<f64>::zeros(n, cols);
-    for (i, (x, &run)) in blocks.x.iter().zip(&blocks.run).enumerate() {
-        a[(i, run.min(runs - 1))] = 1.0;
-        for (c, v) in x.iter().enumerate() {
-            a[(i, runs + c)] = *v;
-        }
-    }
-    // Standardised channels: the penalty then weighs every dynamic column alike.
-    let mut mean = vec![0.0; cols];
-    let mut scale = vec![1.0; cols];
-    for c in runs..cols {
-        let col = a.column(c);
-        let m = col.mean();
-        let sd = (col.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n.max(1) as f64).sqrt();
-        mean[c] = m;
-        scale[c] = if sd > 0.0 { sd } else { 1.0 };
-        a.column_mut(c).iter_mut().for_each(|v| *v = (*v - m) / scale[c]);
-    }
+    let design = Design::of(blocks);
+    let (runs, cols) = (design.runs, design.cols());
+    let (mean, scale) = (&design.mean, &design.scale);
     let y = DVector::from_column_slice(&blocks.y);
-    let stats = GramStats::new(&a, &y);
-    let taus = taus_s();
-    let penalty_scale = |c: usize| match c.checked_sub(runs + statics) {
-        Some(dynamic) => f64::from(taus[dynamic % FILTERS]) / PRIOR_TAU_S,
-        None => 0.0,
-    };
+    let stats = GramStats::new(&design.a, &y);
+    let penalty_scale = |c: usize| design.penalty_scale(c);
     let beta = ridge_solve_weighted(&stats, cols, RIDGE_LAMBDA, penalty_scale)
         .ok_or_else(|| anyhow::anyhow!("the response bank's regression is singular"))?;
     let raw: Vec<f64> = (0..cols).map(|c| beta[c] / scale[c]).collect();
@@ -394,6 +427,58 @@ pub fn solve_weights(blocks: &ChannelBlocks) -> anyhow::Result<Weights> {
         static_dph: std::array::from_fn(|p| raw[runs + p]),
         bank,
     })
+}
+
+/// How loosely `blocks` pin the static curve that [`solve_weights`] would
+/// identify on them: the posterior variance of the curve at the settled
+/// temperatures `levels_c` about its mean over them, averaged over the
+/// levels, per unit variance of a block's noise. The ridge regression is
+/// read as the Bayesian one it is (its penalty a Gaussian prior on the
+/// standardised weights), so the figure counts both the noise and how far
+/// the slow responses can trade against the cubic where the runs leave them
+/// unexcited: what a soak test at those levels reads as misidentified
+/// settled bias. Only the channels matter, not the targets, so a plan can
+/// be scored on its simulated loop temperature alone (`trainer plan`;
+/// docs/plan.md). `None` where the regression is singular.
+pub fn static_curve_variance(bank: &ResponseBank, blocks: &ChannelBlocks, levels_c: &[f64]) -> Option<f64> {
+    let statics = STATIC_DEGREE as usize;
+    let design = Design::of(blocks);
+    let cols = design.cols();
+    let mut gram = design.a.tr_mul(&design.a);
+    let penalty = RIDGE_LAMBDA * blocks.y.len() as f64;
+    for c in 0..cols {
+        gram[(c, c)] += penalty * design.penalty_scale(c);
+    }
+    let cholesky = gram.cholesky()?;
+    // The static coefficients' posterior covariance: their columns of the inverse.
+    let mut unit = DMatrix::<f64>::zeros(cols, statics);
+    for p in 0..statics {
+        unit[(design.runs + p, p)] = 1.0;
+    }
+    let inverse = cholesky.solve(&unit);
+    let covariance = inverse.rows(design.runs, statics).clone_owned();
+    // Each level's static inputs on the standardised scale, about their mean.
+    let rows: Vec<DVector<f64>> = levels_c
+        .iter()
+        .map(|&t| {
+            let (powers, _) = bank.powers(t as f32);
+            DVector::from_iterator(
+                statics,
+                (0..statics).map(|p| f64::from(powers[p]) / design.scale[design.runs + p]),
+            )
+        })
+        .collect();
+    let m = rows.len().max(1) as f64;
+    let centre = rows.iter().fold(DVector::zeros(statics), |acc, r| acc + r) / m;
+    let variance = rows
+        .iter()
+        .map(|r| {
+            let d = r - &centre;
+            (d.transpose() * &covariance * &d)[(0, 0)]
+        })
+        .sum::<f64>()
+        / m;
+    variance.is_finite().then_some(variance)
 }
 
 /// The model of `bank` with the static coefficients and constant of `w`:

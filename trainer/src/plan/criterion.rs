@@ -1,11 +1,15 @@
 //! A plan on the plant: the loop temperatures it drives ([`loop_temps`]), the
-//! D-criterion of the lag-bank regression on them ([`d_criterion`]), the slow plant
-//! ([`slowed`]) and the soaks the ends and the power-on need ([`end_soak_s`],
-//! [`pre_soak_s`]).
+//! D-criterion of the lag-bank regression on them ([`d_criterion`]), how
+//! loosely the response bank's regression on them pins the static curve
+//! ([`static_curve_variance`]), the choice between candidates by both
+//! ([`chosen`]), the slow plant ([`slowed`]) and the soaks the ends and the
+//! power-on need ([`end_soak_s`], [`pre_soak_s`]).
 
 use nalgebra::DMatrix;
 
 use super::limits::*;
+use crate::fit::response::{self, BLOCK_S};
+use crate::reading::run::samples::Run;
 use crate::simulate::SimParams;
 use crate::simulate::plant::{LOOP_SENSOR, Plant, PlantParams};
 
@@ -119,6 +123,69 @@ pub fn d_criterion(temps_c: &[f64], limits: &PlanLimits) -> f64 {
         Some(c) => 2.0 * c.l().diagonal().iter().map(|d| d.ln()).sum::<f64>() / p as f64,
         None => f64::NEG_INFINITY,
     }
+}
+
+/// Settled temperatures [`static_curve_variance`] reads the static curve at:
+/// this many, evenly from the lowest to the highest of the limits.
+pub const STATIC_CURVE_LEVELS: usize = 8;
+
+/// How loosely a run whose loop reads `temps_c` (1 s, from 0 s) pins the
+/// static curve the response bank identifies
+/// ([`response::static_curve_variance`], per unit variance of a block's
+/// noise) at [`STATIC_CURVE_LEVELS`] levels over `limits`: a soak test's
+/// settled spread after the default fit grows with it. Lower is better;
+/// `None` where the bank cannot be built on the run.
+pub fn static_curve_variance(temps_c: &[f64], limits: &PlanLimits) -> Option<f64> {
+    let n = temps_c.len();
+    let run = Run {
+        path: "plan candidate".into(),
+        time_s: (0..n).map(|i| i as f64).collect(),
+        rate_dph: vec![0.0; n],
+        temp_c: temps_c.iter().map(|&t| Some(t)).collect(),
+        temps_c: Vec::new(),
+        thermometers: rbf_core::thermometer::ThermometerSet::LOOP,
+        ref_dph: Some(vec![0.0; n]),
+        nominal_period_s: 1.0,
+    };
+    let (bank, blocks) = response::plain_bank_and_blocks(std::slice::from_ref(&run), BLOCK_S).ok()?;
+    let step = (limits.max_c - limits.min_c) / (STATIC_CURVE_LEVELS - 1) as f64;
+    let levels: Vec<f64> = (0..STATIC_CURVE_LEVELS)
+        .map(|i| limits.min_c + step * i as f64)
+        .collect();
+    response::static_curve_variance(&bank, &blocks, &levels)
+}
+
+/// The candidate a plan keeps, by index into `scores` (each candidate's
+/// D-criterion and static-curve variance): the least sum of its rank by the
+/// D-criterion (highest first) and its rank by the variance (lowest first),
+/// ties to the higher D-criterion. Candidates without a finite D-criterion
+/// are never kept; one without a variance ranks last by it. With
+/// `d_alone`, the highest D-criterion (`--plain`: the plans of before).
+/// `None` if no candidate has a finite D-criterion.
+pub fn chosen(scores: &[(f64, Option<f64>)], d_alone: bool) -> Option<usize> {
+    let finite: Vec<usize> = (0..scores.len()).filter(|&i| scores[i].0.is_finite()).collect();
+    let by_d = |a: &usize, b: &usize| scores[*b].0.total_cmp(&scores[*a].0);
+    if d_alone {
+        return finite.iter().copied().min_by(by_d);
+    }
+    let variance = |i: usize| scores[i].1.unwrap_or(f64::INFINITY);
+    let rank_of = |order: &mut Vec<usize>| {
+        let mut rank = vec![0usize; scores.len()];
+        for (r, &i) in order.iter().enumerate() {
+            rank[i] = r;
+        }
+        rank
+    };
+    let mut d_order = finite.clone();
+    d_order.sort_by(by_d);
+    let mut v_order = finite.clone();
+    v_order.sort_by(|&a, &b| variance(a).total_cmp(&variance(b)).then_with(|| by_d(&a, &b)));
+    let (d_rank, v_rank) = (rank_of(&mut d_order), rank_of(&mut v_order));
+    finite.iter().copied().min_by(|&a, &b| {
+        (d_rank[a] + v_rank[a])
+            .cmp(&(d_rank[b] + v_rank[b]))
+            .then_with(|| by_d(&a, &b))
+    })
 }
 
 /// `plant` with every time constant (housing, electronics, coil, hub,
