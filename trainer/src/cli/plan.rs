@@ -16,7 +16,9 @@ use super::common::{ForceArg, JsonArg, print_json_and_commit};
 /// soak at the cold end whose self-heating transient is recorded, levels across the range,
 /// full-rate steps, bursts of swings, slow ramps, holds as long as the coil's slowest mode)
 /// and keeps the one of largest D-criterion: the log-determinant of the information matrix of
-/// the lag-bank regression on the documented gyro's plant (docs/plan.md). Prints the loop
+/// the lag-bank regression on the documented gyro's plant (docs/plan.md). From 18 h (not with
+/// --plain) it keeps instead the least sum of that rank and the rank by how loosely the
+/// response bank's fit would pin the static curve a soak test reads. Prints the loop
 /// range it predicts on that plant and on one 1.5× as slow, and warns when the loop stays short
 /// of the asked range (--soak-ends closes the gap). Predicts, on both plants, what the default
 /// fit on the plan's run gives: the settled spread a soak test reads and the in-use 100-s
