@@ -458,23 +458,37 @@ fn replayed_run_comes_back(source_text: &str, three_axes: bool, columns: &[(&str
         // board steps through the run one row per sample, from its start
         // again at its end); a frame lost on the way skips a row.
         let n = rates.len();
-        let mut at = rates
-            .iter()
-            .position(|&r| r.to_bits() == got_rates[0].to_bits())
+        let step_from = |at: usize, rate: f32| {
+            (1..=8)
+                .map(|step| (at + step) % n)
+                .find(|&j| rates[j].to_bits() == rate.to_bits())
+        };
+        // The first row's rate may recur in the source (rates of five
+        // decimals over thousands of rows): start at the occurrence from
+        // which the next recorded rows follow, not at the first one.
+        let follows = |start: usize| {
+            got_rates
+                .iter()
+                .skip(1)
+                .take(32)
+                .try_fold(start, |at, &rate| step_from(at, rate))
+                .is_some()
+        };
+        let mut at = (0..n)
+            .filter(|&i| rates[i].to_bits() == got_rates[0].to_bits())
+            .find(|&i| follows(i))
+            .or_else(|| rates.iter().position(|&r| r.to_bits() == got_rates[0].to_bits()))
             .unwrap();
         let mut skipped = 0;
         for (k, &rate) in got_rates.iter().enumerate().skip(1) {
-            let next = (1..=8)
-                .map(|step| (at + step) % n)
-                .find(|&j| rates[j].to_bits() == rate.to_bits())
-                .unwrap_or_else(|| {
-                    panic!(
-                        "{got_rate_column} row {k}: rate {rate} is not among the source rows after row {at} \
+            let next = step_from(at, rate).unwrap_or_else(|| {
+                panic!(
+                    "{got_rate_column} row {k}: rate {rate} is not among the source rows after row {at} \
                          ({:?});\nrecorded:\n{}",
-                        &rates[at..(at + 9).min(n)],
-                        text.lines().take(12).collect::<Vec<_>>().join("\n")
-                    )
-                });
+                    &rates[at..(at + 9).min(n)],
+                    text.lines().take(12).collect::<Vec<_>>().join("\n")
+                )
+            });
             skipped += (next + n - at - 1) % n;
             at = next;
             // The temperature is a source row's of this axis, read through
