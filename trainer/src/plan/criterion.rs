@@ -169,7 +169,7 @@ pub fn chosen(scores: &[(f64, Option<f64>)], d_alone: bool) -> Option<usize> {
         return finite.iter().copied().min_by(by_d);
     }
     let variance = |i: usize| scores[i].1.unwrap_or(f64::INFINITY);
-    let rank_of = |order: &mut Vec<usize>| {
+    let rank_of = |order: &[usize]| {
         let mut rank = vec![0usize; scores.len()];
         for (r, &i) in order.iter().enumerate() {
             rank[i] = r;
@@ -180,7 +180,7 @@ pub fn chosen(scores: &[(f64, Option<f64>)], d_alone: bool) -> Option<usize> {
     d_order.sort_by(by_d);
     let mut v_order = finite.clone();
     v_order.sort_by(|&a, &b| variance(a).total_cmp(&variance(b)).then_with(|| by_d(&a, &b)));
-    let (d_rank, v_rank) = (rank_of(&mut d_order), rank_of(&mut v_order));
+    let (d_rank, v_rank) = (rank_of(&d_order), rank_of(&v_order));
     finite.iter().copied().min_by(|&a, &b| {
         (d_rank[a] + v_rank[a])
             .cmp(&(d_rank[b] + v_rank[b]))
