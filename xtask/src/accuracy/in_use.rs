@@ -16,7 +16,8 @@
 //! worse spread of their settled bias (`trainer eval --json`'s
 //! `settled_spread_dph`), split into a static part and the order's. Beside
 //! it: the lag-bank reference (bench/accuracy/lag_bank.py) on the same runs,
-//! and each run's noise ceiling (the same run with `--noise-only`);
+//! and each run's noise ceiling (the same run with `--noise-only`; for the
+//! soak tests the settled spread of their noise alone, what no fit takes out);
 //! `summary`: the forecasts' factors and each plant against the targets.
 
 mod settled;
@@ -310,7 +311,7 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
     );
     let mut plants_json = Vec::new();
     let mut summary = Vec::new();
-    let mut soak_table: Vec<(String, Vec<Option<f64>>)> = Vec::new();
+    let mut soak_table: Vec<SoakRow> = Vec::new();
     let mut settled_rows = Vec::new();
     let plan_hours: Vec<Option<f64>> = plans.iter().map(|p| p.hours).collect();
     for (p, plant) in plants(opts).iter().enumerate() {
@@ -319,12 +320,12 @@ pub fn bench_in_use(opts: &InUseOptions, python: &Path, dir: &Path) -> anyhow::R
             plant,
             index: p,
         };
-        let (mut plant_json, plant_summary, soak_spreads) = runs.bench_plant(&training, &in_use)?;
-        let verdicts = settled::verdicts(&plant_summary, &soak_spreads, &plan_hours);
+        let (mut plant_json, plant_summary, soak_row) = runs.bench_plant(&training, &in_use)?;
+        let verdicts = settled::verdicts(&plant_summary, &soak_row.spreads_dph, &plan_hours);
         plant_json["settled_summary"] = json!(verdicts.iter().map(settled::LengthVerdict::to_json).collect::<Vec<_>>());
         plants_json.push(plant_json);
         settled_rows.push((plant.name.clone(), verdicts));
-        soak_table.push((plant.name.clone(), soak_spreads));
+        soak_table.push(soak_row);
         summary.push(plant_summary);
     }
     let columns: Vec<(Training, &str)> = training.iter().map(|(kind, run)| (*kind, run.name.as_str())).collect();
@@ -488,14 +489,32 @@ impl PlantRuns<'_> {
         })
     }
 
+    /// The soak tests' settled spread from the gyro's noise alone, °/h, per
+    /// soak test: each simulated again with its thermal bias zeroed
+    /// (`--noise-only`, same seed: the same noise the compensated test
+    /// carries) and read uncompensated; what no thermal model takes out of
+    /// the figure. `model`: any model of the plant (`trainer eval` asks for
+    /// one; the uncompensated spread does not depend on it).
+    fn soak_noise_dph(&self, model: &Path) -> anyhow::Result<Vec<Option<f64>>> {
+        soak_runs()
+            .iter()
+            .enumerate()
+            .map(|(i, spec)| {
+                let noise = self.simulate(spec, &format!("soak{i}_noise"), true)?;
+                let json = self.bench.dir.join(format!("p{}_soak{i}_noise.json", self.index));
+                Ok(super::soak_spread(self.bench.judged, model, &noise, &json)?.before_dph)
+            })
+            .collect()
+    }
+
     /// Every training of this plant, fitted and scored on its histories;
-    /// prints its table and returns its JSON, its summary row and the soak
-    /// spread after each training.
+    /// prints its table and returns its JSON, its summary row and its row
+    /// of the soak table.
     fn bench_plant(
         &self,
         training: &[(Training, RunSpec)],
         in_use: &[RunSpec],
-    ) -> anyhow::Result<(Value, PlantSummary, Vec<Option<f64>>)> {
+    ) -> anyhow::Result<(Value, PlantSummary, SoakRow)> {
         let plant = self.plant;
         let histories = self.histories(in_use)?;
         let before = &histories.before;
@@ -523,6 +542,17 @@ impl PlantRuns<'_> {
             soak_spreads.push((scenario.name.clone(), soak_spread));
             training_json.push(json);
         }
+        let model = (0..training.len())
+            .map(|s| self.bench.dir.join(format!("p{}_train{s}.bin", self.index)))
+            .find(|m| m.exists());
+        let soak_noise = match model {
+            Some(model) => self.soak_noise_dph(&model)?,
+            None => Vec::new(),
+        };
+        let soak_noise_worst = soak_noise
+            .iter()
+            .try_fold(None::<f64>, |worst, n| n.map(|n| Some(worst.map_or(n, |w| w.max(n)))))
+            .flatten();
         let ceiling = &histories.ceiling;
         let ceiling_pct: Vec<f64> = ceiling
             .iter()
@@ -543,6 +573,9 @@ impl PlantRuns<'_> {
                 .collect::<Vec<_>>()
                 .join("; ")
         );
+        if let Some(n) = soak_noise_worst {
+            println!("soak tests' settled spread from the noise alone (thermal bias zeroed): {n:.4} °/h, the worse");
+        }
         plant_summary.ceiling_pct = (mean, worst);
         let plant_json = json!({
             "plant": plant.name,
@@ -556,15 +589,21 @@ impl PlantRuns<'_> {
                 "noise_ceiling_pct": ceiling_pct[i],
             })).collect::<Vec<_>>(),
             "training": training_json,
-            "soak_runs": soak_runs().iter().map(|spec| json!({ "simulate_args": spec.args, "seed": self.seed(spec) })).collect::<Vec<_>>(),
+            "soak_runs": soak_runs().iter().enumerate().map(|(i, spec)| json!({
+                "simulate_args": spec.args,
+                "seed": self.seed(spec),
+                "noise_settled_spread_dph": soak_noise.get(i).copied().flatten().map(finite),
+            })).collect::<Vec<_>>(),
+            "soak_noise_settled_spread_dph": soak_noise_worst.map(finite),
             "forecast_worst_factor": plant_summary.target_forecast(),
             "targets_missed": plant_summary.missed_targets(),
         });
-        Ok((
-            plant_json,
-            plant_summary,
-            soak_spreads.into_iter().map(|s| s.1.worst_dph()).collect(),
-        ))
+        let soak_row = SoakRow {
+            plant: plant.name.clone(),
+            spreads_dph: soak_spreads.into_iter().map(|s| s.1.worst_dph()).collect(),
+            noise_dph: soak_noise_worst,
+        };
+        Ok((plant_json, plant_summary, soak_row))
     }
 
     /// Training `s` of this plant (`kind`, simulated from `scenario`): the
@@ -834,9 +873,20 @@ fn lag_bank_scores(
     })
 }
 
+/// One plant's row of the soak table.
+struct SoakRow {
+    plant: String,
+    /// The worse settled spread after each training's default fit, °/h.
+    spreads_dph: Vec<Option<f64>>,
+    /// The worse of the soak tests' noise alone, °/h
+    /// ([`PlantRuns::soak_noise_dph`]; `None` where every fit was refused).
+    noise_dph: Option<f64>,
+}
+
 /// The soak test's settled spread after the default's fit, °/h: a row per
-/// plant, a column per training run (`-`: fit refused, or under two plateaus).
-fn print_soak_table(rows: &[(String, Vec<Option<f64>>)], training: &[(Training, RunSpec)]) {
+/// plant, a column per training run (`-`: fit refused, or under two plateaus),
+/// and the spread the noise alone gives.
+fn print_soak_table(rows: &[SoakRow], training: &[(Training, RunSpec)]) {
     println!(
         "\nsoak tests (simulate --profile soak, two orders): the worse settled spread after compensation [°/h], trained on"
     );
@@ -844,13 +894,14 @@ fn print_soak_table(rows: &[(String, Vec<Option<f64>>)], training: &[(Training, 
     for (k, (kind, _)) in training.iter().enumerate() {
         print!(" {:>12}", format!("{kind:?} {}", k + 1).to_lowercase());
     }
-    println!();
-    for (plant, spreads) in rows {
-        print!("{plant:<22}");
-        for s in spreads {
-            print!(" {:>12}", s.map_or("-".into(), |s| format!("{s:.4}")));
+    println!(" {:>12}", "noise alone");
+    let cell = |s: Option<f64>| s.map_or("-".into(), |s| format!("{s:.4}"));
+    for row in rows {
+        print!("{:<22}", row.plant);
+        for s in &row.spreads_dph {
+            print!(" {:>12}", cell(*s));
         }
-        println!();
+        println!(" {:>12}", cell(row.noise_dph));
     }
     let names: Vec<String> = training
         .iter()
