@@ -10,7 +10,9 @@ the planned run, fits the default model (`trainer fit`, or `--fit-args`), and re
 
 - the settled spread (`settled_spread_dph`) on two soak tests of the same unit: the
   issue's (3-h holds at 25, 0, 40, -20, 60, 20, -40, 10 degC) and one of other levels and
-  order (10, -40, 50, -10, 30, 60, -30, 0 degC); the worse of the two is printed;
+  order (10, -40, 50, -10, 30, 60, -30, 0 degC); the worse of the two is printed, and
+  beside it the worse of the same two simulated again with the thermal bias zeroed
+  (`--noise-only`, same seed), read uncompensated: the part of the figure no fit removes;
 - the 100-s cluster STD improvement on a random history (-20 ... 50 degC, 0.2 ... 3
   degC/min, 8 h) and a field history, and their mean;
 - the fit's in-use forecast (`predicted_in_use_std100_dph` of `fit --json`) over the
@@ -85,6 +87,9 @@ def histories(trainer, gyro_args, d):
                    "--hours", "8", "--seed", "511"],
         "field": ["--profile", "field", "--seed", "513"],
     }
+    # The soak tests' noise alone: the same seeds with the thermal bias zeroed.
+    runs["soakA_noise"] = runs["soakA"] + ["--noise-only"]
+    runs["soakB_noise"] = runs["soakB"] + ["--noise-only"]
     for name, args in runs.items():
         path = os.path.join(d, f"{name}.csv")
         if not os.path.exists(path):
@@ -105,11 +110,12 @@ def score(trainer, fit_args, gyro, gyro_args, plan, hours, root):
     run([trainer, "eval", "--model", model, *use, "--json", report, "--force"])
     e = json.load(open(report))
     spread = max(e[0]["settled_spread_dph"], e[1]["settled_spread_dph"])
+    noise = max(e[4]["settled_spread_before_dph"], e[5]["settled_spread_before_dph"])
     gains = [e[2]["cluster_std_improvement_pct"], e[3]["cluster_std_improvement_pct"]]
     measured = (e[2]["cluster_std_after_dph"] + e[3]["cluster_std_after_dph"]) / 2
     predicted = json.load(open(fit_json)).get("predicted_in_use_std100_dph")
     forecast = predicted / measured if predicted and measured > 0 else float("nan")
-    return gyro, hours, spread, gains, forecast
+    return gyro, hours, spread, noise, gains, forecast
 
 
 def main():
@@ -140,11 +146,11 @@ def main():
         list(pool.map(lambda g: histories(a.trainer, gyros[g], os.path.join(a.dir, g)), chosen))
         results = list(pool.map(
             lambda j: score(a.trainer, shlex.split(a.fit_args), j[0], gyros[j[0]], plans[j[1]], j[1], a.dir), jobs))
-    print("gyro            plan   soak spread [deg/h, worse of 2]   in use: random  field  mean [%]"
+    print("gyro            plan   soak spread [deg/h, worse of 2]  noise alone   in use: random  field  mean [%]"
           "   forecast / measured")
-    for gyro, hours, spread, gains, forecast in results:
-        print(f"{gyro:15s} {hours:>3s} h   {spread:10.4f}                       {gains[0]:5.1f}  {gains[1]:5.1f}  "
-              f"{sum(gains) / 2:5.1f}   {forecast:8.2f}", flush=True)
+    for gyro, hours, spread, noise, gains, forecast in results:
+        print(f"{gyro:15s} {hours:>3s} h   {spread:10.4f}                     {noise:10.4f}           {gains[0]:5.1f}  "
+              f"{gains[1]:5.1f}  {sum(gains) / 2:5.1f}   {forecast:8.2f}", flush=True)
 
 
 if __name__ == "__main__":
