@@ -11,8 +11,9 @@
 //! pins the static curve a soak test reads ([`chosen`],
 //! [`static_curve_variance`]). By default a run of 12 h
 //! or more soaks each end of the range as long as leaves 12 h for the rest,
-//! 1.5 … 3 h ([`ends`], [`candidate_soaking`]), and with `--band-soaks`
-//! each interior 20-°C band of the range once; on request (`trainer plan
+//! 1.5 … 3 h ([`ends`], [`candidate_soaking`]), and where the run has the
+//! time besides (22.5 h over −40 … 60 °C) each interior 20-°C band of the
+//! range once (`--no-band-soaks` keeps the end soaks alone); on request (`trainer plan
 //! --soak-ends`) every candidate soaks there long enough for a loop
 //! [`SLOW_PLANT_FACTOR`] times slower than nominal to settle ([`end_soak_s`]),
 //! so the run reaches the asked range at the loop on plants other than the

@@ -3,7 +3,8 @@
 //!
 //! The lengths tried are whole hours from the shortest the limits allow up to
 //! `--hours` (and `--hours` itself when it is not whole). At each length the
-//! plain plan, from 12 h the default's end soaks ([`Ends::Default`]) and,
+//! plain plan, from 12 h the default's end soaks (and band soaks where they
+//! fit, [`Ends::Default`]) and,
 //! where the length holds them, the `--soak-ends` plan are designed and
 //! predicted; the length's pick is the family that meets the spec (the better
 //! in use when both do), else the one of lower settled spread. The lengths

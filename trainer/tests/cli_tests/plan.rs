@@ -584,8 +584,9 @@ fn the_plain_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_shor
             .any(|m| m.starts_with("# end_soak_min: 90.0 (at each end of the range: the default of a run of 12 h")),
         "{meta:?}"
     );
-    // No band soaks by default; --band-soaks refuses a 12-h run, saying how long it must be,
-    // and soaks each of the three interior bands 2 h in a 24-h run.
+    // No band soaks in a 12-h run (no time for them); --band-soaks refuses it, saying how
+    // long it must be. A 24-h run soaks each of the three interior bands 2 h by default,
+    // and not with --no-band-soaks.
     assert!(!meta.iter().any(|m| m.starts_with("# band_soak_min")), "{meta:?}");
     let o = plan(&dir, "b.csv", ["-40", "60", "5", "12"], &["--band-soaks"]);
     assert!(
@@ -599,7 +600,7 @@ fn the_plain_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_shor
         &dir,
         "l.csv",
         ["-40", "60", "5", "24"],
-        &["--band-soaks", "--json", json.to_str().unwrap()],
+        &["--json", json.to_str().unwrap()],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let (_, meta) = read_plan(&dir.path().join("l.csv"));
@@ -611,6 +612,11 @@ fn the_plain_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_shor
     let json = crate::common::read_json(&json);
     assert_eq!(json["family"], "3-h end soaks, 2-h band soaks", "{json}");
     assert_eq!(json["band_soak_min"], 120.0, "{json}");
+    let o = plan(&dir, "e.csv", ["-40", "60", "5", "24"], &["--no-band-soaks"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, meta) = read_plan(&dir.path().join("e.csv"));
+    assert!(!meta.iter().any(|m| m.starts_with("# band_soak_min")), "{meta:?}");
+    assert!(meta.iter().any(|m| m.starts_with("# end_soak_min: 180.0")), "{meta:?}");
 }
 
 /// The two `# predicted_settled_spread_dph:` figures (nominal, slow plant) of a plan file, °/h.
