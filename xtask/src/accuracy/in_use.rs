@@ -17,7 +17,8 @@
 //! `settled_spread_dph`), split into a static part and the order's. Beside
 //! it: the lag-bank reference (bench/accuracy/lag_bank.py) on the same runs,
 //! and each run's noise ceiling (the same run with `--noise-only`; for the
-//! soak tests the settled spread of their noise alone, what no fit takes out);
+//! soak tests the settled spread of their noise alone, what no fit takes out,
+//! and the model's own spread, each plateau less its noise alone);
 //! `summary`: the forecasts' factors and each plant against the targets.
 
 mod settled;
@@ -37,7 +38,7 @@ use self::summary::{
     PlantSummary, TARGET_CYCLE_MEAN_PCT, TARGET_FORECAST_FACTOR, TARGET_PLANNED_MEAN_PCT, TARGET_PLANNED_WORST_PCT,
     Training, forecast_factor, summary_table, worst_forecast_factor,
 };
-use super::{path, read_columns, run_tool};
+use super::{SoakReading, path, read_columns, run_tool};
 use crate::workspace_root;
 
 /// What the in-use section runs and where its results go.
@@ -489,20 +490,21 @@ impl PlantRuns<'_> {
         })
     }
 
-    /// The soak tests' settled spread from the gyro's noise alone, °/h, per
-    /// soak test: each simulated again with its thermal bias zeroed
-    /// (`--noise-only`, same seed: the same noise the compensated test
-    /// carries) and read uncompensated; what no thermal model takes out of
-    /// the figure. `model`: any model of the plant (`trainer eval` asks for
-    /// one; the uncompensated spread does not depend on it).
-    fn soak_noise_dph(&self, model: &Path) -> anyhow::Result<Vec<Option<f64>>> {
+    /// The soak tests' noise alone, per soak test: each simulated again with
+    /// its thermal bias zeroed (`--noise-only`, same seed: the same noise the
+    /// compensated test carries) and read uncompensated. Its settled spread
+    /// (`before_dph`) is what no thermal model takes out of the figure; its
+    /// plateaus give the model's own error ([`SoakScores::model_error_dph`]).
+    /// `model`: any model of the plant (`trainer eval` asks for one; the
+    /// uncompensated readings do not depend on it).
+    fn soak_noise(&self, model: &Path) -> anyhow::Result<Vec<SoakReading>> {
         soak_runs()
             .iter()
             .enumerate()
             .map(|(i, spec)| {
                 let noise = self.simulate(spec, &format!("soak{i}_noise"), true)?;
                 let json = self.bench.dir.join(format!("p{}_soak{i}_noise.json", self.index));
-                Ok(super::soak_spread(self.bench.judged, model, &noise, &json)?.before_dph)
+                super::soak_spread(self.bench.judged, model, &noise, &json)
             })
             .collect()
     }
@@ -546,13 +548,16 @@ impl PlantRuns<'_> {
             .map(|s| self.bench.dir.join(format!("p{}_train{s}.bin", self.index)))
             .find(|m| m.exists());
         let soak_noise = match model {
-            Some(model) => self.soak_noise_dph(&model)?,
+            Some(model) => self.soak_noise(&model)?,
             None => Vec::new(),
         };
         let soak_noise_worst = soak_noise
             .iter()
-            .try_fold(None::<f64>, |worst, n| n.map(|n| Some(worst.map_or(n, |w| w.max(n)))))
+            .try_fold(None::<f64>, |worst, n| {
+                n.before_dph.map(|n| Some(worst.map_or(n, |w| w.max(n))))
+            })
             .flatten();
+        let model_error: Vec<Option<f64>> = soak_spreads.iter().map(|s| s.1.model_error_dph(&soak_noise)).collect();
         let ceiling = &histories.ceiling;
         let ceiling_pct: Vec<f64> = ceiling
             .iter()
@@ -575,6 +580,15 @@ impl PlantRuns<'_> {
         );
         if let Some(n) = soak_noise_worst {
             println!("soak tests' settled spread from the noise alone (thermal bias zeroed): {n:.4} °/h, the worse");
+            println!(
+                "the model's own settled spread (each plateau less its noise alone) [°/h] after {}",
+                soak_spreads
+                    .iter()
+                    .zip(&model_error)
+                    .map(|((name, _), e)| format!("{name}: {}", e.map_or("-".into(), |e| format!("{e:.4}"))))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            );
         }
         plant_summary.ceiling_pct = (mean, worst);
         let plant_json = json!({
@@ -592,9 +606,10 @@ impl PlantRuns<'_> {
             "soak_runs": soak_runs().iter().enumerate().map(|(i, spec)| json!({
                 "simulate_args": spec.args,
                 "seed": self.seed(spec),
-                "noise_settled_spread_dph": soak_noise.get(i).copied().flatten().map(finite),
+                "noise_settled_spread_dph": soak_noise.get(i).and_then(|n| n.before_dph).map(finite),
             })).collect::<Vec<_>>(),
             "soak_noise_settled_spread_dph": soak_noise_worst.map(finite),
+            "soak_model_error_dph": model_error.iter().map(|e| e.map(finite)).collect::<Vec<_>>(),
             "forecast_worst_factor": plant_summary.target_forecast(),
             "targets_missed": plant_summary.missed_targets(),
         });
@@ -681,7 +696,7 @@ fn model_row(
     print_model(scores, before);
     let default = scores.model == DEFAULT_MODEL;
     if default && !soak.readings.is_empty() {
-        let cells = |f: &dyn Fn(&super::SoakReading) -> Option<f64>| {
+        let cells = |f: &dyn Fn(&SoakReading) -> Option<f64>| {
             let cells: Vec<String> = soak
                 .readings
                 .iter()
@@ -879,7 +894,7 @@ struct SoakRow {
     /// The worse settled spread after each training's default fit, °/h.
     spreads_dph: Vec<Option<f64>>,
     /// The worse of the soak tests' noise alone, °/h
-    /// ([`PlantRuns::soak_noise_dph`]; `None` where every fit was refused).
+    /// ([`PlantRuns::soak_noise`]; `None` where every fit was refused).
     noise_dph: Option<f64>,
 }
 

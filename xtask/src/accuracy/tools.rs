@@ -63,6 +63,9 @@ pub(crate) struct SoakReading {
     /// Each plateau's loop temperature, °C, and settled bias after
     /// compensation, °/h.
     pub plateaus: Vec<(f64, f64)>,
+    /// The same uncompensated: each plateau's loop temperature, °C, and
+    /// settled bias, °/h.
+    pub plateaus_before: Vec<(f64, f64)>,
 }
 
 /// `trainer eval --json` of `model` on the soak test `soak` (written to
@@ -82,17 +85,20 @@ pub(crate) fn soak_spread(trainer: &Path, model: &Path, soak: &Path, json: &Path
     )?;
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json)?)
         .with_context(|| format!("{}: trainer eval --json is not JSON", json.display()))?;
-    let plateaus = v[0]["plateaus"]
-        .as_array()
-        .map(|ps| {
-            ps.iter()
-                .filter_map(|p| Some((p["temp_c"].as_f64()?, p["bias_after_dph"].as_f64()?)))
-                .collect()
-        })
-        .unwrap_or_default();
+    let plateaus = |bias: &str| -> Vec<(f64, f64)> {
+        v[0]["plateaus"]
+            .as_array()
+            .map(|ps| {
+                ps.iter()
+                    .filter_map(|p| Some((p["temp_c"].as_f64()?, p[bias].as_f64()?)))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
     Ok(SoakReading {
         after_dph: v[0]["settled_spread_dph"].as_f64(),
         before_dph: v[0]["settled_spread_before_dph"].as_f64(),
-        plateaus,
+        plateaus: plateaus("bias_after_dph"),
+        plateaus_before: plateaus("bias_before_dph"),
     })
 }

@@ -36,12 +36,47 @@ impl SoakScores {
             .try_fold(0.0f64, |worst, r| Some(worst.max(r.after_dph?)))
     }
 
+    /// The model's own settled spread, °/h: on each soak test, each
+    /// plateau's compensated bias less the same plateau's bias in the test
+    /// simulated again with its thermal bias zeroed (`noise`, one reading
+    /// per test in the same order, same seed: the gyro's noise drops out),
+    /// max − min; the worse of the tests. What a change to the model or the
+    /// plan did to the fit, without the noise's draw that dominates the
+    /// figure near 0.01 °/h. `None` where a test's plateaus and its twin's do
+    /// not pair up (another count, or loop temperatures more than
+    /// [`PAIRED_PLATEAU_C`] apart).
+    pub fn model_error_dph(&self, noise: &[SoakReading]) -> Option<f64> {
+        if self.readings.is_empty() || self.readings.len() != noise.len() {
+            return None;
+        }
+        self.readings.iter().zip(noise).try_fold(0.0f64, |worst, (r, n)| {
+            if r.plateaus.len() < 2 || r.plateaus.len() != n.plateaus_before.len() {
+                return None;
+            }
+            let own = r
+                .plateaus
+                .iter()
+                .zip(&n.plateaus_before)
+                .map(|(a, b)| ((a.0 - b.0).abs() <= PAIRED_PLATEAU_C).then_some(a.1 - b.1))
+                .collect::<Option<Vec<f64>>>()?;
+            let (lo, hi) = own.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &e| {
+                (lo.min(e), hi.max(e))
+            });
+            Some(worst.max(hi - lo))
+        })
+    }
+
     /// The static and the order part of every soak test's settled biases.
     pub fn split(&self) -> Option<SoakSplit> {
         let plateaus: Vec<(f64, f64)> = self.readings.iter().flat_map(|r| r.plateaus.iter().copied()).collect();
         split(&plateaus)
     }
 }
+
+/// How far apart a plateau's loop temperature in a soak test and in its
+/// noise-only twin may lie and still be the same plateau, °C (the twin's
+/// loop carries the same thermometer noise, so they agree to hundredths).
+pub(super) const PAIRED_PLATEAU_C: f64 = 0.5;
 
 /// Fewest plateaus to split: twice the cubic's four coefficients.
 const MIN_PLATEAUS: usize = 8;
@@ -133,6 +168,35 @@ mod tests {
         };
         assert_eq!(one_short.worst_dph(), None);
         assert_eq!(SoakScores::default().worst_dph(), None);
+    }
+
+    #[test]
+    fn the_model_error_is_the_compensated_bias_less_the_noise_plateau_by_plateau() {
+        // Noise of ±4 mdph at four plateaus; the model leaves +1, −1, +2, 0 mdph.
+        let temps = [25.0, 0.0, 40.0, -20.0];
+        let noise_dph = [0.004, -0.004, 0.003, -0.002];
+        let model_dph = [0.001, -0.001, 0.002, 0.0];
+        let compensated = SoakReading {
+            plateaus: (0..4).map(|i| (temps[i], noise_dph[i] + model_dph[i])).collect(),
+            ..SoakReading::default()
+        };
+        let twin = SoakReading {
+            plateaus_before: (0..4).map(|i| (temps[i] + 0.01, noise_dph[i])).collect(),
+            ..SoakReading::default()
+        };
+        let scores = SoakScores {
+            readings: vec![compensated.clone()],
+        };
+        let own = scores.model_error_dph(std::slice::from_ref(&twin)).unwrap();
+        assert!((own - 0.003).abs() < 1e-12, "{own}");
+        // Plateaus that do not pair up (a missing one, or another level) give no figure.
+        let mut short = twin.clone();
+        short.plateaus_before.pop();
+        assert_eq!(scores.model_error_dph(&[short]), None);
+        let mut moved = twin.clone();
+        moved.plateaus_before[2].0 += 5.0;
+        assert_eq!(scores.model_error_dph(&[moved]), None);
+        assert_eq!(scores.model_error_dph(&[]), None);
     }
 
     #[test]
