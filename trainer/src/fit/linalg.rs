@@ -1,7 +1,7 @@
 //! Small linear-algebra pieces shared by the fitters: input normalisation,
 //! Gaussian design matrices, Gram statistics and ridge solves.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
 use rbf_core::MAX_INPUTS;
 
 use crate::dataset::Blocks;
@@ -175,13 +175,27 @@ pub fn ridge_solve_weighted(
     lambda: f64,
     scale: impl Fn(usize) -> f64,
 ) -> Option<DVector<f64>> {
-    let mut m = stats.gram.view((0, 0), (p, p)).clone_owned();
-    let penalty = lambda * stats.n as f64;
+    let w = ridge_factor(&stats.gram, stats.n, p, lambda, scale)?.solve(&stats.aty.rows(0, p).clone_owned());
+    w.iter().all(|v| v.is_finite()).then_some(w)
+}
+
+/// The Cholesky factor of [`ridge_solve_weighted`]'s penalised matrix: the
+/// first `p` rows and columns of `gram` (AᵀA over `n` rows) plus λ n
+/// diag(s), s_i = `scale(i)`. Its inverse is the posterior covariance of the
+/// weights per unit noise variance. `None` if it is not positive definite.
+pub fn ridge_factor(
+    gram: &DMatrix<f64>,
+    n: usize,
+    p: usize,
+    lambda: f64,
+    scale: impl Fn(usize) -> f64,
+) -> Option<Cholesky<f64, Dyn>> {
+    let mut m = gram.view((0, 0), (p, p)).clone_owned();
+    let penalty = lambda * n as f64;
     for i in 0..p {
         m[(i, i)] += penalty * scale(i);
     }
-    let w = m.cholesky()?.solve(&stats.aty.rows(0, p).clone_owned());
-    w.iter().all(|v| v.is_finite()).then_some(w)
+    m.cholesky()
 }
 
 /// Up to `count` rows spread over the data by farthest-point sampling,

@@ -28,7 +28,7 @@ use rbf_core::response_bank::{POWER_RESPONSES, RESPONSE_FILTERS, RESPONSES, Resp
 use rbf_core::{CompensatorConfig, FeatureConfig, FeatureExtractor, FeatureSet};
 
 use super::FitOptions;
-use super::linalg::{GramStats, ridge_solve_weighted};
+use super::linalg::{GramStats, ridge_factor, ridge_solve_weighted};
 use crate::dataset::{RunSet, SampleVisit};
 
 /// Filters the fitted bank runs.
@@ -444,12 +444,9 @@ pub fn static_curve_variance(bank: &ResponseBank, blocks: &ChannelBlocks, levels
     let statics = STATIC_DEGREE as usize;
     let design = Design::of(blocks);
     let cols = design.cols();
-    let mut gram = design.a.tr_mul(&design.a);
-    let penalty = RIDGE_LAMBDA * blocks.y.len() as f64;
-    for c in 0..cols {
-        gram[(c, c)] += penalty * design.penalty_scale(c);
-    }
-    let cholesky = gram.cholesky()?;
+    let cholesky = ridge_factor(&design.a.tr_mul(&design.a), blocks.y.len(), cols, RIDGE_LAMBDA, |c| {
+        design.penalty_scale(c)
+    })?;
     // The static coefficients' posterior covariance: their columns of the inverse.
     let mut unit = DMatrix::<f64>::zeros(cols, statics);
     for p in 0..statics {

@@ -551,13 +551,12 @@ impl PlantRuns<'_> {
             Some(model) => self.soak_noise(&model)?,
             None => Vec::new(),
         };
-        let soak_noise_worst = soak_noise
+        let soak_noise = SoakScores { readings: soak_noise };
+        let soak_noise_worst = soak_noise.worst_of(|n| n.before_dph);
+        let model_error: Vec<Option<f64>> = soak_spreads
             .iter()
-            .try_fold(None::<f64>, |worst, n| {
-                n.before_dph.map(|n| Some(worst.map_or(n, |w| w.max(n))))
-            })
-            .flatten();
-        let model_error: Vec<Option<f64>> = soak_spreads.iter().map(|s| s.1.model_error_dph(&soak_noise)).collect();
+            .map(|s| s.1.model_error_dph(&soak_noise.readings))
+            .collect();
         let ceiling = &histories.ceiling;
         let ceiling_pct: Vec<f64> = ceiling
             .iter()
@@ -606,7 +605,7 @@ impl PlantRuns<'_> {
             "soak_runs": soak_runs().iter().enumerate().map(|(i, spec)| json!({
                 "simulate_args": spec.args,
                 "seed": self.seed(spec),
-                "noise_settled_spread_dph": soak_noise.get(i).and_then(|n| n.before_dph).map(finite),
+                "noise_settled_spread_dph": soak_noise.readings.get(i).and_then(|n| n.before_dph).map(finite),
             })).collect::<Vec<_>>(),
             "soak_noise_settled_spread_dph": soak_noise_worst.map(finite),
             "soak_model_error_dph": model_error.iter().map(|e| e.map(finite)).collect::<Vec<_>>(),

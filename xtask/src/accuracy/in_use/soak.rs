@@ -28,12 +28,18 @@ impl SoakScores {
     /// The figure the targets judge: the worse settled spread after
     /// compensation, °/h; `None` where a soak test shows under two plateaus.
     pub fn worst_dph(&self) -> Option<f64> {
+        self.worst_of(|r| r.after_dph)
+    }
+
+    /// The worse of `spread` over the soak tests, °/h; `None` without
+    /// readings or where one test gives none.
+    pub fn worst_of(&self, spread: impl Fn(&SoakReading) -> Option<f64>) -> Option<f64> {
         if self.readings.is_empty() {
             return None;
         }
         self.readings
             .iter()
-            .try_fold(0.0f64, |worst, r| Some(worst.max(r.after_dph?)))
+            .try_fold(0.0f64, |worst, r| Some(worst.max(spread(r)?)))
     }
 
     /// The model's own settled spread, °/h: on each soak test, each
