@@ -59,8 +59,8 @@ pub struct Plan {
     /// How loosely the plan pins the response bank's static curve
     /// ([`static_curve_variance`]; `None` where the bank could not be built).
     pub static_curve_variance: Option<f64>,
-    /// Whether the D-criterion alone chose it (`--plain`), not with the
-    /// static-curve variance ([`chosen`]).
+    /// Whether the D-criterion alone chose it (`--plain`, or a run under
+    /// 18 h: [`design`]), not with the static-curve variance ([`chosen`]).
     pub chosen_by_d_alone: bool,
     /// Candidates drawn.
     pub candidates: usize,
