@@ -22,12 +22,13 @@ the planned run, fits the default model (`trainer fit`, or `--fit-args`), and re
         [--fit-args "--features response-bank"] [--plan-args --soak-ends] [--hours 12,24]
         [--gyros doc,fast-d4]
 
-The planned runs are cached per directory too: give each `--plan-args` its own `--dir`.
-Runs are simulated once per directory and reused (delete the directory to redo them);
+Runs are simulated once per directory and reused, a planned run under a digest of its
+plan's set points (another plan, another run; delete the directory to redo them);
 fits and evaluations are redone every time, so two trainers can be compared on the same
 runs with `--trainer`.
 """
 import argparse
+import hashlib
 import json
 import os
 import shlex
@@ -97,10 +98,18 @@ def histories(trainer, gyro_args, d):
     return [os.path.join(d, f"{n}.csv") for n in runs]
 
 
+def set_points_digest(plan):
+    """A short digest of the plan's set points (not its metadata): a planned run cached
+    under it is simulated again when `trainer plan` designs another run."""
+    with open(plan) as f:
+        set_points = "".join(line for line in f if not line.startswith("#"))
+    return hashlib.sha1(set_points.encode()).hexdigest()[:10]
+
+
 def score(trainer, fit_args, gyro, gyro_args, plan, hours, root):
     d = os.path.join(root, gyro)
     use = histories(trainer, gyro_args, d)
-    train = os.path.join(d, f"planned{hours}.csv")
+    train = os.path.join(d, f"planned{hours}_{set_points_digest(plan)}.csv")
     if not os.path.exists(train):
         run([trainer, "simulate", "--sample-rate-hz", "1", *gyro_args, "--chamber-profile", plan,
              "--seed", "501", "-o", train, "--force"])

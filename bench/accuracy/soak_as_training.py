@@ -21,7 +21,8 @@ what a plan could identify.
     python3 bench/accuracy/soak_as_training.py [--trainer target/release/trainer]
         [--dir target/soak-as-training] [--hours 12,24] [--plants doc,unit1,design6]
 
-Runs are simulated once per directory and reused; fits and evaluations are redone.
+Runs are simulated once per directory and reused (a planned run per set of set points);
+fits and evaluations are redone.
 """
 import argparse
 import json
@@ -29,6 +30,8 @@ import math
 import os
 import subprocess
 from concurrent.futures import ThreadPoolExecutor
+
+from one_unit_soak import set_points_digest
 
 PLANTS = {"doc": [], "unit1": ["--unit", "1"], "unit2": ["--unit", "2"],
           "other": ["--params", os.path.join(os.path.dirname(os.path.abspath(__file__)), "other-design.json")]}
@@ -66,7 +69,7 @@ def evaluated(args, model, data):
 
 def one(args, plant, hours):
     plan = os.path.join(args.dir, f"plan{hours}.csv")
-    train = simulated(args, plant, f"planned{hours}", ["--chamber-profile", plan], 503)
+    train = simulated(args, plant, f"planned{hours}_{set_points_digest(plan)}", ["--chamber-profile", plan], 503)
     runs = {name: simulated(args, plant, name, a, s) for name, (a, s) in RUNS.items()}
     scores = {}
     for label, beside in BESIDE.items():

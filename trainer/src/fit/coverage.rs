@@ -102,17 +102,36 @@ pub fn model_range_c(model: &rbf_core::Model) -> Option<(f64, f64)> {
     Some((f64::from(lo), f64::from(hi)))
 }
 
-/// How many [`BAND_C`] bands `[edge, edge + 20)` from `lo` cover `lo … hi`
-/// (at least one; the last holds `hi`).
+/// A range up to this share of a band over a multiple of [`BAND_C`] counts
+/// no band more: its last band reaches its top (5 °C; a hot-end soak's loop
+/// settles that far above the chamber's top with the electronics' heat, and
+/// a sliver of a band above it would ask a settled level of its own).
+pub const BAND_OVERHANG_SHARE: f64 = 0.25;
+
+/// How many [`BAND_C`] bands `[edge, edge + 20)` from `lo` cover `lo … hi`:
+/// at least one; the last holds `hi` and may reach [`BAND_OVERHANG_SHARE`]
+/// of a band further ([`band_top_c`]).
 pub fn band_count(lo: f64, hi: f64) -> usize {
-    ((hi - lo) / BAND_C - 1e-9).ceil().max(1.0) as usize
+    ((hi - lo) / BAND_C - BAND_OVERHANG_SHARE).ceil().max(1.0) as usize
 }
 
-/// Lower edges of the [`BAND_C`] bands `[edge, edge + 20)` from `lo` up that
-/// hold none of `levels_c`, °C. The last band ends at `hi` + `top_slack_c`,
-/// inclusive (a range a hair over a multiple of the width is no band more).
+/// The top of the band whose lower edge is `edge` in a range ending at
+/// `hi`, °C: `edge` + [`BAND_C`], or `hi` for the last band ([`band_count`]).
+pub fn band_top_c(edge: f64, hi: f64) -> f64 {
+    let top = edge + BAND_C;
+    if hi - top <= BAND_OVERHANG_SHARE * BAND_C {
+        hi
+    } else {
+        top
+    }
+}
+
+/// Lower edges of the [`BAND_C`] bands of `lo … hi` ([`band_count`]) that
+/// hold none of `levels_c`, °C. The first band begins `end_slack_c` below
+/// `lo` and the last ends that far above `hi`, inclusive: a level just past
+/// an end of the range of use is that end's settled evidence.
 /// Empty for an empty or unread (NaN) range.
-pub fn bands_without_level_c(levels_c: &[f64], lo: f64, hi: f64, top_slack_c: f64) -> Vec<f64> {
+pub fn bands_without_level_c(levels_c: &[f64], lo: f64, hi: f64, end_slack_c: f64) -> Vec<f64> {
     if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
         return Vec::new();
     }
@@ -120,7 +139,8 @@ pub fn bands_without_level_c(levels_c: &[f64], lo: f64, hi: f64, top_slack_c: f6
     (0..bands)
         .map(|b| (b, lo + b as f64 * BAND_C))
         .filter(|&(b, edge)| {
-            let inside = |t: f64| t >= edge && (t < edge + BAND_C || (b + 1 == bands && t <= hi + top_slack_c));
+            let from = if b == 0 { lo - end_slack_c } else { edge };
+            let inside = |t: f64| t >= from && (t < edge + BAND_C || (b + 1 == bands && t <= hi + end_slack_c));
             !levels_c.iter().any(|&t| inside(t))
         })
         .map(|(_, edge)| edge)
@@ -181,11 +201,7 @@ impl Coverage {
         }
         let len_s = |&(s, e): &(usize, usize)| (e - s) as f64 * mean_s;
         // Bands from the coldest reading up; the hottest falls in the last.
-        let bands = if hi > lo {
-            ((hi - lo) / BAND_C).ceil().max(1.0) as usize
-        } else {
-            1
-        };
+        let bands = if hi > lo { band_count(lo, hi) } else { 1 };
         let band_of = |t: f64| (((t - lo) / BAND_C).floor().max(0.0) as usize).min(bands - 1);
         let mut dwell_s = vec![0.0; bands];
         for &(s, e) in &stretches {
@@ -227,9 +243,11 @@ impl Coverage {
 
     /// Lower edges of the 20-°C bands of the range of use (or, told none,
     /// of the covered range) that hold no settled level ([`Self::settled_c`]), °C.
+    /// A level within [`USE_REACH_SHARE`] of the range past either end
+    /// counts for that end's band, as the range counts as reached from there.
     pub fn unsettled_bands_c(&self, in_use: &InUse) -> Vec<f64> {
         let (lo, hi) = in_use.range_c.unwrap_or(self.temp_range_c);
-        bands_without_level_c(&self.settled_c, lo, hi, 0.0)
+        bands_without_level_c(&self.settled_c, lo, hi, USE_REACH_SHARE * (hi - lo))
     }
 
     /// The loop temperatures the model is valid over, °C: the range of its
@@ -431,7 +449,7 @@ fn band_list(edges: &[f64], hi: f64) -> String {
         }
     }
     for r in &mut ranges {
-        r.1 = r.1.min(hi);
+        r.1 = band_top_c(r.1 - BAND_C, hi).min(hi);
     }
     ranges
         .iter()
@@ -547,6 +565,40 @@ mod tests {
             max_rate_c_per_min: None,
         };
         assert_eq!(c.unsettled_bands_c(&in_use), [-20.0]);
+    }
+
+    #[test]
+    fn a_hot_end_settled_a_few_degrees_over_the_top_is_the_top_bands_level_not_a_band_of_its_own() {
+        // The 24-h plan's levels on a gyro whose electronics lift the loop
+        // 0.3 … 4.5 °C over a 60-°C chamber: one in each 20-°C band.
+        let levels = [-39.3, -8.0, 10.2, 30.3, 60.3];
+        for hi in [60.7, 64.5] {
+            assert_eq!(band_count(-40.0, hi), 5, "{hi}");
+            assert!((band_top_c(40.0, hi) - hi).abs() < 1e-12, "{hi}");
+            assert!((band_top_c(20.0, hi) - 40.0).abs() < 1e-12, "{hi}");
+            assert!(bands_without_level_c(&levels, -40.0, hi, 0.0).is_empty(), "{hi}");
+        }
+        // Past a quarter band over, the rest is a band of its own, which
+        // takes the hot level and leaves 40 … 60 °C without one.
+        assert_eq!(band_count(-40.0, 65.5), 6);
+        assert_eq!(bands_without_level_c(&levels, -40.0, 65.5, 0.0), [40.0]);
+        // Without the level at the hot end, its band is named to the range's top.
+        let mut c = planned();
+        c.temp_range_c = (-40.0, 64.5);
+        c.settled_c = levels[..4].to_vec();
+        let missing = c.missing(&InUse::default(), None).join("\n");
+        assert!(missing.contains("no settled level in 40 … 64 °C"), "{missing}");
+        // Told the range of use −40 … 60 °C, a level 0.3 °C past its end is its top band's.
+        let in_use = InUse {
+            range_c: Some((-40.0, 60.0)),
+            max_rate_c_per_min: None,
+        };
+        c.settled_c = levels.to_vec();
+        assert!(c.unsettled_bands_c(&in_use).is_empty());
+        c.settled_c = vec![-40.4, -8.0, 10.2, 30.3, 60.3];
+        assert!(c.unsettled_bands_c(&in_use).is_empty());
+        c.settled_c = vec![-46.0, -8.0, 10.2, 30.3, 60.3];
+        assert_eq!(c.unsettled_bands_c(&in_use), [-40.0]);
     }
 
     #[test]

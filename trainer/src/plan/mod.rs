@@ -266,11 +266,15 @@ impl Plan {
             }
         };
         let (min_c, max_c) = (self.limits.min_c, self.limits.max_c);
-        let band_c = crate::fit::coverage::BAND_C;
         let bare: Vec<String> =
             crate::fit::coverage::bands_without_level_c(&self.settled_c, min_c, max_c, self.limits.reach_c())
                 .iter()
-                .map(|lo| format!("{lo:.0} … {:.0}", (lo + band_c).min(max_c)))
+                .map(|lo| {
+                    format!(
+                        "{lo:.0} … {:.0}",
+                        crate::fit::coverage::band_top_c(*lo, max_c).min(max_c)
+                    )
+                })
                 .collect();
         let verdict = if bare.is_empty() {
             "one in every 20-°C band of the asked range".to_owned()
