@@ -7,6 +7,7 @@
 //! qemu-board`; docs/firmware.md).
 #![allow(unsafe_code)]
 use core::cell::Cell;
+use core::sync::atomic::{AtomicBool, Ordering};
 
 use cortex_m_semihosting::{debug, hprintln};
 use embedded_hal_bus::util::AtomicCell;
@@ -34,6 +35,8 @@ pub const TIMER_HZ: u32 = 1_000_000_000;
 /// board's [`firmware::model_store::ModelStore`] code runs on it).
 /// Slot A starts as the blob QEMU's loader placed in flash slot A.
 static mut FLASH: ModelFlash = ModelFlash::new();
+/// Whether [`emulated_model_flash`] handed [`FLASH`] out: the one `&mut` to it.
+static FLASH_OPENED: AtomicBool = AtomicBool::new(false);
 
 /// The model slots' flash of the QEMU images: emulated NOR flash in RAM
 /// ([`emulated_model_flash`]).
@@ -95,9 +98,17 @@ where
 }
 
 /// The emulated model flash, slot A seeded from the real slot A.
+///
+/// # Panics
+/// Opened a second time: the image would hold two `&mut` to one flash
+/// (a defect of the image, found on its first run under QEMU).
 pub fn emulated_model_flash() -> &'static mut ModelFlash {
+    assert!(
+        !FLASH_OPENED.swap(true, Ordering::AcqRel),
+        "the emulated model flash is opened once"
+    );
     let flash = &raw mut FLASH;
-    // SAFETY: called once, from main; the only reference.
+    // SAFETY: FLASH_OPENED lets this line run once: the only reference.
     let flash = unsafe { &mut *flash };
     let seed = firmware::board::model_slot_a().get(..EMULATED_SLOT_LEN).unwrap_or(&[]);
     for (d, s) in flash.contents_mut().iter_mut().zip(seed) {
