@@ -718,10 +718,19 @@ fn model_row(
     let pct = scores.improvement_pcts(before);
     let (mean, worst) = mean_and_worst(&pct);
     let forecast = worst_forecast_factor(scores.forecast_dph, &scores.after_dph);
+    let predicted_settled_dph = scores
+        .fit_report
+        .as_ref()
+        .and_then(|r| r["predicted_settled_spread_dph"].as_f64());
+    let soak_read_dph: Vec<f64> = soak.readings.iter().filter_map(|r| r.after_dph).collect();
+    let settled_forecast = predicted_settled_dph
+        .filter(|_| !soak_read_dph.is_empty())
+        .and_then(|p| worst_forecast_factor(Some(p), &soak_read_dph));
     if scores.model == DEFAULT_MODEL {
         let scored = scores.refusal.is_none().then_some((mean, worst));
         summary.default_pct.push((kind, scored));
         summary.forecast.push((kind, forecast));
+        summary.settled_forecast.push((kind, settled_forecast));
     }
     json!({
         "model": scores.model,
@@ -737,6 +746,7 @@ fn model_row(
         "worst_pct": finite(worst),
         "forecast_worst_factor": forecast,
         "soak_settled_spread_dph": default.then(|| soak.worst_dph().map(finite)).flatten(),
+        "settled_forecast_factor": default.then_some(settled_forecast).flatten(),
         "soak_tests": default.then(|| soak.readings.iter().map(|r| json!({
             "settled_spread_dph": r.after_dph.map(finite),
             "settled_spread_before_dph": r.before_dph.map(finite),

@@ -46,6 +46,9 @@ pub(super) struct PlantSummary {
     pub(super) default_pct: Vec<(Training, Option<(f64, f64)>)>,
     /// Per training run: the worst forecast factor (`None`: no forecast).
     pub(super) forecast: Vec<(Training, Option<f64>)>,
+    /// Per training run: the settled forecast's factor against the worse
+    /// soak test (`None`: the fit did not forecast it, or no soak reading).
+    pub(super) settled_forecast: Vec<(Training, Option<f64>)>,
     /// The noise ceiling's mean and worst, %.
     pub(super) ceiling_pct: (f64, f64),
     /// The loop temperature's range on the planned run, °C.
@@ -244,6 +247,7 @@ mod tests {
                 (Training::Cycle, forecast[1]),
                 (Training::Designed, Some(9.0)),
             ],
+            settled_forecast: Vec::new(),
             ceiling_pct: (97.0, 95.0),
             planned_loop_c: (-40.0, 55.0),
         }
