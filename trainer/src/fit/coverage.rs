@@ -116,7 +116,8 @@ pub fn band_count(lo: f64, hi: f64) -> usize {
 }
 
 /// The top of the band whose lower edge is `edge` in a range ending at
-/// `hi`, °C: `edge` + [`BAND_C`], or `hi` for the last band ([`band_count`]).
+/// `hi`, °C: `edge` + [`BAND_C`], or `hi` for the last band ([`band_count`]);
+/// never above `hi`.
 pub fn band_top_c(edge: f64, hi: f64) -> f64 {
     let top = edge + BAND_C;
     if hi - top <= BAND_OVERHANG_SHARE * BAND_C {
@@ -449,7 +450,7 @@ fn band_list(edges: &[f64], hi: f64) -> String {
         }
     }
     for r in &mut ranges {
-        r.1 = band_top_c(r.1 - BAND_C, hi).min(hi);
+        r.1 = band_top_c(r.1 - BAND_C, hi);
     }
     ranges
         .iter()

@@ -15,10 +15,7 @@
 //!   80 fits had runs settled in every band (39 with the soak, 7 of the 24-h
 //!   plan alone, whose band soaks settle there); soak B read 0.36–2.6× their
 //!   own settled spread, within 1.5× on 30 (5 of the 7 plan-alone fits;
-//!   factors 0.9 / 1.1 / 1.2: 26 / 30 / 29). Measured again 2026-11-30 once a
-//!   hot end settled a few degrees over the range's top counted for its band
-//!   ([`super::coverage::band_count`]); before, 28 of 42, and before the
-//!   24-h plan's band soaks (docs/plan.md), 25 of 37.
+//!   factors 0.9 / 1.1 / 1.2: 26 / 30 / 29; measured 2026-11-30).
 //!   [`SETTLED_FORECAST_FACTOR`] is 1.
 //!
 //! - **The settled floor.** A model fitted on a run matches that run's own

@@ -269,12 +269,7 @@ impl Plan {
         let bare: Vec<String> =
             crate::fit::coverage::bands_without_level_c(&self.settled_c, min_c, max_c, self.limits.reach_c())
                 .iter()
-                .map(|lo| {
-                    format!(
-                        "{lo:.0} … {:.0}",
-                        crate::fit::coverage::band_top_c(*lo, max_c).min(max_c)
-                    )
-                })
+                .map(|lo| format!("{lo:.0} … {:.0}", crate::fit::coverage::band_top_c(*lo, max_c)))
                 .collect();
         let verdict = if bare.is_empty() {
             "one in every 20-°C band of the asked range".to_owned()

@@ -46,8 +46,8 @@ pub(super) struct PlantSummary {
     pub(super) default_pct: Vec<(Training, Option<(f64, f64)>)>,
     /// Per training run: the worst forecast factor (`None`: no forecast).
     pub(super) forecast: Vec<(Training, Option<f64>)>,
-    /// Per training run: the settled forecast's factor against the worse
-    /// soak test (`None`: the fit did not forecast it, or no soak reading).
+    /// Per training run: the settled forecast's worst factor over the soak
+    /// tests (`None`: the fit did not forecast it, or no soak reading).
     pub(super) settled_forecast: Vec<(Training, Option<f64>)>,
     /// The noise ceiling's mean and worst, %.
     pub(super) ceiling_pct: (f64, f64),
