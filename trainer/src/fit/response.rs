@@ -710,39 +710,57 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_response_the_run_cannot_place_between_the_rate_and_the_filtered_square_goes_to_the_rate() {
-        // One signal in filter 4's channel of the rate response R₀ and of the
-        // filtered square H₂: the prior decides, in the inverse ratio of the
-        // mixtures' shares (w_R₀·s_R₀ = w_H₂·s_H₂), so a correction term does
-        // not take what the leading response explains.
-        let mut uniform = uniform_from(12);
+    /// The weights solved on blocks whose target is 0.4 × one random signal
+    /// placed alike in the channels `first` and `second` (indices into a
+    /// block's channels), which the run therefore cannot tell apart, over a
+    /// static sweep that carries no target: the prior alone splits the
+    /// response. Returns the two channels' weights as the model stores them.
+    fn split_of_one_signal_in_two_channels(first: usize, second: usize, seed: u32) -> (f64, f64) {
+        let mut uniform = uniform_from(seed);
         let statics = STATIC_DEGREE as usize;
-        let filter = 4;
-        let (rate, square) = (statics + filter, statics + 3 * FILTERS + filter);
         let mut blocks = two_runs_of_blocks();
         for i in 0..4000 {
             let mut x = [0.0; CHANNELS];
             let u = 20.0 * (i as f64 / 500.0).sin();
             x[..statics].copy_from_slice(&[u, u * u, u * u * u]);
             let shared = uniform();
-            x[rate] = shared;
-            x[square] = shared;
+            x[first] = shared;
+            x[second] = shared;
             blocks.x.push(x);
             blocks.y.push(0.4 * shared + 0.001 * uniform());
             blocks.run.push(i / 2000);
         }
         let w = solve_weights(&blocks).unwrap();
-        let (w_rate, w_square) = (f64::from(w.bank[0][filter]), f64::from(w.bank[3][filter]));
-        let expected_ratio = MIXTURE_PRIOR_SHARE[3] / MIXTURE_PRIOR_SHARE[0];
+        let weight = |c: usize| f64::from(w.bank[(c - statics) / FILTERS][(c - statics) % FILTERS]);
+        (weight(first), weight(second))
+    }
+
+    /// Asserts that the two weights of [`split_of_one_signal_in_two_channels`]
+    /// stand in `expected_ratio` (named `what`) and together carry the 0.4 response.
+    fn assert_split((first, second): (f64, f64), expected_ratio: f64, what: &str) {
         assert!(
-            (w_rate / w_square / expected_ratio - 1.0).abs() < 1e-3,
-            "w_rate {w_rate}, w_square {w_square}: ratio {} against s_H₂/s_R₀ = {expected_ratio}",
-            w_rate / w_square
+            (first / second / expected_ratio - 1.0).abs() < 1e-3,
+            "weights {first}, {second}: ratio {} against {what} = {expected_ratio}",
+            first / second
         );
         assert!(
-            (w_rate + w_square - 0.4).abs() < 0.01,
-            "together they carry the response: {w_rate} + {w_square}"
+            (first + second - 0.4).abs() < 0.01,
+            "together they carry the response: {first} + {second}"
+        );
+    }
+
+    #[test]
+    fn a_response_the_run_cannot_place_between_the_rate_and_the_filtered_square_goes_to_the_rate() {
+        // One signal in filter 4's channel of the rate response R₀ and of the
+        // filtered square H₂: the prior decides, in the inverse ratio of the
+        // mixtures' shares (w_R₀·s_R₀ = w_H₂·s_H₂), so a correction term does
+        // not take what the leading response explains.
+        let statics = STATIC_DEGREE as usize;
+        let (w_rate, w_square) = split_of_one_signal_in_two_channels(statics + 4, statics + 3 * FILTERS + 4, 12);
+        assert_split(
+            (w_rate, w_square),
+            MIXTURE_PRIOR_SHARE[3] / MIXTURE_PRIOR_SHARE[0],
+            "s_H₂/s_R₀",
         );
     }
 
@@ -753,34 +771,10 @@ mod tests {
         // decides. Each weight's penalty grows with its filter's τ, so the
         // standardised weights split in the inverse ratio of their penalties
         // (w₁·τ₁ = w₉·τ₉): almost all on the fast filter, none swinging.
-        let mut uniform = uniform_from(11);
         let statics = STATIC_DEGREE as usize;
-        let (fast, slow) = (statics + 1, statics + 9);
-        let mut blocks = two_runs_of_blocks();
-        for i in 0..4000 {
-            let mut x = [0.0; CHANNELS];
-            let u = 20.0 * (i as f64 / 500.0).sin();
-            x[..statics].copy_from_slice(&[u, u * u, u * u * u]);
-            let shared = uniform();
-            x[fast] = shared;
-            x[slow] = shared;
-            blocks.x.push(x);
-            blocks.y.push(0.4 * shared + 0.001 * uniform());
-            blocks.run.push(i / 2000);
-        }
-        let w = solve_weights(&blocks).unwrap();
-        let (w_fast, w_slow) = (f64::from(w.bank[0][1]), f64::from(w.bank[0][9]));
+        let (w_fast, w_slow) = split_of_one_signal_in_two_channels(statics + 1, statics + 9, 11);
         let taus = taus_s();
-        let expected_ratio = f64::from(taus[9] / taus[1]);
-        assert!(
-            (w_fast / w_slow / expected_ratio - 1.0).abs() < 1e-3,
-            "w_fast {w_fast}, w_slow {w_slow}: ratio {} against τ₉/τ₁ = {expected_ratio}",
-            w_fast / w_slow
-        );
-        assert!(
-            (w_fast + w_slow - 0.4).abs() < 0.01,
-            "together they carry the response: {w_fast} + {w_slow}"
-        );
+        assert_split((w_fast, w_slow), f64::from(taus[9] / taus[1]), "τ₉/τ₁");
     }
 
     #[test]
