@@ -62,10 +62,9 @@ pub const PRIOR_TAU_S: f64 = 600.0;
 /// (a Shupe gain that drifts with temperature); a slow filter's channel of
 /// a power is nearly that power less its lag, so under the rate response's
 /// prior their weights traded with the static cubic, and the settled curve
-/// came out of the run's history: fast design 3 read 0.19 °/h of soak-test
-/// spread after the 12-h plan. Held 3× and 10× nearer zero, the rate
-/// response 0.3× (docs/methods.md, "The identification"; docs/decisions.md,
-/// "Each mixture its own prior").
+/// a soak test reads came out of the run's history. Held 3× and 10× nearer
+/// zero, the rate response 0.3× (measured: docs/methods.md, "The
+/// identification"; docs/decisions.md, "Each mixture its own prior").
 pub const MIXTURE_PRIOR_SHARE: [f64; MIXTURES] = [0.3, 3.0, 3.0, 10.0, 10.0];
 /// Mixtures of the filters the bank holds: the three rate responses and the two filtered powers.
 pub const MIXTURES: usize = RESPONSES + POWER_RESPONSES;
