@@ -43,9 +43,14 @@
 //!    settled bias, the mean of the residual over the window's samples
 //!    (°/h), before and after compensation; the noise of that mean, the
 //!    sample standard deviation of the window's one-minute residual means
-//!    divided by √(their number) (°/h).
+//!    divided by √(their number) (°/h); the share of the window's samples
+//!    whose model inputs lay outside the model's training range (flag 1,
+//!    input clamped), %: there the settled bias after compensation is the
+//!    model's extrapolation, not what the training runs identified.
 //! 6. **Spread**: max − min of the settled biases over the run's plateaus
-//!    (°/h), only with at least two plateaus ([`settled_spread_dph`]).
+//!    (°/h), only with at least two plateaus ([`settled_spread_dph`]); and
+//!    the same over the plateaus *inside the training range*, those with
+//!    less than [`OUTSIDE_RANGE_PCT`] of their window outside it.
 //!
 //! The residual is `rate − ref` before compensation and `rate_comp − ref`
 //! after, `ref` being `ref_dph` or, without it, the run's mean rate (as the
@@ -57,6 +62,12 @@
 //! whatever the run's sample rate.
 
 use serde::Serialize;
+
+/// A plateau with at least this share of its settled window's samples
+/// outside the model's training range, %, counts as outside it: its settled
+/// bias after compensation is an extrapolation (most of the window beyond
+/// the range's edge).
+pub const OUTSIDE_RANGE_PCT: f64 = 50.0;
 
 /// Length of a block the loop temperature is averaged over, s.
 pub const BLOCK_S: f64 = 60.0;
@@ -133,6 +144,9 @@ pub struct MinuteBlock {
     pub before_sum_dph: f64,
     /// Sum of the residual after compensation, °/h.
     pub after_sum_dph: f64,
+    /// Samples whose model inputs lay outside the training range (flag 1,
+    /// input clamped).
+    pub outside_range: usize,
     /// A gap lies inside the block or just before its first sample.
     pub gap: bool,
 }
@@ -174,9 +188,10 @@ impl MinuteBlocker {
     }
 
     /// Takes one sample at `time_s` (s): its loop temperature (°C; `None` or
-    /// not finite: none read) and its residuals before and after
-    /// compensation (°/h).
-    pub fn push(&mut self, time_s: f64, temp_c: Option<f64>, before_dph: f64, after_dph: f64) {
+    /// not finite: none read), its residuals before and after compensation
+    /// (°/h) and whether the model's inputs lay outside its training range
+    /// there (`outside_range`: flag 1, input clamped).
+    pub fn push(&mut self, time_s: f64, temp_c: Option<f64>, before_dph: f64, after_dph: f64, outside_range: bool) {
         let first = *self.first_time_s.get_or_insert(time_s);
         if time_s - self.last_time_s > GAP_PERIODS * self.nominal_period_s {
             self.pending_gap = true;
@@ -200,6 +215,7 @@ impl MinuteBlocker {
         }
         block.before_sum_dph += before_dph;
         block.after_sum_dph += after_dph;
+        block.outside_range += usize::from(outside_range);
     }
 
     /// The run's first sample time, s (`None` before any sample).
@@ -215,7 +231,8 @@ impl MinuteBlocker {
 
 /// The [`MinuteBlock`]s of a run given as slices of equal length, in time
 /// order: `time_s` (s), `temp_c` (°C, NaN where none was read) and the
-/// residuals before and after compensation (°/h); `nominal_period_s` (s).
+/// residuals before and after compensation (°/h), every sample inside the
+/// model's training range; `nominal_period_s` (s).
 pub fn minute_blocks(
     time_s: &[f64],
     temp_c: &[f64],
@@ -225,7 +242,7 @@ pub fn minute_blocks(
 ) -> Vec<MinuteBlock> {
     let mut blocker = MinuteBlocker::new(nominal_period_s);
     for (((&t, &temp), &before), &after) in time_s.iter().zip(temp_c).zip(before_dph).zip(after_dph) {
-        blocker.push(t, Some(temp), before, after);
+        blocker.push(t, Some(temp), before, after, false);
     }
     blocker.finish()
 }
@@ -250,6 +267,18 @@ pub struct SettledPlateau {
     pub noise_dph: f64,
     /// Noise of `bias_before_dph`, the same way, °/h.
     pub noise_before_dph: f64,
+    /// Share of the window's samples whose model inputs lay outside the
+    /// model's training range (flag 1, input clamped), %: there
+    /// `bias_after_dph` is the model's extrapolation.
+    pub outside_range_pct: f64,
+}
+
+impl SettledPlateau {
+    /// Whether the plateau lies outside the model's training range: at least
+    /// [`OUTSIDE_RANGE_PCT`] of its window there.
+    pub fn outside_range(&self) -> bool {
+        self.outside_range_pct >= OUTSIDE_RANGE_PCT
+    }
 }
 
 /// The settled plateaus of a run from its [`MinuteBlock`]s (in time order;
@@ -369,6 +398,7 @@ fn plateau_of(window: &[MinuteBlock], steady_blocks: usize, first_time_s: f64) -
         bias_after_dph: sum(|b| b.after_sum_dph) / samples as f64,
         noise_dph: noise_of_mean(window.iter().map(MinuteBlock::mean_after_dph)),
         noise_before_dph: noise_of_mean(window.iter().map(MinuteBlock::mean_before_dph)),
+        outside_range_pct: 100.0 * window.iter().map(|b| b.outside_range).sum::<usize>() as f64 / samples as f64,
     }
 }
 
@@ -402,6 +432,11 @@ pub struct SettledBias {
     pub settled_spread_dph: Option<f64>,
     /// The same before compensation, °/h.
     pub settled_spread_before_dph: Option<f64>,
+    /// Spread after compensation over the plateaus inside the model's
+    /// training range ([`SettledPlateau::outside_range`] false), °/h; `None`
+    /// without two such plateaus. Below `settled_spread_dph` where the model
+    /// extrapolates worse than it fits.
+    pub settled_spread_in_range_dph: Option<f64>,
     /// The plateaus, in time order.
     pub plateaus: Vec<SettledPlateau>,
 }
@@ -422,6 +457,9 @@ impl SettledBias {
         SettledBias {
             settled_spread_dph: settled_spread_dph(plateaus.iter().map(|p| p.bias_after_dph)),
             settled_spread_before_dph: settled_spread_dph(plateaus.iter().map(|p| p.bias_before_dph)),
+            settled_spread_in_range_dph: settled_spread_dph(
+                plateaus.iter().filter(|p| !p.outside_range()).map(|p| p.bias_after_dph),
+            ),
             plateaus,
         }
     }
@@ -437,7 +475,7 @@ pub fn settled_levels_c(time_s: &[f64], temp_c: &[f64], run: &[usize], period_s:
         let end = (start..run.len()).find(|&i| run[i] != run[start]).unwrap_or(run.len());
         let mut blocker = MinuteBlocker::new(period_s);
         for (&t, &temp) in time_s[start..end].iter().zip(&temp_c[start..end]) {
-            blocker.push(t, Some(temp), 0.0, 0.0);
+            blocker.push(t, Some(temp), 0.0, 0.0, false);
         }
         let first_s = blocker.first_time_s().unwrap_or(0.0);
         out.extend(
@@ -624,5 +662,43 @@ mod tests {
         assert!((p.noise_dph - a / 29f64.sqrt()).abs() < 1e-12, "{p:?}");
         assert!(p.bias_after_dph.abs() < 1e-12, "{p:?}");
         assert_eq!(p.noise_before_dph.to_bits(), 0f64.to_bits(), "a constant has no noise");
+    }
+
+    #[test]
+    fn a_plateau_the_model_extrapolates_at_is_marked_and_left_out_of_the_spread_inside_the_range() {
+        // Holds at 0, 20 and 40 °C; the model's training range ends at 30 °C,
+        // and past it the compensated residual is 0.5 °/h off (extrapolation).
+        let (temp, _, end) = staircase(&[0.0, 20.0, 40.0], 3600.0);
+        let after = |t: f64| match temp(t) {
+            c if c > 30.0 => 0.5,
+            c if c > 10.0 => 0.01,
+            _ => 0.0,
+        };
+        let mut blocker = MinuteBlocker::new(1.0);
+        for t in seconds(0.0, end) {
+            blocker.push(t, Some(temp(t)), 0.0, after(t), temp(t) > 30.0);
+        }
+        let settled = SettledBias::of(&blocker.finish(), 0.0, 1.0, 0.0);
+        let outside: Vec<f64> = settled.plateaus.iter().map(|p| p.outside_range_pct).collect();
+        assert_eq!(outside, [0.0, 0.0, 100.0], "{settled:?}");
+        assert!(settled.plateaus[2].outside_range() && !settled.plateaus[1].outside_range());
+        let close = |a: Option<f64>, b: f64| a.is_some_and(|a| (a - b).abs() < 1e-9);
+        assert!(close(settled.settled_spread_dph, 0.5), "{settled:?}");
+        assert!(close(settled.settled_spread_in_range_dph, 0.01), "{settled:?}");
+    }
+
+    #[test]
+    fn a_window_half_outside_the_range_counts_as_outside() {
+        // One 2-h hold; the last 15 of its settled window's 30 minutes outside.
+        let end = 2.0 * 3600.0;
+        let mut blocker = MinuteBlocker::new(1.0);
+        for t in seconds(0.0, end) {
+            blocker.push(t, Some(20.0), 0.0, 0.0, t >= end - 900.0);
+        }
+        let settled = SettledBias::of(&blocker.finish(), 0.0, 1.0, 0.0);
+        let p = &settled.plateaus[0];
+        assert!((p.outside_range_pct - 50.0).abs() < 1e-9, "{p:?}");
+        assert!(p.outside_range());
+        assert_eq!(settled.settled_spread_in_range_dph, None);
     }
 }

@@ -621,7 +621,13 @@ impl Evaluator {
     /// read), raw and compensated deviation from the reference, °/h.
     pub fn push(&mut self, time_s: f64, temp_c: Option<f64>, before_dph: f64, after_dph: f64, flags: Flags) {
         if let Some(blocker) = &mut self.settled {
-            blocker.push(time_s, temp_c, before_dph, after_dph);
+            blocker.push(
+                time_s,
+                temp_c,
+                before_dph,
+                after_dph,
+                flags.contains(Flags::INPUT_CLAMPED),
+            );
         }
         self.push_mean(time_s, before_dph, after_dph, flags, 1);
     }

@@ -5,6 +5,8 @@
 use std::io::Write;
 use std::path::Path;
 
+use crate::dataset::plateaus::SettledBias;
+
 use super::allan;
 use super::evaluate::*;
 
@@ -178,23 +180,25 @@ pub const NO_PLATEAU: &str = "no settled plateau (the loop never steady for 30 m
 pub fn print_settled_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]) -> std::io::Result<()> {
     writeln!(
         out,
-        "{:<28}{} {:>8} {:>7}  {:>21}  {:>21}",
+        "{:<28}{} {:>8} {:>7}  {:>21}  {:>21}  {:>7}",
         "run",
         axis_cell(rows, Some("axis")),
         "T loop",
         "steady",
         "bias before ± noise",
-        "bias after ± noise"
+        "bias after ± noise",
+        "outside"
     )?;
     writeln!(
         out,
-        "{:<28}{} {:>8} {:>7}  {:>21}  {:>21}",
+        "{:<28}{} {:>8} {:>7}  {:>21}  {:>21}  {:>7}",
         "",
         axis_cell(rows, Some("")),
         "[°C]",
         "[min]",
         "[°/h]",
-        "[°/h]"
+        "[°/h]",
+        "[%]"
     )?;
     let bias = |b: f64, noise: f64| {
         format!(
@@ -211,19 +215,21 @@ pub fn print_settled_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]
         for p in &settled.plateaus {
             writeln!(
                 out,
-                "{:<28}{} {:>8.2} {:>7.0}  {:>21}  {:>21}",
+                "{:<28}{} {:>8.2} {:>7.0}  {:>21}  {:>21}  {:>7.0}",
                 name,
                 axis_cell(rows, e.axis),
                 p.temp_c,
                 p.steady_s / 60.0,
                 bias(p.bias_before_dph, p.noise_before_dph),
-                bias(p.bias_after_dph, p.noise_dph)
+                bias(p.bias_after_dph, p.noise_dph),
+                p.outside_range_pct
             )?;
         }
         spreads.push(match (settled.settled_spread_before_dph, settled.settled_spread_dph) {
             (Some(before), Some(after)) => format!(
-                "{name}{axis}: settled spread (max − min over {} plateaus) before {before:.4} °/h, after {after:.4} °/h",
-                settled.plateaus.len()
+                "{name}{axis}: settled spread (max − min over {} plateaus) before {before:.4} °/h, after {after:.4} °/h{}",
+                settled.plateaus.len(),
+                in_range_words(settled)
             ),
             _ if settled.plateaus.len() == 1 => format!("{name}{axis}: one settled plateau, no spread"),
             _ => format!("{name}{axis}: {NO_PLATEAU}"),
@@ -233,7 +239,27 @@ pub fn print_settled_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]
         writeln!(out, "{line}")?;
     }
     writeln!(out, "({})", crate::dataset::plateaus::rule_text())?;
+    writeln!(out, "({OUTSIDE_WORDS})")?;
     Ok(())
+}
+
+/// What the `outside` column of the settled table means.
+pub const OUTSIDE_WORDS: &str = "outside: share of the settled window where the model's inputs lay outside its \
+     training range (flag 1): the settled bias after compensation there is the model's extrapolation; a plateau \
+     outside for half its window or more is left out of the spread inside the range";
+
+/// The spread inside the model's training range, as the spread line
+/// appends it where some plateau lies outside (`", inside the training
+/// range 0.0123 °/h over 6 plateaus"`), else nothing.
+pub fn in_range_words(settled: &SettledBias) -> String {
+    let inside = settled.plateaus.iter().filter(|p| !p.outside_range()).count();
+    if inside == settled.plateaus.len() {
+        return String::new();
+    }
+    match settled.settled_spread_in_range_dph {
+        Some(spread) => format!("; inside the training range {spread:.4} °/h over {inside} plateaus"),
+        None => format!("; {inside} plateaus inside the training range, no spread there"),
+    }
 }
 
 /// A table cell: `v` as `show` writes it, or "—" when there is no figure

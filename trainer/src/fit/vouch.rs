@@ -157,6 +157,7 @@ mod tests {
             bias_after_dph,
             noise_dph,
             noise_before_dph: noise_dph,
+            outside_range_pct: 0.0,
         }
     }
 
@@ -168,6 +169,7 @@ mod tests {
                     - after.iter().copied().fold(f64::INFINITY, f64::min)
             }),
             settled_spread_before_dph: None,
+            settled_spread_in_range_dph: None,
             plateaus,
         }
     }

@@ -458,14 +458,15 @@ fn settled_markdown(plots: &[RunPlots]) -> String {
         .any(|p| p.evaluation.settled.as_ref().is_some_and(|s| !s.plateaus.is_empty()));
     if any {
         md.push_str(
-            "\n| run | loop T [°C] | steady [min] | window [s] | bias before [°/h] | bias after [°/h] | noise [°/h] |\n\
-             |---|---|---|---|---|---|---|\n",
+            "\n| run | loop T [°C] | steady [min] | window [s] | bias before [°/h] | bias after [°/h] | noise [°/h] | \
+             outside the training range [%] |\n\
+             |---|---|---|---|---|---|---|---|\n",
         );
         for p in plots {
             let Some(settled) = &p.evaluation.settled else { continue };
             for q in &settled.plateaus {
                 md.push_str(&format!(
-                    "| {} | {:.2} | {:.0} | {:.0} … {:.0} | {:+.4} | {:+.4} | {} |\n",
+                    "| {} | {:.2} | {:.0} | {:.0} … {:.0} | {:+.4} | {:+.4} | {} | {:.0} |\n",
                     text::escape_controls(&p.stem),
                     q.temp_c,
                     q.steady_s / 60.0,
@@ -473,7 +474,8 @@ fn settled_markdown(plots: &[RunPlots]) -> String {
                     q.window_end_s,
                     q.bias_before_dph,
                     q.bias_after_dph,
-                    figure(q.noise_dph, |v| format!("{v:.4}"))
+                    figure(q.noise_dph, |v| format!("{v:.4}")),
+                    q.outside_range_pct
                 ));
             }
         }

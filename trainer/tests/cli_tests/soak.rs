@@ -12,17 +12,21 @@ use crate::common::{compensate, eval_json, fitted_model, simulated, stderr, trai
 /// The soak profile's default levels, °C.
 const LEVELS_C: [f64; 8] = [25.0, 0.0, 40.0, -20.0, 60.0, 20.0, -40.0, 10.0];
 
-/// Settled plateaus of (time s, loop °C, residual °/h) rows sampled every
-/// `period_s`: (loop temperature °C, settled bias °/h) per plateau.
-fn plateaus_by_hand(rows: &[(f64, f64, f64)], period_s: f64) -> Vec<(f64, f64)> {
+/// Settled plateaus of (time s, loop °C, residual °/h, input clamped 0/1)
+/// rows sampled every `period_s`: (loop temperature °C, settled bias °/h,
+/// share of the window clamped %) per plateau.
+fn plateaus_by_hand(rows: &[Row], period_s: f64) -> Vec<(f64, f64, f64)> {
     // 60-s blocks from the first sample: (samples, Σ temp, Σ residual, gap).
     let t0 = rows[0].0;
     let mut blocks: BTreeMap<u64, (f64, f64, f64, bool)> = BTreeMap::new();
+    let mut clamped: BTreeMap<u64, f64> = BTreeMap::new();
     let mut previous_t = f64::NAN;
-    for &(t, temp, residual) in rows {
+    for &(t, temp, residual, clamp) in rows {
         let gap = t - previous_t > 2.0 * period_s;
         previous_t = t;
-        let b = blocks.entry(((t - t0) / 60.0).floor() as u64).or_default();
+        let minute = ((t - t0) / 60.0).floor() as u64;
+        *clamped.entry(minute).or_default() += clamp;
+        let b = blocks.entry(minute).or_default();
         b.0 += 1.0;
         b.1 += temp;
         b.2 += residual;
@@ -92,26 +96,38 @@ fn plateaus_by_hand(rows: &[(f64, f64, f64)], period_s: f64) -> Vec<(f64, f64)> 
         if end - i as i64 + 1 >= 30 {
             let window = (end - 29) as usize..=end as usize;
             let (t, r, n) = window
+                .clone()
                 .filter_map(|m| at[m])
                 .fold((0.0, 0.0, 0.0), |s, b| (s.0 + b.0, s.1 + b.1, s.2 + b.2));
-            out.push((t / n, r / n));
+            let c: f64 = window.map(|m| clamped[&(m as u64)]).sum();
+            out.push((t / n, r / n, 100.0 * c / n));
         }
         i = departure.unwrap_or(j) + 1;
     }
     out
 }
 
-/// The rows of a compensated CSV at `path`: (time s, loop °C, rate_comp − ref °/h).
-fn compensated_rows(path: &std::path::Path) -> Vec<(f64, f64, f64)> {
+/// One compensated sample: time s, loop °C, rate_comp − ref °/h, 1 where its
+/// model inputs were clamped to the training range (flag 1), else 0.
+type Row = (f64, f64, f64, f64);
+
+/// The rows of a compensated CSV at `path`.
+fn compensated_rows(path: &std::path::Path) -> Vec<Row> {
     let text = std::fs::read_to_string(path).unwrap();
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
-    let (t, temp, rate_comp, reference) = (col("time_s"), col("temp_c"), col("rate_comp_dph"), col("ref_dph"));
+    let (t, temp, rate_comp, reference, flags) = (
+        col("time_s"),
+        col("temp_c"),
+        col("rate_comp_dph"),
+        col("ref_dph"),
+        col("flags"),
+    );
     lines
         .map(|l| {
             let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
-            (f[t], f[temp], f[rate_comp] - f[reference])
+            (f[t], f[temp], f[rate_comp] - f[reference], (f[flags] as u8 & 1) as f64)
         })
         .collect()
 }
@@ -155,7 +171,7 @@ fn a_soak_run_has_8_plateaus_at_its_levels_and_eval_s_settled_spread_is_the_arit
     let v = crate::common::read_json(json);
     let plateaus = v[0]["plateaus"].as_array().unwrap();
     assert_eq!(plateaus.len(), 8, "{plateaus:#?}");
-    for ((p, (temp_c, bias_dph)), level) in plateaus.iter().zip(&by_hand).zip(LEVELS_C) {
+    for ((p, &(temp_c, bias_dph, clamped_pct)), level) in plateaus.iter().zip(&by_hand).zip(LEVELS_C) {
         let eval_temp = p["temp_c"].as_f64().unwrap();
         assert!((eval_temp - temp_c).abs() < 1e-9, "{p}: by hand {temp_c} °C");
         // The loop settles near the chamber: above it by the self-heating,
@@ -168,6 +184,10 @@ fn a_soak_run_has_8_plateaus_at_its_levels_and_eval_s_settled_spread_is_the_arit
             "{p}: by hand {bias_dph}"
         );
         assert!(p["noise_dph"].as_f64().unwrap() > 0.0, "{p}");
+        assert!(
+            (p["outside_range_pct"].as_f64().unwrap() - clamped_pct).abs() < 1e-9,
+            "{p}: by hand {clamped_pct} % of the window clamped"
+        );
         let (start, end) = (
             p["window_start_s"].as_f64().unwrap(),
             p["window_end_s"].as_f64().unwrap(),
@@ -181,6 +201,15 @@ fn a_soak_run_has_8_plateaus_at_its_levels_and_eval_s_settled_spread_is_the_arit
     assert!(
         (reported - by_hand_spread).abs() < 1e-6,
         "eval {reported}, by hand {by_hand_spread}"
+    );
+    // The short training run leaves the soak's far levels outside its range.
+    let inside: Vec<f64> = by_hand.iter().filter(|p| p.2 < 50.0).map(|p| p.1).collect();
+    assert!(inside.len() >= 2 && inside.len() < 8, "{by_hand:?}");
+    let in_range = v[0]["settled_spread_in_range_dph"].as_f64().unwrap();
+    assert!(
+        (in_range - spread(&inside)).abs() < 1e-6,
+        "eval {in_range}, by hand {}",
+        spread(&inside)
     );
     let before = v[0]["settled_spread_before_dph"].as_f64().unwrap();
     assert!(
