@@ -710,8 +710,9 @@ fn model_row(
             )
         });
         println!(
-            "    soak tests: settled spread {} °/h (uncompensated {}){split}",
+            "    soak tests: settled spread {} °/h (inside the training range {}; uncompensated {}){split}",
             cells(&|r| r.after_dph),
+            cells(&|r| r.in_range_dph),
             cells(&|r| r.before_dph)
         );
     }
@@ -750,6 +751,7 @@ fn model_row(
         "soak_tests": default.then(|| soak.readings.iter().map(|r| json!({
             "settled_spread_dph": r.after_dph.map(finite),
             "settled_spread_before_dph": r.before_dph.map(finite),
+            "settled_spread_in_range_dph": r.in_range_dph.map(finite),
         })).collect::<Vec<_>>()),
         "soak_split": default.then(|| soak.split().map(|s| json!({
             "static_range_dph": finite(s.static_range_dph),

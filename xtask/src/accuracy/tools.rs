@@ -60,6 +60,9 @@ pub(crate) struct SoakReading {
     pub after_dph: Option<f64>,
     /// The same uncompensated, °/h.
     pub before_dph: Option<f64>,
+    /// Settled spread after compensation over the plateaus inside the
+    /// model's training range, °/h (`None`: fewer than two there).
+    pub in_range_dph: Option<f64>,
     /// Each plateau's loop temperature, °C, and settled bias after
     /// compensation, °/h.
     pub plateaus: Vec<(f64, f64)>,
@@ -98,6 +101,7 @@ pub(crate) fn soak_spread(trainer: &Path, model: &Path, soak: &Path, json: &Path
     Ok(SoakReading {
         after_dph: v[0]["settled_spread_dph"].as_f64(),
         before_dph: v[0]["settled_spread_before_dph"].as_f64(),
+        in_range_dph: v[0]["settled_spread_in_range_dph"].as_f64(),
         plateaus: plateaus("bias_after_dph"),
         plateaus_before: plateaus("bias_before_dph"),
     })
