@@ -21,8 +21,12 @@ use trainer::output::Transaction;
 /// bias instability [°/h] read off it (--json has the whole curves); then the
 /// settled bias of every plateau where the loop held a temperature for 30 min
 /// (a soak test), before and after, and its spread across the plateaus
-/// (--json: `settled_spread_dph`, `settled_spread_before_dph`, `plateaus`). A
-/// multi-axis run gets a row per axis, with its axis's model, in one pass.
+/// (--json: `settled_spread_dph`, `settled_spread_before_dph`, `plateaus`).
+/// A plateau the model reads outside its training range (the `outside`
+/// column: share of its window with inputs clamped) is its extrapolation;
+/// where there is one, the spread inside the range follows
+/// (`settled_spread_in_range_dph`). A multi-axis run gets a row per axis,
+/// with its axis's model, in one pass.
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:\n  trainer eval --model model.bin check.csv field.csv --json eval.json")]
 pub struct Args {
