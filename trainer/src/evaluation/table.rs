@@ -244,7 +244,7 @@ pub fn print_settled_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]
 }
 
 /// What the `outside` column of the settled table means.
-pub const OUTSIDE_WORDS: &str = "outside: share of the settled window where the model's inputs lay outside its \
+const OUTSIDE_WORDS: &str = "outside: share of the settled window where the model's inputs lay outside its \
      training range (flag 1): the settled bias after compensation there is the model's extrapolation; a plateau \
      outside for half its window or more is left out of the spread inside the range";
 
