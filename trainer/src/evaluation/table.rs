@@ -249,7 +249,7 @@ const OUTSIDE_WORDS: &str = "outside: share of the settled window where the mode
      outside for half its window or more is left out of the spread inside the range";
 
 /// The spread inside the model's training range, as the spread line
-/// appends it where some plateau lies outside (`", inside the training
+/// appends it where some plateau lies outside (`"; inside the training
 /// range 0.0123 °/h over 6 plateaus"`), else nothing.
 pub fn in_range_words(settled: &SettledBias) -> String {
     let inside = settled.plateaus.iter().filter(|p| !p.outside_range()).count();
