@@ -128,6 +128,16 @@ pub fn rule_text() -> String {
     )
 }
 
+/// What a plateau's share outside the training range means, in one
+/// sentence, for the tables and reports that show it.
+pub fn outside_rule_text() -> String {
+    format!(
+        "outside: share of the settled window where the model's inputs lay outside its training range (flag 1): the \
+         settled bias after compensation there is the model's extrapolation; a plateau outside for {OUTSIDE_RANGE_PCT:.0} % \
+         of its window or more is left out of the spread inside the range"
+    )
+}
+
 /// The sums of one 60-s block of a run.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct MinuteBlock {

@@ -239,14 +239,9 @@ pub fn print_settled_table(out: &mut impl Write, rows: &[(&str, &RunEvaluation)]
         writeln!(out, "{line}")?;
     }
     writeln!(out, "({})", crate::dataset::plateaus::rule_text())?;
-    writeln!(out, "({OUTSIDE_WORDS})")?;
+    writeln!(out, "({})", crate::dataset::plateaus::outside_rule_text())?;
     Ok(())
 }
-
-/// What the `outside` column of the settled table means.
-const OUTSIDE_WORDS: &str = "outside: share of the settled window where the model's inputs lay outside its \
-     training range (flag 1): the settled bias after compensation there is the model's extrapolation; a plateau \
-     outside for half its window or more is left out of the spread inside the range";
 
 /// The spread inside the model's training range, as the spread line
 /// appends it where some plateau lies outside (`"; inside the training

@@ -442,8 +442,9 @@ pub fn write_report(
 /// and a row per plateau.
 fn settled_markdown(plots: &[RunPlots]) -> String {
     let mut md = format!(
-        "\n## Settled bias (soak plateaus)\n\nA {} (docs/workflow.md, \"The soak test\").\n\n",
-        crate::dataset::plateaus::rule_text()
+        "\n## Settled bias (soak plateaus)\n\nA {} (docs/workflow.md, \"The soak test\"). Column {}.\n\n",
+        crate::dataset::plateaus::rule_text(),
+        crate::dataset::plateaus::outside_rule_text()
     );
     for p in plots {
         let Some(settled) = &p.evaluation.settled else { continue };
