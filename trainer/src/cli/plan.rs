@@ -298,6 +298,8 @@ fn json_report(plan: &trainer::plan::Plan, spec: Option<&trainer::plan::spec::Sp
         "soak_ends": plan.end_soak_s.is_some(),
         "family": plan.ends.name(plan.end_soak_s, plan.band_soak_s),
         "end_soak_min": plan.end_soak_s.map(|s| s / 60.0),
+        "hot_end_soak_min": plan.end_soak_s.map(|s| trainer::plan::ends::hot_end_soak_s(s, plan.pooled_ends) / 60.0),
+        "cold_end_by_power_on": plan.pooled_ends,
         "band_soak_min": plan.band_soak_s.map(|s| s / 60.0),
         "seed": plan.seed,
         "criterion": plan.criterion,

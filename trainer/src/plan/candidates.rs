@@ -5,6 +5,7 @@
 
 use rand::Rng;
 
+use super::ends::hot_end_soak_s;
 use super::limits::*;
 use crate::fit::coverage::{BAND_C, band_count};
 
@@ -156,12 +157,12 @@ impl Station {
 /// the 24-h plan of seed 1, docs/decisions.md "Band soaks (issue 48)").
 pub(super) const BAND_MIDDLE_C: f64 = 0.25 * BAND_C;
 
-/// The stations of a soaking candidate under `l`: each end soaked
-/// `end_soak_s`, and with `band_soak_s` each interior [`BAND_C`] band of the
-/// range (all but the two that hold the ends) in its middle half
-/// ([`BAND_MIDDLE_C`]), visited at its centre.
-pub(super) fn stations(l: &PlanLimits, end_soak_s: f64, band_soak_s: Option<f64>) -> Vec<Station> {
-    let mut out = vec![Station::end(l.min_c, end_soak_s), Station::end(l.max_c, end_soak_s)];
+/// The stations of a soaking candidate under `l`: the cold end soaked
+/// `end_soak_s`, the hot end `hot_end_soak_s`, and with `band_soak_s` each
+/// interior [`BAND_C`] band of the range (all but the two that hold the
+/// ends) in its middle half ([`BAND_MIDDLE_C`]), visited at its centre.
+pub(super) fn stations(l: &PlanLimits, end_soak_s: f64, hot_end_soak_s: f64, band_soak_s: Option<f64>) -> Vec<Station> {
+    let mut out = vec![Station::end(l.min_c, end_soak_s), Station::end(l.max_c, hot_end_soak_s)];
     if let Some(soak_s) = band_soak_s {
         out.extend((1..interior_bands(l) + 1).map(|b| {
             let centre_c = l.min_c + (b as f64 + 0.5) * BAND_C;
@@ -244,12 +245,15 @@ pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
 /// and, with `band_soak_s`, one of at least that in each interior
 /// [`BAND_C`] band (`trainer plan`'s default, `--band-soaks` and
 /// `--soak-ends`; without end soaks, [`candidate`]). The power-on soak counts for
-/// the cold end when it starts there: the unit is soaked before it. A move is
+/// the cold end when it starts there: the unit is soaked before it. With
+/// `pooled_ends` ([`super::ends::Ends::pools_ends`]) it always starts there
+/// and the hot end soaks [`super::ends::hot_end_soak_s`]. A move is
 /// drawn only while the stations not yet held still fit in the budget after
 /// it; then they are visited, nearest first, at the full rate.
 pub fn candidate_soaking(
     limits: &PlanLimits,
     end_soak_s: f64,
+    pooled_ends: bool,
     band_soak_s: Option<f64>,
     rng: &mut impl Rng,
 ) -> Vec<Segment> {
@@ -258,15 +262,19 @@ pub fn candidate_soaking(
     let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
     let r = l.max_rate_c_per_min;
     let end_s = (l.hours * 3600.0 / TENTH_MIN_S).floor() * TENTH_MIN_S;
-    let all = stations(l, end_soak_s, band_soak_s);
+    let all = stations(l, end_soak_s, hot_end_soak_s(end_soak_s, pooled_ends), band_soak_s);
     // Held by the power-on soak at `start`: the cold end, when it starts there.
     let left_after_start =
         |start: f64| -> Vec<Station> { all.iter().copied().filter(|s| !(s.is_end && s.covers(start))).collect() };
     // Cold start: soaked in the lowest fifth of the range; at its bottom
-    // when the budget has no room for a soak there later.
+    // with pooled ends, or when the budget has no room for a soak there later.
     let drawn = set_point(level(rng.random_range(0..=2)), l);
     let fits = |start: f64| WARM_UP_S.0 + visits_s(l, start, &left_after_start(start)) <= end_s;
-    let start = if fits(drawn) { drawn } else { set_point(l.min_c, l) };
+    let start = if fits(drawn) && !pooled_ends {
+        drawn
+    } else {
+        set_point(l.min_c, l)
+    };
     let stations_left = left_after_start(start);
     let need_s = visits_s(l, start, &stations_left);
     let warm_up_s =

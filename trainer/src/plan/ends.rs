@@ -80,6 +80,23 @@ impl Ends {
         }
     }
 
+    /// Whether this family, its end soaks resolved to `end_soak_s`, pools
+    /// them at the hot end: the run starts at the cold end, where the unit
+    /// sits settled after its unpowered pre-soak and its power-on soak holds
+    /// that end, and the hot end soaks both ends' share
+    /// ([`hot_end_soak_s`]). The default's (`--no-band-soaks`' and
+    /// `--band-soaks`' too, not `--soak-ends`') where each end's soak is
+    /// shorter than [`MAX_END_SOAK_S`]: runs under 18 h.
+    ///
+    /// Why (docs/decisions.md, "End soaks in the default plan"): a 1.5-h
+    /// soak at the end of a ramp across the range leaves the loop short of
+    /// both ends, and self-heating lifts the soak test's hot levels above
+    /// the air. Over sixteen 12-h draws on the bench's plants, pooled soaks
+    /// put more trainings within both targets (soak spread and in use).
+    pub fn pools_ends(self, end_soak_s: Option<f64>) -> bool {
+        matches!(self, Ends::Default | Ends::EndsOnly | Ends::Bands) && end_soak_s.is_some_and(|s| s < MAX_END_SOAK_S)
+    }
+
     /// Each interior band's soak under `limits` once the end soak is
     /// `end_soak_s`, s, `None` for none: the default's and `--band-soaks`'
     /// ([`shared_band_soak_s`]); the other families hold none.
@@ -96,6 +113,12 @@ impl Ends {
         match (self, end_soak_s) {
             (_, None) => "plain".to_owned(),
             (Ends::SlowPlant, Some(_)) => "--soak-ends".to_owned(),
+            (_, Some(s)) if self.pools_ends(end_soak_s) => {
+                format!(
+                    "{}-h hot-end soak, cold start at the cold end{bands}",
+                    hot_end_soak_s(s, true) / 3600.0
+                )
+            }
             (_, Some(s)) => format!("{}-h end soaks{bands}", s / 3600.0),
         }
     }
@@ -129,6 +152,17 @@ pub fn default_end_soak_s(limits: &PlanLimits) -> Option<f64> {
         let leaving_dynamics_s = ((run_s - DYNAMICS_S) / 2.0 / 60.0).floor() * 60.0;
         leaving_dynamics_s.clamp(SHORT_END_SOAK_S, MAX_END_SOAK_S)
     })
+}
+
+/// The hot end's soak, s, when each end soaks `end_soak_s`: that, or where
+/// the ends are pooled ([`Ends::pools_ends`]) both ends' share, at most
+/// [`MAX_END_SOAK_S`].
+pub fn hot_end_soak_s(end_soak_s: f64, pooled: bool) -> f64 {
+    if pooled {
+        (2.0 * end_soak_s).min(MAX_END_SOAK_S)
+    } else {
+        end_soak_s
+    }
 }
 
 /// The default's (and `--band-soaks`') soak in each interior band of the
@@ -205,13 +239,41 @@ mod tests {
     fn families_are_named_by_what_they_resolved_to() {
         assert_eq!(Ends::Default.name(None, None), "plain");
         assert_eq!(Ends::Default.name(Some(MAX_END_SOAK_S), None), "3-h end soaks");
-        assert_eq!(Ends::Default.name(Some(SHORT_END_SOAK_S), None), "1.5-h end soaks");
-        assert_eq!(Ends::Default.name(Some(9000.0), None), "2.5-h end soaks");
+        // Under 3 h each, pooled at the hot end, at most 3 h there.
+        assert_eq!(
+            Ends::Default.name(Some(SHORT_END_SOAK_S), None),
+            "3-h hot-end soak, cold start at the cold end"
+        );
+        assert_eq!(
+            Ends::EndsOnly.name(Some(9000.0), None),
+            "3-h hot-end soak, cold start at the cold end"
+        );
         assert_eq!(
             Ends::Default.name(Some(MAX_END_SOAK_S), Some(7200.0)),
             "3-h end soaks, 2-h band soaks"
         );
         assert_eq!(Ends::SlowPlant.name(Some(16_000.0), None), "--soak-ends");
+    }
+
+    #[test]
+    fn end_soaks_shorter_than_three_hours_are_pooled_at_the_hot_end_except_for_the_slow_plant() {
+        for ends in [Ends::Default, Ends::EndsOnly, Ends::Bands] {
+            assert!(ends.pools_ends(Some(SHORT_END_SOAK_S)), "{ends:?}");
+            assert!(ends.pools_ends(Some(MAX_END_SOAK_S - 60.0)), "{ends:?}");
+            assert!(!ends.pools_ends(Some(MAX_END_SOAK_S)), "{ends:?}");
+            assert!(!ends.pools_ends(None), "{ends:?}");
+        }
+        // --soak-ends asks each end held until the slow plant settles there.
+        assert!(!Ends::SlowPlant.pools_ends(Some(SHORT_END_SOAK_S)));
+        assert!(!Ends::Plain.pools_ends(Some(SHORT_END_SOAK_S)));
+        // The hot end soaks both shares, at most 3 h; unpooled, its own.
+        let bits = |s: f64| s.to_bits();
+        assert_eq!(
+            bits(hot_end_soak_s(SHORT_END_SOAK_S, true)),
+            bits(2.0 * SHORT_END_SOAK_S)
+        );
+        assert_eq!(bits(hot_end_soak_s(7200.0, true)), bits(MAX_END_SOAK_S));
+        assert_eq!(bits(hot_end_soak_s(7200.0, false)), bits(7200.0));
     }
 
     #[test]

@@ -80,6 +80,10 @@ pub struct Plan {
     /// Each end soak lasts at least this, s ([`Ends::end_soak_s`]); `None`
     /// without end soaks (the plan as before the end soaks).
     pub end_soak_s: Option<f64>,
+    /// Whether the end soaks are pooled at the hot end, the power-on soak
+    /// holding the cold end ([`Ends::pools_ends`]; the hot end then soaks
+    /// [`ends::hot_end_soak_s`]).
+    pub pooled_ends: bool,
     /// Each interior band's soak, s ([`Ends::band_soak_s`]); `None` without.
     pub band_soak_s: Option<f64>,
     /// The figures predicted after the default fit on the plan's run;
@@ -159,12 +163,26 @@ impl Plan {
         );
         let _ = writeln!(s, "# duration_h: {:.3}", self.duration_s() / 3600.0);
         if let Some(end_soak_s) = self.end_soak_s {
+            let each = if self.pooled_ends {
+                "each end's share, both pooled at the hot end below"
+            } else {
+                "at each end of the range"
+            };
             let _ = writeln!(
                 s,
-                "# end_soak_min: {:.1} (at each end of the range: {})",
+                "# end_soak_min: {:.1} ({each}: {})",
                 end_soak_s / 60.0,
                 self.ends.reason(&self.limits)
             );
+            if self.pooled_ends {
+                let _ = writeln!(
+                    s,
+                    "# hot_end_soak_min: {:.1} (both ends' share pooled at the hot end, the cold end held by the power-on soak at {} °C: the default of a run under {:.0} h)",
+                    ends::hot_end_soak_s(end_soak_s, true) / 60.0,
+                    self.limits.min_c,
+                    (ends::DYNAMICS_S + 2.0 * ends::MAX_END_SOAK_S) / 3600.0
+                );
+            }
         }
         if let Some(band_soak_s) = self.band_soak_s {
             let _ = writeln!(
@@ -209,6 +227,10 @@ impl Plan {
         let (lo, hi) = self.loop_range_c;
         let (slo, shi) = self.slow_loop_range_c;
         let soaks = match self.end_soak_s {
+            Some(s) if self.pooled_ends => format!(
+                "a soak of {:.1} min or more at the hot end, the cold end held by the power-on soak",
+                ends::hot_end_soak_s(s, true) / 60.0
+            ),
             Some(s) => format!("soaks of {:.1} min or more at each end", s / 60.0),
             None => "no end soaks: --soak-ends adds them".to_owned(),
         };
@@ -349,13 +371,14 @@ fn by_d_alone(limits: &PlanLimits, ends: Ends) -> bool {
 pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, ends: Ends) -> Result<Plan, String> {
     let end_soak_s = ends.end_soak_s(limits)?;
     let band_soak_s = ends.band_soak_s(limits, end_soak_s);
+    let pooled_ends = ends.pools_ends(end_soak_s);
     let plant = SimParams::default().plant;
     let d_alone = by_d_alone(limits, ends);
     let indices: Vec<u64> = (0..candidates.max(1) as u64).collect();
     let mut scored = crate::parallel::parallel_map(&indices, |&i| {
         let mut rng = Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(i));
         let segments = match end_soak_s {
-            Some(s) => candidate_soaking(limits, s, band_soak_s, &mut rng),
+            Some(s) => candidate_soaking(limits, s, pooled_ends, band_soak_s, &mut rng),
             None => candidate(limits, &mut rng),
         };
         let temps = loop_temps(&segments, &plant);
@@ -403,6 +426,7 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, ends: Ends) -> 
         slow_settled_c: settled(&slow),
         ends,
         end_soak_s,
+        pooled_ends,
         band_soak_s,
         prediction: None,
     })
@@ -420,7 +444,7 @@ mod tests {
         for (seed, soak_ends) in (0..40).flat_map(|seed| [(seed, false), (seed, true)]) {
             let mut rng = Pcg64::seed_from_u64(seed);
             let segments = if soak_ends {
-                candidate_soaking(&LIMITS, soak_s, None, &mut rng)
+                candidate_soaking(&LIMITS, soak_s, false, None, &mut rng)
             } else {
                 candidate(&LIMITS, &mut rng)
             };
@@ -437,13 +461,44 @@ mod tests {
     }
 
     #[test]
+    fn a_pooled_candidate_starts_at_the_cold_end_and_soaks_the_hot_end_both_shares_within_the_budget() {
+        let soak_s = ends::SHORT_END_SOAK_S;
+        for seed in 0..40 {
+            let mut rng = Pcg64::seed_from_u64(seed);
+            let segments = candidate_soaking(&LIMITS, soak_s, true, None, &mut rng);
+            // Soaked unpowered at the cold end before power-on: its power-on soak holds that end.
+            assert_eq!(
+                segments[0].target_c.to_bits(),
+                LIMITS.min_c.to_bits(),
+                "seed {seed}: {segments:?}"
+            );
+            let hot_s = segments
+                .iter()
+                .filter(|g| (g.target_c - LIMITS.max_c).abs() < 0.006)
+                .map(|g| g.hold_s)
+                .fold(0.0, f64::max);
+            assert!(hot_s >= 2.0 * soak_s, "seed {seed}: hot end {hot_s} s: {segments:?}");
+            let k = knots(&segments);
+            assert!(
+                k.last().unwrap().0 <= LIMITS.hours * 3600.0,
+                "seed {seed}: {:?}",
+                k.last()
+            );
+            for w in k.windows(2) {
+                let rate = (w[1].1 - w[0].1).abs() / (w[1].0 - w[0].0) * 60.0;
+                assert!(w[1].0 > w[0].0 && rate < 5.0, "seed {seed}: {w:?}");
+            }
+        }
+    }
+
+    #[test]
     fn a_band_soaking_candidate_soaks_each_interior_band_once_and_each_end_within_the_limits() {
         let limits = PlanLimits { hours: 24.0, ..LIMITS };
         let end_soak_s = Ends::Default.end_soak_s(&limits).unwrap().unwrap();
         let band_soak_s = Ends::Bands.band_soak_s(&limits, Some(end_soak_s)).unwrap();
         for seed in 0..40 {
             let mut rng = Pcg64::seed_from_u64(seed);
-            let segments = candidate_soaking(&limits, end_soak_s, Some(band_soak_s), &mut rng);
+            let segments = candidate_soaking(&limits, end_soak_s, false, Some(band_soak_s), &mut rng);
             let k = knots(&segments);
             assert!(k.last().unwrap().0 <= 24.0 * 3600.0, "seed {seed}: {:?}", k.last());
             for w in k.windows(2) {
@@ -647,7 +702,8 @@ mod tests {
     }
 
     #[test]
-    fn the_default_plan_soaks_both_ends_three_hours_in_a_long_run_and_one_and_a_half_in_twelve() {
+    fn the_default_plan_soaks_both_ends_three_hours_in_a_long_run_and_pools_its_one_and_a_half_at_the_hot_end_in_twelve()
+     {
         for (hours, soak_s, written) in [
             (
                 24.0,
@@ -657,12 +713,30 @@ mod tests {
             (
                 12.0,
                 ends::SHORT_END_SOAK_S,
-                "# end_soak_min: 90.0 (at each end of the range: the default",
+                "# end_soak_min: 90.0 (each end's share, both pooled at the hot end below: the default",
             ),
         ] {
             let limits = PlanLimits { hours, ..LIMITS };
             let plan = design(&limits, 1, 4, Ends::Default).unwrap();
             assert_eq!(plan.end_soak_s, Some(soak_s));
+            // Pooled under 18 h: the run starts at the cold end and the hot end soaks both shares.
+            let pooled = hours < 18.0;
+            assert_eq!(plan.pooled_ends, pooled, "{hours} h");
+            let hot_soak_s = if pooled { 2.0 * soak_s } else { soak_s };
+            if pooled {
+                assert_eq!(
+                    plan.segments[0].target_c.to_bits(),
+                    limits.min_c.to_bits(),
+                    "{:?}",
+                    plan.segments
+                );
+                assert!(
+                    plan.set_points_csv()
+                        .contains("# hot_end_soak_min: 180.0 (both ends' share pooled"),
+                    "{}",
+                    plan.set_points_csv()
+                );
+            }
             let held_at = |end_c: f64| {
                 plan.segments
                     .iter()
@@ -673,7 +747,7 @@ mod tests {
             // The cold end's soak may be the power-on soak: the unit is soaked there before it.
             let cold_start = (plan.segments[0].target_c - limits.min_c).abs() < 0.006;
             assert!(cold_start || held_at(limits.min_c) >= soak_s, "{:?}", plan.segments);
-            assert!(held_at(limits.max_c) >= soak_s, "{:?}", plan.segments);
+            assert!(held_at(limits.max_c) >= hot_soak_s, "{:?}", plan.segments);
             assert!(plan.set_points_csv().contains(written), "{hours} h");
             assert_eq!(design(&limits, 1, 4, Ends::Plain).unwrap().end_soak_s, None);
         }

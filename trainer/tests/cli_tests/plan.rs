@@ -573,17 +573,26 @@ fn the_plain_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_shor
         "{written:?} not in {meta:?}"
     );
     assert!(!meta.iter().any(|m| m.starts_with("# end_soak_min")), "{meta:?}");
-    // The default 12-h plan soaks each end 1.5 h and gets the loop nearer the hot end.
+    // The default 12-h plan pools its two 1.5-h end soaks at the hot end, starts at the cold
+    // end and gets the loop nearer the hot end and to the cold one.
     let o = plan(&dir, "d.csv", ["-40", "60", "5", "12"], &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let [soaked, _] = predicted_ranges(&stdout(&o));
     assert!(soaked.1 > nominal.1 + 5.0, "{soaked:?} against {nominal:?}");
-    let (_, meta) = read_plan(&dir.path().join("d.csv"));
+    assert!(soaked.0 <= -39.9, "{soaked:?}");
     assert!(
-        meta.iter()
-            .any(|m| m.starts_with("# end_soak_min: 90.0 (at each end of the range: the default of a run of 12 h")),
-        "{meta:?}"
+        stdout(&o).contains("a soak of 180.0 min or more at the hot end, the cold end held by the power-on soak"),
+        "{}",
+        stdout(&o)
     );
+    let (_, meta) = read_plan(&dir.path().join("d.csv"));
+    for line in [
+        "# end_soak_min: 90.0 (each end's share, both pooled at the hot end below: the default of a run of 12 h",
+        "# hot_end_soak_min: 180.0 (both ends' share pooled at the hot end, the cold end held by the power-on soak at -40 °C",
+        "# power_on: at 0 s, soaked at -40 °C",
+    ] {
+        assert!(meta.iter().any(|m| m.starts_with(line)), "{line:?} not in {meta:?}");
+    }
     // No band soaks in a 12-h run (no time for them); --band-soaks refuses it, saying how
     // long it must be. A 24-h run soaks each of the three interior bands 2 h by default,
     // and not with --no-band-soaks.
@@ -612,6 +621,9 @@ fn the_plain_plan_is_the_one_before_end_soaks_and_warns_that_the_loop_falls_shor
     let json = crate::common::read_json(&json);
     assert_eq!(json["family"], "3-h end soaks, 2-h band soaks", "{json}");
     assert_eq!(json["band_soak_min"], 120.0, "{json}");
+    // 3 h at each end: nothing pooled.
+    assert_eq!(json["hot_end_soak_min"], 180.0, "{json}");
+    assert_eq!(json["cold_end_by_power_on"], false, "{json}");
     let o = plan(&dir, "e.csv", ["-40", "60", "5", "24"], &["--no-band-soaks"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (_, meta) = read_plan(&dir.path().join("e.csv"));
