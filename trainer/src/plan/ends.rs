@@ -109,17 +109,17 @@ impl Ends {
 
     /// The family as `trainer plan` names it, given the soaks it resolved to.
     pub fn name(self, end_soak_s: Option<f64>, band_soak_s: Option<f64>) -> String {
-        let bands = band_soak_s.map_or(String::new(), |s| format!(", {}-h band soaks", s / 3600.0));
+        let bands = band_soak_s.map_or(String::new(), |s| format!(", {}-h band soaks", hours(s)));
         match (self, end_soak_s) {
             (_, None) => "plain".to_owned(),
             (Ends::SlowPlant, Some(_)) => "--soak-ends".to_owned(),
             (_, Some(s)) if self.pools_ends(end_soak_s) => {
                 format!(
                     "{}-h hot-end soak, cold start at the cold end{bands}",
-                    hot_end_soak_s(s, true) / 3600.0
+                    hours(hot_end_soak_s(s, true))
                 )
             }
-            (_, Some(s)) => format!("{}-h end soaks{bands}", s / 3600.0),
+            (_, Some(s)) => format!("{}-h end soaks{bands}", hours(s)),
         }
     }
 
@@ -152,6 +152,13 @@ pub fn default_end_soak_s(limits: &PlanLimits) -> Option<f64> {
         let leaving_dynamics_s = ((run_s - DYNAMICS_S) / 2.0 / 60.0).floor() * 60.0;
         leaving_dynamics_s.clamp(SHORT_END_SOAK_S, MAX_END_SOAK_S)
     })
+}
+
+/// `s` seconds in hours for a name: at most two decimals, no trailing zeros
+/// (100 min is "1.67", 90 min "1.5", 3 h "3").
+fn hours(s: f64) -> String {
+    let h = format!("{:.2}", s / 3600.0);
+    h.trim_end_matches('0').trim_end_matches('.').to_owned()
 }
 
 /// The hot end's soak, s, when each end soaks `end_soak_s`: that, or where
@@ -253,6 +260,11 @@ mod tests {
             "3-h end soaks, 2-h band soaks"
         );
         assert_eq!(Ends::SlowPlant.name(Some(16_000.0), None), "--soak-ends");
+        // Hours of a third or two thirds read to two decimals, not to f64's last digit.
+        assert_eq!(
+            Ends::Default.name(Some(MAX_END_SOAK_S), Some(6000.0)),
+            "3-h end soaks, 1.67-h band soaks"
+        );
     }
 
     #[test]
