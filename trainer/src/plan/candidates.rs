@@ -5,7 +5,6 @@
 
 use rand::Rng;
 
-use super::ends::hot_end_soak_s;
 use super::limits::*;
 use crate::fit::coverage::{BAND_C, band_count};
 
@@ -246,14 +245,14 @@ pub fn candidate(limits: &PlanLimits, rng: &mut impl Rng) -> Vec<Segment> {
 /// [`BAND_C`] band (`trainer plan`'s default, `--band-soaks` and
 /// `--soak-ends`; without end soaks, [`candidate`]). The power-on soak counts for
 /// the cold end when it starts there: the unit is soaked before it. With
-/// `pooled_ends` ([`super::ends::Ends::pools_ends`]) it always starts there
-/// and the hot end soaks [`super::ends::hot_end_soak_s`]. A move is
+/// `pooled_hot_end_soak_s` (the ends pooled, [`super::ends::Ends::pools_ends`])
+/// it always starts there and the hot end soaks that long instead. A move is
 /// drawn only while the stations not yet held still fit in the budget after
 /// it; then they are visited, nearest first, at the full rate.
 pub fn candidate_soaking(
     limits: &PlanLimits,
     end_soak_s: f64,
-    pooled_ends: bool,
+    pooled_hot_end_soak_s: Option<f64>,
     band_soak_s: Option<f64>,
     rng: &mut impl Rng,
 ) -> Vec<Segment> {
@@ -262,7 +261,8 @@ pub fn candidate_soaking(
     let level = |k: usize| l.min_c + span * k as f64 / (LEVELS - 1) as f64;
     let r = l.max_rate_c_per_min;
     let end_s = (l.hours * 3600.0 / TENTH_MIN_S).floor() * TENTH_MIN_S;
-    let all = stations(l, end_soak_s, hot_end_soak_s(end_soak_s, pooled_ends), band_soak_s);
+    let pooled_ends = pooled_hot_end_soak_s.is_some();
+    let all = stations(l, end_soak_s, pooled_hot_end_soak_s.unwrap_or(end_soak_s), band_soak_s);
     // Held by the power-on soak at `start`: the cold end, when it starts there.
     let left_after_start =
         |start: f64| -> Vec<Station> { all.iter().copied().filter(|s| !(s.is_end && s.covers(start))).collect() };

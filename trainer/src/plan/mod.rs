@@ -378,7 +378,13 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, ends: Ends) -> 
     let mut scored = crate::parallel::parallel_map(&indices, |&i| {
         let mut rng = Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(i));
         let segments = match end_soak_s {
-            Some(s) => candidate_soaking(limits, s, pooled_ends, band_soak_s, &mut rng),
+            Some(s) => candidate_soaking(
+                limits,
+                s,
+                pooled_ends.then(|| ends::hot_end_soak_s(s, true)),
+                band_soak_s,
+                &mut rng,
+            ),
             None => candidate(limits, &mut rng),
         };
         let temps = loop_temps(&segments, &plant);
@@ -444,7 +450,7 @@ mod tests {
         for (seed, soak_ends) in (0..40).flat_map(|seed| [(seed, false), (seed, true)]) {
             let mut rng = Pcg64::seed_from_u64(seed);
             let segments = if soak_ends {
-                candidate_soaking(&LIMITS, soak_s, false, None, &mut rng)
+                candidate_soaking(&LIMITS, soak_s, None, None, &mut rng)
             } else {
                 candidate(&LIMITS, &mut rng)
             };
@@ -465,7 +471,7 @@ mod tests {
         let soak_s = ends::SHORT_END_SOAK_S;
         for seed in 0..40 {
             let mut rng = Pcg64::seed_from_u64(seed);
-            let segments = candidate_soaking(&LIMITS, soak_s, true, None, &mut rng);
+            let segments = candidate_soaking(&LIMITS, soak_s, Some(2.0 * soak_s), None, &mut rng);
             // Soaked unpowered at the cold end before power-on: its power-on soak holds that end.
             assert_eq!(
                 segments[0].target_c.to_bits(),
@@ -498,7 +504,7 @@ mod tests {
         let band_soak_s = Ends::Bands.band_soak_s(&limits, Some(end_soak_s)).unwrap();
         for seed in 0..40 {
             let mut rng = Pcg64::seed_from_u64(seed);
-            let segments = candidate_soaking(&limits, end_soak_s, false, Some(band_soak_s), &mut rng);
+            let segments = candidate_soaking(&limits, end_soak_s, None, Some(band_soak_s), &mut rng);
             let k = knots(&segments);
             assert!(k.last().unwrap().0 <= 24.0 * 3600.0, "seed {seed}: {:?}", k.last());
             for w in k.windows(2) {
