@@ -21,6 +21,7 @@
 use super::candidates::interior_bands;
 use super::criterion::end_soak_s;
 use super::limits::{PlanLimits, SLOW_PLANT_FACTOR};
+use crate::describe::summary::sig;
 use crate::fit::coverage::BAND_C;
 
 /// Each end's longest soak in the default plan, s (3 h: longer soaks, as the
@@ -39,6 +40,11 @@ pub const SHORT_RUN_S: f64 = 12.0 * 3600.0;
 /// soaks where the run is long enough, s: the 12 h the plain plan's dynamics
 /// were validated on.
 pub const DYNAMICS_S: f64 = 12.0 * 3600.0;
+
+/// The shortest run whose default soaks each end [`MAX_END_SOAK_S`] besides
+/// [`DYNAMICS_S`], s (18 h): shorter ones pool their end soaks
+/// ([`Ends::pools_ends`]) and keep the candidate of the best D-criterion.
+pub const FULL_END_SOAKS_RUN_S: f64 = DYNAMICS_S + 2.0 * MAX_END_SOAK_S;
 
 /// The end-soak family of a plan.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -84,7 +90,7 @@ impl Ends {
     /// them at the hot end: the run starts at the cold end, where the unit
     /// sits settled after its unpowered pre-soak and its power-on soak holds
     /// that end, and the hot end soaks both ends' share
-    /// ([`hot_end_soak_s`]). The default's (`--no-band-soaks`' and
+    /// ([`Ends::pooled_hot_end_soak_s`]). The default's (`--no-band-soaks`' and
     /// `--band-soaks`' too, not `--soak-ends`') where each end's soak is
     /// shorter than [`MAX_END_SOAK_S`]: runs under 18 h.
     ///
@@ -95,6 +101,15 @@ impl Ends {
     /// put more trainings within both targets (soak spread and in use).
     pub fn pools_ends(self, end_soak_s: Option<f64>) -> bool {
         matches!(self, Ends::Default | Ends::EndsOnly | Ends::Bands) && end_soak_s.is_some_and(|s| s < MAX_END_SOAK_S)
+    }
+
+    /// The hot end's soak, s, where this family pools end soaks of
+    /// `end_soak_s` ([`Ends::pools_ends`]): both ends' share, at most
+    /// [`MAX_END_SOAK_S`]; `None` where it does not pool them.
+    pub fn pooled_hot_end_soak_s(self, end_soak_s: Option<f64>) -> Option<f64> {
+        end_soak_s
+            .filter(|_| self.pools_ends(end_soak_s))
+            .map(|s| (2.0 * s).min(MAX_END_SOAK_S))
     }
 
     /// Each interior band's soak under `limits` once the end soak is
@@ -110,16 +125,11 @@ impl Ends {
     /// The family as `trainer plan` names it, given the soaks it resolved to.
     pub fn name(self, end_soak_s: Option<f64>, band_soak_s: Option<f64>) -> String {
         let bands = band_soak_s.map_or(String::new(), |s| format!(", {}-h band soaks", hours(s)));
-        match (self, end_soak_s) {
-            (_, None) => "plain".to_owned(),
-            (Ends::SlowPlant, Some(_)) => "--soak-ends".to_owned(),
-            (_, Some(s)) if self.pools_ends(end_soak_s) => {
-                format!(
-                    "{}-h hot-end soak, cold start at the cold end{bands}",
-                    hours(hot_end_soak_s(s, true))
-                )
-            }
-            (_, Some(s)) => format!("{}-h end soaks{bands}", hours(s)),
+        match (self, end_soak_s, self.pooled_hot_end_soak_s(end_soak_s)) {
+            (_, None, _) => "plain".to_owned(),
+            (Ends::SlowPlant, Some(_), _) => "--soak-ends".to_owned(),
+            (_, _, Some(hot_s)) => format!("{}-h hot-end soak, cold start at the cold end{bands}", hours(hot_s)),
+            (_, Some(s), None) => format!("{}-h end soaks{bands}", hours(s)),
         }
     }
 
@@ -154,22 +164,10 @@ pub fn default_end_soak_s(limits: &PlanLimits) -> Option<f64> {
     })
 }
 
-/// `s` seconds in hours for a name: at most two decimals, no trailing zeros
-/// (100 min is "1.67", 90 min "1.5", 3 h "3").
+/// `s` seconds in hours for a name, to three significant digits (100 min
+/// is "1.67", 90 min "1.5", 3 h "3").
 fn hours(s: f64) -> String {
-    let h = format!("{:.2}", s / 3600.0);
-    h.trim_end_matches('0').trim_end_matches('.').to_owned()
-}
-
-/// The hot end's soak, s, when each end soaks `end_soak_s`: that, or where
-/// the ends are pooled ([`Ends::pools_ends`]) both ends' share, at most
-/// [`MAX_END_SOAK_S`].
-pub fn hot_end_soak_s(end_soak_s: f64, pooled: bool) -> f64 {
-    if pooled {
-        (2.0 * end_soak_s).min(MAX_END_SOAK_S)
-    } else {
-        end_soak_s
-    }
+    sig(s / 3600.0, 3)
 }
 
 /// The default's (and `--band-soaks`') soak in each interior band of the
@@ -278,14 +276,19 @@ mod tests {
         // --soak-ends asks each end held until the slow plant settles there.
         assert!(!Ends::SlowPlant.pools_ends(Some(SHORT_END_SOAK_S)));
         assert!(!Ends::Plain.pools_ends(Some(SHORT_END_SOAK_S)));
-        // The hot end soaks both shares, at most 3 h; unpooled, its own.
-        let bits = |s: f64| s.to_bits();
+        // The hot end soaks both shares, at most 3 h; unpooled, none is pooled there.
+        let bits = |s: Option<f64>| s.map(f64::to_bits);
         assert_eq!(
-            bits(hot_end_soak_s(SHORT_END_SOAK_S, true)),
-            bits(2.0 * SHORT_END_SOAK_S)
+            bits(Ends::Default.pooled_hot_end_soak_s(Some(SHORT_END_SOAK_S))),
+            bits(Some(2.0 * SHORT_END_SOAK_S))
         );
-        assert_eq!(bits(hot_end_soak_s(7200.0, true)), bits(MAX_END_SOAK_S));
-        assert_eq!(bits(hot_end_soak_s(7200.0, false)), bits(7200.0));
+        assert_eq!(
+            bits(Ends::Default.pooled_hot_end_soak_s(Some(7200.0))),
+            bits(Some(MAX_END_SOAK_S))
+        );
+        assert_eq!(Ends::SlowPlant.pooled_hot_end_soak_s(Some(7200.0)), None);
+        assert_eq!(Ends::Default.pooled_hot_end_soak_s(Some(MAX_END_SOAK_S)), None);
+        assert_eq!(Ends::Default.pooled_hot_end_soak_s(None), None);
     }
 
     #[test]

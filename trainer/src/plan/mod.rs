@@ -80,10 +80,6 @@ pub struct Plan {
     /// Each end soak lasts at least this, s ([`Ends::end_soak_s`]); `None`
     /// without end soaks (the plan as before the end soaks).
     pub end_soak_s: Option<f64>,
-    /// Whether the end soaks are pooled at the hot end, the power-on soak
-    /// holding the cold end ([`Ends::pools_ends`]; the hot end then soaks
-    /// [`ends::hot_end_soak_s`]).
-    pub pooled_ends: bool,
     /// Each interior band's soak, s ([`Ends::band_soak_s`]); `None` without.
     pub band_soak_s: Option<f64>,
     /// The figures predicted after the default fit on the plan's run;
@@ -101,6 +97,18 @@ impl Plan {
     /// power-on, s ([`pre_soak_s`] on the documented gyro's plant).
     pub fn pre_soak_s(&self) -> f64 {
         pre_soak_s(&SimParams::default().plant, self.segments[0].target_c)
+    }
+
+    /// The hot end's soak where the end soaks are pooled there, the
+    /// power-on soak holding the cold end, s ([`Ends::pooled_hot_end_soak_s`]);
+    /// `None` where they are not.
+    pub fn pooled_hot_end_soak_s(&self) -> Option<f64> {
+        self.ends.pooled_hot_end_soak_s(self.end_soak_s)
+    }
+
+    /// The hot end's soak, s: the pooled one, else each end's; `None` without end soaks.
+    pub fn hot_end_soak_s(&self) -> Option<f64> {
+        self.pooled_hot_end_soak_s().or(self.end_soak_s)
     }
 
     /// Length of the run, s.
@@ -163,7 +171,7 @@ impl Plan {
         );
         let _ = writeln!(s, "# duration_h: {:.3}", self.duration_s() / 3600.0);
         if let Some(end_soak_s) = self.end_soak_s {
-            let each = if self.pooled_ends {
+            let each = if self.pooled_hot_end_soak_s().is_some() {
                 "each end's share, both pooled at the hot end below"
             } else {
                 "at each end of the range"
@@ -174,13 +182,13 @@ impl Plan {
                 end_soak_s / 60.0,
                 self.ends.reason(&self.limits)
             );
-            if self.pooled_ends {
+            if let Some(hot_s) = self.pooled_hot_end_soak_s() {
                 let _ = writeln!(
                     s,
                     "# hot_end_soak_min: {:.1} (both ends' share pooled at the hot end, the cold end held by the power-on soak at {} °C: the default of a run under {:.0} h)",
-                    ends::hot_end_soak_s(end_soak_s, true) / 60.0,
+                    hot_s / 60.0,
                     self.limits.min_c,
-                    (ends::DYNAMICS_S + 2.0 * ends::MAX_END_SOAK_S) / 3600.0
+                    ends::FULL_END_SOAKS_RUN_S / 3600.0
                 );
             }
         }
@@ -226,13 +234,13 @@ impl Plan {
         let (min_c, max_c) = (self.limits.min_c, self.limits.max_c);
         let (lo, hi) = self.loop_range_c;
         let (slo, shi) = self.slow_loop_range_c;
-        let soaks = match self.end_soak_s {
-            Some(s) if self.pooled_ends => format!(
+        let soaks = match (self.end_soak_s, self.pooled_hot_end_soak_s()) {
+            (_, Some(hot_s)) => format!(
                 "a soak of {:.1} min or more at the hot end, the cold end held by the power-on soak",
-                ends::hot_end_soak_s(s, true) / 60.0
+                hot_s / 60.0
             ),
-            Some(s) => format!("soaks of {:.1} min or more at each end", s / 60.0),
-            None => "no end soaks: --soak-ends adds them".to_owned(),
+            (Some(s), None) => format!("soaks of {:.1} min or more at each end", s / 60.0),
+            (None, None) => "no end soaks: --soak-ends adds them".to_owned(),
         };
         let slow_soak_min = end_soak_s(&self.limits) / 60.0;
         let mut out = vec![format!(
@@ -359,7 +367,7 @@ fn ramp_minutes(s: f64) -> String {
 /// choice lowered the soak spread but cost accuracy in use, after 24-h ones
 /// it did not (docs/decisions.md, "The plan chosen for the static curve").
 fn by_d_alone(limits: &PlanLimits, ends: Ends) -> bool {
-    ends == Ends::Plain || limits.hours * 3600.0 < ends::DYNAMICS_S + 2.0 * ends::MAX_END_SOAK_S
+    ends == Ends::Plain || limits.hours * 3600.0 < ends::FULL_END_SOAKS_RUN_S
 }
 
 /// Designs a plan within `limits`: of `candidates` draws from `seed`, the
@@ -371,20 +379,14 @@ fn by_d_alone(limits: &PlanLimits, ends: Ends) -> bool {
 pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, ends: Ends) -> Result<Plan, String> {
     let end_soak_s = ends.end_soak_s(limits)?;
     let band_soak_s = ends.band_soak_s(limits, end_soak_s);
-    let pooled_ends = ends.pools_ends(end_soak_s);
+    let pooled_hot_end_soak_s = ends.pooled_hot_end_soak_s(end_soak_s);
     let plant = SimParams::default().plant;
     let d_alone = by_d_alone(limits, ends);
     let indices: Vec<u64> = (0..candidates.max(1) as u64).collect();
     let mut scored = crate::parallel::parallel_map(&indices, |&i| {
         let mut rng = Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(i));
         let segments = match end_soak_s {
-            Some(s) => candidate_soaking(
-                limits,
-                s,
-                pooled_ends.then(|| ends::hot_end_soak_s(s, true)),
-                band_soak_s,
-                &mut rng,
-            ),
+            Some(s) => candidate_soaking(limits, s, pooled_hot_end_soak_s, band_soak_s, &mut rng),
             None => candidate(limits, &mut rng),
         };
         let temps = loop_temps(&segments, &plant);
@@ -432,7 +434,6 @@ pub fn design(limits: &PlanLimits, seed: u64, candidates: usize, ends: Ends) -> 
         slow_settled_c: settled(&slow),
         ends,
         end_soak_s,
-        pooled_ends,
         band_soak_s,
         prediction: None,
     })
@@ -727,7 +728,7 @@ mod tests {
             assert_eq!(plan.end_soak_s, Some(soak_s));
             // Pooled under 18 h: the run starts at the cold end and the hot end soaks both shares.
             let pooled = hours < 18.0;
-            assert_eq!(plan.pooled_ends, pooled, "{hours} h");
+            assert_eq!(plan.pooled_hot_end_soak_s().is_some(), pooled, "{hours} h");
             let hot_soak_s = if pooled { 2.0 * soak_s } else { soak_s };
             if pooled {
                 assert_eq!(
