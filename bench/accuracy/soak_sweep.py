@@ -1,0 +1,207 @@
+"""Issue 48's figures over many plan draws and plants: the sweep a model or plan change is
+judged on (docs/decisions.md: one plan draw moves a plant's soak spread 2-10x, and one
+history pair is a draw too: a forecast factor that won on one pair lost on three).
+
+For each plant (trainer simulate's documented gyro, `--unit 1`, `--unit 2`,
+bench/accuracy/other-design.json, `--design 1` ... `--design 16`, and the fast twins of
+one_unit_soak.py: the documented gyro, unit 1, designs 1, 3 and 4 with every time constant
+halved) and each plan (`trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min 5
+--hours H --seed S`), it simulates the planned run (seed 503), fits the default model
+(`trainer fit`, or `--fit-args`) and reads with `trainer eval --json`:
+
+- the settled spread on two soak tests of the unit (3-h holds at 25, 0, 40, -20, 60, 20,
+  -40, 10 degC, seed 515; and at 10, -40, 50, -10, 30, 60, -30, 0 degC, seed 516); the
+  worse of the two is the figure;
+- the 100-s cluster STD improvement and residual on pairs of a random (-20 ... 50 degC,
+  0.2 ... 3 degC/min, 8 h) and a field history (seeds 511/513, 512/514, 517/518 ...);
+  in use is the mean over the pairs of each pair's mean;
+- the fit's `predicted_in_use_std100_dph` against each history of each pair.
+
+It prints, per plan length and plant group (the 20 bench plants, the 5 fast twins): the
+soak's geometric mean, how many trainings meet issue 48's soak target (0.03 / 0.01 degC
+after 12 / 24 h) and both targets (and in use >= 93 %), the in-use mean, and the history
+pairs whose forecast is within 1.5x of both histories. `--out` writes every training's
+figures as JSON lines; `--compare BEFORE.jsonl` prints the same summary for both and each
+plant's change.
+
+    python3 bench/accuracy/soak_sweep.py [--trainer target/release/trainer] [--hours 12,24]
+        [--seeds 1-8] [--pairs 3] [--plants doc,d3,fast-design3] [--fit-args "..."]
+        [--plan-args "..."] [--dir target/soak-sweep] [--out after.jsonl] [--compare before.jsonl]
+
+Runs are simulated once per directory and reused (a planned run under a digest of its set
+points); fits and evaluations are redone every time, so two trainers compare on the same
+runs. 25 plants x 16 plans took 6 min on two cores the first time (2026-12-01).
+"""
+import argparse
+import collections
+import json
+import math
+import os
+import shlex
+from concurrent.futures import ThreadPoolExecutor
+
+from one_unit_soak import GYROS, SOAK_B, fast_args, run, set_points_digest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+PLANTS = {"doc": [], "unit1": ["--unit", "1"], "unit2": ["--unit", "2"],
+          "other": ["--params", os.path.join(HERE, "other-design.json")]}
+PLANTS.update({f"d{d}": ["--design", str(d)] for d in range(1, 17)})
+SOAKS = {"soakA": (["--profile", "soak"], 515), "soakB": (["--profile", "soak", "--soak-levels-c", SOAK_B], 516)}
+RANDOM = ["--profile", "random", "--random-range-c=-20,50", "--ramp-range-c-per-min", "0.2,3", "--hours", "8"]
+FIELD = ["--profile", "field"]
+PAIR_SEEDS = [(511, 513), (512, 514), (517, 518), (519, 520), (521, 522)]
+SOAK_TARGET_DPH = {12: 0.03, 24: 0.01}
+IN_USE_TARGET_PCT = 93.0
+FORECAST_WITHIN = 1.5
+
+
+def history_runs(pairs):
+    """Every run a plant is judged on: name -> (simulate args, seed)."""
+    runs = dict(SOAKS)
+    for i, (r, f) in enumerate(PAIR_SEEDS[:pairs]):
+        runs[f"random{i + 1}"] = (RANDOM, r)
+        runs[f"field{i + 1}"] = (FIELD, f)
+    return runs
+
+
+def simulate(trainer, plant_args, args, seed, path):
+    if not os.path.exists(path):
+        run([trainer, "simulate", "--sample-rate-hz", "1", *plant_args, *args, "--seed", str(seed), "-o", path,
+             "--force"])
+    return path
+
+
+def score(a, plants, runs, plant, hours, seed, plan):
+    d = os.path.join(a.dir, plant)
+    train = simulate(a.trainer, plants[plant], ["--chamber-profile", plan], 503,
+                     os.path.join(d, f"planned{hours}_{set_points_digest(plan)}.csv"))
+    tag = f"{hours}h_s{seed}"
+    model, fit_json = os.path.join(d, f"{tag}.bin"), os.path.join(d, f"{tag}.fit.json")
+    report = os.path.join(d, f"{tag}.eval.json")
+    run([a.trainer, "fit", train, "-o", model, "--force", "-q", "--json", fit_json, *shlex.split(a.fit_args)])
+    names = list(runs)
+    run([a.trainer, "eval", "--model", model, *[os.path.join(d, f"{n}.csv") for n in names], "--json", report,
+         "--force"])
+    e = dict(zip(names, json.load(open(report))))
+    fit = json.load(open(fit_json))
+    return {
+        "plant": plant, "hours": hours, "seed": seed,
+        "soak_dph": [e[n]["settled_spread_dph"] for n in SOAKS],
+        "in_use_pct": [e[n]["cluster_std_improvement_pct"] for n in names if n not in SOAKS],
+        "in_use_after_dph": [e[n]["cluster_std_after_dph"] for n in names if n not in SOAKS],
+        "forecast_dph": fit.get("predicted_in_use_std100_dph"),
+        "residual_over_noise_floor": fit.get("residual_over_noise_floor"),
+        "response_bank": (fit.get("structure") or {}).get("response_bank"),
+    }
+
+
+def worse_soak(r):
+    """The worse of the two soak tests' spreads; a test without plateaus counts as 9 degC/h."""
+    return max(s if s is not None else 9.0 for s in r["soak_dph"])
+
+
+def in_use(r):
+    return sum(r["in_use_pct"]) / len(r["in_use_pct"])
+
+
+def forecast_pairs(r):
+    """History pairs (random, field) whose residual the forecast meets within 1.5x."""
+    f, after = r["forecast_dph"], r["in_use_after_dph"]
+    if not f:
+        return 0
+    within = [1 / FORECAST_WITHIN <= m / f <= FORECAST_WITHIN for m in after]
+    return sum(within[i] and within[i + 1] for i in range(0, len(within), 2))
+
+
+def group(r):
+    return "fast" if r["plant"].startswith("fast-") else "bench"
+
+
+def summary(rows, label):
+    cells = collections.defaultdict(list)
+    for r in rows:
+        cells[(r["hours"], group(r))].append(r)
+    for (hours, g), rs in sorted(cells.items()):
+        target = SOAK_TARGET_DPH.get(hours, 0.01)
+        geo = math.exp(sum(math.log(worse_soak(r)) for r in rs) / len(rs))
+        soak_ok = sum(worse_soak(r) <= target for r in rs)
+        both = sum(worse_soak(r) <= target and in_use(r) >= IN_USE_TARGET_PCT for r in rs)
+        pairs = sum(len(r["in_use_pct"]) // 2 for r in rs)
+        print(f"{label:8s} {hours:2d} h {g:5s} n={len(rs):3d}  soak geo {geo:.4f} deg/h, <= {target}: {soak_ok:3d}, "
+              f"both targets: {both:3d}  in use {sum(in_use(r) for r in rs) / len(rs):5.2f} % "
+              f"(>= 93: {sum(in_use(r) >= IN_USE_TARGET_PCT for r in rs):3d})  "
+              f"forecast within 1.5x: {sum(forecast_pairs(r) for r in rs)}/{pairs} pairs")
+
+
+def per_plant(before, after):
+    def key(r):
+        return r["plant"], r["hours"], r["seed"]
+
+    b = {key(r): r for r in before}
+    cells = collections.defaultdict(list)
+    for r in after:
+        if key(r) in b:
+            cells[(r["hours"], r["plant"])].append((b[key(r)], r))
+    for (hours, plant), pairs in sorted(cells.items()):
+        geo = [math.exp(sum(math.log(worse_soak(p[i])) for p in pairs) / len(pairs)) for i in (0, 1)]
+        use = [sum(in_use(p[i]) for p in pairs) / len(pairs) for i in (0, 1)]
+        print(f"  {hours:2d} h {plant:13s} soak {geo[0]:.4f} -> {geo[1]:.4f}   in use {use[0]:5.1f} -> {use[1]:5.1f}")
+
+
+def seeds(spec):
+    lo, _, hi = spec.partition("-")
+    return list(range(int(lo), int(hi or lo) + 1))
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--trainer", default="target/release/trainer")
+    p.add_argument("--dir", default="target/soak-sweep")
+    p.add_argument("--hours", default="12,24")
+    p.add_argument("--seeds", default="1-8", help="plan seeds, e.g. 1-8 or 3")
+    p.add_argument("--pairs", type=int, default=3, help=f"random + field history pairs, 1 ... {len(PAIR_SEEDS)}")
+    p.add_argument("--plants", help="default: every plant (doc, unit1, unit2, other, d1 ... d16, fast-doc, ...)")
+    p.add_argument("--fit-args", default="")
+    p.add_argument("--plan-args", default="", help="extra `trainer plan` options, e.g. --soak-ends")
+    p.add_argument("--out", help="write every training's figures here, as JSON lines")
+    p.add_argument("--compare", help="a previous --out file: both summaries and each plant's change")
+    a = p.parse_args()
+    if not 1 <= a.pairs <= len(PAIR_SEEDS):
+        p.error(f"--pairs must be 1 ... {len(PAIR_SEEDS)}")
+    os.makedirs(a.dir, exist_ok=True)
+    plants = dict(PLANTS)
+    for name in ("doc", "unit1", "design1", "design3", "design4"):
+        plants[f"fast-{name}"] = fast_args(a.trainer, name, GYROS[name], a.dir)
+    chosen = a.plants.split(",") if a.plants else list(plants)
+    unknown = [c for c in chosen if c not in plants]
+    if unknown:
+        p.error(f"unknown plants {unknown}; known: {', '.join(plants)}")
+    plans = {}
+    for h in a.hours.split(","):
+        for s in seeds(a.seeds):
+            plans[(int(h), s)] = path = os.path.join(a.dir, f"plan{h}_s{s}.csv")
+            run([a.trainer, "plan", "--min-c", "-40", "--max-c", "60", "--max-rate-c-per-min", "5", "--hours", h,
+                 "--seed", str(s), "-o", path, "--force", *shlex.split(a.plan_args)])
+    runs = history_runs(a.pairs)
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 2) as pool:
+        sims = [(c, n) for c in chosen for n in runs]
+        for c in chosen:
+            os.makedirs(os.path.join(a.dir, c), exist_ok=True)
+        list(pool.map(lambda j: simulate(a.trainer, plants[j[0]], runs[j[1]][0], runs[j[1]][1],
+                                         os.path.join(a.dir, j[0], f"{j[1]}.csv")), sims))
+        rows = list(pool.map(lambda j: score(a, plants, runs, j[0], j[1][0], j[1][1], plans[j[1]]),
+                             [(c, k) for k in plans for c in chosen]))
+    if a.out:
+        with open(a.out, "w") as f:
+            f.writelines(json.dumps(r) + "\n" for r in rows)
+    if a.compare:
+        before = [json.loads(line) for line in open(a.compare)]
+        summary(before, "before")
+        summary(rows, "after")
+        per_plant(before, rows)
+    else:
+        summary(rows, "")
+
+
+if __name__ == "__main__":
+    main()
