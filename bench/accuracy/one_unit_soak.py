@@ -127,13 +127,20 @@ def score(trainer, fit_args, gyro, gyro_args, plan, hours, root):
     return gyro, hours, spread, noise, gains, forecast
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def plan_bench_arguments(description, default_dir):
+    """The options every planned-run bench here takes: the trainer, its directory of runs,
+    the fit's and the plan's extra options, the plan lengths."""
+    p = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--trainer", default="target/release/trainer")
-    p.add_argument("--dir", default="target/one-unit-soak")
+    p.add_argument("--dir", default=default_dir)
     p.add_argument("--fit-args", default="")
     p.add_argument("--plan-args", default="", help="extra `trainer plan` options, e.g. --soak-ends")
     p.add_argument("--hours", default="12,24")
+    return p
+
+
+def main():
+    p = plan_bench_arguments(__doc__, "target/one-unit-soak")
     p.add_argument("--gyros", help="default: every gyro and its fast twin (doc, fast-doc, unit1, ...)")
     a = p.parse_args()
     os.makedirs(a.dir, exist_ok=True)

@@ -30,9 +30,8 @@ plant's change.
 
 Runs are simulated once per directory and reused (a planned run under a digest of its set
 points); fits and evaluations are redone every time, so two trainers compare on the same
-runs. 25 plants x 16 plans took 6 min on two cores the first time (2026-12-01).
+runs. 25 plants x 16 plans took 6 min on two cores the first time, 5 min after (2026-12-01).
 """
-import argparse
 import collections
 import json
 import math
@@ -40,7 +39,7 @@ import os
 import shlex
 from concurrent.futures import ThreadPoolExecutor
 
-from one_unit_soak import GYROS, SOAK_B, fast_args, run, set_points_digest
+from one_unit_soak import GYROS, SOAK_B, fast_args, plan_bench_arguments, run, set_points_digest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PLANTS = {"doc": [], "unit1": ["--unit", "1"], "unit2": ["--unit", "2"],
@@ -154,15 +153,10 @@ def seeds(spec):
 
 
 def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--trainer", default="target/release/trainer")
-    p.add_argument("--dir", default="target/soak-sweep")
-    p.add_argument("--hours", default="12,24")
+    p = plan_bench_arguments(__doc__, "target/soak-sweep")
     p.add_argument("--seeds", default="1-8", help="plan seeds, e.g. 1-8 or 3")
     p.add_argument("--pairs", type=int, default=3, help=f"random + field history pairs, 1 ... {len(PAIR_SEEDS)}")
     p.add_argument("--plants", help="default: every plant (doc, unit1, unit2, other, d1 ... d16, fast-doc, ...)")
-    p.add_argument("--fit-args", default="")
-    p.add_argument("--plan-args", default="", help="extra `trainer plan` options, e.g. --soak-ends")
     p.add_argument("--out", help="write every training's figures here, as JSON lines")
     p.add_argument("--compare", help="a previous --out file: both summaries and each plant's change")
     a = p.parse_args()
