@@ -18,8 +18,8 @@ halved) and each plan (`trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min
 - the fit's `predicted_in_use_std100_dph` against each history of each pair.
 
 It prints, per plan length and plant group (the 20 bench plants, the 5 fast twins): the
-soak's geometric mean, how many trainings meet issue 48's soak target (0.03 / 0.01 degC
-after 12 / 24 h) and both targets (and in use >= 93 %), the in-use mean, and the history
+soak's geometric mean, how many trainings meet issue 48's soak target (0.03 deg/h after
+12 h, 0.01 after any other length) and both targets (and in use >= 93 %), the in-use mean, and the history
 pairs whose forecast is within 1.5x of both histories. `--out` writes every training's
 figures as JSON lines; `--compare BEFORE.jsonl` prints the same summary for both and each
 plant's change.
