@@ -47,6 +47,9 @@ TIME_CONSTANTS = ["tau_base_s", "tau_top_s", "tau_electronics_s", "tau_coil_oute
 DOC_PLANT = {"tau_base_s": 900.0, "tau_top_s": 1500.0, "tau_electronics_s": 600.0,
              "tau_coil_outer_s": 500.0, "tau_coil_layer_s": 700.0}
 SOAK_B = "10,-40,50,-10,30,60,-30,0"
+# The in-use histories every soak bench here judges on (their seeds are each script's own).
+RANDOM_HISTORY = ["--profile", "random", "--random-range-c=-20,50", "--ramp-range-c-per-min", "0.2,3", "--hours", "8"]
+FIELD_HISTORY = ["--profile", "field"]
 MIN_LAG_S = 5.0
 
 
@@ -84,9 +87,8 @@ def histories(trainer, gyro_args, d):
     runs = {
         "soakA": ["--profile", "soak", "--seed", "503"],
         "soakB": ["--profile", "soak", "--soak-levels-c", SOAK_B, "--seed", "507"],
-        "random": ["--profile", "random", "--random-range-c=-20,50", "--ramp-range-c-per-min", "0.2,3",
-                   "--hours", "8", "--seed", "511"],
-        "field": ["--profile", "field", "--seed", "513"],
+        "random": RANDOM_HISTORY + ["--seed", "511"],
+        "field": FIELD_HISTORY + ["--seed", "513"],
     }
     # The soak tests' noise alone: the same seeds with the thermal bias zeroed.
     runs["soakA_noise"] = runs["soakA"] + ["--noise-only"]
@@ -96,6 +98,14 @@ def histories(trainer, gyro_args, d):
         if not os.path.exists(path):
             run(sim + args + ["-o", path])
     return [os.path.join(d, f"{n}.csv") for n in runs]
+
+
+def plan_run(trainer, hours, path, extra=()):
+    """`trainer plan` within issue 48's chamber limits (-40 ... 60 degC, 5 degC/min) for `hours`,
+    written to `path`; `extra` are further `trainer plan` options (`--seed`, `--soak-ends` ...)."""
+    run([trainer, "plan", "--min-c", "-40", "--max-c", "60", "--max-rate-c-per-min", "5", "--hours", str(hours),
+         "-o", path, "--force", *extra])
+    return path
 
 
 def set_points_digest(plan):
@@ -146,9 +156,7 @@ def main():
     os.makedirs(a.dir, exist_ok=True)
     plans = {}
     for h in a.hours.split(","):
-        plans[h] = os.path.join(a.dir, f"plan{h}.csv")
-        run([a.trainer, "plan", "--min-c", "-40", "--max-c", "60", "--max-rate-c-per-min", "5", "--hours", h,
-             "-o", plans[h], "--force", *shlex.split(a.plan_args)])
+        plans[h] = plan_run(a.trainer, h, os.path.join(a.dir, f"plan{h}.csv"), shlex.split(a.plan_args))
     gyros = {}
     for name, args in GYROS.items():
         gyros[name] = args

@@ -31,7 +31,7 @@ import os
 import subprocess
 from concurrent.futures import ThreadPoolExecutor
 
-from one_unit_soak import set_points_digest
+from one_unit_soak import FIELD_HISTORY, RANDOM_HISTORY, plan_run, set_points_digest
 
 PLANTS = {"doc": [], "unit1": ["--unit", "1"], "unit2": ["--unit", "2"],
           "other": ["--params", os.path.join(os.path.dirname(os.path.abspath(__file__)), "other-design.json")]}
@@ -40,9 +40,8 @@ PLANTS.update({f"design{d}": ["--design", str(d)] for d in range(1, 17)})
 RUNS = {
     "soakA": (["--profile", "soak"], 515),
     "soakB": (["--profile", "soak", "--soak-levels-c", "10,-40,50,-10,30,60,-30,0"], 516),
-    "random": (["--profile", "random", "--random-range-c=-20,50", "--ramp-range-c-per-min", "0.2,3",
-                "--hours", "8"], 511),
-    "field": (["--profile", "field"], 513),
+    "random": (RANDOM_HISTORY, 511),
+    "field": (FIELD_HISTORY, 513),
 }
 
 
@@ -94,8 +93,7 @@ def main():
     hours = [int(h) for h in args.hours.split(",")]
     plants = args.plants.split(",")
     for h in hours:
-        run([args.trainer, "plan", "--min-c", "-40", "--max-c", "60", "--max-rate-c-per-min", "5", "--hours", str(h),
-             "--seed", "1", "-o", os.path.join(args.dir, f"plan{h}.csv"), "--force"])
+        plan_run(args.trainer, h, os.path.join(args.dir, f"plan{h}.csv"), ["--seed", "1"])
     with ThreadPoolExecutor(2) as pool:
         results = list(pool.map(lambda job: one(args, *job), [(pl, h) for h in hours for pl in plants]))
     labels = list(BESIDE)

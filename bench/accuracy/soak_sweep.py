@@ -19,8 +19,8 @@ halved) and each plan (`trainer plan --min-c -40 --max-c 60 --max-rate-c-per-min
 
 It prints, per plan length and plant group (the 20 bench plants, the 5 fast twins): the
 soak's geometric mean, how many trainings meet issue 48's soak target (0.03 deg/h after
-12 h, 0.01 after any other length) and both targets (and in use >= 93 %), the in-use mean, and the history
-pairs whose forecast is within 1.5x of both histories. `--out` writes every training's
+12 h, 0.01 after any other length) and both targets (and in use >= 93 %), the in-use
+mean, and the history pairs whose forecast is within 1.5x of both histories. `--out` writes every training's
 figures as JSON lines; `--compare BEFORE.jsonl` prints the same summary for both and each
 plant's change.
 
@@ -39,15 +39,14 @@ import os
 import shlex
 from concurrent.futures import ThreadPoolExecutor
 
-from one_unit_soak import GYROS, SOAK_B, fast_args, plan_bench_arguments, run, set_points_digest
+from one_unit_soak import (FIELD_HISTORY, GYROS, RANDOM_HISTORY, SOAK_B, fast_args, plan_bench_arguments, plan_run,
+                            run, set_points_digest)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PLANTS = {"doc": [], "unit1": ["--unit", "1"], "unit2": ["--unit", "2"],
           "other": ["--params", os.path.join(HERE, "other-design.json")]}
 PLANTS.update({f"d{d}": ["--design", str(d)] for d in range(1, 17)})
 SOAKS = {"soakA": (["--profile", "soak"], 515), "soakB": (["--profile", "soak", "--soak-levels-c", SOAK_B], 516)}
-RANDOM = ["--profile", "random", "--random-range-c=-20,50", "--ramp-range-c-per-min", "0.2,3", "--hours", "8"]
-FIELD = ["--profile", "field"]
 PAIR_SEEDS = [(511, 513), (512, 514), (517, 518), (519, 520), (521, 522)]
 SOAK_TARGET_DPH = {12: 0.03, 24: 0.01}
 IN_USE_TARGET_PCT = 93.0
@@ -58,8 +57,8 @@ def history_runs(pairs):
     """Every run a plant is judged on: name -> (simulate args, seed)."""
     runs = dict(SOAKS)
     for i, (r, f) in enumerate(PAIR_SEEDS[:pairs]):
-        runs[f"random{i + 1}"] = (RANDOM, r)
-        runs[f"field{i + 1}"] = (FIELD, f)
+        runs[f"random{i + 1}"] = (RANDOM_HISTORY, r)
+        runs[f"field{i + 1}"] = (FIELD_HISTORY, f)
     return runs
 
 
@@ -104,7 +103,7 @@ def in_use(r):
 
 
 def forecast_pairs(r):
-    """History pairs (random, field) whose residual the forecast meets within 1.5x."""
+    """History pairs (random, field) whose residual the forecast meets within FORECAST_WITHIN."""
     f, after = r["forecast_dph"], r["in_use_after_dph"]
     if not f:
         return 0
@@ -128,8 +127,8 @@ def summary(rows, label):
         pairs = sum(len(r["in_use_pct"]) // 2 for r in rs)
         print(f"{label:8s} {hours:2d} h {g:5s} n={len(rs):3d}  soak geo {geo:.4f} deg/h, <= {target}: {soak_ok:3d}, "
               f"both targets: {both:3d}  in use {sum(in_use(r) for r in rs) / len(rs):5.2f} % "
-              f"(>= 93: {sum(in_use(r) >= IN_USE_TARGET_PCT for r in rs):3d})  "
-              f"forecast within 1.5x: {sum(forecast_pairs(r) for r in rs)}/{pairs} pairs")
+              f"(>= {IN_USE_TARGET_PCT:g}: {sum(in_use(r) >= IN_USE_TARGET_PCT for r in rs):3d})  "
+              f"forecast within {FORECAST_WITHIN:g}x: {sum(forecast_pairs(r) for r in rs)}/{pairs} pairs")
 
 
 def per_plant(before, after):
@@ -164,8 +163,8 @@ def main():
         p.error(f"--pairs must be 1 ... {len(PAIR_SEEDS)}")
     os.makedirs(a.dir, exist_ok=True)
     plants = dict(PLANTS)
-    for name in ("doc", "unit1", "design1", "design3", "design4"):
-        plants[f"fast-{name}"] = fast_args(a.trainer, name, GYROS[name], a.dir)
+    for name, args in GYROS.items():
+        plants[f"fast-{name}"] = fast_args(a.trainer, name, args, a.dir)
     chosen = a.plants.split(",") if a.plants else list(plants)
     unknown = [c for c in chosen if c not in plants]
     if unknown:
@@ -173,9 +172,8 @@ def main():
     plans = {}
     for h in a.hours.split(","):
         for s in seeds(a.seeds):
-            plans[(int(h), s)] = path = os.path.join(a.dir, f"plan{h}_s{s}.csv")
-            run([a.trainer, "plan", "--min-c", "-40", "--max-c", "60", "--max-rate-c-per-min", "5", "--hours", h,
-                 "--seed", str(s), "-o", path, "--force", *shlex.split(a.plan_args)])
+            plans[(int(h), s)] = plan_run(a.trainer, h, os.path.join(a.dir, f"plan{h}_s{s}.csv"),
+                                          ["--seed", str(s), *shlex.split(a.plan_args)])
     runs = history_runs(a.pairs)
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 2) as pool:
         sims = [(c, n) for c in chosen for n in runs]
