@@ -479,6 +479,30 @@ impl SettledBias {
 /// in means of the loop temperature `temp_c` starting at `time_s` on their
 /// run's clock, of run `run`, each `period_s` long, °C.
 pub fn settled_levels_c(time_s: &[f64], temp_c: &[f64], run: &[usize], period_s: f64) -> Vec<f64> {
+    settled_windows(time_s, temp_c, run, period_s)
+        .iter()
+        .map(|w| w.temp_c)
+        .collect()
+}
+
+/// A settled plateau's window in means of the loop temperature
+/// ([`settled_windows`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SettledWindow {
+    /// The run it lies in.
+    pub run: usize,
+    /// Loop temperature, mean over the window, °C.
+    pub temp_c: f64,
+    /// Start of the window on the run's clock, s.
+    pub start_s: f64,
+    /// End of the window on the run's clock, s.
+    pub end_s: f64,
+}
+
+/// The settled plateaus' windows in means of the loop temperature `temp_c`
+/// starting at `time_s` on their run's clock, of run `run` (consecutive
+/// means of one run together), each `period_s` long; in time order per run.
+pub fn settled_windows(time_s: &[f64], temp_c: &[f64], run: &[usize], period_s: f64) -> Vec<SettledWindow> {
     let mut out = Vec::new();
     let mut start = 0;
     while start < run.len() {
@@ -491,7 +515,12 @@ pub fn settled_levels_c(time_s: &[f64], temp_c: &[f64], run: &[usize], period_s:
         out.extend(
             settled_plateaus(&blocker.finish(), first_s, period_s)
                 .iter()
-                .map(|p| p.temp_c),
+                .map(|p| SettledWindow {
+                    run: run[start],
+                    temp_c: p.temp_c,
+                    start_s: p.window_start_s,
+                    end_s: p.window_end_s,
+                }),
         );
         start = end;
     }

@@ -19,6 +19,7 @@ pub(crate) mod ranges;
 pub mod rbf;
 pub mod response;
 pub(crate) mod scoring;
+pub mod settled_blocks;
 pub(crate) mod svr_data;
 pub mod svr_pso;
 pub mod thermometer_search;

@@ -13,7 +13,9 @@
 //!   firmware's arithmetic), samples still warming up left out.
 //! - The weights: [`solve_weights`], one ridge regression with an offset per
 //!   run, the columns standardised and the penalty on the dynamic ones,
-//!   growing with the filter's time constant, each mixture at its own share.
+//!   growing with the filter's time constant, each mixture at its own share;
+//!   the settled levels' blocks weighed more where they span the range
+//!   ([`super::settled_blocks`]).
 //! - The network: no centres, the linear layer [c₁ … c₃, 1, 1, 1, 1, 1] on
 //!   the bank's inputs and the constant c₀.
 //!
@@ -29,6 +31,7 @@ use rbf_core::{CompensatorConfig, FeatureConfig, FeatureExtractor, FeatureSet};
 
 use super::FitOptions;
 use super::linalg::{GramStats, ridge_factor, ridge_solve_weighted};
+use super::settled_blocks::settled_block_weights;
 use crate::dataset::{RunSet, SampleVisit};
 
 /// Filters the fitted bank runs.
@@ -93,6 +96,9 @@ pub struct ChannelBlocks {
     pub runs: usize,
     /// Per-sample range of each channel.
     pub range: Vec<(f64, f64)>,
+    /// How many times each block counts in the regression
+    /// ([`super::settled_blocks::settled_block_weights`]).
+    pub weight: Vec<f64>,
 }
 
 /// The static part and mixtures of a bank, as [`solve_weights`] gives them.
@@ -203,7 +209,9 @@ pub fn plain_bank_and_blocks<T: RunSet + ?Sized>(
     let ref_c = (0.5 * (lo + hi)) as f32;
     let bank = ResponseBank::new(&taus_s(), ref_c, lo as f32, hi as f32, STATIC_DEGREE)
         .ok_or_else(|| anyhow::anyhow!("no valid response bank over {lo} … {hi} °C"))?;
-    let blocks = channel_blocks(train, &bank)?;
+    let mut blocks = channel_blocks(train, &bank)?;
+    let temp_c: Vec<f64> = blocks.x.iter().map(|x| x[0] + f64::from(ref_c)).collect();
+    blocks.weight = settled_block_weights(&blocks.time_s, &temp_c, &blocks.run, BLOCK_S);
     anyhow::ensure!(
         blocks.y.len() > 4 * (blocks.runs + CHANNELS),
         "{} blocks of {BLOCK_S} s: too few to fit the response bank's {CHANNELS} weights",
@@ -335,6 +343,10 @@ impl ChannelBlocks {
             y: rows.iter().map(|&i| self.y[i]).collect(),
             run,
             time_s: rows.iter().map(|&i| self.time_s[i]).collect(),
+            weight: rows
+                .iter()
+                .map(|&i| self.weight.get(i).copied().unwrap_or(1.0))
+                .collect(),
             runs,
             range: self.range.clone(),
         }
@@ -350,6 +362,7 @@ impl ChannelBlocks {
         self.y.push(block.y / n);
         self.run.push(block.key.0);
         self.time_s.push(block.start_s);
+        self.weight.push(1.0);
     }
 }
 
@@ -411,15 +424,26 @@ impl Design {
 /// The weights by ridge regression of the block targets on an offset per
 /// run and the `CHANNELS` channels, the channels standardised, the
 /// penalty on the dynamic ones only: λ·n·s_m·τ_k/τ₀ on the channel of
-/// mixture m and filter k ([`RIDGE_LAMBDA`], [`MIXTURE_PRIOR_SHARE`], [`PRIOR_TAU_S`]).
+/// mixture m and filter k ([`RIDGE_LAMBDA`], [`MIXTURE_PRIOR_SHARE`], [`PRIOR_TAU_S`]),
+/// n the number of blocks; each block's squared residual counted
+/// `blocks.weight` times (the settled ones more where they span the range:
+/// [`super::settled_blocks`]).
 pub fn solve_weights(blocks: &ChannelBlocks) -> anyhow::Result<Weights> {
     let statics = STATIC_DEGREE as usize;
     let n = blocks.y.len();
-    let design = Design::of(blocks);
+    let mut design = Design::of(blocks);
+    let root_weight: Vec<f64> = (0..n)
+        .map(|i| blocks.weight.get(i).copied().unwrap_or(1.0).sqrt())
+        .collect();
+    for (mut row, w) in design.a.row_iter_mut().zip(&root_weight) {
+        row *= *w;
+    }
+    let y = DVector::from_iterator(n, blocks.y.iter().zip(&root_weight).map(|(y, w)| y * w));
+    let mut stats = GramStats::new(&design.a, &y);
+    // The prior's strength is per block, whatever the blocks' weights.
+    stats.n = n;
     let (runs, cols) = (design.runs, design.cols());
     let (mean, scale) = (&design.mean, &design.scale);
-    let y = DVector::from_column_slice(&blocks.y);
-    let stats = GramStats::new(&design.a, &y);
     let penalty_scale = |c: usize| design.penalty_scale(c);
     let beta = ridge_solve_weighted(&stats, cols, RIDGE_LAMBDA, penalty_scale)
         .ok_or_else(|| anyhow::anyhow!("the response bank's regression is singular"))?;

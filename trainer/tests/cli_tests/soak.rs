@@ -288,9 +288,9 @@ fn soak_levels_and_hold_set_the_plateaus_and_need_the_soak_profile() {
 #[test]
 fn a_fit_on_a_run_settled_in_every_band_forecasts_a_soak_s_spread_as_its_own_levels_and_eval_agrees() {
     // Three 2-h holds settle the loop in every 20-°C band the run covers: the
-    // runs' own settled spread is then the forecast of a soak test's (the
-    // planned run without it keeps it null:
-    // `plan::a_plan_runs_through_the_simulator_and_a_fit_reports_its_coverage`).
+    // runs' own settled spread, with eight levels' noise in quadrature, is
+    // then the forecast of a soak test's (the planned run without it keeps it
+    // null: `plan::a_plan_runs_through_the_simulator_and_a_fit_reports_its_coverage`).
     let dir = TempDir::new().unwrap();
     let run = dir.path().join("soak3.csv");
     let path = run.to_str().unwrap();
@@ -328,7 +328,14 @@ fn a_fit_on_a_run_settled_in_every_band_forecasts_a_soak_s_spread_as_its_own_lev
     let fit = crate::common::read_json(&fit_json);
     assert_eq!(fit["training_settled_levels"], 3, "{fit}");
     let floor = fit["training_settled_spread_dph"].as_f64().unwrap();
-    assert_eq!(fit["predicted_settled_spread_dph"].as_f64(), Some(floor), "{fit}");
+    let level_noise = fit["training_settled_noise_dph"].as_f64().unwrap();
+    assert!(level_noise > 0.0, "{fit}");
+    let forecast = fit["predicted_settled_spread_dph"].as_f64().unwrap();
+    let expected = floor.hypot(::trainer::fit::vouch::SOAK_NOISE_RANGE_SD * level_noise);
+    assert!(
+        (forecast - expected).abs() <= 1e-12 * expected && forecast > floor,
+        "forecast {forecast}, floor {floor} with eight levels' noise {expected}"
+    );
     assert!(
         fit["settled_forecast"]
             .as_str()

@@ -42,6 +42,8 @@ pub(super) fn outcome_json(o: &FitOutcome, in_use: &InUse, floor: Option<&Settle
         // A floor under what a soak test of the unit reads, from the training runs' own settled levels.
         "training_settled_spread_dph": floor.map(|f| f.spread_dph),
         "training_settled_levels": floor.map(|f| f.levels),
+        // The largest noise of those levels' means, °/h: what the settled forecast adds for a soak test's own noise.
+        "training_settled_noise_dph": floor.map(|f| f.noise_dph),
         "residual_over_noise_floor": o.residual_over_noise_floor(),
         "unmodelled_dynamics": o.residual_over_noise_floor().map(trainer::fit::vouch::unmodelled),
         // What the runs lacked for `in_use` (the `missing:` lines); null for a method that does not say.
@@ -72,8 +74,12 @@ fn settled_forecast(o: &FitOutcome, in_use: &InUse, floor: Option<&SettledFloor>
     if let (Some(dph), Some(f)) = (forecast, floor) {
         return format!(
             "forecast: the runs hold a settled level in every 20-°C band; a soak test of other levels and order \
-             reads about the training run's own settled spread, {dph:.4e} °/h over {} levels ({}; docs/methods.md)",
+             reads about the training run's own settled spread, {:.4e} °/h over {} levels, with eight levels' noise \
+             ({} × {:.1e} °/h) in quadrature: {dph:.4e} °/h ({}; docs/methods.md)",
+            f.spread_dph,
             f.levels,
+            trainer::fit::vouch::SOAK_NOISE_RANGE_SD,
+            f.noise_dph,
             trainer::fit::vouch::SETTLED_FORECAST_HELD
         );
     }
