@@ -118,14 +118,28 @@ def model_error(soak, noise):
     return max(own) - min(own)
 
 
+def worse(spreads):
+    """The worse of the soak tests' spreads; one without a figure (no plateaus, or none that pair up) counts as
+    9 degC/h."""
+    return max(s if s is not None else 9.0 for s in spreads)
+
+
 def worse_soak(r):
-    """The worse of the two soak tests' spreads; a test without plateaus counts as 9 degC/h."""
-    return max(s if s is not None else 9.0 for s in r["soak_dph"])
+    return worse(r["soak_dph"])
 
 
 def worse_model_error(r):
-    """The worse of the two soak tests' model errors; one that does not pair up counts as 9 degC/h."""
-    return max(s if s is not None else 9.0 for s in r.get("soak_model_error_dph", [None]))
+    return worse(r.get("soak_model_error_dph", [None]))
+
+
+def geo_mean(values):
+    values = list(values)
+    return math.exp(sum(math.log(v) for v in values) / len(values))
+
+
+def within(measured, forecast):
+    """Whether `measured` lies within FORECAST_WITHIN of `forecast`."""
+    return 1 / FORECAST_WITHIN <= measured / forecast <= FORECAST_WITHIN
 
 
 def in_use(r):
@@ -137,8 +151,8 @@ def forecast_pairs(r):
     f, after = r["forecast_dph"], r["in_use_after_dph"]
     if not f:
         return 0
-    within = [1 / FORECAST_WITHIN <= m / f <= FORECAST_WITHIN for m in after]
-    return sum(within[i] and within[i + 1] for i in range(0, len(within), 2))
+    held = [within(m, f) for m in after]
+    return sum(held[i] and held[i + 1] for i in range(0, len(held), 2))
 
 
 def settled_forecast_held(r):
@@ -146,7 +160,7 @@ def settled_forecast_held(r):
     f = r.get("settled_forecast_dph")
     if not f:
         return None
-    return all(s is not None and 1 / FORECAST_WITHIN <= s / f <= FORECAST_WITHIN for s in r["soak_dph"])
+    return all(s is not None and within(s, f) for s in r["soak_dph"])
 
 
 def group(r):
@@ -159,14 +173,15 @@ def summary(rows, label):
         cells[(r["hours"], group(r))].append(r)
     for (hours, g), rs in sorted(cells.items()):
         target = SOAK_TARGET_DPH.get(hours, 0.01)
-        geo = math.exp(sum(math.log(worse_soak(r)) for r in rs) / len(rs))
+        geo = geo_mean(worse_soak(r) for r in rs)
         soak_ok = sum(worse_soak(r) <= target for r in rs)
         own = [worse_model_error(r) for r in rs]
-        own_geo = math.exp(sum(math.log(o) for o in own) / len(own))
+        own_geo = geo_mean(own)
         both = sum(worse_soak(r) <= target and in_use(r) >= IN_USE_TARGET_PCT for r in rs)
         pairs = sum(len(r["in_use_pct"]) // 2 for r in rs)
         print(f"{label:8s} {hours:2d} h {g:5s} n={len(rs):3d}  soak geo {geo:.4f} deg/h, <= {target}: {soak_ok:3d}, "
-              f"both targets: {both:3d}  model's own geo {own_geo:.4f}, <= {target}: {sum(o <= target for o in own):3d}  in use {sum(in_use(r) for r in rs) / len(rs):5.2f} % "
+              f"both targets: {both:3d}  model's own geo {own_geo:.4f}, <= {target}: {sum(o <= target for o in own):3d}  "
+              f"in use {sum(in_use(r) for r in rs) / len(rs):5.2f} % "
               f"(>= {IN_USE_TARGET_PCT:g}: {sum(in_use(r) >= IN_USE_TARGET_PCT for r in rs):3d})  "
               f"forecast within {FORECAST_WITHIN:g}x: {sum(forecast_pairs(r) for r in rs)}/{pairs} pairs  "
               f"settled forecast given {sum(settled_forecast_held(r) is not None for r in rs)}, "
@@ -183,8 +198,8 @@ def per_plant(before, after):
         if key(r) in b:
             cells[(r["hours"], r["plant"])].append((b[key(r)], r))
     for (hours, plant), pairs in sorted(cells.items()):
-        geo = [math.exp(sum(math.log(worse_soak(p[i])) for p in pairs) / len(pairs)) for i in (0, 1)]
-        own = [math.exp(sum(math.log(worse_model_error(p[i])) for p in pairs) / len(pairs)) for i in (0, 1)]
+        geo = [geo_mean(worse_soak(p[i]) for p in pairs) for i in (0, 1)]
+        own = [geo_mean(worse_model_error(p[i]) for p in pairs) for i in (0, 1)]
         use = [sum(in_use(p[i]) for p in pairs) / len(pairs) for i in (0, 1)]
         print(f"  {hours:2d} h {plant:13s} soak {geo[0]:.4f} -> {geo[1]:.4f}   model's own {own[0]:.4f} -> {own[1]:.4f}"
               f"   in use {use[0]:5.1f} -> {use[1]:5.1f}")

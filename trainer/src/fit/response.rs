@@ -343,10 +343,7 @@ impl ChannelBlocks {
             y: rows.iter().map(|&i| self.y[i]).collect(),
             run,
             time_s: rows.iter().map(|&i| self.time_s[i]).collect(),
-            weight: rows
-                .iter()
-                .map(|&i| self.weight.get(i).copied().unwrap_or(1.0))
-                .collect(),
+            weight: rows.iter().map(|&i| self.weight_of(i)).collect(),
             runs,
             range: self.range.clone(),
         }
@@ -363,6 +360,12 @@ impl ChannelBlocks {
         self.run.push(block.key.0);
         self.time_s.push(block.start_s);
         self.weight.push(1.0);
+    }
+
+    /// How many times block `i` counts in the regression: its `weight`, 1
+    /// where none was set (blocks assembled without [`plain_bank_and_blocks`]).
+    fn weight_of(&self, i: usize) -> f64 {
+        self.weight.get(i).copied().unwrap_or(1.0)
     }
 }
 
@@ -432,16 +435,13 @@ pub fn solve_weights(blocks: &ChannelBlocks) -> anyhow::Result<Weights> {
     let statics = STATIC_DEGREE as usize;
     let n = blocks.y.len();
     let mut design = Design::of(blocks);
-    let root_weight: Vec<f64> = (0..n)
-        .map(|i| blocks.weight.get(i).copied().unwrap_or(1.0).sqrt())
-        .collect();
+    let root_weight: Vec<f64> = (0..n).map(|i| blocks.weight_of(i).sqrt()).collect();
     for (mut row, w) in design.a.row_iter_mut().zip(&root_weight) {
         row *= *w;
     }
     let y = DVector::from_iterator(n, blocks.y.iter().zip(&root_weight).map(|(y, w)| y * w));
-    let mut stats = GramStats::new(&design.a, &y);
-    // The prior's strength is per block, whatever the blocks' weights.
-    stats.n = n;
+    // n stays the number of blocks: the prior's strength is per block, whatever their weights.
+    let stats = GramStats::new(&design.a, &y);
     let (runs, cols) = (design.runs, design.cols());
     let (mean, scale) = (&design.mean, &design.scale);
     let penalty_scale = |c: usize| design.penalty_scale(c);
