@@ -31,6 +31,23 @@ pub const LAG_BANK_EXCESS_FACTOR: f64 = 1.0;
 /// than any other history.
 pub const RESPONSE_BANK_EXCESS_FACTOR: f64 = 2.0;
 
+/// The response bank's factor where its regression weighed the runs'
+/// settled levels ([`super::settled_blocks`]): part of its training residual
+/// is then the price of holding the settled curve, not weights that follow
+/// the run, and it carries to other histories nearly as it is.
+pub const WEIGHED_RESPONSE_BANK_EXCESS_FACTOR: f64 = 1.25;
+
+/// The response bank's excess factor: [`WEIGHED_RESPONSE_BANK_EXCESS_FACTOR`]
+/// where its regression weighed the runs' settled levels
+/// (`settled_levels_weighed`), [`RESPONSE_BANK_EXCESS_FACTOR`] elsewhere.
+pub fn response_bank_excess_factor(settled_levels_weighed: bool) -> f64 {
+    if settled_levels_weighed {
+        WEIGHED_RESPONSE_BANK_EXCESS_FACTOR
+    } else {
+        RESPONSE_BANK_EXCESS_FACTOR
+    }
+}
+
 /// The in-use 100-s cluster STD forecast from a training residual, °/h: the
 /// white-noise floor as it is, the rest (in quadrature) times
 /// `excess_factor`. Without a floor the whole residual is scaled. A floor
@@ -170,6 +187,28 @@ mod tests {
         assert!(near(in_use_std100(residual(0.003, Some(0.0035)), 2.0), 0.003));
         // No floor to tell: the whole residual scaled.
         assert!(near(in_use_std100(residual(0.003, None), 2.0), 0.006));
+    }
+
+    #[test]
+    fn a_response_bank_that_weighed_settled_levels_forecasts_less_excess_and_the_same_floor() {
+        // The weighed fit's residual holds the price of the settled curve,
+        // which carries to other histories: its excess is scaled less.
+        let residual = TrainingResidual {
+            std100_dph: 0.02,
+            noise_floor_std100_dph: Some(0.005),
+        };
+        let weighed = in_use_std100(residual, response_bank_excess_factor(true));
+        let plain = in_use_std100(residual, response_bank_excess_factor(false));
+        assert!(residual.std100_dph < weighed && weighed < plain, "{weighed} {plain}");
+        let at_floor = TrainingResidual {
+            std100_dph: 0.005,
+            noise_floor_std100_dph: Some(0.005),
+        };
+        let (w, p) = (
+            in_use_std100(at_floor, response_bank_excess_factor(true)),
+            in_use_std100(at_floor, response_bank_excess_factor(false)),
+        );
+        assert!((w - 0.005).abs() < 1e-12 && (p - 0.005).abs() < 1e-12, "{w} {p}");
     }
 
     #[test]

@@ -41,6 +41,18 @@ impl BankReport {
     pub fn response_bank_chosen(&self) -> bool {
         self.structure.as_ref().is_some_and(|s| s.response_bank)
     }
+
+    /// The forecast's factor for a deployed response bank: smaller where its
+    /// regression weighed the runs' settled levels
+    /// ([`forecast::WEIGHED_RESPONSE_BANK_EXCESS_FACTOR`]).
+    pub fn response_bank_excess_factor(&self) -> f64 {
+        forecast::response_bank_excess_factor(
+            self.structure
+                .as_ref()
+                .and_then(|s| s.response_bank_settled_levels_weighed)
+                .unwrap_or(false),
+        )
+    }
 }
 
 /// The report of the method that ran: one variant per [`Method`](super::Method).
@@ -105,7 +117,7 @@ impl FitOutcome {
     /// not forecast.
     pub fn excess_factor(&self) -> Option<f64> {
         match &self.report {
-            FitReport::Bank(bank) if bank.response_bank_chosen() => Some(forecast::RESPONSE_BANK_EXCESS_FACTOR),
+            FitReport::Bank(bank) if bank.response_bank_chosen() => Some(bank.response_bank_excess_factor()),
             FitReport::Bank(_) => Some(forecast::LAG_BANK_EXCESS_FACTOR),
             _ => None,
         }

@@ -140,6 +140,8 @@ pub struct Identified {
     pub training_std100_dph: f64,
     /// Its held-out score ([`held_out_rms`]), °/h.
     pub held_out_rms_dph: f64,
+    /// Its regression weighed the runs' settled levels ([`super::settled_blocks`]).
+    pub settled_levels_weighed: bool,
 }
 
 /// [`identify`], with the fitted model's training residual and held-out
@@ -155,6 +157,7 @@ pub fn identify_with_residual<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) 
         model: fitted_model_with(bank, &w, &blocks, opts)?,
         training_std100_dph,
         held_out_rms_dph,
+        settled_levels_weighed: blocks.settled_levels_weighed(),
     })
 }
 
@@ -366,6 +369,12 @@ impl ChannelBlocks {
     /// where none was set (blocks assembled without [`plain_bank_and_blocks`]).
     fn weight_of(&self, i: usize) -> f64 {
         self.weight.get(i).copied().unwrap_or(1.0)
+    }
+
+    /// Whether any block counts more than once: the runs' settled levels
+    /// span their range and are weighed ([`super::settled_blocks`]).
+    pub fn settled_levels_weighed(&self) -> bool {
+        self.weight.iter().any(|&w| w > 1.0)
     }
 }
 
@@ -590,6 +599,9 @@ pub struct StructureChoice {
     pub response_bank_held_out_rms_dph: Option<f64>,
     /// The response bank was chosen.
     pub response_bank: bool,
+    /// The response bank's regression weighed the runs' settled levels
+    /// ([`super::settled_blocks`]; `None`: not identified).
+    pub response_bank_settled_levels_weighed: Option<bool>,
 }
 
 /// The response bank replaces the lag bank when its training residual is
@@ -617,11 +629,14 @@ impl StructureChoice {
     /// the identified `response` bank, if it was identified, over runs
     /// whose noise floor is `noise_floor_std100_dph`.
     pub fn between(lag_bank: [f64; 2], noise_floor_std100_dph: Option<f64>, response: Option<&Identified>) -> Self {
-        Self::from_scores(
-            lag_bank,
-            noise_floor_std100_dph,
-            response.map(|r| [r.training_std100_dph, r.held_out_rms_dph]),
-        )
+        StructureChoice {
+            response_bank_settled_levels_weighed: response.map(|r| r.settled_levels_weighed),
+            ..Self::from_scores(
+                lag_bank,
+                noise_floor_std100_dph,
+                response.map(|r| [r.training_std100_dph, r.held_out_rms_dph]),
+            )
+        }
     }
 
     /// The choice from each structure's [training residual, held-out score], °/h.
@@ -640,6 +655,7 @@ impl StructureChoice {
             response_bank: response_bank.is_some_and(|[train, held_out]| {
                 train < RESPONSE_BANK_MARGIN * lag_bank_std100_dph && held_out < lag_bank_held_out_rms_dph
             }),
+            response_bank_settled_levels_weighed: None,
         }
     }
 }
