@@ -7,7 +7,7 @@
 //! model's error, which grows in use as far as the histories differ from the
 //! runs. The forecast keeps the first ([`white_noise_std100`], the floor) and
 //! scales the second by a factor per structure ([`in_use_std100`],
-//! [`LAG_BANK_EXCESS_FACTOR`], [`RESPONSE_BANK_EXCESS_FACTOR`]). It is for
+//! [`LAG_BANK_EXCESS_FACTOR`], [`response_bank_excess_factor`]). It is for
 //! temperature changes no faster than the runs held: a run without fast
 //! changes (`missing:`'s "no fast change") leaves more in use than forecast.
 //! Held-out thermal events, the other candidate, forecast too much after a
