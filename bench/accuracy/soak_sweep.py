@@ -33,6 +33,11 @@ plant's change.
     python3 bench/accuracy/soak_sweep.py [--trainer target/release/trainer] [--hours 12,24]
         [--seeds 1-8] [--pairs 3] [--plants doc,d3,fast-design3] [--fit-args "..."]
         [--plan-args "..."] [--dir target/soak-sweep] [--out after.jsonl] [--compare before.jsonl]
+        [--noise-free-training]
+
+`--noise-free-training` trains on each planned run less its gyro noise (the run minus its `--noise-only`
+twin, the same noise sample for sample): the soak error left is what the plan identifies, not the noise
+(docs/decisions.md, "Trained without noise").
 
 Runs are simulated once per directory and reused (a planned run under a digest of its set
 points); fits and evaluations are redone every time, so two trainers compare on the same
@@ -78,11 +83,38 @@ def simulate(trainer, plant_args, args, seed, path):
     return path
 
 
+def noise_free(trainer, plant_args, plan, train):
+    """The planned run `train` without its gyro noise: its rate less its noise-only twin's (`--noise-only`, same
+    seed, the same noise sample for sample), plus the reference. Trained on it, a model's soak error is what the
+    run identifies, not what its noise hides."""
+    twin = simulate(trainer, plant_args, ["--chamber-profile", plan, "--noise-only"], 503,
+                    train.replace(".csv", "_noise.csv"))
+    path = train.replace(".csv", "_noise_free.csv")
+    if os.path.exists(path):
+        return path
+    data = [line for line in open(twin) if not line.startswith(("#", "time_s"))]
+    with open(train) as src, open(path + ".part", "w") as out:
+        rows = iter(data)
+        for line in src:
+            if line.startswith(("#", "time_s")):
+                out.write(line)
+                continue
+            ours, theirs = line.rstrip("\n").split(","), next(rows).rstrip("\n").split(",")
+            assert ours[0] == theirs[0], f"{train} and {twin} part at t = {ours[0]} s"
+            # time_s,rate_dph,temp_c,ref_dph: rate less the twin's noise (its rate less its reference).
+            ours[1] = f"{float(ours[1]) - float(theirs[1]) + float(theirs[3]):.6f}"
+            out.write(",".join(ours) + "\n")
+    os.replace(path + ".part", path)
+    return path
+
+
 def score(a, plants, runs, plant, hours, seed, plan):
     d = os.path.join(a.dir, plant)
     train = simulate(a.trainer, plants[plant], ["--chamber-profile", plan], 503,
                      os.path.join(d, f"planned{hours}_{set_points_digest(plan)}.csv"))
-    tag = f"{hours}h_s{seed}"
+    if a.noise_free_training:
+        train = noise_free(a.trainer, plants[plant], plan, train)
+    tag = f"{hours}h_s{seed}" + ("_noise_free" if a.noise_free_training else "")
     model, fit_json = os.path.join(d, f"{tag}.bin"), os.path.join(d, f"{tag}.fit.json")
     report = os.path.join(d, f"{tag}.eval.json")
     run([a.trainer, "fit", train, "-o", model, "--force", "-q", "--json", fit_json, *shlex.split(a.fit_args)])
@@ -217,6 +249,9 @@ def main():
     p.add_argument("--plants", help="default: every plant (doc, unit1, unit2, other, d1 ... d16, fast-doc, ...)")
     p.add_argument("--out", help="write every training's figures here, as JSON lines")
     p.add_argument("--compare", help="a previous --out file: both summaries and each plant's change")
+    p.add_argument("--noise-free-training", action="store_true",
+                   help="train on each planned run less its gyro noise (its --noise-only twin): what the run "
+                        "identifies, apart from what its noise hides")
     a = p.parse_args()
     if not 1 <= a.pairs <= len(PAIR_SEEDS):
         p.error(f"--pairs must be 1 ... {len(PAIR_SEEDS)}")
