@@ -27,9 +27,19 @@ use crate::dataset::RunSet;
 pub const LAG_BANK_EXCESS_FACTOR: f64 = 1.0;
 
 /// The response bank's model error in use as a multiple of its model error
-/// on the training runs: its many weights follow the training run closer
-/// than any other history.
+/// on the training runs, at most: its many weights follow the training run
+/// closer than any other history. Runs up to [`RESPONSE_BANK_EXCESS_HOURS`]
+/// long take it; longer ones less ([`response_bank_excess_factor`]).
 pub const RESPONSE_BANK_EXCESS_FACTOR: f64 = 2.0;
+
+/// Hours of training over which the response bank's excess factor less one
+/// falls as one over the hours: `1 + RESPONSE_BANK_EXCESS_HOURS / hours`,
+/// 2 after a 12-h run, 1.5 after 24 h. Its weights are as many
+/// whatever the run's length, so the more blocks each weight is fitted on,
+/// the nearer its training residual comes to what other histories leave.
+/// Measured with `bench/accuracy/soak_sweep.py --pairs 5` (docs/methods.md,
+/// "The forecast").
+pub const RESPONSE_BANK_EXCESS_HOURS: f64 = 12.0;
 
 /// The response bank's factor where its regression weighed the runs'
 /// settled levels ([`super::settled_blocks`]): part of its training residual
@@ -39,12 +49,16 @@ pub const WEIGHED_RESPONSE_BANK_EXCESS_FACTOR: f64 = 1.25;
 
 /// The response bank's excess factor: [`WEIGHED_RESPONSE_BANK_EXCESS_FACTOR`]
 /// where its regression weighed the runs' settled levels
-/// (`settled_levels_weighed`), [`RESPONSE_BANK_EXCESS_FACTOR`] elsewhere.
-pub fn response_bank_excess_factor(settled_levels_weighed: bool) -> f64 {
+/// (`settled_levels_weighed`); elsewhere `1 +`
+/// [`RESPONSE_BANK_EXCESS_HOURS`]` / training_hours` (the hours its
+/// regression fitted), at most [`RESPONSE_BANK_EXCESS_FACTOR`] (an unknown
+/// or zero length takes it).
+pub fn response_bank_excess_factor(settled_levels_weighed: bool, training_hours: f64) -> f64 {
     if settled_levels_weighed {
         WEIGHED_RESPONSE_BANK_EXCESS_FACTOR
     } else {
-        RESPONSE_BANK_EXCESS_FACTOR
+        // A NaN length is 0 here (f64::max), and 12 h / 0 is infinite: both take the cap.
+        (1.0 + RESPONSE_BANK_EXCESS_HOURS / training_hours.max(0.0)).min(RESPONSE_BANK_EXCESS_FACTOR)
     }
 }
 
@@ -197,18 +211,40 @@ mod tests {
             std100_dph: 0.02,
             noise_floor_std100_dph: Some(0.005),
         };
-        let weighed = in_use_std100(residual, response_bank_excess_factor(true));
-        let plain = in_use_std100(residual, response_bank_excess_factor(false));
+        let weighed = in_use_std100(residual, response_bank_excess_factor(true, 24.0));
+        let plain = in_use_std100(residual, response_bank_excess_factor(false, 24.0));
         assert!(residual.std100_dph < weighed && weighed < plain, "{weighed} {plain}");
         let at_floor = TrainingResidual {
             std100_dph: 0.005,
             noise_floor_std100_dph: Some(0.005),
         };
         let (w, p) = (
-            in_use_std100(at_floor, response_bank_excess_factor(true)),
-            in_use_std100(at_floor, response_bank_excess_factor(false)),
+            in_use_std100(at_floor, response_bank_excess_factor(true, 24.0)),
+            in_use_std100(at_floor, response_bank_excess_factor(false, 24.0)),
         );
         assert!((w - 0.005).abs() < 1e-12 && (p - 0.005).abs() < 1e-12, "{w} {p}");
+    }
+
+    #[test]
+    fn a_plain_response_bank_fitted_on_more_hours_forecasts_less_excess_up_to_the_cap() {
+        let factor = |hours| response_bank_excess_factor(false, hours);
+        // One over the hours past the cap's 12 h: 1.5 after the 24-h plan, 1.25 after 48 h.
+        assert!((factor(24.0) - 1.5).abs() < 1e-12, "{}", factor(24.0));
+        assert!((factor(48.0) - 1.25).abs() < 1e-12, "{}", factor(48.0));
+        assert!(factor(48.0) < factor(24.0) && factor(48.0) > 1.0);
+        // Shorter runs, and a length unknown, zero or not a number, take the cap.
+        for hours in [3.0, 12.0, 0.0, -1.0, f64::NAN] {
+            let f = factor(hours);
+            assert!((f - RESPONSE_BANK_EXCESS_FACTOR).abs() < 1e-12, "{hours} h: {f}");
+        }
+        // A fit that weighed settled levels keeps its own factor, whatever its length.
+        for hours in [3.0, 12.0, 24.0] {
+            let f = response_bank_excess_factor(true, hours);
+            assert!(
+                (f - WEIGHED_RESPONSE_BANK_EXCESS_FACTOR).abs() < 1e-12,
+                "{hours} h: {f}"
+            );
+        }
     }
 
     #[test]

@@ -44,13 +44,15 @@ impl BankReport {
 
     /// The forecast's factor for a deployed response bank: smaller where its
     /// regression weighed the runs' settled levels
-    /// ([`forecast::WEIGHED_RESPONSE_BANK_EXCESS_FACTOR`]).
+    /// ([`forecast::WEIGHED_RESPONSE_BANK_EXCESS_FACTOR`]), and the more
+    /// hours it fitted ([`forecast::response_bank_excess_factor`]).
     pub fn response_bank_excess_factor(&self) -> f64 {
+        let structure = self.structure.as_ref();
         forecast::response_bank_excess_factor(
-            self.structure
-                .as_ref()
+            structure
                 .and_then(|s| s.response_bank_settled_levels_weighed)
                 .unwrap_or(false),
+            structure.and_then(|s| s.response_bank_training_hours).unwrap_or(0.0),
         )
     }
 }

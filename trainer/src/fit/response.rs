@@ -142,6 +142,8 @@ pub struct Identified {
     pub held_out_rms_dph: f64,
     /// Its regression weighed the runs' settled levels ([`super::settled_blocks`]).
     pub settled_levels_weighed: bool,
+    /// Hours of training its regression fitted: its [`BLOCK_S`] blocks, h.
+    pub training_hours: f64,
 }
 
 /// [`identify`], with the fitted model's training residual and held-out
@@ -158,6 +160,7 @@ pub fn identify_with_residual<T: RunSet + ?Sized>(train: &T, opts: &FitOptions) 
         training_std100_dph,
         held_out_rms_dph,
         settled_levels_weighed: blocks.settled_levels_weighed(),
+        training_hours: blocks.hours(),
     })
 }
 
@@ -375,6 +378,11 @@ impl ChannelBlocks {
     /// span their range and are weighed ([`super::settled_blocks`]).
     pub fn settled_levels_weighed(&self) -> bool {
         self.weight.iter().any(|&w| w > 1.0)
+    }
+
+    /// Hours of training the blocks hold ([`BLOCK_S`] each), h.
+    pub fn hours(&self) -> f64 {
+        self.y.len() as f64 * BLOCK_S / 3600.0
     }
 }
 
@@ -602,6 +610,8 @@ pub struct StructureChoice {
     /// The response bank's regression weighed the runs' settled levels
     /// ([`super::settled_blocks`]; `None`: not identified).
     pub response_bank_settled_levels_weighed: Option<bool>,
+    /// Hours of training the response bank's regression fitted, h (`None`: not identified).
+    pub response_bank_training_hours: Option<f64>,
 }
 
 /// The response bank replaces the lag bank when its training residual is
@@ -631,6 +641,7 @@ impl StructureChoice {
     pub fn between(lag_bank: [f64; 2], noise_floor_std100_dph: Option<f64>, response: Option<&Identified>) -> Self {
         StructureChoice {
             response_bank_settled_levels_weighed: response.map(|r| r.settled_levels_weighed),
+            response_bank_training_hours: response.map(|r| r.training_hours),
             ..Self::from_scores(
                 lag_bank,
                 noise_floor_std100_dph,
@@ -656,6 +667,7 @@ impl StructureChoice {
                 train < RESPONSE_BANK_MARGIN * lag_bank_std100_dph && held_out < lag_bank_held_out_rms_dph
             }),
             response_bank_settled_levels_weighed: None,
+            response_bank_training_hours: None,
         }
     }
 }
