@@ -68,7 +68,10 @@ fn a_run_whose_coil_lags_run_away_is_fitted_with_the_prior_instead_of_refused() 
     );
     assert_eq!(v["structure"]["response_bank"], true, "{:#}", v["structure"]);
     // The response bank's in-use forecast: the noise floor as it is, the
-    // model error above it doubled (docs/methods.md, "The forecast").
+    // model error above it doubled, the factor's cap for regressions of up
+    // to 12 h (1 + 12 h / hours; docs/methods.md, "The forecast").
+    let hours = v["structure"]["response_bank_training_hours"].as_f64().unwrap();
+    assert!((11.0..=12.0).contains(&hours), "{hours} h of 10-s blocks in a 12-h run");
     let (training, floor) = (
         v["training_std100_dph"].as_f64().unwrap(),
         v["structure"]["noise_floor_std100_dph"].as_f64().unwrap(),
