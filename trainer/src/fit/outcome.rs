@@ -114,6 +114,27 @@ impl FitOutcome {
         Some(bank.training_std100_dph? / bank.noise_floor_std100_dph?).filter(|r| r.is_finite())
     }
 
+    /// The factor the settled forecast applies to the training runs' own
+    /// settled spread ([`super::vouch::settled_forecast_dph`]):
+    /// [`super::vouch::WEIGHED_RESPONSE_BANK_FLOOR_FACTOR`] where the deployed
+    /// model is a response bank whose regression weighed the runs' settled
+    /// levels, 1 elsewhere.
+    pub fn settled_floor_factor(&self) -> f64 {
+        match &self.report {
+            FitReport::Bank(bank)
+                if bank.response_bank_chosen()
+                    && bank
+                        .structure
+                        .as_ref()
+                        .and_then(|s| s.response_bank_settled_levels_weighed)
+                        .unwrap_or(false) =>
+            {
+                super::vouch::WEIGHED_RESPONSE_BANK_FLOOR_FACTOR
+            }
+            _ => 1.0,
+        }
+    }
+
     /// The factor [`Self::predicted_in_use_std100_dph`] applies to the
     /// model error above the noise floor; `None` for the methods it does
     /// not forecast.

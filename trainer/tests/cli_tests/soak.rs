@@ -331,6 +331,10 @@ fn a_fit_on_a_run_settled_in_every_band_forecasts_a_soak_s_spread_as_its_own_lev
     let level_noise = fit["training_settled_noise_dph"].as_f64().unwrap();
     assert!(level_noise > 0.0, "{fit}");
     let forecast = fit["predicted_settled_spread_dph"].as_f64().unwrap();
+    // The documented gyro takes the lag bank here, whose own spread counts as
+    // it is (a response bank that weighed its levels takes it
+    // `WEIGHED_RESPONSE_BANK_FLOOR_FACTOR` times: vouch's unit tests).
+    assert_eq!(fit["structure"]["response_bank"], false, "{fit}");
     let expected = floor.hypot(::trainer::fit::vouch::SOAK_NOISE_RANGE_SD * level_noise);
     assert!(
         (forecast - expected).abs() <= 1e-12 * expected && forecast > floor,

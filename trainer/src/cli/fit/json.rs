@@ -72,10 +72,16 @@ fn settled_forecast(o: &FitOutcome, in_use: &InUse, floor: Option<&SettledFloor>
         return format!("not forecast: this method's fit does not read the runs' settled levels{at_least}");
     };
     if let (Some(dph), Some(f)) = (forecast, floor) {
+        let factor = o.settled_floor_factor();
+        let scaled = if factor > 1.0 {
+            format!(" (× {factor}: a response bank that weighed its settled levels matches them closer than others)")
+        } else {
+            String::new()
+        };
         return format!(
             "forecast: the runs hold a settled level in every 20-°C band; a soak test of other levels and order \
-             reads about the training run's own settled spread, {:.4e} °/h over {} levels, with eight levels' noise \
-             ({} × {:.1e} °/h) in quadrature: {dph:.4e} °/h ({}; docs/methods.md)",
+             reads about the training run's own settled spread, {:.4e} °/h over {} levels{scaled}, with eight levels' \
+             noise ({} × {:.1e} °/h) in quadrature: {dph:.4e} °/h ({}; docs/methods.md)",
             f.spread_dph,
             f.levels,
             trainer::fit::vouch::SOAK_NOISE_RANGE_SD,

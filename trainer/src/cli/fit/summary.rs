@@ -395,7 +395,7 @@ pub(super) fn settled_forecast_dph(
     let every_band_settled = outcome
         .bank_search()
         .is_some_and(|s| s.coverage.unsettled_bands_c(in_use).is_empty());
-    fit::vouch::settled_forecast_dph(floor, every_band_settled)
+    fit::vouch::settled_forecast_dph(floor, every_band_settled, outcome.settled_floor_factor())
 }
 
 /// What the fit vouches for, as `trainer fit` prints it below the coverage
