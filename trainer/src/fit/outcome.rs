@@ -47,13 +47,22 @@ impl BankReport {
     /// ([`forecast::WEIGHED_RESPONSE_BANK_EXCESS_FACTOR`]), and the more
     /// hours it fitted ([`forecast::response_bank_excess_factor`]).
     pub fn response_bank_excess_factor(&self) -> f64 {
-        let structure = self.structure.as_ref();
         forecast::response_bank_excess_factor(
-            structure
-                .and_then(|s| s.response_bank_settled_levels_weighed)
-                .unwrap_or(false),
-            structure.and_then(|s| s.response_bank_training_hours).unwrap_or(0.0),
+            self.response_bank_weighed_settled_levels(),
+            self.structure
+                .as_ref()
+                .and_then(|s| s.response_bank_training_hours)
+                .unwrap_or(0.0),
         )
+    }
+
+    /// Whether the response bank's regression weighed the runs' settled
+    /// levels ([`super::settled_blocks`]); false where it was not identified.
+    pub fn response_bank_weighed_settled_levels(&self) -> bool {
+        self.structure
+            .as_ref()
+            .and_then(|s| s.response_bank_settled_levels_weighed)
+            .unwrap_or(false)
     }
 }
 
@@ -121,14 +130,7 @@ impl FitOutcome {
     /// levels, 1 elsewhere.
     pub fn settled_floor_factor(&self) -> f64 {
         match &self.report {
-            FitReport::Bank(bank)
-                if bank.response_bank_chosen()
-                    && bank
-                        .structure
-                        .as_ref()
-                        .and_then(|s| s.response_bank_settled_levels_weighed)
-                        .unwrap_or(false) =>
-            {
+            FitReport::Bank(bank) if bank.response_bank_chosen() && bank.response_bank_weighed_settled_levels() => {
                 super::vouch::WEIGHED_RESPONSE_BANK_FLOOR_FACTOR
             }
             _ => 1.0,
